@@ -1,0 +1,1 @@
+"""Host-side drivers: talk to the (real or simulated) hardware over CAN and serial only."""

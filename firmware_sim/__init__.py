@@ -1,0 +1,1 @@
+"""Simulated devices: transducers, the DigiForce-style acquisition unit and their bus endpoints."""

@@ -1,0 +1,1 @@
+"""Plant models: the physical systems the rig simulates."""

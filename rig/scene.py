@@ -1,0 +1,123 @@
+"""Scene files: TOML documents in ``data/scenes/`` with explicit units, validated against schemas.
+
+A *schema* is a mapping ``name -> Field``. :func:`read_table` checks a TOML table against it:
+every key must be a field name (``L3 = "260 mm"``) or a field name with a unit suffix
+(``L3_mm = 260``); unknown keys, missing required keys and wrong units raise :class:`SceneError`
+naming the key and the file. Values come back in SI.
+"""
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+from rig.units import UnitError, to_si
+
+REQUIRED = object()
+
+
+class SceneError(ValueError):
+    """A scene file is unreadable, incomplete or inconsistent; the message names file and key."""
+
+
+@dataclass(frozen=True)
+class Field:
+    """One scene parameter: its SI unit (``"1"`` = pure number, ``None`` = not a quantity) and default."""
+
+    unit: str | None = "1"
+    default: Any = REQUIRED
+    doc: str = ""
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED
+
+
+@dataclass
+class Scene:
+    """A loaded scene: its raw TOML tree and where it came from."""
+
+    path: Path
+    data: dict[str, Any]
+    text: str
+
+    def section(self, name: str, required: bool = True) -> dict[str, Any]:
+        """The sub-table ``name`` (dotted for nesting); a missing required one is a :class:`SceneError`."""
+        node: Any = self.data
+        for part in name.split("."):
+            if not isinstance(node, dict) or part not in node:
+                if required:
+                    raise SceneError(f"{self.path}: missing section [{name}]")
+                return {}
+            node = node[part]
+        if not isinstance(node, dict):
+            raise SceneError(f"{self.path}: [{name}] must be a table, got {type(node).__name__}")
+        return node
+
+    def read(self, name: str, schema: Mapping[str, Field], required: bool = True,
+             allow_tables: bool = False) -> dict[str, Any]:
+        """Validate section ``name`` against ``schema`` (see :func:`read_table`)."""
+        return read_table(self.section(name, required), schema, f"{self.path} [{name}]", allow_tables)
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Parse a scene file; syntax errors are reported with the file name."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SceneError(f"cannot read scene file {path}: {exc.strerror}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    return Scene(path=path, data=data, text=text)
+
+
+def _match(key: str, schema: Mapping[str, Field]) -> tuple[str, str | None] | None:
+    """Find the field a key names, and the unit its suffix gives (longest field name wins)."""
+    if key in schema:
+        return key, None
+    best = None
+    for name in schema:
+        if key.startswith(name + "_") and len(key) > len(name) + 1 and (best is None or len(name) > len(best)):
+            best = name
+    if best is None or schema[best].unit is None:
+        return None
+    return best, key[len(best) + 1:]
+
+
+def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str,
+               allow_tables: bool = False) -> dict[str, Any]:
+    """Check ``table`` against ``schema`` and return ``{field: value}`` with quantities in SI.
+
+    Fields with ``unit=None`` are passed through unchanged (strings, lists, tables). Sub-tables not in
+    the schema are an error unless ``allow_tables`` (then they are returned as they are).
+    """
+    out: dict[str, Any] = {}
+    for key, value in table.items():
+        if allow_tables and isinstance(value, dict) and key not in schema:
+            out[key] = value
+            continue
+        found = _match(key, schema)
+        if found is None:
+            known = ", ".join(sorted(schema)) or "(none)"
+            raise SceneError(f"{where}: unknown key {key!r} (known keys: {known})")
+        name, unit = found
+        if name in out:
+            raise SceneError(f"{where}: {name!r} is given twice (as {key!r} and another spelling)")
+        field = schema[name]
+        if field.unit is None:
+            out[name] = value
+            continue
+        try:
+            out[name] = to_si(value, field.unit, unit, what=f"{where}: key {key!r}")
+        except UnitError as exc:
+            raise SceneError(str(exc)) from None
+    for name, field in schema.items():
+        if name not in out:
+            if field.required:
+                raise SceneError(f"{where}: missing key {name!r}" + (f" ({field.doc})" if field.doc else ""))
+            out[name] = field.default
+    return out

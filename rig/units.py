@@ -1,0 +1,71 @@
+"""Physical quantities at the edges: parse ``"260 mm"`` or ``L3_mm = 260`` into SI floats.
+
+SI is used everywhere inside the code (m, kg, s, N, rad). Scene and device files may use any unit
+pint understands; the expected unit of a field is given as an SI unit string (``"m"``, ``"N/m"``,
+``"rad"``, ``"N*m"``, ``"rad/s"``, ``"1"`` for pure numbers).
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import pint
+
+ureg = pint.UnitRegistry()
+
+
+class UnitError(ValueError):
+    """A value has no unit, an unknown unit or a unit of the wrong dimension."""
+
+
+def _unit_text(suffix: str) -> str:
+    """Turn a key suffix like ``N_per_mm`` or ``N_m`` into a pint unit expression."""
+    return suffix.replace("_per_", "/").replace("_", "*")
+
+
+@lru_cache(maxsize=None)
+def _factor(unit: str, si_unit: str) -> float:
+    q = ureg.Quantity(1.0, unit)
+    return float(q.to(si_unit).magnitude)
+
+
+def is_dimensionless(si_unit: str) -> bool:
+    return si_unit in ("", "1")
+
+
+def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "value") -> float:
+    """Convert ``value`` to a float in ``si_unit``.
+
+    ``value`` is a number (its unit given by ``unit``, e.g. from a key suffix) or a string with its
+    unit (``"260 mm"``). Pure numbers are accepted without a unit only when ``si_unit`` is
+    dimensionless. Raises :class:`UnitError` naming ``what`` on any problem.
+    """
+    if isinstance(value, bool):
+        raise UnitError(f"{what}: expected a quantity in {si_unit or 'no unit'}, got the boolean {value}")
+    try:
+        if isinstance(value, str):
+            if unit is not None:
+                raise UnitError(f"{what}: the key already names the unit {unit!r}; give a plain number, not {value!r}")
+            q = ureg.Quantity(value)
+            if not isinstance(q, ureg.Quantity):
+                q = ureg.Quantity(float(q), "")
+            magnitude, unit_text = float(q.magnitude), str(q.units)
+            if unit_text in ("", "dimensionless") and not is_dimensionless(si_unit):
+                raise UnitError(f"{what}: {value!r} has no unit; expected something convertible to {si_unit}")
+            return magnitude * _factor(unit_text or "dimensionless", si_unit or "dimensionless")
+        if not isinstance(value, (int, float)):
+            raise UnitError(f"{what}: expected a number or a quantity string, got {type(value).__name__} {value!r}")
+        if unit is None:
+            if not is_dimensionless(si_unit):
+                raise UnitError(
+                    f"{what}: {value!r} has no unit; write e.g. \"{value} <unit>\" or suffix the key with a unit "
+                    f"(expected something convertible to {si_unit})")
+            return float(value)
+        return float(value) * _factor(_unit_text(unit), si_unit or "dimensionless")
+    except UnitError:
+        raise
+    except pint.DimensionalityError:
+        raise UnitError(f"{what}: {value!r}{' ' + unit if unit else ''} has the wrong dimension; "
+                        f"expected something convertible to {si_unit}") from None
+    except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError, TypeError, AttributeError) as exc:
+        raise UnitError(f"{what}: cannot read {value!r}{' with unit ' + unit if unit else ''} as a quantity "
+                        f"({exc})") from None
