@@ -1,0 +1,250 @@
+"""Host side of the CAN link: receive from any python-can bus, decode with the DBC, check, reassemble.
+
+Every irregularity (unknown id, wrong length, undecodable payload, error frame, sequence gap,
+incomplete or corrupt curve) becomes a :class:`LinkEvent` in :attr:`CanHost.events`; nothing
+received before it is lost and reception continues.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import can
+import cantools
+import numpy as np
+
+from drivers.can.reassembly import Curve, CurveAssembler
+from drivers.can.sequence import SequenceChecker
+from drivers.can.timebase import unwrap
+
+DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
+COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statistics": 5, "identify": 6}
+TARE_CHANNELS = {"x": 0, "y": 1, "y2": 2}
+STATES = {0: "idle", 1: "measuring", 2: "evaluating", 3: "error"}
+ACK = {0: "done", 1: "rejected", 2: "unknown_command"}
+PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min",
+                  "XAtYMax": "x_at_y_max", "Duration": "duration"}
+TICK_WRAP = 6.5536          # s, 16-bit Tick at 100 us
+EDGE_WRAP = 16.777216       # s, 24-bit EdgeTime at 1 us
+
+
+@dataclass(frozen=True)
+class LinkEvent:
+    """Something wrong on the link: ``kind`` is one of sequence_gap, unknown_frame, bad_length,
+    decode_error, error_frame, curve; ``count`` = frames (or pairs) concerned."""
+
+    time: float
+    kind: str
+    frame_id: int
+    count: int
+    detail: str
+
+
+@dataclass
+class CurveResult:
+    """Evaluation result of one curve: OK/NOK, failing elements and process values (SI)."""
+
+    number: int
+    ok: bool
+    first_fail: int | None
+    fail_mask: int
+    process_values: dict[str, float] = field(default_factory=dict)
+
+
+class CanHost:
+    """Receives and decodes the device's frames from ``bus``; sends host commands to it."""
+
+    def __init__(self, bus: can.BusABC, dbc_path: str | Path = DBC_PATH) -> None:
+        self.bus = bus
+        self.db = cantools.database.load_file(str(dbc_path))
+        self._by_id = {m.frame_id: m for m in self.db.messages if "DEVICE" in m.senders}
+        self._command = self.db.get_message_by_name("HostCommand")
+        live = self.db.get_message_by_name("LiveXY")
+        self.x_lsb, self.y_lsb = live.get_signal_by_name("X").scale, live.get_signal_by_name("Y").scale
+        self._fd_pairs = sum(s.name.startswith("X") for s in self.db.get_message_by_name("CurveBlockFD").signals)
+        self._handlers = {"Heartbeat": self._heartbeat, "StatusCounters": self._counters,
+                          "LiveXY": self._live, "LiveXYFD": self._live_fd, "CurveHeader": self._curve_header,
+                          "CurveBlock": self._curve_block, "CurveBlockFD": self._curve_block_fd,
+                          "CurveEnd": self._curve_end, "Result": self._result, "ResultValue": self._result_value,
+                          "Encoder1": self._encoder, "Encoder2": self._encoder, "Torque": self._torque,
+                          "CommandAck": self._ack}
+        self.sequence = SequenceChecker()
+        self.assembler = CurveAssembler(self.x_lsb, self.y_lsb, self._fd_pairs)
+        self.events: list[LinkEvent] = []
+        self.frames_received = 0
+        self.status: dict[str, Any] = {}
+        self.counters: dict[str, int] = {}
+        self.results: dict[int, CurveResult] = {}
+        self.encoders: dict[int, dict[str, float]] = {}
+        self.torque: list[tuple[float, float, float]] = []      # (t s, torque N*m, brake force N)
+        self.acks: list[dict[str, Any]] = []
+        self._live_t: list[float] = []
+        self._live_x: list[float] = []
+        self._live_y: list[float] = []
+        self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
+        self._host_seq = 0
+        self._last_result: CurveResult | None = None
+
+    # ------------------------------------------------------------------ reception
+    def poll(self, timeout: float = 0.0, max_frames: int | None = None) -> int:
+        """Receive and process frames until none arrives within ``timeout`` (s); returns how many."""
+        n = 0
+        while max_frames is None or n < max_frames:
+            msg = self.bus.recv(timeout)
+            if msg is None:
+                break
+            self.receive(msg)
+            n += 1
+        return n
+
+    def receive(self, msg: can.Message) -> None:
+        """Process one received frame; problems become events, never exceptions."""
+        self.frames_received += 1
+        fid = msg.arbitration_id
+        if msg.is_error_frame:
+            self._event(msg, "error_frame", 1, "error frame on the bus")
+            return
+        spec = self._by_id.get(fid)
+        if spec is None:
+            if fid != self._command.frame_id:
+                self._event(msg, "unknown_frame", 1, f"frame id 0x{fid:03X} is not a device frame of the DBC")
+            return
+        if len(msg.data) != spec.length:
+            self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(msg.data)} data bytes, DBC says {spec.length}")
+            return
+        try:
+            raw = spec.decode(bytes(msg.data), decode_choices=False, scaling=False)
+        except (cantools.database.errors.DecodeError, ValueError, KeyError) as exc:
+            self._event(msg, "decode_error", 1, f"{spec.name} (0x{fid:03X}): {exc}")
+            return
+        gap = self.sequence.check(fid, raw["Seq"])
+        if gap:
+            self._event(msg, "sequence_gap", gap, f"{spec.name} (0x{fid:03X}): {gap} frame(s) missing before Seq {raw['Seq']}")
+        self._handlers[spec.name](msg, spec, raw)
+
+    def _event(self, msg: can.Message, kind: str, count: int, detail: str) -> None:
+        self.events.append(LinkEvent(msg.timestamp, kind, msg.arbitration_id, count, detail))
+
+    def events_of(self, kind: str) -> list[LinkEvent]:
+        """The events of one kind, in arrival order."""
+        return [e for e in self.events if e.kind == kind]
+
+    # ------------------------------------------------------------------ frame handlers
+    def _heartbeat(self, msg, spec, raw) -> None:
+        self._device_time = raw["DeviceTime"] * 1e-3
+        self.status = {"state": STATES.get(raw["State"], f"unknown({raw['State']})"), "program": raw["Program"],
+                       "last_ok": {0: False, 1: True}.get(raw["LastOk"]), "device_time": self._device_time,
+                       "error_code": raw["ErrorCode"]}
+
+    def _counters(self, msg, spec, raw) -> None:
+        self.counters = {"live_dropped": raw["LiveDropped"], "curve_count": raw["CurveCount"],
+                         "curves_pending": raw["CurvesPending"]}
+
+    def _live_time(self, tick: int) -> float:
+        t = unwrap(tick * 1e-4, TICK_WRAP, self._device_time)
+        self._device_time = max(self._device_time, t)
+        return t
+
+    def _live(self, msg, spec, raw) -> None:
+        self._live_t.append(self._live_time(raw["Tick"]))
+        self._live_x.append(raw["X"] * self.x_lsb)
+        self._live_y.append(raw["Y"] * self.y_lsb)
+
+    def _live_fd(self, msg, spec, raw) -> None:
+        t0, dt = self._live_time(raw["Tick"]), raw["Dt"] * 1e-6
+        for k in range(min(raw["NPairs"], self._fd_pairs)):
+            self._live_t.append(t0 + k * dt)
+            self._live_x.append(raw[f"X{k}"] * self.x_lsb)
+            self._live_y.append(raw[f"Y{k}"] * self.y_lsb)
+        self._device_time = max(self._device_time, self._live_t[-1])
+
+    def take_live(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Live pairs received since the last call: times (s, device time), X (m), Y (N)."""
+        out = np.array(self._live_t), np.array(self._live_x), np.array(self._live_y)
+        self._live_t, self._live_x, self._live_y = [], [], []
+        return out
+
+    def _curve_problems(self, msg, problems: list[str]) -> None:
+        for p in problems:
+            self._event(msg, "curve", 1, p)
+
+    def _curve_header(self, msg, spec, raw) -> None:
+        self._curve_problems(msg, self.assembler.header(raw["CurveNo"], raw["Count"], raw["Program"]))
+
+    def _curve_block(self, msg, spec, raw) -> None:
+        pair = np.array([[raw["X"], raw["Y"]]], dtype=np.int64)
+        self._curve_problems(msg, self.assembler.pairs(raw["CurveNo"], 16, raw["Block"], pair))
+
+    def _curve_block_fd(self, msg, spec, raw) -> None:
+        n = min(raw["NPairs"], self._fd_pairs)
+        pairs = np.array([[raw[f"X{k}"], raw[f"Y{k}"]] for k in range(n)], dtype=np.int64).reshape(n, 2)
+        self._curve_problems(msg, self.assembler.pairs(raw["CurveNo"], 256, raw["Block"] * self._fd_pairs, pairs))
+
+    def _curve_end(self, msg, spec, raw) -> None:
+        self._curve_problems(msg, self.assembler.end(raw["CurveNo"], raw["Count"], raw["Crc"], raw["Clipped"]))
+
+    @property
+    def curves(self) -> list[Curve]:
+        """Curves transferred completely, count and checksum verified."""
+        return [c for c in self.assembler.done if c.complete]
+
+    @property
+    def incomplete_curves(self) -> list[Curve]:
+        """Curves with missing pairs, a wrong count or checksum (kept with their ``received`` mask)."""
+        return [c for c in self.assembler.done if not c.complete]
+
+    def _result(self, msg, spec, raw) -> None:
+        first = None if raw["FirstFail"] == 127 else raw["FirstFail"]
+        self._last_result = CurveResult(raw["CurveNo"], bool(raw["Ok"]), first, raw["FailMask"])
+        self.results[raw["CurveNo"]] = self._last_result
+
+    def _result_value(self, msg, spec, raw) -> None:
+        res = self._last_result
+        signal = next((name for name in PROCESS_VALUES if name in raw), None)
+        if res is None or res.number % 256 != raw["CurveNo"] or signal is None:
+            self._event(msg, "curve", 1, f"process value for curve {raw['CurveNo']} (mod 256) without its Result frame")
+            return
+        res.process_values[PROCESS_VALUES[signal]] = float(raw[signal])
+
+    def _encoder(self, msg, spec, raw) -> None:
+        self.encoders[int(spec.name[-1])] = {"count": raw["Count"],
+                                             "edge_time": unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, self._device_time),
+                                             "received": msg.timestamp}
+
+    def _torque(self, msg, spec, raw) -> None:
+        torque = raw["Torque"] * spec.get_signal_by_name("Torque").scale
+        self.torque.append((self._live_time(raw["Tick"]), torque, raw["BrakeForce"] * self.y_lsb))
+
+    def _ack(self, msg, spec, raw) -> None:
+        self.acks.append({"cmd": raw["Cmd"], "arg": raw["Arg"], "host_seq": raw["HostSeq"],
+                          "status": ACK.get(raw["AckStatus"], f"unknown({raw['AckStatus']})")})
+
+    # ------------------------------------------------------------------ commands
+    def send_command(self, command: str, arg: int = 0) -> int:
+        """Send one host command (``start``, ``stop``, ``select_program``, ``tare``,
+        ``reset_statistics``, ``identify``); returns its HostSeq, echoed in the device's ack."""
+        if command not in COMMANDS:
+            raise ValueError(f"unknown CAN host command {command!r} (known: {', '.join(COMMANDS)})")
+        seq = self._host_seq
+        self._host_seq = (seq + 1) % 256
+        data = self._command.encode({"Cmd": COMMANDS[command], "Arg": arg, "HostSeq": seq}, strict=True)
+        self.bus.send(can.Message(arbitration_id=self._command.frame_id, data=data, is_extended_id=False))
+        return seq
+
+    def start(self) -> int:
+        return self.send_command("start")
+
+    def stop(self) -> int:
+        return self.send_command("stop")
+
+    def select_program(self, number: int) -> int:
+        return self.send_command("select_program", number)
+
+    def tare(self, channel: str) -> int:
+        if channel not in TARE_CHANNELS:
+            raise ValueError(f"unknown tare channel {channel!r} (known: {', '.join(TARE_CHANNELS)})")
+        return self.send_command("tare", TARE_CHANNELS[channel])
+
+    def reset_statistics(self) -> int:
+        return self.send_command("reset_statistics")

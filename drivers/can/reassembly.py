@@ -1,0 +1,89 @@
+"""Curve reassembly from CurveHeader / CurveBlock(FD) / CurveEnd frames.
+
+Pairs arrive as raw 20-bit counts; the end frame's count and CRC-16/CCITT-FALSE (over the raw pairs
+as little-endian int32, X then Y) are checked before a curve is declared complete. Anything that
+does not add up becomes a problem string and the (partial) curve is kept, never silently dropped.
+"""
+from __future__ import annotations
+
+import binascii
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Curve:
+    """One transferred curve: pairs in SI (X m, Y N); ``received`` marks the pairs that arrived."""
+
+    number: int
+    program: int
+    x: np.ndarray
+    y: np.ndarray
+    received: np.ndarray
+    clipped: int = 0
+    complete: bool = False
+    problems: list[str] = field(default_factory=list)
+
+
+def crc_of(raw_x: np.ndarray, raw_y: np.ndarray) -> int:
+    """CRC-16/CCITT-FALSE of raw pairs packed as little-endian int32, X then Y of each pair."""
+    return binascii.crc_hqx(np.column_stack([raw_x, raw_y]).astype("<i4").tobytes(), 0xFFFF)
+
+
+class CurveAssembler:
+    """Collects the blocks of one curve at a time; finished curves (complete or not) go to ``done``."""
+
+    def __init__(self, x_lsb: float, y_lsb: float, pairs_per_fd_block: int) -> None:
+        self.x_lsb, self.y_lsb, self.per_block = x_lsb, y_lsb, pairs_per_fd_block
+        self.done: list[Curve] = []
+        self._number: int | None = None
+        self._program = 0
+        self._raw: np.ndarray = np.zeros((0, 2), dtype=np.int64)
+        self._got: np.ndarray = np.zeros(0, dtype=bool)
+
+    def header(self, number: int, count: int, program: int) -> list[str]:
+        """A new curve starts; an unfinished previous one is closed as incomplete."""
+        problems = self._abandon(f"header of curve {number} arrived before its end frame")
+        self._number, self._program = number, program
+        self._raw = np.zeros((count, 2), dtype=np.int64)
+        self._got = np.zeros(count, dtype=bool)
+        return problems
+
+    def pairs(self, number_bits: int, number_mod: int, first: int, raw: np.ndarray) -> list[str]:
+        """Store raw pairs (shape (n, 2)) starting at pair index ``first`` of the curve whose number
+        modulo ``number_mod`` is ``number_bits``."""
+        if self._number is None or self._number % number_mod != number_bits:
+            return [f"curve block (curve {number_bits} mod {number_mod}, pair {first}) without its header"]
+        if first + len(raw) > len(self._got):
+            return [f"curve {self._number}: block at pair {first} (+{len(raw)}) beyond the announced {len(self._got)} pairs"]
+        self._raw[first:first + len(raw)] = raw
+        self._got[first:first + len(raw)] = True
+        return []
+
+    def end(self, number: int, count: int, crc: int, clipped: int) -> list[str]:
+        """Close the curve: check number, count, missing pairs and CRC."""
+        if self._number is None or self._number != number:
+            return [f"end frame of curve {number} without its header"]
+        problems = []
+        if count != len(self._got):
+            problems.append(f"curve {number}: end frame says {count} pairs, header said {len(self._got)}")
+        missing = int(np.count_nonzero(~self._got))
+        if missing:
+            problems.append(f"curve {number}: {missing} of {len(self._got)} pairs missing")
+        elif crc_of(self._raw[:, 0], self._raw[:, 1]) != crc:
+            problems.append(f"curve {number}: checksum mismatch (got 0x{crc:04X})")
+        self._finish(clipped, problems)
+        return problems
+
+    def _abandon(self, why: str) -> list[str]:
+        if self._number is None:
+            return []
+        problems = [f"curve {self._number}: {why}"]
+        self._finish(0, problems)
+        return problems
+
+    def _finish(self, clipped: int, problems: list[str]) -> None:
+        self.done.append(Curve(self._number, self._program, self._raw[:, 0] * self.x_lsb,
+                               self._raw[:, 1] * self.y_lsb, self._got, clipped, not problems, problems))
+        self._number = None

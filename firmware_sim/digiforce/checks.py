@@ -1,0 +1,75 @@
+"""Small validators for program settings (dicts from the host): clear errors naming key and value."""
+from __future__ import annotations
+
+import math
+from typing import Any, Iterable, Mapping
+
+from rig.units import UnitError, to_si
+
+from .errors import DigiForceError
+
+
+def known_keys(cfg: Mapping[str, Any], keys: Iterable[str], where: str) -> None:
+    """Reject keys that are not in ``keys``."""
+    if not isinstance(cfg, Mapping):
+        raise DigiForceError(f"{where}: expected a table/dict, got {type(cfg).__name__} {cfg!r}")
+    unknown = sorted(set(cfg) - set(keys))
+    if unknown:
+        raise DigiForceError(f"{where}: unknown key {unknown[0]!r} (known keys: {', '.join(sorted(keys))})")
+
+
+def choice(cfg: Mapping[str, Any], key: str, options: Iterable[str], where: str, default: Any = None) -> Any:
+    value = cfg.get(key, default)
+    options = tuple(options)
+    if value not in options:
+        raise DigiForceError(f"{where}.{key}: {value!r} is not one of {', '.join(map(repr, options))}")
+    return value
+
+
+def flag(cfg: Mapping[str, Any], key: str, where: str, default: bool) -> bool:
+    value = cfg.get(key, default)
+    if not isinstance(value, bool):
+        raise DigiForceError(f"{where}.{key}: expected true or false, got {value!r}")
+    return value
+
+
+def text(cfg: Mapping[str, Any], key: str, where: str, default: str | None = None) -> str:
+    value = cfg.get(key, default)
+    if not isinstance(value, str) or not value:
+        raise DigiForceError(f"{where}.{key}: expected a non-empty string, got {value!r}")
+    return value
+
+
+def quantity(value: Any, unit: str, what: str) -> float:
+    """A number (already in SI ``unit``) or a string with a unit (``"2 mm"``) as a finite SI float."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise DigiForceError(f"{what}: expected a number or a quantity string, got {value!r}")
+    try:
+        out = to_si(value, unit, unit if isinstance(value, (int, float)) and unit not in ("", "1") else None, what)
+    except UnitError as exc:
+        raise DigiForceError(str(exc)) from None
+    if not math.isfinite(out):
+        raise DigiForceError(f"{what}: must be finite, got {value!r}")
+    return out
+
+
+def number(cfg: Mapping[str, Any], key: str, unit: str, where: str, default: Any = None,
+           minimum: float | None = None, positive: bool = False) -> float:
+    """``cfg[key]`` as an SI quantity; ``default`` when absent; range checks with clear messages."""
+    if key not in cfg and default is None:
+        raise DigiForceError(f"{where}: missing key {key!r}")
+    value = quantity(cfg.get(key, default), unit, f"{where}.{key}")
+    if positive and not value > 0:
+        raise DigiForceError(f"{where}.{key}: must be > 0, got {cfg.get(key, default)!r}")
+    if minimum is not None and value < minimum:
+        raise DigiForceError(f"{where}.{key}: must be >= {minimum}, got {cfg.get(key, default)!r}")
+    return value
+
+
+def pick_step(value: float, steps: Iterable[float], what: str) -> float:
+    """The step equal to ``value`` (relative tolerance 1e-9) or an error listing the steps."""
+    steps = tuple(steps)
+    for s in steps:
+        if math.isclose(value, s, rel_tol=1e-9, abs_tol=1e-15):
+            return s
+    raise DigiForceError(f"{what}: {value:g} is not one of the unit's steps ({', '.join(f'{s:g}' for s in steps)})")

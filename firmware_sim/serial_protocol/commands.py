@@ -1,0 +1,147 @@
+"""The command set of the serial protocol (docs/serial-protocol.md, section 4) executed on a DigiForce.
+
+``Commands.execute(command, data)`` returns the response data field: a 2-digit status followed by
+the payload (status ``00``) or an error message.
+"""
+from __future__ import annotations
+
+import base64
+import json
+import threading
+from typing import Any, Callable
+
+import numpy as np
+
+OK, UNKNOWN, SYNTAX, REJECTED, NO_DATA, STATE, INTERNAL = 0, 1, 2, 3, 4, 5, 9
+BLOCK_PAIRS = 128          # value pairs per curve block (CB); CT blocks hold as many times
+MAX_MESSAGE = 200          # characters of an error message
+
+
+class CommandError(Exception):
+    """A request the device answers with status ``code``."""
+
+    def __init__(self, code: int, message: str) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+def _json(obj: Any) -> str:
+    return json.dumps(obj, separators=(",", ":"), ensure_ascii=True,
+                      default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
+
+
+def _int(text: str, what: str) -> int:
+    try:
+        return int(text, 10)
+    except ValueError:
+        raise CommandError(SYNTAX, f"{what} must be a decimal integer, got {text!r}") from None
+
+
+def _printable(text: str) -> str:
+    clean = "".join(c if c.isascii() and c.isprintable() else "?" for c in text)
+    return clean[:MAX_MESSAGE]
+
+
+def _b64(values: np.ndarray) -> str:
+    return base64.b64encode(np.ascontiguousarray(values, dtype="<f8").tobytes()).decode("ascii")
+
+
+class Commands:
+    """Dispatch requests to ``device`` (a DigiForce) under ``lock``; ``clock()`` gives the start/stop
+    times (s) handed to the device, ``None`` = "now" for the device (its next / latest sample)."""
+
+    def __init__(self, device: Any, clock: Callable[[], float] | None, lock: threading.Lock) -> None:
+        self._device, self._lock = device, lock
+        self._clock = clock or (lambda: None)
+        self._latched: dict[str, np.ndarray] = {}
+        # handlers return the payload; commands without one return whatever the device method returns
+        self._table: dict[str, Callable[[str], Any]] = {
+            "ID": lambda d: _printable(str(self._device.identify())),
+            "PS": self._select, "PG": self._get_program, "PW": self._set_program,
+            "ST": lambda d: self._device.start(self._clock()),
+            "SP": lambda d: self._device.stop(self._clock()),
+            "TA": self._tare, "CH": self._latch,
+            "CB": lambda d: self._block(d, "xy"), "CT": lambda d: self._block(d, "t"),
+            "CY": lambda d: self._block(d, "y2"),
+            "RR": self._result,
+            "RS": lambda d: _json(self._device.statistics(self._program(d))),
+            "RZ": lambda d: self._device.reset_statistics(self._program(d)),
+            "SS": lambda d: _json(self._device.status()),
+        }
+
+    def execute(self, command: str, data: str) -> str:
+        """Response data field for one request: ``"00" + payload`` or ``"NN" + error message``."""
+        handler = self._table.get(command)
+        try:
+            if handler is None:
+                raise CommandError(UNKNOWN, f"unknown command {command!r}")
+            with self._lock:
+                payload = handler(data)
+            return f"{OK:02d}{payload if isinstance(payload, str) else ''}"
+        except CommandError as e:
+            code, message = e.code, str(e)
+        except (ValueError, KeyError, IndexError, TypeError) as e:
+            code, message = REJECTED, f"{type(e).__name__}: {e}"
+        except RuntimeError as e:
+            code, message = STATE, str(e)
+        except Exception as e:  # the device must answer, never die: report the fault to the host
+            code, message = INTERNAL, f"{type(e).__name__}: {e}"
+        return f"{code:02d}{_printable(message)}"
+
+    def _program(self, data: str) -> int:
+        return _int(data, "program number") if data else int(self._device.active_program)
+
+    def _select(self, data: str) -> str:
+        if data:
+            self._device.select_program(_int(data, "program number"))
+        return f"{int(self._device.active_program)},{int(self._device.n_programs)}"
+
+    def _get_program(self, data: str) -> str:
+        return _json(self._device.get_program(self._program(data)))
+
+    def _set_program(self, data: str) -> None:
+        number, sep, text = data.partition(",")
+        if not sep:
+            raise CommandError(SYNTAX, "PW data must be '<program>,<JSON object>'")
+        try:
+            config = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise CommandError(SYNTAX, f"PW configuration is not valid JSON: {e}") from None
+        if not isinstance(config, dict):
+            raise CommandError(SYNTAX, f"PW configuration must be a JSON object, got {type(config).__name__}")
+        self._device.set_program(_int(number, "program number"), config)
+
+    def _tare(self, data: str) -> None:
+        self._device.tare(data or None)
+
+    def _latch(self, data: str) -> str:
+        curve = self._device.last_curve
+        if curve is None:
+            raise CommandError(NO_DATA, "no curve recorded yet")
+        t, x, y = (np.array(a, dtype=float) for a in (curve.t, curve.x, curve.y))
+        y2 = None if curve.y2 is None else np.array(curve.y2, dtype=float)
+        if not len(t) == len(x) == len(y) == (len(t) if y2 is None else len(y2)):
+            raise CommandError(INTERNAL, f"curve arrays differ in length: t {len(t)}, x {len(x)}, y {len(y)}")
+        self._latched = {"t": t, "xy": np.column_stack([x, y]), "y2": y2}
+        return _json({"n": len(t), "block_pairs": BLOCK_PAIRS, "n_blocks": -(-len(t) // BLOCK_PAIRS),
+                      "y2": y2 is not None, "turning_index": curve.turning_index, "x_reference": curve.x_reference,
+                      "sampling": curve.sampling, **curve.flags})
+
+    def _block(self, data: str, name: str) -> str:
+        if not self._latched:
+            raise CommandError(NO_DATA, "no curve latched: send CH first")
+        values = self._latched[name]
+        if values is None:
+            raise CommandError(NO_DATA, "the latched curve has no y2 channel")
+        n_blocks = -(-len(values) // BLOCK_PAIRS)
+        i = _int(data, "block index")
+        if not 0 <= i < n_blocks:
+            raise CommandError(REJECTED, f"block index {i} outside 0..{n_blocks - 1}")
+        block = values[i * BLOCK_PAIRS:(i + 1) * BLOCK_PAIRS]
+        return f"{i},{n_blocks},{len(block)},{_b64(block)}"
+
+    def _result(self, data: str) -> str:
+        result = self._device.last_result
+        if result is None:
+            raise CommandError(NO_DATA, "no result yet")
+        return _json(result.to_dict())

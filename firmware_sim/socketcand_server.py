@@ -1,0 +1,217 @@
+"""A socketcand-protocol server: serves a python-can bus to TCP clients (raw mode).
+
+Speaks what python-can's stock ``socketcand`` client expects (``can.Bus(interface="socketcand",
+host=..., port=..., channel=...)``)::
+
+    server: < hi >              client: < open CHANNEL >
+    server: < ok >              client: < rawmode >
+    server: < ok >
+    server: < frame ID SECS.USECS DATA >      (ID: 3 hex digits standard, 8 extended; DATA: hex, no spaces)
+    client: < send ID LEN B0 B1 ... >         (LEN and bytes in hex)
+
+Every connection gets its own bus object from ``bus_factory`` (default: python-can ``virtual`` on
+the served channel), so all clients and the in-process device share one bus. The stock client
+compares its handshake replies byte for byte, so after the last ``< ok >`` the server waits
+``grace`` seconds before streaming frames (frames meanwhile are buffered by the bus, not lost).
+socketcand's ASCII protocol carries classic frames only: CAN FD frames (more than 8 data bytes)
+are not forwarded; they are counted in :attr:`SocketcandServer.fd_dropped` and logged.
+The UDP discovery beacon is optional (the client does not need it when host and port are given).
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import socket
+import sys
+import threading
+import time
+from typing import Callable
+
+import can
+
+log = logging.getLogger(__name__)
+BEACON_PORT = 42000
+
+
+def frame_line(msg: can.Message) -> str:
+    """``< frame ... >`` line of a received frame, as socketcand sends it."""
+    fid = f"{msg.arbitration_id:08X}" if msg.is_extended_id else f"{msg.arbitration_id:03X}"
+    secs = int(msg.timestamp)
+    usecs = int(round((msg.timestamp - secs) * 1e6))
+    if usecs == 1_000_000:
+        secs, usecs = secs + 1, 0
+    return f"< frame {fid} {secs}.{usecs:06d} {bytes(msg.data).hex().upper()} >"
+
+
+def parse_send(body: str) -> can.Message:
+    """The frame of a ``send ID LEN B0 ...`` command (body without the angle brackets)."""
+    parts = body.split()
+    if len(parts) < 3 or parts[0] != "send":
+        raise ValueError(f"not a send command: {body!r}")
+    try:
+        fid, length, data = int(parts[1], 16), int(parts[2], 16), bytes(int(b, 16) for b in parts[3:])
+    except ValueError:
+        raise ValueError(f"send command with non-hex fields: {body!r}") from None
+    if length != len(data) or length > 8 or len(parts[1]) not in (3, 8) or fid > (0x7FF if len(parts[1]) == 3 else 0x1FFFFFFF):
+        raise ValueError(f"send command with inconsistent id/length/data: {body!r}")
+    return can.Message(arbitration_id=fid, is_extended_id=len(parts[1]) == 8, data=data)
+
+
+class SocketcandServer:
+    """Serves ``channel`` over loopback TCP; :meth:`start` returns the port (``port=0``: any free one)."""
+
+    def __init__(self, channel: str = "vcan0", host: str = "127.0.0.1", port: int = 0,
+                 bus_factory: Callable[[], can.BusABC] | None = None, grace: float = 0.1,
+                 beacon_to: tuple[str, int] | None = None, beacon_period: float = 3.0) -> None:
+        self.channel, self.grace = channel, grace
+        self.bus_factory = bus_factory or (lambda: can.Bus(interface="virtual", channel=channel,
+                                                           preserve_timestamps=True))
+        self._listener = socket.create_server((host, port))
+        self.host, self.port = self._listener.getsockname()[:2]
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._lock = threading.Lock()
+        self.fd_dropped = 0
+        self.errors: list[str] = []        # malformed client commands (not echoed: the client would choke)
+        self.beacon_to, self.beacon_period = beacon_to, beacon_period
+
+    def start(self) -> int:
+        """Start accepting clients (and beaconing if configured) in background threads."""
+        self._spawn(self._accept_loop)
+        if self.beacon_to is not None:
+            self._spawn(self._beacon_loop)
+        return self.port
+
+    def _spawn(self, target: Callable, *args) -> None:
+        th = threading.Thread(target=target, args=args, daemon=True)
+        th.start()
+        self._threads.append(th)
+
+    def stop(self) -> None:
+        """Close the listener and all connections; joins the server threads."""
+        self._stop.set()
+        self._listener.close()
+        for th in self._threads:
+            th.join(timeout=2.0)
+
+    def __enter__(self) -> "SocketcandServer":
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def _error(self, text: str) -> None:
+        log.warning("socketcand server: %s", text)
+        with self._lock:
+            self.errors.append(text)
+
+    def _accept_loop(self) -> None:
+        self._listener.settimeout(0.1)
+        while not self._stop.is_set():
+            try:
+                conn, _ = self._listener.accept()
+            except (TimeoutError, socket.timeout):
+                continue
+            except OSError:
+                return
+            self._spawn(self._serve, conn)
+
+    def _serve(self, conn: socket.socket) -> None:
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        conn.settimeout(0.1)
+        bus: can.BusABC | None = None
+        buffer, raw = "", False
+        try:
+            conn.sendall(b"< hi >")
+            while not self._stop.is_set():
+                try:
+                    chunk = conn.recv(4096)
+                except (TimeoutError, socket.timeout):
+                    continue
+                if not chunk:
+                    return
+                buffer += chunk.decode("ascii", errors="replace")
+                while (end := buffer.find(">")) != -1:
+                    start = buffer.find("<")
+                    body, buffer = (buffer[start + 1:end].strip() if -1 < start < end else None), buffer[end + 1:]
+                    if body is None:
+                        self._error("data outside < > discarded")
+                        continue
+                    if body.startswith("open "):
+                        if body[5:].strip() != self.channel:
+                            conn.sendall(b"< error could not open bus >")
+                            self._error(f"client asked for channel {body[5:].strip()!r}, serving {self.channel!r}")
+                            return
+                        bus = self.bus_factory()
+                        conn.sendall(b"< ok >")
+                    elif body == "rawmode" and bus is not None and not raw:
+                        conn.sendall(b"< ok >")
+                        raw = True
+                        self._spawn(self._forward, conn, bus)
+                    elif body.startswith("send ") and raw:
+                        try:
+                            bus.send(parse_send(body))
+                        except ValueError as exc:
+                            self._error(str(exc))
+                    else:
+                        self._error(f"unexpected command {body!r} in this state")
+        except OSError as exc:
+            log.info("socketcand client connection closed: %s", exc)
+        finally:
+            conn.close()
+            if bus is not None:
+                bus.shutdown()
+
+    def _forward(self, conn: socket.socket, bus: can.BusABC) -> None:
+        """Stream the bus's frames to the client (after the handshake grace time)."""
+        time.sleep(self.grace)
+        try:
+            while not self._stop.is_set() and conn.fileno() != -1:
+                msg = bus.recv(0.05)
+                if msg is None or msg.is_error_frame or msg.is_remote_frame:
+                    continue
+                if len(msg.data) > 8:
+                    with self._lock:
+                        self.fd_dropped += 1
+                    log.warning("socketcand server: CAN FD frame 0x%X (%d bytes) not forwarded",
+                                msg.arbitration_id, len(msg.data))
+                    continue
+                conn.sendall(frame_line(msg).encode("ascii"))
+        except (OSError, can.CanError):
+            return
+
+    def _beacon_loop(self) -> None:
+        text = (f'<CANBeacon name="{socket.gethostname()}" type="SocketCAN" description="mechrig device">'
+                f'<URL>can://{self.host}:{self.port}</URL><Bus name="{self.channel}"/></CANBeacon>').encode()
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
+            udp.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+            while not self._stop.is_set():
+                udp.sendto(text, self.beacon_to)
+                self._stop.wait(self.beacon_period)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Serve a python-can bus (default: ``virtual``) over socketcand until interrupted."""
+    ap = argparse.ArgumentParser(prog="python -m firmware_sim.socketcand_server", description=main.__doc__)
+    ap.add_argument("--interface", default="virtual", help="python-can interface of the served bus")
+    ap.add_argument("--channel", default="vcan0", help="channel name (also the name clients open)")
+    ap.add_argument("--host", default="127.0.0.1")
+    ap.add_argument("--port", type=int, default=29536, help="TCP port (0: any free port)")
+    ap.add_argument("--beacon", action="store_true", help=f"send the UDP discovery beacon to port {BEACON_PORT}")
+    args = ap.parse_args(argv)
+    factory = lambda: can.Bus(interface=args.interface, channel=args.channel)  # noqa: E731
+    server = SocketcandServer(args.channel, args.host, args.port, factory,
+                              beacon_to=("255.255.255.255", BEACON_PORT) if args.beacon else None)
+    server.start()
+    print(f"socketcand serving {args.interface}:{args.channel} on {server.host}:{server.port}", flush=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        server.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,243 @@
+"""Incremental optical encoder (A/B in quadrature + index Z) and the counter card that reads it.
+
+Shaft angle θ [rad] is sampled at times t; between samples it is taken as linear, so every line edge
+between samples gets its exact time. With ``Δ = 2π/(4·ppr)`` and ``k = floor(θ/Δ)`` the line state is
+``k mod 4`` in the Gray sequence (A, B) = 00, 10, 11, 01 (A leads B for positive rotation): crossing
+boundary ``mΔ`` toggles A for odd m and B for even m; Z is high for ``k ≡ 0 (mod 4·ppr)``.
+
+Error source (``errors_enabled``): Gaussian edge-time jitter ``jitter_rms``. Faults: ``missed_pulses``
+(a pulse of A or B disappears with ``probability`` per pulse) and ``glitches`` (spurious pulses of
+``width`` on A or B at a Poisson ``rate``).
+
+Counter card: it accepts an edge only if it comes at least ``1/max_edge_frequency`` after the previous
+one; at each accepted edge it reads the lines and steps its ×4 count by +1/−1, or — if both A and B
+differ from what it saw last — counts an *illegal transition* and leaves the count alone. The
+reported ×N count (N = 1, 2, 4) is ``floor((c4 + 4/N − 1)/(4/N))`` relative to its value at power-on
+(×1 steps on A rising with B low, ×2 on every A edge). At each sample time the card latches the
+count, the time of the edge that last changed it, and the number of illegal transitions.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from rig.scene import Field
+
+from .description import register
+from .faults import Fault, FaultSchedule
+
+A, B, Z = 0, 1, 2
+_STATE_OF_LEVELS = np.array([0, 1, 3, 2])  # index A + 2B -> position in the Gray sequence 00,10,11,01
+
+
+@dataclass(frozen=True)
+class EncoderSample:
+    """Line levels and counter-card latches at the sample times."""
+
+    levels: np.ndarray      # (n, 3) uint8: A, B, Z (1 = high)
+    count: np.ndarray       # (n,) int64: ×N count since power-on
+    edge_time: np.ndarray   # (n,) float: time of the edge that last changed the count [s] (NaN: none yet)
+    illegal: np.ndarray     # (n,) int64: illegal transitions counted since power-on
+
+
+@register("incremental_encoder")
+class IncrementalEncoder:
+    """Shaft angle [rad] → A/B/Z logic levels, plus the latched counter-card values."""
+
+    QUANTITY_UNIT: ClassVar[str] = "rad"
+    SCHEMA: ClassVar[dict[str, Field]] = {
+        "model": Field(None, "", "manufacturer/type the description imitates"),
+        "notes": Field(None, "", "sources and assumptions"),
+        "ppr": Field("1", doc="pulses (A periods) per revolution"),
+        "multiplier": Field("1", 4.0, "counter-card decoding ×1, ×2 or ×4"),
+        "max_edge_frequency": Field("Hz", math.inf, "highest edge rate the counter card follows"),
+        "jitter_rms": Field("s", 0.0, "edge-time jitter (rms)"),
+    }
+    FAULTS: ClassVar[dict[str, dict[str, Any]]] = {
+        "missed_pulses": {"probability": 0.01},
+        "glitches": {"rate": 100.0, "width": 1e-6},
+    }
+    TYPE: ClassVar[str]
+
+    def __init__(self, params: dict[str, Any], rng: np.random.Generator, name: str = "",
+                 errors_enabled: bool = True, dynamics_enabled: bool = True) -> None:
+        self.p = params
+        self.name = name or self.TYPE
+        self.rng = rng
+        self.errors_enabled = bool(errors_enabled)
+        self.dynamics_enabled = bool(dynamics_enabled)  # no dynamics: kept for a uniform interface
+        ppr, mult = params["ppr"], params["multiplier"]
+        if not (ppr >= 1 and float(ppr).is_integer()):
+            raise ValueError(f"{self.name}: ppr must be a positive integer, got {ppr}")
+        if mult not in (1.0, 2.0, 4.0):
+            raise ValueError(f"{self.name}: multiplier must be 1, 2 or 4, got {mult}")
+        if not params["max_edge_frequency"] > 0.0:
+            raise ValueError(f"{self.name}: max_edge_frequency must be positive")
+        self.ppr, self.multiplier = int(ppr), int(mult)
+        self.step = 2.0 * math.pi / (4 * self.ppr)   # angle per ×4 count [rad]
+        self.faults = FaultSchedule(self.name, self.FAULTS)
+        self._t: float | None = None   # last sample time [s]
+        self._theta = 0.0               # last sample angle [rad]
+        self._line = np.zeros(3, dtype=np.uint8)       # line levels after all emitted edges
+        self._pending = (np.empty(0), np.empty(0, dtype=np.int64))  # jittered edges after the last sample
+        self._drop_next = np.zeros(2, dtype=bool)     # missed pulse whose second edge is still to come
+        self._last_edge_t = -math.inf  # time of the last emitted A/B edge (card's edge filter)
+        self._card_state = 0           # Gray position the card saw last
+        self._c4 = 0
+        self._c4_origin = 0
+        self._illegal = 0
+        self._count_edge_t = math.nan
+
+    def inject(self, fault: str, at: float = 0.0, until: float = math.inf, **params: Any) -> Fault:
+        """Schedule a fault (``missed_pulses`` or ``glitches``) active for ``at <= t < until`` [s]."""
+        return self.faults.inject(fault, at, until, **params)
+
+    def to_physical(self, count: np.ndarray | float) -> np.ndarray:
+        """Ideal inverse: angle turned since power-on [rad] for a ×N count."""
+        return np.asarray(count, dtype=float) * 2.0 * math.pi / (self.multiplier * self.ppr)
+
+    def _scaled(self, c4: np.ndarray | int) -> np.ndarray:
+        d = 4 // self.multiplier
+        return (np.asarray(c4) + d - 1) // d
+
+    def measure(self, t: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Line levels (n, 3) uint8 [A, B, Z] at times ``t`` [s] for shaft angle ``q`` [rad]."""
+        return self.sample(t, q).levels
+
+    # --- edges -----------------------------------------------------------------------------------
+    def _edges(self, tt: np.ndarray, th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Boundary crossings between consecutive samples: times, boundary index m, direction ±1."""
+        kk = np.floor(th / self.step).astype(np.int64)
+        dk = np.diff(kk)
+        n = np.abs(dk)
+        total = int(n.sum())
+        if total == 0:
+            return np.empty(0), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
+        interval = np.repeat(np.arange(dk.size), n)
+        j = np.arange(total) - np.repeat(np.cumsum(n) - n, n)
+        up = dk[interval] > 0
+        m = np.where(up, kk[interval] + 1 + j, kk[interval] - j)
+        frac = (m * self.step - th[interval]) / (th[interval + 1] - th[interval])
+        times = tt[interval] + frac * (tt[interval + 1] - tt[interval])
+        return times, m, np.where(up, 1, -1)
+
+    def _missed(self, times: np.ndarray, chan: np.ndarray) -> np.ndarray:
+        """Keep-mask after dropping whole pulses (an edge and the next one on the same channel)."""
+        keep = np.ones(times.size, dtype=bool)
+        windows = self.faults.windows("missed_pulses", times)
+        for c in (A, B):
+            idx = np.flatnonzero(chan == c)
+            if self._drop_next[c] and idx.size:
+                keep[idx[0]] = False
+                idx = idx[1:]
+                self._drop_next[c] = False
+            for mask, par in windows:
+                hit = np.flatnonzero(mask[idx] & (self.rng.uniform(size=idx.size) < par["probability"]))
+                keep[idx[hit]] = False
+                second = hit + 1
+                keep[idx[second[second < idx.size]]] = False
+                if hit.size and hit[-1] == idx.size - 1:
+                    self._drop_next[c] = True
+        return keep
+
+    def _glitches(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        """Spurious pulses (two edges each) in (t0, t1]."""
+        times, chans = [], []
+        for f in self.faults.faults:
+            if f.kind != "glitches":
+                continue
+            lo, hi = max(t0, f.at), min(t1, f.until)
+            if hi <= lo:
+                continue
+            n = self.rng.poisson(f.params["rate"] * (hi - lo))
+            start = self.rng.uniform(lo, hi, size=n)
+            c = self.rng.integers(0, 2, size=n)
+            times += [start, start + f.params["width"]]
+            chans += [c, c]
+        if not times:
+            return np.empty(0), np.empty(0, dtype=np.int64)
+        return np.concatenate(times), np.concatenate(chans)
+
+    # --- sampling --------------------------------------------------------------------------------
+    def sample(self, t: np.ndarray, q: np.ndarray) -> EncoderSample:
+        """Levels and counter-card latches at times ``t`` [s] for shaft angle ``q`` [rad]; continues state."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        q = np.atleast_1d(np.asarray(q, dtype=float))
+        if t.shape != q.shape or t.ndim != 1:
+            raise ValueError(f"{self.name}: t and q must be 1-D arrays of equal length, got {t.shape} and {q.shape}")
+        if t.size == 0:
+            return EncoderSample(np.empty((0, 3), np.uint8), np.empty(0, np.int64), np.empty(0), np.empty(0, np.int64))
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(t))):
+            raise ValueError(f"{self.name}: time or angle contains NaN or inf")
+        if self._t is None:
+            k0 = int(math.floor(q[0] / self.step))
+            s0 = k0 % 4
+            self._line[:] = (s0 in (1, 2), s0 in (2, 3), k0 % (4 * self.ppr) == 0)
+            self._card_state, self._c4 = s0, k0
+            self._c4_origin = int(self._scaled(k0))
+            self._t, self._theta = float(t[0]), float(q[0])
+        tt = np.concatenate(([self._t], t))
+        th = np.concatenate(([self._theta], q))
+        dt = np.diff(tt)
+        if np.any(dt[1:] <= 0.0) or dt[0] < 0.0 or (dt[0] == 0.0 and th[1] != th[0]):
+            raise ValueError(f"{self.name}: sample times must increase strictly (continuing from t={self._t} s)")
+        times, m, _ = self._edges(tt, th)
+        chan = np.where(m % 2 == 1, A, B)
+        if self.errors_enabled and self.p["jitter_rms"] > 0.0:
+            times = times + self.rng.normal(0.0, self.p["jitter_rms"], size=times.size)
+        zsel = np.isin(m % (4 * self.ppr), (0, 1))
+        z_times = times[zsel]
+        keep = self._missed(times, chan)
+        g_times, g_chan = self._glitches(tt[0], tt[-1])
+        all_t = np.concatenate((self._pending[0], times[keep], g_times, z_times))
+        all_c = np.concatenate((self._pending[1], chan[keep], g_chan, np.full(z_times.size, Z)))
+        order = np.argsort(all_t, kind="stable")
+        all_t, all_c = all_t[order], all_c[order]
+        n_emit = int(np.searchsorted(all_t, t[-1], side="right"))
+        self._pending = (all_t[n_emit:], all_c[n_emit:])
+        et, ec = all_t[:n_emit], all_c[:n_emit]
+        ab_before = self._line[:2].copy()
+        levels = np.empty((t.size, 3), dtype=np.uint8)
+        for c in (A, B, Z):
+            ce = et[ec == c]
+            levels[:, c] = self._line[c] ^ (np.searchsorted(ce, t, side="right") & 1)
+            self._line[c] ^= ce.size & 1
+        count, edge_time, illegal = self._card(et[ec != Z], ec[ec != Z], ab_before, t)
+        self._t, self._theta = float(t[-1]), float(q[-1])
+        return EncoderSample(levels, count, edge_time, illegal)
+
+    def _card(self, et: np.ndarray, ec: np.ndarray, ab_before: np.ndarray,
+              t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Counter card: filter edges, step the ×4 count, latch count/edge time/illegal count at ``t``."""
+        gaps = np.diff(np.concatenate(([self._last_edge_t], et)))
+        accepted = gaps >= 1.0 / self.p["max_edge_frequency"]
+        if et.size:
+            self._last_edge_t = float(et[-1])
+        a = ab_before[A] ^ (np.cumsum(ec == A) & 1)
+        b = ab_before[B] ^ (np.cumsum(ec == B) & 1)
+        state = _STATE_OF_LEVELS[a + 2 * b][accepted]
+        ta = et[accepted]
+        d = np.diff(np.concatenate(([self._card_state], state))) % 4
+        step = np.where(d == 1, 1, np.where(d == 3, -1, 0))
+        bad = np.cumsum(d == 2)
+        c4 = self._c4 + np.cumsum(step)
+        scaled = self._scaled(c4) - self._c4_origin
+        before = int(self._scaled(self._c4)) - self._c4_origin
+        changed = scaled != np.concatenate(([before], scaled[:-1]))
+        change_t = ta[changed]
+        i = np.searchsorted(ta, t, side="right") - 1
+        count = np.where(i >= 0, scaled[np.maximum(i, 0)] if scaled.size else before, before)
+        illegal = self._illegal + np.where(i >= 0, bad[np.maximum(i, 0)] if bad.size else 0, 0)
+        j = np.searchsorted(change_t, t, side="right") - 1
+        edge_time = np.where(j >= 0, change_t[np.maximum(j, 0)] if change_t.size else math.nan,
+                             self._count_edge_t)
+        if state.size:
+            self._card_state = int(state[-1])
+            self._c4 = int(c4[-1])
+            self._illegal += int(bad[-1])
+        if change_t.size:
+            self._count_edge_t = float(change_t[-1])
+        return count.astype(np.int64), edge_time, illegal.astype(np.int64)

@@ -1,0 +1,56 @@
+"""Time-scheduled fault injection shared by all transducers."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One injected fault: active for ``at <= t < until`` [s] with its parameters."""
+
+    kind: str
+    at: float
+    until: float
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+class FaultSchedule:
+    """The faults injected into one transducer; ``known`` maps fault kind -> default parameters."""
+
+    def __init__(self, owner: str, known: Mapping[str, Mapping[str, Any]]) -> None:
+        self.owner = owner
+        self.known = known
+        self.faults: list[Fault] = []
+
+    def inject(self, kind: str, at: float = 0.0, until: float = math.inf, **params: Any) -> Fault:
+        """Schedule ``kind``; unknown kinds or parameters raise ``ValueError`` naming them."""
+        if kind not in self.known:
+            raise ValueError(f"{self.owner}: unknown fault {kind!r}; this transducer knows {sorted(self.known)}")
+        unknown = set(params) - set(self.known[kind])
+        if unknown:
+            raise ValueError(f"{self.owner}: fault {kind!r} has no parameter(s) {sorted(unknown)}; "
+                             f"known: {sorted(self.known[kind]) or 'none'}")
+        if not (math.isfinite(at) and until > at):
+            raise ValueError(f"{self.owner}: fault {kind!r} needs a finite start time before its end, "
+                             f"got at={at!r} s, until={until!r} s")
+        fault = Fault(kind, float(at), float(until), {**self.known[kind], **params})
+        self.faults.append(fault)
+        return fault
+
+    def clear(self) -> None:
+        """Remove all scheduled faults."""
+        self.faults.clear()
+
+    def windows(self, kind: str, t: np.ndarray) -> list[tuple[np.ndarray, dict[str, Any]]]:
+        """For each scheduled fault of ``kind`` overlapping ``t``: (mask of active samples, parameters)."""
+        out = []
+        for f in self.faults:
+            if f.kind == kind:
+                mask = (t >= f.at) & (t < f.until)
+                if mask.any():
+                    out.append((mask, f.params))
+        return out

@@ -1,0 +1,262 @@
+"""HTML or Markdown report of a recording: tables, PNG plots, CSV export; extensible by sections.
+
+A *section* is a function ``(ctx: ReportContext) -> list[Block]``; it returns ``[]`` when it does not
+apply (e.g. no curves). Other modules add sections with :func:`register_section` (a clutch recording
+adds torque vs time, etc.).
+"""
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from rig.analysis import plots
+from rig.analysis.export import export_curves, export_results
+from rig.analysis.sets import process_values
+from rig.analysis.summary import analyse
+from rig.recorder import Recording, read_recording
+
+
+@dataclass
+class Heading:
+    text: str
+    level: int = 2
+
+
+@dataclass
+class Text:
+    text: str
+
+
+@dataclass
+class Table:
+    headers: list[str]
+    rows: list[list[Any]]
+
+
+@dataclass
+class Figure:
+    path: str          # relative to the report directory
+    caption: str
+
+
+Block = Heading | Text | Table | Figure
+
+
+@dataclass
+class ReportContext:
+    """What sections see: the recording, its analysis, the output directory and a figure counter."""
+
+    recording: Recording
+    analysis: dict
+    out_dir: Path
+    max_curve_plots: int = 12
+    _count: list[int] = field(default_factory=lambda: [0])
+
+    def figure_path(self, stem: str) -> Path:
+        self._count[0] += 1
+        return self.out_dir / f"{self._count[0]:03d}_{stem}.png"
+
+    def figure(self, path: Path, caption: str) -> Figure:
+        return Figure(path.relative_to(self.out_dir).as_posix(), caption)
+
+
+Section = Callable[[ReportContext], list[Block]]
+SECTIONS: list[tuple[str, Section]] = []
+
+
+def register_section(name: str, section: Section) -> None:
+    """Append a section to the default report (replacing one of the same name)."""
+    SECTIONS[:] = [(n, s) for n, s in SECTIONS if n != name] + [(name, section)]
+
+
+def fmt(v: Any) -> str:
+    """Table cell text: numbers to 4 significant digits, None as a dash."""
+    if v is None:
+        return "—"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+# -- default sections ------------------------------------------------------------------------------
+def overview(ctx: ReportContext) -> list[Block]:
+    rec = ctx.recording
+    meta = rec.metadata.get("rig", {})
+    rows = [[k, v] for k, v in sorted(meta.items())]
+    rows += [["messages", rec.summary()], ["complete", fmt(rec.complete)]]
+    blocks: list[Block] = [Heading("Recording", 2), Text(f"File: {rec.path}"), Table(["key", "value"], rows)]
+    blocks += [Text(f"Problem: {p}") for p in rec.problems]
+    return blocks
+
+
+def verdicts(ctx: ReportContext) -> list[Block]:
+    rows = [[v["number"], v["program"], "OK" if v["ok"] else "NOK",
+             "; ".join(f"{f['name']} ({f['reason']})" if f.get("reason") else str(f["name"]) for f in v["failed"])]
+            for v in ctx.analysis["verdicts"]]
+    return [Heading("Curves: OK / NOK"), Table(["curve", "program", "result", "failing elements"], rows)] if rows else []
+
+
+def set_statistics(ctx: ReportContext) -> list[Block]:
+    blocks: list[Block] = []
+    for program, s in ctx.analysis["sets"].items():
+        blocks += [Heading(f"Set statistics, program {program}"),
+                   Text(f"{s['n']} curves, {s['ok']} OK, {s['nok']} NOK; NOK by element: "
+                        f"{', '.join(f'{k}: {v}' for k, v in s['nok_by_element'].items()) or 'none'}")]
+        blocks += [Text(f"Warning: {w}") for w in s["warnings"]]
+        rows = []
+        for name, v in s["values"].items():
+            nrm, tr = v["normality"], v["trend"]
+            rows.append([name, v["n"], v["mean"], v["std"], v["min"], v["max"], v["minus_3sigma"], v["plus_3sigma"],
+                         v["lsl"], v["usl"], v["cp"], v["cpk"], v["band_within_limits"], nrm["shapiro_p"],
+                         nrm["anderson_p"], nrm["normal"], tr["slope_p"], tr["runs"]["p"], tr["drift"]])
+        if rows:
+            blocks.append(Table(["value", "n", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
+                                 "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
+                                [[fmt(c) for c in r] for r in rows]))
+        program_results = [r for r in ctx.recording.results if int(r.get("program", 0)) == program]
+        table = process_values(program_results)
+        for name, v in s["values"].items():
+            path = plots.histogram(table[name], v, ctx.figure_path(f"hist_p{program}_{name}"))
+            blocks.append(ctx.figure(path, f"{name}: histogram with limits (red) and μ ± 3σ (dashed)"))
+    return blocks
+
+
+def _elements(rec: Recording, program: int) -> list:
+    return rec.programs.get(program, {}).get("elements", [])
+
+
+def _units(rec: Recording, program: int) -> tuple[str, str]:
+    """Engineering units of the X and Y channels from the program config (``channels.<ch>.unit``)."""
+    channels = rec.programs.get(program, {}).get("channels", {})
+    return channels.get("x", {}).get("unit", "SI"), channels.get("y", {}).get("unit", "SI")
+
+
+def curves(ctx: ReportContext) -> list[Block]:
+    rec = ctx.recording
+    if not rec.curves:
+        return []
+    nok = {v["number"] for v in ctx.analysis["verdicts"] if not v["ok"]}
+    blocks: list[Block] = [Heading("Curves")]
+    for program in sorted({c.program for c in rec.curves}):
+        chosen = [c for c in rec.curves if c.program == program]
+        path, notes = plots.force_displacement(chosen, _elements(rec, program), ctx.figure_path(f"xy_p{program}"),
+                                               f"program {program}: {len(chosen)} curves (NOK red)", nok,
+                                               _units(rec, program))
+        blocks.append(ctx.figure(path, f"Program {program}: Y over X with evaluation elements "
+                                       "(entry side green, exit side red dashed)"))
+        blocks += [Text(f"Note: {n}") for n in notes]
+    shown = sorted(rec.curves, key=lambda c: (c.number not in nok, c.number))[:ctx.max_curve_plots]
+    if len(shown) < len(rec.curves):
+        blocks.append(Text(f"Individual plots for {len(shown)} of {len(rec.curves)} curves (NOK first)."))
+    for c in sorted(shown, key=lambda c: c.number):
+        path, _ = plots.force_displacement([c], _elements(rec, c.program), ctx.figure_path(f"xy_c{c.number}"),
+                                           f"curve {c.number}", nok, _units(rec, c.program))
+        blocks.append(ctx.figure(path, f"Curve {c.number}: Y over X"))
+        blocks.append(ctx.figure(plots.signal_over(c, "t", ctx.figure_path(f"yt_c{c.number}")),
+                                 f"Curve {c.number}: Y over time (theory dashed)"))
+        if c.angle is not None:
+            blocks.append(ctx.figure(plots.signal_over(c, "angle", ctx.figure_path(f"ya_c{c.number}")),
+                                     f"Curve {c.number}: Y over cam angle (theory dashed)"))
+    return blocks
+
+
+def theory(ctx: ReportContext) -> list[Block]:
+    rows = [[r["curve"], r["signal"], r.get("lag_time"), None if r.get("lag_angle") is None
+             else float(np.degrees(r["lag_angle"])), r.get("angle_method"), r.get("rms_before"), r.get("rms_after"),
+             r.get("peak_difference"), r.get("error")] for r in ctx.analysis["theory"]]
+    if not rows:
+        return []
+    return [Heading("Theory vs measurement"),
+            Text("Lag > 0: the measurement is late. RMS deviation before and after removing the time lag."),
+            Table(["curve", "signal", "lag (s)", "lag (deg)", "angle method", "RMS before", "RMS after",
+                   "peak diff", "error"], [[fmt(c) for c in r] for r in rows])]
+
+
+def events(ctx: ReportContext) -> list[Block]:
+    counts = ctx.analysis["events"]
+    return [Heading("Events"), Table(["kind", "count"], [[k, v] for k, v in sorted(counts.items())])] if counts else []
+
+
+def truth(ctx: ReportContext) -> list[Block]:
+    data = ctx.recording.truth
+    names = [n for n in data if n != "t"]
+    if not names:
+        return []
+    path = plots.series(data, names[:6], ctx.figure_path("truth"), "plant truth", "SI")
+    return [Heading("Plant truth"), ctx.figure(path, f"Plant truth signals ({', '.join(names[:6])})")]
+
+
+def exports(ctx: ReportContext) -> list[Block]:
+    rec = ctx.recording
+    files = []
+    if rec.curves:
+        files.append(export_curves(rec.curves, ctx.out_dir / "curves.csv"))
+    if rec.results:
+        files.append(export_results(rec.results, ctx.out_dir / "results.csv"))
+    return [Heading("Exports"), Table(["file"], [[f.name] for f in files])] if files else []
+
+
+for _name, _section in (("overview", overview), ("verdicts", verdicts), ("statistics", set_statistics),
+                        ("curves", curves), ("theory", theory), ("events", events), ("truth", truth),
+                        ("exports", exports)):
+    register_section(_name, _section)
+
+
+# -- rendering -------------------------------------------------------------------------------------
+def _markdown(title: str, blocks: Sequence[Block]) -> str:
+    out = [f"# {title}", ""]
+    for b in blocks:
+        if isinstance(b, Heading):
+            out += ["#" * b.level + " " + b.text, ""]
+        elif isinstance(b, Text):
+            out += [b.text, ""]
+        elif isinstance(b, Table):
+            out += ["| " + " | ".join(b.headers) + " |", "|" + "---|" * len(b.headers)]
+            out += ["| " + " | ".join(fmt(c).replace("|", "\\|") for c in r) + " |" for r in b.rows] + [""]
+        elif isinstance(b, Figure):
+            out += [f"![{b.caption}]({b.path})", "", f"*{b.caption}*", ""]
+    return "\n".join(out)
+
+
+def _html(title: str, blocks: Sequence[Block]) -> str:
+    e = html.escape
+    out = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{e(title)}</title>",
+           "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"
+           "font-size:small}td,th{border:1px solid #ccc;padding:2px 6px}</style></head><body>", f"<h1>{e(title)}</h1>"]
+    for b in blocks:
+        if isinstance(b, Heading):
+            out.append(f"<h{b.level}>{e(b.text)}</h{b.level}>")
+        elif isinstance(b, Text):
+            out.append(f"<p>{e(b.text)}</p>")
+        elif isinstance(b, Table):
+            out.append("<table><tr>" + "".join(f"<th>{e(h)}</th>" for h in b.headers) + "</tr>")
+            out += ["<tr>" + "".join(f"<td>{e(fmt(c))}</td>" for c in r) + "</tr>" for r in b.rows]
+            out.append("</table>")
+        elif isinstance(b, Figure):
+            out.append(f"<figure><img src='{e(b.path)}' alt='{e(b.caption)}'><figcaption>{e(b.caption)}"
+                       "</figcaption></figure>")
+    return "\n".join(out + ["</body></html>"])
+
+
+def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path, fmt: str = "html",
+                 sections: Sequence[tuple[str, Section]] | None = None, max_curve_plots: int = 12) -> Path:
+    """Write ``report.html`` or ``report.md`` with PNG plots and CSV files into ``out_dir``; return its path."""
+    if fmt not in ("html", "md"):
+        raise ValueError(f"report format must be 'html' or 'md', got {fmt!r}")
+    rec = recording_or_path if isinstance(recording_or_path, Recording) else read_recording(recording_or_path)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ctx = ReportContext(rec, analyse(rec), out, max_curve_plots)
+    blocks: list[Block] = []
+    for _, section in (SECTIONS if sections is None else sections):
+        blocks += section(ctx)
+    title = f"Rig report: {rec.path.name}"
+    path = out / f"report.{fmt}"
+    path.write_text(_markdown(title, blocks) if fmt == "md" else _html(title, blocks), encoding="utf-8")
+    return path

@@ -1,0 +1,30 @@
+"""One-call analysis of a recording (or an in-memory Recording built live)."""
+from __future__ import annotations
+
+from rig.analysis.lag import compare_theory
+from rig.analysis.sets import curve_verdicts, event_counts, statistics_by_program
+from rig.recorder import CurveRecord, Recording
+
+
+def theory_comparison(curve: CurveRecord) -> list[dict]:
+    """:func:`compare_theory` for each signal (``y``, ``x``) the curve's theory provides."""
+    out = []
+    for name in ("y", "x"):
+        if name in curve.theory:
+            try:
+                res = compare_theory(curve.t, getattr(curve, name), curve.theory, name, angle=curve.angle)
+            except ValueError as exc:
+                res = {"signal": name, "error": str(exc)}
+            out.append({"curve": curve.number, **res})
+    return out
+
+
+def analyse(rec: Recording) -> dict:
+    """Verdicts per curve, statistics per program, theory vs measurement per curve, event counts."""
+    return {
+        "verdicts": curve_verdicts(rec.results),
+        "sets": statistics_by_program(rec.results, rec.programs),
+        "theory": [row for c in rec.curves for row in theory_comparison(c)],
+        "events": event_counts(rec.events),
+        "device_statistics": rec.statistics[-1] if rec.statistics else None,
+    }

@@ -1,0 +1,152 @@
+"""Cam programs: rise / dwell / return segments over one revolution (MODELS §1).
+
+A program maps the cam angle φ (rad, any real value, wrapped to [0, 2π)) to the follower output
+s(φ) (here: slider stroke, m) and its derivatives w.r.t. φ; time derivatives follow from the cam
+speed: v = ω s', a = ω² s'' + ω̇ s'. The output starts the revolution at level 0.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import degrees, tau
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from rig.motion.laws import MotionLaw
+from rig.motion.registry import UnknownLawError, get_law
+
+KINDS = ("rise", "dwell", "return")
+
+
+class ProgramError(ValueError):
+    """A cam program is inconsistent (angles, laws, strokes); the message names the segment."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One program segment: ``kind`` in rise/dwell/return, ``angle`` (rad), ``law`` name, ``stroke`` (m)."""
+
+    kind: str
+    angle: float
+    law: str | None = None
+    stroke: float = 0.0
+
+
+class ProgramEvent(NamedTuple):
+    """An angle (rad, in [0, 2π)) where s'' jumps by ``jump`` (m/rad²); ``segment`` is 0-based."""
+
+    angle: float
+    jump: float
+    segment: int
+
+
+class Motion(NamedTuple):
+    """Output and its derivatives w.r.t. cam angle: s (m), s' (m/rad), s'' (m/rad²), s''' (m/rad³)."""
+
+    s: np.ndarray
+    s_p: np.ndarray
+    s_pp: np.ndarray
+    s_ppp: np.ndarray
+
+
+class TimeMotion(NamedTuple):
+    """Output and its time derivatives: s (m), v (m/s), a (m/s²)."""
+
+    s: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+
+
+class CamProgram:
+    """A validated list of segments summing to 360° whose rises and returns balance."""
+
+    def __init__(self, segments: Sequence[Segment]):
+        if not segments:
+            raise ProgramError("a cam program needs at least one segment")
+        laws: list[MotionLaw | None] = []
+        for i, seg in enumerate(segments):
+            where = f"cam program segment {i + 1} ({seg.kind})"
+            if seg.kind not in KINDS:
+                raise ProgramError(f"{where}: kind must be one of {', '.join(KINDS)}")
+            if not seg.angle > 0.0:
+                raise ProgramError(f"{where}: angle must be positive, got {degrees(seg.angle):g}°")
+            if seg.kind == "dwell":
+                if seg.law is not None or seg.stroke != 0.0:
+                    raise ProgramError(f"{where}: a dwell takes neither a law nor a stroke")
+                laws.append(None)
+                continue
+            if seg.law is None:
+                raise ProgramError(f"{where}: a {seg.kind} needs a motion law")
+            try:
+                laws.append(get_law(seg.law))
+            except UnknownLawError as exc:
+                raise ProgramError(f"{where}: {exc}") from None
+            if not seg.stroke > 0.0:
+                raise ProgramError(f"{where}: stroke must be positive, got {seg.stroke * 1e3:g} mm")
+        total = sum(seg.angle for seg in segments)
+        if abs(total - tau) > 1e-9:
+            raise ProgramError(f"cam program segments sum to {degrees(total):.6g}°, not 360°")
+        up = sum(seg.stroke for seg in segments if seg.kind == "rise")
+        down = sum(seg.stroke for seg in segments if seg.kind == "return")
+        if abs(up - down) > 1e-12:
+            raise ProgramError(f"cam program rises total {up * 1e3:g} mm but returns total {down * 1e3:g} mm")
+        self.segments = tuple(segments)
+        self._laws = laws
+        self._start = np.concatenate(([0.0], np.cumsum([seg.angle for seg in segments])[:-1]))
+        signs = [1.0 if seg.kind == "rise" else -1.0 if seg.kind == "return" else 0.0 for seg in segments]
+        self._h = np.array(signs) * np.array([seg.stroke for seg in segments])
+        self._level = np.concatenate(([0.0], np.cumsum(self._h)[:-1]))
+
+    @property
+    def starts(self) -> np.ndarray:
+        """Start angle of every segment (rad)."""
+        return self._start.copy()
+
+    @property
+    def levels(self) -> tuple[float, float]:
+        """(lowest, highest) output over the revolution (m)."""
+        lv = np.append(self._level, 0.0)
+        return float(lv.min()), float(lv.max())
+
+    def evaluate(self, phi: np.ndarray) -> Motion:
+        """s and its derivatives w.r.t. φ at cam angles ``phi`` (rad, any real value)."""
+        phi = np.mod(np.asarray(phi, dtype=float), tau)
+        seg_of = np.searchsorted(self._start, phi, side="right") - 1
+        s = self._level[seg_of]
+        s_p = np.zeros_like(phi)
+        s_pp = np.zeros_like(phi)
+        s_ppp = np.zeros_like(phi)
+        for i, law in enumerate(self._laws):
+            if law is None:
+                continue
+            m = seg_of == i
+            if not m.any():
+                continue
+            big_phi = self.segments[i].angle
+            y, y1, y2, y3 = law.derivatives((phi[m] - self._start[i]) / big_phi)
+            h = self._h[i]  # negative for a return: s = level − |h|·y
+            s[m] = self._level[i] + h * y
+            s_p[m] = h / big_phi * y1
+            s_pp[m] = h / big_phi ** 2 * y2
+            s_ppp[m] = h / big_phi ** 3 * y3
+        return Motion(s, s_p, s_pp, s_ppp)
+
+    def at_speed(self, phi: np.ndarray, omega: np.ndarray | float, alpha: np.ndarray | float = 0.0) -> TimeMotion:
+        """s, v = ω s', a = ω² s'' + ω̇ s' at cam angle φ (rad), speed ω (rad/s), acceleration ω̇ (rad/s²)."""
+        m = self.evaluate(phi)
+        return TimeMotion(m.s, omega * m.s_p, omega * omega * m.s_pp + alpha * m.s_p)
+
+    def events(self) -> list[ProgramEvent]:
+        """Angles where s'' jumps, from the laws' jump positions and the boundary accelerations."""
+        jumps: dict[float, float] = {}
+        owner: dict[float, int] = {}
+        for i, (seg, law) in enumerate(zip(self.segments, self._laws)):
+            if law is None:
+                continue
+            scale = self._h[i] / seg.angle ** 2
+            for x, dy2 in law.accel_jumps():
+                key = round(float(self._start[i] + x * seg.angle), 9) % round(tau, 9)
+                jumps[key] = jumps.get(key, 0.0) + scale * dy2
+                owner.setdefault(key, i)
+        scale = max((abs(j) for j in jumps.values()), default=0.0)
+        return [ProgramEvent(a, j, owner[a]) for a, j in sorted(jumps.items()) if abs(j) > 1e-9 * scale]

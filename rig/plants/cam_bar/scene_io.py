@@ -1,0 +1,88 @@
+"""Scene reading for the cam-bar plant: [plant] (with [[plant.cam_program]]) and [speed] (MODELS §3.1).
+
+Other top-level sections belong to other modules and are ignored here; inside [plant], [speed] and each
+cam-program table every key is checked (unknown, missing, wrong unit → :class:`rig.scene.SceneError`).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from rig.motion.program import CamProgram, ProgramError, Segment
+from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed, SpeedProfile
+from rig.scene import Field, Scene, SceneError, read_table
+from rig.units import UnitError, to_si
+
+PLANT_SCHEMA = {
+    "L3": Field("m"), "l3": Field("m"), "m3": Field("kg"), "x_A0": Field("m"), "y_A0": Field("m"),
+    "r_R": Field("m"), "l4": Field("m"), "m4": Field("kg"), "e_sk": Field("m"), "s0": Field("m"),
+    "l5": Field("m"), "m5": Field("kg"), "s_H": Field("m"), "F_c": Field("N"),
+    "F_c_travel": Field("m", 0.005, "slider travel before the top of the rise over which F_c acts"),
+    "l_F": Field("m"), "Me_S": Field("N*m"), "Me_0": Field("N*m"),
+    "s_S": Field("m", doc="spring-point stroke of the thesis design formula"),
+    "s_Srest": Field("m", 0.0, "spring-point rest position of the thesis design formula"),
+    "k": Field("N/m", doc="mounted spring rate"),
+    "spring_rates": Field(None, doc="list of spring rates to compare, e.g. [\"1.09 N/mm\", ...]"),
+    "sensor_preload": Field("N"), "sensor_position": Field("1", 0.5, "sensor section along the rod from C"),
+    "clearance": Field("m"), "alpha_sk": Field("rad"),
+    "J3": Field("kg*m^2", None, "follower inertia about B0 (default m3·L3²/3)"),
+    "J4": Field("kg*m^2", None, "rod inertia about its centre (default m4·l4²/12)"),
+    "a3": Field("m", None, "follower CoG distance from B0 (default L3/2)"),
+    "mu": Field("1", 0.1), "g": Field("m/s^2", 9.81), "x_s5": Field("m", 0.02), "e5": Field("m", 0.02),
+    "cam_direction": Field("1", 1, "+1 counter-clockwise, -1 clockwise"),
+    "cam_program": Field(None, doc="array of tables [[plant.cam_program]]"),
+}
+SEGMENT_SCHEMA = {"kind": Field(None), "angle": Field("rad"), "law": Field(None, None),
+                  "stroke": Field("m", None, "defaults to s_H for rise/return")}
+SPEED_SCHEMAS = {
+    "constant": {"profile": Field(None), "speed": Field("rad/s"), "phi0": Field("rad", 0.0)},
+    "ramp": {"profile": Field(None), "speed": Field("rad/s"), "speed_end": Field("rad/s"),
+             "ramp_time": Field("s"), "ramp_start": Field("s", 0.0), "phi0": Field("rad", 0.0)},
+    "sinusoidal": {"profile": Field(None), "speed": Field("rad/s", doc="mean speed"),
+                   "amplitude": Field("rad/s"), "frequency": Field("Hz", None, "default: once per revolution"),
+                   "phi0": Field("rad", 0.0)},
+}
+
+
+def read_program(tables: Any, s_h: float, where: str) -> CamProgram:
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise SceneError(f"{where}: 'cam_program' must be an array of tables ([[plant.cam_program]])")
+    segments = []
+    for i, table in enumerate(tables):
+        seg = read_table(table, SEGMENT_SCHEMA, f"{where} cam_program segment {i + 1}")
+        stroke = seg["stroke"] if seg["stroke"] is not None else (0.0 if seg["kind"] == "dwell" else s_h)
+        segments.append(Segment(str(seg["kind"]), seg["angle"], seg["law"], stroke))
+    try:
+        return CamProgram(segments)
+    except ProgramError as exc:
+        raise SceneError(f"{where}: {exc}") from None
+
+
+def read_speed(table: dict[str, Any], where: str) -> SpeedProfile:
+    profile = table.get("profile", "constant")
+    if profile not in SPEED_SCHEMAS:
+        raise SceneError(f"{where}: unknown speed profile {profile!r} (known: {', '.join(SPEED_SCHEMAS)})")
+    v = read_table({"profile": profile, **table}, SPEED_SCHEMAS[profile], where)
+    try:
+        if profile == "constant":
+            return ConstantSpeed(v["speed"], v["phi0"])
+        if profile == "ramp":
+            return RampSpeed(v["speed"], v["speed_end"], v["ramp_time"], v["ramp_start"], v["phi0"])
+        return SinusoidalSpeed(v["speed"], v["amplitude"], v["frequency"], v["phi0"])
+    except ValueError as exc:
+        raise SceneError(f"{where}: {exc}") from None
+
+
+def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
+    """Keyword arguments of :class:`PinInsertionMechanism` from the scene (SI)."""
+    where = f"{scene.path} [plant]"
+    kw = scene.read("plant", PLANT_SCHEMA)
+    rates = kw.pop("spring_rates")
+    if not isinstance(rates, list) or not rates:
+        raise SceneError(f"{where}: 'spring_rates' must be a non-empty list of quantities like \"1.19 N/mm\"")
+    try:
+        kw["spring_rates"] = tuple(to_si(r, "N/m", what=f"{where}: spring_rates[{i}]") for i, r in enumerate(rates))
+    except UnitError as exc:
+        raise SceneError(str(exc)) from None
+    kw["program"] = read_program(kw.pop("cam_program"), kw["s_H"], where)
+    kw["speed"] = read_speed(scene.section("speed"), f"{scene.path} [speed]")
+    return kw

@@ -1,0 +1,68 @@
+"""Demo helpers for the ``rig`` CLI: a text summary and a one-revolution plot of the cam-bar plant."""
+from __future__ import annotations
+
+from math import degrees, tau
+from pathlib import Path
+
+import numpy as np
+
+from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+
+
+def _angles(values: np.ndarray) -> str:
+    return ", ".join(f"{degrees(a):.1f}°" for a in values) or "none"
+
+
+def summary_table(mech: PinInsertionMechanism) -> str:
+    """Stroke, follower swing, max |R23|, flank switches per spring rate, b_min, spring design (text)."""
+    phi = np.linspace(0.0, tau, 3600, endpoint=False)
+    st = mech.state(phi)
+    ks = mech.kinetostatics(phi)
+    design = mech.spring_rate_design()
+    rpm = mech.speed.nominal_omega * 60.0 / tau
+    lines = [
+        f"pin-insertion cam-bar mechanism at {rpm:.1f} rpm (mounted spring {mech.k / 1e3:.2f} N/mm)",
+        f"  slider stroke            {np.ptp(st.s) * 1e3:8.3f} mm",
+        f"  follower swing           {degrees(np.ptp(st.psi)):8.3f}°  (ψ {degrees(st.psi.min()):.2f}°"
+        f" … {degrees(st.psi.max()):.2f}°)",
+        f"  max |R23|                {np.max(np.abs(ks.R23n)):8.2f} N",
+        f"  rod force at sensor      {ks.F_rod.min():8.2f} … {ks.F_rod.max():.2f} N (preload {mech.sensor_preload:g} N)",
+        f"  drive torque             {ks.drive_torque.min():8.3f} … {ks.drive_torque.max():.3f} N·m",
+        f"  max pressure angle       {degrees(ks.pressure_angle.max()):8.2f}°",
+        f"  b_min (slider guide)     {np.nanmax(ks.b_min) * 1e3:8.2f} mm",
+        f"  spring design k          {design.k / 1e3:8.3f} N/mm (thesis, travel {design.travel_thesis * 1e3:g} mm);"
+        f" {design.k_geometry / 1e3:.3f} N/mm for the follower's travel {design.travel_geometry * 1e3:.2f} mm",
+        "  flank switches (cam angles where the contact force changes sign):",
+    ]
+    for label, angles in mech.flank_switch_table().items():
+        lines.append(f"    {label:<16} {_angles(angles)}")
+    return "\n".join(lines)
+
+
+def plot_cycle(mech: PinInsertionMechanism, path: str | Path) -> Path:
+    """PNG of s, ψ, R23 and M_Σ over one cam revolution; returns the path written."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    phi = np.linspace(0.0, tau, 1441)
+    st = mech.state(phi)
+    ks = mech.kinetostatics(phi)
+    deg = np.degrees(phi)
+    fig, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9))
+    for ax, y, label in zip(axes, (st.s * 1e3, np.degrees(st.psi), ks.R23n, ks.M_sigma),
+                            ("s (mm)", "ψ (°)", "R23 (N)", "M_Σ (N·m)")):
+        ax.plot(deg, y)
+        ax.set_ylabel(label)
+        ax.grid(True)
+    axes[2].axhline(0.0, color="k", lw=0.8)
+    axes[3].plot(deg, ks.M23, "--", label="M23 (no spring)")
+    axes[3].axhline(0.0, color="k", lw=0.8)
+    axes[3].legend()
+    axes[-1].set_xlabel("cam angle φ (°)")
+    fig.suptitle(f"pin-insertion mechanism, {mech.speed.nominal_omega * 60 / tau:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

@@ -1,0 +1,86 @@
+"""Runner interface of the cam-bar plant: truth signals at increasing times and the events crossed.
+
+Events (kind, data):
+* ``"flank_switch"`` — the contact force with the mounted spring changes sign; data: ``phi`` (rad, wrapped),
+  ``to`` (``"working"`` or ``"other"`` flank);
+* ``"accel_jump"`` — the cam angle crosses a program angle where s'' jumps; data: ``phi``, ``jump``
+  (m/rad²), ``segment`` (0-based).
+Event times are refined with Brent's method to 1e-12 s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from math import tau
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from scipy.optimize import brentq
+
+from rig.plants.cam_bar.kinetostatics import solve
+from rig.plants.cam_bar.switches import sign_changes
+
+if TYPE_CHECKING:
+    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that happened at ``time`` (s)."""
+
+    time: float
+    kind: str
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+class Timeline:
+    """Evaluates the mechanism along the speed profile and keeps the last sample to continue across calls."""
+
+    def __init__(self, mech: "PinInsertionMechanism"):
+        self.mech = mech
+        self.events: list[Event] = []
+        self._last: tuple[float, float, float] | None = None  # (t, unwrapped φ, R23n)
+        self._program_events = mech.program.events()
+
+    def _contact(self, t: float) -> float:
+        dr = self.mech.speed.drive(np.array([t]))
+        return float(self.mech.kinetostatics(dr.phi, dr.omega, dr.alpha).R23n[0])
+
+    def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        if t.ndim != 1 or (t.size > 1 and np.any(np.diff(t) <= 0.0)):
+            raise ValueError("advance(t): t must be a 1-D array of strictly increasing times")
+        if self._last is not None and t.size and t[0] <= self._last[0]:
+            raise ValueError(f"advance(t): t starts at {t[0]:g} s, not after the previous call's end "
+                             f"{self._last[0]:g} s")
+        mech = self.mech
+        dr = mech.speed.drive(t)
+        st = mech.state(dr.phi, dr.omega, dr.alpha)
+        ks = solve(mech, st, mech.k)
+        if t.size:
+            self._find_events(t, dr.phi, ks.R23n)
+            self._last = (float(t[-1]), float(dr.phi[-1]), float(ks.R23n[-1]))
+        return {"t": t, "phi": dr.phi, "cam_angle": np.mod(dr.phi, tau), "omega": dr.omega, "alpha": dr.alpha,
+                "s": st.s, "v": st.s_d, "a": st.s_dd, "x_gripper": mech.s0 - st.s, "psi": st.psi,
+                "theta": st.theta, "r": st.r, "F_rod": ks.F_rod, "rod_tension": ks.rod_tension,
+                "R23": ks.R23n, "M23": ks.M23, "M_e": ks.M_e, "M_sigma": ks.M_sigma,
+                "drive_torque": ks.drive_torque, "F_c": ks.F_c, "pressure_angle": ks.pressure_angle}
+
+    def _find_events(self, t: np.ndarray, phi: np.ndarray, contact: np.ndarray) -> None:
+        if self._last is not None:
+            t = np.concatenate(([self._last[0]], t))
+            phi = np.concatenate(([self._last[1]], phi))
+            contact = np.concatenate(([self._last[2]], contact))
+        found: list[Event] = []
+        for i in sign_changes(contact):
+            tc = brentq(self._contact, t[i], t[i + 1], xtol=1e-12)
+            phic = float(self.mech.speed.drive(np.array([tc])).phi[0])
+            found.append(Event(tc, "flank_switch", {"phi": phic % tau,
+                                                    "to": "working" if contact[i + 1] >= 0.0 else "other"}))
+        for ev in self._program_events:
+            laps = np.floor((phi - ev.angle) / tau)
+            for i in np.flatnonzero(laps[1:] > laps[:-1]):
+                target = ev.angle + tau * laps[i + 1]
+                f = lambda x: float(self.mech.speed.drive(np.array([x])).phi[0]) - target  # noqa: E731
+                tc = t[i + 1] if f(t[i + 1]) == 0.0 else brentq(f, t[i], t[i + 1], xtol=1e-12)
+                found.append(Event(tc, "accel_jump", {"phi": ev.angle, "jump": float(ev.jump),
+                                                      "segment": ev.segment}))
+        self.events.extend(sorted(found, key=lambda e: e.time))

@@ -1,0 +1,196 @@
+"""Composable drive and load torques for the clutch stand (N·m, positive load torque resists ω3 > 0).
+
+A load has ``n_states`` internal states (e.g. the brake force), ``initial_state()``,
+``torque(t, phi3, omega3, z)``, ``rates(t, phi3, omega3, z)``, the times where it jumps
+(``time_breaks()``) and the driven-half angles where it switches (``angle_breaks()`` → (angle, period)).
+"""
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+
+class Load:
+    """Base: a memoryless torque with no internal state and no discontinuities."""
+
+    n_states = 0
+
+    def initial_state(self) -> tuple:
+        return ()
+
+    def torque(self, t: float, phi3: float, omega3: float, z: tuple) -> float:
+        raise NotImplementedError
+
+    def rates(self, t: float, phi3: float, omega3: float, z: tuple) -> tuple:
+        return ()
+
+    def time_breaks(self) -> list[float]:
+        return []
+
+    def angle_breaks(self) -> list[tuple[float, float]]:
+        return []
+
+
+@dataclass
+class Steps(Load):
+    """Piecewise-constant torque in time: ``base`` up to ``times[0]``, ``levels[i]`` after ``times[i]``
+    (left-continuous, as :func:`rig.solvers.integrate` expects at time breaks)."""
+
+    base: float
+    times: Sequence[float] = ()
+    levels: Sequence[float] = ()
+
+    def __post_init__(self) -> None:
+        if len(self.times) != len(self.levels):
+            raise ValueError(f"Steps load: {len(self.times)} times but {len(self.levels)} levels")
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError(f"Steps load: times {list(self.times)} must increase")
+        self._values = [self.base, *self.levels]
+
+    def torque(self, t, phi3, omega3, z):
+        return self._values[bisect.bisect_left(self.times, t)]
+
+    def time_breaks(self):
+        return list(self.times)
+
+
+def constant(torque: float) -> Steps:
+    """Constant torque M_tc (N·m)."""
+    return Steps(torque)
+
+
+def step(time: float, torque: float) -> Steps:
+    """Torque ``torque`` (N·m) added from ``time`` (s) on."""
+    return Steps(0.0, (time,), (torque,))
+
+
+def shock(start: float, duration: float, torque: float) -> Steps:
+    """Rectangular shock of ``torque`` (N·m) on [start, start + duration) (s)."""
+    if not duration > 0:
+        raise ValueError(f"shock load: duration = {duration} s must be positive")
+    return Steps(0.0, (start, start + duration), (torque, 0.0))
+
+
+@dataclass
+class Zone(Load):
+    """Zone law in angle: ``torque`` while φ3 mod ``period`` lies in [start, end) (rad)."""
+
+    torque_in_zone: float
+    start: float
+    end: float
+    period: float = 2 * math.pi
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.start < self.end <= self.period:
+            raise ValueError(f"zone load: need 0 <= start < end <= period, got start={self.start}, "
+                             f"end={self.end}, period={self.period} rad")
+
+    def torque(self, t, phi3, omega3, z):
+        return self.torque_in_zone if self.start <= phi3 % self.period < self.end else 0.0
+
+    def angle_breaks(self):
+        return [(self.start, self.period), (self.end, self.period)]
+
+
+@dataclass
+class LinearInSpeed(Load):
+    """M3 = α0 + β0·ω3 (N·m, N·m·s/rad)."""
+
+    alpha0: float
+    beta0: float
+
+    def torque(self, t, phi3, omega3, z):
+        return self.alpha0 + self.beta0 * omega3
+
+
+@dataclass
+class ShoeBrake(Load):
+    """Shoe brake: M = gain·F_b·tanh(ω3/omega_s), actuator τ·dF_b/dt = F_cmd(t) − F_b.
+
+    ``gain`` (N·m/N) = effective friction coefficient × drum radius × number of shoes; the force
+    command is piecewise constant (``force`` then ``levels[i]`` from ``times[i]``); ``omega_s``
+    (rad/s) regularises the Coulomb sign at standstill.
+    """
+
+    gain: float
+    tau: float
+    force: float
+    times: Sequence[float] = ()
+    levels: Sequence[float] = ()
+    omega_s: float = 0.5
+    n_states = 1
+    _command: Steps = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not (self.gain >= 0 and self.tau > 0 and self.omega_s > 0):
+            raise ValueError(f"shoe brake: need gain >= 0, tau > 0, omega_s > 0 "
+                             f"(gain={self.gain}, tau={self.tau}, omega_s={self.omega_s})")
+        self._command = Steps(self.force, self.times, self.levels)
+
+    def initial_state(self):
+        return (self.force,)
+
+    def torque(self, t, phi3, omega3, z):
+        return self.gain * z[0] * math.tanh(omega3 / self.omega_s)
+
+    def rates(self, t, phi3, omega3, z):
+        return ((self._command.torque(t, 0.0, 0.0, ()) - z[0]) / self.tau,)
+
+    def time_breaks(self):
+        return list(self.times)
+
+
+class LoadSum(Load):
+    """Sum of loads; their states are concatenated in order."""
+
+    def __init__(self, loads: Sequence[Load]):
+        self.loads = list(loads)
+        self.n_states = sum(ld.n_states for ld in self.loads)
+        self._slices, i = [], 0
+        for ld in self.loads:
+            self._slices.append((i, i + ld.n_states))
+            i += ld.n_states
+        self._stateless = [ld for ld in self.loads if ld.n_states == 0]
+        self._stateful = [(ld, a, b) for ld, (a, b) in zip(self.loads, self._slices) if ld.n_states]
+
+    def initial_state(self):
+        return tuple(v for ld in self.loads for v in ld.initial_state())
+
+    def torque(self, t, phi3, omega3, z):
+        m = 0.0
+        for ld in self._stateless:
+            m += ld.torque(t, phi3, omega3, ())
+        for ld, a, b in self._stateful:
+            m += ld.torque(t, phi3, omega3, z[a:b])
+        return m
+
+    def rates(self, t, phi3, omega3, z):
+        return tuple(r for ld, a, b in self._stateful for r in ld.rates(t, phi3, omega3, z[a:b]))
+
+    def time_breaks(self):
+        return sorted({b for ld in self.loads for b in ld.time_breaks()})
+
+    def angle_breaks(self):
+        return [b for ld in self.loads for b in ld.angle_breaks()]
+
+
+@dataclass
+class LinearMotor:
+    """Linear working part of an asynchronous motor behind a belt of ratio i = ω_motor/ω1:
+    M1 = i·(a0 − b0·i·ω1) (N·m at the coupling), switched off (M1 = 0) after ``t_off`` (s)."""
+
+    a0: float
+    b0: float
+    ratio: float = 1.0
+    t_off: float = math.inf
+    tripped: bool = False
+
+    def torque(self, t: float, omega1: float) -> float:
+        if self.tripped or t > self.t_off:
+            return 0.0
+        return self.ratio * (self.a0 - self.b0 * self.ratio * omega1)
+
+    def time_breaks(self) -> list[float]:
+        return [self.t_off] if math.isfinite(self.t_off) else []

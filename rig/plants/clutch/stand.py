@@ -1,0 +1,160 @@
+"""Dynamic clutch stand for scenes (plant = "clutch_dynamic", MODELS.md §4.4).
+
+Motor → V-belt (ratio) → coupling under test → gear coupling → torque meter → flywheel → shoe brake.
+Inertias are lumped: J1 = driving side (motor rotor·ratio² + pulleys + driving half), J3 = driven side
+(driven half + gear coupling + meter + flywheel + brake drum), of which ``J_down`` lies downstream of the
+torque meter (meter reading M_t = M3 + J_down·ω̇3). Apex crossings of the relative angle are
+disengagements; ``shutdown_count`` of them within ``shutdown_window`` raise the shutdown flag (and,
+with ``trip_on_shutdown``, switch the motor off).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rig.plants.clutch.dynamics import ClutchDynamics
+from rig.plants.clutch.flat_tappet import CLUTCH_SCHEMA, FlatTappetClutch
+from rig.plants.clutch.geometry import APEX, LOBE
+from rig.plants.clutch.loads import LinearInSpeed, LinearMotor, Load, LoadSum, ShoeBrake, Zone, constant, shock, step
+from rig.scene import Field, Scene, SceneError, read_table
+from rig.solvers import EventRecord, integrate
+
+STAND_SCHEMA = {
+    **CLUTCH_SCHEMA,
+    "J_down": Field("kg*m^2", 0.0, "inertia downstream of the torque meter (part of J3)"),
+    "v_s": Field("m/s", 0.01, "velocity scale of the tanh friction regularisation"),
+    "blocked": Field(None, False, "driven half clamped"),
+    "omega0": Field("rad/s", 0.0, "initial speed of both halves"),
+    "shutdown_count": Field("1", 2, "disengagements within the window that flag a shutdown"),
+    "shutdown_window": Field("s", 0.5, "window for counting disengagements"),
+    "trip_on_shutdown": Field(None, False, "switch the motor off when the shutdown flag rises"),
+    "rtol": Field("1", 1e-7, "solver relative tolerance"),
+    "atol": Field("1", 1e-9, "solver absolute tolerance"),
+}
+MOTOR_SCHEMA = {
+    "a0": Field("N*m", 437.708, "motor line M = a0 - b0*omega"),
+    "b0": Field("N*m*s/rad", 3.870, "motor line slope"),
+    "ratio": Field("1", 1.0, "belt ratio omega_motor/omega1"),
+    "t_off": Field("s", math.inf, "motor switched off at this time"),
+}
+SCENE_SCHEMA = {
+    "name": Field(None), "description": Field(None, ""), "plant": Field(None), "seed": Field("1", 0),
+    "duration": Field("s"), "sample_rate": Field("Hz"),
+}
+_LOAD_SCHEMAS = {
+    "constant": ({"torque": Field("N*m")}, lambda p: constant(p["torque"])),
+    "step": ({"time": Field("s"), "torque": Field("N*m")}, lambda p: step(p["time"], p["torque"])),
+    "shock": ({"start": Field("s"), "duration": Field("s"), "torque": Field("N*m")},
+              lambda p: shock(p["start"], p["duration"], p["torque"])),
+    "zone": ({"torque": Field("N*m"), "start": Field("rad"), "end": Field("rad"), "period": Field("rad", 2 * math.pi)},
+             lambda p: Zone(p["torque"], p["start"], p["end"], p["period"])),
+    "linear": ({"alpha0": Field("N*m"), "beta0": Field("N*m*s/rad")}, lambda p: LinearInSpeed(p["alpha0"], p["beta0"])),
+    "brake": ({"gain": Field("N*m/N"), "tau": Field("s"), "force": Field("N"), "step_time": Field("s", None),
+               "step_force": Field("N", None), "omega_s": Field("rad/s", 0.5)},
+              lambda p: ShoeBrake(p["gain"], p["tau"], p["force"],
+                                  () if p["step_time"] is None else (p["step_time"],),
+                                  () if p["step_time"] is None else (p["step_force"],), p["omega_s"])),
+}
+
+
+@dataclass(frozen=True)
+class PlantEvent:
+    """Something the plant did: ``time`` (s), ``kind`` ("disengagement", "shutdown", "phase_boundary",
+    ...) and ``data`` (relative angle in rad, direction, count, ...)."""
+
+    time: float
+    kind: str
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+def load_from_tables(tables: dict[str, Any], where: str) -> LoadSum:
+    """Build the load from ``[load.NAME]`` sub-tables, each with ``type`` = constant | step | shock |
+    zone | linear | brake."""
+    parts: list[Load] = []
+    for name, table in tables.items():
+        if not isinstance(table, dict) or "type" not in table:
+            raise SceneError(f"{where}: [load.{name}] must be a table with a 'type' key")
+        kind = table["type"]
+        if kind not in _LOAD_SCHEMAS:
+            raise SceneError(f"{where}: [load.{name}] unknown type {kind!r} (known: {', '.join(_LOAD_SCHEMAS)})")
+        schema, build = _LOAD_SCHEMAS[kind]
+        params = read_table({k: v for k, v in table.items() if k != "type"}, schema, f"{where} [load.{name}]")
+        try:
+            parts.append(build(params))
+        except (TypeError, ValueError) as exc:
+            raise SceneError(f"{where} [load.{name}]: {exc}") from None
+    return LoadSum(parts)
+
+
+class ClutchStand:
+    """Runner-facing plant: ``advance(t)`` returns truth signals, ``events`` lists what happened."""
+
+    def __init__(self, dynamics: ClutchDynamics, omega0: float = 0.0, shutdown_count: int = 2,
+                 shutdown_window: float = 0.5, trip_on_shutdown: bool = False, rtol: float = 1e-7,
+                 atol: float = 1e-9):
+        self.dynamics = dynamics
+        self.y = dynamics.initial_state(omega0)
+        self.t = 0.0
+        self.events: list[PlantEvent] = []
+        self.disengagement_times: list[float] = []
+        self.shutdown = False
+        self.shutdown_count, self.shutdown_window = int(shutdown_count), shutdown_window
+        self.trip_on_shutdown = trip_on_shutdown
+        self.rtol, self.atol = rtol, atol
+        self._h: float | None = None
+
+    @classmethod
+    def from_scene(cls, scene: Scene) -> "ClutchStand":
+        """Build from a scene with [scene] (plant = "clutch_dynamic"), [plant], [motor], [load.*]."""
+        head = scene.read("scene", SCENE_SCHEMA)
+        if head["plant"] != "clutch_dynamic":
+            raise SceneError(f"{scene.path} [scene]: plant = {head['plant']!r}, expected 'clutch_dynamic'")
+        p = scene.read("plant", STAND_SCHEMA)
+        m = scene.read("motor", MOTOR_SCHEMA)
+        load = load_from_tables(scene.section("load"), str(scene.path))
+        try:
+            clutch = FlatTappetClutch(**{k: p[k] for k in CLUTCH_SCHEMA})
+            dyn = ClutchDynamics(clutch, LinearMotor(m["a0"], m["b0"], m["ratio"], m["t_off"]), load,
+                                 v_s=p["v_s"], blocked=bool(p["blocked"]), J_down=p["J_down"])
+        except ValueError as exc:
+            raise SceneError(f"{scene.path} [plant]: {exc}") from None
+        return cls(dyn, p["omega0"], p["shutdown_count"], p["shutdown_window"], bool(p["trip_on_shutdown"]),
+                   p["rtol"], p["atol"])
+
+    def _on_apex(self, rec: EventRecord) -> bool:
+        omega_r = rec.y[1] - rec.y[3]
+        self.disengagement_times.append(rec.t)
+        self.events.append(PlantEvent(rec.t, "disengagement", {
+            "phi_r": rec.y[0] - rec.y[2], "direction": 1 if omega_r >= 0 else -1,
+            "count": len(self.disengagement_times)}))
+        recent = [x for x in self.disengagement_times if x > rec.t - self.shutdown_window]
+        if not self.shutdown and len(recent) >= self.shutdown_count:
+            self.shutdown = True
+            self.events.append(PlantEvent(rec.t, "shutdown", {"disengagements_in_window": len(recent)}))
+            if self.trip_on_shutdown:
+                self.dynamics.motor.tripped = True
+                return True
+        return False
+
+    def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        """Integrate on to the increasing sample times ``t`` (s, ≥ current time); return truth (SI)."""
+        t = np.asarray(t, dtype=float)
+        if t.size == 0:
+            return {}
+        if t[0] < self.t or np.any(np.diff(t) <= 0):
+            raise ValueError(f"ClutchStand.advance: times must increase from the current time {self.t} s")
+        if t[-1] > self.t:
+            sol = integrate(self.dynamics.problem(self.y, self._on_apex), (self.t, float(t[-1])), t_eval=t,
+                            rtol=self.rtol, atol=self.atol, first_step=self._h)
+            for r in sol.events:
+                if r.name in ("phase_boundary", "lobe_wrap", "load_zone"):
+                    self.events.append(PlantEvent(r.t, r.name, {"phi_r": r.y[0] - r.y[2]}))
+            self.y, self.t, self._h = sol.y_final, sol.t_final, sol.h_last
+            self.events.sort(key=lambda e: e.time)
+            Y = sol.y
+        else:
+            Y = np.asarray(self.y)[:, None]
+        return self.dynamics.outputs(t, Y)

@@ -1,0 +1,175 @@
+"""Read a rig MCAP recording back into arrays; recover what is readable from truncated files."""
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mcap.exceptions import InvalidMagic
+from mcap.records import Attachment, Channel, Footer, Message, Metadata
+from mcap.stream_reader import StreamReader
+
+from rig.recorder import schemas as S
+from rig.recorder.encoding import decode_array, decode_block
+
+
+class RecordingError(ValueError):
+    """A recording is unreadable, truncated or corrupt; ``partial`` holds what could be recovered."""
+
+    def __init__(self, message: str, partial: "Recording | None" = None):
+        super().__init__(message)
+        self.partial = partial
+
+
+@dataclass
+class CurveRecord:
+    """One device curve: times (s), X/Y (SI), optional measured cam angle (rad) and theory arrays."""
+
+    number: int
+    program: int
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    angle: np.ndarray | None = None
+    theory: dict[str, np.ndarray] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Recording:
+    """Everything in a recording. ``series`` maps each bulk topic to concatenated arrays (incl. ``t``)."""
+
+    path: Path
+    scene_text: str | None = None
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    programs: dict[int, dict] = field(default_factory=dict)
+    curves: list[CurveRecord] = field(default_factory=list)
+    results: list[dict] = field(default_factory=list)
+    statistics: list[dict] = field(default_factory=list)
+    events: list[dict] = field(default_factory=list)
+    series: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    can_frames: dict[str, Any] = field(default_factory=dict)
+    message_counts: dict[str, int] = field(default_factory=dict)
+    complete: bool = True
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def truth(self) -> dict[str, np.ndarray]:
+        return self.series.get(S.TRUTH, {})
+
+    @property
+    def live(self) -> dict[str, np.ndarray]:
+        return self.series.get(S.LIVE, {})
+
+    @property
+    def transducers(self) -> dict[str, dict[str, np.ndarray]]:
+        n = len(S.TRANSDUCERS)
+        return {k[n:]: v for k, v in self.series.items() if k.startswith(S.TRANSDUCERS)}
+
+    def summary(self) -> str:
+        counts = ", ".join(f"{k}: {v}" for k, v in sorted(self.message_counts.items())) or "no messages"
+        return f"{counts}; {len(self.programs)} program(s), scene {'present' if self.scene_text else 'absent'}"
+
+
+def _curve(msg: dict) -> CurveRecord:
+    known = {"number", "program", "t", "x", "y", "angle", "theory"}
+    return CurveRecord(
+        number=int(msg["number"]), program=int(msg["program"]), t=decode_array(msg["t"]),
+        x=decode_array(msg["x"]), y=decode_array(msg["y"]),
+        angle=decode_array(msg["angle"]) if "angle" in msg else None,
+        theory={k: decode_array(v) for k, v in msg.get("theory", {}).items()},
+        extra={k: v for k, v in msg.items() if k not in known})
+
+
+def _can(blocks: list[dict]) -> dict[str, Any]:
+    def cat(key: str, dtype: Any) -> np.ndarray:
+        return np.array([v for b in blocks for v in b[key]], dtype=dtype)
+    return {"t": cat("t", np.float64), "id": cat("id", np.int64), "is_fd": cat("is_fd", bool),
+            "is_extended": cat("is_extended", bool), "data": [bytes.fromhex(d) for b in blocks for d in b["data"]]}
+
+
+class _Collector:
+    """Sorts decoded records into a :class:`Recording`."""
+
+    def __init__(self, rec: Recording):
+        self.rec = rec
+        self.channels: dict[int, str] = {}
+        self.blocks: dict[str, list[dict[str, np.ndarray]]] = defaultdict(list)
+        self.can: list[dict] = []
+
+    def add(self, record: Any) -> None:
+        rec = self.rec
+        if isinstance(record, Channel):
+            self.channels[record.id] = record.topic
+        elif isinstance(record, Message):
+            topic = self.channels.get(record.channel_id)
+            if topic is None:
+                raise ValueError(f"message on unknown channel id {record.channel_id}")
+            rec.message_counts[topic] = rec.message_counts.get(topic, 0) + 1
+            self._message(topic, record.data)
+        elif isinstance(record, Attachment):
+            if record.name == S.SCENE_ATTACHMENT:
+                rec.scene_text = record.data.decode("utf-8")
+            elif record.name.startswith("device/program/"):
+                rec.programs[int(Path(record.name).stem)] = json.loads(record.data)
+        elif isinstance(record, Metadata):
+            rec.metadata[record.name] = dict(record.metadata)
+
+    def _message(self, topic: str, data: bytes) -> None:
+        rec = self.rec
+        if topic == S.CURVE:
+            rec.curves.append(_curve(json.loads(data)))
+        elif topic == S.RESULT:
+            rec.results.append(json.loads(data))
+        elif topic == S.STATISTICS:
+            rec.statistics.append(json.loads(data))
+        elif topic == S.EVENTS:
+            rec.events.append(json.loads(data))
+        elif topic == S.CAN_RAW:
+            self.can.append(json.loads(data))
+        else:
+            self.blocks[topic].append(decode_block(data))
+
+    def finish(self) -> Recording:
+        for topic, blocks in self.blocks.items():
+            self.rec.series[topic] = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
+        if self.can:
+            self.rec.can_frames = _can(self.can)
+        return self.rec
+
+
+def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
+    """Read a recording made by :class:`rig.recorder.Recorder`.
+
+    A truncated or corrupt file raises :class:`RecordingError` naming the file, the problem and what
+    was recovered (also in ``exc.partial``); with ``allow_partial`` the partial recording is returned
+    with ``complete = False`` and ``problems`` filled in.
+    """
+    path = Path(path)
+    rec = Recording(path=path)
+    collector = _Collector(rec)
+    footer = False
+    try:
+        with open(path, "rb") as f:
+            for record in StreamReader(f, validate_crcs=True).records:
+                collector.add(record)
+                footer = footer or isinstance(record, Footer)
+    except OSError as exc:
+        raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from None
+    except InvalidMagic:
+        raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)") from None
+    except Exception as exc:  # any decoding failure past the header: keep what was read
+        rec.complete = False
+        rec.problems.append(f"stopped reading at a damaged record ({type(exc).__name__}: {exc})")
+    if not footer and rec.complete:
+        rec.complete = False
+        rec.problems.append("file ends without a footer (recording was not closed)")
+    collector.finish()
+    if not rec.complete and not allow_partial:
+        raise RecordingError(f"{path}: truncated or corrupt MCAP recording: {'; '.join(rec.problems)}. "
+                             f"Recovered {rec.summary()} (read_recording(..., allow_partial=True) returns it)",
+                             partial=rec)
+    return rec

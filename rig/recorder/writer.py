@@ -1,0 +1,290 @@
+"""MCAP recorder: self-describing JSON channels written in blocks; log time = simulation time (ns).
+
+Use as a context manager so the file is finished (summary, indexes, footer) even when the run is
+interrupted by an exception or Ctrl-C::
+
+    with Recorder("run.mcap", scene_text=scene.text, metadata={"seed": 7}) as rec:
+        rec.write_truth(t, {"x": x, "F": F})
+        rec.write_curve(1, 1, t, x, y)
+"""
+from __future__ import annotations
+
+import json
+import math
+import platform
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import mcap
+import numpy as np
+from mcap.writer import CompressionType, Writer
+
+import rig
+from rig.recorder import schemas as S
+from rig.recorder.encoding import ENCODINGS, dumps, encode_array, encode_block
+
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+
+
+def to_ns(t: float, what: str) -> int:
+    """Simulation time in s to MCAP log time in ns (must be finite and >= 0)."""
+    t = float(t)
+    if not math.isfinite(t) or t < 0:
+        raise ValueError(f"{what}: time {t!r} s cannot be a log time (needs a finite time >= 0)")
+    return int(round(t * 1e9))
+
+
+def _check_times(t: np.ndarray, last: float, topic: str) -> None:
+    if t.ndim != 1:
+        raise ValueError(f"{topic}: time must be a 1-D array, got shape {t.shape}")
+    if t.size and (t[0] < last or np.any(np.diff(t) < 0)):
+        raise ValueError(f"{topic}: times must be non-decreasing across writes (got {t[0]!r} s after {last!r} s)")
+
+
+class _Block:
+    """Accumulates samples of one bulk channel until a block is full."""
+
+    def __init__(self, channel_id: int, fields: tuple[str, ...]):
+        self.channel_id = channel_id
+        self.fields = fields
+        self.parts: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
+        self.count = 0
+        self.last_t = -math.inf
+
+    def append(self, t: np.ndarray, signals: dict[str, np.ndarray]) -> None:
+        self.parts.append((t, signals))
+        self.count += t.size
+        self.last_t = float(t[-1])
+
+    def take(self, size: int, final: bool) -> Iterable[tuple[np.ndarray, dict[str, np.ndarray]]]:
+        """Yield full blocks of ``size`` samples (and the remainder if ``final``)."""
+        if self.count < size and not (final and self.count):
+            return
+        t = np.concatenate([p[0] for p in self.parts])
+        sig = {f: np.concatenate([p[1][f] for p in self.parts]) for f in self.fields}
+        stop = t.size if final else t.size - t.size % size
+        for i in range(0, stop, size):
+            yield t[i:i + size], {f: v[i:i + size] for f, v in sig.items()}
+        self.parts = [(t[stop:], {f: v[stop:] for f, v in sig.items()})] if stop < t.size else []
+        self.count = t.size - stop
+
+
+class Recorder:
+    """Write one rig run to an MCAP file.
+
+    path: output file. scene_text: the scene TOML (stored as attachment ``scene.toml``).
+    metadata: extra key/values stored with the software version in metadata record ``rig``.
+    programs: device program configs ``{number: dict}`` (attachments ``device/program/<n>.json``).
+    block_size: samples per bulk message. encoding: ``"json"`` (plottable) or ``"base64"`` (fast).
+    compression: ``"zstd"``, ``"lz4"`` or ``"none"`` (chunk compression).
+    """
+
+    def __init__(self, path: str | Path, scene_text: str | None = None,
+                 metadata: Mapping[str, Any] | None = None, programs: Mapping[int, Mapping] | None = None,
+                 block_size: int = 1000, encoding: str = "json", compression: str = "zstd",
+                 chunk_size: int = 1 << 20):
+        if encoding not in ENCODINGS:
+            raise ValueError(f"Recorder: unknown encoding {encoding!r} (use one of {ENCODINGS})")
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"Recorder: unknown compression {compression!r} (use one of {sorted(COMPRESSIONS)})")
+        if int(block_size) < 1:
+            raise ValueError(f"Recorder: block_size must be >= 1, got {block_size}")
+        self.path = Path(path)
+        self.encoding = encoding
+        self.block_size = int(block_size)
+        self._file = open(self.path, "wb")
+        self._writer = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSIONS[compression],
+                              enable_data_crcs=True)
+        self._writer.start(profile="", library=f"mechrig/{rig.__version__}")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._blocks: dict[str, _Block] = {}
+        self._can: list[tuple[float, int, bool, bool, str]] = []
+        self._can_last = -math.inf
+        self._last_ns = 0
+        self._closed = False
+        meta = {"software_version": rig.__version__, "mcap_version": mcap.__version__,
+                "python": platform.python_version(), "encoding": encoding, "time": "simulation time, ns"}
+        for key, value in (metadata or {}).items():
+            meta[str(key)] = value if isinstance(value, str) else json.dumps(value)
+        self._writer.add_metadata(S.RIG_METADATA, meta)
+        if scene_text is not None:
+            self._writer.add_attachment(0, 0, S.SCENE_ATTACHMENT, "application/toml", scene_text.encode())
+        for number, config in (programs or {}).items():
+            self.write_program(number, config)
+
+    # -- context manager -------------------------------------------------------------------------
+    def __enter__(self) -> "Recorder":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Flush buffered blocks and finish the file (idempotent)."""
+        if self._closed:
+            return
+        try:
+            for topic in list(self._blocks):
+                self._flush(topic, final=True)
+            self._flush_can(final=True)
+        finally:
+            self._closed = True
+            try:
+                self._writer.finish()
+            finally:
+                self._file.close()
+
+    # -- channels --------------------------------------------------------------------------------
+    def _channel(self, topic: str, schema: dict | bytes, name: str, meta: Mapping[str, str] | None = None) -> int:
+        if topic not in self._channels:
+            data = schema if isinstance(schema, bytes) else S.schema_bytes(schema)
+            sid = self._writer.register_schema(name=name, encoding="jsonschema", data=data)
+            self._schemas[topic] = sid
+            self._channels[topic] = self._writer.register_channel(
+                topic=topic, message_encoding="json", schema_id=sid, metadata=dict(meta or {}))
+        return self._channels[topic]
+
+    def _put(self, channel_id: int, t_ns: int, data: bytes) -> None:
+        if self._closed:
+            raise RuntimeError(f"Recorder {self.path}: write after close")
+        self._writer.add_message(channel_id=channel_id, log_time=t_ns, data=data, publish_time=t_ns)
+        self._last_ns = max(self._last_ns, t_ns)
+
+    def _time_ns(self, t: float | None, what: str) -> int:
+        return self._last_ns if t is None else to_ns(t, what)
+
+    # -- bulk blocks -----------------------------------------------------------------------------
+    def write_block(self, topic: str, t: np.ndarray, signals: Mapping[str, np.ndarray]) -> None:
+        """Append samples to bulk channel ``topic`` (t in s, non-decreasing; signals SI, same length).
+
+        The first write fixes the channel's signal names; later writes must give the same names.
+        """
+        if self._closed:
+            raise RuntimeError(f"Recorder {self.path}: write after close")
+        if not topic.startswith("/"):
+            raise ValueError(f"topic {topic!r} must start with '/'")
+        t = np.asarray(t, dtype=np.float64)
+        sig = {str(k): np.asarray(v, dtype=np.float64) for k, v in signals.items()}
+        if "t" in sig:
+            raise ValueError(f"{topic}: a signal may not be called 't' (reserved for time)")
+        for name, v in sig.items():
+            if v.shape != t.shape:
+                raise ValueError(f"{topic}: signal {name!r} has shape {v.shape}, time has {t.shape}")
+        block = self._blocks.get(topic)
+        if block is None:
+            cid = self._channel(topic, S.block_schema(f"rig.Block{topic}", sig, self.encoding), f"rig.Block{topic}",
+                                {"encoding": self.encoding, "time_unit": "s"})
+            block = self._blocks[topic] = _Block(cid, tuple(sig))
+        elif set(sig) != set(block.fields):
+            raise ValueError(f"{topic}: signals {sorted(sig)} differ from the channel's {sorted(block.fields)}")
+        _check_times(t, block.last_t, topic)
+        if t.size == 0:
+            return
+        to_ns(t[0], topic)
+        block.append(t, sig)
+        self._flush(topic, final=False)
+
+    def _flush(self, topic: str, final: bool) -> None:
+        block = self._blocks[topic]
+        for t, sig in block.take(self.block_size, final):
+            self._put(block.channel_id, to_ns(t[0], topic), encode_block(t, sig, self.encoding))
+
+    def write_truth(self, t: np.ndarray, signals: Mapping[str, np.ndarray]) -> None:
+        """Physical truth of the plant (``/plant/truth``)."""
+        self.write_block(S.TRUTH, t, signals)
+
+    def write_transducer(self, name: str, t: np.ndarray, signals: Mapping[str, np.ndarray]) -> None:
+        """Output of one transducer (``/transducers/<name>``), e.g. ``{"V": volts}``."""
+        self.write_block(S.TRANSDUCERS + name, t, signals)
+
+    def write_live(self, t: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
+        """Live X/Y values streamed by the device (``/device/live``)."""
+        self.write_block(S.LIVE, t, {"x": x, "y": y})
+
+    # -- CAN ------------------------------------------------------------------------------------
+    def write_can_frames(self, frames: Iterable[Any]) -> None:
+        """Raw CAN frames (``/can/raw``): python-can ``Message`` objects or ``(t, id, data, is_fd)`` tuples."""
+        for frame in frames:
+            if hasattr(frame, "arbitration_id"):
+                t, fid, data, fd, ext = (frame.timestamp, frame.arbitration_id, frame.data,
+                                         frame.is_fd, frame.is_extended_id)
+            else:
+                t, fid, data, fd = frame
+                ext = int(fid) > 0x7FF
+            t = float(t)
+            if t < self._can_last:
+                raise ValueError(f"{S.CAN_RAW}: frame time {t} s is before the previous frame ({self._can_last} s)")
+            to_ns(t, S.CAN_RAW)
+            self._can_last = t
+            self._can.append((t, int(fid), bool(fd), bool(ext), bytes(data).hex()))
+        self._flush_can(final=False)
+
+    def _flush_can(self, final: bool) -> None:
+        cid = self._channel(S.CAN_RAW, S.CAN_SCHEMA, "rig.CanFrames") if self._can else None
+        while len(self._can) >= self.block_size or (final and self._can):
+            rows, self._can = self._can[:self.block_size], self._can[self.block_size:]
+            t, ids, fd, ext, data = (list(c) for c in zip(*rows))
+            self._put(cid, to_ns(t[0], S.CAN_RAW),
+                      dumps({"t": t, "id": ids, "is_fd": fd, "is_extended": ext, "data": data}))
+
+    # -- device ---------------------------------------------------------------------------------
+    def write_curve(self, number: int, program: int, t: np.ndarray, x: np.ndarray, y: np.ndarray,
+                    theory: Mapping[str, np.ndarray] | None = None, angle: np.ndarray | None = None,
+                    **extra: Any) -> None:
+        """One measured curve (``/device/curve``), log time = its first sample.
+
+        theory: arrays of the theoretical curve (keys ``t``, ``x``, ``y``, ``angle``; without ``t`` it
+        shares the curve's times). angle: measured cam angle per sample, rad. extra: JSON scalars/lists.
+        """
+        t = np.asarray(t, dtype=np.float64)
+        arrays = {"t": t, "x": x, "y": y}
+        if angle is not None:
+            arrays["angle"] = angle
+        if t.ndim != 1 or t.size == 0:
+            raise ValueError(f"{S.CURVE}: curve {number} needs a non-empty 1-D time array, got shape {t.shape}")
+        for name, v in arrays.items():
+            if np.shape(v) != t.shape:
+                raise ValueError(f"{S.CURVE}: curve {number} array {name!r} has shape {np.shape(v)}, t has {t.shape}")
+        clash = set(extra) & {"number", "program", "theory", *arrays}
+        if clash:
+            raise ValueError(f"{S.CURVE}: extra fields {sorted(clash)} clash with curve fields")
+        msg: dict[str, Any] = {"number": int(number), "program": int(program)}
+        msg.update({k: encode_array(v, self.encoding) for k, v in arrays.items()})
+        if theory is not None:
+            msg["theory"] = {str(k): encode_array(v, self.encoding) for k, v in theory.items()}
+        msg.update(extra)
+        cid = self._channel(S.CURVE, S.curve_schema(self.encoding), "rig.Curve", {"encoding": self.encoding})
+        self._put(cid, to_ns(t[0], f"{S.CURVE} curve {number}"), dumps(msg))
+
+    def write_result(self, result: Mapping[str, Any], t: float | None = None) -> None:
+        """Per-curve result with process values (``/device/result``), e.g. ``CurveResult.to_dict()``.
+
+        t: log time in s; default the result's ``"t"`` key or else the latest time written.
+        """
+        if "ok" not in result:
+            raise ValueError(f"{S.RESULT}: result has no 'ok' key (keys: {sorted(result)})")
+        when = t if t is not None else result.get("t")
+        cid = self._channel(S.RESULT, S.RESULT_SCHEMA, "rig.CurveResult")
+        self._put(cid, self._time_ns(when, S.RESULT), dumps(result))
+
+    def write_statistics(self, stats: Mapping[str, Any], t: float | None = None) -> None:
+        """Statistics snapshot of the device (``/device/statistics``); t default = latest time written."""
+        cid = self._channel(S.STATISTICS, S.STATISTICS_SCHEMA, "rig.DeviceStatistics")
+        self._put(cid, self._time_ns(t, S.STATISTICS), dumps(stats))
+
+    def write_event(self, t: float, kind: str, **data: Any) -> None:
+        """An event (``/events``): flank switch, fault, sequence gap, disengagement, ..."""
+        if not kind:
+            raise ValueError(f"{S.EVENTS}: event kind must be a non-empty string")
+        if {"t", "kind"} & set(data):
+            raise ValueError(f"{S.EVENTS}: event data may not use the keys 't' or 'kind'")
+        cid = self._channel(S.EVENTS, S.EVENT_SCHEMA, "rig.Event")
+        self._put(cid, to_ns(t, f"{S.EVENTS} {kind}"), dumps({"t": float(t), "kind": str(kind), **data}))
+
+    def write_program(self, number: int, config: Mapping[str, Any]) -> None:
+        """Store a device program configuration (elements, limits) as a JSON attachment."""
+        if self._closed:
+            raise RuntimeError(f"Recorder {self.path}: write after close")
+        name = S.PROGRAM_ATTACHMENT.format(number=int(number))
+        self._writer.add_attachment(0, self._last_ns, name, "application/json", dumps(config))

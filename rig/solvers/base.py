@@ -1,0 +1,79 @@
+"""Common parts of the ODE solvers: base class, divergence error, step-size helpers.
+
+States are tuples of floats (pure Python is much faster than numpy for 4–6 states); right-hand sides
+``fun(t, y) -> sequence of floats`` must accept tuples.
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable, Sequence
+
+Rhs = Callable[[float, tuple], Sequence[float]]
+
+
+class SolverDivergence(RuntimeError):
+    """The solution became non-finite or the step size underflowed; the message names time and state."""
+
+    def __init__(self, what: str, t: float, y: Sequence[float]):
+        state = ", ".join(f"{v:.6g}" for v in y)
+        super().__init__(f"solver diverged: {what} at t = {t:.9g} s, state = ({state})")
+        self.t = t
+        self.y = tuple(y)
+
+
+def all_finite(y: Sequence[float]) -> bool:
+    """True when every component is finite (a sum overflowing past 1e308 also counts as divergence)."""
+    return math.isfinite(sum(y))
+
+
+class OdeSolver:
+    """Base of the step-by-step solvers (scipy.integrate.OdeSolver style).
+
+    Attributes: ``t``, ``y`` (tuple), ``t_old``, ``y_old``, ``t_bound``, ``status`` ('running',
+    'finished', 'failed'), ``nfev``, ``nsteps``, ``h_last`` (last accepted step, s). Only forward
+    integration (t_bound > t0) is supported.
+    """
+
+    order: int = 0
+
+    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float):
+        if not t_bound > t0:
+            raise ValueError(f"solver: t_bound = {t_bound} must be greater than t0 = {t0}")
+        self.fun = fun
+        self.t = float(t0)
+        self.y = tuple(float(v) for v in y0)
+        if not all_finite(self.y):
+            raise SolverDivergence("non-finite initial state", self.t, self.y)
+        self.t_bound = float(t_bound)
+        self.t_old: float | None = None
+        self.y_old: tuple | None = None
+        self.status = "running"
+        self.nfev = 0
+        self.nsteps = 0
+        self.h_last = math.nan
+
+    def step(self) -> None:
+        """Advance one accepted step (raises :class:`SolverDivergence` on failure)."""
+        if self.status != "running":
+            raise RuntimeError(f"solver: step() called on a {self.status} solver")
+        try:
+            self._step_impl()
+        except SolverDivergence:
+            self.status = "failed"
+            raise
+        except (OverflowError, ZeroDivisionError) as exc:
+            self.status = "failed"
+            raise SolverDivergence(f"arithmetic error in the right-hand side ({exc})", self.t, self.y) from None
+        self.nsteps += 1
+        if self.t >= self.t_bound:
+            self.status = "finished"
+
+    def _step_impl(self) -> None:
+        raise NotImplementedError
+
+    def dense_output(self):
+        """Interpolant over the last step [t_old, t]: callable on a float (tuple) or array (ndarray)."""
+        raise NotImplementedError
+
+    def _min_step(self) -> float:
+        return 10.0 * (math.nextafter(self.t, math.inf) - self.t)

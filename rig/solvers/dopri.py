@@ -1,0 +1,146 @@
+"""Dormand–Prince 5(4) adaptive explicit Runge–Kutta in pure Python floats (for small systems).
+
+Same tableau, error norm (RMS of err/(atol + rtol·max|y|)) and quartic dense output as scipy's RK45,
+but with tuple states and unrolled stages: ~10× less overhead per step on 4–6 states.
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, all_finite
+
+_A21 = 1 / 5
+_A31, _A32 = 3 / 40, 9 / 40
+_A41, _A42, _A43 = 44 / 45, -56 / 15, 32 / 9
+_A51, _A52, _A53, _A54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
+_A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
+_B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
+_E1, _E3, _E4, _E5, _E6, _E7 = -71 / 57600, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40
+_C2, _C3, _C4, _C5 = 1 / 5, 3 / 10, 4 / 5, 8 / 9
+# quartic dense output (Shampine 1986, as in scipy RK45): rows = stages, columns = θ¹..θ⁴
+_P = np.array([
+    [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
+    [0, 0, 0, 0],
+    [0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799],
+    [0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
+    [0, 127303824393 / 49829197408, -318862633887 / 49829197408, 701980252875 / 199316789632],
+    [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
+    [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423]])
+SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
+
+
+class PolynomialDense:
+    """y(t_old + θh) = y_old + Σ_k Q[:, k] θ^(k+1) on one step; call with a float or an array of times."""
+
+    def __init__(self, t_old: float, h: float, y_old: tuple, Q: np.ndarray):
+        self.t_old, self.h, self.y_old = t_old, h, y_old
+        self.Q = Q
+        self._rows = [tuple(r) for r in Q]  # per component, for fast scalar evaluation
+
+    def __call__(self, t):
+        if isinstance(t, float):
+            th = (t - self.t_old) / self.h
+            out = []
+            for y0, q in zip(self.y_old, self._rows):
+                acc = 0.0
+                for c in reversed(q):
+                    acc = acc * th + c
+                out.append(y0 + acc * th)
+            return tuple(out)
+        th = (np.asarray(t, dtype=float) - self.t_old) / self.h
+        powers = th[None, :] ** np.arange(1, self.Q.shape[1] + 1)[:, None]
+        return np.asarray(self.y_old)[:, None] + self.Q @ powers
+
+
+def initial_step(fun: Rhs, t0: float, y0: tuple, f0: Sequence[float], order: int, rtol: float, atol: float,
+                 t_bound: float) -> float:
+    """Hairer's starting-step heuristic (one extra RHS evaluation)."""
+    sc = [atol + rtol * abs(v) for v in y0]
+    d0 = math.sqrt(sum((v / s) ** 2 for v, s in zip(y0, sc)) / len(y0))
+    d1 = math.sqrt(sum((v / s) ** 2 for v, s in zip(f0, sc)) / len(y0))
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, t_bound - t0)
+    y1 = tuple(v + h0 * f for v, f in zip(y0, f0))
+    f1 = fun(t0 + h0, y1)
+    d2 = math.sqrt(sum(((a - b) / s) ** 2 for a, b, s in zip(f1, f0, sc)) / len(y0)) / h0
+    h1 = max(1e-6, h0 * 1e-3) if max(d1, d2) <= 1e-15 else (0.01 / max(d1, d2)) ** (1 / (order + 1))
+    return min(100 * h0, h1, t_bound - t0)
+
+
+class DormandPrince45(OdeSolver):
+    """Adaptive Dormand–Prince 5(4) with FSAL, local extrapolation and quartic dense output."""
+
+    order = 5
+
+    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
+                 atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf):
+        super().__init__(fun, t0, y0, t_bound)
+        if not (rtol > 0 and atol >= 0):
+            raise ValueError(f"DormandPrince45: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
+        self.rtol, self.atol, self.max_step = rtol, atol, max_step
+        self.f = tuple(fun(self.t, self.y))
+        self.nfev = 1
+        if first_step is None or not first_step > 0:
+            self.h_abs = initial_step(fun, self.t, self.y, self.f, 4, rtol, atol, self.t_bound)
+            self.nfev += 1
+        else:
+            self.h_abs = min(first_step, self.t_bound - self.t)
+        self._K: tuple | None = None
+
+    def _step_impl(self) -> None:
+        fun, t, y, k1 = self.fun, self.t, self.y, self.f
+        rtol, atol = self.rtol, self.atol
+        h_abs = min(self.h_abs, self.max_step)
+        min_step = self._min_step()
+        n = len(y)
+        while True:
+            if h_abs < min_step:
+                raise SolverDivergence(f"step size underflow (h = {h_abs:.3g} s)", t, y)
+            h = h_abs
+            t_new = t + h
+            if t_new >= self.t_bound:
+                t_new = self.t_bound
+                h = t_new - t
+            k2 = fun(t + _C2 * h, tuple(a + h * _A21 * b for a, b in zip(y, k1)))
+            k3 = fun(t + _C3 * h, tuple(a + h * (_A31 * b + _A32 * c) for a, b, c in zip(y, k1, k2)))
+            k4 = fun(t + _C4 * h, tuple(a + h * (_A41 * b + _A42 * c + _A43 * d)
+                                        for a, b, c, d in zip(y, k1, k2, k3)))
+            k5 = fun(t + _C5 * h, tuple(a + h * (_A51 * b + _A52 * c + _A53 * d + _A54 * e)
+                                        for a, b, c, d, e in zip(y, k1, k2, k3, k4)))
+            k6 = fun(t + h, tuple(a + h * (_A61 * b + _A62 * c + _A63 * d + _A64 * e + _A65 * f)
+                                  for a, b, c, d, e, f in zip(y, k1, k2, k3, k4, k5)))
+            y_new = tuple(a + h * (_B1 * b + _B3 * d + _B4 * e + _B5 * f + _B6 * g)
+                          for a, b, d, e, f, g in zip(y, k1, k3, k4, k5, k6))
+            self.nfev += 5
+            if not all_finite(y_new):
+                h_abs *= MIN_FACTOR
+                continue
+            k7 = fun(t_new, y_new)
+            self.nfev += 1
+            acc = 0.0
+            for a, b, e1, e3, e4, e5, e6, e7 in zip(y, y_new, k1, k3, k4, k5, k6, k7):
+                err = h * (_E1 * e1 + _E3 * e3 + _E4 * e4 + _E5 * e5 + _E6 * e6 + _E7 * e7)
+                sc = atol + rtol * (abs(a) if abs(a) > abs(b) else abs(b))
+                err /= sc
+                acc += err * err
+            err_norm = math.sqrt(acc / n)
+            if not math.isfinite(err_norm):
+                h_abs *= MIN_FACTOR
+                continue
+            if err_norm < 1.0:
+                factor = MAX_FACTOR if err_norm == 0 else min(MAX_FACTOR, SAFETY * err_norm ** -0.2)
+                break
+            h_abs *= max(MIN_FACTOR, SAFETY * err_norm ** -0.2)
+        self.t_old, self.y_old = t, y
+        self.t, self.y, self.f = t_new, y_new, tuple(k7)
+        self.h_last = h
+        self.h_abs = h_abs * factor
+        self._K = (k1, k2, k3, k4, k5, k6, k7)
+
+    def dense_output(self) -> PolynomialDense:
+        h = self.t - self.t_old
+        Q = h * (np.array(self._K).T @ _P)
+        return PolynomialDense(self.t_old, h, self.y_old, Q)

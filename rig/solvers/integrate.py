@@ -1,0 +1,196 @@
+"""Problem-independent integration driver: sampling, event location, restarts at discontinuities.
+
+A *problem* is a right-hand side plus event functions (and optional times where the RHS jumps);
+a *method* is a solver class. ``integrate`` drives one with the other:
+
+* events are located by root finding (Brent) on the step's dense output and recorded;
+* at an event flagged ``restart`` (RHS discontinuous there, e.g. a cam phase boundary) or whose
+  ``action`` reports a change of the problem, the step is cut at the event and the solver restarted;
+* ``time_breaks`` (load steps in time) are hit exactly by bounding the solver there and restarting
+  one ulp later; the RHS must be left-continuous there (value at t_b = value before the break);
+* terminal events stop the integration;
+* a diverging solver raises :class:`SolverDivergence` naming time and state.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy.optimize import brentq
+
+from rig.solvers.base import OdeSolver, Rhs
+from rig.solvers.dopri import DormandPrince45
+from rig.solvers.rk4 import RK4
+
+METHODS: dict[str, type[OdeSolver]] = {"DP45": DormandPrince45, "RK4": RK4}
+
+
+@dataclass(frozen=True)
+class EventRecord:
+    """An event found at time ``t`` (s) with state ``y``; ``sign`` = +1 if g went − → +, else −1."""
+
+    t: float
+    name: str
+    y: tuple
+    sign: float
+
+
+@dataclass(frozen=True)
+class Event:
+    """Event function g(t, y) whose zeros are located.
+
+    ``direction`` > 0 / < 0 keeps only rising / falling crossings; ``terminal`` stops the
+    integration; ``restart`` restarts the solver at the event (RHS discontinuous there);
+    ``action(record) -> bool`` is called for each recorded event and returns True when it changed the
+    problem (then the solver is restarted too).
+    """
+
+    fun: Callable[[float, tuple], float]
+    name: str
+    direction: float = 0.0
+    terminal: bool = False
+    restart: bool = False
+    action: Callable[[EventRecord], bool] | None = None
+
+
+@dataclass
+class Problem:
+    """Right-hand side ``fun(t, y)``, initial state, events and times where the RHS is discontinuous."""
+
+    fun: Rhs
+    y0: Sequence[float]
+    events: Sequence[Event] = ()
+    time_breaks: Sequence[float] = ()
+
+
+@dataclass
+class Solution:
+    """Samples ``t`` (m,), ``y`` (n, m); events; final time/state; work counters; last step size."""
+
+    t: np.ndarray
+    y: np.ndarray
+    events: list[EventRecord]
+    status: str
+    t_final: float
+    y_final: tuple
+    nfev: int = 0
+    nsteps: int = 0
+    h_last: float = math.nan
+    restarts: int = 0
+    t_events: dict[str, list[float]] = field(default_factory=dict)
+
+
+def _make_solver(method, fun, t, y, t_bound, options):
+    cls = METHODS[method] if isinstance(method, str) else method
+    return cls(fun, t, y, t_bound, **options)
+
+
+def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[OdeSolver] = "DP45",
+              events: Sequence[Event] | None = None, t_eval: Sequence[float] | None = None,
+              y0: Sequence[float] | None = None, **options) -> Solution:
+    """Integrate ``problem`` over ``t_span`` with ``method`` ("DP45", "RK4" or a solver class).
+
+    ``options`` go to the solver (rtol, atol, first_step, max_step for DP45; h for RK4).
+    ``t_eval`` (increasing, inside t_span) selects output times, otherwise every step is returned.
+    """
+    if isinstance(method, str) and method not in METHODS:
+        raise ValueError(f"integrate: unknown method {method!r} (known: {', '.join(METHODS)})")
+    t0, tf = float(t_span[0]), float(t_span[1])
+    fun = problem.fun
+    y = tuple(float(v) for v in (problem.y0 if y0 is None else y0))
+    events = list(problem.events if events is None else events)
+    breaks = sorted(b for b in problem.time_breaks if t0 < b < tf) + [tf]
+    if t_eval is not None:
+        t_eval = np.asarray(t_eval, dtype=float)
+        if t_eval.size and (np.any(np.diff(t_eval) < 0) or t_eval[0] < t0 or t_eval[-1] > tf):
+            raise ValueError(f"integrate: t_eval must be increasing inside t_span = ({t0}, {tf})")
+        out_y = np.empty((len(y), t_eval.size))
+        i_eval = int(np.searchsorted(t_eval, t0, side="right"))
+        out_y[:, :i_eval] = np.asarray(y)[:, None]
+    else:
+        ts, ys = [t0], [y]
+    t = t0
+    g_old = [e.fun(t, y) for e in events]
+    records: list[EventRecord] = []
+    nfev = nsteps = restarts = 0
+    status, h_next = "finished", options.pop("first_step", None)
+    bi = 0
+    while True:
+        solver = _make_solver(method, fun, t, y, breaks[bi], dict(options, first_step=h_next))
+        cut = None
+        while solver.status == "running":
+            solver.step()
+            t_old, t_new, y_new = solver.t_old, solver.t, solver.y
+            dense = None
+            hits = []
+            if events:
+                g_new = [e.fun(t_new, y_new) for e in events]
+                for i, e in enumerate(events):
+                    a, b = g_old[i], g_new[i]
+                    if a * b < 0 or (b == 0.0 and a != 0.0):
+                        rising = b > a
+                        if (e.direction > 0 and not rising) or (e.direction < 0 and rising):
+                            continue
+                        if b == 0.0:
+                            t_root = t_new
+                        else:
+                            dense = dense or solver.dense_output()
+                            t_root = brentq(lambda tt, f=e.fun: f(tt, dense(tt)), t_old, t_new,
+                                            xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                        hits.append((t_root, i, 1.0 if rising else -1.0))
+                hits.sort()
+                for t_root, i, sign in hits:
+                    e = events[i]
+                    dense = dense or solver.dense_output()
+                    rec = EventRecord(t_root, e.name, dense(t_root) if t_root < t_new else y_new, sign)
+                    records.append(rec)
+                    changed = e.action(rec) if e.action is not None else False
+                    if e.terminal or e.restart or changed:
+                        cut = (t_root, rec.y, e.terminal)
+                        break
+            t_stop = cut[0] if cut else t_new
+            if t_eval is not None:
+                j = int(np.searchsorted(t_eval, t_stop, side="right"))
+                if j > i_eval:
+                    inner = t_eval[i_eval:j]
+                    if inner[0] < t_new:
+                        dense = dense or solver.dense_output()
+                        out_y[:, i_eval:j] = dense(inner)
+                    if inner[-1] == t_new:
+                        out_y[:, j - 1] = y_new
+                    i_eval = j
+            elif not cut:
+                ts.append(t_new)
+                ys.append(y_new)
+            if cut:
+                t, y = cut[0], cut[1]
+                if t_eval is None:
+                    ts.append(t)
+                    ys.append(y)
+                fired = {i for tr, i, _ in hits if tr <= t}
+                g_old = [g_new[i] if i in fired else (e.fun(t, y) or g_old[i]) for i, e in enumerate(events)]
+                break
+            if events:
+                g_old = g_new
+        nfev += solver.nfev
+        nsteps += solver.nsteps
+        h_next = solver.h_last
+        if cut is None:
+            t, y = math.nextafter(solver.t, math.inf), solver.y
+            bi += 1
+            if bi == len(breaks):
+                break
+        elif cut[2]:
+            status = "terminated"
+            break
+        restarts += 1
+    if t_eval is not None:
+        t_out, y_out = t_eval[:i_eval], out_y[:, :i_eval]
+    else:
+        t_out, y_out = np.array(ts), np.array(ys).T
+    t_events: dict[str, list[float]] = {}
+    for r in records:
+        t_events.setdefault(r.name, []).append(r.t)
+    return Solution(t_out, y_out, records, status, t, y, nfev, nsteps, h_next, restarts, t_events)

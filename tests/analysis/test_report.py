@@ -1,0 +1,111 @@
+"""Report from a synthetic recording: HTML and Markdown, PNG plots, CSV export, extension sections."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from rig.analysis import report
+from rig.analysis.report import Heading, Text, write_report
+from rig.analysis.summary import analyse
+from rig.recorder import Recorder, read_recording
+
+OMEGA = 2 * np.pi * 2.5
+PROGRAM = {"elements": [
+    {"kind": "window", "name": "W1", "x_min": 0.030, "x_max": 0.042, "y_min": 20.0, "y_max": 60.0,
+     "entry": "left", "exit": "top"},
+    {"kind": "trapezoid", "name": "T1", "axis": "y", "start": 0.0, "end": 0.02, "lower": [-5.0, -5.0],
+     "upper": [10.0, 20.0], "entry": "left", "exit": "right"},
+    {"kind": "threshold", "name": "S1", "axis": "y", "value": 30.0, "direction": "rising"},
+    {"kind": "envelope", "name": "E1", "references": [{"x": [0.0, 0.02, 0.042], "y": [0.0, 5.0, 40.0]}],
+     "dx": 0.001, "dy": 5.0},
+    {"kind": "hologram", "name": "H1"}],
+    "limits": {"y_max": [35.0, 50.0], "x_at_y_max": [None, 0.045]}}
+
+
+def synthetic(path, n_curves=60):
+    rng = np.random.default_rng(11)
+    with Recorder(path, scene_text="[scene]\nseed = 11\n", metadata={"seed": 11}, programs={1: PROGRAM}) as rec:
+        t = np.arange(0, 0.5, 1e-3)
+        rec.write_truth(t, {"s": 0.042 * np.sin(OMEGA * t) ** 2, "F": 40 * np.sin(OMEGA * t)})
+        for k in range(n_curves):
+            t0 = 1.0 + 0.4 * k
+            t = t0 + np.arange(0, 0.3, 2e-3)
+            u = (t - t0) / 0.3
+            peak = rng.normal(42, 1.5)
+            x = 0.042 * u
+            y_th = peak * u ** 3
+            y = peak * np.clip(u - 0.05, 0, None) ** 3
+            rec.write_curve(k + 1, 1, t, x, y, theory={"y": y_th, "angle": OMEGA * (t - t0)}, angle=OMEGA * (t - t0))
+            ok = k % 15 != 0
+            rec.write_result({"number": k + 1, "program": 1, "ok": ok,
+                              "elements": [{"name": "W1", "kind": "window", "ok": ok,
+                                            "reason": None if ok else "left through right"}],
+                              "process_values": {"y_max": float(y.max()), "x_at_y_max": float(x[np.argmax(y)])}},
+                             t=float(t[-1]))
+            rec.write_event(float(t[0]), "flank", flank="rise")
+        rec.write_event(5.0, "sequence_gap", missing=3)
+        rec.write_statistics({"count": n_curves})
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rec") / "synthetic.mcap"
+    synthetic(path)
+    return read_recording(path)
+
+
+def test_analysis_of_recording(recording):
+    a = analyse(recording)
+    assert sum(not v["ok"] for v in a["verdicts"]) == 4 and a["verdicts"][0]["failed"][0]["name"] == "W1"
+    s = a["sets"][1]
+    assert s["n"] == 60 and s["nok_by_element"] == {"W1": 4} and s["warnings"] == []
+    y = np.array([r["process_values"]["y_max"] for r in recording.results])
+    assert s["values"]["y_max"]["cp"] == pytest.approx(15 / (6 * y.std(ddof=1)))
+    assert a["events"] == {"flank": 60, "sequence_gap": 1}
+    lag = a["theory"][0]
+    assert lag["signal"] == "y" and lag["lag_time"] == pytest.approx(0.05 * 0.3, abs=2e-4)   # 0.015 s shift
+    assert lag["lag_angle"] == pytest.approx(OMEGA * 0.015, abs=OMEGA * 2e-4)
+    assert lag["rms_after"] < 0.2 * lag["rms_before"]
+
+
+def test_html_report_with_plots_and_csv(recording, tmp_path):
+    path = write_report(recording, tmp_path / "html", fmt="html", max_curve_plots=3)
+    text = path.read_text()
+    assert path.name == "report.html" and "<table>" in text and "Set statistics, program 1" in text
+    assert "hologram" in text and "unknown kind" in text                        # skipped element noted
+    pngs = sorted(path.parent.glob("*.png"))
+    assert len(pngs) == 1 + 3 * 3 + 2 + 1             # overlay, 3 curves x (xy, t, angle), 2 histograms, truth
+    assert all(p.stat().st_size > 5000 and p.name in text for p in pngs)
+    with open(path.parent / "curves.csv") as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ["curve", "program", "i", "t_s", "x", "y", "angle_rad"]
+    assert len(rows) == 1 + sum(c.t.size for c in recording.curves)
+    c5 = [r for r in rows[1:] if r[0] == "5"]
+    np.testing.assert_array_equal(np.array([float(r[5]) for r in c5]), recording.curves[4].y)
+    with open(path.parent / "results.csv") as f:
+        res = list(csv.DictReader(f))
+    assert len(res) == 60 and res[0]["ok"] == "0" and res[0]["failed_elements"] == "W1"
+    assert float(res[1]["y_max"]) == recording.results[1]["process_values"]["y_max"]
+
+
+def test_markdown_report_from_path_and_extension_section(tmp_path):
+    path = tmp_path / "small.mcap"
+    synthetic(path, n_curves=10)
+
+    def clutch_section(ctx):
+        return [Heading("Clutch"), Text(f"{len(ctx.recording.curves)} curves seen by the extension")]
+
+    report.register_section("clutch-test", clutch_section)
+    try:
+        out = write_report(path, tmp_path / "md", fmt="md", max_curve_plots=1)
+    finally:
+        report.SECTIONS[:] = [s for s in report.SECTIONS if s[0] != "clutch-test"]
+    text = out.read_text()
+    assert out.name == "report.md" and "## Clutch" in text and "10 curves seen by the extension" in text
+    assert "only 10 measurements" in text and "| curve | program | result |" in text
+    assert all((out.parent / p.name).exists() for p in out.parent.glob("*.png"))
+    assert "![" in text
+    with pytest.raises(ValueError, match="'pdf'"):
+        write_report(path, tmp_path / "x", fmt="pdf")

@@ -1,0 +1,82 @@
+"""Capability, normality, trend and set statistics against closed forms and numpy."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rig.analysis import capability, describe, normality, runs_test, set_statistics, trend
+from rig.analysis.sets import curve_verdicts, event_counts, limits_from_program, statistics_by_program
+
+
+def test_cp_cpk_closed_form():
+    d = describe([9.0, 10.0, 11.0], (7.0, 13.0), "F")            # mean 10, sample σ 1
+    assert d["mean"] == 10.0 and d["std"] == pytest.approx(1.0)
+    assert d["cp"] == pytest.approx(1.0) and d["cpk"] == pytest.approx(1.0)
+    assert (d["minus_3sigma"], d["plus_3sigma"]) == pytest.approx((7.0, 13.0))
+    cp, cpk = capability(10.0, 1.0, 8.0, 13.0)
+    assert cp == pytest.approx(5 / 6) and cpk == pytest.approx(2 / 3)
+    assert capability(10.0, 1.0, None, 16.0) == (None, pytest.approx(2.0))
+    assert capability(10.0, 0.0, 8.0, 13.0) == (math.inf, math.inf)
+    with pytest.raises(ValueError, match="upper limit"):
+        capability(10.0, 1.0, 13.0, 8.0)
+
+
+def test_describe_matches_numpy_and_warns_below_50():
+    v = np.random.default_rng(0).normal(40, 2, 49)
+    d = describe(v, (30.0, 52.0), "y_max")
+    assert d["std"] == pytest.approx(np.std(v, ddof=1), rel=1e-12)
+    assert d["cpk"] == pytest.approx(min(52 - v.mean(), v.mean() - 30) / (3 * np.std(v, ddof=1)))
+    assert (d["min"], d["max"]) == (v.min(), v.max())
+    assert any("only 49" in w for w in d["warnings"]) and d["band_within_limits"] is True
+    assert not describe(np.append(v, 40.0), None)["warnings"]
+    with pytest.raises(ValueError, match="y_max"):
+        describe([1.0], None, "y_max")
+
+
+def test_normality_flags_non_normal():
+    rng = np.random.default_rng(1)
+    skewed = normality(rng.exponential(1.0, 200))
+    assert skewed["normal"] is False and skewed["shapiro_p"] < 1e-6 and skewed["anderson_p"] <= 0.01
+    ok = normality(rng.normal(0, 1, 200))
+    assert ok["normal"] is True and ok["shapiro_p"] > 0.05
+
+
+def test_trend_flags_drift_not_noise():
+    rng = np.random.default_rng(2)
+    noise = rng.normal(0, 1, 100)
+    drift = trend(noise + 0.03 * np.arange(100))
+    assert drift["drift"] and drift["slope"] == pytest.approx(0.03, abs=0.012) and drift["slope_p"] < 0.01
+    assert trend(noise)["drift"] is False
+
+
+def test_runs_test_hand_computed():
+    r = runs_test([1, 5, 1, 5, 1, 5, 1, 5])        # median 3: alternating -> 8 runs, n1 = n2 = 4
+    assert r["runs"] == 8 and r["expected"] == 5.0
+    var = 2 * 4 * 4 * (2 * 4 * 4 - 8) / (64 * 7)
+    assert r["z"] == pytest.approx(3 / math.sqrt(var))
+    assert runs_test([1, 1, 1, 1, 5, 5, 5, 5])["runs"] == 2
+
+
+def result(n, ok=True, failed=None, **values):
+    return {"number": n, "program": 1, "ok": ok,
+            "elements": [{"name": failed or "W1", "kind": "window", "ok": failed is None, "reason": "r"}],
+            "process_values": values}
+
+
+def test_set_statistics_counts_and_limits():
+    rng = np.random.default_rng(3)
+    ys = rng.normal(40, 1, 60)
+    results = [result(i, ok=i % 10 != 0, failed=None if i % 10 else "W1", y_max=ys[i]) for i in range(60)]
+    s = set_statistics(results, limits_from_program({"limits": {"y_max": [35.0, None]}}))
+    assert (s["n"], s["ok"], s["nok"], s["nok_by_element"]) == (60, 54, 6, {"W1": 6})
+    v = s["values"]["y_max"]
+    assert v["cpk"] == pytest.approx((ys.mean() - 35) / (3 * ys.std(ddof=1))) and v["cp"] is None
+    assert s["warnings"] == [] and "normality" in v and "trend" in v
+    small = statistics_by_program(results[:20], {1: {"limits": {"y_max": [35.0, 45.0]}}})[1]
+    assert any("only 20 measurements" in w for w in small["warnings"])
+    assert curve_verdicts(results[:1])[0]["failed"][0]["name"] == "W1"
+    assert event_counts([{"kind": "gap"}, {"kind": "gap"}, {"kind": "flank"}]) == {"gap": 2, "flank": 1}
+    with pytest.raises(ValueError, match="y_max"):
+        limits_from_program({"limits": {"y_max": 3.0}})

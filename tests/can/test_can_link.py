@@ -1,0 +1,286 @@
+"""Device node -> host over python-can's virtual bus: curves, results, live budget, gaps, commands."""
+from __future__ import annotations
+
+import itertools
+
+import can
+import numpy as np
+import pytest
+
+from drivers.can import CanHost
+from firmware_sim.can_budget import BusTiming
+from firmware_sim.can_node import CanNode, X_LSB, Y_LSB
+
+_channels = itertools.count()
+
+
+@pytest.fixture
+def buses():
+    channel = f"can-test-{next(_channels)}"
+    dev = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    host = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    yield dev, host
+    dev.shutdown()
+    host.shutdown()
+
+
+def run(node: CanNode, host: CanHost, t_end: float, step: float = 0.05) -> list[can.Message]:
+    """Advance the node in steps, feeding every frame to the host; returns the frames."""
+    frames = []
+    t = node.now
+    while t < t_end - 1e-12:
+        t = min(t + step, t_end)
+        node.advance_to(t)
+        while (m := host.bus.recv(0)) is not None:
+            frames.append(m)
+            host.receive(m)
+    return frames
+
+
+@pytest.fixture
+def elements(fakes):
+    E = fakes.ElementResult
+    return [E("W1", "window", True), E("T1", "threshold", False, "not crossed"), E("E1", "envelope", False, "left band")]
+
+
+@pytest.fixture
+def make_curve(fakes):
+    return fakes.make_curve
+
+
+PV = {"x_max": 0.04, "x_min": 0.0, "y_max": 775.125, "y_min": -31.5, "x_at_y_max": 0.039, "duration": 0.4}
+
+
+@pytest.mark.parametrize("fd", [False, True], ids=["classic", "fd"])
+def test_curve_of_4000_pairs_and_result(buses, device, rng, fd, elements, make_curve):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, fd=fd, data_bitrate=2_000_000 if fd else None,
+                   heartbeat_period=100.0)
+    host = CanHost(host_bus)
+    t, x, y = make_curve(rng)
+    node.advance_to(0.5)                       # heartbeat at 0, then idle
+    device.finish(t, x, y, elements, PV)
+    node.advance_to(0.5)                       # the node sees the new result at t = 0.5
+    frames = run(node, host, 3.0)
+    assert host.events == []
+    (curve,) = host.curves
+    assert curve.number == 1 and curve.program == 1 and curve.complete
+    np.testing.assert_allclose(curve.x, x, rtol=0, atol=X_LSB / 2 + 1e-15)
+    np.testing.assert_allclose(curve.y, y, rtol=0, atol=Y_LSB / 2 + 1e-12)
+    np.testing.assert_array_equal(curve.x, np.rint(x / X_LSB) * X_LSB)
+    res = host.results[1]
+    assert (res.ok, res.first_fail, res.fail_mask) == (False, 1, 0b110)
+    assert res.process_values == pytest.approx(PV, rel=1e-6)      # float32 on the wire
+    # the transfer takes exactly the bit budget: the bus is busy back to back from t = 0.5
+    timing = BusTiming(500_000, fd=fd, data_bitrate=2e6 if fd else None)
+    if fd:
+        blocks = -(-4000 // 11)
+        expected = blocks * timing.frame_time(0x302, bytes(64), True) + 9 * 135 / 500e3
+    else:
+        expected = (4000 + 9) * 135 / 500e3     # header, blocks, end, result, 6 process values
+    assert max(m.timestamp for m in frames) == pytest.approx(0.5 + expected, abs=1e-9)
+    assert node.pending_frames == 0
+
+
+def test_curve_transfer_time_from_received_timestamps(buses, device, rng, elements, make_curve):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)
+    t, x, y = make_curve(rng, 1000)
+    node.advance_to(0.2)
+    device.finish(t, x, y, elements[:1], {})
+    node.advance_to(0.2)
+    stamps = []
+    for t_end in np.arange(0.25, 1.5, 0.05):
+        node.advance_to(t_end)
+        while (m := host_bus.recv(0)) is not None:
+            stamps.append((m.arbitration_id, m.timestamp))
+    curve_stamps = [s for fid, s in stamps if fid >= 0x300]
+    # header + 1000 blocks + end + result = 1003 frames of 135 bits at 1 Mbit/s, back to back
+    assert len(curve_stamps) == 1003
+    np.testing.assert_allclose(np.diff(curve_stamps), 135e-6, rtol=1e-9)
+    assert curve_stamps[-1] == pytest.approx(0.2 + 1003 * 135e-6, abs=1e-9)
+
+
+def test_live_stream_is_decimated_to_fit_500k(buses, device, rng):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, live_share=0.5, heartbeat_period=0.1)
+    host = CanHost(host_bus)
+    fs, chunk = 10_000.0, 0.1
+    frames = []
+    sent_t, sent_x, sent_y = [], [], []
+    for k in range(10):
+        t = (np.arange(1000) + k * 1000) / fs
+        x, y = 0.01 * np.sin(2 * np.pi * 5 * t), 500 * np.cos(2 * np.pi * 3 * t) + rng.normal(0, 1, t.size)
+        factor = node.publish_live(t, x, y)
+        sent_t.append(t[::factor]), sent_x.append(x[::factor]), sent_y.append(y[::factor])
+        node.advance_to((k + 1) * chunk)
+        while (m := host_bus.recv(0)) is not None:
+            frames.append(m)
+            host.receive(m)
+    node.advance_to(1.1)                               # the last queued frames and a status frame
+    while (m := host_bus.recv(0)) is not None:
+        frames.append(m)
+        host.receive(m)
+    # 0.5 x 0.1 s / 270 us = 185 frames per chunk -> every 6th of 1000 samples: 167 kept per chunk
+    assert factor == 6
+    lt, lx, ly = host.take_live()
+    assert lt.size == sum(m.arbitration_id == 0x200 for m in frames) == node.live_sent == 1670
+    assert node.live_dropped == 10_000 - 1670
+    # what arrived is the decimated stream, to the quantisation and the 100 us tick
+    st, sx, sy = (np.concatenate(a) for a in (sent_t, sent_x, sent_y))
+    np.testing.assert_allclose(lt, st, atol=1e-9)
+    np.testing.assert_allclose(lx, sx, atol=X_LSB / 2 + 1e-15)
+    np.testing.assert_allclose(ly, sy, atol=Y_LSB / 2 + 1e-12)
+    # the device reports its drops in the status frame
+    assert host.counters["live_dropped"] == node.live_dropped
+    # never more bits than the wire carries: frames do not overlap and the load is <= 1
+    timing = BusTiming(500_000)
+    ends = np.array([m.timestamp for m in frames])
+    durations = np.array([timing.frame_time(m.arbitration_id, bytes(m.data)) for m in frames])
+    assert np.all(np.diff(ends) >= durations[1:] - 1e-12)
+    assert durations.sum() <= ends[-1] - (ends[0] - durations[0]) + 1e-12
+    assert host.events == []
+
+
+def test_fd_live_carries_11_pairs_per_frame(buses, device):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, fd=True, data_bitrate=2_000_000, heartbeat_period=1.0)
+    host = CanHost(host_bus)
+    t = np.arange(2000) / 10_000.0
+    x, y = 1e-3 * np.arange(2000) % 0.3, np.linspace(-900, 900, 2000)
+    assert node.publish_live(t, x, y) == 1           # 10 kHz fits at 2 Mbit/s data phase
+    run(node, host, 0.25)
+    lt, lx, ly = host.take_live()
+    assert node.live_dropped == 0 and lt.size == 2000
+    np.testing.assert_allclose(lt, t, atol=1e-9)
+    np.testing.assert_allclose(ly, y, atol=Y_LSB / 2 + 1e-12)
+
+
+def test_dropped_frame_is_a_sequence_gap(buses, device, rng, elements, make_curve):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)
+    host = CanHost(host_bus)
+    t, x, y = make_curve(rng, 500)
+    device.finish(t, x, y, elements[:1], {})
+    node.advance_to(0.0)                                # the node picks up the result at t = 0
+    node.advance_to(1.0)
+    frames = []
+    while (m := host_bus.recv(0)) is not None:
+        frames.append(m)
+    blocks = [i for i, m in enumerate(frames) if m.arbitration_id == 0x301]
+    lost = frames.pop(blocks[100])                      # the wire loses block 100
+    for m in frames:
+        host.receive(m)
+    (gap,) = host.events_of("sequence_gap")
+    assert (gap.frame_id, gap.count) == (0x301, 1) and gap.time == pytest.approx(frames[blocks[100]].timestamp)
+    assert host.sequence.missed == {0x301: 1}
+    assert host.curves == []
+    (bad,) = host.incomplete_curves
+    assert not bad.received[100] and bad.received.sum() == 499
+    assert any("1 of 500 pairs missing" in e.detail for e in host.events_of("curve"))
+    assert lost.data[0] == 100 % 256
+    assert host.results[1].ok                            # the result after the curve still arrived
+
+
+def test_malformed_frames_are_reported_and_nothing_is_lost(buses, device, rng, elements, make_curve):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)
+    host = CanHost(host_bus)
+    t, x, y = make_curve(rng, 300)
+    device.finish(t, x, y, elements[:1], {"y_max": 1.5})
+    node.advance_to(0.0)                                # the node picks up the result at t = 0
+    node.advance_to(1.0)
+    frames = []
+    while (m := host_bus.recv(0)) is not None:
+        frames.append(m)
+    frames.insert(50, can.Message(arbitration_id=0x7A5, data=b"\x01\x02", is_extended_id=False))
+    frames.insert(80, can.Message(arbitration_id=0x301, data=b"\x00\x01\x02", is_extended_id=False))
+    frames.insert(90, can.Message(arbitration_id=0x311, data=bytes([0, 1, 200, 0, 0, 0, 0, 0]), is_extended_id=False))
+    frames.insert(95, can.Message(is_error_frame=True))
+    for m in frames:
+        host.receive(m)
+    kinds = sorted(e.kind for e in host.events)
+    assert kinds == ["bad_length", "decode_error", "error_frame", "unknown_frame"]
+    assert "0x7A5" in host.events_of("unknown_frame")[0].detail
+    assert "3 data bytes" in host.events_of("bad_length")[0].detail
+    (curve,) = host.curves
+    np.testing.assert_allclose(curve.y, y, atol=Y_LSB / 2 + 1e-12)
+    assert host.results[1].process_values == {"y_max": 1.5}
+
+
+def test_commands_reach_the_device(buses, device):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, heartbeat_period=0.1)
+    host = CanHost(host_bus)
+    node.advance_to(0.01)
+    host.select_program(3)
+    host.tare("y")
+    host.start()
+    node.advance_to(0.2)
+    host.stop()
+    host.reset_statistics()
+    host.select_program(40)                       # the device refuses
+    host.send_command("identify")
+    node.advance_to(0.3)
+    node.advance_to(0.31)                         # acks queued at 0.3 go out after it
+    host.poll()
+    assert device.calls == [("select_program", 3), ("tare", "y"), ("start", 0.2), ("stop", 0.3),
+                            ("reset_statistics",), ("identify",)]
+    assert [(a["host_seq"], a["status"]) for a in host.acks] == [(0, "done"), (1, "done"), (2, "done"), (3, "done"),
+                                                                 (4, "done"), (5, "rejected"), (6, "done")]
+    assert host.status["program"] == 3 and host.status["state"] == "idle"
+    assert "program 40" in node.rx_errors[0]
+    with pytest.raises(ValueError, match="tare channel 'z'"):
+        host.tare("z")
+    with pytest.raises(ValueError, match="unknown CAN host command"):
+        host.send_command("explode")
+
+
+def test_encoders_and_torque(buses, device):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, heartbeat_period=0.1)
+    host = CanHost(host_bus)
+    node.advance_to(20.0)                              # heartbeats bring the host to device time ~20 s
+    host.poll()
+    node.publish_encoders(20.0, [123456, -42], [19.9871234, 18.5])
+    node.publish_torque(20.0005, 12.3456, 1503.2)
+    node.advance_to(20.01)
+    host.poll()
+    assert host.encoders[1]["count"] == 123456 and host.encoders[2]["count"] == -42
+    assert host.encoders[1]["edge_time"] == pytest.approx(19.987123, abs=1e-6)
+    assert host.encoders[2]["edge_time"] == pytest.approx(18.5, abs=1e-6)
+    (tq,) = host.torque
+    assert tq == pytest.approx((20.0005, 12.3456, 1503.2), abs=5e-3)
+    assert host.events == []
+
+
+def test_bad_calls_are_named(buses, device):
+    node = CanNode(buses[0], device)
+    with pytest.raises(ValueError, match="uniformly spaced"):
+        node.publish_live(np.array([0.0, 0.1, 0.3]), np.zeros(3), np.zeros(3))
+    with pytest.raises(ValueError, match=">= 2 samples"):
+        node.publish_live(np.array([0.0]), np.zeros(1), np.zeros(1))
+    with pytest.raises(ValueError, match="2 counts"):
+        node.publish_encoders(0.0, [1], [0.0])
+    node.advance_to(1.0)
+    with pytest.raises(ValueError, match="back in time"):
+        node.advance_to(0.5)
+    with pytest.raises(ValueError, match="live_share"):
+        CanNode(buses[0], device, live_share=0)
+
+
+def test_live_frames_stuck_behind_higher_priority_traffic_go_stale(buses, device):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, live_max_age=0.05, heartbeat_period=100.0)
+    for _ in range(300):                       # 600 encoder frames = 162 ms of wire time from t = 0
+        node.publish_encoders(0.0, [1, 2], [0.0, 0.0])
+    t = np.arange(1000) / 10_000.0
+    factor = node.publish_live(t, np.zeros(1000), np.zeros(1000))
+    node.advance_to(0.5)
+    ids = []
+    while (m := host_bus.recv(0)) is not None:
+        ids.append(m.arbitration_id)
+    # every live frame was ready before 0.1 s and could not start before 0.162 s > 0.1 + 0.05
+    assert factor == 6 and ids.count(0x200) == 0 and node.live_sent == 0
+    assert node.live_dropped == 1000
+    assert ids.count(0x180) == ids.count(0x181) == 300

@@ -1,0 +1,150 @@
+"""The socketcand server with python-can's stock socketcand client over real loopback TCP."""
+from __future__ import annotations
+
+import itertools
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from drivers.can import CanHost
+from firmware_sim.can_node import CanNode, X_LSB, Y_LSB
+from firmware_sim.socketcand_server import SocketcandServer, frame_line, parse_send
+
+ROOT = Path(__file__).resolve().parents[2]
+_channels = itertools.count()
+
+
+def pump(node: CanNode, host: CanHost, until, t_step: float = 0.05, wall_timeout: float = 10.0) -> None:
+    """Advance the node and poll the host until ``until()`` holds (or fail after wall_timeout s)."""
+    deadline = time.monotonic() + wall_timeout
+    while not until():
+        assert time.monotonic() < deadline, "socketcand link did not deliver in time"
+        node.advance_to(node.now + t_step)
+        host.poll(timeout=0.01)
+
+
+@pytest.fixture
+def served():
+    channel = f"sc-{next(_channels)}"
+    server = SocketcandServer(channel)
+    server.start()
+    dev_bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    client = can.Bus(interface="socketcand", host="127.0.0.1", port=server.port, channel=channel)
+    yield server, dev_bus, client
+    client.shutdown()
+    dev_bus.shutdown()
+    server.stop()
+
+
+def test_curve_and_commands_through_stock_client(served, device, rng, fakes):
+    server, dev_bus, client = served
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=0.1)
+    host = CanHost(client)
+    pump(node, host, lambda: host.status)                      # heartbeats arrive
+    host.select_program(5)
+    host.start()
+    pump(node, host, lambda: len(host.acks) == 2)
+    assert device.calls[0] == ("select_program", 5) and device.calls[1][0] == "start"
+    t, x, y = fakes.make_curve(rng, 4000)
+    device.finish(t, x, y, [fakes.ElementResult("W1", "window", True)], {"y_max": float(y.max())})
+    pump(node, host, lambda: 1 in host.results and host.results[1].process_values)
+    (curve,) = host.curves
+    assert curve.program == 5
+    np.testing.assert_array_equal(curve.x, np.rint(x / X_LSB) * X_LSB)
+    np.testing.assert_allclose(curve.y, y, atol=Y_LSB / 2 + 1e-12)
+    assert host.results[1].ok and host.events == []
+    assert server.errors == [] and server.fd_dropped == 0
+
+
+def test_fd_frames_are_not_forwarded_over_socketcand(served, device):
+    server, dev_bus, client = served
+    node = CanNode(dev_bus, device, bitrate=500_000, fd=True, data_bitrate=2_000_000, heartbeat_period=0.1)
+    host = CanHost(client)
+    t = np.arange(110) / 10_000.0
+    node.publish_live(t, np.zeros(110), np.zeros(110))           # 10 FD frames
+    pump(node, host, lambda: server.fd_dropped == 10 and host.counters)
+    assert host.take_live()[0].size == 0 and host.status["state"] == "idle"
+
+
+def test_ascii_frame_format_matches_the_client_parser():
+    from can.interfaces.socketcand.socketcand import convert_ascii_message_to_can_message as parse
+    for msg in (can.Message(arbitration_id=0x12, data=b"\x00\xff\x10", timestamp=12.0000015, is_extended_id=False),
+                can.Message(arbitration_id=0x1ABCDEF0, data=b"", timestamp=3.9999999, is_extended_id=True)):
+        back = parse(frame_line(msg))
+        assert back.arbitration_id == msg.arbitration_id and back.is_extended_id == msg.is_extended_id
+        assert bytes(back.data) == bytes(msg.data)
+        assert back.timestamp == pytest.approx(msg.timestamp, abs=1e-6)
+    from can.interfaces.socketcand.socketcand import convert_can_message_to_ascii_message as fmt
+    sent = can.Message(arbitration_id=0x50, data=bytes([1, 0, 7, 0, 0, 0, 0, 0xAB]), is_extended_id=False)
+    got = parse_send(fmt(sent)[2:-2])
+    assert got.arbitration_id == 0x50 and bytes(got.data) == bytes(sent.data)
+    for bad in ("send 050 3 1 2", "send 050 2 1 zz", "send 1234 1 0", "send 800 0", "open x"):
+        with pytest.raises(ValueError, match="send"):
+            parse_send(bad)
+
+
+def test_wrong_channel_and_garbage_are_reported(served):
+    server, _, _ = served
+    with pytest.raises(can.CanError, match="< ok >"):
+        can.Bus(interface="socketcand", host="127.0.0.1", port=server.port, channel="nope")
+    deadline = time.monotonic() + 5
+    while not server.errors and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert "nope" in server.errors[0]
+
+
+SERVE = """
+import importlib.util, sys, time
+import can, numpy as np
+spec = importlib.util.spec_from_file_location("can_fakes", sys.argv[1])
+fakes = sys.modules["can_fakes"] = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(fakes)
+from firmware_sim.can_node import CanNode
+from firmware_sim.socketcand_server import SocketcandServer
+server = SocketcandServer("vcan-sub")
+port = server.start()
+bus = can.Bus(interface="virtual", channel="vcan-sub", preserve_timestamps=True)
+device = fakes.FakeDevice()
+node = CanNode(bus, device, bitrate=1_000_000, heartbeat_period=0.1)
+print(port, flush=True)
+t0 = time.monotonic()
+while time.monotonic() - t0 < 30:
+    if device.last_result is None and any(c[0] == "start" for c in device.calls):
+        t, x, y = fakes.make_curve(np.random.default_rng(7), 2000)
+        device.finish(t, x, y, [fakes.ElementResult("T", "threshold", False, "low")], {})
+    node.advance_to(time.monotonic() - t0)
+    time.sleep(0.005)
+"""
+
+
+def test_device_in_another_process(tmp_path, fakes):
+    script = tmp_path / "serve.py"
+    script.write_text(SERVE)
+    proc = subprocess.Popen([sys.executable, str(script), str(Path(__file__).with_name("conftest.py"))],
+                            stdout=subprocess.PIPE, text=True, cwd=ROOT,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)})
+    try:
+        port = int(proc.stdout.readline())
+        bus = can.Bus(interface="socketcand", host="127.0.0.1", port=port, channel="vcan-sub")
+        host = CanHost(bus)
+        try:
+            host.start()
+            deadline = time.monotonic() + 20
+            while not (host.curves and 1 in host.results) and time.monotonic() < deadline:
+                host.poll(timeout=0.05)
+        finally:
+            bus.shutdown()
+        (curve,) = host.curves
+        _, x, y = fakes.make_curve(np.random.default_rng(7), 2000)
+        np.testing.assert_array_equal(curve.y, np.rint(y / Y_LSB) * Y_LSB)
+        assert host.results[1].ok is False and host.results[1].first_fail == 0
+        assert host.acks[0]["status"] == "done" and host.events_of("sequence_gap") == []
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)

@@ -1,0 +1,75 @@
+"""Scene validation and unit parsing: every failure names the key and the file."""
+from pathlib import Path
+
+import pytest
+
+from rig.scene import Field, SceneError, load_scene, read_table
+from rig.units import UnitError, to_si
+
+SCHEMA = {
+    "L3": Field("m", doc="follower length"),
+    "k": Field("N/m", default=1190.0),
+    "speed": Field("rad/s", default=None),
+    "label": Field(None, default="x"),
+    "n": Field("1", default=3),
+}
+
+
+@pytest.mark.parametrize("value, unit, si, expected", [
+    ("260 mm", None, "m", 0.26),
+    (260, "mm", "m", 0.26),
+    (1.19, "N_per_mm", "N/m", 1190.0),
+    ("150 rpm", None, "rad/s", 5 * 3.141592653589793),
+    (25, "N_m", "N*m", 25.0),
+    ("90 deg", None, "rad", 3.141592653589793 / 2),
+    (3, None, "1", 3.0),
+])
+def test_to_si_converts(value, unit, si, expected):
+    assert to_si(value, si, unit) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("value, unit, message", [
+    ("260 kg", None, "wrong dimension"),
+    (260, None, "has no unit"),
+    ("abc", None, "cannot read"),
+    (5, "furlongz", "cannot read"),
+    (True, None, "boolean"),
+    ("5 mm", "mm", "already names the unit"),
+])
+def test_to_si_rejects(value, unit, message):
+    with pytest.raises(UnitError, match=message):
+        to_si(value, "m", unit, what="L3")
+
+
+def test_read_table_suffix_and_string_forms_agree():
+    a = read_table({"L3_mm": 260, "k_N_per_mm": 1.19}, SCHEMA, "scene.toml [plant]")
+    b = read_table({"L3": "0.26 m", "k": "1190 N/m"}, SCHEMA, "scene.toml [plant]")
+    assert a["L3"] == pytest.approx(b["L3"]) and a["k"] == pytest.approx(b["k"])
+    assert a["label"] == "x" and a["n"] == 3 and a["speed"] is None
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"L3_mm": 260, "L4": "1 m"}, r"unknown key 'L4'"),
+    ({"k": "1 N/mm"}, r"missing key 'L3'"),
+    ({"L3": "260 N"}, r"key 'L3'.*wrong dimension"),
+    ({"L3": "260 mm", "L3_mm": 260}, r"given twice"),
+])
+def test_read_table_errors_name_key_and_file(table, message):
+    with pytest.raises(SceneError, match=message) as info:
+        read_table(table, SCHEMA, "demo.toml [plant]")
+    assert "demo.toml [plant]" in str(info.value)
+
+
+def test_load_scene_reports_syntax_errors_and_missing_sections(tmp_path: Path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[plant\nL3 = 1")
+    with pytest.raises(SceneError, match="bad.toml: not valid TOML"):
+        load_scene(bad)
+    good = tmp_path / "good.toml"
+    good.write_text('[plant]\nL3 = "260 mm"\n')
+    scene = load_scene(good)
+    assert scene.read("plant", SCHEMA)["L3"] == pytest.approx(0.26)
+    with pytest.raises(SceneError, match=r"good.toml: missing section \[speed\]"):
+        scene.section("speed")
+    with pytest.raises(SceneError, match="cannot read scene file"):
+        load_scene(tmp_path / "absent.toml")

@@ -1,0 +1,189 @@
+"""Recorder/reader round trip, robustness to interruption and corruption, raw-mcap readability."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import can
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from rig.recorder import Recorder, RecordingError, read_recording
+
+SCENE = "[scene]\nname = \"test\"\nseed = 7\n"
+PROGRAM = {"elements": [{"kind": "window", "name": "W1", "x_min": 0.01, "x_max": 0.02, "y_min": 10.0,
+                         "y_max": 50.0, "entry": "left", "exit": "right"}], "limits": {"y_max": [30.0, 50.0]}}
+
+
+def make_curves(rng, n=3, size=4000):
+    out = []
+    for k in range(n):
+        t = 1.0 + k + np.arange(size) * 1e-4
+        out.append(dict(number=k + 1, program=1, t=t, x=rng.uniform(0, 0.04, size), y=rng.normal(40, 3, size),
+                        angle=np.linspace(0, 2 * np.pi, size), theory={"t": t[::4], "y": rng.normal(40, 3, size // 4)}))
+    return out
+
+
+def record(path, rng, encoding="json", block_size=700, chunk_size=1 << 20, fail=None):
+    t = np.arange(5003) * 1e-4
+    truth = {"x": rng.normal(size=t.size), "F": rng.normal(size=t.size)}
+    curves = make_curves(rng)
+    frames = [(0.1, 0x101, b"\x01\x02\x03", False),
+              can.Message(timestamp=0.2, arbitration_id=0x18FF0001, data=bytes(range(64)), is_fd=True,
+                          is_extended_id=True)]
+    with Recorder(path, scene_text=SCENE, metadata={"seed": 7, "scene": "test"}, programs={1: PROGRAM},
+                  block_size=block_size, encoding=encoding, chunk_size=chunk_size) as rec:
+        for a, b in ((0, 10), (10, 1500), (1500, 1501), (1501, t.size)):   # uneven writes, buffered into blocks
+            rec.write_truth(t[a:b], {k: v[a:b] for k, v in truth.items()})
+        rec.write_transducer("force", t[:100], {"V": truth["F"][:100] * 1e-3})
+        rec.write_live(t[:2000], truth["x"][:2000], truth["F"][:2000])
+        rec.write_can_frames(frames)
+        for c in curves:
+            rec.write_curve(**c, turning_index=1234)
+            rec.write_result({"number": c["number"], "program": 1, "ok": c["number"] != 2,
+                              "elements": [{"name": "W1", "kind": "window", "ok": c["number"] != 2,
+                                            "reason": None if c["number"] != 2 else "entered through top"}],
+                              "process_values": {"y_max": float(c["y"].max()), "x_at_y_max": float("nan")}},
+                             t=c["t"][-1])
+            if fail is not None and c["number"] == 2:
+                raise fail
+        rec.write_statistics({"count": 3, "ok": 2, "values": {"y_max": {"cp": float("inf")}}})
+        rec.write_event(0.3, "flank", flank="rise", angle=np.float64(1.5))
+        rec.write_event(0.4, "sequence_gap", frame=0x101, missing=np.int64(2))
+    return t, truth, curves
+
+
+@pytest.mark.parametrize("encoding", ["json", "base64"])
+def test_round_trip_every_channel(tmp_path, encoding):
+    path = tmp_path / "run.mcap"
+    t, truth, curves = record(path, np.random.default_rng(1), encoding)
+    rec = read_recording(path)
+    assert rec.complete and rec.problems == []
+    assert rec.scene_text == SCENE
+    assert rec.metadata["rig"]["seed"] == "7" and rec.metadata["rig"]["software_version"]
+    assert rec.metadata["rig"]["encoding"] == encoding
+    assert rec.programs == {1: PROGRAM}
+    np.testing.assert_array_equal(rec.truth["t"], t)
+    for k, v in truth.items():
+        np.testing.assert_array_equal(rec.truth[k], v)
+    assert rec.message_counts["/plant/truth"] == 8          # ceil(5003 / 700)
+    np.testing.assert_array_equal(rec.transducers["force"]["V"], truth["F"][:100] * 1e-3)
+    np.testing.assert_array_equal(rec.live["y"], truth["F"][:2000])
+    assert rec.can_frames["id"].tolist() == [0x101, 0x18FF0001]
+    assert rec.can_frames["data"] == [b"\x01\x02\x03", bytes(range(64))]
+    assert rec.can_frames["is_fd"].tolist() == [False, True]
+    assert rec.can_frames["is_extended"].tolist() == [False, True]
+    assert [c.number for c in rec.curves] == [1, 2, 3]
+    for got, want in zip(rec.curves, curves):
+        for k in ("t", "x", "y", "angle"):
+            np.testing.assert_array_equal(getattr(got, k), want[k])
+        np.testing.assert_array_equal(got.theory["y"], want["theory"]["y"])
+        assert got.extra == {"turning_index": 1234}
+    assert [r["ok"] for r in rec.results] == [True, False, True]
+    assert rec.results[1]["elements"][0]["reason"] == "entered through top"
+    assert rec.results[0]["process_values"]["x_at_y_max"] is None     # NaN is stored as JSON null
+    assert rec.statistics == [{"count": 3, "ok": 2, "values": {"y_max": {"cp": None}}}]
+    assert rec.events == [{"t": 0.3, "kind": "flank", "flank": "rise", "angle": 1.5},
+                          {"t": 0.4, "kind": "sequence_gap", "frame": 0x101, "missing": 2}]
+
+
+def test_raw_mcap_library_recovers_curves_and_schemas(tmp_path):
+    path = tmp_path / "run.mcap"
+    _, _, curves = record(path, np.random.default_rng(2))
+    got = {}
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        for schema in summary.schemas.values():
+            assert schema.encoding == "jsonschema"
+            assert json.loads(schema.data)["type"] == "object"
+        assert all(ch.message_encoding == "json" for ch in summary.channels.values())
+        topics = {ch.topic for ch in summary.channels.values()}
+        assert topics == {"/plant/truth", "/transducers/force", "/device/live", "/can/raw", "/device/curve",
+                          "/device/result", "/device/statistics", "/events"}
+        for _, channel, msg in reader.iter_messages(topics=["/device/curve"]):
+            body = json.loads(msg.data)
+            assert msg.log_time == round(body["t"][0] * 1e9)            # log time = simulation time, ns
+            got[body["number"]] = body
+        truth_times = [(m.log_time, json.loads(m.data)["t"][0]) for _, _, m in reader.iter_messages(["/plant/truth"])]
+    assert all(ns == round(t0 * 1e9) for ns, t0 in truth_times)
+    assert sorted(got) == [1, 2, 3]
+    for c in curves:
+        for k in ("t", "x", "y", "angle"):
+            assert got[c["number"]][k] == c[k].tolist()                 # exact: JSON floats round-trip
+
+
+@pytest.mark.parametrize("exc", [RuntimeError("solver diverged"), KeyboardInterrupt()])
+def test_interrupted_recording_is_valid(tmp_path, exc):
+    path = tmp_path / "run.mcap"
+    with pytest.raises(type(exc)):
+        record(path, np.random.default_rng(3), fail=exc)
+    rec = read_recording(path)
+    assert rec.complete
+    assert [c.number for c in rec.curves] == [1, 2] and len(rec.results) == 2
+    assert rec.truth["t"].size == 5003                  # buffered tail flushed on the way out
+    assert rec.statistics == [] and rec.events == []
+
+
+def test_truncated_file_names_file_and_recovers_prefix(tmp_path):
+    path = tmp_path / "run.mcap"
+    _, truth, curves = record(path, np.random.default_rng(4), chunk_size=20_000)
+    cut = tmp_path / "cut.mcap"
+    data = path.read_bytes()
+    cut.write_bytes(data[: int(len(data) * 0.7)])
+    with pytest.raises(RecordingError, match="cut.mcap") as info:
+        read_recording(cut)
+    assert "Recovered" in str(info.value) and "/plant/truth" in str(info.value)
+    partial = read_recording(cut, allow_partial=True)
+    assert not partial.complete and partial.problems
+    assert partial.scene_text == SCENE
+    n = partial.truth["t"].size                       # the tail block is only written at close
+    assert 4000 <= n < 5003
+    np.testing.assert_array_equal(partial.truth["F"], truth["F"][:n])
+    assert 1 <= len(partial.curves) < 3
+    np.testing.assert_array_equal(partial.curves[0].y, curves[0]["y"])
+    assert info.value.partial.message_counts == partial.message_counts
+
+
+def test_corrupt_and_foreign_files(tmp_path):
+    path = tmp_path / "run.mcap"
+    record(path, np.random.default_rng(5))
+    bad = tmp_path / "flipped.mcap"
+    data = bytearray(path.read_bytes())
+    data[len(data) // 3: len(data) // 3 + 64] = bytes(64)
+    bad.write_bytes(bytes(data))
+    with pytest.raises(RecordingError, match="flipped.mcap.*(truncated or corrupt)"):
+        read_recording(bad)
+    other = tmp_path / "notes.mcap"
+    other.write_text("hello, not an mcap file")
+    with pytest.raises(RecordingError, match="notes.mcap: not an MCAP file"):
+        read_recording(other)
+    with pytest.raises(RecordingError, match="missing.mcap"):
+        read_recording(tmp_path / "missing.mcap")
+    shutil.copy(path, tmp_path / "copy.mcap")
+    assert read_recording(tmp_path / "copy.mcap").complete
+
+
+def test_bad_input_is_named(tmp_path):
+    with pytest.raises(ValueError, match="encoding"):
+        Recorder(tmp_path / "a.mcap", encoding="xml")
+    with Recorder(tmp_path / "b.mcap", block_size=10) as rec:
+        with pytest.raises(ValueError, match="/plant/truth.*-1"):
+            rec.write_truth(np.array([-1.0, 0.0]), {"x": np.zeros(2)})
+        rec.write_truth(np.array([1.0, 2.0]), {"x": np.zeros(2)})
+        with pytest.raises(ValueError, match="non-decreasing"):
+            rec.write_truth(np.array([1.5]), {"x": np.zeros(1)})
+        with pytest.raises(ValueError, match="differ"):
+            rec.write_truth(np.array([3.0]), {"y": np.zeros(1)})
+        with pytest.raises(ValueError, match="'x' has shape"):
+            rec.write_truth(np.array([3.0, 4.0]), {"x": np.zeros(3)})
+        with pytest.raises(ValueError, match="curve 5"):
+            rec.write_curve(5, 1, np.arange(3.0), np.zeros(2), np.zeros(3))
+        with pytest.raises(ValueError, match="'ok'"):
+            rec.write_result({"number": 1})
+        with pytest.raises(ValueError, match="before the previous frame"):
+            rec.write_can_frames([(2.0, 1, b"", False), (1.0, 1, b"", False)])
+    with pytest.raises(RuntimeError, match="after close"):
+        rec.write_event(1.0, "late")
+    assert read_recording(tmp_path / "b.mcap").truth["x"].tolist() == [0.0, 0.0]

@@ -1,0 +1,52 @@
+"""The serial link in front of the real simulated DigiForce: a measurement driven and read over a pty."""
+from __future__ import annotations
+
+import json
+import threading
+
+import numpy as np
+import pytest
+
+from drivers.digiforce_serial import DigiForceClient, DigiForceError
+from firmware_sim.digiforce import DigiForce
+from firmware_sim.serial_device import SerialDevice
+
+
+def _same_json(a: object, b: object) -> bool:
+    return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+
+
+def test_measurement_over_serial_matches_the_unit() -> None:
+    unit = DigiForce(rng=np.random.default_rng(7))
+    lock = threading.Lock()
+    t = np.arange(3000) * 1e-4
+    x_volts = 2.5 * (1 - np.cos(2 * np.pi * t / t[-1]))        # out and back: forward and return part
+    y_ratio = 1e-3 * np.sin(np.pi * t / t[-1]) ** 2
+    with SerialDevice(unit, "pty", baudrate=1_000_000, lock=lock) as device, \
+            DigiForceClient(device.port, baudrate=1_000_000) as client:
+        assert client.identify() == unit.identify()
+        active, count = client.active_program()
+        assert (active, count) == (unit.active_program, unit.n_programs)
+        client.configure_channel(active, "y", cutoff=500.0)
+        assert unit.get_program(active)["channels"]["y"]["cutoff"] == client.get_program()["channels"]["y"]["cutoff"]
+        with lock:
+            unit.feed(t[:10], x_volts[:10], y_ratio[:10])
+        client.tare("y")
+        client.start()
+        with lock:
+            unit.feed(t[10:], x_volts[10:], y_ratio[10:])
+        client.stop()
+        curve = client.read_curve(with_time=True)
+        assert len(curve.x) > 100
+        assert np.array_equal(curve.t, unit.last_curve.t) and np.array_equal(curve.x, unit.last_curve.x)
+        assert np.array_equal(curve.y, unit.last_curve.y)
+        assert curve.info["turning_index"] == unit.last_curve.turning_index
+        assert _same_json(client.read_result(), unit.last_result.to_dict())
+        assert _same_json(client.read_statistics(), unit.statistics())
+        assert client.status()["curves"] == 1 and unit.statistics()["total"] == 1
+        client.reset_statistics()
+        assert unit.statistics()["total"] == 0
+        with pytest.raises(DigiForceError, match=rf"status 03: .*program number must be an integer 0...{count - 1}"):
+            client.select_program(count)
+        with pytest.raises(DigiForceError, match="status 03: .*channel must be one of"):
+            client.tare("q")
