@@ -70,10 +70,10 @@ def main() -> None:
     for fd in (False, True):
         frames = produce(fd, 4, rng)
         rate, host = decode_rate(frames)
-        assert len(host.curves) == 4 and host.events == [], host.events[:3]
+        assert len(host.curves()) == 4 and host.events == [], host.events[:3]
         timing = BusTiming(1_000_000, fd=fd, data_bitrate=5_000_000 if fd else None)
         if fd:
-            limit = 1.0 / timing.frame_time(0x302, bytes(64), is_fd=True)
+            limit = 1.0 / timing.frame_time(0x303, bytes(64), is_fd=True)
             label = "CAN FD 64-byte frames, 1 Mbit/s + 5 Mbit/s data phase"
         else:
             limit = 1_000_000 / 111          # 8-byte standard frames with no stuff bits: the most frames/s

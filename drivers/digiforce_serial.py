@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import json
+import socket
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -80,6 +81,9 @@ class DigiForceClient:
         except (serial.SerialException, ValueError) as e:
             raise DigiForceLinkError("--", port_or_url, 0, [f"cannot open: {e}"]) from e
         self.port, self.address, self.timeout, self.retries = port_or_url, address, timeout, retries
+        sock = getattr(self._port, "_socket", None)      # socket:// : no Nagle delay on ACK + next request
+        if sock is not None:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._char = BITS_PER_BYTE / baudrate
         self._gap = max(MIN_GAP, 20 * self._char)
         self._parser = FrameParser()

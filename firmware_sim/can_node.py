@@ -36,12 +36,15 @@ T_LSB = 1e-4                     # N*m per count of the torque signal (20-bit si
 RAW20 = (-(1 << 19), (1 << 19) - 1)
 FD_PAIRS = 11                    # pairs per 64-byte FD frame
 TICK = 1e-4                      # s per count of the 16-bit Tick signals
+T_START_LSB, DT_LSB, T_OFFSET_LSB = 1e-6, 1e-9, 1e-5   # s per count: curve start, uniform step, offsets
+CURVE_TIME_TOL = 5e-6            # s: a curve is sent as uniformly sampled if that reproduces its times
 NO_FAIL = 127
 COMMANDS = {1: "start", 2: "stop", 3: "select_program", 4: "tare", 5: "reset_statistics", 6: "identify"}
-TARE_CHANNELS = {0: "x", 1: "y", 2: "y2"}
-STATES = {"idle": 0, "measuring": 1, "evaluating": 2, "error": 3}
-PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min",
-                  "XAtYMax": "x_at_y_max", "Duration": "duration"}
+TARE_CHANNELS = {0: "x", 1: "y", 2: "y2", 3: None}
+STATES = {"idle": 0, "measuring": 1, "armed": 2}
+UNKNOWN_STATE = 15
+PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min", "XAtYMax": "x_at_y_max",
+                  "YAtXMax": "y_at_x_max", "XEnd": "x_end", "YEnd": "y_end", "Duration": "duration"}
 
 
 def quantise(values: np.ndarray, lsb: float) -> tuple[np.ndarray, int]:
@@ -178,15 +181,19 @@ class CanNode:
         return factor
 
     def publish_measurement(self, t: float, result: Any) -> None:
-        """Queue curve (header, blocks, end) and result frames of one measurement at time ``t`` (s)."""
-        ct, cx, cy = (np.asarray(a, dtype=float) for a in result.curve)
-        if cx.shape != cy.shape or cx.ndim != 1 or cx.size >= 65536:
-            raise ValueError(f"curve of result {result.number}: x and y must be 1-D, equal length, < 65536 pairs")
+        """Queue curve (header, blocks, end) and result frames of one measurement at time ``t`` (s).
+
+        :meth:`advance_to` calls this for a new ``device.last_result`` not yet published this way."""
+        ct, cx, cy = (np.asarray(a, dtype=float) for a in (result.curve.t, result.curve.x, result.curve.y))
+        if cx.shape != cy.shape or ct.shape != cx.shape or cx.ndim != 1 or not 0 < cx.size < 65536:
+            raise ValueError(f"curve of result {result.number}: t, x, y must be 1-D, equal length, 1..65535 pairs")
         number = int(result.number) % 65536
         (rx, kx), (ry, ky) = quantise(cx, X_LSB), quantise(cy, Y_LSB)
         self.clipped += kx + ky
         self.curves_measured += 1
+        self._published_result = result
         self._enqueue("CurveHeader", {"CurveNo": number, "Count": cx.size, "Program": int(result.program) % 256}, t)
+        self._enqueue_curve_times(number, ct, t)
         if self.timing.fd:
             for b, i in enumerate(range(0, cx.size, FD_PAIRS)):
                 j = min(i + FD_PAIRS, cx.size)
@@ -211,6 +218,23 @@ class CanNode:
                 self._enqueue("ResultValue", {"CurveNo": number % 256, "Pv": pv,
                                               signal: float(result.process_values[key])}, t)
 
+    def _enqueue_curve_times(self, number: int, ct: np.ndarray, t: float) -> None:
+        """CurveTiming (start and uniform step), plus CurveTimes offsets if the sampling is not uniform."""
+        start = int(round(ct[0] / T_START_LSB))
+        step = int(round((ct[-1] - ct[0]) / max(ct.size - 1, 1) / DT_LSB))
+        grid = start * T_START_LSB + np.arange(ct.size) * step * DT_LSB
+        uniform = ct.size > 1 and 0 < step < (1 << 24) and np.max(np.abs(ct - grid)) <= CURVE_TIME_TOL
+        self._enqueue("CurveTiming", {"CurveNo": number % 256, "Dt": step if uniform else 0,
+                                      "TStart": start % (1 << 24)}, t)
+        if uniform:
+            return
+        raw = np.rint((ct - start * T_START_LSB) / T_OFFSET_LSB)
+        self.clipped += int(np.count_nonzero((raw < 0) | (raw >= 1 << 20)))
+        raw = np.clip(raw, 0, (1 << 20) - 1).astype(np.int64)
+        for b, i in enumerate(range(0, ct.size, 2)):
+            self._enqueue("CurveTimes", {"CurveNo": number % 16, "Block": b, "T0": int(raw[i]),
+                                         "T1": int(raw[i + 1]) if i + 1 < ct.size else 0}, t)
+
     def publish_encoders(self, t: float, counts: Sequence[int], edge_times: Sequence[float]) -> None:
         """Queue the latched counts and last edge times (s, device time) of encoders 1 and 2."""
         if len(counts) != 2 or len(edge_times) != 2:
@@ -230,10 +254,11 @@ class CanNode:
         status = self.device.status()
         last = getattr(self.device, "last_result", None)
         self._enqueue("Heartbeat", {
-            "State": STATES.get(str(status.get("state", "idle")).lower(), 3),
+            "State": STATES.get(status.get("state"), UNKNOWN_STATE),
             "LastOk": 2 if last is None else int(bool(last.ok)),
             "Program": int(status.get("program", 0)) % 256,
-            "DeviceTime": int(round(t * 1000)) % (1 << 32), "ErrorCode": 0 if status.get("error") in (None, "", 0) else 1}, t)
+            "DeviceTime": int(round(t * 1000)) % (1 << 32),
+            "Errors": min(len(status.get("errors", ())), 255)}, t)
         self._enqueue("StatusCounters", {"LiveDropped": self.live_dropped % (1 << 32),
                                          "CurveCount": self.curves_measured % 65536,
                                          "CurvesPending": min(self.curves_pending, 255)}, t)

@@ -20,13 +20,13 @@ from drivers.can.timebase import unwrap
 
 DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
 COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statistics": 5, "identify": 6}
-TARE_CHANNELS = {"x": 0, "y": 1, "y2": 2}
-STATES = {0: "idle", 1: "measuring", 2: "evaluating", 3: "error"}
+TARE_CHANNELS = {"x": 0, "y": 1, "y2": 2, None: 3}
+STATES = {0: "idle", 1: "measuring", 2: "armed", 15: "unknown"}
 ACK = {0: "done", 1: "rejected", 2: "unknown_command"}
-PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min",
-                  "XAtYMax": "x_at_y_max", "Duration": "duration"}
+PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min", "XAtYMax": "x_at_y_max",
+                  "YAtXMax": "y_at_x_max", "XEnd": "x_end", "YEnd": "y_end", "Duration": "duration"}
 TICK_WRAP = 6.5536          # s, 16-bit Tick at 100 us
-EDGE_WRAP = 16.777216       # s, 24-bit EdgeTime at 1 us
+EDGE_WRAP = 16.777216       # s, 24-bit EdgeTime and TStart at 1 us
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,7 @@ class CanHost:
         self.x_lsb, self.y_lsb = live.get_signal_by_name("X").scale, live.get_signal_by_name("Y").scale
         self._fd_pairs = sum(s.name.startswith("X") for s in self.db.get_message_by_name("CurveBlockFD").signals)
         self._handlers = {"Heartbeat": self._heartbeat, "StatusCounters": self._counters,
-                          "LiveXY": self._live, "LiveXYFD": self._live_fd, "CurveHeader": self._curve_header,
+                          "LiveXY": self._live, "LiveXYFD": self._live_fd, "CurveHeader": self._curve_header, "CurveTiming": self._curve_timing, "CurveTimes": self._curve_times,
                           "CurveBlock": self._curve_block, "CurveBlockFD": self._curve_block_fd,
                           "CurveEnd": self._curve_end, "Result": self._result, "ResultValue": self._result_value,
                           "Encoder1": self._encoder, "Encoder2": self._encoder, "Torque": self._torque,
@@ -135,7 +135,7 @@ class CanHost:
         self._device_time = raw["DeviceTime"] * 1e-3
         self.status = {"state": STATES.get(raw["State"], f"unknown({raw['State']})"), "program": raw["Program"],
                        "last_ok": {0: False, 1: True}.get(raw["LastOk"]), "device_time": self._device_time,
-                       "error_code": raw["ErrorCode"]}
+                       "errors": raw["Errors"]}
 
     def _counters(self, msg, spec, raw) -> None:
         self.counters = {"live_dropped": raw["LiveDropped"], "curve_count": raw["CurveCount"],
@@ -172,6 +172,16 @@ class CanHost:
     def _curve_header(self, msg, spec, raw) -> None:
         self._curve_problems(msg, self.assembler.header(raw["CurveNo"], raw["Count"], raw["Program"]))
 
+    def _curve_timing(self, msg, spec, raw) -> None:
+        scale = {s.name: s.scale for s in spec.signals}
+        t_start = unwrap(raw["TStart"] * scale["TStart"], EDGE_WRAP, self._device_time)
+        self._curve_problems(msg, self.assembler.timing(raw["CurveNo"], t_start, raw["Dt"] * scale["Dt"]))
+
+    def _curve_times(self, msg, spec, raw) -> None:
+        lsb = spec.get_signal_by_name("T0").scale
+        offsets = np.array([raw["T0"], raw["T1"]]) * lsb
+        self._curve_problems(msg, self.assembler.times(raw["CurveNo"], 2 * raw["Block"], offsets))
+
     def _curve_block(self, msg, spec, raw) -> None:
         pair = np.array([[raw["X"], raw["Y"]]], dtype=np.int64)
         self._curve_problems(msg, self.assembler.pairs(raw["CurveNo"], 16, raw["Block"], pair))
@@ -185,11 +195,14 @@ class CanHost:
         self._curve_problems(msg, self.assembler.end(raw["CurveNo"], raw["Count"], raw["Crc"], raw["Clipped"]))
 
     @property
+    def device_time(self) -> float:
+        """Latest device time known from heartbeats and live stamps (s)."""
+        return self._device_time
+
     def curves(self) -> list[Curve]:
         """Curves transferred completely, count and checksum verified."""
         return [c for c in self.assembler.done if c.complete]
 
-    @property
     def incomplete_curves(self) -> list[Curve]:
         """Curves with missing pairs, a wrong count or checksum (kept with their ``received`` mask)."""
         return [c for c in self.assembler.done if not c.complete]
@@ -241,9 +254,10 @@ class CanHost:
     def select_program(self, number: int) -> int:
         return self.send_command("select_program", number)
 
-    def tare(self, channel: str) -> int:
+    def tare(self, channel: str | None = None) -> int:
+        """Tare channel ``x``, ``y``, ``y2`` or (None) x and y."""
         if channel not in TARE_CHANNELS:
-            raise ValueError(f"unknown tare channel {channel!r} (known: {', '.join(TARE_CHANNELS)})")
+            raise ValueError(f"unknown tare channel {channel!r} (known: x, y, y2 or None for x and y)")
         return self.send_command("tare", TARE_CHANNELS[channel])
 
     def reset_statistics(self) -> int:

@@ -14,10 +14,12 @@ import numpy as np
 
 @dataclass
 class Curve:
-    """One transferred curve: pairs in SI (X m, Y N); ``received`` marks the pairs that arrived."""
+    """One transferred curve: pairs in SI (X m, Y N) at device times ``t`` (s; None if they did not
+    arrive); ``received`` marks the pairs that arrived."""
 
     number: int
     program: int
+    t: np.ndarray | None
     x: np.ndarray
     y: np.ndarray
     received: np.ndarray
@@ -41,6 +43,9 @@ class CurveAssembler:
         self._program = 0
         self._raw: np.ndarray = np.zeros((0, 2), dtype=np.int64)
         self._got: np.ndarray = np.zeros(0, dtype=bool)
+        self._t_start: float | None = None
+        self._dt = 0.0
+        self._offsets: np.ndarray = np.zeros(0)
 
     def header(self, number: int, count: int, program: int) -> list[str]:
         """A new curve starts; an unfinished previous one is closed as incomplete."""
@@ -48,7 +53,23 @@ class CurveAssembler:
         self._number, self._program = number, program
         self._raw = np.zeros((count, 2), dtype=np.int64)
         self._got = np.zeros(count, dtype=bool)
+        self._t_start, self._dt, self._offsets = None, 0.0, np.full(count, np.nan)
         return problems
+
+    def timing(self, number_low8: int, t_start: float, dt: float) -> list[str]:
+        """Pair i was sampled at ``t_start + i * dt`` (s); ``dt == 0``: offsets follow (:meth:`times`)."""
+        if self._number is None or self._number % 256 != number_low8:
+            return [f"curve timing (curve {number_low8} mod 256) without its header"]
+        self._t_start, self._dt = t_start, dt
+        return []
+
+    def times(self, number_low4: int, first: int, offsets: np.ndarray) -> list[str]:
+        """Sample times (s after the start) of pairs ``first, first + 1, ...``."""
+        if self._number is None or self._number % 16 != number_low4:
+            return [f"curve times (curve {number_low4} mod 16, pair {first}) without their header"]
+        n = max(0, min(len(offsets), len(self._offsets) - first))
+        self._offsets[first:first + n] = offsets[:n]
+        return []
 
     def pairs(self, number_bits: int, number_mod: int, first: int, raw: np.ndarray) -> list[str]:
         """Store raw pairs (shape (n, 2)) starting at pair index ``first`` of the curve whose number
@@ -73,6 +94,8 @@ class CurveAssembler:
             problems.append(f"curve {number}: {missing} of {len(self._got)} pairs missing")
         elif crc_of(self._raw[:, 0], self._raw[:, 1]) != crc:
             problems.append(f"curve {number}: checksum mismatch (got 0x{crc:04X})")
+        if self._sample_times() is None:
+            problems.append(f"curve {number}: sample times missing")
         self._finish(clipped, problems)
         return problems
 
@@ -83,7 +106,14 @@ class CurveAssembler:
         self._finish(0, problems)
         return problems
 
+    def _sample_times(self) -> np.ndarray | None:
+        if self._t_start is None:
+            return None
+        if self._dt > 0:
+            return self._t_start + np.arange(len(self._got)) * self._dt
+        return None if np.isnan(self._offsets).any() else self._t_start + self._offsets
+
     def _finish(self, clipped: int, problems: list[str]) -> None:
-        self.done.append(Curve(self._number, self._program, self._raw[:, 0] * self.x_lsb,
+        self.done.append(Curve(self._number, self._program, self._sample_times(), self._raw[:, 0] * self.x_lsb,
                                self._raw[:, 1] * self.y_lsb, self._got, clipped, not problems, problems))
         self._number = None

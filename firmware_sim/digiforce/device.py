@@ -153,11 +153,15 @@ class DigiForce:
 
     def stop(self, t: float | None = None) -> CurveResult | None:
         """Host stop: end the measurement with the last sample at or before ``t``. ``None`` or a time
-        already fed ends it now (at the latest fed sample) and returns the result."""
+        already fed ends it now (at the latest fed sample) and returns the result. Before a pending start
+        has begun, ``None`` cancels it and a later ``t`` schedules its end."""
         if not self._measuring:
             if self._pending_start is None:
                 raise DigiForceError("stop: no measurement is running")
-            self._pending_start = None
+            if t is not None and t > self._pending_start:
+                self._pending_stop = float(t)       # the measurement about to start ends at t
+            else:
+                self._pending_start = None          # cancelled before it began
             return None
         if t is not None and (self._prev_t is None or t > self._prev_t):
             self._pending_stop = float(t)
@@ -191,8 +195,8 @@ class DigiForce:
         dt = np.diff(times)
         if np.any(dt <= 0):
             i = int(np.argmax(dt <= 0))
-            raise DigiForceError(f"feed: sample times must increase; t[{i - (self._prev_t is not None)}] = "
-                                 f"{times[i + 1]!r} does not follow {times[i]!r}")
+            raise DigiForceError(f"feed: sample times must increase; t[{i + 1 - (self._prev_t is not None)}] = "
+                                 f"{float(times[i + 1])!r} does not follow {float(times[i])!r}")
         step = float(np.median(dt))
         if 1.0 / step > self.desc.max_rate * (1 + 1e-9):
             raise DigiForceError(f"feed: sample rate {1 / step:g} Hz exceeds the unit's {self.desc.max_rate:g} Hz")
@@ -354,8 +358,9 @@ class DigiForce:
         self._stats[self.active_program if program is None else self._check_program(program)].reset()
 
     def status(self) -> dict[str, Any]:
-        """State (idle/armed/measuring), counters, overflow/ADC/filter flags, recent errors."""
-        return {"state": self.state, "program": self.active_program, "curves": self._curve_count,
+        """State (idle/armed/measuring), time of the latest sample (s), counters, overflow/ADC/filter flags, recent errors."""
+        return {"state": self.state, "program": self.active_program, "time": self._prev_t,
+                "curves": self._curve_count,
                 "pairs_in_memory": self._memory.count if self._measuring else 0,
                 "dropped_pairs": self._dropped, "overflow_curves": self._overflow_curves,
                 "decimated_curves": self._decimated_curves,

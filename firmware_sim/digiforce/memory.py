@@ -46,7 +46,8 @@ class CurveMemory:
             self._add_delta(rows, 1 if self.mode == "dx" else 2)
 
     def finish(self) -> np.ndarray:
-        """Store the measurement's last sample if missing and return the stored pairs (n, 4)."""
+        """Store the measurement's last sample if missing (and there is room or it can be made by decimating)
+        and return the stored pairs (n, 4)."""
         last = self._last_row
         if last is not None and (self.count == 0 or self.rows[self.count - 1, 0] != last[0]):
             if self.count == self.capacity and self.policy == "decimate":
@@ -54,8 +55,6 @@ class CurveMemory:
             if self.count < self.capacity:
                 self.rows[self.count] = last
                 self.count += 1
-            else:
-                self.dropped += 1
         return self.rows[:self.count].copy()
 
     # --- Δt ---------------------------------------------------------------------------------------
@@ -127,4 +126,4 @@ class CurveMemory:
         self.count = len(kept)
         self.rows[:self.count] = kept
         if self.mode == "time":
-            self._last_cell = self._cells(kept[-1:, 0])[0]
+            self._last_cell = self._cells(kept[-1:, 0])[0] if self.count else -np.inf

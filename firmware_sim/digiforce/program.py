@@ -135,11 +135,18 @@ def _limits(cfg: Any, names: set[str], where: str) -> dict[str, list[float | Non
     return out
 
 
+SWITCH_KEYS = ("input", "mode")
+
+
 def merge(base: Mapping[str, Any], update: Mapping[str, Any]) -> dict[str, Any]:
-    """``update`` over ``base``: dicts merge key by key, anything else (lists too) replaces."""
+    """``update`` over ``base``: dicts merge key by key, anything else (lists too) replaces. A dict that
+    switches ``input`` or ``mode`` to another value replaces the old one (its settings do not carry over)."""
     out = copy.deepcopy(dict(base))
     for key, value in update.items():
-        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+        old = out.get(key)
+        switched = isinstance(value, Mapping) and isinstance(old, Mapping) and any(
+            k in value and value[k] != old.get(k) for k in SWITCH_KEYS)
+        if isinstance(value, Mapping) and isinstance(old, Mapping) and not switched:
             out[key] = merge(out[key], value)
         else:
             out[key] = copy.deepcopy(value)

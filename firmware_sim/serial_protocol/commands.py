@@ -12,6 +12,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from firmware_sim.serial_protocol.framing import MAX_DATA
+
 OK, UNKNOWN, SYNTAX, REJECTED, NO_DATA, STATE, INTERNAL = 0, 1, 2, 3, 4, 5, 9
 BLOCK_PAIRS = 128          # value pairs per curve block (CB); CT blocks hold as many times
 MAX_MESSAGE = 200          # characters of an error message
@@ -77,7 +79,10 @@ class Commands:
                 raise CommandError(UNKNOWN, f"unknown command {command!r}")
             with self._lock:
                 payload = handler(data)
-            return f"{OK:02d}{payload if isinstance(payload, str) else ''}"
+            payload = payload if isinstance(payload, str) else ""
+            if len(payload) > MAX_DATA - 2:
+                raise CommandError(INTERNAL, f"{command} response of {len(payload)} bytes exceeds the frame limit")
+            return f"{OK:02d}{payload}"
         except CommandError as e:
             code, message = e.code, str(e)
         except (ValueError, KeyError, IndexError, TypeError) as e:
@@ -144,4 +149,4 @@ class Commands:
         result = self._device.last_result
         if result is None:
             raise CommandError(NO_DATA, "no result yet")
-        return _json(result.to_dict())
+        return _json(result.to_dict(include_curve=False))     # the curve itself: CH/CB/CT

@@ -60,7 +60,7 @@ class AnalogTransducer:
     QUANTITY_UNIT: ClassVar[str] = "N*m"
     SIGNAL_UNIT: ClassVar[str] = "V"
     SCHEMA: ClassVar[dict[str, Field]] = analog_schema(QUANTITY_UNIT, SIGNAL_UNIT)
-    FAULTS: ClassVar[dict[str, dict[str, Any]]] = {"supply_loss": {}, "stuck": {}}
+    FAULTS: ClassVar[dict[str, dict[str, Field]]] = {"supply_loss": {}, "stuck": {}}
     TYPE: ClassVar[str]
 
     def __init__(self, params: dict[str, Any], rng: np.random.Generator, name: str = "",
@@ -77,7 +77,7 @@ class AnalogTransducer:
             raise ValueError(f"{self.name}: output_at_min equals output_at_max (zero sensitivity)")
         self.sensitivity = (params["output_at_max"] - params["output_at_min"]) / (hi - lo)  # signal per SI unit
         self.full_scale = max(abs(params["output_at_min"]), abs(params["output_at_max"]))  # signal
-        self.zero_output = self.nominal(np.clip(0.0, lo, hi))
+        self.zero_output = float(self.nominal(np.clip(0.0, lo, hi)))
         self.temperature_delta = params["temperature_delta"]
         self.static = StaticErrors.draw(params, rng)
         self.play = Play(self.static.play_fraction * self.full_scale / abs(self.sensitivity) / 2.0)

@@ -47,9 +47,9 @@ class StrainGaugeBridge(AnalogTransducer):
         "zero_shift_per_overload": Field("1", 0.1, "zero shift (fraction of FS) per unit of F/F_FS above threshold"),
         "open_bridge_output": Field("1", 0.5, "output with a broken bridge arm or cable (rails), V/V"),
     }
-    FAULTS: ClassVar[dict[str, dict[str, Any]]] = {
-        "open_bridge": {"polarity": 1.0},
-        "excitation_loss": {"level": 0.0},
+    FAULTS: ClassVar[dict[str, dict[str, Field]]] = {
+        "open_bridge": {"polarity": Field("1", 1.0, "sign of the rail (+1 or −1)")},
+        "excitation_loss": {"level": Field("1", 0.0, "remaining fraction of the excitation")},
     }
 
     def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:

@@ -9,8 +9,8 @@ Error source (``errors_enabled``): Gaussian edge-time jitter ``jitter_rms``. Fau
 (a pulse of A or B disappears with ``probability`` per pulse) and ``glitches`` (spurious pulses of
 ``width`` on A or B at a Poisson ``rate``).
 
-Counter card: it accepts an edge only if it comes at least ``1/max_edge_frequency`` after the previous
-one; at each accepted edge it reads the lines and steps its ×4 count by +1/−1, or — if both A and B
+Counter card: it accepts an edge only if it comes at least ``1/max_edge_frequency`` after the
+previously accepted one; at each accepted edge it reads the lines and steps its ×4 count by +1/−1, or — if both A and B
 differ from what it saw last — counts an *illegal transition* and leaves the count alone. The
 reported ×N count (N = 1, 2, 4) is ``floor((c4 + 4/N − 1)/(4/N))`` relative to its value at power-on
 (×1 steps on A rising with B low, ×2 on every A edge). At each sample time the card latches the
@@ -56,9 +56,10 @@ class IncrementalEncoder:
         "max_edge_frequency": Field("Hz", math.inf, "highest edge rate the counter card follows"),
         "jitter_rms": Field("s", 0.0, "edge-time jitter (rms)"),
     }
-    FAULTS: ClassVar[dict[str, dict[str, Any]]] = {
-        "missed_pulses": {"probability": 0.01},
-        "glitches": {"rate": 100.0, "width": 1e-6},
+    FAULTS: ClassVar[dict[str, dict[str, Field]]] = {
+        "missed_pulses": {"probability": Field("1", 0.01, "chance that a pulse of A or B is lost")},
+        "glitches": {"rate": Field("1/s", 100.0, "spurious pulses per second"),
+                     "width": Field("s", 1e-6, "duration of a spurious pulse")},
     }
     TYPE: ClassVar[str]
 
@@ -84,7 +85,7 @@ class IncrementalEncoder:
         self._line = np.zeros(3, dtype=np.uint8)       # line levels after all emitted edges
         self._pending = (np.empty(0), np.empty(0, dtype=np.int64))  # jittered edges after the last sample
         self._drop_next = np.zeros(2, dtype=bool)     # missed pulse whose second edge is still to come
-        self._last_edge_t = -math.inf  # time of the last emitted A/B edge (card's edge filter)
+        self._last_edge_t = -math.inf  # time of the last edge the counter card accepted
         self._card_state = 0           # Gray position the card saw last
         self._c4 = 0
         self._c4_origin = 0
@@ -108,21 +109,21 @@ class IncrementalEncoder:
         return self.sample(t, q).levels
 
     # --- edges -----------------------------------------------------------------------------------
-    def _edges(self, tt: np.ndarray, th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Boundary crossings between consecutive samples: times, boundary index m, direction ±1."""
+    def _edges(self, tt: np.ndarray, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Boundary crossings between consecutive samples: times and boundary indices m."""
         kk = np.floor(th / self.step).astype(np.int64)
         dk = np.diff(kk)
         n = np.abs(dk)
         total = int(n.sum())
         if total == 0:
-            return np.empty(0), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
+            return np.empty(0), np.empty(0, dtype=np.int64)
         interval = np.repeat(np.arange(dk.size), n)
         j = np.arange(total) - np.repeat(np.cumsum(n) - n, n)
         up = dk[interval] > 0
         m = np.where(up, kk[interval] + 1 + j, kk[interval] - j)
         frac = (m * self.step - th[interval]) / (th[interval + 1] - th[interval])
         times = tt[interval] + frac * (tt[interval + 1] - tt[interval])
-        return times, m, np.where(up, 1, -1)
+        return times, m
 
     def _missed(self, times: np.ndarray, chan: np.ndarray) -> np.ndarray:
         """Keep-mask after dropping whole pulses (an edge and the next one on the same channel)."""
@@ -184,7 +185,7 @@ class IncrementalEncoder:
         dt = np.diff(tt)
         if np.any(dt[1:] <= 0.0) or dt[0] < 0.0 or (dt[0] == 0.0 and th[1] != th[0]):
             raise ValueError(f"{self.name}: sample times must increase strictly (continuing from t={self._t} s)")
-        times, m, _ = self._edges(tt, th)
+        times, m = self._edges(tt, th)
         chan = np.where(m % 2 == 1, A, B)
         if self.errors_enabled and self.p["jitter_rms"] > 0.0:
             times = times + self.rng.normal(0.0, self.p["jitter_rms"], size=times.size)
@@ -209,13 +210,24 @@ class IncrementalEncoder:
         self._t, self._theta = float(t[-1]), float(q[-1])
         return EncoderSample(levels, count, edge_time, illegal)
 
+    def _accept(self, et: np.ndarray) -> np.ndarray:
+        """Edges the card sees: each at least ``1/max_edge_frequency`` after the last accepted one."""
+        tau = 1.0 / self.p["max_edge_frequency"]
+        accepted = np.diff(np.concatenate(([self._last_edge_t], et))) >= tau
+        if not accepted.all():  # too close somewhere: decide edge by edge
+            last = self._last_edge_t
+            for i, te in enumerate(et.tolist()):
+                accepted[i] = te - last >= tau
+                if accepted[i]:
+                    last = te
+        if accepted.any():
+            self._last_edge_t = float(et[accepted][-1])
+        return accepted
+
     def _card(self, et: np.ndarray, ec: np.ndarray, ab_before: np.ndarray,
               t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Counter card: filter edges, step the ×4 count, latch count/edge time/illegal count at ``t``."""
-        gaps = np.diff(np.concatenate(([self._last_edge_t], et)))
-        accepted = gaps >= 1.0 / self.p["max_edge_frequency"]
-        if et.size:
-            self._last_edge_t = float(et[-1])
+        accepted = self._accept(et)
         a = ab_before[A] ^ (np.cumsum(ec == A) & 1)
         b = ab_before[B] ^ (np.cumsum(ec == B) & 1)
         state = _STATE_OF_LEVELS[a + 2 * b][accepted]

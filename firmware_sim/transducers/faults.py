@@ -7,6 +7,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from rig.scene import Field
+from rig.units import to_si
+
 
 @dataclass(frozen=True)
 class Fault:
@@ -19,25 +22,33 @@ class Fault:
 
 
 class FaultSchedule:
-    """The faults injected into one transducer; ``known`` maps fault kind -> default parameters."""
+    """The faults injected into one transducer; ``known`` maps fault kind -> {parameter: Field}."""
 
-    def __init__(self, owner: str, known: Mapping[str, Mapping[str, Any]]) -> None:
+    def __init__(self, owner: str, known: Mapping[str, Mapping[str, Field]]) -> None:
         self.owner = owner
         self.known = known
         self.faults: list[Fault] = []
 
     def inject(self, kind: str, at: float = 0.0, until: float = math.inf, **params: Any) -> Fault:
-        """Schedule ``kind``; unknown kinds or parameters raise ``ValueError`` naming them."""
+        """Schedule ``kind``; parameters are SI numbers or quantity strings (``width="3 us"``).
+
+        Unknown kinds or parameters and wrong units raise ``ValueError`` naming them.
+        """
         if kind not in self.known:
             raise ValueError(f"{self.owner}: unknown fault {kind!r}; this transducer knows {sorted(self.known)}")
-        unknown = set(params) - set(self.known[kind])
+        fields = self.known[kind]
+        unknown = set(params) - set(fields)
         if unknown:
             raise ValueError(f"{self.owner}: fault {kind!r} has no parameter(s) {sorted(unknown)}; "
-                             f"known: {sorted(self.known[kind]) or 'none'}")
+                             f"known: {sorted(fields) or 'none'}")
         if not (math.isfinite(at) and until > at):
             raise ValueError(f"{self.owner}: fault {kind!r} needs a finite start time before its end, "
                              f"got at={at!r} s, until={until!r} s")
-        fault = Fault(kind, float(at), float(until), {**self.known[kind], **params})
+        values = {name: f.default for name, f in fields.items()}
+        for name, v in params.items():
+            what = f"{self.owner}: fault {kind!r} parameter {name!r}"
+            values[name] = to_si(v, fields[name].unit, what=what) if isinstance(v, str) else float(v)
+        fault = Fault(kind, float(at), float(until), values)
         self.faults.append(fault)
         return fault
 

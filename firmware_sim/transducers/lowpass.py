@@ -54,15 +54,12 @@ class LowPass:
         self.t_last = 0.0
         self.u_last = 0.0
 
-    def reset(self) -> None:
-        """Forget the state: the next call starts in steady state at its first input value."""
-        self.x = None
-
     def _coefficients(self, h: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-mode FOH update ``x+ = E x + g0 u0 + g1 u1`` for steps ``h`` (broadcast over modes)."""
         z = np.multiply.outer(np.asarray(h, dtype=float), self.poles)
         phi1 = np.where(np.abs(z) > 1e-8, np.expm1(z) / np.where(z == 0, 1, z), 1.0 + z / 2)  # (e^z − 1)/z
-        phi2 = np.where(np.abs(z) > 1e-4, (phi1 - 1.0) / np.where(z == 0, 1, z), 0.5 + z / 6 + z * z / 24 + z ** 3 / 120)  # (φ1 − 1)/z
+        series = 0.5 + z / 6 + z * z / 24 + z ** 3 / 120
+        phi2 = np.where(np.abs(z) > 1e-4, (phi1 - 1.0) / np.where(z == 0, 1, z), series)  # (φ1 − 1)/z
         hh = np.asarray(h, dtype=float)[..., None]
         e = np.exp(z)
         i0 = hh * phi1          # ∫ e^{λ(h−τ)} dτ

@@ -32,7 +32,7 @@ class LVDT(AnalogTransducer):
         "output_resistance": Field("ohm", 0.0, "output resistance of the electronics"),
         "load_resistance": Field("ohm", math.inf, "input resistance of the acquisition channel"),
     }
-    FAULTS: ClassVar[dict[str, dict[str, Any]]] = {"supply_loss": {}}
+    FAULTS: ClassVar[dict[str, dict[str, Field]]] = {"supply_loss": {}}
 
     def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:
         super().__init__(params, rng, **kw)

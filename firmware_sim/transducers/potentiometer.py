@@ -6,7 +6,6 @@ The wiper voltage follows the nominal chain of :mod:`.analog`; the multimeter ta
 """
 from __future__ import annotations
 
-import math
 from typing import Any, ClassVar
 
 import numpy as np
@@ -28,7 +27,7 @@ class PotentiometerDMM(AnalogTransducer):
         "reading_rate": Field("Hz", doc="multimeter readings per second"),
         "resolution": Field("V", 0.0, "multimeter display step (0: none)"),
     }
-    FAULTS: ClassVar[dict[str, dict[str, Any]]] = {"supply_loss": {}, "stuck": {}}
+    FAULTS: ClassVar[dict[str, dict[str, Field]]] = {"supply_loss": {}, "stuck": {}}
 
     def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:
         super().__init__(params, rng, **kw)

@@ -110,7 +110,9 @@ class CamProgram:
 
     def evaluate(self, phi: np.ndarray) -> Motion:
         """s and its derivatives w.r.t. φ at cam angles ``phi`` (rad, any real value)."""
-        phi = np.mod(np.asarray(phi, dtype=float), tau)
+        phi = np.asarray(phi, dtype=float)
+        shape = phi.shape
+        phi = np.mod(phi.reshape(-1), tau)
         seg_of = np.searchsorted(self._start, phi, side="right") - 1
         s = self._level[seg_of]
         s_p = np.zeros_like(phi)
@@ -129,7 +131,7 @@ class CamProgram:
             s_p[m] = h / big_phi * y1
             s_pp[m] = h / big_phi ** 2 * y2
             s_ppp[m] = h / big_phi ** 3 * y3
-        return Motion(s, s_p, s_pp, s_ppp)
+        return Motion(s.reshape(shape), s_p.reshape(shape), s_pp.reshape(shape), s_ppp.reshape(shape))
 
     def at_speed(self, phi: np.ndarray, omega: np.ndarray | float, alpha: np.ndarray | float = 0.0) -> TimeMotion:
         """s, v = ω s', a = ω² s'' + ω̇ s' at cam angle φ (rad), speed ω (rad/s), acceleration ω̇ (rad/s²)."""
@@ -138,15 +140,19 @@ class CamProgram:
 
     def events(self) -> list[ProgramEvent]:
         """Angles where s'' jumps, from the laws' jump positions and the boundary accelerations."""
-        jumps: dict[float, float] = {}
-        owner: dict[float, int] = {}
+        raw = []
         for i, (seg, law) in enumerate(zip(self.segments, self._laws)):
             if law is None:
                 continue
             scale = self._h[i] / seg.angle ** 2
             for x, dy2 in law.accel_jumps():
-                key = round(float(self._start[i] + x * seg.angle), 9) % round(tau, 9)
-                jumps[key] = jumps.get(key, 0.0) + scale * dy2
-                owner.setdefault(key, i)
-        scale = max((abs(j) for j in jumps.values()), default=0.0)
-        return [ProgramEvent(a, j, owner[a]) for a, j in sorted(jumps.items()) if abs(j) > 1e-9 * scale]
+                angle = float(self._start[i] + x * seg.angle)
+                raw.append((0.0 if angle > tau - 1e-9 else angle, float(scale * dy2), i))
+        merged: list[list] = []
+        for angle, jump, i in sorted(raw):  # a segment's end and the next one's start coincide: add the jumps
+            if merged and angle - merged[-1][0] < 1e-9:
+                merged[-1][1] += jump
+            else:
+                merged.append([angle, jump, i])
+        big = max((abs(m[1]) for m in merged), default=0.0)
+        return [ProgramEvent(a, j, i) for a, j, i in merged if abs(j) > 1e-9 * big]

@@ -21,14 +21,14 @@ class FakeDevice:
     """Records the commands it receives; :meth:`finish` makes a result like the unit's ``last_result``."""
 
     calls: list = field(default_factory=list)
-    program: int = 1
+    program: int = 0
     state: str = "idle"
     last_result: object = None
     number: int = 0
 
     def select_program(self, n: int) -> None:
-        if not 1 <= n <= 16:
-            raise ValueError(f"program {n} out of 1..16")
+        if not 0 <= n < 16:
+            raise ValueError(f"program {n} out of 0..15")
         self.program = n
         self.calls.append(("select_program", n))
 
@@ -41,7 +41,7 @@ class FakeDevice:
         self.calls.append(("stop", t))
 
     def tare(self, channel: str) -> None:
-        if channel not in ("x", "y"):
+        if channel not in ("x", "y", None):
             raise ValueError(f"no channel {channel}")
         self.calls.append(("tare", channel))
 
@@ -60,7 +60,7 @@ class FakeDevice:
         self.number += 1
         self.last_result = SimpleNamespace(number=self.number, program=self.program,
                                            ok=all(e.ok for e in elements), elements=elements,
-                                           process_values=process_values, curve=(t, x, y))
+                                           process_values=process_values, curve=SimpleNamespace(t=t, x=x, y=y))
         return self.last_result
 
 

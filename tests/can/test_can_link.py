@@ -63,8 +63,8 @@ def test_curve_of_4000_pairs_and_result(buses, device, rng, fd, elements, make_c
     node.advance_to(0.5)                       # the node sees the new result at t = 0.5
     frames = run(node, host, 3.0)
     assert host.events == []
-    (curve,) = host.curves
-    assert curve.number == 1 and curve.program == 1 and curve.complete
+    (curve,) = host.curves()
+    assert curve.number == 1 and curve.program == 0 and curve.complete
     np.testing.assert_allclose(curve.x, x, rtol=0, atol=X_LSB / 2 + 1e-15)
     np.testing.assert_allclose(curve.y, y, rtol=0, atol=Y_LSB / 2 + 1e-12)
     np.testing.assert_array_equal(curve.x, np.rint(x / X_LSB) * X_LSB)
@@ -75,7 +75,7 @@ def test_curve_of_4000_pairs_and_result(buses, device, rng, fd, elements, make_c
     timing = BusTiming(500_000, fd=fd, data_bitrate=2e6 if fd else None)
     if fd:
         blocks = -(-4000 // 11)
-        expected = blocks * timing.frame_time(0x302, bytes(64), True) + 9 * 135 / 500e3
+        expected = blocks * timing.frame_time(0x303, bytes(64), True) + 9 * 135 / 500e3
     else:
         expected = (4000 + 9) * 135 / 500e3     # header, blocks, end, result, 6 process values
     assert max(m.timestamp for m in frames) == pytest.approx(0.5 + expected, abs=1e-9)
@@ -167,15 +167,15 @@ def test_dropped_frame_is_a_sequence_gap(buses, device, rng, elements, make_curv
     frames = []
     while (m := host_bus.recv(0)) is not None:
         frames.append(m)
-    blocks = [i for i, m in enumerate(frames) if m.arbitration_id == 0x301]
+    blocks = [i for i, m in enumerate(frames) if m.arbitration_id == 0x302]
     lost = frames.pop(blocks[100])                      # the wire loses block 100
     for m in frames:
         host.receive(m)
     (gap,) = host.events_of("sequence_gap")
-    assert (gap.frame_id, gap.count) == (0x301, 1) and gap.time == pytest.approx(frames[blocks[100]].timestamp)
-    assert host.sequence.missed == {0x301: 1}
-    assert host.curves == []
-    (bad,) = host.incomplete_curves
+    assert (gap.frame_id, gap.count) == (0x302, 1) and gap.time == pytest.approx(frames[blocks[100]].timestamp)
+    assert host.sequence.missed == {0x302: 1}
+    assert host.curves() == []
+    (bad,) = host.incomplete_curves()
     assert not bad.received[100] and bad.received.sum() == 499
     assert any("1 of 500 pairs missing" in e.detail for e in host.events_of("curve"))
     assert lost.data[0] == 100 % 256
@@ -194,7 +194,7 @@ def test_malformed_frames_are_reported_and_nothing_is_lost(buses, device, rng, e
     while (m := host_bus.recv(0)) is not None:
         frames.append(m)
     frames.insert(50, can.Message(arbitration_id=0x7A5, data=b"\x01\x02", is_extended_id=False))
-    frames.insert(80, can.Message(arbitration_id=0x301, data=b"\x00\x01\x02", is_extended_id=False))
+    frames.insert(80, can.Message(arbitration_id=0x302, data=b"\x00\x01\x02", is_extended_id=False))
     frames.insert(90, can.Message(arbitration_id=0x311, data=bytes([0, 1, 200, 0, 0, 0, 0, 0]), is_extended_id=False))
     frames.insert(95, can.Message(is_error_frame=True))
     for m in frames:
@@ -203,7 +203,7 @@ def test_malformed_frames_are_reported_and_nothing_is_lost(buses, device, rng, e
     assert kinds == ["bad_length", "decode_error", "error_frame", "unknown_frame"]
     assert "0x7A5" in host.events_of("unknown_frame")[0].detail
     assert "3 data bytes" in host.events_of("bad_length")[0].detail
-    (curve,) = host.curves
+    (curve,) = host.curves()
     np.testing.assert_allclose(curve.y, y, atol=Y_LSB / 2 + 1e-12)
     assert host.results[1].process_values == {"y_max": 1.5}
 
@@ -228,7 +228,7 @@ def test_commands_reach_the_device(buses, device):
                             ("reset_statistics",), ("identify",)]
     assert [(a["host_seq"], a["status"]) for a in host.acks] == [(0, "done"), (1, "done"), (2, "done"), (3, "done"),
                                                                  (4, "done"), (5, "rejected"), (6, "done")]
-    assert host.status["program"] == 3 and host.status["state"] == "idle"
+    assert host.status["program"] == 3 and host.status["state"] == "idle" and host.status["errors"] == 0
     assert "program 40" in node.rx_errors[0]
     with pytest.raises(ValueError, match="tare channel 'z'"):
         host.tare("z")
@@ -284,3 +284,13 @@ def test_live_frames_stuck_behind_higher_priority_traffic_go_stale(buses, device
     assert factor == 6 and ids.count(0x200) == 0 and node.live_sent == 0
     assert node.live_dropped == 1000
     assert ids.count(0x180) == ids.count(0x181) == 300
+
+
+def test_explicitly_published_result_is_not_sent_twice(buses, device, rng, elements, make_curve):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)
+    host = CanHost(host_bus)
+    t, x, y = make_curve(rng, 200)
+    node.publish_measurement(0.0, device.finish(t, x, y, elements[:1], {}))
+    run(node, host, 1.0)
+    assert len(host.curves()) == 1 and node.curves_measured == 1 and host.events == []

@@ -54,7 +54,7 @@ def test_curve_and_commands_through_stock_client(served, device, rng, fakes):
     t, x, y = fakes.make_curve(rng, 4000)
     device.finish(t, x, y, [fakes.ElementResult("W1", "window", True)], {"y_max": float(y.max())})
     pump(node, host, lambda: 1 in host.results and host.results[1].process_values)
-    (curve,) = host.curves
+    (curve,) = host.curves()
     assert curve.program == 5
     np.testing.assert_array_equal(curve.x, np.rint(x / X_LSB) * X_LSB)
     np.testing.assert_allclose(curve.y, y, atol=Y_LSB / 2 + 1e-12)
@@ -136,11 +136,11 @@ def test_device_in_another_process(tmp_path, fakes):
         try:
             host.start()
             deadline = time.monotonic() + 20
-            while not (host.curves and 1 in host.results) and time.monotonic() < deadline:
+            while not (host.curves() and 1 in host.results) and time.monotonic() < deadline:
                 host.poll(timeout=0.05)
         finally:
             bus.shutdown()
-        (curve,) = host.curves
+        (curve,) = host.curves()
         _, x, y = fakes.make_curve(np.random.default_rng(7), 2000)
         np.testing.assert_array_equal(curve.y, np.rint(y / Y_LSB) * Y_LSB)
         assert host.results[1].ok is False and host.results[1].first_fail == 0

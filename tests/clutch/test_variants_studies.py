@@ -10,7 +10,7 @@ from rig.plants.clutch.studies import (FAMILIES, characteristic, parameter_famil
 
 def test_torque_proportional_to_k_a_and_peak_angle_independent_of_it():
     fam = parameter_family("k_a")
-    ratio = fam.torque[:, 1:] / fam.torque[2, 1:]
+    ratio = fam.torque[:, 1:-1] / fam.torque[2, 1:-1]          # both ends are zeros
     np.testing.assert_allclose(ratio, np.broadcast_to((fam.values / 28e3)[:, None], ratio.shape), rtol=1e-12)
     np.testing.assert_allclose(fam.peak_angle, fam.peak_angle[2], atol=1e-9)
     np.testing.assert_allclose(fam.peak_torque / fam.values, fam.peak_torque[2] / 28e3, rtol=1e-9)

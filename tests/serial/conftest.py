@@ -17,8 +17,8 @@ class FakeResult:
     def __init__(self, data: dict[str, Any]) -> None:
         self._data = data
 
-    def to_dict(self) -> dict[str, Any]:
-        return copy.deepcopy(self._data)
+    def to_dict(self, include_curve: bool = True) -> dict[str, Any]:
+        return copy.deepcopy(self._data) | ({"curve": "not for the serial RR"} if include_curve else {})
 
 
 class FakeDigiForce:

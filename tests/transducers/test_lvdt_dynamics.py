@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from firmware_sim.transducers import LowPass, load_transducer
+from firmware_sim.transducers import LowPass, frequency_response, load_transducer
 
-WN = 2 * math.pi * 100.0  # Butterworth (ζ = 1/√2): −3 dB point = natural frequency
-ZETA = 0.7071
+ZETA = 0.7071  # burster_8740.toml; ≈ Butterworth, whose −3 dB point is the natural frequency
+# natural frequency putting |H| = 1/√2 at 100 Hz for this ζ: (ω_c/ωn)² = 1 − 2ζ² + √((1 − 2ζ²)² + 1)
+WN = 2 * math.pi * 100.0 / math.sqrt((1 - 2 * ZETA**2) + math.sqrt((1 - 2 * ZETA**2) ** 2 + 1))
 
 
 def lvdt(**kw):
@@ -27,7 +28,7 @@ def test_step_response_matches_analytic_second_order():
     t = np.arange(0.0, 0.03, dt)
     q = np.where(t >= 0.001, 0.05, 0.0)  # 50 mm step at 1 ms
     y = s.measure(t, q) / 2.5             # 2.5 V for 50 mm
-    wn = WN / math.sqrt((1 - 2 * ZETA**2) + math.sqrt((1 - 2 * ZETA**2) ** 2 + 1))  # exact ζ of the file
+    wn = WN
     wd = wn * math.sqrt(1 - ZETA**2)
     tau = np.clip(t - 0.001 + dt / 2, 0, None)  # the sampled step is a one-sample ramp: centre it
     ref = 1 - np.exp(-ZETA * wn * tau) * (np.cos(wd * tau) + ZETA / math.sqrt(1 - ZETA**2) * np.sin(wd * tau))
@@ -46,6 +47,7 @@ def test_gain_and_phase_match_analytic_filter(f, chunk):
     h = fit_sine(t[settled], y[settled] / 50.0, f) / 0.01   # 50 V/m
     w = 2 * np.pi * f
     h_ref = WN**2 / (WN**2 - w**2 + 2j * ZETA * WN * w)
+    assert frequency_response(f, 100.0, 2, ZETA) == pytest.approx(h_ref, rel=1e-12)
     assert abs(h) == pytest.approx(abs(h_ref), rel=1e-4)
     assert np.angle(h) == pytest.approx(np.angle(h_ref), abs=1e-4)
     if f == 100.0:

@@ -76,18 +76,17 @@ def _guide(mech: "PinInsertionMechanism", dy: np.ndarray, dx: np.ndarray, q: np.
            sv: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Solve slider + rod moment for R54 = (X, Y) with Coulomb friction μ|N| (N = Y + m5 g)."""
     w5 = mech.m5 * mech.g
-    y_sol = np.empty_like(q)
-    done = np.zeros(q.shape, dtype=bool)
-    for sigma in (1.0, -1.0):  # assumed sign of the guide normal force N
-        c = mech.mu * sigma * sv
-        y_try = (dy * (q - c * w5) - m4_moment) / (dx + c * dy)
-        ok = ~done & ((sigma * (y_try + w5) >= 0.0) | (c == 0.0))
-        y_sol = np.where(ok, y_try, y_sol)
-        done |= ok
-    if not done.all():
-        i = int(np.argmin(done))
-        raise JammingError(f"slider self-locks in its guide at cam angle φ = {degrees(float(phi.flat[i])):.4g}° "
-                           f"(μ = {mech.mu:g}): no Coulomb friction state balances the rod")
+    c = mech.mu * sv  # first assume N ≥ 0, then redo the angles where that is inconsistent with N < 0
+    y_sol = (dy * (q - c * w5) - m4_moment) / (dx + c * dy)
+    flip = (y_sol + w5 < 0.0) & (c != 0.0)
+    if flip.any():
+        cf = -c[flip]
+        y_neg = (dy[flip] * (q[flip] - cf * w5) - m4_moment[flip]) / (dx[flip] + cf * dy[flip])
+        if np.any(y_neg + w5 > 0.0):
+            i = int(np.flatnonzero(flip)[np.argmax(y_neg + w5 > 0.0)])
+            raise JammingError(f"slider self-locks in its guide at cam angle φ = {degrees(float(phi.flat[i])):.4g}° "
+                               f"(μ = {mech.mu:g}): no Coulomb friction state balances the rod")
+        y_sol[flip] = y_neg
     n = y_sol + w5
     x_sol = q - mech.mu * np.abs(n) * sv
     return x_sol, y_sol

@@ -1,0 +1,183 @@
+"""The ``rig`` command: run, serve, record and report scenes; print plant summaries.
+
+``rig`` alone runs the demo: the pin-insertion scene end to end with its embedded defaults.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+DEFAULT_SCENE = DATA / "scenes" / "pin_insertion.toml"
+
+
+def _print_cam_bar_summary(scene_path: Path, png: Path) -> None:
+    from rig.plants.cam_bar.summary import plot_cycle, summary_table
+    from rig.runner.plants import make_plant
+    from rig.scene import load_scene
+    mech = make_plant("cam_bar", load_scene(scene_path))
+    print(summary_table(mech))
+    png.parent.mkdir(parents=True, exist_ok=True)
+    plot_cycle(mech, png)
+    print(f"cycle chart: {png}")
+
+
+def _print_set_summary(recording: Path) -> None:
+    from rig.analysis import analyse
+    from rig.recorder import read_recording
+    result = analyse(read_recording(recording))
+    verdicts = result["verdicts"]
+    nok = [v for v in verdicts if not v["ok"]]
+    print(f"curves: {len(verdicts)}, OK {len(verdicts) - len(nok)}, NOK {len(nok)}")
+    for program, st in result["sets"].items():
+        for warning in st.get("warnings", []):
+            print(f"  warning (program {program}): {warning}")
+        for name, pv in st.get("process_values", {}).items():
+            cp = pv.get("cp")
+            cpk = pv.get("cpk")
+            print(f"  {name:>16}: mean {pv['mean']:.4g}  sigma {pv['std']:.3g}  "
+                  f"[{pv['min']:.4g}, {pv['max']:.4g}]" + (f"  Cp {cp:.2f} Cpk {cpk:.2f}" if cp is not None else ""))
+    lags = [row for row in result["theory"] if row.get("lag_time") is not None]
+    if lags:
+        lt = sum(r["lag_time"] for r in lags) / len(lags)
+        la = sum(r.get("lag_angle", 0.0) for r in lags) / len(lags)
+        print(f"  theory vs measurement: mean lag {lt * 1e3:.1f} ms = {la * 180 / 3.141592653589793:.1f} deg cam")
+    if result["events"]:
+        print("  events: " + ", ".join(f"{k} {v}" for k, v in sorted(result["events"].items())))
+
+
+def _report(recording: Path, out_dir: Path, fmt: str) -> Path:
+    from rig.analysis.report import write_report
+    return write_report(recording, out_dir, fmt=fmt)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from rig.runner import run_scene
+    from rig.runner.config import read_config
+    from rig.scene import load_scene
+    scene = Path(args.scene)
+    out = Path(args.output) if args.output else Path("out") / f"{scene.stem}.mcap"
+    if read_config(load_scene(scene)).plant == "cam_bar":
+        _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"))
+    summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
+                        progress=not args.quiet)
+    print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated in {summary.wall_time:.2f} s "
+          f"({summary.realtime_factor:.1f}x real time), {summary.frames} CAN frames -> {summary.output}")
+    _print_set_summary(summary.output)
+    if not args.no_report:
+        report = _report(summary.output, Path(args.report_dir) if args.report_dir else out.with_suffix(""), args.format)
+        print(f"report: {report}")
+    return 0
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    from rig.runner import serve_scene
+
+    def announce(endpoints: dict[str, Any]) -> None:
+        print(json.dumps(endpoints), flush=True)
+        if args.endpoints:
+            Path(args.endpoints).write_text(json.dumps(endpoints))
+
+    machine = serve_scene(args.scene, mode="realtime" if args.realtime else None, port=args.port, wait=args.wait,
+                          linger=args.linger, announce=announce, progress=not args.quiet)
+    print(f"served {machine.curves} curves, {machine.t:.2f} s simulated", file=sys.stderr)
+    return 0
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    from rig.runner import record_scene
+    summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
+                           serial_port=args.serial, can_channel=args.can_channel, progress=not args.quiet)
+    print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated -> {summary.output}")
+    _print_set_summary(summary.output)
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    recording = Path(args.recording)
+    out = Path(args.output) if args.output else recording.with_suffix("")
+    print(f"report: {_report(recording, out, args.format)}")
+    return 0
+
+
+def cmd_summary(args: argparse.Namespace) -> int:
+    scene = Path(args.scene)
+    _print_cam_bar_summary(scene, Path(args.png) if args.png else Path("out") / f"{scene.stem}.cycle.png")
+    return 0
+
+
+def cmd_studies(args: argparse.Namespace) -> int:
+    from rig.plants.clutch.studies import plot_parameter_studies, write_peak_table
+    out = Path(args.output)
+    for path in plot_parameter_studies(out) + [write_peak_table(out)]:
+        print(path)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="rig", description="Virtual test rig for mechanism experiments. "
+                                "Without a command: run the pin-insertion demo scene.")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    sub = p.add_subparsers(dest="command")
+    run = sub.add_parser("run", help="run a scene in one process (machine + host) and record it to MCAP")
+    run.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
+    run.add_argument("-o", "--output", help="recording path (default out/<scene>.mcap)")
+    run.add_argument("--cycles", type=int, help="override the scene's number of cycles")
+    run.add_argument("--realtime", action="store_true", help="pace to the wall clock")
+    run.add_argument("--report-dir", help="report directory (default: next to the recording)")
+    run.add_argument("--format", choices=("html", "md"), default="html")
+    run.add_argument("--no-report", action="store_true")
+    run.set_defaults(func=cmd_run)
+    serve = sub.add_parser("serve", help="run the simulated machine: CAN over socketcand, serial on a pty")
+    serve.add_argument("scene")
+    serve.add_argument("--port", type=int, help="socketcand TCP port (default: the scene's, 0 = any)")
+    serve.add_argument("--realtime", action="store_true")
+    serve.add_argument("--wait", type=float, default=300.0, help="seconds to wait for a host to arm the device")
+    serve.add_argument("--linger", type=float, default=30.0, help="seconds to keep serving after the run")
+    serve.add_argument("--endpoints", help="also write the endpoints JSON to this file")
+    serve.set_defaults(func=cmd_serve)
+    rec = sub.add_parser("record", help="the host: connect to `rig serve` and record the run")
+    rec.add_argument("scene")
+    rec.add_argument("-o", "--output", required=True)
+    rec.add_argument("--can-host", default="127.0.0.1")
+    rec.add_argument("--can-port", type=int, required=True)
+    rec.add_argument("--can-channel")
+    rec.add_argument("--serial", help="serial port path or URL printed by `rig serve`")
+    rec.set_defaults(func=cmd_record)
+    rep = sub.add_parser("report", help="write an HTML/Markdown report with plots and CSV from a recording")
+    rep.add_argument("recording")
+    rep.add_argument("-o", "--output", help="report directory")
+    rep.add_argument("--format", choices=("html", "md"), default="html")
+    rep.set_defaults(func=cmd_report)
+    summ = sub.add_parser("summary", help="cam-bar kinematics/kinetostatics table and cycle chart")
+    summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
+    summ.add_argument("--png")
+    summ.set_defaults(func=cmd_summary)
+    stud = sub.add_parser("studies", help="clutch static-characteristic parameter studies (PNG)")
+    stud.add_argument("-o", "--output", default="out/studies")
+    stud.set_defaults(func=cmd_studies)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.command is None:
+        args = build_parser().parse_args(["-q", "run"] if args.quiet else ["run"])
+    from rig.recorder import RecordingError
+    from rig.runner.session import RunError
+    from rig.scene import SceneError
+    try:
+        return args.func(args)
+    except (SceneError, RunError, RecordingError, ValueError, OSError) as exc:
+        print(f"rig: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("rig: interrupted; what was recorded so far is in a valid MCAP file", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

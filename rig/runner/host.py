@@ -1,0 +1,159 @@
+"""The host: drivers on the links, the theory model, and the recorder.
+
+It sees the machine only through the CAN bus and the serial port, exactly as it would see real
+hardware. The "theoretical curve" comes from its own plant model built from the same scene.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import can
+import numpy as np
+
+from drivers.can import CanHost
+from drivers.digiforce_serial import DigiForceClient
+from rig.recorder import Recorder
+from rig.runner.config import RunConfig
+from rig.runner.plants import make_plant
+
+
+class Host:
+    """Receives, decodes and records everything the machine sends; configures it over serial."""
+
+    def __init__(self, cfg: RunConfig, bus: can.BusABC, serial_port: str | None, recorder: Recorder) -> None:
+        self.cfg = cfg
+        self.bus = bus
+        self.can = CanHost(bus)
+        self.rec = recorder
+        self.serial = (DigiForceClient(serial_port, baudrate=cfg.serial["baudrate"], address=cfg.serial["address"],
+                                       timeout=2.0) if serial_port else None)
+        self.theory = make_plant(cfg.plant, cfg.scene)
+        self.program = cfg.device["program"]
+        self.program_config: dict[str, Any] | None = None
+        self.truth_t = 0.0
+        self._truth: list[dict[str, np.ndarray]] = []
+        self._chunk_n = max(2, round(cfg.chunk * cfg.sample_rate))
+        self._chunks = 0
+        self._curves_done = 0
+        self._results_done: set[int] = set()
+        self._link_events = 0
+        self._plant_events = 0
+        self.frames = 0
+
+    # ---------------------------------------------------------------- configuration
+    def arm(self) -> None:
+        """Configure the unit over serial (program from the scene), then select it over CAN: the go signal."""
+        if self.serial is not None:
+            ident = self.serial.identify()
+            self.serial.set_program(self.program, self.cfg.device["config"])
+            self.serial.select_program(self.program)
+            self.program_config = self.serial.get_program(self.program)
+            self.rec.write_program(self.program, self.program_config)
+            self.rec.write_event(0.0, "device_identified", identity=ident, link="serial")
+        self.can.select_program(self.program)
+
+    # ---------------------------------------------------------------- reception
+    def poll(self, timeout: float = 0.0) -> int:
+        """Receive what is on the bus, record raw and decoded data; returns the number of frames."""
+        raw = []
+        while True:
+            msg = self.bus.recv(timeout if not raw else 0.0)
+            if msg is None:
+                break
+            raw.append(msg)
+            self.can.receive(msg)
+        if raw:
+            self.rec.write_can_frames(raw)
+            self.frames += len(raw)
+        t_live, x_live, y_live = self.can.take_live()
+        if len(t_live):
+            self.rec.write_live(t_live, x_live, y_live)
+        self._advance_theory(self.can.device_time)
+        self._record_curves()
+        self._record_link_events()
+        return len(raw)
+
+    def _advance_theory(self, t_device: float) -> None:
+        """Run the theory model on the machine's sample grid up to the device time; record it."""
+        dt, n = self.cfg.dt, self._chunk_n
+        while (self._chunks + 1) * n * dt <= t_device + 1e-12:
+            t = (self._chunks * n + 1 + np.arange(n)) * dt
+            self._chunks += 1
+            truth = self.theory.advance(t)
+            keep = self.cfg.recording["truth_signals"]
+            signals = {k: np.asarray(v, dtype=float) for k, v in truth.items()
+                       if k != "t" and np.shape(v) == t.shape and (keep is None or k in keep)}
+            self.rec.write_truth(t, signals)
+            self._truth.append({"t": t, **signals})
+            self.truth_t = float(t[-1])
+        for ev in self.theory.events[self._plant_events:]:
+            self.rec.write_event(ev.time, ev.kind, **ev.data)
+        self._plant_events = len(self.theory.events)
+
+    def _truth_at(self, t: np.ndarray, signal: str) -> np.ndarray | None:
+        chunks = [c for c in self._truth if c["t"][-1] >= t[0] and c["t"][0] <= t[-1] and signal in c]
+        if not chunks:
+            return None
+        tt = np.concatenate([c["t"] for c in chunks])
+        return np.interp(t, tt, np.concatenate([c[signal] for c in chunks]))
+
+    def _record_curves(self) -> None:
+        curves = self.can.curves()
+        for curve in curves[self._curves_done:]:
+            result = self.can.results.get(curve.number)
+            if result is None or curve.t is None or curve.t[-1] > self.truth_t:
+                break        # wait for its result and for the theory to cover it
+            theory, angle = {}, None
+            for role, key in (("x", "x"), ("y", "y")):
+                spec = self.cfg.role(role)
+                if spec is not None:
+                    values = self._truth_at(curve.t, spec.signal)
+                    if values is not None:
+                        theory[key] = values
+            angle = self._truth_at(curve.t, "cam_angle")
+            if angle is not None:
+                theory["angle"] = angle
+            self.rec.write_curve(curve.number, curve.program, curve.t, curve.x, curve.y, theory=theory or None,
+                                 angle=angle, complete=curve.complete, problems=list(curve.problems))
+            self.rec.write_result(self._result_dict(result, curve.program), t=float(curve.t[-1]))
+            self._curves_done += 1
+        for curve in self.can.incomplete_curves():
+            if curve.number not in self._results_done:
+                self._results_done.add(curve.number)
+                self.rec.write_event(self.can.device_time, "incomplete_curve", number=curve.number,
+                                     problems=list(curve.problems))
+
+    def _result_dict(self, result: Any, program: int) -> dict[str, Any]:
+        elements = (self.program_config or {}).get("elements", [])
+        names = [e.get("name", f"element {i}") for i, e in enumerate(elements)]
+        out = [{"name": names[i] if i < len(names) else f"element {i}",
+                "kind": elements[i].get("kind", "?") if i < len(elements) else "?",
+                "ok": not bool(result.fail_mask >> i & 1), "reason": ""} for i in range(max(len(names), 0))]
+        return {"number": result.number, "program": program, "ok": bool(result.ok), "elements": out,
+                "process_values": dict(result.process_values)}
+
+    def _record_link_events(self) -> None:
+        for ev in self.can.events[self._link_events:]:
+            self.rec.write_event(max(ev.time, 0.0), ev.kind, frame_id=ev.frame_id, count=ev.count, detail=ev.detail)
+        self._link_events = len(self.can.events)
+
+    # ---------------------------------------------------------------- completion
+    @property
+    def curves_recorded(self) -> int:
+        return self._curves_done
+
+    def done(self) -> bool:
+        if self.cfg.cycles is not None:
+            return self._curves_done >= self.cfg.cycles
+        return self.can.device_time >= self.cfg.duration - 1e-9
+
+    def finish(self) -> dict[str, Any]:
+        """Read the unit's statistics over serial and record them with the link counters."""
+        stats: dict[str, Any] = {}
+        if self.serial is not None:
+            stats = self.serial.read_statistics(self.program)
+            self.rec.write_statistics(stats, t=self.truth_t)
+            self.serial.close()
+        self.rec.write_event(self.truth_t, "link_summary", frames=self.frames, **{
+            k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))})
+        return stats

@@ -1,0 +1,122 @@
+"""The simulated machine: plant truth → transducers → DigiForce → CAN node (and serial device).
+
+This is the device side of the wire; ``rig serve`` runs it as its own process. It advances in chunks of
+simulated time; everything random comes from the scene's seed.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import can
+import numpy as np
+
+from firmware_sim.can_node import CanNode
+from firmware_sim.digiforce import DigiForce
+from firmware_sim.transducers import load_transducer
+from rig.runner.config import RunConfig
+from rig.runner.plants import make_plant
+from rig.scene import SceneError
+from rig.units import to_si
+
+
+def seeded_generators(seed: int, names: list[str]) -> dict[str, np.random.Generator]:
+    """One independent generator per name, stable for a given seed and name list."""
+    children = np.random.SeedSequence(seed).spawn(len(names))
+    return {name: np.random.default_rng(child) for name, child in zip(names, children)}
+
+
+class Machine:
+    """Plant, transducers and the acquisition unit on a CAN bus, stepped in virtual time."""
+
+    def __init__(self, cfg: RunConfig, bus: can.BusABC) -> None:
+        self.cfg = cfg
+        self.plant = make_plant(cfg.plant, cfg.scene)
+        names = ["device"] + [t.name for t in cfg.transducers]
+        rngs = seeded_generators(cfg.seed, names)
+        self.transducers: dict[str, Any] = {}
+        for spec in cfg.transducers:
+            where = f"{cfg.scene.path} [transducers.{spec.name}]"
+            try:
+                sensor = load_transducer(spec.description, rngs[spec.name], **spec.overrides)
+                for fault in spec.faults:
+                    fault = dict(fault)
+                    kind = fault.pop("fault")
+                    at = to_si(fault.pop("at", "0 s"), "s", what=f"{where} fault 'at'")
+                    until = to_si(fault.pop("until", "inf s"), "s", what=f"{where} fault 'until'")
+                    sensor.inject(kind, at=at, until=until, **fault)
+            except SceneError:
+                raise
+            except (ValueError, KeyError, TypeError) as exc:
+                raise SceneError(f"{where}: {exc}") from None
+            self.transducers[spec.name] = sensor
+        self.device = DigiForce(cfg.device["description"], rng=rngs["device"])
+        program = cfg.device["program"]
+        try:
+            self.device.set_program(program, cfg.device["config"])
+            self.device.select_program(program)
+        except ValueError as exc:
+            raise SceneError(f"{cfg.scene.path} [device]: {exc}") from None
+        c = cfg.can
+        self.node = CanNode(bus, self.device, bitrate=c["bitrate"], fd=bool(c["fd"]),
+                            data_bitrate=c["data_bitrate"], live_share=c["live_share"])
+        self.t = 0.0
+        self._step_index = 0
+        self._n = max(2, round(cfg.chunk * cfg.sample_rate))
+        self.curves = 0
+
+    def _publish_indices(self, role: str, first_sample: int, n: int) -> np.ndarray:
+        """Indices in a chunk (whose first sample has global number ``first_sample``) at which a role's
+        reading is published: global sample numbers that are multiples of ``sample_rate / rate``."""
+        rate = self.cfg.role(role).rate
+        every = n if rate is None else max(1, round(self.cfg.sample_rate / rate))
+        return np.arange((-first_sample) % every, n, every)
+
+    def step(self) -> dict[str, np.ndarray]:
+        """Advance one chunk; returns the plant truth of the chunk (SI, with its times ``t``)."""
+        dt = self.cfg.dt
+        i0 = self._step_index * self._n
+        t = (i0 + 1 + np.arange(self._n)) * dt
+        self._step_index += 1
+        truth = self.plant.advance(t)
+        signal = {}
+        for spec in self.cfg.transducers:
+            if spec.signal not in truth:
+                raise SceneError(f"{self.cfg.scene.path} [transducers.{spec.name}]: the plant has no signal "
+                                 f"{spec.signal!r} (it has {', '.join(sorted(k for k in truth if k != 't'))})")
+            sensor = self.transducers[spec.name]
+            if spec.role in ("encoder1", "encoder2"):
+                signal[spec.role] = sensor.sample(t, truth[spec.signal])
+            else:
+                signal[spec.role] = sensor.measure(t, truth[spec.signal])
+        if "x" in signal and "y" in signal:
+            for result in self.device.feed(t, signal["x"], signal["y"]):
+                self.node.publish_measurement(float(t[-1]), result)
+                self.curves += 1
+            live = self.device.live_values()
+            self.node.publish_live(t, live["x"], live["y"])
+        if "encoder1" in signal or "encoder2" in signal:
+            latched = [signal.get(r) for r in ("encoder1", "encoder2")]
+            for i in self._publish_indices("encoder1" if latched[0] is not None else "encoder2", i0 + 1, t.size):
+                self.node.publish_encoders(
+                    float(t[i]), [0 if s is None else int(s.count[i]) for s in latched],
+                    [0.0 if s is None or math.isnan(s.edge_time[i]) else float(s.edge_time[i]) for s in latched])
+        if "torque" in signal:
+            idx = self._publish_indices("torque", i0 + 1, t.size)
+            torque = self.transducers[self.cfg.role("torque").name].to_physical(signal["torque"][idx])
+            force = (np.zeros(idx.size) if "brake" not in signal
+                     else self.transducers[self.cfg.role("brake").name].to_physical(signal["brake"][idx]))
+            for i, m, f in zip(idx, np.ravel(torque), np.ravel(force)):
+                self.node.publish_torque(float(t[i]), float(m), float(f))
+        self.node.advance_to(float(t[-1]))
+        self.t = float(t[-1])
+        return truth
+
+    def flush(self, limit: float = 60.0) -> None:
+        """Let the node send everything still queued (results of the last curve) in virtual time."""
+        t_end = self.t + limit
+        while self.node.pending_frames and self.t < t_end:
+            self.t += self.cfg.chunk
+            self.node.advance_to(self.t)
+        self.node.publish_status(self.t)
+        self.node.advance_to(self.t + self.cfg.chunk)

@@ -1,0 +1,216 @@
+"""Running a scene: both sides in one process (``rig run``), or each side alone (``rig serve``/``rig record``)."""
+from __future__ import annotations
+
+import json
+import sys
+import threading
+import time
+import uuid
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Callable
+
+import can
+from tqdm import tqdm
+
+import rig
+from firmware_sim.serial_device import SerialDevice
+from firmware_sim.socketcand_server import SocketcandServer
+from rig.recorder import Recorder
+from rig.runner.config import RunConfig, read_config
+from rig.runner.host import Host
+from rig.runner.machine import Machine
+from rig.scene import load_scene
+
+
+class RunError(RuntimeError):
+    """A run could not complete (the machine did not produce what the scene asks for in time)."""
+
+
+@dataclass
+class RunSummary:
+    """What a run produced."""
+
+    output: Path
+    curves: int
+    simulated_time: float
+    wall_time: float
+    frames: int
+    statistics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.simulated_time / self.wall_time if self.wall_time > 0 else float("inf")
+
+
+def _config(scene_path: str | Path, cycles: int | None, mode: str | None) -> RunConfig:
+    cfg = read_config(load_scene(scene_path))
+    changes: dict[str, Any] = {}
+    if cycles is not None:
+        if cfg.cycles is None:
+            raise RunError(f"{scene_path}: --cycles given, but this scene runs for a duration")
+        changes["cycles"] = cycles
+    if mode is not None:
+        changes["mode"] = mode
+    if changes:
+        cfg = replace(cfg, **changes)
+    return cfg
+
+
+def _machine_done(cfg: RunConfig, machine: Machine) -> bool:
+    if cfg.cycles is not None:
+        if machine.t > cfg.max_time:
+            raise RunError(f"{cfg.scene.path}: only {machine.curves} of {cfg.cycles} curves by {machine.t:.3f} s "
+                           f"of simulated time (max_time {cfg.max_time:g} s): check the device's start/stop settings")
+        return machine.curves >= cfg.cycles
+    return machine.t >= cfg.duration - 1e-9
+
+
+class _Pacer:
+    """Keeps simulated time from running ahead of the wall clock in real-time mode."""
+
+    def __init__(self, realtime: bool) -> None:
+        self.realtime, self.start = realtime, time.perf_counter()
+
+    def __call__(self, t_sim: float) -> None:
+        if self.realtime:
+            ahead = t_sim - (time.perf_counter() - self.start)
+            if ahead > 0:
+                time.sleep(ahead)
+
+
+def _progress(cfg: RunConfig, enabled: bool) -> tqdm:
+    total = cfg.cycles if cfg.cycles is not None else cfg.duration
+    unit = "curve" if cfg.cycles is not None else "s"
+    return tqdm(total=total, unit=unit, disable=not enabled, desc=cfg.name, leave=False, file=sys.stderr)
+
+
+def _wait_for_go(machine: Machine, timeout: float) -> None:
+    """Wait until the host's first command (program select over CAN) has reached the machine."""
+    deadline = time.monotonic() + timeout
+    while machine.node.handle_commands() == 0:
+        if time.monotonic() > deadline:
+            raise RunError(f"no host connected and armed the device within {timeout:g} s")
+        time.sleep(0.005)
+
+
+def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
+    return {"scene": cfg.name, "scene_file": str(cfg.scene.path), "seed": cfg.seed, "plant": cfg.plant,
+            "run_mode": mode, "software_version": rig.__version__, "sample_rate": cfg.sample_rate}
+
+
+def _recorder(cfg: RunConfig, output: Path, mode: str) -> Recorder:
+    output.parent.mkdir(parents=True, exist_ok=True)
+    return Recorder(output, scene_text=cfg.scene.text, metadata=_metadata(cfg, mode),
+                    encoding=cfg.recording["encoding"], compression=cfg.recording["compression"])
+
+
+def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None = None, mode: str | None = None,
+              progress: bool = False) -> RunSummary:
+    """Run machine and host in one process: CAN on python-can's ``virtual`` interface, serial on a pty."""
+    cfg = _config(scene_path, cycles, mode)
+    output = Path(output)
+    channel = f"rig-{uuid.uuid4().hex}"
+    wall = time.perf_counter()
+    with can.Bus(interface="virtual", channel=channel) as machine_bus, \
+            can.Bus(interface="virtual", channel=channel) as host_bus:
+        machine = Machine(cfg, machine_bus)
+        lock = threading.Lock()
+        serial_dev = (SerialDevice(machine.device, cfg.serial["port"], cfg.serial["baudrate"], cfg.serial["address"],
+                                   lock=lock).start() if cfg.serial["enabled"] else None)
+        try:
+            with _recorder(cfg, output, "in-process") as rec, _progress(cfg, progress) as bar:
+                host = Host(cfg, host_bus, serial_dev.port if serial_dev else None, rec)
+                host.arm()
+                _wait_for_go(machine, 5.0)
+                pace = _Pacer(cfg.mode == "realtime")
+                while not _machine_done(cfg, machine):
+                    with lock:
+                        machine.step()
+                    host.poll()
+                    bar.n = host.curves_recorded if cfg.cycles is not None else round(machine.t, 3)
+                    bar.refresh()
+                    pace(machine.t)
+                with lock:
+                    machine.flush()
+                host.poll()
+                if not host.done():
+                    raise RunError(f"the host received only {host.curves_recorded} complete curves of "
+                                   f"{machine.curves} measured (see /events in {output})")
+                stats = host.finish()
+        finally:
+            if serial_dev is not None:
+                serial_dev.close()
+    return RunSummary(output, host.curves_recorded, machine.t, time.perf_counter() - wall, host.frames, stats)
+
+
+def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | None = None,
+                wait: float = 300.0, linger: float = 30.0, announce: Callable[[dict[str, Any]], None] | None = None,
+                progress: bool = False) -> Machine:
+    """Run the simulated machine as its own process: CAN served over socketcand on 127.0.0.1, serial on a pty.
+
+    ``announce`` receives the endpoints (default: print them as one JSON line). The run starts when a host
+    arms the device (first CAN command) and the process serves the links for ``linger`` s afterwards.
+    """
+    cfg = _config(scene_path, None, mode)
+    channel = f"rig-{uuid.uuid4().hex}"
+    with can.Bus(interface="virtual", channel=channel) as bus:
+        machine = Machine(cfg, bus)
+        lock = threading.Lock()
+        server = SocketcandServer(channel=cfg.can["channel"], host=cfg.can["host"],
+                                  port=cfg.can["port"] if port is None else port,
+                                  bus_factory=lambda: can.Bus(interface="virtual", channel=channel,
+                                                              preserve_timestamps=True))
+        serial_dev = (SerialDevice(machine.device, cfg.serial["port"], cfg.serial["baudrate"], cfg.serial["address"],
+                                   lock=lock) if cfg.serial["enabled"] else None)
+        try:
+            server.start()
+            if serial_dev is not None:
+                serial_dev.start()
+            endpoints = {"can": {"interface": "socketcand", "host": server.host, "port": server.port,
+                                 "channel": cfg.can["channel"]},
+                         "serial": serial_dev.port if serial_dev else None, "scene": str(cfg.scene.path)}
+            (announce or (lambda e: print(json.dumps(e), flush=True)))(endpoints)
+            _wait_for_go(machine, wait)
+            pace = _Pacer(cfg.mode == "realtime")
+            with _progress(cfg, progress) as bar:
+                while not _machine_done(cfg, machine):
+                    with lock:
+                        machine.step()
+                    bar.n = machine.curves if cfg.cycles is not None else round(machine.t, 3)
+                    bar.refresh()
+                    pace(machine.t)
+            with lock:
+                machine.flush()
+            time.sleep(linger)
+        finally:
+            server.stop()
+            if serial_dev is not None:
+                serial_dev.close()
+    return machine
+
+
+def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = "127.0.0.1", can_port: int,
+                 serial_port: str | None, can_channel: str | None = None, idle_timeout: float = 10.0,
+                 progress: bool = False) -> RunSummary:
+    """The host alone: connect to a served machine (socketcand + serial port) and record the scene's run."""
+    cfg = _config(scene_path, None, None)
+    output = Path(output)
+    wall = time.perf_counter()
+    with can.Bus(interface="socketcand", host=can_host, port=can_port,
+                 channel=can_channel or cfg.can["channel"]) as bus:
+        with _recorder(cfg, output, "cross-process") as rec, _progress(cfg, progress) as bar:
+            host = Host(cfg, bus, serial_port, rec)
+            host.arm()
+            last = time.monotonic()
+            while not host.done():
+                if host.poll(0.05):
+                    last = time.monotonic()
+                elif time.monotonic() - last > idle_timeout:
+                    raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
+                                   f"recorded {host.curves_recorded} curves (kept in {output})")
+                bar.n = host.curves_recorded if cfg.cycles is not None else round(host.truth_t, 3)
+                bar.refresh()
+            host.poll(0.2)
+            stats = host.finish()
+    return RunSummary(output, host.curves_recorded, host.truth_t, time.perf_counter() - wall, host.frames, stats)

@@ -1,0 +1,70 @@
+"""Scene reading: the shipped scene, strict [plant]/[speed]/cam-program tables, tolerant elsewhere."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rig.motion import RampSpeed, SinusoidalSpeed
+from rig.plants.cam_bar import PinInsertionMechanism
+from rig.scene import SceneError, load_scene
+
+SCENE = Path(__file__).resolve().parents[2] / "data" / "scenes" / "pin_insertion.toml"
+
+
+def write(tmp_path, text, old=None, new=None):
+    base = SCENE.read_text()
+    if old is not None:
+        assert old in base
+        base = base.replace(old, new)
+    p = tmp_path / "scene.toml"
+    p.write_text(base + text)
+    return load_scene(p)
+
+
+def test_shipped_scene_equals_defaults():
+    m = PinInsertionMechanism.from_scene(load_scene(SCENE))
+    d = PinInsertionMechanism()
+    for name in ("L3", "l3", "x_A0", "e_sk", "s0", "k", "J3", "J4", "mu", "sensor_preload", "alpha_sk"):
+        assert getattr(m, name) == pytest.approx(getattr(d, name)), name
+    assert m.spring_rates == pytest.approx(d.spring_rates)
+    phi = np.linspace(0, 6.28, 100)
+    assert m.kinetostatics(phi).R23n == pytest.approx(d.kinetostatics(phi).R23n)
+    assert m.speed.nominal_omega == pytest.approx(d.speed.nominal_omega)
+
+
+def test_other_sections_are_ignored(tmp_path):
+    sc = write(tmp_path, '\n[transducers.rod_force]\ntype = "force_bridge"\n[device]\nanything = 1\n')
+    PinInsertionMechanism.from_scene(sc)
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ('l_F = "100 mm"', 'l_F = "100 mm"\nlF_typo = 3', r"\[plant\]: unknown key 'lF_typo'"),
+    ('L3 = "260 mm"\n', '', r"\[plant\]: missing key 'L3'"),
+    ('m3 = "0.910 kg"', 'm3 = "0.910 mm"', r"\[plant\]: key 'm3'.*wrong dimension"),
+    ('k = "1.89 N/mm"', 'k_N_per_mm = 1.89\nk = "2 N/mm"', r"'k' is given twice"),
+    ('"1.09 N/mm", ', '"1.09 mm", ', r"spring_rates\[0\].*wrong dimension"),
+    ('angle = "60 deg"', 'angle = "70 deg"', r"\[plant\]: cam program segments sum to 370°"),
+    ('law = "3-4-5"\nstroke = "42 mm"', 'law = "3-4-6"\nstroke = "42 mm"', r"unknown motion law '3-4-6'"),
+    ('law = "3-4-5"\nstroke = "42 mm"', 'law = "3-4-5"\nstroke = "42 mm"\nspeed = 1', r"cam_program segment 2: unknown key 'speed'"),
+    ('speed = "150 rpm"', 'speed = "150 N"', r"\[speed\]: key 'speed'.*wrong dimension"),
+    ('speed = "150 rpm"', 'speed = "150 rpm"\namplitude = "1 rad/s"', r"\[speed\]: unknown key 'amplitude'"),
+    ('profile = "constant"', 'profile = "jerky"', r"\[speed\]: unknown speed profile 'jerky'"),
+    ('l4 = "122 mm"', 'l4 = "20 mm"', r"\[plant\]: impossible cam-bar geometry"),
+])
+def test_errors_name_key_and_file(tmp_path, old, new, message):
+    sc = write(tmp_path, "", old, new)
+    with pytest.raises(SceneError, match=message) as info:
+        PinInsertionMechanism.from_scene(sc)
+    assert str(sc.path) in str(info.value)
+
+
+def test_speed_profiles_from_scene(tmp_path):
+    sc = write(tmp_path, "", 'profile = "constant"', 'profile = "ramp"\nspeed_end = "300 rpm"\nramp_time = "2 s"')
+    speed = PinInsertionMechanism.from_scene(sc).speed
+    assert isinstance(speed, RampSpeed) and speed.omega1 == pytest.approx(10 * np.pi)
+    sc = write(tmp_path, "", 'profile = "constant"', 'profile = "sinusoidal"\namplitude = "10 rpm"\nfrequency = "5 Hz"')
+    speed = PinInsertionMechanism.from_scene(sc).speed
+    assert isinstance(speed, SinusoidalSpeed) and speed.frequency == pytest.approx(5.0)
+    sc = write(tmp_path, "", 'profile = "constant"', 'profile = "sinusoidal"\namplitude = "200 rpm"')
+    with pytest.raises(SceneError, match=r"\[speed\].*amplitude"):
+        PinInsertionMechanism.from_scene(sc)

@@ -1,0 +1,139 @@
+"""Programs (validation, storage, selection), identity, statistics against numpy, description file."""
+import json
+
+import numpy as np
+import pytest
+
+from firmware_sim.digiforce import DigiForce, DigiForceError
+from firmware_sim.digiforce.description import DEFAULT_PATH, load_description
+
+
+def test_identity_and_programs():
+    dev = DigiForce()
+    assert dev.identify() == "SIM DIGIFORCE 9310,SN0001,FW1.0"
+    assert dev.n_programs == 16 and dev.active_program == 0
+    dev.select_program(15)
+    assert dev.active_program == 15 and dev.status()["program"] == 15
+    for bad in (16, -1, "3", 1.0, True):
+        with pytest.raises(DigiForceError, match="program number must be an integer 0...15"):
+            dev.select_program(bad)
+
+
+def test_program_roundtrip_is_json_and_normalised():
+    dev = DigiForce()
+    dev.set_program(3, {"name": "press-fit", "channels": {"x": {"cutoff": "200 Hz"}},
+                        "elements": [{"kind": "window", "name": "W", "x_min": "10 mm", "x_max": "20 mm",
+                                      "y_min": "0.1 kN", "y_max": 300}]})
+    p = dev.get_program(3)
+    assert json.loads(json.dumps(p)) == p
+    assert p["channels"]["x"]["cutoff"] == 200.0 and p["elements"][0]["x_min"] == pytest.approx(0.01)
+    assert p["elements"][0]["y_min"] == pytest.approx(100.0) and p["elements"][0]["entry"] == "any"
+    dev.set_program(5, p)
+    assert dev.get_program(5) == p
+    assert dev.get_program(0)["name"] == "program 0"      # others untouched
+
+
+@pytest.mark.parametrize("config, message", [
+    ({"colour": 1}, "program 2: unknown key 'colour'"),
+    ({"channels": {"y": {"range": "3 mV/V"}}}, "channels.y.range: 0.003 is not one of the unit's steps"),
+    ({"channels": {"y": {"range": "2 V"}}}, "channels.y.range.*wrong dimension"),
+    ({"channels": {"y": {"excitation": "10 V"}}}, "channels.y.excitation: 10 is not one of"),
+    ({"channels": {"y": {"sensor_resistance": "100 ohm"}}}, "sensor_resistance: 100 ohm outside"),
+    ({"channels": {"x": {"sensor_resistance": "700 ohm", "excitation": 5}}}, None),
+    ({"channels": {"x": {"input": "bridge"}}}, "channels.x.input: 'bridge' is not one of 'voltage'"),
+    ({"channels": {"y": {"unit": "kN"}}}, "engineering unit must be coherent SI"),
+    ({"channels": {"y": {"unit": "blorps"}}}, "unknown unit 'blorps'"),
+    ({"channels": {"y": {"scaling": {"electrical": 0}}}}, "non-zero"),
+    ({"channels": {"y": {"scaling": {"mode": "teach", "points": [[0, 0]]}}}}, "two \\[electrical, engineering\\]"),
+    ({"control": {"start": {"mode": "laser"}}}, "control.start.mode: 'laser' is not one of"),
+    ({"control": {"stop": {"mode": "time"}}}, "control.stop: missing key 'duration'"),
+    ({"control": {"stop": {"mode": "time", "duration": "-1 s"}}}, "duration: must be > 0"),
+    ({"control": {"start": {"mode": "y", "value": 10}}, "channels": {"y": {"tare_at_start": True}}},
+     "cannot tare the channel that triggers the start"),
+    ({"sampling": {"mode": "dx"}}, "sampling: missing key 'delta'"),
+    ({"sampling": {"overflow": "wrap"}}, "sampling.overflow: 'wrap' is not one of 'stop', 'decimate'"),
+    ({"reference": {"mode": "y_threshold"}}, "reference: missing key 'y_threshold'"),
+    ({"limits": {"y_mean": [0, 1]}}, "limits: 'y_mean' is not a process value"),
+    ({"limits": {"y_max": [2, 1]}}, "lower limit 2.0 must be below upper limit 1.0"),
+    ({"elements": [{"kind": "window", "name": "A", "x_min": 0, "x_max": 1, "y_min": 0, "y_max": 1}] * 2},
+     "element names must be unique"),
+])
+def test_program_validation_errors_name_the_key(config, message):
+    dev = DigiForce()
+    before = dev.get_program(2)
+    if message is None:                                  # 5 V into 700 ohm = 7.1 mA: within the 8 mA supply
+        dev.set_program(2, config)
+        return
+    with pytest.raises(DigiForceError, match=message):
+        dev.set_program(2, config)
+    assert dev.get_program(2) == before                  # a refused program changes nothing
+
+
+def test_supply_current_limit():
+    import tomllib
+    data = tomllib.loads(DEFAULT_PATH.read_text())
+    data["inputs"]["voltage"]["resistance_min"] = "100 ohm"   # a description that lets the current decide
+    dev = DigiForce(data)
+    dev.set_program(0, {"channels": {"x": {"sensor_resistance": "625 ohm"}}})
+    with pytest.raises(DigiForceError, match="draws 8.33 mA, more than the input's 8 mA"):
+        dev.set_program(0, {"channels": {"x": {"sensor_resistance": "600 ohm"}}})
+
+
+def test_switching_mode_drops_old_settings():
+    dev = DigiForce()
+    dev.set_program(0, {"control": {"start": {"mode": "x", "value": 0.01}}})
+    dev.set_program(0, {"control": {"start": {"mode": "command"}}})
+    assert dev.get_program(0)["control"]["start"] == {"mode": "command"}
+
+
+def test_description_file_and_errors(tmp_path):
+    d = load_description(DEFAULT_PATH)
+    assert d.max_rate == 100_000 and d.curve_memory == 4000 and d.evaluation_time == pytest.approx(0.09)
+    assert d.cutoff_steps[0] == 5 and d.cutoff_steps[-1] == 5000
+    assert d.inputs["bridge"].accuracy == 0.005 and d.inputs["voltage"].accuracy == 0.004
+    bad = tmp_path / "bad.toml"
+    bad.write_text(DEFAULT_PATH.read_text().replace('max_rate = "100 kHz"', 'max_rate = "100 kg"'))
+    with pytest.raises(DigiForceError, match="max_rate.*wrong dimension"):
+        DigiForce(str(bad))
+    with pytest.raises(DigiForceError, match="cannot read device description"):
+        DigiForce(str(tmp_path / "missing.toml"))
+
+
+def run_curves(dev, press, peaks):
+    t0, results = 0.0, []
+    for peak in peaks:
+        t, x, y = press(peak=peak)
+        dev.start()
+        dev.feed(t + t0, x, y)
+        results.append(dev.stop())
+        t0 += t[-1] + 1.0
+    return results
+
+
+def test_statistics_against_numpy(unit, press):
+    unit.set_program(0, {"elements": [{"kind": "threshold", "name": "S", "axis": "y", "value": 3.0}],
+                         "limits": {"y_max": [2.0, 4.0], "S.at": [None, 4.1]}})
+    peaks = np.random.default_rng(5).normal(3.0, 0.3, 25)
+    results = run_curves(unit, press, peaks)
+    st = unit.statistics()
+    assert json.loads(json.dumps(st)) == st
+    ymax = np.array([r.process_values["y_max"] for r in results])
+    assert ymax == pytest.approx(peaks, abs=2e-4)         # peak force seen at full stroke
+    v = st["values"]["y_max"]
+    assert v["mean"] == pytest.approx(ymax.mean(), rel=1e-12)
+    assert v["std"] == pytest.approx(ymax.std(ddof=1), rel=1e-12)
+    assert (v["min"], v["max"]) == (ymax.min(), ymax.max())
+    s = ymax.std(ddof=1)
+    assert v["cp"] == pytest.approx(2.0 / (6 * s), rel=1e-12)
+    assert v["cpk"] == pytest.approx(min(4.0 - ymax.mean(), ymax.mean() - 2.0) / (3 * s), rel=1e-12)
+    at = np.array([r.process_values["S.at"] for r in results])
+    at = at[~np.isnan(at)]                                            # undefined where S failed
+    assert st["values"]["S.at"]["n"] == at.size == st["ok"]
+    assert st["values"]["S.at"]["cp"] is None                          # one-sided limit: only Cpk
+    assert st["values"]["S.at"]["cpk"] == pytest.approx((4.1 - at.mean()) / (3 * at.std(ddof=1)), rel=1e-9)
+    n_ok = int(np.sum(peaks >= 3.0 - 1e-4))                            # threshold S passes iff peak reaches 3
+    assert abs(st["ok"] - n_ok) <= 1 and st["total"] == 25 and st["nok"] == 25 - st["ok"]
+    assert st["elements"]["S"] == {"ok": st["ok"], "nok": st["nok"]}
+    unit.reset_statistics()
+    assert unit.statistics()["total"] == 0 and unit.statistics()["values"] == {}
+    assert unit.statistics(3)["total"] == 0
