@@ -5,10 +5,10 @@ Frames are produced once by the device node (curves of 4000 pairs, live data, st
 """
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 from types import SimpleNamespace
-import sys
 
 import can
 import numpy as np
@@ -40,7 +40,8 @@ def produce(fd: bool, curves: int, rng: np.random.Generator) -> list[can.Message
         x = np.linspace(0, 0.04, n)
         device.last_result = SimpleNamespace(number=k + 1, program=1, ok=True, elements=[],
                                              process_values={"y_max": 800.0},
-                                             curve=(np.arange(n) * 1e-4, x, 800 * x / 0.04 + rng.normal(0, 1, n)))
+                                             curve=SimpleNamespace(t=t + np.arange(n) * 1e-4, x=x,
+                                                                   y=800 * x / 0.04 + rng.normal(0, 1, n)))
         for _ in range(20):                          # 2 s of live data at 10 kHz per curve
             ts = t + np.arange(1000) * 1e-4
             node.publish_live(ts, np.sin(ts) * 0.01, np.cos(ts) * 100)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import binascii
 import heapq
 import itertools
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -60,15 +60,22 @@ def curve_crc(raw_x: np.ndarray, raw_y: np.ndarray) -> int:
     return binascii.crc_hqx(pairs.tobytes(), 0xFFFF)
 
 
+#: frames of one measurement's transfer: they leave one transmit FIFO in order, at the header's priority,
+#: so a later curve never overtakes an earlier one (live data and status still win arbitration)
+TRANSFER_FRAMES = frozenset({"CurveHeader", "CurveTiming", "CurveTimes", "CurveBlock", "CurveBlockFD", "CurveEnd",
+                             "Result", "ResultValue"})
+
+
 @dataclass(order=True)
 class _Pending:
-    key: tuple                       # (arbitration id, enqueue order): CAN arbitration order
+    key: tuple                       # (priority, enqueue order): CAN arbitration order (see TRANSFER_FRAMES)
     ready: float                     # virtual time from which the frame may be sent (s)
     data: bytearray                  # payload; byte 0 (Seq) is filled in at transmission
     is_fd: bool
     expires: float | None = None     # live frames: dropped if still queued after this time
     pairs: int = 0                   # live pairs carried (for the dropped count)
     curve_end: bool = False
+    frame_id: int = field(default=0, compare=False)
 
 
 class CanNode:
@@ -100,7 +107,7 @@ class CanNode:
         self.now = float(t0)             # device time of the last advance_to (s)
         self.bus_free = float(t0)        # virtual time at which the bus is next idle (s)
         self._next_heartbeat = float(t0)
-        self._queue: list[_Pending] = []     # ready frames, in arbitration order
+        self._queue: list[tuple[tuple, _Pending]] = []   # ready frames as (key, frame), in arbitration order
         self._waiting: list[tuple[float, int, _Pending]] = []   # not yet ready, by ready time
         self._order = itertools.count()
         self._seq: dict[int, int] = {}
@@ -118,9 +125,35 @@ class CanNode:
         msg = self._msg[name]
         if "Seq" in (s.name for s in msg.signals):
             signals = {"Seq": 0, **signals}
-        data = bytearray(msg.encode(signals, scaling=False, padding=False, strict=True))
-        item = _Pending((msg.frame_id, next(self._order)), float(ready), data, msg.is_fd, **extra)
+        data = bytearray(msg.encode(signals, scaling=False, padding=False, strict=False))  # ranges: see quantise()
+        priority = self._msg["CurveHeader"].frame_id if name in TRANSFER_FRAMES else msg.frame_id
+        item = _Pending((priority, next(self._order)), float(ready), data, msg.is_fd, frame_id=msg.frame_id, **extra)
         heapq.heappush(self._waiting, (item.ready, item.key[1], item))
+
+    def _enqueue_rows(self, name: str, columns: dict[str, np.ndarray], ready: np.ndarray,
+                      expires: np.ndarray | None = None, pairs: int = 0) -> None:
+        """Queue one frame per row of ``columns`` (raw integer signal values), packed with numpy.
+
+        Same bytes as cantools' ``encode`` for classic little-endian frames (checked in the tests);
+        the hot path of curve and live transfer, where per-frame cantools calls dominated the run time.
+        """
+        msg = self._msg[name]
+        if msg.is_fd or msg.length > 8 or any(sig.byte_order != "little_endian" for sig in msg.signals):
+            raise ValueError(f"{name}: packed encoding supports classic little-endian frames only")
+        n = len(ready)
+        word = np.zeros(n, dtype=np.uint64)
+        for sig in msg.signals:
+            raw = np.zeros(n, dtype=np.int64) if sig.name == "Seq" else np.asarray(columns[sig.name], dtype=np.int64)
+            lo, hi = (-(1 << (sig.length - 1)), (1 << (sig.length - 1)) - 1) if sig.is_signed else (0, (1 << sig.length) - 1)
+            if raw.size and (raw.min() < lo or raw.max() > hi):
+                raise ValueError(f"{name}.{sig.name}: raw value outside {lo}..{hi}")
+            word |= (raw & ((1 << sig.length) - 1)).astype(np.uint64) << np.uint64(sig.start)
+        data = word.astype("<u8").tobytes()
+        priority = self._msg["CurveHeader"].frame_id if name in TRANSFER_FRAMES else msg.frame_id
+        for i in range(n):
+            item = _Pending((priority, next(self._order)), float(ready[i]), bytearray(data[8 * i:8 * i + msg.length]),
+                            False, None if expires is None else float(expires[i]), pairs, frame_id=msg.frame_id)
+            heapq.heappush(self._waiting, (item.ready, item.key[1], item))
 
     def frame_time_planned(self, name: str) -> float:
         """Worst-case wire time (s) of one frame of DBC message ``name`` on this bus."""
@@ -135,7 +168,7 @@ class CanNode:
     @property
     def curves_pending(self) -> int:
         """Curves whose transfer has not finished."""
-        return sum(p.curve_end for p in self._queue) + sum(w[2].curve_end for w in self._waiting)
+        return sum(p.curve_end for _, p in self._queue) + sum(w[2].curve_end for w in self._waiting)
 
     def counters(self) -> dict[str, float]:
         """What the node did: live pairs sent/dropped, clipped values, frames, bus load so far."""
@@ -168,15 +201,15 @@ class CanNode:
         self.clipped += cx + cy
         self.live_dropped += t.size - tk.size
         ticks = np.rint(tk / TICK).astype(np.int64) % 65536
+        if not self.timing.fd:
+            self._enqueue_rows(name, {"Tick": ticks, "X": rx, "Y": ry}, tk, tk + self.live_max_age, pairs=1)
+            return factor
         for i in range(0, tk.size, per_frame):
             j = min(i + per_frame, tk.size)
-            if self.timing.fd:
-                sig = {"Tick": int(ticks[i]), "Dt": int(round(factor * dt / 1e-6)), "NPairs": j - i}
-                for k in range(FD_PAIRS):
-                    sig[f"X{k}"] = int(rx[i + k]) if i + k < j else 0
-                    sig[f"Y{k}"] = int(ry[i + k]) if i + k < j else 0
-            else:
-                sig = {"Tick": int(ticks[i]), "X": int(rx[i]), "Y": int(ry[i])}
+            sig = {"Tick": int(ticks[i]), "Dt": int(round(factor * dt / 1e-6)), "NPairs": j - i}
+            for k in range(FD_PAIRS):
+                sig[f"X{k}"] = int(rx[i + k]) if i + k < j else 0
+                sig[f"Y{k}"] = int(ry[i + k]) if i + k < j else 0
             self._enqueue(name, sig, tk[j - 1], expires=tk[j - 1] + self.live_max_age, pairs=j - i)
         return factor
 
@@ -205,8 +238,8 @@ class CanNode:
         else:
             if cx.size > 4096:
                 raise ValueError(f"curve of result {result.number} has {cx.size} pairs; classic CAN blocks index at most 4096")
-            for i in range(cx.size):
-                self._enqueue("CurveBlock", {"CurveNo": number % 16, "Block": i, "X": int(rx[i]), "Y": int(ry[i])}, t)
+            self._enqueue_rows("CurveBlock", {"CurveNo": np.full(cx.size, number % 16), "Block": np.arange(cx.size),
+                                              "X": rx, "Y": ry}, np.full(cx.size, float(t)))
         self._enqueue("CurveEnd", {"CurveNo": number, "Count": cx.size, "Crc": curve_crc(rx, ry),
                                    "Clipped": min(kx + ky, 255)}, t)
         failed = [i for i, e in enumerate(result.elements) if not e.ok]
@@ -310,7 +343,6 @@ class CanNode:
         self.handle_commands()
         result = getattr(self.device, "last_result", None)
         if result is not None and result is not self._published_result:
-            self._published_result = result
             self.publish_measurement(self.now, result)
         while self._next_heartbeat <= t:
             self.publish_status(self._next_heartbeat)
@@ -321,19 +353,20 @@ class CanNode:
         sent = 0
         while True:
             while self._waiting and self._waiting[0][0] <= self.bus_free:
-                heapq.heappush(self._queue, heapq.heappop(self._waiting)[2])
+                item = heapq.heappop(self._waiting)[2]
+                heapq.heappush(self._queue, (item.key, item))
             if not self._queue:
                 if not self._waiting or self._waiting[0][0] >= t:
                     self.bus_free = max(self.bus_free, t)
                     return sent
                 self.bus_free = self._waiting[0][0]
                 continue
-            item = self._queue[0]
+            item = self._queue[0][1]
             if item.expires is not None and self.bus_free > item.expires:
                 heapq.heappop(self._queue)
                 self.live_dropped += item.pairs
                 continue
-            fid = item.key[0]
+            fid = item.frame_id
             seq = self._seq.get(fid, 0)
             item.data[0] = seq
             duration = self.timing.frame_time(fid, bytes(item.data), item.is_fd)

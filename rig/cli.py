@@ -90,7 +90,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
 def cmd_record(args: argparse.Namespace) -> int:
     from rig.runner import record_scene
     summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
-                           serial_port=args.serial, can_channel=args.can_channel, progress=not args.quiet)
+                           serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
+                           progress=not args.quiet)
     print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated -> {summary.output}")
     _print_set_summary(summary.output)
     return 0
@@ -146,6 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--can-port", type=int, required=True)
     rec.add_argument("--can-channel")
     rec.add_argument("--serial", help="serial port path or URL printed by `rig serve`")
+    rec.add_argument("--cycles", type=int, help="record only the first N curves")
     rec.set_defaults(func=cmd_record)
     rep = sub.add_parser("report", help="write an HTML/Markdown report with plots and CSV from a recording")
     rep.add_argument("recording")

@@ -6,6 +6,7 @@ received before it is lost and reception continues.
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,6 +64,8 @@ class CanHost:
         live = self.db.get_message_by_name("LiveXY")
         self.x_lsb, self.y_lsb = live.get_signal_by_name("X").scale, live.get_signal_by_name("Y").scale
         self._fd_pairs = sum(s.name.startswith("X") for s in self.db.get_message_by_name("CurveBlockFD").signals)
+        self._fd_x = [f"X{k}" for k in range(self._fd_pairs)]
+        self._fd_y = [f"Y{k}" for k in range(self._fd_pairs)]
         self._handlers = {"Heartbeat": self._heartbeat, "StatusCounters": self._counters,
                           "LiveXY": self._live, "LiveXYFD": self._live_fd, "CurveHeader": self._curve_header, "CurveTiming": self._curve_timing, "CurveTimes": self._curve_times,
                           "CurveBlock": self._curve_block, "CurveBlockFD": self._curve_block_fd,
@@ -79,9 +82,7 @@ class CanHost:
         self.encoders: dict[int, dict[str, float]] = {}
         self.torque: list[tuple[float, float, float]] = []      # (t s, torque N*m, brake force N)
         self.acks: list[dict[str, Any]] = []
-        self._live_t: list[float] = []
-        self._live_x: list[float] = []
-        self._live_y: list[float] = []
+        self._live: list[tuple[float, float, list[int], list[int]]] = []   # (t0, dt, raw xs, raw ys)
         self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
         self._host_seq = 0
         self._last_result: CurveResult | None = None
@@ -147,23 +148,23 @@ class CanHost:
         return t
 
     def _live(self, msg, spec, raw) -> None:
-        self._live_t.append(self._live_time(raw["Tick"]))
-        self._live_x.append(raw["X"] * self.x_lsb)
-        self._live_y.append(raw["Y"] * self.y_lsb)
+        self._live.append((self._live_time(raw["Tick"]), 0.0, [raw["X"]], [raw["Y"]]))
 
     def _live_fd(self, msg, spec, raw) -> None:
-        t0, dt = self._live_time(raw["Tick"]), raw["Dt"] * 1e-6
-        for k in range(min(raw["NPairs"], self._fd_pairs)):
-            self._live_t.append(t0 + k * dt)
-            self._live_x.append(raw[f"X{k}"] * self.x_lsb)
-            self._live_y.append(raw[f"Y{k}"] * self.y_lsb)
-        self._device_time = max(self._device_time, self._live_t[-1])
+        t0, dt, n = self._live_time(raw["Tick"]), raw["Dt"] * 1e-6, raw["NPairs"]
+        self._live.append((t0, dt, [raw[k] for k in self._fd_x[:n]], [raw[k] for k in self._fd_y[:n]]))
+        self._device_time = max(self._device_time, t0 + (n - 1) * dt)
 
     def take_live(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Live pairs received since the last call: times (s, device time), X (m), Y (N)."""
-        out = np.array(self._live_t), np.array(self._live_x), np.array(self._live_y)
-        self._live_t, self._live_x, self._live_y = [], [], []
-        return out
+        blocks, self._live = self._live, []
+        counts = np.array([len(b[2]) for b in blocks], dtype=np.int64)
+        first = np.repeat(np.cumsum(counts) - counts, counts)
+        t = (np.repeat([b[0] for b in blocks], counts)
+             + np.repeat([b[1] for b in blocks], counts) * (np.arange(counts.sum()) - first))
+        x = np.fromiter(itertools.chain.from_iterable(b[2] for b in blocks), dtype=float, count=int(counts.sum()))
+        y = np.fromiter(itertools.chain.from_iterable(b[3] for b in blocks), dtype=float, count=int(counts.sum()))
+        return t, x * self.x_lsb, y * self.y_lsb
 
     def _curve_problems(self, msg, problems: list[str]) -> None:
         for p in problems:
@@ -187,8 +188,8 @@ class CanHost:
         self._curve_problems(msg, self.assembler.pairs(raw["CurveNo"], 16, raw["Block"], pair))
 
     def _curve_block_fd(self, msg, spec, raw) -> None:
-        n = min(raw["NPairs"], self._fd_pairs)
-        pairs = np.array([[raw[f"X{k}"], raw[f"Y{k}"]] for k in range(n)], dtype=np.int64).reshape(n, 2)
+        n = raw["NPairs"]
+        pairs = np.array([[raw[k] for k in self._fd_x[:n]], [raw[k] for k in self._fd_y[:n]]], dtype=np.int64).T
         self._curve_problems(msg, self.assembler.pairs(raw["CurveNo"], 256, raw["Block"] * self._fd_pairs, pairs))
 
     def _curve_end(self, msg, spec, raw) -> None:

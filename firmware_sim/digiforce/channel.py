@@ -15,6 +15,7 @@ from .description import Description, InputType
 from .errors import DigiForceError
 
 BYPASS_FRACTION = 0.45   # a cut-off at or above this fraction of the sample rate leaves the filter out
+RATE_TOL = 1e-6          # relative change of the sample rate still treated as the same rate
 
 
 def shunt_ratio(bridge_resistance: float, shunt_resistance: float) -> float:
@@ -69,7 +70,7 @@ class InputChain:
         fc = self.cfg["cutoff"]
         if fc <= 0 or fs is None:
             return v
-        if fs != self._fs:
+        if self._fs is None or abs(fs - self._fs) > RATE_TOL * fs:    # new rate: the filter restarts
             self._fs = fs
             self.bypassed = fc >= BYPASS_FRACTION * fs
             self._sos = None if self.bypassed else signal.butter(self._order, fc, fs=fs, output="sos")

@@ -30,9 +30,10 @@ class DigiForce:
 
     def __init__(self, description: dict | str | None = None, rng: np.random.Generator | None = None) -> None:
         self.desc: Description = load_description(description)
-        self._rng = rng
-        self._unit_errors = {ch: (tuple(rng.uniform(-0.5, 0.5, 2)) if rng is not None else None)
-                             for ch in self.desc.channels()}
+        channels = self.desc.channels()
+        self._unit_errors = {ch: (tuple(rng.uniform(-0.5, 0.5, 2)) if rng is not None else None) for ch in channels}
+        # one noise stream per channel: the draws do not depend on how the input is cut into chunks
+        self._noise_rngs = dict(zip(channels, rng.spawn(len(channels)))) if rng is not None else {}
         self._programs = [default_program(i, self.desc) for i in range(self.desc.programs)]
         self._stats = [ProgramStatistics() for _ in range(self.desc.programs)]
         self.active_program = 0
@@ -94,8 +95,8 @@ class DigiForce:
         prog = self._programs[self.active_program]
         self._prog = prog
         self._elements = elements if elements is not None else build_elements(prog["elements"])
-        self._chains = {ch: InputChain(c, self.desc.inputs[c["input"]], self.desc, self._unit_errors[ch], self._rng)
-                        for ch, c in prog["channels"].items() if c["enabled"]}
+        self._chains = {ch: InputChain(c, self.desc.inputs[c["input"]], self.desc, self._unit_errors[ch],
+                                       self._noise_rngs.get(ch)) for ch, c in prog["channels"].items() if c["enabled"]}
         s = prog["sampling"]
         self._memory = CurveMemory(self.desc.curve_memory, s["mode"], s["delta"], s["overflow"])
         self._measuring = False
@@ -118,6 +119,22 @@ class DigiForce:
             if ch not in self._last_chunk:
                 raise DigiForceError(f"tare {ch}: no input sample yet; feed the unit first")
             self._chains[ch].tare_value = float(self._last_chunk[ch][-1])
+
+    def teach(self, channel: str, point: int, value: float) -> None:
+        """Two-point teach: the latest input of ``channel`` shall read ``value`` (engineering units).
+        ``point`` 0 or 1 replaces that point of the active program's teach pair (a sensitivity scaling
+        first becomes the equivalent pair); the program is validated as with :meth:`set_program`."""
+        ch = self._channels(channel)[0]
+        if point not in (0, 1):
+            raise DigiForceError(f"teach {ch}: point must be 0 or 1, got {point!r}")
+        if ch not in self._last_chunk:
+            raise DigiForceError(f"teach {ch}: no input sample yet; feed the unit first")
+        chain = self._chains[ch]
+        sc = self._prog["channels"][ch]["scaling"]
+        points = copy.deepcopy(sc["points"]) if sc["mode"] == "teach" else [
+            [chain.zero, 0.0], [chain.zero + sc["electrical"], sc["engineering"]]]
+        points[point] = [float(self._last_chunk[ch][-1] / chain.scale + chain.zero), value]
+        self.set_program(self.active_program, {"channels": {ch: {"scaling": {"mode": "teach", "points": points}}}})
 
     def shunt_expected(self, channel: str, shunt_resistance: float) -> float:
         """Engineering value a bridge channel should show with ``shunt_resistance`` (ohm) across one arm."""
@@ -232,6 +249,10 @@ class DigiForce:
         self._prev = {"t": float(t[-1]), **{ch: float(v[-1]) for ch, v in eng.items()}}
         self._prev_t = float(t[-1])
         return results
+
+    def live_values(self) -> dict[str, np.ndarray]:
+        """Tared engineering values (SI) of the last chunk fed, per enabled channel: what the display shows."""
+        return self._tared(self._last_chunk)
 
     def _tared(self, eng: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {ch: v - self._chains[ch].tare_value for ch, v in eng.items()}
@@ -358,7 +379,8 @@ class DigiForce:
         self._stats[self.active_program if program is None else self._check_program(program)].reset()
 
     def status(self) -> dict[str, Any]:
-        """State (idle/armed/measuring), time of the latest sample (s), counters, overflow/ADC/filter flags, recent errors."""
+        """State (idle/armed/measuring), time of the latest sample (s), OK/NOK outputs, counters,
+        overflow/ADC/filter flags, recent errors."""
         return {"state": self.state, "program": self.active_program, "time": self._prev_t,
                 "curves": self._curve_count,
                 "pairs_in_memory": self._memory.count if self._measuring else 0,
@@ -368,4 +390,6 @@ class DigiForce:
                 "filter_bypassed": sorted(ch for ch, c in self._chains.items() if c.bypassed),
                 "external_input": self._ext_level,
                 "last_ok": None if self.last_result is None else self.last_result.ok,
+                "outputs": {"ok": self.last_result is not None and self.last_result.ok,
+                            "nok": self.last_result is not None and not self.last_result.ok},
                 "last_evaluation_time": self._eval_time, "errors": list(self._errors)}

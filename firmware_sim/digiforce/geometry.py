@@ -40,43 +40,48 @@ class ConvexQuad:
         if np.any(edge[:, 0] * following[:, 1] - edge[:, 1] * following[:, 0] <= 0):
             raise ValueError(f"corners {c.tolist()} do not form a convex counter-clockwise quadrilateral")
         order = [3, 1, 0, 2]                             # to SIDES order: left, right, bottom, top
-        self.points = c[order]
-        self.normals = normals[order]
+        self._normals = normals[order]                                        # (4, 2)
+        self._offsets = -np.sum(self._normals * c[order], axis=1, keepdims=True)  # (4, 1)
 
-    def _inside(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        px = x[:, None] - self.points[None, :, 0]
-        py = y[:, None] - self.points[None, :, 1]
-        return np.all(px * self.normals[:, 0] + py * self.normals[:, 1] >= 0.0, axis=1)
+    def _signed(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(4, n): for each edge, a value >= 0 where the point is on the inner side (linear in x, y)."""
+        return self._normals @ np.vstack([x, y]) + self._offsets
 
     def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Which points (x, y) lie in the closed region."""
-        return self._inside(np.atleast_1d(np.asarray(x, float)), np.atleast_1d(np.asarray(y, float)))
+        x, y = np.atleast_1d(np.asarray(x, float)), np.atleast_1d(np.asarray(y, float))
+        return np.all(self._signed(x, y) >= 0.0, axis=0)
 
     def crossings(self, x: np.ndarray, y: np.ndarray) -> Crossings:
-        """All entries into and exits from the region along the polyline (x, y)."""
-        inside = self._inside(x, y)
+        """All entries into and exits from the region along the polyline (x, y).
+
+        The edge values are linear along a segment, so a segment from s0 to s1 meets an edge's line at
+        t = s0 / (s0 - s1). Only segments that are not wholly inside and not wholly beyond one edge are
+        clipped (the rest cannot cross the boundary).
+        """
+        sv = self._signed(x, y)
+        inside = sv.min(axis=0) >= 0.0
         empty = np.zeros((0, 2)), np.zeros((0, 4), bool)
         if x.size < 2:
             return Crossings(bool(inside[0]), bool(inside[-1]), bool(inside.any()), *empty, *empty)
-        nx, ny = self.normals[:, 0], self.normals[:, 1]
-        x0, y0, dx, dy = x[:-1, None], y[:-1, None], np.diff(x)[:, None], np.diff(y)[:, None]
-        num = (x0 - self.points[:, 0]) * nx + (y0 - self.points[:, 1]) * ny
-        den = dx * nx + dy * ny
+        beyond = np.maximum(sv[:, :-1], sv[:, 1:]).min(axis=0) < 0.0   # both ends outside one edge
+        cand = np.flatnonzero(~(inside[:-1] & inside[1:]) & ~beyond)
+        s0, s1 = sv[:, cand].T, sv[:, cand + 1].T
+        den = s1 - s0
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = -num / den
+            t = -s0 / den
         t_enter = np.where(den > 0, t, -np.inf)
         t_leave = np.where(den < 0, t, np.inf)
-        t_in = np.maximum(t_enter.max(axis=1), 0.0)
-        t_out = np.minimum(t_leave.min(axis=1), 1.0)
-        parallel_out = np.any((den == 0) & (num < 0), axis=1)
-        hits = (t_in <= t_out) & ~parallel_out
-        in0, in1 = inside[:-1], inside[1:]
-        enter = ~in0 & (in1 | hits)
-        leave = ~in1 & (in0 | hits)
-        ie, il = np.nonzero(enter)[0], np.nonzero(leave)[0]
-        entry_pts = np.stack([x[ie] + t_in[ie] * dx[ie, 0], y[ie] + t_in[ie] * dy[ie, 0]], axis=1)
-        exit_pts = np.stack([x[il] + t_out[il] * dx[il, 0], y[il] + t_out[il] * dy[il, 0]], axis=1)
-        entry_sides = t_enter[ie] >= t_in[ie, None] - _TOL
-        exit_sides = t_leave[il] <= t_out[il, None] + _TOL
+        t_in = np.maximum(t_enter.max(axis=1, initial=-np.inf), 0.0)
+        t_out = np.minimum(t_leave.min(axis=1, initial=np.inf), 1.0)
+        hits = t_in <= t_out
+        in0, in1 = inside[cand], inside[cand + 1]
+        enter, leave = ~in0 & (in1 | hits), ~in1 & (in0 | hits)
+        ie, il = cand[enter], cand[leave]
+        ti, to = t_in[enter], t_out[leave]
+        entry_pts = np.stack([x[ie] + ti * (x[ie + 1] - x[ie]), y[ie] + ti * (y[ie + 1] - y[ie])], axis=1)
+        exit_pts = np.stack([x[il] + to * (x[il + 1] - x[il]), y[il] + to * (y[il + 1] - y[il])], axis=1)
+        entry_sides = t_enter[enter] >= ti[:, None] - _TOL
+        exit_sides = t_leave[leave] <= to[:, None] + _TOL
         touched = bool(inside.any() or hits.any())
         return Crossings(bool(inside[0]), bool(inside[-1]), touched, entry_pts, entry_sides, exit_pts, exit_sides)

@@ -148,3 +148,11 @@ class AnalogTransducer:
             held = self.last_output if first == 0 else s[first - 1]
             s = np.where(mask, held, s)
         return s
+
+
+@register("strain_amplifier")
+class StrainAmplifier(AnalogTransducer):
+    """Strain gauges on a structural part (e.g. a clutch leaf) through a bridge amplifier: strain → V."""
+
+    QUANTITY_UNIT: ClassVar[str] = "1"
+    SCHEMA: ClassVar[dict[str, Field]] = analog_schema(QUANTITY_UNIT, AnalogTransducer.SIGNAL_UNIT)

@@ -19,8 +19,18 @@ import numpy as np
 ENCODINGS = ("json", "base64")
 
 
+_PLAIN = (str, int, type(None))
+
+
 def to_jsonable(value: Any) -> Any:
     """Turn numpy scalars/arrays and non-finite floats into plain JSON values (NaN/inf -> None)."""
+    kind = type(value)
+    if kind in _PLAIN or kind is bool:
+        return value
+    if kind is float:
+        return value if math.isfinite(value) else None
+    if kind is list and all(type(v) in _PLAIN for v in value):
+        return value
     if isinstance(value, Mapping):
         return {str(k): to_jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):

@@ -226,7 +226,7 @@ class Recorder:
             rows, self._can = self._can[:self.block_size], self._can[self.block_size:]
             t, ids, fd, ext, data = (list(c) for c in zip(*rows))
             self._put(cid, to_ns(t[0], S.CAN_RAW),
-                      dumps({"t": t, "id": ids, "is_fd": fd, "is_extended": ext, "data": data}))
+                      dumps({"t": np.asarray(t), "id": ids, "is_fd": fd, "is_extended": ext, "data": data}))
 
     # -- device ---------------------------------------------------------------------------------
     def write_curve(self, number: int, program: int, t: np.ndarray, x: np.ndarray, y: np.ndarray,

@@ -112,7 +112,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
     output = Path(output)
     channel = f"rig-{uuid.uuid4().hex}"
     wall = time.perf_counter()
-    with can.Bus(interface="virtual", channel=channel) as machine_bus, \
+    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as machine_bus, \
             can.Bus(interface="virtual", channel=channel) as host_bus:
         machine = Machine(cfg, machine_bus)
         lock = threading.Lock()
@@ -154,7 +154,7 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
     """
     cfg = _config(scene_path, None, mode)
     channel = f"rig-{uuid.uuid4().hex}"
-    with can.Bus(interface="virtual", channel=channel) as bus:
+    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
         machine = Machine(cfg, bus)
         lock = threading.Lock()
         server = SocketcandServer(channel=cfg.can["channel"], host=cfg.can["host"],
@@ -191,10 +191,11 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
 
 
 def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = "127.0.0.1", can_port: int,
-                 serial_port: str | None, can_channel: str | None = None, idle_timeout: float = 10.0,
-                 progress: bool = False) -> RunSummary:
-    """The host alone: connect to a served machine (socketcand + serial port) and record the scene's run."""
-    cfg = _config(scene_path, None, None)
+                 serial_port: str | None, can_channel: str | None = None, cycles: int | None = None,
+                 idle_timeout: float = 10.0, progress: bool = False) -> RunSummary:
+    """The host alone: connect to a served machine (socketcand + serial port) and record the scene's run
+    (or its first ``cycles`` curves)."""
+    cfg = _config(scene_path, cycles, None)
     output = Path(output)
     wall = time.perf_counter()
     with can.Bus(interface="socketcand", host=can_host, port=can_port,

@@ -9,7 +9,11 @@ a *method* is a solver class. ``integrate`` drives one with the other:
 * ``time_breaks`` (load steps in time) are hit exactly by bounding the solver there and restarting
   one ulp later; the RHS must be left-continuous there (value at t_b = value before the break);
 * terminal events stop the integration;
-* a diverging solver raises :class:`SolverDivergence` naming time and state.
+* hybrid (switched) problems keep a discrete mode outside the state: an event ``action`` may switch it
+  and return a projected state to restart from, ``Problem.reset`` re-selects it at the start and after
+  every restart, and ``mode_dependent`` event functions are re-evaluated after a switch;
+* a diverging solver raises :class:`SolverDivergence` naming time and state, and so does event
+  chattering (more than ``MAX_STALLED`` restarts without the time advancing: a Zeno point).
 """
 from __future__ import annotations
 
@@ -20,11 +24,12 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
-from rig.solvers.base import OdeSolver, Rhs
+from rig.solvers.base import OdeSolver, Rhs, SolverDivergence
 from rig.solvers.dopri import DormandPrince45
 from rig.solvers.rk4 import RK4
 
 METHODS: dict[str, type[OdeSolver]] = {"DP45": DormandPrince45, "RK4": RK4}
+MAX_STALLED = 50
 
 
 @dataclass(frozen=True)
@@ -41,10 +46,11 @@ class EventRecord:
 class Event:
     """Event function g(t, y) whose zeros are located.
 
-    ``direction`` > 0 / < 0 keeps only rising / falling crossings; ``terminal`` stops the
-    integration; ``restart`` restarts the solver at the event (RHS discontinuous there);
-    ``action(record) -> bool`` is called for each recorded event and returns True when it changed the
-    problem (then the solver is restarted too).
+    ``direction`` > 0 / < 0 keeps only rising / falling crossings (leaving g = 0 in that direction
+    counts); ``terminal`` stops the integration; ``restart`` restarts the solver at the event (RHS
+    discontinuous there); ``action(record)`` is called for each recorded event and returns True when it
+    changed the problem, or a new state tuple to restart from (then the solver is restarted too);
+    ``mode_dependent`` marks a g that changes with the problem's discrete mode (re-evaluated after a restart).
     """
 
     fun: Callable[[float, tuple], float]
@@ -52,17 +58,20 @@ class Event:
     direction: float = 0.0
     terminal: bool = False
     restart: bool = False
-    action: Callable[[EventRecord], bool] | None = None
+    action: Callable[[EventRecord], bool | tuple] | None = None
+    mode_dependent: bool = False
 
 
 @dataclass
 class Problem:
-    """Right-hand side ``fun(t, y)``, initial state, events and times where the RHS is discontinuous."""
+    """Right-hand side ``fun(t, y)``, initial state, events, times where the RHS is discontinuous and
+    ``reset(t, y) -> bool`` (re-selects a discrete mode at the start and after restarts; True if changed)."""
 
     fun: Rhs
     y0: Sequence[float]
     events: Sequence[Event] = ()
     time_breaks: Sequence[float] = ()
+    reset: Callable[[float, tuple], bool] | None = None
 
 
 @dataclass
@@ -112,7 +121,10 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     else:
         ts, ys = [t0], [y]
     t = t0
+    reset = problem.reset or (lambda t_, y_: False)
+    reset(t, y)
     g_old = [e.fun(t, y) for e in events]
+    stalled, t_last_cut = 0, math.nan
     records: list[EventRecord] = []
     nfev = nsteps = restarts = 0
     status, h_next = "finished", options.pop("first_step", None)
@@ -129,17 +141,21 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 g_new = [e.fun(t_new, y_new) for e in events]
                 for i, e in enumerate(events):
                     a, b = g_old[i], g_new[i]
-                    if a * b < 0 or (b == 0.0 and a != 0.0):
-                        rising = b > a
-                        if (e.direction > 0 and not rising) or (e.direction < 0 and rising):
+                    if e.direction:
+                        if not (b < 0.0 <= a if e.direction < 0 else a <= 0.0 < b):
                             continue
-                        if b == 0.0:
-                            t_root = t_new
-                        else:
-                            dense = dense or solver.dense_output()
-                            t_root = brentq(lambda tt, f=e.fun: f(tt, dense(tt)), t_old, t_new,
-                                            xtol=1e-15, rtol=4 * np.finfo(float).eps)
-                        hits.append((t_root, i, 1.0 if rising else -1.0))
+                        rising = e.direction > 0
+                    elif a * b < 0 or (b == 0.0 and a != 0.0):
+                        rising = b > a
+                    else:
+                        continue
+                    if b == 0.0:
+                        t_root = t_new
+                    else:
+                        dense = dense or solver.dense_output()
+                        t_root = brentq(lambda tt, f=e.fun: f(tt, dense(tt)), t_old, t_new,
+                                        xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                    hits.append((t_root, i, 1.0 if rising else -1.0))
                 hits.sort()
                 for t_root, i, sign in hits:
                     e = events[i]
@@ -147,8 +163,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     rec = EventRecord(t_root, e.name, dense(t_root) if t_root < t_new else y_new, sign)
                     records.append(rec)
                     changed = e.action(rec) if e.action is not None else False
-                    if e.terminal or e.restart or changed:
-                        cut = (t_root, rec.y, e.terminal)
+                    if e.terminal or e.restart or changed is not False:
+                        cut = (t_root, changed if isinstance(changed, tuple) else rec.y, e.terminal)
                         break
             t_stop = cut[0] if cut else t_new
             if t_eval is not None:
@@ -169,8 +185,15 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 if t_eval is None:
                     ts.append(t)
                     ys.append(y)
-                fired = {i for tr, i, _ in hits if tr <= t}
-                g_old = [g_new[i] if i in fired else (e.fun(t, y) or g_old[i]) for i, e in enumerate(events)]
+                reset(t, y)
+                fired = {i for tr, i, _ in hits if tr <= t and not events[i].mode_dependent}
+                g_old = [g_new[i] if i in fired else e.fun(t, y) if e.mode_dependent else (e.fun(t, y) or g_old[i])
+                         for i, e in enumerate(events)]
+                stalled = stalled + 1 if t == t_last_cut else 0
+                t_last_cut = t
+                if stalled > MAX_STALLED:
+                    raise SolverDivergence(f"event chattering: {stalled} restarts without time advancing "
+                                           f"(last event {records[-1].name!r}; Zeno point)", t, y)
                 break
             if events:
                 g_old = g_new
@@ -182,6 +205,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
             bi += 1
             if bi == len(breaks):
                 break
+            if reset(t, y):
+                g_old = [e.fun(t, y) for e in events]
         elif cut[2]:
             status = "terminated"
             break

@@ -34,6 +34,7 @@ def test_measurement_commanded_over_can():
         (curve,) = host.curves()
         np.testing.assert_array_equal(curve.x, np.rint(result.curve.x / X_LSB) * X_LSB)
         np.testing.assert_array_equal(curve.y, np.rint(result.curve.y / Y_LSB) * Y_LSB)
+        np.testing.assert_allclose(curve.t, result.curve.t, rtol=0, atol=5e-6)
         got = host.results[result.number]
         assert got.ok == result.ok
         for key, value in got.process_values.items():

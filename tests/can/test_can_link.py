@@ -68,6 +68,7 @@ def test_curve_of_4000_pairs_and_result(buses, device, rng, fd, elements, make_c
     np.testing.assert_allclose(curve.x, x, rtol=0, atol=X_LSB / 2 + 1e-15)
     np.testing.assert_allclose(curve.y, y, rtol=0, atol=Y_LSB / 2 + 1e-12)
     np.testing.assert_array_equal(curve.x, np.rint(x / X_LSB) * X_LSB)
+    np.testing.assert_allclose(curve.t, t, rtol=0, atol=5e-6)          # uniform: start + i * step
     res = host.results[1]
     assert (res.ok, res.first_fail, res.fail_mask) == (False, 1, 0b110)
     assert res.process_values == pytest.approx(PV, rel=1e-6)      # float32 on the wire
@@ -75,9 +76,9 @@ def test_curve_of_4000_pairs_and_result(buses, device, rng, fd, elements, make_c
     timing = BusTiming(500_000, fd=fd, data_bitrate=2e6 if fd else None)
     if fd:
         blocks = -(-4000 // 11)
-        expected = blocks * timing.frame_time(0x303, bytes(64), True) + 9 * 135 / 500e3
+        expected = blocks * timing.frame_time(0x303, bytes(64), True) + 10 * 135 / 500e3
     else:
-        expected = (4000 + 9) * 135 / 500e3     # header, blocks, end, result, 6 process values
+        expected = (4000 + 10) * 135 / 500e3    # header, timing, blocks, end, result, 6 process values
     assert max(m.timestamp for m in frames) == pytest.approx(0.5 + expected, abs=1e-9)
     assert node.pending_frames == 0
 
@@ -95,10 +96,10 @@ def test_curve_transfer_time_from_received_timestamps(buses, device, rng, elemen
         while (m := host_bus.recv(0)) is not None:
             stamps.append((m.arbitration_id, m.timestamp))
     curve_stamps = [s for fid, s in stamps if fid >= 0x300]
-    # header + 1000 blocks + end + result = 1003 frames of 135 bits at 1 Mbit/s, back to back
-    assert len(curve_stamps) == 1003
+    # header + timing + 1000 blocks + end + result = 1004 frames of 135 bits at 1 Mbit/s, back to back
+    assert len(curve_stamps) == 1004
     np.testing.assert_allclose(np.diff(curve_stamps), 135e-6, rtol=1e-9)
-    assert curve_stamps[-1] == pytest.approx(0.2 + 1003 * 135e-6, abs=1e-9)
+    assert curve_stamps[-1] == pytest.approx(0.2 + 1004 * 135e-6, abs=1e-9)
 
 
 def test_live_stream_is_decimated_to_fit_500k(buses, device, rng):
@@ -294,3 +295,18 @@ def test_explicitly_published_result_is_not_sent_twice(buses, device, rng, eleme
     node.publish_measurement(0.0, device.finish(t, x, y, elements[:1], {}))
     run(node, host, 1.0)
     assert len(host.curves()) == 1 and node.curves_measured == 1 and host.events == []
+
+
+def test_non_uniform_sample_times_are_sent_per_pair(buses, device, rng, elements):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=0.1)
+    host = CanHost(host_bus)
+    run(node, host, 30.0, step=0.5)                    # device time past one TStart wrap (16.8 s)
+    t = 29.0 + np.cumsum(rng.uniform(1e-5, 5e-4, 1001))      # e.g. sampling by delta-X
+    x, y = np.linspace(0, 0.01, t.size), np.linspace(0, 100, t.size)
+    node.publish_measurement(30.0, device.finish(t, x, y, elements[:1], {}))
+    frames = run(node, host, 31.0)
+    assert sum(m.arbitration_id == 0x304 for m in frames) == 501
+    (curve,) = host.curves()
+    np.testing.assert_allclose(curve.t, t, rtol=0, atol=5e-6)
+    assert host.events == []

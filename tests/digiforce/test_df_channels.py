@@ -152,10 +152,12 @@ def test_shunt_check_passes_for_correct_gain_and_fails_for_wrong():
     dev.tare("y")
     expected = dev.shunt_expected("y", 59e3)
     assert expected == pytest.approx(bridge_output(350.0, 59e3) / 1.5e-3 * 1000, rel=1e-12)
-    dev.feed(t + 0.02, 0 * t, np.full(200, bridge_output(350.0, 59e3)))
+    for k in (1, 2):                            # first chunk: the 1 kHz low-pass settles; then measure
+        dev.feed(t + 0.02 * k, 0 * t, np.full(200, bridge_output(350.0, 59e3)))
     good = dev.shunt_check("y", expected)
     assert good["ok"] and abs(good["relative_deviation"]) < 1e-3
-    dev.feed(t + 0.04, 0 * t, np.full(200, 1.03 * bridge_output(350.0, 59e3)))   # gain 3 % high
+    for k in (3, 4):                            # gain 3 % high
+        dev.feed(t + 0.02 * k, 0 * t, np.full(200, 1.03 * bridge_output(350.0, 59e3)))
     bad = dev.shunt_check("y", expected)
     assert not bad["ok"] and bad["relative_deviation"] == pytest.approx(0.03, abs=2e-3)
     assert bad["gain_correction"] == pytest.approx(1 / 1.03, rel=2e-3)
@@ -185,3 +187,18 @@ def test_y2_channel_recorded_when_enabled(unit):
     res = unit.stop()
     assert res.curve.y2 == pytest.approx([0, 1, 2, 3], abs=2e-3)
     assert res.process_values["y2_max"] == pytest.approx(3.0, abs=2e-3)
+
+
+def test_teach_two_points_from_live_input(unit):
+    t = np.arange(5) * 1e-4
+    unit.feed(t, 0 * t, np.full(5, 1.0))
+    unit.teach("y", 0, 200.0)
+    unit.feed(t + 1e-3, 0 * t, np.full(5, 3.0))
+    unit.teach("y", 1, 600.0)
+    sc = unit.get_program(0)["channels"]["y"]["scaling"]
+    assert sc["mode"] == "teach"
+    assert np.array(sc["points"]) == pytest.approx(np.array([[1.0, 200.0], [3.0, 600.0]]), abs=10 / 2 ** 16)
+    res = record(unit, t, 0 * t, np.full(5, 2.0))
+    assert res.curve.y == pytest.approx(np.full(5, 400.0), abs=200 * 10 / 2 ** 16)   # one LSB at 200 N/V
+    with pytest.raises(DigiForceError, match="teach points must differ"):
+        unit.teach("y", 0, 600.0)

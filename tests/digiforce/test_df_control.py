@@ -1,5 +1,7 @@
 """Measurement control (command, external input, X start/stop, Y threshold, time), forward/return split,
 curve reference modes, evaluation through the unit and chunk independence."""
+import json
+
 import numpy as np
 import pytest
 
@@ -10,7 +12,7 @@ DT = 1e-4
 
 def cycles(press, n_cycles=2, gap=200):
     """Press cycles with rest between them, one time base."""
-    ts, xs, ys = [], [], []
+    xs, ys = [], []
     for _ in range(n_cycles):
         _, x, y = press()
         xs += [x, np.zeros(gap)]
@@ -163,6 +165,23 @@ def test_evaluation_through_unit_names_failing_element(unit, press):
     assert set(failed) == {"W_mid", "W_peak"}
     assert "y_max at" in failed["W_peak"]
     d = r.to_dict()
-    import json
-    json.dumps(d)
+    assert json.loads(json.dumps(d)) == d
     assert d["ok"] is False and d["curve"]["pairs"] == r.curve.t.size
+    st = unit.status()
+    assert st["outputs"] == {"ok": False, "nok": True}
+    assert st["last_evaluation_time"] < unit.desc.evaluation_time          # within the real unit's 90 ms
+
+
+def test_noisy_unit_is_reproducible_and_chunk_independent(press):
+    from firmware_sim.digiforce import DigiForce
+    t, x, y = press()
+    y = y * 1e-3                                   # V/V on the default bridge program
+    curves = []
+    for chunk in (t.size, 97):
+        dev = DigiForce(rng=np.random.default_rng(42))
+        dev.start()
+        for a in range(0, t.size, chunk):
+            dev.feed(t[a:a + chunk], x[a:a + chunk], y[a:a + chunk])
+        curves.append(dev.stop().curve)
+    assert np.array_equal(curves[0].y, curves[1].y) and np.array_equal(curves[0].x, curves[1].x)
+    assert np.std(np.diff(curves[0].y[:50])) > 0    # noise and errors really present

@@ -4,7 +4,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.transducers import REGISTRY, IncrementalEncoder, LVDT, StrainGaugeBridge, load_transducer
+from firmware_sim.transducers import (REGISTRY, LVDT, IncrementalEncoder, StrainAmplifier, StrainGaugeBridge,
+                                      load_transducer)
 from rig.scene import SceneError
 
 DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
@@ -12,13 +13,14 @@ DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
 
 def test_every_description_loads_with_its_registered_class():
     names = sorted(p.stem for p in DEVICES.glob("*.toml") if not p.stem.startswith("digiforce"))
-    assert len(names) == 6
+    assert len(names) == 7
     for name in names:
         s = load_transducer(name, np.random.default_rng(0))
         assert isinstance(s, REGISTRY[type(s).TYPE])
     assert isinstance(load_transducer("burster_8411", np.random.default_rng(0)), StrainGaugeBridge)
     assert isinstance(load_transducer(DEVICES / "burster_8740.toml", np.random.default_rng(0)), LVDT)
     assert isinstance(load_transducer("encoder_1024", np.random.default_rng(0)), IncrementalEncoder)
+    assert isinstance(load_transducer("leaf_half_bridge", np.random.default_rng(0)), StrainAmplifier)
 
 
 def test_values_are_read_in_si_and_overrides_replace_file_values():

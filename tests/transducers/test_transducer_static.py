@@ -6,7 +6,8 @@ import pytest
 
 from firmware_sim.transducers import load_transducer
 
-ANALOG = ["burster_8411", "brake_force_2kN", "burster_8740", "torque_meter_50Nm", "potentiometer_dmm"]
+ANALOG = ["burster_8411", "brake_force_2kN", "burster_8740", "torque_meter_50Nm", "potentiometer_dmm",
+          "leaf_half_bridge"]
 
 
 def sweep(sensor, n_per_way: int, duration: float):

@@ -9,27 +9,20 @@ Event times are refined with Brent's method to 1e-12 s.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from math import tau
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import brentq
 
 from rig.plants.cam_bar.kinetostatics import solve
 from rig.plants.cam_bar.switches import sign_changes
+from rig.plants.events import Event
 
 if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 
-@dataclass(frozen=True)
-class Event:
-    """Something that happened at ``time`` (s)."""
-
-    time: float
-    kind: str
-    data: dict[str, Any] = field(default_factory=dict)
 
 
 class Timeline:

@@ -5,14 +5,21 @@ State y = (φ1, ω1, φ3, ω3, *load states) in rad, rad/s. With M = n·m_t, k3 
     (J1 + M k1²) φ̈1 − M k1² φ̈3 = M1 − T_c − ½M k3 ωr² + M k1 k2 ω3²
     (J3 + M k1² + M k2²) φ̈3 − M k1² φ̈1 = −M3 + T_c + ½M k3 ωr² − M k1 k2 ω3² − 2M k1 k2 ωr ω3
 
-T_c = n[(F_a + F_fC) k1 + F_fB k2] is the torque the tappets pass to the driven half. Friction (signed
-Coulomb, regularised sgn(v) ≈ tanh(v/v_s)): F_fB = μ_B N_B sB at the cam face (v21 = k2 ωr),
-F_fC = μ_C (|R1| + |R2|) sC in the guide (v23 = k1 ωr). Quasi-static tappet balance (docs/clutch.md):
-N_B = F_a + F_fC + m_t (dk1 ωr² − k2 ω3²), guide reactions R1 = N_B (k1 + (k2 − L2) μ_B sB)/(L2 − L1),
-R2 = −N_B (k1 + (k2 − L1) μ_B sB)/(L2 − L1), solved in closed form for N_B.
+T_c = n[(F_a + F_fC) k1 + F_fB k2] is the torque the tappets pass to the driven half. Friction is signed
+Coulomb: F_fB = μ_B N_B sB at the cam face (v21 = k2 ωr), F_fC = μ_C (|R1| + |R2|) sC in the guide
+(v23 = k1 ωr). Quasi-static tappet balance (docs/clutch.md): N_B = F_a + F_fC + m_t (dk1 ωr² − k2 ω3²),
+guide reactions R1 = N_B (k1 + (k2 − L2) μ_B sB)/(L2 − L1), R2 = −N_B (k1 + (k2 − L1) μ_B sB)/(L2 − L1),
+solved in closed form for N_B. Two friction models (docs/clutch.md):
+
+* ``"stick_slip"`` (default): switched model with a discrete mode: slipping (sB = σ, sC = σ·sgn k1,
+  σ = ±1 fixed while ωr keeps its sign) or stuck (ωr ≡ 0, the halves move together and T_c is the
+  torque needed for that, admissible while it lies in the static band [T_c(σ=−1), T_c(σ=+1)]).
+  Transitions are located as events (ωr = 0; T_c reaching a band edge) — no stiffness.
+* ``"tanh"``: sgn(v) ≈ tanh(v/v_s); smooth but stiff when sticking (time constant ≈ J v_s/(n μ_B N_B k2²)).
 """
 from __future__ import annotations
 
+import bisect
 import math
 from typing import Callable
 
@@ -23,25 +30,33 @@ from rig.plants.clutch.geometry import APEX, LOBE
 from rig.plants.clutch.loads import Load, LinearMotor
 from rig.solvers import Event, EventRecord, Problem, SolverDivergence
 
+FRICTION_MODELS = ("stick_slip", "tanh")
+
 
 class ClutchDynamics:
     """Equations of motion of clutch + motor + load; ``blocked=True`` clamps the driven half (ω3 ≡ 0).
 
-    ``v_s`` (m/s) is the velocity scale of the tanh friction regularisation; ``J_down`` (kg·m²) is the
+    ``friction`` is "stick_slip" (switched Coulomb model, discrete ``mode`` = +1/−1 slipping with
+    sgn ωr, 0 stuck) or "tanh" (regularised with velocity scale ``v_s``, m/s). ``J_down`` (kg·m²) is the
     part of J3 downstream of the torque meter (flywheel, brake drum), used for the meter reading.
     """
 
     def __init__(self, clutch: FlatTappetClutch, motor: LinearMotor, load: Load, v_s: float = 0.01,
-                 blocked: bool = False, J_down: float = 0.0):
+                 blocked: bool = False, J_down: float = 0.0, friction: str = "stick_slip"):
+        if friction not in FRICTION_MODELS:
+            raise ValueError(f"ClutchDynamics: friction = {friction!r} is not one of {FRICTION_MODELS}")
         if not v_s > 0:
             raise ValueError(f"ClutchDynamics: friction velocity scale v_s = {v_s!r} m/s must be positive")
         if not 0 <= J_down <= clutch.J3:
             raise ValueError(f"ClutchDynamics: J_down = {J_down} kg*m^2 must lie in [0, J3 = {clutch.J3}]")
         self.clutch, self.motor, self.load = clutch, motor, load
-        self.v_s, self.blocked, self.J_down = v_s, blocked, J_down
-        self.core = self._make_core()
+        self.v_s, self.blocked, self.J_down, self.friction = v_s, blocked, J_down, friction
+        self.mode = 1                                   # stick_slip: +1/−1 slipping, 0 stuck
+        self._log_t: list[float] = []                   # mode history (for outputs at past samples)
+        self._log_mode: list[int] = []
+        self._make_core()
 
-    def _make_core(self) -> Callable[[float, tuple], tuple]:
+    def _make_core(self) -> None:
         c = self.clutch
         geom = c.scalar_geometry()
         n, m, J1, J3 = c.n, c.m_t, c.J1, c.J3
@@ -49,30 +64,58 @@ class ClutchDynamics:
         Fa1, ka, r0, muB, muC, L1, L2 = c.F_a1, c.k_a, c.r0, c.mu_B, c.mu_C, c.L1, c.L2
         L = L2 - L1
         inv_vs = 1.0 / self.v_s
-        motor, load, blocked = self.motor, self.load, self.blocked
+        motor_torque, load_torque, blocked = self.motor.torque, self.load.torque, self.blocked
+        smooth = self.friction == "tanh"
         tanh = math.tanh
 
-        def core(t: float, y: tuple) -> tuple:
-            phi1, w1, phi3, w3 = y[0], y[1], y[2], y[3]
-            z = y[4:]
-            wr = w1 - w3
-            k1, k2, dk1 = geom(phi1 - phi3)
+        def transmit(t, y, k1, k2, dk1, wr, w3, sb, sc):
+            """(T_c, F_a, N_B) for friction signs sB, sC."""
             fa = Fa1 + ka * (k2 - r0)
-            sb = tanh(k2 * wr * inv_vs)
-            sc = tanh(k1 * wr * inv_vs)
             fb_rel = muB * sb
-            rsum = abs(k1 + (k2 - L2) * fb_rel) + abs(k1 + (k2 - L1) * fb_rel)
-            den = 1.0 - muC * sc * rsum / L
-            if den <= 0.0:
+            g = muC * sc * (abs(k1 + (k2 - L2) * fb_rel) + abs(k1 + (k2 - L1) * fb_rel)) / L
+            if g >= 1.0:
                 raise SolverDivergence(f"tappet self-locks in its guide (mu_C*(|R1|+|R2|)/N_B >= 1 at "
-                                       f"relative angle {math.degrees(phi1 - phi3):.4g} deg)", t, y)
-            nb = (fa + m * (dk1 * wr * wr - k2 * w3 * w3)) / den
+                                       f"relative angle {math.degrees(y[0] - y[2]):.4g} deg)", t, y)
+            nb = (fa + m * (dk1 * wr * wr - k2 * w3 * w3)) / (1.0 - g)
             if nb < 0.0:
                 nb = 0.0
-            ffc = muC * sc * rsum / L * nb
-            tc = n * ((fa + ffc) * k1 + fb_rel * nb * k2)
-            m1 = motor.torque(t, w1)
-            m3 = load.torque(t, phi3, w3, z)
+            return n * ((fa + g * nb) * k1 + fb_rel * nb * k2), fa, nb
+
+        def required(t, y, k1, k2):
+            """Stuck halves: (T_c needed for ω̇r = 0, common acceleration, M1, M3)."""
+            w3 = y[3]
+            m1 = motor_torque(t, y[1])
+            m3 = load_torque(t, y[2], w3, y[4:])
+            x = M * k1 * k2 * w3 * w3
+            if blocked:
+                return m1 + x, 0.0, m1, m3
+            J3p = J3 + M * k2 * k2
+            tc = (J3p * (m1 + x) + J1 * (m3 + x)) / (J1 + J3p)
+            return tc, (m1 - tc + x) / J1, m1, m3
+
+        def band(t, y):
+            """(T_c required, T_c at σ = +1, T_c at σ = −1, N_B at +1, N_B at −1, F_a, M1, M3, a) at ωr = 0."""
+            k1, k2, dk1 = geom(y[0] - y[2])
+            tc, a, m1, m3 = required(t, y, k1, k2)
+            sc = 1.0 if k1 > 0 else (-1.0 if k1 < 0 else 0.0)
+            tp, fa, nbp = transmit(t, y, k1, k2, dk1, 0.0, y[3], 1.0, sc)
+            tm, _, nbm = transmit(t, y, k1, k2, dk1, 0.0, y[3], -1.0, -sc)
+            return tc, tp, tm, nbp, nbm, fa, m1, m3, a
+
+        def core(t: float, y: tuple, mode: int) -> tuple:
+            phi_r, w1, w3 = y[0] - y[2], y[1], y[3]
+            wr = w1 - w3
+            k1, k2, dk1 = geom(phi_r)
+            if smooth:
+                sb, sc = tanh(k2 * wr * inv_vs), tanh(k1 * wr * inv_vs)
+            elif mode == 0:
+                tc, a, m1, m3 = required(t, y, k1, k2)
+                return a, a, m1, m3, tc, math.nan, math.nan
+            else:
+                sb, sc = mode, (mode if k1 > 0 else (-mode if k1 < 0 else 0.0))
+            tc, fa, nb = transmit(t, y, k1, k2, dk1, wr, w3, sb, sc)
+            m1 = motor_torque(t, w1)
+            m3 = load_torque(t, y[2], w3, y[4:])
             k1s = M * k1 * k1
             k3h = M * k1 * dk1 * wr * wr            # ½·M·k3·ωr²
             b1 = m1 - tc - k3h + M * k1 * k2 * w3 * w3
@@ -83,16 +126,86 @@ class ClutchDynamics:
             det = a11 * a22 - k1s * k1s
             return (b1 * a22 + k1s * b3) / det, (a11 * b3 + k1s * b1) / det, m1, m3, tc, fa, nb
 
-        return core
+        self.core, self.band = core, band
+        self._J3p = lambda k2: J3 + M * k2 * k2
+        self._geom = geom
 
     def rhs(self, t: float, y: tuple) -> tuple:
-        """dy/dt for the solvers (tuple in, tuple out)."""
-        a1, a3 = self.core(t, y)[:2]
-        z = y[4:]
-        if not z:
+        """dy/dt for the solvers (tuple in, tuple out) in the current friction mode."""
+        a1, a3 = self.core(t, y, self.mode)[:2]
+        if len(y) == 4:
             return (y[1], a1, y[3], a3)
-        return (y[1], a1, y[3], a3, *self.load.rates(t, y[2], y[3], z))
+        return (y[1], a1, y[3], a3, *self.load.rates(t, y[2], y[3], y[4:]))
 
+    # -- stick–slip mode logic --------------------------------------------------------------------
+    def _switch_g(self, t: float, y: tuple) -> float:
+        """Positive while the mode is valid: σ·ωr when slipping, distance to the band edges when stuck."""
+        if self.mode:
+            return self.mode * (y[1] - y[3])
+        tc, tp, tm = self.band(t, y)[:3]
+        return min(tp - tc, tc - tm)
+
+    def _stuck_state(self, y: tuple) -> tuple:
+        """Project onto ωr = 0 conserving the angular momentum of the two halves."""
+        if self.blocked:
+            return (y[0], 0.0, *y[2:])
+        J1, J3p = self.clutch.J1, self._J3p(self._geom(y[0] - y[2])[1])
+        w = (J1 * y[1] + J3p * y[3]) / (J1 + J3p)
+        return (y[0], w, y[2], w, *y[4:])
+
+    def _pick_at_rest(self, t: float, y: tuple) -> int:
+        """Mode for ωr = 0: stuck if the needed torque lies inside the static band, else slip towards it."""
+        tc, tp, tm = self.band(t, y)[:3]
+        if tm < tp and tm <= tc <= tp:
+            return 0
+        return 1 if tc > 0.5 * (tp + tm) else -1
+
+    def _set_mode(self, t: float, mode: int) -> bool:
+        if mode == self.mode:
+            return False
+        self.mode = mode
+        self._log_t.append(t)
+        self._log_mode.append(mode)
+        return True
+
+    def _on_switch(self, rec: EventRecord) -> tuple:
+        """Event action: slip → stick/reverse at ωr = 0, stick → slip at a band edge; returns the new state."""
+        if self.mode:
+            y = self._stuck_state(rec.y)
+            self._set_mode(rec.t, self._pick_at_rest(rec.t, y))
+            return y
+        tc, tp, tm = self.band(rec.t, rec.y)[:3]
+        self._set_mode(rec.t, 1 if tp - tc < tc - tm else -1)
+        return rec.y
+
+    def reset(self, t: float, y: tuple) -> bool:
+        """Re-select the mode at t (integration start, after load jumps/restarts); True if it changed."""
+        if self.friction != "stick_slip":
+            return False
+        if not self._log_t or t <= self._log_t[0]:
+            self._log_t, self._log_mode = [t], [self.mode]
+        else:
+            i = bisect.bisect_left(self._log_t, t)
+            del self._log_t[i:], self._log_mode[i:]
+            self._log_t.append(t)
+            self._log_mode.append(self.mode)
+        wr = y[1] - y[3]
+        if wr != 0.0:
+            return self._set_mode(t, 1 if wr > 0 else -1)
+        if self.mode == 0:
+            tc, tp, tm = self.band(t, y)[:3]
+            if tm <= tc <= tp:
+                return False
+        return self._set_mode(t, self._pick_at_rest(t, y))
+
+    def modes_at(self, t: np.ndarray) -> np.ndarray:
+        """Friction mode in effect at times ``t`` (from the mode history; tanh model: sgn ωr irrelevant → 1)."""
+        if self.friction != "stick_slip" or not self._log_t:
+            return np.ones(len(t), dtype=int)
+        i = np.searchsorted(np.asarray(self._log_t), t, side="right") - 1
+        return np.asarray(self._log_mode)[np.maximum(i, 0)]
+
+    # -- problem assembly ---------------------------------------------------------------------------
     def initial_state(self, omega: float = 0.0, phi_r: float = 0.0) -> tuple:
         """Both halves at speed ``omega`` (rad/s), relative angle ``phi_r`` (rad), loads at rest."""
         return (phi_r, omega, 0.0, 0.0 if self.blocked else omega, *self.load.initial_state())
@@ -108,23 +221,37 @@ class ClutchDynamics:
 
     def events(self, on_apex: Callable[[EventRecord], bool] | None = None) -> list[Event]:
         """Phase boundaries (restart), lobe wrap and apex (recorded; ``on_apex`` is the apex event's
-        action), load angle switches (restart)."""
+        action), load angle switches (restart) and, for stick–slip, the mode switch."""
         lim = self.clutch.limits
         out = [Event(_periodic(b, LOBE, 0, 2), "phase_boundary", restart=True)
                for b in (lim.phi_maxI, LOBE - lim.phi_maxI)]
         out.append(Event(_periodic(0.0, LOBE, 0, 2), "lobe_wrap"))
         out.append(Event(_periodic(APEX, LOBE, 0, 2), "apex", action=on_apex))
         out += [Event(_periodic(a, p, 2, None), "load_zone", restart=True) for a, p in self.load.angle_breaks()]
+        if self.friction == "stick_slip":
+            out.append(Event(self._switch_g, "stick_slip", direction=-1.0, action=self._on_switch,
+                             mode_dependent=True))
         return out
 
     def problem(self, y0: tuple, on_apex: Callable[[EventRecord], bool] | None = None) -> Problem:
-        """Problem for :func:`rig.solvers.integrate` with all events and time breaks."""
+        """Problem for :func:`rig.solvers.integrate` with all events, time breaks and the mode reset."""
         breaks = sorted(set(self.load.time_breaks()) | set(self.motor.time_breaks()))
-        return Problem(self.rhs, y0, self.events(on_apex), breaks)
+        return Problem(self.rhs, y0, self.events(on_apex), breaks, reset=self.reset)
 
     def outputs(self, t: np.ndarray, Y: np.ndarray) -> dict[str, np.ndarray]:
-        """Physical truth at samples: angles, speeds, φ_r, ω_r, M1, M3, torque meter M_t, T_c, F_a, N_B."""
-        vals = np.array([self.core(ti, tuple(yi)) for ti, yi in zip(t, Y.T)]).reshape(len(t), 7)
+        """Physical truth at samples: angles, speeds, φ_r, ω_r, M1, M3, torque meter M_t, T_c, F_a, N_B.
+
+        Stuck samples report the transmitted T_c and N_B interpolated in the static band (the split of
+        static friction between cam face and guide is indeterminate)."""
+        modes = self.modes_at(t)
+        vals = np.empty((len(t), 7))
+        for k, (ti, yi, mode) in enumerate(zip(t, Y.T, modes)):
+            yt = tuple(yi)
+            vals[k] = self.core(ti, yt, int(mode))
+            if mode == 0:
+                tc, tp, tm, nbp, nbm, fa = self.band(ti, yt)[:6]
+                w = 0.5 if tp == tm else (tc - tm) / (tp - tm)
+                vals[k, 5], vals[k, 6] = fa, nbm + w * (nbp - nbm)
         a3 = vals[:, 1]
         out = {"phi1": Y[0], "omega1": Y[1], "phi3": Y[2], "omega3": Y[3], "phi_r": Y[0] - Y[2],
                "omega_r": Y[1] - Y[3], "M1": vals[:, 2], "M3": vals[:, 3], "T_c": vals[:, 4],

@@ -13,26 +13,20 @@ snapped into the next lobe (angle offset by one lobe period). Truth signals (SI)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import numpy as np
 
 from rig.plants.clutch.flat_tappet import CLUTCH_SCHEMA, FlatTappetClutch
+from rig.plants.events import Event
 from rig.plants.clutch.variants import (FlatTappetCharacteristic, LeafSpringClutch, RollerTappetClutch,
                                         RubberRollerClutch, RubberShoeClutch, StaticCharacteristic,
                                         measured_table)
 from rig.scene import Field, Scene, SceneError, load_scene, read_table
 
 
-@dataclass(frozen=True)
-class Event:
-    """Something that happened in a plant: time (s), kind, details."""
-
-    time: float
-    kind: str
-    data: dict[str, Any] = field(default_factory=dict)
 
 
 #: scene [plant.clutch] schema and constructor of each variant the static rig can hold

@@ -1,0 +1,141 @@
+"""The rig runner end to end: scene → machine → links → host → MCAP, in one process and across processes."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rig.recorder import read_recording
+from rig.runner import run_scene
+from rig.runner.config import read_config
+from rig.scene import SceneError, load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = ROOT / "data" / "scenes" / "pin_insertion.toml"
+CYCLES = 3
+
+
+@pytest.fixture(scope="module")
+def in_process(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("run") / "pin.mcap"
+    summary = run_scene(SCENE, out, cycles=CYCLES)
+    assert summary.curves == CYCLES
+    return out
+
+
+def _scene_variant(tmp_path: Path, name: str, **replace: str) -> Path:
+    text = SCENE.read_text()
+    for old, new in replace.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_in_process_recording_holds_curves_theory_results_statistics(in_process: Path):
+    rec = read_recording(in_process)
+    assert [c.number for c in rec.curves] == list(range(1, CYCLES + 1)) or len(rec.curves) == CYCLES
+    for curve in rec.curves:
+        assert curve.t.size > 1000 and curve.x.size == curve.t.size
+        # measured stroke reaches the programmed 42 mm; theory is on the same timeline
+        assert 0.040 < curve.x.max() < 0.044
+        assert np.allclose(curve.theory["x"].max(), 0.042, atol=1e-4)
+        assert curve.theory["y"].shape == curve.y.shape
+        # the measured force follows the theoretical one to within a few newtons
+        assert np.sqrt(np.mean((curve.y - curve.theory["y"]) ** 2)) < 5.0
+    assert len(rec.results) == CYCLES and all("ok" in r for r in rec.results)
+    assert rec.statistics, "device statistics read over serial are recorded"
+    assert rec.statistics[-1]["counts"]["total"] == CYCLES
+    assert rec.truth["t"].size >= CYCLES * 0.4 * 10_000 * 0.9
+    assert "scene.toml" in str(rec.scene_text) or "[plant]" in rec.scene_text
+    assert rec.can_frames is not None
+
+
+def test_cross_process_serve_and_record_equal_in_process(in_process: Path, tmp_path: Path):
+    from rig.runner import record_scene
+    endpoints = tmp_path / "endpoints.json"
+    serve = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "serve", str(SCENE), "--linger", "2",
+                              "--endpoints", str(endpoints), "--wait", "60"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not endpoints.exists() or not endpoints.read_text():
+            assert serve.poll() is None, serve.stderr.read()
+            assert time.monotonic() < deadline, "rig serve did not announce its endpoints"
+            time.sleep(0.05)
+        ep = json.loads(endpoints.read_text())
+        out = tmp_path / "cross.mcap"
+        # the served scene has 50 cycles; record all of them would be slow, so compare the first CYCLES
+        summary = record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
+                               serial_port=ep["serial"], cycles=CYCLES)
+        assert summary.curves >= CYCLES
+    finally:
+        serve.terminate()
+        serve.wait(timeout=20)
+    a, b = read_recording(in_process), read_recording(out)
+    for ca, cb in zip(a.curves[:CYCLES], b.curves[:CYCLES]):
+        assert ca.number == cb.number
+        np.testing.assert_array_equal(ca.x, cb.x)
+        np.testing.assert_array_equal(ca.y, cb.y)
+        np.testing.assert_array_equal(ca.t, cb.t)
+
+
+def test_sensor_preload_and_spring_rate_change_the_measurement(in_process: Path, tmp_path: Path):
+    base = read_recording(in_process)
+    preload = _scene_variant(tmp_path, "preload.toml", **{'sensor_preload = "-25 N"': 'sensor_preload = "0 N"'})
+    out = tmp_path / "preload.mcap"
+    run_scene(preload, out, cycles=CYCLES)
+    shifted = read_recording(out)
+    d = np.mean([r["process_values"]["y_min"] for r in shifted.results]) - \
+        np.mean([r["process_values"]["y_min"] for r in base.results])
+    assert d == pytest.approx(25.0, abs=1.0)      # removing the -25 N preload raises the force by 25 N
+    soft = _scene_variant(tmp_path, "soft.toml", **{'k = "1.89 N/mm"': 'k = "1.09 N/mm"'})
+    out = tmp_path / "soft.mcap"
+    run_scene(soft, out, cycles=CYCLES)
+    r_soft = read_recording(out)
+    # a softer spring loads the follower less: the rod force at the top of the stroke changes
+    y_soft = np.mean([r["process_values"]["y_min"] for r in r_soft.results])
+    y_base = np.mean([r["process_values"]["y_min"] for r in base.results])
+    assert abs(y_soft - y_base) > 0.5
+
+
+def test_interrupted_run_leaves_a_valid_recording(tmp_path: Path, monkeypatch):
+    from rig.runner import host as host_module
+    calls = {"n": 0}
+    original = host_module.Host.poll
+
+    def poll(self, timeout: float = 0.0) -> int:
+        calls["n"] += 1
+        if calls["n"] == 40:
+            raise KeyboardInterrupt
+        return original(self, timeout)
+
+    monkeypatch.setattr(host_module.Host, "poll", poll)
+    out = tmp_path / "interrupted.mcap"
+    with pytest.raises(KeyboardInterrupt):
+        run_scene(SCENE, out, cycles=CYCLES)
+    rec = read_recording(out)
+    assert rec.complete and rec.truth["t"].size > 0
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ('role = "y"', 'role = "z"', r"\[transducers.rod_force\].*role"),
+    ('signal = "F_rod"', 'signal = "F_nope"', r"no signal 'F_nope'"),
+    ('mode = "virtual"', 'mode = "turbo"', r"\[scene\].*'mode'"),
+    ('description = "burster_8411"', 'description = "no_such_sensor"', r"no_such_sensor"),
+])
+def test_bad_scene_is_a_clear_error(tmp_path: Path, old: str, new: str, message: str):
+    path = _scene_variant(tmp_path, "bad.toml", **{old: new})
+    with pytest.raises((SceneError, ValueError, FileNotFoundError), match=message):
+        run_scene(path, tmp_path / "bad.mcap", cycles=1)
+
+
+def test_config_reads_the_demo_scene():
+    cfg = read_config(load_scene(SCENE))
+    assert cfg.cycles == 50 and cfg.sample_rate == 10_000 and cfg.role("x").signal == "s"
