@@ -35,11 +35,14 @@ def _print_set_summary(recording: Path) -> None:
     for program, st in result["sets"].items():
         for warning in st.get("warnings", []):
             print(f"  warning (program {program}): {warning}")
-        for name, pv in st.get("process_values", {}).items():
-            cp = pv.get("cp")
-            cpk = pv.get("cpk")
-            print(f"  {name:>16}: mean {pv['mean']:.4g}  sigma {pv['std']:.3g}  "
-                  f"[{pv['min']:.4g}, {pv['max']:.4g}]" + (f"  Cp {cp:.2f} Cpk {cpk:.2f}" if cp is not None else ""))
+        print(f"  program {program}: {st['n']} curves, NOK by element {st['nok_by_element'] or 'none'}")
+        print(f"  {'process value':>16}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  {'-3s..+3s':>21}  Cp    Cpk   normal drift")
+        for name, pv in st.get("values", {}).items():
+            cap = (f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv.get("cp") is not None and pv.get("cpk") is not None
+                   else "  -     -  ")
+            print(f"  {name:>16}  {pv['mean']:10.4g} {pv['std']:9.3g} {pv['min']:10.4g} {pv['max']:10.4g}  "
+                  f"{pv['minus_3sigma']:10.4g}..{pv['plus_3sigma']:<10.4g} {cap}  "
+                  f"{str(pv['normality'].get('normal', '-')):6} {pv['trend'].get('drift', '-')}")
     lags = [row for row in result["theory"] if row.get("lag_time") is not None]
     if lags:
         lt = sum(r["lag_time"] for r in lags) / len(lags)

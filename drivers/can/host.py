@@ -81,6 +81,7 @@ class CanHost:
         self.results: dict[int, CurveResult] = {}
         self.encoders: dict[int, dict[str, float]] = {}
         self.torque: list[tuple[float, float, float]] = []      # (t s, torque N*m, brake force N)
+        self.encoder_log: list[tuple[int, float, int, float]] = []  # (encoder 1/2, received s, count, edge time s)
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[float, float, list[int], list[int]]] = []   # (t0, dt, raw xs, raw ys)
         self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
@@ -222,9 +223,10 @@ class CanHost:
         res.process_values[PROCESS_VALUES[signal]] = float(raw[signal])
 
     def _encoder(self, msg, spec, raw) -> None:
-        self.encoders[int(spec.name[-1])] = {"count": raw["Count"],
-                                             "edge_time": unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, self._device_time),
-                                             "received": msg.timestamp}
+        reading = {"count": raw["Count"], "edge_time": unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, self._device_time),
+                   "received": msg.timestamp}
+        self.encoders[int(spec.name[-1])] = reading
+        self.encoder_log.append((int(spec.name[-1]), reading["received"], reading["count"], reading["edge_time"]))
 
     def _torque(self, msg, spec, raw) -> None:
         torque = raw["Torque"] * spec.get_signal_by_name("Torque").scale

@@ -260,3 +260,5 @@ def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path,
     path = out / f"report.{fmt}"
     path.write_text(_markdown(title, blocks) if fmt == "md" else _html(title, blocks), encoding="utf-8")
     return path
+
+from rig.analysis import clutch_report as _clutch_report  # noqa: E402,F401  (registers its section)

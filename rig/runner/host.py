@@ -5,6 +5,8 @@ hardware. The "theoretical curve" comes from its own plant model built from the 
 """
 from __future__ import annotations
 
+import tomllib
+from pathlib import Path
 from typing import Any
 
 import can
@@ -12,9 +14,24 @@ import numpy as np
 
 from drivers.can import CanHost
 from drivers.digiforce_serial import DigiForceClient
+from drivers.encoder import counts_to_angle
 from rig.recorder import Recorder
 from rig.runner.config import RunConfig
 from rig.runner.plants import make_plant
+
+
+DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
+
+
+def encoder_resolution(spec: Any) -> float:
+    """Angle per latched count (rad) of the encoder a scene declares: the host is configured with the
+    encoder's data (PPR, decoding) as it would be for real hardware."""
+    if spec is None:
+        return float("nan")
+    path = Path(spec.description) if spec.description.endswith(".toml") else DEVICES / f"{spec.description}.toml"
+    table = tomllib.loads(path.read_text(encoding="utf-8"))["transducer"]
+    ppr = float(spec.overrides.get("ppr", table["ppr"]))
+    return counts_to_angle(1, int(ppr), int(float(spec.overrides.get("multiplier", table.get("multiplier", 4)))))
 
 
 class Host:
@@ -39,6 +56,8 @@ class Host:
         self._link_events = 0
         self._plant_events = 0
         self.frames = 0
+        self._torque_done = self._encoders_done = 0
+        self._rad_per_count = {i: encoder_resolution(cfg.role(f"encoder{i}")) for i in (1, 2)}
 
     # ---------------------------------------------------------------- configuration
     def arm(self) -> None:
@@ -68,10 +87,25 @@ class Host:
         t_live, x_live, y_live = self.can.take_live()
         if len(t_live):
             self.rec.write_live(t_live, x_live, y_live)
+        self._record_stand()
         self._advance_theory(self.can.device_time)
         self._record_curves()
         self._record_link_events()
         return len(raw)
+
+    def _record_stand(self) -> None:
+        """Torque-meter and encoder readings (the stand's samples M_t, T_in, T_out) as bulk blocks."""
+        new, self._torque_done = self.can.torque[self._torque_done:], len(self.can.torque)
+        if new:
+            t, torque, brake = (np.array(c, dtype=float) for c in zip(*new))
+            self.rec.write_block("/stand/torque", t, {"torque": torque, "brake_force": brake})
+        for enc in (1, 2):
+            rows = [r for r in self.can.encoder_log[self._encoders_done:] if r[0] == enc]
+            if rows:
+                _, t, count, edge = (np.array(c, dtype=float) for c in zip(*rows))
+                self.rec.write_block(f"/stand/encoder{enc}", t, {"count": count, "edge_time": edge,
+                                                                  "angle": count * self._rad_per_count[enc]})
+        self._encoders_done = len(self.can.encoder_log)
 
     def _advance_theory(self, t_device: float) -> None:
         """Run the theory model on the machine's sample grid up to the device time; record it."""

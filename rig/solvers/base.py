@@ -6,6 +6,7 @@ States are tuples of floats (pure Python is much faster than numpy for 4–6 sta
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Callable, Sequence
 
 Rhs = Callable[[float, tuple], Sequence[float]]
@@ -24,6 +25,54 @@ class SolverDivergence(RuntimeError):
 def all_finite(y: Sequence[float]) -> bool:
     """True when every component is finite (a sum overflowing past 1e308 also counts as divergence)."""
     return math.isfinite(sum(y))
+
+
+class StiffnessWarning(RuntimeWarning):
+    """An explicit solver's step size is limited by stability (h·|λ| beyond its stability boundary)."""
+
+
+class StiffnessError(SolverDivergence):
+    """Raised instead of :class:`StiffnessWarning` when a solver is built with ``stiffness="raise"``."""
+
+
+class StiffnessMonitor:
+    """Hairer's stiffness test for explicit RK: h·|λ| ≈ h·‖f(Y_a) − f(Y_b)‖/‖Y_a − Y_b‖ from two stages
+    evaluated at (nearly) the same point. ``limit`` = stability boundary of the method on the negative
+    real axis; 15 consecutive steps beyond it report stiffness ('warn', 'raise' or 'ignore')."""
+
+    STEPS = 15
+
+    def __init__(self, method: str, limit: float, policy: str = "warn"):
+        if policy not in ("warn", "raise", "ignore"):
+            raise ValueError(f"{method}: stiffness = {policy!r} must be 'warn', 'raise' or 'ignore'")
+        self.method, self.limit, self.policy = method, limit, policy
+        self.count = self.calm = 0
+        self.detected_at: float | None = None
+
+    def check(self, t: float, y: tuple, h: float, fa, fb, ya, yb) -> None:
+        """Update with stage derivatives ``fa``, ``fb`` at stage states ``ya``, ``yb`` of a step of size h."""
+        if self.policy == "ignore" or self.detected_at is not None:
+            return
+        num = sum((a - b) ** 2 for a, b in zip(fa, fb))
+        den = sum((a - b) ** 2 for a, b in zip(ya, yb))
+        hl = h * math.sqrt(num / den) if den > 0.0 else 0.0
+        if hl <= self.limit:
+            self.calm += 1
+            if self.calm >= 6:
+                self.count = 0
+            return
+        self.calm = 0
+        self.count += 1
+        if self.count < self.STEPS:
+            return
+        self.detected_at = t
+        msg = (f"{self.method}: problem is stiff at t = {t:.6g} s: h*|lambda| = {hl:.3g} > {self.limit} for "
+               f"{self.STEPS} steps (h = {h:.3g} s, |lambda| = {hl / h:.3g} 1/s); the step size is limited by "
+               f"stability, not accuracy - use an implicit method or remove the stiffness (e.g. a switched "
+               f"stick-slip friction model instead of a steep regularisation)")
+        if self.policy == "raise":
+            raise StiffnessError(msg, t, y)
+        warnings.warn(msg, StiffnessWarning, stacklevel=4)
 
 
 class OdeSolver:

@@ -10,7 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
-from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, all_finite
+from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessMonitor, all_finite
 
 _A21 = 1 / 5
 _A31, _A32 = 3 / 40, 9 / 40
@@ -33,15 +33,22 @@ SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
 
 
 class PolynomialDense:
-    """y(t_old + θh) = y_old + Σ_k Q[:, k] θ^(k+1) on one step; call with a float or an array of times."""
+    """y(t_old + θh) = y_old + h·Σ_k (Kᵀ P)[:, k] θ^(k+1) on one step, from the stage derivatives ``K``
+    and the method's continuous-extension matrix ``P`` (stages × order); call with a float or an array.
+    :func:`fill_dense` evaluates many steps at once."""
 
-    def __init__(self, t_old: float, h: float, y_old: tuple, Q: np.ndarray):
-        self.t_old, self.h, self.y_old = t_old, h, y_old
-        self.Q = Q
-        self._rows = [tuple(r) for r in Q]  # per component, for fast scalar evaluation
+    def __init__(self, t_old: float, h: float, y_old: tuple, K: tuple, P: np.ndarray):
+        self.t_old, self.h, self.y_old, self.K, self.P = t_old, h, y_old, K, P
+        self._rows: list[tuple] | None = None
+
+    @property
+    def Q(self) -> np.ndarray:
+        return self.h * (np.array(self.K).T @ self.P)
 
     def __call__(self, t):
         if isinstance(t, float):
+            if self._rows is None:
+                self._rows = [tuple(r) for r in self.Q.tolist()]  # per component, for fast scalar evaluation
             th = (t - self.t_old) / self.h
             out = []
             for y0, q in zip(self.y_old, self._rows):
@@ -51,8 +58,26 @@ class PolynomialDense:
                 out.append(y0 + acc * th)
             return tuple(out)
         th = (np.asarray(t, dtype=float) - self.t_old) / self.h
-        powers = th[None, :] ** np.arange(1, self.Q.shape[1] + 1)[:, None]
+        powers = th[None, :] ** np.arange(1, self.P.shape[1] + 1)[:, None]
         return np.asarray(self.y_old)[:, None] + self.Q @ powers
+
+
+def fill_dense(out: np.ndarray, t: np.ndarray, pieces: list[tuple[PolynomialDense, int, int]]) -> None:
+    """out[:, i:j] = piece(t[i:j]) for all pieces in one vectorised pass (per continuous extension)."""
+    groups: dict[int, list] = {}
+    for piece in pieces:
+        groups.setdefault(id(piece[0].P), []).append(piece)
+    for group in groups.values():
+        P = group[0][0].P
+        lengths = np.array([j - i for _, i, j in group])
+        rep = np.repeat(np.arange(len(group)), lengths)
+        cols = np.concatenate([np.arange(i, j) for _, i, j in group])
+        h = np.array([d.h for d, _, _ in group])
+        Q = np.einsum("skn,kc->snc", np.array([d.K for d, _, _ in group]), P) * h[:, None, None]
+        th = (t[cols] - np.array([d.t_old for d, _, _ in group])[rep]) / h[rep]
+        powers = th[:, None] ** np.arange(1, P.shape[1] + 1)[None, :]
+        y0 = np.array([d.y_old for d, _, _ in group])
+        out[:, cols] = (y0[rep] + np.einsum("mnc,mc->mn", Q[rep], powers)).T
 
 
 def initial_step(fun: Rhs, t0: float, y0: tuple, f0: Sequence[float], order: int, rtol: float, atol: float,
@@ -71,13 +96,19 @@ def initial_step(fun: Rhs, t0: float, y0: tuple, f0: Sequence[float], order: int
 
 
 class DormandPrince45(OdeSolver):
-    """Adaptive Dormand–Prince 5(4) with FSAL, local extrapolation and quartic dense output."""
+    """Adaptive Dormand–Prince 5(4) with FSAL, local extrapolation and quartic dense output.
+
+    ``stiffness`` ('warn' | 'raise' | 'ignore'): Hairer's test on stages 6 and 7 (both at t + h);
+    ``stiff_at`` is the time it first fired (None otherwise).
+    """
 
     order = 5
 
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
-                 atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf):
+                 atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf,
+                 stiffness: str = "warn"):
         super().__init__(fun, t0, y0, t_bound)
+        self.monitor = StiffnessMonitor("DP45", 3.25, stiffness)
         if not (rtol > 0 and atol >= 0):
             raise ValueError(f"DormandPrince45: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
@@ -110,8 +141,9 @@ class DormandPrince45(OdeSolver):
                                         for a, b, c, d in zip(y, k1, k2, k3)))
             k5 = fun(t + _C5 * h, tuple(a + h * (_A51 * b + _A52 * c + _A53 * d + _A54 * e)
                                         for a, b, c, d, e in zip(y, k1, k2, k3, k4)))
-            k6 = fun(t + h, tuple(a + h * (_A61 * b + _A62 * c + _A63 * d + _A64 * e + _A65 * f)
-                                  for a, b, c, d, e, f in zip(y, k1, k2, k3, k4, k5)))
+            y6 = tuple(a + h * (_A61 * b + _A62 * c + _A63 * d + _A64 * e + _A65 * f)
+                       for a, b, c, d, e, f in zip(y, k1, k2, k3, k4, k5))
+            k6 = fun(t + h, y6)
             y_new = tuple(a + h * (_B1 * b + _B3 * d + _B4 * e + _B5 * f + _B6 * g)
                           for a, b, d, e, f, g in zip(y, k1, k3, k4, k5, k6))
             self.nfev += 5
@@ -134,13 +166,16 @@ class DormandPrince45(OdeSolver):
                 factor = MAX_FACTOR if err_norm == 0 else min(MAX_FACTOR, SAFETY * err_norm ** -0.2)
                 break
             h_abs *= max(MIN_FACTOR, SAFETY * err_norm ** -0.2)
+        self.monitor.check(t_new, y_new, h, k7, k6, y_new, y6)
         self.t_old, self.y_old = t, y
         self.t, self.y, self.f = t_new, y_new, tuple(k7)
         self.h_last = h
         self.h_abs = h_abs * factor
         self._K = (k1, k2, k3, k4, k5, k6, k7)
 
+    @property
+    def stiff_at(self) -> float | None:
+        return self.monitor.detected_at
+
     def dense_output(self) -> PolynomialDense:
-        h = self.t - self.t_old
-        Q = h * (np.array(self._K).T @ _P)
-        return PolynomialDense(self.t_old, h, self.y_old, Q)
+        return PolynomialDense(self.t_old, self.t - self.t_old, self.y_old, self._K, _P)

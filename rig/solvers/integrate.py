@@ -17,6 +17,7 @@ a *method* is a solver class. ``integrate`` drives one with the other:
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -25,7 +26,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence
-from rig.solvers.dopri import DormandPrince45
+from rig.solvers.dopri import DormandPrince45, fill_dense
 from rig.solvers.rk4 import RK4
 
 METHODS: dict[str, type[OdeSolver]] = {"DP45": DormandPrince45, "RK4": RK4}
@@ -76,7 +77,8 @@ class Problem:
 
 @dataclass
 class Solution:
-    """Samples ``t`` (m,), ``y`` (n, m); events; final time/state; work counters; last step size."""
+    """Samples ``t`` (m,), ``y`` (n, m); events; final time/state; work counters; last step size;
+    ``stiff_at``: first time a solver's stiffness test fired (None if never)."""
 
     t: np.ndarray
     y: np.ndarray
@@ -88,6 +90,7 @@ class Solution:
     nsteps: int = 0
     h_last: float = math.nan
     restarts: int = 0
+    stiff_at: float | None = None
     t_events: dict[str, list[float]] = field(default_factory=dict)
 
 
@@ -101,7 +104,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
               y0: Sequence[float] | None = None, **options) -> Solution:
     """Integrate ``problem`` over ``t_span`` with ``method`` ("DP45", "RK4" or a solver class).
 
-    ``options`` go to the solver (rtol, atol, first_step, max_step for DP45; h for RK4).
+    ``options`` go to the solver (rtol, atol, first_step, max_step, stiffness for DP45; h, stiffness for RK4).
     ``t_eval`` (increasing, inside t_span) selects output times, otherwise every step is returned.
     """
     if isinstance(method, str) and method not in METHODS:
@@ -118,13 +121,15 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         out_y = np.empty((len(y), t_eval.size))
         i_eval = int(np.searchsorted(t_eval, t0, side="right"))
         out_y[:, :i_eval] = np.asarray(y)[:, None]
+        t_list = t_eval.tolist()
+        pending: list = []                      # (dense, i, j): samples filled in one pass at the end
     else:
         ts, ys = [t0], [y]
     t = t0
     reset = problem.reset or (lambda t_, y_: False)
     reset(t, y)
     g_old = [e.fun(t, y) for e in events]
-    stalled, t_last_cut = 0, math.nan
+    stalled, t_last_cut, stiff_at = 0, math.nan, None
     records: list[EventRecord] = []
     nfev = nsteps = restarts = 0
     status, h_next = "finished", options.pop("first_step", None)
@@ -168,14 +173,14 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                         break
             t_stop = cut[0] if cut else t_new
             if t_eval is not None:
-                j = int(np.searchsorted(t_eval, t_stop, side="right"))
+                j = bisect.bisect_right(t_list, t_stop)
                 if j > i_eval:
                     inner = t_eval[i_eval:j]
-                    if inner[0] < t_new:
-                        dense = dense or solver.dense_output()
-                        out_y[:, i_eval:j] = dense(inner)
-                    if inner[-1] == t_new:
-                        out_y[:, j - 1] = y_new
+                    k = j - 1 if inner[-1] == t_new else j
+                    if k > i_eval:
+                        pending.append((dense or solver.dense_output(), i_eval, k))
+                    if k < j:
+                        out_y[:, k] = y_new
                     i_eval = j
             elif not cut:
                 ts.append(t_new)
@@ -199,6 +204,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 g_old = g_new
         nfev += solver.nfev
         nsteps += solver.nsteps
+        if stiff_at is None:
+            stiff_at = getattr(solver, "stiff_at", None)
         h_next = solver.h_last
         if cut is None:
             t, y = math.nextafter(solver.t, math.inf), solver.y
@@ -212,10 +219,11 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
             break
         restarts += 1
     if t_eval is not None:
+        fill_dense(out_y, t_eval, pending)
         t_out, y_out = t_eval[:i_eval], out_y[:, :i_eval]
     else:
         t_out, y_out = np.array(ts), np.array(ys).T
     t_events: dict[str, list[float]] = {}
     for r in records:
         t_events.setdefault(r.name, []).append(r.t)
-    return Solution(t_out, y_out, records, status, t, y, nfev, nsteps, h_next, restarts, t_events)
+    return Solution(t_out, y_out, records, status, t, y, nfev, nsteps, h_next, restarts, stiff_at, t_events)

@@ -33,7 +33,7 @@ def test_shipped_scene_equals_defaults():
 
 
 def test_other_sections_are_ignored(tmp_path):
-    sc = write(tmp_path, '\n[transducers.rod_force]\ntype = "force_bridge"\n[device]\nanything = 1\n')
+    sc = write(tmp_path, '\n[extra_section]\ntype = "anything"\n[another.nested]\nanything = 1\n')
     PinInsertionMechanism.from_scene(sc)
 
 

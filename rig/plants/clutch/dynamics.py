@@ -11,8 +11,8 @@ Coulomb: F_fB = μ_B N_B sB at the cam face (v21 = k2 ωr), F_fC = μ_C (|R1| + 
 guide reactions R1 = N_B (k1 + (k2 − L2) μ_B sB)/(L2 − L1), R2 = −N_B (k1 + (k2 − L1) μ_B sB)/(L2 − L1),
 solved in closed form for N_B. Two friction models (docs/clutch.md):
 
-* ``"stick_slip"`` (default): switched model with a discrete mode: slipping (sB = σ, sC = σ·sgn k1,
-  σ = ±1 fixed while ωr keeps its sign) or stuck (ωr ≡ 0, the halves move together and T_c is the
+* ``"stick_slip"`` (default): switched model with a discrete mode: slipping (sB = σ, sC = σ·sgn k1 with
+  sC = +1 at k1 = 0, σ = ±1 fixed while ωr keeps its sign) or stuck (ωr ≡ 0, the halves move together and T_c is the
   torque needed for that, admissible while it lies in the static band [T_c(σ=−1), T_c(σ=+1)]).
   Transitions are located as events (ωr = 0; T_c reaching a band edge) — no stiffness.
 * ``"tanh"``: sgn(v) ≈ tanh(v/v_s); smooth but stiff when sticking (time constant ≈ J v_s/(n μ_B N_B k2²)).
@@ -68,6 +68,10 @@ class ClutchDynamics:
         smooth = self.friction == "tanh"
         tanh = math.tanh
 
+        def guide_sign(sigma, k1):
+            """sgn(v23) = sgn(k1·ωr) while slipping with sgn ωr = σ; at k1 = 0 the tappet starts moving outwards."""
+            return sigma if k1 > 0.0 else (-sigma if k1 < 0.0 else 1.0)
+
         def transmit(t, y, k1, k2, dk1, wr, w3, sb, sc):
             """(T_c, F_a, N_B) for friction signs sB, sC."""
             fa = Fa1 + ka * (k2 - r0)
@@ -97,9 +101,8 @@ class ClutchDynamics:
             """(T_c required, T_c at σ = +1, T_c at σ = −1, N_B at +1, N_B at −1, F_a, M1, M3, a) at ωr = 0."""
             k1, k2, dk1 = geom(y[0] - y[2])
             tc, a, m1, m3 = required(t, y, k1, k2)
-            sc = 1.0 if k1 > 0 else (-1.0 if k1 < 0 else 0.0)
-            tp, fa, nbp = transmit(t, y, k1, k2, dk1, 0.0, y[3], 1.0, sc)
-            tm, _, nbm = transmit(t, y, k1, k2, dk1, 0.0, y[3], -1.0, -sc)
+            tp, fa, nbp = transmit(t, y, k1, k2, dk1, 0.0, y[3], 1.0, guide_sign(1.0, k1))
+            tm, _, nbm = transmit(t, y, k1, k2, dk1, 0.0, y[3], -1.0, guide_sign(-1.0, k1))
             return tc, tp, tm, nbp, nbm, fa, m1, m3, a
 
         def core(t: float, y: tuple, mode: int) -> tuple:
@@ -112,7 +115,7 @@ class ClutchDynamics:
                 tc, a, m1, m3 = required(t, y, k1, k2)
                 return a, a, m1, m3, tc, math.nan, math.nan
             else:
-                sb, sc = mode, (mode if k1 > 0 else (-mode if k1 < 0 else 0.0))
+                sb, sc = mode, guide_sign(mode, k1)
             tc, fa, nb = transmit(t, y, k1, k2, dk1, wr, w3, sb, sc)
             m1 = motor_torque(t, w1)
             m3 = load_torque(t, y[2], w3, y[4:])
@@ -225,8 +228,9 @@ class ClutchDynamics:
         lim = self.clutch.limits
         out = [Event(_periodic(b, LOBE, 0, 2), "phase_boundary", restart=True)
                for b in (lim.phi_maxI, LOBE - lim.phi_maxI)]
-        out.append(Event(_periodic(0.0, LOBE, 0, 2), "lobe_wrap"))
-        out.append(Event(_periodic(APEX, LOBE, 0, 2), "apex", action=on_apex))
+        switched = self.friction == "stick_slip"       # guide friction flips where k1 = 0 (wrap, apex)
+        out.append(Event(_periodic(0.0, LOBE, 0, 2), "lobe_wrap", restart=switched))
+        out.append(Event(_periodic(APEX, LOBE, 0, 2), "apex", action=on_apex, restart=switched))
         out += [Event(_periodic(a, p, 2, None), "load_zone", restart=True) for a, p in self.load.angle_breaks()]
         if self.friction == "stick_slip":
             out.append(Event(self._switch_g, "stick_slip", direction=-1.0, action=self._on_switch,

@@ -24,7 +24,8 @@ from rig.solvers import EventRecord, integrate
 STAND_SCHEMA = {
     **CLUTCH_SCHEMA,
     "J_down": Field("kg*m^2", 0.0, "inertia downstream of the torque meter (part of J3)"),
-    "v_s": Field("m/s", 0.01, "velocity scale of the tanh friction regularisation"),
+    "friction": Field(None, "stick_slip", "friction model: stick_slip (switched, default) or tanh"),
+    "v_s": Field("m/s", 0.01, "velocity scale of the tanh friction regularisation (friction = tanh)"),
     "blocked": Field(None, False, "driven half clamped"),
     "omega0": Field("rad/s", 0.0, "initial speed of both halves"),
     "shutdown_count": Field("1", 2, "disengagements within the window that flag a shutdown"),
@@ -117,7 +118,8 @@ class ClutchStand:
         try:
             clutch = FlatTappetClutch(**{k: p[k] for k in CLUTCH_SCHEMA})
             dyn = ClutchDynamics(clutch, LinearMotor(m["a0"], m["b0"], m["ratio"], m["t_off"]), load,
-                                 v_s=p["v_s"], blocked=bool(p["blocked"]), J_down=p["J_down"])
+                                 v_s=p["v_s"], blocked=bool(p["blocked"]), J_down=p["J_down"],
+                                 friction=p["friction"])
         except ValueError as exc:
             raise SceneError(f"{scene.path} [plant]: {exc}") from None
         return cls(dyn, p["omega0"], p["shutdown_count"], p["shutdown_window"], bool(p["trip_on_shutdown"]),
