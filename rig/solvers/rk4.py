@@ -33,7 +33,9 @@ class RK4(OdeSolver):
 
     def _step_impl(self) -> None:
         fun, t, y = self.fun, self.t, self.y
-        h = min(self.h, self.t_bound - t)
+        h = self.h
+        if self.t_bound - t - h < 1e-6 * h:   # last step: land on t_bound, no round-off sliver afterwards
+            h = self.t_bound - t
         if h < self._min_step():
             raise SolverDivergence(f"step size underflow (h = {h:.3g} s)", t, y)
         hh = 0.5 * h

@@ -111,3 +111,57 @@ def test_solver_objects_step_interface():
         r.step()
     with pytest.raises(ValueError, match="unknown method"):
         integrate(Problem(oscillator, (1.0, 0.0)), (0, 1), method="Euler")
+
+
+def _stiff(t, y):
+    """Stiff linear pair: fast mode λ = −1e4 1/s, slow mode −1 1/s."""
+    return (-1e4 * (y[0] - math.cos(t)), -y[1])
+
+
+def test_dp45_reports_stiffness_and_can_raise():
+    import warnings as _w
+    from rig.solvers import StiffnessError, StiffnessWarning
+    with pytest.warns(StiffnessWarning, match=r"DP45: problem is stiff at t = .*\|lambda\| = 1e\+04"):
+        s = integrate(Problem(_stiff, (1.0, 1.0)), (0, 0.5), rtol=1e-3, atol=1e-6)
+    assert s.stiff_at is not None and s.nsteps > 1000    # forced to h ≈ 3.3/|λ| although rtol is loose
+    with pytest.raises(StiffnessError, match="stiff"):
+        integrate(Problem(_stiff, (1.0, 1.0)), (0, 0.5), rtol=1e-3, atol=1e-6, stiffness="raise")
+    with _w.catch_warnings():
+        _w.simplefilter("error", StiffnessWarning)       # the non-stiff oscillator must not trigger it
+        assert integrate(Problem(oscillator, (1.0, 0.0)), (0, 10), rtol=1e-4, atol=1e-7).stiff_at is None
+
+
+def test_rk4_too_large_step_on_stiff_problem_is_reported():
+    from rig.solvers import StiffnessWarning
+    with pytest.warns(StiffnessWarning, match="RK4"):
+        try:
+            integrate(Problem(_stiff, (1.0, 1.0)), (0, 0.1), method="RK4", h=1e-3)
+        except SolverDivergence:
+            pass                                            # blowing up is a report too
+    s = integrate(Problem(_stiff, (1.0, 1.0)), (0, 0.01), method="RK4", h=1e-4, t_eval=[0.01])
+    assert s.stiff_at is None and s.y[0, -1] == pytest.approx(math.cos(0.01), abs=1e-3)
+
+
+def test_hybrid_mode_switch_with_projection_and_reset():
+    # block with Coulomb friction: v' = −μg·sgn(v) while sliding, stuck (v ≡ 0) after v reaches 0
+    mode = {"m": 1}
+    def fun(t, y):
+        return (y[1], -2.0 * mode["m"])
+    def g(t, y):
+        return mode["m"] * y[1] if mode["m"] else 1.0
+    def stop(rec):
+        mode["m"] = 0
+        return (rec.y[0], 0.0)
+    ev = Event(g, "stick", direction=-1.0, action=stop, mode_dependent=True)
+    s = integrate(Problem(fun, (0.0, 3.0), [ev]), (0, 4), t_eval=np.linspace(0, 4, 41), rtol=1e-9, atol=1e-12)
+    assert s.t_events["stick"] == [pytest.approx(1.5, abs=1e-9)]
+    assert s.y_final[1] == 0.0 and s.y_final[0] == pytest.approx(3.0 * 1.5 - 1.5 ** 2, rel=1e-9)
+
+
+def test_event_chattering_is_reported():
+    # a mode event that is 0 after every switch and falls at once: restarts without time advancing (Zeno)
+    def flip(rec):
+        return (rec.y[0],)
+    ev = Event(lambda t, y: min(0.5 - t, 0.0), "zeno", direction=-1.0, action=flip, mode_dependent=True)
+    with pytest.raises(SolverDivergence, match="chattering"):
+        integrate(Problem(lambda t, y: (1.0,), (0.0,), [ev]), (0, 1), rtol=1e-6, atol=1e-9)
