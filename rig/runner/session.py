@@ -85,6 +85,21 @@ def _progress(cfg: RunConfig, enabled: bool) -> tqdm:
     return tqdm(total=total, unit=unit, disable=not enabled, desc=cfg.name, leave=False, file=sys.stderr)
 
 
+def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, after_step: Callable[[], int]) -> None:
+    """Step the machine until the scene is done (paced in real-time mode), then flush its transmit queue.
+    ``after_step`` runs after each step (e.g. the in-process host's poll) and returns the curves done."""
+    pace = _Pacer(cfg.mode == "realtime")
+    while not _machine_done(cfg, machine):
+        with lock:
+            machine.step()
+        done = after_step()
+        bar.n = done if cfg.cycles is not None else round(machine.t, 3)
+        bar.refresh()
+        pace(machine.t)
+    with lock:
+        machine.flush()
+
+
 def _wait_for_go(machine: Machine, timeout: float) -> None:
     """Wait until the host's first command (program select over CAN) has reached the machine."""
     deadline = time.monotonic() + timeout
@@ -123,16 +138,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 host = Host(cfg, host_bus, serial_dev.port if serial_dev else None, rec)
                 host.arm()
                 _wait_for_go(machine, 5.0)
-                pace = _Pacer(cfg.mode == "realtime")
-                while not _machine_done(cfg, machine):
-                    with lock:
-                        machine.step()
-                    host.poll()
-                    bar.n = host.curves_recorded if cfg.cycles is not None else round(machine.t, 3)
-                    bar.refresh()
-                    pace(machine.t)
-                with lock:
-                    machine.flush()
+                _drive(cfg, machine, lock, bar, lambda: (host.poll(), host.curves_recorded)[1])
                 host.poll()
                 if not host.done():
                     raise RunError(f"the host received only {host.curves_recorded} complete curves of "
@@ -172,16 +178,8 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                          "serial": serial_dev.port if serial_dev else None, "scene": str(cfg.scene.path)}
             (announce or (lambda e: print(json.dumps(e), flush=True)))(endpoints)
             _wait_for_go(machine, wait)
-            pace = _Pacer(cfg.mode == "realtime")
             with _progress(cfg, progress) as bar:
-                while not _machine_done(cfg, machine):
-                    with lock:
-                        machine.step()
-                    bar.n = machine.curves if cfg.cycles is not None else round(machine.t, 3)
-                    bar.refresh()
-                    pace(machine.t)
-            with lock:
-                machine.flush()
+                _drive(cfg, machine, lock, bar, lambda: machine.curves)
             time.sleep(linger)
         finally:
             server.stop()
