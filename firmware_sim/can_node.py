@@ -32,7 +32,6 @@ DBC_PATH = Path(__file__).resolve().parents[1] / "data" / "can" / "rig.dbc"
 
 X_LSB = 1e-6                     # m per count of every X signal (20-bit signed)
 Y_LSB = 0.005                    # N per count of every Y / force signal (20-bit signed)
-T_LSB = 1e-4                     # N*m per count of the torque signal (20-bit signed)
 RAW20 = (-(1 << 19), (1 << 19) - 1)
 FD_PAIRS = 11                    # pairs per 64-byte FD frame
 TICK = 1e-4                      # s per count of the 16-bit Tick signals
@@ -165,6 +164,10 @@ class CanNode:
         """Frames queued and not yet on the wire."""
         return len(self._queue) + len(self._waiting)
 
+    def pending_before(self, t: float) -> int:
+        """Frames queued for sending at or before time ``t`` (s) and not yet on the wire."""
+        return sum(item.ready <= t for _, item in self._queue) + sum(w[0] <= t for w in self._waiting)
+
     @property
     def curves_pending(self) -> int:
         """Curves whose transfer has not finished."""
@@ -277,10 +280,18 @@ class CanNode:
 
     def publish_torque(self, t: float, torque: float, brake_force: float) -> None:
         """Queue one torque (N·m) and brake force (N) reading taken at time ``t`` (s)."""
-        (rt,), kt = quantise(np.array([torque]), T_LSB)
+        (rt,), kt = quantise(np.array([torque]), self._msg["Torque"].get_signal_by_name("Torque").scale)
         (rb,), kb = quantise(np.array([brake_force]), Y_LSB)
         self.clipped += kt + kb
         self._enqueue("Torque", {"Tick": int(round(t / TICK)) % 65536, "Torque": int(rt), "BrakeForce": int(rb)}, t)
+
+    def publish_static(self, t: float, angle: float, strain: float) -> None:
+        """Queue one static-rig reading taken at time ``t`` (s): angle (rad) and leaf strain (m/m)."""
+        msg = self._msg["StaticRig"]
+        (ra,), ka = quantise(np.array([angle]), msg.get_signal_by_name("Angle").scale)
+        (rs,), ks = quantise(np.array([strain]), msg.get_signal_by_name("Strain").scale)
+        self.clipped += ka + ks
+        self._enqueue("StaticRig", {"Tick": int(round(t / TICK)) % 65536, "Angle": int(ra), "Strain": int(rs)}, t)
 
     def publish_status(self, t: float) -> None:
         """Queue a heartbeat and the status counters, with the device state at time ``t`` (s)."""

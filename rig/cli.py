@@ -113,6 +113,22 @@ def cmd_summary(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_tolerance(args: argparse.Namespace) -> int:
+    from rig.plants.cam_bar.tolerance import load_tolerances
+    from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_table
+    from rig.runner.config import read_config
+    from rig.runner.plants import make_plant
+    from rig.scene import SceneError, load_scene
+    scene_path = Path(args.scene)
+    cfg = read_config(load_scene(scene_path))
+    if cfg.plant != "cam_bar":
+        raise SceneError(f"{scene_path} [scene]: tolerance analysis needs plant \"cam_bar\", not {cfg.plant!r}")
+    study = run_study(make_plant("cam_bar", cfg.scene), load_tolerances(), args.samples, cfg.seed, args.workers)
+    print(study_table(study))
+    print(f"chart: {plot_study(study, Path(args.output) / f'{scene_path.stem}.tolerance.png')}")
+    return 0
+
+
 def cmd_studies(args: argparse.Namespace) -> int:
     from rig.plants.clutch.studies import plot_parameter_studies, write_peak_table
     out = Path(args.output)
@@ -161,6 +177,12 @@ def build_parser() -> argparse.ArgumentParser:
     summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
     summ.add_argument("--png")
     summ.set_defaults(func=cmd_summary)
+    tol = sub.add_parser("tolerance", help="cam-bar linear and Monte-Carlo tolerance analysis (table + PNG)")
+    tol.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
+    tol.add_argument("--samples", type=int, default=20000, help="Monte-Carlo machines (default 20000)")
+    tol.add_argument("--workers", type=int, default=1, help="worker processes (results do not depend on it)")
+    tol.add_argument("-o", "--output", default="out", help="directory of the chart (default out)")
+    tol.set_defaults(func=cmd_tolerance)
     stud = sub.add_parser("studies", help="clutch static-characteristic parameter studies (PNG)")
     stud.add_argument("-o", "--output", default="out/studies")
     stud.set_defaults(func=cmd_studies)

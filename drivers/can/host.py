@@ -71,7 +71,7 @@ class CanHost:
                           "CurveBlock": self._curve_block, "CurveBlockFD": self._curve_block_fd,
                           "CurveEnd": self._curve_end, "Result": self._result, "ResultValue": self._result_value,
                           "Encoder1": self._encoder, "Encoder2": self._encoder, "Torque": self._torque,
-                          "CommandAck": self._ack}
+                          "StaticRig": self._static, "CommandAck": self._ack}
         self.sequence = SequenceChecker()
         self.assembler = CurveAssembler(self.x_lsb, self.y_lsb, self._fd_pairs)
         self.events: list[LinkEvent] = []
@@ -82,6 +82,7 @@ class CanHost:
         self.encoders: dict[int, dict[str, float]] = {}
         self.torque: list[tuple[float, float, float]] = []      # (t s, torque N*m, brake force N)
         self.encoder_log: list[tuple[int, float, int, float]] = []  # (encoder 1/2, received s, count, edge time s)
+        self.static: list[tuple[float, float, float]] = []      # (t s, angle rad, leaf strain m/m): static rig
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[float, float, list[int], list[int]]] = []   # (t0, dt, raw xs, raw ys)
         self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
@@ -231,6 +232,10 @@ class CanHost:
     def _torque(self, msg, spec, raw) -> None:
         torque = raw["Torque"] * spec.get_signal_by_name("Torque").scale
         self.torque.append((self._live_time(raw["Tick"]), torque, raw["BrakeForce"] * self.y_lsb))
+
+    def _static(self, msg, spec, raw) -> None:
+        self.static.append((self._live_time(raw["Tick"]), raw["Angle"] * spec.get_signal_by_name("Angle").scale,
+                            raw["Strain"] * spec.get_signal_by_name("Strain").scale))
 
     def _ack(self, msg, spec, raw) -> None:
         self.acks.append({"cmd": raw["Cmd"], "arg": raw["Arg"], "host_seq": raw["HostSeq"],

@@ -4,6 +4,7 @@ Behaviour lives in the classes, numbers in ``data/devices/*.toml``; build one wi
 :func:`load_transducer` (``type`` in the file selects the class from :data:`REGISTRY`).
 """
 from .analog import AnalogTransducer, StrainAmplifier
+from .base import Transducer
 from .bridge import StrainGaugeBridge, shunt_ratio
 from .description import REGISTRY, load_transducer
 from .encoder import EncoderSample, IncrementalEncoder
@@ -12,5 +13,5 @@ from .lvdt import LVDT
 from .potentiometer import PotentiometerDMM
 
 __all__ = ["AnalogTransducer", "EncoderSample", "IncrementalEncoder", "LVDT", "LowPass", "PotentiometerDMM",
-           "REGISTRY", "StrainAmplifier", "StrainGaugeBridge", "frequency_response", "load_transducer",
+           "REGISTRY", "StrainAmplifier", "StrainGaugeBridge", "Transducer", "frequency_response", "load_transducer",
            "shunt_ratio"]

@@ -22,8 +22,8 @@ import numpy as np
 
 from rig.scene import Field
 
+from .base import DESCRIPTION_FIELDS, Transducer
 from .description import register
-from .faults import Fault, FaultSchedule
 from .lowpass import LowPass
 from .static_errors import Play, StaticErrors
 
@@ -31,8 +31,7 @@ from .static_errors import Play, StaticErrors
 def analog_schema(quantity: str, signal: str) -> dict[str, Field]:
     """Description keys shared by all analog transducers (quantity and signal SI units given)."""
     return {
-        "model": Field(None, "", "manufacturer/type the description imitates"),
-        "notes": Field(None, "", "sources and assumptions"),
+        **DESCRIPTION_FIELDS,
         "range_min": Field(quantity, doc="lower end of the measuring range"),
         "range_max": Field(quantity, doc="upper end of the measuring range"),
         "output_at_min": Field(signal, doc="nominal output at range_min"),
@@ -54,22 +53,16 @@ def analog_schema(quantity: str, signal: str) -> dict[str, Field]:
 
 
 @register("amplified")
-class AnalogTransducer:
+class AnalogTransducer(Transducer):
     """A transducer with built-in amplifier (e.g. an in-line torque shaft with ±10 V output)."""
 
     QUANTITY_UNIT: ClassVar[str] = "N*m"
     SIGNAL_UNIT: ClassVar[str] = "V"
     SCHEMA: ClassVar[dict[str, Field]] = analog_schema(QUANTITY_UNIT, SIGNAL_UNIT)
     FAULTS: ClassVar[dict[str, dict[str, Field]]] = {"supply_loss": {}, "stuck": {}}
-    TYPE: ClassVar[str]
 
-    def __init__(self, params: dict[str, Any], rng: np.random.Generator, name: str = "",
-                 errors_enabled: bool = True, dynamics_enabled: bool = True) -> None:
-        self.p = params
-        self.name = name or self.TYPE
-        self.rng = rng
-        self.errors_enabled = bool(errors_enabled)
-        self.dynamics_enabled = bool(dynamics_enabled)
+    def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:
+        super().__init__(params, rng, **kw)
         lo, hi = params["range_min"], params["range_max"]
         if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
             raise ValueError(f"{self.name}: range_min ({lo}) must be below range_max ({hi})")
@@ -87,7 +80,6 @@ class AnalogTransducer:
             if order not in (1.0, 2.0):
                 raise ValueError(f"{self.name}: filter_order must be 1 or 2, got {order}")
             self.filter = LowPass(params["bandwidth"], int(order), params["damping"])
-        self.faults = FaultSchedule(self.name, self.FAULTS)
         self.last_output = self.zero_output
 
     # --- nominal scaling -------------------------------------------------------------------------
@@ -99,18 +91,10 @@ class AnalogTransducer:
         """Ideal inverse: the quantity (SI) a nominal transducer would have seen for ``signal``."""
         return self.p["range_min"] + (np.asarray(signal, dtype=float) - self.p["output_at_min"]) / self.sensitivity
 
-    # --- faults ----------------------------------------------------------------------------------
-    def inject(self, fault: str, at: float = 0.0, until: float = math.inf, **params: Any) -> Fault:
-        """Schedule a fault (one of ``FAULTS``) active for ``at <= t < until`` [s]."""
-        return self.faults.inject(fault, at, until, **params)
-
     # --- signal chain ----------------------------------------------------------------------------
     def measure(self, t: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Electrical output at times ``t`` [s] for the physical quantity ``q`` (SI); continues state."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        q = np.atleast_1d(np.asarray(q, dtype=float))
-        if t.shape != q.shape or t.ndim != 1:
-            raise ValueError(f"{self.name}: t and q must be 1-D arrays of equal length, got {t.shape} and {q.shape}")
+        t, q = self._samples(t, q)
         if not np.all(np.isfinite(q)):
             raise ValueError(f"{self.name}: the measured quantity contains NaN or inf")
         x = self._element(t, q)

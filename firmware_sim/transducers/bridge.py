@@ -54,8 +54,7 @@ class StrainGaugeBridge(AnalogTransducer):
 
     def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:
         super().__init__(params, rng, **kw)
-        if not params["excitation"] > 0.0:
-            raise ValueError(f"{self.name}: excitation must be positive, got {params['excitation']} V")
+        self._positive("excitation", "V")
         self.force_fs = self.full_scale / abs(self.sensitivity)  # N
         self.peak_tension = 0.0      # largest element force seen, × F_FS
         self.peak_compression = 0.0  # largest element compression seen, × F_FS

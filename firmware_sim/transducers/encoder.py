@@ -26,8 +26,8 @@ import numpy as np
 
 from rig.scene import Field
 
+from .base import DESCRIPTION_FIELDS, Transducer
 from .description import register
-from .faults import Fault, FaultSchedule
 
 A, B, Z = 0, 1, 2
 _STATE_OF_LEVELS = np.array([0, 1, 3, 2])  # index A + 2B -> position in the Gray sequence 00,10,11,01
@@ -44,13 +44,12 @@ class EncoderSample:
 
 
 @register("incremental_encoder")
-class IncrementalEncoder:
+class IncrementalEncoder(Transducer):
     """Shaft angle [rad] → A/B/Z logic levels, plus the latched counter-card values."""
 
     QUANTITY_UNIT: ClassVar[str] = "rad"
     SCHEMA: ClassVar[dict[str, Field]] = {
-        "model": Field(None, "", "manufacturer/type the description imitates"),
-        "notes": Field(None, "", "sources and assumptions"),
+        **DESCRIPTION_FIELDS,
         "ppr": Field("1", doc="pulses (A periods) per revolution"),
         "multiplier": Field("1", 4.0, "counter-card decoding ×1, ×2 or ×4"),
         "max_edge_frequency": Field("Hz", math.inf, "highest edge rate the counter card follows"),
@@ -61,25 +60,17 @@ class IncrementalEncoder:
         "glitches": {"rate": Field("1/s", 100.0, "spurious pulses per second"),
                      "width": Field("s", 1e-6, "duration of a spurious pulse")},
     }
-    TYPE: ClassVar[str]
 
-    def __init__(self, params: dict[str, Any], rng: np.random.Generator, name: str = "",
-                 errors_enabled: bool = True, dynamics_enabled: bool = True) -> None:
-        self.p = params
-        self.name = name or self.TYPE
-        self.rng = rng
-        self.errors_enabled = bool(errors_enabled)
-        self.dynamics_enabled = bool(dynamics_enabled)  # no dynamics: kept for a uniform interface
+    def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:
+        super().__init__(params, rng, **kw)  # dynamics_enabled: no dynamics, kept for a uniform interface
         ppr, mult = params["ppr"], params["multiplier"]
         if not (ppr >= 1 and float(ppr).is_integer()):
             raise ValueError(f"{self.name}: ppr must be a positive integer, got {ppr}")
         if mult not in (1.0, 2.0, 4.0):
             raise ValueError(f"{self.name}: multiplier must be 1, 2 or 4, got {mult}")
-        if not params["max_edge_frequency"] > 0.0:
-            raise ValueError(f"{self.name}: max_edge_frequency must be positive")
+        self._positive("max_edge_frequency", "Hz")
         self.ppr, self.multiplier = int(ppr), int(mult)
         self.step = 2.0 * math.pi / (4 * self.ppr)   # angle per ×4 count [rad]
-        self.faults = FaultSchedule(self.name, self.FAULTS)
         self._t: float | None = None   # last sample time [s]
         self._theta = 0.0               # last sample angle [rad]
         self._line = np.zeros(3, dtype=np.uint8)       # line levels after all emitted edges
@@ -91,10 +82,6 @@ class IncrementalEncoder:
         self._c4_origin = 0
         self._illegal = 0
         self._count_edge_t = math.nan
-
-    def inject(self, fault: str, at: float = 0.0, until: float = math.inf, **params: Any) -> Fault:
-        """Schedule a fault (``missed_pulses`` or ``glitches``) active for ``at <= t < until`` [s]."""
-        return self.faults.inject(fault, at, until, **params)
 
     def to_physical(self, count: np.ndarray | float) -> np.ndarray:
         """Ideal inverse: angle turned since power-on [rad] for a ×N count."""
@@ -165,10 +152,7 @@ class IncrementalEncoder:
     # --- sampling --------------------------------------------------------------------------------
     def sample(self, t: np.ndarray, q: np.ndarray) -> EncoderSample:
         """Levels and counter-card latches at times ``t`` [s] for shaft angle ``q`` [rad]; continues state."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        q = np.atleast_1d(np.asarray(q, dtype=float))
-        if t.shape != q.shape or t.ndim != 1:
-            raise ValueError(f"{self.name}: t and q must be 1-D arrays of equal length, got {t.shape} and {q.shape}")
+        t, q = self._samples(t, q)
         if t.size == 0:
             return EncoderSample(np.empty((0, 3), np.uint8), np.empty(0, np.int64), np.empty(0), np.empty(0, np.int64))
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(t))):

@@ -31,8 +31,7 @@ class PotentiometerDMM(AnalogTransducer):
 
     def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:
         super().__init__(params, rng, **kw)
-        if not params["reading_rate"] > 0.0:
-            raise ValueError(f"{self.name}: reading_rate must be positive, got {params['reading_rate']} Hz")
+        self._positive("reading_rate", "Hz")
         self.t0: float | None = None
         self.reading_index = -1
         self.reading = 0.0

@@ -25,7 +25,7 @@ TRANSDUCER_SCHEMA = {
     "description": Field(None, doc="device description name in data/devices or a path"),
     "signal": Field(None, doc="plant truth signal the transducer measures"),
     "role": Field(None, doc="where its output goes: 'x', 'y' (device channels), 'encoder1', 'encoder2', "
-                            "'torque', 'brake', or 'record' (recorded only)"),
+                            "'torque', 'brake', 'angle', 'strain' (static rig), or 'record' (recorded only)"),
     "overrides": Field(None, {}, "description values to override, with units"),
     "faults": Field(None, [], "list of {fault = ..., at = '.. s', ...} tables"),
     "rate": Field("Hz", None, "publishing rate of encoder/torque/brake readings (default: once per chunk)"),
@@ -53,7 +53,7 @@ RECORDING_SCHEMA = {
     "compression": Field(None, "zstd"),
 }
 MODES = ("virtual", "realtime")
-ROLES = ("x", "y", "encoder1", "encoder2", "torque", "brake", "record")
+ROLES = ("x", "y", "encoder1", "encoder2", "torque", "brake", "angle", "strain", "record")
 
 
 @dataclass(frozen=True)

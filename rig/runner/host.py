@@ -44,7 +44,7 @@ class Host:
         self.rec = recorder
         self.serial = (DigiForceClient(serial_port, baudrate=cfg.serial["baudrate"], address=cfg.serial["address"],
                                        timeout=2.0) if serial_port else None)
-        self.theory = make_plant(cfg.plant, cfg.scene)
+        self.theory = make_plant(cfg.plant, cfg.scene, nominal=True)
         self.program = cfg.device["program"]
         self.program_config: dict[str, Any] | None = None
         self.truth_t = 0.0
@@ -56,7 +56,7 @@ class Host:
         self._link_events = 0
         self._plant_events = 0
         self.frames = 0
-        self._torque_done = self._encoders_done = 0
+        self._torque_done = self._encoders_done = self._static_done = 0
         self._rad_per_count = {i: encoder_resolution(cfg.role(f"encoder{i}")) for i in (1, 2)}
 
     # ---------------------------------------------------------------- configuration
@@ -94,7 +94,8 @@ class Host:
         return len(raw)
 
     def _record_stand(self) -> None:
-        """Torque-meter and encoder readings (the stand's samples M_t, T_in, T_out) as bulk blocks."""
+        """Torque-meter and encoder readings (the stand's samples M_t, T_in, T_out) and static-rig readings
+        (angle, leaf strain of the roles the scene declares) as bulk blocks."""
         new, self._torque_done = self.can.torque[self._torque_done:], len(self.can.torque)
         if new:
             t, torque, brake = (np.array(c, dtype=float) for c in zip(*new))
@@ -106,6 +107,11 @@ class Host:
                 self.rec.write_block(f"/stand/encoder{enc}", t, {"count": count, "edge_time": edge,
                                                                   "angle": count * self._rad_per_count[enc]})
         self._encoders_done = len(self.can.encoder_log)
+        new, self._static_done = self.can.static[self._static_done:], len(self.can.static)
+        if new:
+            t, angle, strain = (np.array(c, dtype=float) for c in zip(*new))
+            fields = {"angle": angle, "strain": strain}
+            self.rec.write_block("/stand/static", t, {r: fields[r] for r in fields if self.cfg.role(r) is not None})
 
     def _advance_theory(self, t_device: float) -> None:
         """Run the theory model on the machine's sample grid up to the device time; record it."""

@@ -72,6 +72,13 @@ class Machine:
         every = n if rate is None else max(1, round(self.cfg.sample_rate / rate))
         return np.arange((-first_sample) % every, n, every)
 
+    def _physical(self, signal: dict[str, np.ndarray], role: str, idx: np.ndarray) -> np.ndarray:
+        """A role's output at ``idx`` scaled back to its quantity (SI) with the nominal sensitivity,
+        as the unit's display does; zeros when the scene has no transducer in that role."""
+        if role not in signal:
+            return np.zeros(idx.size)
+        return np.ravel(self.transducers[self.cfg.role(role).name].to_physical(signal[role][idx]))
+
     def step(self) -> dict[str, np.ndarray]:
         """Advance one chunk; returns the plant truth of the chunk (SI, with its times ``t``)."""
         dt = self.cfg.dt
@@ -103,19 +110,20 @@ class Machine:
                     [0.0 if s is None or math.isnan(s.edge_time[i]) else float(s.edge_time[i]) for s in latched])
         if "torque" in signal:
             idx = self._publish_indices("torque", i0 + 1, t.size)
-            torque = self.transducers[self.cfg.role("torque").name].to_physical(signal["torque"][idx])
-            force = (np.zeros(idx.size) if "brake" not in signal
-                     else self.transducers[self.cfg.role("brake").name].to_physical(signal["brake"][idx]))
-            for i, m, f in zip(idx, np.ravel(torque), np.ravel(force)):
+            for i, m, f in zip(idx, self._physical(signal, "torque", idx), self._physical(signal, "brake", idx)):
                 self.node.publish_torque(float(t[i]), float(m), float(f))
+        if "angle" in signal or "strain" in signal:       # static rig: one frame per reading of both
+            idx = self._publish_indices("angle" if "angle" in signal else "strain", i0 + 1, t.size)
+            for i, a, e in zip(idx, self._physical(signal, "angle", idx), self._physical(signal, "strain", idx)):
+                self.node.publish_static(float(t[i]), float(a), float(e))
         self.node.advance_to(float(t[-1]))
         self.t = float(t[-1])
         return truth
 
     def flush(self, limit: float = 60.0) -> None:
         """Let the node send everything still queued (results of the last curve) in virtual time."""
-        t_end = self.t + limit
-        while self.node.pending_frames and self.t < t_end:
+        t_start, t_end = self.t, self.t + limit
+        while self.node.pending_before(t_start) and self.t < t_end:   # later heartbeats need not wait
             self.t += self.cfg.chunk
             self.node.advance_to(self.t)
         self.node.publish_status(self.t)

@@ -6,27 +6,30 @@ from typing import Any, Callable
 from rig.scene import Scene, SceneError
 
 
-def _cam_bar(scene: Scene) -> Any:
+def _cam_bar(scene: Scene, nominal: bool = False) -> Any:
     from rig.plants.cam_bar import PinInsertionMechanism
-    return PinInsertionMechanism.from_scene(scene)
+    return PinInsertionMechanism.from_scene(scene, variation=None, rng=None) if nominal else \
+        PinInsertionMechanism.from_scene(scene)
 
 
-def _clutch_dynamic(scene: Scene) -> Any:
+def _clutch_dynamic(scene: Scene, nominal: bool = False) -> Any:
     from rig.plants.clutch.stand import ClutchStand
     return ClutchStand.from_scene(scene)
 
 
-def _clutch_static(scene: Scene) -> Any:
+def _clutch_static(scene: Scene, nominal: bool = False) -> Any:
     from rig.plants.clutch.static_rig import rig_from_scene
     return rig_from_scene(scene)
 
 
-PLANTS: dict[str, Callable[[Scene], Any]] = {
+#: builders take the scene and ``nominal`` (True: the design without per-cycle variation, the host's theory)
+PLANTS: dict[str, Callable[[Scene, bool], Any]] = {
     "cam_bar": _cam_bar, "clutch_dynamic": _clutch_dynamic, "clutch_static": _clutch_static}
 
 
-def make_plant(kind: str, scene: Scene) -> Any:
-    """A fresh plant of ``kind`` built from ``scene`` (each call gives an independent instance)."""
+def make_plant(kind: str, scene: Scene, nominal: bool = False) -> Any:
+    """A fresh plant of ``kind`` built from ``scene`` (each call gives an independent instance);
+    ``nominal`` leaves out the scene's per-cycle variation (the theory the host compares against)."""
     if kind not in PLANTS:
         raise SceneError(f"{scene.path} [scene]: plant {kind!r} is not one of {sorted(PLANTS)}")
-    return PLANTS[kind](scene)
+    return PLANTS[kind](scene, nominal)

@@ -1,8 +1,9 @@
 """ODE solver objects (step(), dense output, status) and an event-locating driver, independent of problems."""
 from rig.solvers.base import OdeSolver, SolverDivergence, StiffnessError, StiffnessWarning
 from rig.solvers.dopri import DormandPrince45
+from rig.solvers.flow import AffineRotor, ClosedForm, ClosedFormSolver
 from rig.solvers.integrate import METHODS, Event, EventRecord, Problem, Solution, integrate
 from rig.solvers.rk4 import RK4
 
-__all__ = ["DormandPrince45", "Event", "EventRecord", "METHODS", "OdeSolver", "Problem", "RK4", "Solution",
-           "SolverDivergence", "StiffnessError", "StiffnessWarning", "integrate"]
+__all__ = ["AffineRotor", "ClosedForm", "ClosedFormSolver", "DormandPrince45", "Event", "EventRecord", "METHODS",
+           "OdeSolver", "Problem", "RK4", "Solution", "SolverDivergence", "StiffnessError", "StiffnessWarning", "integrate"]

@@ -62,11 +62,15 @@ class PolynomialDense:
         return np.asarray(self.y_old)[:, None] + self.Q @ powers
 
 
-def fill_dense(out: np.ndarray, t: np.ndarray, pieces: list[tuple[PolynomialDense, int, int]]) -> None:
-    """out[:, i:j] = piece(t[i:j]) for all pieces in one vectorised pass (per continuous extension)."""
+def fill_dense(out: np.ndarray, t: np.ndarray, pieces: list[tuple]) -> None:
+    """out[:, i:j] = piece(t[i:j]) for all pieces: polynomial pieces in one vectorised pass per continuous
+    extension, other interpolants (closed forms) called on their samples."""
     groups: dict[int, list] = {}
     for piece in pieces:
-        groups.setdefault(id(piece[0].P), []).append(piece)
+        if isinstance(piece[0], PolynomialDense):
+            groups.setdefault(id(piece[0].P), []).append(piece)
+        else:
+            out[:, piece[1]:piece[2]] = piece[0](t[piece[1]:piece[2]])
     for group in groups.values():
         P = group[0][0].P
         lengths = np.array([j - i for _, i, j in group])

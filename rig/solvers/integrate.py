@@ -12,6 +12,8 @@ a *method* is a solver class. ``integrate`` drives one with the other:
 * hybrid (switched) problems keep a discrete mode outside the state: an event ``action`` may switch it
   and return a projected state to restart from, ``Problem.reset`` re-selects it at the start and after
   every restart, and ``mode_dependent`` event functions are re-evaluated after a switch;
+* where the problem has a closed-form solution in its current mode (``Problem.flow`` returns one),
+  the segment is stepped along it exactly (:class:`ClosedFormSolver`) instead of by the method;
 * a diverging solver raises :class:`SolverDivergence` naming time and state, and so does event
   chattering (more than ``MAX_STALLED`` restarts without the time advancing: a Zeno point).
 """
@@ -27,6 +29,7 @@ from scipy.optimize import brentq
 
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence
 from rig.solvers.dopri import DormandPrince45, fill_dense
+from rig.solvers.flow import ClosedForm, ClosedFormSolver
 from rig.solvers.rk4 import RK4
 
 METHODS: dict[str, type[OdeSolver]] = {"DP45": DormandPrince45, "RK4": RK4}
@@ -66,13 +69,16 @@ class Event:
 @dataclass
 class Problem:
     """Right-hand side ``fun(t, y)``, initial state, events, times where the RHS is discontinuous and
-    ``reset(t, y) -> bool`` (re-selects a discrete mode at the start and after restarts; True if changed)."""
+    ``reset(t, y) -> bool`` (re-selects a discrete mode at the start and after restarts; True if changed);
+    ``flow(t, y, t_bound)`` returns the exact solution from (t, y) in the current mode, or None
+    (asked at the start of every solver segment)."""
 
     fun: Rhs
     y0: Sequence[float]
     events: Sequence[Event] = ()
     time_breaks: Sequence[float] = ()
     reset: Callable[[float, tuple], bool] | None = None
+    flow: Callable[[float, tuple, float], ClosedForm | None] | None = None
 
 
 @dataclass
@@ -97,6 +103,19 @@ class Solution:
 def _make_solver(method, fun, t, y, t_bound, options):
     cls = METHODS[method] if isinstance(method, str) else method
     return cls(fun, t, y, t_bound, **options)
+
+
+def _past_root(g: Callable[[float, tuple], float], dense: Callable, t_root: float, t_new: float,
+               rising: bool) -> float:
+    """First time ≥ ``t_root`` in the step where ``g`` is strictly past zero: a mode switch acts where the
+    old mode is already invalid, so a root located a rounding error early cannot chatter (Zeno)."""
+    dt = 4 * np.finfo(float).eps * max(1.0, abs(t_root))
+    while t_root < t_new:
+        v = g(t_root, dense(t_root))
+        if (v > 0.0) if rising else (v < 0.0):
+            return t_root
+        t_root, dt = min(t_new, t_root + dt), 2 * dt
+    return t_new
 
 
 def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[OdeSolver] = "DP45",
@@ -135,7 +154,11 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     status, h_next = "finished", options.pop("first_step", None)
     bi = 0
     while True:
-        solver = _make_solver(method, fun, t, y, breaks[bi], dict(options, first_step=h_next))
+        exact = problem.flow(t, y, breaks[bi]) if problem.flow else None
+        if exact is None:
+            solver = _make_solver(method, fun, t, y, breaks[bi], dict(options, first_step=h_next))
+        else:
+            solver = ClosedFormSolver(exact, t, y, breaks[bi])
         cut = None
         while solver.status == "running":
             solver.step()
@@ -160,6 +183,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                         dense = dense or solver.dense_output()
                         t_root = brentq(lambda tt, f=e.fun: f(tt, dense(tt)), t_old, t_new,
                                         xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                        if e.mode_dependent:
+                            t_root = _past_root(e.fun, dense, t_root, t_new, rising)
                     hits.append((t_root, i, 1.0 if rising else -1.0))
                 hits.sort()
                 for t_root, i, sign in hits:
@@ -206,7 +231,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         nsteps += solver.nsteps
         if stiff_at is None:
             stiff_at = getattr(solver, "stiff_at", None)
-        h_next = solver.h_last
+        if exact is None:
+            h_next = solver.h_last
         if cut is None:
             t, y = math.nextafter(solver.t, math.inf), solver.y
             bi += 1

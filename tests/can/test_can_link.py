@@ -244,14 +244,14 @@ def test_encoders_and_torque(buses, device):
     node.advance_to(20.0)                              # heartbeats bring the host to device time ~20 s
     host.poll()
     node.publish_encoders(20.0, [123456, -42], [19.9871234, 18.5])
-    node.publish_torque(20.0005, 12.3456, 1503.2)
+    node.publish_torque(20.0005, 212.3456, 1503.2)     # 1 mN·m steps, ±524 N·m (DBC)
     node.advance_to(20.01)
     host.poll()
     assert host.encoders[1]["count"] == 123456 and host.encoders[2]["count"] == -42
     assert host.encoders[1]["edge_time"] == pytest.approx(19.987123, abs=1e-6)
     assert host.encoders[2]["edge_time"] == pytest.approx(18.5, abs=1e-6)
     (tq,) = host.torque
-    assert tq == pytest.approx((20.0005, 12.3456, 1503.2), abs=5e-3)
+    assert tq == pytest.approx((20.0005, 212.3456, 1503.2), abs=5e-3)
     assert host.events == []
 
 

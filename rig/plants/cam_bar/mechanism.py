@@ -18,6 +18,7 @@ from rig.plants.cam_bar.chain import Angles, Chain, SingularPositionError
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
 from rig.plants.cam_bar.switches import flank_switch_angles
 from rig.plants.cam_bar.timeline import Event, Timeline
+from rig.plants.cam_bar.variation import CyclePlant, CycleVariation
 
 if TYPE_CHECKING:
     from rig.scene import Scene
@@ -120,6 +121,8 @@ class PinInsertionMechanism:
     ``None`` mean m3·L3²/3 about B0, m4·l4²/12 about the rod centre, follower CoG at L3/2).
     ``cam_direction`` +1: the cam turns counter-clockwise. The insertion force ``F_c`` acts on the slider
     against its motion during the rise once the stroke is within ``F_c_travel`` of the top.
+    ``variation`` (with the generator ``rng``) makes every cam revolution draw its own deviations
+    (:mod:`rig.plants.cam_bar.variation`); without it all cycles are identical.
     """
 
     L3: float = 0.260
@@ -158,6 +161,8 @@ class PinInsertionMechanism:
     cam_direction: int = 1
     program: CamProgram = field(default_factory=default_program)
     speed: SpeedProfile = field(default_factory=lambda: ConstantSpeed(150 * RPM))
+    variation: CycleVariation | None = None
+    rng: np.random.Generator | None = None
 
     def __post_init__(self) -> None:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g"):
@@ -180,6 +185,9 @@ class PinInsertionMechanism:
         self.spring_rates = tuple(float(k) for k in self.spring_rates)
         self.chain = self._assemble()
         self.psi0 = float(self.chain.angles(np.array([self.s_Srest])).psi[0])
+        if self.variation is not None and self.rng is None:
+            raise ValueError("variation needs a numpy Generator (rng) to draw the per-cycle deviations")
+        self.cycles = None if self.variation is None else CyclePlant(self, self.variation, self.rng)
         self._timeline = Timeline(self)
 
     def _assemble(self) -> Chain:

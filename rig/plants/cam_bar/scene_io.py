@@ -1,4 +1,4 @@
-"""Scene reading for the cam-bar plant: [plant] (with [[plant.cam_program]]) and [speed] (MODELS §3.1).
+"""Scene reading for the cam-bar plant: [plant] (with [[plant.cam_program]], [plant.variation]) and [speed].
 
 Other top-level sections belong to other modules and are ignored here; inside [plant], [speed] and each
 cam-program table every key is checked (unknown, missing, wrong unit → :class:`rig.scene.SceneError`).
@@ -10,6 +10,7 @@ from typing import Any
 from rig.motion.program import CamProgram, ProgramError, Segment
 from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed, SpeedProfile
 from rig.scene import Field, Scene, SceneError, read_table
+from rig.plants.cam_bar.variation import CycleVariation, plant_generator
 from rig.units import UnitError, to_si
 
 PLANT_SCHEMA = {
@@ -30,6 +31,7 @@ PLANT_SCHEMA = {
     "mu": Field("1", 0.1), "g": Field("m/s^2", 9.81), "x_s5": Field("m", 0.02), "e5": Field("m", 0.02),
     "cam_direction": Field("1", 1, "+1 counter-clockwise, -1 clockwise"),
     "cam_program": Field(None, doc="array of tables [[plant.cam_program]]"),
+    "variation": Field(None, None, "per-cycle deviations, table [plant.variation] (rig.plants.cam_bar.variation)"),
 }
 SEGMENT_SCHEMA = {"kind": Field(None), "angle": Field("rad"), "law": Field(None, None),
                   "stroke": Field("m", None, "defaults to s_H for rise/return")}
@@ -85,4 +87,12 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
         raise SceneError(str(exc)) from None
     kw["program"] = read_program(kw.pop("cam_program"), kw["s_H"], where)
     kw["speed"] = read_speed(scene.section("speed"), f"{scene.path} [speed]")
+    variation = kw.pop("variation")
+    if variation is not None:
+        kw["variation"] = CycleVariation.from_table(variation, f"{scene.path} [plant.variation]")
+        seed = scene.section("scene").get("seed")
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise SceneError(f"{scene.path} [scene]: 'seed' must be a non-negative integer for [plant.variation], "
+                             f"got {seed!r}")
+        kw["rng"] = plant_generator(seed)
     return kw

@@ -23,8 +23,6 @@ if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 
-
-
 class Timeline:
     """Evaluates the mechanism along the speed profile and keeps the last sample to continue across calls."""
 
@@ -36,7 +34,21 @@ class Timeline:
 
     def _contact(self, t: float) -> float:
         dr = self.mech.speed.drive(np.array([t]))
-        return float(self.mech.kinetostatics(dr.phi, dr.omega, dr.alpha).R23n[0])
+        mech = self._mechanism(int(np.floor(dr.phi[0] / tau)))
+        return float(mech.kinetostatics(dr.phi, dr.omega, dr.alpha).R23n[0])
+
+    def _mechanism(self, cycle: int) -> "PinInsertionMechanism":
+        return self.mech if self.mech.cycles is None else self.mech.cycles.mechanism(cycle)
+
+    def _truth(self, mech: "PinInsertionMechanism", t: np.ndarray, phi: np.ndarray, omega: np.ndarray,
+               alpha: np.ndarray) -> dict[str, np.ndarray]:
+        st = mech.state(phi, omega, alpha)
+        ks = solve(mech, st, mech.k)
+        return {"t": t, "phi": phi, "cam_angle": np.mod(phi, tau), "omega": omega, "alpha": alpha,
+                "s": st.s, "v": st.s_d, "a": st.s_dd, "x_gripper": mech.s0 - st.s, "psi": st.psi,
+                "theta": st.theta, "r": st.r, "F_rod": ks.F_rod, "rod_tension": ks.rod_tension,
+                "R23": ks.R23n, "M23": ks.M23, "M_e": ks.M_e, "M_sigma": ks.M_sigma,
+                "drive_torque": ks.drive_torque, "F_c": ks.F_c, "pressure_angle": ks.pressure_angle}
 
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         if t.ndim != 1 or (t.size > 1 and np.any(np.diff(t) <= 0.0)):
@@ -46,16 +58,22 @@ class Timeline:
                              f"{self._last[0]:g} s")
         mech = self.mech
         dr = mech.speed.drive(t)
-        st = mech.state(dr.phi, dr.omega, dr.alpha)
-        ks = solve(mech, st, mech.k)
+        if mech.cycles is None or not t.size:
+            out = self._truth(mech, t, dr.phi, dr.omega, dr.alpha)
+        else:  # one cycle (cam revolution) at a time, each with its own deviations
+            cycle = np.floor(dr.phi / tau).astype(int)
+            parts = []
+            for c in np.unique(cycle):
+                i = cycle == c
+                part = self._truth(mech.cycles.mechanism(int(c)), t[i], dr.phi[i], dr.omega[i], dr.alpha[i])
+                ds = mech.cycles.stroke_deviation(int(c), dr.phi[i])
+                part["s"], part["x_gripper"] = part["s"] + ds, part["x_gripper"] - ds
+                parts.append(part)
+            out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         if t.size:
-            self._find_events(t, dr.phi, ks.R23n)
-            self._last = (float(t[-1]), float(dr.phi[-1]), float(ks.R23n[-1]))
-        return {"t": t, "phi": dr.phi, "cam_angle": np.mod(dr.phi, tau), "omega": dr.omega, "alpha": dr.alpha,
-                "s": st.s, "v": st.s_d, "a": st.s_dd, "x_gripper": mech.s0 - st.s, "psi": st.psi,
-                "theta": st.theta, "r": st.r, "F_rod": ks.F_rod, "rod_tension": ks.rod_tension,
-                "R23": ks.R23n, "M23": ks.M23, "M_e": ks.M_e, "M_sigma": ks.M_sigma,
-                "drive_torque": ks.drive_torque, "F_c": ks.F_c, "pressure_angle": ks.pressure_angle}
+            self._find_events(t, dr.phi, out["R23"])
+            self._last = (float(t[-1]), float(dr.phi[-1]), float(out["R23"][-1]))
+        return out
 
     def _find_events(self, t: np.ndarray, phi: np.ndarray, contact: np.ndarray) -> None:
         if self._last is not None:

@@ -14,7 +14,10 @@ solved in closed form for N_B. Two friction models (docs/clutch.md):
 * ``"stick_slip"`` (default): switched model with a discrete mode: slipping (sB = σ, sC = σ·sgn k1 with
   sC = +1 at k1 = 0, σ = ±1 fixed while ωr keeps its sign) or stuck (ωr ≡ 0, the halves move together and T_c is the
   torque needed for that, admissible while it lies in the static band [T_c(σ=−1), T_c(σ=+1)]).
-  Transitions are located as events (ωr = 0; T_c reaching a band edge) — no stiffness.
+  Transitions are located as events (ωr = 0; T_c reaching a band edge) — no stiffness. While stuck the
+  halves are one rotor, (J1 + J3')ω̇ = M1 − M3 with J3' = J3 + n m_t k2² constant (φ_r is frozen); for a
+  linear motor and loads affine in speed this is solved in closed form (:meth:`ClutchDynamics.stuck_flow`),
+  the band edges being quadratics in ω whose roots bound the steps, so no Runge–Kutta step is spent.
 * ``"tanh"``: sgn(v) ≈ tanh(v/v_s); smooth but stiff when sticking (time constant ≈ J v_s/(n μ_B N_B k2²)).
 """
 from __future__ import annotations
@@ -24,11 +27,12 @@ import math
 from typing import Callable
 
 import numpy as np
+from scipy.optimize import brentq
 
 from rig.plants.clutch.flat_tappet import FlatTappetClutch
 from rig.plants.clutch.geometry import APEX, LOBE
 from rig.plants.clutch.loads import Load, LinearMotor
-from rig.solvers import Event, EventRecord, Problem, SolverDivergence
+from rig.solvers import AffineRotor, Event, EventRecord, Problem, SolverDivergence
 
 FRICTION_MODELS = ("stick_slip", "tanh")
 
@@ -208,10 +212,64 @@ class ClutchDynamics:
         i = np.searchsorted(np.asarray(self._log_t), t, side="right") - 1
         return np.asarray(self._log_mode)[np.maximum(i, 0)]
 
+    def stuck_flow(self, t: float, y: tuple, t_bound: float) -> "StuckFlow | None":
+        """Closed-form motion of the stuck halves from (t, y) up to ``t_bound`` (s), or None when the mode
+        is slipping or the loads have no closed form (angle zones, brake actuator, centrifugal unloading).
+
+        Common rotor (J1 + J3')ω̇ = (A − α) − (B + β)ω for M1 = A − Bω, M3 = α + βω (blocked: at rest). The
+        band margins T_c(σ=±1) − T_req are quadratic in ω (centrifugal terms) while N_B > 0; their roots
+        inside the segment are mapped to times and the flow's steps end between them, so each step holds
+        at most one stick → slip crossing for the driver to locate."""
+        if self.mode != 0 or len(y) != 4:
+            return None
+        t_mid = 0.5 * (t + t_bound)               # inside the time-break interval: loads are fixed there
+        load = self.load.affine(t_mid)
+        if load is None:
+            return None
+        c = self.clutch
+        if self.blocked:
+            rotor = AffineRotor(t, 0.0, 0.0, 0.0, 0.0, c.J1)
+        else:
+            A, B = self.motor.affine(t_mid)
+            J = c.J1 + self._J3p(self._geom(y[0] - y[2])[1])
+            rotor = AffineRotor(t, 0.0, y[1], A - load[0], B + load[1], J)
+        w0, we = rotor.omega0, rotor.state(t_bound)[1]
+        flow = StuckFlow(rotor, y[0], y[2], [])
+        if we == w0:
+            return flow
+        ws = (w0, 0.5 * (w0 + we), we)
+        margins = []
+        for w in ws:
+            tc, tp, tm, nbp, nbm = self.band(t_mid, (y[0], w, y[2], w))[:5]
+            if w != ws[1] and min(nbp, nbm) <= 0.0:
+                return None                        # N_B clipped at 0: margins not quadratic
+            margins.append((tp - tc, tc - tm))
+        roots = []
+        for f in zip(*margins):
+            roots += [rotor.time_of_speed(w0 + s) for s in _quadratic_roots(f, we - w0)]
+        roots = sorted(r for r in roots if t < r <= t_bound)
+        flow.stops = [0.5 * (a + b) for a, b in zip(roots, roots[1:]) if b > a]
+        return flow
+
     # -- problem assembly ---------------------------------------------------------------------------
     def initial_state(self, omega: float = 0.0, phi_r: float = 0.0) -> tuple:
         """Both halves at speed ``omega`` (rad/s), relative angle ``phi_r`` (rad), loads at rest."""
         return (phi_r, omega, 0.0, 0.0 if self.blocked else omega, *self.load.initial_state())
+
+    def equilibrium_angle(self, omega: float) -> float:
+        """Relative angle (rad) on the rising flank where the frictionless static torque n·F_a·k1 carries
+        the load torque at t = 0 and speed ``omega`` (rad/s); 0 for no load. Raises ValueError when the
+        load exceeds the elastic peak (the coupling cannot run in equilibrium)."""
+        m3 = self.load.torque(0.0, 0.0, omega, tuple(self.load.initial_state()))
+        if m3 <= 0.0:
+            return 0.0
+        c = self.clutch
+        peak = c.limits.phi_maxI
+        elastic = lambda phi: float(c.static_torque(phi, friction=False)) - m3
+        if elastic(peak) <= 0.0:
+            raise ValueError(f"load torque {m3:.4g} N*m at start exceeds the elastic peak "
+                             f"{float(c.static_torque(peak, friction=False)):.4g} N*m: no running equilibrium")
+        return float(brentq(elastic, 0.0, peak, xtol=1e-12))
 
     def energy(self, y) -> float:
         """Kinetic energy + spring energy (J) for a state (used to check conservation)."""
@@ -240,7 +298,8 @@ class ClutchDynamics:
     def problem(self, y0: tuple, on_apex: Callable[[EventRecord], bool] | None = None) -> Problem:
         """Problem for :func:`rig.solvers.integrate` with all events, time breaks and the mode reset."""
         breaks = sorted(set(self.load.time_breaks()) | set(self.motor.time_breaks()))
-        return Problem(self.rhs, y0, self.events(on_apex), breaks, reset=self.reset)
+        flow = self.stuck_flow if self.friction == "stick_slip" else None
+        return Problem(self.rhs, y0, self.events(on_apex), breaks, reset=self.reset, flow=flow)
 
     def outputs(self, t: np.ndarray, Y: np.ndarray) -> dict[str, np.ndarray]:
         """Physical truth at samples: angles, speeds, φ_r, ω_r, M1, M3, torque meter M_t, T_c, F_a, N_B.
@@ -262,6 +321,39 @@ class ClutchDynamics:
                "F_a": vals[:, 5], "N_B": vals[:, 6]}
         out["M_t"] = vals[:, 4] if self.blocked else vals[:, 3] + self.J_down * a3
         return out
+
+
+class StuckFlow:
+    """Stuck halves turning together along ``rotor`` (:class:`rig.solvers.AffineRotor`) from angles
+    φ1 = ``phi1``, φ3 = ``phi3``; state (φ1, ω, φ3, ω) at a float time (tuple) or times (4 × m array)."""
+
+    def __init__(self, rotor: AffineRotor, phi1: float, phi3: float, stops: list[float]):
+        self.rotor, self.phi1, self.phi3, self.stops = rotor, phi1, phi3, stops
+
+    def __call__(self, t):
+        if isinstance(t, float):
+            d, w = self.rotor.state(t)
+            return (self.phi1 + d, w, self.phi3 + d, w)
+        d, w = self.rotor.states(t)
+        return np.vstack((self.phi1 + d, w, self.phi3 + d, w))
+
+
+def _quadratic_roots(f: tuple[float, float, float], span: float) -> list[float]:
+    """Real roots s with 0 < s/span ≤ 1 of the quadratic through (0, f0), (span/2, f1), (span, f2)."""
+    f0, f1, f2 = f
+    h = 0.5 * span
+    d01, d12 = (f1 - f0) / h, (f2 - f1) / h
+    c2 = (d12 - d01) / span
+    c1 = d01 - c2 * h
+    if c2 == 0.0:
+        roots = [-f0 / c1] if c1 != 0.0 else []
+    else:
+        disc = c1 * c1 - 4.0 * c2 * f0
+        if disc < 0.0:
+            return []
+        q = -0.5 * (c1 + math.copysign(math.sqrt(disc), c1))
+        roots = [q / c2] + ([f0 / q] if q != 0.0 else [])
+    return [s for s in roots if 0.0 < s / span <= 1.0]
 
 
 def _periodic(angle: float, period: float, i: int, j: int | None) -> Callable[[float, tuple], float]:

@@ -2,7 +2,9 @@
 
 A load has ``n_states`` internal states (e.g. the brake force), ``initial_state()``,
 ``torque(t, phi3, omega3, z)``, ``rates(t, phi3, omega3, z)``, the times where it jumps
-(``time_breaks()``) and the driven-half angles where it switches (``angle_breaks()`` → (angle, period)).
+(``time_breaks()``), the driven-half angles where it switches (``angle_breaks()`` → (angle, period))
+and, when it is affine in speed between time breaks, ``affine(t)`` → (α, β) with M = α + β·ω3 (used
+for the closed-form stuck segments of the clutch dynamics).
 """
 from __future__ import annotations
 
@@ -32,6 +34,11 @@ class Load:
     def angle_breaks(self) -> list[tuple[float, float]]:
         return []
 
+    def affine(self, t: float) -> tuple[float, float] | None:
+        """(α N·m, β N·m·s/rad) with torque = α + β·ω3 on the time-break interval holding t; None when the
+        torque is not of that form (depends on angle or internal states)."""
+        return None
+
 
 @dataclass
 class Steps(Load):
@@ -54,6 +61,9 @@ class Steps(Load):
 
     def time_breaks(self):
         return list(self.times)
+
+    def affine(self, t):
+        return self.torque(t, 0.0, 0.0, ()), 0.0
 
 
 def constant(torque: float) -> Steps:
@@ -103,6 +113,9 @@ class LinearInSpeed(Load):
 
     def torque(self, t, phi3, omega3, z):
         return self.alpha0 + self.beta0 * omega3
+
+    def affine(self, t):
+        return self.alpha0, self.beta0
 
 
 @dataclass
@@ -175,6 +188,15 @@ class LoadSum(Load):
     def angle_breaks(self):
         return [b for ld in self.loads for b in ld.angle_breaks()]
 
+    def affine(self, t):
+        alpha = beta = 0.0
+        for ld in self.loads:
+            ab = ld.affine(t)
+            if ab is None:
+                return None
+            alpha, beta = alpha + ab[0], beta + ab[1]
+        return alpha, beta
+
 
 @dataclass
 class LinearMotor:
@@ -194,3 +216,9 @@ class LinearMotor:
 
     def time_breaks(self) -> list[float]:
         return [self.t_off] if math.isfinite(self.t_off) else []
+
+    def affine(self, t: float) -> tuple[float, float]:
+        """(A N·m, B N·m·s/rad) with M1 = A − B·ω1 at time t."""
+        if self.tripped or t > self.t_off:
+            return 0.0, 0.0
+        return self.ratio * self.a0, self.ratio * self.ratio * self.b0

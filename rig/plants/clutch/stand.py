@@ -10,7 +10,6 @@ with ``trip_on_shutdown``, switch the motor off).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -18,6 +17,7 @@ import numpy as np
 from rig.plants.clutch.dynamics import ClutchDynamics
 from rig.plants.clutch.flat_tappet import CLUTCH_SCHEMA, FlatTappetClutch
 from rig.plants.clutch.loads import LinearInSpeed, LinearMotor, Load, LoadSum, ShoeBrake, Zone, constant, shock, step
+from rig.plants.events import Event
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.solvers import EventRecord, integrate
 
@@ -28,6 +28,8 @@ STAND_SCHEMA = {
     "v_s": Field("m/s", 0.01, "velocity scale of the tanh friction regularisation (friction = tanh)"),
     "blocked": Field(None, False, "driven half clamped"),
     "omega0": Field("rad/s", 0.0, "initial speed of both halves"),
+    "phi_r0": Field("rad", None, "initial relative angle (default: the frictionless static deflection "
+                                 "that carries the load torque at t = 0 and omega0)"),
     "shutdown_count": Field("1", 2, "disengagements within the window that flag a shutdown"),
     "shutdown_window": Field("s", 0.5, "window for counting disengagements"),
     "trip_on_shutdown": Field(None, False, "switch the motor off when the shutdown flag rises"),
@@ -40,10 +42,6 @@ MOTOR_SCHEMA = {
     "ratio": Field("1", 1.0, "belt ratio omega_motor/omega1"),
     "t_off": Field("s", math.inf, "motor switched off at this time"),
 }
-SCENE_SCHEMA = {
-    "name": Field(None), "description": Field(None, ""), "plant": Field(None), "seed": Field("1", 0),
-    "duration": Field("s"), "sample_rate": Field("Hz"),
-}
 _LOAD_SCHEMAS = {
     "constant": ({"torque": Field("N*m")}, lambda p: constant(p["torque"])),
     "step": ({"time": Field("s"), "torque": Field("N*m")}, lambda p: step(p["time"], p["torque"])),
@@ -53,21 +51,30 @@ _LOAD_SCHEMAS = {
              lambda p: Zone(p["torque"], p["start"], p["end"], p["period"])),
     "linear": ({"alpha0": Field("N*m"), "beta0": Field("N*m*s/rad")}, lambda p: LinearInSpeed(p["alpha0"], p["beta0"])),
     "brake": ({"gain": Field("N*m/N"), "tau": Field("s"), "force": Field("N"), "step_time": Field("s", None),
-               "step_force": Field("N", None), "omega_s": Field("rad/s", 0.5)},
-              lambda p: ShoeBrake(p["gain"], p["tau"], p["force"],
-                                  () if p["step_time"] is None else (p["step_time"],),
-                                  () if p["step_time"] is None else (p["step_force"],), p["omega_s"])),
+               "step_force": Field("N", None), "pulse_start": Field("s", None), "pulse_duration": Field("s", None),
+               "pulse_force": Field("N", None), "omega_s": Field("rad/s", 0.5)},
+              lambda p: ShoeBrake(p["gain"], p["tau"], p["force"], *_brake_command(p), p["omega_s"])),
 }
 
 
-@dataclass(frozen=True)
-class PlantEvent:
-    """Something the plant did: ``time`` (s), ``kind`` ("disengagement", "shutdown", "phase_boundary",
-    ...) and ``data`` (relative angle in rad, direction, count, ...)."""
+def _brake_command(p: dict[str, Any]) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Switch times and force levels of a brake command: ``force``, optionally a ``step_time`` to
+    ``step_force``, plus an optional pulse adding ``pulse_force`` for ``pulse_duration`` from ``pulse_start``."""
+    pulse = (p["pulse_start"], p["pulse_duration"], p["pulse_force"])
+    if (p["step_time"] is None) != (p["step_force"] is None):
+        raise ValueError("a brake step needs both step_time and step_force")
+    if any(v is None for v in pulse) and any(v is not None for v in pulse):
+        raise ValueError("a brake pulse needs pulse_start, pulse_duration and pulse_force")
+    if pulse[1] is not None and not pulse[1] > 0:
+        raise ValueError(f"brake pulse_duration must be > 0 s, got {pulse[1]} s")
 
-    time: float
-    kind: str
-    data: dict[str, Any] = field(default_factory=dict)
+    def command(t: float) -> float:
+        f = p["force"] if p["step_time"] is None or t < p["step_time"] else p["step_force"]
+        return f + (pulse[2] if pulse[0] is not None and pulse[0] <= t < pulse[0] + pulse[1] else 0.0)
+
+    times = sorted({x for x in (p["step_time"], pulse[0], None if pulse[0] is None else pulse[0] + pulse[1])
+                    if x is not None})
+    return tuple(times), tuple(command(x) for x in times)
 
 
 def load_from_tables(tables: dict[str, Any], where: str) -> LoadSum:
@@ -94,11 +101,13 @@ class ClutchStand:
 
     def __init__(self, dynamics: ClutchDynamics, omega0: float = 0.0, shutdown_count: int = 2,
                  shutdown_window: float = 0.5, trip_on_shutdown: bool = False, rtol: float = 1e-7,
-                 atol: float = 1e-9):
+                 atol: float = 1e-9, phi_r0: float | None = None):
         self.dynamics = dynamics
-        self.y = dynamics.initial_state(omega0)
+        if phi_r0 is None:
+            phi_r0 = 0.0 if dynamics.blocked or omega0 == 0.0 else dynamics.equilibrium_angle(omega0)
+        self.y = dynamics.initial_state(omega0, phi_r0)
         self.t = 0.0
-        self.events: list[PlantEvent] = []
+        self.events: list[Event] = []
         self.disengagement_times: list[float] = []
         self.shutdown = False
         self.shutdown_count, self.shutdown_window = int(shutdown_count), shutdown_window
@@ -109,9 +118,9 @@ class ClutchStand:
     @classmethod
     def from_scene(cls, scene: Scene) -> "ClutchStand":
         """Build from a scene with [scene] (plant = "clutch_dynamic"), [plant], [motor], [load.*]."""
-        head = scene.read("scene", SCENE_SCHEMA)
-        if head["plant"] != "clutch_dynamic":
-            raise SceneError(f"{scene.path} [scene]: plant = {head['plant']!r}, expected 'clutch_dynamic'")
+        plant = scene.section("scene").get("plant")      # the rest of [scene] is the runner's (rig.runner.config)
+        if plant != "clutch_dynamic":
+            raise SceneError(f"{scene.path} [scene]: plant = {plant!r}, expected 'clutch_dynamic'")
         p = scene.read("plant", STAND_SCHEMA)
         m = scene.read("motor", MOTOR_SCHEMA)
         load = load_from_tables(scene.section("load"), str(scene.path))
@@ -123,18 +132,18 @@ class ClutchStand:
         except ValueError as exc:
             raise SceneError(f"{scene.path} [plant]: {exc}") from None
         return cls(dyn, p["omega0"], p["shutdown_count"], p["shutdown_window"], bool(p["trip_on_shutdown"]),
-                   p["rtol"], p["atol"])
+                   p["rtol"], p["atol"], p["phi_r0"])
 
     def _on_apex(self, rec: EventRecord) -> bool:
         omega_r = rec.y[1] - rec.y[3]
         self.disengagement_times.append(rec.t)
-        self.events.append(PlantEvent(rec.t, "disengagement", {
+        self.events.append(Event(rec.t, "disengagement", {
             "phi_r": rec.y[0] - rec.y[2], "direction": 1 if omega_r >= 0 else -1,
             "count": len(self.disengagement_times)}))
         recent = [x for x in self.disengagement_times if x > rec.t - self.shutdown_window]
         if not self.shutdown and len(recent) >= self.shutdown_count:
             self.shutdown = True
-            self.events.append(PlantEvent(rec.t, "shutdown", {"disengagements_in_window": len(recent)}))
+            self.events.append(Event(rec.t, "shutdown", {"disengagements_in_window": len(recent)}))
             if self.trip_on_shutdown:
                 self.dynamics.motor.tripped = True
                 return True
@@ -152,7 +161,7 @@ class ClutchStand:
                             rtol=self.rtol, atol=self.atol, first_step=self._h)
             for r in sol.events:
                 if r.name in ("phase_boundary", "lobe_wrap", "load_zone"):
-                    self.events.append(PlantEvent(r.t, r.name, {"phi_r": r.y[0] - r.y[2]}))
+                    self.events.append(Event(r.t, r.name, {"phi_r": r.y[0] - r.y[2]}))
             self.y, self.t, self._h = sol.y_final, sol.t_final, sol.h_last
             self.events.sort(key=lambda e: e.time)
             Y = sol.y

@@ -1,0 +1,133 @@
+"""Report section for static clutch rig recordings (MODELS.md §4.4).
+
+Measured: the potentiometer angle read by the multimeter and the leaf strain from the half-bridge
+amplifier (``/stand/static``, sent in ``StaticRig`` CAN frames). The load is known from the weights on
+the 1000 mm lever (the applied torque the host logs in ``/plant/truth``). Theory: the clutch's
+loading/unloading characteristic rebuilt from the recorded scene (:mod:`rig.analysis.static_loops`).
+"""
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from rig.analysis.plots import _save, plt
+from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
+from rig.analysis.static_loops import cycle_energy, cycles, reading_points, theory_cycle_energy
+from rig.plants.clutch.static_rig import StaticClutchRig, rig_from_scene
+from rig.recorder import Recording
+from rig.scene import Scene, SceneError
+
+TOPIC = "/stand/static"
+
+
+def static_rig(rec: Recording) -> StaticClutchRig:
+    """The static rig of the recorded scene (theory side); SceneError if the recording has none."""
+    if not rec.scene_text:
+        raise SceneError(f"{rec.path}: the recording holds no scene")
+    try:
+        data = tomllib.loads(rec.scene_text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{rec.path}: recorded scene is not valid TOML: {exc}") from None
+    return rig_from_scene(Scene(Path(f"{rec.path}:scene.toml"), data, rec.scene_text))
+
+
+def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
+    """Per loading/unloading cycle: torque extremes (N·m), measured/truth/theory loop energy (J), slip."""
+    truth, readings = rec.truth, rec.series[TOPIC]
+    t_m, phi_m = reading_points(readings["t"], readings["angle"])
+    torque_m = np.interp(t_m, truth["t"], truth["torque"])
+    phi = float(rig.clutch.phi_min)
+    rows = []
+    for c in cycles(truth["t"], truth["torque"]):
+        e_theory, phi_next, slip = theory_cycle_energy(rig.clutch, phi, c.torque_min, c.torque_max)
+        inside = (t_m >= c.start) & (t_m <= c.end)
+        rows.append({"start": c.start, "end": c.end, "torque_min": c.torque_min, "torque_max": c.torque_max,
+                     "angle_min": float(phi_m[inside].min()) if inside.any() else None,
+                     "angle_max": float(phi_m[inside].max()) if inside.any() else None,
+                     "measured": cycle_energy(t_m, phi_m, torque_m, c) if inside.sum() >= 3 else None,
+                     "truth": cycle_energy(truth["t"], truth["relative_angle"], truth["torque"], c),
+                     "theory": e_theory, "disengaged": slip})
+        phi = phi_next
+    return rows
+
+
+def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarray, phi_m: np.ndarray,
+                         torque_m: np.ndarray) -> Block:
+    truth, c = ctx.recording.truth, rig.clutch
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    grid = np.linspace(c.phi_min, c.apex, 400)
+    lobes = range(int(max(np.max(truth["relative_angle"]), np.max(phi_m)) // c.period) + 1)
+    for k in lobes:
+        for direction, colour, label in ((1.0, "tab:red", "theory: loading branch"),
+                                         (-1.0, "tab:blue", "theory: unloading branch")):
+            ax.plot(np.degrees(grid + k * c.period), c.torque(grid, direction), color=colour, lw=0.9,
+                    ls=":", label=label if k == 0 else None)
+    ax.plot(np.degrees(truth["relative_angle"]), truth["torque"], color="0.5", lw=0.8, ls="--", label="plant truth")
+    ax.plot(np.degrees(phi_m), torque_m, ".-", ms=2, lw=0.7, color="k", label="measured (multimeter angle)")
+    ax.set(xlabel="relative angle (deg)", ylabel="torque = F·L (N·m)", title="Static rig: torque over relative angle",
+           ylim=(min(0.0, float(np.min(truth["torque"]))), 1.1 * float(np.max(truth["torque"]))))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ctx.figure(_save(fig, ctx.figure_path("static_torque_angle")),
+                      "Torque over relative angle: loading/unloading hysteresis loop, measured vs theory")
+
+
+def _strain_figure(ctx: ReportContext, rig: StaticClutchRig) -> Block:
+    readings, truth, c = ctx.recording.series[TOPIC], ctx.recording.truth, rig.clutch
+    fig, ax = plt.subplots(figsize=(7, 4))
+    local = np.linspace(c.phi_min, c.apex, 400)
+    ax.plot(np.degrees(local), 1e6 * c.leaf_strain(local, rig.gauge_offset), ":", color="tab:red",
+            label="theory ε(φ) at the gauges")
+    if "leaf_strain" in truth:
+        ax.plot(np.degrees(np.mod(truth["relative_angle"] - c.phi_min, c.period) + c.phi_min),
+                1e6 * truth["leaf_strain"], "--", color="0.5", lw=0.8, label="plant truth")
+    ax.plot(np.degrees(np.mod(readings["angle"] - c.phi_min, c.period) + c.phi_min), 1e6 * readings["strain"],
+            ".", ms=2, color="k", label="measured (bridge amplifier vs multimeter angle)")
+    ax.set(xlabel="relative angle in the lobe (deg)", ylabel="leaf strain (µm/m)", title="Leaf strain over angle")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ctx.figure(_save(fig, ctx.figure_path("static_leaf_strain")), "Leaf strain over relative angle")
+
+
+def static_clutch_section(ctx: ReportContext) -> list[Block]:
+    rec = ctx.recording
+    readings = rec.series.get(TOPIC)
+    if not readings or "angle" not in readings or readings["t"].size < 3 or "torque" not in rec.truth:
+        return []
+    blocks: list[Block] = [Heading("Static clutch rig")]
+    try:
+        rig = static_rig(rec)
+    except SceneError as exc:
+        return blocks + [Text(f"No theory: {exc}")]
+    t_m, phi_m = reading_points(readings["t"], readings["angle"])
+    torque_m = np.interp(t_m, rec.truth["t"], rec.truth["torque"])
+    blocks.append(Text("Torque = lever force × arm, known from the weights; angle = multimeter readings of the "
+                       "potentiometer (each paired with the load when it first appears)."))
+    blocks.append(_torque_angle_figure(ctx, rig, t_m, phi_m, torque_m))
+    if "strain" in readings and hasattr(rig.clutch, "leaf_strain"):
+        blocks.append(_strain_figure(ctx, rig))
+    rows = []
+    for i, r in enumerate(cycle_table(rec, rig), start=1):
+        small = abs(r["theory"]) < 1e-6 * max(abs(r["torque_max"]), 1.0)      # frictionless: no loop
+        dev = None if r["measured"] is None or small else (r["measured"] - r["theory"]) / r["theory"]
+        rows.append([i, f"{r['start']:.4g}–{r['end']:.4g}", fmt(r["torque_min"]), fmt(r["torque_max"]),
+                     "—" if r["angle_min"] is None else f"{np.degrees(r['angle_min']):.3g}–{np.degrees(r['angle_max']):.3g}",
+                     fmt(r["measured"]), fmt(r["truth"]), fmt(r["theory"]),
+                     "—" if dev is None else f"{100 * dev:+.2f} %", fmt(r["disengaged"])])
+    blocks.append(Heading("Hysteresis-loop energy ∮T dφ per cycle", 3))
+    blocks.append(Table(["cycle", "t (s)", "T min (N·m)", "T max (N·m)", "angle (deg)", "measured (J)",
+                         "plant truth (J)", "theory (J)", "measured − theory", "disengaged"], rows))
+    events = [e for e in rec.events if e.get("kind") in ("disengagement", "reengaged")]
+    if events:
+        blocks.append(Table(["t (s)", "event", "details"],
+                            [[fmt(e["t"]), e["kind"], ", ".join(f"{k}={fmt(v)}" for k, v in e.items()
+                                                                  if k not in ("t", "kind"))] for e in events]))
+    else:
+        blocks.append(Text("No disengagement: the load stayed below the loading-branch peak "
+                           f"({rig.clutch.peak_torque:.4g} N·m)."))
+    return blocks
+
+
+register_section("clutch_static", static_clutch_section)

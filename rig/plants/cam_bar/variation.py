@@ -1,0 +1,128 @@
+"""Cycle-to-cycle variation of the pin-insertion plant (scene table ``[plant.variation]``).
+
+Each machine cycle (cam revolution n: 2πn ≤ φ < 2π(n + 1)) draws its own deviations, in cycle order, from
+the generator the plant carries (seeded from the scene):
+
+* load parameters ``F_c``, ``F_c_travel``, ``sensor_preload``, ``mu`` — normal, σ given with units; the cycle
+  is evaluated by a copy of the mechanism with the drawn values (pin-to-pin scatter of the piercing force
+  and of where the pin pierces, sensor zero drift, guide friction);
+* chain parameters ``x_A0 … e_sk``, ``r`` — normal, σ in m; and the groove clearance take-up c from the
+  exponential law f(c) = λ·exp(−λc) truncated to [0, clearance] (``clearance_lambda``): the roller runs c off
+  its working flank, i.e. on pitch radius r − c. These change the slider stroke by Δs(φ) from the full
+  deviated chain (:class:`rig.plants.cam_bar.tolerance.CamChain`); Δs is added to ``s`` and ``x_gripper``.
+  Velocities, accelerations and forces keep the nominal motion (first order: |Δs| ≲ 0.3 mm ≪ 42 mm stroke).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Mapping
+
+import numpy as np
+
+from rig.plants.cam_bar.montecarlo import sample_clearance
+from rig.plants.cam_bar.tolerance import PARAMS, CamChain
+from rig.scene import Field, read_table
+
+if TYPE_CHECKING:
+    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+
+LOAD_UNITS = {"F_c": "N", "F_c_travel": "m", "sensor_preload": "N", "mu": "1"}
+PLANT_STREAM = 0x706C616E74  # spawn key of the plant's generator under the scene seed ("plant")
+VARIATION_SCHEMA = {
+    **{k: Field(u, 0.0, f"per-cycle standard deviation of {k}") for k, u in LOAD_UNITS.items()},
+    **{k: Field("m", 0.0, f"per-cycle standard deviation of {k}") for k in PARAMS},
+    "clearance_lambda": Field("1/m", None, "rate λ of the exponential groove-clearance take-up (≤ clearance)"),
+}
+
+
+@dataclass(frozen=True)
+class CycleVariation:
+    """Per-cycle standard deviations (SI) and the clearance-take-up rate λ (1/m, ``None``: no take-up)."""
+
+    sigma: Mapping[str, float] = field(default_factory=dict)
+    clearance_lambda: float | None = None
+
+    def __post_init__(self) -> None:
+        for k, v in self.sigma.items():
+            if k not in VARIATION_SCHEMA or k == "clearance_lambda":
+                raise ValueError(f"variation: unknown parameter {k!r} (known: {', '.join(VARIATION_SCHEMA)})")
+            if not v >= 0.0:
+                raise ValueError(f"variation: standard deviation of {k} must not be negative, got {v!r}")
+        if self.clearance_lambda is not None and not self.clearance_lambda > 0.0:
+            raise ValueError(f"variation: clearance_lambda must be positive, got {self.clearance_lambda!r} 1/m")
+
+    @classmethod
+    def from_table(cls, table: Any, where: str) -> "CycleVariation":
+        """From a ``[plant.variation]`` table (quantities with units)."""
+        from rig.scene import SceneError
+        if not isinstance(table, dict):
+            raise SceneError(f"{where}: 'variation' must be a table ([plant.variation])")
+        v = read_table(table, VARIATION_SCHEMA, where)
+        lam = v.pop("clearance_lambda")
+        try:
+            return cls({k: s for k, s in v.items() if s != 0.0}, lam)
+        except ValueError as exc:
+            raise SceneError(f"{where}: {exc}") from None
+
+    def draw(self, rng: np.random.Generator, clearance: float) -> "CycleDeviation":
+        """One cycle's deviations; the order of draws is fixed (load, chain, clearance)."""
+        load = {k: float(rng.normal(0.0, self.sigma[k])) for k in LOAD_UNITS if k in self.sigma}
+        chain = {k: float(rng.normal(0.0, self.sigma[k])) for k in PARAMS if k in self.sigma}
+        if self.clearance_lambda is not None:
+            take_up = float(sample_clearance(rng, self.clearance_lambda, 1, clearance)[0])
+            chain["r"] = chain.get("r", 0.0) - take_up
+        return CycleDeviation(load, chain)
+
+
+@dataclass(frozen=True)
+class CycleDeviation:
+    """Deviations of one cycle (SI): load parameters and chain parameters (m)."""
+
+    load: Mapping[str, float]
+    chain: Mapping[str, float]
+
+
+class CyclePlant:
+    """Hands out, per cycle number, the mechanism to evaluate and the stroke deviation Δs(φ) (m)."""
+
+    def __init__(self, nominal: "PinInsertionMechanism", variation: CycleVariation, rng: np.random.Generator):
+        self.nominal, self.variation, self.rng = nominal, variation, rng
+        self._first: int | None = None
+        self._drawn: list[CycleDeviation] = []
+        self._mechs: dict[int, "PinInsertionMechanism"] = {}
+
+    def deviation(self, cycle: int) -> CycleDeviation:
+        """The deviations of ``cycle``, drawing every earlier cycle first (so chunking does not matter)."""
+        if self._first is None:
+            self._first = cycle
+        i = cycle - self._first
+        if i < 0:
+            raise ValueError(f"variation: cycle {cycle} precedes the first simulated cycle {self._first}")
+        while len(self._drawn) <= i:
+            self._drawn.append(self.variation.draw(self.rng, self.nominal.clearance))
+        return self._drawn[i]
+
+    def mechanism(self, cycle: int) -> "PinInsertionMechanism":
+        """A copy of the nominal mechanism with the cycle's load parameters (the nominal one if none vary)."""
+        if cycle not in self._mechs:
+            load = self.deviation(cycle).load
+            values = {k: getattr(self.nominal, k) + d for k, d in load.items()}
+            try:
+                mech = replace(self.nominal, variation=None, rng=None, **values) if values else self.nominal
+            except ValueError as exc:
+                raise ValueError(f"variation: cycle {cycle} drew an invalid parameter set: {exc}") from None
+            # cycles advance monotonically; keep the previous one for events refined across a cycle boundary
+            self._mechs = {c: m for c, m in self._mechs.items() if c >= cycle - 1} | {cycle: mech}
+        return self._mechs[cycle]
+
+    def stroke_deviation(self, cycle: int, phi: np.ndarray) -> np.ndarray:
+        """Δs (m) of the cycle's deviated chain at cam angles ``phi`` (zeros if no chain parameter varies)."""
+        dq = self.deviation(cycle).chain
+        if not dq:
+            return np.zeros_like(phi)
+        return CamChain.from_mechanism(self.nominal, phi).deviation(dq)[0]
+
+
+def plant_generator(seed: int) -> np.random.Generator:
+    """The plant's generator under a scene seed (an independent stream from the runner's spawned ones)."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(PLANT_STREAM,)))

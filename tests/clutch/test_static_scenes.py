@@ -1,0 +1,180 @@
+"""The static clutch rig scenes through the whole rig: plant → transducers → StaticRig CAN frames → host →
+MCAP → report, with the hysteresis-loop energy checked against the characteristic."""
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+from scipy.optimize import brentq
+
+from rig.analysis.report import write_report
+from rig.analysis.static_clutch_report import cycle_table, static_rig
+from rig.analysis.static_loops import cycles, reading_points, theory_cycle_energy
+from rig.recorder import read_recording
+from rig.runner import run_scene
+from rig.scene import SceneError
+from rig.units import to_si
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENES = ROOT / "data" / "scenes"
+NAMES = ["clutch_static_leaf", "clutch_static_flat_tappet", "clutch_static_rubber_table"]
+POT = tomllib.loads((ROOT / "data" / "devices" / "potentiometer_dmm.toml").read_text())["transducer"]
+PUBLISH_RATE = 30.0      # Hz, [transducers.angle_pot] rate of the scenes
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory):
+    out = tmp_path_factory.mktemp("static")
+    recs = {}
+    for name in NAMES:
+        summary = run_scene(SCENES / f"{name}.toml", out / f"{name}.mcap")
+        recs[name] = (summary, read_recording(summary.output))
+    return recs
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_scene_duration_is_the_lever_program(name):
+    scene = tomllib.loads((SCENES / f"{name}.toml").read_text())
+    program = sum(to_si(step["duration"], "s") for step in scene["program"])
+    assert to_si(scene["scene"]["duration"], "s") == pytest.approx(program)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_scene_records_measured_channels(recordings, name):
+    summary, rec = recordings[name]
+    duration = to_si(tomllib.loads(rec.scene_text)["scene"]["duration"], "s")
+    assert duration <= summary.simulated_time < duration + 3.0      # the run ends with the program
+    readings = rec.series["/stand/static"]
+    assert set(readings) == ({"t", "angle", "strain"} if name == "clutch_static_leaf" else {"t", "angle"})
+    assert readings["t"].size == pytest.approx(PUBLISH_RATE * duration, abs=2)
+    assert not [e for e in rec.events if e["kind"] == "sequence_gap"]
+    # the multimeter: a few new readings per second, each within the pot's error band of the truth
+    t_new, phi_new = reading_points(readings["t"], readings["angle"])
+    span = t_new[-1] - t_new[0]
+    assert t_new.size <= to_si(POT["reading_rate"], "Hz") * span + 2
+    truth_phi = np.interp(readings["t"], rec.truth["t"], rec.truth["relative_angle"])
+    fs = to_si(POT["range_max"], "rad")
+    held = 1.0 / to_si(POT["reading_rate"], "Hz") + 1.0 / PUBLISH_RATE
+    rate = np.max(np.abs(np.gradient(rec.truth["relative_angle"], rec.truth["t"])[rec.truth["t"] < duration - 1]))
+    assert np.max(np.abs(readings["angle"] - truth_phi)) < 0.01 * fs + 2e-5 + rate * held
+
+
+def test_leaf_strain_measured_against_characteristic(recordings):
+    _, rec = recordings["clutch_static_leaf"]
+    rig = static_rig(rec)
+    r = rec.series["/stand/static"]
+    truth = np.interp(r["t"], rec.truth["t"], rec.truth["leaf_strain"])
+    # bridge amplifier: +-5000 um/m over 10 V, errors 0.5 % + 0.1 % + 0.2 % of FS and 1 % of the reading
+    bound = 5000e-6 * (0.005 + 0.001 + 0.002) + 0.01 * np.abs(truth) + 5 * 2e-3 / 2000.0 + 1e-8
+    steady = np.abs(np.gradient(truth, r["t"])) < 1e-5      # away from fast changes (10 Hz amplifier filter)
+    assert np.all(np.abs(r["strain"] - truth)[steady] <= bound[steady])
+    np.testing.assert_allclose(rec.truth["leaf_strain"],
+                               rig.clutch.leaf_strain(np.mod(rec.truth["relative_angle"], rig.clutch.period),
+                                                      rig.gauge_offset), rtol=1e-9, atol=1e-12)
+
+
+def _pot_bound(energy: float, torque_span: float, angle_span: float, load_rate: float) -> float:
+    """Worst-case loop-energy error (J) from the potentiometer/multimeter figures: gain and the slope of
+    the non-linearity (≤ 4·A, static_errors) act as a relative error; the play (≤ hysteresis_max·FS) and
+    the display step widen the loop by at most (play + step)·ΔT; a new reading is paired with the load
+    up to one publishing period late on both branches."""
+    fs_angle = to_si(POT["range_max"], "rad")
+    fs_volt = to_si(POT["output_at_max"], "V")
+    rel = to_si(POT["gain_error_max"], "1") + 4 * to_si(POT["nonlinearity_max"], "1")
+    width = (to_si(POT["hysteresis_max"], "1") + to_si(POT["resolution"], "V") / fs_volt
+             + 10 * to_si(POT["noise_rms"], "V") / fs_volt) * fs_angle
+    return rel * abs(energy) + width * torque_span + 2 * load_rate / PUBLISH_RATE * angle_span
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_loop_energy_measured_truth_theory(recordings, name):
+    _, rec = recordings[name]
+    rig = static_rig(rec)
+    rows = cycle_table(rec, rig)
+    assert len(rows) == {"clutch_static_leaf": 2, "clutch_static_flat_tappet": 2, "clutch_static_rubber_table": 1}[name]
+    load_rate = np.max(np.abs(np.diff(rig.program.forces) / np.diff(rig.program.times))) * rig.lever_arm
+    for r in rows:
+        # the plant's sample-by-sample stop operator reproduces the characteristic's loop (slip: the
+        # re-engagement angle depends on the sample step; quasi-static limit within 1 %)
+        assert r["truth"] == pytest.approx(r["theory"], rel=1e-2 if r["disengaged"] else 2e-4, abs=1e-6)
+        bound = _pot_bound(r["theory"], r["torque_max"] - r["torque_min"], r["angle_max"] - r["angle_min"],
+                           load_rate)
+        assert abs(r["measured"] - r["theory"]) <= bound, (r, bound)
+    if name == "clutch_static_rubber_table":          # frictionless: no loop, the sensor's play only
+        assert abs(rows[0]["theory"]) < 1e-6
+    else:
+        assert all(r["measured"] > 10 * _pot_bound(0.0, 0.0, 0.0, 0.0) for r in rows)
+    assert [r["disengaged"] for r in rows] == [False, name == "clutch_static_flat_tappet"][:len(rows)]
+
+
+def test_stationary_leaf_loop_is_the_integral_between_the_branches():
+    """Independent: ∫(T_load − T_unload) dφ between the angle where T_unload = 0 and T_load = T_max."""
+    from rig.plants.clutch.static_rig import load_static_rig
+    c = load_static_rig(SCENES / "clutch_static_leaf.toml").clutch
+    t_max = 30.0
+    phi_b = brentq(lambda p: float(c.torque(p, 1.0)) - t_max, 0.05, c.disengagement_angle)
+    phi_a = brentq(lambda p: float(c.torque(p, -1.0)), 0.05, phi_b)
+    area = quad(lambda p: float(c.torque(p, 1.0) - c.torque(p, -1.0)), phi_a, phi_b, epsabs=1e-12)[0]
+    energy, phi_end, slip = theory_cycle_energy(c, phi_a, 0.0, t_max)
+    assert energy == pytest.approx(area, rel=1e-6)
+    assert phi_end == pytest.approx(phi_a, abs=1e-6) and not slip
+
+
+def test_disengaging_cycle_slips_one_lobe_at_peak_torque():
+    from rig.plants.clutch.static_rig import load_static_rig
+    c = load_static_rig(SCENES / "clutch_static_flat_tappet.toml").clutch
+    closed, phi_a, _ = theory_cycle_energy(c, 0.0, 0.0, c.peak_torque * (1 - 1e-9))
+    slipped, phi_end, slip = theory_cycle_energy(c, 0.0, 0.0, 1.1 * c.peak_torque)
+    assert slip and phi_end == pytest.approx(phi_a + c.period, abs=1e-4)
+    assert slipped - closed == pytest.approx(c.peak_torque * c.period, rel=1e-4)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_report_shows_loop_figure_and_table(recordings, tmp_path, name):
+    _, rec = recordings[name]
+    path = write_report(rec, tmp_path, fmt="md")
+    text = path.read_text()
+    assert "## Static clutch rig" in text and "Hysteresis-loop energy" in text
+    figures = sorted(p.name for p in tmp_path.glob("*static_torque_angle.png"))
+    assert len(figures) == 1 and (tmp_path / figures[0]).stat().st_size > 5000
+    assert (len(list(tmp_path.glob("*static_leaf_strain.png"))) == 1) == (name == "clutch_static_leaf")
+    assert ("| disengagement |" in text) == (name == "clutch_static_flat_tappet")
+
+
+def test_cycles_split_at_load_valleys():
+    t = np.linspace(0.0, 10.0, 1001)
+    torque = np.interp(t, [0, 2, 4, 5, 7, 9, 10], [0, 5, 1, 1, 6, 0, 3])
+    got = cycles(t, torque)
+    assert [(c.start, c.end, c.torque_min, c.torque_max) for c in got] == [
+        (0.0, 5.0, 0.0, 5.0), (5.0, 9.0, 0.0, 6.0)]        # the last rise has no unloading: no cycle
+    with pytest.raises(ValueError, match="matching 1-D"):
+        cycles(t, torque[:-1])
+
+
+def test_theory_rejects_an_empty_cycle():
+    from rig.plants.clutch.variants import measured_table
+    with pytest.raises(ValueError, match="torque_max > torque_min"):
+        theory_cycle_energy(measured_table("rubber_d25_rubber_d20"), 0.0, 5.0, 5.0)
+
+
+def test_transducer_signal_the_plant_lacks_is_a_scene_error(tmp_path):
+    text = (SCENES / "clutch_static_flat_tappet.toml").read_text().replace(
+        "[transducers.angle_pot]", '[transducers.leaf_bridge]\ndescription = "leaf_half_bridge"\n'
+        'signal = "leaf_strain"\nrole = "strain"\n\n[transducers.angle_pot]', 1)
+    scene = tmp_path / "clutch_static_bad.toml"
+    scene.write_text(text)
+    with pytest.raises(SceneError, match=r"\[transducers.leaf_bridge\].*no signal 'leaf_strain'") as info:
+        run_scene(scene, tmp_path / "bad.mcap")
+    assert str(scene) in str(info.value) and "relative_angle" in str(info.value)
+
+
+def test_unknown_role_is_a_scene_error(tmp_path):
+    text = (SCENES / "clutch_static_rubber_table.toml").read_text().replace('role = "angle"', 'role = "dmm"', 1)
+    scene = tmp_path / "clutch_static_bad_role.toml"
+    scene.write_text(text)
+    with pytest.raises(SceneError, match=r"\[transducers.angle_pot\].*'role'.*'dmm'"):
+        run_scene(scene, tmp_path / "bad.mcap")
