@@ -33,6 +33,7 @@ sys.path.insert(0, str(ROOT))
 from rig.plants.clutch.stand import ClutchStand  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 from rig.solvers import EventRecord, integrate  # noqa: E402
+from rig.solvers.integrate import _past_root  # noqa: E402  (same switching rule as ours)
 from rig.units import to_si  # noqa: E402
 
 TARGET = 1e-6
@@ -56,6 +57,7 @@ def scipy_run(dyn, y0, t, method, rtol, atol):
     out = np.empty((len(y0), t.size))
     tc, y = float(t[0]), tuple(y0)
     prob.reset(tc, y)
+    stalls = 0
     i = 0
     for b in edges:
         while True:
@@ -80,6 +82,14 @@ def scipy_run(dyn, y0, t, method, rtol, atol):
                 break
             k = next(idx[m] for m, te in enumerate(s.t_events) if te.size and te[-1] == t_end)
             e = prob.events[k]
+            # restart just past the root (where g has its new sign), as ours acts on mode switches;
+            # otherwise solve_ivp re-detects the same root at its start time for ever
+            rising = e.direction > 0 if e.direction else e.fun(float(s.t[-2]), tuple(s.y[:, -2])) < 0.0
+            t_end = _past_root(e.fun, lambda tt: tuple(s.sol(tt)), t_end, float(b), rising)
+            y = tuple(s.sol(t_end))
+            stalls = stalls + 1 if t_end <= tc else 0
+            if stalls > 50:
+                raise RuntimeError(f"scipy {method}: event chattering at t = {t_end} s")
             changed = e.action(EventRecord(t_end, e.name, y, 0.0)) if e.action else False
             if isinstance(changed, tuple):
                 y = changed

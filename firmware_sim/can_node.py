@@ -16,9 +16,10 @@ the bus leaves them.
 from __future__ import annotations
 
 import binascii
+import copy
 import heapq
 import itertools
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -59,13 +60,61 @@ def curve_crc(raw_x: np.ndarray, raw_y: np.ndarray) -> int:
     return binascii.crc_hqx(pairs.tobytes(), 0xFFFF)
 
 
+def _fd_pairs(raw_x: np.ndarray, raw_y: np.ndarray) -> dict[str, np.ndarray]:
+    """Columns X0..X10, Y0..Y10 of the FD frames carrying these raw pairs, 11 per frame (unused: 0)."""
+    frames = -(-raw_x.size // FD_PAIRS)
+    grid = np.zeros((2, frames * FD_PAIRS), dtype=np.int64)
+    grid[0, :raw_x.size], grid[1, :raw_y.size] = raw_x, raw_y
+    grid = grid.reshape(2, frames, FD_PAIRS)
+    return {f"{axis}{k}": grid[a, :, k] for a, axis in enumerate("XY") for k in range(FD_PAIRS)}
+
+
+class _Packing:
+    """Packs rows of raw signal values into payloads of one DBC message with numpy: the same bytes as
+    cantools' ``encode`` for little-endian integer signals, classic or FD (checked in the tests). The hot
+    path of curve and live transfer, where per-frame cantools calls dominated the run time."""
+
+    def __init__(self, message: Any) -> None:
+        signals = message.signals
+        if message.is_multiplexed() or any(s.byte_order != "little_endian" or s.is_float or s.length >= 64
+                                           or s.start % 8 + s.length > 64 for s in signals):
+            raise ValueError(f"{message.name}: packed encoding supports little-endian integer signals only")
+        self.message = message
+        self.names = tuple(s.name for s in signals)
+        col = lambda values, dtype: np.array(values, dtype=dtype)[:, None]
+        self.lo = col([-(1 << (s.length - 1)) if s.is_signed else 0 for s in signals], np.int64)
+        self.hi = col([(1 << (s.length - 1 if s.is_signed else s.length)) - 1 for s in signals], np.int64)
+        self.mask = col([(1 << s.length) - 1 for s in signals], np.uint64)
+        self.shift = col([s.start % 8 for s in signals], np.uint64)
+        first = np.array([s.start // 8 for s in signals])
+        self.groups = [(int(b), np.flatnonzero(first == b)) for b in np.unique(first)]
+
+    def pack(self, columns: dict[str, np.ndarray], n: int) -> bytes:
+        """Payloads of ``n`` frames, concatenated; signals missing from ``columns`` are 0."""
+        raw = np.zeros((len(self.names), n), dtype=np.int64)
+        for i, name in enumerate(self.names):
+            if name in columns:
+                raw[i] = columns[name]
+        bad = (raw < self.lo) | (raw > self.hi)
+        if bad.any():
+            i = int(np.argmax(bad.any(axis=1)))
+            raise ValueError(f"{self.message.name}.{self.names[i]}: raw value outside {self.lo[i, 0]}..{self.hi[i, 0]}")
+        words = (raw.view(np.uint64) & self.mask) << self.shift
+        length = self.message.length
+        payload = np.zeros((n, length + 8), dtype=np.uint8)
+        for first, rows in self.groups:
+            word = np.bitwise_or.reduce(words[rows], axis=0).astype("<u8")
+            payload[:, first:first + 8] |= word.view(np.uint8).reshape(n, 8)
+        return payload[:, :length].tobytes()
+
+
 #: frames of one measurement's transfer: they leave one transmit FIFO in order, at the header's priority,
 #: so a later curve never overtakes an earlier one (live data and status still win arbitration)
 TRANSFER_FRAMES = frozenset({"CurveHeader", "CurveTiming", "CurveTimes", "CurveBlock", "CurveBlockFD", "CurveEnd",
                              "Result", "ResultValue"})
 
 
-@dataclass(order=True)
+@dataclass(slots=True)
 class _Pending:
     key: tuple                       # (priority, enqueue order): CAN arbitration order (see TRANSFER_FRAMES)
     ready: float                     # virtual time from which the frame may be sent (s)
@@ -74,7 +123,26 @@ class _Pending:
     expires: float | None = None     # live frames: dropped if still queued after this time
     pairs: int = 0                   # live pairs carried (for the dropped count)
     curve_end: bool = False
-    frame_id: int = field(default=0, compare=False)
+    frame_id: int = 0
+    rank: int = 0                    # key as one integer (faster heap comparisons): priority << 40 | order
+    duration: float = 0.0            # wire time (s) if known when queued (worst-case stuffing), else 0
+
+
+class _Frame(can.Message):
+    """A sent frame. python-can's ``virtual`` bus deep-copies every frame for each receiver; this copy
+    builds the plain :class:`can.Message` directly instead of going through :mod:`copy`'s generic
+    machinery for the payload (the same frame arrives, at a third of the cost)."""
+
+    __slots__ = ()
+
+    def __deepcopy__(self, memo: dict | None) -> can.Message:
+        return can.Message(timestamp=self.timestamp, arbitration_id=self.arbitration_id,
+                           is_extended_id=self.is_extended_id, is_remote_frame=self.is_remote_frame,
+                           is_error_frame=self.is_error_frame,
+                           channel=self.channel if isinstance(self.channel, (str, int, type(None)))
+                           else copy.deepcopy(self.channel, memo),
+                           dlc=self.dlc, data=bytearray(self.data), is_fd=self.is_fd, is_rx=self.is_rx,
+                           bitrate_switch=self.bitrate_switch, error_state_indicator=self.error_state_indicator)
 
 
 class CanNode:
@@ -106,10 +174,13 @@ class CanNode:
         self.now = float(t0)             # device time of the last advance_to (s)
         self.bus_free = float(t0)        # virtual time at which the bus is next idle (s)
         self._next_heartbeat = float(t0)
-        self._queue: list[tuple[tuple, _Pending]] = []   # ready frames as (key, frame), in arbitration order
+        self._queue: list[tuple[int, _Pending]] = []   # ready frames as (rank, frame), in arbitration order
         self._waiting: list[tuple[float, int, _Pending]] = []   # not yet ready, by ready time
         self._order = itertools.count()
         self._seq: dict[int, int] = {}
+        self._packing: dict[str, _Packing] = {}
+        self._wire_time: dict[tuple[int, int, bool], float] = {}   # worst-case stuffing: per (id, length, fd)
+        self._curve_ends = 0             # queued Result frames (curves whose transfer has not finished)
         self._published_result: Any = None
         self.live_dropped = 0            # live pairs not sent (decimated or stale)
         self.live_sent = 0
@@ -126,33 +197,32 @@ class CanNode:
             signals = {"Seq": 0, **signals}
         data = bytearray(msg.encode(signals, scaling=False, padding=False, strict=False))  # ranges: see quantise()
         priority = self._msg["CurveHeader"].frame_id if name in TRANSFER_FRAMES else msg.frame_id
-        item = _Pending((priority, next(self._order)), float(ready), data, msg.is_fd, frame_id=msg.frame_id, **extra)
+        order = next(self._order)
+        item = _Pending((priority, order), float(ready), data, msg.is_fd, frame_id=msg.frame_id,
+                        rank=priority << 40 | order, duration=self._planned_duration(msg.frame_id, len(data), msg.is_fd),
+                        **extra)
+        self._curve_ends += item.curve_end
         heapq.heappush(self._waiting, (item.ready, item.key[1], item))
 
     def _enqueue_rows(self, name: str, columns: dict[str, np.ndarray], ready: np.ndarray,
-                      expires: np.ndarray | None = None, pairs: int = 0) -> None:
-        """Queue one frame per row of ``columns`` (raw integer signal values), packed with numpy.
-
-        Same bytes as cantools' ``encode`` for classic little-endian frames (checked in the tests);
-        the hot path of curve and live transfer, where per-frame cantools calls dominated the run time.
-        """
+                      expires: np.ndarray | None = None, pairs: int | np.ndarray = 0) -> None:
+        """Queue one frame per row of ``columns`` (raw integer signal values; missing ones are 0), packed
+        with numpy (:class:`_Packing`); ``pairs``: live pairs carried, per frame or for all."""
         msg = self._msg[name]
-        if msg.is_fd or msg.length > 8 or any(sig.byte_order != "little_endian" for sig in msg.signals):
-            raise ValueError(f"{name}: packed encoding supports classic little-endian frames only")
-        n = len(ready)
-        word = np.zeros(n, dtype=np.uint64)
-        for sig in msg.signals:
-            raw = np.zeros(n, dtype=np.int64) if sig.name == "Seq" else np.asarray(columns[sig.name], dtype=np.int64)
-            lo, hi = (-(1 << (sig.length - 1)), (1 << (sig.length - 1)) - 1) if sig.is_signed else (0, (1 << sig.length) - 1)
-            if raw.size and (raw.min() < lo or raw.max() > hi):
-                raise ValueError(f"{name}.{sig.name}: raw value outside {lo}..{hi}")
-            word |= (raw & ((1 << sig.length) - 1)).astype(np.uint64) << np.uint64(sig.start)
-        data = word.astype("<u8").tobytes()
+        packing = self._packing.get(name)
+        if packing is None:
+            packing = self._packing[name] = _Packing(msg)
+        n, length = len(ready), msg.length
+        data = packing.pack(columns, n)
         priority = self._msg["CurveHeader"].frame_id if name in TRANSFER_FRAMES else msg.frame_id
-        for i in range(n):
-            item = _Pending((priority, next(self._order)), float(ready[i]), bytearray(data[8 * i:8 * i + msg.length]),
-                            False, None if expires is None else float(expires[i]), pairs, frame_id=msg.frame_id)
-            heapq.heappush(self._waiting, (item.ready, item.key[1], item))
+        fid, fd, waiting, push = msg.frame_id, msg.is_fd, self._waiting, heapq.heappush
+        duration = self._planned_duration(fid, length, fd)
+        for i, at, until, carried, order in zip(
+                range(0, length * n, length), np.asarray(ready, dtype=float).tolist(),
+                itertools.repeat(None) if expires is None else np.asarray(expires, dtype=float).tolist(),
+                np.broadcast_to(np.asarray(pairs, dtype=np.int64), (n,)).tolist(), self._order):
+            push(waiting, (at, order, _Pending((priority, order), at, bytearray(data[i:i + length]), fd, until,
+                                               carried, False, fid, priority << 40 | order, duration)))
 
     def frame_time_planned(self, name: str) -> float:
         """Worst-case wire time (s) of one frame of DBC message ``name`` on this bus."""
@@ -164,14 +234,14 @@ class CanNode:
         """Frames queued and not yet on the wire."""
         return len(self._queue) + len(self._waiting)
 
-    def pending_before(self, t: float) -> int:
-        """Frames queued for sending at or before time ``t`` (s) and not yet on the wire."""
-        return sum(item.ready <= t for _, item in self._queue) + sum(w[0] <= t for w in self._waiting)
+    def has_pending_before(self, t: float) -> bool:
+        """Whether any frame queued for sending at or before time ``t`` (s) is not yet on the wire."""
+        return any(item.ready <= t for _, item in self._queue) or bool(self._waiting and self._waiting[0][0] <= t)
 
     @property
     def curves_pending(self) -> int:
         """Curves whose transfer has not finished."""
-        return sum(p.curve_end for _, p in self._queue) + sum(w[2].curve_end for w in self._waiting)
+        return self._curve_ends
 
     def counters(self) -> dict[str, float]:
         """What the node did: live pairs sent/dropped, clipped values, frames, bus load so far."""
@@ -207,13 +277,11 @@ class CanNode:
         if not self.timing.fd:
             self._enqueue_rows(name, {"Tick": ticks, "X": rx, "Y": ry}, tk, tk + self.live_max_age, pairs=1)
             return factor
-        for i in range(0, tk.size, per_frame):
-            j = min(i + per_frame, tk.size)
-            sig = {"Tick": int(ticks[i]), "Dt": int(round(factor * dt / 1e-6)), "NPairs": j - i}
-            for k in range(FD_PAIRS):
-                sig[f"X{k}"] = int(rx[i + k]) if i + k < j else 0
-                sig[f"Y{k}"] = int(ry[i + k]) if i + k < j else 0
-            self._enqueue(name, sig, tk[j - 1], expires=tk[j - 1] + self.live_max_age, pairs=j - i)
+        first = np.arange(0, tk.size, per_frame)
+        last = np.minimum(first + per_frame, tk.size) - 1
+        self._enqueue_rows(name, {"Tick": ticks[first], "Dt": np.full(first.size, int(round(factor * dt / 1e-6))),
+                                  "NPairs": last - first + 1, **_fd_pairs(rx, ry)}, tk[last],
+                           tk[last] + self.live_max_age, pairs=last - first + 1)
         return factor
 
     def publish_measurement(self, t: float, result: Any) -> None:
@@ -231,13 +299,10 @@ class CanNode:
         self._enqueue("CurveHeader", {"CurveNo": number, "Count": cx.size, "Program": int(result.program) % 256}, t)
         self._enqueue_curve_times(number, ct, t)
         if self.timing.fd:
-            for b, i in enumerate(range(0, cx.size, FD_PAIRS)):
-                j = min(i + FD_PAIRS, cx.size)
-                sig = {"CurveNo": number % 256, "Block": b, "NPairs": j - i}
-                for k in range(FD_PAIRS):
-                    sig[f"X{k}"] = int(rx[i + k]) if i + k < j else 0
-                    sig[f"Y{k}"] = int(ry[i + k]) if i + k < j else 0
-                self._enqueue("CurveBlockFD", sig, t)
+            blocks = -(-cx.size // FD_PAIRS)
+            self._enqueue_rows("CurveBlockFD", {"CurveNo": np.full(blocks, number % 256), "Block": np.arange(blocks),
+                                                "NPairs": np.minimum(cx.size - FD_PAIRS * np.arange(blocks), FD_PAIRS),
+                                                **_fd_pairs(rx, ry)}, np.full(blocks, float(t)))
         else:
             if cx.size > 4096:
                 raise ValueError(f"curve of result {result.number} has {cx.size} pairs; classic CAN blocks index at most 4096")
@@ -360,37 +425,58 @@ class CanNode:
             self._next_heartbeat += self.heartbeat_period
         return self._transmit(t)
 
+    def _planned_duration(self, frame_id: int, length: int, is_fd: bool) -> float:
+        """Wire time (s) of a frame known before its payload is final: with worst-case stuffing it depends on
+        id, length and format only; 0 with exact stuffing (counted from the bits at transmission)."""
+        if self.timing.stuffing != "worst":
+            return 0.0
+        key = (frame_id, length, is_fd)
+        if key not in self._wire_time:
+            self._wire_time[key] = self.timing.frame_time(frame_id, bytes(length), is_fd)
+        return self._wire_time[key]
+
     def _transmit(self, t: float) -> int:
-        sent = 0
-        while True:
-            while self._waiting and self._waiting[0][0] <= self.bus_free:
-                item = heapq.heappop(self._waiting)[2]
-                heapq.heappush(self._queue, (item.key, item))
-            if not self._queue:
-                if not self._waiting or self._waiting[0][0] >= t:
-                    self.bus_free = max(self.bus_free, t)
+        """Send the queued frames that are complete on the wire by ``t`` (s), in arbitration order."""
+        queue, waiting, seqs, send, frame_time = self._queue, self._waiting, self._seq, self.bus.send, self.timing.frame_time
+        brs = self.timing.data_bitrate is not None
+        pop, push = heapq.heappop, heapq.heappush
+        bus_free, busy, sent, live_sent, curve_ends, dropped = self.bus_free, 0.0, 0, 0, 0, 0
+        try:
+            while True:
+                while waiting and waiting[0][0] <= bus_free:
+                    item = pop(waiting)[2]
+                    push(queue, (item.rank, item))
+                if not queue:
+                    if not waiting or waiting[0][0] >= t:
+                        bus_free = max(bus_free, t)
+                        return sent
+                    bus_free = waiting[0][0]
+                    continue
+                item = queue[0][1]
+                if item.expires is not None and bus_free > item.expires:
+                    pop(queue)
+                    dropped += item.pairs
+                    continue
+                fid = item.frame_id
+                seq = seqs.get(fid, 0)
+                item.data[0] = seq
+                duration = item.duration or frame_time(fid, bytes(item.data), item.is_fd)
+                end = bus_free + duration
+                if end > t:
                     return sent
-                self.bus_free = self._waiting[0][0]
-                continue
-            item = self._queue[0][1]
-            if item.expires is not None and self.bus_free > item.expires:
-                heapq.heappop(self._queue)
-                self.live_dropped += item.pairs
-                continue
-            fid = item.frame_id
-            seq = self._seq.get(fid, 0)
-            item.data[0] = seq
-            duration = self.timing.frame_time(fid, bytes(item.data), item.is_fd)
-            end = self.bus_free + duration
-            if end > t:
-                return sent
-            heapq.heappop(self._queue)
-            self._seq[fid] = (seq + 1) % 256
-            self.bus.send(can.Message(arbitration_id=fid, data=item.data, is_extended_id=False, is_fd=item.is_fd,
-                                      bitrate_switch=item.is_fd and self.timing.data_bitrate is not None,
-                                      timestamp=end))
-            self.bus_free = end
-            self.busy_time += duration
-            self.frames_sent += 1
-            self.live_sent += item.pairs
-            sent += 1
+                pop(queue)
+                seqs[fid] = (seq + 1) % 256
+                send(_Frame(timestamp=end, arbitration_id=fid, is_extended_id=False, data=item.data, is_fd=item.is_fd,
+                            bitrate_switch=item.is_fd and brs))
+                bus_free = end
+                busy += duration
+                sent += 1
+                live_sent += item.pairs
+                curve_ends += item.curve_end
+        finally:
+            self.bus_free = bus_free
+            self.busy_time += busy
+            self.frames_sent += sent
+            self.live_sent += live_sent
+            self.live_dropped += dropped
+            self._curve_ends -= curve_ends

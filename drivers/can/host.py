@@ -1,20 +1,25 @@
 """Host side of the CAN link: receive from any python-can bus, decode with the DBC, check, reassemble.
 
+Frames are decoded from the DBC's bit layout (:mod:`drivers.can.layout`; cantools for multiplexed or
+float frames). :meth:`CanHost.receive_many` takes a batch of frames and decodes runs of live and
+curve-block frames together, with the same outcome as :meth:`CanHost.receive` frame by frame.
+
 Every irregularity (unknown id, wrong length, undecodable payload, error frame, sequence gap,
 incomplete or corrupt curve) becomes a :class:`LinkEvent` in :attr:`CanHost.events`; nothing
 received before it is lost and reception continues.
 """
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import can
 import cantools
 import numpy as np
 
+from drivers.can.drain import drain
+from drivers.can.layout import FrameLayout, supports
 from drivers.can.reassembly import Curve, CurveAssembler
 from drivers.can.sequence import SequenceChecker
 from drivers.can.timebase import unwrap
@@ -60,6 +65,7 @@ class CanHost:
         self.bus = bus
         self.db = cantools.database.load_file(str(dbc_path))
         self._by_id = {m.frame_id: m for m in self.db.messages if "DEVICE" in m.senders}
+        self._layouts = {fid: FrameLayout(m) for fid, m in self._by_id.items() if supports(m)}
         self._command = self.db.get_message_by_name("HostCommand")
         live = self.db.get_message_by_name("LiveXY")
         self.x_lsb, self.y_lsb = live.get_signal_by_name("X").scale, live.get_signal_by_name("Y").scale
@@ -84,7 +90,10 @@ class CanHost:
         self.encoder_log: list[tuple[int, float, int, float]] = []  # (encoder 1/2, received s, count, edge time s)
         self.static: list[tuple[float, float, float]] = []      # (t s, angle rad, leaf strain m/m): static rig
         self.acks: list[dict[str, Any]] = []
-        self._live: list[tuple[float, float, list[int], list[int]]] = []   # (t0, dt, raw xs, raw ys)
+        self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per frame or run
+        self._runs = {self.db.get_message_by_name(name).frame_id: handler for name, handler in (
+            ("LiveXY", self._live_run), ("LiveXYFD", self._live_run), ("CurveBlock", self._curve_block_run),
+            ("CurveBlockFD", self._curve_block_run))}
         self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
         self._host_seq = 0
         self._last_result: CurveResult | None = None
@@ -94,11 +103,11 @@ class CanHost:
         """Receive and process frames until none arrives within ``timeout`` (s); returns how many."""
         n = 0
         while max_frames is None or n < max_frames:
-            msg = self.bus.recv(timeout)
-            if msg is None:
+            frames = drain(self.bus, timeout, None if max_frames is None else max_frames - n)
+            if not frames:
                 break
-            self.receive(msg)
-            n += 1
+            self.receive_many(frames)
+            n += len(frames)
         return n
 
     def receive(self, msg: can.Message) -> None:
@@ -117,7 +126,9 @@ class CanHost:
             self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(msg.data)} data bytes, DBC says {spec.length}")
             return
         try:
-            raw = spec.decode(bytes(msg.data), decode_choices=False, scaling=False)
+            layout = self._layouts.get(fid)
+            raw = (layout.decode_one(msg.data) if layout is not None
+                   else spec.decode(bytes(msg.data), decode_choices=False, scaling=False))
         except (cantools.database.errors.DecodeError, ValueError, KeyError) as exc:
             self._event(msg, "decode_error", 1, f"{spec.name} (0x{fid:03X}): {exc}")
             return
@@ -125,6 +136,41 @@ class CanHost:
         if gap:
             self._event(msg, "sequence_gap", gap, f"{spec.name} (0x{fid:03X}): {gap} frame(s) missing before Seq {raw['Seq']}")
         self._handlers[spec.name](msg, spec, raw)
+
+    def receive_many(self, frames: Sequence[can.Message]) -> None:
+        """Process received frames in order, with the outcome of :meth:`receive` on each.
+
+        Well-formed live and curve-block frames between two other frames are decoded together, per
+        frame id: they touch independent state (live buffer and device time; curve assembler, which only
+        header and end frames change), and their events are put back in frame order.
+        """
+        lengths = {fid: self._layouts[fid].length for fid in self._runs}
+        bulk = [lengths.get(m.arbitration_id) == len(m.data) and not m.is_error_frame for m in frames]
+        group: dict[int, list[int]] = {}
+        for k, (msg, is_bulk) in enumerate(zip(frames, bulk)):
+            if is_bulk:
+                group.setdefault(msg.arbitration_id, []).append(k)
+                continue
+            self._receive_groups(frames, group)
+            group = {}
+            self.receive(msg)
+        self._receive_groups(frames, group)
+
+    def _receive_groups(self, frames: Sequence[can.Message], group: dict[int, list[int]]) -> None:
+        """Decode and handle the frames ``frames[k]`` listed per frame id in ``group``."""
+        events = []
+        for fid, index in group.items():
+            layout, spec = self._layouts[fid], self._by_id[fid]
+            run = [frames[k] for k in index]
+            self.frames_received += len(run)
+            raw = layout.decode(np.frombuffer(b"".join(m.data for m in run), dtype=np.uint8).reshape(len(run), -1))
+            gaps = self.sequence.check_many(fid, raw["Seq"])
+            for k in np.flatnonzero(gaps).tolist():
+                events.append((index[k], 0, run[k], "sequence_gap", int(gaps[k]),
+                               f"{spec.name} (0x{fid:03X}): {gaps[k]} frame(s) missing before Seq {raw['Seq'][k]}"))
+            events.extend((index[k], 1, run[k], "curve", 1, p) for k, p in self._runs[fid](raw))
+        for _, _, msg, kind, count, detail in sorted(events, key=lambda e: e[:2]):
+            self._event(msg, kind, count, detail)
 
     def _event(self, msg: can.Message, kind: str, count: int, detail: str) -> None:
         self.events.append(LinkEvent(msg.timestamp, kind, msg.arbitration_id, count, detail))
@@ -150,22 +196,35 @@ class CanHost:
         return t
 
     def _live(self, msg, spec, raw) -> None:
-        self._live.append((self._live_time(raw["Tick"]), 0.0, [raw["X"]], [raw["Y"]]))
+        self._live_run({k: np.array([v]) for k, v in raw.items()})
 
-    def _live_fd(self, msg, spec, raw) -> None:
-        t0, dt, n = self._live_time(raw["Tick"]), raw["Dt"] * 1e-6, raw["NPairs"]
-        self._live.append((t0, dt, [raw[k] for k in self._fd_x[:n]], [raw[k] for k in self._fd_y[:n]]))
-        self._device_time = max(self._device_time, t0 + (n - 1) * dt)
+    _live_fd = _live
+
+    def _live_run(self, raw: dict[str, np.ndarray]) -> list[tuple[int, str]]:
+        """Live frames (LiveXY: one pair at Tick; LiveXYFD: NPairs pairs at Tick + i*Dt), in order."""
+        if "NPairs" not in raw:
+            self._live.append((np.array([self._live_time(tick) for tick in raw["Tick"].tolist()]), raw["X"], raw["Y"]))
+            return []
+        dt = raw["Dt"] * 1e-6
+        t0 = np.zeros(len(dt))
+        for k, (tick, step, n) in enumerate(zip(raw["Tick"].tolist(), dt.tolist(), raw["NPairs"].tolist())):
+            t0[k] = self._live_time(tick)
+            self._device_time = max(self._device_time, t0[k] + (n - 1) * step)
+        counts = np.minimum(raw["NPairs"], self._fd_pairs)
+        first = np.repeat(np.cumsum(counts) - counts, counts)
+        slot = np.arange(int(counts.sum())) - first
+        t = np.repeat(t0, counts) + np.repeat(dt, counts) * slot
+        rows = np.repeat(np.arange(len(counts)), counts)
+        xs, ys = np.column_stack([raw[k] for k in self._fd_x]), np.column_stack([raw[k] for k in self._fd_y])
+        self._live.append((t, xs[rows, slot], ys[rows, slot]))
+        return []
 
     def take_live(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Live pairs received since the last call: times (s, device time), X (m), Y (N)."""
         blocks, self._live = self._live, []
-        counts = np.array([len(b[2]) for b in blocks], dtype=np.int64)
-        first = np.repeat(np.cumsum(counts) - counts, counts)
-        t = (np.repeat([b[0] for b in blocks], counts)
-             + np.repeat([b[1] for b in blocks], counts) * (np.arange(counts.sum()) - first))
-        x = np.fromiter(itertools.chain.from_iterable(b[2] for b in blocks), dtype=float, count=int(counts.sum()))
-        y = np.fromiter(itertools.chain.from_iterable(b[3] for b in blocks), dtype=float, count=int(counts.sum()))
+        if not blocks:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
+        t, x, y = (np.concatenate([b[k] for b in blocks]) for k in range(3))
         return t, x * self.x_lsb, y * self.y_lsb
 
     def _curve_problems(self, msg, problems: list[str]) -> None:
@@ -186,13 +245,19 @@ class CanHost:
         self._curve_problems(msg, self.assembler.times(raw["CurveNo"], 2 * raw["Block"], offsets))
 
     def _curve_block(self, msg, spec, raw) -> None:
-        pair = np.array([[raw["X"], raw["Y"]]], dtype=np.int64)
-        self._curve_problems(msg, self.assembler.pairs(raw["CurveNo"], 16, raw["Block"], pair))
+        self._curve_problems(msg, [p for _, p in self._curve_block_run({k: np.array([v]) for k, v in raw.items()})])
 
-    def _curve_block_fd(self, msg, spec, raw) -> None:
-        n = raw["NPairs"]
-        pairs = np.array([[raw[k] for k in self._fd_x[:n]], [raw[k] for k in self._fd_y[:n]]], dtype=np.int64).T
-        self._curve_problems(msg, self.assembler.pairs(raw["CurveNo"], 256, raw["Block"] * self._fd_pairs, pairs))
+    _curve_block_fd = _curve_block
+
+    def _curve_block_run(self, raw: dict[str, np.ndarray]) -> list[tuple[int, str]]:
+        """Curve blocks (CurveBlock: one pair numbered Block of curve CurveNo mod 16; CurveBlockFD: NPairs
+        pairs from Block*11 of curve CurveNo mod 256); returns (frame index, problem)."""
+        if "NPairs" not in raw:
+            return self.assembler.pairs(raw["CurveNo"], 16, raw["Block"], np.ones_like(raw["Block"]),
+                                             np.column_stack([raw["X"], raw["Y"]])[:, None, :])
+        xs, ys = np.column_stack([raw[k] for k in self._fd_x]), np.column_stack([raw[k] for k in self._fd_y])
+        return self.assembler.pairs(raw["CurveNo"], 256, raw["Block"] * self._fd_pairs,
+                                         np.minimum(raw["NPairs"], self._fd_pairs), np.stack([xs, ys], axis=2))
 
     def _curve_end(self, msg, spec, raw) -> None:
         self._curve_problems(msg, self.assembler.end(raw["CurveNo"], raw["Count"], raw["Crc"], raw["Clipped"]))

@@ -71,16 +71,28 @@ class CurveAssembler:
         self._offsets[first:first + n] = offsets[:n]
         return []
 
-    def pairs(self, number_bits: int, number_mod: int, first: int, raw: np.ndarray) -> list[str]:
-        """Store raw pairs (shape (n, 2)) starting at pair index ``first`` of the curve whose number
-        modulo ``number_mod`` is ``number_bits``."""
-        if self._number is None or self._number % number_mod != number_bits:
-            return [f"curve block (curve {number_bits} mod {number_mod}, pair {first}) without its header"]
-        if first + len(raw) > len(self._got):
-            return [f"curve {self._number}: block at pair {first} (+{len(raw)}) beyond the announced {len(self._got)} pairs"]
-        self._raw[first:first + len(raw)] = raw
-        self._got[first:first + len(raw)] = True
-        return []
+    def pairs(self, number_bits: np.ndarray, number_mod: int, first: np.ndarray, count: np.ndarray,
+                   raw: np.ndarray) -> list[tuple[int, str]]:
+        """Store the raw pairs of consecutive blocks: block ``i`` holds ``count[i]`` pairs ``raw[i, :count[i]]``
+        (``raw`` of shape (n, k, 2)) from pair index ``first[i]`` of the curve whose number modulo
+        ``number_mod`` is ``number_bits[i]``. Returns the problems as (block index, text)."""
+        number_bits, first, count = (np.asarray(a, dtype=np.int64) for a in (number_bits, first, count))
+        size = len(self._got)
+        ours = (number_bits == self._number % number_mod) if self._number is not None else np.zeros(len(first), bool)
+        fits = first + count <= size
+        problems = [(i, f"curve block (curve {number_bits[i]} mod {number_mod}, pair {first[i]}) without its header")
+                    if not ours[i] else
+                    (i, f"curve {self._number}: block at pair {first[i]} (+{count[i]}) beyond the announced {size} pairs")
+                    for i in np.flatnonzero(~(ours & fits)).tolist()]
+        keep = np.flatnonzero(ours & fits)
+        if keep.size:
+            n = count[keep]
+            slot = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+            rows = np.repeat(keep, n)
+            at = first[rows] + slot
+            self._raw[at] = raw[rows, slot]
+            self._got[at] = True
+        return problems
 
     def end(self, number: int, count: int, crc: int, clipped: int) -> list[str]:
         """Close the curve: check number, count, missing pairs and CRC."""

@@ -1,6 +1,8 @@
 """Per-frame-id 8-bit sequence counters: every gap is reported with the number of frames missed."""
 from __future__ import annotations
 
+import numpy as np
+
 
 class SequenceChecker:
     """Tracks the ``Seq`` counter of each frame id (modulo ``modulus``).
@@ -24,3 +26,16 @@ class SequenceChecker:
         if gap:
             self.missed[frame_id] = self.missed.get(frame_id, 0) + gap
         return gap
+
+    def check_many(self, frame_id: int, seqs: np.ndarray) -> np.ndarray:
+        """:meth:`check` for consecutive frames of one id; returns the frames missed before each."""
+        seqs = np.asarray(seqs, dtype=np.int64)
+        if seqs.size == 0:
+            return np.zeros(0, dtype=np.int64)
+        last = self._last.get(frame_id)
+        previous = np.concatenate([[seqs[0] - 1 if last is None else last], seqs[:-1]])
+        gaps = (seqs - previous - 1) % self.modulus
+        self._last[frame_id] = int(seqs[-1])
+        if gaps.any():
+            self.missed[frame_id] = self.missed.get(frame_id, 0) + int(gaps.sum())
+        return gaps

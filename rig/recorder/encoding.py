@@ -6,6 +6,9 @@ Bulk blocks are ``{"t": [...], "<signal>": [...]}`` (times in s, values SI). Two
   are written as ``null`` (JSON has no NaN/inf) and read back as NaN.
 * ``"base64"``: every array is the base64 text of its little-endian float64 bytes (JSON Schema
   ``contentEncoding: base64``); exact and ~10x faster, but viewers cannot plot it directly.
+
+JSON text is written by ``orjson`` (shortest round-trip float digits, like Python's ``repr``, at about
+1/10 of the ``json`` module's cost per number) and read by the standard ``json`` module.
 """
 from __future__ import annotations
 
@@ -15,11 +18,14 @@ import math
 from typing import Any, Mapping
 
 import numpy as np
+import orjson
 
 ENCODINGS = ("json", "base64")
 
 
 _PLAIN = (str, int, type(None))
+_PLAIN_ITEMS = frozenset({str, int, bool, float, type(None)})   # list items orjson writes as they are
+                                                                 # (non-finite floats as null)
 
 
 def to_jsonable(value: Any) -> Any:
@@ -29,7 +35,7 @@ def to_jsonable(value: Any) -> Any:
         return value
     if kind is float:
         return value if math.isfinite(value) else None
-    if kind is list and all(type(v) in _PLAIN for v in value):
+    if kind is list and _PLAIN_ITEMS.issuperset(map(type, value)):
         return value
     if isinstance(value, Mapping):
         return {str(k): to_jsonable(v) for k, v in value.items()}
@@ -51,7 +57,7 @@ def to_jsonable(value: Any) -> Any:
 
 def dumps(obj: Any) -> bytes:
     """Compact JSON bytes of ``obj`` (numpy values converted, NaN forbidden)."""
-    return json.dumps(to_jsonable(obj), separators=(",", ":"), allow_nan=False).encode()
+    return orjson.dumps(to_jsonable(obj))
 
 
 def encode_array(a: np.ndarray, encoding: str) -> list | str:
@@ -72,11 +78,13 @@ def decode_array(value: list | str) -> np.ndarray:
 
 
 def encode_block(t: np.ndarray, signals: Mapping[str, np.ndarray], encoding: str) -> bytes:
-    """Serialise one bulk block (time + signals) to message bytes."""
-    body = {"t": encode_array(t, encoding)}
-    for name, values in signals.items():
-        body[name] = encode_array(values, encoding)
-    return json.dumps(body, separators=(",", ":"), allow_nan=False).encode()
+    """Serialise one bulk block (time + signals) to message bytes. JSON arrays go to orjson as float64
+    arrays (it writes non-finite values as null, like :func:`encode_array`)."""
+    arrays = {"t": t, **signals}
+    if encoding == "json":
+        return orjson.dumps({k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()},
+                            option=orjson.OPT_SERIALIZE_NUMPY)
+    return orjson.dumps({k: encode_array(v, encoding) for k, v in arrays.items()})
 
 
 def decode_block(data: bytes) -> dict[str, np.ndarray]:

@@ -41,6 +41,15 @@ def _check_times(t: np.ndarray, last: float, topic: str) -> None:
         raise ValueError(f"{topic}: times must be non-decreasing across writes (got {t[0]!r} s after {last!r} s)")
 
 
+def _can_row(frame: Any) -> tuple[float, int, bool, bool, str]:
+    """One frame given as a ``(t, id, data, is_fd)`` tuple or a python-can ``Message``, as a /can/raw row."""
+    if hasattr(frame, "arbitration_id"):
+        return (float(frame.timestamp), int(frame.arbitration_id), bool(frame.is_fd), bool(frame.is_extended_id),
+                bytes(frame.data).hex())
+    t, fid, data, fd = frame
+    return float(t), int(fid), bool(fd), int(fid) > 0x7FF, bytes(data).hex()
+
+
 class _Block:
     """Accumulates samples of one bulk channel until a block is full."""
 
@@ -99,7 +108,7 @@ class Recorder:
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._blocks: dict[str, _Block] = {}
-        self._can: list[tuple[float, int, bool, bool, str]] = []
+        self._can: tuple[list, ...] = ([], [], [], [], [])   # buffered frames: t, id, is_fd, is_extended, hex data
         self._can_last = -math.inf
         self._last_ns = 0
         self._closed = False
@@ -205,28 +214,38 @@ class Recorder:
     # -- CAN ------------------------------------------------------------------------------------
     def write_can_frames(self, frames: Iterable[Any]) -> None:
         """Raw CAN frames (``/can/raw``): python-can ``Message`` objects or ``(t, id, data, is_fd)`` tuples."""
-        for frame in frames:
-            if hasattr(frame, "arbitration_id"):
-                t, fid, data, fd, ext = (frame.timestamp, frame.arbitration_id, frame.data,
-                                         frame.is_fd, frame.is_extended_id)
-            else:
-                t, fid, data, fd = frame
-                ext = int(fid) > 0x7FF
-            t = float(t)
-            if t < self._can_last:
-                raise ValueError(f"{S.CAN_RAW}: frame time {t} s is before the previous frame ({self._can_last} s)")
-            to_ns(t, S.CAN_RAW)
-            self._can_last = t
-            self._can.append((t, int(fid), bool(fd), bool(ext), bytes(data).hex()))
+        frames = list(frames)
+        if all(hasattr(f, "arbitration_id") for f in frames):
+            cols = ([float(f.timestamp) for f in frames], [int(f.arbitration_id) for f in frames],
+                    [bool(f.is_fd) for f in frames], [bool(f.is_extended_id) for f in frames],
+                    [bytes(f.data).hex() for f in frames])
+        else:
+            cols = tuple(map(list, zip(*map(_can_row, frames))))
+        t = np.array(cols[0], dtype=float)
+        if t.size:
+            late = np.flatnonzero(np.diff(np.concatenate([[self._can_last], t])) < 0)
+            if late.size:
+                k = int(late[0])
+                raise ValueError(f"{S.CAN_RAW}: frame time {t[k]} s is before the previous frame "
+                                 f"({self._can_last if k == 0 else t[k - 1]} s)")
+            for k in np.flatnonzero(~np.isfinite(t) | (t < 0))[:1]:
+                to_ns(t[k], S.CAN_RAW)          # raises, naming the bad time
+            self._can_last = float(t[-1])
+        for buffer, col in zip(self._can, cols):
+            buffer.extend(col)
         self._flush_can(final=False)
 
     def _flush_can(self, final: bool) -> None:
-        cid = self._channel(S.CAN_RAW, S.CAN_SCHEMA, "rig.CanFrames") if self._can else None
-        while len(self._can) >= self.block_size or (final and self._can):
-            rows, self._can = self._can[:self.block_size], self._can[self.block_size:]
-            t, ids, fd, ext, data = (list(c) for c in zip(*rows))
+        size = len(self._can[0])
+        cid = self._channel(S.CAN_RAW, S.CAN_SCHEMA, "rig.CanFrames") if size else None
+        start = 0
+        while size - start >= self.block_size or (final and start < size):
+            t, ids, fd, ext, data = (c[start:start + self.block_size] for c in self._can)
             self._put(cid, to_ns(t[0], S.CAN_RAW),
                       dumps({"t": np.asarray(t), "id": ids, "is_fd": fd, "is_extended": ext, "data": data}))
+            start += len(t)
+        for c in self._can:
+            del c[:start]
 
     # -- device ---------------------------------------------------------------------------------
     def write_curve(self, number: int, program: int, t: np.ndarray, x: np.ndarray, y: np.ndarray,

@@ -5,6 +5,8 @@ hardware. The "theoretical curve" comes from its own plant model built from the 
 """
 from __future__ import annotations
 
+import bisect
+import itertools
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -13,6 +15,7 @@ import can
 import numpy as np
 
 from drivers.can import CanHost
+from drivers.can.drain import drain
 from drivers.digiforce_serial import DigiForceClient
 from drivers.encoder import counts_to_angle
 from rig.recorder import Recorder
@@ -49,6 +52,7 @@ class Host:
         self.program_config: dict[str, Any] | None = None
         self.truth_t = 0.0
         self._truth: list[dict[str, np.ndarray]] = []
+        self._truth_ends: list[float] = []     # last time (s) of each truth chunk, increasing
         self._chunk_n = max(2, round(cfg.chunk * cfg.sample_rate))
         self._chunks = 0
         self._curves_done = 0
@@ -74,13 +78,8 @@ class Host:
     # ---------------------------------------------------------------- reception
     def poll(self, timeout: float = 0.0) -> int:
         """Receive what is on the bus, record raw and decoded data; returns the number of frames."""
-        raw = []
-        while True:
-            msg = self.bus.recv(timeout if not raw else 0.0)
-            if msg is None:
-                break
-            raw.append(msg)
-            self.can.receive(msg)
+        raw = drain(self.bus, timeout)
+        self.can.receive_many(raw)
         if raw:
             self.rec.write_can_frames(raw)
             self.frames += len(raw)
@@ -125,13 +124,15 @@ class Host:
                        if k != "t" and np.shape(v) == t.shape and (keep is None or k in keep)}
             self.rec.write_truth(t, signals)
             self._truth.append({"t": t, **signals})
+            self._truth_ends.append(float(t[-1]))
             self.truth_t = float(t[-1])
         for ev in self.theory.events[self._plant_events:]:
             self.rec.write_event(ev.time, ev.kind, **ev.data)
         self._plant_events = len(self.theory.events)
 
     def _truth_at(self, t: np.ndarray, signal: str) -> np.ndarray | None:
-        chunks = [c for c in self._truth if c["t"][-1] >= t[0] and c["t"][0] <= t[-1] and signal in c]
+        first = bisect.bisect_left(self._truth_ends, t[0])       # chunks before it end before t[0]
+        chunks = [c for c in itertools.takewhile(lambda c: c["t"][0] <= t[-1], self._truth[first:]) if signal in c]
         if not chunks:
             return None
         tt = np.concatenate([c["t"] for c in chunks])

@@ -123,7 +123,7 @@ class Machine:
     def flush(self, limit: float = 60.0) -> None:
         """Let the node send everything still queued (results of the last curve) in virtual time."""
         t_start, t_end = self.t, self.t + limit
-        while self.node.pending_before(t_start) and self.t < t_end:   # later heartbeats need not wait
+        while self.node.has_pending_before(t_start) and self.t < t_end:   # later heartbeats need not wait
             self.t += self.cfg.chunk
             self.node.advance_to(self.t)
         self.node.publish_status(self.t)

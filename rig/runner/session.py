@@ -85,6 +85,12 @@ def _progress(cfg: RunConfig, enabled: bool) -> tqdm:
     return tqdm(total=total, unit=unit, disable=not enabled, desc=cfg.name, leave=False, file=sys.stderr)
 
 
+def _show(bar: tqdm, value: float) -> None:
+    """Move the progress bar to ``value``; tqdm redraws at most every ``mininterval`` (0.1 s)."""
+    if value != bar.n:
+        bar.update(value - bar.n)
+
+
 def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, after_step: Callable[[], int]) -> None:
     """Step the machine until the scene is done (paced in real-time mode), then flush its transmit queue.
     ``after_step`` runs after each step (e.g. the in-process host's poll) and returns the curves done."""
@@ -93,8 +99,7 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
         with lock:
             machine.step()
         done = after_step()
-        bar.n = done if cfg.cycles is not None else round(machine.t, 3)
-        bar.refresh()
+        _show(bar, done if cfg.cycles is not None else round(machine.t, 3))
         pace(machine.t)
     with lock:
         machine.flush()
@@ -208,8 +213,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                 elif time.monotonic() - last > idle_timeout:
                     raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
                                    f"recorded {host.curves_recorded} curves (kept in {output})")
-                bar.n = host.curves_recorded if cfg.cycles is not None else round(host.truth_t, 3)
-                bar.refresh()
+                _show(bar, host.curves_recorded if cfg.cycles is not None else round(host.truth_t, 3))
             host.poll(0.2)
             stats = host.finish()
     return RunSummary(output, host.curves_recorded, host.truth_t, time.perf_counter() - wall, host.frames, stats)

@@ -15,7 +15,8 @@ a *method* is a solver class. ``integrate`` drives one with the other:
 * where the problem has a closed-form solution in its current mode (``Problem.flow`` returns one),
   the segment is stepped along it exactly (:class:`ClosedFormSolver`) instead of by the method;
 * a diverging solver raises :class:`SolverDivergence` naming time and state, and so does event
-  chattering (more than ``MAX_STALLED`` restarts without the time advancing: a Zeno point).
+  chattering (more than ``MAX_STALLED`` restarts without the time advancing by more than
+  ``STALL_SPAN``·max(1, |t|): a Zeno point).
 """
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ from rig.solvers.rk4 import RK4
 
 METHODS: dict[str, type[OdeSolver]] = {"DP45": DormandPrince45, "RK4": RK4}
 MAX_STALLED = 50
+STALL_SPAN = 1e-12     # restarts closer than this (relative to max(1, |t|)) do not count as progress
 
 
 @dataclass(frozen=True)
@@ -181,8 +183,11 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                         t_root = t_new
                     else:
                         dense = dense or solver.dense_output()
-                        t_root = brentq(lambda tt, f=e.fun: f(tt, dense(tt)), t_old, t_new,
-                                        xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                        g_at = (lambda tt, f=e.fun, d=dense: f(tt, d(tt)))
+                        if (g_at(t_old) < 0.0) == (b < 0.0):
+                            t_root = t_old      # g jumped at a restart (RHS/mode discontinuity): past at once
+                        else:
+                            t_root = brentq(g_at, t_old, t_new, xtol=1e-15, rtol=4 * np.finfo(float).eps)
                         if e.mode_dependent:
                             t_root = _past_root(e.fun, dense, t_root, t_new, rising)
                     hits.append((t_root, i, 1.0 if rising else -1.0))
@@ -219,7 +224,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 fired = {i for tr, i, _ in hits if tr <= t and not events[i].mode_dependent}
                 g_old = [g_new[i] if i in fired else e.fun(t, y) if e.mode_dependent else (e.fun(t, y) or g_old[i])
                          for i, e in enumerate(events)]
-                stalled = stalled + 1 if t == t_last_cut else 0
+                stalled = stalled + 1 if t - t_last_cut <= STALL_SPAN * max(1.0, abs(t)) else 0
                 t_last_cut = t
                 if stalled > MAX_STALLED:
                     raise SolverDivergence(f"event chattering: {stalled} restarts without time advancing "

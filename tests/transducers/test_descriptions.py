@@ -13,7 +13,7 @@ DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
 
 def test_every_description_loads_with_its_registered_class():
     names = sorted(p.stem for p in DEVICES.glob("*.toml") if not p.stem.startswith("digiforce"))
-    assert len(names) == 7
+    assert len(names) == 8
     for name in names:
         s = load_transducer(name, np.random.default_rng(0))
         assert isinstance(s, REGISTRY[type(s).TYPE])

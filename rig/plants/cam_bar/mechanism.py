@@ -123,6 +123,8 @@ class PinInsertionMechanism:
     against its motion during the rise once the stroke is within ``F_c_travel`` of the top.
     ``variation`` (with the generator ``rng``) makes every cam revolution draw its own deviations
     (:mod:`rig.plants.cam_bar.variation`); without it all cycles are identical.
+    ``fidelity`` 2 makes :meth:`advance` integrate the level-2 groove dynamics (:mod:`.level2`; contact over
+    ``roller_width`` (m) with Hunt–Crossley damping ``contact_damping`` (s/m)); 0 and 1 give level-1 truth.
     """
 
     L3: float = 0.260
@@ -150,6 +152,9 @@ class PinInsertionMechanism:
     sensor_preload: float = -25.0
     sensor_position: float = 0.5
     clearance: float = 0.05e-3
+    roller_width: float = 0.010
+    contact_damping: float = 20.0
+    fidelity: int = 1
     alpha_sk: float = radians(4.65)
     J3: float | None = None
     J4: float | None = None
@@ -165,10 +170,10 @@ class PinInsertionMechanism:
     rng: np.random.Generator | None = None
 
     def __post_init__(self) -> None:
-        for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g"):
+        for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"cam-bar parameter {name} must be positive, got {getattr(self, name)!r}")
-        for name in ("F_c", "F_c_travel", "mu", "x_s5", "e5", "Me_0", "k", "clearance"):
+        for name in ("F_c", "F_c_travel", "mu", "x_s5", "e5", "Me_0", "k", "clearance", "contact_damping"):
             if getattr(self, name) < 0.0:
                 raise ValueError(f"cam-bar parameter {name} must not be negative, got {getattr(self, name)!r}")
         if not 0.0 <= self.sensor_position <= 1.0:
@@ -188,7 +193,13 @@ class PinInsertionMechanism:
         if self.variation is not None and self.rng is None:
             raise ValueError("variation needs a numpy Generator (rng) to draw the per-cycle deviations")
         self.cycles = None if self.variation is None else CyclePlant(self, self.variation, self.rng)
-        self._timeline = Timeline(self)
+        if self.fidelity not in (0, 1, 2):
+            raise ValueError(f"fidelity must be 0, 1 or 2, got {self.fidelity!r}")
+        if self.fidelity == 2:
+            from rig.plants.cam_bar.level2_timeline import Level2Timeline
+            self._timeline: Timeline = Level2Timeline(self)
+        else:
+            self._timeline = Timeline(self)
 
     def _assemble(self) -> Chain:
         """Pick the branch nearest the machine's start angle and check the whole stroke range on it."""

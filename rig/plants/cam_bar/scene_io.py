@@ -25,6 +25,8 @@ PLANT_SCHEMA = {
     "spring_rates": Field(None, doc="list of spring rates to compare, e.g. [\"1.09 N/mm\", ...]"),
     "sensor_preload": Field("N"), "sensor_position": Field("1", 0.5, "sensor section along the rod from C"),
     "clearance": Field("m"), "alpha_sk": Field("rad"),
+    "roller_width": Field("m", 0.010, "roller/flank contact length for the level-2 contact stiffness (assumption)"),
+    "contact_damping": Field("s/m", 20.0, "Hunt-Crossley damping of the level-2 roller contact (assumption)"),
     "J3": Field("kg*m^2", None, "follower inertia about B0 (default m3·L3²/3)"),
     "J4": Field("kg*m^2", None, "rod inertia about its centre (default m4·l4²/12)"),
     "a3": Field("m", None, "follower CoG distance from B0 (default L3/2)"),
@@ -74,10 +76,24 @@ def read_speed(table: dict[str, Any], where: str) -> SpeedProfile:
         raise SceneError(f"{where}: {exc}") from None
 
 
+FIDELITY = {"kinematic": 0, "kinetostatic": 1, "dynamic": 2}
+
+
+def read_fidelity(scene: Scene) -> int:
+    """[scene] fidelity: 0/1/2 or "kinematic"/"kinetostatic"/"dynamic" (default 1)."""
+    value = scene.section("scene").get("fidelity", 1)
+    level = FIDELITY.get(value, value) if isinstance(value, str) else value
+    if isinstance(level, bool) or level not in (0, 1, 2):
+        raise SceneError(f"{scene.path} [scene]: 'fidelity' must be 0, 1, 2 or one of {', '.join(FIDELITY)}, "
+                         f"got {value!r}")
+    return int(level)
+
+
 def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     """Keyword arguments of :class:`PinInsertionMechanism` from the scene (SI)."""
     where = f"{scene.path} [plant]"
     kw = scene.read("plant", PLANT_SCHEMA)
+    kw["fidelity"] = read_fidelity(scene)
     rates = kw.pop("spring_rates")
     if not isinstance(rates, list) or not rates:
         raise SceneError(f"{where}: 'spring_rates' must be a non-empty list of quantities like \"1.19 N/mm\"")

@@ -50,12 +50,15 @@ class Timeline:
                 "R23": ks.R23n, "M23": ks.M23, "M_e": ks.M_e, "M_sigma": ks.M_sigma,
                 "drive_torque": ks.drive_torque, "F_c": ks.F_c, "pressure_angle": ks.pressure_angle}
 
-    def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
+    def _check_times(self, t: np.ndarray) -> None:
         if t.ndim != 1 or (t.size > 1 and np.any(np.diff(t) <= 0.0)):
             raise ValueError("advance(t): t must be a 1-D array of strictly increasing times")
         if self._last is not None and t.size and t[0] <= self._last[0]:
             raise ValueError(f"advance(t): t starts at {t[0]:g} s, not after the previous call's end "
                              f"{self._last[0]:g} s")
+
+    def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        self._check_times(t)
         mech = self.mech
         dr = mech.speed.drive(t)
         if mech.cycles is None or not t.size:
@@ -66,14 +69,18 @@ class Timeline:
             for c in np.unique(cycle):
                 i = cycle == c
                 part = self._truth(mech.cycles.mechanism(int(c)), t[i], dr.phi[i], dr.omega[i], dr.alpha[i])
-                ds = mech.cycles.stroke_deviation(int(c), dr.phi[i])
-                part["s"], part["x_gripper"] = part["s"] + ds, part["x_gripper"] - ds
-                parts.append(part)
+                parts.append(self._deviate(part, int(c)))
             out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         if t.size:
             self._find_events(t, dr.phi, out["R23"])
             self._last = (float(t[-1]), float(dr.phi[-1]), float(out["R23"][-1]))
         return out
+
+    def _deviate(self, part: dict[str, np.ndarray], cycle: int) -> dict[str, np.ndarray]:
+        """Add the cycle's chain stroke deviation Δs(φ) to ``s`` and ``x_gripper`` of a truth chunk."""
+        ds = self.mech.cycles.stroke_deviation(cycle, part["phi"])
+        part["s"], part["x_gripper"] = part["s"] + ds, part["x_gripper"] - ds
+        return part
 
     def _find_events(self, t: np.ndarray, phi: np.ndarray, contact: np.ndarray) -> None:
         if self._last is not None:
@@ -86,6 +93,11 @@ class Timeline:
             phic = float(self.mech.speed.drive(np.array([tc])).phi[0])
             found.append(Event(tc, "flank_switch", {"phi": phic % tau,
                                                     "to": "working" if contact[i + 1] >= 0.0 else "other"}))
+        self.events.extend(sorted(found + self._program_crossings(t, phi), key=lambda e: e.time))
+
+    def _program_crossings(self, t: np.ndarray, phi: np.ndarray) -> list[Event]:
+        """``accel_jump`` events for program angles crossed between consecutive samples (t, φ)."""
+        found: list[Event] = []
         for ev in self._program_events:
             laps = np.floor((phi - ev.angle) / tau)
             for i in np.flatnonzero(laps[1:] > laps[:-1]):
@@ -94,4 +106,4 @@ class Timeline:
                 tc = t[i + 1] if f(t[i + 1]) == 0.0 else brentq(f, t[i], t[i + 1], xtol=1e-12)
                 found.append(Event(tc, "accel_jump", {"phi": ev.angle, "jump": float(ev.jump),
                                                       "segment": ev.segment}))
-        self.events.extend(sorted(found, key=lambda e: e.time))
+        return found

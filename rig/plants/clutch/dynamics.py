@@ -23,6 +23,7 @@ solved in closed form for N_B. Two friction models (docs/clutch.md):
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from typing import Callable
 
@@ -133,16 +134,18 @@ class ClutchDynamics:
             det = a11 * a22 - k1s * k1s
             return (b1 * a22 + k1s * b3) / det, (a11 * b3 + k1s * b1) / det, m1, m3, tc, fa, nb
 
-        self.core, self.band = core, band
+        load_rates = self.load.rates
+
+        def rhs(t: float, y: tuple) -> tuple:
+            """dy/dt for the solvers (tuple in, tuple out) in the current friction mode."""
+            r = core(t, y, self.mode)
+            if len(y) == 4:
+                return (y[1], r[0], y[3], r[1])
+            return (y[1], r[0], y[3], r[1], *load_rates(t, y[2], y[3], y[4:]))
+
+        self.core, self.band, self.rhs = core, band, rhs
         self._J3p = lambda k2: J3 + M * k2 * k2
         self._geom = geom
-
-    def rhs(self, t: float, y: tuple) -> tuple:
-        """dy/dt for the solvers (tuple in, tuple out) in the current friction mode."""
-        a1, a3 = self.core(t, y, self.mode)[:2]
-        if len(y) == 4:
-            return (y[1], a1, y[3], a3)
-        return (y[1], a1, y[3], a3, *self.load.rates(t, y[2], y[3], y[4:]))
 
     # -- stick–slip mode logic --------------------------------------------------------------------
     def _switch_g(self, t: float, y: tuple) -> float:
@@ -248,7 +251,7 @@ class ClutchDynamics:
         for f in zip(*margins):
             roots += [rotor.time_of_speed(w0 + s) for s in _quadratic_roots(f, we - w0)]
         roots = sorted(r for r in roots if t < r <= t_bound)
-        flow.stops = [0.5 * (a + b) for a, b in zip(roots, roots[1:]) if b > a]
+        flow.stops = [0.5 * (a + b) for a, b in itertools.pairwise(roots) if b > a]
         return flow
 
     # -- problem assembly ---------------------------------------------------------------------------

@@ -167,6 +167,8 @@ class LoadSum(Load):
             i += ld.n_states
         self._stateless = [ld for ld in self.loads if ld.n_states == 0]
         self._stateful = [(ld, a, b) for ld, (a, b) in zip(self.loads, self._slices) if ld.n_states]
+        if len(self.loads) == 1:                 # a sum of one load is that load (no per-call loop)
+            self.torque, self.rates = self.loads[0].torque, self.loads[0].rates
 
     def initial_state(self):
         return tuple(v for ld in self.loads for v in ld.initial_state())

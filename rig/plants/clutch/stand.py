@@ -16,7 +16,8 @@ import numpy as np
 
 from rig.plants.clutch.dynamics import ClutchDynamics
 from rig.plants.clutch.flat_tappet import CLUTCH_SCHEMA, FlatTappetClutch
-from rig.plants.clutch.loads import LinearInSpeed, LinearMotor, Load, LoadSum, ShoeBrake, Zone, constant, shock, step
+from rig.plants.clutch.loads import (LinearInSpeed, LinearMotor, Load, LoadSum, ShoeBrake, Zone, constant, shock,
+                                     step)
 from rig.plants.events import Event
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.solvers import EventRecord, integrate

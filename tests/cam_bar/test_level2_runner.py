@@ -1,0 +1,74 @@
+"""Fidelity 2 through the runner interface and a scene recorded end to end."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rig.motion import ConstantSpeed
+from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.mechanism import RPM
+from rig.plants.cam_bar.scene_io import read_fidelity
+from rig.plants.cam_bar.variation import CycleVariation
+from rig.recorder import read_recording
+from rig.runner import run_scene
+from rig.scene import SceneError, load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = ROOT / "data" / "scenes" / "pin_insertion_l2.toml"
+
+
+def test_fidelity_is_read_from_the_scene(tmp_path):
+    assert read_fidelity(load_scene(SCENE)) == 2
+    assert read_fidelity(load_scene(ROOT / "data" / "scenes" / "pin_insertion.toml")) == 1
+    assert PinInsertionMechanism.from_scene(load_scene(SCENE)).fidelity == 2
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SCENE.read_text().replace("fidelity = 2 ", 'fidelity = "exact" '))
+    with pytest.raises(SceneError, match="'fidelity' must be 0, 1, 2 .* got 'exact'"):
+        read_fidelity(load_scene(bad))
+    with pytest.raises(ValueError, match="fidelity must be 0, 1 or 2"):
+        PinInsertionMechanism(fidelity=3)
+
+
+def test_advance_in_chunks_continues_the_integration_and_reports_flank_switches():
+    omega = 300 * RPM
+    t = 0.125 + np.arange(1, 201) * 1e-4  # 225°…261° of the return at 300 rpm
+    one = PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0, fidelity=2)
+    chunked = PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0, fidelity=2)
+    full = one.advance(t)
+    parts = [chunked.advance(c) for c in np.array_split(t, 5)]
+    for key, tol in (("s", 2e-6), ("psi", 1e-5), ("phi", 0.0)):
+        assert np.concatenate([p[key] for p in parts]) == pytest.approx(full[key], abs=tol), key
+    level1 = PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0).advance(t)
+    assert full["s"] == pytest.approx(level1["s"], abs=4 * one.clearance * one.L3 / one.l3)
+    assert np.max(np.abs(full["s"] - level1["s"])) > one.clearance   # but the roller crossed the groove
+    kinds = [(e.kind, e.data.get("to")) for e in one.events if e.kind == "flank_switch"]
+    assert kinds == [("flank_switch", "other"), ("flank_switch", "working")]
+    assert [e.kind for e in chunked.events] == [e.kind for e in one.events]
+    assert chunked.events[0].time == pytest.approx(one.events[0].time, abs=1e-5)
+
+
+def test_per_cycle_variation_runs_each_revolution_with_its_own_loads():
+    mech = PinInsertionMechanism(fidelity=2, variation=CycleVariation({"sensor_preload": 2.0}),
+                                 rng=np.random.default_rng(7))
+    t = np.arange(0.39, 0.41, 1e-4)       # across the boundary of revolutions 0 and 1 at 150 rpm
+    out = mech.advance(t)
+    cycle = out["phi"] // (2 * np.pi)
+    offset = out["F_rod"] - out["rod_tension"]
+    drawn = [mech.cycles.mechanism(c).sensor_preload for c in (0, 1)]
+    assert offset[cycle == 0] == pytest.approx(drawn[0]) and offset[cycle == 1] == pytest.approx(drawn[1])
+    assert abs(drawn[0] - drawn[1]) > 0.01
+
+
+def test_level2_scene_records_end_to_end(tmp_path):
+    out = tmp_path / "l2.mcap"
+    summary = run_scene(SCENE, out, cycles=1)
+    assert summary.curves == 1
+    rec = read_recording(out)
+    assert {"psi_kin", "delta_w", "delta_o", "R23"} <= set(rec.truth)
+    gap = rec.truth["psi"] - rec.truth["psi_kin"]
+    assert 0.0 < np.max(np.abs(gap)) < 1e-3                      # the follower deviates from the cam law
+    assert np.max(rec.truth["delta_w"]) > 1e-6                   # pressed into the working flank
+    curve = rec.curves[0]
+    assert 0.041 < curve.x.max() < 0.043
+    level1 = PinInsertionMechanism()                              # F_c step → the rod force overshoots level 1
+    assert curve.y.min() < level1.kinetostatics(np.linspace(0, 2 * np.pi, 3601)).F_rod.min() - 5.0

@@ -1,0 +1,82 @@
+"""The implicit Rosenbrock23 solver, and why level 2 needs it: DP45 is stability-limited on the groove contact."""
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.level2 import Level2
+from rig.solvers import Event, Problem, Rosenbrock23, StiffnessError, StiffnessWarning, integrate
+
+LAM = 1e4
+
+
+def _stiff(t, y):
+    """y0' = −λ(y0 − cos t) − sin t (solution cos t after a fast transient), y1' = −2 y1."""
+    return (-LAM * (y[0] - math.cos(t)) - math.sin(t), -2.0 * y[1])
+
+
+def _exact(t):
+    return np.array([np.cos(t), np.exp(-2.0 * t)])
+
+
+def test_rosenbrock23_is_second_order_and_stable_on_a_stiff_problem():
+    errors, steps = [], []
+    for h in (0.02, 0.01, 0.005):      # max_step forces the step (local error 2e-7 ≪ rtol)
+        sol = integrate(Problem(_stiff, (1.0, 1.0)), (0.0, 2.0), method=Rosenbrock23, rtol=1e-2, atol=1e-2,
+                        first_step=h, max_step=h)
+        errors.append(np.max(np.abs(np.array(sol.y_final) - _exact(2.0))))
+        steps.append(sol.nsteps)
+    order = np.log2(errors[0] / errors[1]), np.log2(errors[1] / errors[2])
+    assert order == pytest.approx((2.0, 2.0), abs=0.25)
+    assert steps[0] <= 101                     # h·λ = 200: far beyond any explicit stability limit
+
+
+def test_rosenbrock23_error_control_dense_output_and_events():
+    t_eval = np.linspace(0.0, 2.0, 201)
+    ev = Event(lambda t, y: y[1] - 0.5, "half", direction=-1.0)
+    sol = integrate(Problem(_stiff, (1.0, 1.0), [ev]), (0.0, 2.0), method=Rosenbrock23, rtol=1e-7, atol=1e-10,
+                    t_eval=t_eval)
+    assert np.max(np.abs(sol.y - _exact(t_eval))) < 2e-6
+    assert sol.t_events["half"][0] == pytest.approx(math.log(2.0) / 2.0, abs=1e-6)
+    loose = integrate(Problem(_stiff, (1.0, 1.0)), (0.0, 2.0), method=Rosenbrock23, rtol=1e-3, atol=1e-6)
+    assert loose.nsteps < sol.nsteps / 5 and np.max(np.abs(np.array(loose.y_final) - _exact(2.0))) < 1e-3
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        dp = integrate(Problem(_stiff, (1.0, 1.0)), (0.0, 2.0), method="DP45", rtol=1e-3, atol=1e-6)
+    assert dp.nsteps > 20 * loose.nsteps and any(issubclass(w.category, StiffnessWarning) for w in caught)
+
+
+def test_user_jacobian_matches_finite_differences():
+    mech = PinInsertionMechanism()
+    model = Level2(mech)
+    t, y = 0.17, model.initial_state(0.17)
+    f = np.array(model.rhs(t, y))
+    jac, dfdt = model.jacobian(t, y, f)
+    solver = Rosenbrock23(model.rhs, t, y, 0.2)
+    ref_jac, ref_dfdt = solver._jacobian(t, np.array(y), f)
+    assert jac == pytest.approx(ref_jac, rel=1e-4, abs=1e-6 * np.max(np.abs(ref_jac)))
+    assert dfdt == pytest.approx(ref_dfdt, rel=1e-3, abs=1e-6 * np.max(np.abs(ref_dfdt)))
+    assert np.max(np.abs(np.linalg.eigvals(jac))) > 2000.0     # the stiff contact mode (1/s)
+
+
+def test_level2_is_stiff_for_dp45_but_not_for_the_implicit_method():
+    model = Level2(PinInsertionMechanism())
+    span = (0.0, 0.16)                                          # lower dwell and rise, before F_c acts
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        explicit = model.simulate(span, method="DP45", rtol=1e-3, atol=1e-8).solution
+    stiff = [w for w in caught if issubclass(w.category, StiffnessWarning)]
+    assert stiff and "stiff at t = " in str(stiff[0].message) and explicit.stiff_at is not None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                          # the implicit method reports nothing
+        implicit = model.simulate(span, rtol=1e-3, atol=1e-8).solution
+    assert implicit.stiff_at is None
+    h_explicit, h_implicit = np.diff(explicit.t), np.diff(implicit.t)
+    assert np.max(h_explicit) < 2e-3 and np.max(h_implicit) > 5 * np.max(h_explicit)
+    assert implicit.nsteps * 3 < explicit.nsteps and implicit.nfev * 5 < explicit.nfev
+    ref = model.simulate(span, method="DP45", rtol=1e-10, atol=1e-13, stiffness="ignore").solution
+    assert implicit.y_final[0] == pytest.approx(ref.y_final[0], rel=2e-3)
+    with pytest.raises(StiffnessError, match=r"DP45: problem is stiff at t = .* state"):
+        model.simulate(span, method="DP45", rtol=1e-3, atol=1e-8, stiffness="raise")

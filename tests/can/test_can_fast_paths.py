@@ -1,0 +1,166 @@
+"""The fast CAN paths against their references: layout decoding and packed encoding against cantools,
+batch reception against frame-by-frame reception, bulk draining against ``recv``."""
+from __future__ import annotations
+
+import copy
+import itertools
+
+import can
+import cantools
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from drivers.can import CanHost
+from drivers.can.drain import drain
+from drivers.can.host import DBC_PATH
+from drivers.can.layout import FrameLayout, supports
+from firmware_sim.can_node import CanNode
+
+DB = cantools.database.load_file(str(DBC_PATH))
+LAYOUT_MESSAGES = [m for m in DB.messages if supports(m)]
+_channels = itertools.count()
+
+
+def test_every_frame_but_the_multiplexed_float_one_has_a_layout():
+    assert {m.name for m in DB.messages} - {m.name for m in LAYOUT_MESSAGES} == {"ResultValue"}
+    with pytest.raises(ValueError, match="ResultValue"):
+        FrameLayout(DB.get_message_by_name("ResultValue"))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.sampled_from(LAYOUT_MESSAGES), st.data())
+def test_layout_decoding_equals_cantools_for_random_payloads(message, data):
+    rows = data.draw(st.lists(st.binary(min_size=message.length, max_size=message.length), min_size=1, max_size=6))
+    layout = FrameLayout(message)
+    batch = layout.decode(np.frombuffer(b"".join(rows), dtype=np.uint8).reshape(len(rows), -1))
+    for i, row in enumerate(rows):
+        expected = message.decode(row, decode_choices=False, scaling=False)
+        assert layout.decode_one(row) == expected
+        assert {k: int(v[i]) for k, v in batch.items()} == expected
+
+
+def test_layout_rejects_wrong_lengths():
+    layout = FrameLayout(DB.get_message_by_name("LiveXY"))
+    with pytest.raises(ValueError, match="LiveXY.*7 data bytes"):
+        layout.decode_one(bytes(7))
+    with pytest.raises(ValueError, match=r"LiveXY.*\(n, 8\)"):
+        layout.decode(np.zeros((3, 7), dtype=np.uint8))
+
+
+class _Idle:
+    last_result = None
+
+
+@pytest.fixture(scope="module")
+def node():
+    """One idle FD node; tests clear its queue before use."""
+    bus = can.Bus(interface="virtual", channel=f"fast-{next(_channels)}", preserve_timestamps=True)
+    yield CanNode(bus, _Idle(), bitrate=1_000_000, fd=True)
+    bus.shutdown()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.sampled_from(["LiveXY", "CurveBlock", "LiveXYFD", "CurveBlockFD", "CurveTimes", "Torque"]),
+       st.integers(1, 5), st.data())
+def test_packed_encoding_equals_cantools_classic_and_fd(node, name, n, data):
+    message = node._msg[name]
+    cols = {}
+    for sig in message.signals:
+        if sig.name == "Seq":
+            continue
+        lo, hi = (-(1 << (sig.length - 1)), (1 << (sig.length - 1)) - 1) if sig.is_signed else (0, (1 << sig.length) - 1)
+        cols[sig.name] = np.array(data.draw(st.lists(st.integers(lo, hi), min_size=n, max_size=n)), dtype=np.int64)
+    node._waiting.clear()
+    node._enqueue_rows(name, cols, np.zeros(n))
+    items = sorted((w[2] for w in node._waiting), key=lambda it: it.key[1])
+    assert len(items) == n and all(it.is_fd == message.is_fd for it in items)
+    for i, item in enumerate(items):
+        expected = message.encode({"Seq": 0, **{k: int(v[i]) for k, v in cols.items()}}, scaling=False, strict=True)
+        assert bytes(item.data) == expected
+
+
+def test_sent_frame_copies_are_plain_equal_messages(node):
+    from firmware_sim.can_node import _Frame
+    frame = _Frame(timestamp=1.5, arbitration_id=0x302, is_extended_id=False, data=bytearray(b"\x01\x02"),
+                   is_fd=False, channel="c")
+    clone = copy.deepcopy(frame)
+    assert type(clone) is can.Message and clone.equals(frame) and clone.data is not frame.data
+    clone.data[0] = 9
+    assert frame.data[0] == 1
+
+
+def _frames(fd: bool, seed: int) -> list[can.Message]:
+    """Traffic of a node: live data, two curves, heartbeats, with damage: a lost frame, a wrong length, an
+    error frame, an unknown id, a curve block without its header."""
+    from types import SimpleNamespace
+    rng = np.random.default_rng(seed)
+    channel = f"fast-traffic-{next(_channels)}"
+    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as dev, \
+            can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as rx:
+        device = SimpleNamespace(last_result=None, status=lambda: {"state": "measuring", "program": 1})
+        node = CanNode(dev, device, bitrate=500_000, fd=fd, data_bitrate=2_000_000 if fd else None)
+        for k in range(2):
+            t = node.now + (1 + np.arange(400)) * 1e-4
+            node.publish_live(t, rng.normal(0, 0.01, 400), rng.normal(0, 50, 400))
+            device.last_result = SimpleNamespace(
+                number=k + 1, program=1, ok=bool(k), elements=[SimpleNamespace(ok=bool(k))],
+                process_values={"x_max": 0.04}, curve=SimpleNamespace(t=t[:300], x=rng.normal(0, 0.01, 300),
+                                                                       y=rng.normal(0, 50, 300)))
+            node.advance_to(float(t[-1]))
+        node.advance_to(node.now + 0.5)
+        frames = drain(rx)
+    del frames[40]                                                # a lost frame: sequence gap
+    frames[60] = can.Message(arbitration_id=frames[60].arbitration_id, data=bytes(3), is_extended_id=False,
+                             timestamp=frames[60].timestamp)       # wrong length
+    frames.insert(80, can.Message(is_error_frame=True, timestamp=frames[80].timestamp))
+    frames.insert(90, can.Message(arbitration_id=0x7AB, data=bytes(8), is_extended_id=False,
+                                  timestamp=frames[90].timestamp))
+    block = next(m for m in frames if m.arbitration_id in (0x302, 0x303))
+    frames.insert(5, copy.deepcopy(block))                        # before its header, and a repeated Seq
+    return frames
+
+
+def _state(host: CanHost):
+    t, x, y = host.take_live()
+    return (t.tolist(), x.tolist(), y.tolist(), host.events, host.frames_received, host.device_time,
+            dict(host.sequence.missed), host.status, host.counters,
+            [(c.number, c.complete, c.problems, c.x.tolist(), c.y.tolist(), None if c.t is None else c.t.tolist(),
+              c.received.tolist()) for c in host.assembler.done],
+            {k: vars(v) for k, v in host.results.items()})
+
+
+@pytest.mark.parametrize("fd", [False, True], ids=["classic", "fd"])
+def test_batch_reception_equals_frame_by_frame(fd):
+    frames = _frames(fd, seed=4)
+    one, many = CanHost(None), CanHost(None)
+    for m in frames:
+        one.receive(m)
+    for i in range(0, len(frames), 97):                          # batches cut anywhere
+        many.receive_many(frames[i:i + 97])
+    a, b = _state(one), _state(many)
+    assert a == b
+    kinds = {e.kind for e in one.events}
+    assert {"sequence_gap", "bad_length", "error_frame", "unknown_frame", "curve"} <= kinds
+    assert len(one.assembler.done) >= 2 and len(a[0]) > 100
+
+
+def test_drain_takes_everything_in_order_and_respects_limit_and_filters():
+    channel = f"fast-drain-{next(_channels)}"
+    with can.Bus(interface="virtual", channel=channel) as tx, can.Bus(interface="virtual", channel=channel) as rx, \
+            can.Bus(interface="virtual", channel=channel) as ref:
+        assert drain(rx) == []
+        for i in range(10):
+            tx.send(can.Message(arbitration_id=i, data=[i], is_extended_id=False))
+        assert [m.arbitration_id for m in drain(rx, limit=4)] == [0, 1, 2, 3]
+        assert [m.arbitration_id for m in drain(rx)] == list(range(4, 10))
+        while ref.recv(0) is not None:
+            pass
+        for bus in (rx, ref):                                   # filtered: python-can's own recv semantics
+            bus.set_filters([{"can_id": 0, "can_mask": 0x7F8, "extended": False}])
+        for i in range(10):
+            tx.send(can.Message(arbitration_id=i, data=[i], is_extended_id=False))
+        expected = []
+        while (m := ref.recv(0)) is not None:
+            expected.append(m.arbitration_id)
+        assert [m.arbitration_id for m in drain(rx)] == expected == list(range(8))
