@@ -150,9 +150,15 @@ def test_gripper_rings_in_the_upper_dwell_at_the_contact_frequency():
 
 def test_diverging_run_is_reported_with_time_and_state():
     mech = PinInsertionMechanism()
-    soft = Level2(mech, ContactLaw(ContactLaw.steel_line(0.01).stiffness * 1e-3), max_penetration=2e-5)
-    with pytest.raises(SolverDivergence, match=r"penetrates a flank by more than 0.02 mm at cam angle .* t = .* state"):
+    law = ContactLaw(ContactLaw.steel_line(0.01).stiffness * 1e-3)          # a far too soft contact
+    start = float(law.penetration(mech.kinetostatics(np.array([0.0])).R23n[0]))
+    soft = Level2(mech, law, max_penetration=1.3 * start)
+    with pytest.raises(SolverDivergence, match=r"penetrates a flank by more than .* mm at cam angle .* t = .* state"
+                       ) as caught:
         soft.simulate((0.0, 0.2))
+    assert 0.0 < caught.value.t < 0.2                                      # found during the run, not at the start
+    with pytest.raises(SolverDivergence, match=r"penetrates"):
+        Level2(mech, law, max_penetration=0.5 * start).simulate((0.0, 0.2))  # already at the start
     with pytest.raises(SolverDivergence, match=r"t = .* state"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

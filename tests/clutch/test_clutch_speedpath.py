@@ -101,13 +101,15 @@ def test_shock_disengagements_agree_with_numerical_integration():
     assert s.y_final[1] == pytest.approx(sn.y_final[1], rel=1e-9)
 
 
-def test_no_closed_form_for_brake_or_slipping_mode():
+def test_closed_form_only_for_stuck_mode_and_a_resting_saturated_brake():
     c = FlatTappetClutch(**THESIS)
     d = ClutchDynamics(c, LinearMotor(*MOTOR), ShoeBrake(gain=0.01, tau=0.005, force=1000.0))
     w = (MOTOR[0] - 10.0) / MOTOR[1]
     y = (d.equilibrium_angle(w), w, 0.0, w, 1000.0)
     d.reset(0.0, y)
-    assert d.mode == 0 and d.stuck_flow(0.0, y, 0.1) is None          # brake actuator: numerical
+    assert d.mode == 0 and d.stuck_flow(0.0, y, 0.1) is not None      # brake at rest, saturated: constant
+    moving = y[:4] + (900.0,)                                          # actuator still moving: numerical
+    assert d.stuck_flow(0.0, moving, 0.1) is None
     d2 = ClutchDynamics(c, LinearMotor(*MOTOR), constant(5.0))
     d2.reset(0.0, (0.0, 60.0, 0.0, 50.0))
     assert d2.mode == 1 and d2.stuck_flow(0.0, (0.0, 60.0, 0.0, 50.0), 0.1) is None
@@ -119,7 +121,21 @@ def test_load_affine_forms():
     for t, w in ((0.1, 7.0), (0.3, -2.0)):
         a, b = ld.affine(t)
         assert ld.torque(t, 0.0, w, ()) == pytest.approx(a + b * w)
-    assert LoadSum([constant(1.0), ShoeBrake(0.01, 0.005, 100.0)]).affine(0.1) is None
+    brake = LoadSum([constant(1.0), ShoeBrake(0.01, 0.005, 100.0)])
+    assert brake.affine(0.1) is None and brake.affine(0.1, (90.0,), 20.0, 30.0) is None   # actuator moving
+    assert brake.affine(0.1, (100.0,), 20.0, 30.0) == (2.0, 0.0)                          # tanh saturated
+    assert brake.torque(0.1, 0.0, 20.0, (100.0,)) == 2.0
+    assert brake.affine(0.1, (100.0,), 5.0, 30.0) is None                                # tanh not saturated
     m = LinearMotor(100.0, 2.0, ratio=2.0, t_off=1.0)
     A, B = m.affine(0.5)
     assert m.torque(0.5, 3.0) == pytest.approx(A - B * 3.0) and m.affine(1.5) == (0.0, 0.0)
+
+
+def test_brake_loaded_startup_closed_form_matches_numerical_integration():
+    """The stand's start-up under its shoe brake (actuator at rest, tanh saturated once moving): the
+    closed-form stuck segments agree with DP45 at 1e-12 and skip its steps."""
+    load = ShoeBrake(gain=0.01, tau=0.005, force=5000.0)
+    (d, s), (dn, sn) = run_both(load, (0.0, 0.0, 0.0, 0.0, 5000.0), 0.8, np.linspace(0.0, 0.8, 401))
+    assert 0 in d._log_mode and s.nsteps < 0.8 * sn.nsteps
+    scale = np.max(np.abs(sn.y[:4]), axis=1)
+    np.testing.assert_allclose(s.y[:4] / scale[:, None], sn.y[:4] / scale[:, None], rtol=0, atol=1e-9)

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from rig.plants.cam_bar.chain import SingularPositionError
-from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
+from rig.plants.cam_bar.kinetostatics import JammingError, Kinetostatics, solve
 from rig.plants.events import Event
 from rig.solvers import Event as SolverEvent
 from rig.solvers import Problem, Rosenbrock23, Solution, SolverDivergence, integrate
@@ -209,7 +209,7 @@ class Level2:
         s = mech.chain.slider(psi)
         a = mech.chain.angles(s, phi)
         one = np.ones_like(s)
-        psi_s, psi_ss, th_s, th_ss = mech.chain.derivatives(a, one, 0.0 * one)   # d/ds
+        psi_s, psi_ss, th_s, th_ss = mech.chain.derivatives(a, one, np.zeros_like(s))   # d/ds
         s_psi = 1.0 / psi_s
         s_d = s_psi * psi_d
         s_dd = s_psi * psi_dd - psi_ss * s_psi ** 3 * psi_d ** 2
@@ -217,7 +217,7 @@ class Level2:
         w, w2 = omega, omega ** 2
         r = np.hypot(*mech._pitch(a.psi))
         nan = np.full_like(s, np.nan)  # r', r'' are not used by the kinetostatics
-        return State(phi, w, 0.0 * w, s, s_d / w, s_dd / w2, a.psi, psi_d / w, psi_dd / w2, a.theta, th_d / w,
+        return State(phi, w, np.zeros_like(w), s, s_d / w, s_dd / w2, a.psi, psi_d / w, psi_dd / w2, a.theta, th_d / w,
                      th_dd / w2, r, nan, nan, a)
 
     def _loads(self, st: "State", rising: np.ndarray) -> Kinetostatics:
@@ -246,8 +246,8 @@ class Level2:
                 return acc
             guess = np.where(same, guess, acc)
         i = int(np.argmin(same))
-        raise SolverDivergence(f"no consistent friction state in the slider guide at cam angle "
-                               f"{math.degrees(float(phi[i])):.4g}°", math.nan, (float(psi[i]), float(psi_d[i])))
+        raise JammingError(f"no consistent friction state in the slider guide at cam angle "
+                           f"φ = {math.degrees(float(phi[i])):.4g}° (ψ = {math.degrees(float(psi[i])):.6g}°)")
 
     def dynamics(self, phi, omega, alpha, geo: Groove, e, e_d, loads: bool = True) -> Dynamics:
         """All dynamic quantities for deviations ``e`` (rad), ``e_d`` (rad/s) at cam angles ``phi``; without
@@ -278,14 +278,19 @@ class Level2:
         return np.array(rows)
 
     def rhs(self, t: float, y: tuple) -> tuple:
-        """d/dt of (e, τ·ė[, W_drive, W_load, E_dissipated]); NaN for a state the chain cannot assemble (a
-        solver's trial stage far off: the step is rejected; a solution that goes there ends in a step-size
-        underflow, reported as :class:`SolverDivergence`)."""
+        """d/dt of (e, τ·ė[, W_drive, W_load, E_dissipated]); NaN for a non-finite state or one the chain cannot
+        assemble (a solver's trial stage far off: the step is rejected; a solution that goes there ends in a
+        step-size underflow, reported as :class:`SolverDivergence`). A jammed slider guide raises
+        :class:`SolverDivergence` naming time and state."""
+        if not math.isfinite(sum(y)):
+            return (math.nan,) * len(y)
         phi, omega, alpha, geo = self._groove_at(t)
         try:
             return tuple(self._derivatives(phi, omega, alpha, geo, np.array(y)[:, None])[:, 0].tolist())
         except SingularPositionError:
             return (math.nan,) * len(y)
+        except JammingError as exc:
+            raise SolverDivergence(str(exc), t, y) from None
 
     def jacobian(self, t: float, y: tuple, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """∂f/∂y and ∂f/∂t by forward differences, all perturbed states in one vectorised evaluation

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rig.plants.clutch.flat_tappet import FlatTappetClutch
-from rig.plants.clutch.geometry import APEX, LOBE
+from rig.plants.clutch.geometry import APEX, LOBE, make_segment_geometry
 from rig.plants.clutch.loads import Load, LinearMotor
 from rig.solvers import AffineRotor, Event, EventRecord, Problem, SolverDivergence
 
@@ -64,6 +64,11 @@ class ClutchDynamics:
     def _make_core(self) -> None:
         c = self.clutch
         geom = c.scalar_geometry()
+        held_geom, self._segment_of = make_segment_geometry(c.r0, c.r1, c.r2, c.limits)
+        held = self._held = [0.0, 0]                    # stick_slip: lobe start angle, segment in use
+
+        def seg_geom(phi: float) -> tuple[float, float, float, float]:
+            return held_geom(phi, held[0], held[1])
         n, m, J1, J3 = c.n, c.m_t, c.J1, c.J3
         M = n * m
         Fa1, ka, r0, muB, muC, L1, L2 = c.F_a1, c.k_a, c.r0, c.mu_B, c.mu_C, c.L1, c.L2
@@ -72,10 +77,6 @@ class ClutchDynamics:
         motor_torque, load_torque, blocked = self.motor.torque, self.load.torque, self.blocked
         smooth = self.friction == "tanh"
         tanh = math.tanh
-
-        def guide_sign(sigma, k1):
-            """sgn(v23) = sgn(k1·ωr) while slipping with sgn ωr = σ; at k1 = 0 the tappet starts moving outwards."""
-            return sigma if k1 > 0.0 else (-sigma if k1 < 0.0 else 1.0)
 
         def transmit(t, y, k1, k2, dk1, wr, w3, sb, sc):
             """(T_c, F_a, N_B) for friction signs sB, sC."""
@@ -102,25 +103,27 @@ class ClutchDynamics:
             tc = (J3p * (m1 + x) + J1 * (m3 + x)) / (J1 + J3p)
             return tc, (m1 - tc + x) / J1, m1, m3
 
-        def band(t, y):
-            """(T_c required, T_c at σ = +1, T_c at σ = −1, N_B at +1, N_B at −1, F_a, M1, M3, a) at ωr = 0."""
-            k1, k2, dk1 = geom(y[0] - y[2])
+        def band(t, y, geom=geom):
+            """(T_c required, T_c at σ = +1, T_c at σ = −1, N_B at +1, N_B at −1, F_a, M1, M3, a) at ωr = 0.
+            The guide friction sign sC = σ·flank (sgn v23 = sgn(k1·ωr))."""
+            k1, k2, dk1, flank = geom(y[0] - y[2])
             tc, a, m1, m3 = required(t, y, k1, k2)
-            tp, fa, nbp = transmit(t, y, k1, k2, dk1, 0.0, y[3], 1.0, guide_sign(1.0, k1))
-            tm, _, nbm = transmit(t, y, k1, k2, dk1, 0.0, y[3], -1.0, guide_sign(-1.0, k1))
+            sc = flank if k1 != 0.0 else 1.0           # at k1 = 0 the tappet leaves moving outwards
+            tp, fa, nbp = transmit(t, y, k1, k2, dk1, 0.0, y[3], 1.0, sc)
+            tm, _, nbm = transmit(t, y, k1, k2, dk1, 0.0, y[3], -1.0, -sc if k1 != 0.0 else 1.0)
             return tc, tp, tm, nbp, nbm, fa, m1, m3, a
 
-        def core(t: float, y: tuple, mode: int) -> tuple:
+        def core(t: float, y: tuple, mode: int, geom=geom) -> tuple:
             phi_r, w1, w3 = y[0] - y[2], y[1], y[3]
             wr = w1 - w3
-            k1, k2, dk1 = geom(phi_r)
+            k1, k2, dk1, flank = geom(phi_r)
             if smooth:
                 sb, sc = tanh(k2 * wr * inv_vs), tanh(k1 * wr * inv_vs)
             elif mode == 0:
                 tc, a, m1, m3 = required(t, y, k1, k2)
                 return a, a, m1, m3, tc, math.nan, math.nan
             else:
-                sb, sc = mode, guide_sign(mode, k1)
+                sb, sc = mode, (mode * flank if k1 != 0.0 else 1.0)
             tc, fa, nb = transmit(t, y, k1, k2, dk1, wr, w3, sb, sc)
             m1 = motor_torque(t, w1)
             m3 = load_torque(t, y[2], w3, y[4:])
@@ -136,23 +139,25 @@ class ClutchDynamics:
 
         load_rates = self.load.rates
 
+        hgeom = seg_geom if self.friction == "stick_slip" else geom
+
         def rhs(t: float, y: tuple) -> tuple:
-            """dy/dt for the solvers (tuple in, tuple out) in the current friction mode."""
-            r = core(t, y, self.mode)
+            """dy/dt for the solvers (tuple in, tuple out) in the current friction mode and cam segment."""
+            r = core(t, y, self.mode, hgeom)
             if len(y) == 4:
                 return (y[1], r[0], y[3], r[1])
             return (y[1], r[0], y[3], r[1], *load_rates(t, y[2], y[3], y[4:]))
 
         self.core, self.band, self.rhs = core, band, rhs
         self._J3p = lambda k2: J3 + M * k2 * k2
-        self._geom = geom
+        self._geom, self._hgeom = geom, hgeom
 
     # -- stick–slip mode logic --------------------------------------------------------------------
     def _switch_g(self, t: float, y: tuple) -> float:
         """Positive while the mode is valid: σ·ωr when slipping, distance to the band edges when stuck."""
         if self.mode:
             return self.mode * (y[1] - y[3])
-        tc, tp, tm = self.band(t, y)[:3]
+        tc, tp, tm = self.band(t, y, self._hgeom)[:3]
         return min(tp - tc, tc - tm)
 
     def _stuck_state(self, y: tuple) -> tuple:
@@ -189,9 +194,16 @@ class ClutchDynamics:
         return rec.y
 
     def reset(self, t: float, y: tuple) -> bool:
-        """Re-select the mode at t (integration start, after load jumps/restarts); True if it changed."""
+        """Re-select the mode and the cam segment at t (integration start, after load jumps/restarts);
+        True if the mode changed."""
         if self.friction != "stick_slip":
             return False
+        changed = self._reset_mode(t, y)
+        wr = y[1] - y[3]
+        self._held[:] = self._segment_of(y[0] - y[2], wr if wr != 0.0 else self.mode)
+        return changed
+
+    def _reset_mode(self, t: float, y: tuple) -> bool:
         if not self._log_t or t <= self._log_t[0]:
             self._log_t, self._log_mode = [t], [self.mode]
         else:
@@ -223,11 +235,12 @@ class ClutchDynamics:
         band margins T_c(σ=±1) − T_req are quadratic in ω (centrifugal terms) while N_B > 0; their roots
         inside the segment are mapped to times and the flow's steps end between them, so each step holds
         at most one stick → slip crossing for the driver to locate."""
-        if self.mode != 0 or len(y) != 4:
+        if self.mode != 0:
             return None
         t_mid = 0.5 * (t + t_bound)               # inside the time-break interval: loads are fixed there
-        load = self.load.affine(t_mid)
-        if load is None:
+        z = tuple(y[4:])
+        load = self.load.affine(t_mid, z, y[3], y[3])
+        if load is None or any(self.load.rates(t_mid, y[2], y[3], z)):
             return None
         c = self.clutch
         if self.blocked:
@@ -237,13 +250,15 @@ class ClutchDynamics:
             J = c.J1 + self._J3p(self._geom(y[0] - y[2])[1])
             rotor = AffineRotor(t, 0.0, y[1], A - load[0], B + load[1], J)
         w0, we = rotor.omega0, rotor.state(t_bound)[1]
-        flow = StuckFlow(rotor, y[0], y[2], [])
+        if not self.blocked and self.load.affine(t_mid, z, min(w0, we), max(w0, we)) != load:
+            return None                            # the load leaves its affine range on the way (monotone ω)
+        flow = StuckFlow(rotor, y[0], y[2], [], z)
         if we == w0:
             return flow
         ws = (w0, 0.5 * (w0 + we), we)
         margins = []
         for w in ws:
-            tc, tp, tm, nbp, nbm = self.band(t_mid, (y[0], w, y[2], w))[:5]
+            tc, tp, tm, nbp, nbm = self.band(t_mid, (y[0], w, y[2], w, *z))[:5]
             if w != ws[1] and min(nbp, nbm) <= 0.0:
                 return None                        # N_B clipped at 0: margins not quadratic
             margins.append((tp - tc, tc - tm))
@@ -328,17 +343,18 @@ class ClutchDynamics:
 
 class StuckFlow:
     """Stuck halves turning together along ``rotor`` (:class:`rig.solvers.AffineRotor`) from angles
-    φ1 = ``phi1``, φ3 = ``phi3``; state (φ1, ω, φ3, ω) at a float time (tuple) or times (4 × m array)."""
+    φ1 = ``phi1``, φ3 = ``phi3``, load states ``z`` at rest; state (φ1, ω, φ3, ω, *z) at a float time
+    (tuple) or times (array, one row per state)."""
 
-    def __init__(self, rotor: AffineRotor, phi1: float, phi3: float, stops: list[float]):
-        self.rotor, self.phi1, self.phi3, self.stops = rotor, phi1, phi3, stops
+    def __init__(self, rotor: AffineRotor, phi1: float, phi3: float, stops: list[float], z: tuple = ()):
+        self.rotor, self.phi1, self.phi3, self.stops, self.z = rotor, phi1, phi3, stops, z
 
     def __call__(self, t):
         if isinstance(t, float):
             d, w = self.rotor.state(t)
-            return (self.phi1 + d, w, self.phi3 + d, w)
+            return (self.phi1 + d, w, self.phi3 + d, w, *self.z)
         d, w = self.rotor.states(t)
-        return np.vstack((self.phi1 + d, w, self.phi3 + d, w))
+        return np.vstack((self.phi1 + d, w, self.phi3 + d, w, *(np.full_like(d, v) for v in self.z)))
 
 
 def _quadratic_roots(f: tuple[float, float, float], span: float) -> list[float]:

@@ -3,8 +3,9 @@
 A load has ``n_states`` internal states (e.g. the brake force), ``initial_state()``,
 ``torque(t, phi3, omega3, z)``, ``rates(t, phi3, omega3, z)``, the times where it jumps
 (``time_breaks()``), the driven-half angles where it switches (``angle_breaks()`` → (angle, period))
-and, when it is affine in speed between time breaks, ``affine(t)`` → (α, β) with M = α + β·ω3 (used
-for the closed-form stuck segments of the clutch dynamics).
+and, when it is affine in speed between time breaks, ``affine(t, z, w_lo, w_hi)`` → (α, β) with
+M = α + β·ω3 for ω3 in [w_lo, w_hi] and its states z at rest (used for the closed-form stuck segments of
+the clutch dynamics).
 """
 from __future__ import annotations
 
@@ -34,9 +35,11 @@ class Load:
     def angle_breaks(self) -> list[tuple[float, float]]:
         return []
 
-    def affine(self, t: float) -> tuple[float, float] | None:
-        """(α N·m, β N·m·s/rad) with torque = α + β·ω3 on the time-break interval holding t; None when the
-        torque is not of that form (depends on angle or internal states)."""
+    def affine(self, t: float, z: tuple = (), w_lo: float = -math.inf,
+               w_hi: float = math.inf) -> tuple[float, float] | None:
+        """(α N·m, β N·m·s/rad) with torque = α + β·ω3 on the time-break interval holding t, for ω3 in
+        [w_lo, w_hi] (rad/s) with the internal states ``z`` at rest; None when the torque is not of that
+        form there (depends on angle, or on states that move)."""
         return None
 
 
@@ -62,7 +65,7 @@ class Steps(Load):
     def time_breaks(self):
         return list(self.times)
 
-    def affine(self, t):
+    def affine(self, t, z=(), w_lo=-math.inf, w_hi=math.inf):
         return self.torque(t, 0.0, 0.0, ()), 0.0
 
 
@@ -114,7 +117,7 @@ class LinearInSpeed(Load):
     def torque(self, t, phi3, omega3, z):
         return self.alpha0 + self.beta0 * omega3
 
-    def affine(self, t):
+    def affine(self, t, z=(), w_lo=-math.inf, w_hi=math.inf):
         return self.alpha0, self.beta0
 
 
@@ -150,6 +153,18 @@ class ShoeBrake(Load):
 
     def rates(self, t, phi3, omega3, z):
         return ((self._command.torque(t, 0.0, 0.0, ()) - z[0]) / self.tau,)
+
+    def affine(self, t, z=(), w_lo=-math.inf, w_hi=math.inf):
+        """Constant ±gain·F_b while the actuator rests at its command and |ω3| ≥ 19·omega_s keeps one sign
+        (tanh = ±1 to double precision there)."""
+        if not z or z[0] != self._command.torque(t, 0.0, 0.0, ()):
+            return None
+        w_sat = 19.0 * self.omega_s
+        if w_lo >= w_sat:
+            return self.gain * z[0], 0.0
+        if w_hi <= -w_sat:
+            return -self.gain * z[0], 0.0
+        return None
 
     def time_breaks(self):
         return list(self.times)
@@ -190,10 +205,12 @@ class LoadSum(Load):
     def angle_breaks(self):
         return [b for ld in self.loads for b in ld.angle_breaks()]
 
-    def affine(self, t):
+    def affine(self, t, z=(), w_lo=-math.inf, w_hi=math.inf):
         alpha = beta = 0.0
+        k = 0
         for ld in self.loads:
-            ab = ld.affine(t)
+            ab = ld.affine(t, tuple(z[k:k + ld.n_states]), w_lo, w_hi)
+            k += ld.n_states
             if ab is None:
                 return None
             alpha, beta = alpha + ab[0], beta + ab[1]
