@@ -118,6 +118,9 @@ def test_scene_errors_name_key(tmp_path):
     p.write_text((SCENES / "clutch_startup.toml").read_text().replace('r1 = "130 mm"', 'r1 = "50 mm"'))
     with pytest.raises(SceneError, match="r1"):
         ClutchStand.from_scene(load_scene(p))
+    p.write_text((SCENES / "clutch_shock_short.toml").read_text().replace('pulse_duration = "55 ms"', "#"))
+    with pytest.raises(SceneError, match="pulse"):                 # a brake pulse needs all three keys
+        ClutchStand.from_scene(load_scene(p))
 
 
 def test_stick_slip_startup_sticks_and_follows_rigid_closed_form():
