@@ -1,7 +1,7 @@
 """Read a rig MCAP recording back into arrays; recover what is readable from truncated files."""
 from __future__ import annotations
 
-import json
+import orjson
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -114,22 +114,22 @@ class _Collector:
             if record.name == S.SCENE_ATTACHMENT:
                 rec.scene_text = record.data.decode("utf-8")
             elif record.name.startswith("device/program/"):
-                rec.programs[int(Path(record.name).stem)] = json.loads(record.data)
+                rec.programs[int(Path(record.name).stem)] = orjson.loads(record.data)
         elif isinstance(record, Metadata):
             rec.metadata[record.name] = dict(record.metadata)
 
     def _message(self, topic: str, data: bytes) -> None:
         rec = self.rec
         if topic == S.CURVE:
-            rec.curves.append(_curve(json.loads(data)))
+            rec.curves.append(_curve(orjson.loads(data)))
         elif topic == S.RESULT:
-            rec.results.append(json.loads(data))
+            rec.results.append(orjson.loads(data))
         elif topic == S.STATISTICS:
-            rec.statistics.append(json.loads(data))
+            rec.statistics.append(orjson.loads(data))
         elif topic == S.EVENTS:
-            rec.events.append(json.loads(data))
+            rec.events.append(orjson.loads(data))
         elif topic == S.CAN_RAW:
-            self.can.append(json.loads(data))
+            self.can.append(orjson.loads(data))
         else:
             self.blocks[topic].append(decode_block(data))
 

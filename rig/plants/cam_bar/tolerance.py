@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Mapping
 import numpy as np
 
 from rig.plants.cam_bar.chain import SingularPositionError
-from rig.scene import Field, SceneError, load_scene, read_table
+from rig.scene import Field, SceneError, load_scene
 
 if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism

@@ -65,7 +65,7 @@ def study_table(study: ToleranceStudy) -> str:
         lines.append(f"  with the exponential clearance law: mean Δs {mcc.mean.min() * um:.1f} … {mcc.mean.max() * um:.1f} µm, "
                      f"99.865 % point up to {mcc.percentiles[99.865].max() * um:.1f} µm")
     fb = influence_factors(EXAMPLE_LENGTHS, EXAMPLE_TOLERANCES, np.radians(np.arange(0.0, 360.0, 1.0)))
-    lines.append(f"four-bar example l = (100, 30, 120, 70) mm, Δl = (0.3, 0.2, 0.5, 0.3) mm: max |∂ψ/∂l| "
+    lines.append("four-bar example l = (100, 30, 120, 70) mm, Δl = (0.3, 0.2, 0.5, 0.3) mm: max |∂ψ/∂l| "
                  + ", ".join(f"{np.max(np.abs(f)) * 1e-3:.4f}" for f in fb.factors)
                  + f" rad/mm; Δψ worst {degrees(fb.worst.max()):.3f}°, RSS {degrees(fb.rss.max()):.3f}°")
     return "\n".join(lines)
