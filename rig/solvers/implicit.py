@@ -1,14 +1,11 @@
-"""Implicit solvers for stiff problems: a Rosenbrock 2(3) method and an adapter of scipy's Radau IIA.
-
-:class:`Rosenbrock23` is the linearly implicit method of Shampine & Reichelt (1997, MATLAB's ode23s).
+"""Linearly implicit Rosenbrock 2(3) method (Shampine & Reichelt 1997, MATLAB's ode23s) for stiff problems.
 
 One LU factorisation of W = I − h·d·J per step, three stages (the third only for the error estimate, FSAL
 style), L-stable 2nd-order solution with a 3rd-order error estimate and the method's quadratic continuous
 extension. J = ∂f/∂y and ∂f/∂t come from forward differences (n + 1 extra RHS calls per step), so any
-``fun(t, y)`` of the explicit solvers works unchanged. Written rather than only adapted: the same tuple-state
-interface and :class:`PolynomialDense` (batched ``fill_dense``) as DP45, no per-step array conversions, and for
-the 2–5 states of the plants an n×n LU costs less than one RHS call. :class:`ScipyRadau` wraps scipy's order-5
-Radau IIA for comparison (more RHS calls per step, fewer steps where the solution oscillates).
+``fun(t, y)`` of the explicit solvers works unchanged. Written rather than adapted from scipy's Radau: the same
+tuple-state interface and :class:`PolynomialDense` (batched ``fill_dense``) as DP45, no per-step array
+conversions, and for the 2–5 states of the plants an n×n LU costs less than one RHS call.
 """
 from __future__ import annotations
 
@@ -128,41 +125,3 @@ class Rosenbrock23(OdeSolver):
     def dense_output(self) -> PolynomialDense:
         return PolynomialDense(self.t_old, self.t - self.t_old, self.y_old, self._K, _P)
 
-
-class ScipyRadau(OdeSolver):
-    """Thin adapter of :class:`scipy.integrate.Radau` (implicit Radau IIA, order 5, simplified Newton with
-    Jacobian reuse) to this package's interface: tuple states, ``step()``, ``dense_output()``, ``nfev``.
-
-    ``jac`` has the :class:`Rosenbrock23` signature ``jac(t, y, f) -> (∂f/∂y, ∂f/∂t)`` (one extra RHS call per
-    Jacobian); without it scipy differences the RHS itself. ``stiffness`` is accepted and ignored.
-    """
-
-    order = 5
-
-    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-3,
-                 atol: float = 1e-6, first_step: float | None = None, max_step: float = math.inf,
-                 jac: Jac | None = None, stiffness: str = "ignore"):
-        from scipy.integrate import Radau
-        super().__init__(fun, t0, y0, t_bound)
-        vec = lambda t, y: np.asarray(fun(t, tuple(y.tolist())), dtype=float)  # noqa: E731
-        matrix = None if jac is None else (lambda t, y: jac(t, tuple(y.tolist()), vec(t, y))[0])
-        step0 = None if first_step is None or not first_step > 0 else min(first_step, self.t_bound - self.t)
-        self._radau = Radau(vec, self.t, np.array(self.y), self.t_bound, rtol=rtol, atol=atol, first_step=step0,
-                            max_step=max_step, jac=matrix)
-        self.stiff_at: float | None = None
-
-    def _step_impl(self) -> None:
-        r = self._radau
-        message = r.step()
-        self.nfev = r.nfev + r.njev
-        if r.status == "failed":
-            raise SolverDivergence(f"Radau: {message}", r.t, tuple(r.y.tolist()))
-        self.t_old, self.y_old = self.t, self.y
-        self.t, self.y = float(r.t), tuple(r.y.tolist())
-        if not all_finite(self.y):
-            raise SolverDivergence("non-finite state", self.t, self.y)
-        self.h_last = self.t - self.t_old
-
-    def dense_output(self):
-        dense = self._radau.dense_output()
-        return lambda t: tuple(dense(t).tolist()) if isinstance(t, float) else dense(np.asarray(t, dtype=float))

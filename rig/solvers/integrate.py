@@ -248,6 +248,11 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         elif cut[2]:
             status = "terminated"
             break
+        elif t >= breaks[bi]:                   # the event fell on the break itself: move on past it
+            t = math.nextafter(t, math.inf)
+            bi += 1
+            if bi == len(breaks):
+                break
         restarts += 1
     if t_eval is not None:
         fill_dense(out_y, t_eval, pending)

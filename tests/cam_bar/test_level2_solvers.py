@@ -7,7 +7,7 @@ import pytest
 
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.level2 import Level2
-from rig.solvers import Event, Problem, Rosenbrock23, ScipyRadau, StiffnessError, StiffnessWarning, integrate
+from rig.solvers import Event, Problem, Rosenbrock23, StiffnessError, StiffnessWarning, integrate
 
 LAM = 1e4
 
@@ -46,18 +46,6 @@ def test_rosenbrock23_error_control_dense_output_and_events():
         warnings.simplefilter("always")
         dp = integrate(Problem(_stiff, (1.0, 1.0)), (0.0, 2.0), method="DP45", rtol=1e-3, atol=1e-6)
     assert dp.nsteps > 20 * loose.nsteps and any(issubclass(w.category, StiffnessWarning) for w in caught)
-
-
-def test_scipy_radau_adapter_has_the_same_interface():
-    t_eval = np.linspace(0.0, 2.0, 101)
-    ev = Event(lambda t, y: y[1] - 0.5, "half", direction=-1.0)
-    sol = integrate(Problem(_stiff, (1.0, 1.0), [ev]), (0.0, 2.0), method=ScipyRadau, rtol=1e-8, atol=1e-11,
-                    t_eval=t_eval)
-    assert np.max(np.abs(sol.y - _exact(t_eval))) < 1e-7 and sol.nsteps < 200
-    assert sol.t_events["half"][0] == pytest.approx(math.log(2.0) / 2.0, abs=1e-8)
-    jac = lambda t, y, f: (np.array([[-LAM, 0.0], [0.0, -2.0]]), np.array([-LAM * math.sin(t) - math.cos(t), 0.0]))  # noqa: E731
-    with_jac = integrate(Problem(_stiff, (1.0, 1.0)), (0.0, 2.0), method=ScipyRadau, rtol=1e-8, atol=1e-11, jac=jac)
-    assert with_jac.y_final == pytest.approx(tuple(_exact(2.0)), abs=1e-7)
 
 
 def test_user_jacobian_matches_finite_differences():

@@ -2,7 +2,6 @@
 MCAP → report, with the hysteresis-loop energy checked against the characteristic."""
 from __future__ import annotations
 
-import math
 import tomllib
 from pathlib import Path
 

@@ -168,3 +168,13 @@ def test_event_chattering_is_reported():
     ev_ok = Event(lambda t, y: 1.0 - y[0], "bounce", direction=-1.0, action=lambda rec: (0.0,), mode_dependent=True)
     s = integrate(Problem(lambda t, y: (1.0,), (0.0,), [ev_ok]), (0, 3.5), rtol=1e-6, atol=1e-9)
     assert s.t_events["bounce"] == pytest.approx([1.0, 2.0, 3.0], abs=1e-9)
+
+
+def test_restart_event_exactly_at_the_end_of_the_span():
+    """A restarting event whose root is t_bound itself ends the run instead of restarting with t0 == t_bound."""
+    ev = Event(lambda t, y: t - 1.0, "at_end", restart=True)      # g reaches 0 exactly at the last step
+    sol = integrate(Problem(lambda t, y: (1.0,), (0.0,), [ev]), (0.0, 1.0), rtol=1e-8, atol=1e-10)
+    assert [r.t for r in sol.events] == [1.0] and sol.y_final[0] == pytest.approx(1.0, rel=1e-12)
+    ev2 = Event(lambda t, y: t - 0.5, "at_break", restart=True)
+    sol2 = integrate(Problem(lambda t, y: (1.0,), (0.0,), [ev2], time_breaks=[0.5]), (0.0, 1.0), rtol=1e-8, atol=1e-10)
+    assert sol2.y_final[0] == pytest.approx(1.0, rel=1e-12)

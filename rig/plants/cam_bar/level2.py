@@ -34,7 +34,6 @@ if TYPE_CHECKING:
 TAU = 1e-3  # s, scale of the velocity state
 PALMGREN = 3.84e-5  # steel line contact, approach δ = 3.84e-5·Q^0.9/l^0.8 (δ, l in mm, Q in N)
 MAX_BRANCH_ITER = 4
-SPAN_PAD = 1e-12  # relative extension of the integration span (see :meth:`Level2.simulate`)
 
 
 @dataclass(frozen=True)
@@ -230,7 +229,6 @@ class Level2:
     def _acceleration(self, phi, omega, psi, psi_d, rising, moment) -> np.ndarray:
         """ψ̈ with M_Σ(ψ̈) = ``moment``: two trial accelerations per sample, exact on a friction branch; repeated
         from the solution where the guide normal force changed sign in between."""
-        mech = self.mech
         guess = np.zeros_like(psi)
         rep = lambda v: np.concatenate([v, v])  # noqa: E731
         for _ in range(MAX_BRANCH_ITER):
@@ -347,7 +345,7 @@ class Level2:
 
     def simulate(self, t_span: tuple[float, float], y0: tuple | None = None, flank: str | None = None,
                  method=Rosenbrock23, t_eval=None, **options) -> Level2Run:
-        """Integrate over ``t_span`` (s; the last step ends 1e-12 relative past it) from ``y0`` (default: :meth:`initial_state`) with ``method``
+        """Integrate over ``t_span`` (s) from ``y0`` (default: :meth:`initial_state`) with ``method``
         (a solver class or "DP45"/"RK4"); ``flank`` is the flank in contact at the start (default: nearer)."""
         t0 = float(t_span[0])
         y0 = self.initial_state(t0) if y0 is None else tuple(y0)
@@ -356,9 +354,7 @@ class Level2:
             raise self._diverged(t0, y0)
         if method is Rosenbrock23:
             options.setdefault("jac", self.jacobian)
-        # a hair past the end: ``integrate`` cannot restart at a restart event that lands exactly on t_bound
-        t_end = float(t_span[1]) + SPAN_PAD * max(1.0, abs(float(t_span[1])))
-        sol = integrate(self.problem(y0), (t0, t_end), method=method, t_eval=t_eval, **options)
+        sol = integrate(self.problem(y0), (t0, float(t_span[1])), method=method, t_eval=t_eval, **options)
         if sol.status == "terminated":
             raise self._diverged(sol.t_final, sol.y_final)
         switches, impacts, releases = [], [], []
