@@ -1,6 +1,8 @@
 """2-DOF Lagrange dynamics of the flat-tappet clutch on a stand (MODELS.md §4.3).
 
-State y = (φ1, ω1, φ3, ω3, *load states) in rad, rad/s. With M = n·m_t, k3 = 2·k1·dk1/dφ:
+State y = (φr, ωr, φ3, ω3, *load states) in rad, rad/s, with φr = φ1 − φ3 and ωr = ω1 − ω3 the relative
+angle and speed (integrated directly so that error control acts on them, not on absolute angles of tens of
+rad whose difference they would be). With M = n·m_t, k3 = 2·k1·dk1/dφ:
 
     (J1 + M k1²) φ̈1 − M k1² φ̈3 = M1 − T_c − ½M k3 ωr² + M k1 k2 ω3²
     (J3 + M k1² + M k2²) φ̈3 − M k1² φ̈1 = −M3 + T_c + ½M k3 ωr² − M k1 k2 ω3² − 2M k1 k2 ωr ω3
@@ -85,7 +87,7 @@ class ClutchDynamics:
             g = muC * sc * (abs(k1 + (k2 - L2) * fb_rel) + abs(k1 + (k2 - L1) * fb_rel)) / L
             if g >= 1.0:
                 raise SolverDivergence(f"tappet self-locks in its guide (mu_C*(|R1|+|R2|)/N_B >= 1 at "
-                                       f"relative angle {math.degrees(y[0] - y[2]):.4g} deg)", t, y)
+                                       f"relative angle {math.degrees(y[0]):.4g} deg)", t, y)
             nb = (fa + m * (dk1 * wr * wr - k2 * w3 * w3)) / (1.0 - g)
             if nb < 0.0:
                 nb = 0.0
@@ -94,7 +96,7 @@ class ClutchDynamics:
         def required(t, y, k1, k2):
             """Stuck halves: (T_c needed for ω̇r = 0, common acceleration, M1, M3)."""
             w3 = y[3]
-            m1 = motor_torque(t, y[1])
+            m1 = motor_torque(t, y[1] + w3)
             m3 = load_torque(t, y[2], w3, y[4:])
             x = M * k1 * k2 * w3 * w3
             if blocked:
@@ -106,7 +108,7 @@ class ClutchDynamics:
         def band(t, y, geom=geom):
             """(T_c required, T_c at σ = +1, T_c at σ = −1, N_B at +1, N_B at −1, F_a, M1, M3, a) at ωr = 0.
             The guide friction sign sC = σ·flank (sgn v23 = sgn(k1·ωr))."""
-            k1, k2, dk1, flank = geom(y[0] - y[2])
+            k1, k2, dk1, flank = geom(y[0])
             tc, a, m1, m3 = required(t, y, k1, k2)
             sc = flank if k1 != 0.0 else 1.0           # at k1 = 0 the tappet leaves moving outwards
             tp, fa, nbp = transmit(t, y, k1, k2, dk1, 0.0, y[3], 1.0, sc)
@@ -114,8 +116,8 @@ class ClutchDynamics:
             return tc, tp, tm, nbp, nbm, fa, m1, m3, a
 
         def core(t: float, y: tuple, mode: int, geom=geom) -> tuple:
-            phi_r, w1, w3 = y[0] - y[2], y[1], y[3]
-            wr = w1 - w3
+            phi_r, wr, w3 = y[0], y[1], y[3]
+            w1 = wr + w3
             k1, k2, dk1, flank = geom(phi_r)
             if smooth:
                 sb, sc = tanh(k2 * wr * inv_vs), tanh(k1 * wr * inv_vs)
@@ -145,8 +147,8 @@ class ClutchDynamics:
             """dy/dt for the solvers (tuple in, tuple out) in the current friction mode and cam segment."""
             r = core(t, y, self.mode, hgeom)
             if len(y) == 4:
-                return (y[1], r[0], y[3], r[1])
-            return (y[1], r[0], y[3], r[1], *load_rates(t, y[2], y[3], y[4:]))
+                return (y[1], r[0] - r[1], y[3], r[1])
+            return (y[1], r[0] - r[1], y[3], r[1], *load_rates(t, y[2], y[3], y[4:]))
 
         self.core, self.band, self.rhs = core, band, rhs
         self._J3p = lambda k2: J3 + M * k2 * k2
@@ -156,7 +158,7 @@ class ClutchDynamics:
     def _switch_g(self, t: float, y: tuple) -> float:
         """Positive while the mode is valid: σ·ωr when slipping, distance to the band edges when stuck."""
         if self.mode:
-            return self.mode * (y[1] - y[3])
+            return self.mode * y[1]
         tc, tp, tm = self.band(t, y, self._hgeom)[:3]
         return min(tp - tc, tc - tm)
 
@@ -164,9 +166,8 @@ class ClutchDynamics:
         """Project onto ωr = 0 conserving the angular momentum of the two halves."""
         if self.blocked:
             return (y[0], 0.0, *y[2:])
-        J1, J3p = self.clutch.J1, self._J3p(self._geom(y[0] - y[2])[1])
-        w = (J1 * y[1] + J3p * y[3]) / (J1 + J3p)
-        return (y[0], w, y[2], w, *y[4:])
+        J1, J3p = self.clutch.J1, self._J3p(self._geom(y[0])[1])
+        return (y[0], 0.0, y[2], y[3] + J1 * y[1] / (J1 + J3p), *y[4:])
 
     def _pick_at_rest(self, t: float, y: tuple) -> int:
         """Mode for ωr = 0: stuck if the needed torque lies inside the static band, else slip towards it."""
@@ -199,8 +200,8 @@ class ClutchDynamics:
         if self.friction != "stick_slip":
             return False
         changed = self._reset_mode(t, y)
-        wr = y[1] - y[3]
-        self._held[:] = self._segment_of(y[0] - y[2], wr if wr != 0.0 else self.mode)
+        wr = y[1]
+        self._held[:] = self._segment_of(y[0], wr if wr != 0.0 else self.mode)
         return changed
 
     def _reset_mode(self, t: float, y: tuple) -> bool:
@@ -211,7 +212,7 @@ class ClutchDynamics:
             del self._log_t[i:], self._log_mode[i:]
             self._log_t.append(t)
             self._log_mode.append(self.mode)
-        wr = y[1] - y[3]
+        wr = y[1]
         if wr != 0.0:
             return self._set_mode(t, 1 if wr > 0 else -1)
         if self.mode == 0:
@@ -247,8 +248,8 @@ class ClutchDynamics:
             rotor = AffineRotor(t, 0.0, 0.0, 0.0, 0.0, c.J1)
         else:
             A, B = self.motor.affine(t_mid)
-            J = c.J1 + self._J3p(self._geom(y[0] - y[2])[1])
-            rotor = AffineRotor(t, 0.0, y[1], A - load[0], B + load[1], J)
+            J = c.J1 + self._J3p(self._geom(y[0])[1])
+            rotor = AffineRotor(t, 0.0, y[3], A - load[0], B + load[1], J)
         w0, we = rotor.omega0, rotor.state(t_bound)[1]
         if not self.blocked and self.load.affine(t_mid, z, min(w0, we), max(w0, we)) != load:
             return None                            # the load leaves its affine range on the way (monotone ω)
@@ -258,7 +259,7 @@ class ClutchDynamics:
         ws = (w0, 0.5 * (w0 + we), we)
         margins = []
         for w in ws:
-            tc, tp, tm, nbp, nbm = self.band(t_mid, (y[0], w, y[2], w, *z))[:5]
+            tc, tp, tm, nbp, nbm = self.band(t_mid, (y[0], 0.0, y[2], w, *z))[:5]
             if w != ws[1] and min(nbp, nbm) <= 0.0:
                 return None                        # N_B clipped at 0: margins not quadratic
             margins.append((tp - tc, tc - tm))
@@ -272,7 +273,9 @@ class ClutchDynamics:
     # -- problem assembly ---------------------------------------------------------------------------
     def initial_state(self, omega: float = 0.0, phi_r: float = 0.0) -> tuple:
         """Both halves at speed ``omega`` (rad/s), relative angle ``phi_r`` (rad), loads at rest."""
-        return (phi_r, omega, 0.0, 0.0 if self.blocked else omega, *self.load.initial_state())
+        if self.blocked:
+            return (phi_r, omega, 0.0, 0.0, *self.load.initial_state())
+        return (phi_r, 0.0, 0.0, omega, *self.load.initial_state())
 
     def equilibrium_angle(self, omega: float) -> float:
         """Relative angle (rad) on the rising flank where the frictionless static torque n·F_a·k1 carries
@@ -292,22 +295,22 @@ class ClutchDynamics:
     def energy(self, y) -> float:
         """Kinetic energy + spring energy (J) for a state (used to check conservation)."""
         c = self.clutch
-        g = c.geometry(y[0] - y[2])
+        g = c.geometry(y[0])
         k1, k2, s = float(g["k1"]), float(g["k2"]), float(g["s"])
-        wr, w3 = y[1] - y[3], y[3]
-        kin = 0.5 * c.J1 * y[1] ** 2 + 0.5 * c.n * c.m_t * (k1 ** 2 * wr ** 2 + k2 ** 2 * w3 ** 2) + 0.5 * c.J3 * w3 ** 2
+        wr, w3 = y[1], y[3]
+        kin = 0.5 * c.J1 * (wr + w3) ** 2 + 0.5 * c.n * c.m_t * (k1 ** 2 * wr ** 2 + k2 ** 2 * w3 ** 2) + 0.5 * c.J3 * w3 ** 2
         return kin + c.n * (c.F_a1 * s + 0.5 * c.k_a * s * s)
 
     def events(self, on_apex: Callable[[EventRecord], bool] | None = None) -> list[Event]:
         """Phase boundaries (restart), lobe wrap and apex (recorded; ``on_apex`` is the apex event's
         action), load angle switches (restart) and, for stick–slip, the mode switch."""
         lim = self.clutch.limits
-        out = [Event(_periodic(b, LOBE, 0, 2), "phase_boundary", restart=True)
+        out = [Event(_periodic(b, LOBE, 0), "phase_boundary", restart=True)
                for b in (lim.phi_maxI, LOBE - lim.phi_maxI)]
         switched = self.friction == "stick_slip"       # guide friction flips where k1 = 0 (wrap, apex)
-        out.append(Event(_periodic(0.0, LOBE, 0, 2), "lobe_wrap", restart=switched))
-        out.append(Event(_periodic(APEX, LOBE, 0, 2), "apex", action=on_apex, restart=switched))
-        out += [Event(_periodic(a, p, 2, None), "load_zone", restart=True) for a, p in self.load.angle_breaks()]
+        out.append(Event(_periodic(0.0, LOBE, 0), "lobe_wrap", restart=switched))
+        out.append(Event(_periodic(APEX, LOBE, 0), "apex", action=on_apex, restart=switched))
+        out += [Event(_periodic(a, p, 2), "load_zone", restart=True) for a, p in self.load.angle_breaks()]
         if self.friction == "stick_slip":
             out.append(Event(self._switch_g, "stick_slip", direction=-1.0, action=self._on_switch,
                              mode_dependent=True))
@@ -334,27 +337,28 @@ class ClutchDynamics:
                 w = 0.5 if tp == tm else (tc - tm) / (tp - tm)
                 vals[k, 5], vals[k, 6] = fa, nbm + w * (nbp - nbm)
         a3 = vals[:, 1]
-        out = {"phi1": Y[0], "omega1": Y[1], "phi3": Y[2], "omega3": Y[3], "phi_r": Y[0] - Y[2],
-               "omega_r": Y[1] - Y[3], "M1": vals[:, 2], "M3": vals[:, 3], "T_c": vals[:, 4],
+        out = {"phi1": Y[0] + Y[2], "omega1": Y[1] + Y[3], "phi3": Y[2], "omega3": Y[3], "phi_r": Y[0],
+               "omega_r": Y[1], "M1": vals[:, 2], "M3": vals[:, 3], "T_c": vals[:, 4],
                "F_a": vals[:, 5], "N_B": vals[:, 6]}
         out["M_t"] = vals[:, 4] if self.blocked else vals[:, 3] + self.J_down * a3
         return out
 
 
 class StuckFlow:
-    """Stuck halves turning together along ``rotor`` (:class:`rig.solvers.AffineRotor`) from angles
-    φ1 = ``phi1``, φ3 = ``phi3``, load states ``z`` at rest; state (φ1, ω, φ3, ω, *z) at a float time
-    (tuple) or times (array, one row per state)."""
+    """Stuck halves turning together along ``rotor`` (:class:`rig.solvers.AffineRotor`) at the frozen
+    relative angle ``phi_r`` from φ3 = ``phi3``, load states ``z`` at rest; state (φr, 0, φ3, ω, *z) at a
+    float time (tuple) or times (array, one row per state)."""
 
-    def __init__(self, rotor: AffineRotor, phi1: float, phi3: float, stops: list[float], z: tuple = ()):
-        self.rotor, self.phi1, self.phi3, self.stops, self.z = rotor, phi1, phi3, stops, z
+    def __init__(self, rotor: AffineRotor, phi_r: float, phi3: float, stops: list[float], z: tuple = ()):
+        self.rotor, self.phi_r, self.phi3, self.stops, self.z = rotor, phi_r, phi3, stops, z
 
     def __call__(self, t):
         if isinstance(t, float):
             d, w = self.rotor.state(t)
-            return (self.phi1 + d, w, self.phi3 + d, w, *self.z)
+            return (self.phi_r, 0.0, self.phi3 + d, w, *self.z)
         d, w = self.rotor.states(t)
-        return np.vstack((self.phi1 + d, w, self.phi3 + d, w, *(np.full_like(d, v) for v in self.z)))
+        return np.vstack((np.full_like(d, self.phi_r), np.zeros_like(d), self.phi3 + d, w,
+                          *(np.full_like(d, v) for v in self.z)))
 
 
 def _quadratic_roots(f: tuple[float, float, float], span: float) -> list[float]:
@@ -375,10 +379,8 @@ def _quadratic_roots(f: tuple[float, float, float], span: float) -> list[float]:
     return [s for s in roots if 0.0 < s / span <= 1.0]
 
 
-def _periodic(angle: float, period: float, i: int, j: int | None) -> Callable[[float, tuple], float]:
-    """g = sin(π(θ − angle)/period) with θ = y[i] − y[j] (or y[i]); zero at angle + k·period."""
+def _periodic(angle: float, period: float, i: int) -> Callable[[float, tuple], float]:
+    """g = sin(π(y[i] − angle)/period); zero at angle + k·period."""
     k = math.pi / period
     sin = math.sin
-    if j is None:
-        return lambda t, y: sin(k * (y[i] - angle))
-    return lambda t, y: sin(k * (y[i] - y[j] - angle))
+    return lambda t, y: sin(k * (y[i] - angle))

@@ -136,10 +136,10 @@ class ClutchStand:
                    p["rtol"], p["atol"], p["phi_r0"])
 
     def _on_apex(self, rec: EventRecord) -> bool:
-        omega_r = rec.y[1] - rec.y[3]
+        omega_r = rec.y[1]
         self.disengagement_times.append(rec.t)
         self.events.append(Event(rec.t, "disengagement", {
-            "phi_r": rec.y[0] - rec.y[2], "direction": 1 if omega_r >= 0 else -1,
+            "phi_r": rec.y[0], "direction": 1 if omega_r >= 0 else -1,
             "count": len(self.disengagement_times)}))
         recent = [x for x in self.disengagement_times if x > rec.t - self.shutdown_window]
         if not self.shutdown and len(recent) >= self.shutdown_count:
@@ -162,7 +162,7 @@ class ClutchStand:
                             rtol=self.rtol, atol=self.atol, first_step=self._h)
             for r in sol.events:
                 if r.name in ("phase_boundary", "lobe_wrap", "load_zone"):
-                    self.events.append(Event(r.t, r.name, {"phi_r": r.y[0] - r.y[2]}))
+                    self.events.append(Event(r.t, r.name, {"phi_r": r.y[0]}))
             self.y, self.t, self._h = sol.y_final, sol.t_final, sol.h_last
             self.events.sort(key=lambda e: e.time)
             Y = sol.y
