@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 Rhs = Callable[[float, tuple], Sequence[float]]
 
@@ -55,7 +55,12 @@ class StiffnessMonitor:
             return
         num = sum((a - b) ** 2 for a, b in zip(fa, fb))
         den = sum((a - b) ** 2 for a, b in zip(ya, yb))
-        hl = h * math.sqrt(num / den) if den > 0.0 else 0.0
+        self.update(t, y, h, h * math.sqrt(num / den) if den > 0.0 else 0.0)
+
+    def update(self, t: float, y: tuple, h: float, hl: float) -> None:
+        """Update with an estimate ``hl`` of h·|λ| for a step of size h ending at (t, y)."""
+        if self.policy == "ignore" or self.detected_at is not None:
+            return
         if hl <= self.limit:
             self.calm += 1
             if self.calm >= 6:
@@ -72,7 +77,7 @@ class StiffnessMonitor:
                f"stick-slip friction model instead of a steep regularisation)")
         if self.policy == "raise":
             raise StiffnessError(msg, t, y)
-        warnings.warn(msg, StiffnessWarning, stacklevel=4)
+        warnings.warn(msg, StiffnessWarning, stacklevel=5)
 
 
 class OdeSolver:

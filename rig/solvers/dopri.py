@@ -6,7 +6,7 @@ but with tuple states and stages unrolled per state size (:mod:`rig.solvers.unro
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -17,6 +17,7 @@ from rig.solvers.base import (
     StiffnessMonitor,
     all_finite,
 )
+from rig.solvers.compiled import JitRhs, dp45_step
 from rig.solvers.unrolled import rk_kernels
 
 _A21 = 1 / 5
@@ -37,6 +38,14 @@ _P = np.array([
     [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
     [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423]])
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
+# the tableau as arrays, for the compiled step (rig.solvers.compiled): A[s, j], B, C, E (incl. FSAL stage)
+A = np.zeros((6, 6))
+for _s, _row in enumerate(((_A21,), (_A31, _A32), (_A41, _A42, _A43), (_A51, _A52, _A53, _A54),
+                           (_A61, _A62, _A63, _A64, _A65)), start=1):
+    A[_s, :_s] = _row
+B = np.array([_B1, 0.0, _B3, _B4, _B5, _B6])
+C = np.array([0.0, _C2, _C3, _C4, _C5, 1.0])
+E = np.array([_E1, 0.0, _E3, _E4, _E5, _E6, _E7])
 
 
 def _kernels(n: int):
@@ -117,14 +126,15 @@ class DormandPrince45(OdeSolver):
     """Adaptive Dormand–Prince 5(4) with FSAL, local extrapolation and quartic dense output.
 
     ``stiffness`` ('warn' | 'raise' | 'ignore'): Hairer's test on stages 6 and 7 (both at t + h);
-    ``stiff_at`` is the time it first fired (None otherwise).
+    ``stiff_at`` is the time it first fired (None otherwise). A :class:`rig.solvers.compiled.JitRhs`
+    right-hand side is stepped in machine code (``compiled=False`` forces the pure-Python step).
     """
 
     order = 5
 
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
                  atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf,
-                 stiffness: str = "warn"):
+                 stiffness: str = "warn", compiled: bool = True):
         super().__init__(fun, t0, y0, t_bound)
         self.monitor = StiffnessMonitor("DP45", 3.25, stiffness)
         if not (rtol > 0 and atol >= 0):
@@ -138,8 +148,15 @@ class DormandPrince45(OdeSolver):
         else:
             self.h_abs = min(first_step, self.t_bound - self.t)
         self._K: tuple | None = None
+        self._jit = None
+        if compiled and isinstance(fun, JitRhs):
+            self._jit, self._p = dp45_step(fun.kernel), fun.params()
+            self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
+            self._w = np.array([self.t, self.h_abs, self.t_bound, rtol, atol, max_step, 0.0, 0.0, 0.0])
 
     def _step_impl(self) -> None:
+        if self._jit is not None:
+            return self._compiled_step()
         fun, t, y, k1 = self.fun, self.t, self.y, self.f
         rtol, atol = self.rtol, self.atol
         h_abs = min(self.h_abs, self.max_step)
@@ -178,6 +195,20 @@ class DormandPrince45(OdeSolver):
         self.h_last = h
         self.h_abs = h_abs * factor
         self._K = (k1, k2, k3, k4, k5, k6, k7)
+
+    def _compiled_step(self) -> None:
+        w, K = self._w, np.empty((7, len(self.y)))         # w carries t and h_abs from step to step
+        status = self._jit(w, self._ya, self._yb, K, self._fa, self._p)
+        t_new, h_abs, _, _, _, _, h, nfev, hl = w.tolist()
+        self.nfev += int(nfev)
+        if status:
+            self.fun.fail(self.t, self.y, f"step size underflow (h = {h:.3g} s)")
+        y = tuple(self._yb.tolist())
+        self.monitor.update(t_new, y, h, hl)
+        self.t_old, self.y_old = self.t, self.y
+        self.t, self.y, self.f, self._fa = t_new, y, K[6], K[6]
+        self._ya, self._yb = self._yb, self._ya
+        self.h_last, self.h_abs, self._K = h, h_abs, K
 
     @property
     def stiff_at(self) -> float | None:

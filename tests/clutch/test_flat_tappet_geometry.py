@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rig.plants.clutch import APEX, LOBE, FlatTappetClutch, GeometryError
-from rig.plants.clutch.geometry import make_segment_geometry
+from rig.plants.clutch.geometry import locate_segment, segment_geometry
 
 REF = dict(r0=0.032, r1=0.100, r2=0.028, k_a=28000.0, delta=0.005)
 THESIS = dict(r0=0.055, r1=0.130, r2=0.030, k_a=3000.0, F_a1=1284.0)
@@ -76,15 +76,15 @@ def test_scalar_geometry_matches_vectorised(clutch):
 
 def test_held_segment_continues_its_formula_past_the_boundary(clutch):
     """The held geometry equals the plain one inside its segment and continues analytically beyond."""
-    held, locate = make_segment_geometry(clutch.r0, clutch.r1, clutch.r2, clutch.limits)
+    pm, c1 = clutch.limits.phi_maxI, clutch.r1 - clutch.r0
+    held = lambda phi, base, seg: segment_geometry(phi, base, seg, c1, clutch.limits.a2, clutch.r1, clutch.r2, pm)  # noqa: E731
+    locate = lambda phi, direction: locate_segment(phi, direction, pm)  # noqa: E731
     plain = clutch.scalar_geometry()
-    pm = clutch.limits.phi_maxI
     base, seg = locate(pm, -1.0)                     # on the boundary moving back: phase I
     assert seg == 0 and locate(pm, 1.0)[1] == 1 and locate(-1e-3, 0.0) == (-2 * np.pi / 3, 3)
     for phi in np.linspace(0.0, pm, 7)[:-1]:          # (at pm itself dk1 is two-valued)
         assert held(phi, base, seg) == pytest.approx(plain(phi), abs=1e-15)
     beyond = held(pm + 0.05, base, seg)              # phase-I arc continued: k1 keeps rising, smooth dk1
-    c1 = clutch.r1 - clutch.r0
     assert beyond[0] == pytest.approx(c1 * np.sin(pm + 0.05)) and beyond[2] == pytest.approx(c1 * np.cos(pm + 0.05))
     assert plain(pm + 0.05)[2] < 0 < beyond[2]       # the plain geometry has jumped to the fillet
 

@@ -27,15 +27,17 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import brentq
 
+from rig.plants.clutch import kernel
 from rig.plants.clutch.flat_tappet import FlatTappetClutch
-from rig.plants.clutch.geometry import APEX, LOBE, make_segment_geometry
-from rig.plants.clutch.loads import Load, LinearMotor
-from rig.solvers import AffineRotor, Event, EventRecord, Problem, SolverDivergence
+from rig.plants.clutch.geometry import APEX, LOBE, locate_segment
+from rig.plants.clutch.loads import LinearMotor, Load, LoadSum
+from rig.solvers import AffineRotor, Event, EventRecord, Problem
+from rig.solvers.compiled import JitRhs
 
 FRICTION_MODELS = ("stick_slip", "tanh")
 
@@ -58,115 +60,63 @@ class ClutchDynamics:
             raise ValueError(f"ClutchDynamics: J_down = {J_down} kg*m^2 must lie in [0, J3 = {clutch.J3}]")
         self.clutch, self.motor, self.load = clutch, motor, load
         self.v_s, self.blocked, self.J_down, self.friction = v_s, blocked, J_down, friction
+        program = (load if isinstance(load, LoadSum) else LoadSum([load])).program()
+        self._p = kernel.pack(clutch, motor, program, v_s, blocked, friction == "tanh")
+        self._p[kernel.HELD] = float(friction == "stick_slip")     # stick–slip holds the cam segment
         self.mode = 1                                   # stick_slip: +1/−1 slipping, 0 stuck
         self._log_t: list[float] = []                   # mode history (for outputs at past samples)
         self._log_mode: list[int] = []
-        self._make_core()
+        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose)
 
-    def _make_core(self) -> None:
-        c = self.clutch
-        geom = c.scalar_geometry()
-        held_geom, self._segment_of = make_segment_geometry(c.r0, c.r1, c.r2, c.limits)
-        held = self._held = [0.0, 0]                    # stick_slip: lobe start angle, segment in use
+    @property
+    def mode(self) -> int:
+        """Friction mode (stick–slip): +1/−1 slipping with sgn ωr, 0 stuck."""
+        return int(self._p[kernel.MODE])
 
-        def seg_geom(phi: float) -> tuple[float, float, float, float]:
-            return held_geom(phi, held[0], held[1])
-        n, m, J1, J3 = c.n, c.m_t, c.J1, c.J3
-        M = n * m
-        Fa1, ka, r0, muB, muC, L1, L2 = c.F_a1, c.k_a, c.r0, c.mu_B, c.mu_C, c.L1, c.L2
-        L = L2 - L1
-        inv_vs = 1.0 / self.v_s
-        motor_torque, load_torque, blocked = self.motor.torque, self.load.torque, self.blocked
-        smooth = self.friction == "tanh"
-        tanh = math.tanh
+    @mode.setter
+    def mode(self, value: int) -> None:
+        self._p[kernel.MODE] = value
 
-        def transmit(t, y, k1, k2, dk1, wr, w3, sb, sc):
-            """(T_c, F_a, N_B) for friction signs sB, sC."""
-            fa = Fa1 + ka * (k2 - r0)
-            fb_rel = muB * sb
-            g = muC * sc * (abs(k1 + (k2 - L2) * fb_rel) + abs(k1 + (k2 - L1) * fb_rel)) / L
-            if g >= 1.0:
-                raise SolverDivergence(f"tappet self-locks in its guide (mu_C*(|R1|+|R2|)/N_B >= 1 at "
-                                       f"relative angle {math.degrees(y[0]):.4g} deg)", t, y)
-            nb = (fa + m * (dk1 * wr * wr - k2 * w3 * w3)) / (1.0 - g)
-            if nb < 0.0:
-                nb = 0.0
-            return n * ((fa + g * nb) * k1 + fb_rel * nb * k2), fa, nb
+    def _sync(self) -> np.ndarray:
+        """The kernel's parameter vector with the motor's trip state; clears the self-lock record."""
+        p = self._p
+        p[kernel.TRIPPED], p[kernel.LOCKED_AT] = float(self.motor.tripped), math.nan
+        return p
 
-        def required(t, y, k1, k2):
-            """Stuck halves: (T_c needed for ω̇r = 0, common acceleration, M1, M3)."""
-            w3 = y[3]
-            m1 = motor_torque(t, y[1] + w3)
-            m3 = load_torque(t, y[2], w3, y[4:])
-            x = M * k1 * k2 * w3 * w3
-            if blocked:
-                return m1 + x, 0.0, m1, m3
-            J3p = J3 + M * k2 * k2
-            tc = (J3p * (m1 + x) + J1 * (m3 + x)) / (J1 + J3p)
-            return tc, (m1 - tc + x) / J1, m1, m3
+    def _diagnose(self) -> str | None:
+        at = self._p[kernel.LOCKED_AT]
+        if math.isnan(at):
+            return None
+        return f"tappet self-locks in its guide (mu_C*(|R1|+|R2|)/N_B >= 1 at relative angle {math.degrees(at):.4g} deg)"
 
-        def band(t, y, geom=geom):
-            """(T_c required, T_c at σ = +1, T_c at σ = −1, N_B at +1, N_B at −1, F_a, M1, M3, a) at ωr = 0.
-            The guide friction sign sC = σ·flank (sgn v23 = sgn(k1·ωr))."""
-            k1, k2, dk1, flank = geom(y[0])
-            tc, a, m1, m3 = required(t, y, k1, k2)
-            sc = flank if k1 != 0.0 else 1.0           # at k1 = 0 the tappet leaves moving outwards
-            tp, fa, nbp = transmit(t, y, k1, k2, dk1, 0.0, y[3], 1.0, sc)
-            tm, _, nbm = transmit(t, y, k1, k2, dk1, 0.0, y[3], -1.0, -sc if k1 != 0.0 else 1.0)
-            return tc, tp, tm, nbp, nbm, fa, m1, m3, a
+    def core(self, t: float, y: tuple, mode: int, held: bool = False) -> tuple:
+        """(ω̇1, ω̇3, M1, M3, T_c, F_a, N_B) at (t, y) in friction ``mode`` (true cam segment unless ``held``)."""
+        return kernel.core(t, np.asarray(y, dtype=float), mode, self._sync(), held)
 
-        def core(t: float, y: tuple, mode: int, geom=geom) -> tuple:
-            phi_r, wr, w3 = y[0], y[1], y[3]
-            w1 = wr + w3
-            k1, k2, dk1, flank = geom(phi_r)
-            if smooth:
-                sb, sc = tanh(k2 * wr * inv_vs), tanh(k1 * wr * inv_vs)
-            elif mode == 0:
-                tc, a, m1, m3 = required(t, y, k1, k2)
-                return a, a, m1, m3, tc, math.nan, math.nan
-            else:
-                sb, sc = mode, (mode * flank if k1 != 0.0 else 1.0)
-            tc, fa, nb = transmit(t, y, k1, k2, dk1, wr, w3, sb, sc)
-            m1 = motor_torque(t, w1)
-            m3 = load_torque(t, y[2], w3, y[4:])
-            k1s = M * k1 * k1
-            k3h = M * k1 * dk1 * wr * wr            # ½·M·k3·ωr²
-            b1 = m1 - tc - k3h + M * k1 * k2 * w3 * w3
-            if blocked:
-                return b1 / (J1 + k1s), 0.0, m1, m3, tc, fa, nb
-            b3 = -m3 + tc + k3h - M * k1 * k2 * w3 * (w3 + 2.0 * wr)
-            a11, a22 = J1 + k1s, J3 + k1s + M * k2 * k2
-            det = a11 * a22 - k1s * k1s
-            return (b1 * a22 + k1s * b3) / det, (a11 * b3 + k1s * b1) / det, m1, m3, tc, fa, nb
+    def band(self, t: float, y: tuple, held: bool = False) -> tuple:
+        """Static friction band at ωr = 0: (T_c required, T_c at σ = ±1, N_B at σ = ±1, F_a, M1, M3, a)."""
+        out = kernel.band(t, np.asarray(y, dtype=float), self._sync(), held)
+        if math.isnan(out[1]) or math.isnan(out[2]):
+            self._p[kernel.LOCKED_AT] = y[0]
+            self.rhs.fail(t, y, "static friction band undefined")
+        return out
 
-        load_rates = self.load.rates
-
-        hgeom = seg_geom if self.friction == "stick_slip" else geom
-
-        def rhs(t: float, y: tuple) -> tuple:
-            """dy/dt for the solvers (tuple in, tuple out) in the current friction mode and cam segment."""
-            r = core(t, y, self.mode, hgeom)
-            if len(y) == 4:
-                return (y[1], r[0] - r[1], y[3], r[1])
-            return (y[1], r[0] - r[1], y[3], r[1], *load_rates(t, y[2], y[3], y[4:]))
-
-        self.core, self.band, self.rhs = core, band, rhs
-        self._J3p = lambda k2: J3 + M * k2 * k2
-        self._geom, self._hgeom = geom, hgeom
+    def _J3p(self, k2: float) -> float:
+        return self.clutch.J3 + self.clutch.n * self.clutch.m_t * k2 * k2
 
     # -- stick–slip mode logic --------------------------------------------------------------------
     def _switch_g(self, t: float, y: tuple) -> float:
         """Positive while the mode is valid: σ·ωr when slipping, distance to the band edges when stuck."""
         if self.mode:
             return self.mode * y[1]
-        tc, tp, tm = self.band(t, y, self._hgeom)[:3]
+        tc, tp, tm = self.band(t, y, held=True)[:3]
         return min(tp - tc, tc - tm)
 
     def _stuck_state(self, y: tuple) -> tuple:
         """Project onto ωr = 0 conserving the angular momentum of the two halves."""
         if self.blocked:
             return (y[0], 0.0, *y[2:])
-        J1, J3p = self.clutch.J1, self._J3p(self._geom(y[0])[1])
+        J1, J3p = self.clutch.J1, self._J3p(kernel.geometry(y[0], self._p, False)[1])
         return (y[0], 0.0, y[2], y[3] + J1 * y[1] / (J1 + J3p), *y[4:])
 
     def _pick_at_rest(self, t: float, y: tuple) -> int:
@@ -201,7 +151,8 @@ class ClutchDynamics:
             return False
         changed = self._reset_mode(t, y)
         wr = y[1]
-        self._held[:] = self._segment_of(y[0], wr if wr != 0.0 else self.mode)
+        p = self._p
+        p[kernel.BASE], p[kernel.SEG] = locate_segment(y[0], wr if wr != 0.0 else self.mode, p[kernel.PM])
         return changed
 
     def _reset_mode(self, t: float, y: tuple) -> bool:
@@ -228,7 +179,7 @@ class ClutchDynamics:
         i = np.searchsorted(np.asarray(self._log_t), t, side="right") - 1
         return np.asarray(self._log_mode)[np.maximum(i, 0)]
 
-    def stuck_flow(self, t: float, y: tuple, t_bound: float) -> "StuckFlow | None":
+    def stuck_flow(self, t: float, y: tuple, t_bound: float) -> StuckFlow | None:
         """Closed-form motion of the stuck halves from (t, y) up to ``t_bound`` (s), or None when the mode
         is slipping or the loads have no closed form (angle zones, brake actuator, centrifugal unloading).
 
@@ -248,7 +199,7 @@ class ClutchDynamics:
             rotor = AffineRotor(t, 0.0, 0.0, 0.0, 0.0, c.J1)
         else:
             A, B = self.motor.affine(t_mid)
-            J = c.J1 + self._J3p(self._geom(y[0])[1])
+            J = c.J1 + self._J3p(kernel.geometry(y[0], self._p, False)[1])
             rotor = AffineRotor(t, 0.0, y[3], A - load[0], B + load[1], J)
         w0, we = rotor.omega0, rotor.state(t_bound)[1]
         if not self.blocked and self.load.affine(t_mid, z, min(w0, we), max(w0, we)) != load:

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 LOBE = 2.0 * math.pi / 3.0      # lobe period, rad (three lobes)
 APEX = math.pi / 3.0            # apex of the lobe, rad
@@ -81,64 +82,50 @@ def lobe_geometry(phi: np.ndarray | float, r0: float, r1: float, r2: float,
 
 
 def make_scalar_geometry(r0: float, r1: float, r2: float, limits: PhaseLimits):
-    """Fast scalar version of :func:`lobe_geometry` for ODE right-hand sides: φ ↦ (k1, k2, dk1/dφ, flank),
-    flank = +1 on the rising half-lobe (k1 ≥ 0, including φ = 0 and the apex), −1 on the falling one.
-
-    Same formulas as :func:`lobe_geometry` written with ``math`` (numpy costs microseconds per scalar
-    call); the tests check that both agree.
-    """
-    held = make_segment_geometry(r0, r1, r2, limits)[0]
-    seg_of = segment_locator(limits)
+    """Fast scalar version of :func:`lobe_geometry`: φ ↦ (k1, k2, dk1/dφ, flank), flank = +1 on the
+    rising half-lobe (k1 ≥ 0, including φ = 0 and the apex), −1 on the falling one (the compiled
+    :func:`segment_geometry` on the segment holding φ; the tests check it against :func:`lobe_geometry`)."""
+    c1, a2, pm = r1 - r0, limits.a2, limits.phi_maxI
 
     def geom(phi: float) -> tuple[float, float, float, float]:
-        base, seg = seg_of(phi, 0.0)
-        return held(phi, base, seg)
+        base, seg = locate_segment(phi, 0.0, pm)
+        return segment_geometry(phi, base, seg, c1, a2, r1, r2, pm)
 
     return geom
-
-
-def segment_locator(limits: PhaseLimits):
-    """φ, direction ↦ (lobe start angle, segment 0..3) with segments [0, φ_maxI], [φ_maxI, apex],
-    [apex, lobe − φ_maxI], [lobe − φ_maxI, lobe]; on a boundary, ``direction`` > 0 picks the segment
-    ahead, < 0 the one behind, 0 the one starting there (1e-9 rad resolves restarts at located events)."""
-    bounds = (limits.phi_maxI, APEX, LOBE - limits.phi_maxI)
-    floor = math.floor
-
-    def locate(phi: float, direction: float) -> tuple[float, int]:
-        probe = float(phi) + (1e-9 if direction > 0 else -1e-9 if direction < 0 else 0.0)
-        base = floor(probe / LOBE) * LOBE
-        psi = probe - base
-        return base, (psi >= bounds[0]) + (psi >= bounds[1]) + (psi >= bounds[2])
-
-    return locate
 
 
 #: how far (rad) a held segment's formula is continued past its ends before the true segment is used
 HOLD_MARGIN = 0.1
 
 
-def make_segment_geometry(r0: float, r1: float, r2: float, limits: PhaseLimits):
-    """Geometry with the segment held: (φ, lobe start, segment) ↦ (k1, k2, dk1/dφ, flank) by that
-    segment's formula, continued analytically past its ends — so a solver step that overshoots a phase
-    boundary sees a smooth right-hand side until the boundary event restarts it in the next segment."""
-    c1, a2 = r1 - r0, limits.a2
-    sin, cos = math.sin, math.cos
-    pm = limits.phi_maxI
-    ranges = ((0.0, pm), (pm, APEX), (APEX, LOBE - pm), (LOBE - pm, LOBE))
-    locate = segment_locator(limits)
+@njit(cache=True)
+def locate_segment(phi: float, direction: float, phi_maxI: float) -> tuple[float, int]:
+    """φ, direction ↦ (lobe start angle, segment 0..3) with segments [0, φ_maxI], [φ_maxI, apex],
+    [apex, lobe − φ_maxI], [lobe − φ_maxI, lobe]; on a boundary, ``direction`` > 0 picks the segment
+    ahead, < 0 the one behind, 0 the one starting there (1e-9 rad resolves restarts at located events)."""
+    probe = phi + (1e-9 if direction > 0 else -1e-9 if direction < 0 else 0.0)
+    base = math.floor(probe / LOBE) * LOBE
+    psi = probe - base
+    return base, int(psi >= phi_maxI) + int(psi >= APEX) + int(psi >= LOBE - phi_maxI)
 
-    def held(phi: float, base: float, seg: int) -> tuple[float, float, float, float]:
+
+@njit(cache=True)
+def segment_geometry(phi: float, base: float, seg: int, c1: float, a2: float, r1: float, r2: float,
+                     phi_maxI: float) -> tuple[float, float, float, float]:
+    """(k1, k2, dk1/dφ, flank) at φ by the formula of segment ``seg`` of the lobe starting at ``base``
+    (c1 = r1 − r0), continued analytically up to HOLD_MARGIN past the segment's ends — so a solver step
+    that overshoots a phase boundary sees a smooth right-hand side until the boundary event restarts it
+    in the next segment; farther out (a trial step) the true segment is used."""
+    psi = phi - base
+    lo = (0.0, phi_maxI, APEX, LOBE - phi_maxI)[seg]
+    hi = (phi_maxI, APEX, LOBE - phi_maxI, LOBE)[seg]
+    if not lo - HOLD_MARGIN <= psi <= hi + HOLD_MARGIN:
+        base, seg = locate_segment(phi, 0.0, phi_maxI)
         psi = phi - base
-        lo, hi = ranges[seg]
-        if not lo - HOLD_MARGIN <= psi <= hi + HOLD_MARGIN:   # far outside: a trial step, use the true segment
-            base, seg = locate(phi, 0.0)
-            psi = phi - base
-        flank = 1.0
-        if seg >= 2:
-            psi, flank = LOBE - psi, -1.0
-        if seg == 0 or seg == 3:
-            return flank * c1 * sin(psi), r1 - c1 * cos(psi), c1 * cos(psi), flank
-        u = APEX - psi
-        return flank * a2 * sin(u), r2 + a2 * cos(u), -a2 * cos(u), flank
-
-    return held, locate
+    flank = 1.0
+    if seg >= 2:
+        psi, flank = LOBE - psi, -1.0
+    if seg == 0 or seg == 3:
+        return flank * c1 * math.sin(psi), r1 - c1 * math.cos(psi), c1 * math.cos(psi), flank
+    u = APEX - psi
+    return flank * a2 * math.sin(u), r2 + a2 * math.cos(u), -a2 * math.cos(u), flank

@@ -5,20 +5,28 @@ A load has ``n_states`` internal states (e.g. the brake force), ``initial_state(
 (``time_breaks()``), the driven-half angles where it switches (``angle_breaks()`` → (angle, period))
 and, when it is affine in speed between time breaks, ``affine(t, z, w_lo, w_hi)`` → (α, β) with
 M = α + β·ω3 for ω3 in [w_lo, w_hi] and its states z at rest (used for the closed-form stuck segments of
-the clutch dynamics).
+the clutch dynamics). ``program(z0)`` encodes the load as numbers for the compiled right-hand side
+(:mod:`rig.plants.clutch.kernel`, which interprets the codes below; its states start at z[z0]).
 """
 from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
+
+#: load codes of :meth:`Load.program` (interpreted by :func:`rig.plants.clutch.kernel.load_torque`)
+STEPS, ZONE, LINEAR, BRAKE = 1, 2, 3, 4
 
 
 class Load:
     """Base: a memoryless torque with no internal state and no discontinuities."""
 
     n_states = 0
+
+    def program(self, z0: int = 0) -> list[float]:
+        """The load as [code, parameters...] for the compiled right-hand side; its states start at z[z0]."""
+        raise NotImplementedError(f"{type(self).__name__} has no compiled form (program())")
 
     def initial_state(self) -> tuple:
         return ()
@@ -61,6 +69,9 @@ class Steps(Load):
 
     def torque(self, t, phi3, omega3, z):
         return self._values[bisect.bisect_left(self.times, t)]
+
+    def program(self, z0=0):
+        return [STEPS, len(self.times), *self.times, *self._values]
 
     def time_breaks(self):
         return list(self.times)
@@ -106,6 +117,9 @@ class Zone(Load):
     def angle_breaks(self):
         return [(self.start, self.period), (self.end, self.period)]
 
+    def program(self, z0=0):
+        return [ZONE, self.torque_in_zone, self.start, self.end, self.period]
+
 
 @dataclass
 class LinearInSpeed(Load):
@@ -116,6 +130,9 @@ class LinearInSpeed(Load):
 
     def torque(self, t, phi3, omega3, z):
         return self.alpha0 + self.beta0 * omega3
+
+    def program(self, z0=0):
+        return [LINEAR, self.alpha0, self.beta0]
 
     def affine(self, t, z=(), w_lo=-math.inf, w_hi=math.inf):
         return self.alpha0, self.beta0
@@ -154,6 +171,9 @@ class ShoeBrake(Load):
     def rates(self, t, phi3, omega3, z):
         return ((self._command.torque(t, 0.0, 0.0, ()) - z[0]) / self.tau,)
 
+    def program(self, z0=0):
+        return [BRAKE, self.gain, self.tau, self.omega_s, z0, *self._command.program()[1:]]
+
     def affine(self, t, z=(), w_lo=-math.inf, w_hi=math.inf):
         """Constant ±gain·F_b while the actuator rests at its command and |ω3| ≥ 19·omega_s keeps one sign
         (tanh = ±1 to double precision there)."""
@@ -187,6 +207,10 @@ class LoadSum(Load):
 
     def initial_state(self):
         return tuple(v for ld in self.loads for v in ld.initial_state())
+
+    def program(self, z0=0):
+        """[number of loads, their programs...] (a single load is also a one-term sum)."""
+        return [len(self.loads), *(v for ld, (a, _) in zip(self.loads, self._slices) for v in ld.program(z0 + a))]
 
     def torque(self, t, phi3, omega3, z):
         m = 0.0

@@ -1,0 +1,186 @@
+"""Compiled (numba) equations of motion of the clutch stand — the one implementation behind
+:class:`rig.plants.clutch.dynamics.ClutchDynamics`, used by the compiled DP45 stepper's inner loop and,
+through thin wrappers, by the host side (static band, outputs, scipy baselines).
+
+Everything the right-hand side needs travels in one float64 vector ``p`` (indices below): clutch
+constants, friction model, the discrete state (friction mode, held cam segment, motor trip), the motor
+line and the loads as a program of codes (:meth:`rig.plants.clutch.loads.Load.program`). The state is
+y = (φr, ωr, φ3, ω3, *load states), rad and rad/s. Physics, symbols and sign conventions: the module
+docstring of :mod:`rig.plants.clutch.dynamics`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from rig.plants.clutch.geometry import locate_segment, segment_geometry
+from rig.plants.clutch.loads import LINEAR, STEPS, ZONE
+
+# p layout: clutch constants, friction model, discrete state, motor line, self-lock flag, load program
+(N, M, MT, J1, J3, FA1, KA, R0, MUB, MUC, L1, L2, C1, A2, R1, R2, PM, INV_VS, SMOOTH, BLOCKED,
+ MODE, BASE, SEG, HELD, A0, B0, RATIO, T_OFF, TRIPPED, LOCKED_AT, LOADS) = range(31)
+
+
+def pack(clutch, motor, load_program: list[float], v_s: float, blocked: bool, smooth: bool) -> np.ndarray:
+    """Parameter vector for the kernel (discrete state: slipping forward, segment found per call)."""
+    c = clutch
+    head = [c.n, c.n * c.m_t, c.m_t, c.J1, c.J3, c.F_a1, c.k_a, c.r0, c.mu_B, c.mu_C, c.L1, c.L2, c.r1 - c.r0,
+            c.limits.a2, c.r1, c.r2, c.limits.phi_maxI, 1.0 / v_s, float(smooth), float(blocked),
+            1.0, 0.0, 0, 0.0, motor.a0, motor.b0, motor.ratio, motor.t_off, float(motor.tripped), math.nan]
+    assert len(head) == LOADS
+    return np.array(head + list(load_program), dtype=float)
+
+
+@njit(cache=True)
+def geometry(phi, p, held):
+    """(k1, k2, dk1/dφ, flank) at φr: in the held cam segment (``held`` and p[HELD]) or the true one."""
+    if held and p[HELD] != 0.0:
+        base, seg = p[BASE], int(p[SEG])
+    else:
+        base, seg = locate_segment(phi, 0.0, p[PM])
+    return segment_geometry(phi, base, seg, p[C1], p[A2], p[R1], p[R2], p[PM])
+
+
+@njit(cache=True)
+def _steps(p, i, t):
+    """Value at t of the left-continuous step table at p[i] = count, times, values; and the index after it."""
+    n = int(p[i])
+    k = 0
+    while k < n and p[i + 1 + k] < t:
+        k += 1
+    return p[i + 1 + n + k], i + 2 + 2 * n
+
+
+@njit(cache=True)
+def load_torque(t, phi3, w3, y, p):
+    """M3 (N·m) of the load program at p[LOADS]."""
+    m = 0.0
+    i = LOADS + 1
+    for _ in range(int(p[LOADS])):
+        code = int(p[i])
+        if code == STEPS:
+            v, i = _steps(p, i + 1, t)
+            m += v
+        elif code == ZONE:
+            if p[i + 2] <= phi3 % p[i + 4] < p[i + 3]:
+                m += p[i + 1]
+            i += 5
+        elif code == LINEAR:
+            m += p[i + 1] + p[i + 2] * w3
+            i += 3
+        else:                                           # BRAKE: gain·F_b·tanh(ω3/ω_s)
+            m += p[i + 1] * y[4 + int(p[i + 4])] * math.tanh(w3 / p[i + 3])
+            _, i = _steps(p, i + 5, t)
+    return m
+
+
+@njit(cache=True)
+def load_rates(t, y, p, out):
+    """Rates of the load states into out[4:] (brake actuators τ·dF_b/dt = F_cmd(t) − F_b)."""
+    i = LOADS + 1
+    for _ in range(int(p[LOADS])):
+        code = int(p[i])
+        if code == STEPS:
+            i += 3 + 2 * int(p[i + 1])
+        elif code == ZONE:
+            i += 5
+        elif code == LINEAR:
+            i += 3
+        else:
+            k = 4 + int(p[i + 4])
+            cmd, i_next = _steps(p, i + 5, t)
+            out[k] = (cmd - y[k]) / p[i + 2]
+            i = i_next
+
+
+@njit(cache=True)
+def motor_torque(t, w1, p):
+    """M1 = i·(a0 − b0·i·ω1) (N·m), 0 when tripped or after t_off."""
+    if p[TRIPPED] != 0.0 or t > p[T_OFF]:
+        return 0.0
+    return p[RATIO] * (p[A0] - p[B0] * p[RATIO] * w1)
+
+
+@njit(cache=True)
+def transmit(p, k1, k2, dk1, wr, w3, sb, sc):
+    """(T_c, F_a, N_B) for friction signs sB, sC; T_c = N_B = NaN when the tappet self-locks in its guide
+    (μ_C(|R1| + |R2|)/N_B ≥ 1)."""
+    fa = p[FA1] + p[KA] * (k2 - p[R0])
+    fb_rel = p[MUB] * sb
+    g = p[MUC] * sc * (abs(k1 + (k2 - p[L2]) * fb_rel) + abs(k1 + (k2 - p[L1]) * fb_rel)) / (p[L2] - p[L1])
+    if g >= 1.0:
+        return math.nan, fa, math.nan
+    nb = (fa + p[MT] * (dk1 * wr * wr - k2 * w3 * w3)) / (1.0 - g)
+    nb = max(nb, 0.0)
+    return p[N] * ((fa + g * nb) * k1 + fb_rel * nb * k2), fa, nb
+
+
+@njit(cache=True)
+def required(t, y, p, k1, k2):
+    """Stuck halves: (T_c needed for ω̇r = 0, common acceleration, M1, M3)."""
+    w3 = y[3]
+    m1 = motor_torque(t, y[1] + w3, p)
+    m3 = load_torque(t, y[2], w3, y, p)
+    x = p[M] * k1 * k2 * w3 * w3
+    if p[BLOCKED] != 0.0:
+        return m1 + x, 0.0, m1, m3
+    J3p = p[J3] + p[M] * k2 * k2
+    tc = (J3p * (m1 + x) + p[J1] * (m3 + x)) / (p[J1] + J3p)
+    return tc, (m1 - tc + x) / p[J1], m1, m3
+
+
+@njit(cache=True)
+def band(t, y, p, held):
+    """At ωr = 0: (T_c required, T_c at σ = +1, T_c at σ = −1, N_B at +1, N_B at −1, F_a, M1, M3, a);
+    the guide friction sign is sC = σ·flank (sgn v23 = sgn(k1·ωr)), +1 at k1 = 0."""
+    k1, k2, dk1, flank = geometry(y[0], p, held)
+    tc, a, m1, m3 = required(t, y, p, k1, k2)
+    sc = flank if k1 != 0.0 else 1.0
+    tp, fa, nbp = transmit(p, k1, k2, dk1, 0.0, y[3], 1.0, sc)
+    tm, _, nbm = transmit(p, k1, k2, dk1, 0.0, y[3], -1.0, -sc if k1 != 0.0 else 1.0)
+    return tc, tp, tm, nbp, nbm, fa, m1, m3, a
+
+
+@njit(cache=True)
+def core(t, y, mode, p, held):
+    """(ω̇1, ω̇3, M1, M3, T_c, F_a, N_B) in friction ``mode`` (+1/−1 slipping, 0 stuck; ignored by tanh);
+    a self-locking tappet gives NaN and records the first such φr in p[LOCKED_AT]."""
+    phi_r, wr, w3 = y[0], y[1], y[3]
+    k1, k2, dk1, flank = geometry(phi_r, p, held)
+    if p[SMOOTH] != 0.0:
+        sb, sc = math.tanh(k2 * wr * p[INV_VS]), math.tanh(k1 * wr * p[INV_VS])
+    elif mode == 0:
+        tc, a, m1, m3 = required(t, y, p, k1, k2)
+        return a, a, m1, m3, tc, math.nan, math.nan
+    else:
+        sb, sc = float(mode), (mode * flank if k1 != 0.0 else 1.0)
+    tc, fa, nb = transmit(p, k1, k2, dk1, wr, w3, sb, sc)
+    if math.isnan(tc) and math.isnan(p[LOCKED_AT]):
+        p[LOCKED_AT] = phi_r
+    m1 = motor_torque(t, wr + w3, p)
+    m3 = load_torque(t, y[2], w3, y, p)
+    mm = p[M]
+    k1s = mm * k1 * k1
+    k3h = mm * k1 * dk1 * wr * wr                        # ½·M·k3·ωr²
+    b1 = m1 - tc - k3h + mm * k1 * k2 * w3 * w3
+    a11 = p[J1] + k1s
+    if p[BLOCKED] != 0.0:
+        return b1 / a11, 0.0, m1, m3, tc, fa, nb
+    b3 = -m3 + tc + k3h - mm * k1 * k2 * w3 * (w3 + 2.0 * wr)
+    a22 = p[J3] + k1s + mm * k2 * k2
+    det = a11 * a22 - k1s * k1s
+    return (b1 * a22 + k1s * b3) / det, (a11 * b3 + k1s * b1) / det, m1, m3, tc, fa, nb
+
+
+@njit(cache=True)
+def rhs(t, y, p, out):
+    """dy/dt into ``out`` in the current friction mode and held cam segment (p[MODE], p[BASE], p[SEG])."""
+    r = core(t, y, int(p[MODE]), p, True)
+    out[0] = y[1]
+    out[1] = r[0] - r[1]
+    out[2] = y[3]
+    out[3] = r[1]
+    if y.size > 4:
+        load_rates(t, y, p, out)
