@@ -63,10 +63,23 @@ class ClutchDynamics:
         program = (load if isinstance(load, LoadSum) else LoadSum([load])).program()
         self._p = kernel.pack(clutch, motor, program, v_s, blocked, friction == "tanh")
         self._p[kernel.HELD] = float(friction == "stick_slip")     # stick–slip holds the cam segment
+        if len(kernel._switched_brakes(self._p)) > 1:
+            raise ValueError("ClutchDynamics: at most one stick-slip brake (the driven half is held by one brake)")
+        self._brake = int(self._p[kernel.BRAKE_AT])     # mode slot of the stick–slip brake, −1 if none
         self.mode = 1                                   # stick_slip: +1/−1 slipping, 0 stuck
         self._log_t: list[float] = []                   # mode history (for outputs at past samples)
         self._log_mode: list[int] = []
+        self._log_brake: list[int] = []
         self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose)
+
+    @property
+    def brake_mode(self) -> int:
+        """Stick–slip brake: +1/−1 slipping with sgn ω3, 0 holding the driven half (1 without such a brake)."""
+        return int(self._p[self._brake]) if self._brake >= 0 else 1
+
+    @brake_mode.setter
+    def brake_mode(self, value: int) -> None:
+        self._p[self._brake] = value
 
     @property
     def mode(self) -> int:
@@ -113,8 +126,8 @@ class ClutchDynamics:
         return min(tp - tc, tc - tm)
 
     def _stuck_state(self, y: tuple) -> tuple:
-        """Project onto ωr = 0 conserving the angular momentum of the two halves."""
-        if self.blocked:
+        """Project onto ωr = 0 conserving the angular momentum of the two halves (held driven half: at rest)."""
+        if self.blocked or self.brake_mode == 0:
             return (y[0], 0.0, *y[2:])
         J1, J3p = self.clutch.J1, self._J3p(kernel.geometry(y[0], self._p, False)[1])
         return (y[0], 0.0, y[2], y[3] + J1 * y[1] / (J1 + J3p), *y[4:])
@@ -126,16 +139,62 @@ class ClutchDynamics:
             return 0
         return 1 if tc > 0.5 * (tp + tm) else -1
 
-    def _set_mode(self, t: float, mode: int) -> bool:
-        if mode == self.mode:
+    def _set_mode(self, t: float, mode: int, brake: bool = False) -> bool:
+        """Set the clutch's (or with ``brake`` the brake's) mode from t on; True if it changed."""
+        if mode == (self.brake_mode if brake else self.mode):
             return False
-        self.mode = mode
+        if brake:
+            self.brake_mode = mode
+        else:
+            self.mode = mode
         self._log_t.append(t)
-        self._log_mode.append(mode)
+        self._log_mode.append(self.mode)
+        self._log_brake.append(self.brake_mode)
         return True
 
+    # -- stick–slip brake ---------------------------------------------------------------------------
+    def _brake_need(self, t: float, y: tuple) -> tuple[float, float]:
+        """(torque the brake must react to hold the drum, its capacity gain·F_b), N·m, at ω3 = 0."""
+        return kernel.brake_need(t, np.asarray(y, dtype=float), self._sync())
+
+    def _brake_g(self, t: float, y: tuple) -> float:
+        """Positive while the brake mode is valid: b·ω3 when slipping, capacity − |need| when holding."""
+        b = self.brake_mode
+        if b:
+            return b * y[3]
+        need, cap = self._brake_need(t, y)
+        return cap - abs(need)
+
+    def _pick_brake_at_rest(self, t: float, y: tuple) -> int:
+        need, cap = self._brake_need(t, y)
+        return 0 if abs(need) <= cap else 1 if need > 0 else -1
+
+    def _on_brake(self, rec: EventRecord) -> tuple:
+        """Event action: the drum stops (ω3 = 0, ω1 kept) and is held or slips on; a held drum breaks loose
+        when the needed torque reaches the capacity. Returns the new state."""
+        y = rec.y
+        if self.brake_mode:
+            y = (y[0], y[1] + y[3] if self.mode else 0.0, y[2], 0.0, *y[4:])
+            self._set_mode(rec.t, self._pick_brake_at_rest(rec.t, y), brake=True)
+            return y
+        need = self._brake_need(rec.t, y)[0]
+        self._set_mode(rec.t, 1 if need > 0 else -1, brake=True)
+        return y
+
+    def _reset_brake(self, t: float, y: tuple) -> bool:
+        if self._brake < 0:
+            return False
+        if y[3] != 0.0:
+            return self._set_mode(t, 1 if y[3] > 0 else -1, brake=True)
+        if self.brake_mode == 0:
+            need, cap = self._brake_need(t, y)
+            if abs(need) <= cap:
+                return False
+        return self._set_mode(t, self._pick_brake_at_rest(t, y), brake=True)
+
     def _on_switch(self, rec: EventRecord) -> tuple:
-        """Event action: slip → stick/reverse at ωr = 0, stick → slip at a band edge; returns the new state."""
+        """Event action: slip → stick/reverse at ωr = 0, stick → slip at a band edge; returns the new state
+        (the driven half held by the brake or clamped: the driving half stops with the clutch)."""
         if self.mode:
             y = self._stuck_state(rec.y)
             self._set_mode(rec.t, self._pick_at_rest(rec.t, y))
@@ -145,24 +204,27 @@ class ClutchDynamics:
         return rec.y
 
     def reset(self, t: float, y: tuple) -> bool:
-        """Re-select the mode and the cam segment at t (integration start, after load jumps/restarts);
-        True if the mode changed."""
+        """Re-select the modes (brake, then clutch) and the cam segment at t (integration start, after load
+        jumps/restarts); True if a mode changed."""
+        self._truncate_log(t)
+        changed = self._reset_brake(t, y)
         if self.friction != "stick_slip":
-            return False
-        changed = self._reset_mode(t, y)
+            return changed
+        changed |= self._reset_mode(t, y)
         wr = y[1]
         p = self._p
         p[kernel.BASE], p[kernel.SEG] = locate_segment(y[0], wr if wr != 0.0 else self.mode, p[kernel.PM])
         return changed
 
+    def _truncate_log(self, t: float) -> None:
+        """Forget modes logged at or after t (a run restarted there) and log the current ones at t."""
+        i = bisect.bisect_left(self._log_t, t) if self._log_t and t > self._log_t[0] else 0
+        del self._log_t[i:], self._log_mode[i:], self._log_brake[i:]
+        self._log_t.append(t)
+        self._log_mode.append(self.mode)
+        self._log_brake.append(self.brake_mode)
+
     def _reset_mode(self, t: float, y: tuple) -> bool:
-        if not self._log_t or t <= self._log_t[0]:
-            self._log_t, self._log_mode = [t], [self.mode]
-        else:
-            i = bisect.bisect_left(self._log_t, t)
-            del self._log_t[i:], self._log_mode[i:]
-            self._log_t.append(t)
-            self._log_mode.append(self.mode)
         wr = y[1]
         if wr != 0.0:
             return self._set_mode(t, 1 if wr > 0 else -1)
@@ -172,12 +234,13 @@ class ClutchDynamics:
                 return False
         return self._set_mode(t, self._pick_at_rest(t, y))
 
-    def modes_at(self, t: np.ndarray) -> np.ndarray:
-        """Friction mode in effect at times ``t`` (from the mode history; tanh model: sgn ωr irrelevant → 1)."""
-        if self.friction != "stick_slip" or not self._log_t:
+    def modes_at(self, t: np.ndarray, brake: bool = False) -> np.ndarray:
+        """Clutch (or with ``brake`` the stick–slip brake's) mode in effect at times ``t``, from the mode
+        history (tanh clutch: sgn ωr irrelevant → 1; no such brake → 1)."""
+        if (self._brake < 0 if brake else self.friction != "stick_slip") or not self._log_t:
             return np.ones(len(t), dtype=int)
         i = np.searchsorted(np.asarray(self._log_t), t, side="right") - 1
-        return np.asarray(self._log_mode)[np.maximum(i, 0)]
+        return np.asarray(self._log_brake if brake else self._log_mode)[np.maximum(i, 0)]
 
     def stuck_flow(self, t: float, y: tuple, t_bound: float) -> StuckFlow | None:
         """Closed-form motion of the stuck halves from (t, y) up to ``t_bound`` (s), or None when the mode
@@ -191,18 +254,19 @@ class ClutchDynamics:
             return None
         t_mid = 0.5 * (t + t_bound)               # inside the time-break interval: loads are fixed there
         z = tuple(y[4:])
-        load = self.load.affine(t_mid, z, y[3], y[3])
-        if load is None or any(self.load.rates(t_mid, y[2], y[3], z)):
+        if any(self.load.rates(t_mid, y[2], y[3], z)):
             return None
         c = self.clutch
-        if self.blocked:
-            rotor = AffineRotor(t, 0.0, 0.0, 0.0, 0.0, c.J1)
-        else:
-            A, B = self.motor.affine(t_mid)
-            J = c.J1 + self._J3p(kernel.geometry(y[0], self._p, False)[1])
-            rotor = AffineRotor(t, 0.0, y[3], A - load[0], B + load[1], J)
+        if self.blocked or self.brake_mode == 0:   # all at rest; band margins constant till the next break
+            return StuckFlow(AffineRotor(t, 0.0, 0.0, 0.0, 0.0, c.J1), y[0], y[2], [], z)
+        load = self.load.affine(t_mid, z, y[3], y[3])
+        if load is None:
+            return None
+        A, B = self.motor.affine(t_mid)
+        J = c.J1 + self._J3p(kernel.geometry(y[0], self._p, False)[1])
+        rotor = AffineRotor(t, 0.0, y[3], A - load[0], B + load[1], J)
         w0, we = rotor.omega0, rotor.state(t_bound)[1]
-        if not self.blocked and self.load.affine(t_mid, z, min(w0, we), max(w0, we)) != load:
+        if self.load.affine(t_mid, z, min(w0, we), max(w0, we)) != load:
             return None                            # the load leaves its affine range on the way (monotone ω)
         flow = StuckFlow(rotor, y[0], y[2], [], z)
         if we == w0:
@@ -254,7 +318,7 @@ class ClutchDynamics:
 
     def events(self, on_apex: Callable[[EventRecord], bool] | None = None) -> list[Event]:
         """Phase boundaries (restart), lobe wrap and apex (recorded; ``on_apex`` is the apex event's
-        action), load angle switches (restart) and, for stick–slip, the mode switch."""
+        action), load angle switches (restart) and, for stick–slip, the mode switches of clutch and brake."""
         lim = self.clutch.limits
         out = [Event(_periodic(b, LOBE, 0), "phase_boundary", restart=True)
                for b in (lim.phi_maxI, LOBE - lim.phi_maxI)]
@@ -264,6 +328,9 @@ class ClutchDynamics:
         out += [Event(_periodic(a, p, 2), "load_zone", restart=True) for a, p in self.load.angle_breaks()]
         if self.friction == "stick_slip":
             out.append(Event(self._switch_g, "stick_slip", direction=-1.0, action=self._on_switch,
+                             mode_dependent=True))
+        if self._brake >= 0:
+            out.append(Event(self._brake_g, "brake_stick_slip", direction=-1.0, action=self._on_brake,
                              mode_dependent=True))
         return out
 
@@ -278,15 +345,21 @@ class ClutchDynamics:
 
         Stuck samples report the transmitted T_c and N_B interpolated in the static band (the split of
         static friction between cam face and guide is indeterminate)."""
-        modes = self.modes_at(t)
+        modes, brakes, current = self.modes_at(t), self.modes_at(t, brake=True), self.brake_mode
         vals = np.empty((len(t), 7))
-        for k, (ti, yi, mode) in enumerate(zip(t, Y.T, modes)):
-            yt = tuple(yi)
-            vals[k] = self.core(ti, yt, int(mode))
-            if mode == 0:
-                tc, tp, tm, nbp, nbm, fa = self.band(ti, yt)[:6]
-                w = 0.5 if tp == tm else (tc - tm) / (tp - tm)
-                vals[k, 5], vals[k, 6] = fa, nbm + w * (nbp - nbm)
+        try:
+            for k, (ti, yi, mode, b) in enumerate(zip(t, Y.T, modes, brakes)):
+                yt = tuple(yi)
+                if self._brake >= 0:
+                    self.brake_mode = int(b)
+                vals[k] = self.core(ti, yt, int(mode))
+                if mode == 0:
+                    tc, tp, tm, nbp, nbm, fa = self.band(ti, yt)[:6]
+                    w = 0.5 if tp == tm else (tc - tm) / (tp - tm)
+                    vals[k, 5], vals[k, 6] = fa, nbm + w * (nbp - nbm)
+        finally:
+            if self._brake >= 0:
+                self.brake_mode = current
         a3 = vals[:, 1]
         out = {"phi1": Y[0] + Y[2], "omega1": Y[1] + Y[3], "phi3": Y[2], "omega3": Y[3], "phi_r": Y[0],
                "omega_r": Y[1], "M1": vals[:, 2], "M3": vals[:, 3], "T_c": vals[:, 4],

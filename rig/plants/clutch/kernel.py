@@ -16,11 +16,13 @@ import numpy as np
 from numba import njit
 
 from rig.plants.clutch.geometry import locate_segment, segment_geometry
-from rig.plants.clutch.loads import LINEAR, STEPS, ZONE
+from rig.plants.clutch.loads import BRAKE, LINEAR, STEPS, ZONE
 
 # p layout: clutch constants, friction model, discrete state, motor line, self-lock flag, load program
 (N, M, MT, J1, J3, FA1, KA, R0, MUB, MUC, L1, L2, C1, A2, R1, R2, PM, INV_VS, SMOOTH, BLOCKED,
- MODE, BASE, SEG, HELD, A0, B0, RATIO, T_OFF, TRIPPED, LOCKED_AT, LOADS) = range(31)
+ MODE, BASE, SEG, HELD, A0, B0, RATIO, T_OFF, TRIPPED, LOCKED_AT, BRAKE_AT, LOADS) = range(32)
+#: offsets in a brake's program from its mode slot (p[BRAKE_AT]): gain, actuator state index
+BRAKE_GAIN, BRAKE_Z = -4, -1
 
 
 def pack(clutch, motor, load_program: list[float], v_s: float, blocked: bool, smooth: bool) -> np.ndarray:
@@ -28,9 +30,25 @@ def pack(clutch, motor, load_program: list[float], v_s: float, blocked: bool, sm
     c = clutch
     head = [c.n, c.n * c.m_t, c.m_t, c.J1, c.J3, c.F_a1, c.k_a, c.r0, c.mu_B, c.mu_C, c.L1, c.L2, c.r1 - c.r0,
             c.limits.a2, c.r1, c.r2, c.limits.phi_maxI, 1.0 / v_s, float(smooth), float(blocked),
-            1.0, 0.0, 0, 0.0, motor.a0, motor.b0, motor.ratio, motor.t_off, float(motor.tripped), math.nan]
+            1.0, 0.0, 0, 0.0, motor.a0, motor.b0, motor.ratio, motor.t_off, float(motor.tripped), math.nan, -1.0]
     assert len(head) == LOADS
-    return np.array(head + list(load_program), dtype=float)
+    p = np.array(head + list(load_program), dtype=float)
+    p[BRAKE_AT] = _switched_brakes(p)[0] if _switched_brakes(p) else -1.0
+    return p
+
+
+def _switched_brakes(p: np.ndarray) -> list[int]:
+    """Indices of the mode slots of the stick–slip brakes in the load program of p."""
+    out, i = [], LOADS + 1
+    for _ in range(int(p[LOADS])):
+        code = int(p[i])
+        if code == BRAKE:
+            if not math.isnan(p[i + 5]):
+                out.append(i + 5)
+            i += 8 + 2 * int(p[i + 6])
+        else:
+            i += {STEPS: 3 + 2 * int(p[i + 1]), ZONE: 5, LINEAR: 3}[code]
+    return out
 
 
 @njit(cache=True)
@@ -70,9 +88,10 @@ def load_torque(t, phi3, w3, y, p):
         elif code == LINEAR:
             m += p[i + 1] + p[i + 2] * w3
             i += 3
-        else:                                           # BRAKE: gain·F_b·tanh(ω3/ω_s)
-            m += p[i + 1] * y[4 + int(p[i + 4])] * math.tanh(w3 / p[i + 3])
-            _, i = _steps(p, i + 5, t)
+        else:                                           # BRAKE: gain·F_b·tanh(ω3/ω_s) or gain·F_b·mode
+            b = p[i + 5]
+            m += p[i + 1] * y[4 + int(p[i + 4])] * (math.tanh(w3 / p[i + 3]) if math.isnan(b) else b)
+            _, i = _steps(p, i + 6, t)
     return m
 
 
@@ -90,9 +109,15 @@ def load_rates(t, y, p, out):
             i += 3
         else:
             k = 4 + int(p[i + 4])
-            cmd, i_next = _steps(p, i + 5, t)
+            cmd, i_next = _steps(p, i + 6, t)
             out[k] = (cmd - y[k]) / p[i + 2]
             i = i_next
+
+
+@njit(cache=True)
+def driven_held(p):
+    """True while the driven half is at rest: clamped (blocked stand) or held by a stick–slip brake."""
+    return p[BLOCKED] != 0.0 or (p[BRAKE_AT] >= 0.0 and p[int(p[BRAKE_AT])] == 0.0)
 
 
 @njit(cache=True)
@@ -126,6 +151,8 @@ def required(t, y, p, k1, k2):
     x = p[M] * k1 * k2 * w3 * w3
     if p[BLOCKED] != 0.0:
         return m1 + x, 0.0, m1, m3
+    if driven_held(p):                                  # all at rest: the brake reacts what passes the clutch
+        return m1 + x, 0.0, m1, m1 + x
     J3p = p[J3] + p[M] * k2 * k2
     tc = (J3p * (m1 + x) + p[J1] * (m3 + x)) / (p[J1] + J3p)
     return tc, (m1 - tc + x) / p[J1], m1, m3
@@ -168,10 +195,26 @@ def core(t, y, mode, p, held):
     a11 = p[J1] + k1s
     if p[BLOCKED] != 0.0:
         return b1 / a11, 0.0, m1, m3, tc, fa, nb
+    if driven_held(p):                                  # M3 = the load reaction that keeps ω̇3 = 0
+        a1 = b1 / a11
+        return a1, 0.0, m1, tc + k3h + k1s * a1, tc, fa, nb
     b3 = -m3 + tc + k3h - mm * k1 * k2 * w3 * (w3 + 2.0 * wr)
     a22 = p[J3] + k1s + mm * k2 * k2
     det = a11 * a22 - k1s * k1s
     return (b1 * a22 + k1s * b3) / det, (a11 * b3 + k1s * b1) / det, m1, m3, tc, fa, nb
+
+
+@njit(cache=True)
+def brake_need(t, y, p):
+    """(brake torque needed to hold the driven half at rest, brake capacity gain·F_b) in N·m, at a state
+    with ω3 = 0 and the current clutch mode (stick–slip brake at p[BRAKE_AT])."""
+    s = int(p[BRAKE_AT])
+    b = p[s]
+    p[s] = 0.0
+    m3 = core(t, y, int(p[MODE]), p, True)[3]
+    other = load_torque(t, y[2], y[3], y, p)             # the held brake contributes nothing here
+    p[s] = b
+    return m3 - other, p[s + BRAKE_GAIN] * y[4 + int(p[s + BRAKE_Z])]
 
 
 @njit(cache=True)

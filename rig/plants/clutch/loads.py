@@ -140,11 +140,15 @@ class LinearInSpeed(Load):
 
 @dataclass
 class ShoeBrake(Load):
-    """Shoe brake: M = gain·F_b·tanh(ω3/omega_s), actuator τ·dF_b/dt = F_cmd(t) − F_b.
+    """Shoe brake with actuator τ·dF_b/dt = F_cmd(t) − F_b and Coulomb torque of capacity gain·F_b.
 
     ``gain`` (N·m/N) = effective friction coefficient × drum radius × number of shoes; the force
-    command is piecewise constant (``force`` then ``levels[i]`` from ``times[i]``); ``omega_s``
-    (rad/s) regularises the Coulomb sign at standstill.
+    command is piecewise constant (``force`` then ``levels[i]`` from ``times[i]``). ``friction``:
+    "tanh" — M = gain·F_b·tanh(ω3/omega_s), ``omega_s`` (rad/s) regularising the sign at standstill
+    (stiff while the drum is held: time constant ≈ J3·omega_s/(gain·F_b)); "stick_slip" — M = ±gain·F_b
+    while the drum slips, and the drum is held (ω3 ≡ 0) while the torque needed for that stays within
+    ±gain·F_b (a discrete mode of :class:`rig.plants.clutch.dynamics.ClutchDynamics`, which allows one
+    such brake). Python ``torque`` gives the slipping value gain·F_b·sgn ω3 (0 at rest).
     """
 
     gain: float
@@ -153,6 +157,7 @@ class ShoeBrake(Load):
     times: Sequence[float] = ()
     levels: Sequence[float] = ()
     omega_s: float = 0.5
+    friction: str = "tanh"
     n_states = 1
     _command: Steps = field(init=False, repr=False)
 
@@ -160,26 +165,32 @@ class ShoeBrake(Load):
         if not (self.gain >= 0 and self.tau > 0 and self.omega_s > 0):
             raise ValueError(f"shoe brake: need gain >= 0, tau > 0, omega_s > 0 "
                              f"(gain={self.gain}, tau={self.tau}, omega_s={self.omega_s})")
+        if self.friction not in ("tanh", "stick_slip"):
+            raise ValueError(f"shoe brake: friction = {self.friction!r} is not 'tanh' or 'stick_slip'")
         self._command = Steps(self.force, self.times, self.levels)
 
     def initial_state(self):
         return (self.force,)
 
     def torque(self, t, phi3, omega3, z):
-        return self.gain * z[0] * math.tanh(omega3 / self.omega_s)
+        if self.friction == "tanh":
+            return self.gain * z[0] * math.tanh(omega3 / self.omega_s)
+        return math.copysign(self.gain * z[0], omega3) if omega3 else 0.0
 
     def rates(self, t, phi3, omega3, z):
         return ((self._command.torque(t, 0.0, 0.0, ()) - z[0]) / self.tau,)
 
     def program(self, z0=0):
-        return [BRAKE, self.gain, self.tau, self.omega_s, z0, *self._command.program()[1:]]
+        """[BRAKE, gain, τ, ω_s, z0, mode (NaN: tanh; stick–slip: +1/−1 slipping, 0 held), command steps]."""
+        mode = math.nan if self.friction == "tanh" else 1.0
+        return [BRAKE, self.gain, self.tau, self.omega_s, z0, mode, *self._command.program()[1:]]
 
     def affine(self, t, z=(), w_lo=-math.inf, w_hi=math.inf):
-        """Constant ±gain·F_b while the actuator rests at its command and |ω3| ≥ 19·omega_s keeps one sign
-        (tanh = ±1 to double precision there)."""
+        """Constant ±gain·F_b while the actuator rests at its command and ω3 keeps one sign (tanh: with
+        |ω3| ≥ 19·omega_s, where tanh = ±1 to double precision)."""
         if not z or z[0] != self._command.torque(t, 0.0, 0.0, ()):
             return None
-        w_sat = 19.0 * self.omega_s
+        w_sat = 19.0 * self.omega_s if self.friction == "tanh" else math.ulp(0.0)
         if w_lo >= w_sat:
             return self.gain * z[0], 0.0
         if w_hi <= -w_sat:

@@ -53,8 +53,9 @@ _LOAD_SCHEMAS = {
     "linear": ({"alpha0": Field("N*m"), "beta0": Field("N*m*s/rad")}, lambda p: LinearInSpeed(p["alpha0"], p["beta0"])),
     "brake": ({"gain": Field("N*m/N"), "tau": Field("s"), "force": Field("N"), "step_time": Field("s", None),
                "step_force": Field("N", None), "pulse_start": Field("s", None), "pulse_duration": Field("s", None),
-               "pulse_force": Field("N", None), "omega_s": Field("rad/s", 0.5)},
-              lambda p: ShoeBrake(p["gain"], p["tau"], p["force"], *_brake_command(p), p["omega_s"])),
+               "pulse_force": Field("N", None), "omega_s": Field("rad/s", 0.5),
+               "friction": Field(None, "stick_slip", "brake friction: tanh (regularised by omega_s) or stick_slip")},
+              lambda p: ShoeBrake(p["gain"], p["tau"], p["force"], *_brake_command(p), p["omega_s"], p["friction"])),
 }
 
 
