@@ -24,10 +24,14 @@ class JitRhs:
     ``out``, with ``params()``
     returning its parameter vector p synchronised with the problem's discrete state (called when a
     solver segment starts and on every Python-side call), and ``diagnose()`` explaining non-finite
-    derivatives (a message, or None). Callable as a plain ``fun(t, y) -> tuple`` (e.g. for scipy)."""
+    derivatives (a message, or None). ``events(t, y, p, out)``, if given, is a compiled kernel writing
+    the values of the problem's event functions, in the order of ``Problem.events``: then DP45 takes
+    runs of steps in one compiled call until one of them changes sign (:func:`dp45_step`). Callable as a
+    plain ``fun(t, y) -> tuple`` (e.g. for scipy)."""
 
-    def __init__(self, kernel, params: Callable[[], np.ndarray], diagnose: Callable[[], str | None] = lambda: None):
-        self.kernel, self.params, self.diagnose = kernel, params, diagnose
+    def __init__(self, kernel, params: Callable[[], np.ndarray], diagnose: Callable[[], str | None] = lambda: None,
+                 events=None):
+        self.kernel, self.params, self.diagnose, self.events = kernel, params, diagnose, events
 
     def __call__(self, t: float, y: Sequence[float]) -> tuple:
         out = np.empty(len(y))
@@ -44,32 +48,38 @@ class JitRhs:
 
 
 #: slots of the compiled step's work vector: T, H_ABS (in, updated to t_new, h_next), T_BOUND, RTOL,
-#: ATOL, MAX_STEP (in), H, NFEV, HL (out: step taken, RHS calls, Hairer's stiffness estimate h·|λ|)
+#: ATOL, MAX_STEP (in), H, NFEV, HL (out: last step taken, RHS calls, Hairer's stiffness estimate h·|λ|)
 T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, H, NFEV, HL = range(9)
 
 
 @cache
-def dp45_step(kernel):
-    """Compiled adaptive DP5(4) step for ``kernel`` (cached per kernel): ``step(w, y, y_new, K, f, p)``
-    advances from (w[T], y) with first derivative f by one accepted step, writing the new state into
-    ``y_new``, the stages into K (7, n) and T, H_ABS, H, NFEV, HL into ``w``; returns 0, or 1 on a
-    step-size underflow (state untouched). Arrays in, status out: numba's call overhead grows with the
-    number of arguments and returned objects, and this is called once per step."""
+def dp45_step(kernel, events=None):
+    """Compiled adaptive DP5(4) for ``kernel`` (and event kernel ``events(t, y, p, out)``), cached per pair:
+
+    * ``step(w, y, y_new, K, f, p)`` advances from (w[T], y) with first derivative f by one accepted
+      step, writing the new state into ``y_new``, the stages into K (7, n) and T, H_ABS, H, NFEV, HL into
+      ``w``; returns 0, or 1 on a step-size underflow (state untouched);
+    * ``run(w, Y, TT, KK, HL, g, p)`` (with ``events``) takes steps from (w[T], Y[0]) with KK[0, 0] the
+      first derivative, storing step ends TT[s + 1], states Y[s + 1], stages KK[s] and h·|λ| HL[s], until
+      an event value in ``g`` (given at the start, updated in place) changes sign or reaches 0, t_bound
+      is reached or the buffers are full; returns the number of steps, or −1 − steps on an underflow.
+
+    Arrays in, status out: numba's call overhead grows with the number of arguments and returned
+    objects. The sign test is conservative (any change stops, whatever an event's direction): the
+    Python driver then examines that last step as usual."""
     from rig.solvers.dopri import A, B, C, E, MAX_FACTOR, MIN_FACTOR, SAFETY
 
     @njit
-    def step(w, y, y_new, K, f, p):
+    def one_step(t, h_abs, t_bound, rtol, atol, y, y_new, K, p):
+        """One accepted step from (t, y), K[0] = f(t, y): (status, t_new, h, h_next, nfev, h·|λ|)."""
         n = y.size
-        t, h_abs, t_bound, rtol, atol = w[T], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL], w[ATOL]
         min_step = 10.0 * (np.nextafter(t, np.inf) - t)
-        K[0] = f
         ys = np.empty(n)
         rejected = False
         nfev = 0
         while True:
             if h_abs < min_step:
-                w[H], w[NFEV] = h_abs, nfev
-                return 1
+                return 1, t, h_abs, h_abs, nfev, 0.0
             h = h_abs
             t_new = t + h
             if t_new >= t_bound:
@@ -118,8 +128,47 @@ def dp45_step(kernel):
         for i in range(n):
             num += (K[6, i] - K[5, i]) ** 2
             den += (y_new[i] - ys[i]) ** 2
-        w[T], w[H_ABS], w[H], w[NFEV] = t_new, h_abs * factor, h, nfev
-        w[HL] = h * math.sqrt(num / den) if den > 0.0 else 0.0
-        return 0
+        return 0, t_new, h, h_abs * factor, nfev, (h * math.sqrt(num / den) if den > 0.0 else 0.0)
 
-    return step
+    @njit
+    def step(w, y, y_new, K, f, p):
+        K[0] = f
+        status, t_new, h, h_next, nfev, hl = one_step(w[T], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL],
+                                                      w[ATOL], y, y_new, K, p)
+        w[H], w[NFEV] = h, nfev
+        if status == 0:
+            w[T], w[H_ABS], w[HL] = t_new, h_next, hl
+        return status
+
+    if events is None:
+        return step, None
+
+    @njit
+    def run(w, Y, TT, KK, HL, g, p):
+        g_new = np.empty(g.size)
+        TT[0] = w[T]
+        nfev = 0
+        m = KK.shape[0]
+        for s in range(m):
+            if s:
+                KK[s, 0] = KK[s - 1, 6]
+            status, t_new, h, h_next, nf, hl = one_step(TT[s], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL],
+                                                        w[ATOL], Y[s], Y[s + 1], KK[s], p)
+            nfev += nf
+            w[NFEV] = nfev
+            if status:
+                w[H] = h
+                return -1 - s
+            TT[s + 1], HL[s] = t_new, hl
+            w[T], w[H_ABS], w[H] = t_new, h_next, h
+            events(t_new, Y[s + 1], p, g_new)
+            crossed = False
+            for k in range(g.size):
+                if g_new[k] == 0.0 or (g[k] < 0.0) != (g_new[k] < 0.0):
+                    crossed = True
+            if crossed or t_new >= w[T_BOUND] or s == m - 1:
+                return s + 1                            # g holds the values at the last step's start
+            g[:] = g_new
+        return m
+
+    return step, run

@@ -17,7 +17,7 @@ from rig.solvers.base import (
     StiffnessMonitor,
     all_finite,
 )
-from rig.solvers.compiled import JitRhs, dp45_step
+from rig.solvers.compiled import H, H_ABS, NFEV, JitRhs, dp45_step
 from rig.solvers.unrolled import rk_kernels
 
 _A21 = 1 / 5
@@ -85,6 +85,22 @@ class PolynomialDense:
         return np.asarray(self.y_old)[:, None] + self.Q @ powers
 
 
+class StepsDense:
+    """Consecutive steps s = 0..m−1 from T[s] to T[s+1], starting at Y[s] with stages K[s] (continuous
+    extension ``P``): y(t) for an array of times in [T[0], T[m]] (vectorised, as :class:`PolynomialDense`)."""
+
+    def __init__(self, T: np.ndarray, Y: np.ndarray, K: np.ndarray, P: np.ndarray):
+        self.T, self.Y, self.K, self.P = T, Y, K, P
+
+    def __call__(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        s = np.clip(np.searchsorted(self.T, t, side="right") - 1, 0, len(self.K) - 1)
+        h = self.T[s + 1] - self.T[s]
+        Q = np.einsum("mkn,kc->mnc", self.K[s], self.P) * h[:, None, None]
+        powers = ((t - self.T[s]) / h)[:, None] ** np.arange(1, self.P.shape[1] + 1)[None, :]
+        return (self.Y[s] + np.einsum("mnc,mc->mn", Q, powers)).T
+
+
 def fill_dense(out: np.ndarray, t: np.ndarray, pieces: list[tuple]) -> None:
     """out[:, i:j] = piece(t[i:j]) for all pieces: polynomial pieces in one vectorised pass per continuous
     extension, other interpolants (closed forms) called on their samples."""
@@ -148,9 +164,9 @@ class DormandPrince45(OdeSolver):
         else:
             self.h_abs = min(first_step, self.t_bound - self.t)
         self._K: tuple | None = None
-        self._jit = None
+        self._jit = self._run = None
         if compiled and isinstance(fun, JitRhs):
-            self._jit, self._p = dp45_step(fun.kernel), fun.params()
+            (self._jit, self._run), self._p = dp45_step(fun.kernel, fun.events), fun.params()
             self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
             self._w = np.array([self.t, self.h_abs, self.t_bound, rtol, atol, max_step, 0.0, 0.0, 0.0])
 
@@ -209,6 +225,40 @@ class DormandPrince45(OdeSolver):
         self.t, self.y, self.f, self._fa = t_new, y, K[6], K[6]
         self._ya, self._yb = self._yb, self._ya
         self.h_last, self.h_abs, self._K = h, h_abs, K
+
+    @property
+    def can_advance(self) -> bool:
+        """True when :meth:`advance` is available (compiled RHS with an event kernel)."""
+        return self._run is not None
+
+    def advance(self, g: np.ndarray, max_steps: int = 256) -> StepsDense | None:
+        """Take accepted steps in one compiled call until an event value (``g``: at the current point, in
+        the order of the RHS's event kernel; updated in place to the values at the last step's start)
+        changes sign, t_bound is reached or ``max_steps`` are taken. The solver then stands after the
+        last step as after :meth:`step`; returns the steps before it (interpolant with ``.T``, ``.Y`` of
+        their ends), or None."""
+        n = len(self.y)
+        Y, TT = np.empty((max_steps + 1, n)), np.empty(max_steps + 1)
+        KK, HL = np.empty((max_steps, 7, n)), np.empty(max_steps)
+        Y[0], KK[0, 0] = self._ya, self._fa
+        count = self._run(self._w, Y, TT, KK, HL, g, self._p)
+        self.nfev += int(self._w[NFEV])
+        if count < 0:
+            self.status = "failed"
+            s = -1 - count
+            self.fun.fail(float(TT[s]), tuple(Y[s]), f"step size underflow (h = {self._w[H]:.3g} s)")
+        self.nsteps += count
+        if TT[count] >= self.t_bound:
+            self.status = "finished"
+        for s in range(count):
+            self.monitor.update(TT[s + 1], Y[s + 1], TT[s + 1] - TT[s], HL[s])
+        last = count - 1
+        self.t_old, self.y_old = float(TT[last]), tuple(Y[last].tolist())
+        self.t, self.y = float(TT[count]), tuple(Y[count].tolist())
+        self._K, self.f = KK[last], KK[last, 6]
+        self._ya, self._fa = Y[count].copy(), KK[last, 6]
+        self.h_last, self.h_abs = float(self._w[H]), float(self._w[H_ABS])
+        return StepsDense(TT[:count], Y[:count], KK[:last], _P) if last else None
 
     @property
     def stiff_at(self) -> float | None:

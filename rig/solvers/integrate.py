@@ -133,6 +133,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     t0, tf = float(t_span[0]), float(t_span[1])
     fun = problem.fun
     y = tuple(float(v) for v in (problem.y0 if y0 is None else y0))
+    batched = events is None                    # the RHS's event kernel, if any, matches problem.events
     events = list(problem.events if events is None else events)
     breaks = sorted(b for b in problem.time_breaks if t0 < b < tf) + [tf]
     if t_eval is not None:
@@ -162,8 +163,23 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         else:
             solver = ClosedFormSolver(exact, t, y, breaks[bi])
         cut = None
+        runs = batched and bool(events) and getattr(solver, "can_advance", False)
         while solver.status == "running":
-            solver.step()
+            if runs:                            # compiled run of steps up to a sign change of some event
+                g_run = np.array(g_old)
+                quiet = solver.advance(g_run)
+                if quiet is not None:           # steps before the current one, no event there: sample them
+                    g_old = g_run.tolist()
+                    if t_eval is not None:
+                        j = bisect.bisect_right(t_list, solver.t_old)
+                        if j > i_eval:
+                            pending.append((quiet, i_eval, j))
+                            i_eval = j
+                    else:
+                        ts += quiet.T[1:].tolist()
+                        ys += map(tuple, quiet.Y[1:].tolist())
+            else:
+                solver.step()
             t_old, t_new, y_new = solver.t_old, solver.t, solver.y
             dense = None
             hits = []

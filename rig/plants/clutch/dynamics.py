@@ -66,11 +66,12 @@ class ClutchDynamics:
         if len(kernel._switched_brakes(self._p)) > 1:
             raise ValueError("ClutchDynamics: at most one stick-slip brake (the driven half is held by one brake)")
         self._brake = int(self._p[kernel.BRAKE_AT])     # mode slot of the stick–slip brake, −1 if none
+        self._p = kernel.with_events(self._p, [row for _, row, _ in self._event_specs()])
         self.mode = 1                                   # stick_slip: +1/−1 slipping, 0 stuck
         self._log_t: list[float] = []                   # mode history (for outputs at past samples)
         self._log_mode: list[int] = []
         self._log_brake: list[int] = []
-        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose)
+        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.events)
 
     @property
     def brake_mode(self) -> int:
@@ -118,13 +119,6 @@ class ClutchDynamics:
         return self.clutch.J3 + self.clutch.n * self.clutch.m_t * k2 * k2
 
     # -- stick–slip mode logic --------------------------------------------------------------------
-    def _switch_g(self, t: float, y: tuple) -> float:
-        """Positive while the mode is valid: σ·ωr when slipping, distance to the band edges when stuck."""
-        if self.mode:
-            return self.mode * y[1]
-        tc, tp, tm = self.band(t, y, held=True)[:3]
-        return min(tp - tc, tc - tm)
-
     def _stuck_state(self, y: tuple) -> tuple:
         """Project onto ωr = 0 conserving the angular momentum of the two halves (held driven half: at rest)."""
         if self.blocked or self.brake_mode == 0:
@@ -156,14 +150,6 @@ class ClutchDynamics:
     def _brake_need(self, t: float, y: tuple) -> tuple[float, float]:
         """(torque the brake must react to hold the drum, its capacity gain·F_b), N·m, at ω3 = 0."""
         return kernel.brake_need(t, np.asarray(y, dtype=float), self._sync())
-
-    def _brake_g(self, t: float, y: tuple) -> float:
-        """Positive while the brake mode is valid: b·ω3 when slipping, capacity − |need| when holding."""
-        b = self.brake_mode
-        if b:
-            return b * y[3]
-        need, cap = self._brake_need(t, y)
-        return cap - abs(need)
 
     def _pick_brake_at_rest(self, t: float, y: tuple) -> int:
         need, cap = self._brake_need(t, y)
@@ -316,22 +302,36 @@ class ClutchDynamics:
         kin = 0.5 * c.J1 * (wr + w3) ** 2 + 0.5 * c.n * c.m_t * (k1 ** 2 * wr ** 2 + k2 ** 2 * w3 ** 2) + 0.5 * c.J3 * w3 ** 2
         return kin + c.n * (c.F_a1 * s + 0.5 * c.k_a * s * s)
 
+    def _event_specs(self) -> list[tuple[str, tuple[int, int, float, float], dict]]:
+        """(name, table row (kind, state index, angle, period), Event options) of every event, in order."""
+        lim, per = self.clutch.limits, kernel.PERIODIC
+        switched = self.friction == "stick_slip"       # guide friction flips where k1 = 0 (wrap, apex)
+        specs = [("phase_boundary", (per, 0, b, LOBE), {"restart": True}) for b in (lim.phi_maxI, LOBE - lim.phi_maxI)]
+        specs += [("lobe_wrap", (per, 0, 0.0, LOBE), {"restart": switched}),
+                  ("apex", (per, 0, APEX, LOBE), {"restart": switched})]
+        specs += [("load_zone", (per, 2, a, T), {"restart": True}) for a, T in self.load.angle_breaks()]
+        if switched:
+            specs.append(("stick_slip", (kernel.CLUTCH_SWITCH, 0, 0.0, 1.0),
+                          {"direction": -1.0, "action": self._on_switch, "mode_dependent": True}))
+        if self._brake >= 0:
+            specs.append(("brake_stick_slip", (kernel.BRAKE_SWITCH, 0, 0.0, 1.0),
+                          {"direction": -1.0, "action": self._on_brake, "mode_dependent": True}))
+        return specs
+
+    def _g(self, k: int) -> Callable[[float, tuple], float]:
+        """Event function k of the compiled event table (positive while the mode it guards is valid)."""
+        value, p = kernel.event_value, self._p
+        return lambda t, y: value(t, np.asarray(y, dtype=float), p, k)
+
     def events(self, on_apex: Callable[[EventRecord], bool] | None = None) -> list[Event]:
         """Phase boundaries (restart), lobe wrap and apex (recorded; ``on_apex`` is the apex event's
-        action), load angle switches (restart) and, for stick–slip, the mode switches of clutch and brake."""
-        lim = self.clutch.limits
-        out = [Event(_periodic(b, LOBE, 0), "phase_boundary", restart=True)
-               for b in (lim.phi_maxI, LOBE - lim.phi_maxI)]
-        switched = self.friction == "stick_slip"       # guide friction flips where k1 = 0 (wrap, apex)
-        out.append(Event(_periodic(0.0, LOBE, 0), "lobe_wrap", restart=switched))
-        out.append(Event(_periodic(APEX, LOBE, 0), "apex", action=on_apex, restart=switched))
-        out += [Event(_periodic(a, p, 2), "load_zone", restart=True) for a, p in self.load.angle_breaks()]
-        if self.friction == "stick_slip":
-            out.append(Event(self._switch_g, "stick_slip", direction=-1.0, action=self._on_switch,
-                             mode_dependent=True))
-        if self._brake >= 0:
-            out.append(Event(self._brake_g, "brake_stick_slip", direction=-1.0, action=self._on_brake,
-                             mode_dependent=True))
+        action), load angle switches (restart) and, for stick–slip, the mode switches of clutch and brake
+        — all evaluated by the compiled event table (:func:`rig.plants.clutch.kernel.event_value`)."""
+        out = []
+        for k, (name, _, opts) in enumerate(self._event_specs()):
+            if name == "apex":
+                opts = dict(opts, action=on_apex)
+            out.append(Event(self._g(k), name, **opts))
         return out
 
     def problem(self, y0: tuple, on_apex: Callable[[EventRecord], bool] | None = None) -> Problem:
@@ -401,10 +401,3 @@ def _quadratic_roots(f: tuple[float, float, float], span: float) -> list[float]:
         q = -0.5 * (c1 + math.copysign(math.sqrt(disc), c1))
         roots = [q / c2] + ([f0 / q] if q != 0.0 else [])
     return [s for s in roots if 0.0 < s / span <= 1.0]
-
-
-def _periodic(angle: float, period: float, i: int) -> Callable[[float, tuple], float]:
-    """g = sin(π(y[i] − angle)/period); zero at angle + k·period."""
-    k = math.pi / period
-    sin = math.sin
-    return lambda t, y: sin(k * (y[i] - angle))

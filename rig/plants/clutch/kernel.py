@@ -20,7 +20,9 @@ from rig.plants.clutch.loads import BRAKE, LINEAR, STEPS, ZONE
 
 # p layout: clutch constants, friction model, discrete state, motor line, self-lock flag, load program
 (N, M, MT, J1, J3, FA1, KA, R0, MUB, MUC, L1, L2, C1, A2, R1, R2, PM, INV_VS, SMOOTH, BLOCKED,
- MODE, BASE, SEG, HELD, A0, B0, RATIO, T_OFF, TRIPPED, LOCKED_AT, BRAKE_AT, LOADS) = range(32)
+ MODE, BASE, SEG, HELD, A0, B0, RATIO, T_OFF, TRIPPED, LOCKED_AT, BRAKE_AT, EVENTS, LOADS) = range(33)
+#: event kinds of the event table at p[EVENTS] (count, then per event: kind, state index, angle, period)
+PERIODIC, CLUTCH_SWITCH, BRAKE_SWITCH = 0, 1, 2
 #: offsets in a brake's program from its mode slot (p[BRAKE_AT]): gain, actuator state index
 BRAKE_GAIN, BRAKE_Z = -4, -1
 
@@ -30,11 +32,19 @@ def pack(clutch, motor, load_program: list[float], v_s: float, blocked: bool, sm
     c = clutch
     head = [c.n, c.n * c.m_t, c.m_t, c.J1, c.J3, c.F_a1, c.k_a, c.r0, c.mu_B, c.mu_C, c.L1, c.L2, c.r1 - c.r0,
             c.limits.a2, c.r1, c.r2, c.limits.phi_maxI, 1.0 / v_s, float(smooth), float(blocked),
-            1.0, 0.0, 0, 0.0, motor.a0, motor.b0, motor.ratio, motor.t_off, float(motor.tripped), math.nan, -1.0]
+            1.0, 0.0, 0, 0.0, motor.a0, motor.b0, motor.ratio, motor.t_off, float(motor.tripped), math.nan, -1.0,
+            0.0]
     assert len(head) == LOADS
     p = np.array(head + list(load_program), dtype=float)
     p[BRAKE_AT] = _switched_brakes(p)[0] if _switched_brakes(p) else -1.0
     return p
+
+
+def with_events(p: np.ndarray, table: list[tuple[int, int, float, float]]) -> np.ndarray:
+    """p with the event table appended: (kind, state index, angle, period) per event, in problem order."""
+    q = np.concatenate([p, [len(table)], np.ravel(np.array(table, dtype=float).reshape(-1, 4))])
+    q[EVENTS] = len(p)
+    return q
 
 
 def _switched_brakes(p: np.ndarray) -> list[int]:
@@ -215,6 +225,34 @@ def brake_need(t, y, p):
     other = load_torque(t, y[2], y[3], y, p)             # the held brake contributes nothing here
     p[s] = b
     return m3 - other, p[s + BRAKE_GAIN] * y[4 + int(p[s + BRAKE_Z])]
+
+
+@njit(cache=True)
+def event_value(t, y, p, k):
+    """Value of event k of the table: sin(π(y[i] − angle)/period) (phase boundaries, wrap, apex, load
+    zones); clutch stick–slip: σ·ωr slipping, distance to the static band edges stuck; brake: b·ω3
+    slipping, capacity − |needed torque| holding. Positive while the current mode is valid."""
+    j = int(p[EVENTS]) + 1 + 4 * k
+    kind = int(p[j])
+    if kind == PERIODIC:
+        return math.sin(math.pi / p[j + 3] * (y[int(p[j + 1])] - p[j + 2]))
+    if kind == CLUTCH_SWITCH:
+        if p[MODE] != 0.0:
+            return p[MODE] * y[1]
+        r = band(t, y, p, True)
+        return min(r[1] - r[0], r[0] - r[2])
+    b = p[int(p[BRAKE_AT])]
+    if b != 0.0:
+        return b * y[3]
+    need, cap = brake_need(t, y, p)
+    return cap - abs(need)
+
+
+@njit(cache=True)
+def events(t, y, p, out):
+    """All event values into ``out`` (table order)."""
+    for k in range(out.size):
+        out[k] = event_value(t, y, p, k)
 
 
 @njit(cache=True)
