@@ -57,6 +57,16 @@ class StiffnessMonitor:
         den = sum((a - b) ** 2 for a, b in zip(ya, yb))
         self.update(t, y, h, h * math.sqrt(num / den) if den > 0.0 else 0.0)
 
+    def update_many(self, t, y, h, hl) -> None:
+        """:meth:`update` for consecutive steps (arrays; rows of ``y``); calm runs are skipped at once."""
+        if self.policy == "ignore" or self.detected_at is not None:
+            return
+        if self.count == 0 and max(hl) <= self.limit:
+            self.calm += len(hl)
+            return
+        for args in zip(t, y, h, hl):
+            self.update(*args)
+
     def update(self, t: float, y: tuple, h: float, hl: float) -> None:
         """Update with an estimate ``hl`` of h·|λ| for a step of size h ending at (t, y)."""
         if self.policy == "ignore" or self.detected_at is not None:

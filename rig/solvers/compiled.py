@@ -24,14 +24,14 @@ class JitRhs:
     ``out``, with ``params()``
     returning its parameter vector p synchronised with the problem's discrete state (called when a
     solver segment starts and on every Python-side call), and ``diagnose()`` explaining non-finite
-    derivatives (a message, or None). ``events(t, y, p, out)``, if given, is a compiled kernel writing
-    the values of the problem's event functions, in the order of ``Problem.events``: then DP45 takes
-    runs of steps in one compiled call until one of them changes sign (:func:`dp45_step`). Callable as a
-    plain ``fun(t, y) -> tuple`` (e.g. for scipy)."""
+    derivatives (a message, or None). ``event(t, y, p, k)``, if given, is a compiled kernel for the value
+    of event function k, in the order of ``Problem.events``: then DP45 takes runs of steps in one compiled
+    call until one of them changes sign, and locates roots in compiled code (:func:`dp45_step`). Callable
+    as a plain ``fun(t, y) -> tuple`` (e.g. for scipy)."""
 
     def __init__(self, kernel, params: Callable[[], np.ndarray], diagnose: Callable[[], str | None] = lambda: None,
-                 events=None):
-        self.kernel, self.params, self.diagnose, self.events = kernel, params, diagnose, events
+                 event=None):
+        self.kernel, self.params, self.diagnose, self.event = kernel, params, diagnose, event
 
     def __call__(self, t: float, y: Sequence[float]) -> tuple:
         out = np.empty(len(y))
@@ -53,20 +53,23 @@ T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, H, NFEV, HL = range(9)
 
 
 @cache
-def dp45_step(kernel, events=None):
-    """Compiled adaptive DP5(4) for ``kernel`` (and event kernel ``events(t, y, p, out)``), cached per pair:
+def dp45_step(kernel, event=None):
+    """Compiled adaptive DP5(4) for ``kernel`` (and event kernel ``event(t, y, p, k)``), cached per pair:
 
     * ``step(w, y, y_new, K, f, p)`` advances from (w[T], y) with first derivative f by one accepted
       step, writing the new state into ``y_new``, the stages into K (7, n) and T, H_ABS, H, NFEV, HL into
       ``w``; returns 0, or 1 on a step-size underflow (state untouched);
-    * ``run(w, Y, TT, KK, HL, g, p)`` (with ``events``) takes steps from (w[T], Y[0]) with KK[0, 0] the
+    * ``run(w, Y, TT, KK, HL, g, p)`` (with ``event``) takes steps from (w[T], Y[0]) with KK[0, 0] the
       first derivative, storing step ends TT[s + 1], states Y[s + 1], stages KK[s] and h·|λ| HL[s], until
       an event value in ``g`` (given at the start, updated in place) changes sign or reaches 0, t_bound
-      is reached or the buffers are full; returns the number of steps, or −1 − steps on an underflow.
+      is reached or the buffers are full; returns the number of steps, or −1 − steps on an underflow;
+    * ``locate(t_old, t_new, y_old, K, p, k)``: root of event k on the step's quartic dense output by
+      Brent's method (as scipy's ``brentq``, xtol 1e-15, rtol 4·eps), given a sign change over the step.
 
     Arrays in, status out: numba's call overhead grows with the number of arguments and returned
     objects. The sign test is conservative (any change stops, whatever an event's direction): the
     Python driver then examines that last step as usual."""
+    from rig.solvers.dopri import _P as P
     from rig.solvers.dopri import A, B, C, E, MAX_FACTOR, MIN_FACTOR, SAFETY
 
     @njit
@@ -140,8 +143,8 @@ def dp45_step(kernel, events=None):
             w[T], w[H_ABS], w[HL] = t_new, h_next, hl
         return status
 
-    if events is None:
-        return step, None
+    if event is None:
+        return step, None, None
 
     @njit
     def run(w, Y, TT, KK, HL, g, p):
@@ -161,9 +164,9 @@ def dp45_step(kernel, events=None):
                 return -1 - s
             TT[s + 1], HL[s] = t_new, hl
             w[T], w[H_ABS], w[H] = t_new, h_next, h
-            events(t_new, Y[s + 1], p, g_new)
             crossed = False
             for k in range(g.size):
+                g_new[k] = event(t_new, Y[s + 1], p, k)
                 if g_new[k] == 0.0 or (g[k] < 0.0) != (g_new[k] < 0.0):
                     crossed = True
             if crossed or t_new >= w[T_BOUND] or s == m - 1:
@@ -171,4 +174,66 @@ def dp45_step(kernel, events=None):
             g[:] = g_new
         return m
 
-    return step, run
+    @njit
+    def g_dense(t, t_old, h, y_old, Q, p, k, y):
+        """Event k at time t on the dense output y_old + Σ_c Q[:, c] θ^(c+1) (θ = (t − t_old)/h)."""
+        th = (t - t_old) / h
+        for i in range(y.size):
+            acc = 0.0
+            for c in range(Q.shape[1] - 1, -1, -1):
+                acc = acc * th + Q[i, c]
+            y[i] = y_old[i] + acc * th
+        return event(t, y, p, k)
+
+    @njit
+    def locate(t_old, t_new, y_old, K, p, k):
+        h = t_new - t_old
+        n = y_old.size
+        Q = np.zeros((n, P.shape[1]))
+        for i in range(n):
+            for c in range(P.shape[1]):
+                for j in range(7):
+                    Q[i, c] += K[j, i] * P[j, c]
+                Q[i, c] *= h
+        y = np.empty(n)
+        xtol, rtol = 1e-15, 4.0 * 2.220446049250313e-16
+        xpre, xcur = t_old, t_new
+        fpre, fcur = g_dense(xpre, t_old, h, y_old, Q, p, k, y), g_dense(xcur, t_old, h, y_old, Q, p, k, y)
+        if fpre == 0.0:
+            return xpre
+        if fcur == 0.0:
+            return xcur
+        xblk = fblk = spre = scur = 0.0
+        for _ in range(100):                            # Brent (scipy's brentq.c)
+            if fpre != 0.0 and fcur != 0.0 and (fpre < 0.0) != (fcur < 0.0):
+                xblk, fblk = xpre, fpre
+                spre = scur = xcur - xpre
+            if abs(fblk) < abs(fcur):
+                xpre, xcur, xblk = xcur, xblk, xcur
+                fpre, fcur, fblk = fcur, fblk, fcur
+            delta = (xtol + rtol * abs(xcur)) / 2.0
+            sbis = (xblk - xcur) / 2.0
+            if fcur == 0.0 or abs(sbis) < delta:
+                return xcur
+            if abs(spre) > delta and abs(fcur) < abs(fpre):
+                if xpre == xblk:
+                    stry = -fcur * (xcur - xpre) / (fcur - fpre)
+                else:
+                    dpre = (fpre - fcur) / (xpre - xcur)
+                    dblk = (fblk - fcur) / (xblk - xcur)
+                    stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+                if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
+                    spre, scur = scur, stry
+                else:
+                    spre, scur = sbis, sbis
+            else:
+                spre, scur = sbis, sbis
+            xpre, fpre = xcur, fcur
+            if abs(scur) > delta:
+                xcur += scur
+            else:
+                xcur += delta if sbis > 0.0 else -delta
+            fcur = g_dense(xcur, t_old, h, y_old, Q, p, k, y)
+        return xcur
+
+    return step, run, locate

@@ -9,6 +9,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 
 from rig.solvers.base import (
     OdeSolver,
@@ -93,12 +94,34 @@ class StepsDense:
         self.T, self.Y, self.K, self.P = T, Y, K, P
 
     def __call__(self, t) -> np.ndarray:
-        t = np.asarray(t, dtype=float)
-        s = np.clip(np.searchsorted(self.T, t, side="right") - 1, 0, len(self.K) - 1)
-        h = self.T[s + 1] - self.T[s]
-        Q = np.einsum("mkn,kc->mnc", self.K[s], self.P) * h[:, None, None]
-        powers = ((t - self.T[s]) / h)[:, None] ** np.arange(1, self.P.shape[1] + 1)[None, :]
-        return (self.Y[s] + np.einsum("mnc,mc->mn", Q, powers)).T
+        return _eval_steps(self.T, self.Y, self.K, self.P, np.asarray(t, dtype=float))
+
+
+@njit(cache=True)
+def _eval_steps(T, Y, K, P, t):
+    """(n, m) states at sorted times t on consecutive polynomial steps (see :class:`StepsDense`)."""
+    n, order, last = Y.shape[1], P.shape[1], K.shape[0] - 1
+    out = np.empty((n, t.size))
+    Q = np.zeros((n, order))
+    s_cur = -1
+    for m in range(t.size):
+        s = min(max(np.searchsorted(T, t[m], side="right") - 1, 0), last)
+        h = T[s + 1] - T[s]
+        if s != s_cur:                                 # coefficients of step s: h·(Kᵀ P)
+            Q[:] = 0.0
+            for i in range(n):
+                for c in range(order):
+                    for j in range(K.shape[1]):
+                        Q[i, c] += K[s, j, i] * P[j, c]
+                    Q[i, c] *= h
+            s_cur = s
+        th = (t[m] - T[s]) / h
+        for i in range(n):
+            acc = 0.0
+            for c in range(order - 1, -1, -1):
+                acc = acc * th + Q[i, c]
+            out[i, m] = Y[s, i] + acc * th
+    return out
 
 
 def fill_dense(out: np.ndarray, t: np.ndarray, pieces: list[tuple]) -> None:
@@ -164,9 +187,9 @@ class DormandPrince45(OdeSolver):
         else:
             self.h_abs = min(first_step, self.t_bound - self.t)
         self._K: tuple | None = None
-        self._jit = self._run = None
+        self._jit = self._run = self._locate = None
         if compiled and isinstance(fun, JitRhs):
-            (self._jit, self._run), self._p = dp45_step(fun.kernel, fun.events), fun.params()
+            (self._jit, self._run, self._locate), self._p = dp45_step(fun.kernel, fun.event), fun.params()
             self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
             self._w = np.array([self.t, self.h_abs, self.t_bound, rtol, atol, max_step, 0.0, 0.0, 0.0])
 
@@ -250,15 +273,19 @@ class DormandPrince45(OdeSolver):
         self.nsteps += count
         if TT[count] >= self.t_bound:
             self.status = "finished"
-        for s in range(count):
-            self.monitor.update(TT[s + 1], Y[s + 1], TT[s + 1] - TT[s], HL[s])
+        self.monitor.update_many(TT[1:count + 1], Y[1:count + 1], np.diff(TT[:count + 1]), HL[:count])
         last = count - 1
         self.t_old, self.y_old = float(TT[last]), tuple(Y[last].tolist())
         self.t, self.y = float(TT[count]), tuple(Y[count].tolist())
-        self._K, self.f = KK[last], KK[last, 6]
+        self._K, self.f, self._yo = KK[last], KK[last, 6], Y[last]
         self._ya, self._fa = Y[count].copy(), KK[last, 6]
         self.h_last, self.h_abs = float(self._w[H]), float(self._w[H_ABS])
         return StepsDense(TT[:count], Y[:count], KK[:last], _P) if last else None
+
+    def locate(self, k: int) -> float:
+        """Root of event k (the RHS's event kernel) in the last step taken by :meth:`advance`, which
+        changes sign over it (compiled Brent search on the dense output)."""
+        return self._locate(self.t_old, self.t, self._yo, self._K, self._p, k)
 
     @property
     def stiff_at(self) -> float | None:

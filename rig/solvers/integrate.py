@@ -202,6 +202,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                         g_at = (lambda tt, f=e.fun, d=dense: f(tt, d(tt)))
                         if (g_at(t_old) < 0.0) == (b < 0.0):
                             t_root = t_old      # g jumped at a restart (RHS/mode discontinuity): past at once
+                        elif runs:              # compiled events: compiled search on the same dense output
+                            t_root = solver.locate(i)
                         else:
                             t_root = brentq(g_at, t_old, t_new, xtol=1e-15, rtol=4 * np.finfo(float).eps)
                         if e.mode_dependent:

@@ -71,7 +71,7 @@ class ClutchDynamics:
         self._log_t: list[float] = []                   # mode history (for outputs at past samples)
         self._log_mode: list[int] = []
         self._log_brake: list[int] = []
-        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.events)
+        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value)
 
     @property
     def brake_mode(self) -> int:

@@ -249,13 +249,6 @@ def event_value(t, y, p, k):
 
 
 @njit(cache=True)
-def events(t, y, p, out):
-    """All event values into ``out`` (table order)."""
-    for k in range(out.size):
-        out[k] = event_value(t, y, p, k)
-
-
-@njit(cache=True)
 def rhs(t, y, p, out):
     """dy/dt into ``out`` in the current friction mode and held cam segment (p[MODE], p[BASE], p[SEG])."""
     r = core(t, y, int(p[MODE]), p, True)
