@@ -26,12 +26,14 @@ class JitRhs:
     solver segment starts and on every Python-side call), and ``diagnose()`` explaining non-finite
     derivatives (a message, or None). ``event(t, y, p, k)``, if given, is a compiled kernel for the value
     of event function k, in the order of ``Problem.events``: then DP45 takes runs of steps in one compiled
-    call until one of them changes sign, and locates roots in compiled code (:func:`dp45_step`). Callable
-    as a plain ``fun(t, y) -> tuple`` (e.g. for scipy)."""
+    call until one of them changes sign, and locates roots in compiled code (:func:`dp45_step`).
+    ``act(t, y, p, k, apply)``, if given, tells whether event k (a restart without Python action) can be
+    acted on in compiled code and, with ``apply``, does it by updating p: the run then restarts there
+    itself. Callable as a plain ``fun(t, y) -> tuple`` (e.g. for scipy)."""
 
     def __init__(self, kernel, params: Callable[[], np.ndarray], diagnose: Callable[[], str | None] = lambda: None,
-                 event=None):
-        self.kernel, self.params, self.diagnose, self.event = kernel, params, diagnose, event
+                 event=None, act=None):
+        self.kernel, self.params, self.diagnose, self.event, self.act = kernel, params, diagnose, event, act
 
     def __call__(self, t: float, y: Sequence[float]) -> tuple:
         out = np.empty(len(y))
@@ -48,21 +50,27 @@ class JitRhs:
 
 
 #: slots of the compiled step's work vector: T, H_ABS (in, updated to t_new, h_next), T_BOUND, RTOL,
-#: ATOL, MAX_STEP (in), H, NFEV, HL (out: last step taken, RHS calls, Hairer's stiffness estimate h·|λ|)
-T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, H, NFEV, HL = range(9)
+#: ATOL, MAX_STEP (in), H, NFEV, HL, NEV (out: last step taken, RHS calls, Hairer's stiffness estimate
+#: h·|λ|, events acted on in a run)
+T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, H, NFEV, HL, NEV = range(10)
 
 
 @cache
-def dp45_step(kernel, event=None):
-    """Compiled adaptive DP5(4) for ``kernel`` (and event kernel ``event(t, y, p, k)``), cached per pair:
+def dp45_step(kernel, event=None, act=None):
+    """Compiled adaptive DP5(4) for ``kernel`` (event kernels ``event``, ``act``: :class:`JitRhs`), cached:
 
     * ``step(w, y, y_new, K, f, p)`` advances from (w[T], y) with first derivative f by one accepted
       step, writing the new state into ``y_new``, the stages into K (7, n) and T, H_ABS, H, NFEV, HL into
       ``w``; returns 0, or 1 on a step-size underflow (state untouched);
-    * ``run(w, Y, TT, KK, HL, g, p)`` (with ``event``) takes steps from (w[T], Y[0]) with KK[0, 0] the
-      first derivative, storing step ends TT[s + 1], states Y[s + 1], stages KK[s] and h·|λ| HL[s], until
-      an event value in ``g`` (given at the start, updated in place) changes sign or reaches 0, t_bound
-      is reached or the buffers are full; returns the number of steps, or −1 − steps on an underflow;
+    * ``run(w, Y, TT, HH, KK, HL, EV, g, p)`` (with ``event``) takes steps from (w[T], Y[0]) with
+      KK[0, 0] the first derivative, storing step ends TT[s + 1], states Y[s + 1], step sizes HH[s],
+      stages KK[s] and h·|λ| HL[s], until an event value in ``g`` (given at the start, updated in place)
+      changes sign or reaches 0, t_bound is reached or the buffers are full; returns the number of steps,
+      or −1 − steps on an underflow. Sign changes that ``act`` accepts (all of them in the step, none
+      exactly zero) are handled in the run as the Python driver would: cut at the earliest root (the
+      step then ends there, TT[s + 1] < TT[s] + HH[s]), act, record (t, k, ±1, y) in EV[w[NEV]], restart
+      with the last step size; the fired event keeps its value past the root, the others are re-evaluated
+      (a zero keeps the old value);
     * ``locate(t_old, t_new, y_old, K, p, k)``: root of event k on the step's quartic dense output by
       Brent's method (as scipy's ``brentq``, xtol 1e-15, rtol 4·eps), given a sign change over the step.
 
@@ -147,32 +155,14 @@ def dp45_step(kernel, event=None):
         return step, None, None
 
     @njit
-    def run(w, Y, TT, KK, HL, g, p):
-        g_new = np.empty(g.size)
-        TT[0] = w[T]
-        nfev = 0
-        m = KK.shape[0]
-        for s in range(m):
-            if s:
-                KK[s, 0] = KK[s - 1, 6]
-            status, t_new, h, h_next, nf, hl = one_step(TT[s], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL],
-                                                        w[ATOL], Y[s], Y[s + 1], KK[s], p)
-            nfev += nf
-            w[NFEV] = nfev
-            if status:
-                w[H] = h
-                return -1 - s
-            TT[s + 1], HL[s] = t_new, hl
-            w[T], w[H_ABS], w[H] = t_new, h_next, h
-            crossed = False
-            for k in range(g.size):
-                g_new[k] = event(t_new, Y[s + 1], p, k)
-                if g_new[k] == 0.0 or (g[k] < 0.0) != (g_new[k] < 0.0):
-                    crossed = True
-            if crossed or t_new >= w[T_BOUND] or s == m - 1:
-                return s + 1                            # g holds the values at the last step's start
-            g[:] = g_new
-        return m
+    def coeffs(K, h, Q):
+        """Dense-output coefficients Q = h·(Kᵀ P) of one step."""
+        for i in range(Q.shape[0]):
+            for c in range(Q.shape[1]):
+                acc = 0.0
+                for j in range(K.shape[0]):
+                    acc += K[j, i] * P[j, c]
+                Q[i, c] = h * acc
 
     @njit
     def g_dense(t, t_old, h, y_old, Q, p, k, y):
@@ -186,16 +176,10 @@ def dp45_step(kernel, event=None):
         return event(t, y, p, k)
 
     @njit
-    def locate(t_old, t_new, y_old, K, p, k):
+    def brent(t_old, t_new, y_old, Q, p, k):
+        """Root of event k in [t_old, t_new] on the dense output (scipy's brentq.c, xtol 1e-15, rtol 4 eps)."""
         h = t_new - t_old
-        n = y_old.size
-        Q = np.zeros((n, P.shape[1]))
-        for i in range(n):
-            for c in range(P.shape[1]):
-                for j in range(7):
-                    Q[i, c] += K[j, i] * P[j, c]
-                Q[i, c] *= h
-        y = np.empty(n)
+        y = np.empty(y_old.size)
         xtol, rtol = 1e-15, 4.0 * 2.220446049250313e-16
         xpre, xcur = t_old, t_new
         fpre, fcur = g_dense(xpre, t_old, h, y_old, Q, p, k, y), g_dense(xcur, t_old, h, y_old, Q, p, k, y)
@@ -204,7 +188,7 @@ def dp45_step(kernel, event=None):
         if fcur == 0.0:
             return xcur
         xblk = fblk = spre = scur = 0.0
-        for _ in range(100):                            # Brent (scipy's brentq.c)
+        for _ in range(100):
             if fpre != 0.0 and fcur != 0.0 and (fpre < 0.0) != (fcur < 0.0):
                 xblk, fblk = xpre, fpre
                 spre = scur = xcur - xpre
@@ -235,5 +219,87 @@ def dp45_step(kernel, event=None):
                 xcur += delta if sbis > 0.0 else -delta
             fcur = g_dense(xcur, t_old, h, y_old, Q, p, k, y)
         return xcur
+
+    @njit
+    def locate(t_old, t_new, y_old, K, p, k):
+        Q = np.empty((y_old.size, P.shape[1]))
+        coeffs(K, t_new - t_old, Q)
+        return brent(t_old, t_new, y_old, Q, p, k)
+
+    @njit
+    def run(w, Y, TT, HH, KK, HL, EV, g, p):
+        n = Y.shape[1]
+        g_new, yr = np.empty(g.size), np.empty(n)
+        Q = np.empty((n, P.shape[1]))
+        TT[0] = w[T]
+        nfev = 0
+        ne = 0
+        m = KK.shape[0]
+        restarted = False
+        for s in range(m):
+            if s and not restarted:
+                KK[s, 0] = KK[s - 1, 6]
+            restarted = False
+            status, t_new, h, h_next, nf, hl = one_step(TT[s], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL],
+                                                        w[ATOL], Y[s], Y[s + 1], KK[s], p)
+            nfev += nf
+            w[NFEV], w[NEV] = nfev, ne
+            if status:
+                w[H] = h
+                return -1 - s
+            TT[s + 1], HH[s], HL[s] = t_new, h, hl
+            w[T], w[H_ABS], w[H] = t_new, h_next, h
+            crossed = False
+            for k in range(g.size):
+                g_new[k] = event(t_new, Y[s + 1], p, k)
+                if g_new[k] == 0.0 or (g[k] < 0.0) != (g_new[k] < 0.0):
+                    crossed = True
+            if not crossed:
+                if t_new >= w[T_BOUND] or s == m - 1:
+                    return s + 1                        # g holds the values at the last step's start
+                g[:] = g_new
+                continue
+            if act is None or s == m - 1 or ne == EV.shape[0]:
+                return s + 1
+            t_root, k_root, ok = np.inf, -1, True       # act here only if every change is ours to act on
+            coeffs(KK[s], h, Q)
+            for k in range(g.size):
+                if g[k] == 0.0 or g_new[k] == 0.0:
+                    ok = False
+                elif (g[k] < 0.0) != (g_new[k] < 0.0):
+                    if not act(t_new, Y[s + 1], p, k, False):
+                        ok = False
+                    else:
+                        tk = brent(TT[s], t_new, Y[s], Q, p, k)
+                        if tk == t_root:
+                            ok = False
+                        elif tk < t_root:
+                            t_root, k_root = tk, k
+                if not ok:
+                    break
+            if not ok or not TT[s] < t_root < t_new:
+                return s + 1
+            g_dense(t_root, TT[s], h, Y[s], Q, p, k_root, yr)
+            if not act(t_root, yr, p, k_root, False):
+                return s + 1
+            act(t_root, yr, p, k_root, True)
+            Y[s + 1] = yr
+            EV[ne, 0], EV[ne, 1] = t_root, k_root
+            EV[ne, 2] = 1.0 if g_new[k_root] > g[k_root] else -1.0
+            EV[ne, 3:] = Y[s + 1]
+            ne += 1
+            TT[s + 1] = t_root
+            for k in range(g.size):
+                if k == k_root:
+                    g[k] = g_new[k]
+                else:
+                    v = event(t_root, Y[s + 1], p, k)
+                    if v != 0.0:
+                        g[k] = v
+            kernel(t_root, Y[s + 1], p, KK[s + 1, 0])
+            nfev += 1
+            w[T], w[H_ABS], w[NFEV], w[NEV] = t_root, h, nfev, ne
+            restarted = True
+        return m
 
     return step, run, locate

@@ -18,7 +18,7 @@ from rig.solvers.base import (
     StiffnessMonitor,
     all_finite,
 )
-from rig.solvers.compiled import H, H_ABS, NFEV, JitRhs, dp45_step
+from rig.solvers.compiled import H, H_ABS, NEV, NFEV, JitRhs, dp45_step
 from rig.solvers.unrolled import rk_kernels
 
 _A21 = 1 / 5
@@ -87,18 +87,19 @@ class PolynomialDense:
 
 
 class StepsDense:
-    """Consecutive steps s = 0..m−1 from T[s] to T[s+1], starting at Y[s] with stages K[s] (continuous
-    extension ``P``): y(t) for an array of times in [T[0], T[m]] (vectorised, as :class:`PolynomialDense`)."""
+    """Consecutive steps s = 0..m−1 of size H[s] from T[s] (ending at T[s+1] ≤ T[s] + H[s]: a step cut at
+    an event keeps its polynomial), starting at Y[s] with stages K[s] (continuous extension ``P``): y(t)
+    for an array of times in [T[0], T[m]] (vectorised, as :class:`PolynomialDense`)."""
 
-    def __init__(self, T: np.ndarray, Y: np.ndarray, K: np.ndarray, P: np.ndarray):
-        self.T, self.Y, self.K, self.P = T, Y, K, P
+    def __init__(self, T: np.ndarray, H: np.ndarray, Y: np.ndarray, K: np.ndarray, P: np.ndarray):
+        self.T, self.H, self.Y, self.K, self.P = T, H, Y, K, P
 
     def __call__(self, t) -> np.ndarray:
-        return _eval_steps(self.T, self.Y, self.K, self.P, np.asarray(t, dtype=float))
+        return _eval_steps(self.T, self.H, self.Y, self.K, self.P, np.asarray(t, dtype=float))
 
 
 @njit(cache=True)
-def _eval_steps(T, Y, K, P, t):
+def _eval_steps(T, H, Y, K, P, t):
     """(n, m) states at sorted times t on consecutive polynomial steps (see :class:`StepsDense`)."""
     n, order, last = Y.shape[1], P.shape[1], K.shape[0] - 1
     out = np.empty((n, t.size))
@@ -106,7 +107,7 @@ def _eval_steps(T, Y, K, P, t):
     s_cur = -1
     for m in range(t.size):
         s = min(max(np.searchsorted(T, t[m], side="right") - 1, 0), last)
-        h = T[s + 1] - T[s]
+        h = H[s]
         if s != s_cur:                                 # coefficients of step s: h·(Kᵀ P)
             Q[:] = 0.0
             for i in range(n):
@@ -189,9 +190,9 @@ class DormandPrince45(OdeSolver):
         self._K: tuple | None = None
         self._jit = self._run = self._locate = None
         if compiled and isinstance(fun, JitRhs):
-            (self._jit, self._run, self._locate), self._p = dp45_step(fun.kernel, fun.event), fun.params()
+            (self._jit, self._run, self._locate), self._p = dp45_step(fun.kernel, fun.event, fun.act), fun.params()
             self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
-            self._w = np.array([self.t, self.h_abs, self.t_bound, rtol, atol, max_step, 0.0, 0.0, 0.0])
+            self._w = np.array([self.t, self.h_abs, self.t_bound, rtol, atol, max_step, 0.0, 0.0, 0.0, 0.0])
 
     def _step_impl(self) -> None:
         if self._jit is not None:
@@ -238,7 +239,7 @@ class DormandPrince45(OdeSolver):
     def _compiled_step(self) -> None:
         w, K = self._w, np.empty((7, len(self.y)))         # w carries t and h_abs from step to step
         status = self._jit(w, self._ya, self._yb, K, self._fa, self._p)
-        t_new, h_abs, _, _, _, _, h, nfev, hl = w.tolist()
+        t_new, h_abs, _, _, _, _, h, nfev, hl, _ = w.tolist()
         self.nfev += int(nfev)
         if status:
             self.fun.fail(self.t, self.y, f"step size underflow (h = {h:.3g} s)")
@@ -262,10 +263,12 @@ class DormandPrince45(OdeSolver):
         their ends), or None."""
         n = len(self.y)
         Y, TT = np.empty((max_steps + 1, n)), np.empty(max_steps + 1)
-        KK, HL = np.empty((max_steps, 7, n)), np.empty(max_steps)
+        KK, HH, HL = np.empty((max_steps, 7, n)), np.empty(max_steps), np.empty(max_steps)
+        EV = np.empty((max_steps, 3 + n))
         Y[0], KK[0, 0] = self._ya, self._fa
-        count = self._run(self._w, Y, TT, KK, HL, g, self._p)
+        count = self._run(self._w, Y, TT, HH, KK, HL, EV, g, self._p)
         self.nfev += int(self._w[NFEV])
+        self.acted = EV[:int(self._w[NEV])]
         if count < 0:
             self.status = "failed"
             s = -1 - count
@@ -273,14 +276,14 @@ class DormandPrince45(OdeSolver):
         self.nsteps += count
         if TT[count] >= self.t_bound:
             self.status = "finished"
-        self.monitor.update_many(TT[1:count + 1], Y[1:count + 1], np.diff(TT[:count + 1]), HL[:count])
+        self.monitor.update_many(TT[1:count + 1], Y[1:count + 1], HH[:count], HL[:count])
         last = count - 1
         self.t_old, self.y_old = float(TT[last]), tuple(Y[last].tolist())
         self.t, self.y = float(TT[count]), tuple(Y[count].tolist())
         self._K, self.f, self._yo = KK[last], KK[last, 6], Y[last]
         self._ya, self._fa = Y[count].copy(), KK[last, 6]
         self.h_last, self.h_abs = float(self._w[H]), float(self._w[H_ABS])
-        return StepsDense(TT[:count], Y[:count], KK[:last], _P) if last else None
+        return StepsDense(TT[:count], HH[:last], Y[:count], KK[:last], _P) if last else None
 
     def locate(self, k: int) -> float:
         """Root of event k (the RHS's event kernel) in the last step taken by :meth:`advance`, which

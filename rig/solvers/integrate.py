@@ -168,6 +168,10 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
             if runs:                            # compiled run of steps up to a sign change of some event
                 g_run = np.array(g_old)
                 quiet = solver.advance(g_run)
+                for row in solver.acted:        # restarts the compiled run acted on itself
+                    records.append(EventRecord(float(row[0]), events[int(row[1])].name, tuple(row[3:].tolist()),
+                                               float(row[2])))
+                    restarts += 1
                 if quiet is not None:           # steps before the current one, no event there: sample them
                     g_old = g_run.tolist()
                     if t_eval is not None:

@@ -68,6 +68,13 @@ def test_clutch_run_compiled_and_pure_python_agree():
     assert len(a.t_events["apex"]) >= 1 and a.restarts > 5
     assert abs(a.nsteps - b.nsteps) <= 2
     np.testing.assert_allclose(a.t_events["apex"], b.t_events["apex"], rtol=1e-6)
+    # segment boundaries restarted inside the compiled runs: the same events, times and states
+    assert [r.name for r in a.events] == [r.name for r in b.events] and a.restarts == b.restarts
+    np.testing.assert_allclose([r.t for r in a.events], [r.t for r in b.events], rtol=1e-6)
+    early = [i for i, r in enumerate(b.events) if r.t < 0.1]              # before rounding is amplified
+    assert len(early) >= 5
+    np.testing.assert_allclose([a.events[i].y[:4] for i in early], [b.events[i].y[:4] for i in early],
+                               rtol=1e-7, atol=1e-6)
     # up to 0.1 s (before the ratcheting amplifies rounding differences)
     np.testing.assert_allclose(a.y[:, :101], b.y[:, :101], rtol=1e-7, atol=1e-6)
 

@@ -71,7 +71,7 @@ class ClutchDynamics:
         self._log_t: list[float] = []                   # mode history (for outputs at past samples)
         self._log_mode: list[int] = []
         self._log_brake: list[int] = []
-        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value)
+        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value, kernel.event_action)
 
     @property
     def brake_mode(self) -> int:
@@ -306,15 +306,17 @@ class ClutchDynamics:
         """(name, table row (kind, state index, angle, period), Event options) of every event, in order."""
         lim, per = self.clutch.limits, kernel.PERIODIC
         switched = self.friction == "stick_slip"       # guide friction flips where k1 = 0 (wrap, apex)
-        specs = [("phase_boundary", (per, 0, b, LOBE), {"restart": True}) for b in (lim.phi_maxI, LOBE - lim.phi_maxI)]
-        specs += [("lobe_wrap", (per, 0, 0.0, LOBE), {"restart": switched}),
-                  ("apex", (per, 0, APEX, LOBE), {"restart": switched})]
-        specs += [("load_zone", (per, 2, a, T), {"restart": True}) for a, T in self.load.angle_breaks()]
+        segment = int(switched)                         # held-segment boundaries: compiled restarts allowed
+        specs = [("phase_boundary", (per, 0, b, LOBE, segment), {"restart": True})
+                 for b in (lim.phi_maxI, LOBE - lim.phi_maxI)]
+        specs += [("lobe_wrap", (per, 0, 0.0, LOBE, segment), {"restart": switched}),
+                  ("apex", (per, 0, APEX, LOBE, 0), {"restart": switched})]
+        specs += [("load_zone", (per, 2, a, T, 0), {"restart": True}) for a, T in self.load.angle_breaks()]
         if switched:
-            specs.append(("stick_slip", (kernel.CLUTCH_SWITCH, 0, 0.0, 1.0),
+            specs.append(("stick_slip", (kernel.CLUTCH_SWITCH, 0, 0.0, 1.0, 0),
                           {"direction": -1.0, "action": self._on_switch, "mode_dependent": True}))
         if self._brake >= 0:
-            specs.append(("brake_stick_slip", (kernel.BRAKE_SWITCH, 0, 0.0, 1.0),
+            specs.append(("brake_stick_slip", (kernel.BRAKE_SWITCH, 0, 0.0, 1.0, 0),
                           {"direction": -1.0, "action": self._on_brake, "mode_dependent": True}))
         return specs
 

@@ -21,8 +21,10 @@ from rig.plants.clutch.loads import BRAKE, LINEAR, STEPS, ZONE
 # p layout: clutch constants, friction model, discrete state, motor line, self-lock flag, load program
 (N, M, MT, J1, J3, FA1, KA, R0, MUB, MUC, L1, L2, C1, A2, R1, R2, PM, INV_VS, SMOOTH, BLOCKED,
  MODE, BASE, SEG, HELD, A0, B0, RATIO, T_OFF, TRIPPED, LOCKED_AT, BRAKE_AT, EVENTS, LOADS) = range(33)
-#: event kinds of the event table at p[EVENTS] (count, then per event: kind, state index, angle, period)
+#: event kinds of the event table at p[EVENTS] (count, then per event: kind, state index, angle, period,
+#: compiled flag — 1 for cam-segment boundaries that :func:`event_action` may handle in compiled code)
 PERIODIC, CLUTCH_SWITCH, BRAKE_SWITCH = 0, 1, 2
+ROW = 5
 #: offsets in a brake's program from its mode slot (p[BRAKE_AT]): gain, actuator state index
 BRAKE_GAIN, BRAKE_Z = -4, -1
 
@@ -40,9 +42,10 @@ def pack(clutch, motor, load_program: list[float], v_s: float, blocked: bool, sm
     return p
 
 
-def with_events(p: np.ndarray, table: list[tuple[int, int, float, float]]) -> np.ndarray:
-    """p with the event table appended: (kind, state index, angle, period) per event, in problem order."""
-    q = np.concatenate([p, [len(table)], np.ravel(np.array(table, dtype=float).reshape(-1, 4))])
+def with_events(p: np.ndarray, table: list[tuple[int, int, float, float, int]]) -> np.ndarray:
+    """p with the event table appended: (kind, state index, angle, period, compiled flag) per event, in
+    problem order."""
+    q = np.concatenate([p, [len(table)], np.ravel(np.array(table, dtype=float).reshape(-1, ROW))])
     q[EVENTS] = len(p)
     return q
 
@@ -232,7 +235,7 @@ def event_value(t, y, p, k):
     """Value of event k of the table: sin(π(y[i] − angle)/period) (phase boundaries, wrap, apex, load
     zones); clutch stick–slip: σ·ωr slipping, distance to the static band edges stuck; brake: b·ω3
     slipping, capacity − |needed torque| holding. Positive while the current mode is valid."""
-    j = int(p[EVENTS]) + 1 + 4 * k
+    j = int(p[EVENTS]) + 1 + ROW * k
     kind = int(p[j])
     if kind == PERIODIC:
         return math.sin(math.pi / p[j + 3] * (y[int(p[j + 1])] - p[j + 2]))
@@ -246,6 +249,30 @@ def event_value(t, y, p, k):
         return b * y[3]
     need, cap = brake_need(t, y, p)
     return cap - abs(need)
+
+
+@njit(cache=True)
+def event_action(t, y, p, k, apply):
+    """Whether event k at (t, y) can be acted on in compiled code — a cam-segment boundary (phase
+    boundary, lobe wrap) passed while slipping consistently with the mode (and the brake's mode still
+    valid), where the Python reset would only re-select the held segment; with ``apply``, do that."""
+    j = int(p[EVENTS]) + 1 + ROW * k
+    wr = y[1]
+    if p[j + 4] == 0.0 or wr == 0.0 or p[MODE] * wr <= 0.0:
+        return False
+    if p[BRAKE_AT] >= 0.0:
+        b = p[int(p[BRAKE_AT])]
+        if b != 0.0:
+            if b * y[3] <= 0.0:
+                return False
+        else:
+            need, cap = brake_need(t, y, p)
+            if abs(need) > cap:
+                return False
+    if apply:
+        base, seg = locate_segment(y[0], wr, p[PM])
+        p[BASE], p[SEG] = base, seg
+    return True
 
 
 @njit(cache=True)
