@@ -101,9 +101,9 @@ def scipy_run(dyn, y0, t, method, rtol, atol):
 
 
 def timed(f, *a, **k):
-    """Best CPU time of up to 7 runs (at least 3, stopping after ~0.3 s) and the last result."""
+    """Best CPU time of up to 25 runs (at least 5, stopping after ~0.5 s) and the last result."""
     best, res, spent, n = np.inf, None, 0.0, 0
-    while n < 3 or (n < 7 and spent < 0.3):
+    while n < 5 or (n < 25 and spent < 0.5):
         t0 = time.perf_counter()
         res = f(*a, **k)
         dt = time.perf_counter() - t0
