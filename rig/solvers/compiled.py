@@ -9,12 +9,18 @@ of seven RHS calls. The compiled step is the same method (tableau, norm, control
 """
 from __future__ import annotations
 
+import hashlib
+import importlib.util
+import inspect
 import math
+import os
+import re
+import sys
 from collections.abc import Callable, Sequence
 from functools import cache
+from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from rig.solvers.base import SolverDivergence
 
@@ -76,230 +82,47 @@ def dp45_step(kernel, event=None, act=None):
 
     Arrays in, status out: numba's call overhead grows with the number of arguments and returned
     objects. The sign test is conservative (any change stops, whatever an event's direction): the
-    Python driver then examines that last step as usual."""
-    from rig.solvers.dopri import _P as P
-    from rig.solvers.dopri import A, B, C, E, MAX_FACTOR, MIN_FACTOR, SAFETY
+    Python driver then examines that last step as usual.
 
-    @njit
-    def one_step(t, h_abs, t_bound, rtol, atol, y, y_new, K, p):
-        """One accepted step from (t, y), K[0] = f(t, y): (status, t_new, h, h_next, nfev, h·|λ|)."""
-        n = y.size
-        min_step = 10.0 * (np.nextafter(t, np.inf) - t)
-        ys = np.empty(n)
-        rejected = False
-        nfev = 0
-        while True:
-            if h_abs < min_step:
-                return 1, t, h_abs, h_abs, nfev, 0.0
-            h = h_abs
-            t_new = t + h
-            if t_new >= t_bound:
-                t_new = t_bound
-                h = t_new - t
-            for s in range(1, 6):
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(s):
-                        acc += A[s, j] * K[j, i]
-                    ys[i] = y[i] + h * acc
-                kernel(t + C[s] * h, ys, p, K[s])
-            finite = True
-            for i in range(n):
-                acc = 0.0
-                for j in range(6):
-                    acc += B[j] * K[j, i]
-                y_new[i] = y[i] + h * acc
-                finite &= math.isfinite(y_new[i])
-            nfev += 5
-            if not finite:
-                h_abs *= MIN_FACTOR
-                continue
-            kernel(t_new, y_new, p, K[6])
-            nfev += 1
-            acc = 0.0
-            for i in range(n):
-                e = 0.0
-                for j in range(7):
-                    e += E[j] * K[j, i]
-                d = h * e / (atol + rtol * max(abs(y[i]), abs(y_new[i])))
-                acc += d * d
-            err_norm = math.sqrt(acc / n)
-            if not math.isfinite(err_norm):
-                h_abs *= MIN_FACTOR
-                continue
-            if err_norm < 1.0:
-                factor = MAX_FACTOR if err_norm == 0.0 else min(MAX_FACTOR, SAFETY * err_norm ** -0.2)
-                if rejected:
-                    factor = min(1.0, factor)
-                break
-            h_abs *= max(MIN_FACTOR, SAFETY * err_norm ** -0.2)
-            rejected = True
-        num = 0.0
-        den = 0.0
-        for i in range(n):
-            num += (K[6, i] - K[5, i]) ** 2
-            den += (y_new[i] - ys[i]) ** 2
-        return 0, t_new, h, h_abs * factor, nfev, (h * math.sqrt(num / den) if den > 0.0 else 0.0)
-
-    @njit
-    def step(w, y, y_new, K, f, p):
-        K[0] = f
-        status, t_new, h, h_next, nfev, hl = one_step(w[T], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL],
-                                                      w[ATOL], y, y_new, K, p)
-        w[H], w[NFEV] = h, nfev
-        if status == 0:
-            w[T], w[H_ABS], w[HL] = t_new, h_next, hl
-        return status
-
+    Module-level njit functions only (``kernel.py_func`` importable by module and name). The functions
+    live in :mod:`rig.solvers.dp45_template`, copied into ``~/.cache/mechrig`` (``MECHRIG_CACHE``) with
+    the kernels bound, and imported from there: numba then caches them like any module.
+    """
+    names = [_import_path(f) for f in (kernel, event, act)]
+    template = Path(__file__).with_name("dp45_template.py").read_text()
+    binding = "\n".join(f"from {mod} import {name} as {alias}" if mod else f"{alias} = {'never' if alias == 'act' else 'None'}"
+                        for (mod, name), alias in zip(names, ("kernel", "event", "act")))
+    source = re.sub(r"# <kernels>\n.*?# </kernels>\n", binding + "\n", template, flags=re.DOTALL)
+    # numba checks a cached function against its own file only: key the copy on everything it compiles in
+    # (the kernels' packages, the tableau and slot constants), so an edit there gives a new copy
+    deps = {Path(__file__), Path(__file__).with_name("dopri.py")}
+    deps |= {q for f in (kernel, event, act) if f is not None
+             for q in Path(inspect.getsourcefile(f.py_func)).parent.glob("*.py")}
+    digest = hashlib.sha1(source.encode() + b"".join(q.read_bytes() for q in sorted(deps))).hexdigest()[:16]
+    folder = Path(os.environ.get("MECHRIG_CACHE") or Path.home() / ".cache" / "mechrig")
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"dp45_{digest}.py"
+    if not path.exists() or path.read_text() != source:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)                       # atomic: parallel processes see whole files only
+    name = f"mechrig_dp45_{digest}"
+    module = sys.modules.get(name)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
     if event is None:
-        return step, None, None
+        return module.step, None, None
+    return module.step, module.run, module.locate
 
-    @njit
-    def coeffs(K, h, Q):
-        """Dense-output coefficients Q = h·(Kᵀ P) of one step."""
-        for i in range(Q.shape[0]):
-            for c in range(Q.shape[1]):
-                acc = 0.0
-                for j in range(K.shape[0]):
-                    acc += K[j, i] * P[j, c]
-                Q[i, c] = h * acc
 
-    @njit
-    def g_dense(t, t_old, h, y_old, Q, p, k, y):
-        """Event k at time t on the dense output y_old + Σ_c Q[:, c] θ^(c+1) (θ = (t − t_old)/h)."""
-        th = (t - t_old) / h
-        for i in range(y.size):
-            acc = 0.0
-            for c in range(Q.shape[1] - 1, -1, -1):
-                acc = acc * th + Q[i, c]
-            y[i] = y_old[i] + acc * th
-        return event(t, y, p, k)
-
-    @njit
-    def brent(t_old, t_new, y_old, Q, p, k):
-        """Root of event k in [t_old, t_new] on the dense output (scipy's brentq.c, xtol 1e-15, rtol 4 eps)."""
-        h = t_new - t_old
-        y = np.empty(y_old.size)
-        xtol, rtol = 1e-15, 4.0 * 2.220446049250313e-16
-        xpre, xcur = t_old, t_new
-        fpre, fcur = g_dense(xpre, t_old, h, y_old, Q, p, k, y), g_dense(xcur, t_old, h, y_old, Q, p, k, y)
-        if fpre == 0.0:
-            return xpre
-        if fcur == 0.0:
-            return xcur
-        xblk = fblk = spre = scur = 0.0
-        for _ in range(100):
-            if fpre != 0.0 and fcur != 0.0 and (fpre < 0.0) != (fcur < 0.0):
-                xblk, fblk = xpre, fpre
-                spre = scur = xcur - xpre
-            if abs(fblk) < abs(fcur):
-                xpre, xcur, xblk = xcur, xblk, xcur
-                fpre, fcur, fblk = fcur, fblk, fcur
-            delta = (xtol + rtol * abs(xcur)) / 2.0
-            sbis = (xblk - xcur) / 2.0
-            if fcur == 0.0 or abs(sbis) < delta:
-                return xcur
-            if abs(spre) > delta and abs(fcur) < abs(fpre):
-                if xpre == xblk:
-                    stry = -fcur * (xcur - xpre) / (fcur - fpre)
-                else:
-                    dpre = (fpre - fcur) / (xpre - xcur)
-                    dblk = (fblk - fcur) / (xblk - xcur)
-                    stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
-                if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
-                    spre, scur = scur, stry
-                else:
-                    spre, scur = sbis, sbis
-            else:
-                spre, scur = sbis, sbis
-            xpre, fpre = xcur, fcur
-            if abs(scur) > delta:
-                xcur += scur
-            else:
-                xcur += delta if sbis > 0.0 else -delta
-            fcur = g_dense(xcur, t_old, h, y_old, Q, p, k, y)
-        return xcur
-
-    @njit
-    def locate(t_old, t_new, y_old, K, p, k):
-        Q = np.empty((y_old.size, P.shape[1]))
-        coeffs(K, t_new - t_old, Q)
-        return brent(t_old, t_new, y_old, Q, p, k)
-
-    @njit
-    def run(w, Y, TT, HH, KK, HL, EV, g, p):
-        n = Y.shape[1]
-        g_new, yr = np.empty(g.size), np.empty(n)
-        Q = np.empty((n, P.shape[1]))
-        TT[0] = w[T]
-        nfev = 0
-        ne = 0
-        m = KK.shape[0]
-        restarted = False
-        for s in range(m):
-            if s and not restarted:
-                KK[s, 0] = KK[s - 1, 6]
-            restarted = False
-            status, t_new, h, h_next, nf, hl = one_step(TT[s], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL],
-                                                        w[ATOL], Y[s], Y[s + 1], KK[s], p)
-            nfev += nf
-            w[NFEV], w[NEV] = nfev, ne
-            if status:
-                w[H] = h
-                return -1 - s
-            TT[s + 1], HH[s], HL[s] = t_new, h, hl
-            w[T], w[H_ABS], w[H] = t_new, h_next, h
-            crossed = False
-            for k in range(g.size):
-                g_new[k] = event(t_new, Y[s + 1], p, k)
-                if g_new[k] == 0.0 or (g[k] < 0.0) != (g_new[k] < 0.0):
-                    crossed = True
-            if not crossed:
-                if t_new >= w[T_BOUND] or s == m - 1:
-                    return s + 1                        # g holds the values at the last step's start
-                g[:] = g_new
-                continue
-            if act is None or s == m - 1 or ne == EV.shape[0]:
-                return s + 1
-            t_root, k_root, ok = np.inf, -1, True       # act here only if every change is ours to act on
-            coeffs(KK[s], h, Q)
-            for k in range(g.size):
-                if g[k] == 0.0 or g_new[k] == 0.0:
-                    ok = False
-                elif (g[k] < 0.0) != (g_new[k] < 0.0):
-                    if not act(t_new, Y[s + 1], p, k, False):
-                        ok = False
-                    else:
-                        tk = brent(TT[s], t_new, Y[s], Q, p, k)
-                        if tk == t_root:
-                            ok = False
-                        elif tk < t_root:
-                            t_root, k_root = tk, k
-                if not ok:
-                    break
-            if not ok or not TT[s] < t_root < t_new:
-                return s + 1
-            g_dense(t_root, TT[s], h, Y[s], Q, p, k_root, yr)
-            if not act(t_root, yr, p, k_root, False):
-                return s + 1
-            act(t_root, yr, p, k_root, True)
-            Y[s + 1] = yr
-            EV[ne, 0], EV[ne, 1] = t_root, k_root
-            EV[ne, 2] = 1.0 if g_new[k_root] > g[k_root] else -1.0
-            EV[ne, 3:] = Y[s + 1]
-            ne += 1
-            TT[s + 1] = t_root
-            for k in range(g.size):
-                if k == k_root:
-                    g[k] = g_new[k]
-                else:
-                    v = event(t_root, Y[s + 1], p, k)
-                    if v != 0.0:
-                        g[k] = v
-            kernel(t_root, Y[s + 1], p, KK[s + 1, 0])
-            nfev += 1
-            w[T], w[H_ABS], w[NFEV], w[NEV] = t_root, h, nfev, ne
-            restarted = True
-        return m
-
-    return step, run, locate
+def _import_path(f) -> tuple[str, str] | tuple[None, None]:
+    """(module, name) under which the njit function ``f`` can be imported; (None, None) for None."""
+    if f is None:
+        return None, None
+    mod, name = f.py_func.__module__, f.py_func.__name__
+    if getattr(sys.modules.get(mod), name, None) is not f:
+        raise ValueError(f"compiled DP45: {name!r} must be a module-level numba function of an imported module")
+    return mod, name

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rig.plants.clutch import APEX, LOBE, FlatTappetClutch, GeometryError
-from rig.plants.clutch.geometry import locate_segment, segment_geometry
+from rig.plants.clutch.kernel import locate_segment, segment_geometry
 
 REF = dict(r0=0.032, r1=0.100, r2=0.028, k_a=28000.0, delta=0.005)
 THESIS = dict(r0=0.055, r1=0.130, r2=0.030, k_a=3000.0, F_a1=1284.0)

@@ -34,7 +34,8 @@ from scipy.optimize import brentq
 
 from rig.plants.clutch import kernel
 from rig.plants.clutch.flat_tappet import FlatTappetClutch
-from rig.plants.clutch.geometry import APEX, LOBE, locate_segment
+from rig.plants.clutch.geometry import APEX, LOBE
+from rig.plants.clutch.kernel import locate_segment
 from rig.plants.clutch.loads import LinearMotor, Load, LoadSum
 from rig.solvers import AffineRotor, Event, EventRecord, Problem
 from rig.solvers.compiled import JitRhs

@@ -12,7 +12,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 LOBE = 2.0 * math.pi / 3.0      # lobe period, rad (three lobes)
 APEX = math.pi / 3.0            # apex of the lobe, rad
@@ -84,7 +83,9 @@ def lobe_geometry(phi: np.ndarray | float, r0: float, r1: float, r2: float,
 def make_scalar_geometry(r0: float, r1: float, r2: float, limits: PhaseLimits):
     """Fast scalar version of :func:`lobe_geometry`: φ ↦ (k1, k2, dk1/dφ, flank), flank = +1 on the
     rising half-lobe (k1 ≥ 0, including φ = 0 and the apex), −1 on the falling one (the compiled
-    :func:`segment_geometry` on the segment holding φ; the tests check it against :func:`lobe_geometry`)."""
+    :func:`rig.plants.clutch.kernel.segment_geometry` on the segment holding φ; the tests check it against :func:`lobe_geometry`)."""
+    from rig.plants.clutch.kernel import locate_segment, segment_geometry   # kernel imports this module
+
     c1, a2, pm = r1 - r0, limits.a2, limits.phi_maxI
 
     def geom(phi: float) -> tuple[float, float, float, float]:
@@ -92,40 +93,3 @@ def make_scalar_geometry(r0: float, r1: float, r2: float, limits: PhaseLimits):
         return segment_geometry(phi, base, seg, c1, a2, r1, r2, pm)
 
     return geom
-
-
-#: how far (rad) a held segment's formula is continued past its ends before the true segment is used
-HOLD_MARGIN = 0.1
-
-
-@njit(cache=True)
-def locate_segment(phi: float, direction: float, phi_maxI: float) -> tuple[float, int]:
-    """φ, direction ↦ (lobe start angle, segment 0..3) with segments [0, φ_maxI], [φ_maxI, apex],
-    [apex, lobe − φ_maxI], [lobe − φ_maxI, lobe]; on a boundary, ``direction`` > 0 picks the segment
-    ahead, < 0 the one behind, 0 the one starting there (1e-9 rad resolves restarts at located events)."""
-    probe = phi + (1e-9 if direction > 0 else -1e-9 if direction < 0 else 0.0)
-    base = math.floor(probe / LOBE) * LOBE
-    psi = probe - base
-    return base, int(psi >= phi_maxI) + int(psi >= APEX) + int(psi >= LOBE - phi_maxI)
-
-
-@njit(cache=True)
-def segment_geometry(phi: float, base: float, seg: int, c1: float, a2: float, r1: float, r2: float,
-                     phi_maxI: float) -> tuple[float, float, float, float]:
-    """(k1, k2, dk1/dφ, flank) at φ by the formula of segment ``seg`` of the lobe starting at ``base``
-    (c1 = r1 − r0), continued analytically up to HOLD_MARGIN past the segment's ends — so a solver step
-    that overshoots a phase boundary sees a smooth right-hand side until the boundary event restarts it
-    in the next segment; farther out (a trial step) the true segment is used."""
-    psi = phi - base
-    lo = (0.0, phi_maxI, APEX, LOBE - phi_maxI)[seg]
-    hi = (phi_maxI, APEX, LOBE - phi_maxI, LOBE)[seg]
-    if not lo - HOLD_MARGIN <= psi <= hi + HOLD_MARGIN:
-        base, seg = locate_segment(phi, 0.0, phi_maxI)
-        psi = phi - base
-    flank = 1.0
-    if seg >= 2:
-        psi, flank = LOBE - psi, -1.0
-    if seg == 0 or seg == 3:
-        return flank * c1 * math.sin(psi), r1 - c1 * math.cos(psi), c1 * math.cos(psi), flank
-    u = APEX - psi
-    return flank * a2 * math.sin(u), r2 + a2 * math.cos(u), -a2 * math.cos(u), flank

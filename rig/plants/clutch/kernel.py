@@ -7,6 +7,10 @@ constants, friction model, the discrete state (friction mode, held cam segment, 
 line and the loads as a program of codes (:meth:`rig.plants.clutch.loads.Load.program`). The state is
 y = (φr, ωr, φ3, ω3, *load states), rad and rad/s. Physics, symbols and sign conventions: the module
 docstring of :mod:`rig.plants.clutch.dynamics`.
+
+All compiled code of the clutch lives in this one module (numba's disk cache is invalidated by changes
+to a function's own file only, not to the files of the functions it calls); it imports only the
+constants LOBE and APEX.
 """
 from __future__ import annotations
 
@@ -15,8 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from rig.plants.clutch.geometry import locate_segment, segment_geometry
-from rig.plants.clutch.loads import BRAKE, LINEAR, STEPS, ZONE
+from rig.plants.clutch.geometry import APEX, LOBE
 
 # p layout: clutch constants, friction model, discrete state, motor line, self-lock flag, load program
 (N, M, MT, J1, J3, FA1, KA, R0, MUB, MUC, L1, L2, C1, A2, R1, R2, PM, INV_VS, SMOOTH, BLOCKED,
@@ -27,6 +30,44 @@ PERIODIC, CLUTCH_SWITCH, BRAKE_SWITCH = 0, 1, 2
 ROW = 5
 #: offsets in a brake's program from its mode slot (p[BRAKE_AT]): gain, actuator state index
 BRAKE_GAIN, BRAKE_Z = -4, -1
+#: load codes of :meth:`rig.plants.clutch.loads.Load.program` (interpreted by :func:`load_torque`)
+STEPS, ZONE, LINEAR, BRAKE = 1, 2, 3, 4
+
+#: how far (rad) a held segment's formula is continued past its ends before the true segment is used
+HOLD_MARGIN = 0.1
+
+
+@njit(cache=True)
+def locate_segment(phi: float, direction: float, phi_maxI: float) -> tuple[float, int]:
+    """φ, direction ↦ (lobe start angle, segment 0..3) with segments [0, φ_maxI], [φ_maxI, apex],
+    [apex, lobe − φ_maxI], [lobe − φ_maxI, lobe]; on a boundary, ``direction`` > 0 picks the segment
+    ahead, < 0 the one behind, 0 the one starting there (1e-9 rad resolves restarts at located events)."""
+    probe = phi + (1e-9 if direction > 0 else -1e-9 if direction < 0 else 0.0)
+    base = math.floor(probe / LOBE) * LOBE
+    psi = probe - base
+    return base, int(psi >= phi_maxI) + int(psi >= APEX) + int(psi >= LOBE - phi_maxI)
+
+
+@njit(cache=True)
+def segment_geometry(phi: float, base: float, seg: int, c1: float, a2: float, r1: float, r2: float,
+                     phi_maxI: float) -> tuple[float, float, float, float]:
+    """(k1, k2, dk1/dφ, flank) at φ by the formula of segment ``seg`` of the lobe starting at ``base``
+    (c1 = r1 − r0), continued analytically up to HOLD_MARGIN past the segment's ends — so a solver step
+    that overshoots a phase boundary sees a smooth right-hand side until the boundary event restarts it
+    in the next segment; farther out (a trial step) the true segment is used."""
+    psi = phi - base
+    lo = (0.0, phi_maxI, APEX, LOBE - phi_maxI)[seg]
+    hi = (phi_maxI, APEX, LOBE - phi_maxI, LOBE)[seg]
+    if not lo - HOLD_MARGIN <= psi <= hi + HOLD_MARGIN:
+        base, seg = locate_segment(phi, 0.0, phi_maxI)
+        psi = phi - base
+    flank = 1.0
+    if seg >= 2:
+        psi, flank = LOBE - psi, -1.0
+    if seg == 0 or seg == 3:
+        return flank * c1 * math.sin(psi), r1 - c1 * math.cos(psi), c1 * math.cos(psi), flank
+    u = APEX - psi
+    return flank * a2 * math.sin(u), r2 + a2 * math.cos(u), -a2 * math.cos(u), flank
 
 
 def pack(clutch, motor, load_program: list[float], v_s: float, blocked: bool, smooth: bool) -> np.ndarray:

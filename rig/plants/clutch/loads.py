@@ -15,8 +15,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-#: load codes of :meth:`Load.program` (interpreted by :func:`rig.plants.clutch.kernel.load_torque`)
-STEPS, ZONE, LINEAR, BRAKE = 1, 2, 3, 4
+from rig.plants.clutch.kernel import BRAKE, LINEAR, STEPS, ZONE
 
 
 class Load:
