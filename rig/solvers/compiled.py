@@ -1,11 +1,13 @@
-"""Right-hand sides compiled with numba, and the Dormand–Prince step compiled around them.
+"""Right-hand sides compiled with numba, and the Dormand–Prince solver compiled around them.
 
 A problem whose RHS is a :class:`JitRhs` (a numba kernel ``kernel(t, y, p, out)`` on float64 arrays plus
 its live parameter vector) lets :class:`rig.solvers.dopri.DormandPrince45` run each step — all stages,
-the error norm, rejections and the step-size controller — in machine code: the Python driver
-(:func:`rig.solvers.integrate`: events, restarts, sampling) then costs one call per accepted step instead
-of seven RHS calls. The compiled step is the same method (tableau, norm, controller constants of
-:mod:`rig.solvers.dopri`); the tests check it against the pure-Python step.
+the error norm, rejections and the step-size controller — in machine code; with the problem's event
+kernels it runs whole stretches of steps, locates event roots and restarts at simple events in machine
+code too, and the Python driver (:func:`rig.solvers.integrate`) only acts where the problem needs it.
+Same method as the Python step (tableau, norm, controller constants of :mod:`rig.solvers.dopri`); the
+tests check the two against each other. The compiled functions are written once in
+:mod:`rig.solvers.dp45_template` and instantiated per kernel by :func:`dp45_step`.
 """
 from __future__ import annotations
 
