@@ -95,14 +95,23 @@ def _switched_brakes(p: np.ndarray) -> list[int]:
     """Indices of the mode slots of the stick–slip brakes in the load program of p."""
     out, i = [], LOADS + 1
     for _ in range(int(p[LOADS])):
-        code = int(p[i])
-        if code == BRAKE:
-            if not math.isnan(p[i + 5]):
-                out.append(i + 5)
-            i += 8 + 2 * int(p[i + 6])
-        else:
-            i += {STEPS: 3 + 2 * int(p[i + 1]), ZONE: 5, LINEAR: 3}[code]
+        if int(p[i]) == BRAKE and not math.isnan(p[i + 5]):
+            out.append(i + 5)
+        i = _load_end(p, i)
     return out
+
+
+@njit(cache=True)
+def _load_end(p, i):
+    """Index after the load record starting at p[i] (code, parameters, step tables: count, times, values)."""
+    code = int(p[i])
+    if code == STEPS:
+        return i + 3 + 2 * int(p[i + 1])
+    if code == ZONE:
+        return i + 5
+    if code == LINEAR:
+        return i + 3
+    return i + 8 + 2 * int(p[i + 6])                    # BRAKE
 
 
 @njit(cache=True)
@@ -117,12 +126,12 @@ def geometry(phi, p, held):
 
 @njit(cache=True)
 def _steps(p, i, t):
-    """Value at t of the left-continuous step table at p[i] = count, times, values; and the index after it."""
+    """Value at t of the left-continuous step table at p[i] = count, times, values."""
     n = int(p[i])
     k = 0
     while k < n and p[i + 1 + k] < t:
         k += 1
-    return p[i + 1 + n + k], i + 2 + 2 * n
+    return p[i + 1 + n + k]
 
 
 @njit(cache=True)
@@ -133,19 +142,16 @@ def load_torque(t, phi3, w3, y, p):
     for _ in range(int(p[LOADS])):
         code = int(p[i])
         if code == STEPS:
-            v, i = _steps(p, i + 1, t)
-            m += v
+            m += _steps(p, i + 1, t)
         elif code == ZONE:
             if p[i + 2] <= phi3 % p[i + 4] < p[i + 3]:
                 m += p[i + 1]
-            i += 5
         elif code == LINEAR:
             m += p[i + 1] + p[i + 2] * w3
-            i += 3
         else:                                           # BRAKE: gain·F_b·tanh(ω3/ω_s) or gain·F_b·mode
             b = p[i + 5]
             m += p[i + 1] * y[4 + int(p[i + 4])] * (math.tanh(w3 / p[i + 3]) if math.isnan(b) else b)
-            _, i = _steps(p, i + 6, t)
+        i = _load_end(p, i)
     return m
 
 
@@ -154,18 +160,10 @@ def load_rates(t, y, p, out):
     """Rates of the load states into out[4:] (brake actuators τ·dF_b/dt = F_cmd(t) − F_b)."""
     i = LOADS + 1
     for _ in range(int(p[LOADS])):
-        code = int(p[i])
-        if code == STEPS:
-            i += 3 + 2 * int(p[i + 1])
-        elif code == ZONE:
-            i += 5
-        elif code == LINEAR:
-            i += 3
-        else:
+        if int(p[i]) == BRAKE:
             k = 4 + int(p[i + 4])
-            cmd, i_next = _steps(p, i + 6, t)
-            out[k] = (cmd - y[k]) / p[i + 2]
-            i = i_next
+            out[k] = (_steps(p, i + 6, t) - y[k]) / p[i + 2]
+        i = _load_end(p, i)
 
 
 @njit(cache=True)
