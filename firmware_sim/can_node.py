@@ -1,25 +1,26 @@
 """The acquisition unit as a CAN node: frames from ``data/can/rig.dbc`` on any python-can bus.
 
-The node owns a transmit queue and a virtual bus clock. Publishing only queues frames;
-:meth:`CanNode.advance_to` puts on the wire what fits up to a virtual time, frame by frame, each
-taking its exact wire time (:mod:`firmware_sim.can_budget`), lowest identifier first among the
-frames ready when the bus becomes free (CAN arbitration). ``msg.timestamp`` is the virtual time at
-the end of the frame (the receiving bus keeps it if it preserves timestamps, e.g. python-can's
-``virtual`` interface with ``preserve_timestamps=True``).
+The node owns a bounded transmit queue and a virtual bus clock. Publishing only queues frames;
+:meth:`CanNode.advance_to` puts on the wire what fits up to a virtual time, each frame taking its
+worst-case wire time (:mod:`firmware_sim.can_budget`), lowest identifier first among the frames ready
+when the bus falls idle (CAN arbitration, :mod:`firmware_sim.can_arbitration`). Each sent frame is
+stamped with the virtual time at which its last bit left the wire, in whole microseconds, as a CAN
+controller's receive time stamp. On a bus with ``send_block`` (the in-process :class:`rig.blockbus.BlockBus`)
+the frames of one advance travel as one block; any other python-can bus gets them one ``send`` each.
 
-Live data gets at most ``live_share`` of the bus time of each chunk: a chunk is decimated by an
-integer factor to fit, and live frames still queued ``live_max_age`` seconds after their last
-sample are stale and dropped; every dropped pair is counted (:attr:`CanNode.live_dropped`, sent in
-the ``StatusCounters`` frame). Curves (after each measurement) go out in blocks at whatever rate
-the bus leaves them.
+The unit's transmit policy (docs/can-protocol.md, "Transmit queue"): curves first. A curve's transfer
+(header, timing, blocks, end, result, process values, end marker) is never dropped; at most
+``tx_curves`` transfers wait, and a curve beyond that raises :class:`BusOverload` (the configuration
+cannot fit the bus). Live data takes at most ``live_share`` of each chunk's bus time and only the time
+the queued transfer and status frames leave free in that chunk: it is decimated by an integer factor,
+or dropped, to fit; live frames still queued ``live_max_age`` after their last sample are stale and
+dropped. Every pair not sent is counted (``LiveDropped`` in ``StatusCounters``; stale ones also in
+``LiveStale`` of ``TxStatus``).
 """
 from __future__ import annotations
 
 import binascii
-import copy
-import heapq
-import itertools
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -27,7 +28,9 @@ import can
 import cantools
 import numpy as np
 
+from firmware_sim.can_arbitration import DROPPED, PENDING, SENT, arbitrate
 from firmware_sim.can_budget import BusTiming
+from rig.blockbus import BRS, FD, FrameBlock
 
 DBC_PATH = Path(__file__).resolve().parents[1] / "data" / "can" / "rig.dbc"
 
@@ -39,12 +42,18 @@ TICK = 1e-4                      # s per count of the 16-bit Tick signals
 T_START_LSB, DT_LSB, T_OFFSET_LSB = 1e-6, 1e-9, 1e-5   # s per count: curve start, uniform step, offsets
 CURVE_TIME_TOL = 5e-6            # s: a curve is sent as uniformly sampled if that reproduces its times
 NO_FAIL = 127
-COMMANDS = {1: "start", 2: "stop", 3: "select_program", 4: "tare", 5: "reset_statistics", 6: "identify"}
+PV_END = 255                     # ResultValue multiplexer value of the end marker
+COMMANDS = {1: "start", 2: "stop", 3: "select_program", 4: "tare", 5: "reset_statistics", 6: "identify",
+            7: "release"}
 TARE_CHANNELS = {0: "x", 1: "y", 2: "y2", 3: None}
 STATES = {"idle": 0, "measuring": 1, "armed": 2}
 UNKNOWN_STATE = 15
 PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min", "XAtYMax": "x_at_y_max",
                   "YAtXMax": "y_at_x_max", "XEnd": "x_end", "YEnd": "y_end", "Duration": "duration"}
+
+
+class BusOverload(RuntimeError):
+    """More curves wait for the bus than the unit can hold: the configuration cannot fit the bus."""
 
 
 def quantise(values: np.ndarray, lsb: float) -> tuple[np.ndarray, int]:
@@ -89,8 +98,8 @@ class _Packing:
         first = np.array([s.start // 8 for s in signals])
         self.groups = [(int(b), np.flatnonzero(first == b)) for b in np.unique(first)]
 
-    def pack(self, columns: dict[str, np.ndarray], n: int) -> bytes:
-        """Payloads of ``n`` frames, concatenated; signals missing from ``columns`` are 0."""
+    def pack(self, columns: dict[str, np.ndarray], n: int) -> np.ndarray:
+        """Payloads of ``n`` frames as an (n, length) uint8 array; signals missing from ``columns`` are 0."""
         raw = np.zeros((len(self.names), n), dtype=np.int64)
         for i, name in enumerate(self.names):
             if name in columns:
@@ -105,44 +114,65 @@ class _Packing:
         for first, rows in self.groups:
             word = np.bitwise_or.reduce(words[rows], axis=0).astype("<u8")
             payload[:, first:first + 8] |= word.view(np.uint8).reshape(n, 8)
-        return payload[:, :length].tobytes()
+        return payload[:, :length]
 
 
 #: frames of one measurement's transfer: they leave one transmit FIFO in order, at the header's priority,
 #: so a later curve never overtakes an earlier one (live data and status still win arbitration)
 TRANSFER_FRAMES = frozenset({"CurveHeader", "CurveTiming", "CurveTimes", "CurveBlock", "CurveBlockFD", "CurveEnd",
                              "Result", "ResultValue"})
+_COLUMNS = ("ready", "expires", "rank", "frame_id", "duration", "pairs", "transfer_end", "is_fd", "dlc", "data")
 
 
 @dataclass(slots=True)
-class _Pending:
-    key: tuple                       # (priority, enqueue order): CAN arbitration order (see TRANSFER_FRAMES)
-    ready: float                     # virtual time from which the frame may be sent (s)
-    data: bytearray                  # payload; byte 0 (Seq) is filled in at transmission
-    is_fd: bool
-    expires: float | None = None     # live frames: dropped if still queued after this time
-    pairs: int = 0                   # live pairs carried (for the dropped count)
-    curve_end: bool = False
-    frame_id: int = 0
-    rank: int = 0                    # key as one integer (faster heap comparisons): priority << 40 | order
-    duration: float = 0.0            # wire time (s) if known when queued (worst-case stuffing), else 0
+class _Batch:
+    """Frames queued together, as columns (see :data:`_COLUMNS`)."""
+
+    ready: np.ndarray          # s: earliest start on the wire
+    expires: np.ndarray        # s: dropped if not started by then (inf: never)
+    rank: np.ndarray           # priority << 40 | enqueue order: arbitration order
+    frame_id: np.ndarray
+    duration: np.ndarray       # s: worst-case wire time
+    pairs: np.ndarray          # live pairs carried
+    transfer_end: np.ndarray   # last frame of a curve's transfer
+    is_fd: np.ndarray
+    dlc: np.ndarray
+    data: np.ndarray           # (n, width) payloads, Seq byte filled at transmission
 
 
-class _Frame(can.Message):
-    """A sent frame. python-can's ``virtual`` bus deep-copies every frame for each receiver; this copy
-    builds the plain :class:`can.Message` directly instead of going through :mod:`copy`'s generic
-    machinery for the payload (the same frame arrives, at a third of the cost)."""
+class _TxQueue:
+    """The node's transmit queue: batches appended, merged at transmission, unsent frames kept."""
 
-    __slots__ = ()
+    def __init__(self, width: int) -> None:
+        self.width = width
+        self._batches: list[_Batch] = []
+        self.frames = 0
+        self.transfer_time = 0.0       # s: wire time of queued frames that never go stale (all but live)
+        self.transfers = 0             # curve transfers queued and not finished
 
-    def __deepcopy__(self, memo: dict | None) -> can.Message:
-        return can.Message(timestamp=self.timestamp, arbitration_id=self.arbitration_id,
-                           is_extended_id=self.is_extended_id, is_remote_frame=self.is_remote_frame,
-                           is_error_frame=self.is_error_frame,
-                           channel=self.channel if isinstance(self.channel, (str, int, type(None)))
-                           else copy.deepcopy(self.channel, memo),
-                           dlc=self.dlc, data=bytearray(self.data), is_fd=self.is_fd, is_rx=self.is_rx,
-                           bitrate_switch=self.bitrate_switch, error_state_indicator=self.error_state_indicator)
+    def add(self, batch: _Batch) -> None:
+        self._batches.append(batch)
+        self.frames += batch.ready.size
+        self.transfer_time += float(batch.duration[np.isinf(batch.expires)].sum())
+        self.transfers += int(batch.transfer_end.sum())
+
+    def merged(self) -> _Batch | None:
+        """All queued frames as one batch (None when empty)."""
+        if not self._batches:
+            return None
+        if len(self._batches) > 1:
+            self._batches = [_Batch(*(np.concatenate([getattr(b, c) for b in self._batches]) for c in _COLUMNS))]
+        return self._batches[0]
+
+    def remove(self, batch: _Batch, gone: np.ndarray) -> None:
+        """Take the frames ``gone`` (a mask of the merged batch: sent or dropped) out of the queue."""
+        self.frames -= int(gone.sum())
+        self.transfer_time -= float(batch.duration[gone & np.isinf(batch.expires)].sum())
+        self.transfers -= int(batch.transfer_end[gone].sum())
+        keep = ~gone
+        self._batches = [_Batch(*(getattr(batch, c)[keep] for c in _COLUMNS))] if keep.any() else []
+        if not self._batches:
+            self.transfer_time = 0.0
 
 
 class CanNode:
@@ -151,111 +181,126 @@ class CanNode:
     ``device`` provides ``select_program, start, stop, tare, reset_statistics, identify, status,
     last_result`` (see ``firmware_sim.digiforce``). ``bitrate`` (bit/s) is the nominal bitrate;
     ``fd=True`` sends live data and curve blocks in 64-byte CAN FD frames, with the data phase at
-    ``data_bitrate`` (bit/s, bitrate switch) if given.
+    ``data_bitrate`` (bit/s, bitrate switch) if given. ``tx_curves``: curve transfers the unit holds
+    for sending (a further one raises :class:`BusOverload`).
     """
 
     def __init__(self, bus: can.BusABC, device: Any, bitrate: float = 500_000, fd: bool = False,
-                 data_bitrate: float | None = None, *, stuffing: str = "worst", live_share: float = 0.5,
-                 live_max_age: float = 0.05, heartbeat_period: float = 0.1, t0: float = 0.0,
+                 data_bitrate: float | None = None, *, live_share: float = 0.5, live_max_age: float = 0.05,
+                 heartbeat_period: float = 0.1, tx_curves: int = 4, t0: float = 0.0,
                  dbc_path: str | Path = DBC_PATH) -> None:
         if not 0.0 < live_share <= 1.0:
             raise ValueError(f"live_share must be in (0, 1], got {live_share}")
         if not heartbeat_period > 0 or not live_max_age > 0:
             raise ValueError("heartbeat_period and live_max_age must be positive (s)")
+        if int(tx_curves) < 1:
+            raise ValueError(f"tx_curves must be >= 1, got {tx_curves}")
         self.bus, self.device = bus, device
-        self.timing = BusTiming(float(bitrate), fd, None if data_bitrate is None else float(data_bitrate), stuffing)
-        self._plan = replace(self.timing, stuffing="worst")
+        self.timing = BusTiming(float(bitrate), fd, None if data_bitrate is None else float(data_bitrate))
         self.db = cantools.database.load_file(str(dbc_path))
         self._msg = {m.name: m for m in self.db.messages}
         for m in self.db.messages:
             if "DEVICE" in m.senders and not any(s.name == "Seq" and s.start == 0 and s.length == 8 for s in m.signals):
                 raise ValueError(f"{dbc_path}: device frame {m.name} must start with the 8-bit Seq counter")
         self.live_share, self.live_max_age, self.heartbeat_period = live_share, live_max_age, heartbeat_period
+        self.tx_curves = int(tx_curves)
         self.now = float(t0)             # device time of the last advance_to (s)
         self.bus_free = float(t0)        # virtual time at which the bus is next idle (s)
         self._next_heartbeat = float(t0)
-        self._queue: list[tuple[int, _Pending]] = []   # ready frames as (rank, frame), in arbitration order
-        self._waiting: list[tuple[float, int, _Pending]] = []   # not yet ready, by ready time
-        self._order = itertools.count()
+        self._queue = _TxQueue(64 if fd else 8)
+        self._order = 0                  # enqueue counter (low bits of the arbitration rank)
         self._seq: dict[int, int] = {}
         self._packing: dict[str, _Packing] = {}
-        self._wire_time: dict[tuple[int, int, bool], float] = {}   # worst-case stuffing: per (id, length, fd)
-        self._curve_ends = 0             # queued Result frames (curves whose transfer has not finished)
         self._published_result: Any = None
-        self.live_dropped = 0            # live pairs not sent (decimated or stale)
+        self._send_block = getattr(bus, "send_block", None)
+        self.live_dropped = 0            # live pairs not sent (decimated, throttled or stale)
+        self.live_stale = 0              # of which: dropped because stale
+        self.live_factor = 1             # decimation of the last live chunk (0: none sent)
         self.live_sent = 0
         self.clipped = 0                 # values saturated to the signal range
         self.frames_sent = 0
         self.busy_time = 0.0             # total wire time of sent frames (s)
         self.rx_errors: list[str] = []   # malformed or unexpected frames received
         self.curves_measured = 0
+        self.released = False            # the host said it is done (HostCommand Release)
 
     # ------------------------------------------------------------------ queueing
-    def _enqueue(self, name: str, signals: dict[str, Any], ready: float, **extra: Any) -> None:
+    def _priority(self, name: str) -> int:
+        return self._msg["CurveHeader" if name in TRANSFER_FRAMES else name].frame_id
+
+    def _add(self, name: str, payload: np.ndarray, ready: np.ndarray, expires: np.ndarray | None = None,
+             pairs: np.ndarray | int = 0, transfer_end: np.ndarray | bool = False) -> None:
+        """Queue the frames of DBC message ``name`` whose payloads are the rows of ``payload``."""
         msg = self._msg[name]
-        if "Seq" in (s.name for s in msg.signals):
-            signals = {"Seq": 0, **signals}
-        data = bytearray(msg.encode(signals, scaling=False, padding=False, strict=False))  # ranges: see quantise()
-        priority = self._msg["CurveHeader"].frame_id if name in TRANSFER_FRAMES else msg.frame_id
-        order = next(self._order)
-        item = _Pending((priority, order), float(ready), data, msg.is_fd, frame_id=msg.frame_id,
-                        rank=priority << 40 | order, duration=self._planned_duration(msg.frame_id, len(data), msg.is_fd),
-                        **extra)
-        self._curve_ends += item.curve_end
-        heapq.heappush(self._waiting, (item.ready, item.key[1], item))
+        n = payload.shape[0]
+        data = np.zeros((n, self._queue.width), np.uint8)
+        data[:, :payload.shape[1]] = payload
+        rank = (self._priority(name) << 40) | (self._order + np.arange(n, dtype=np.int64))
+        self._order += n
+        full = lambda v, dtype: np.broadcast_to(np.asarray(v, dtype), (n,)).copy()  # noqa: E731
+        self._queue.add(_Batch(np.asarray(ready, float).reshape(n), full(np.inf if expires is None else expires, float),
+                               rank, full(msg.frame_id, np.int64),
+                               full(self.timing.frame_time(msg.frame_id, bytes(msg.length), msg.is_fd), float),
+                               full(pairs, np.int64), full(transfer_end, bool), full(msg.is_fd, bool),
+                               full(msg.length, np.int16), data))
+
+    def _enqueue(self, name: str, signals: dict[str, Any], ready: float, transfer_end: bool = False) -> None:
+        """Queue one frame encoded by cantools (Seq is filled in at transmission)."""
+        msg = self._msg[name]
+        data = msg.encode({"Seq": 0, **signals}, scaling=False, padding=False, strict=False)  # ranges: see quantise()
+        self._add(name, np.frombuffer(data, np.uint8).reshape(1, -1), np.array([ready]), transfer_end=transfer_end)
 
     def _enqueue_rows(self, name: str, columns: dict[str, np.ndarray], ready: np.ndarray,
                       expires: np.ndarray | None = None, pairs: int | np.ndarray = 0) -> None:
         """Queue one frame per row of ``columns`` (raw integer signal values; missing ones are 0), packed
         with numpy (:class:`_Packing`); ``pairs``: live pairs carried, per frame or for all."""
-        msg = self._msg[name]
         packing = self._packing.get(name)
         if packing is None:
-            packing = self._packing[name] = _Packing(msg)
-        n, length = len(ready), msg.length
-        data = packing.pack(columns, n)
-        priority = self._msg["CurveHeader"].frame_id if name in TRANSFER_FRAMES else msg.frame_id
-        fid, fd, waiting, push = msg.frame_id, msg.is_fd, self._waiting, heapq.heappush
-        duration = self._planned_duration(fid, length, fd)
-        for i, at, until, carried, order in zip(
-                range(0, length * n, length), np.asarray(ready, dtype=float).tolist(),
-                itertools.repeat(None) if expires is None else np.asarray(expires, dtype=float).tolist(),
-                np.broadcast_to(np.asarray(pairs, dtype=np.int64), (n,)).tolist(), self._order):
-            push(waiting, (at, order, _Pending((priority, order), at, bytearray(data[i:i + length]), fd, until,
-                                               carried, False, fid, priority << 40 | order, duration)))
+            packing = self._packing[name] = _Packing(self._msg[name])
+        ready = np.asarray(ready, float)
+        self._add(name, packing.pack(columns, ready.size), ready, expires, pairs)
 
     def frame_time_planned(self, name: str) -> float:
         """Worst-case wire time (s) of one frame of DBC message ``name`` on this bus."""
         msg = self._msg[name]
-        return self._plan.frame_time(msg.frame_id, bytes(msg.length), msg.is_fd)
+        return self.timing.frame_time(msg.frame_id, bytes(msg.length), msg.is_fd)
 
     @property
     def pending_frames(self) -> int:
         """Frames queued and not yet on the wire."""
-        return len(self._queue) + len(self._waiting)
+        return self._queue.frames
+
+    @property
+    def backlog_time(self) -> float:
+        """Wire time (s) of the queued frames that wait until sent (transfers and status; not live)."""
+        return max(self._queue.transfer_time, 0.0)
 
     def has_pending_before(self, t: float) -> bool:
         """Whether any frame queued for sending at or before time ``t`` (s) is not yet on the wire."""
-        return any(item.ready <= t for _, item in self._queue) or bool(self._waiting and self._waiting[0][0] <= t)
+        batch = self._queue.merged()
+        return batch is not None and bool(np.any(batch.ready <= t))
 
     @property
     def curves_pending(self) -> int:
         """Curves whose transfer has not finished."""
-        return self._curve_ends
+        return self._queue.transfers
 
     def counters(self) -> dict[str, float]:
         """What the node did: live pairs sent/dropped, clipped values, frames, bus load so far."""
-        return {"live_sent": self.live_sent, "live_dropped": self.live_dropped, "clipped": self.clipped,
-                "frames_sent": self.frames_sent, "busy_time": self.busy_time,
+        return {"live_sent": self.live_sent, "live_dropped": self.live_dropped, "live_stale": self.live_stale,
+                "clipped": self.clipped, "frames_sent": self.frames_sent, "busy_time": self.busy_time,
                 "bus_load": self.busy_time / self.now if self.now > 0 else 0.0,
-                "pending_frames": self.pending_frames, "rx_errors": len(self.rx_errors)}
+                "pending_frames": self.pending_frames, "backlog_time": self.backlog_time,
+                "rx_errors": len(self.rx_errors)}
 
     # ------------------------------------------------------------------ publishing
     def publish_live(self, t: np.ndarray, x: np.ndarray, y: np.ndarray) -> int:
         """Queue live pairs sampled at uniformly spaced times ``t`` (s); X in m, Y in N.
 
-        The chunk is decimated by the smallest integer factor that fits ``live_share`` of the bus
-        time of the chunk; returns that factor. Pairs not sent are added to :attr:`live_dropped`.
+        The chunk gets at most ``live_share`` of its bus time, and no more than the queued transfer and
+        status frames leave free in it (curves first). It is decimated by the smallest integer factor that
+        fits; returns that factor (0: nothing fits, the chunk is dropped). Pairs not sent are counted in
+        :attr:`live_dropped`.
         """
         t, x, y = (np.asarray(a, dtype=float) for a in (t, x, y))
         if t.ndim != 1 or t.size < 2 or x.shape != t.shape or y.shape != t.shape:
@@ -264,11 +309,14 @@ class CanNode:
         if not dt > 0 or not np.allclose(np.diff(t), dt, rtol=1e-6, atol=1e-12):
             raise ValueError("publish_live needs strictly increasing, uniformly spaced sample times")
         name, per_frame = ("LiveXYFD", FD_PAIRS) if self.timing.fd else ("LiveXY", 1)
-        fits = int(self.live_share * t.size * dt / self.frame_time_planned(name)) * per_frame
+        free = max(0.0, t[-1] - max(self.bus_free, t[0] - dt) - self.backlog_time)
+        budget = min(self.live_share * t.size * dt, free)
+        fits = int(budget / self.frame_time_planned(name) + 1e-9) * per_frame
         if fits == 0:
             self.live_dropped += t.size
-            return t.size
-        factor = -(-t.size // fits)
+            self.live_factor = 0
+            return 0
+        factor = self.live_factor = -(-t.size // fits)
         keep = slice(None, None, factor)
         tk, (rx, cx), (ry, cy) = t[keep], quantise(x[keep], X_LSB), quantise(y[keep], Y_LSB)
         self.clipped += cx + cy
@@ -285,27 +333,32 @@ class CanNode:
         return factor
 
     def publish_measurement(self, t: float, result: Any) -> None:
-        """Queue curve (header, blocks, end) and result frames of one measurement at time ``t`` (s).
+        """Queue the transfer of one measurement at time ``t`` (s): curve header, timing, blocks, end,
+        result, its process values and the end marker (``ResultValue`` Pv 255: which values were sent).
 
-        :meth:`advance_to` calls this for a new ``device.last_result`` not yet published this way."""
+        :meth:`advance_to` calls this for a new ``device.last_result`` not yet published this way. Raises
+        :class:`BusOverload` (after queueing: nothing is lost) when more than ``tx_curves`` transfers wait.
+        """
         ct, cx, cy = (np.asarray(a, dtype=float) for a in (result.curve.t, result.curve.x, result.curve.y))
         if cx.shape != cy.shape or ct.shape != cx.shape or cx.ndim != 1 or not 0 < cx.size < 65536:
             raise ValueError(f"curve of result {result.number}: t, x, y must be 1-D, equal length, 1..65535 pairs")
+        if not self.timing.fd and cx.size > 4096:
+            raise ValueError(f"curve of result {result.number} has {cx.size} pairs; classic CAN blocks index at most 4096")
         number = int(result.number) % 65536
         (rx, kx), (ry, ky) = quantise(cx, X_LSB), quantise(cy, Y_LSB)
         self.clipped += kx + ky
         self.curves_measured += 1
         self._published_result = result
-        self._enqueue("CurveHeader", {"CurveNo": number, "Count": cx.size, "Program": int(result.program) % 256}, t)
-        self._enqueue_curve_times(number, ct, t)
+        start = int(round(ct[0] / T_START_LSB))
+        self._enqueue("CurveHeader", {"CurveNo": number, "Count": cx.size, "Program": int(result.program) % 256,
+                                      "TStartHigh": (start >> 24) & 0xFFFF}, t)
+        self._enqueue_curve_times(number, ct, start, t)
         if self.timing.fd:
             blocks = -(-cx.size // FD_PAIRS)
             self._enqueue_rows("CurveBlockFD", {"CurveNo": np.full(blocks, number % 256), "Block": np.arange(blocks),
                                                 "NPairs": np.minimum(cx.size - FD_PAIRS * np.arange(blocks), FD_PAIRS),
                                                 **_fd_pairs(rx, ry)}, np.full(blocks, float(t)))
         else:
-            if cx.size > 4096:
-                raise ValueError(f"curve of result {result.number} has {cx.size} pairs; classic CAN blocks index at most 4096")
             self._enqueue_rows("CurveBlock", {"CurveNo": np.full(cx.size, number % 16), "Block": np.arange(cx.size),
                                               "X": rx, "Y": ry}, np.full(cx.size, float(t)))
         self._enqueue("CurveEnd", {"CurveNo": number, "Count": cx.size, "Crc": curve_crc(rx, ry),
@@ -313,15 +366,24 @@ class CanNode:
         failed = [i for i, e in enumerate(result.elements) if not e.ok]
         self._enqueue("Result", {"CurveNo": number, "Ok": int(bool(result.ok)),
                                  "FirstFail": failed[0] if failed and failed[0] < NO_FAIL else NO_FAIL,
-                                 "FailMask": sum(1 << i for i in failed if i < 32)}, t, curve_end=True)
+                                 "FailMask": sum(1 << i for i in failed if i < 32)}, t)
+        mask = 0
         for pv, (signal, key) in enumerate(PROCESS_VALUES.items()):
             if key in result.process_values:
                 self._enqueue("ResultValue", {"CurveNo": number % 256, "Pv": pv,
                                               signal: float(result.process_values[key])}, t)
+                mask |= 1 << pv
+        self._enqueue("ResultValue", {"CurveNo": number % 256, "Pv": PV_END, "PvMask": mask,
+                                      "PvCount": bin(mask).count("1")}, t, transfer_end=True)
+        if self.curves_pending > self.tx_curves:
+            kind = f"CAN FD {self.timing.bitrate:g}/{self.timing.fast_bitrate:g}" if self.timing.fd else \
+                f"classic CAN {self.timing.bitrate:g}"
+            raise BusOverload(f"the {kind} bit/s bus cannot carry the curves: {self.curves_pending} curve transfers "
+                              f"wait at {t:.3f} s (the unit holds {self.tx_curves}), {self.backlog_time:.2f} s of frames "
+                              "queued. Raise [links.can] bitrate, use CAN FD, lower the sample rate or sample by ΔX.")
 
-    def _enqueue_curve_times(self, number: int, ct: np.ndarray, t: float) -> None:
-        """CurveTiming (start and uniform step), plus CurveTimes offsets if the sampling is not uniform."""
-        start = int(round(ct[0] / T_START_LSB))
+    def _enqueue_curve_times(self, number: int, ct: np.ndarray, start: int, t: float) -> None:
+        """CurveTiming (start in µs and uniform step), plus CurveTimes offsets if the sampling is not uniform."""
         step = int(round((ct[-1] - ct[0]) / max(ct.size - 1, 1) / DT_LSB))
         grid = start * T_START_LSB + np.arange(ct.size) * step * DT_LSB
         uniform = ct.size > 1 and 0 < step < (1 << 24) and np.max(np.abs(ct - grid)) <= CURVE_TIME_TOL
@@ -332,34 +394,43 @@ class CanNode:
         raw = np.rint((ct - start * T_START_LSB) / T_OFFSET_LSB)
         self.clipped += int(np.count_nonzero((raw < 0) | (raw >= 1 << 20)))
         raw = np.clip(raw, 0, (1 << 20) - 1).astype(np.int64)
-        for b, i in enumerate(range(0, ct.size, 2)):
-            self._enqueue("CurveTimes", {"CurveNo": number % 16, "Block": b, "T0": int(raw[i]),
-                                         "T1": int(raw[i + 1]) if i + 1 < ct.size else 0}, t)
+        pairs = np.append(raw, 0)[:2 * (-(-ct.size // 2))].reshape(-1, 2)
+        self._enqueue_rows("CurveTimes", {"CurveNo": np.full(len(pairs), number % 16), "Block": np.arange(len(pairs)),
+                                          "T0": pairs[:, 0], "T1": pairs[:, 1]}, np.full(len(pairs), float(t)))
 
-    def publish_encoders(self, t: float, counts: Sequence[int], edge_times: Sequence[float]) -> None:
-        """Queue the latched counts and last edge times (s, device time) of encoders 1 and 2."""
-        if len(counts) != 2 or len(edge_times) != 2:
-            raise ValueError(f"publish_encoders needs 2 counts and 2 edge times, got {len(counts)} and {len(edge_times)}")
-        for i, (count, edge) in enumerate(zip(counts, edge_times)):
-            self._enqueue(f"Encoder{i + 1}", {"Count": int(count), "EdgeTime": int(round(edge / 1e-6)) % (1 << 24)}, t)
+    def publish_encoders(self, t: float | np.ndarray, counts: Sequence, edge_times: Sequence) -> None:
+        """Queue latched counts and last edge times (s, device time) of encoders 1 and 2 at times ``t`` (s):
+        ``counts`` and ``edge_times`` have 2 rows (encoder 1, 2), one column per reading (or 2 values)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        counts, edges = np.asarray(counts, np.int64), np.asarray(edge_times, float)
+        if counts.shape[0] != 2 or edges.shape[0] != 2:
+            raise ValueError(f"publish_encoders needs 2 counts and 2 edge times, got {len(counts)} and {len(edges)}")
+        counts, edges = counts.reshape(2, t.size), edges.reshape(2, t.size)
+        for i in range(2):
+            self._enqueue_rows(f"Encoder{i + 1}", {"Count": counts[i],
+                                                   "EdgeTime": np.rint(edges[i] / 1e-6).astype(np.int64) % (1 << 24)}, t)
 
-    def publish_torque(self, t: float, torque: float, brake_force: float) -> None:
-        """Queue one torque (N·m) and brake force (N) reading taken at time ``t`` (s)."""
-        (rt,), kt = quantise(np.array([torque]), self._msg["Torque"].get_signal_by_name("Torque").scale)
-        (rb,), kb = quantise(np.array([brake_force]), Y_LSB)
+    def publish_torque(self, t: float | np.ndarray, torque: float | np.ndarray, brake_force: float | np.ndarray) -> None:
+        """Queue torque (N·m) and brake force (N) readings taken at times ``t`` (s)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        (rt, kt), (rb, kb) = (quantise(np.broadcast_to(v, t.shape), lsb) for v, lsb in (
+            (torque, self._msg["Torque"].get_signal_by_name("Torque").scale), (brake_force, Y_LSB)))
         self.clipped += kt + kb
-        self._enqueue("Torque", {"Tick": int(round(t / TICK)) % 65536, "Torque": int(rt), "BrakeForce": int(rb)}, t)
+        self._enqueue_rows("Torque", {"Tick": np.rint(t / TICK).astype(np.int64) % 65536, "Torque": rt,
+                                      "BrakeForce": rb}, t)
 
-    def publish_static(self, t: float, angle: float, strain: float) -> None:
-        """Queue one static-rig reading taken at time ``t`` (s): angle (rad) and leaf strain (m/m)."""
+    def publish_static(self, t: float | np.ndarray, angle: float | np.ndarray, strain: float | np.ndarray) -> None:
+        """Queue static-rig readings taken at times ``t`` (s): angle (rad) and leaf strain (m/m)."""
         msg = self._msg["StaticRig"]
-        (ra,), ka = quantise(np.array([angle]), msg.get_signal_by_name("Angle").scale)
-        (rs,), ks = quantise(np.array([strain]), msg.get_signal_by_name("Strain").scale)
+        t = np.atleast_1d(np.asarray(t, float))
+        (ra, ka), (rs, ks) = (quantise(np.broadcast_to(v, t.shape), msg.get_signal_by_name(name).scale)
+                              for v, name in ((angle, "Angle"), (strain, "Strain")))
         self.clipped += ka + ks
-        self._enqueue("StaticRig", {"Tick": int(round(t / TICK)) % 65536, "Angle": int(ra), "Strain": int(rs)}, t)
+        self._enqueue_rows("StaticRig", {"Tick": np.rint(t / TICK).astype(np.int64) % 65536, "Angle": ra,
+                                         "Strain": rs}, t)
 
     def publish_status(self, t: float) -> None:
-        """Queue a heartbeat and the status counters, with the device state at time ``t`` (s)."""
+        """Queue a heartbeat, the status counters and the transmit-queue status at time ``t`` (s)."""
         status = self.device.status()
         last = getattr(self.device, "last_result", None)
         self._enqueue("Heartbeat", {
@@ -371,6 +442,8 @@ class CanNode:
         self._enqueue("StatusCounters", {"LiveDropped": self.live_dropped % (1 << 32),
                                          "CurveCount": self.curves_measured % 65536,
                                          "CurvesPending": min(self.curves_pending, 255)}, t)
+        self._enqueue("TxStatus", {"Backlog": min(int(round(self.backlog_time * 1000)), 65535),
+                                   "LiveFactor": min(self.live_factor, 255), "LiveStale": self.live_stale % (1 << 32)}, t)
 
     # ------------------------------------------------------------------ host commands
     def handle_commands(self) -> int:
@@ -402,6 +475,8 @@ class CanNode:
                 self.device.select_program(arg)
             elif name == "tare":
                 self.device.tare(TARE_CHANNELS[arg])
+            elif name == "release":
+                self.released = True
             else:
                 getattr(self.device, name)()
         except (ValueError, KeyError, RuntimeError) as exc:
@@ -425,58 +500,38 @@ class CanNode:
             self._next_heartbeat += self.heartbeat_period
         return self._transmit(t)
 
-    def _planned_duration(self, frame_id: int, length: int, is_fd: bool) -> float:
-        """Wire time (s) of a frame known before its payload is final: with worst-case stuffing it depends on
-        id, length and format only; 0 with exact stuffing (counted from the bits at transmission)."""
-        if self.timing.stuffing != "worst":
-            return 0.0
-        key = (frame_id, length, is_fd)
-        if key not in self._wire_time:
-            self._wire_time[key] = self.timing.frame_time(frame_id, bytes(length), is_fd)
-        return self._wire_time[key]
-
     def _transmit(self, t: float) -> int:
         """Send the queued frames that are complete on the wire by ``t`` (s), in arbitration order."""
-        queue, waiting, seqs, send, frame_time = self._queue, self._waiting, self._seq, self.bus.send, self.timing.frame_time
-        brs = self.timing.data_bitrate is not None
-        pop, push = heapq.heappop, heapq.heappush
-        bus_free, busy, sent, live_sent, curve_ends, dropped = self.bus_free, 0.0, 0, 0, 0, 0
-        try:
-            while True:
-                while waiting and waiting[0][0] <= bus_free:
-                    item = pop(waiting)[2]
-                    push(queue, (item.rank, item))
-                if not queue:
-                    if not waiting or waiting[0][0] >= t:
-                        bus_free = max(bus_free, t)
-                        return sent
-                    bus_free = waiting[0][0]
-                    continue
-                item = queue[0][1]
-                if item.expires is not None and bus_free > item.expires:
-                    pop(queue)
-                    dropped += item.pairs
-                    continue
-                fid = item.frame_id
-                seq = seqs.get(fid, 0)
-                item.data[0] = seq
-                duration = item.duration or frame_time(fid, bytes(item.data), item.is_fd)
-                end = bus_free + duration
-                if end > t:
-                    return sent
-                pop(queue)
-                seqs[fid] = (seq + 1) % 256
-                send(_Frame(timestamp=end, arbitration_id=fid, is_extended_id=False, data=item.data, is_fd=item.is_fd,
-                            bitrate_switch=item.is_fd and brs))
-                bus_free = end
-                busy += duration
-                sent += 1
-                live_sent += item.pairs
-                curve_ends += item.curve_end
-        finally:
-            self.bus_free = bus_free
-            self.busy_time += busy
-            self.frames_sent += sent
-            self.live_sent += live_sent
-            self.live_dropped += dropped
-            self._curve_ends -= curve_ends
+        q = self._queue.merged()
+        if q is None:
+            self.bus_free = max(self.bus_free, t)
+            return 0
+        state, ends, order, self.bus_free = arbitrate(q.ready, q.rank, q.duration, q.expires,
+                                                      np.argsort(q.ready, kind="stable"), self.bus_free, float(t))
+        sent, dropped = state == SENT, state == DROPPED
+        self.live_stale += int(q.pairs[dropped].sum())
+        self.live_dropped += int(q.pairs[dropped].sum())
+        self.live_sent += int(q.pairs[sent].sum())
+        self.busy_time += float(q.duration[sent].sum())
+        self.frames_sent += order.size
+        if order.size:
+            self._send(q, order, ends[order])
+        self._queue.remove(q, state != PENDING)
+        return int(order.size)
+
+    def _send(self, q: _Batch, order: np.ndarray, ends: np.ndarray) -> None:
+        """Fill in the Seq counters of the frames ``order`` (wire order) and put them on the bus."""
+        data, fid = q.data[order], q.frame_id[order]
+        for f in np.unique(fid).tolist():
+            rows = np.flatnonzero(fid == f)
+            first = self._seq.get(f, 0)
+            data[rows, 0] = (first + np.arange(rows.size)) % 256
+            self._seq[f] = (first + rows.size) % 256
+        fd = q.is_fd[order]
+        flags = np.where(fd, FD | (BRS if self.timing.data_bitrate is not None else 0), 0).astype(np.uint8)
+        block = FrameBlock(np.rint(ends * 1e6) / 1e6, fid.astype(np.uint32), q.dlc[order], data, flags)
+        if self._send_block is not None:
+            self._send_block(block)
+        else:
+            for msg in block.messages():
+                self.bus.send(msg)

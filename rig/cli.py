@@ -85,7 +85,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
             Path(args.endpoints).write_text(json.dumps(endpoints))
 
     machine = serve_scene(args.scene, mode="realtime" if args.realtime else None, port=args.port, wait=args.wait,
-                          linger=args.linger, announce=announce, progress=not args.quiet)
+                          cycles=args.cycles, release_timeout=args.release_timeout, announce=announce,
+                          progress=not args.quiet)
     print(f"served {machine.curves} curves, {machine.t:.2f} s simulated", file=sys.stderr)
     return 0
 
@@ -156,7 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=int, help="socketcand TCP port (default: the scene's, 0 = any)")
     serve.add_argument("--realtime", action="store_true")
     serve.add_argument("--wait", type=float, default=300.0, help="seconds to wait for a host to arm the device")
-    serve.add_argument("--linger", type=float, default=30.0, help="seconds to keep serving after the run")
+    serve.add_argument("--cycles", type=int, help="override the scene's number of cycles")
+    serve.add_argument("--release-timeout", type=float, default=300.0,
+                       help="seconds to wait after the run for the host to release the device (CAN Release)")
     serve.add_argument("--endpoints", help="also write the endpoints JSON to this file")
     serve.set_defaults(func=cmd_serve)
     rec = sub.add_parser("record", help="the host: connect to `rig serve` and record the run")

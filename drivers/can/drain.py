@@ -1,8 +1,10 @@
-"""Taking every frame waiting on a python-can bus in one go."""
+"""Taking every frame waiting on a python-can bus in one go, as a :class:`rig.blockbus.FrameBlock`."""
 from __future__ import annotations
 
 import can
 from can.interfaces.virtual import VirtualBus
+
+from rig.blockbus import FrameBlock, frames_of
 
 
 def drain(bus: can.BusABC, timeout: float = 0.0, limit: int | None = None) -> list[can.Message]:
@@ -31,3 +33,12 @@ def drain(bus: can.BusABC, timeout: float = 0.0, limit: int | None = None) -> li
             break
         frames.append(msg)
     return frames
+
+
+def drain_block(bus: can.BusABC, timeout: float = 0.0) -> FrameBlock:
+    """Every frame waiting on ``bus`` as one block (waits up to ``timeout`` s for the first): whole blocks
+    from a bus that delivers them (``recv_blocks``), else :func:`drain`'s frames packed into a block."""
+    recv_blocks = getattr(bus, "recv_blocks", None)
+    if recv_blocks is not None:
+        return frames_of(recv_blocks(timeout))
+    return frames_of(drain(bus, timeout))

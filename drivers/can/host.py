@@ -1,8 +1,14 @@
 """Host side of the CAN link: receive from any python-can bus, decode with the DBC, check, reassemble.
 
 Frames are decoded from the DBC's bit layout (:mod:`drivers.can.layout`; cantools for multiplexed or
-float frames). :meth:`CanHost.receive_many` takes a batch of frames and decodes runs of live and
-curve-block frames together, with the same outcome as :meth:`CanHost.receive` frame by frame.
+float frames). :meth:`CanHost.receive_block` takes a block of frames (:class:`rig.blockbus.FrameBlock`)
+and decodes runs of live and curve-block frames together, with the same outcome as
+:meth:`CanHost.receive` frame by frame (which stays scalar, for per-frame callers).
+
+A result is complete when its end marker (``ResultValue`` Pv 255) has arrived with every process value
+it announces. A result whose end marker is missing when the next result or curve header arrives, or
+``result_timeout`` seconds of bus time after its ``Result`` frame, or at :meth:`CanHost.flush`, is
+released marked incomplete with the names of the missing values (and a ``result`` event).
 
 Every irregularity (unknown id, wrong length, undecodable payload, error frame, sequence gap,
 incomplete or corrupt curve) becomes a :class:`LinkEvent` in :attr:`CanHost.events`; nothing
@@ -10,22 +16,25 @@ received before it is lost and reception continues.
 """
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import can
 import cantools
 import numpy as np
 
-from drivers.can.drain import drain
+from drivers.can.drain import drain_block
 from drivers.can.layout import FrameLayout, supports
 from drivers.can.reassembly import Curve, CurveAssembler
 from drivers.can.sequence import SequenceChecker
 from drivers.can.timebase import unwrap
+from rig.blockbus import ERROR, FrameBlock
 
 DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
-COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statistics": 5, "identify": 6}
+COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statistics": 5, "identify": 6,
+            "release": 7}
 TARE_CHANNELS = {"x": 0, "y": 1, "y2": 2, None: 3}
 STATES = {0: "idle", 1: "measuring", 2: "armed", 15: "unknown"}
 ACK = {0: "done", 1: "rejected", 2: "unknown_command"}
@@ -33,6 +42,17 @@ PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_
                   "YAtXMax": "y_at_x_max", "XEnd": "x_end", "YEnd": "y_end", "Duration": "duration"}
 TICK_WRAP = 6.5536          # s, 16-bit Tick at 100 us
 EDGE_WRAP = 16.777216       # s, 24-bit EdgeTime and TStart at 1 us
+START_WRAP = 2.0 ** 40 * 1e-6   # s, 40-bit curve start (TStartHigh:TStart) at 1 us: 12.7 days
+PV_END = 255                # ResultValue multiplexer value of the end marker
+
+
+class _Rx(NamedTuple):
+    """One received frame, as the handlers need it."""
+
+    timestamp: float
+    arbitration_id: int
+    data: bytes
+    is_error_frame: bool
 
 
 @dataclass(frozen=True)
@@ -49,20 +69,26 @@ class LinkEvent:
 
 @dataclass
 class CurveResult:
-    """Evaluation result of one curve: OK/NOK, failing elements and process values (SI)."""
+    """Evaluation result of one curve: OK/NOK, failing elements and process values (SI). ``complete``:
+    the end marker arrived with every value it announces; ``missing``: names of values that did not
+    arrive (the announced ones, or all of them when the end marker itself is missing)."""
 
     number: int
     ok: bool
     first_fail: int | None
     fail_mask: int
     process_values: dict[str, float] = field(default_factory=dict)
+    complete: bool = False
+    missing: list[str] = field(default_factory=list)
+    received: float = 0.0          # bus time of the Result frame (s)
 
 
 class CanHost:
     """Receives and decodes the device's frames from ``bus``; sends host commands to it."""
 
-    def __init__(self, bus: can.BusABC, dbc_path: str | Path = DBC_PATH) -> None:
+    def __init__(self, bus: can.BusABC, dbc_path: str | Path = DBC_PATH, result_timeout: float = 1.0) -> None:
         self.bus = bus
+        self.result_timeout = result_timeout
         self.db = cantools.database.load_file(str(dbc_path))
         self._by_id = {m.frame_id: m for m in self.db.messages if "DEVICE" in m.senders}
         self._layouts = {fid: FrameLayout(m) for fid, m in self._by_id.items() if supports(m)}
@@ -77,42 +103,51 @@ class CanHost:
                           "CurveBlock": self._curve_block, "CurveBlockFD": self._curve_block_fd,
                           "CurveEnd": self._curve_end, "Result": self._result, "ResultValue": self._result_value,
                           "Encoder1": self._encoder, "Encoder2": self._encoder, "Torque": self._torque,
-                          "StaticRig": self._static, "CommandAck": self._ack}
+                          "StaticRig": self._static, "CommandAck": self._ack, "TxStatus": self._tx_status}
         self.sequence = SequenceChecker()
         self.assembler = CurveAssembler(self.x_lsb, self.y_lsb, self._fd_pairs)
         self.events: list[LinkEvent] = []
         self.frames_received = 0
         self.status: dict[str, Any] = {}
         self.counters: dict[str, int] = {}
-        self.results: dict[int, CurveResult] = {}
+        self.results: dict[int, CurveResult] = {}                # released results not yet taken
         self.encoders: dict[int, dict[str, float]] = {}
         self.torque: list[tuple[float, float, float]] = []      # (t s, torque N*m, brake force N)
         self.encoder_log: list[tuple[int, float, int, float]] = []  # (encoder 1/2, received s, count, edge time s)
         self.static: list[tuple[float, float, float]] = []      # (t s, angle rad, leaf strain m/m): static rig
         self.acks: list[dict[str, Any]] = []
-        self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per frame or run
+        self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per run
+        self._live_rows: list[tuple[float, int, int]] = []   # (t s, raw x, raw y) of frames received one by one
         self._runs = {self.db.get_message_by_name(name).frame_id: handler for name, handler in (
             ("LiveXY", self._live_run), ("LiveXYFD", self._live_run), ("CurveBlock", self._curve_block_run),
             ("CurveBlockFD", self._curve_block_run))}
+        self._run_lengths = {fid: self._layouts[fid].length for fid in self._runs}
         self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
+        self._bus_time = 0.0          # latest frame time stamp (s)
         self._host_seq = 0
-        self._last_result: CurveResult | None = None
+        self._pending: CurveResult | None = None   # result waiting for its end marker
+        self._released: deque[CurveResult] = deque()
+        self._start_high = 0.0        # s: TStartHigh of the curve being received
 
     # ------------------------------------------------------------------ reception
-    def poll(self, timeout: float = 0.0, max_frames: int | None = None) -> int:
-        """Receive and process frames until none arrives within ``timeout`` (s); returns how many."""
-        n = 0
-        while max_frames is None or n < max_frames:
-            frames = drain(self.bus, timeout, None if max_frames is None else max_frames - n)
-            if not frames:
-                break
-            self.receive_many(frames)
-            n += len(frames)
-        return n
+    def poll(self, timeout: float = 0.0) -> int:
+        """Receive and process every frame waiting (waits up to ``timeout`` s for the first); returns how many."""
+        block = drain_block(self.bus, timeout)
+        self.receive_block(block)
+        return len(block)
 
     def receive(self, msg: can.Message) -> None:
         """Process one received frame; problems become events, never exceptions."""
+        self._receive_one(_Rx(msg.timestamp, msg.arbitration_id, bytes(msg.data), msg.is_error_frame))
+        self._check_result_timeout()
+
+    def receive_many(self, frames: Sequence[can.Message]) -> None:
+        """Process received python-can messages in order (as one block)."""
+        self.receive_block(FrameBlock.of_messages(list(frames)))
+
+    def _receive_one(self, msg: _Rx) -> None:
         self.frames_received += 1
+        self._bus_time = max(self._bus_time, msg.timestamp)
         fid = msg.arbitration_id
         if msg.is_error_frame:
             self._event(msg, "error_frame", 1, "error frame on the bus")
@@ -128,7 +163,7 @@ class CanHost:
         try:
             layout = self._layouts.get(fid)
             raw = (layout.decode_one(msg.data) if layout is not None
-                   else spec.decode(bytes(msg.data), decode_choices=False, scaling=False))
+                   else spec.decode(msg.data, decode_choices=False, scaling=False))
         except (cantools.database.errors.DecodeError, ValueError, KeyError) as exc:
             self._event(msg, "decode_error", 1, f"{spec.name} (0x{fid:03X}): {exc}")
             return
@@ -137,40 +172,48 @@ class CanHost:
             self._event(msg, "sequence_gap", gap, f"{spec.name} (0x{fid:03X}): {gap} frame(s) missing before Seq {raw['Seq']}")
         self._handlers[spec.name](msg, spec, raw)
 
-    def receive_many(self, frames: Sequence[can.Message]) -> None:
-        """Process received frames in order, with the outcome of :meth:`receive` on each.
+    def receive_block(self, block: FrameBlock) -> None:
+        """Process a block of received frames in order, with the outcome of :meth:`receive` on each.
 
         Well-formed live and curve-block frames between two other frames are decoded together, per
         frame id: they touch independent state (live buffer and device time; curve assembler, which only
         header and end frames change), and their events are put back in frame order.
         """
-        lengths = {fid: self._layouts[fid].length for fid in self._runs}
-        bulk = [lengths.get(m.arbitration_id) == len(m.data) and not m.is_error_frame for m in frames]
-        group: dict[int, list[int]] = {}
-        for k, (msg, is_bulk) in enumerate(zip(frames, bulk)):
-            if is_bulk:
-                group.setdefault(msg.arbitration_id, []).append(k)
-                continue
-            self._receive_groups(frames, group)
-            group = {}
-            self.receive(msg)
-        self._receive_groups(frames, group)
+        n = len(block)
+        if not n:
+            return
+        ids = block.arbitration_id.astype(np.int64)
+        expected = np.full(ids.shape, -1)
+        for fid, length in self._run_lengths.items():
+            expected[ids == fid] = length
+        bulk = (expected == block.dlc) & ((block.flags & ERROR) == 0)
+        start = 0
+        for k in np.flatnonzero(~bulk).tolist() + [n]:
+            if k > start:
+                self._receive_run(block, ids, start, k)
+            if k < n:
+                self._receive_one(_Rx(float(block.timestamp[k]), int(ids[k]), block.payload(k),
+                                      bool(block.flags[k] & ERROR)))
+            start = k + 1
+        self._bus_time = max(self._bus_time, float(block.timestamp[-1]))
+        self._check_result_timeout()
 
-    def _receive_groups(self, frames: Sequence[can.Message], group: dict[int, list[int]]) -> None:
-        """Decode and handle the frames ``frames[k]`` listed per frame id in ``group``."""
+    def _receive_run(self, block: FrameBlock, ids: np.ndarray, start: int, stop: int) -> None:
+        """Decode the bulk frames ``start:stop`` of ``block`` together, per frame id."""
         events = []
-        for fid, index in group.items():
+        run_ids = ids[start:stop]
+        for fid in np.unique(run_ids).tolist():
+            index = start + np.flatnonzero(run_ids == fid)
             layout, spec = self._layouts[fid], self._by_id[fid]
-            run = [frames[k] for k in index]
-            self.frames_received += len(run)
-            raw = layout.decode(np.frombuffer(b"".join(m.data for m in run), dtype=np.uint8).reshape(len(run), -1))
+            self.frames_received += index.size
+            raw = layout.decode(block.data[index, :layout.length])
             gaps = self.sequence.check_many(fid, raw["Seq"])
             for k in np.flatnonzero(gaps).tolist():
-                events.append((index[k], 0, run[k], "sequence_gap", int(gaps[k]),
+                events.append((int(index[k]), 0, "sequence_gap", int(gaps[k]),
                                f"{spec.name} (0x{fid:03X}): {gaps[k]} frame(s) missing before Seq {raw['Seq'][k]}"))
-            events.extend((index[k], 1, run[k], "curve", 1, p) for k, p in self._runs[fid](raw))
-        for _, _, msg, kind, count, detail in sorted(events, key=lambda e: e[:2]):
-            self._event(msg, kind, count, detail)
+            events.extend((int(index[k]), 1, "curve", 1, p) for k, p in self._runs[fid](raw))
+        for k, _, kind, count, detail in sorted(events, key=lambda e: e[:2]):
+            self._event(_Rx(float(block.timestamp[k]), int(ids[k]), b"", False), kind, count, detail)
 
     def _event(self, msg: can.Message, kind: str, count: int, detail: str) -> None:
         self.events.append(LinkEvent(msg.timestamp, kind, msg.arbitration_id, count, detail))
@@ -187,8 +230,12 @@ class CanHost:
                        "errors": raw["Errors"]}
 
     def _counters(self, msg, spec, raw) -> None:
-        self.counters = {"live_dropped": raw["LiveDropped"], "curve_count": raw["CurveCount"],
-                         "curves_pending": raw["CurvesPending"]}
+        self.counters.update({"live_dropped": raw["LiveDropped"], "curve_count": raw["CurveCount"],
+                              "curves_pending": raw["CurvesPending"]})
+
+    def _tx_status(self, msg, spec, raw) -> None:
+        self.counters.update({"backlog": raw["Backlog"] * spec.get_signal_by_name("Backlog").scale,
+                              "live_factor": raw["LiveFactor"], "live_stale": raw["LiveStale"]})
 
     def _live_time(self, tick: int) -> float:
         t = unwrap(tick * 1e-4, TICK_WRAP, self._device_time)
@@ -196,12 +243,27 @@ class CanHost:
         return t
 
     def _live(self, msg, spec, raw) -> None:
-        self._live_run({k: np.array([v]) for k, v in raw.items()})
+        """One live frame received on its own (LiveXY: one pair; LiveXYFD: NPairs pairs at Tick + i*Dt)."""
+        t0 = self._live_time(raw["Tick"])
+        if "NPairs" not in raw:
+            self._live_rows.append((t0, raw["X"], raw["Y"]))
+            return
+        dt = raw["Dt"] * 1e-6
+        for i in range(min(raw["NPairs"], self._fd_pairs)):
+            self._live_rows.append((t0 + i * dt, raw[self._fd_x[i]], raw[self._fd_y[i]]))
+        self._device_time = max(self._device_time, t0 + (raw["NPairs"] - 1) * dt)
 
     _live_fd = _live
 
+    def _flush_live_rows(self) -> None:
+        if self._live_rows:
+            t, x, y = (np.array(c) for c in zip(*self._live_rows))
+            self._live.append((t.astype(float), x.astype(np.int64), y.astype(np.int64)))
+            self._live_rows = []
+
     def _live_run(self, raw: dict[str, np.ndarray]) -> list[tuple[int, str]]:
         """Live frames (LiveXY: one pair at Tick; LiveXYFD: NPairs pairs at Tick + i*Dt), in order."""
+        self._flush_live_rows()
         if "NPairs" not in raw:
             self._live.append((np.array([self._live_time(tick) for tick in raw["Tick"].tolist()]), raw["X"], raw["Y"]))
             return []
@@ -221,6 +283,7 @@ class CanHost:
 
     def take_live(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Live pairs received since the last call: times (s, device time), X (m), Y (N)."""
+        self._flush_live_rows()
         blocks, self._live = self._live, []
         if not blocks:
             return np.zeros(0), np.zeros(0), np.zeros(0)
@@ -232,11 +295,13 @@ class CanHost:
             self._event(msg, "curve", 1, p)
 
     def _curve_header(self, msg, spec, raw) -> None:
+        self._release_pending(msg, f"the header of curve {raw['CurveNo']} arrived")
+        self._start_high = raw["TStartHigh"] * spec.get_signal_by_name("TStartHigh").scale
         self._curve_problems(msg, self.assembler.header(raw["CurveNo"], raw["Count"], raw["Program"]))
 
     def _curve_timing(self, msg, spec, raw) -> None:
         scale = {s.name: s.scale for s in spec.signals}
-        t_start = unwrap(raw["TStart"] * scale["TStart"], EDGE_WRAP, self._device_time)
+        t_start = unwrap(self._start_high + raw["TStart"] * scale["TStart"], START_WRAP, self._device_time)
         self._curve_problems(msg, self.assembler.timing(raw["CurveNo"], t_start, raw["Dt"] * scale["Dt"]))
 
     def _curve_times(self, msg, spec, raw) -> None:
@@ -245,7 +310,14 @@ class CanHost:
         self._curve_problems(msg, self.assembler.times(raw["CurveNo"], 2 * raw["Block"], offsets))
 
     def _curve_block(self, msg, spec, raw) -> None:
-        self._curve_problems(msg, [p for _, p in self._curve_block_run({k: np.array([v]) for k, v in raw.items()})])
+        """One curve-block frame received on its own."""
+        if "NPairs" not in raw:
+            problem = self.assembler.pair_run(raw["CurveNo"], 16, raw["Block"], [raw["X"]], [raw["Y"]])
+        else:
+            n = min(raw["NPairs"], self._fd_pairs)
+            problem = self.assembler.pair_run(raw["CurveNo"], 256, raw["Block"] * self._fd_pairs,
+                                              [raw[k] for k in self._fd_x[:n]], [raw[k] for k in self._fd_y[:n]])
+        self._curve_problems(msg, [problem] if problem else [])
 
     _curve_block_fd = _curve_block
 
@@ -254,10 +326,10 @@ class CanHost:
         pairs from Block*11 of curve CurveNo mod 256); returns (frame index, problem)."""
         if "NPairs" not in raw:
             return self.assembler.pairs(raw["CurveNo"], 16, raw["Block"], np.ones_like(raw["Block"]),
-                                             np.column_stack([raw["X"], raw["Y"]])[:, None, :])
+                                        np.column_stack([raw["X"], raw["Y"]])[:, None, :])
         xs, ys = np.column_stack([raw[k] for k in self._fd_x]), np.column_stack([raw[k] for k in self._fd_y])
         return self.assembler.pairs(raw["CurveNo"], 256, raw["Block"] * self._fd_pairs,
-                                         np.minimum(raw["NPairs"], self._fd_pairs), np.stack([xs, ys], axis=2))
+                                    np.minimum(raw["NPairs"], self._fd_pairs), np.stack([xs, ys], axis=2))
 
     def _curve_end(self, msg, spec, raw) -> None:
         self._curve_problems(msg, self.assembler.end(raw["CurveNo"], raw["Count"], raw["Crc"], raw["Clipped"]))
@@ -268,25 +340,78 @@ class CanHost:
         return self._device_time
 
     def curves(self) -> list[Curve]:
-        """Curves transferred completely, count and checksum verified."""
+        """Curves transferred completely, count and checksum verified (not yet taken)."""
         return [c for c in self.assembler.done if c.complete]
 
     def incomplete_curves(self) -> list[Curve]:
-        """Curves with missing pairs, a wrong count or checksum (kept with their ``received`` mask)."""
+        """Curves with missing pairs, a wrong count or checksum (kept with their ``received`` mask; not yet taken)."""
         return [c for c in self.assembler.done if not c.complete]
 
+    def take_curves(self) -> list[Curve]:
+        """Every finished curve (complete or not) received since the last call, in order."""
+        done, self.assembler.done = self.assembler.done, []
+        return done
+
+    # ------------------------------------------------------------------ results
     def _result(self, msg, spec, raw) -> None:
+        self._release_pending(msg, f"the result of curve {raw['CurveNo']} arrived")
         first = None if raw["FirstFail"] == 127 else raw["FirstFail"]
-        self._last_result = CurveResult(raw["CurveNo"], bool(raw["Ok"]), first, raw["FailMask"])
-        self.results[raw["CurveNo"]] = self._last_result
+        self._pending = CurveResult(raw["CurveNo"], bool(raw["Ok"]), first, raw["FailMask"], received=msg.timestamp)
 
     def _result_value(self, msg, spec, raw) -> None:
-        res = self._last_result
+        res = self._pending
+        if res is None or res.number % 256 != raw["CurveNo"]:
+            what = "end marker" if raw["Pv"] == PV_END else "process value"
+            self._event(msg, "curve", 1, f"{what} for curve {raw['CurveNo']} (mod 256) without its Result frame")
+            return
+        if raw["Pv"] == PV_END:
+            names = list(PROCESS_VALUES.values())
+            announced = [names[i] for i in range(len(names)) if raw["PvMask"] >> i & 1]
+            res.missing = [name for name in announced if name not in res.process_values]
+            res.complete = not res.missing and raw["PvCount"] == len(announced)
+            if not res.complete:
+                self._event(msg, "result", len(res.missing), f"result of curve {res.number}: process values "
+                            f"{', '.join(res.missing) or '(count mismatch)'} did not arrive")
+            self._release(res)
+            return
         signal = next((name for name in PROCESS_VALUES if name in raw), None)
-        if res is None or res.number % 256 != raw["CurveNo"] or signal is None:
-            self._event(msg, "curve", 1, f"process value for curve {raw['CurveNo']} (mod 256) without its Result frame")
+        if signal is None:
+            self._event(msg, "decode_error", 1, f"ResultValue (0x{msg.arbitration_id:03X}): unknown Pv {raw['Pv']}")
             return
         res.process_values[PROCESS_VALUES[signal]] = float(raw[signal])
+
+    def _release(self, res: CurveResult) -> None:
+        self._pending = None
+        self.results[res.number] = res
+        self._released.append(res)
+
+    def _release_pending(self, msg, why: str) -> None:
+        """Release the pending result as incomplete (its end marker is lost): ``why`` says what came instead."""
+        res = self._pending
+        if res is None:
+            return
+        res.missing = [name for name in PROCESS_VALUES.values() if name not in res.process_values]
+        self._event(msg, "result", len(res.missing), f"result of curve {res.number}: no end marker before {why}; "
+                    f"values received: {', '.join(res.process_values) or 'none'}")
+        self._release(res)
+
+    def _check_result_timeout(self) -> None:
+        res = self._pending
+        if res is not None and self._bus_time - res.received > self.result_timeout:
+            self._release_pending(_Rx(self._bus_time, self._command.frame_id, b"", False),
+                                  f"{self.result_timeout:g} s of bus time passed")
+
+    def flush(self) -> None:
+        """End of reception: release a result still waiting for its end marker, as incomplete."""
+        self._release_pending(_Rx(self._bus_time, self._command.frame_id, b"", False), "the end of the recording")
+
+    def take_results(self) -> list[CurveResult]:
+        """Results released (complete or marked incomplete) since the last call, in order."""
+        out = list(self._released)
+        self._released.clear()
+        for res in out:
+            self.results.pop(res.number, None)
+        return out
 
     def _encoder(self, msg, spec, raw) -> None:
         reading = {"count": raw["Count"], "edge_time": unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, self._device_time),
@@ -301,6 +426,18 @@ class CanHost:
     def _static(self, msg, spec, raw) -> None:
         self.static.append((self._live_time(raw["Tick"]), raw["Angle"] * spec.get_signal_by_name("Angle").scale,
                             raw["Strain"] * spec.get_signal_by_name("Strain").scale))
+
+    def take_readings(self) -> dict[str, list]:
+        """Readings received since the last call, and forgets them: ``torque`` (t s, N·m, brake N),
+        ``encoders`` (encoder 1/2, received s, count, edge time s), ``static`` (t s, rad, m/m)."""
+        out = {"torque": self.torque, "encoders": self.encoder_log, "static": self.static}
+        self.torque, self.encoder_log, self.static = [], [], []
+        return out
+
+    def take_events(self) -> list[LinkEvent]:
+        """Link events since the last call, and forgets them."""
+        out, self.events = self.events, []
+        return out
 
     def _ack(self, msg, spec, raw) -> None:
         self.acks.append({"cmd": raw["Cmd"], "arg": raw["Arg"], "host_seq": raw["HostSeq"],

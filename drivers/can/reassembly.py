@@ -94,6 +94,18 @@ class CurveAssembler:
             self._got[at] = True
         return problems
 
+    def pair_run(self, number_bits: int, number_mod: int, first: int, xs: list[int], ys: list[int]) -> str | None:
+        """Store the raw pairs of one block (pairs ``first, first + 1, ...``) of the curve whose number
+        modulo ``number_mod`` is ``number_bits``; returns the problem, if any."""
+        if self._number is None or self._number % number_mod != number_bits:
+            return f"curve block (curve {number_bits} mod {number_mod}, pair {first}) without its header"
+        if first + len(xs) > len(self._got):
+            return f"curve {self._number}: block at pair {first} (+{len(xs)}) beyond the announced {len(self._got)} pairs"
+        stop = first + len(xs)
+        self._raw[first:stop, 0], self._raw[first:stop, 1] = xs, ys
+        self._got[first:stop] = True
+        return None
+
     def end(self, number: int, count: int, crc: int, clipped: int) -> list[str]:
         """Close the curve: check number, count, missing pairs and CRC."""
         if self._number is None or self._number != number:

@@ -15,11 +15,13 @@ import platform
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
+import can
 import mcap
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
 import rig
+from rig.blockbus import EXTENDED, FD, FrameBlock, frames_of
 from rig.recorder import schemas as S
 from rig.recorder.encoding import ENCODINGS, dumps, encode_array, encode_block
 
@@ -39,15 +41,6 @@ def _check_times(t: np.ndarray, last: float, topic: str) -> None:
         raise ValueError(f"{topic}: time must be a 1-D array, got shape {t.shape}")
     if t.size and (t[0] < last or np.any(np.diff(t) < 0)):
         raise ValueError(f"{topic}: times must be non-decreasing across writes (got {t[0]!r} s after {last!r} s)")
-
-
-def _can_row(frame: Any) -> tuple[float, int, bool, bool, str]:
-    """One frame given as a ``(t, id, data, is_fd)`` tuple or a python-can ``Message``, as a /can/raw row."""
-    if hasattr(frame, "arbitration_id"):
-        return (float(frame.timestamp), int(frame.arbitration_id), bool(frame.is_fd), bool(frame.is_extended_id),
-                bytes(frame.data).hex())
-    t, fid, data, fd = frame
-    return float(t), int(fid), bool(fd), int(fid) > 0x7FF, bytes(data).hex()
 
 
 class _Block:
@@ -212,15 +205,20 @@ class Recorder:
         self.write_block(S.LIVE, t, {"x": x, "y": y})
 
     # -- CAN ------------------------------------------------------------------------------------
-    def write_can_frames(self, frames: Iterable[Any]) -> None:
-        """Raw CAN frames (``/can/raw``): python-can ``Message`` objects or ``(t, id, data, is_fd)`` tuples."""
-        frames = list(frames)
-        if all(hasattr(f, "arbitration_id") for f in frames):
-            cols = ([float(f.timestamp) for f in frames], [int(f.arbitration_id) for f in frames],
-                    [bool(f.is_fd) for f in frames], [bool(f.is_extended_id) for f in frames],
-                    [bytes(f.data).hex() for f in frames])
-        else:
-            cols = tuple(map(list, zip(*map(_can_row, frames))))
+    def write_can_frames(self, frames: FrameBlock | Iterable[Any]) -> None:
+        """Raw CAN frames (``/can/raw``): a :class:`rig.blockbus.FrameBlock`, python-can ``Message`` objects or
+        ``(t, id, data, is_fd)`` tuples."""
+        if not isinstance(frames, FrameBlock):
+            frames = list(frames)
+            frames = frames_of(frames) if all(hasattr(f, "arbitration_id") for f in frames) else \
+                FrameBlock.of_messages([can.Message(timestamp=float(t), arbitration_id=int(fid), data=bytes(data),
+                                                    is_fd=bool(fd), is_extended_id=int(fid) > 0x7FF, check=False)
+                                        for t, fid, data, fd in frames])
+        width = frames.data.shape[1]
+        text = frames.data.tobytes().hex()
+        cols = (frames.timestamp.tolist(), frames.arbitration_id.tolist(), ((frames.flags & FD) != 0).tolist(),
+                ((frames.flags & EXTENDED) != 0).tolist(),
+                [text[2 * width * i:2 * (width * i + d)] for i, d in enumerate(frames.dlc.tolist())])
         t = np.array(cols[0], dtype=float)
         if t.size:
             late = np.flatnonzero(np.diff(np.concatenate([[self._can_last], t])) < 0)

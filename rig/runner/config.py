@@ -36,10 +36,12 @@ DEVICE_SCHEMA = {
     "description": Field(None, None, "device description name or path (default: the DigiForce 9310 file)"),
 }
 CAN_SCHEMA = {
-    "interface": Field(None, "virtual"), "channel": Field(None, "rig"),
+    "interface": Field(None, "blockbus", "in one process: 'blockbus' (frames in blocks) or python-can's 'virtual'"),
+    "channel": Field(None, "rig"),
     "bitrate": Field("1", 500_000, "bit/s"), "fd": Field(None, False),
     "data_bitrate": Field("1", None, "bit/s of the CAN FD data phase"),
     "live_share": Field("1", 0.5, "share of the bus for live data"),
+    "tx_curves": Field("1", 4, "curve transfers the unit holds for sending (more: the bus cannot carry the curves)"),
     "host": Field(None, "127.0.0.1", "socketcand server address (cross-process)"),
     "port": Field("1", 0, "socketcand TCP port (0: any free port)"),
 }
@@ -53,6 +55,7 @@ RECORDING_SCHEMA = {
     "compression": Field(None, "zstd"),
 }
 MODES = ("virtual", "realtime")
+IN_PROCESS_INTERFACES = ("blockbus", "virtual")
 ROLES = ("x", "y", "encoder1", "encoder2", "torque", "brake", "angle", "strain", "record")
 
 
@@ -81,6 +84,7 @@ class RunConfig:
     chunk: float
     mode: str
     max_time: float
+    max_time_given: bool
     transducers: tuple[TransducerSpec, ...]
     device: dict[str, Any]
     can: dict[str, Any]
@@ -93,6 +97,11 @@ class RunConfig:
 
     def role(self, role: str) -> TransducerSpec | None:
         return next((t for t in self.transducers if t.role == role), None)
+
+
+def default_max_time(cycles: int) -> float:
+    """Simulated time (s) a run of ``cycles`` curves may take before it gives up: 3 s per cycle + 10 s."""
+    return 3.0 * cycles + 10.0
 
 
 def _integer(value: float, key: str, where: str, minimum: int = 0) -> int:
@@ -132,13 +141,17 @@ def read_config(scene: Scene) -> RunConfig:
     device["program"] = _integer(device["program"], "program", f"{scene.path} [device]")
     can = scene.read("links.can", CAN_SCHEMA, required=False)
     can["bitrate"] = _integer(can["bitrate"], "bitrate", f"{scene.path} [links.can]", 1)
+    can["tx_curves"] = _integer(can["tx_curves"], "tx_curves", f"{scene.path} [links.can]", 1)
+    if can["interface"] not in IN_PROCESS_INTERFACES:
+        raise SceneError(f"{scene.path} [links.can]: key 'interface' must be one of {IN_PROCESS_INTERFACES} "
+                         f"(the in-process bus), got {can['interface']!r}")
     serial = scene.read("links.serial", SERIAL_SCHEMA, required=False)
     serial["baudrate"] = _integer(serial["baudrate"], "baudrate", f"{scene.path} [links.serial]", 1)
     serial["address"] = _integer(serial["address"], "address", f"{scene.path} [links.serial]", 1)
     recording = scene.read("recording", RECORDING_SCHEMA, required=False)
     max_time = s["max_time"] if s["max_time"] is not None else (
-        s["duration"] if s["duration"] is not None else 3.0 * cycles + 10.0)
+        s["duration"] if s["duration"] is not None else default_max_time(cycles))
     return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=_integer(s["seed"], "seed", where),
                      cycles=cycles, duration=s["duration"], sample_rate=s["sample_rate"], chunk=s["chunk"],
-                     mode=s["mode"], max_time=max_time, transducers=tuple(transducers), device=device, can=can,
+                     mode=s["mode"], max_time=max_time, max_time_given=s["max_time"] is not None, transducers=tuple(transducers), device=device, can=can,
                      serial=serial, recording=recording)

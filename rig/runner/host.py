@@ -5,8 +5,6 @@ hardware. The "theoretical curve" comes from its own plant model built from the 
 """
 from __future__ import annotations
 
-import bisect
-import itertools
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -15,9 +13,10 @@ import can
 import numpy as np
 
 from drivers.can import CanHost
-from drivers.can.drain import drain
+from drivers.can.drain import drain_block
 from drivers.digiforce_serial import DigiForceClient
 from drivers.encoder import counts_to_angle
+from rig.blockbus import FrameBlock
 from rig.recorder import Recorder
 from rig.runner.config import RunConfig
 from rig.runner.plants import make_plant
@@ -37,8 +36,16 @@ def encoder_resolution(spec: Any) -> float:
     return counts_to_angle(1, int(ppr), int(float(spec.overrides.get("multiplier", table.get("multiplier", 4)))))
 
 
+THEORY_BLOCK = 0.5        # s of theory computed per plant call (on a fixed grid: the same calls in every run)
+DROP_REPORT_PERIOD = 1.0  # s of device time between two live_dropped events (each counts every pair since the last)
+
+
 class Host:
-    """Receives, decodes and records everything the machine sends; configures it over serial."""
+    """Receives, decodes and records everything the machine sends; configures it over serial.
+
+    It holds only what is still to be recorded: curves until their result has arrived and the theory
+    covers them, theory blocks until no curve waiting needs them (bounded memory on any run length).
+    """
 
     def __init__(self, cfg: RunConfig, bus: can.BusABC, serial_port: str | None, recorder: Recorder) -> None:
         self.cfg = cfg
@@ -52,15 +59,16 @@ class Host:
         self.program_config: dict[str, Any] | None = None
         self.truth_t = 0.0
         self._truth: list[dict[str, np.ndarray]] = []
-        self._truth_ends: list[float] = []     # last time (s) of each truth chunk, increasing
-        self._chunk_n = max(2, round(cfg.chunk * cfg.sample_rate))
-        self._chunks = 0
+        self._block_n = max(2, round(max(cfg.chunk, THEORY_BLOCK) * cfg.sample_rate))
+        self._blocks = 0
+        self._curves: list[Any] = []                    # complete curves waiting for their result or theory
+        self._results: dict[int, Any] = {}              # released results by curve number (mod 65536)
         self._curves_done = 0
-        self._results_done: set[int] = set()
-        self._link_events = 0
         self._plant_events = 0
+        self._drops_reported = 0
+        self._drops_at = 0.0
+        self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
         self.frames = 0
-        self._torque_done = self._encoders_done = self._static_done = 0
         self._rad_per_count = {i: encoder_resolution(cfg.role(f"encoder{i}")) for i in (1, 2)}
 
     # ---------------------------------------------------------------- configuration
@@ -78,91 +86,110 @@ class Host:
     # ---------------------------------------------------------------- reception
     def poll(self, timeout: float = 0.0) -> int:
         """Receive what is on the bus, record raw and decoded data; returns the number of frames."""
-        raw = drain(self.bus, timeout)
-        self.can.receive_many(raw)
-        if raw:
-            self.rec.write_can_frames(raw)
-            self.frames += len(raw)
+        block = drain_block(self.bus, timeout)
+        self.can.receive_block(block)
+        self._record(block)
+        return len(block)
+
+    def _record(self, block: FrameBlock) -> None:
+        if len(block):
+            self.rec.write_can_frames(block)
+            self.frames += len(block)
         t_live, x_live, y_live = self.can.take_live()
         if len(t_live):
             self.rec.write_live(t_live, x_live, y_live)
         self._record_stand()
-        self._advance_theory(self.can.device_time)
+        self._collect()
+        if self.cfg.cycles is None:
+            self._advance_theory(min(self.can.device_time, self.cfg.duration))
         self._record_curves()
         self._record_link_events()
-        return len(raw)
 
     def _record_stand(self) -> None:
         """Torque-meter and encoder readings (the stand's samples M_t, T_in, T_out) and static-rig readings
         (angle, leaf strain of the roles the scene declares) as bulk blocks."""
-        new, self._torque_done = self.can.torque[self._torque_done:], len(self.can.torque)
-        if new:
-            t, torque, brake = (np.array(c, dtype=float) for c in zip(*new))
+        new = self.can.take_readings()
+        if new["torque"]:
+            t, torque, brake = (np.array(c, dtype=float) for c in zip(*new["torque"]))
             self.rec.write_block("/stand/torque", t, {"torque": torque, "brake_force": brake})
         for enc in (1, 2):
-            rows = [r for r in self.can.encoder_log[self._encoders_done:] if r[0] == enc]
+            rows = [r for r in new["encoders"] if r[0] == enc]
             if rows:
                 _, t, count, edge = (np.array(c, dtype=float) for c in zip(*rows))
                 self.rec.write_block(f"/stand/encoder{enc}", t, {"count": count, "edge_time": edge,
                                                                   "angle": count * self._rad_per_count[enc]})
-        self._encoders_done = len(self.can.encoder_log)
-        new, self._static_done = self.can.static[self._static_done:], len(self.can.static)
-        if new:
-            t, angle, strain = (np.array(c, dtype=float) for c in zip(*new))
+        if new["static"]:
+            t, angle, strain = (np.array(c, dtype=float) for c in zip(*new["static"]))
             fields = {"angle": angle, "strain": strain}
             self.rec.write_block("/stand/static", t, {r: fields[r] for r in fields if self.cfg.role(r) is not None})
 
-    def _advance_theory(self, t_device: float) -> None:
-        """Run the theory model on the machine's sample grid up to the device time; record it."""
-        dt, n = self.cfg.dt, self._chunk_n
-        while (self._chunks + 1) * n * dt <= t_device + 1e-12:
-            t = (self._chunks * n + 1 + np.arange(n)) * dt
-            self._chunks += 1
+    def _advance_theory(self, until: float) -> None:
+        """Run the theory model on the machine's sample grid, in fixed blocks, until it covers ``until`` (s);
+        record it and its events."""
+        dt, n = self.cfg.dt, self._block_n
+        keep = self.cfg.recording["truth_signals"]
+        while self.truth_t < until - 1e-12:
+            t = (self._blocks * n + 1 + np.arange(n)) * dt
+            self._blocks += 1
             truth = self.theory.advance(t)
-            keep = self.cfg.recording["truth_signals"]
             signals = {k: np.asarray(v, dtype=float) for k, v in truth.items()
                        if k != "t" and np.shape(v) == t.shape and (keep is None or k in keep)}
             self.rec.write_truth(t, signals)
             self._truth.append({"t": t, **signals})
-            self._truth_ends.append(float(t[-1]))
             self.truth_t = float(t[-1])
         for ev in self.theory.events[self._plant_events:]:
             self.rec.write_event(ev.time, ev.kind, **ev.data)
         self._plant_events = len(self.theory.events)
 
     def _truth_at(self, t: np.ndarray, signal: str) -> np.ndarray | None:
-        first = bisect.bisect_left(self._truth_ends, t[0])       # chunks before it end before t[0]
-        chunks = [c for c in itertools.takewhile(lambda c: c["t"][0] <= t[-1], self._truth[first:]) if signal in c]
+        chunks = [c for c in self._truth if c["t"][-1] >= t[0] and c["t"][0] <= t[-1] and signal in c]
         if not chunks:
             return None
-        tt = np.concatenate([c["t"] for c in chunks])
-        return np.interp(t, tt, np.concatenate([c[signal] for c in chunks]))
+        return np.interp(t, np.concatenate([c["t"] for c in chunks]), np.concatenate([c[signal] for c in chunks]))
+
+    def _collect(self) -> None:
+        """Take the finished curves and released results from the driver: complete curves wait for their
+        result; an incomplete curve becomes an event (its result is still recorded)."""
+        for curve in self.can.take_curves():
+            if curve.complete and curve.t is not None:
+                self._curves.append(curve)
+            else:
+                self.rec.write_event(max(self.can.device_time, 0.0), "incomplete_curve", number=curve.number,
+                                     problems=list(curve.problems))
+                self._orphans.add(curve.number)
+        for res in self.can.take_results():
+            self._results[res.number] = res
 
     def _record_curves(self) -> None:
-        curves = self.can.curves()
-        for curve in curves[self._curves_done:]:
-            result = self.can.results.get(curve.number)
-            if result is None or curve.t is None or curve.t[-1] > self.truth_t:
-                break        # wait for its result and for the theory to cover it
-            theory, angle = {}, None
-            for role, key in (("x", "x"), ("y", "y")):
+        """Record, in order, every curve whose result has arrived; the theory is run on demand to cover it."""
+        while self._curves:
+            curve = self._curves[0]
+            result = self._results.pop(curve.number, None)
+            if result is None:
+                if not any(n > curve.number for n in self._results):
+                    break              # its result is still on the way
+                self.rec.write_event(float(curve.t[-1]), "result_missing", number=curve.number,
+                                     detail="a later curve's result arrived first: this curve's Result frame was lost")
+            self._advance_theory(float(curve.t[-1]))
+            theory = {}
+            for role in ("x", "y"):
                 spec = self.cfg.role(role)
-                if spec is not None:
-                    values = self._truth_at(curve.t, spec.signal)
-                    if values is not None:
-                        theory[key] = values
+                values = None if spec is None else self._truth_at(curve.t, spec.signal)
+                if values is not None:
+                    theory[role] = values
             angle = self._truth_at(curve.t, "cam_angle")
             if angle is not None:
                 theory["angle"] = angle
             self.rec.write_curve(curve.number, curve.program, curve.t, curve.x, curve.y, theory=theory or None,
                                  angle=angle, complete=curve.complete, problems=list(curve.problems))
-            self.rec.write_result(self._result_dict(result, curve.program), t=float(curve.t[-1]))
+            if result is not None:
+                self.rec.write_result(self._result_dict(result, curve.program), t=float(curve.t[-1]))
+            self._curves.pop(0)
             self._curves_done += 1
-        for curve in self.can.incomplete_curves():
-            if curve.number not in self._results_done:
-                self._results_done.add(curve.number)
-                self.rec.write_event(self.can.device_time, "incomplete_curve", number=curve.number,
-                                     problems=list(curve.problems))
+            self._truth = [c for c in self._truth if c["t"][-1] >= curve.t[-1]]     # later curves start later
+        for number in sorted(self._orphans & set(self._results)):
+            self.rec.write_result(self._result_dict(self._results.pop(number), self.program), t=self.truth_t)
+            self._orphans.discard(number)
 
     def _result_dict(self, result: Any, program: int) -> dict[str, Any]:
         elements = (self.program_config or {}).get("elements", [])
@@ -170,13 +197,27 @@ class Host:
         out = [{"name": names[i] if i < len(names) else f"element {i}",
                 "kind": elements[i].get("kind", "?") if i < len(elements) else "?",
                 "ok": not bool(result.fail_mask >> i & 1), "reason": ""} for i in range(max(len(names), 0))]
-        return {"number": result.number, "program": program, "ok": bool(result.ok), "elements": out,
-                "process_values": dict(result.process_values)}
+        msg = {"number": result.number, "program": program, "ok": bool(result.ok), "elements": out,
+               "process_values": dict(result.process_values), "complete": bool(result.complete)}
+        if result.missing:
+            msg["missing"] = list(result.missing)
+        return msg
 
     def _record_link_events(self) -> None:
-        for ev in self.can.events[self._link_events:]:
+        for ev in self.can.take_events():
             self.rec.write_event(max(ev.time, 0.0), ev.kind, frame_id=ev.frame_id, count=ev.count, detail=ev.detail)
-        self._link_events = len(self.can.events)
+        dropped = self.can.counters.get("live_dropped", 0)
+        now = self.can.device_time
+        if dropped > self._drops_reported and now - self._drops_at >= DROP_REPORT_PERIOD:
+            self._report_drops(now)
+
+    def _report_drops(self, now: float) -> None:
+        """One ``live_dropped`` event: live pairs the unit did not send since the last one (its counters)."""
+        c = self.can.counters
+        self.rec.write_event(now, "live_dropped", count=int(c["live_dropped"] - self._drops_reported),
+                             total=int(c["live_dropped"]), stale=int(c.get("live_stale", 0)),
+                             live_factor=int(c.get("live_factor", 1)), backlog=float(c.get("backlog", 0.0)))
+        self._drops_reported, self._drops_at = int(c["live_dropped"]), now
 
     # ---------------------------------------------------------------- completion
     @property
@@ -189,7 +230,19 @@ class Host:
         return self.can.device_time >= self.cfg.duration - 1e-9
 
     def finish(self) -> dict[str, Any]:
-        """Read the unit's statistics over serial and record them with the link counters."""
+        """Release what is still waiting, read the unit's statistics over serial and record them with the
+        link counters, then tell the unit the host is done (CAN Release)."""
+        self.can.flush()
+        self._collect()
+        self._record_curves()
+        if self.cfg.cycles is None:
+            self._advance_theory(self.cfg.duration)
+        self._record_link_events()
+        if self.can.counters.get("live_dropped", 0) > self._drops_reported:
+            self._report_drops(self.can.device_time)
+        for curve in self._curves:
+            self.rec.write_event(float(curve.t[-1]), "result_missing", number=curve.number,
+                                 detail="the curve arrived but its Result frame did not")
         stats: dict[str, Any] = {}
         if self.serial is not None:
             stats = self.serial.read_statistics(self.program)
@@ -197,4 +250,5 @@ class Host:
             self.serial.close()
         self.rec.write_event(self.truth_t, "link_summary", frames=self.frames, **{
             k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))})
+        self.can.send_command("release")
         return stats

@@ -5,7 +5,6 @@ simulated time; everything random comes from the scene's seed.
 """
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import can
@@ -59,7 +58,7 @@ class Machine:
             raise SceneError(f"{cfg.scene.path} [device]: {exc}") from None
         c = cfg.can
         self.node = CanNode(bus, self.device, bitrate=c["bitrate"], fd=bool(c["fd"]),
-                            data_bitrate=c["data_bitrate"], live_share=c["live_share"])
+                            data_bitrate=c["data_bitrate"], live_share=c["live_share"], tx_curves=c["tx_curves"])
         self.t = 0.0
         self._step_index = 0
         self._n = max(2, round(cfg.chunk * cfg.sample_rate))
@@ -104,18 +103,16 @@ class Machine:
             self.node.publish_live(t, live["x"], live["y"])
         if "encoder1" in signal or "encoder2" in signal:
             latched = [signal.get(r) for r in ("encoder1", "encoder2")]
-            for i in self._publish_indices("encoder1" if latched[0] is not None else "encoder2", i0 + 1, t.size):
-                self.node.publish_encoders(
-                    float(t[i]), [0 if s is None else int(s.count[i]) for s in latched],
-                    [0.0 if s is None or math.isnan(s.edge_time[i]) else float(s.edge_time[i]) for s in latched])
+            idx = self._publish_indices("encoder1" if latched[0] is not None else "encoder2", i0 + 1, t.size)
+            zeros = np.zeros(idx.size)
+            self.node.publish_encoders(t[idx], [zeros if s is None else s.count[idx] for s in latched],
+                                       [zeros if s is None else np.nan_to_num(s.edge_time[idx]) for s in latched])
         if "torque" in signal:
             idx = self._publish_indices("torque", i0 + 1, t.size)
-            for i, m, f in zip(idx, self._physical(signal, "torque", idx), self._physical(signal, "brake", idx)):
-                self.node.publish_torque(float(t[i]), float(m), float(f))
+            self.node.publish_torque(t[idx], self._physical(signal, "torque", idx), self._physical(signal, "brake", idx))
         if "angle" in signal or "strain" in signal:       # static rig: one frame per reading of both
             idx = self._publish_indices("angle" if "angle" in signal else "strain", i0 + 1, t.size)
-            for i, a, e in zip(idx, self._physical(signal, "angle", idx), self._physical(signal, "strain", idx)):
-                self.node.publish_static(float(t[i]), float(a), float(e))
+            self.node.publish_static(t[idx], self._physical(signal, "angle", idx), self._physical(signal, "strain", idx))
         self.node.advance_to(float(t[-1]))
         self.t = float(t[-1])
         return truth

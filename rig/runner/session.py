@@ -17,7 +17,8 @@ import rig
 from firmware_sim.serial_device import SerialDevice
 from firmware_sim.socketcand_server import SocketcandServer
 from rig.recorder import Recorder
-from rig.runner.config import RunConfig, read_config
+from firmware_sim.can_node import BusOverload
+from rig.runner.config import RunConfig, default_max_time, read_config
 from rig.runner.host import Host
 from rig.runner.machine import Machine
 from rig.scene import load_scene
@@ -49,7 +50,11 @@ def _config(scene_path: str | Path, cycles: int | None, mode: str | None) -> Run
     if cycles is not None:
         if cfg.cycles is None:
             raise RunError(f"{scene_path}: --cycles given, but this scene runs for a duration")
+        if cycles < 1:
+            raise RunError(f"{scene_path}: --cycles must be at least 1, got {cycles}")
         changes["cycles"] = cycles
+        if not cfg.max_time_given:
+            changes["max_time"] = default_max_time(cycles)
     if mode is not None:
         changes["mode"] = mode
     if changes:
@@ -92,12 +97,16 @@ def _show(bar: tqdm, value: float) -> None:
 
 
 def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, after_step: Callable[[], int]) -> None:
-    """Step the machine until the scene is done (paced in real-time mode), then flush its transmit queue.
-    ``after_step`` runs after each step (e.g. the in-process host's poll) and returns the curves done."""
+    """Step the machine until the scene is done or the host released it (paced in real-time mode), then
+    flush its transmit queue. ``after_step`` runs after each step (e.g. the in-process host's poll) and
+    returns the curves done."""
     pace = _Pacer(cfg.mode == "realtime")
-    while not _machine_done(cfg, machine):
+    while not _machine_done(cfg, machine) and not machine.node.released:
         with lock:
-            machine.step()
+            try:
+                machine.step()
+            except BusOverload as exc:
+                raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
         done = after_step()
         _show(bar, done if cfg.cycles is not None else round(machine.t, 3))
         pace(machine.t)
@@ -125,6 +134,12 @@ def _recorder(cfg: RunConfig, output: Path, mode: str) -> Recorder:
                     encoding=cfg.recording["encoding"], compression=cfg.recording["compression"])
 
 
+def _bus(cfg: RunConfig, channel: str) -> can.BusABC:
+    """One end of the in-process bus the scene names (``blockbus`` or python-can's ``virtual``)."""
+    extra = {"preserve_timestamps": True} if cfg.can["interface"] == "virtual" else {}
+    return can.Bus(interface=cfg.can["interface"], channel=channel, **extra)
+
+
 def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None = None, mode: str | None = None,
               progress: bool = False) -> RunSummary:
     """Run machine and host in one process: CAN on python-can's ``virtual`` interface, serial on a pty."""
@@ -132,8 +147,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
     output = Path(output)
     channel = f"rig-{uuid.uuid4().hex}"
     wall = time.perf_counter()
-    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as machine_bus, \
-            can.Bus(interface="virtual", channel=channel) as host_bus:
+    with _bus(cfg, channel) as machine_bus, _bus(cfg, channel) as host_bus:
         machine = Machine(cfg, machine_bus)
         lock = threading.Lock()
         serial_dev = (SerialDevice(machine.device, cfg.serial["port"], cfg.serial["baudrate"], cfg.serial["address"],
@@ -156,22 +170,23 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
 
 
 def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | None = None,
-                wait: float = 300.0, linger: float = 30.0, announce: Callable[[dict[str, Any]], None] | None = None,
-                progress: bool = False) -> Machine:
+                cycles: int | None = None, wait: float = 300.0, release_timeout: float = 300.0,
+                announce: Callable[[dict[str, Any]], None] | None = None, progress: bool = False) -> Machine:
     """Run the simulated machine as its own process: CAN served over socketcand on 127.0.0.1, serial on a pty.
 
     ``announce`` receives the endpoints (default: print them as one JSON line). The run starts when a host
-    arms the device (first CAN command) and the process serves the links for ``linger`` s afterwards.
+    arms the device (first CAN command) and ends when the host releases it (CAN ``Release`` command, sent
+    when it has read everything); the links stay up until then, or ``release_timeout`` s after the scene's
+    last cycle, which is reported as an error.
     """
-    cfg = _config(scene_path, None, mode)
+    cfg = _config(scene_path, cycles, mode)
     channel = f"rig-{uuid.uuid4().hex}"
-    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
+    with can.Bus(interface="blockbus", channel=channel) as bus:
         machine = Machine(cfg, bus)
         lock = threading.Lock()
         server = SocketcandServer(channel=cfg.can["channel"], host=cfg.can["host"],
                                   port=cfg.can["port"] if port is None else port,
-                                  bus_factory=lambda: can.Bus(interface="virtual", channel=channel,
-                                                              preserve_timestamps=True))
+                                  bus_factory=lambda: can.Bus(interface="blockbus", channel=channel))
         serial_dev = (SerialDevice(machine.device, cfg.serial["port"], cfg.serial["baudrate"], cfg.serial["address"],
                                    lock=lock) if cfg.serial["enabled"] else None)
         try:
@@ -185,12 +200,24 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             _wait_for_go(machine, wait)
             with _progress(cfg, progress) as bar:
                 _drive(cfg, machine, lock, bar, lambda: machine.curves)
-            time.sleep(linger)
+            _wait_for_release(machine, lock, release_timeout)
         finally:
             server.stop()
             if serial_dev is not None:
                 serial_dev.close()
     return machine
+
+
+def _wait_for_release(machine: Machine, lock: threading.Lock, timeout: float) -> None:
+    """Keep the links up until the host sends Release (it has read the statistics and every frame)."""
+    deadline = time.monotonic() + timeout
+    while not machine.node.released:
+        if time.monotonic() > deadline:
+            raise RunError(f"the host did not release the device within {timeout:g} s after the run "
+                           f"({machine.curves} curves served); stopping")
+        with lock:
+            machine.node.handle_commands()
+        time.sleep(0.02)
 
 
 def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = "127.0.0.1", can_port: int,

@@ -1,0 +1,192 @@
+"""Frames in blocks: :class:`FrameBlock` (columns of many CAN frames) and :class:`BlockBus`, an in-process
+python-can bus that carries them without a ``can.Message`` per frame.
+
+``BlockBus`` is registered with python-can as interface ``"blockbus"`` (entry point ``can.interface``), so
+``can.Bus(interface="blockbus", channel=...)`` opens it like any other bus and code written against
+``can.BusABC`` (``send``/``recv``) works unchanged. Peers that know blocks exchange them whole with
+:meth:`BlockBus.send_block` / :meth:`BlockBus.recv_blocks`: one shared, read-only block per send, delivered
+to every other bus on the channel; per-frame ``recv`` unpacks a block frame by frame. Time stamps are
+always kept (a virtual-time rig's frames carry the time their last bit left the wire). Across processes
+or on real hardware the rig uses python-can's own interfaces (socketcand, socketcan, pcan, ...).
+"""
+from __future__ import annotations
+
+import threading
+from collections import deque
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import can
+import numpy as np
+
+FD, BRS, ESI, EXTENDED, ERROR, RX, REMOTE = (1 << k for k in range(7))   # bits of FrameBlock.flags
+WIDTH = 64                                   # payload bytes per row (the largest CAN FD frame)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class FrameBlock:
+    """``n`` CAN frames as columns: ``timestamp`` (s, float64), ``arbitration_id`` (uint32), ``dlc`` (data
+    bytes, int16), ``data`` (uint8, shape (n, w), bytes past ``dlc`` are 0) and ``flags`` (uint8 bits
+    :data:`FD`, :data:`BRS`, :data:`ESI`, :data:`EXTENDED`, :data:`ERROR`, :data:`RX`, :data:`REMOTE`)."""
+
+    timestamp: np.ndarray
+    arbitration_id: np.ndarray
+    dlc: np.ndarray
+    data: np.ndarray
+    flags: np.ndarray
+
+    def __post_init__(self) -> None:
+        n = self.timestamp.shape[0]
+        if any(a.shape[0] != n for a in (self.arbitration_id, self.dlc, self.data, self.flags)) or self.data.ndim != 2:
+            raise ValueError("FrameBlock: columns must have one row per frame and data must be 2-D")
+        if n and int(self.dlc.max()) > self.data.shape[1]:
+            raise ValueError(f"FrameBlock: a frame has {int(self.dlc.max())} data bytes, rows hold {self.data.shape[1]}")
+
+    def __len__(self) -> int:
+        return self.timestamp.shape[0]
+
+    @classmethod
+    def empty(cls) -> "FrameBlock":
+        return cls(np.zeros(0), np.zeros(0, np.uint32), np.zeros(0, np.int16), np.zeros((0, 8), np.uint8),
+                   np.zeros(0, np.uint8))
+
+    @classmethod
+    def of_messages(cls, messages: Sequence[can.Message]) -> "FrameBlock":
+        """The block of python-can messages (in order)."""
+        n = len(messages)
+        width = max([8] + [len(m.data) for m in messages])
+        data = np.zeros((n, width), np.uint8)
+        for i, m in enumerate(messages):
+            data[i, :len(m.data)] = np.frombuffer(bytes(m.data), np.uint8)
+        flags = np.array([FD * m.is_fd | BRS * m.bitrate_switch | ESI * m.error_state_indicator
+                          | EXTENDED * m.is_extended_id | ERROR * m.is_error_frame | RX * m.is_rx
+                          | REMOTE * m.is_remote_frame for m in messages], np.uint8)
+        return cls(np.array([m.timestamp for m in messages], float),
+                   np.array([m.arbitration_id for m in messages], np.uint32),
+                   np.array([len(m.data) for m in messages], np.int16), data, flags.reshape(n))
+
+    @classmethod
+    def concat(cls, blocks: Sequence["FrameBlock"]) -> "FrameBlock":
+        """One block of several, in order."""
+        blocks = [b for b in blocks if len(b)]
+        if not blocks:
+            return cls.empty()
+        if len(blocks) == 1:
+            return blocks[0]
+        width = max(b.data.shape[1] for b in blocks)
+        data = np.zeros((sum(len(b) for b in blocks), width), np.uint8)
+        row = 0
+        for b in blocks:
+            data[row:row + len(b), :b.data.shape[1]] = b.data
+            row += len(b)
+        return cls(*(np.concatenate([getattr(b, f) for b in blocks]) for f in ("timestamp", "arbitration_id", "dlc")),
+                   data, np.concatenate([b.flags for b in blocks]))
+
+    def take(self, index: np.ndarray | slice) -> "FrameBlock":
+        """The frames at ``index`` (an index array, boolean mask or slice)."""
+        return FrameBlock(self.timestamp[index], self.arbitration_id[index], self.dlc[index], self.data[index],
+                          self.flags[index])
+
+    def payload(self, i: int) -> bytes:
+        """Data bytes of frame ``i``."""
+        return self.data[i, :self.dlc[i]].tobytes()
+
+    def message(self, i: int, channel: str | None = None) -> can.Message:
+        """Frame ``i`` as a python-can message."""
+        f = int(self.flags[i])
+        return can.Message(timestamp=float(self.timestamp[i]), arbitration_id=int(self.arbitration_id[i]),
+                           is_extended_id=bool(f & EXTENDED), is_remote_frame=bool(f & REMOTE),
+                           is_error_frame=bool(f & ERROR), channel=channel, dlc=int(self.dlc[i]),
+                           data=self.payload(i), is_fd=bool(f & FD), is_rx=bool(f & RX),
+                           bitrate_switch=bool(f & BRS), error_state_indicator=bool(f & ESI))
+
+    def messages(self, channel: str | None = None) -> list[can.Message]:
+        return [self.message(i, channel) for i in range(len(self))]
+
+
+def frames_of(received: Iterable[FrameBlock | can.Message]) -> FrameBlock:
+    """One block of what a receiver got, blocks and single messages mixed, in order."""
+    blocks, singles = [], []
+    for item in received:
+        if isinstance(item, FrameBlock):
+            if singles:
+                blocks.append(FrameBlock.of_messages(singles))
+                singles = []
+            blocks.append(item)
+        else:
+            singles.append(item)
+    if singles:
+        blocks.append(FrameBlock.of_messages(singles))
+    return FrameBlock.concat(blocks)
+
+
+_channels: dict[str, list["BlockBus"]] = {}
+_channels_lock = threading.Lock()
+
+
+class BlockBus(can.BusABC):
+    """In-process bus on a named ``channel``: every frame sent by one bus reaches every other bus on it.
+
+    ``receive_own_messages`` is not supported (a sender never sees its own frames).
+    """
+
+    def __init__(self, channel: str = "blockbus", **kwargs) -> None:
+        super().__init__(channel=channel, **kwargs)
+        self.channel_info = f"mechrig block bus, channel {channel!r}"
+        self._channel = str(channel)
+        self._rx: deque[FrameBlock] = deque()
+        self._head = 0                     # frames of _rx[0] already taken one by one
+        self._ready = threading.Condition(threading.Lock())
+        with _channels_lock:
+            _channels.setdefault(self._channel, []).append(self)
+
+    def _peers(self) -> list["BlockBus"]:
+        with _channels_lock:
+            return [b for b in _channels.get(self._channel, ()) if b is not self]
+
+    def send_block(self, block: FrameBlock) -> None:
+        """Deliver ``block`` to every other bus on the channel (shared, made read-only)."""
+        if not len(block):
+            return
+        for a in (block.timestamp, block.arbitration_id, block.dlc, block.data, block.flags):
+            a.flags.writeable = False
+        for peer in self._peers():
+            with peer._ready:
+                peer._rx.append(block)
+                peer._ready.notify()
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.send_block(FrameBlock.of_messages([msg]))
+
+    def recv_blocks(self, timeout: float | None = 0.0) -> list[FrameBlock]:
+        """Every block waiting (waits up to ``timeout`` s for the first; None: forever)."""
+        with self._ready:
+            if not self._rx and timeout != 0.0:
+                self._ready.wait_for(lambda: bool(self._rx), timeout)
+            blocks, self._rx = list(self._rx), deque()
+            head, self._head = self._head, 0
+        if blocks and head:
+            blocks[0] = blocks[0].take(slice(head, None))
+        return blocks
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        with self._ready:
+            if not self._rx and timeout != 0.0:
+                self._ready.wait_for(lambda: bool(self._rx), timeout)
+            if not self._rx:
+                return None, False
+            block, i = self._rx[0], self._head
+            self._head += 1
+            if self._head >= len(block):
+                self._rx.popleft()
+                self._head = 0
+        return block.message(i, self._channel), False
+
+    def shutdown(self) -> None:
+        with _channels_lock:
+            peers = _channels.get(self._channel, [])
+            if self in peers:
+                peers.remove(self)
+            if not peers:
+                _channels.pop(self._channel, None)
+        super().shutdown()
