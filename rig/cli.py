@@ -25,24 +25,42 @@ def _print_cam_bar_summary(scene_path: Path, png: Path) -> None:
     print(f"cycle chart: {png}")
 
 
-def _print_set_summary(recording: Path) -> None:
+def _analysed(recording: Path) -> tuple[Any, dict]:
+    """Read a recording once and analyse it: (Recording, :func:`rig.analysis.analyse` result)."""
     from rig.analysis import analyse
     from rig.recorder import read_recording
-    result = analyse(read_recording(recording))
+    rec = read_recording(recording)
+    return rec, analyse(rec)
+
+
+def _print_values(st: dict) -> None:
+    """Table of one program's process values: n, unit, mean, σ, min, max, ±3σ band, Cp/Cpk, checks."""
+    print(f"  {'process value':>16} {'n':>4} {'unit':>4}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  "
+          f"{'-3s..+3s':>21}  Cp    Cpk   normal drift")
+    for name, pv in st.get("values", {}).items():
+        cap = (f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv.get("cp") is not None and pv.get("cpk") is not None
+               else "  -     -  ")
+        print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>4}  {pv['mean']:10.4g} {pv['std']:9.3g} "
+              f"{pv['min']:10.4g} {pv['max']:10.4g}  {pv['minus_3sigma']:10.4g}..{pv['plus_3sigma']:<10.4g} {cap}  "
+              f"{str(pv['normality'].get('normal', '-')):6} {pv['trend'].get('drift', '-')}")
+
+
+def _print_set_summary(result: dict) -> None:
+    """Console summary of an analysis: verdict counts, incomplete results, per-program warnings, the
+    process-value table and the comparison with the device's statistics, theory lag, events."""
+    from rig.analysis.device import agreement_text
     verdicts = result["verdicts"]
     nok = [v for v in verdicts if not v["ok"]]
     print(f"curves: {len(verdicts)}, OK {len(verdicts) - len(nok)}, NOK {len(nok)}")
+    if result["incomplete"]:
+        print(f"  warning: {len(result['incomplete'])} incomplete result(s): " + "; ".join(
+            f"curve {r['number']} missing {', '.join(r['missing']) or '(unnamed values)'}" for r in result["incomplete"]))
     for program, st in result["sets"].items():
         for warning in st.get("warnings", []):
             print(f"  warning (program {program}): {warning}")
         print(f"  program {program}: {st['n']} curves, NOK by element {st['nok_by_element'] or 'none'}")
-        print(f"  {'process value':>16}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  {'-3s..+3s':>21}  Cp    Cpk   normal drift")
-        for name, pv in st.get("values", {}).items():
-            cap = (f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv.get("cp") is not None and pv.get("cpk") is not None
-                   else "  -     -  ")
-            print(f"  {name:>16}  {pv['mean']:10.4g} {pv['std']:9.3g} {pv['min']:10.4g} {pv['max']:10.4g}  "
-                  f"{pv['minus_3sigma']:10.4g}..{pv['plus_3sigma']:<10.4g} {cap}  "
-                  f"{str(pv['normality'].get('normal', '-')):6} {pv['trend'].get('drift', '-')}")
+        _print_values(st)
+        print(f"  device statistics (program {program}): {agreement_text(st['device_agreement'])}")
     lags = [row for row in result["theory"] if row.get("lag_time") is not None]
     if lags:
         lt = sum(r["lag_time"] for r in lags) / len(lags)
@@ -52,9 +70,10 @@ def _print_set_summary(recording: Path) -> None:
         print("  events: " + ", ".join(f"{k} {v}" for k, v in sorted(result["events"].items())))
 
 
-def _report(recording: Path, out_dir: Path, fmt: str) -> Path:
+def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None) -> Path:
+    """Write the report of a recording (path or an already-read Recording, with its analysis if known)."""
     from rig.analysis.report import write_report
-    return write_report(recording, out_dir, fmt=fmt)
+    return write_report(recording, out_dir, fmt=fmt, analysis=analysis)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -67,11 +86,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"))
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet)
-    print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated in {summary.wall_time:.2f} s "
-          f"({summary.realtime_factor:.1f}x real time), {summary.frames} CAN frames -> {summary.output}")
-    _print_set_summary(summary.output)
+    print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
+          f"({summary.realtime_factor:.1f}x real time; {summary.wall_time:.2f} s with serial set-up and read-back), "
+          f"{summary.frames} CAN frames -> {summary.output}")
+    rec, analysis = _analysed(summary.output)
+    _print_set_summary(analysis)
     if not args.no_report:
-        report = _report(summary.output, Path(args.report_dir) if args.report_dir else out.with_suffix(""), args.format)
+        report = _report(rec, Path(args.report_dir) if args.report_dir else out.with_suffix(""), args.format, analysis)
         print(f"report: {report}")
     return 0
 
@@ -97,7 +118,7 @@ def cmd_record(args: argparse.Namespace) -> int:
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet)
     print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated -> {summary.output}")
-    _print_set_summary(summary.output)
+    _print_set_summary(_analysed(summary.output)[1])
     return 0
 
 

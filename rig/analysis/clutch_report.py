@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from rig.analysis.clutch_metrics import loop_energy, step_metrics
-from rig.analysis.plots import _save, plt
+from rig.analysis.plots import figure, save
 from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
 
 
@@ -25,7 +25,7 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
         return []
     t, m = torque["t"], torque["torque"]
     blocks: list[Block] = [Heading("Clutch stand")]
-    fig, ax = plt.subplots(figsize=(8, 3.5))
+    fig, ax = figure(size=(8, 3.5))
     ax.plot(t, m, lw=0.8, label="torque meter (measured)")
     truth = ctx.recording.truth
     if "M_t" in truth:
@@ -33,7 +33,7 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     ax.set(xlabel="t (s)", ylabel="torque (N·m)", title="Torque over time")
     ax.grid(alpha=0.3)
     ax.legend()
-    blocks.append(ctx.figure(_save(fig, ctx.figure_path("clutch_torque_time")), "Torque over time"))
+    blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_torque_time")), "Torque over time"))
 
     sm = step_metrics(t, m)
     rows = [["peak torque (N·m)", fmt(float(sm.peak))], ["time of peak (s)", fmt(float(sm.t_peak))],
@@ -44,19 +44,19 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
         te, a1, a2 = enc
         rel = a1 - a2
         m_e = np.interp(te, t, m)
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = figure(size=(6, 4))
         ax.plot(np.degrees(rel), m_e, lw=0.8)
         ax.set(xlabel="relative angle φ1 − φ3 (deg)", ylabel="torque (N·m)", title="Torque over relative angle")
         ax.grid(alpha=0.3)
-        blocks.append(ctx.figure(_save(fig, ctx.figure_path("clutch_torque_angle")),
+        blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_torque_angle")),
                                  "Torque over relative angle (encoders on both halves)"))
-        fig, ax = plt.subplots(figsize=(8, 3.5))
+        fig, ax = figure(size=(8, 3.5))
         ax.plot(te, np.gradient(a1, te), lw=0.8, label="driving half ω1 (encoder)")
         ax.plot(te, np.gradient(a2, te), lw=0.8, label="driven half ω3 (encoder)")
         ax.set(xlabel="t (s)", ylabel="speed (rad/s)", title="Speeds of both halves")
         ax.grid(alpha=0.3)
         ax.legend()
-        blocks.append(ctx.figure(_save(fig, ctx.figure_path("clutch_speeds")), "Speeds of both halves"))
+        blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_speeds")), "Speeds of both halves"))
         rows.append(["hysteresis-loop energy ∮T dφ (J)", fmt(float(loop_energy(rel, m_e)))])
         rows.append(["max relative angle (deg)", fmt(float(np.degrees(np.max(np.abs(rel)))))])
     blocks.append(Table(["metric", "value"], rows))

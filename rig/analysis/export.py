@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+from itertools import repeat
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -11,15 +12,20 @@ from rig.analysis.sets import process_values
 from rig.recorder import CurveRecord
 
 
+def _cells(values: np.ndarray) -> list[str]:
+    """Shortest round-trip text of each value (``repr``), empty for NaN."""
+    return [repr(v) if v == v else "" for v in values.tolist()]
+
+
 def export_curves(curves: Sequence[CurveRecord], path: Path) -> Path:
     """One row per sample: curve, program, i, t, x, y, angle (empty when not measured)."""
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["curve", "program", "i", "t_s", "x", "y", "angle_rad"])
         for c in curves:
-            angle = c.angle if c.angle is not None else np.full(c.t.size, np.nan)
-            for i, row in enumerate(zip(c.t.tolist(), c.x.tolist(), c.y.tolist(), angle.tolist())):
-                w.writerow([c.number, c.program, i, *(repr(v) if v == v else "" for v in row)])
+            angle = _cells(c.angle) if c.angle is not None else [""] * c.t.size
+            w.writerows(zip(repeat(c.number), repeat(c.program), range(c.t.size), _cells(c.t), _cells(c.x),
+                            _cells(c.y), angle))
     return path
 
 

@@ -14,8 +14,9 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from rig.analysis import plots
+from rig.analysis.device import agreement_text
 from rig.analysis.export import export_curves, export_results
-from rig.analysis.sets import process_values
+from rig.analysis.sets import by_program, process_values
 from rig.analysis.summary import analyse
 from rig.recorder import Recording, read_recording
 
@@ -53,7 +54,7 @@ class ReportContext:
     recording: Recording
     analysis: dict
     out_dir: Path
-    max_curve_plots: int = 12
+    max_curve_plots: int = 4
     _count: list[int] = field(default_factory=lambda: [0])
 
     def figure_path(self, stem: str) -> Path:
@@ -95,35 +96,58 @@ def overview(ctx: ReportContext) -> list[Block]:
     return blocks
 
 
+def _completeness(verdict: dict) -> str:
+    """Verdict-table cell: ``yes`` or the process values that did not arrive."""
+    return "yes" if verdict["complete"] else f"no, missing {', '.join(verdict['missing']) or '(not named)'}"
+
+
 def verdicts(ctx: ReportContext) -> list[Block]:
     rows = [[v["number"], v["program"], "OK" if v["ok"] else "NOK",
-             "; ".join(f"{f['name']} ({f['reason']})" if f.get("reason") else str(f["name"]) for f in v["failed"])]
+             "; ".join(f"{f['name']} ({f['reason']})" if f.get("reason") else str(f["name"]) for f in v["failed"]),
+             _completeness(v)]
             for v in ctx.analysis["verdicts"]]
-    return [Heading("Curves: OK / NOK"), Table(["curve", "program", "result", "failing elements"], rows)] if rows else []
+    if not rows:
+        return []
+    blocks: list[Block] = [Heading("Curves: OK / NOK")]
+    if ctx.analysis["incomplete"]:
+        blocks.append(Text(f"Warning: {len(ctx.analysis['incomplete'])} incomplete result(s); their missing "
+                           "process values are left out of the statistics, the values that arrived are used."))
+    return blocks + [Table(["curve", "program", "result", "failing elements", "complete"], rows)]
+
+
+def _device_table(agreement: dict) -> list[Block]:
+    """Host vs device n, mean and σ per compared process value (when the comparison was made)."""
+    if not agreement["comparable"]:
+        return []
+    rows = [[name, v["host"]["n"], v["device"]["n"], v["host"]["mean"], v["device"]["mean"], v["host"]["std"],
+             v["device"]["std"], ", ".join(v["differs"]) or "equal"] for name, v in agreement["values"].items()]
+    return [Table(["value", "n host", "n device", "mean host", "mean device", "σ host", "σ device", "agreement"],
+                  [[fmt(c) for c in r] for r in rows])]
 
 
 def set_statistics(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = []
     for program, s in ctx.analysis["sets"].items():
         blocks += [Heading(f"Set statistics, program {program}"),
-                   Text(f"{s['n']} curves, {s['ok']} OK, {s['nok']} NOK; NOK by element: "
+                   Text(f"{s['n']} curves, {s['ok']} OK, {s['nok']} NOK, {s['incomplete']} incomplete; NOK by element: "
                         f"{', '.join(f'{k}: {v}' for k, v in s['nok_by_element'].items()) or 'none'}")]
         blocks += [Text(f"Warning: {w}") for w in s["warnings"]]
         rows = []
         for name, v in s["values"].items():
             nrm, tr = v["normality"], v["trend"]
-            rows.append([name, v["n"], v["mean"], v["std"], v["min"], v["max"], v["minus_3sigma"], v["plus_3sigma"],
-                         v["lsl"], v["usl"], v["cp"], v["cpk"], v["band_within_limits"], nrm["shapiro_p"],
-                         nrm["anderson_p"], nrm["normal"], tr["slope_p"], tr["runs"]["p"], tr["drift"]])
+            rows.append([name, v["n"], v["unit"], v["mean"], v["std"], v["min"], v["max"], v["minus_3sigma"],
+                         v["plus_3sigma"], v["lsl"], v["usl"], v["cp"], v["cpk"], v["band_within_limits"],
+                         nrm["shapiro_p"], nrm["anderson_p"], nrm["normal"], tr["slope_p"], tr["runs"]["p"], tr["drift"]])
         if rows:
-            blocks.append(Table(["value", "n", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
-                                 "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
+            blocks.append(Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp",
+                                 "Cpk", "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
                                 [[fmt(c) for c in r] for r in rows]))
-        program_results = [r for r in ctx.recording.results if int(r.get("program", 0)) == program]
-        table = process_values(program_results)
-        for name, v in s["values"].items():
-            path = plots.histogram(table[name], v, ctx.figure_path(f"hist_p{program}_{name}"))
-            blocks.append(ctx.figure(path, f"{name}: histogram with limits (red) and μ ± 3σ (dashed)"))
+            table = process_values(by_program(ctx.recording.results)[program])
+            path = plots.histograms(table, s["values"], ctx.figure_path(f"hist_p{program}"))
+            blocks.append(ctx.figure(path, f"Program {program}: histogram of each process value with its limits "
+                                           "(red), mean (black) and μ ± 3σ (dashed)"))
+        agreement = s["device_agreement"]
+        blocks += [Text(f"Device statistics: {agreement_text(agreement)}")] + _device_table(agreement)
     return blocks
 
 
@@ -145,24 +169,25 @@ def curves(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = [Heading("Curves")]
     for program in sorted({c.program for c in rec.curves}):
         chosen = [c for c in rec.curves if c.program == program]
+        units = _units(rec, program)
         path, notes = plots.force_displacement(chosen, _elements(rec, program), ctx.figure_path(f"xy_p{program}"),
-                                               f"program {program}: {len(chosen)} curves (NOK red)", nok,
-                                               _units(rec, program))
+                                               f"program {program}: {len(chosen)} curves (NOK red)", nok, units)
         blocks.append(ctx.figure(path, f"Program {program}: Y over X with evaluation elements "
                                        "(entry side green, exit side red dashed)"))
         blocks += [Text(f"Note: {n}") for n in notes]
+        path = plots.signals_over(chosen, ctx.figure_path(f"ys_p{program}"),
+                                  f"program {program}: {len(chosen)} curves (NOK red)", nok, units[1])
+        blocks.append(ctx.figure(path, f"Program {program}: Y over time since each curve's start and over cam "
+                                       "angle, all curves (NOK red), theory dashed"))
     shown = sorted(rec.curves, key=lambda c: (c.number not in nok, c.number))[:ctx.max_curve_plots]
     if len(shown) < len(rec.curves):
-        blocks.append(Text(f"Individual plots for {len(shown)} of {len(rec.curves)} curves (NOK first)."))
+        blocks.append(Text(f"Individual plots for {len(shown)} of {len(rec.curves)} curves (NOK first); "
+                           "the plots above show all of them."))
     for c in sorted(shown, key=lambda c: c.number):
-        path, _ = plots.force_displacement([c], _elements(rec, c.program), ctx.figure_path(f"xy_c{c.number}"),
-                                           f"curve {c.number}", nok, _units(rec, c.program))
-        blocks.append(ctx.figure(path, f"Curve {c.number}: Y over X"))
-        blocks.append(ctx.figure(plots.signal_over(c, "t", ctx.figure_path(f"yt_c{c.number}")),
-                                 f"Curve {c.number}: Y over time (theory dashed)"))
-        if c.angle is not None:
-            blocks.append(ctx.figure(plots.signal_over(c, "angle", ctx.figure_path(f"ya_c{c.number}")),
-                                     f"Curve {c.number}: Y over cam angle (theory dashed)"))
+        path = plots.curve_panels(c, _elements(rec, c.program), ctx.figure_path(f"curve_c{c.number}"), nok,
+                                  _units(rec, c.program))
+        blocks.append(ctx.figure(path, f"Curve {c.number}: Y over X with evaluation elements, over time and over "
+                                       "cam angle (theory dashed)"))
     return blocks
 
 
@@ -245,14 +270,19 @@ def _html(title: str, blocks: Sequence[Block]) -> str:
 
 
 def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path, fmt: str = "html",
-                 sections: Sequence[tuple[str, Section]] | None = None, max_curve_plots: int = 12) -> Path:
-    """Write ``report.html`` or ``report.md`` with PNG plots and CSV files into ``out_dir``; return its path."""
+                 sections: Sequence[tuple[str, Section]] | None = None, max_curve_plots: int = 4,
+                 analysis: dict | None = None) -> Path:
+    """Write ``report.html`` or ``report.md`` with PNG plots and CSV files into ``out_dir``; return its path.
+
+    ``analysis``: the :func:`analyse` result of this recording if the caller already has it (it is
+    computed here otherwise). ``max_curve_plots``: curves (NOK first) that get their own figure.
+    """
     if fmt not in ("html", "md"):
         raise ValueError(f"report format must be 'html' or 'md', got {fmt!r}")
     rec = recording_or_path if isinstance(recording_or_path, Recording) else read_recording(recording_or_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = ReportContext(rec, analyse(rec), out, max_curve_plots)
+    ctx = ReportContext(rec, analyse(rec) if analysis is None else analysis, out, max_curve_plots)
     blocks: list[Block] = []
     for _, section in (SECTIONS if sections is None else sections):
         blocks += section(ctx)

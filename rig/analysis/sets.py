@@ -1,7 +1,10 @@
 """Per-curve verdicts, per-set process-value statistics and event counts (offline or live, plain data).
 
 Results are device result dicts (``CurveResult.to_dict()``): ``number``, ``program``, ``ok``,
-``elements`` (list of ``{name, kind, ok, reason}``) and ``process_values`` (``{name: value}``).
+``elements`` (list of ``{name, kind, ok, reason}``) and ``process_values`` (``{name: value}``). The
+recorder marks a result whose process values did not all arrive with ``complete: false`` and
+``missing: [names]`` (absent keys: complete); the values that did arrive are used, the missing ones
+count as absent even if a placeholder is present.
 """
 from __future__ import annotations
 
@@ -17,21 +20,61 @@ from rig.analysis.trend import trend
 Limits = Mapping[str, tuple[float | None, float | None]]
 
 
+def missing_values(result: Mapping) -> list[str]:
+    """Names of the process values the recorder marked as not arrived (``[]`` for a complete result)."""
+    return [str(n) for n in result.get("missing", [])] if result.get("complete", True) is False else []
+
+
 def curve_verdicts(results: Iterable[Mapping]) -> list[dict]:
-    """OK/NOK per curve and the failing elements with their reasons."""
+    """OK/NOK per curve, the failing elements with their reasons, and completeness (missing values)."""
     out = []
     for r in results:
         failed = [{"name": e.get("name"), "kind": e.get("kind"), "reason": e.get("reason")}
                   for e in r.get("elements", []) if not e.get("ok", True)]
-        out.append({"number": r.get("number"), "program": r.get("program"), "ok": bool(r["ok"]), "failed": failed})
+        out.append({"number": r.get("number"), "program": r.get("program"), "ok": bool(r["ok"]), "failed": failed,
+                    "complete": r.get("complete", True) is not False, "missing": missing_values(r)})
     return out
 
 
+def incomplete_results(results: Iterable[Mapping]) -> list[dict]:
+    """``{number, program, missing}`` of each result marked incomplete, in curve order."""
+    return [{"number": r.get("number"), "program": r.get("program"), "missing": missing_values(r)}
+            for r in results if r.get("complete", True) is False]
+
+
+def _value(result: Mapping, name: str) -> float:
+    """One process value of a result (its unit), NaN when absent, null or marked missing."""
+    v = result.get("process_values", {}).get(name)
+    return np.nan if v is None or name in missing_values(result) else float(v)
+
+
 def process_values(results: Sequence[Mapping]) -> dict[str, np.ndarray]:
-    """Table of process values in curve order; a value missing from a curve is NaN."""
-    names = sorted({k for r in results for k in r.get("process_values", {})})
-    return {n: np.array([np.nan if (v := r.get("process_values", {}).get(n)) is None else float(v)
-                         for r in results]) for n in names}
+    """Table of process values in curve order; a value absent from or missing in a curve is NaN."""
+    names = sorted({k for r in results for k in (*r.get("process_values", {}), *missing_values(r))})
+    return {n: np.array([_value(r, n) for r in results]) for n in names}
+
+
+def value_units(program: Mapping | None) -> dict[str, str]:
+    """Units of process values by name prefix from a program config: ``x…``/``y…`` take the unit of
+    channel x/y (``channels.<ch>.unit``), ``duration`` is in s."""
+    channels = (program or {}).get("channels", {}) or {}
+    return {"x": channels.get("x", {}).get("unit", ""), "y": channels.get("y", {}).get("unit", ""), "duration": "s"}
+
+
+def unit_of(name: str, units: Mapping[str, str]) -> str:
+    """Unit of a process value from :func:`value_units` (``""`` when unknown)."""
+    return units.get("duration", "") if name == "duration" else units.get(name[:1], "")
+
+
+def counts_warning(counts: Mapping[str, int]) -> str | None:
+    """Warning naming the process values and their n when not all values have the same n, else None."""
+    groups: dict[int, list[str]] = {}
+    for name, n in counts.items():
+        groups.setdefault(n, []).append(name)
+    if len(groups) < 2:
+        return None
+    return "process values have different n: " + "; ".join(
+        f"n={n}: {', '.join(names)}" for n, names in sorted(groups.items(), key=lambda g: -g[0]))
 
 
 def limits_from_program(program: Mapping | None) -> dict[str, tuple[float | None, float | None]]:
@@ -45,11 +88,14 @@ def limits_from_program(program: Mapping | None) -> dict[str, tuple[float | None
     return out
 
 
-def set_statistics(results: Sequence[Mapping], limits: Limits | None = None) -> dict:
-    """Statistics of one set of curves (one program): counts, NOK per element, and per process value
-    mean/σ/min/max, ±3σ band, Cp/Cpk against ``limits``, normality and trend checks.
+def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
+                   units: Mapping[str, str] | None = None) -> dict:
+    """Statistics of one set of curves (one program): counts, NOK per element, incomplete results, and
+    per process value n (curves that contributed it), unit, mean/σ/min/max, ±3σ band, Cp/Cpk against
+    ``limits``, normality and trend checks.
 
-    A set with fewer than 50 curves carries a warning; values with < 3 finite entries get only counts.
+    A set with fewer than 50 curves carries a warning, and so do values of different n; values with
+    < 3 finite entries get only that warning.
     """
     verdicts = curve_verdicts(results)
     nok_by_element = Counter(f["name"] for v in verdicts for f in v["failed"])
@@ -58,7 +104,11 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None) -> 
         warnings.append(f"only {len(results)} measurements in the set (< {MIN_SET_SIZE}): "
                         f"statistics and capability are indicative only")
     values = {}
-    for name, v in process_values(results).items():
+    table = process_values(results)
+    unequal = counts_warning({name: int(np.count_nonzero(np.isfinite(v))) for name, v in table.items()})
+    if unequal:
+        warnings.append(unequal)
+    for name, v in table.items():
         finite = v[np.isfinite(v)]
         if finite.size < 3:
             warnings.append(f"{name}: only {finite.size} finite values, no statistics")
@@ -67,17 +117,26 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None) -> 
         entry["normality"] = normality(finite)
         entry["trend"] = trend(finite)
         entry["warnings"] = [w for w in entry["warnings"] if "measurements" not in w]
+        entry["unit"] = unit_of(name, units or {})
         values[name] = entry
     return {"n": len(results), "ok": sum(v["ok"] for v in verdicts), "nok": sum(not v["ok"] for v in verdicts),
-            "nok_by_element": dict(nok_by_element), "values": values, "warnings": warnings}
+            "incomplete": sum(not v["complete"] for v in verdicts), "nok_by_element": dict(nok_by_element),
+            "values": values, "warnings": warnings}
 
 
-def statistics_by_program(results: Sequence[Mapping], programs: Mapping[int, Mapping] | None = None) -> dict[int, dict]:
-    """:func:`set_statistics` for each program number, limits from that program's config."""
+def by_program(results: Iterable[Mapping]) -> dict[int, list[Mapping]]:
+    """Results grouped by program number (ascending), curve order kept."""
     groups: dict[int, list[Mapping]] = {}
     for r in results:
         groups.setdefault(int(r.get("program", 0)), []).append(r)
-    return {p: set_statistics(rs, limits_from_program((programs or {}).get(p))) for p, rs in sorted(groups.items())}
+    return dict(sorted(groups.items()))
+
+
+def statistics_by_program(results: Sequence[Mapping], programs: Mapping[int, Mapping] | None = None) -> dict[int, dict]:
+    """:func:`set_statistics` for each program number, limits and units from that program's config."""
+    programs = programs or {}
+    return {p: set_statistics(rs, limits_from_program(programs.get(p)), value_units(programs.get(p)))
+            for p, rs in by_program(results).items()}
 
 
 def event_counts(events: Iterable[Mapping]) -> dict[str, int]:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rig.analysis.plots import _save, plt
+from rig.analysis.plots import figure, save
 from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
 from rig.analysis.static_loops import cycle_energy, cycles, reading_points, theory_cycle_energy
 from rig.plants.clutch.static_rig import StaticClutchRig, rig_from_scene
@@ -56,7 +56,7 @@ def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
 def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarray, phi_m: np.ndarray,
                          torque_m: np.ndarray) -> Block:
     truth, c = ctx.recording.truth, rig.clutch
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = figure(size=(7, 4.5))
     grid = np.linspace(c.phi_min, c.apex, 400)
     lobes = range(int(max(np.max(truth["relative_angle"]), np.max(phi_m)) // c.period) + 1)
     for k in lobes:
@@ -70,13 +70,13 @@ def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarr
            ylim=(min(0.0, float(np.min(truth["torque"]))), 1.1 * float(np.max(truth["torque"]))))
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
-    return ctx.figure(_save(fig, ctx.figure_path("static_torque_angle")),
+    return ctx.figure(save(fig, ctx.figure_path("static_torque_angle")),
                       "Torque over relative angle: loading/unloading hysteresis loop, measured vs theory")
 
 
 def _strain_figure(ctx: ReportContext, rig: StaticClutchRig) -> Block:
     readings, truth, c = ctx.recording.series[TOPIC], ctx.recording.truth, rig.clutch
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = figure(size=(7, 4))
     local = np.linspace(c.phi_min, c.apex, 400)
     ax.plot(np.degrees(local), 1e6 * c.leaf_strain(local, rig.gauge_offset), ":", color="tab:red",
             label="theory ε(φ) at the gauges")
@@ -88,7 +88,7 @@ def _strain_figure(ctx: ReportContext, rig: StaticClutchRig) -> Block:
     ax.set(xlabel="relative angle in the lobe (deg)", ylabel="leaf strain (µm/m)", title="Leaf strain over angle")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
-    return ctx.figure(_save(fig, ctx.figure_path("static_leaf_strain")), "Leaf strain over relative angle")
+    return ctx.figure(save(fig, ctx.figure_path("static_leaf_strain")), "Leaf strain over relative angle")
 
 
 def static_clutch_section(ctx: ReportContext) -> list[Block]:

@@ -1,8 +1,9 @@
 """One-call analysis of a recording (or an in-memory Recording built live)."""
 from __future__ import annotations
 
+from rig.analysis.device import device_agreement, final_snapshot
 from rig.analysis.lag import compare_theory
-from rig.analysis.sets import curve_verdicts, event_counts, statistics_by_program
+from rig.analysis.sets import by_program, curve_verdicts, event_counts, incomplete_results, statistics_by_program
 from rig.recorder import CurveRecord, Recording
 
 
@@ -19,11 +20,21 @@ def theory_comparison(curve: CurveRecord) -> list[dict]:
     return out
 
 
+def program_sets(rec: Recording) -> dict[int, dict]:
+    """Set statistics per program, each with its ``device_agreement`` against the device's final snapshot."""
+    sets = statistics_by_program(rec.results, rec.programs)
+    for program, results in by_program(rec.results).items():
+        sets[program]["device_agreement"] = device_agreement(results, final_snapshot(rec.statistics, program))
+    return sets
+
+
 def analyse(rec: Recording) -> dict:
-    """Verdicts per curve, statistics per program, theory vs measurement per curve, event counts."""
+    """Verdicts per curve, incomplete results, statistics per program (with the device comparison),
+    theory vs measurement per curve, event counts."""
     return {
         "verdicts": curve_verdicts(rec.results),
-        "sets": statistics_by_program(rec.results, rec.programs),
+        "incomplete": incomplete_results(rec.results),
+        "sets": program_sets(rec),
         "theory": [row for c in rec.curves for row in theory_comparison(c)],
         "events": event_counts(rec.events),
         "device_statistics": rec.statistics[-1] if rec.statistics else None,

@@ -209,11 +209,9 @@ class Recorder:
         """Raw CAN frames (``/can/raw``): a :class:`rig.blockbus.FrameBlock`, python-can ``Message`` objects or
         ``(t, id, data, is_fd)`` tuples."""
         if not isinstance(frames, FrameBlock):
-            frames = list(frames)
-            frames = frames_of(frames) if all(hasattr(f, "arbitration_id") for f in frames) else \
-                FrameBlock.of_messages([can.Message(timestamp=float(t), arbitration_id=int(fid), data=bytes(data),
-                                                    is_fd=bool(fd), is_extended_id=int(fid) > 0x7FF, check=False)
-                                        for t, fid, data, fd in frames])
+            frames = frames_of(f if hasattr(f, "arbitration_id") else can.Message(
+                timestamp=float(f[0]), arbitration_id=int(f[1]), data=bytes(f[2]), is_fd=bool(f[3]),
+                is_extended_id=int(f[1]) > 0x7FF, check=False) for f in frames)
         width = frames.data.shape[1]
         text = frames.data.tobytes().hex()
         cols = (frames.timestamp.tolist(), frames.arbitration_id.tolist(), ((frames.flags & FD) != 0).tolist(),

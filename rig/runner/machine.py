@@ -96,8 +96,8 @@ class Machine:
             else:
                 signal[spec.role] = sensor.measure(t, truth[spec.signal])
         if "x" in signal and "y" in signal:
-            for result in self.device.feed(t, signal["x"], signal["y"]):
-                self.node.publish_measurement(float(t[-1]), result)
+            for result in self.device.feed(t, signal["x"], signal["y"]):     # queued when the curve ends
+                self.node.publish_measurement(float(np.asarray(result.curve.t)[-1]), result)
                 self.curves += 1
             live = self.device.live_values()
             self.node.publish_live(t, live["x"], live["y"])

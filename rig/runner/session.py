@@ -30,7 +30,8 @@ class RunError(RuntimeError):
 
 @dataclass
 class RunSummary:
-    """What a run produced."""
+    """What a run produced: ``wall_time`` (s) of the whole run, set-up (serial configuration, statistics
+    read-back) included; ``run_time`` (s): its run phase, from the go signal to the last curve recorded."""
 
     output: Path
     curves: int
@@ -38,10 +39,12 @@ class RunSummary:
     wall_time: float
     frames: int
     statistics: dict[str, Any] = field(default_factory=dict)
+    run_time: float = 0.0
 
     @property
     def realtime_factor(self) -> float:
-        return self.simulated_time / self.wall_time if self.wall_time > 0 else float("inf")
+        """Simulated time per wall time of the run phase."""
+        return self.simulated_time / self.run_time if self.run_time > 0 else float("inf")
 
 
 def _config(scene_path: str | Path, cycles: int | None, mode: str | None) -> RunConfig:
@@ -157,8 +160,10 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 host = Host(cfg, host_bus, serial_dev.port if serial_dev else None, rec)
                 host.arm()
                 _wait_for_go(machine, 5.0)
+                go = time.perf_counter()
                 _drive(cfg, machine, lock, bar, lambda: (host.poll(), host.curves_recorded)[1])
                 host.poll()
+                run_time = time.perf_counter() - go
                 if not host.done():
                     raise RunError(f"the host received only {host.curves_recorded} complete curves of "
                                    f"{machine.curves} measured (see /events in {output})")
@@ -166,7 +171,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
         finally:
             if serial_dev is not None:
                 serial_dev.close()
-    return RunSummary(output, host.curves_recorded, machine.t, time.perf_counter() - wall, host.frames, stats)
+    return RunSummary(output, host.curves_recorded, machine.t, time.perf_counter() - wall, host.frames, stats, run_time)
 
 
 def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | None = None,
@@ -233,6 +238,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
         with _recorder(cfg, output, "cross-process") as rec, _progress(cfg, progress) as bar:
             host = Host(cfg, bus, serial_port, rec)
             host.arm()
+            go = time.perf_counter()
             last = time.monotonic()
             while not host.done():
                 if host.poll(0.05):
@@ -242,5 +248,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                                    f"recorded {host.curves_recorded} curves (kept in {output})")
                 _show(bar, host.curves_recorded if cfg.cycles is not None else round(host.truth_t, 3))
             host.poll(0.2)
+            run_time = time.perf_counter() - go
             stats = host.finish()
-    return RunSummary(output, host.curves_recorded, host.truth_t, time.perf_counter() - wall, host.frames, stats)
+    return RunSummary(output, host.curves_recorded, host.truth_t, time.perf_counter() - wall, host.frames, stats,
+                      run_time)

@@ -56,27 +56,17 @@ def test_round_trip_every_frame(message, rng):
 
 def test_packed_rows_equal_cantools_encoding():
     """The node's vectorised packing of curve/live frames gives cantools' bytes for the same signals."""
-    import can as _can
     import numpy as _np
-    from firmware_sim.can_node import CanNode
+    from firmware_sim.can_node import _Packing
 
-    class _Idle:
-        last_result = None
-
-    bus = _can.Bus(interface="virtual", channel="packed-rows-test", preserve_timestamps=True)
-    try:
-        node = CanNode(bus, _Idle())
-        rng = _np.random.default_rng(3)
-        cols = {"Tick": rng.integers(0, 65536, 50), "X": rng.integers(-(1 << 19), 1 << 19, 50),
-                "Y": rng.integers(-(1 << 19), 1 << 19, 50)}
-        node._enqueue_rows("LiveXY", cols, _np.zeros(50))
-        msg = node._msg["LiveXY"]
-        items = sorted((w[2] for w in node._waiting), key=lambda it: it.key[1])
-        for i, item in enumerate(items):
-            expected = msg.encode({"Seq": 0, **{k: int(v[i]) for k, v in cols.items()}}, scaling=False, strict=True)
-            assert bytes(item.data) == expected
-        with pytest.raises(ValueError, match="outside"):
-            node._enqueue_rows("LiveXY", {"Tick": _np.array([70000]), "X": _np.array([0]), "Y": _np.array([0])},
-                               _np.zeros(1))
-    finally:
-        bus.shutdown()
+    msg = DB.get_message_by_name("LiveXY")
+    packing = _Packing(msg)
+    rng = _np.random.default_rng(3)
+    cols = {"Tick": rng.integers(0, 65536, 50), "X": rng.integers(-(1 << 19), 1 << 19, 50),
+            "Y": rng.integers(-(1 << 19), 1 << 19, 50)}
+    rows = packing.pack(cols, 50)
+    for i in range(50):
+        expected = msg.encode({"Seq": 0, **{k: int(v[i]) for k, v in cols.items()}}, scaling=False, strict=True)
+        assert rows[i].tobytes() == expected
+    with pytest.raises(ValueError, match="outside"):
+        packing.pack({"Tick": _np.array([70000]), "X": _np.array([0]), "Y": _np.array([0])}, 1)

@@ -76,10 +76,10 @@ def test_curve_of_4000_pairs_and_result(buses, device, rng, fd, elements, make_c
     timing = BusTiming(500_000, fd=fd, data_bitrate=2e6 if fd else None)
     if fd:
         blocks = -(-4000 // 11)
-        expected = blocks * timing.frame_time(0x303, bytes(64), True) + 10 * 135 / 500e3
+        expected = blocks * timing.frame_time(0x303, bytes(64), True) + 11 * 135 / 500e3
     else:
-        expected = (4000 + 10) * 135 / 500e3    # header, timing, blocks, end, result, 6 process values
-    assert max(m.timestamp for m in frames) == pytest.approx(0.5 + expected, abs=1e-9)
+        expected = (4000 + 11) * 135 / 500e3    # header, timing, blocks, end, result, 6 process values, end marker
+    assert max(m.timestamp for m in frames) == pytest.approx(0.5 + expected, abs=0.5e-6)   # stamps in whole µs
     assert node.pending_frames == 0
 
 
@@ -96,10 +96,10 @@ def test_curve_transfer_time_from_received_timestamps(buses, device, rng, elemen
         while (m := host_bus.recv(0)) is not None:
             stamps.append((m.arbitration_id, m.timestamp))
     curve_stamps = [s for fid, s in stamps if fid >= 0x300]
-    # header + timing + 1000 blocks + end + result = 1004 frames of 135 bits at 1 Mbit/s, back to back
-    assert len(curve_stamps) == 1004
+    # header + timing + 1000 blocks + end + result + end marker = 1005 frames of 135 bits at 1 Mbit/s, back to back
+    assert len(curve_stamps) == 1005
     np.testing.assert_allclose(np.diff(curve_stamps), 135e-6, rtol=1e-9)
-    assert curve_stamps[-1] == pytest.approx(0.2 + 1004 * 135e-6, abs=1e-9)
+    assert curve_stamps[-1] == pytest.approx(0.2 + 1005 * 135e-6, abs=1e-9)
 
 
 def test_live_stream_is_decimated_to_fit_500k(buses, device, rng):
@@ -273,17 +273,17 @@ def test_bad_calls_are_named(buses, device):
 def test_live_frames_stuck_behind_higher_priority_traffic_go_stale(buses, device):
     dev_bus, host_bus = buses
     node = CanNode(dev_bus, device, bitrate=500_000, live_max_age=0.05, heartbeat_period=100.0)
-    for _ in range(300):                       # 600 encoder frames = 162 ms of wire time from t = 0
-        node.publish_encoders(0.0, [1, 2], [0.0, 0.0])
     t = np.arange(1000) / 10_000.0
     factor = node.publish_live(t, np.zeros(1000), np.zeros(1000))
+    for _ in range(300):                       # then 600 encoder frames = 162 ms of wire time from t = 0
+        node.publish_encoders(0.0, [1, 2], [0.0, 0.0])
     node.advance_to(0.5)
     ids = []
     while (m := host_bus.recv(0)) is not None:
         ids.append(m.arbitration_id)
     # every live frame was ready before 0.1 s and could not start before 0.162 s > 0.1 + 0.05
     assert factor == 6 and ids.count(0x200) == 0 and node.live_sent == 0
-    assert node.live_dropped == 1000
+    assert node.live_dropped == 1000 and node.live_stale == 167     # 833 decimated, 167 sent as frames went stale
     assert ids.count(0x180) == ids.count(0x181) == 300
 
 
