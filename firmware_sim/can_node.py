@@ -20,6 +20,7 @@ dropped. Every pair not sent is counted (``LiveDropped`` in ``StatusCounters``; 
 from __future__ import annotations
 
 import binascii
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -429,7 +430,7 @@ class CanNode:
         self._enqueue_rows("StaticRig", {"Tick": np.rint(t / TICK).astype(np.int64) % 65536, "Angle": ra,
                                          "Strain": rs}, t)
 
-    def publish_status(self, t: float) -> None:
+    def publish_status(self, t: float, run_ended: bool = False) -> None:
         """Queue a heartbeat, the status counters and the transmit-queue status at time ``t`` (s)."""
         status = self.device.status()
         last = getattr(self.device, "last_result", None)
@@ -443,7 +444,8 @@ class CanNode:
                                          "CurveCount": self.curves_measured % 65536,
                                          "CurvesPending": min(self.curves_pending, 255)}, t)
         self._enqueue("TxStatus", {"Backlog": min(int(round(self.backlog_time * 1000)), 65535),
-                                   "LiveFactor": min(self.live_factor, 255), "LiveStale": self.live_stale % (1 << 32)}, t)
+                                   "LiveFactor": min(self.live_factor, 255), "LiveStale": self.live_stale % (1 << 24),
+                                   "RunEnded": int(run_ended)}, t)
 
     # ------------------------------------------------------------------ host commands
     def handle_commands(self) -> int:
@@ -499,6 +501,14 @@ class CanNode:
             self.publish_status(self._next_heartbeat)
             self._next_heartbeat += self.heartbeat_period
         return self._transmit(t)
+
+    def close(self, t: float) -> int:
+        """End of the run at time ``t`` (s): the final status (``RunEnded`` set), then everything still queued
+        goes on the wire; no heartbeat follows. Returns the number of frames sent."""
+        self.now = max(self.now, float(t))
+        self._next_heartbeat = math.inf
+        self.publish_status(self.now, run_ended=True)
+        return self._transmit(self.now + self.backlog_time + 1.0)
 
     def _transmit(self, t: float) -> int:
         """Send the queued frames that are complete on the wire by ``t`` (s), in arbitration order."""

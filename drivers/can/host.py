@@ -110,6 +110,10 @@ class CanHost:
         self.frames_received = 0
         self.status: dict[str, Any] = {}
         self.counters: dict[str, int] = {}
+        self.run_ended = False        # the device's last frame of the run (TxStatus RunEnded) has arrived
+        self.drop_period = 1.0        # s of device time between two reports of dropped live pairs
+        self.drop_reports: list[dict[str, float]] = []   # not yet taken (see take_drop_reports)
+        self._drops_reported, self._drops_at = 0, -float("inf")
         self.results: dict[int, CurveResult] = {}                # released results not yet taken
         self.encoders: dict[int, dict[str, float]] = {}
         self.torque: list[tuple[float, float, float]] = []      # (t s, torque N*m, brake force N)
@@ -232,10 +236,24 @@ class CanHost:
     def _counters(self, msg, spec, raw) -> None:
         self.counters.update({"live_dropped": raw["LiveDropped"], "curve_count": raw["CurveCount"],
                               "curves_pending": raw["CurvesPending"]})
+        if raw["LiveDropped"] != self._drops_reported and self._device_time - self._drops_at >= self.drop_period:
+            self._report_drops()
+
+    def _report_drops(self) -> None:
+        """A ``live_dropped`` report (at the device time of the status frames): pairs the unit did not send
+        since the previous report, from its counters."""
+        c = self.counters
+        self.drop_reports.append({"t": self._device_time, "count": (c["live_dropped"] - self._drops_reported) % (1 << 32),
+                                  "total": c["live_dropped"], "stale": c.get("live_stale", 0),
+                                  "live_factor": c.get("live_factor", 1), "backlog": c.get("backlog", 0.0)})
+        self._drops_reported, self._drops_at = c["live_dropped"], self._device_time
 
     def _tx_status(self, msg, spec, raw) -> None:
         self.counters.update({"backlog": raw["Backlog"] * spec.get_signal_by_name("Backlog").scale,
                               "live_factor": raw["LiveFactor"], "live_stale": raw["LiveStale"]})
+        self.run_ended = self.run_ended or bool(raw["RunEnded"])
+        if self.run_ended and self.counters.get("live_dropped", 0) != self._drops_reported:
+            self._report_drops()
 
     def _live_time(self, tick: int) -> float:
         t = unwrap(tick * 1e-4, TICK_WRAP, self._device_time)
@@ -432,6 +450,12 @@ class CanHost:
         ``encoders`` (encoder 1/2, received s, count, edge time s), ``static`` (t s, rad, m/m)."""
         out = {"torque": self.torque, "encoders": self.encoder_log, "static": self.static}
         self.torque, self.encoder_log, self.static = [], [], []
+        return out
+
+    def take_drop_reports(self) -> list[dict[str, float]]:
+        """Reports of live pairs the unit did not send (at most one per ``drop_period`` of device time, and one
+        at the end of the run), since the last call."""
+        out, self.drop_reports = self.drop_reports, []
         return out
 
     def take_events(self) -> list[LinkEvent]:

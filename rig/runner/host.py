@@ -37,7 +37,7 @@ def encoder_resolution(spec: Any) -> float:
 
 
 THEORY_BLOCK = 0.5        # s of theory computed per plant call (on a fixed grid: the same calls in every run)
-DROP_REPORT_PERIOD = 1.0  # s of device time between two live_dropped events (each counts every pair since the last)
+RUN_END_WAIT = 2.0        # s of device time a host that has all its curves waits for the machine's run to end
 
 
 class Host:
@@ -65,8 +65,7 @@ class Host:
         self._results: dict[int, Any] = {}              # released results by curve number (mod 65536)
         self._curves_done = 0
         self._plant_events = 0
-        self._drops_reported = 0
-        self._drops_at = 0.0
+        self._done_at: float | None = None          # device time (s) when the host first had all it needs
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
         self.frames = 0
         self._rad_per_count = {i: encoder_resolution(cfg.role(f"encoder{i}")) for i in (1, 2)}
@@ -206,18 +205,8 @@ class Host:
     def _record_link_events(self) -> None:
         for ev in self.can.take_events():
             self.rec.write_event(max(ev.time, 0.0), ev.kind, frame_id=ev.frame_id, count=ev.count, detail=ev.detail)
-        dropped = self.can.counters.get("live_dropped", 0)
-        now = self.can.device_time
-        if dropped > self._drops_reported and now - self._drops_at >= DROP_REPORT_PERIOD:
-            self._report_drops(now)
-
-    def _report_drops(self, now: float) -> None:
-        """One ``live_dropped`` event: live pairs the unit did not send since the last one (its counters)."""
-        c = self.can.counters
-        self.rec.write_event(now, "live_dropped", count=int(c["live_dropped"] - self._drops_reported),
-                             total=int(c["live_dropped"]), stale=int(c.get("live_stale", 0)),
-                             live_factor=int(c.get("live_factor", 1)), backlog=float(c.get("backlog", 0.0)))
-        self._drops_reported, self._drops_at = int(c["live_dropped"]), now
+        for report in self.can.take_drop_reports():
+            self.rec.write_event(report.pop("t"), "live_dropped", **report)
 
     # ---------------------------------------------------------------- completion
     @property
@@ -229,6 +218,16 @@ class Host:
             return self._curves_done >= self.cfg.cycles
         return self.can.device_time >= self.cfg.duration - 1e-9
 
+    def run_over(self) -> bool:
+        """Whether the machine's run is over for this host: its last frame (``RunEnded``) has arrived, or
+        (the served scene runs longer than this host records) ``RUN_END_WAIT`` s of device time passed
+        since the host got all it needs. Decided from the frames only, so every run ends at the same frame."""
+        if self.can.run_ended:
+            return True
+        if self._done_at is None:
+            self._done_at = self.can.device_time
+        return self.can.device_time - self._done_at > RUN_END_WAIT
+
     def finish(self) -> dict[str, Any]:
         """Release what is still waiting, read the unit's statistics over serial and record them with the
         link counters, then tell the unit the host is done (CAN Release)."""
@@ -238,8 +237,6 @@ class Host:
         if self.cfg.cycles is None:
             self._advance_theory(self.cfg.duration)
         self._record_link_events()
-        if self.can.counters.get("live_dropped", 0) > self._drops_reported:
-            self._report_drops(self.can.device_time)
         for curve in self._curves:
             self.rec.write_event(float(curve.t[-1]), "result_missing", number=curve.number,
                                  detail="the curve arrived but its Result frame did not")

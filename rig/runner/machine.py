@@ -118,10 +118,10 @@ class Machine:
         return truth
 
     def flush(self, limit: float = 60.0) -> None:
-        """Let the node send everything still queued (results of the last curve) in virtual time."""
+        """End the run: let the node send everything still queued (results of the last curve) in virtual
+        time, then close it (final status with ``RunEnded``; nothing follows it on the wire)."""
         t_start, t_end = self.t, self.t + limit
         while self.node.has_pending_before(t_start) and self.t < t_end:   # later heartbeats need not wait
             self.t += self.cfg.chunk
             self.node.advance_to(self.t)
-        self.node.publish_status(self.t)
-        self.node.advance_to(self.t + self.cfg.chunk)
+        self.node.close(self.t)

@@ -162,7 +162,8 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 _wait_for_go(machine, 5.0)
                 go = time.perf_counter()
                 _drive(cfg, machine, lock, bar, lambda: (host.poll(), host.curves_recorded)[1])
-                host.poll()
+                while host.poll():
+                    pass
                 run_time = time.perf_counter() - go
                 if not host.done():
                     raise RunError(f"the host received only {host.curves_recorded} complete curves of "
@@ -240,14 +241,13 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
             host.arm()
             go = time.perf_counter()
             last = time.monotonic()
-            while not host.done():
+            while not host.done() or not host.run_over():
                 if host.poll(0.05):
                     last = time.monotonic()
                 elif time.monotonic() - last > idle_timeout:
                     raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
                                    f"recorded {host.curves_recorded} curves (kept in {output})")
                 _show(bar, host.curves_recorded if cfg.cycles is not None else round(host.truth_t, 3))
-            host.poll(0.2)
             run_time = time.perf_counter() - go
             stats = host.finish()
     return RunSummary(output, host.curves_recorded, host.truth_t, time.perf_counter() - wall, host.frames, stats,

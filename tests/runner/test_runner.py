@@ -57,33 +57,54 @@ def test_in_process_recording_holds_curves_theory_results_statistics(in_process:
     assert rec.can_frames is not None
 
 
-def test_cross_process_serve_and_record_equal_in_process(in_process: Path, tmp_path: Path):
+def _busy_cores(n: int) -> list[subprocess.Popen]:
+    """Processes that keep ``n`` cores busy (the machine under load)."""
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+
+
+def test_cross_process_recording_equals_in_process_under_load(in_process: Path, tmp_path: Path):
+    """``rig serve`` + ``rig record`` in two processes, with both cores busy, record every value the
+    in-process run records: the run ends at the device's last frame and the served process stays until
+    the host releases it, so nothing depends on timing."""
     from rig.runner import record_scene
     endpoints = tmp_path / "endpoints.json"
-    serve = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "serve", str(SCENE), "--linger", "2",
-                              "--endpoints", str(endpoints), "--wait", "60"],
+    burners = _busy_cores(2)
+    serve = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "serve", str(SCENE), "--cycles", str(CYCLES),
+                              "--endpoints", str(endpoints), "--wait", "120"],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 120
         while not endpoints.exists() or not endpoints.read_text():
             assert serve.poll() is None, serve.stderr.read()
             assert time.monotonic() < deadline, "rig serve did not announce its endpoints"
             time.sleep(0.05)
         ep = json.loads(endpoints.read_text())
         out = tmp_path / "cross.mcap"
-        # the served scene has 50 cycles; record all of them would be slow, so compare the first CYCLES
         summary = record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
-                               serial_port=ep["serial"], cycles=CYCLES)
-        assert summary.curves >= CYCLES
+                               serial_port=ep["serial"], cycles=CYCLES, idle_timeout=60.0)
+        assert summary.curves == CYCLES
+        assert serve.wait(timeout=120) == 0, serve.stderr.read()        # it exits once released
     finally:
-        serve.terminate()
-        serve.wait(timeout=20)
+        for p in burners + [serve]:
+            p.kill()
+            p.wait()
     a, b = read_recording(in_process), read_recording(out)
-    for ca, cb in zip(a.curves[:CYCLES], b.curves[:CYCLES]):
+    assert len(a.curves) == len(b.curves) == CYCLES
+    for ca, cb in zip(a.curves, b.curves):
         assert ca.number == cb.number
-        np.testing.assert_array_equal(ca.x, cb.x)
-        np.testing.assert_array_equal(ca.y, cb.y)
-        np.testing.assert_array_equal(ca.t, cb.t)
+        for name in ("t", "x", "y", "angle"):
+            np.testing.assert_array_equal(getattr(ca, name), getattr(cb, name))
+        assert ca.theory.keys() == cb.theory.keys()
+        for key in ca.theory:
+            np.testing.assert_array_equal(ca.theory[key], cb.theory[key])
+    assert a.results == b.results and a.statistics == b.statistics
+    for key in ("t", "id", "data", "is_fd"):
+        assert list(a.can_frames[key]) == list(b.can_frames[key]), key
+    for topic in a.series:
+        assert a.series[topic].keys() == b.series[topic].keys(), topic
+        for name, values in a.series[topic].items():
+            np.testing.assert_array_equal(values, b.series[topic][name], err_msg=f"{topic} {name}")
+    assert a.events == b.events
 
 
 def test_sensor_preload_and_spring_rate_change_the_measurement(in_process: Path, tmp_path: Path):
