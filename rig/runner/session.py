@@ -161,7 +161,12 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 host.arm()
                 _wait_for_go(machine, 5.0)
                 go = time.perf_counter()
-                _drive(cfg, machine, lock, bar, lambda: (host.poll(), host.curves_recorded)[1])
+                try:
+                    _drive(cfg, machine, lock, bar, lambda: (host.poll(), host.curves_recorded)[1])
+                except RunError:
+                    while host.poll():         # record what is already on the wire before stopping
+                        pass
+                    raise
                 while host.poll():
                     pass
                 run_time = time.perf_counter() - go

@@ -310,3 +310,96 @@ def test_non_uniform_sample_times_are_sent_per_pair(buses, device, rng, elements
     (curve,) = host.curves()
     np.testing.assert_allclose(curve.t, t, rtol=0, atol=5e-6)
     assert host.events == []
+
+
+def _frames_until(node: CanNode, host_bus, t_end: float) -> list[can.Message]:
+    """Frames on the wire up to ``t_end`` (s); a new result is picked up at the node's present time."""
+    node.advance_to(node.now)
+    node.advance_to(t_end)
+    frames = []
+    while (m := host_bus.recv(0)) is not None:
+        frames.append(m)
+    return frames
+
+
+def test_result_is_complete_only_with_its_end_marker_and_every_value(buses, device, rng, elements, make_curve):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)
+    t, x, y = make_curve(rng, 100)
+    device.finish(t, x, y, elements[:1], PV)
+    frames = _frames_until(node, host_bus, 1.0)
+    values = [m for m in frames if m.arbitration_id == 0x311]
+    assert len(values) == len(PV) + 1 and values[-1].data[2] == 255      # the values, then the end marker
+    whole = CanHost(None)
+    for m in frames:
+        whole.receive(m)
+    assert whole.results[1].complete and whole.results[1].missing == [] and whole.events == []
+    # the wire loses the y_min and duration frames: the result is released, marked incomplete, naming them
+    lost = {values[3].data[2], values[5].data[2]}
+    host = CanHost(None)
+    host.receive_many([m for m in frames if not (m.arbitration_id == 0x311 and m.data[2] in lost)])
+    res = host.results[1]
+    assert not res.complete and sorted(res.missing) == ["duration", "y_min"]
+    assert set(res.process_values) == set(PV) - {"y_min", "duration"}
+    (event,) = host.events_of("result")
+    assert event.count == 2 and "duration, y_min" in event.detail or "y_min, duration" in event.detail
+
+
+def test_result_without_end_marker_is_released_incomplete_never_silently(buses, device, rng, elements, make_curve):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=0.1)
+    t, x, y = make_curve(rng, 100)
+    device.finish(t, x, y, elements[:1], PV)
+    first = _frames_until(node, host_bus, 0.5)
+    device.finish(t + 0.5, x, y, elements[:1], PV)
+    second = _frames_until(node, host_bus, 5.0)
+    is_end = lambda m: m.arbitration_id == 0x311 and m.data[2] == 255      # noqa: E731
+    # (a) the next curve's header arrives first: released at once, all values kept, marked incomplete
+    host = CanHost(None)
+    for m in [m for m in first if not is_end(m)] + second:
+        host.receive(m)
+    taken = host.take_results()
+    assert [r.number for r in taken] == [1, 2] and not taken[0].complete and taken[1].complete
+    from drivers.can.host import PROCESS_VALUES
+    assert taken[0].process_values == pytest.approx(PV, rel=1e-6)
+    assert set(taken[0].missing) == set(PROCESS_VALUES.values()) - set(PV)    # unknown which were sent: all absent
+    assert "no end marker before the header of curve 2" in host.events_of("result")[0].detail
+    # (b) nothing follows: released after result_timeout s of bus time (heartbeats keep coming) ...
+    host = CanHost(None, result_timeout=1.0)
+    for m in [m for m in first + second if not is_end(m) or m.data[1] != 1]:
+        if m.arbitration_id in (0x300, 0x301, 0x302, 0x305, 0x310, 0x311) and m.timestamp > 0.5:
+            continue                                         # the second curve never comes
+        host.receive(m)
+    (late,) = host.take_results()
+    assert late.number == 1 and not late.complete and "1 s of bus time passed" in host.events_of("result")[0].detail
+    # (c) ... or at the end of reception
+    host = CanHost(None, result_timeout=100.0)
+    for m in [m for m in first if not is_end(m)]:
+        host.receive(m)
+    assert host.take_results() == []
+    host.flush()
+    (last,) = host.take_results()
+    assert last.number == 1 and not last.complete
+
+
+def test_curve_start_is_exact_for_a_backlog_longer_than_a_counter_wrap(buses, device, rng, elements, make_curve):
+    """A curve measured at 1 s reaches the host at ~30 s (device time from heartbeats): 29 s of backlog is
+    more than the 16.78 s wrap of the 24-bit TStart, yet the 40-bit start (TStartHigh) places it exactly."""
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=0.1)
+    host = CanHost(host_bus)
+    run(node, host, 30.0, step=0.5)
+    t, x, y = make_curve(rng, 500)
+    node.publish_measurement(30.0, device.finish(t + 1.0, x, y, elements[:1], {}))
+    run(node, host, 31.0)
+    (curve,) = host.curves()
+    assert host.device_time > 30.0
+    np.testing.assert_allclose(curve.t, t + 1.0, rtol=0, atol=5e-6)
+    # ... and far beyond: 5 days of device time (the 32-bit heartbeat stamp in ms and 40-bit start hold it)
+    late = 5 * 86_400.0 + 0.25
+    node2 = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=0.1, t0=late - 1.0)
+    host2 = CanHost(host_bus)
+    node2.publish_measurement(late, device.finish(t + late - 0.2, x, y, elements[:1], {}))
+    run(node2, host2, late + 1.0)
+    (curve2,) = host2.curves()
+    np.testing.assert_allclose(curve2.t, t + late - 0.2, rtol=0, atol=5e-6)

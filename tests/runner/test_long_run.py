@@ -1,0 +1,68 @@
+"""The data path over long runs and at its limits: 1000 cycles in virtual time, a bus that cannot carry the
+curves, the time limit of ``--cycles``."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import orjson
+import pytest
+from mcap.reader import make_reader
+
+from rig.recorder import read_recording
+from rig.runner import run_scene
+from rig.runner.session import RunError, _config
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = ROOT / "data" / "scenes" / "pin_insertion.toml"
+
+
+def _stream(path: Path, topics: list[str]):
+    """(topic, message) of a recording, streamed (a long run's file is not read into memory at once)."""
+    with open(path, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages(topics=topics):
+            yield channel.topic, orjson.loads(message.data)
+
+
+def test_a_thousand_cycles_in_virtual_time_keep_every_value_and_time(tmp_path: Path):
+    out = tmp_path / "long.mcap"
+    summary = run_scene(SCENE, out, cycles=1000)
+    assert summary.curves == 1000
+    numbers, starts, results, events, stats = [], [], [], [], []
+    for topic, msg in _stream(out, ["/device/curve", "/device/result", "/events", "/device/statistics"]):
+        if topic == "/device/curve":
+            numbers.append(msg["number"])
+            starts.append(msg["t"][0])
+        elif topic == "/device/result":
+            results.append(msg)
+        elif topic == "/events":
+            events.append(msg)
+        else:
+            stats.append(msg)
+    assert numbers == list(range(1, 1001))
+    gaps = np.diff(starts)                       # one machine cycle (0.4 s at 150 rpm) between curve starts:
+    assert np.all((gaps > 0.35) & (gaps < 0.45)), gaps[(gaps <= 0.35) | (gaps >= 0.45)]   # no 16.78 s jumps
+    assert 0 < starts[0] and starts[-1] < summary.simulated_time
+    assert len(results) == 1000 and all(r["complete"] and len(r["process_values"]) == 9 for r in results)
+    kinds = {e["kind"] for e in events}
+    assert not kinds & {"sequence_gap", "curve", "result", "incomplete_curve", "result_missing"}, kinds
+    backlog = [e["backlog"] for e in events if e["kind"] == "live_dropped"]
+    assert backlog and max(backlog) < 0.6        # bounded queue: at most about one curve (0.34 s of wire) waits
+    assert stats[-1]["total"] == 1000
+
+
+def test_a_bus_that_cannot_carry_the_curves_stops_the_run_with_a_clear_error(tmp_path: Path):
+    slow = tmp_path / "slow.toml"
+    slow.write_text(SCENE.read_text().replace("bitrate = 1000000", "bitrate = 250000", 1))
+    out = tmp_path / "slow.mcap"
+    with pytest.raises(RunError, match=r"\[links.can\].*cannot carry the curves.*CAN FD"):
+        run_scene(slow, out, cycles=20)
+    rec = read_recording(out)                    # what was recorded before stays readable
+    assert rec.complete and 1 <= len(rec.curves) < 20
+
+
+def test_cycles_from_the_command_line_raise_the_time_limit():
+    assert _config(SCENE, None, None).max_time == pytest.approx(3 * 50 + 10)
+    assert _config(SCENE, 500, None).max_time == pytest.approx(3 * 500 + 10)
+    with pytest.raises(RunError, match="at least 1"):
+        _config(SCENE, 0, None)
