@@ -53,7 +53,7 @@ def test_a_thousand_cycles_in_virtual_time_keep_every_value_and_time(tmp_path: P
 
 def test_a_bus_that_cannot_carry_the_curves_stops_the_run_with_a_clear_error(tmp_path: Path):
     slow = tmp_path / "slow.toml"
-    slow.write_text(SCENE.read_text().replace("bitrate = 1000000", "bitrate = 250000", 1))
+    slow.write_text(SCENE.read_text().replace("bitrate = 1000000", "bitrate = 500000", 1))
     out = tmp_path / "slow.mcap"
     with pytest.raises(RunError, match=r"\[links.can\].*cannot carry the curves.*CAN FD"):
         run_scene(slow, out, cycles=20)
