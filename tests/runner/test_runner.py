@@ -161,3 +161,40 @@ def test_bad_scene_is_a_clear_error(tmp_path: Path, old: str, new: str, message:
 def test_config_reads_the_demo_scene():
     cfg = read_config(load_scene(SCENE))
     assert cfg.cycles == 50 and cfg.sample_rate == 10_000 and cfg.role("x").signal == "s"
+
+
+def test_recorded_values_equal_the_raw_frames_decoded_with_cantools_and_the_dbc_alone(in_process: Path):
+    """An independent reading of ``/can/raw``: cantools and the DBC give the same process values, curve
+    numbers, start times and X/Y pairs as the recorded results and curves."""
+    import cantools
+    db = cantools.database.load_file(str(ROOT / "data" / "can" / "rig.dbc"))
+    rec = read_recording(in_process)
+    frames = rec.can_frames
+    values: dict[int, dict[str, float]] = {}
+    starts, xs, ends = {}, {}, {}
+    high = None
+    for fid, data in zip(frames["id"], frames["data"]):
+        if fid not in (0x300, 0x301, 0x302, 0x311):
+            continue
+        msg = db.decode_message(int(fid), data, decode_choices=False)
+        if fid == 0x300:
+            number, high = msg["CurveNo"], msg["TStartHigh"]
+            xs[number] = []
+        elif fid == 0x301:
+            starts[number] = high + msg["TStart"]
+        elif fid == 0x302:
+            xs[number].append(msg["X"])
+        elif msg["Pv"] == 255:
+            ends[msg["CurveNo"]] = (msg["PvMask"], msg["PvCount"])
+        else:
+            name = next(k for k in msg if k not in ("Seq", "CurveNo", "Pv"))
+            values.setdefault(msg["CurveNo"], {})[name] = msg[name]
+    names = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min", "XAtYMax": "x_at_y_max",
+             "YAtXMax": "y_at_x_max", "XEnd": "x_end", "YEnd": "y_end", "Duration": "duration"}
+    assert len(rec.results) == CYCLES
+    for result, curve in zip(rec.results, rec.curves):
+        n = result["number"]
+        assert ends[n] == (0x1FF, 9) and result["complete"]            # all 9 announced, all 9 recorded
+        assert result["process_values"] == {names[k]: v for k, v in values[n].items()}
+        assert curve.t[0] == pytest.approx(starts[n], abs=1e-6)
+        np.testing.assert_allclose(curve.x, xs[n], rtol=0, atol=1e-12)
