@@ -52,9 +52,10 @@ def _print_set_summary(result: dict) -> None:
     verdicts = result["verdicts"]
     nok = [v for v in verdicts if not v["ok"]]
     print(f"curves: {len(verdicts)}, OK {len(verdicts) - len(nok)}, NOK {len(nok)}")
-    if result["incomplete"]:
-        print(f"  warning: {len(result['incomplete'])} incomplete result(s): " + "; ".join(
-            f"curve {r['number']} missing {', '.join(r['missing']) or '(unnamed values)'}" for r in result["incomplete"]))
+    incomplete = result["incomplete"]
+    if incomplete:
+        print(f"  warning: {len(incomplete)} incomplete result(s): " + "; ".join(
+            f"curve {r['number']} missing {', '.join(r['missing']) or '(unnamed values)'}" for r in incomplete))
     for program, st in result["sets"].items():
         for warning in st.get("warnings", []):
             print(f"  warning (program {program}): {warning}")

@@ -51,14 +51,15 @@ def _threshold(ax: Axes, e: Mapping) -> None:
     if axis == "x":
         y0, y1 = ax.get_ylim() if lo is None else (lo, hi)
         ax.plot([value, value], [y0, y1], color="tab:purple", ls=":", lw=1.5)
-        where = (value, y1)
+        where, align = (value, y1), "left"
     elif axis == "y":
         x0, x1 = ax.get_xlim() if lo is None else (lo, hi)
         ax.plot([x0, x1], [value, value], color="tab:purple", ls=":", lw=1.5)
-        where = (x1, value)
+        where, align = (x1, value), "right"       # label ends at the line's end: stays inside the axes
     else:
         raise ValueError(f"axis must be 'x' or 'y', got {axis!r}")
-    ax.annotate(f"{e.get('name', 'threshold')} ({e.get('direction', '')})", where, fontsize=7, color="tab:purple")
+    ax.annotate(f"{e.get('name', 'threshold')} ({e.get('direction', '')})", where, fontsize=7, color="tab:purple",
+                xytext=(0, 2), textcoords="offset points", ha=align, va="bottom")
 
 
 def _envelope(ax: Axes, e: Mapping) -> None:

@@ -14,6 +14,7 @@ import matplotlib
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from rig.analysis.elements_plot import draw_elements
 from rig.recorder import CurveRecord
@@ -40,11 +41,15 @@ def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3) -> 
     return path
 
 
+def _style(bad: bool, single: bool) -> dict:
+    """Line style of a measured curve: NOK red, OK blue, faint when many curves overlap."""
+    return {"lw": 0.8, "color": "tab:red" if bad else "tab:blue", "alpha": 0.9 if bad or single else 0.5}
+
+
 def _xy(ax: Axes, curves: Sequence[CurveRecord], elements: list, nok: set[int], units: tuple[str, str]) -> list[str]:
     """Y over X of the curves (NOK red, on top) with the evaluation elements; notes on skipped elements."""
     for c in sorted(curves, key=lambda c: c.number in nok):
-        bad = c.number in nok
-        ax.plot(c.x, c.y, lw=0.8, color="tab:red" if bad else "tab:blue", alpha=0.9 if bad else 0.5)
+        ax.plot(c.x, c.y, **_style(c.number in nok, len(curves) == 1))
     notes = draw_elements(ax, elements)
     ax.set(xlabel=f"X ({units[0]})", ylabel=f"Y ({units[1]})")
     ax.grid(alpha=0.3)
@@ -64,9 +69,8 @@ def _theory_abscissa(curve: CurveRecord, axis: str) -> np.ndarray | None:
 def _over(ax: Axes, curves: Sequence[CurveRecord], axis: str, nok: set[int], y_unit: str) -> None:
     """Measured Y (NOK red) and its theory (dashed) over time since the curve start or over cam angle."""
     for c in sorted(curves, key=lambda c: c.number in nok):
-        bad = c.number in nok
         s = c.t - c.t[0] if axis == "t" else np.degrees(c.angle)
-        ax.plot(s, c.y, lw=0.8, color="tab:red" if bad else "tab:blue", alpha=0.9 if bad or len(curves) == 1 else 0.5)
+        ax.plot(s, c.y, **_style(c.number in nok, len(curves) == 1))
         th = _theory_abscissa(c, axis)
         if th is not None:
             ax.plot(th, c.theory["y"], "--", lw=0.8, color="k", alpha=0.7 if len(curves) == 1 else 0.25)
@@ -126,6 +130,8 @@ def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
     unit = f" ({stats['unit']})" if stats.get("unit") else ""
     ax.set_title(f"{stats['name']}: n={stats['n']}, Cp={_f(stats['cp'])}, Cpk={_f(stats['cpk'])}", fontsize=9)
     ax.set_xlabel(f"{stats['name']}{unit}", fontsize=9)
+    ax.xaxis.set_major_locator(MaxNLocator(5))
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 4))
     ax.tick_params(labelsize=8)
 
 

@@ -121,27 +121,34 @@ def _device_table(agreement: dict) -> list[Block]:
         return []
     rows = [[name, v["host"]["n"], v["device"]["n"], v["host"]["mean"], v["device"]["mean"], v["host"]["std"],
              v["device"]["std"], ", ".join(v["differs"]) or "equal"] for name, v in agreement["values"].items()]
-    return [Table(["value", "n host", "n device", "mean host", "mean device", "σ host", "σ device", "agreement"],
-                  [[fmt(c) for c in r] for r in rows])]
+    blocks: list[Block] = [Table(["value", "n host", "n device", "mean host", "mean device", "σ host", "σ device",
+                                  "agreement"], [[fmt(c) for c in r] for r in rows])]
+    if agreement["device_only"]:
+        blocks.append(Text(f"Kept by the device but not sent to the host (not compared): "
+                           f"{', '.join(agreement['device_only'])}."))
+    return blocks
+
+
+def _values_table(values: dict) -> Table:
+    """One row per process value: n, unit, descriptive statistics, capability, normality and trend checks."""
+    rows = [[name, v["n"], v["unit"], v["mean"], v["std"], v["min"], v["max"], v["minus_3sigma"], v["plus_3sigma"],
+             v["lsl"], v["usl"], v["cp"], v["cpk"], v["band_within_limits"], v["normality"]["shapiro_p"],
+             v["normality"]["anderson_p"], v["normality"]["normal"], v["trend"]["slope_p"], v["trend"]["runs"]["p"],
+             v["trend"]["drift"]] for name, v in values.items()]
+    return Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
+                  "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
+                 [[fmt(c) for c in r] for r in rows])
 
 
 def set_statistics(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = []
     for program, s in ctx.analysis["sets"].items():
         blocks += [Heading(f"Set statistics, program {program}"),
-                   Text(f"{s['n']} curves, {s['ok']} OK, {s['nok']} NOK, {s['incomplete']} incomplete; NOK by element: "
-                        f"{', '.join(f'{k}: {v}' for k, v in s['nok_by_element'].items()) or 'none'}")]
+                   Text(f"{s['n']} curves, {s['ok']} OK, {s['nok']} NOK, {s['incomplete']} incomplete; "
+                        f"NOK by element: {', '.join(f'{k}: {v}' for k, v in s['nok_by_element'].items()) or 'none'}")]
         blocks += [Text(f"Warning: {w}") for w in s["warnings"]]
-        rows = []
-        for name, v in s["values"].items():
-            nrm, tr = v["normality"], v["trend"]
-            rows.append([name, v["n"], v["unit"], v["mean"], v["std"], v["min"], v["max"], v["minus_3sigma"],
-                         v["plus_3sigma"], v["lsl"], v["usl"], v["cp"], v["cpk"], v["band_within_limits"],
-                         nrm["shapiro_p"], nrm["anderson_p"], nrm["normal"], tr["slope_p"], tr["runs"]["p"], tr["drift"]])
-        if rows:
-            blocks.append(Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp",
-                                 "Cpk", "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
-                                [[fmt(c) for c in r] for r in rows]))
+        if s["values"]:
+            blocks.append(_values_table(s["values"]))
             table = process_values(by_program(ctx.recording.results)[program])
             path = plots.histograms(table, s["values"], ctx.figure_path(f"hist_p{program}"))
             blocks.append(ctx.figure(path, f"Program {program}: histogram of each process value with its limits "

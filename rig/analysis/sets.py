@@ -55,15 +55,15 @@ def process_values(results: Sequence[Mapping]) -> dict[str, np.ndarray]:
 
 
 def value_units(program: Mapping | None) -> dict[str, str]:
-    """Units of process values by name prefix from a program config: ``x…``/``y…`` take the unit of
-    channel x/y (``channels.<ch>.unit``), ``duration`` is in s."""
+    """Units of the X and Y channels from a program config (``channels.<ch>.unit``): ``{"x": …, "y": …}``."""
     channels = (program or {}).get("channels", {}) or {}
-    return {"x": channels.get("x", {}).get("unit", ""), "y": channels.get("y", {}).get("unit", ""), "duration": "s"}
+    return {ch: channels.get(ch, {}).get("unit", "") for ch in ("x", "y")}
 
 
 def unit_of(name: str, units: Mapping[str, str]) -> str:
-    """Unit of a process value from :func:`value_units` (``""`` when unknown)."""
-    return units.get("duration", "") if name == "duration" else units.get(name[:1], "")
+    """Unit of a process value: s for ``duration``, else that of the channel its name starts with
+    (``x…``/``y…``, from :func:`value_units`); ``""`` when unknown."""
+    return "s" if name == "duration" else units.get(name[:1], "")
 
 
 def counts_warning(counts: Mapping[str, int]) -> str | None:

@@ -76,8 +76,12 @@ def test_html_report_with_plots_and_csv(recording, tmp_path):
     assert path.name == "report.html" and "<table>" in text and "Set statistics, program 1" in text
     assert "hologram" in text and "unknown kind" in text                        # skipped element noted
     pngs = sorted(path.parent.glob("*.png"))
-    assert len(pngs) == 1 + 3 * 3 + 2 + 1             # overlay, 3 curves x (xy, t, angle), 2 histograms, truth
+    names = [p.name.split("_", 1)[1] for p in pngs]
+    # histograms, Y over X with elements, Y over t and angle (all curves), 3 curves (NOK first), truth
+    assert names == ["hist_p1.png", "xy_p1.png", "ys_p1.png", "curve_c1.png", "curve_c16.png", "curve_c31.png",
+                     "truth.png"]
     assert all(p.stat().st_size > 5000 and p.name in text for p in pngs)
+    assert "Individual plots for 3 of 60 curves (NOK first)" in text
     with open(path.parent / "curves.csv") as f:
         rows = list(csv.reader(f))
     assert rows[0] == ["curve", "program", "i", "t_s", "x", "y", "angle_rad"]
@@ -88,6 +92,17 @@ def test_html_report_with_plots_and_csv(recording, tmp_path):
         res = list(csv.DictReader(f))
     assert len(res) == 60 and res[0]["ok"] == "0" and res[0]["failed_elements"] == "W1"
     assert float(res[1]["y_max"]) == recording.results[1]["process_values"]["y_max"]
+
+
+def test_report_uses_the_analysis_it_is_given(recording, tmp_path, monkeypatch):
+    a = analyse(recording)
+
+    def no_second_analysis(rec):
+        raise AssertionError("write_report analysed the recording again")
+
+    monkeypatch.setattr(report, "analyse", no_second_analysis)
+    text = write_report(recording, tmp_path, fmt="md", max_curve_plots=0, analysis=a).read_text()
+    assert "| y_max | 60 |" in text and "not compared: the device sent no statistics for this program" in text
 
 
 def test_markdown_report_from_path_and_extension_section(tmp_path):
