@@ -59,10 +59,37 @@ class Machine:
         c = cfg.can
         self.node = CanNode(bus, self.device, bitrate=c["bitrate"], fd=bool(c["fd"]),
                             data_bitrate=c["data_bitrate"], live_share=c["live_share"], tx_curves=c["tx_curves"])
+        self.bus_plan = self._bus_plan()
         self.t = 0.0
         self._step_index = 0
         self._n = max(2, round(cfg.chunk * cfg.sample_rate))
         self.curves = 0
+
+    def _bus_plan(self) -> dict[str, float]:
+        """Share of the bus each periodic stream takes (status, encoders, torque, static rig); a SceneError
+        when they alone need more than the bus (curves and live data come on top)."""
+        node, cfg = self.node, self.cfg
+        per_chunk = 1.0 / cfg.chunk
+
+        def rate(role: str) -> float:
+            return cfg.role(role).rate or per_chunk
+
+        plan = {"status": sum(node.frame_time_planned(n) for n in ("Heartbeat", "StatusCounters", "TxStatus"))
+                / node.heartbeat_period}
+        enc = next((r for r in ("encoder1", "encoder2") if cfg.role(r) is not None), None)
+        if enc is not None:
+            plan["encoders"] = rate(enc) * (node.frame_time_planned("Encoder1") + node.frame_time_planned("Encoder2"))
+        if cfg.role("torque") is not None:
+            plan["torque"] = rate("torque") * node.frame_time_planned("Torque")
+        static = next((r for r in ("angle", "strain") if cfg.role(r) is not None), None)
+        if static is not None:
+            plan["static"] = rate(static) * node.frame_time_planned("StaticRig")
+        if sum(plan.values()) > 1.0:
+            shares = ", ".join(f"{k} {v:.0%}" for k, v in plan.items())
+            raise SceneError(f"{cfg.scene.path} [links.can]: the periodic frames alone need {sum(plan.values()):.0%} "
+                             f"of the {cfg.can['bitrate']:g} bit/s bus ({shares}): raise the bitrate or lower the "
+                             "transducers' publishing rates")
+        return plan
 
     def _publish_indices(self, role: str, first_sample: int, n: int) -> np.ndarray:
         """Indices in a chunk (whose first sample has global number ``first_sample``) at which a role's
