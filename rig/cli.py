@@ -130,6 +130,16 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export_can(args: argparse.Namespace) -> int:
+    from datetime import datetime, timezone
+    from rig.recorder.export_can import export_can
+    e = export_can(args.recording, args.output)
+    start = datetime.fromtimestamp(e.start, timezone.utc).isoformat() if e.start else "unknown (1970-01-01)"
+    print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
+          f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}")
+    return 0
+
+
 def cmd_summary(args: argparse.Namespace) -> int:
     scene = Path(args.scene)
     _print_cam_bar_summary(scene, Path(args.png) if args.png else Path("out") / f"{scene.stem}.cycle.png")
@@ -198,6 +208,11 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("-o", "--output", help="report directory")
     rep.add_argument("--format", choices=("html", "md"), default="html")
     rep.set_defaults(func=cmd_report)
+    exp = sub.add_parser("export-can", help="write the recording's CAN bus traffic (/can/raw) as a CAN trace: "
+                         ".asc, .blf, .log (candump), .trc or .mf4 by extension")
+    exp.add_argument("recording")
+    exp.add_argument("-o", "--output", required=True, help="trace file; its extension picks the format")
+    exp.set_defaults(func=cmd_export_can)
     summ = sub.add_parser("summary", help="cam-bar kinematics/kinetostatics table and cycle chart")
     summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
     summ.add_argument("--png")

@@ -1,0 +1,336 @@
+"""Export a recording's ``/can/raw`` bus traffic to the trace files CAN tools read.
+
+``.asc`` (Vector ASCII), ``.blf`` (Vector binary logging), ``.log`` (candump ``-L``) and ``.trc`` (PEAK, v2.1)
+are written by python-can's writers; ``.mf4`` (ASAM MDF 4.10 bus logging: ``CAN_DataFrame`` and
+``CAN_ErrorFrame`` channel groups) by asammdf, a block of frames per call. The recording is streamed block by
+block, never read whole.
+
+Time base: every frame keeps its simulation time (s from the start of the run). Formats with a start date
+in their header (ASC ``Begin Triggerblock``, BLF, TRC, MF4) get the recording's wall-clock start (``rig``
+metadata ``wall_clock_start``, ns since 1970) cut to the second (python-can's ASC header writes milliseconds
+without leading zeros), or 1970-01-01 00:00 UTC (unknown) without it. Readers that add the header date to the
+frame times (python-can's BLF, TRC and MF4 readers) so return trace start + simulation time; ASC (python-can's
+default relative times) and ``.log`` (no header) return simulation time. Python-can reads absolute times as float
+s since 1970, which holds ~0.24 µs: finer BLF/MF4 times survive only relative to the header start.
+
+What each format keeps, as read back by ``can.LogReader`` (id, extended flag, length and data always):
+
+======  =========  =========  ==================  =======================  =======================
+format  time       direction  FD, BRS, ESI        channel                  error frames
+======  =========  =========  ==================  =======================  =======================
+.asc    1 µs       Rx/Tx      yes                 number                   time, channel
+.blf    1 ns       Rx/Tx      yes                 number                   time, channel, id, data
+.log    1 µs       R/T        yes                 recorded name            time
+.trc    1 µs       Rx/Tx      refused (an error)  number                   refused (an error)
+.mf4    float64 s  Dir        yes (EDL/BRS/ESI)   number (BusChannel)      all (CAN_ErrorFrame)
+======  =========  =========  ==================  =======================  =======================
+
+Channel numbers count 1, 2, ... in the order the recorded names first appear (one bus: 1; python-can's ASC and
+BLF readers return it less 1); without recorded names the ``.log`` gets python-can's default ``vcan0``.
+"""
+from __future__ import annotations
+
+import contextlib
+import itertools
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Iterator, Protocol
+
+import can
+import numpy as np
+import orjson
+from asammdf import MDF, Signal, Source
+from asammdf.blocks import v4_constants as v4c
+from can.util import CAN_FD_DLC, len2dlc
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+
+from rig.recorder import schemas as S
+from rig.recorder.reader import RecordingError
+
+REQUIRED = ("t", "id", "is_fd", "is_extended", "data")
+OPTIONAL = ("dir", "channel", "brs", "esi", "error")
+_LEN2DLC = np.array([len2dlc(n) for n in range(65)], np.uint8)
+_MDF_FIELDS = (("BusChannel", "<u1"), ("ID", "<u4"), ("IDE", "<u1"), ("DLC", "<u1"), ("DataLength", "<u1"),
+               ("DataBytes", "(64,)u1"), ("Dir", "<u1"), ("EDL", "<u1"), ("BRS", "<u1"), ("ESI", "<u1"))
+
+
+@dataclass(frozen=True)
+class Frames:
+    """One ``/can/raw`` block as columns: ``t`` (s, simulation time), ``id``, bool flags, ``bus`` (channel
+    number from 1, in order of first appearance), ``channel`` names (None without that column) and the
+    payloads concatenated in ``payload`` (``length`` bytes per frame, in order)."""
+
+    t: np.ndarray
+    id: np.ndarray
+    extended: np.ndarray
+    fd: np.ndarray
+    brs: np.ndarray
+    esi: np.ndarray
+    error: np.ndarray
+    rx: np.ndarray
+    bus: np.ndarray
+    channel: list[str] | None
+    payload: bytes
+    length: np.ndarray
+
+    def __len__(self) -> int:
+        return self.t.shape[0]
+
+    def messages(self, named: bool) -> Iterator[can.Message]:
+        """python-can messages; channel = the recorded name if ``named`` (else python-can's default when the
+        recording has none), otherwise ``bus - 1`` (python-can's numbered writers count from 1)."""
+        names = self.channel if named and self.channel is not None else itertools.repeat(None)
+        start = 0
+        for t, i, ext, fd, brs, esi, err, rx, bus, name, n in zip(
+                self.t.tolist(), self.id.tolist(), self.extended.tolist(), self.fd.tolist(), self.brs.tolist(),
+                self.esi.tolist(), self.error.tolist(), self.rx.tolist(), self.bus.tolist(), names,
+                self.length.tolist()):
+            yield can.Message(timestamp=t, arbitration_id=i, is_extended_id=ext, is_fd=fd, bitrate_switch=brs,
+                              error_state_indicator=esi, is_error_frame=err, is_rx=rx,
+                              channel=name if named else bus - 1, data=self.payload[start:start + n])
+            start += n
+
+    def data_bytes(self) -> np.ndarray:
+        """Payloads as an (n, 64) uint8 array, zero past each frame's length."""
+        out = np.zeros((len(self), 64), np.uint8)
+        starts = np.cumsum(self.length) - self.length
+        rows = np.repeat(np.arange(len(self)), self.length)
+        out[rows, np.arange(rows.size) - np.repeat(starts, self.length)] = np.frombuffer(self.payload, np.uint8)
+        return out
+
+
+def _flags(block: dict, key: str, n: int) -> np.ndarray:
+    return np.asarray(block[key], bool) if key in block else np.zeros(n, bool)
+
+
+def _decode(block: Any, where: str, buses: dict[str, int], last: float) -> Frames:
+    """Columns of one decoded ``/can/raw`` message, checked; ``last`` is the previous block's last time (s)."""
+    if not isinstance(block, dict) or any(k not in block for k in REQUIRED):
+        have = sorted(block) if isinstance(block, dict) else type(block).__name__
+        raise RecordingError(f"{where}: needs columns {', '.join(REQUIRED)}; has {have}")
+    n = len(block["t"])
+    uneven = [k for k in (*REQUIRED, *OPTIONAL) if k in block and len(block[k]) != n]
+    if uneven:
+        raise RecordingError(f"{where}: columns {', '.join(uneven)} do not have the {n} rows of 't'")
+    hexes = block["data"]
+    try:
+        payload = bytes.fromhex("".join(hexes))
+    except (TypeError, ValueError) as exc:
+        raise RecordingError(f"{where}: 'data' is not hex payloads ({exc})") from None
+    length = np.array([len(h) // 2 for h in hexes], np.int64)
+    dirs = block.get("dir", ["rx"] * n)
+    unknown = set(dirs) - {"rx", "tx"}
+    names = block.get("channel")
+    f = Frames(t=np.asarray(block["t"], np.float64), id=np.asarray(block["id"], np.int64),
+               extended=_flags(block, "is_extended", n), fd=_flags(block, "is_fd", n), brs=_flags(block, "brs", n),
+               esi=_flags(block, "esi", n), error=_flags(block, "error", n), rx=np.array([d == "rx" for d in dirs], bool),
+               bus=np.array([buses.setdefault(c, len(buses) + 1) for c in names] if names is not None else np.ones(n),
+                            np.int64),
+               channel=names, payload=payload, length=length)
+    bad = {"direction other than 'rx'/'tx'": np.array([d in unknown for d in dirs], bool),
+           "payload hex of odd length": np.array([len(h) % 2 == 1 for h in hexes], bool),
+           "time not finite, negative or before the previous frame": ~np.isfinite(f.t) | (f.t < 0)
+           | (np.diff(f.t, prepend=last) < 0),
+           "id out of range (11-bit standard, 29-bit extended)":
+               (f.id < 0) | (f.id > np.where(f.extended, 0x1FFFFFFF, 0x7FF)),
+           "data length not a CAN (0-8) or CAN FD length": np.where(f.fd, ~np.isin(length, CAN_FD_DLC), length > 8)}
+    for problem, rows in bad.items():
+        if rows.any():
+            k = int(np.flatnonzero(rows)[0])
+            raise RecordingError(f"{where}, frame {k}: {problem} (t={block['t'][k]!r}, id={block['id'][k]!r}, "
+                                 f"data={hexes[k]!r}, dir={dirs[k]!r})")
+    return f
+
+
+def _unreadable(path: Path, exc: McapError) -> RecordingError:
+    return RecordingError(f"{path}: cannot read the MCAP recording ({exc}); exporting CAN needs a complete file")
+
+
+def trace_start(path: Path) -> float:
+    """Wall-clock start of a recording, whole s since 1970 (metadata ``rig.wall_clock_start``, ns); 0.0 when it
+    has none."""
+    try:
+        with open(path, "rb") as f:
+            meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    except McapError as exc:
+        raise _unreadable(path, exc) from None
+    value = meta.get(S.RIG_METADATA, {}).get("wall_clock_start")
+    if value is None:
+        return 0.0
+    try:
+        return float(int(value) // 1_000_000_000)
+    except ValueError:
+        raise RecordingError(f"{path}: metadata rig.wall_clock_start = {value!r} is not an integer "
+                             f"(ns since 1970)") from None
+
+
+def iter_frames(path: Path) -> Iterator[Frames]:
+    """The ``/can/raw`` blocks of a recording in file order, decoded and checked one at a time."""
+    buses: dict[str, int] = {}
+    last = -np.inf
+    try:
+        with open(path, "rb") as f:
+            for k, (_, _, msg) in enumerate(make_reader(f).iter_messages(topics=[S.CAN_RAW], log_time_order=False)):
+                where = f"{path}: {S.CAN_RAW} message {k}"
+                try:
+                    block = orjson.loads(msg.data)
+                except orjson.JSONDecodeError as exc:
+                    raise RecordingError(f"{where}: not JSON ({exc})") from None
+                frames = _decode(block, where, buses, last)
+                if len(frames):
+                    last = float(frames.t[-1])
+                    yield frames
+    except McapError as exc:
+        raise _unreadable(path, exc) from None
+
+
+class _Sink(Protocol):
+    def write(self, frames: Frames) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class _PythonCan:
+    """A python-can writer, fed frame by frame (its only interface)."""
+
+    named = False
+
+    def __init__(self, writer: can.io.generic.MessageWriter):
+        self.writer = writer
+
+    def write(self, frames: Frames) -> None:
+        for msg in frames.messages(self.named):
+            self.writer.on_message_received(msg)
+
+    def close(self) -> None:
+        self.writer.stop()
+
+
+class _Asc(_PythonCan):
+    def __init__(self, out: Path, start: float):
+        super().__init__(can.ASCWriter(out))
+        self.writer.log_event("rig export: times are simulation time, s", start)   # header date = start
+        self.writer.started = 0.0            # the writer subtracts this from every time: keep simulation time
+
+
+class _Blf(_PythonCan):
+    def __init__(self, out: Path, start: float):
+        super().__init__(can.BLFWriter(out))
+        self.writer.start_timestamp = 0.0    # object times (ns) = simulation time
+        self.start = start
+
+    def close(self) -> None:
+        w = self.writer
+        w.start_timestamp, w.stop_timestamp = self.start, self.start + (w.stop_timestamp or 0.0)   # header dates
+        super().close()
+
+
+class _Log(_PythonCan):
+    named = True
+
+    def __init__(self, out: Path, start: float):
+        super().__init__(can.CanutilsLogWriter(out))
+
+
+class _Trc(_PythonCan):
+    def __init__(self, out: Path, start: float):
+        super().__init__(can.TRCWriter(out))
+        self.writer.first_timestamp = 0.0    # offsets (ms) = simulation time
+        self.writer.write_header(start)
+        self.out = out
+
+    def write(self, frames: Frames) -> None:
+        bad = np.flatnonzero(frames.fd | frames.error)
+        if bad.size:
+            k = int(bad[0])
+            raise ValueError(f"{self.out}: python-can's TRC writer cannot hold CAN FD or error frames, and the "
+                             f"recording has {'an FD' if frames.fd[k] else 'an error'} frame at t = "
+                             f"{frames.t[k]:.6f} s (id 0x{int(frames.id[k]):X}); export to .asc, .blf, .log or .mf4")
+        super().write(frames)
+
+
+class _Mf4:
+    """ASAM MDF 4.10 bus logging through asammdf: one structured record array per block and frame kind."""
+
+    def __init__(self, out: Path, start: float):
+        self.out = out
+        self.mdf = MDF(version="4.10")
+        self.mdf.header.start_time = datetime.fromtimestamp(start, timezone.utc)
+        self.groups: dict[str, int] = {}
+        self.source = Source(name="CAN", path="CAN", comment="rig /can/raw", source_type=v4c.SOURCE_BUS,
+                             bus_type=v4c.BUS_TYPE_CAN)
+
+    def write(self, frames: Frames) -> None:
+        data = frames.data_bytes()
+        for kind, rows in (("CAN_DataFrame", ~frames.error), ("CAN_ErrorFrame", frames.error)):
+            if not rows.any():
+                continue
+            rec = np.zeros(int(rows.sum()), [(f"{kind}.{name}", dtype) for name, dtype in _MDF_FIELDS])
+            for name, values in (("BusChannel", frames.bus), ("ID", frames.id), ("IDE", frames.extended),
+                                 ("DLC", _LEN2DLC[frames.length]), ("DataLength", frames.length),
+                                 ("DataBytes", data), ("Dir", ~frames.rx), ("EDL", frames.fd),
+                                 ("BRS", frames.brs), ("ESI", frames.esi)):
+                rec[f"{kind}.{name}"] = values[rows]
+            if kind in self.groups:
+                self.mdf.extend(self.groups[kind], [(frames.t[rows], None), (rec, None)])
+            else:
+                self.groups[kind] = self.mdf.append(Signal(name=kind, samples=rec, timestamps=frames.t[rows],
+                                                           source=self.source))
+
+    def close(self) -> None:
+        try:
+            self.mdf.save(self.out, overwrite=True, compression=v4c.CompressionAlgorithm.TRANSPOSED_DEFLATE)
+        finally:
+            self.mdf.close()
+
+
+FORMATS: dict[str, type] = {".asc": _Asc, ".blf": _Blf, ".log": _Log, ".trc": _Trc, ".mf4": _Mf4}
+
+
+@dataclass(frozen=True)
+class Export:
+    """What :func:`export_can` wrote: ``frames`` (of them ``error_frames``), channel names in bus order, the
+    trace start (s since 1970, 0.0 = unknown) and the simulation time span (s)."""
+
+    path: Path
+    frames: int
+    error_frames: int
+    channels: list[str]
+    start: float
+    t_first: float
+    t_last: float
+
+
+def export_can(recording: str | Path, out: str | Path) -> Export:
+    """Write the ``/can/raw`` frames of ``recording`` to ``out``, in the format of its extension (see
+    :data:`FORMATS`). A recording without CAN frames, an unknown extension or frames the format cannot hold are
+    errors (no output is left behind)."""
+    recording, out = Path(recording), Path(out)
+    sink_type = FORMATS.get(out.suffix.lower())
+    if sink_type is None:
+        raise ValueError(f"{out}: unknown CAN trace format {out.suffix or '(no extension)'!r}; "
+                         f"use one of {', '.join(FORMATS)}")
+    start = trace_start(recording)
+    blocks = iter_frames(recording)
+    first = next(blocks, None)
+    if first is None:
+        raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
+    sink: _Sink = sink_type(out, start)
+    frames = errors = 0
+    names: dict[str, None] = {}
+    try:
+        for block in itertools.chain([first], blocks):
+            sink.write(block)
+            frames += len(block)
+            errors += int(block.error.sum())
+            names.update(dict.fromkeys(block.channel or ()))
+            t_last = float(block.t[-1])
+    except BaseException:
+        with contextlib.suppress(Exception):
+            sink.close()
+        out.unlink(missing_ok=True)
+        raise
+    sink.close()
+    return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last)

@@ -1,0 +1,232 @@
+"""`rig export-can`: every trace format reads back through python-can with the recorded frames; MF4 decodes
+with asammdf's bus logging and the DBC like cantools does; what each format keeps; errors."""
+from __future__ import annotations
+
+from datetime import datetime, timezone
+from pathlib import Path
+
+import can
+import cantools
+import numpy as np
+import orjson
+import pytest
+from asammdf import MDF
+from mcap.writer import Writer
+
+from rig.cli import main
+from rig.recorder import Recorder, RecordingError, read_recording
+from rig.recorder.export_can import FORMATS, export_can
+from rig.runner import run_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+DBC = ROOT / "data" / "can" / "rig.dbc"
+#: time resolution of each format as read back (s): text formats print µs, BLF keeps ns, MF4 float64 s
+RESOLUTION = {".asc": 0.5e-6, ".log": 0.5e-6, ".trc": 0.5e-6, ".blf": 1e-9, ".mf4": 0.0}
+#: formats whose reader adds the header's start date (the recording's wall-clock start) to the frame times
+ABSOLUTE = {".blf", ".trc", ".mf4"}
+FLOAT_AT_EPOCH = 2.5e-7     # a float of s since 1970 holds ~0.24 µs
+
+
+def time_error(msgs: list[can.Message], t: np.ndarray, start: float, ext: str) -> float:
+    """Largest |read-back time - (header start) - simulation time| (s)."""
+    return float(np.abs(np.array([m.timestamp for m in msgs]) - (start if ext in ABSOLUTE else 0.0) - t).max())
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("export") / "run.mcap"
+    run_scene(ROOT / "data" / "scenes" / "pin_insertion.toml", out, cycles=2, progress=False)
+    return out
+
+
+def read_back(path: Path) -> list[can.Message]:
+    with can.LogReader(path) as reader:
+        return list(reader)
+
+
+@pytest.mark.parametrize("ext", list(FORMATS))
+def test_every_format_reads_back_the_recorded_frames(recording, tmp_path, ext):
+    cf = read_recording(recording).can_frames
+    out = tmp_path / f"bus{ext}"
+    summary = export_can(recording, out)
+    msgs = read_back(out)
+    n = len(cf["t"])
+    assert summary.frames == len(msgs) == n > 1000
+    direction = np.array(cf["dir"]) if "dir" in cf else np.full(n, "rx")
+    assert [m.is_rx for m in msgs] == list(direction == "rx")
+    if "dir" in cf:                                     # the host's own frames are on the bus too
+        assert (direction == "tx").sum() > 0
+    assert [m.arbitration_id for m in msgs] == cf["id"].tolist()
+    assert [bytes(m.data) for m in msgs] == cf["data"]
+    assert [m.dlc for m in msgs] == [len(d) for d in cf["data"]]
+    assert [m.is_extended_id for m in msgs] == cf["is_extended"].tolist()
+    assert [m.is_fd for m in msgs] == cf["is_fd"].tolist()
+    for flag, key in (("bitrate_switch", "brs"), ("error_state_indicator", "esi"), ("is_error_frame", "error")):
+        assert [getattr(m, flag) for m in msgs] == (list(cf[key]) if key in cf else [False] * n)
+    err = time_error(msgs, cf["t"], summary.start, ext)
+    assert err <= RESOLUTION[ext] + (FLOAT_AT_EPOCH if summary.start and ext in ABSOLUTE else 1e-12), err
+
+
+def test_mf4_decodes_with_asammdf_bus_logging_and_the_dbc(recording, tmp_path):
+    out = tmp_path / "bus.mf4"
+    summary = export_can(recording, out)
+    cf = read_recording(recording).can_frames
+    db = cantools.database.load_file(DBC)
+    with MDF(out) as mdf:
+        assert mdf.header.start_time == datetime.fromtimestamp(summary.start, timezone.utc)
+        with mdf.extract_bus_logging({"CAN": [(DBC, 0)]}) as decoded:
+            checked = 0
+            for message, signals in (("LiveXY", ("X", "Y", "Tick")), ("Heartbeat", ("DeviceTime", "State")),
+                                     ("Encoder1", ("Count", "EdgeTime")), ("StatusCounters", ("CurveCount",))):
+                frame_id = db.get_message_by_name(message).frame_id
+                rows = np.flatnonzero(cf["id"] == frame_id)
+                assert rows.size, f"no {message} frames in the recording"
+                expected = [db.decode_message(frame_id, cf["data"][i]) for i in rows]
+                for name in signals:
+                    sig = decoded.get(f"CAN1.{message}.{name}")
+                    np.testing.assert_array_equal(sig.timestamps, cf["t"][rows])
+                    if sig.samples.dtype.kind == "S":           # a value table: asammdf gives its text
+                        assert [v.decode() for v in sig.samples] == [str(e[name]) for e in expected]
+                    else:
+                        np.testing.assert_allclose(sig.samples, [e[name] for e in expected], rtol=0, atol=1e-9)
+                    checked += 1
+    assert checked == 8
+
+
+def _write_mcap(path: Path, blocks: list[dict], metadata: dict[str, str] | None = None) -> Path:
+    """A recording holding only ``/can/raw`` blocks (and the ``rig`` metadata), as written by hand."""
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        w.add_metadata("rig", metadata or {})
+        schema = w.register_schema("rig.CanFrames", "jsonschema", b"{}")
+        channel = w.register_channel("/can/raw", "json", schema)
+        for block in blocks:
+            ns = int(block["t"][0] * 1e9) if block["t"] else 0
+            w.add_message(channel, ns, orjson.dumps(block), ns)
+        w.finish()
+    return path
+
+
+#  t, id, extended, fd, brs, esi, error, dir, channel, payload
+FRAMES = [(0.0010004, 0x050, False, False, False, False, False, "tx", "rig", "0a0b0c0d0e0f1011"),
+          (0.0015, 0x051, False, False, False, False, False, "rx", "rig", "0001020304050607"),
+          (0.002, 0x1ABCDE12, True, False, False, False, False, "rx", "aux", "aabbcc"),
+          (0.003, 0x201, False, True, True, False, False, "rx", "rig", bytes(range(12)).hex()),
+          (0.004, 0x1FFFFFFF, True, True, False, True, False, "tx", "aux", bytes(range(64)).hex()),
+          (0.005, 0x000, False, False, False, False, True, "rx", "rig", ""),
+          (0.006123457, 0x7FF, False, False, False, False, False, "rx", "rig", "")]
+WALL_START = 1_750_000_000_123_456_789        # ns since 1970; traces start at 1 750 000 000 s
+
+
+def _blocks(frames: list[tuple]) -> list[dict]:
+    cols = list(zip(*frames))
+    keys = ("t", "id", "is_extended", "is_fd", "brs", "esi", "error", "dir", "channel", "data")
+    full = {k: list(v) for k, v in zip(keys, cols)}
+    return [{k: v[:3] for k, v in full.items()}, {k: v[3:] for k, v in full.items()}]
+
+
+#: per format: channel as read back (bus number 1.. / 0-based / recorded name), error-frame fields kept
+KEEPS = {".asc": ("0-based", ("channel",)), ".blf": ("0-based", ("channel", "id", "data")),
+         ".log": ("name", ()), ".mf4": ("1-based", ("channel", "id", "data", "is_rx"))}
+
+
+@pytest.mark.parametrize("ext", list(KEEPS))
+def test_direction_channels_fd_flags_and_error_frames_are_kept(tmp_path, ext):
+    rec = _write_mcap(tmp_path / "flags.mcap", _blocks(FRAMES), {"wall_clock_start": str(WALL_START)})
+    out = tmp_path / f"flags{ext}"
+    summary = export_can(rec, out)
+    assert (summary.frames, summary.error_frames, summary.channels, summary.start) == (7, 1, ["rig", "aux"],
+                                                                                         1_750_000_000.0)
+    msgs = read_back(out)
+    assert len(msgs) == len(FRAMES)
+    assert time_error(msgs, np.array([f[0] for f in FRAMES]), summary.start, ext) <= RESOLUTION[ext] + FLOAT_AT_EPOCH
+    channel_kind, error_fields = KEEPS[ext]
+    for m, (t, fid, ext_id, fd, brs, esi, error, direction, name, data) in zip(msgs, FRAMES):
+        assert m.is_error_frame == error
+        channel = {"0-based": ["rig", "aux"].index(name), "1-based": ["rig", "aux"].index(name) + 1,
+                   "name": name}[channel_kind]
+        kept = {"channel": (m.channel, channel), "id": (m.arbitration_id, fid), "data": (m.data.hex(), data),
+                "is_rx": (m.is_rx, direction == "rx")}
+        if error:
+            assert {k: kept[k][0] for k in error_fields} == {k: kept[k][1] for k in error_fields}
+            continue
+        assert {k: v[0] for k, v in kept.items()} == {k: v[1] for k, v in kept.items()}
+        assert (m.is_extended_id, m.is_fd, m.bitrate_switch, m.error_state_indicator, m.dlc) == (
+            ext_id, fd, brs, esi, len(data) // 2)
+
+
+def test_headers_carry_the_wall_clock_start(tmp_path):
+    rec = _write_mcap(tmp_path / "flags.mcap", _blocks(FRAMES), {"wall_clock_start": str(WALL_START)})
+    start = 1_750_000_000.0
+    for ext in (".asc", ".blf", ".mf4"):
+        export_can(rec, tmp_path / f"h{ext}")
+    with can.ASCReader(tmp_path / "h.asc", relative_timestamp=False) as asc:
+        assert next(iter(asc)).timestamp == pytest.approx(start + FRAMES[0][0], abs=1e-6)
+    with can.BLFReader(tmp_path / "h.blf") as blf:
+        assert blf.start_timestamp == start
+    with MDF(tmp_path / "h.mf4") as mdf:
+        assert mdf.header.start_time == datetime.fromtimestamp(start, timezone.utc)
+    classic = [f for f in FRAMES if not f[3] and not f[6]]
+    export_can(_write_mcap(tmp_path / "classic.mcap", _blocks(classic), {"wall_clock_start": str(WALL_START)}),
+               tmp_path / "h.trc")
+    msgs = read_back(tmp_path / "h.trc")
+    assert [(m.arbitration_id, m.is_rx, m.channel, m.data.hex()) for m in msgs] == [
+        (f[1], f[7] == "rx", ["rig", "aux"].index(f[8]) + 1, f[9]) for f in classic]
+    assert [m.timestamp - start for m in msgs] == pytest.approx([f[0] for f in classic], abs=1e-6)
+
+
+def test_trc_refuses_fd_and_error_frames_and_leaves_no_file(tmp_path):
+    rec = _write_mcap(tmp_path / "fd.mcap", _blocks(FRAMES))
+    out = tmp_path / "fd.trc"
+    with pytest.raises(ValueError, match=r"TRC writer cannot hold CAN FD or error frames.*an FD frame at t = 0.003000 s \(id 0x201\)"):
+        export_can(rec, out)
+    assert not out.exists()
+
+
+def test_unknown_extension_is_an_error(recording, tmp_path):
+    for name in ("bus.csv", "bus"):
+        with pytest.raises(ValueError, match="unknown CAN trace format"):
+            export_can(recording, tmp_path / name)
+    assert main(["export-can", str(recording), "-o", str(tmp_path / "bus.txt")]) == 2
+
+
+def test_recording_without_can_frames_is_an_error(tmp_path):
+    path = tmp_path / "nocan.mcap"
+    with Recorder(path) as rec:
+        rec.write_event(0.1, "start")
+    with pytest.raises(RecordingError, match=r"no /can/raw frames"):
+        export_can(path, tmp_path / "bus.asc")
+    assert not (tmp_path / "bus.asc").exists()
+
+
+@pytest.mark.parametrize("change, problem", [
+    (lambda b: b.pop("data"), "needs columns t, id, is_fd, is_extended, data"),
+    (lambda b: b["id"].append(1), "columns id do not have the 3 rows"),
+    (lambda b: b["id"].__setitem__(1, 0x800), "frame 1: id out of range"),
+    (lambda b: b["data"].__setitem__(0, "00" * 9), "frame 0: data length not a CAN"),
+    (lambda b: b["dir"].__setitem__(2, "up"), "frame 2: direction other than"),
+    (lambda b: b["t"].__setitem__(1, 0.0001), "frame 1: time not finite, negative or before the previous")])
+def test_malformed_can_blocks_are_errors_naming_the_problem(tmp_path, change, problem):
+    blocks = _blocks(FRAMES)
+    change(blocks[0])
+    rec = _write_mcap(tmp_path / "bad.mcap", blocks)
+    with pytest.raises(RecordingError, match=r"/can/raw message 0.*" + problem):
+        export_can(rec, tmp_path / "bad.blf")
+    assert not (tmp_path / "bad.blf").exists()
+
+
+def test_cli_export_can(recording, tmp_path, capsys):
+    out = tmp_path / "bus.blf"
+    assert main(["export-can", str(recording), "-o", str(out)]) == 0
+    n = len(read_recording(recording).can_frames["t"])
+    assert f"exported {n} CAN frames" in capsys.readouterr().out
+    assert len(read_back(out)) == n
+
+
+def test_truncated_recording_is_an_error(recording, tmp_path):
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(recording.read_bytes()[:200_000])
+    with pytest.raises(RecordingError, match=r"cut.mcap: cannot read the MCAP recording .*needs a complete file"):
+        export_can(cut, tmp_path / "bus.log")
+    assert not (tmp_path / "bus.log").exists()
