@@ -33,8 +33,8 @@ def data() -> tuple[np.ndarray, dict[str, np.ndarray]]:
 
 def rig_write(path: Path, t, sig, encoding: str, compression: str) -> float:
     t0 = time.perf_counter()
-    with Recorder(path, block_size=BLOCK, encoding=encoding, compression=compression) as rec:
-        for i in range(0, N, 10_000):      # the runner hands over chunks of a few thousand samples
+    with Recorder(path, block_size=BLOCK, encoding=encoding, compression=compression, view_rate=None) as rec:
+        for i in range(0, N, 10_000):      # the runner hands over chunks of a few thousand samples (blocks only)
             rec.write_truth(t[i:i + 10_000], {k: v[i:i + 10_000] for k, v in sig.items()})
     return time.perf_counter() - t0
 

@@ -124,9 +124,20 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    recording = Path(args.recording)
-    out = Path(args.output) if args.output else recording.with_suffix("")
-    print(f"report: {_report(recording, out, args.format)}")
+    from rig.recorder import RecordingError, read_recording
+    from rig.recorder.completeness import losses
+    path = Path(args.recording)
+    out = Path(args.output) if args.output else path.with_suffix("")
+    try:
+        rec = read_recording(path, allow_partial=args.partial)
+    except RecordingError as exc:
+        if exc.partial is None:
+            raise
+        raise RecordingError(f"{path}: truncated or corrupt recording ({'; '.join(exc.partial.problems)}); "
+                             f"`rig report --partial {path}` reports what it holds") from None
+    if not rec.complete:
+        print(f"{path}: incomplete recording; " + "; ".join(losses(rec)))
+    print(f"report: {_report(rec, out, args.format)}")
     return 0
 
 
@@ -207,6 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("recording")
     rep.add_argument("-o", "--output", help="report directory")
     rep.add_argument("--format", choices=("html", "md"), default="html")
+    rep.add_argument("--partial", action="store_true",
+                     help="report what a truncated recording (a killed run) holds and what was lost")
     rep.set_defaults(func=cmd_report)
     exp = sub.add_parser("export-can", help="write the recording's CAN bus traffic (/can/raw) as a CAN trace: "
                          ".asc, .blf, .log (candump), .trc or .mf4 by extension")
@@ -229,7 +242,17 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
+def _interrupted(exc: KeyboardInterrupt) -> str:
+    """One line on Ctrl-C: what a recorded run left (rig.runner.session.Interrupted), else nothing claimed."""
+    if not hasattr(exc, "recording"):
+        return "rig: interrupted"
+    recording = getattr(exc, "recording")
+    if recording is None:
+        return "rig: interrupted before anything was recorded; no recording was written"
+    return f"rig: interrupted; what was recorded so far is in {recording} (marked interrupted)"
+
+
+def _run(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     if args.command is None:
         args = build_parser().parse_args(["-q", "run"] if args.quiet else ["run"])
@@ -241,8 +264,14 @@ def main(argv: list[str] | None = None) -> int:
     except (SceneError, RunError, RecordingError, ValueError, OSError) as exc:
         print(f"rig: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("rig: interrupted; what was recorded so far is in a valid MCAP file", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The ``rig`` command; Ctrl-C anywhere (imports included) ends it with one line and status 130."""
+    try:
+        return _run(argv)
+    except KeyboardInterrupt as exc:
+        print(_interrupted(exc), file=sys.stderr)
         return 130
 
 

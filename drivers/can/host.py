@@ -129,6 +129,7 @@ class CanHost:
         self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
         self._bus_time = 0.0          # latest frame time stamp (s)
         self._host_seq = 0
+        self._sent: list[can.Message] = []   # commands sent, not yet taken (see take_sent)
         self._pending: CurveResult | None = None   # result waiting for its end marker
         self._released: deque[CurveResult] = deque()
         self._start_high = 0.0        # s: TStartHigh of the curve being received
@@ -476,8 +477,17 @@ class CanHost:
         seq = self._host_seq
         self._host_seq = (seq + 1) % 256
         data = self._command.encode({"Cmd": COMMANDS[command], "Arg": arg, "HostSeq": seq}, strict=True)
-        self.bus.send(can.Message(arbitration_id=self._command.frame_id, data=data, is_extended_id=False))
+        msg = can.Message(timestamp=self._bus_time, arbitration_id=self._command.frame_id, data=data,
+                          is_extended_id=False, is_rx=False)
+        self.bus.send(msg)
+        self._sent.append(msg)
         return seq
+
+    def take_sent(self) -> FrameBlock:
+        """The frames this host sent since the last call (RX flag clear), stamped with the latest bus time
+        it knew when sending (s)."""
+        block, self._sent = FrameBlock.of_messages(self._sent), []
+        return block
 
     def start(self) -> int:
         return self.send_command("start")

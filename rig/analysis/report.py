@@ -19,6 +19,7 @@ from rig.analysis.export import export_curves, export_results
 from rig.analysis.sets import by_program, process_values
 from rig.analysis.summary import analyse
 from rig.recorder import Recording, read_recording
+from rig.recorder.completeness import losses
 
 
 @dataclass
@@ -86,13 +87,25 @@ def fmt(v: Any) -> str:
 
 
 # -- default sections ------------------------------------------------------------------------------
+def _complete(rec: Recording) -> str:
+    """The overview's ``complete`` cell: yes, or why not (truncated file, interrupted run)."""
+    if rec.complete:
+        return "yes"
+    return "no: " + ", ".join(why for why, applies in (("file truncated (run killed or file cut)", rec.truncated),
+                                                       (f"run interrupted ({rec.interrupted})", rec.interrupted))
+                              if applies)
+
+
 def overview(ctx: ReportContext) -> list[Block]:
     rec = ctx.recording
     meta = rec.metadata.get("rig", {})
     rows = [[k, v] for k, v in sorted(meta.items())]
-    rows += [["messages", rec.summary()], ["complete", fmt(rec.complete)]]
+    rows += [["messages", rec.summary()], ["complete", _complete(rec)]]
     blocks: list[Block] = [Heading("Recording", 2), Text(f"File: {rec.path}"), Table(["key", "value"], rows)]
-    blocks += [Text(f"Problem: {p}") for p in rec.problems]
+    lost = losses(rec)
+    if lost:
+        blocks += [Text("Warning: this recording is incomplete; the report shows what it holds."),
+                   Table(["what is incomplete or lost"], [[line] for line in lost])]
     return blocks
 
 

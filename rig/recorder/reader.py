@@ -1,19 +1,19 @@
 """Read a rig MCAP recording back into arrays; recover what is readable from truncated files."""
 from __future__ import annotations
 
-import orjson
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mcap.exceptions import InvalidMagic
+import orjson
+from mcap.exceptions import EndOfFile, InvalidMagic
 from mcap.records import Attachment, Channel, Footer, Message, Metadata
 from mcap.stream_reader import StreamReader
 
 from rig.recorder import schemas as S
-from rig.recorder.encoding import decode_array, decode_block
+from rig.recorder.encoding import decode_array, decode_block, loads_message
 
 
 class RecordingError(ValueError):
@@ -40,7 +40,16 @@ class CurveRecord:
 
 @dataclass
 class Recording:
-    """Everything in a recording. ``series`` maps each bulk topic to concatenated arrays (incl. ``t``)."""
+    """Everything in a recording. ``series`` maps each bulk topic to concatenated arrays (incl. ``t``);
+    ``can_frames`` the ``/can/raw`` columns (``t``, ``id``, ``data`` bytes, ``dir`` and ``channel`` str lists,
+    bool arrays ``is_fd``, ``brs``, ``esi``, ``is_extended``, ``error``). View channels and ``/log`` repeat
+    other topics and are only counted.
+
+    ``complete``: the file is whole and the run ended normally. ``truncated``: the file is cut short or
+    damaged (read with ``allow_partial``). ``end``: the run's end record (metadata ``rig.end``: ``complete``,
+    ``reason``, ``simulation_time``, ``messages``), empty when the writer never closed the file.
+    ``last_time``: simulation time (s) of the latest message read.
+    """
 
     path: Path
     scene_text: str | None = None
@@ -54,7 +63,18 @@ class Recording:
     can_frames: dict[str, Any] = field(default_factory=dict)
     message_counts: dict[str, int] = field(default_factory=dict)
     complete: bool = True
+    truncated: bool = False
     problems: list[str] = field(default_factory=list)
+    last_time: float = 0.0
+
+    @property
+    def end(self) -> dict[str, str]:
+        return self.metadata.get(S.END_METADATA, {})
+
+    @property
+    def interrupted(self) -> str | None:
+        """Why the run stopped early, as its end record says (None: it did not say so)."""
+        return self.end.get("reason") or "unknown reason" if self.end.get("complete") == "false" else None
 
     @property
     def truth(self) -> dict[str, np.ndarray]:
@@ -87,8 +107,13 @@ def _curve(msg: dict) -> CurveRecord:
 def _can(blocks: list[dict]) -> dict[str, Any]:
     def cat(key: str, dtype: Any) -> np.ndarray:
         return np.array([v for b in blocks for v in b[key]], dtype=dtype)
-    return {"t": cat("t", np.float64), "id": cat("id", np.int64), "is_fd": cat("is_fd", bool),
-            "is_extended": cat("is_extended", bool), "data": [bytes.fromhex(d) for b in blocks for d in b["data"]]}
+    return {"t": cat("t", np.float64), "id": cat("id", np.int64),
+            **{key: [v for b in blocks for v in b[key]] for key in ("dir", "channel")},
+            **{key: cat(key, bool) for key in ("is_fd", "brs", "esi", "is_extended", "error")},
+            "data": [bytes.fromhex(d) for b in blocks for d in b["data"]]}
+
+
+_REPEATS = frozenset({*S.VIEWS, S.LOG})      # topics that repeat others' data in a viewer's form
 
 
 class _Collector:
@@ -99,6 +124,7 @@ class _Collector:
         self.channels: dict[int, str] = {}
         self.blocks: dict[str, list[dict[str, np.ndarray]]] = defaultdict(list)
         self.can: list[dict] = []
+        self.last_log_ns = 0
 
     def add(self, record: Any) -> None:
         rec = self.rec
@@ -109,6 +135,7 @@ class _Collector:
             if topic is None:
                 raise ValueError(f"message on unknown channel id {record.channel_id}")
             rec.message_counts[topic] = rec.message_counts.get(topic, 0) + 1
+            self.last_log_ns = max(self.last_log_ns, record.log_time)
             self._message(topic, record.data)
         elif isinstance(record, Attachment):
             if record.name == S.SCENE_ATTACHMENT:
@@ -120,20 +147,24 @@ class _Collector:
 
     def _message(self, topic: str, data: bytes) -> None:
         rec = self.rec
+        if topic in _REPEATS:
+            return
         if topic == S.CURVE:
-            rec.curves.append(_curve(orjson.loads(data)))
+            rec.curves.append(_curve(loads_message(data)))
         elif topic == S.RESULT:
-            rec.results.append(orjson.loads(data))
+            rec.results.append(loads_message(data))
         elif topic == S.STATISTICS:
-            rec.statistics.append(orjson.loads(data))
+            rec.statistics.append(loads_message(data))
         elif topic == S.EVENTS:
-            rec.events.append(orjson.loads(data))
+            rec.events.append(loads_message(data))
         elif topic == S.CAN_RAW:
-            self.can.append(orjson.loads(data))
+            self.can.append(loads_message(data))
         else:
             self.blocks[topic].append(decode_block(data))
 
     def finish(self) -> Recording:
+        start = int(self.rec.metadata.get(S.RIG_METADATA, {}).get("wall_clock_start", 0))
+        self.rec.last_time = max(self.last_log_ns - start, 0) / 1e9
         for topic, blocks in self.blocks.items():
             self.rec.series[topic] = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
         if self.can:
@@ -146,7 +177,8 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
 
     A truncated or corrupt file raises :class:`RecordingError` naming the file, the problem and what
     was recovered (also in ``exc.partial``); with ``allow_partial`` the partial recording is returned
-    with ``complete = False`` and ``problems`` filled in.
+    with ``truncated = True``, ``complete = False`` and ``problems`` filled in. A whole file of a run
+    that stopped early reads without error, with ``complete = False`` and the reason in ``problems``.
     """
     path = Path(path)
     rec = Recording(path=path)
@@ -161,14 +193,22 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
         raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from None
     except InvalidMagic:
         raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)") from None
+    except EndOfFile:
+        rec.truncated = True
+        rec.problems.append("file ends inside a record, without a footer (recording was not closed: the "
+                            "process was killed or the file cut)")
     except Exception as exc:  # any decoding failure past the header: keep what was read
-        rec.complete = False
+        rec.truncated = True
         rec.problems.append(f"stopped reading at a damaged record ({type(exc).__name__}: {exc})")
-    if not footer and rec.complete:
-        rec.complete = False
+    if not footer and not rec.truncated:
+        rec.truncated = True
         rec.problems.append("file ends without a footer (recording was not closed)")
     collector.finish()
-    if not rec.complete and not allow_partial:
+    if rec.interrupted is not None:
+        rec.problems.append(f"run interrupted at {float(rec.end.get('simulation_time', 'nan')):.3f} s of "
+                            f"simulation time: {rec.interrupted}")
+    rec.complete = not rec.truncated and rec.interrupted is None
+    if rec.truncated and not allow_partial:
         raise RecordingError(f"{path}: truncated or corrupt MCAP recording: {'; '.join(rec.problems)}. "
                              f"Recovered {rec.summary()} (read_recording(..., allow_partial=True) returns it)",
                              partial=rec)

@@ -1,8 +1,16 @@
-"""Topic names and JSON Schemas (encoding ``jsonschema``, messages ``json``) of the recording channels."""
+"""Topic names and JSON Schemas (encoding ``jsonschema``, messages ``json``) of the recording channels.
+
+Every schema keeps to what Foxglove's JSON-schema parser accepts: one string per ``type`` (no unions),
+``properties`` on every object (dynamic keys are ``additionalProperties`` beside them), ``items`` on every
+array. Undefined values are listed in each message's ``nulls`` (rig.recorder.encoding).
+"""
 from __future__ import annotations
 
 import json
 from typing import Iterable
+
+from drivers.can.host import PROCESS_VALUES
+from rig.recorder.encoding import NULLS
 
 TRUTH = "/plant/truth"
 CAN_RAW = "/can/raw"
@@ -11,83 +19,141 @@ CURVE = "/device/curve"
 RESULT = "/device/result"
 STATISTICS = "/device/statistics"
 EVENTS = "/events"
+LOG = "/log"
 TRANSDUCERS = "/transducers/"
+VIEW_DEVICE = "/view/device"
+VIEW_PLANT = "/view/plant"
+VIEWS = (VIEW_DEVICE, VIEW_PLANT)
 
 SCENE_ATTACHMENT = "scene.toml"
 PROGRAM_ATTACHMENT = "device/program/{number}.json"
 RIG_METADATA = "rig"
+END_METADATA = "rig.end"
+
+NUMBER = {"type": "number"}
+INTEGER = {"type": "integer"}
+BOOLEAN = {"type": "boolean"}
+STRING = {"type": "string"}
+
+
+def array_of(item: dict, description: str = "") -> dict:
+    return {"type": "array", "items": item, **({"description": description} if description else {})}
+
+
+def message_schema(title: str, properties: dict, required: Iterable[str] = (), description: str = "",
+                   extra: bool = True) -> dict:
+    """A top-level message schema: ``properties`` plus ``nulls``; ``extra``: further keys allowed."""
+    props = {**properties, NULLS: array_of(STRING, "JSON Pointers of undefined values (null: NaN, inf or None), "
+                                                    "left out of their object, 0 in their array")}
+    schema = {"title": title, "type": "object", "properties": props, "required": list(required),
+              "additionalProperties": extra}
+    if description:
+        schema["description"] = description
+    return schema
 
 
 def _array(encoding: str, description: str) -> dict:
     if encoding == "base64":
         return {"type": "string", "contentEncoding": "base64",
                 "contentMediaType": "application/x-float64-le", "description": description}
-    return {"type": "array", "items": {"type": ["number", "null"]}, "description": description}
+    return array_of(NUMBER, description)
 
 
-def block_schema(title: str, fields: Iterable[str], encoding: str) -> bytes:
+def block_schema(title: str, fields: Iterable[str], encoding: str) -> dict:
     """Schema of a bulk block: ``t`` (s) plus one array per signal (SI), same length."""
     props = {"t": _array(encoding, "simulation time, s")}
     for name in fields:
         props[name] = _array(encoding, f"{name} (SI units)")
-    return _dump({"title": title, "type": "object", "properties": props,
-                  "required": list(props), "additionalProperties": False})
+    return message_schema(title, props, required=props, extra=False)
 
 
-CAN_SCHEMA = {
-    "title": "rig.CanFrames", "type": "object",
-    "description": "block of raw CAN frames as seen on the bus",
-    "properties": {
-        "t": {"type": "array", "items": {"type": "number"}, "description": "frame time, s"},
-        "id": {"type": "array", "items": {"type": "integer"}, "description": "arbitration id"},
-        "is_fd": {"type": "array", "items": {"type": "boolean"}},
-        "is_extended": {"type": "array", "items": {"type": "boolean"}},
-        "data": {"type": "array", "items": {"type": "string"}, "description": "payload, hex"},
-    },
-    "required": ["t", "id", "is_fd", "is_extended", "data"],
-}
+def view_schema(title: str, fields: Iterable[str], description: str) -> dict:
+    """Schema of a view channel: one sample per message, ``t`` (s) and one number per signal (SI)."""
+    props = {"t": {"type": "number", "description": "simulation time, s"}}
+    props.update({name: {"type": "number", "description": f"{name} (SI units)"} for name in fields})
+    return message_schema(title, props, required=["t"], description=description, extra=False)
+
+
+CAN_SCHEMA = message_schema("rig.CanFrames", {
+    "t": array_of(NUMBER, "frame time, s (simulation time)"),
+    "id": array_of(INTEGER, "arbitration id"),
+    "dir": array_of(STRING, "'rx': received by the host, 'tx': sent by the host"),
+    "channel": array_of(STRING, "CAN channel name"),
+    "is_fd": array_of(BOOLEAN, "CAN FD frame"),
+    "brs": array_of(BOOLEAN, "CAN FD bit rate switch"),
+    "esi": array_of(BOOLEAN, "CAN FD error state indicator"),
+    "is_extended": array_of(BOOLEAN, "29-bit identifier"),
+    "error": array_of(BOOLEAN, "error frame"),
+    "data": array_of(STRING, "payload, hex"),
+}, required=("t", "id", "dir", "channel", "is_fd", "brs", "esi", "is_extended", "error", "data"),
+    description="block of raw CAN frames on the bus, the host's own included", extra=False)
 
 
 def curve_schema(encoding: str) -> dict:
     """One measured curve of the device (all arrays of equal length)."""
-    return {
-        "title": "rig.Curve", "type": "object",
-        "properties": {
-            "number": {"type": "integer"}, "program": {"type": "integer"},
-            "t": _array(encoding, "sample time, s"), "x": _array(encoding, "X channel, SI"),
-            "y": _array(encoding, "Y channel, SI"), "angle": _array(encoding, "cam angle, rad"),
-            "theory": {"type": "object", "description": "theoretical curve: t, x, y, angle arrays",
-                       "additionalProperties": _array(encoding, "theory, SI")},
-        },
-        "required": ["number", "program", "t", "x", "y"], "additionalProperties": True,
-    }
+    return message_schema("rig.Curve", {
+        "number": INTEGER, "program": INTEGER,
+        "t": _array(encoding, "sample time, s"), "x": _array(encoding, "X channel, SI"),
+        "y": _array(encoding, "Y channel, SI"), "angle": _array(encoding, "cam angle, rad"),
+        "theory": {"type": "object", "description": "theoretical curve (arrays, SI); without t it shares the "
+                                                    "curve's times",
+                   "properties": {k: _array(encoding, f"theory {k}") for k in ("t", "x", "y", "angle")},
+                   "additionalProperties": _array(encoding, "theory, SI")},
+        "complete": {"type": "boolean", "description": "every block of the curve arrived"},
+        "problems": array_of(STRING, "what was wrong with an incomplete curve"),
+    }, required=("number", "program", "t", "x", "y"))
 
 
-RESULT_SCHEMA = {
-    "title": "rig.CurveResult", "type": "object",
+_VALUE = {"type": "number", "description": "process value, SI"}
+
+RESULT_SCHEMA = message_schema("rig.CurveResult", {
+    "number": INTEGER, "program": INTEGER, "ok": BOOLEAN,
+    "elements": array_of({"type": "object", "properties": {
+        "name": STRING, "kind": STRING, "ok": BOOLEAN, "reason": STRING}}),
+    "process_values": {"type": "object", "description": "process values by name (SI); an undefined one is in nulls",
+                       "properties": {name: _VALUE for name in PROCESS_VALUES.values()},
+                       "additionalProperties": _VALUE},
+    "complete": {"type": "boolean", "description": "every announced process value arrived"},
+    "missing": array_of(STRING, "process values that did not arrive"),
+}, required=("ok",))
+
+_VALUE_STATISTICS = {"type": "object", "properties": {
+    "n": INTEGER, "mean": NUMBER, "std": NUMBER, "min": NUMBER, "max": NUMBER, "lower": NUMBER, "upper": NUMBER,
+    "cp": NUMBER, "cpk": NUMBER}, "description": "per process value: n, mean, σ, min, max, limits, Cp, Cpk "
+                                                 "(an undefined one is in nulls)"}
+
+STATISTICS_SCHEMA = message_schema("rig.DeviceStatistics", {
+    "program": INTEGER, "total": INTEGER, "ok": INTEGER, "nok": INTEGER,
+    "elements": {"type": "object", "description": "OK/NOK counts by element name (the program's names)",
+                 "properties": {},
+                 "additionalProperties": {"type": "object", "properties": {"ok": INTEGER, "nok": INTEGER}}},
+    "values": {"type": "object", "description": "statistics by process value name (element values are named by "
+                                                "the program: additional properties)",
+               "properties": {name: _VALUE_STATISTICS for name in PROCESS_VALUES.values()},
+               "additionalProperties": _VALUE_STATISTICS},
+}, description="statistics snapshot of the device (counts, per-value mean/std/min/max/cp/cpk)")
+
+EVENT_SCHEMA = message_schema("rig.Event", {"t": {"type": "number", "description": "simulation time, s"},
+                                            "kind": STRING}, required=("t", "kind"))
+
+LOG_SCHEMA = {    # Foxglove's well-known foxglove.Log (https://docs.foxglove.dev), as Foxglove publishes it
+    "title": "foxglove.Log", "description": "A log message", "type": "object",
     "properties": {
-        "number": {"type": "integer"}, "program": {"type": "integer"}, "ok": {"type": "boolean"},
-        "elements": {"type": "array", "items": {"type": "object", "properties": {
-            "name": {"type": "string"}, "kind": {"type": "string"}, "ok": {"type": "boolean"},
-            "reason": {"type": ["string", "null"]}}}},
-        "process_values": {"type": "object", "additionalProperties": {"type": ["number", "null"]}},
+        "timestamp": {"type": "object", "title": "time", "description": "Timestamp of log message",
+                      "properties": {"sec": {"type": "integer", "minimum": 0},
+                                     "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}},
+        "level": {"title": "foxglove.LogLevel", "description": "Log level", "oneOf": [
+            {"title": title, "const": value} for value, title in enumerate(
+                ("UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL"))]},
+        "message": {"type": "string", "description": "Log message"},
+        "name": {"type": "string", "description": "Process or node name"},
+        "file": {"type": "string", "description": "Filename"},
+        "line": {"type": "integer", "minimum": 0, "description": "Line number in the file"},
     },
-    "required": ["ok"], "additionalProperties": True,
+    "required": ["timestamp", "level", "message", "name", "file", "line"],
 }
-
-STATISTICS_SCHEMA = {"title": "rig.DeviceStatistics", "type": "object",
-                     "description": "statistics snapshot of the device (counts, per-value mean/std/min/max/cp/cpk)",
-                     "additionalProperties": True}
-
-EVENT_SCHEMA = {"title": "rig.Event", "type": "object",
-                "properties": {"t": {"type": "number", "description": "s"}, "kind": {"type": "string"}},
-                "required": ["t", "kind"], "additionalProperties": True}
-
-
-def _dump(schema: dict) -> bytes:
-    return json.dumps(schema, separators=(",", ":")).encode()
 
 
 def schema_bytes(schema: dict) -> bytes:
     """Schema dict to the bytes stored in the MCAP schema record."""
-    return _dump(schema)
+    return json.dumps(schema, separators=(",", ":"), ensure_ascii=False).encode()

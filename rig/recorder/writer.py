@@ -1,7 +1,9 @@
-"""MCAP recorder: self-describing JSON channels written in blocks; log time = simulation time (ns).
+"""MCAP recorder: self-describing JSON channels written in blocks, with per-sample view channels.
 
-Use as a context manager so the file is finished (summary, indexes, footer) even when the run is
-interrupted by an exception or Ctrl-C::
+Log time = the run's wall-clock start (ns since 1970, metadata ``rig`` ``wall_clock_start``) + the
+simulation time; messages carry the simulation time (``t``, s). Use as a context manager so the file is
+finished (summary, indexes, footer) even when the run is interrupted by an exception or Ctrl-C; the end
+is recorded (metadata ``rig.end``: ``complete``, ``reason``; an ``interrupted`` event when it was not)::
 
     with Recorder("run.mcap", scene_text=scene.text, metadata={"seed": 7}) as rec:
         rec.write_truth(t, {"x": x, "F": F})
@@ -12,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import platform
+import time
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
@@ -21,19 +24,27 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 import rig
-from rig.blockbus import EXTENDED, FD, FrameBlock, frames_of
+from rig.blockbus import BRS, ERROR, ESI, EXTENDED, FD, RX, FrameBlock, frames_of
 from rig.recorder import schemas as S
-from rig.recorder.encoding import ENCODINGS, dumps, encode_array, encode_block
+from rig.recorder.encoding import ENCODINGS, NULLS, dumps, dumps_message, encode_array, encode_block
+from rig.recorder.log import log_message
+from rig.recorder.view import Decimator
 
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+CAN_COLUMNS = ("t", "id", "dir", "channel", "is_fd", "brs", "esi", "is_extended", "error", "data")
 
 
 def to_ns(t: float, what: str) -> int:
-    """Simulation time in s to MCAP log time in ns (must be finite and >= 0)."""
+    """Simulation time in s to ns (must be finite and >= 0)."""
     t = float(t)
     if not math.isfinite(t) or t < 0:
         raise ValueError(f"{what}: time {t!r} s cannot be a log time (needs a finite time >= 0)")
     return int(round(t * 1e9))
+
+
+def interruption(exc: BaseException) -> str:
+    """How a run's end record names the exception that stopped it: ``Type: message`` or ``Type``."""
+    return f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
 
 
 def _check_times(t: np.ndarray, last: float, topic: str) -> None:
@@ -79,39 +90,49 @@ class Recorder:
     programs: device program configs ``{number: dict}`` (attachments ``device/program/<n>.json``).
     block_size: samples per bulk message. encoding: ``"json"`` (plottable) or ``"base64"`` (fast).
     compression: ``"zstd"``, ``"lz4"`` or ``"none"`` (chunk compression).
+    wall_clock_start: ns since 1970 that simulation time 0 maps to in log times (default: now).
+    view_rate: Hz of the view channels ``/view/plant`` (truth) and ``/view/device`` (curves); None: none.
     """
 
     def __init__(self, path: str | Path, scene_text: str | None = None,
                  metadata: Mapping[str, Any] | None = None, programs: Mapping[int, Mapping] | None = None,
                  block_size: int = 1000, encoding: str = "json", compression: str = "zstd",
-                 chunk_size: int = 1 << 20):
+                 chunk_size: int = 1 << 20, wall_clock_start: int | None = None, view_rate: float | None = 100.0):
         if encoding not in ENCODINGS:
             raise ValueError(f"Recorder: unknown encoding {encoding!r} (use one of {ENCODINGS})")
         if compression not in COMPRESSIONS:
             raise ValueError(f"Recorder: unknown compression {compression!r} (use one of {sorted(COMPRESSIONS)})")
         if int(block_size) < 1:
             raise ValueError(f"Recorder: block_size must be >= 1, got {block_size}")
+        start = time.time_ns() if wall_clock_start is None else wall_clock_start
+        if not isinstance(start, (int, np.integer)) or start < 0:
+            raise ValueError(f"Recorder: wall_clock_start must be ns since 1970 as an int >= 0, got {start!r}")
+        self._views = {topic: Decimator(view_rate) for topic in S.VIEWS} if view_rate is not None else {}
         self.path = Path(path)
         self.encoding = encoding
         self.block_size = int(block_size)
+        self.wall_clock_start = int(start)
+        self.messages = 0                     # messages written so far
         self._file = open(self.path, "wb")
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSIONS[compression],
                               enable_data_crcs=True)
         self._writer.start(profile="", library=f"mechrig/{rig.__version__}")
-        self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._blocks: dict[str, _Block] = {}
-        self._can: tuple[list, ...] = ([], [], [], [], [])   # buffered frames: t, id, is_fd, is_extended, hex data
+        self._can: dict[str, list] = {c: [] for c in CAN_COLUMNS}    # buffered frames, by column
         self._can_last = -math.inf
-        self._last_ns = 0
+        self._last_ns = self.wall_clock_start      # latest log time written
         self._closed = False
         meta = {"software_version": rig.__version__, "mcap_version": mcap.__version__,
-                "python": platform.python_version(), "encoding": encoding, "time": "simulation time, ns"}
+                "python": platform.python_version(), "encoding": encoding,
+                "time": "log time = wall_clock_start + simulation time, ns; messages carry simulation time t, s",
+                "wall_clock_start": str(self.wall_clock_start), "view_rate": json.dumps(view_rate)}
         for key, value in (metadata or {}).items():
             meta[str(key)] = value if isinstance(value, str) else json.dumps(value)
         self._writer.add_metadata(S.RIG_METADATA, meta)
         if scene_text is not None:
-            self._writer.add_attachment(0, 0, S.SCENE_ATTACHMENT, "application/toml", scene_text.encode())
+            self._writer.add_attachment(self._last_ns, self._last_ns, S.SCENE_ATTACHMENT, "application/toml",
+                                        scene_text.encode())
         for number, config in (programs or {}).items():
             self.write_program(number, config)
 
@@ -119,42 +140,54 @@ class Recorder:
     def __enter__(self) -> "Recorder":
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object) -> None:
+        self.close(None if exc is None else interruption(exc))
 
-    def close(self) -> None:
-        """Flush buffered blocks and finish the file (idempotent)."""
+    @property
+    def simulation_time(self) -> float:
+        """Latest simulation time written (s)."""
+        return (self._last_ns - self.wall_clock_start) / 1e9
+
+    def close(self, interrupted: str | None = None) -> None:
+        """Flush buffered blocks, record the end and finish the file (idempotent). ``interrupted``: why the
+        run stopped early (an ``interrupted`` event and ``rig.end`` complete=false); None: a normal end."""
         if self._closed:
             return
         try:
             for topic in list(self._blocks):
                 self._flush(topic, final=True)
             self._flush_can(final=True)
+            if interrupted is not None:
+                self.write_event(self.simulation_time, "interrupted", reason=interrupted)
         finally:
             self._closed = True
             try:
+                self._writer.add_metadata(S.END_METADATA, {
+                    "complete": "false" if interrupted is not None else "true", "reason": interrupted or "",
+                    "simulation_time": repr(self.simulation_time), "messages": str(self.messages)})
                 self._writer.finish()
             finally:
                 self._file.close()
 
     # -- channels --------------------------------------------------------------------------------
-    def _channel(self, topic: str, schema: dict | bytes, name: str, meta: Mapping[str, str] | None = None) -> int:
+    def _channel(self, topic: str, schema: dict, name: str, meta: Mapping[str, str] | None = None) -> int:
         if topic not in self._channels:
-            data = schema if isinstance(schema, bytes) else S.schema_bytes(schema)
-            sid = self._writer.register_schema(name=name, encoding="jsonschema", data=data)
-            self._schemas[topic] = sid
+            sid = self._writer.register_schema(name=name, encoding="jsonschema", data=S.schema_bytes(schema))
             self._channels[topic] = self._writer.register_channel(
                 topic=topic, message_encoding="json", schema_id=sid, metadata=dict(meta or {}))
         return self._channels[topic]
 
     def _put(self, channel_id: int, t_ns: int, data: bytes) -> None:
+        """Write one message at simulation time ``t_ns`` (ns)."""
         if self._closed:
             raise RuntimeError(f"Recorder {self.path}: write after close")
-        self._writer.add_message(channel_id=channel_id, log_time=t_ns, data=data, publish_time=t_ns)
-        self._last_ns = max(self._last_ns, t_ns)
+        log_ns = self.wall_clock_start + t_ns
+        self._writer.add_message(channel_id=channel_id, log_time=log_ns, data=data, publish_time=log_ns)
+        self._last_ns = max(self._last_ns, log_ns)
+        self.messages += 1
 
     def _time_ns(self, t: float | None, what: str) -> int:
-        return self._last_ns if t is None else to_ns(t, what)
+        return self._last_ns - self.wall_clock_start if t is None else to_ns(t, what)
 
     # -- bulk blocks -----------------------------------------------------------------------------
     def write_block(self, topic: str, t: np.ndarray, signals: Mapping[str, np.ndarray]) -> None:
@@ -168,8 +201,10 @@ class Recorder:
             raise ValueError(f"topic {topic!r} must start with '/'")
         t = np.asarray(t, dtype=np.float64)
         sig = {str(k): np.asarray(v, dtype=np.float64) for k, v in signals.items()}
-        if "t" in sig:
-            raise ValueError(f"{topic}: a signal may not be called 't' (reserved for time)")
+        reserved = {"t", NULLS} & set(sig)
+        if reserved:
+            raise ValueError(f"{topic}: a signal may not be called {sorted(reserved)[0]!r} (reserved: 't' is the "
+                             f"time, {NULLS!r} lists undefined values)")
         for name, v in sig.items():
             if v.shape != t.shape:
                 raise ValueError(f"{topic}: signal {name!r} has shape {v.shape}, time has {t.shape}")
@@ -192,9 +227,22 @@ class Recorder:
         for t, sig in block.take(self.block_size, final):
             self._put(block.channel_id, to_ns(t[0], topic), encode_block(t, sig, self.encoding))
 
+    def _view(self, topic: str, t: np.ndarray, signals: Mapping[str, np.ndarray], description: str) -> None:
+        """One message per sample kept by the topic's decimator (``view_rate``): ``{"t": s, signal: value}``."""
+        decimator = self._views.get(topic)
+        if decimator is None:
+            return
+        cid = self._channel(topic, S.view_schema(f"rig.View{topic}", signals, description), f"rig.View{topic}",
+                            {"rate_hz": repr(decimator.rate), "time_unit": "s"})
+        for i in decimator.pick(t).tolist():
+            self._put(cid, to_ns(t[i], topic), dumps_message({"t": t[i], **{k: v[i] for k, v in signals.items()}}))
+
     def write_truth(self, t: np.ndarray, signals: Mapping[str, np.ndarray]) -> None:
-        """Physical truth of the plant (``/plant/truth``)."""
+        """Physical truth of the plant (``/plant/truth``, and decimated ``/view/plant``)."""
         self.write_block(S.TRUTH, t, signals)
+        self._view(S.VIEW_PLANT, np.asarray(t, dtype=np.float64),
+                   {str(k): np.asarray(v, dtype=np.float64) for k, v in signals.items()},
+                   "plant truth, one sample per message (decimated /plant/truth)")
 
     def write_transducer(self, name: str, t: np.ndarray, signals: Mapping[str, np.ndarray]) -> None:
         """Output of one transducer (``/transducers/<name>``), e.g. ``{"V": volts}``."""
@@ -205,19 +253,15 @@ class Recorder:
         self.write_block(S.LIVE, t, {"x": x, "y": y})
 
     # -- CAN ------------------------------------------------------------------------------------
-    def write_can_frames(self, frames: FrameBlock | Iterable[Any]) -> None:
-        """Raw CAN frames (``/can/raw``): a :class:`rig.blockbus.FrameBlock`, python-can ``Message`` objects or
-        ``(t, id, data, is_fd)`` tuples."""
+    def write_can_frames(self, frames: FrameBlock | Iterable[Any], channel: str = "") -> None:
+        """Raw CAN frames on ``channel`` (``/can/raw``): a :class:`rig.blockbus.FrameBlock`, python-can
+        ``Message`` objects or ``(t, id, data, is_fd)`` tuples. Direction from the RX flag (``rx`` when set,
+        ``tx``: sent by the host); flags FD, BRS, ESI, EXTENDED, ERROR as columns."""
         if not isinstance(frames, FrameBlock):
             frames = frames_of(f if hasattr(f, "arbitration_id") else can.Message(
                 timestamp=float(f[0]), arbitration_id=int(f[1]), data=bytes(f[2]), is_fd=bool(f[3]),
                 is_extended_id=int(f[1]) > 0x7FF, check=False) for f in frames)
-        width = frames.data.shape[1]
-        text = frames.data.tobytes().hex()
-        cols = (frames.timestamp.tolist(), frames.arbitration_id.tolist(), ((frames.flags & FD) != 0).tolist(),
-                ((frames.flags & EXTENDED) != 0).tolist(),
-                [text[2 * width * i:2 * (width * i + d)] for i, d in enumerate(frames.dlc.tolist())])
-        t = np.array(cols[0], dtype=float)
+        t = frames.timestamp.astype(float)
         if t.size:
             late = np.flatnonzero(np.diff(np.concatenate([[self._can_last], t])) < 0)
             if late.size:
@@ -227,27 +271,35 @@ class Recorder:
             for k in np.flatnonzero(~np.isfinite(t) | (t < 0))[:1]:
                 to_ns(t[k], S.CAN_RAW)          # raises, naming the bad time
             self._can_last = float(t[-1])
-        for buffer, col in zip(self._can, cols):
-            buffer.extend(col)
+        width = frames.data.shape[1]
+        text = frames.data.tobytes().hex()
+        flags = frames.flags
+        cols = {"t": t.tolist(), "id": frames.arbitration_id.tolist(),
+                "dir": np.where((flags & RX) != 0, "rx", "tx").tolist(), "channel": [str(channel)] * len(frames),
+                **{name: ((flags & bit) != 0).tolist() for name, bit in (("is_fd", FD), ("brs", BRS), ("esi", ESI),
+                                                                           ("is_extended", EXTENDED), ("error", ERROR))},
+                "data": [text[2 * width * i:2 * (width * i + d)] for i, d in enumerate(frames.dlc.tolist())]}
+        for name, col in cols.items():
+            self._can[name].extend(col)
         self._flush_can(final=False)
 
     def _flush_can(self, final: bool) -> None:
-        size = len(self._can[0])
+        size = len(self._can["t"])
         cid = self._channel(S.CAN_RAW, S.CAN_SCHEMA, "rig.CanFrames") if size else None
         start = 0
         while size - start >= self.block_size or (final and start < size):
-            t, ids, fd, ext, data = (c[start:start + self.block_size] for c in self._can)
-            self._put(cid, to_ns(t[0], S.CAN_RAW),
-                      dumps({"t": np.asarray(t), "id": ids, "is_fd": fd, "is_extended": ext, "data": data}))
-            start += len(t)
-        for c in self._can:
-            del c[:start]
+            block = {name: col[start:start + self.block_size] for name, col in self._can.items()}
+            block["t"] = np.asarray(block["t"])
+            self._put(cid, to_ns(block["t"][0], S.CAN_RAW), dumps_message(block))
+            start += block["t"].size
+        for col in self._can.values():
+            del col[:start]
 
     # -- device ---------------------------------------------------------------------------------
     def write_curve(self, number: int, program: int, t: np.ndarray, x: np.ndarray, y: np.ndarray,
                     theory: Mapping[str, np.ndarray] | None = None, angle: np.ndarray | None = None,
                     **extra: Any) -> None:
-        """One measured curve (``/device/curve``), log time = its first sample.
+        """One measured curve (``/device/curve``, and decimated ``/view/device``), log time = its first sample.
 
         theory: arrays of the theoretical curve (keys ``t``, ``x``, ``y``, ``angle``; without ``t`` it
         shares the curve's times). angle: measured cam angle per sample, rad. extra: JSON scalars/lists.
@@ -270,7 +322,9 @@ class Recorder:
             msg["theory"] = {str(k): encode_array(v, self.encoding) for k, v in theory.items()}
         msg.update(extra)
         cid = self._channel(S.CURVE, S.curve_schema(self.encoding), "rig.Curve", {"encoding": self.encoding})
-        self._put(cid, to_ns(t[0], f"{S.CURVE} curve {number}"), dumps(msg))
+        self._put(cid, to_ns(t[0], f"{S.CURVE} curve {number}"), dumps_message(msg))
+        self._view(S.VIEW_DEVICE, t, {"x": np.asarray(x, dtype=np.float64), "y": np.asarray(y, dtype=np.float64)},
+                   "measured curves' X and Y, one sample per message (decimated /device/curve)")
 
     def write_result(self, result: Mapping[str, Any], t: float | None = None) -> None:
         """Per-curve result with process values (``/device/result``), e.g. ``CurveResult.to_dict()``.
@@ -281,25 +335,29 @@ class Recorder:
             raise ValueError(f"{S.RESULT}: result has no 'ok' key (keys: {sorted(result)})")
         when = t if t is not None else result.get("t")
         cid = self._channel(S.RESULT, S.RESULT_SCHEMA, "rig.CurveResult")
-        self._put(cid, self._time_ns(when, S.RESULT), dumps(result))
+        self._put(cid, self._time_ns(when, S.RESULT), dumps_message(result))
 
     def write_statistics(self, stats: Mapping[str, Any], t: float | None = None) -> None:
         """Statistics snapshot of the device (``/device/statistics``); t default = latest time written."""
         cid = self._channel(S.STATISTICS, S.STATISTICS_SCHEMA, "rig.DeviceStatistics")
-        self._put(cid, self._time_ns(t, S.STATISTICS), dumps(stats))
+        self._put(cid, self._time_ns(t, S.STATISTICS), dumps_message(stats))
 
     def write_event(self, t: float, kind: str, **data: Any) -> None:
-        """An event (``/events``): flank switch, fault, sequence gap, disengagement, ..."""
+        """An event (``/events``, and as ``foxglove.Log`` on ``/log``): flank switch, fault, sequence gap,
+        disengagement, ..."""
         if not kind:
             raise ValueError(f"{S.EVENTS}: event kind must be a non-empty string")
         if {"t", "kind"} & set(data):
             raise ValueError(f"{S.EVENTS}: event data may not use the keys 't' or 'kind'")
-        cid = self._channel(S.EVENTS, S.EVENT_SCHEMA, "rig.Event")
-        self._put(cid, to_ns(t, f"{S.EVENTS} {kind}"), dumps({"t": float(t), "kind": str(kind), **data}))
+        t_ns = to_ns(t, f"{S.EVENTS} {kind}")
+        self._put(self._channel(S.EVENTS, S.EVENT_SCHEMA, "rig.Event"), t_ns,
+                  dumps_message({"t": float(t), "kind": str(kind), **data}))
+        self._put(self._channel(S.LOG, S.LOG_SCHEMA, "foxglove.Log"), t_ns,
+                  dumps_message(log_message(self.wall_clock_start + t_ns, float(t), str(kind), data)))
 
     def write_program(self, number: int, config: Mapping[str, Any]) -> None:
         """Store a device program configuration (elements, limits) as a JSON attachment."""
         if self._closed:
             raise RuntimeError(f"Recorder {self.path}: write after close")
         name = S.PROGRAM_ATTACHMENT.format(number=int(number))
-        self._writer.add_attachment(0, self._last_ns, name, "application/json", dumps(config))
+        self._writer.add_attachment(self._last_ns, self._last_ns, name, "application/json", dumps(config))

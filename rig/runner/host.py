@@ -16,7 +16,7 @@ from drivers.can import CanHost
 from drivers.can.drain import drain_block
 from drivers.digiforce_serial import DigiForceClient
 from drivers.encoder import counts_to_angle
-from rig.blockbus import FrameBlock
+from rig.blockbus import RX, FrameBlock
 from rig.recorder import Recorder
 from rig.runner.config import RunConfig
 from rig.runner.plants import make_plant
@@ -28,8 +28,6 @@ DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
 def encoder_resolution(spec: Any) -> float:
     """Angle per latched count (rad) of the encoder a scene declares: the host is configured with the
     encoder's data (PPR, decoding) as it would be for real hardware."""
-    if spec is None:
-        return float("nan")
     path = Path(spec.description) if spec.description.endswith(".toml") else DEVICES / f"{spec.description}.toml"
     table = tomllib.loads(path.read_text(encoding="utf-8"))["transducer"]
     ppr = float(spec.overrides.get("ppr", table["ppr"]))
@@ -68,7 +66,8 @@ class Host:
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
         self.frames = 0
-        self._rad_per_count = {i: encoder_resolution(cfg.role(f"encoder{i}")) for i in (1, 2)}
+        self._rad_per_count = {i: encoder_resolution(spec) for i in (1, 2)     # the encoders the scene declares
+                               if (spec := cfg.role(f"encoder{i}")) is not None}
 
     # ---------------------------------------------------------------- configuration
     def arm(self) -> None:
@@ -90,9 +89,15 @@ class Host:
         self._record(block)
         return len(block)
 
+    def _record_sent(self) -> None:
+        """The commands this host sent (``tx`` in ``/can/raw``), before the frames received after them."""
+        self.rec.write_can_frames(self.can.take_sent(), channel=self.cfg.can["channel"])
+
     def _record(self, block: FrameBlock) -> None:
+        self._record_sent()
         if len(block):
-            self.rec.write_can_frames(block)
+            self.rec.write_can_frames(FrameBlock(block.timestamp, block.arbitration_id, block.dlc, block.data,
+                                                 block.flags | RX), channel=self.cfg.can["channel"])
             self.frames += len(block)
         t_live, x_live, y_live = self.can.take_live()
         if len(t_live):
@@ -105,18 +110,18 @@ class Host:
         self._record_link_events()
 
     def _record_stand(self) -> None:
-        """Torque-meter and encoder readings (the stand's samples M_t, T_in, T_out) and static-rig readings
-        (angle, leaf strain of the roles the scene declares) as bulk blocks."""
+        """Torque-meter and encoder readings (the stand's samples M_t, T_in, T_out; encoders the scene
+        declares) and static-rig readings (angle, leaf strain of the roles the scene declares) as bulk blocks."""
         new = self.can.take_readings()
         if new["torque"]:
             t, torque, brake = (np.array(c, dtype=float) for c in zip(*new["torque"]))
             self.rec.write_block("/stand/torque", t, {"torque": torque, "brake_force": brake})
-        for enc in (1, 2):
+        for enc, rad_per_count in self._rad_per_count.items():
             rows = [r for r in new["encoders"] if r[0] == enc]
             if rows:
                 _, t, count, edge = (np.array(c, dtype=float) for c in zip(*rows))
                 self.rec.write_block(f"/stand/encoder{enc}", t, {"count": count, "edge_time": edge,
-                                                                  "angle": count * self._rad_per_count[enc]})
+                                                                  "angle": count * rad_per_count})
         if new["static"]:
             t, angle, strain = (np.array(c, dtype=float) for c in zip(*new["static"]))
             fields = {"angle": angle, "strain": strain}
@@ -248,4 +253,5 @@ class Host:
         self.rec.write_event(self.truth_t, "link_summary", frames=self.frames, **{
             k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))})
         self.can.send_command("release")
+        self._record_sent()
         return stats

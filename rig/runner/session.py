@@ -6,9 +6,10 @@ import sys
 import threading
 import time
 import uuid
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import can
 from tqdm import tqdm
@@ -17,6 +18,7 @@ import rig
 from firmware_sim.serial_device import SerialDevice
 from firmware_sim.socketcand_server import SocketcandServer
 from rig.recorder import Recorder
+from rig.recorder.writer import interruption
 from firmware_sim.can_node import BusOverload
 from rig.runner.config import RunConfig, default_max_time, read_config
 from rig.runner.host import Host
@@ -26,6 +28,15 @@ from rig.scene import load_scene
 
 class RunError(RuntimeError):
     """A run could not complete (the machine did not produce what the scene asks for in time)."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a recorded run. ``recording``: the file holding what was recorded (marked
+    interrupted), or None when nothing had been recorded (no file is left)."""
+
+    def __init__(self, recording: Path | None) -> None:
+        super().__init__()
+        self.recording = recording
 
 
 @dataclass
@@ -128,13 +139,28 @@ def _wait_for_go(machine: Machine, timeout: float) -> None:
 
 def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
     return {"scene": cfg.name, "scene_file": str(cfg.scene.path), "seed": cfg.seed, "plant": cfg.plant,
-            "run_mode": mode, "software_version": rig.__version__, "sample_rate": cfg.sample_rate}
+            "run_mode": mode, "software_version": rig.__version__, "sample_rate": cfg.sample_rate,
+            "cycles": cfg.cycles, "duration": cfg.duration}
 
 
-def _recorder(cfg: RunConfig, output: Path, mode: str) -> Recorder:
+@contextmanager
+def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
+    """The run's recorder. On an exception the file is finished marked interrupted, or removed when it
+    holds no message; Ctrl-C becomes :class:`Interrupted` naming what is left."""
     output.parent.mkdir(parents=True, exist_ok=True)
-    return Recorder(output, scene_text=cfg.scene.text, metadata=_metadata(cfg, mode),
-                    encoding=cfg.recording["encoding"], compression=cfg.recording["compression"])
+    rec = Recorder(output, scene_text=cfg.scene.text, metadata=_metadata(cfg, mode),
+                   encoding=cfg.recording["encoding"], compression=cfg.recording["compression"])
+    try:
+        yield rec
+    except BaseException as exc:
+        kept = rec.messages > 0
+        rec.close(interrupted=interruption(exc))
+        if not kept:
+            output.unlink(missing_ok=True)
+        if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Interrupted):
+            raise Interrupted(output if kept else None) from exc
+        raise
+    rec.close()
 
 
 def _bus(cfg: RunConfig, channel: str) -> can.BusABC:

@@ -1,5 +1,6 @@
 """The recorder's fast paths against plain references: orjson block encoding against the stdlib json of
-the same values, bulk /can/raw rows from python-can messages against the tuple form."""
+the same values (undefined ones as 0 with their JSON Pointers in ``nulls``), bulk /can/raw rows from
+python-can messages against the tuple form."""
 from __future__ import annotations
 
 import json
@@ -15,9 +16,12 @@ from rig.recorder.reader import read_recording
 
 
 def _reference_json(values: dict) -> object:
-    """What the stdlib json writes for these arrays, non-finite values as null."""
-    return {k: [float(x) if math.isfinite(x) else None for x in np.asarray(v, dtype=float).tolist()]
-            for k, v in values.items()}
+    """The stdlib json of these arrays: non-finite values as 0, their JSON Pointers listed in ``nulls``."""
+    out = {k: [float(x) if math.isfinite(x) else 0.0 for x in np.asarray(v, dtype=float).tolist()]
+           for k, v in values.items()}
+    out["nulls"] = [f"/{k}/{i}" for k, v in values.items() for i, x in enumerate(np.asarray(v, float)) if
+                    not math.isfinite(x)]
+    return out
 
 
 def test_json_block_equals_stdlib_json_of_the_same_numbers():
@@ -51,8 +55,9 @@ def test_can_frames_from_messages_equal_the_tuple_form(tmp_path):
         rec.write_can_frames([(m.timestamp, m.arbitration_id, bytes(m.data), m.is_fd) for m in frames])
     a, b = (read_recording(p).can_frames for p in paths)
     assert a["data"] == b["data"] == [bytes(m.data) for m in frames]
-    for key in ("t", "id", "is_fd", "is_extended"):
+    for key in ("t", "id", "dir", "channel", "is_fd", "brs", "esi", "is_extended", "error"):
         assert np.array_equal(a[key], b[key])
+    assert a["dir"] == ["rx"] * 2501 and a["channel"] == [""] * 2501
     assert a["is_extended"].tolist() == [False] * 2500 + [True]
 
 

@@ -1,4 +1,5 @@
-"""Recorder/reader round trip, robustness to interruption and corruption, raw-mcap readability."""
+"""Recorder/reader round trip, robustness to interruption and corruption, raw-mcap readability, log times
+anchored to the wall clock, CAN direction and flag columns, undefined values without JSON nulls."""
 from __future__ import annotations
 
 import json
@@ -9,9 +10,11 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from rig.blockbus import BRS, ERROR, ESI, EXTENDED, FD, RX, FrameBlock
 from rig.recorder import Recorder, RecordingError, read_recording
 
 SCENE = "[scene]\nname = \"test\"\nseed = 7\n"
+START = 1_700_000_000_123_456_789       # wall-clock start of the test recordings, ns since 1970
 PROGRAM = {"elements": [{"kind": "window", "name": "W1", "x_min": 0.01, "x_max": 0.02, "y_min": 10.0,
                          "y_max": 50.0, "entry": "left", "exit": "right"}], "limits": {"y_max": [30.0, 50.0]}}
 
@@ -33,7 +36,7 @@ def record(path, rng, encoding="json", block_size=700, chunk_size=1 << 20, fail=
               can.Message(timestamp=0.2, arbitration_id=0x18FF0001, data=bytes(range(64)), is_fd=True,
                           is_extended_id=True)]
     with Recorder(path, scene_text=SCENE, metadata={"seed": 7, "scene": "test"}, programs={1: PROGRAM},
-                  block_size=block_size, encoding=encoding, chunk_size=chunk_size) as rec:
+                  block_size=block_size, encoding=encoding, chunk_size=chunk_size, wall_clock_start=START) as rec:
         for a, b in ((0, 10), (10, 1500), (1500, 1501), (1501, t.size)):   # uneven writes, buffered into blocks
             rec.write_truth(t[a:b], {k: v[a:b] for k, v in truth.items()})
         rec.write_transducer("force", t[:100], {"V": truth["F"][:100] * 1e-3})
@@ -59,7 +62,8 @@ def test_round_trip_every_channel(tmp_path, encoding):
     path = tmp_path / "run.mcap"
     t, truth, curves = record(path, np.random.default_rng(1), encoding)
     rec = read_recording(path)
-    assert rec.complete and rec.problems == []
+    assert rec.complete and not rec.truncated and rec.interrupted is None and rec.problems == []
+    assert rec.end["complete"] == "true" and rec.last_time == pytest.approx(curves[-1]["t"][-1])
     assert rec.scene_text == SCENE
     assert rec.metadata["rig"]["seed"] == "7" and rec.metadata["rig"]["software_version"]
     assert rec.metadata["rig"]["encoding"] == encoding
@@ -101,29 +105,40 @@ def test_raw_mcap_library_recovers_curves_and_schemas(tmp_path):
         assert all(ch.message_encoding == "json" for ch in summary.channels.values())
         topics = {ch.topic for ch in summary.channels.values()}
         assert topics == {"/plant/truth", "/transducers/force", "/device/live", "/can/raw", "/device/curve",
-                          "/device/result", "/device/statistics", "/events"}
+                          "/device/result", "/device/statistics", "/events", "/log", "/view/plant", "/view/device"}
+        assert reader.get_summary().statistics.message_start_time == START      # simulation time 0
         for _, channel, msg in reader.iter_messages(topics=["/device/curve"]):
             body = json.loads(msg.data)
-            assert msg.log_time == round(body["t"][0] * 1e9)            # log time = simulation time, ns
+            assert msg.log_time == START + round(body["t"][0] * 1e9)    # wall-clock start + simulation time
             got[body["number"]] = body
         truth_times = [(m.log_time, json.loads(m.data)["t"][0]) for _, _, m in reader.iter_messages(["/plant/truth"])]
-    assert all(ns == round(t0 * 1e9) for ns, t0 in truth_times)
+        meta = next(m for m in reader.iter_metadata() if m.name == "rig").metadata
+    assert meta["wall_clock_start"] == str(START)
+    assert all(ns == START + round(t0 * 1e9) for ns, t0 in truth_times)
     assert sorted(got) == [1, 2, 3]
     for c in curves:
         for k in ("t", "x", "y", "angle"):
             assert got[c["number"]][k] == c[k].tolist()                 # exact: JSON floats round-trip
 
 
-@pytest.mark.parametrize("exc", [RuntimeError("solver diverged"), KeyboardInterrupt()])
-def test_interrupted_recording_is_valid(tmp_path, exc):
+@pytest.mark.parametrize("exc, reason", [(RuntimeError("solver diverged"), "RuntimeError: solver diverged"),
+                                         (KeyboardInterrupt(), "KeyboardInterrupt")])
+def test_interrupted_recording_is_valid_and_marked(tmp_path, exc, reason):
     path = tmp_path / "run.mcap"
     with pytest.raises(type(exc)):
         record(path, np.random.default_rng(3), fail=exc)
-    rec = read_recording(path)
-    assert rec.complete
+    rec = read_recording(path)                          # a whole file: no allow_partial needed
+    assert not rec.truncated and not rec.complete and rec.interrupted == reason
+    assert rec.end == {"complete": "false", "reason": reason, "simulation_time": repr(float(rec.curves[-1].t[-1])),
+                       "messages": str(sum(rec.message_counts.values()))}
+    assert any(reason in p for p in rec.problems)
     assert [c.number for c in rec.curves] == [1, 2] and len(rec.results) == 2
     assert rec.truth["t"].size == 5003                  # buffered tail flushed on the way out
-    assert rec.statistics == [] and rec.events == []
+    assert rec.statistics == []
+    assert rec.events == [{"t": float(rec.curves[-1].t[-1]), "kind": "interrupted", "reason": reason}]
+    with open(path, "rb") as f:
+        logs = [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(topics=["/log"])]
+    assert [(log["level"], log["name"]) for log in logs] == [(4, "interrupted")]      # foxglove.Log ERROR
 
 
 def test_truncated_file_names_file_and_recovers_prefix(tmp_path):
@@ -136,7 +151,7 @@ def test_truncated_file_names_file_and_recovers_prefix(tmp_path):
         read_recording(cut)
     assert "Recovered" in str(info.value) and "/plant/truth" in str(info.value)
     partial = read_recording(cut, allow_partial=True)
-    assert not partial.complete and partial.problems
+    assert partial.truncated and not partial.complete and partial.problems and partial.end == {}
     assert partial.scene_text == SCENE
     n = partial.truth["t"].size                       # the tail block is only written at close
     assert 4000 <= n < 5003
@@ -187,3 +202,76 @@ def test_bad_input_is_named(tmp_path):
     with pytest.raises(RuntimeError, match="after close"):
         rec.write_event(1.0, "late")
     assert read_recording(tmp_path / "b.mcap").truth["x"].tolist() == [0.0, 0.0]
+
+
+def test_frame_block_direction_channel_and_flags_become_columns(tmp_path):
+    flags = np.array([RX, FD | BRS | RX, FD | ESI | RX, ERROR | RX, EXTENDED, 0], np.uint8)
+    data = np.zeros((6, 64), np.uint8)
+    data[1, :12] = np.arange(12)
+    block = FrameBlock(np.array([0.1, 0.2, 0.2, 0.3, 0.4, 0.4]), np.array([0x100, 0x300, 0x301, 0, 0x18FF0001, 0x50],
+                                                                         np.uint32),
+                       np.array([0, 12, 8, 0, 1, 8], np.int16), data, flags)
+    with Recorder(tmp_path / "can.mcap", block_size=4) as rec:
+        rec.write_can_frames(block.take(slice(0, 4)), channel="can0")
+        rec.write_can_frames(block.take(slice(4, 6)), channel="aux")
+    cf = read_recording(tmp_path / "can.mcap").can_frames
+    assert cf["dir"] == ["rx", "rx", "rx", "rx", "tx", "tx"]
+    assert cf["channel"] == ["can0"] * 4 + ["aux"] * 2
+    assert cf["is_fd"].tolist() == [False, True, True, False, False, False]
+    assert cf["brs"].tolist() == [False, True, False, False, False, False]
+    assert cf["esi"].tolist() == [False, False, True, False, False, False]
+    assert cf["error"].tolist() == [False, False, False, True, False, False]
+    assert cf["is_extended"].tolist() == [False, False, False, False, True, False]
+    assert cf["data"][1] == bytes(range(12)) and cf["data"][3] == b""
+
+
+def test_undefined_values_round_trip_without_json_nulls(tmp_path):
+    path = tmp_path / "nan.mcap"
+    t = np.arange(5) * 0.1
+    x = np.array([1.0, np.nan, np.inf, 2.0, -np.inf])
+    with Recorder(path, block_size=3) as rec:
+        rec.write_truth(t, {"x": x, "a/b~c": t})          # a signal name that needs JSON Pointer escapes
+        rec.write_curve(1, 1, t, x, t, theory={"y": x})
+        rec.write_result({"number": 1, "ok": True, "elements": [{"name": "W", "reason": None}],
+                          "process_values": {"y_max": float("nan"), "x/max": 1.5}})
+    rec = read_recording(path)
+    np.testing.assert_array_equal(rec.truth["x"], [1.0, np.nan, np.nan, 2.0, np.nan])   # inf: undefined as before
+    np.testing.assert_array_equal(rec.truth["a/b~c"], t)
+    np.testing.assert_array_equal(rec.curves[0].x, rec.truth["x"])
+    np.testing.assert_array_equal(rec.curves[0].theory["y"], rec.truth["x"])
+    assert rec.results == [{"number": 1, "ok": True, "elements": [{"name": "W", "reason": None}],
+                            "process_values": {"x/max": 1.5, "y_max": None}}]
+    with open(path, "rb") as f:
+        data = {ch.topic: m.data for _, ch, m in make_reader(f).iter_messages()}      # the last of each topic
+    assert not [topic for topic, d in data.items() if b"null" in d.replace(b'"nulls"', b"")]
+    raw = {topic: json.loads(d) for topic, d in data.items()}
+    assert raw["/device/result"]["nulls"] == ["/elements/0/reason", "/process_values/y_max"]
+    assert raw["/device/result"]["process_values"] == {"x/max": 1.5}          # left out of its object
+    assert raw["/plant/truth"] == {"t": t[3:].tolist(), "x": [2.0, 0.0], "a/b~c": t[3:].tolist(), "nulls": ["/x/1"]}
+    assert raw["/view/plant"]["nulls"] == ["/x"] and "x" not in raw["/view/plant"]     # t = 0.4: x = -inf
+
+
+def test_view_decimation_is_the_same_for_any_cut_of_the_stream():
+    from rig.recorder.view import Decimator
+    t = np.arange(20_000) * 1e-4                          # 2 s at 10 kHz
+    whole = Decimator(100.0).pick(t)
+    assert whole.size == 200 and np.all(np.diff(np.floor(t[whole] * 100)) == 1)
+    pieces, dec = [], Decimator(100.0)
+    for a, b in ((0, 7), (7, 7), (7, 5003), (5003, 20_000)):
+        pieces.append(dec.pick(t[a:b]) + a)
+    np.testing.assert_array_equal(np.concatenate(pieces), whole)
+    with pytest.raises(ValueError, match="view rate"):
+        Decimator(0.0)
+
+
+def test_views_can_be_turned_off_and_bad_settings_are_named(tmp_path):
+    with Recorder(tmp_path / "noview.mcap", view_rate=None) as rec:
+        rec.write_truth(np.arange(3.0), {"x": np.zeros(3)})
+    assert set(read_recording(tmp_path / "noview.mcap").message_counts) == {"/plant/truth"}
+    with pytest.raises(ValueError, match="wall_clock_start"):
+        Recorder(tmp_path / "w.mcap", wall_clock_start=-5)
+    with Recorder(tmp_path / "r.mcap") as rec:
+        with pytest.raises(ValueError, match="'nulls'"):
+            rec.write_truth(np.arange(2.0), {"nulls": np.zeros(2)})
+        with pytest.raises(ValueError, match="reserved"):
+            rec.write_result({"ok": True, "nulls": []})

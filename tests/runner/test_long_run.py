@@ -57,8 +57,8 @@ def test_a_bus_that_cannot_carry_the_curves_stops_the_run_with_a_clear_error(tmp
     out = tmp_path / "slow.mcap"
     with pytest.raises(RunError, match=r"\[links.can\].*cannot carry the curves.*CAN FD"):
         run_scene(slow, out, cycles=20)
-    rec = read_recording(out)                    # what was recorded before stays readable
-    assert rec.complete and 1 <= len(rec.curves) < 20
+    rec = read_recording(out)                    # what was recorded before stays readable, marked as stopped
+    assert not rec.truncated and rec.interrupted.startswith("RunError") and 1 <= len(rec.curves) < 20
 
 
 def test_cycles_from_the_command_line_raise_the_time_limit():

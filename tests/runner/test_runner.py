@@ -142,8 +142,9 @@ def test_interrupted_run_leaves_a_valid_recording(tmp_path: Path, monkeypatch):
     out = tmp_path / "interrupted.mcap"
     with pytest.raises(KeyboardInterrupt):
         run_scene(SCENE, out, cycles=CYCLES)
-    rec = read_recording(out)
-    assert rec.complete and rec.truth["t"].size > 0 and len(rec.curves) == 1 and len(rec.results) == 1
+    rec = read_recording(out)                  # a whole file, marked interrupted
+    assert not rec.truncated and rec.interrupted == "KeyboardInterrupt" and not rec.complete
+    assert rec.truth["t"].size > 0 and len(rec.curves) == 1 and len(rec.results) == 1
 
 
 @pytest.mark.parametrize("old, new, message", [

@@ -1,0 +1,108 @@
+"""Recordings cut short: a run killed with SIGKILL reports with `rig report --partial` (and says what was
+lost), plain `rig report` names the problem in one line; an interrupted run is marked in its recording
+and its report; Ctrl-C before anything was recorded leaves no file; Ctrl-C during imports, no traceback."""
+from __future__ import annotations
+
+import builtins
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from rig.cli import main
+from rig.recorder import read_recording
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = ROOT / "data" / "scenes" / "pin_insertion.toml"
+
+
+def test_a_run_killed_halfway_reports_with_partial(tmp_path, capsys):
+    out = tmp_path / "killed.mcap"
+    run = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "run", str(SCENE), "--cycles", "200", "-o", str(out),
+                            "--no-report"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not out.exists() or out.stat().st_size < 4_000_000:
+            assert run.poll() is None, run.stderr.read()
+            assert time.monotonic() < deadline, "the run did not write 4 MB in 120 s"
+            time.sleep(0.05)
+        os.kill(run.pid, signal.SIGKILL)
+    finally:
+        run.kill()
+        run.wait()
+    assert main(["report", str(out), "--format", "md"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "killed.mcap: truncated" in err and f"rig report --partial {out}" in err
+
+    assert main(["report", "--partial", str(out), "-o", str(tmp_path / "report"), "--format", "md"]) == 0
+    said = capsys.readouterr().out
+    rec = read_recording(out, allow_partial=True)
+    assert rec.truncated and 5 <= len(rec.curves) < 200
+    assert "incomplete recording" in said and "file ends inside a record, without a footer" in said
+    assert f"{len(rec.curves)} of 200 requested curves recorded" in said
+    assert "no device statistics recorded" in said
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "no: file truncated" in report and f"{len(rec.curves)} of 200 requested curves" in report
+    assert report.count("| OK |") + report.count("| NOK |") == len(rec.results)      # what it holds, reported
+
+
+def test_an_interrupted_run_is_marked_and_its_report_says_so(tmp_path, monkeypatch, capsys):
+    from rig.runner import host as host_module
+    original = host_module.Host.poll
+
+    def poll(self, timeout: float = 0.0) -> int:
+        if self.curves_recorded >= 1:      # Ctrl-C after the first curve
+            raise KeyboardInterrupt
+        return original(self, timeout)
+
+    monkeypatch.setattr(host_module.Host, "poll", poll)
+    out = tmp_path / "stopped.mcap"
+    assert main(["-q", "run", str(SCENE), "--cycles", "3", "-o", str(out), "--no-report"]) == 130
+    assert capsys.readouterr().err.splitlines()[-1] == (f"rig: interrupted; what was recorded so far is in {out} "
+                                                        "(marked interrupted)")
+    rec = read_recording(out)
+    assert not rec.truncated and not rec.complete and rec.interrupted == "KeyboardInterrupt"
+    assert rec.events[-1]["kind"] == "interrupted" and len(rec.curves) == 1
+    assert main(["report", str(out), "-o", str(tmp_path / "report"), "--format", "md"]) == 0
+    assert "incomplete recording" in capsys.readouterr().out
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "| complete | no: run interrupted (KeyboardInterrupt) |" in report
+    assert "1 of 3 requested curves recorded" in report
+
+
+def test_ctrl_c_before_anything_was_recorded_leaves_no_file(tmp_path, monkeypatch, capsys):
+    from rig.runner import host as host_module
+
+    def arm(self) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(host_module.Host, "arm", arm)
+    out = tmp_path / "never.mcap"
+    assert main(["-q", "run", str(SCENE), "--cycles", "3", "-o", str(out), "--no-report"]) == 130
+    assert capsys.readouterr().err.splitlines()[-1] == ("rig: interrupted before anything was recorded; "
+                                                        "no recording was written")
+    assert not out.exists()
+
+
+def test_ctrl_c_during_imports_prints_one_line(tmp_path, monkeypatch, capsys):
+    real_import = builtins.__import__
+
+    def interrupted_import(name, *args, **kwargs):
+        if name.startswith("rig.recorder"):
+            raise KeyboardInterrupt
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", interrupted_import)
+    assert main(["report", str(tmp_path / "any.mcap")]) == 130
+    assert capsys.readouterr().err == "rig: interrupted\n"
+
+
+@pytest.mark.parametrize("args", [["report", "missing.mcap"], ["report", "--partial", "missing.mcap"]])
+def test_a_missing_recording_is_a_one_line_error(tmp_path, capsys, args):
+    assert main([*args[:-1], str(tmp_path / args[-1])]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "missing.mcap" in err
