@@ -3,7 +3,9 @@
 Opens a tty path (``/dev/ttyUSB0``, a pty) or any pyserial URL (``socket://``, ``rfc2217://``).
 Every call is one request/response exchange: NAK or a corrupt response → retransmission, silence →
 retry after ``timeout``; after ``retries`` repeats a :class:`DigiForceLinkError` names command,
-port and tries. Error statuses from the device raise :class:`DigiForceError`.
+port and tries. Error statuses from the device raise :class:`DigiForceError`. JSON payloads are parsed
+strictly (RFC 8259: ``NaN``/``Infinity`` tokens are a link error); a non-finite value arrives as ``null``
+listed in the payload's ``non_finite`` object (JSON Pointer → ``"NaN"``, ``"Infinity"``, ``"-Infinity"``).
 """
 from __future__ import annotations
 
@@ -117,7 +119,11 @@ class DigiForceClient:
 
     def set_program(self, n: int, config: dict[str, Any]) -> None:
         """Store ``config`` (channels, sampling, control, evaluation) as program ``n``."""
-        self._transact("PW", f"{int(n)},{json.dumps(config, separators=(',', ':'), ensure_ascii=True)}")
+        try:
+            text = json.dumps(config, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+        except ValueError as e:
+            raise ValueError(f"DigiForce PW: program {n} configuration is not strict JSON ({e})") from None
+        self._transact("PW", f"{int(n)},{text}")
 
     def configure(self, n: int, changes: dict[str, Any]) -> dict[str, Any]:
         """Read program ``n``, merge ``changes`` into it (dicts key by key, lists and values replace),
@@ -178,7 +184,15 @@ class DigiForceClient:
 
     # -- helpers ----------------------------------------------------------------------------------
     def _json(self, command: str, data: str = "") -> Any:
-        return json.loads(self._transact(command, data))
+        """The payload of ``command`` as strict JSON."""
+        text = self._transact(command, data)
+
+        def reject(token: str) -> None:
+            raise DigiForceLinkError(command, self.port, 1, [f"response holds the non-JSON token {token}"])
+        try:
+            return json.loads(text, parse_constant=reject)
+        except json.JSONDecodeError as e:
+            raise DigiForceLinkError(command, self.port, 1, [f"response is not JSON: {e}"]) from None
 
     def _read_blocks(self, command: str, n_blocks: int, width: int) -> np.ndarray:
         parts = []

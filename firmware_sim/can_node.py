@@ -454,11 +454,13 @@ class CanNode:
         while (msg := self.bus.recv(timeout=0.0)) is not None:
             if msg.arbitration_id != self._msg["HostCommand"].frame_id or msg.is_error_frame:
                 continue                     # other nodes' traffic is not for us
-            if len(msg.data) != 8:
-                self.rx_errors.append(f"HostCommand frame with {len(msg.data)} data bytes (expected 8)")
-                continue
-            cmd = self._msg["HostCommand"].decode(bytes(msg.data), decode_choices=False)
-            status = self._apply(int(cmd["Cmd"]), int(cmd["Arg"]))
+            if len(msg.data) == 8:
+                cmd = self._msg["HostCommand"].decode(bytes(msg.data), decode_choices=False)
+                status = self._apply(int(cmd["Cmd"]), int(cmd["Arg"]))
+            else:                            # not executed: rejected, echoing the fields it has (missing: 0)
+                self.rx_errors.append(f"HostCommand frame with {len(msg.data)} data bytes rejected (expected 8)")
+                cmd = dict(zip(("Cmd", "Arg", "HostSeq"), bytes(msg.data[:3]).ljust(3, b"\0")))
+                status = 1
             self._enqueue("CommandAck", {"Cmd": cmd["Cmd"], "Arg": cmd["Arg"], "HostSeq": cmd["HostSeq"],
                                          "AckStatus": status}, self.now)
             done += 1

@@ -1,21 +1,27 @@
 """A socketcand-protocol server: serves a python-can bus to TCP clients (raw mode).
 
 Speaks what python-can's stock ``socketcand`` client expects (``can.Bus(interface="socketcand",
-host=..., port=..., channel=...)``)::
+host=..., port=..., channel=...)``) and answers as socketcand does (linux-can/socketcand,
+doc/protocol.md)::
 
     server: < hi >              client: < open CHANNEL >
     server: < ok >              client: < rawmode >
     server: < ok >
     server: < frame ID SECS.USECS DATA >      (ID: 3 hex digits standard, 8 extended; DATA: hex, no spaces)
-    client: < send ID LEN B0 B1 ... >         (LEN and bytes in hex)
+    client: < send ID LEN B0 B1 ... >         (LEN and bytes in hex; accepted from < open > on)
+    client: < echo >            server: < echo >          (in every state)
+    client: anything else       server: < error unknown command >   (the connection stays open)
 
-Every connection gets its own bus object from ``bus_factory`` (default: python-can ``virtual`` on
-the served channel), so all clients and the in-process device share one bus. The stock client
-compares its handshake replies byte for byte, so after the last ``< ok >`` the server waits
-``grace`` seconds before streaming frames (frames meanwhile are buffered by the bus, not lost).
-socketcand's ASCII protocol carries classic frames only: CAN FD frames (more than 8 data bytes)
-are not forwarded; they are counted in :attr:`SocketcandServer.fd_dropped` and logged.
-The UDP discovery beacon is optional (the client does not need it when host and port are given).
+A ``send`` that cannot be parsed is logged and dropped without a reply, as socketcand does. Every
+connection gets its own bus object from ``bus_factory`` (default: python-can ``virtual`` on the served
+channel), so all clients and the in-process device share one bus. ``SECS.USECS`` is the frame's own time
+stamp, forwarded unchanged (socketcand forwards the kernel's receive time, Unix time); a frame a client
+sends is stamped with the server's wall clock (Unix time) when it arrives. The stock client compares its
+handshake replies byte for byte, so after the last ``< ok >`` the server waits ``grace`` seconds before
+streaming frames (frames meanwhile are buffered by the bus, not lost). socketcand's ASCII raw mode
+carries classic frames only: CAN FD frames (more than 8 data bytes) are not forwarded; they are counted
+in :attr:`SocketcandServer.fd_dropped` and logged. The UDP discovery beacon is optional (the client does
+not need it when host and port are given).
 """
 from __future__ import annotations
 
@@ -72,7 +78,7 @@ class SocketcandServer:
         self._threads: list[threading.Thread] = []
         self._lock = threading.Lock()
         self.fd_dropped = 0
-        self.errors: list[str] = []        # malformed client commands (not echoed: the client would choke)
+        self.errors: list[str] = []        # malformed or unsupported client commands
         self.beacon_to, self.beacon_period = beacon_to, beacon_period
 
     def start(self) -> int:
@@ -120,10 +126,16 @@ class SocketcandServer:
     def _serve(self, conn: socket.socket) -> None:
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         conn.settimeout(0.1)
+        sending = threading.Lock()          # the reader (replies) and the forwarder (frames) both write
+
+        def reply(text: str) -> None:
+            with sending:
+                conn.sendall(text.encode("ascii"))
+
         bus: can.BusABC | None = None
         buffer, raw = "", False
         try:
-            conn.sendall(b"< hi >")
+            reply("< hi >")
             while not self._stop.is_set():
                 try:
                     chunk = conn.recv(4096)
@@ -137,25 +149,30 @@ class SocketcandServer:
                     body, buffer = (buffer[start + 1:end].strip() if -1 < start < end else None), buffer[end + 1:]
                     if body is None:
                         self._error("data outside < > discarded")
-                        continue
-                    if body.startswith("open "):
+                    elif body == "echo":
+                        reply("< echo >")
+                    elif body.startswith("open ") and bus is None:
                         if body[5:].strip() != self.channel:
-                            conn.sendall(b"< error could not open bus >")
+                            reply("< error could not open bus >")
                             self._error(f"client asked for channel {body[5:].strip()!r}, serving {self.channel!r}")
                             return
                         bus = self.bus_factory()
-                        conn.sendall(b"< ok >")
+                        reply("< ok >")
                     elif body == "rawmode" and bus is not None and not raw:
-                        conn.sendall(b"< ok >")
+                        reply("< ok >")
                         raw = True
-                        self._spawn(self._forward, conn, bus)
-                    elif body.startswith("send ") and raw:
+                        self._spawn(self._forward, conn, bus, sending)
+                    elif body.startswith("send ") and bus is not None:
                         try:
-                            bus.send(parse_send(body))
+                            msg = parse_send(body)
                         except ValueError as exc:
                             self._error(str(exc))
+                            continue
+                        msg.timestamp = time.time()
+                        bus.send(msg)
                     else:
-                        self._error(f"unexpected command {body!r} in this state")
+                        reply("< error unknown command >")
+                        self._error(f"unsupported command {body!r} in this state: answered < error unknown command >")
         except OSError as exc:
             log.info("socketcand client connection closed: %s", exc)
         finally:
@@ -163,7 +180,7 @@ class SocketcandServer:
             if bus is not None:
                 bus.shutdown()
 
-    def _forward(self, conn: socket.socket, bus: can.BusABC) -> None:
+    def _forward(self, conn: socket.socket, bus: can.BusABC, sending: threading.Lock) -> None:
         """Stream the bus's frames to the client (after the handshake grace time)."""
         time.sleep(self.grace)
         try:
@@ -177,7 +194,8 @@ class SocketcandServer:
                     log.warning("socketcand server: CAN FD frame 0x%X (%d bytes) not forwarded",
                                 msg.arbitration_id, len(msg.data))
                     continue
-                conn.sendall(frame_line(msg).encode("ascii"))
+                with sending:
+                    conn.sendall(frame_line(msg).encode("ascii"))
         except (OSError, can.CanError):
             return
 

@@ -114,7 +114,9 @@ class DigiForce:
         return [channel]
 
     def tare(self, channel: str | None = None) -> None:
-        """Zero ``channel`` (x, y, y2; None = x and y) on its latest input sample."""
+        """Zero ``channel`` (x, y, y2; None = x and y) on its latest input sample; not while measuring (the
+        curve would jump)."""
+        self._check_idle("tare")
         for ch in self._channels(channel):
             if ch not in self._last_chunk:
                 raise DigiForceError(f"tare {ch}: no input sample yet; feed the unit first")

@@ -1,12 +1,15 @@
 """The command set of the serial protocol (docs/serial-protocol.md, section 4) executed on a DigiForce.
 
 ``Commands.execute(command, data)`` returns the response data field: a 2-digit status followed by
-the payload (status ``00``) or an error message.
+the payload (status ``00``) or an error message. JSON payloads are strict RFC 8259: a non-finite number
+travels as ``null``, listed in the payload's ``non_finite`` object (JSON Pointer → ``"NaN"``,
+``"Infinity"`` or ``"-Infinity"``).
 """
 from __future__ import annotations
 
 import base64
 import json
+import math
 import threading
 from typing import Any, Callable
 
@@ -27,9 +30,33 @@ class CommandError(Exception):
         self.code = code
 
 
-def _json(obj: Any) -> str:
-    return json.dumps(obj, separators=(",", ":"), ensure_ascii=True,
-                      default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
+def _finite(obj: Any, pointer: str, found: dict[str, str]) -> Any:
+    """``obj`` as plain JSON values with every non-finite float replaced by None and recorded in ``found``
+    under its JSON Pointer (RFC 6901)."""
+    if hasattr(obj, "tolist"):                # numpy arrays and scalars
+        obj = obj.tolist()
+    if isinstance(obj, dict):
+        return {str(k): _finite(v, f"{pointer}/{str(k).replace('~', '~0').replace('/', '~1')}", found)
+                for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v, f"{pointer}/{i}", found) for i, v in enumerate(obj)]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        found[pointer] = "NaN" if math.isnan(obj) else "Infinity" if obj > 0 else "-Infinity"
+        return None
+    return obj
+
+
+def _json(obj: dict[str, Any]) -> str:
+    """Compact, ASCII-only, strict JSON of a payload object; non-finite numbers become null, listed in
+    ``non_finite`` (present only when there are any)."""
+    found: dict[str, str] = {}
+    clean = _finite(obj, "", found)
+    if found:
+        clean["non_finite"] = found
+    try:
+        return json.dumps(clean, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    except TypeError as e:                    # a device value JSON cannot carry: the device's fault
+        raise CommandError(INTERNAL, f"payload is not JSON-serialisable: {e}") from None
 
 
 def _int(text: str, what: str) -> int:

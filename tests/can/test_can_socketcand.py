@@ -148,3 +148,35 @@ def test_device_in_another_process(tmp_path, fakes):
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def _line(sock, expected: str) -> None:
+    got, deadline = b"", time.monotonic() + 5
+    while len(got) < len(expected) and time.monotonic() < deadline:
+        got += sock.recv(len(expected) - len(got))
+    assert got.decode() == expected
+
+
+def test_echo_unsupported_commands_and_client_frames_as_socketcand(served):
+    """``< echo >`` in every state, ``< error unknown command >`` for anything else (the connection stays),
+    a bad ``send`` dropped silently; a client's frame reaches the bus stamped with the wall clock."""
+    import socket
+    server, dev_bus, _ = served
+    with socket.create_connection(("127.0.0.1", server.port), timeout=5) as sock:
+        _line(sock, "< hi >")
+        for command, answer in (("< echo >", "< echo >"), ("< subscribe 0 0 123 >", "< error unknown command >"),
+                                (f"< open {server.channel} >", "< ok >"), ("< echo >", "< echo >"),
+                                ("< bcmmode >", "< error unknown command >"), ("< rawmode >", "< ok >"),
+                                ("< fdsend 050 0 1 00 >", "< error unknown command >"),
+                                ("< send 050 3 1 >< echo >", "< echo >")):
+            sock.sendall(command.encode())
+            _line(sock, answer)
+        before = time.time()
+        sock.sendall(b"< send 050 2 1 F1 >")
+        msg = dev_bus.recv(5.0)
+        assert msg.arbitration_id == 0x50 and bytes(msg.data) == b"\x01\xf1"
+        assert before - 0.01 <= msg.timestamp <= time.time()
+        dev_bus.send(can.Message(arbitration_id=0x123, data=b"\xab", timestamp=1712345678.000123, is_extended_id=False))
+        _line(sock, "< frame 123 1712345678.000123 AB >")        # the frame's own stamp, forwarded unchanged
+    assert sum("unsupported command" in e for e in server.errors) == 3
+    assert any("inconsistent" in e for e in server.errors)

@@ -27,10 +27,10 @@ class FakeDigiForce:
     PROGRAM_KEYS = {"name", "channels", "control", "sampling", "reference", "elements", "limits"}
 
     def __init__(self, rng: np.random.Generator, n_pairs: int = 4000) -> None:
-        self.n_programs, self.active_program = 16, 1
+        self.n_programs, self.active_program = 16, 1        # programs 0 ... 15, as the real unit
         self.programs = {n: {"name": f"program {n}", "channels": {"x": {"cutoff": 1000.0}, "y": {"cutoff": 1000.0}},
                              "sampling": {"mode": "time", "delta": 1e-5, "overflow": "stop"}, "elements": []}
-                         for n in range(1, 17)}
+                         for n in range(16)}
         t = np.sort(rng.uniform(0.0, 0.04, n_pairs))
         self.last_curve: Curve | None = Curve(t, rng.normal(0.01, 0.003, n_pairs), rng.normal(500.0, 120.0, n_pairs),
                                               None, turning_index=n_pairs // 2, x_reference=0.001,
@@ -45,8 +45,8 @@ class FakeDigiForce:
         return "FAKE DigiForce 9310-sim SN 0001 FW 1.0"
 
     def _check(self, n: int) -> None:
-        if not 1 <= n <= self.n_programs:
-            raise ValueError(f"program {n} outside 1..{self.n_programs}")
+        if not 0 <= n < self.n_programs:
+            raise ValueError(f"program {n} outside 0..{self.n_programs - 1}")
 
     def select_program(self, n: int) -> None:
         self._check(n)

@@ -50,3 +50,30 @@ def test_measurement_over_serial_matches_the_unit() -> None:
             client.select_program(count)
         with pytest.raises(DigiForceError, match="status 03: .*channel must be one of"):
             client.tare("q")
+
+
+def test_tare_preconditions_over_serial() -> None:
+    """TA needs an input sample since the active program was selected or written, an enabled channel and
+    no measurement running (docs/serial-protocol.md, section 4)."""
+    unit, lock = DigiForce(), threading.Lock()
+    t = np.arange(20) * 1e-4
+    with SerialDevice(unit, "pty", baudrate=1_000_000, lock=lock) as device, \
+            DigiForceClient(device.port, baudrate=1_000_000) as client:
+        with pytest.raises(DigiForceError, match="status 03: .*tare x: no input sample yet"):
+            client.tare()
+        with lock:
+            unit.feed(t[:10], np.full(10, 1.0), np.full(10, 1e-4))
+        client.tare()
+        assert unit.live_values()["x"][-1] == 0.0 and unit.live_values()["y"][-1] == 0.0
+        with pytest.raises(DigiForceError, match="status 03: .*channel must be one of \\['x', 'y'\\], got 'y2'"):
+            client.tare("y2")
+        client.start()
+        with lock:
+            unit.feed(t[10:], np.full(10, 2.0), np.full(10, 2e-4))
+        with pytest.raises(DigiForceError, match="status 03: .*tare: not allowed while a measurement is running"):
+            client.tare("y")
+        client.stop()
+        client.tare("y")
+        client.select_program(1)
+        with pytest.raises(DigiForceError, match="status 03: .*tare x: no input sample yet"):
+            client.tare("x")

@@ -16,27 +16,30 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "serial-protocol.md"
 
 
 def doc_examples() -> list[tuple[str, bytes]]:
-    lines = re.findall(r"^(H→D|D→H)\s+((?:[0-9A-F]{2} ?)+)$", DOC.read_text(encoding="utf-8"), re.M)
-    return [(who, bytes.fromhex(hexes)) for who, hexes in lines]
+    """(direction, bytes) of every example line: the hex on the indented lines under ``H→D``/``D→H``."""
+    entries = re.findall(r"^(H→D|D→H) .*\n((?: {5}(?:[0-9A-F]{2} ?)+\n)+)", DOC.read_text(encoding="utf-8"), re.M)
+    return [(who, bytes.fromhex(hexes)) for who, hexes in entries]
 
 
 def test_doc_has_examples_of_every_kind() -> None:
     examples = doc_examples()
     assert len(examples) >= 15
     assert {raw[0] for _, raw in examples} == {host.STX, host.ACK, host.NAK}
+    assert sum(raw[0] == host.STX and int(raw[-2:], 16) != reduce(lambda a, b: a ^ b, raw[1:-2])
+               for _, raw in examples) == 2          # a corrupted request and a corrupted response
 
 
 @pytest.mark.parametrize("who,raw", doc_examples())
 def test_doc_examples_decode_identically_on_both_sides(who: str, raw: bytes) -> None:
     h, d = host.FrameParser().feed(raw), dev.Receiver().feed(raw)
     assert len(h) == len(d) == 1
-    if raw[0] == host.STX:
+    if raw[0] == host.STX and int(raw[-2:], 16) != reduce(lambda a, b: a ^ b, raw[1:-2]):
+        assert isinstance(h[0], host.Corrupt) and isinstance(d[0], dev.Bad) and h[0].address == d[0].address == 1
+    elif raw[0] == host.STX:
         frame, request = h[0], d[0]
         assert isinstance(frame, host.Frame) and isinstance(request, dev.Request)
         assert (frame.address, frame.seq, frame.command, frame.data) == \
                (request.address, request.seq, request.command, request.data) and frame.address == 1
-        # independent check of the block check character: XOR from address through ETX
-        assert int(raw[-2:], 16) == reduce(lambda a, b: a ^ b, raw[1:-2])
         assert host.encode_frame(frame.address, frame.seq, frame.command, frame.data) == raw
         assert dev.frame(frame.address, frame.seq, frame.command, frame.data) == raw
         if who == "D→H":

@@ -44,7 +44,8 @@ def test_every_command_over_a_pty(link) -> None:
     assert client.read_result() == fake.last_result.to_dict(include_curve=False)
     stats = client.read_statistics(2)
     assert stats["program"] == 2 and stats["y_max"]["mean"] == 800.5
-    assert np.isnan(stats["y_max"]["std"]) and stats["y_max"]["cpk"] == np.inf
+    assert stats["y_max"]["std"] is None and stats["y_max"]["cpk"] is None        # not finite: null + flag
+    assert stats["non_finite"] == {"/y_max/std": "NaN", "/y_max/cpk": "Infinity"}
     assert client.read_statistics()["program"] == 3
     assert client.status() == fake.status()
 
@@ -68,8 +69,8 @@ def test_curve_of_4000_pairs_is_read_back_exactly(link) -> None:
 
 def test_device_errors_name_the_problem(link) -> None:
     device, client, fake = link
-    with pytest.raises(DigiForceError, match=r"PS .*status 03.*program 17 outside 1\.\.16") as e:
-        client.select_program(17)
+    with pytest.raises(DigiForceError, match=r"PS .*status 03.*program 16 outside 0\.\.15") as e:
+        client.select_program(16)
     assert e.value.code == 3
     with pytest.raises(DigiForceError, match="unknown keys.*colour"):
         client.set_program(1, {"name": "x", "colour": "red"})

@@ -1,0 +1,34 @@
+"""A HostCommand frame with other than 8 data bytes is answered with a rejection, never executed."""
+from __future__ import annotations
+
+import uuid
+
+import can
+import pytest
+
+from drivers.can import CanHost
+from firmware_sim.can_node import CanNode
+
+
+@pytest.fixture
+def buses():
+    channel = f"short-{uuid.uuid4().hex}"
+    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as dev, \
+            can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as host:
+        yield dev, host
+
+
+@pytest.mark.parametrize("data,echo", [(bytes([3, 5, 9]), (3, 5, 9)), (bytes([1]), (1, 0, 0)), (b"", (0, 0, 0)),
+                                       (bytes([3, 5, 9, 0, 0, 0, 0, 0, 0]), (3, 5, 9))])
+def test_a_short_or_long_host_command_is_rejected_with_an_ack(buses, device, data, echo):
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, heartbeat_period=0.1)
+    host = CanHost(host_bus)
+    host_bus.send(can.Message(arbitration_id=0x050, data=data, is_extended_id=False, is_fd=len(data) > 8))
+    node.advance_to(0.01)
+    node.advance_to(0.02)                          # the ack queued at 0.01 goes out after it
+    host.poll()
+    assert device.calls == []
+    (ack,) = host.acks
+    assert (ack["cmd"], ack["arg"], ack["host_seq"], ack["status"]) == (*echo, "rejected")
+    assert node.rx_errors == [f"HostCommand frame with {len(data)} data bytes rejected (expected 8)"]
