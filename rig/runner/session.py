@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 import threading
 import time
@@ -23,6 +24,7 @@ from firmware_sim.can_node import BusOverload
 from rig.runner.config import RunConfig, default_max_time, read_config
 from rig.runner.host import Host
 from rig.runner.machine import Machine
+from rig.runner.served import Anchored, IdleStatus, RunClock
 from rig.scene import load_scene
 
 
@@ -128,12 +130,14 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
         machine.flush()
 
 
-def _wait_for_go(machine: Machine, timeout: float) -> None:
-    """Wait until the host's first command (program select over CAN) has reached the machine."""
+def _wait_for_go(machine: Machine, timeout: float, idle: Callable[[], None] = lambda: None) -> None:
+    """Wait until the host's first command (program select over CAN) has reached the machine; ``idle()``
+    runs meanwhile, every 5 ms."""
     deadline = time.monotonic() + timeout
     while machine.node.handle_commands() == 0:
         if time.monotonic() > deadline:
             raise RunError(f"no host connected and armed the device within {timeout:g} s")
+        idle()
         time.sleep(0.005)
 
 
@@ -211,15 +215,18 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                 announce: Callable[[dict[str, Any]], None] | None = None, progress: bool = False) -> Machine:
     """Run the simulated machine as its own process: CAN served over socketcand on 127.0.0.1, serial on a pty.
 
-    ``announce`` receives the endpoints (default: print them as one JSON line). The run starts when a host
-    arms the device (first CAN command) and ends when the host releases it (CAN ``Release`` command, sent
-    when it has read everything); the links stay up until then, or ``release_timeout`` s after the scene's
-    last cycle, which is reported as an error.
+    ``announce`` receives the endpoints (default: print them as one JSON line,
+    docs/schemas/serve-endpoints.schema.json). Until a host arms the device (first CAN command) the
+    device sends its status frames every heartbeat period of wall time; the run starts then, from device
+    time 0, and ends when the host releases it (CAN ``Release`` command, sent when it has read
+    everything); the links stay up until then, or ``release_timeout`` s after the scene's last cycle, which
+    is reported as an error. Frames are stamped in Unix time (:mod:`rig.runner.served`).
     """
     cfg = _config(scene_path, cycles, mode)
     channel = f"rig-{uuid.uuid4().hex}"
     with can.Bus(interface="blockbus", channel=channel) as bus:
-        machine = Machine(cfg, bus)
+        wire = Anchored(bus)
+        machine = Machine(cfg, wire)
         lock = threading.Lock()
         server = SocketcandServer(channel=cfg.can["channel"], host=cfg.can["host"],
                                   port=cfg.can["port"] if port is None else port,
@@ -230,11 +237,13 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             server.start()
             if serial_dev is not None:
                 serial_dev.start()
-            endpoints = {"can": {"interface": "socketcand", "host": server.host, "port": server.port,
-                                 "channel": cfg.can["channel"]},
-                         "serial": serial_dev.port if serial_dev else None, "scene": str(cfg.scene.path)}
-            (announce or (lambda e: print(json.dumps(e), flush=True)))(endpoints)
-            _wait_for_go(machine, wait)
+            (announce or (lambda e: print(json.dumps(e), flush=True)))(_endpoints(cfg, server, serial_dev))
+            idle = IdleStatus(machine.node, can.Bus(interface="blockbus", channel=channel), lock)
+            try:
+                _wait_for_go(machine, wait, idle.advance)
+            finally:
+                idle.close()
+            wire.origin = math.ceil(time.time())
             with _progress(cfg, progress) as bar:
                 _drive(cfg, machine, lock, bar, lambda: machine.curves)
             _wait_for_release(machine, lock, release_timeout)
@@ -243,6 +252,16 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             if serial_dev is not None:
                 serial_dev.close()
     return machine
+
+
+def _endpoints(cfg: RunConfig, server: SocketcandServer, serial_dev: SerialDevice | None) -> dict[str, Any]:
+    """What a host needs to connect (docs/schemas/serve-endpoints.schema.json)."""
+    link = None if serial_dev is None else {"port": serial_dev.port, "baudrate": serial_dev.baudrate,
+                                            "bytesize": 8, "parity": "N", "stopbits": 1,
+                                            "address": serial_dev.address}
+    return {"can": {"interface": "socketcand", "host": server.host, "port": server.port, "channel": cfg.can["channel"]},
+            "serial": None if serial_dev is None else serial_dev.port, "serial_link": link,
+            "scene": str(cfg.scene.path)}
 
 
 def _wait_for_release(machine: Machine, lock: threading.Lock, timeout: float) -> None:
@@ -265,8 +284,8 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
     cfg = _config(scene_path, cycles, None)
     output = Path(output)
     wall = time.perf_counter()
-    with can.Bus(interface="socketcand", host=can_host, port=can_port,
-                 channel=can_channel or cfg.can["channel"]) as bus:
+    with RunClock(can.Bus(interface="socketcand", host=can_host, port=can_port,
+                          channel=can_channel or cfg.can["channel"])) as bus:
         with _recorder(cfg, output, "cross-process") as rec, _progress(cfg, progress) as bar:
             host = Host(cfg, bus, serial_port, rec)
             host.arm()

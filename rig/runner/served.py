@@ -1,0 +1,103 @@
+"""The CAN clock of a served machine (``rig serve``), on both ends of socketcand.
+
+On the wire every frame carries Unix time, as socketcand's would. The machine keeps its virtual device
+time; :class:`Anchored` adds an origin (s of Unix time) to the stamps of what it sends:
+
+* idle, before a host arms the device: :class:`IdleStatus` sends heartbeat and status frames from a
+  throwaway node whose clock is the wall clock (origin: the wall-clock time the node started);
+* the run: the machine's own node, untouched by the idle phase (its time and ``Seq`` counters start at
+  0), with origin ``ceil(wall clock at the go)``, a whole second, so stamps never go back.
+
+:class:`RunClock` is the host's side: it drops the idle frames, i.e. everything before the
+``CommandAck`` answering the host's first command, takes the run's origin from that ack (its stamp is the
+origin plus less than 1 s of device time) and gives the later frames their device time back, in whole
+microseconds as sent — the stamps an in-process run records.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+import time
+from typing import Any
+
+import can
+import cantools
+
+from drivers.can.host import DBC_PATH
+from firmware_sim.can_node import CanNode
+from rig.blockbus import FrameBlock
+
+COMMAND_ACK = cantools.database.load_file(str(DBC_PATH)).get_message_by_name("CommandAck").frame_id
+
+
+class Anchored:
+    """``bus`` (a :class:`rig.blockbus.BlockBus`) for a node whose frames get ``origin`` (s) added to their
+    time stamps. ``deaf``: the node receives nothing (what arrives is discarded)."""
+
+    def __init__(self, bus: Any, origin: float = 0.0, deaf: bool = False) -> None:
+        self.bus, self.origin, self.deaf = bus, origin, deaf
+
+    def send_block(self, block: FrameBlock) -> None:
+        self.bus.send_block(dataclasses.replace(block, timestamp=block.timestamp + self.origin))
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.send_block(FrameBlock.of_messages([msg]))
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        if self.deaf:
+            self.bus.recv_blocks(0.0)
+            return None
+        return self.bus.recv(timeout)
+
+
+class IdleStatus:
+    """Heartbeat, status counters and transmit status of ``like.device`` every ``like.heartbeat_period`` s
+    of wall time on ``bus`` (a BlockBus, closed by :meth:`close`), from a node set up like ``like`` that
+    ignores commands; its device time counts from its start. ``lock`` guards the device (shared with the
+    serial link)."""
+
+    def __init__(self, like: CanNode, bus: Any, lock: threading.Lock) -> None:
+        self._lock, self._bus = lock, bus
+        self._start = time.monotonic()
+        timing = like.timing
+        self._node = CanNode(Anchored(bus, time.time(), deaf=True), like.device, bitrate=timing.bitrate, fd=timing.fd,
+                             data_bitrate=timing.data_bitrate, heartbeat_period=like.heartbeat_period)
+
+    def advance(self) -> None:
+        """Send what is due by now."""
+        with self._lock:
+            self._node.advance_to(time.monotonic() - self._start)
+
+    def close(self) -> None:
+        self._bus.shutdown()
+
+
+class RunClock(can.BusABC):
+    """The host's view of a served machine's socketcand ``bus``: the run's frames only, in device time."""
+
+    def __init__(self, bus: can.BusABC, **kwargs: Any) -> None:
+        super().__init__(channel=bus.channel_info, **kwargs)
+        self.channel_info = f"{bus.channel_info}, device time"
+        self._bus = bus
+        self._commanded = False
+        self.origin: float | None = None      # s of Unix time: device time 0 of the run
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self._commanded = True
+        self._bus.send(msg, timeout)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        msg = self._bus.recv(timeout)
+        if msg is None:
+            return None, False
+        if self.origin is None:
+            if not (self._commanded and msg.arbitration_id == COMMAND_ACK):
+                return None, False               # idle traffic: not part of the run
+            self.origin = float(math.floor(msg.timestamp))
+        msg.timestamp = round((msg.timestamp - self.origin) * 1e6) / 1e6
+        return msg, False
+
+    def shutdown(self) -> None:
+        super().shutdown()
+        self._bus.shutdown()

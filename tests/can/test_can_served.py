@@ -1,0 +1,96 @@
+"""`rig serve` on the wire, seen by a passive socketcand client beside the host: status frames while idle,
+Unix time stamps that never go back, one run from device time 0 that the host records in device time,
+and the endpoints it announces."""
+from __future__ import annotations
+
+import json
+import math
+import queue
+import threading
+import time
+from pathlib import Path
+
+import can
+import cantools
+import jsonschema
+import numpy as np
+
+from firmware_sim.can_node import DBC_PATH
+from rig.recorder import read_recording
+from rig.runner import record_scene, serve_scene
+from rig.runner.config import read_config
+from rig.scene import load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = ROOT / "data" / "scenes" / "pin_insertion.toml"
+DB = cantools.database.load_file(str(DBC_PATH))
+ID = {name: DB.get_message_by_name(name).frame_id for name in ("HostCommand", "CommandAck", "Heartbeat", "TxStatus")}
+
+
+def listen(bus: can.BusABC, frames: list[can.Message], stop: threading.Event) -> None:
+    """Collect every frame until the run's last one (TxStatus RunEnded) or ``stop``."""
+    while not stop.is_set():
+        msg = bus.recv(0.05)
+        if msg is None:
+            continue
+        frames.append(msg)
+        if msg.arbitration_id == ID["TxStatus"] and DB.decode_message(msg.arbitration_id, msg.data)["RunEnded"]:
+            return
+
+
+def test_served_machine_idles_then_runs_once_in_device_time(tmp_path: Path) -> None:
+    announced: queue.Queue = queue.Queue()
+    served: list = []
+    server = threading.Thread(target=lambda: served.append(serve_scene(
+        SCENE, cycles=1, port=0, wait=60, release_timeout=60, announce=announced.put)), daemon=True)
+    server.start()
+    ep = announced.get(timeout=60)
+    schema = json.loads((ROOT / "docs" / "schemas" / "serve-endpoints.schema.json").read_text(encoding="utf-8"))
+    jsonschema.validate(ep, schema, cls=jsonschema.Draft202012Validator)
+    serial_cfg = read_config(load_scene(SCENE)).serial
+    assert ep["serial_link"]["port"] == ep["serial"] and ep["serial_link"]["baudrate"] == serial_cfg["baudrate"]
+    assert ep["serial_link"]["address"] == serial_cfg["address"]
+
+    frames: list[can.Message] = []
+    stop = threading.Event()
+    with can.Bus(**ep["can"]) as passive:                     # a logger: connects, never sends
+        listener = threading.Thread(target=listen, args=(passive, frames, stop), daemon=True)
+        listener.start()
+        started = time.time()
+        while sum(m.arbitration_id == ID["Heartbeat"] for m in list(frames)) < 4 and time.time() < started + 10:
+            time.sleep(0.05)
+        idle, seen = [m for m in list(frames) if m.arbitration_id == ID["Heartbeat"]], time.time()
+        out = tmp_path / "served.mcap"
+        summary = record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
+                               serial_port=ep["serial"], cycles=1, idle_timeout=60)
+        server.join(timeout=60)
+        listener.join(timeout=10)
+        stop.set()
+    assert summary.curves == 1 and not server.is_alive() and served[0].curves == 1
+
+    # idle: a heartbeat every 0.1 s of wall time, stamped with the wall clock
+    assert len(idle) >= 4
+    stamps = np.array([m.timestamp for m in idle])
+    assert started - 1.0 < stamps[0] and stamps[-1] < seen + 0.01
+    assert np.allclose(np.diff(stamps[:4]), 0.1, atol=0.05)
+    beats = [DB.decode_message(m.arbitration_id, m.data) for m in idle]
+    assert [b["Seq"] for b in beats[:4]] == [(beats[0]["Seq"] + k) % 256 for k in range(4)]
+    assert beats[0]["State"] in ("Idle", "Armed")                  # the scene's program waits for its trigger
+
+    # the run: after the host's command, from the CommandAck on, in whole seconds + device time
+    device = [m for m in frames if m.arbitration_id != ID["HostCommand"]]
+    assert all(b.timestamp >= a.timestamp for a, b in zip(device, device[1:])), "stamps went back"
+    first = next(i for i, m in enumerate(device) if m.arbitration_id == ID["CommandAck"])
+    run = device[first:]
+    origin = math.floor(run[0].timestamp)
+    assert origin >= started and run[0].timestamp - origin < 1e-3
+    beat = next(DB.decode_message(m.arbitration_id, m.data) for m in run if m.arbitration_id == ID["Heartbeat"])
+    assert beat["Seq"] == 0 and beat["DeviceTime"] == 0.0          # the run's node starts afresh
+    assert run[-1].arbitration_id == ID["TxStatus"]
+
+    # the host recorded exactly the run's frames, in device time
+    raw = read_recording(out).can_frames
+    received = [k for k, i in enumerate(raw["id"]) if i != ID["HostCommand"]]
+    assert [int(raw["id"][k]) for k in received] == [m.arbitration_id for m in run]
+    assert [raw["data"][k] for k in received] == [bytes(m.data) for m in run]
+    np.testing.assert_array_equal(raw["t"][received], [round((m.timestamp - origin) * 1e6) / 1e6 for m in run])
