@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import base64
 import json
+import re
 import socket
 import time
 from dataclasses import dataclass
@@ -110,8 +111,11 @@ class DigiForceClient:
 
     def active_program(self) -> tuple[int, int]:
         """(active program, number of programs)."""
-        active, count = self._transact("PS").split(",")
-        return int(active), int(count)
+        text = self._transact("PS")
+        match = re.fullmatch(r"(\d+),(\d+)", text)
+        if match is None:
+            raise self._malformed("PS", f"{text[:40]!r} is not 'active,count'")
+        return int(match[1]), int(match[2])
 
     def get_program(self, n: int | None = None) -> dict[str, Any]:
         """Configuration of program ``n`` (default: the active one)."""
@@ -162,7 +166,9 @@ class DigiForceClient:
     def read_curve(self, with_time: bool = False) -> Curve:
         """Latch the last curve and read it block by block: pairs, times (``with_time``), y2 if present."""
         header = self._json("CH")
-        n, n_blocks = int(header["n"]), int(header["n_blocks"])
+        n, n_blocks = header.get("n"), header.get("n_blocks")
+        if not all(type(v) is int and v >= 0 for v in (n, n_blocks)):
+            raise self._malformed("CH", f"curve header without counts n and n_blocks: n {n!r}, n_blocks {n_blocks!r}")
         xy = self._read_blocks("CB", n_blocks, 2).reshape(-1, 2)
         t = self._read_blocks("CT", n_blocks, 1) if with_time else None
         y2 = self._read_blocks("CY", n_blocks, 1) if header.get("y2") else None
@@ -183,23 +189,35 @@ class DigiForceClient:
         return self._json("SS")
 
     # -- helpers ----------------------------------------------------------------------------------
-    def _json(self, command: str, data: str = "") -> Any:
-        """The payload of ``command`` as strict JSON."""
+    def _malformed(self, command: str, why: str) -> DigiForceLinkError:
+        """The error for a well-framed response whose payload is not what the protocol says."""
+        return DigiForceLinkError(command, self.port, 1, [f"malformed response: {why}"])
+
+    def _json(self, command: str, data: str = "") -> dict[str, Any]:
+        """The payload of ``command``: a JSON object, strict JSON."""
         text = self._transact(command, data)
 
         def reject(token: str) -> None:
             raise DigiForceLinkError(command, self.port, 1, [f"response holds the non-JSON token {token}"])
         try:
-            return json.loads(text, parse_constant=reject)
-        except json.JSONDecodeError as e:
+            value = json.loads(text, parse_constant=reject)
+        except (json.JSONDecodeError, RecursionError) as e:     # nested too deep: RecursionError
             raise DigiForceLinkError(command, self.port, 1, [f"response is not JSON: {e}"]) from None
+        if not isinstance(value, dict):
+            raise self._malformed(command, f"expected a JSON object, got {type(value).__name__}")
+        return value
 
     def _read_blocks(self, command: str, n_blocks: int, width: int) -> np.ndarray:
         parts = []
         for i in range(n_blocks):
-            index, total, count, payload = self._transact(command, str(i)).split(",", 3)
-            values = np.frombuffer(base64.b64decode(payload, validate=True), dtype="<f8")
-            if (int(index), int(total)) != (i, n_blocks) or len(values) != int(count) * width:
+            text = self._transact(command, str(i))
+            try:
+                index, total, count, payload = text.split(",", 3)
+                values = np.frombuffer(base64.b64decode(payload, validate=True), dtype="<f8")
+                index, total, count = int(index), int(total), int(count)
+            except ValueError as e:          # binascii.Error too
+                raise self._malformed(command, f"block {i} {text[:40]!r}: {e}") from None
+            if (index, total) != (i, n_blocks) or len(values) != count * width:
                 raise DigiForceLinkError(command, self.port, 1, [
                     f"block {index}/{total} with {len(values)} values, expected block {i}/{n_blocks} "
                     f"with {count}x{width}"])

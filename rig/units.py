@@ -6,11 +6,13 @@ pint understands; the expected unit of a field is given as an SI unit string (``
 """
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 
 import pint
 
 ureg = pint.UnitRegistry()
+_INTEGER = re.compile(r"(?<![\w.])(?<![eE][+-])(\d+)(?![\w.])")   # an integer literal, not in a name or float
 
 
 class UnitError(ValueError):
@@ -45,7 +47,9 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
         if isinstance(value, str):
             if unit is not None:
                 raise UnitError(f"{what}: the key already names the unit {unit!r}; give a plain number, not {value!r}")
-            q = ureg.Quantity(value)
+            # integer literals read as floats: a power of numbers ("9**9**9") overflows at once instead of
+            # computing a huge integer for minutes
+            q = ureg.Quantity(_INTEGER.sub(r"\1.0", value.replace(",", "")))
             if not isinstance(q, ureg.Quantity):
                 q = ureg.Quantity(float(q), "")
             magnitude, unit_text = float(q.magnitude), str(q.units)
@@ -66,6 +70,6 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
     except pint.DimensionalityError:
         raise UnitError(f"{what}: {value!r}{' ' + unit if unit else ''} has the wrong dimension; "
                         f"expected something convertible to {si_unit}") from None
-    except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError, TypeError, AttributeError) as exc:
+    except Exception as exc:  # pint's parser raises many kinds (TokenError, ZeroDivisionError, AssertionError ...)
         raise UnitError(f"{what}: cannot read {value!r}{' with unit ' + unit if unit else ''} as a quantity "
                         f"({exc})") from None

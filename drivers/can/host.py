@@ -30,7 +30,7 @@ from drivers.can.layout import FrameLayout, supports
 from drivers.can.reassembly import Curve, CurveAssembler
 from drivers.can.sequence import SequenceChecker
 from drivers.can.timebase import unwrap
-from rig.blockbus import ERROR, FrameBlock
+from rig.blockbus import ERROR, EXTENDED, FrameBlock
 
 DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
 COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statistics": 5, "identify": 6,
@@ -53,6 +53,7 @@ class _Rx(NamedTuple):
     arbitration_id: int
     data: bytes
     is_error_frame: bool
+    is_extended_id: bool = False
 
 
 @dataclass(frozen=True)
@@ -143,7 +144,8 @@ class CanHost:
 
     def receive(self, msg: can.Message) -> None:
         """Process one received frame; problems become events, never exceptions."""
-        self._receive_one(_Rx(msg.timestamp, msg.arbitration_id, bytes(msg.data), msg.is_error_frame))
+        self._receive_one(_Rx(msg.timestamp, msg.arbitration_id, bytes(msg.data), msg.is_error_frame,
+                              msg.is_extended_id))
         self._check_result_timeout()
 
     def receive_many(self, frames: Sequence[can.Message]) -> None:
@@ -157,10 +159,11 @@ class CanHost:
         if msg.is_error_frame:
             self._event(msg, "error_frame", 1, "error frame on the bus")
             return
-        spec = self._by_id.get(fid)
+        spec = None if msg.is_extended_id else self._by_id.get(fid)     # the DBC's ids are all 11-bit
         if spec is None:
-            if fid != self._command.frame_id:
-                self._event(msg, "unknown_frame", 1, f"frame id 0x{fid:03X} is not a device frame of the DBC")
+            if fid != self._command.frame_id or msg.is_extended_id:
+                name = f"0x{fid:08X} (extended)" if msg.is_extended_id else f"0x{fid:03X}"
+                self._event(msg, "unknown_frame", 1, f"frame id {name} is not a device frame of the DBC")
             return
         if len(msg.data) != spec.length:
             self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(msg.data)} data bytes, DBC says {spec.length}")
@@ -191,17 +194,30 @@ class CanHost:
         expected = np.full(ids.shape, -1)
         for fid, length in self._run_lengths.items():
             expected[ids == fid] = length
-        bulk = (expected == block.dlc) & ((block.flags & ERROR) == 0)
+        bulk = (expected == block.dlc) & ((block.flags & (ERROR | EXTENDED)) == 0)
         start = 0
         for k in np.flatnonzero(~bulk).tolist() + [n]:
             if k > start:
-                self._receive_run(block, ids, start, k)
+                self._receive_bulk(block, ids, start, k)
             if k < n:
                 self._receive_one(_Rx(float(block.timestamp[k]), int(ids[k]), block.payload(k),
-                                      bool(block.flags[k] & ERROR)))
+                                      bool(block.flags[k] & ERROR), bool(block.flags[k] & EXTENDED)))
+                self._check_result_timeout()
             start = k + 1
-        self._bus_time = max(self._bus_time, float(block.timestamp[-1]))
+
+    def _receive_bulk(self, block: FrameBlock, ids: np.ndarray, start: int, stop: int) -> None:
+        """The bulk frames ``start:stop``, split after the frame whose time stamp makes a pending result time
+        out (where :meth:`receive` releases it); the bus time advances as frame by frame."""
+        times = np.maximum.accumulate(np.maximum(block.timestamp[start:stop], self._bus_time))
+        res = self._pending
+        late = np.flatnonzero(times - res.received > self.result_timeout) if res is not None else []
+        cut = start + int(late[0]) + 1 if len(late) else stop
+        self._receive_run(block, ids, start, cut)
+        self._bus_time = float(times[cut - start - 1])
         self._check_result_timeout()
+        if cut < stop:
+            self._receive_run(block, ids, cut, stop)
+            self._bus_time = float(times[-1])
 
     def _receive_run(self, block: FrameBlock, ids: np.ndarray, start: int, stop: int) -> None:
         """Decode the bulk frames ``start:stop`` of ``block`` together, per frame id."""

@@ -166,7 +166,7 @@ def validate_program(cfg: Any, desc: Description, where: str = "program") -> dic
             continue
         if ch not in chans_cfg:
             raise DigiForceError(f"{where}.channels: missing channel {ch!r}")
-        if chans_cfg[ch].get("enabled", True) is False and ch == "y2":
+        if ch == "y2" and isinstance(chans_cfg[ch], Mapping) and chans_cfg[ch].get("enabled", True) is False:
             checks.known_keys(chans_cfg[ch], ("enabled",), f"{where}.channels.y2 (disabled)")
             channels[ch] = {"enabled": False}
             continue

@@ -109,6 +109,9 @@ class Receiver:
                 events.append(Bad(_addr(buf[1:3]), f"control byte 0x{buf[j]:02X} inside a frame"))
                 self._buf = buf[j + 1:]
                 continue
+            if STX in buf[j + 1:j + 3]:     # STX starts a frame, even where a check character is due
+                self._buf = buf[buf.index(STX, j + 1):]
+                continue
             if len(buf) < j + 3:
                 return events
             events.append(_decode(buf[1:j + 1], buf[j + 1:j + 3]))
