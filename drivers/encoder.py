@@ -6,10 +6,9 @@ channels changed at once, the direction is unknown — an *illegal transition*, 
 absorbed into the position. ×N decoding (N = 1, 2, 4) reports ``floor((c4 + 4/N − 1)/(4/N))`` of the
 ×4 position c4 (×1 steps on A rising with B low, ×2 on every A edge), relative to the first sample.
 
-Speed (:class:`SpeedEstimator`): by frequency — counts in the last ``gate_time`` over that time — when
-the gate holds at least ``min_counts``, otherwise by period — counts between the last two count
-changes over the time between them, bounded by one count over the time since the last change (so
-it decays to zero when the shaft stops).
+Speed (:class:`SpeedEstimator`): mixed frequency/period method timed by the latched edge times — edges
+counted over a gate at high speed, the time between the last two edges at low speed, a decaying bound
+at standstill; the switch-over speed, the windows and the error bounds are in the class docstring.
 """
 from __future__ import annotations
 
@@ -104,58 +103,141 @@ class QuadratureDecoder:
         return Decoded(count.astype(np.int64), edge_time, illegal.astype(np.int64), index)
 
 
-class SpeedEstimator:
-    """Angular speed [rad/s] from latched (time, count, last-change time), switching frequency ↔ period.
+NO_ESTIMATE, FREQUENCY, PERIOD, BOUND = 0, 1, 2, 3
+METHOD_NAMES = {NO_ESTIMATE: "none", FREQUENCY: "frequency", PERIOD: "period", BOUND: "standstill bound"}
+GATE_TIME = 2e-3       # s, frequency-method gate (default)
+MIN_COUNTS = 4         # counts in the gate below which the period method is used (default)
+EDGE_TOLERANCE = 1e-3  # s an edge time may lie after its reading's time; later ones are stale (wrapped) stamps
+READING_JITTER = 1e-3  # s by which the reading times may scatter (bus delays): allowance of the standstill bound
 
-    Works on the output of :class:`QuadratureDecoder` or on a counter card's latches. ``gate_time``
-    [s] is the frequency-method window; below ``min_counts`` counts in it the period method is used.
+
+@dataclass(frozen=True)
+class SpeedEstimate:
+    """Speed estimates, one per reading."""
+
+    speed: np.ndarray   # rad/s: mean speed over the estimate's window (BOUND: an upper bound of it; NaN: none)
+    time: np.ndarray    # s: midpoint of that window, the instant the mean belongs to (device time)
+    method: np.ndarray  # int8: NO_ESTIMATE, FREQUENCY, PERIOD or BOUND (METHOD_NAMES)
+
+
+class SpeedEstimator:
+    """Angular speed from latched encoder readings (reading time, count, time of the count's last edge):
+    mixed frequency/period method, timed by the latched edge times.
+
+    Every reading k carries the count c_k and the time e_k of the edge that made it c_k, so the shaft
+    was *exactly* on a count boundary at each distinct edge time. A speed is therefore taken between two
+    such edges, ``(c_b − c_a)·Δ/(e_b − e_a)`` with ``Δ = rad_per_count``: the mean speed over
+    [e_a, e_b], stamped at the window's midpoint (exact for constant and linearly changing speed).
+    The windows:
+
+    * **frequency method** (high speed): edges counted over the gate — e_a is the latest edge at least
+      ``gate_time`` before e_b. Used while the gate holds at least ``min_counts`` counts, i.e. above the
+      switch-over speed ``ω_s = min_counts·Δ/gate_time`` (1024 PPR ×4, 2 ms, 4 counts: 3.07 rad/s).
+    * **period method** (low speed, below ω_s): the time between the last two distinct edges the host has
+      seen (usually one count apart at low speed; at most one reading interval at higher speed).
+    * **standstill bound**: when no edge arrived for longer than the chosen estimate allows, the shaft
+      has moved less than one count since the last edge, so |ω| < Δ/(time without an edge) and the
+      estimate is clipped to that: it decays to 0 at standstill instead of holding the last period.
+      The time without an edge is measured by the host (reading times), less ``reading_jitter`` so that
+      a reading the bus delayed cannot clip a steady speed.
+    * edge times count only once the count has left ``initial_count`` (its power-on value: a card
+      that has seen no edge sends a placeholder stamp). Until then the shaft has not turned a count:
+      speed 0 (BOUND). With one edge seen there is no estimate yet: NaN (NO_ESTIMATE).
+
+    The reading times ``t`` (the host's reception times, delayed and jittered by the bus) serve only to
+    measure the time without an edge and the staleness check; they never time a window. Counting edges
+    per reading interval instead (Δcount/Δt, the plain frequency method) is quantised to ±Δ/Δt — at
+    1 kHz readings ±1.53 rad/s: a shaft at 0.5 rad/s reads 0 or 1.53 — and a reading delayed by the bus
+    shows as a spike.
+
+    Error bounds (monotone motion; edge times rounded to q, 1 µs in the CAN frame, ±q/2 at each end):
+    |ω̂ − ω̄| ≤ |ω̄|·q/(e_b − e_a) — relative ≤ q/gate_time for the frequency method, ≤ q·|ω|/Δ for one
+    count in the period method (0.2 % at ω_s). A reversal inside the window adds up to Δ/(e_b − e_a)
+    (a count boundary is passed at kΔ going up, (k+1)Δ going down). ω̄ differs from the speed at the
+    stamp by at most max|ω̈|·(e_b − e_a)²/24.
+
+    Works on the output of :class:`QuadratureDecoder` (edge time = the sample that saw the change) or on
+    a counter card's latches (exact edge times). Feed readings in time order, in chunks of any size.
     """
 
-    def __init__(self, ppr: int, multiplier: int = 4, gate_time: float = 0.01, min_counts: int = 10) -> None:
-        _check(ppr, multiplier)
+    def __init__(self, rad_per_count: float, gate_time: float = GATE_TIME, min_counts: int = MIN_COUNTS,
+                 initial_count: int = 0, reading_jitter: float = READING_JITTER) -> None:
+        if not (rad_per_count > 0.0 and math.isfinite(rad_per_count)):
+            raise ValueError(f"rad_per_count must be a positive angle (rad), got {rad_per_count!r}")
         if not gate_time > 0.0 or min_counts < 1:
             raise ValueError(f"gate_time must be > 0 s and min_counts >= 1, got {gate_time!r}, {min_counts!r}")
-        self.rad_per_count = 2.0 * math.pi / (multiplier * ppr)
+        self.rad_per_count = float(rad_per_count)
         self.gate_time, self.min_counts = float(gate_time), int(min_counts)
-        self._hist_t = np.empty(0)
-        self._hist_c = np.empty(0, np.int64)
-        self._changes_t = np.full(2, math.nan)  # last two distinct count-change times
-        self._changes_c = np.zeros(2, np.int64)  # counts right after them
+        if not reading_jitter >= 0.0:
+            raise ValueError(f"reading_jitter must be >= 0 s, got {reading_jitter!r}")
+        self.reading_jitter = float(reading_jitter)
+        self._rec_e = np.empty(0)                 # distinct edge times seen (s) ...
+        self._rec_c = np.empty(0, np.int64)       # ... the counts they made ...
+        self._rec_t = np.empty(0)                 # ... and the reading time that brought each
+        self.initial_count = int(initial_count)
+        self._armed = False                       # the count has left its power-on value
+        self._last_e = -math.inf
 
-    def update(self, t: np.ndarray, count: np.ndarray, edge_time: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Speed [rad/s] per sample and a mask of samples estimated by the period method."""
+    @classmethod
+    def for_encoder(cls, ppr: int, multiplier: int = 4, **kw: float) -> "SpeedEstimator":
+        """Estimator for an encoder of ``ppr`` pulses per revolution read with ×``multiplier`` decoding."""
+        _check(ppr, multiplier)
+        return cls(float(counts_to_angle(1, ppr, multiplier)), **kw)
+
+    @property
+    def switch_speed(self) -> float:
+        """Speed (rad/s) above which the frequency method is used: ``min_counts`` counts per gate."""
+        return self.min_counts * self.rad_per_count / self.gate_time
+
+    def update(self, t: np.ndarray, count: np.ndarray, edge_time: np.ndarray) -> SpeedEstimate:
+        """Estimates for readings at times ``t`` [s] with latched ``count`` and ``edge_time`` [s] (NaN, a
+        stamp while the count is still at ``initial_count``, or one later than the reading: no new edge)."""
         t = np.asarray(t, dtype=float)
         count = np.asarray(count, dtype=np.int64)
         edge_time = np.asarray(edge_time, dtype=float)
         if not (t.shape == count.shape == edge_time.shape and t.ndim == 1):
             raise ValueError(f"t, count and edge_time must be 1-D of equal length, got {t.shape}, "
                              f"{count.shape}, {edge_time.shape}")
-        if t.size == 0:
-            return np.empty(0), np.empty(0, bool)
-        # frequency method over the gate (history of earlier chunks included)
-        ht = np.concatenate((self._hist_t, t))
-        hc = np.concatenate((self._hist_c, count))
-        n0 = self._hist_t.size
-        first = np.searchsorted(ht, t - self.gate_time, side="left")
-        first = np.minimum(first, np.arange(n0, ht.size))
-        span = ht[n0:] - ht[first]
-        dc = hc[n0:] - hc[first]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            w_freq = np.where(span > 0.0, dc / span, 0.0)
-        # period method between the last two distinct count-change times
-        prev_et = np.concatenate(([self._changes_t[1]], edge_time[:-1]))
-        new = np.isfinite(edge_time) & ~(edge_time == prev_et)
-        rec_t = np.concatenate((self._changes_t, edge_time[new]))
-        rec_c = np.concatenate((self._changes_c, count[new]))
-        last = 1 + np.cumsum(new)
-        t1, c1, t0, c0 = rec_t[last], rec_c[last], rec_t[last - 1], rec_c[last - 1]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            w_per = (c1 - c0) / (t1 - t0)
-            bound = 1.0 / (t - t1)
-            w_per = np.sign(w_per) * np.minimum(np.abs(w_per), bound)
-        w_per = np.where(np.isfinite(w_per), w_per, 0.0)
-        by_period = np.abs(dc) < self.min_counts
-        keep = ht >= t[-1] - self.gate_time
-        self._hist_t, self._hist_c = ht[keep], hc[keep]
-        self._changes_t, self._changes_c = rec_t[-2:].copy(), rec_c[-2:].copy()
-        return np.where(by_period, w_per, w_freq) * self.rad_per_count, by_period
+        n = t.size
+        speed, stamp, method = np.zeros(n), t.copy(), np.full(n, BOUND, np.int8)    # no edge yet: at rest
+        if n == 0:
+            return SpeedEstimate(speed, stamp, method)
+        armed = np.ones(n, bool)
+        if not self._armed:
+            moved = np.flatnonzero(count != self.initial_count)
+            armed = np.arange(n) >= (moved[0] if moved.size else n)
+            self._armed = bool(moved.size)
+        ok = armed & np.isfinite(edge_time) & (edge_time <= t + EDGE_TOLERANCE)
+        ev = np.where(ok, edge_time, -np.inf)
+        new = ev > np.maximum.accumulate(np.concatenate(([self._last_e], ev)))[:-1]
+        rec_e = np.concatenate((self._rec_e, edge_time[new]))
+        rec_c = np.concatenate((self._rec_c, count[new]))
+        rec_t = np.concatenate((self._rec_t, t[new]))
+        if rec_e.size:
+            k = self._rec_e.size - 1 + np.cumsum(new)          # latest edge seen at each reading (-1: none)
+            two = k >= 1
+            kk, p = np.maximum(k, 0), np.maximum(k - 1, 0)
+            e_k, c_k = rec_e[kk], rec_c[kk]
+            j = np.maximum(np.searchsorted(rec_e, e_k - self.gate_time, side="right") - 1, 0)
+            dc_f, de_f = c_k - rec_c[j], e_k - rec_e[j]
+            since = t - rec_t[kk] - self.reading_jitter   # at least this long without a new edge (≤ 0: unknown)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                w_f = np.where(de_f > 0.0, dc_f / np.where(de_f > 0.0, de_f, 1.0), 0.0)
+                w_p = np.where(two, (c_k - rec_c[p]) / np.where(two, e_k - rec_e[p], 1.0), 0.0)
+                bound = np.where(since > 0.0, 1.0 / np.where(since > 0.0, since, 1.0), np.inf)
+            freq = two & (np.abs(dc_f) >= self.min_counts) & (np.abs(w_f) * self.gate_time >= self.min_counts)
+            w = np.where(freq, w_f, w_p)
+            bounded = two & (np.abs(w) > bound)
+            freq &= ~bounded
+            per = two & ~freq & ~bounded
+            w = np.where(bounded, np.sign(w) * np.where(bounded, bound, 0.0), w)
+            speed = np.where(two, w * self.rad_per_count, np.where(k >= 0, np.nan, 0.0))
+            stamp = np.select([freq, per, bounded], [0.5 * (rec_e[j] + e_k), 0.5 * (rec_e[p] + e_k),
+                                                      0.5 * (e_k + t)], t)
+            method = np.select([freq, per, bounded, k < 0], [FREQUENCY, PERIOD, BOUND, BOUND],
+                               NO_ESTIMATE).astype(np.int8)
+            keep = max(0, min(rec_e.size - 2,
+                              int(np.searchsorted(rec_e, rec_e[-1] - self.gate_time, side="right")) - 1))
+            self._rec_e, self._rec_c, self._rec_t = rec_e[keep:], rec_c[keep:], rec_t[keep:]
+            self._last_e = float(rec_e[-1])
+        return SpeedEstimate(speed, stamp, method)

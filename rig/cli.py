@@ -71,6 +71,19 @@ def _print_set_summary(result: dict) -> None:
         print("  events: " + ", ".join(f"{k} {v}" for k, v in sorted(result["events"].items())))
 
 
+def _print_stand_summary(rec: Any) -> bool:
+    """Console summary of a clutch-stand run (dynamic stand or static rig, no curves): its key results,
+    each with what it is relative to. False (nothing printed) for other recordings."""
+    if rec.curves:
+        return False
+    from rig.analysis.clutch_report import summary_lines
+    from rig.analysis.static_clutch_report import summary_lines as static_lines
+    lines = summary_lines(rec) or static_lines(rec)
+    if lines:
+        print("\n".join(lines))
+    return bool(lines)
+
+
 def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None) -> Path:
     """Write the report of a recording (path or an already-read Recording, with its analysis if known)."""
     from rig.analysis.report import write_report
@@ -91,7 +104,8 @@ def cmd_run(args: argparse.Namespace) -> int:
           f"({summary.realtime_factor:.1f}x real time; {summary.wall_time:.2f} s with serial set-up and read-back), "
           f"{summary.frames} CAN frames -> {summary.output}")
     rec, analysis = _analysed(summary.output)
-    _print_set_summary(analysis)
+    if not _print_stand_summary(rec):
+        _print_set_summary(analysis)
     if not args.no_report:
         report = _report(rec, Path(args.report_dir) if args.report_dir else out.with_suffix(""), args.format, analysis)
         print(f"report: {report}")

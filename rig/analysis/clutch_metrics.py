@@ -1,6 +1,7 @@
-"""Clutch metrics: step-response figures of a torque trace, disengagement events, hysteresis loops.
+"""Clutch metrics: step-response figures of a torque trace, disengagement events, hysteresis loops,
+and the key results of a dynamic-stand run judged against what the scene did to the stand.
 
-All functions are vectorised: signals are arrays whose *last* axis is time (or the loop path);
+The signal functions are vectorised: signals are arrays whose *last* axis is time (or the loop path);
 leading axes are independent traces. Units follow the inputs (SI: s, N*m, rad, J).
 """
 from __future__ import annotations
@@ -12,13 +13,21 @@ import numpy as np
 
 @dataclass(frozen=True)
 class StepMetrics:
-    """Overshoot/settling figures of a trace (arrays shaped like the leading axes of the input)."""
+    """Step-response figures of a trace (arrays shaped like the leading axes of the input).
+
+    Every figure is relative to the step: ``initial`` (level before it) → ``final`` (level it settles
+    at). ``overshoot_pct`` and ``settling_time`` are NaN where the trace does not settle inside the
+    record — a final value it never holds cannot be overshot or settled at.
+    """
 
     peak: np.ndarray           # extreme value in the direction of the step (signal unit)
     t_peak: np.ndarray         # time of the peak (s)
-    overshoot: np.ndarray      # (peak - final) / (final - initial), dimensionless
-    settling_time: np.ndarray  # time after which the trace stays within the band, minus t[0] (s)
-    final: np.ndarray          # final value used (signal unit)
+    overshoot_pct: np.ndarray  # 100·(peak − final)/(final − initial), ≥ 0 (%); NaN: not settled
+    settling_time: np.ndarray  # from t_step until the trace stays within ±half_band of final (s); NaN: not settled
+    settled: np.ndarray        # bool: inside the band for at least ``dwell`` before the record ends
+    initial: np.ndarray        # level before the step (signal unit)
+    final: np.ndarray          # level after it (signal unit)
+    half_band: np.ndarray      # settling band half-width (signal unit)
 
 
 def _as_trace(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -35,17 +44,28 @@ def _as_trace(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t, y
 
 
-def step_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02, final: float | np.ndarray | None = None,
-                 absolute_band: float | None = None) -> StepMetrics:
-    """Peak, time of peak, overshoot and settling time of a step-like trace ``y(t)``.
+def step_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.05, final: float | np.ndarray | None = None,
+                 initial: float | np.ndarray | None = None, absolute_band: float | None = None,
+                 t_step: float | None = None, dwell: float | None = None) -> StepMetrics:
+    """Peak, overshoot and settling time of the response ``y(t)`` to a step at ``t_step`` (default t[0]).
 
-    ``final`` defaults to the last sample. The settling band is ``±band·|final − y[0]|`` (relative) or
-    ``±absolute_band`` (signal unit). The settling time is the instant, linearly interpolated between
-    samples, at which the trace last leaves the band, measured from ``t[0]``; 0 if it never leaves.
+    ``initial`` defaults to the first sample; ``final`` to the mean over the last ``dwell`` seconds
+    (default: the last 10 % of the record). The settling band is ``±band·|final − initial|``
+    (relative, default 5 %) or ``±absolute_band`` (signal unit). The trace has *settled* if it stays
+    inside the band for at least ``dwell`` before the record ends; the settling time is then the
+    instant it last entered the band (linearly interpolated between samples) minus ``t_step``, 0 if it
+    never left. A trace still outside the band, or inside only for the last moments, has not settled:
+    settling time and overshoot are NaN (never the record length).
     """
     t, y = _as_trace(t, y)
-    y0 = y[..., 0]
-    yf = y[..., -1] if final is None else np.broadcast_to(np.asarray(final, dtype=float), y0.shape)
+    t0 = float(t[0]) if t_step is None else float(t_step)
+    dwell = 0.1 * float(t[-1] - t[0]) if dwell is None else float(dwell)
+    if not 0.0 < dwell < t[-1] - t[0]:
+        raise ValueError(f"settling dwell must be > 0 s and shorter than the record, got {dwell} s")
+    tail = t >= t[-1] - dwell
+    y0 = y[..., 0] if initial is None else np.broadcast_to(np.asarray(initial, dtype=float), y.shape[:-1])
+    yf = (y[..., tail].mean(axis=-1) if final is None
+          else np.broadcast_to(np.asarray(final, dtype=float), y.shape[:-1]))
     step = yf - y0
     if absolute_band is None:
         if band <= 0:
@@ -61,9 +81,7 @@ def step_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02, final: float 
     direction = np.where(step >= 0, 1.0, -1.0)
     i_peak = np.argmax(direction[..., None] * y, axis=-1)
     peak = np.take_along_axis(y, i_peak[..., None], axis=-1)[..., 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        overshoot = np.where(step != 0, (peak - yf) / step, 0.0)
-    # settling: last sample outside the band, then interpolate the exit between it and the next one
+    # settling: last sample outside the band, then interpolate the entry between it and the next one
     err = np.abs(y - yf[..., None]) - half[..., None]
     outside = err > 0
     n = t.size
@@ -73,9 +91,13 @@ def step_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02, final: float 
     e0 = np.take_along_axis(err, last_out[..., None], axis=-1)[..., 0]
     e1 = np.take_along_axis(err, nxt[..., None], axis=-1)[..., 0]
     frac = np.where(nxt > last_out, e0 / np.where(e0 - e1 != 0, e0 - e1, 1.0), 0.0)
-    t_exit = t[last_out] + frac * (t[nxt] - t[last_out])
-    settling = np.where(never, 0.0, t_exit - t[0])
-    return StepMetrics(peak=peak, t_peak=t[i_peak], overshoot=overshoot, settling_time=settling, final=yf)
+    t_entry = np.where(never, t0, t[last_out] + frac * (t[nxt] - t[last_out]))
+    settled = never | ((last_out < n - 1) & (t[-1] - t_entry >= dwell))
+    settling = np.where(settled, np.maximum(t_entry - t0, 0.0), np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        overshoot = np.where(settled & (step != 0), np.maximum(100.0 * (peak - yf) / step, 0.0), np.nan)
+    return StepMetrics(peak=peak, t_peak=t[i_peak], overshoot_pct=overshoot, settling_time=settling,
+                       settled=settled, initial=y0, final=yf, half_band=half)
 
 
 def apex_crossings(t: np.ndarray, phi: np.ndarray, period: float = 2 * np.pi / 3,
@@ -156,3 +178,285 @@ def loop_energy(phi: np.ndarray, torque: np.ndarray) -> np.ndarray:
     loop clockwise and gives positive dissipated energy.
     """
     return -signed_loop_area(phi, torque)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Key results of a dynamic-stand run, judged against what the scene did to the stand
+# ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Stimulus:
+    """A change the scene makes to the stand at ``time`` (s): the input the response is judged against.
+
+    ``kind``: ``start`` (motor switched on, stand at rest), ``step`` (sustained load change), ``stop``
+    (motor switched off), ``shock`` (load pulse of ``duration`` s that returns to the previous level) or
+    ``sweep`` (blocked driven half turned slowly: quasi-static, no step). ``before``/``after``: nominal
+    load torque (N·m) before and after a start/step/stop (None: not fixed by the scene, e.g. a stand
+    coasting to rest); for a shock ``after`` is the torque the pulse adds.
+    """
+
+    time: float
+    kind: str
+    text: str
+    before: float | None = None
+    after: float | None = None
+    duration: float = 0.0
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One result: ``value`` in ``unit`` (None: not applicable), ``reference`` says what it is relative
+    to or how it is defined — or, when not applicable, why."""
+
+    name: str
+    value: float | str | None
+    unit: str
+    reference: str
+    at: float | None = None     # s: when it happened (peaks, events), if that is part of the result
+
+    def value_text(self) -> str:
+        if self.value is None:
+            return "n/a"
+        if isinstance(self.value, str):
+            v = self.value
+        else:
+            v = f"{self.value:.4g}" if abs(self.value) < 1e4 else f"{self.value:.0f}"
+            v = f"{v} {self.unit}".rstrip()
+        return v + (f" at {self.at:.4g} s" if self.at is not None else "")
+
+
+@dataclass(frozen=True)
+class StandRecord:
+    """Measured signals of a dynamic-stand run (SI)."""
+
+    t: np.ndarray                  # torque-meter sample times (s)
+    torque: np.ndarray             # torque meter M_t (N·m)
+    t_angle: np.ndarray | None     # times of the relative angle (s)
+    rel_angle: np.ndarray | None   # φ1 − φ3 from the encoders, plus the angle at power-on (rad)
+    speeds: dict                   # label -> (stamp s, ω rad/s, reading time s, method) of each encoder
+                                   # (drivers.encoder.SpeedEstimate; method 3 = standstill bound)
+    last_edge: float | None        # time of the last count change on any encoder (s); None: none
+    end: float                     # end of the run (s)
+
+
+LOBE = 2 * np.pi / 3
+APEX = np.pi / 3
+SLIP_TOLERANCE = np.radians(2.0)   # relative angle within this of its end value: slip over
+
+
+def _window(t: np.ndarray, y: np.ndarray, a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
+    m = (t >= a) & (t < b)
+    return t[m], y[m]
+
+
+def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: float, label: str, band: float,
+                  dwell: float, min_step: float, until: str) -> list[Metric]:
+    """Peak, overshoot, settling time and final torque after a start, load step or stop."""
+    t, y = _window(rec.t, rec.torque, s.time, seg_end)
+    if t.size < 5 or t[-1] - t[0] <= dwell:
+        return [Metric(f"{label}: response", None, "", f"fewer than {dwell * 1e3:.0f} ms of readings after it")]
+    why_unsteady = ""
+    if s.kind == "start":
+        y0, initial_text = 0.0, "0 N·m (stand at rest before the start)"
+    else:
+        tp, yp = _window(rec.t, rec.torque, max(pre_start, s.time - dwell), s.time)
+        if tp.size < 3:
+            y0, why_unsteady = float(y[0]), "no readings just before it"
+        else:
+            y0 = float(yp.mean())
+        initial_text = f"{y0:.4g} N·m (mean of the {dwell * 1e3:.0f} ms before)"
+    yf = float(np.mean(y[t >= t[-1] - dwell]))
+    step = yf - y0
+    final_text = f"mean of the last {dwell * 1e3:.0f} ms {until}"
+    nominal = "" if s.after is None else f"; scene load {s.after:.4g} N·m"
+    direction = 1.0 if step >= 0 else -1.0
+    k = int(np.argmax(direction * y))
+    out = [Metric(f"{label}: peak torque", float(y[k]), "N·m",
+                  f"extreme reading in the direction of the step {y0:.4g} → {yf:.4g} N·m, {until}", float(t[k]))]
+    k = int(np.argmax(-direction * y))
+    if s.kind == "stop" and -direction * (y[k] - y0) > band * abs(step):
+        out.append(Metric(f"{label}: torque rise", float(y[k]), "N·m",
+                          f"extreme reading against the direction of the step ({y[k] - y0:+.4g} N·m from "
+                          f"{y0:.4g} N·m), {until}", float(t[k])))
+    if abs(step) < min_step:
+        why = f"no step in the torque ({y0:.4g} → {yf:.4g} N·m, less than {min_step:g} N·m)"
+        return out + [Metric(f"{label}: overshoot", None, "%", why), Metric(f"{label}: settling time", None, "s", why),
+                      Metric(f"{label}: final torque", yf, "N·m", final_text + nominal)]
+    sm = step_metrics(t, y, band=band, initial=y0, final=yf, t_step=s.time, dwell=dwell)
+    half = float(sm.half_band)
+    if s.kind != "start" and not why_unsteady and np.max(np.abs(yp - y0)) > half:
+        why_unsteady = (f"the torque was not steady before it (it ranged {yp.min():.4g}…{yp.max():.4g} N·m in the "
+                        f"{dwell * 1e3:.0f} ms before, beyond ±{half:.3g} N·m)")
+    if not bool(sm.settled):
+        why = (f"not settled {until}: the torque does not stay within ±{half:.3g} N·m ({band * 100:g} % of the step) "
+               f"of its last level {yf:.4g} N·m for {dwell * 1e3:.0f} ms")
+        out += [Metric(f"{label}: overshoot", None, "%", why), Metric(f"{label}: settling time", None, "s", why)]
+    else:
+        if why_unsteady:
+            out.append(Metric(f"{label}: overshoot", None, "%", f"{why_unsteady}: no initial level to measure a "
+                                                                "step from"))
+        else:
+            out.append(Metric(f"{label}: overshoot", float(sm.overshoot_pct), "%",
+                              f"(peak − final)/(final − initial), initial {initial_text}, final {yf:.4g} N·m"))
+        out.append(Metric(f"{label}: settling time", float(sm.settling_time), "s",
+                          f"from the {s.kind} at {s.time:.4g} s until the torque stays within ±{half:.3g} N·m "
+                          f"({band * 100:g} % of the {abs(step):.4g} N·m step) of {yf:.4g} N·m"))
+    return out + [Metric(f"{label}: final torque", yf, "N·m", final_text + nominal)]
+
+
+def _shock_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: float, label: str, band: float,
+                   dwell: float, until: str) -> list[Metric]:
+    """Peak over the pre-shock level and the time until the torque is back at it; no overshoot."""
+    out = [Metric(f"{label}: overshoot", None, "%",
+                  f"a shock is a pulse, not a step: the load returns to its level after {s.duration * 1e3:.4g} ms, "
+                  "so there is no new final value to overshoot")]
+    t, y = _window(rec.t, rec.torque, s.time, seg_end)
+    tp, yp = _window(rec.t, rec.torque, max(pre_start, s.time - dwell), s.time)
+    if t.size < 5 or tp.size < 3:
+        return out + [Metric(f"{label}: recovery time", None, "s", "too few readings around the shock")]
+    y0 = float(yp.mean())
+    amp = float(s.after) if s.after else float(np.max(np.abs(y - y0)))
+    sign = 1.0 if amp >= 0 else -1.0
+    k = int(np.argmax(sign * y))
+    out.append(Metric(f"{label}: peak torque", float(y[k]), "N·m",
+                      f"{y[k] - y0:+.4g} N·m over the pre-shock {y0:.4g} N·m (mean of the {dwell * 1e3:.0f} ms "
+                      f"before) = {100 * (y[k] - y0) / amp:.3g} % of the {amp:+.4g} N·m shock", float(t[k])))
+    half = band * abs(amp)
+    if t[-1] - t[0] <= dwell:
+        return out + [Metric(f"{label}: recovery time", None, "s", f"fewer than {dwell * 1e3:.0f} ms of readings")]
+    sm = step_metrics(t, y, initial=y0, final=y0, absolute_band=half, t_step=s.time, dwell=dwell)
+    if bool(sm.settled):
+        out.append(Metric(f"{label}: recovery time", float(sm.settling_time), "s",
+                          f"from the shock at {s.time:.4g} s until the torque stays within ±{half:.3g} N·m "
+                          f"({band * 100:g} % of the shock) of the pre-shock {y0:.4g} N·m"))
+    else:
+        out.append(Metric(f"{label}: recovery time", None, "s",
+                          f"not back within ±{half:.3g} N·m ({band * 100:g} % of the shock) of the pre-shock "
+                          f"{y0:.4g} N·m {until}"))
+    return out
+
+
+def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int | None,
+                  shutdown_window: float | None,
+                  band: float = 0.05, dwell: float = 0.05, min_step: float = 1.0,
+                  model_disengagements: int | None = None, trips_motor: bool = False) -> list[Metric]:
+    """Key results of a dynamic-stand run, each relative to a stated reference.
+
+    Per stimulus (segments end at the next one or the end of the run): after a start, step or stop the
+    peak, overshoot (%, only when the torque was steady before the step and settles after it),
+    settling time (``band`` of the step, held for ``dwell`` s) and final torque; after a shock the peak
+    over the pre-shock level and the recovery time (back within ``band`` of the shock amplitude). For
+    a stop also the standstill (last encoder edge); for a sweep (blocked half) the work on the coupling.
+    Whole run: torque extremes, disengagements (apex passes of the measured relative angle), the
+    shutdown rule of the scene, relative slip and when it ended, final speeds.
+    """
+    t, m = np.asarray(rec.t, float), np.asarray(rec.torque, float)
+    out: list[Metric] = []
+    if t.size < 2:
+        return [Metric("torque", None, "N·m", "fewer than 2 torque readings")]
+    i, j = int(np.argmax(m)), int(np.argmin(m))
+    out.append(Metric("max torque", float(m[i]), "N·m", "highest torque-meter reading of the run (signed, + = "
+                                                          "driving direction)", float(t[i])))
+    out.append(Metric("min torque", float(m[j]), "N·m", "lowest torque-meter reading of the run", float(t[j])))
+    order = sorted(stimuli, key=lambda s: s.time)
+    changes = [s.time for s in order] + [s.time + s.duration for s in order if s.kind == "shock"]
+    for n, s in enumerate(order):
+        later = [x.time for x in order[n + 1:] if x.time > s.time]
+        seg_end = min(later) if later else rec.end + 1e-12
+        until = f"before the next change at {seg_end:.4g} s" if later else "within the run"
+        earlier = [c for c in changes if c < s.time]
+        pre_start = max(earlier) if earlier else -np.inf
+        label = f"{s.kind} at {s.time:.4g} s" if s.kind != "start" else "start-up"
+        if s.kind == "sweep":
+            why = ("quasi-static sweep, no step: the blocked driven half is turned slowly, the torque follows the "
+                   "relative angle (static characteristic) instead of settling")
+            out += [Metric("overshoot", None, "%", why), Metric("settling time", None, "s", why)]
+            if rec.rel_angle is not None and rec.t_angle is not None and rec.t_angle.size >= 2:
+                phi = np.interp(t, rec.t_angle, rec.rel_angle)
+                work = float(np.sum(0.5 * (m[1:] + m[:-1]) * np.diff(phi)))
+                span = float(np.degrees(phi[-1] - phi[0]))
+                out.append(Metric("work on the coupling", work, "J",
+                                  f"∫M_t dφ_r over the sweep of {span:.4g}° ({span / 120:.3g} lobes); over whole "
+                                  "lobes the elastic part cancels and this is the friction loss"))
+                k = int(np.argmax(m))
+                out.append(Metric("relative angle at max torque", float(np.degrees(phi[k]) % 120), "°",
+                                  "position in the lobe (apex at 60°) where the loading peak was read"))
+        elif s.kind == "shock":
+            out += _shock_metrics(s, rec, seg_end, pre_start, label, band, dwell, until)
+        else:
+            out += _step_metrics(s, rec, seg_end, pre_start, label, band, dwell, min_step, until)
+            if s.kind == "stop":
+                if rec.last_edge is None or rec.last_edge <= s.time:
+                    out.append(Metric(f"{label}: standstill", 0.0, "s", "no encoder count changed after the stop "
+                                                                        "command"))
+                elif rec.end - rec.last_edge >= dwell:
+                    out.append(Metric(f"{label}: standstill", rec.last_edge - s.time, "s",
+                                      f"after the stop command: the last encoder count change on either half, none in "
+                                      f"the remaining {rec.end - rec.last_edge:.3g} s", rec.last_edge))
+                else:
+                    out.append(Metric(f"{label}: standstill", None, "s", "still turning at the end of the run"))
+    sweep = any(s.kind == "sweep" for s in order)
+    out += _slip_metrics(rec, shutdown_count, shutdown_window, model_disengagements, trips_motor, sweep)
+    for name, (_, w, tr, method) in rec.speeds.items():
+        ok = np.isfinite(w) & (tr >= rec.end - dwell)
+        if not ok.any():
+            continue
+        if np.all(w[ok] == 0.0) and np.all(method[ok] == 3):
+            out.append(Metric(f"final speed {name}", 0.0, "rad/s", "at rest: the encoder count has not changed "
+                                                                    "since power-on"))
+        elif np.all(method[ok] == 3):            # no count in the window: only a bound, the shaft is at rest
+            out.append(Metric(f"final speed {name}", f"< {np.max(np.abs(w[ok])):.2g} rad/s", "rad/s",
+                              "at rest: no encoder count in the last readings, so less than one count per time "
+                              "since the last one"))
+        else:
+            out.append(Metric(f"final speed {name}", float(np.mean(w[ok])), "rad/s",
+                              f"mean of the encoder speeds read in the last {dwell * 1e3:.0f} ms of the run"))
+    return out
+
+
+def _slip_metrics(rec: StandRecord, shutdown_count: int | None, shutdown_window: float | None, model: int | None,
+                  trips_motor: bool, sweep: bool) -> list[Metric]:
+    if rec.rel_angle is None or rec.t_angle is None or rec.t_angle.size < 2:
+        return [Metric("disengagements", None, "", "no encoder readings of both halves")]
+    ta, phi = rec.t_angle, rec.rel_angle
+    times = apex_crossings(ta, phi, LOBE, APEX)
+    model_text = "" if model is None else f"; model: {model}"
+    when = ("" if not times.size else ", at " + ", ".join(f"{x:.4g}" for x in times) + " s" if times.size <= 4
+            else f", {times[0]:.4g} … {times[-1]:.4g} s")
+    out = [Metric("disengagements", f"{times.size}{when}", "",
+                  f"apex passes of the measured relative angle φ1 − φ3 (encoders, {np.degrees(phi[0]):.3g}° at "
+                  f"power-on; apexes at 60° + k·120°){model_text}")]
+    if shutdown_count is None or shutdown_window is None:
+        out.append(Metric("shutdown", None, "", "the recording holds no scene with a shutdown rule"))
+        return out + _slip_angle(ta, phi, times, sweep, rec.end)
+    summary = disengagement_summary(times, shutdown_window, shutdown_count)
+    rule = f"{shutdown_count} disengagements within {shutdown_window * 1e3:.4g} ms"
+    if summary.shutdown:
+        out.append(Metric("shutdown", "required", "", f"the scene's rule: {rule}" +
+                          ("; the scene trips the motor then" if trips_motor else ""), summary.first_shutdown_time))
+    else:
+        most = 0 if times.size == 0 else int(max(np.searchsorted(times, x + shutdown_window, side="right") - k
+                                                 for k, x in enumerate(times)))
+        out.append(Metric("shutdown", "not required", "", f"at most {most} disengagement(s) within "
+                                                          f"{shutdown_window * 1e3:.4g} ms; the scene's rule: {rule}"))
+    return out + _slip_angle(ta, phi, times, sweep, rec.end)
+
+
+def _slip_angle(ta: np.ndarray, phi: np.ndarray, times: np.ndarray, sweep: bool, end: float) -> list[Metric]:
+    """Net relative angle change (slip when lobes were passed) and when the slip ended."""
+    out: list[Metric] = []
+    slip = float(np.degrees(phi[-1] - phi[0]))
+    name = "relative angle swept" if sweep else "relative slip" if times.size else "relative angle change"
+    out.append(Metric(name, slip, "°", f"net change of φ1 − φ3 from power-on to the end of the run ({slip / 120:.3g} "
+                                       "lobes of 120°)" + ("" if times.size or sweep else
+                                                           "; no disengagement: elastic deflection only")))
+    if times.size and not sweep:
+        away = np.flatnonzero(np.abs(phi - phi[-1]) > SLIP_TOLERANCE)
+        t_end = float(ta[away[-1] + 1]) if away.size and away[-1] + 1 < ta.size else None
+        if t_end is not None and end - t_end >= 0.05:
+            out.append(Metric("slip ended", t_end, "s", f"the relative angle stays within "
+                                                        f"±{np.degrees(SLIP_TOLERANCE):.3g}° of its final value "
+                                                        f"from then on ({t_end - times[-1]:.3g} s after the last "
+                                                        "disengagement)"))
+        else:
+            out.append(Metric("slip ended", None, "s", "still slipping at the end of the run"))
+    return out

@@ -1,72 +1,246 @@
-"""Report section for clutch-stand recordings: torque over time and over relative angle, speeds of both
-halves, disengagements, overshoot/settling of the torque and the hysteresis-loop area."""
+"""Report section and console summary for dynamic clutch-stand recordings.
+
+The key results (:func:`rig.analysis.clutch_metrics.stand_metrics`) are judged against what the
+recorded scene did to the stand (:func:`stimuli`): a start from rest, load steps, a stop, shocks, or a
+quasi-static sweep of a blocked half — so an overshoot is given only after a step, a settling time only
+when the torque settles inside the run, and each value says what it is relative to. Speeds are the
+host's encoder speeds (``/stand/encoder<n>`` ``speed``: mixed frequency/period method on the latched
+edge times, :class:`drivers.encoder.SpeedEstimator`); angles are taken at the edge times, where the
+count is exact.
+"""
 from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from rig.analysis.clutch_metrics import loop_energy, step_metrics
+from drivers.encoder import EDGE_TOLERANCE, SpeedEstimator
+from rig.analysis.clutch_metrics import Metric, StandRecord, Stimulus, stand_metrics
 from rig.analysis.plots import figure, save
 from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
+from rig.recorder import Recording
+from rig.scene import Scene, SceneError, read_table
+
+BAND = 0.05        # settling band: ±5 % of the step (or of the shock)
+DWELL = 0.05       # s the torque must stay inside the band (and the window of final levels)
 
 
-def _encoders(series: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Common times and the angles of the driving (1) and driven (2) halves from the encoder blocks (rad)."""
-    e1, e2 = series.get("/stand/encoder1"), series.get("/stand/encoder2")
-    if not e1 or not e2 or e1["t"].size < 2 or e2["t"].size < 2:
+def _scene(rec: Recording) -> Scene | None:
+    if not rec.scene_text:
         return None
-    t = e1["t"]
-    return t, e1["angle"], np.interp(t, e2["t"], e2["angle"])
+    try:
+        return Scene(Path(f"{rec.path}:scene.toml"), tomllib.loads(rec.scene_text), rec.scene_text)
+    except tomllib.TOMLDecodeError:
+        return None
 
 
-def clutch_section(ctx: ReportContext) -> list[Block]:
-    series = ctx.recording.series
-    torque = series.get("/stand/torque")
+def stimuli(scene: Scene) -> tuple[list[Stimulus], dict[str, Any]]:
+    """What the scene does to the stand, in time order, and its shutdown rule (``shutdown_count``,
+    ``shutdown_window`` s, ``trip_on_shutdown``). Loads fixed in time (constant, step, shock, brake
+    command) give nominal torques; speed- or angle-dependent loads (linear, zone) give none."""
+    from rig.plants.clutch.stand import _LOAD_SCHEMAS, MOTOR_SCHEMA, STAND_SCHEMA
+    p = scene.read("plant", STAND_SCHEMA)
+    m = scene.read("motor", MOTOR_SCHEMA)
+    rule = {"shutdown_count": int(p["shutdown_count"]), "shutdown_window": float(p["shutdown_window"]),
+            "trip_on_shutdown": bool(p["trip_on_shutdown"])}
+    steps: list[tuple[float, float]] = []       # (time, torque change) of sustained load changes
+    shocks: list[Stimulus] = []
+    level: float | None = 0.0                   # nominal load torque at t = 0 (None: not fixed in time)
+    for name, table in scene.section("load", required=False).items():
+        if not isinstance(table, dict) or not isinstance(table.get("type"), str) or table["type"] not in _LOAD_SCHEMAS:
+            continue
+        kind = table["type"]
+        q = read_table({k: v for k, v in table.items() if k != "type"}, _LOAD_SCHEMAS[kind][0],
+                       f"{scene.path} [load.{name}]")
+        if kind == "constant":
+            level = None if level is None else level + q["torque"]
+        elif kind == "step":
+            steps.append((q["time"], q["torque"]))
+        elif kind == "shock":
+            shocks.append(Stimulus(q["start"], "shock", f"shock {q['torque']:+.4g} N·m for "
+                                   f"{q['duration'] * 1e3:.4g} ms", after=q["torque"], duration=q["duration"]))
+        elif kind == "brake":
+            g = q["gain"]
+            level = None if level is None else level + g * q["force"]
+            if q["step_time"] is not None:
+                steps.append((q["step_time"], g * (q["step_force"] - q["force"])))
+            if q["pulse_start"] is not None:
+                amp = g * q["pulse_force"]
+                shocks.append(Stimulus(q["pulse_start"], "shock",
+                                       f"brake shock {amp:+.4g} N·m for {q['pulse_duration'] * 1e3:.4g} ms",
+                                       after=amp, duration=q["pulse_duration"]))
+        else:
+            level = None                         # linear in speed, zones in angle: no fixed level
+
+    def load_at(t: float) -> float | None:
+        return None if level is None else level + sum(d for ts, d in steps if ts <= t)
+
+    out: list[Stimulus] = []
+    if p["blocked"]:
+        out.append(Stimulus(0.0, "sweep", "driven half blocked, driving half turned slowly"))
+    elif p["omega0"] == 0.0:
+        out.append(Stimulus(0.0, "start", f"motor on, stand at rest, load {fmt(load_at(0.0))} N·m", 0.0,
+                            load_at(0.0)))
+    t_off = m["t_off"]
+    for ts in sorted({ts for ts, _ in steps if ts > 0.0}):
+        if math.isfinite(t_off) and abs(ts - t_off) < 1e-9:
+            continue
+        out.append(Stimulus(ts, "step", f"load {fmt(load_at(ts - 1e-9))} → {fmt(load_at(ts))} N·m",
+                            load_at(ts - 1e-9), load_at(ts)))
+    if math.isfinite(t_off):
+        change = load_at(t_off) != load_at(t_off - 1e-9)
+        out.append(Stimulus(t_off, "stop", "motor off" + (f", load {fmt(load_at(t_off - 1e-9))} → "
+                                                          f"{fmt(load_at(t_off))} N·m" if change else ""),
+                            load_at(t_off - 1e-9), None))
+    return sorted(out + shocks, key=lambda s: s.time), rule
+
+
+def _edge_points(e: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """(time s, angle rad) where an encoder's count is exact: its distinct edge times, led by the first
+    reading. The reading times are bus arrival times; the edge times are the device's."""
+    t, c, et, a = e["t"], e["count"], e["edge_time"], e["angle"]
+    moved = np.flatnonzero(c != 0)
+    ok = np.isfinite(et) & (et <= t + EDGE_TOLERANCE) & (np.arange(t.size) >= (moved[0] if moved.size else t.size))
+    ev = np.where(ok, et, -np.inf)
+    new = ev > np.maximum.accumulate(np.concatenate(([-np.inf], ev)))[:-1]
+    pts_t, pts_a = et[new], a[new]
+    if not new[0]:                    # the first reading: no edge since power-on yet, the count is its start value
+        lead = t[0] if not pts_t.size else min(t[0], pts_t[0] - 1e-9)
+        pts_t, pts_a = np.concatenate(([lead], pts_t)), np.concatenate(([a[0]], pts_a))
+    return pts_t, pts_a
+
+
+def _speeds(e: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(stamp s, ω rad/s, reading time s, method) of an encoder: the host's recorded estimate, or (older
+    recordings) the same estimator run on the recorded counts and edge times."""
+    if "speed" in e and "speed_time" in e and "speed_method" in e:
+        return e["speed_time"], e["speed"], e["t"], e["speed_method"].astype(np.int8)
+    c = e["count"]
+    i = np.flatnonzero(c)
+    rad = float(e["angle"][i[0]] / c[i[0]]) if i.size else 1.0
+    est = SpeedEstimator(rad).update(e["t"], c.astype(np.int64), e["edge_time"])
+    return est.time, est.speed, e["t"], est.method
+
+
+def stand_record(rec: Recording) -> StandRecord | None:
+    """The measured signals of a dynamic-stand recording (None: no torque readings)."""
+    torque = rec.series.get("/stand/torque")
     if not torque or torque["t"].size < 2:
-        return []
-    t, m = torque["t"], torque["torque"]
-    blocks: list[Block] = [Heading("Clutch stand")]
+        return None
+    encs = {i: rec.series.get(f"/stand/encoder{i}") for i in (1, 2)}
+    encs = {i: e for i, e in encs.items() if e and e["t"].size >= 2}
+    t_angle = rel = None
+    if len(encs) == 2:
+        (t1, a1), (t3, a3) = _edge_points(encs[1]), _edge_points(encs[2])
+        t_angle = np.union1d(t1, t3)
+        offset = float(rec.truth["phi_r"][0]) if "phi_r" in rec.truth and rec.truth["phi_r"].size else 0.0
+        rel = np.interp(t_angle, t1, a1) - np.interp(t_angle, t3, a3) + offset
+    speeds = {("ω1" if i == 1 else "ω3"): _speeds(e) for i, e in encs.items()}
+    last = [float(_edge_points(e)[0][-1]) for e in encs.values() if np.any(e["count"] != 0)]
+    end = max([float(torque["t"][-1])] + [float(e["t"][-1]) for e in encs.values()])
+    return StandRecord(torque["t"], torque["torque"], t_angle, rel, speeds, max(last) if last else None, end)
+
+
+def stand_results(rec: Recording) -> tuple[list[Stimulus], list[Metric]] | None:
+    """Stimuli of the recorded scene and the key results of the run (None: not a dynamic-stand recording)."""
+    data = stand_record(rec)
+    if data is None:
+        return None
+    scene = _scene(rec)
+    stim: list[Stimulus] = []
+    rule: dict[str, Any] = {"shutdown_count": None, "shutdown_window": None, "trip_on_shutdown": False}
+    if scene is not None and scene.data.get("scene", {}).get("plant") == "clutch_dynamic":
+        try:
+            stim, rule = stimuli(scene)
+        except (SceneError, ValueError):
+            pass                                    # results without stimuli: no step figures, no shutdown rule
+    model = sum(1 for e in rec.events if e.get("kind") == "disengagement")
+    return stim, stand_metrics(data, stim, rule["shutdown_count"], rule["shutdown_window"], BAND, DWELL,
+                               model_disengagements=model if "phi_r" in rec.truth else None,
+                               trips_motor=bool(rule["trip_on_shutdown"]))
+
+
+def summary_lines(rec: Recording) -> list[str] | None:
+    """Console lines of a dynamic-stand run: what the scene did, then each key result with its reference."""
+    res = stand_results(rec)
+    if res is None:
+        return None
+    stim, metrics = res
+    lines = ["clutch stand: " + ("; ".join(f"{s.text} at {s.time:.4g} s" for s in stim) or "no stimulus known")]
+    width = max(len(m.name) for m in metrics)
+    lines += [f"  {m.name:<{width}}  {m.value_text()}  ({m.reference})" for m in metrics]
+    return lines
+
+
+def _torque_figure(ctx: ReportContext, data: StandRecord, stim: list[Stimulus]) -> Block:
     fig, ax = figure(size=(8, 3.5))
-    ax.plot(t, m, lw=0.8, label="torque meter (measured)")
+    ax.plot(data.t, data.torque, lw=0.8, label="torque meter (measured)")
     truth = ctx.recording.truth
     if "M_t" in truth:
         ax.plot(truth["t"], truth["M_t"], lw=0.8, ls="--", label="plant truth")
-    ax.set(xlabel="t (s)", ylabel="torque (N·m)", title="Torque over time")
+    for s in stim:
+        if s.time > 0:
+            ax.axvline(s.time, color="0.4", lw=0.7, ls=":")
+            ax.annotate(s.kind, (s.time, 1.0), xycoords=("data", "axes fraction"), fontsize="small",
+                        ha="left", va="top", color="0.3")
+    ax.set(xlabel="t (s)", ylabel="torque M_t (N·m)", title="Torque over time", xlim=(0.0, data.end))
     ax.grid(alpha=0.3)
-    ax.legend()
-    blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_torque_time")), "Torque over time"))
+    ax.legend(fontsize="small")
+    return ctx.figure(save(fig, ctx.figure_path("clutch_torque_time")), "Torque over time (dotted: what the scene "
+                                                                          "changes)")
 
-    sm = step_metrics(t, m)
-    rows = [["peak torque (N·m)", fmt(float(sm.peak))], ["time of peak (s)", fmt(float(sm.t_peak))],
-            ["overshoot", fmt(float(sm.overshoot))], ["settling time, 2 % band (s)", fmt(float(sm.settling_time))],
-            ["final torque (N·m)", fmt(float(sm.final))]]
-    enc = _encoders(series)
-    if enc is not None:
-        te, a1, a2 = enc
-        rel = a1 - a2
-        m_e = np.interp(te, t, m)
+
+def _speed_figure(ctx: ReportContext, data: StandRecord) -> Block:
+    fig, ax = figure(size=(8, 3.5))
+    truth = ctx.recording.truth
+    for name, (ts, w, _, _) in data.speeds.items():
+        key, colour = ("omega1", "tab:blue") if name == "ω1" else ("omega3", "tab:orange")
+        ok = np.isfinite(w)
+        o = np.argsort(ts[ok], kind="stable")
+        ax.plot(ts[ok][o], w[ok][o], lw=0.9, color=colour,
+                label=f"{'driving' if name == 'ω1' else 'driven'} half {name} (encoder)")
+        if key in truth:
+            ax.plot(truth["t"], truth[key], lw=0.7, ls="--", color="0.2" if name == "ω1" else "0.55",
+                    label=f"{name} plant truth")
+    ax.set(xlabel="t (s)", ylabel="speed (rad/s)", title="Speeds of both halves", xlim=(0.0, data.end))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ctx.figure(save(fig, ctx.figure_path("clutch_speeds")),
+                      "Speeds of both halves from the encoders: mixed frequency/period method on the latched edge "
+                      f"times (frequency above {SpeedEstimator(2 * np.pi / 4096).switch_speed:.3g} rad/s for a "
+                      "1024-line encoder, period below), each mean speed drawn at the middle of its window")
+
+
+def clutch_section(ctx: ReportContext) -> list[Block]:
+    data = stand_record(ctx.recording)
+    if data is None:
+        return []
+    stim, metrics = stand_results(ctx.recording) or ([], [])
+    blocks: list[Block] = [Heading("Clutch stand")]
+    if stim:
+        blocks.append(Text("The scene: " + "; ".join(f"{s.text} at {s.time:.4g} s" for s in stim) + "."))
+    blocks.append(Table(["result", "value", "relative to / definition"],
+                        [[m.name, m.value_text(), m.reference] for m in metrics]))
+    blocks.append(_torque_figure(ctx, data, stim))
+    if data.rel_angle is not None:
         fig, ax = figure(size=(6, 4))
-        ax.plot(np.degrees(rel), m_e, lw=0.8)
-        ax.set(xlabel="relative angle φ1 − φ3 (deg)", ylabel="torque (N·m)", title="Torque over relative angle")
+        ax.plot(np.degrees(np.interp(data.t, data.t_angle, data.rel_angle)), data.torque, lw=0.8)
+        ax.set(xlabel="relative angle φ1 − φ3 (°)", ylabel="torque M_t (N·m)", title="Torque over relative angle")
         ax.grid(alpha=0.3)
         blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_torque_angle")),
-                                 "Torque over relative angle (encoders on both halves)"))
-        fig, ax = figure(size=(8, 3.5))
-        ax.plot(te, np.gradient(a1, te), lw=0.8, label="driving half ω1 (encoder)")
-        ax.plot(te, np.gradient(a2, te), lw=0.8, label="driven half ω3 (encoder)")
-        ax.set(xlabel="t (s)", ylabel="speed (rad/s)", title="Speeds of both halves")
-        ax.grid(alpha=0.3)
-        ax.legend()
-        blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_speeds")), "Speeds of both halves"))
-        rows.append(["hysteresis-loop energy ∮T dφ (J)", fmt(float(loop_energy(rel, m_e)))])
-        rows.append(["max relative angle (deg)", fmt(float(np.degrees(np.max(np.abs(rel)))))])
-    blocks.append(Table(["metric", "value"], rows))
+                                 "Torque over relative angle (encoders on both halves, angle at power-on from the "
+                                 "scene; apexes at 60° + k·120°)"))
+    if data.speeds:
+        blocks.append(_speed_figure(ctx, data))
     events = [e for e in ctx.recording.events if e.get("kind") in ("disengagement", "shutdown")]
     if events:
+        blocks.append(Text("Model events (the host's plant model of the scene):"))
         blocks.append(Table(["t (s)", "event", "details"],
                             [[fmt(e["t"]), e["kind"], ", ".join(f"{k}={fmt(v)}" for k, v in e.items()
                                                                   if k not in ("t", "kind"))] for e in events]))
-    else:
-        blocks.append(Text("No disengagement: the relative angle never passed a lobe apex."))
     return blocks
 
 

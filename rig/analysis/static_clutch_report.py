@@ -53,6 +53,33 @@ def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
     return rows
 
 
+def summary_lines(rec: Recording) -> list[str] | None:
+    """Console lines of a static-rig run: per loading/unloading cycle the torque range, the measured
+    angle range and the loop energy measured vs theory (None: not a static-rig recording)."""
+    readings = rec.series.get(TOPIC)
+    if not readings or "angle" not in readings or readings["t"].size < 3 or "torque" not in rec.truth:
+        return None
+    try:
+        rig = static_rig(rec)
+        rows = cycle_table(rec, rig)
+    except (SceneError, ValueError) as exc:
+        return [f"static clutch rig: no cycle analysis ({exc})"]
+    lines = [f"static clutch rig: {len(rows)} loading/unloading cycle(s); torque = lever force × arm; loop energy "
+             f"∮T dφ measured (multimeter angle) vs theory (characteristic); loading peak "
+             f"{rig.clutch.peak_torque:.4g} N·m"]
+    for i, r in enumerate(rows, start=1):
+        angle = ("no reading" if r["angle_min"] is None
+                 else f"{np.degrees(r['angle_min']):.3g}…{np.degrees(r['angle_max']):.3g}°")
+        small = abs(r["theory"]) < 1e-6 * max(abs(r["torque_max"]), 1.0)
+        dev = ("" if r["measured"] is None or small
+               else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
+        energy = "—" if r["measured"] is None else f"{r['measured']:.4g} J"
+        lines.append(f"  cycle {i} ({r['start']:.4g}–{r['end']:.4g} s): torque {r['torque_min']:.4g} → "
+                     f"{r['torque_max']:.4g} N·m, angle {angle}, loop energy {energy} vs {r['theory']:.4g} J{dev}, "
+                     + ("disengaged (slipped a lobe)" if r["disengaged"] else "no disengagement"))
+    return lines
+
+
 def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarray, phi_m: np.ndarray,
                          torque_m: np.ndarray) -> Block:
     truth, c = ctx.recording.truth, rig.clutch

@@ -15,7 +15,7 @@ import numpy as np
 from drivers.can import CanHost
 from drivers.can.drain import drain_block
 from drivers.digiforce_serial import DigiForceClient
-from drivers.encoder import counts_to_angle
+from drivers.encoder import SpeedEstimator, counts_to_angle
 from rig.blockbus import RX, FrameBlock
 from rig.recorder import Recorder
 from rig.runner.config import RunConfig
@@ -68,6 +68,7 @@ class Host:
         self.frames = 0
         self._rad_per_count = {i: encoder_resolution(spec) for i in (1, 2)     # the encoders the scene declares
                                if (spec := cfg.role(f"encoder{i}")) is not None}
+        self._speed = {i: SpeedEstimator(r) for i, r in self._rad_per_count.items()}    # one per encoder, across chunks
 
     # ---------------------------------------------------------------- configuration
     def arm(self) -> None:
@@ -111,7 +112,9 @@ class Host:
 
     def _record_stand(self) -> None:
         """Torque-meter and encoder readings (the stand's samples M_t, T_in, T_out; encoders the scene
-        declares) and static-rig readings (angle, leaf strain of the roles the scene declares) as bulk blocks."""
+        declares) and static-rig readings (angle, leaf strain of the roles the scene declares) as bulk blocks.
+        Encoder speeds come from the latched edge times (drivers.encoder.SpeedEstimator: frequency method at
+        high speed, period method at low speed), never from the reading times, which the bus delays."""
         new = self.can.take_readings()
         if new["torque"]:
             t, torque, brake = (np.array(c, dtype=float) for c in zip(*new["torque"]))
@@ -120,8 +123,10 @@ class Host:
             rows = [r for r in new["encoders"] if r[0] == enc]
             if rows:
                 _, t, count, edge = (np.array(c, dtype=float) for c in zip(*rows))
-                self.rec.write_block(f"/stand/encoder{enc}", t, {"count": count, "edge_time": edge,
-                                                                  "angle": count * rad_per_count})
+                speed = self._speed[enc].update(t, count.astype(np.int64), edge)
+                self.rec.write_block(f"/stand/encoder{enc}", t, {
+                    "count": count, "edge_time": edge, "angle": count * rad_per_count, "speed": speed.speed,
+                    "speed_time": speed.time, "speed_method": speed.method.astype(float)})
         if new["static"]:
             t, angle, strain = (np.array(c, dtype=float) for c in zip(*new["static"]))
             fields = {"angle": angle, "strain": strain}

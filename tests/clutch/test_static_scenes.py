@@ -177,3 +177,15 @@ def test_unknown_role_is_a_scene_error(tmp_path):
     scene.write_text(text)
     with pytest.raises(SceneError, match=r"\[transducers.angle_pot\].*'role'.*'dmm'"):
         run_scene(scene, tmp_path / "bad.mcap")
+
+
+def test_console_prints_the_cycles_not_curve_counts(recordings, capsys):
+    from rig.cli import _print_stand_summary
+    for name in NAMES:
+        rec = recordings[name][1]
+        assert _print_stand_summary(rec)
+        text = capsys.readouterr().out
+        assert "curves:" not in text and text.startswith("static clutch rig:")
+        rows = cycle_table(rec, static_rig(rec))
+        assert text.count("  cycle ") == len(rows) >= 1
+        assert ("disengaged (slipped a lobe)" in text) == any(r["disengaged"] for r in rows)

@@ -1,0 +1,109 @@
+"""Clutch-stand runs end to end: the console's key results, the report's metrics and the encoder speeds."""
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivers.encoder import FREQUENCY, PERIOD
+from rig.analysis.clutch_report import stand_results, stimuli
+from rig.analysis.report import write_report
+from rig.cli import main
+from rig.recorder import read_recording
+from rig.scene import load_scene
+
+SCENES = Path(__file__).resolve().parents[2] / "data" / "scenes"
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """name -> (console output, recording) of the dynamic-stand scenes the tests look at."""
+    out = {}
+    tmp = tmp_path_factory.mktemp("clutch_runs")
+    for name in ("clutch_startup", "clutch_shock_short", "clutch_blocked", "clutch_stop"):
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            assert main(["-q", "run", str(SCENES / f"{name}.toml"), "-o", str(tmp / f"{name}.mcap"),
+                         "--no-report"]) == 0
+        out[name] = (buf.getvalue(), read_recording(tmp / f"{name}.mcap"))
+    return out
+
+
+def metrics(rec):
+    return {m.name: m for m in stand_results(rec)[1]}
+
+
+def test_console_prints_the_stands_key_results_not_curve_counts(runs):
+    for name, (text, _) in runs.items():
+        assert "curves: 0" not in text and "OK 0" not in text
+        assert "clutch stand:" in text and "max torque" in text and "disengagements" in text and "shutdown" in text
+    shock = runs["clutch_shock_short"][0]
+    assert re.search(r"disengagements\s+3, at ", shock) and re.search(r"shutdown\s+not required", shock)
+    assert "rule: 4 disengagements within 100 ms" in shock
+    assert re.search(r"shock at 0.1 s: overshoot\s+n/a\s+\(a shock is a pulse", shock)
+    assert "774" not in shock
+
+
+def test_stimuli_read_from_the_scenes():
+    kinds = {name: [(s.kind, round(s.time, 6)) for s in stimuli(load_scene(SCENES / f"{name}.toml"))[0]]
+             for name in ("clutch_startup", "clutch_shock_short", "clutch_overload_hold", "clutch_stop",
+                          "clutch_shock_drop", "clutch_blocked")}
+    assert kinds == {"clutch_startup": [("start", 0.0)], "clutch_shock_short": [("shock", 0.1)],
+                     "clutch_overload_hold": [("shock", 0.1)], "clutch_stop": [("stop", 0.1)],
+                     "clutch_shock_drop": [("shock", 0.1), ("step", 0.4)], "clutch_blocked": [("sweep", 0.0)]}
+    s, rule = stimuli(load_scene(SCENES / "clutch_stop.toml"))
+    assert s[0].before == pytest.approx(100.0) and "165" in s[0].text
+    assert rule["shutdown_count"] == 4 and isinstance(rule["shutdown_count"], int)
+    assert rule["shutdown_window"] == pytest.approx(0.1)
+
+
+def test_metrics_fit_each_scene(runs):
+    m = metrics(runs["clutch_startup"][1])                # thesis: peak 145 N·m, settled within 450 ms
+    assert 120 < m["start-up: peak torque"].value < 160 and 100 < m["start-up: overshoot"].value < 250
+    assert 0.1 < m["start-up: settling time"].value < 0.45
+    assert m["start-up: final torque"].value == pytest.approx(50.0, abs=0.5)
+    m = metrics(runs["clutch_shock_short"][1])            # thesis: restabilises within 225 ms
+    assert m["shock at 0.1 s: overshoot"].value is None
+    assert 0.15 < m["shock at 0.1 s: recovery time"].value < 0.35
+    assert m["disengagements"].value.startswith("3,") and m["shutdown"].value == "not required"
+    m = metrics(runs["clutch_stop"][1])                   # thesis: rises to 148.75 N·m, zero after 450 ms
+    assert 140 < m["stop at 0.1 s: torque rise"].value < 160
+    assert 0.4 < m["stop at 0.1 s: standstill"].value < 0.6 and 0.4 < m["stop at 0.1 s: settling time"].value < 0.6
+    m = metrics(runs["clutch_blocked"][1])
+    assert m["overshoot"].value is None and m["settling time"].value is None
+    assert m["disengagements"].value.startswith("2,") and m["relative angle swept"].value == pytest.approx(240, abs=2)
+    for name, (_, rec) in runs.items():                   # never a settling time as long as the run
+        for x in metrics(rec).values():
+            if "settling" in x.name or "recovery" in x.name:
+                assert x.value is None or x.value < rec.series["/stand/torque"]["t"][-1] - 0.1
+
+
+def speed_errors(rec, enc, truth_key):
+    e, tr = rec.series[f"/stand/encoder{enc}"], rec.truth
+    ok = np.isin(e["speed_method"], (FREQUENCY, PERIOD)) & (e["speed_time"] > 0.005)
+    return e["t"][ok], np.abs(e["speed"][ok] - np.interp(e["speed_time"][ok], tr["t"], tr[truth_key]))
+
+
+def test_encoder_speeds_follow_the_plant_without_flicker_or_chunk_spikes(runs):
+    rec = runs["clutch_blocked"][1]                       # 0.2..0.6 rad/s: was a block of 0 / 0.77 rad/s flicker
+    t, err = speed_errors(rec, 1, "omega1")
+    assert t.size > 9000 and np.max(err) < 0.005
+    assert np.all(rec.series["/stand/encoder2"]["speed"] == 0.0)      # the blocked half
+    rec = runs["clutch_startup"][1]                       # was: spikes of ±40 rad/s every 0.1 s
+    for enc, key in ((1, "omega1"), (2, "omega3")):
+        t, err = speed_errors(rec, enc, key)
+        assert np.max(err) < 0.6               # a 2 ms mean where the driven half locks on (ω̇ jumps by 1400 rad/s²)
+        assert np.percentile(err, 99) < 0.1
+        near = np.abs(t - np.round(t, 1)) < 3e-3          # readings around the device's 0.1 s chunks
+        assert near.sum() > 20 and np.max(err[near]) < 0.2
+
+
+def test_report_table_states_references(runs, tmp_path):
+    out = write_report(runs["clutch_shock_short"][1], tmp_path / "r", fmt="md")
+    text = out.read_text()
+    assert "| shock at 0.1 s: overshoot | n/a | a shock is a pulse" in text
+    assert "relative to / definition" in text and "774" not in text
