@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import re
 import socket
 import sys
 import threading
@@ -37,6 +38,7 @@ import can
 
 log = logging.getLogger(__name__)
 BEACON_PORT = 42000
+_HEX = re.compile(r"[0-9A-Fa-f]{1,8}")      # a field of a send command: hex digits only (no sign, 0x or _)
 
 
 def frame_line(msg: can.Message) -> str:
@@ -49,11 +51,27 @@ def frame_line(msg: can.Message) -> str:
     return f"< frame {fid} {secs}.{usecs:06d} {bytes(msg.data).hex().upper()} >"
 
 
+def split_commands(buffer: str) -> tuple[list[str | None], str]:
+    """The commands complete in ``buffer`` (text received so far) and the rest to keep for more text.
+
+    Each command is the stripped text between a ``<`` and the next ``>``; ``None`` stands for text up to a
+    ``>`` that has no ``<`` before it (data outside ``< >``, discarded).
+    """
+    bodies: list[str | None] = []
+    while (end := buffer.find(">")) != -1:
+        start = buffer.find("<")
+        bodies.append(buffer[start + 1:end].strip() if -1 < start < end else None)
+        buffer = buffer[end + 1:]
+    return bodies, buffer
+
+
 def parse_send(body: str) -> can.Message:
     """The frame of a ``send ID LEN B0 ...`` command (body without the angle brackets)."""
     parts = body.split()
     if len(parts) < 3 or parts[0] != "send":
         raise ValueError(f"not a send command: {body!r}")
+    if not all(_HEX.fullmatch(p) for p in parts[1:]):
+        raise ValueError(f"send command with non-hex fields: {body!r}")
     try:
         fid, length, data = int(parts[1], 16), int(parts[2], 16), bytes(int(b, 16) for b in parts[3:])
     except ValueError:
@@ -143,10 +161,8 @@ class SocketcandServer:
                     continue
                 if not chunk:
                     return
-                buffer += chunk.decode("ascii", errors="replace")
-                while (end := buffer.find(">")) != -1:
-                    start = buffer.find("<")
-                    body, buffer = (buffer[start + 1:end].strip() if -1 < start < end else None), buffer[end + 1:]
+                bodies, buffer = split_commands(buffer + chunk.decode("ascii", errors="replace"))
+                for body in bodies:
                     if body is None:
                         self._error("data outside < > discarded")
                     elif body == "echo":
