@@ -6,12 +6,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SCENE = DATA / "scenes" / "pin_insertion.toml"
+MCAP_MAGIC, PNG_MAGIC, JSON_START = b"\x89MCAP", b"\x89PNG\r\n\x1a\n", b"{"
+
+
+class UsageError(Exception):
+    """A command-line argument rig cannot use, e.g. an output path it may not write (exit status 2)."""
 
 
 def _print_cam_bar_summary(scene_path: Path, png: Path) -> None:
@@ -34,24 +41,34 @@ def _analysed(recording: Path) -> tuple[Any, dict]:
 
 
 def _print_values(st: dict) -> None:
-    """Table of one program's process values: n, unit, mean, σ, min, max, ±3σ band, Cp/Cpk, checks."""
-    print(f"  {'process value':>16} {'n':>4} {'unit':>4}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  "
+    """Table of one program's process values in their display units (the unit column; rig.analysis.units):
+    n, unit, mean, σ, min, max, ±3σ band, Cp/Cpk against the limits, checks."""
+    print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  "
           f"{'-3s..+3s':>21}  Cp    Cpk   normal drift")
     for name, pv in st.get("values", {}).items():
         cap = (f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv.get("cp") is not None and pv.get("cpk") is not None
                else "  -     -  ")
-        print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>4}  {pv['mean']:10.4g} {pv['std']:9.3g} "
+        print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>5}  {pv['mean']:10.4g} {pv['std']:9.3g} "
               f"{pv['min']:10.4g} {pv['max']:10.4g}  {pv['minus_3sigma']:10.4g}..{pv['plus_3sigma']:<10.4g} {cap}  "
               f"{str(pv['normality'].get('normal', '-')):6} {pv['trend'].get('drift', '-')}")
 
 
+NOK_LINES = 5     # NOK curves whose reasons the console summary prints
+
+
 def _print_set_summary(result: dict) -> None:
-    """Console summary of an analysis: verdict counts, incomplete results, per-program warnings, the
-    process-value table and the comparison with the device's statistics, theory lag, events."""
+    """Console summary of an analysis: verdict counts, why the first NOK curves failed, incomplete results,
+    per-program warnings, the process-value table and the comparison with the device's statistics, theory
+    lag, events."""
     from rig.analysis.device import agreement_text
     verdicts = result["verdicts"]
     nok = [v for v in verdicts if not v["ok"]]
     print(f"curves: {len(verdicts)}, OK {len(verdicts) - len(nok)}, NOK {len(nok)}")
+    for v in nok[:NOK_LINES]:
+        why = "; ".join(f"{f['name']}: {f.get('reason') or 'no reason recorded'}" for f in v["failed"])
+        print(f"  NOK curve {v['number']}: {why or 'the device named no failing element'}")
+    if len(nok) > NOK_LINES:
+        print(f"  ... and {len(nok) - NOK_LINES} more NOK curves (results.csv has every reason)")
     incomplete = result["incomplete"]
     if incomplete:
         print(f"  warning: {len(incomplete)} incomplete result(s): " + "; ".join(
@@ -84,19 +101,39 @@ def _print_stand_summary(rec: Any) -> bool:
     return bool(lines)
 
 
-def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None) -> Path:
-    """Write the report of a recording (path or an already-read Recording, with its analysis if known)."""
-    from rig.analysis.report import write_report
-    return write_report(recording, out_dir, fmt=fmt, analysis=analysis)
+def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None, progress: bool = False,
+            ok_plots: int = 0) -> Path:
+    """Write the report of a recording (path or an already-read Recording, with its analysis if known);
+    ``progress``: a bar on stderr counting the report's sections; ``ok_plots``: OK curves plotted one by one."""
+    from rig.analysis.report import SECTIONS, write_report
+    from rig.console import progress as progress_bar
+    with progress_bar(len(SECTIONS), "report", " sections", progress) as bar:
+        def counted(name: str, section: Callable) -> Callable:
+            def run(ctx: Any) -> list:
+                bar.set_postfix_str(name)
+                try:
+                    return section(ctx)
+                finally:
+                    bar.update()
+            return run
+        sections = [(name, counted(name, section)) for name, section in SECTIONS]
+        return write_report(recording, out_dir, fmt=fmt, analysis=analysis, sections=sections, ok_plots=ok_plots)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from rig.runner import run_scene
-    from rig.runner.config import read_config
-    from rig.scene import load_scene
     scene = Path(args.scene)
     out = Path(args.output) if args.output else Path("out") / f"{scene.stem}.mcap"
-    if read_config(load_scene(scene)).plant == "cam_bar":
+    _writable_file(out, "recording", MCAP_MAGIC)
+    report_dir = Path(args.report_dir) if args.report_dir else out.with_suffix("")
+    if not args.no_report:
+        if report_dir.resolve() == out.resolve():
+            raise UsageError(f"cannot write the report to {report_dir}: that is the recording's path; name the "
+                             f"recording *.mcap or give --report-dir")
+        _writable_dir(report_dir, "report")
+    cfg = _scene_config(scene, args.cycles)
+    if cfg.plant == "cam_bar":
+        _writable_file(out.with_suffix(".cycle.png"), "cycle chart", PNG_MAGIC)
         _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"))
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet)
@@ -107,13 +144,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
     if not args.no_report:
-        report = _report(rec, Path(args.report_dir) if args.report_dir else out.with_suffix(""), args.format, analysis)
+        report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet, ok_plots=args.ok_plots)
         print(f"report: {report}")
     return 0
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
     from rig.runner import serve_scene
+    if args.endpoints:
+        _writable_file(Path(args.endpoints), "endpoints", JSON_START)
+    _scene_config(Path(args.scene), args.cycles)
 
     def announce(endpoints: dict[str, Any]) -> None:
         print(json.dumps(endpoints), flush=True)
@@ -129,6 +169,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 def cmd_record(args: argparse.Namespace) -> int:
     from rig.runner import record_scene
+    _writable_file(Path(args.output), "recording", MCAP_MAGIC)
+    _scene_config(Path(args.scene), args.cycles)
     summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet)
@@ -142,6 +184,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     from rig.recorder.completeness import losses
     path = Path(args.recording)
     out = Path(args.output) if args.output else path.with_suffix("")
+    if out.resolve() == path.resolve():
+        raise UsageError(f"cannot write the report to {out}: that is the recording; give -o DIRECTORY")
+    _writable_dir(out, "report")
     try:
         rec = read_recording(path, allow_partial=args.partial)
     except RecordingError as exc:
@@ -151,13 +196,16 @@ def cmd_report(args: argparse.Namespace) -> int:
                              f"`rig report --partial {path}` reports what it holds") from None
     if not rec.complete:
         print(f"{path}: incomplete recording; " + "; ".join(losses(rec)))
-    print(f"report: {_report(rec, out, args.format)}")
+    print(f"report: {_report(rec, out, args.format, progress=not args.quiet, ok_plots=args.ok_plots)}")
     return 0
 
 
 def cmd_export_can(args: argparse.Namespace) -> int:
     from datetime import datetime, timezone
     from rig.recorder.export_can import export_can
+    if Path(args.output).resolve() == Path(args.recording).resolve():
+        raise UsageError(f"cannot write the CAN trace to {args.output}: that is the recording")
+    _writable_file(Path(args.output), "CAN trace")
     e = export_can(args.recording, args.output)
     start = datetime.fromtimestamp(e.start, timezone.utc).isoformat() if e.start else "unknown (1970-01-01)"
     print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
@@ -166,9 +214,31 @@ def cmd_export_can(args: argparse.Namespace) -> int:
 
 
 def cmd_summary(args: argparse.Namespace) -> int:
+    from rig.runner.config import read_config
+    from rig.scene import load_scene
     scene = Path(args.scene)
-    _print_cam_bar_summary(scene, Path(args.png) if args.png else Path("out") / f"{scene.stem}.cycle.png")
+    png = Path(args.png) if args.png else Path("out") / f"{scene.stem}.cycle.png"
+    _writable_file(png, "cycle chart", PNG_MAGIC)
+    _needs_cam_bar(scene, read_config(load_scene(scene)).plant, "rig summary")
+    _print_cam_bar_summary(scene, png)
     return 0
+
+
+def _scene_config(scene: Path, cycles: int | None) -> Any:
+    """The scene's run configuration (scene errors first, before anything starts); ``--cycles`` only for a
+    scene that counts cycles."""
+    from rig.runner.config import read_config
+    from rig.scene import load_scene
+    cfg = read_config(load_scene(scene))
+    if cycles is not None and cfg.cycles is None:
+        raise UsageError(f"--cycles given, but {scene} runs for a duration ([scene] duration), not for cycles")
+    return cfg
+
+
+def _needs_cam_bar(scene: Path, plant: str, command: str) -> None:
+    if plant != "cam_bar":
+        raise UsageError(f"{command} needs a cam-bar scene ([scene] plant = \"cam_bar\", e.g. {DEFAULT_SCENE.name}); "
+                         f"{scene} is a {plant!r} scene")
 
 
 def cmd_tolerance(args: argparse.Namespace) -> int:
@@ -176,81 +246,189 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_table
     from rig.runner.config import read_config
     from rig.runner.plants import make_plant
-    from rig.scene import SceneError, load_scene
+    from rig.scene import load_scene
     scene_path = Path(args.scene)
+    chart = Path(args.output) / f"{scene_path.stem}.tolerance.png"
+    _writable_dir(Path(args.output), "tolerance chart")
+    _writable_file(chart, "tolerance chart", PNG_MAGIC)
     cfg = read_config(load_scene(scene_path))
-    if cfg.plant != "cam_bar":
-        raise SceneError(f"{scene_path} [scene]: tolerance analysis needs plant \"cam_bar\", not {cfg.plant!r}")
-    study = run_study(make_plant("cam_bar", cfg.scene), load_tolerances(), args.samples, cfg.seed, args.workers)
+    _needs_cam_bar(scene_path, cfg.plant, "rig tolerance")
+    study = run_study(make_plant("cam_bar", cfg.scene), load_tolerances(), args.samples, cfg.seed, args.workers,
+                      progress=not args.quiet)
     print(study_table(study))
-    print(f"chart: {plot_study(study, Path(args.output) / f'{scene_path.stem}.tolerance.png')}")
+    print(f"chart: {plot_study(study, chart)}")
     return 0
 
 
 def cmd_studies(args: argparse.Namespace) -> int:
     from rig.plants.clutch.studies import plot_parameter_studies, write_peak_table
     out = Path(args.output)
+    _writable_dir(out, "studies")
     for path in plot_parameter_studies(out) + [write_peak_table(out)]:
         print(path)
     return 0
 
 
+# -- arguments ------------------------------------------------------------------------------------------
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``rig run: error: argument --cycles: ... (rig run -h: usage)``."""
+
+    def error(self, message: str) -> None:
+        self.exit(2, f"{self.prog}: error: {message} ({self.prog} -h: usage)\n")
+
+
+def _count(minimum: int) -> Callable[[str], int]:
+    """argparse type: a whole number >= ``minimum``."""
+    def count(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number >= {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        return value
+    return count
+
+
+def _port(minimum: int) -> Callable[[str], int]:
+    def port(text: str) -> int:
+        value = _count(minimum)(text)
+        if value > 65535:
+            raise argparse.ArgumentTypeError(f"a TCP port is at most 65535, got {value}")
+        return value
+    return port
+
+
+def _seconds(text: str) -> float:
+    """argparse type: a duration in seconds, >= 0 and finite."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds >= 0, got {text}")
+    return value
+
+
+def _nearest_existing(path: Path) -> Path:
+    path = Path(os.path.abspath(path))
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def _creatable(path: Path, fail: Callable[[str], None]) -> None:
+    """``fail`` unless the missing ``path`` can be made: its nearest existing ancestor is a writable directory."""
+    base = _nearest_existing(path)
+    if not base.is_dir():
+        fail(f"{base} is a file, not a directory")
+    if not os.access(base, os.W_OK | os.X_OK):
+        fail(f"permission denied (cannot create files in {base})")
+
+
+def _writable_file(path: Path, what: str, magic: bytes | None = None) -> None:
+    """A :class:`UsageError` naming ``path`` unless rig may write the file ``what`` there: not a directory,
+    creatable or writable, and — given ``magic``, the first bytes of that kind of file — an existing file
+    only when it is empty or of that kind (rig replaces its own outputs, never another file)."""
+    def fail(why: str) -> None:
+        raise UsageError(f"cannot write the {what} to {path}: {why}")
+    if path.is_dir():
+        fail("it is a directory")
+    if not path.exists():
+        _creatable(path.parent, fail)
+        return
+    if magic is not None:
+        try:
+            with path.open("rb") as f:
+                head = f.read(len(magic))
+        except OSError as exc:
+            fail((exc.strerror or str(exc)).lower())
+        if head and head != magic:
+            fail(f"it exists and is not a {what} file rig wrote (rig does not overwrite other files)")
+    if not os.access(path, os.W_OK):
+        fail("permission denied")
+
+
+def _writable_dir(path: Path, what: str) -> None:
+    """A :class:`UsageError` naming ``path`` unless it is, or can become, a writable directory."""
+    def fail(why: str) -> None:
+        raise UsageError(f"cannot write the {what} to {path}: {why}")
+    if path.exists():
+        if not path.is_dir():
+            fail("it exists and is not a directory")
+        if not os.access(path, os.W_OK | os.X_OK):
+            fail("permission denied")
+        return
+    _creatable(path, fail)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="rig", description="Virtual test rig for mechanism experiments. "
-                                "Without a command: run the pin-insertion demo scene.")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    sub = p.add_subparsers(dest="command")
-    run = sub.add_parser("run", help="run a scene in one process (machine + host) and record it to MCAP")
+    p = _Parser(prog="rig", description="Virtual test rig for mechanism experiments. "
+                "Without a command: run the pin-insertion demo scene.")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars or notices (warnings and errors stay)")
+    quiet = _Parser(add_help=False)        # -q also after the command: `rig run -q`
+    quiet.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+    sub = p.add_subparsers(dest="command", parser_class=_Parser)
+    run = sub.add_parser("run", parents=[quiet], help="run a scene in one process (machine + host) and record it to MCAP")
     run.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
     run.add_argument("-o", "--output", help="recording path (default out/<scene>.mcap)")
-    run.add_argument("--cycles", type=int, help="override the scene's number of cycles")
-    run.add_argument("--realtime", action="store_true", help="pace to the wall clock")
+    run.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
+    run.add_argument("--realtime", action="store_true", help="pace to the wall clock (warns when it falls behind)")
     run.add_argument("--report-dir", help="report directory (default: next to the recording)")
     run.add_argument("--format", choices=("html", "md"), default="html")
     run.add_argument("--no-report", action="store_true")
+    run.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
+                     help="also plot the first N OK curves one by one (NOK curves always are)")
     run.set_defaults(func=cmd_run)
-    serve = sub.add_parser("serve", help="run the simulated machine: CAN over socketcand, serial on a pty")
+    serve = sub.add_parser("serve", parents=[quiet],
+                           help="run the simulated machine: CAN over socketcand, serial on a pty")
     serve.add_argument("scene")
-    serve.add_argument("--port", type=int, help="socketcand TCP port (default: the scene's, 0 = any)")
+    serve.add_argument("--port", type=_port(0), help="socketcand TCP port (default: the scene's, 0 = any)")
     serve.add_argument("--realtime", action="store_true")
-    serve.add_argument("--wait", type=float, default=300.0, help="seconds to wait for a host to arm the device")
-    serve.add_argument("--cycles", type=int, help="override the scene's number of cycles")
-    serve.add_argument("--release-timeout", type=float, default=300.0,
+    serve.add_argument("--wait", type=_seconds, default=300.0, help="seconds to wait for a host to arm the device")
+    serve.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
+    serve.add_argument("--release-timeout", type=_seconds, default=300.0,
                        help="seconds to wait after the run for the host to release the device (CAN Release)")
     serve.add_argument("--endpoints", help="also write the endpoints JSON to this file")
     serve.set_defaults(func=cmd_serve)
-    rec = sub.add_parser("record", help="the host: connect to `rig serve` and record the run")
+    rec = sub.add_parser("record", parents=[quiet], help="the host: connect to `rig serve` and record the run")
     rec.add_argument("scene")
     rec.add_argument("-o", "--output", required=True)
     rec.add_argument("--can-host", default="127.0.0.1")
-    rec.add_argument("--can-port", type=int, required=True)
+    rec.add_argument("--can-port", type=_port(1), required=True)
     rec.add_argument("--can-channel")
     rec.add_argument("--serial", help="serial port path or URL printed by `rig serve`")
-    rec.add_argument("--cycles", type=int, help="record only the first N curves")
+    rec.add_argument("--cycles", type=_count(1), help="record only the first N curves (>= 1)")
     rec.set_defaults(func=cmd_record)
-    rep = sub.add_parser("report", help="write an HTML/Markdown report with plots and CSV from a recording")
+    rep = sub.add_parser("report", parents=[quiet],
+                         help="write an HTML/Markdown report with plots and CSV from a recording")
     rep.add_argument("recording")
     rep.add_argument("-o", "--output", help="report directory")
     rep.add_argument("--format", choices=("html", "md"), default="html")
     rep.add_argument("--partial", action="store_true",
                      help="report what a truncated recording (a killed run) holds and what was lost")
+    rep.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
+                     help="also plot the first N OK curves one by one (NOK curves always are)")
     rep.set_defaults(func=cmd_report)
-    exp = sub.add_parser("export-can", help="write the recording's CAN bus traffic (/can/raw) as a CAN trace: "
+    exp = sub.add_parser("export-can", parents=[quiet],
+                         help="write the recording's CAN bus traffic (/can/raw) as a CAN trace: "
                          ".asc, .blf, .log (candump), .trc or .mf4 by extension")
     exp.add_argument("recording")
     exp.add_argument("-o", "--output", required=True, help="trace file; its extension picks the format")
     exp.set_defaults(func=cmd_export_can)
-    summ = sub.add_parser("summary", help="cam-bar kinematics/kinetostatics table and cycle chart")
+    summ = sub.add_parser("summary", parents=[quiet], help="cam-bar kinematics/kinetostatics table and cycle chart")
     summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
     summ.add_argument("--png")
     summ.set_defaults(func=cmd_summary)
-    tol = sub.add_parser("tolerance", help="cam-bar linear and Monte-Carlo tolerance analysis (table + PNG)")
+    tol = sub.add_parser("tolerance", parents=[quiet],
+                         help="cam-bar linear and Monte-Carlo tolerance analysis (table + PNG)")
     tol.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
-    tol.add_argument("--samples", type=int, default=20000, help="Monte-Carlo machines (default 20000)")
-    tol.add_argument("--workers", type=int, default=1, help="worker processes (results do not depend on it)")
+    tol.add_argument("--samples", type=_count(2), default=20000, help="Monte-Carlo machines (default 20000)")
+    tol.add_argument("--workers", type=_count(1), default=1,
+                     help="worker processes (results do not depend on it)")
     tol.add_argument("-o", "--output", default="out", help="directory of the chart (default out)")
     tol.set_defaults(func=cmd_tolerance)
-    stud = sub.add_parser("studies", help="clutch static-characteristic parameter studies (PNG)")
+    stud = sub.add_parser("studies", parents=[quiet], help="clutch static-characteristic parameter studies (PNG)")
     stud.add_argument("-o", "--output", default="out/studies")
     stud.set_defaults(func=cmd_studies)
     return p
@@ -266,18 +444,36 @@ def _interrupted(exc: KeyboardInterrupt) -> str:
     return f"rig: interrupted; what was recorded so far is in {recording} (marked interrupted)"
 
 
+def _plain(exc: BaseException) -> str:
+    """An exception as one line in plain words: an OSError as "PATH: reason", not "[Errno 17] ..."."""
+    if isinstance(exc, OSError) and exc.strerror:
+        where = " -> ".join(str(f) for f in (exc.filename, exc.filename2) if f is not None)
+        return f"{where}: {exc.strerror.lower()}" if where else exc.strerror.lower()
+    return " ".join(str(exc).split("\n")[:1]) if not isinstance(exc, ValueError) else str(exc)
+
+
 def _run(argv: list[str] | None) -> int:
+    """Exit status: 0 done; 2 a usage or scene error (nothing run); 1 the run failed; 130 Ctrl-C."""
     args = build_parser().parse_args(argv)
     if args.command is None:
         args = build_parser().parse_args(["-q", "run"] if args.quiet else ["run"])
+    args.quiet = getattr(args, "quiet", False)
+    from rig.console import configure
+    configure(quiet=args.quiet)
     from rig.recorder import RecordingError
     from rig.runner.session import RunError
     from rig.scene import SceneError
     try:
         return args.func(args)
-    except (SceneError, RunError, RecordingError, ValueError, OSError) as exc:
+    except RunError as exc:
         print(f"rig: error: {exc}", file=sys.stderr)
+        return 1
+    except (UsageError, SceneError, RecordingError, ValueError) as exc:
+        print(f"rig: error: {_plain(exc)}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        print(f"rig: error: {_plain(exc)}", file=sys.stderr)
+        return 1
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,11 +2,12 @@
 
 A *schema* is a mapping ``name -> Field``. :func:`read_table` checks a TOML table against it:
 every key must be a field name (``L3 = "260 mm"``) or a field name with a unit suffix
-(``L3_mm = 260``); unknown keys, missing required keys and wrong units raise :class:`SceneError`
-naming the key and the file. Values come back in SI.
+(``L3_mm = 260``); unknown keys, missing required keys, wrong units and non-finite values (``inf``,
+``nan``) raise :class:`SceneError` naming the key and the file. Values come back in SI.
 """
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -115,6 +116,9 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
             out[name] = to_si(value, field.unit, unit, what=f"{where}: key {key!r}")
         except UnitError as exc:
             raise SceneError(str(exc)) from None
+        if not math.isfinite(out[name]):
+            raise SceneError(f"{where}: key {key!r} must be a finite quantity, got {value!r}"
+                             + (f" {unit}" if unit else ""))
     for name, field in schema.items():
         if name not in out:
             if field.required:

@@ -4,6 +4,8 @@ Plant sections ([plant], [speed], [load], ...) belong to the plant modules and a
 """
 from __future__ import annotations
 
+import difflib
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -54,6 +56,9 @@ RECORDING_SCHEMA = {
     "encoding": Field(None, "json", "'json' (viewer-plottable) or 'base64' (compact)"),
     "compression": Field(None, "zstd"),
 }
+#: top-level sections the runner reads (the plant's own: rig.runner.plants.PLANT_SECTIONS) and [links.*]
+RUNNER_SECTIONS = ("scene", "transducers", "device", "links", "recording")
+LINKS = ("can", "serial")
 MODES = ("virtual", "realtime")
 IN_PROCESS_INTERFACES = ("blockbus", "virtual")
 ROLES = ("x", "y", "encoder1", "encoder2", "torque", "brake", "angle", "strain", "record")
@@ -104,18 +109,66 @@ def default_max_time(cycles: int) -> float:
     return 3.0 * cycles + 10.0
 
 
-def _integer(value: float, key: str, where: str, minimum: int = 0) -> int:
-    if value != int(value) or value < minimum:
-        raise SceneError(f"{where}: key {key!r} must be an integer >= {minimum}, got {value}")
+def _integer(value: float, key: str, where: str, minimum: int = 0, maximum: float = math.inf) -> int:
+    if not math.isfinite(value) or value != int(value) or not minimum <= value <= maximum:
+        raise SceneError(f"{where}: key {key!r} must be an integer >= {minimum}"
+                         + (f" and <= {maximum}" if maximum < math.inf else "") + f", got {value}")
     return int(value)
+
+
+def _of_type(value: Any, types: type | tuple[type, ...], key: str, where: str, what: str) -> Any:
+    """``value`` when it is one of ``types`` (bool is not an int here), else a :class:`SceneError`."""
+    if not isinstance(value, types) or (isinstance(value, bool) and bool not in (types if isinstance(types, tuple)
+                                                                                  else (types,))):
+        raise SceneError(f"{where}: key {key!r} must be {what}, got {type(value).__name__} {value!r}")
+    return value
+
+
+def _one_of(value: Any, choices: tuple[str, ...], key: str, where: str) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise SceneError(f"{where}: key {key!r} must be one of {', '.join(map(repr, choices))}, got {value!r}")
+    return value
+
+
+def check_sections(scene: Scene, plant: str) -> None:
+    """Every top-level section of ``scene`` is one the runner or the plant ``plant`` reads, and every
+    [links.*] one of [links.can], [links.serial]; otherwise a :class:`SceneError` naming it and the file."""
+    from rig.runner.plants import PLANT_SECTIONS
+    own = PLANT_SECTIONS.get(plant, ())
+    known = RUNNER_SECTIONS + own
+    for name, value in scene.data.items():
+        if name in known:
+            continue
+        if not isinstance(value, (dict, list)):
+            raise SceneError(f"{scene.path}: unknown top-level key {name!r}; keys belong in a section such as "
+                             f"[scene] (is a section header missing above it?)")
+        others = sorted(k for k, sections in PLANT_SECTIONS.items() if name in sections)
+        if others:
+            raise SceneError(f"{scene.path}: section [{name}] is not used by plant {plant!r} (it belongs to "
+                             f"{' / '.join(others)}); the sections of this scene can be "
+                             f"{', '.join(f'[{k}]' for k in known)}")
+        close = difflib.get_close_matches(name, known, n=1)
+        raise SceneError(f"{scene.path}: unknown section [{name}]" + (f" (did you mean [{close[0]}]?)" if close else "")
+                         + f"; the sections of a {plant!r} scene are {', '.join(f'[{k}]' for k in known)}")
+    links = scene.section("links", required=False)
+    for name in links:
+        if name not in LINKS:
+            close = difflib.get_close_matches(name, LINKS, n=1)
+            raise SceneError(f"{scene.path}: unknown section [links.{name}]"
+                             + (f" (did you mean [links.{close[0]}]?)" if close else "")
+                             + "; links are [links.can] and [links.serial]")
 
 
 def read_config(scene: Scene) -> RunConfig:
     """Validate the runner's sections of ``scene``; errors name the file, section and key."""
+    from rig.runner.plants import PLANTS
     where = f"{scene.path} [scene]"
     s = scene.read("scene", SCENE_SCHEMA)
-    if s["mode"] not in MODES:
-        raise SceneError(f"{where}: key 'mode' must be one of {MODES}, got {s['mode']!r}")
+    _one_of(s["plant"], tuple(PLANTS), "plant", where)
+    check_sections(scene, s["plant"])
+    _of_type(s["name"], str, "name", where, "a string")
+    _of_type(s["description"], str, "description", where, "a string")
+    _one_of(s["mode"], MODES, "mode", where)
     if (s["cycles"] is None) == (s["duration"] is None):
         raise SceneError(f"{where}: give exactly one of 'cycles' and 'duration'")
     cycles = None if s["cycles"] is None else _integer(s["cycles"], "cycles", where, 1)
@@ -129,8 +182,13 @@ def read_config(scene: Scene) -> RunConfig:
         if not isinstance(table, dict):
             raise SceneError(f"{tw}: must be a table")
         t = read_table(table, TRANSDUCER_SCHEMA, tw)
-        if t["role"] not in ROLES:
-            raise SceneError(f"{tw}: key 'role' must be one of {ROLES}, got {t['role']!r}")
+        _one_of(t["role"], ROLES, "role", tw)
+        _of_type(t["description"], str, "description", tw, "a device description name or path")
+        _of_type(t["signal"], str, "signal", tw, "the name of a plant truth signal")
+        _of_type(t["overrides"], dict, "overrides", tw, "a table of description values, e.g. { range_max = \"5 mm\" }")
+        faults = _of_type(t["faults"], list, "faults", tw, "an array of tables [{ fault = ..., at = \"1 s\" }, ...]")
+        for i, fault in enumerate(faults):
+            _of_type(fault, dict, f"faults[{i}]", tw, "a table { fault = ..., at = \"1 s\", ... }")
         transducers.append(TransducerSpec(name, t["description"], t["signal"], t["role"], dict(t["overrides"]),
                                           list(t["faults"]), t["rate"]))
     roles = [t.role for t in transducers if t.role != "record"]
@@ -138,17 +196,41 @@ def read_config(scene: Scene) -> RunConfig:
         if roles.count(role) > 1:
             raise SceneError(f"{scene.path} [transducers]: role {role!r} is given to more than one transducer")
     device = scene.read("device", DEVICE_SCHEMA, required=False)
-    device["program"] = _integer(device["program"], "program", f"{scene.path} [device]")
+    dw = f"{scene.path} [device]"
+    device["program"] = _integer(device["program"], "program", dw)
+    _of_type(device["config"], dict, "config", dw, "a table [device.config]")
+    if device["description"] is not None:
+        _of_type(device["description"], str, "description", dw, "a device description name or path")
     can = scene.read("links.can", CAN_SCHEMA, required=False)
-    can["bitrate"] = _integer(can["bitrate"], "bitrate", f"{scene.path} [links.can]", 1)
-    can["tx_curves"] = _integer(can["tx_curves"], "tx_curves", f"{scene.path} [links.can]", 1)
+    cw = f"{scene.path} [links.can]"
+    can["bitrate"] = _integer(can["bitrate"], "bitrate", cw, 1)
+    can["tx_curves"] = _integer(can["tx_curves"], "tx_curves", cw, 1)
+    can["port"] = _integer(can["port"], "port", cw, 0, 65535)
+    if can["data_bitrate"] is not None:
+        can["data_bitrate"] = _integer(can["data_bitrate"], "data_bitrate", cw, 1)
+    if not 0.0 < can["live_share"] <= 1.0:
+        raise SceneError(f"{cw}: key 'live_share' must be in (0, 1], got {can['live_share']}")
+    _of_type(can["fd"], bool, "fd", cw, "true or false")
+    _of_type(can["channel"], str, "channel", cw, "a string")
+    _of_type(can["host"], str, "host", cw, "a host name or address")
     if can["interface"] not in IN_PROCESS_INTERFACES:
-        raise SceneError(f"{scene.path} [links.can]: key 'interface' must be one of {IN_PROCESS_INTERFACES} "
+        raise SceneError(f"{cw}: key 'interface' must be one of {IN_PROCESS_INTERFACES} "
                          f"(the in-process bus), got {can['interface']!r}")
     serial = scene.read("links.serial", SERIAL_SCHEMA, required=False)
-    serial["baudrate"] = _integer(serial["baudrate"], "baudrate", f"{scene.path} [links.serial]", 1)
-    serial["address"] = _integer(serial["address"], "address", f"{scene.path} [links.serial]", 1)
+    sw = f"{scene.path} [links.serial]"
+    serial["baudrate"] = _integer(serial["baudrate"], "baudrate", sw, 1)
+    serial["address"] = _integer(serial["address"], "address", sw, 1)
+    _of_type(serial["enabled"], bool, "enabled", sw, "true or false")
+    _of_type(serial["port"], str, "port", sw, "'pty', a pyserial URL or a device path")
     recording = scene.read("recording", RECORDING_SCHEMA, required=False)
+    rw = f"{scene.path} [recording]"
+    from rig.recorder.encoding import ENCODINGS
+    from rig.recorder.writer import COMPRESSIONS
+    _one_of(recording["encoding"], ENCODINGS, "encoding", rw)
+    _one_of(recording["compression"], tuple(COMPRESSIONS), "compression", rw)
+    signals = recording["truth_signals"]
+    if signals is not None and not (isinstance(signals, list) and all(isinstance(x, str) for x in signals)):
+        raise SceneError(f"{rw}: key 'truth_signals' must be a list of signal names, got {signals!r}")
     max_time = s["max_time"] if s["max_time"] is not None else (
         s["duration"] if s["duration"] is not None else default_max_time(cycles))
     return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=_integer(s["seed"], "seed", where),

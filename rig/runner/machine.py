@@ -44,8 +44,9 @@ class Machine:
                     at = to_si(fault.pop("at", "0 s"), "s", what=f"{where} fault 'at'")
                     until = to_si(fault.pop("until", "inf s"), "s", what=f"{where} fault 'until'")
                     sensor.inject(kind, at=at, until=until, **fault)
-            except SceneError:
-                raise
+            except SceneError as exc:      # the description's own errors name its file; say which transducer
+                message = str(exc)
+                raise SceneError(message if message.startswith(where) else f"{where}: {message}") from None
             except (ValueError, KeyError, TypeError) as exc:
                 raise SceneError(f"{where}: {exc}") from None
             self.transducers[spec.name] = sensor

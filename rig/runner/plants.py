@@ -27,9 +27,15 @@ PLANTS: dict[str, Callable[[Scene, bool], Any]] = {
     "cam_bar": _cam_bar, "clutch_dynamic": _clutch_dynamic, "clutch_static": _clutch_static}
 
 
+#: top-level scene sections each plant reads (the runner's own: rig.runner.config.RUNNER_SECTIONS)
+PLANT_SECTIONS: dict[str, tuple[str, ...]] = {
+    "cam_bar": ("plant", "speed"), "clutch_dynamic": ("plant", "motor", "load"),
+    "clutch_static": ("plant", "program")}
+
+
 def make_plant(kind: str, scene: Scene, nominal: bool = False) -> Any:
     """A fresh plant of ``kind`` built from ``scene`` (each call gives an independent instance);
     ``nominal`` leaves out the scene's per-cycle variation (the theory the host compares against)."""
-    if kind not in PLANTS:
+    if not isinstance(kind, str) or kind not in PLANTS:
         raise SceneError(f"{scene.path} [scene]: plant {kind!r} is not one of {sorted(PLANTS)}")
     return PLANTS[kind](scene, nominal)

@@ -2,8 +2,9 @@
 from __future__ import annotations
 
 import json
+import logging
 import math
-import sys
+import socket
 import threading
 import time
 import uuid
@@ -16,6 +17,7 @@ import can
 from tqdm import tqdm
 
 import rig
+from rig.console import progress as progress_bar, quiet_libraries
 from firmware_sim.serial_device import SerialDevice
 from firmware_sim.socketcand_server import SocketcandServer
 from rig.recorder import Recorder
@@ -26,6 +28,8 @@ from rig.runner.host import Host
 from rig.runner.machine import Machine
 from rig.runner.served import Anchored, IdleStatus, RunClock
 from rig.scene import load_scene
+
+log = logging.getLogger(__name__)
 
 
 class RunError(RuntimeError):
@@ -88,44 +92,85 @@ def _machine_done(cfg: RunConfig, machine: Machine) -> bool:
 
 
 class _Pacer:
-    """Keeps simulated time from running ahead of the wall clock in real-time mode."""
+    """Keeps simulated time from running ahead of the wall clock in real-time mode, and says when it falls
+    behind: one warning the first time the simulation lags more than ``tolerance`` s, a count at the end
+    (:meth:`finish`). Behind, it does not wait, so the run catches up when it can."""
 
-    def __init__(self, realtime: bool) -> None:
-        self.realtime, self.start = realtime, time.perf_counter()
+    def __init__(self, realtime: bool, tolerance: float = 0.1, clock: Callable[[], float] = time.perf_counter,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        self.realtime, self.tolerance, self.clock, self.sleep = realtime, tolerance, clock, sleep
+        self.start = clock()
+        self.steps = self.behind = 0
+        self.worst = 0.0
 
     def __call__(self, t_sim: float) -> None:
-        if self.realtime:
-            ahead = t_sim - (time.perf_counter() - self.start)
-            if ahead > 0:
-                time.sleep(ahead)
+        if not self.realtime:
+            return
+        self.steps += 1
+        ahead = t_sim - (self.clock() - self.start)
+        if ahead > 0:
+            self.sleep(ahead)
+        elif -ahead > self.tolerance:
+            self.behind += 1
+            self.worst = max(self.worst, -ahead)
+            if self.behind == 1:
+                log.warning("real time: the simulation falls behind the wall clock (%.2f s behind at %.2f s of "
+                            "simulated time); it runs as fast as it can", -ahead, t_sim)
+
+    def finish(self) -> None:
+        if self.behind:
+            log.warning("real time: behind the wall clock by more than %g s in %d of %d steps (at most %.2f s)",
+                        self.tolerance, self.behind, self.steps, self.worst)
 
 
 def _progress(cfg: RunConfig, enabled: bool) -> tqdm:
-    total = cfg.cycles if cfg.cycles is not None else cfg.duration
-    unit = "curve" if cfg.cycles is not None else "s"
-    return tqdm(total=total, unit=unit, disable=not enabled, desc=cfg.name, leave=False, file=sys.stderr)
+    """The run's bar: machine cycles (simulated time as a postfix), or simulated seconds for a scene run
+    for a duration; it stays on screen as the run's last line."""
+    if cfg.cycles is not None:
+        return progress_bar(cfg.cycles, cfg.name, " cycles", enabled, postfix="t = 0.00 s")
+    return progress_bar(round(cfg.duration, 3), cfg.name, " s simulated", enabled,
+                        bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} s simulated [{elapsed}<{remaining}{postfix}]")
 
 
-def _show(bar: tqdm, value: float) -> None:
-    """Move the progress bar to ``value``; tqdm redraws at most every ``mininterval`` (0.1 s)."""
+def _show(bar: tqdm, cfg: RunConfig, cycles: int, t: float, force: bool = False) -> None:
+    """Move the bar to ``cycles`` (or to ``t`` for a duration scene) with ``t`` (s simulated) as postfix;
+    tqdm redraws at most every ``mininterval`` (0.1 s) unless ``force``."""
+    value = cycles if cfg.cycles is not None else round(min(t, cfg.duration), 3)
+    if cfg.cycles is not None:
+        bar.set_postfix_str(f"t = {t:.2f} s", refresh=False)
     if value != bar.n:
         bar.update(value - bar.n)
+    if force:
+        bar.refresh()
 
 
-def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, after_step: Callable[[], int]) -> None:
+def _finishing(bar: tqdm, cfg: RunConfig, t: float) -> None:
+    """Say on the bar that the run's last phase (statistics read back over serial) is under way."""
+    bar.set_postfix_str((f"t = {t:.2f} s; " if cfg.cycles is not None else "") + "reading the device statistics")
+
+
+def _finished(bar: tqdm, cfg: RunConfig, t: float, curves: int) -> None:
+    bar.set_postfix_str(f"t = {t:.2f} s, {curves} curves recorded" if cfg.cycles is not None else "", refresh=False)
+
+
+def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
+           after_step: Callable[[], object]) -> None:
     """Step the machine until the scene is done or the host released it (paced in real-time mode), then
-    flush its transmit queue. ``after_step`` runs after each step (e.g. the in-process host's poll) and
-    returns the curves done."""
+    flush its transmit queue. ``after_step`` runs after each step (e.g. the in-process host's poll)."""
     pace = _Pacer(cfg.mode == "realtime")
-    while not _machine_done(cfg, machine) and not machine.node.released:
-        with lock:
-            try:
-                machine.step()
-            except BusOverload as exc:
-                raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
-        done = after_step()
-        _show(bar, done if cfg.cycles is not None else round(machine.t, 3))
-        pace(machine.t)
+    try:
+        while not _machine_done(cfg, machine) and not machine.node.released:
+            with lock:
+                try:
+                    machine.step()
+                except BusOverload as exc:
+                    raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
+            after_step()
+            _show(bar, cfg, machine.curves, machine.t)
+            pace(machine.t)
+    finally:
+        _show(bar, cfg, machine.curves, machine.t, force=True)
+        pace.finish()
     with lock:
         machine.flush()
 
@@ -192,7 +237,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 _wait_for_go(machine, 5.0)
                 go = time.perf_counter()
                 try:
-                    _drive(cfg, machine, lock, bar, lambda: (host.poll(), host.curves_recorded)[1])
+                    _drive(cfg, machine, lock, bar, host.poll)
                 except RunError:
                     while host.poll():         # record what is already on the wire before stopping
                         pass
@@ -203,7 +248,9 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 if not host.done():
                     raise RunError(f"the host received only {host.curves_recorded} complete curves of "
                                    f"{machine.curves} measured (see /events in {output})")
+                _finishing(bar, cfg, machine.t)
                 stats = host.finish()
+                _finished(bar, cfg, machine.t, host.curves_recorded)
         finally:
             if serial_dev is not None:
                 serial_dev.close()
@@ -245,7 +292,7 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                 idle.close()
             wire.origin = math.ceil(time.time())
             with _progress(cfg, progress) as bar:
-                _drive(cfg, machine, lock, bar, lambda: machine.curves)
+                _drive(cfg, machine, lock, bar, lambda: None)
             _wait_for_release(machine, lock, release_timeout)
         finally:
             server.stop()
@@ -278,14 +325,14 @@ def _wait_for_release(machine: Machine, lock: threading.Lock, timeout: float) ->
 
 def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = "127.0.0.1", can_port: int,
                  serial_port: str | None, can_channel: str | None = None, cycles: int | None = None,
-                 idle_timeout: float = 10.0, progress: bool = False) -> RunSummary:
+                 idle_timeout: float = 10.0, connect_timeout: float = 2.0, progress: bool = False) -> RunSummary:
     """The host alone: connect to a served machine (socketcand + serial port) and record the scene's run
-    (or its first ``cycles`` curves)."""
+    (or its first ``cycles`` curves). A server that does not answer within ``connect_timeout`` s is a
+    :class:`RunError` naming it."""
     cfg = _config(scene_path, cycles, None)
     output = Path(output)
     wall = time.perf_counter()
-    with RunClock(can.Bus(interface="socketcand", host=can_host, port=can_port,
-                          channel=can_channel or cfg.can["channel"])) as bus:
+    with RunClock(_socketcand(can_host, can_port, can_channel or cfg.can["channel"], connect_timeout)) as bus:
         with _recorder(cfg, output, "cross-process") as rec, _progress(cfg, progress) as bar:
             host = Host(cfg, bus, serial_port, rec)
             host.arm()
@@ -297,8 +344,39 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                 elif time.monotonic() - last > idle_timeout:
                     raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
                                    f"recorded {host.curves_recorded} curves (kept in {output})")
-                _show(bar, host.curves_recorded if cfg.cycles is not None else round(host.truth_t, 3))
+                _show(bar, cfg, host.curves_recorded, host.truth_t)
+            _show(bar, cfg, host.curves_recorded, host.truth_t, force=True)
             run_time = time.perf_counter() - go
+            _finishing(bar, cfg, host.truth_t)
             stats = host.finish()
+            _finished(bar, cfg, host.truth_t, host.curves_recorded)
     return RunSummary(output, host.curves_recorded, host.truth_t, time.perf_counter() - wall, host.frames, stats,
                       run_time)
+
+
+def _socketcand(host: str, port: int, channel: str, timeout: float) -> can.BusABC:
+    """python-can's socketcand client, once a server at host:port has greeted (``< hi >``) within
+    ``timeout`` s; else a one-line :class:`RunError`. (python-can alone retries a refused connection for
+    10 s, logging every attempt, and waits forever for the greeting of a server that says nothing.)"""
+    where = f"cannot connect to socketcand at {host}:{port}"
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with socket.create_connection((host, port), timeout=max(0.1, deadline - time.monotonic())) as probe:
+                greeting = probe.recv(64)
+            break
+        except ConnectionRefusedError:
+            if time.monotonic() > deadline:
+                raise RunError(f"{where}: connection refused (is `rig serve` running? it prints its port)") from None
+            time.sleep(0.1)
+        except (TimeoutError, socket.timeout):
+            raise RunError(f"{where}: no answer within {timeout:g} s") from None
+        except OSError as exc:
+            raise RunError(f"{where}: {exc.strerror or exc}") from None
+    if not greeting.startswith(b"< hi >"):
+        raise RunError(f"{where}: not a socketcand server (it said {greeting[:32]!r} instead of '< hi >')")
+    quiet_libraries()
+    try:
+        return can.Bus(interface="socketcand", host=host, port=port, channel=channel)
+    except (OSError, can.CanError) as exc:
+        raise RunError(f"{where}: {exc}") from None

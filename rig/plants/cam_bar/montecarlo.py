@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -56,8 +57,9 @@ class MonteCarloResult:
 
 
 def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, workers: int = 1,
-                chunk: int = CHUNK) -> MonteCarloResult:
-    """Run ``n`` sampled machines through the full chain in chunks of ``chunk``, on ``workers`` processes."""
+                chunk: int = CHUNK, progress: Callable[[int], object] | None = None) -> MonteCarloResult:
+    """Run ``n`` sampled machines through the full chain in chunks of ``chunk``, on ``workers`` processes;
+    ``progress(k)`` is called as each chunk of k machines is done."""
     if n < 2 or chunk < 1 or workers < 1:
         raise ValueError(f"Monte-Carlo run needs n ≥ 2, chunk ≥ 1, workers ≥ 1 (got n={n}, chunk={chunk}, "
                          f"workers={workers})")
@@ -72,6 +74,8 @@ def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, workers: 
         for part in parts:
             by_angle[:, start:start + part.shape[0]] = part.T
             start += part.shape[0]
+            if progress is not None:
+                progress(part.shape[0])
     finally:
         if pool:
             pool.shutdown()

@@ -25,13 +25,19 @@ class ToleranceStudy:
 
 
 def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed: int, workers: int = 1,
-              step_deg: float = 1.0) -> ToleranceStudy:
-    """Both methods over one revolution (grid ``step_deg``)."""
+              step_deg: float = 1.0, progress: bool = False) -> ToleranceStudy:
+    """Both methods over one revolution (grid ``step_deg``); ``progress``: a bar on stderr counting the
+    Monte-Carlo machines."""
+    from rig.console import progress as progress_bar
     phi = np.radians(np.arange(0.0, 360.0, step_deg))
     chain = CamChain.from_mechanism(mech, phi)
     lengths_only = ToleranceSet(tol.T)
-    mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, seed + 1, workers)
-    return ToleranceStudy(linear_analysis(chain, tol), monte_carlo(chain, lengths_only, samples, seed, workers), mc_c)
+    runs = 1 if tol.clearance_lambda is None else 2
+    with progress_bar(samples * runs, "tolerance", " machines", progress, unit_scale=True) as bar:
+        mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, seed + 1, workers,
+                                                                     progress=bar.update)
+        mc = monte_carlo(chain, lengths_only, samples, seed, workers, progress=bar.update)
+    return ToleranceStudy(linear_analysis(chain, tol), mc, mc_c)
 
 
 def _at(phi: np.ndarray, deg: float) -> int:

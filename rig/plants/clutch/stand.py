@@ -87,7 +87,7 @@ def load_from_tables(tables: dict[str, Any], where: str) -> LoadSum:
         if not isinstance(table, dict) or "type" not in table:
             raise SceneError(f"{where}: [load.{name}] must be a table with a 'type' key")
         kind = table["type"]
-        if kind not in _LOAD_SCHEMAS:
+        if not isinstance(kind, str) or kind not in _LOAD_SCHEMAS:
             raise SceneError(f"{where}: [load.{name}] unknown type {kind!r} (known: {', '.join(_LOAD_SCHEMAS)})")
         schema, build = _LOAD_SCHEMAS[kind]
         params = read_table({k: v for k, v in table.items() if k != "type"}, schema, f"{where} [load.{name}]")
@@ -133,8 +133,12 @@ class ClutchStand:
                                  friction=p["friction"])
         except ValueError as exc:
             raise SceneError(f"{scene.path} [plant]: {exc}") from None
-        return cls(dyn, p["omega0"], p["shutdown_count"], p["shutdown_window"], bool(p["trip_on_shutdown"]),
-                   p["rtol"], p["atol"], p["phi_r0"])
+        try:
+            return cls(dyn, p["omega0"], p["shutdown_count"], p["shutdown_window"], bool(p["trip_on_shutdown"]),
+                       p["rtol"], p["atol"], p["phi_r0"])
+        except ValueError as exc:      # no initial state: the load at t = 0 with omega0 / phi_r0
+            raise SceneError(f"{scene.path} [plant] (initial state, omega0 and phi_r0 with [motor] and [load]): "
+                             f"{exc}") from None
 
     def _on_apex(self, rec: EventRecord) -> bool:
         omega_r = rec.y[1]

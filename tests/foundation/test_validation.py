@@ -1,0 +1,234 @@
+"""Validation gaps (issue 12): unknown sections, counts, plant kinds and output paths are errors naming
+what is wrong in one line; exit status 2 for usage and scene errors, 1 for a run that fails."""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from rig import cli
+from rig.runner.config import read_config
+from rig.scene import SceneError, load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENES = ROOT / "data" / "scenes"
+DEMO = SCENES / "pin_insertion.toml"
+CLUTCH = SCENES / "clutch_startup.toml"
+STATIC = SCENES / "clutch_static_leaf.toml"
+
+
+def edited(tmp_path: Path, source: Path, old: str, new: str, name: str = "scene.toml") -> Path:
+    text = source.read_text(encoding="utf-8")
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new, 1), encoding="utf-8")
+    return path
+
+
+def one_error_line(capsys) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+# -- scene sections ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("source, old, new, message", [
+    (DEMO, "[plant]\n", "[plnt]\n", r"unknown section \[plnt\] \(did you mean \[plant\]\?\)"),
+    (DEMO, "[recording]\n", "[recordng]\n", r"unknown section \[recordng\] \(did you mean \[recording\]\?\)"),
+    (DEMO, "[speed]\n", "[speed]\n[motor]\na0 = \"1 N*m\"\n", r"section \[motor\] is not used by plant 'cam_bar'"),
+    (CLUTCH, "[motor]\n", "[program]\nx = 1\n[motor]\n", r"section \[program\] is not used by plant 'clutch_dynamic'"),
+    (STATIC, "[links.can]\n", "[links.cann]\n", r"unknown section \[links.cann\] \(did you mean \[links.can\]\?\)"),
+    (DEMO, "[scene]\n", "stray = 1\n[scene]\n", r"unknown top-level key 'stray'"),
+])
+def test_unknown_sections_name_the_section_and_the_file(tmp_path, source, old, new, message):
+    path = edited(tmp_path, source, old, new)
+    with pytest.raises(SceneError, match=message) as info:
+        read_config(load_scene(path))
+    assert str(info.value).startswith(f"{path}: ")
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ('sample_rate = "10 kHz"', 'sample_rate = "inf Hz"', r"\[scene\]: key 'sample_rate' must be a finite quantity"),
+    ("cycles = 50", "cycles = nan", r"\[scene\]: key 'cycles' must be a finite quantity"),
+    ('plant = "cam_bar"', 'plant = "cam"', r"\[scene\]: key 'plant' must be one of 'cam_bar', 'clutch_dynamic'"),
+    ('plant = "cam_bar"', "plant = { a = 1 }", r"\[scene\]: key 'plant' must be one of"),
+    ('role = "y"', 'role = "y"\noverrides = 5', r"\[transducers.rod_force\]: key 'overrides' must be a table"),
+    ('role = "y"', 'role = "y"\nfaults = { fault = "dropout" }', r"\[transducers.rod_force\]: key 'faults' must be an"),
+    ('role = "y"', 'role = "y"\nfaults = [1]', r"\[transducers.rod_force\]: key 'faults\[0\]' must be a table"),
+    ('channel = "rig"', 'channel = "rig"\nport = 70000', r"\[links.can\]: key 'port' must be an integer >= 0 and <= 65535"),
+    ('channel = "rig"', 'channel = "rig"\nfd = 1', r"\[links.can\]: key 'fd' must be true or false"),
+    ('channel = "rig"', 'channel = "rig"\nlive_share = 0', r"\[links.can\]: key 'live_share' must be in \(0, 1\]"),
+    ("[recording]\n", '[recording]\nencoding = "xml"\n', r"\[recording\]: key 'encoding' must be one of 'json', 'base64'"),
+    ("[recording]\n", '[recording]\ncompression = "gzip"\n', r"\[recording\]: key 'compression' must be one of"),
+    ('truth_signals = ["phi"', 'truth_signals = [1, "phi"', r"\[recording\]: key 'truth_signals' must be a list"),
+])
+def test_runner_sections_reject_values_they_cannot_use(tmp_path, old, new, message):
+    with pytest.raises(SceneError, match=message):
+        read_config(load_scene(edited(tmp_path, DEMO, old, new)))
+
+
+def test_a_scene_port_is_an_integer(tmp_path):
+    cfg = read_config(load_scene(edited(tmp_path, DEMO, 'channel = "rig"', 'channel = "rig"\nport = 29536')))
+    assert cfg.can["port"] == 29536 and isinstance(cfg.can["port"], int)
+
+
+def test_every_scene_file_passes():
+    for path in sorted(SCENES.glob("*.toml")):
+        read_config(load_scene(path))
+
+
+def test_cli_unknown_section_exits_2_naming_it(tmp_path, capsys):
+    path = edited(tmp_path, DEMO, "[recording]\n", "[recordng]\n")
+    assert cli.main(["-q", "run", str(path), "-o", str(tmp_path / "x.mcap")]) == 2
+    err = one_error_line(capsys)
+    assert "[recordng]" in err and str(path) in err
+    assert not (tmp_path / "x.mcap").exists()
+
+
+# -- counts -----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv", [
+    ["run", "--cycles", "0"], ["run", "--cycles", "-3"], ["run", "--cycles", "two"],
+    ["serve", str(DEMO), "--cycles", "0"], ["record", str(DEMO), "-o", "x.mcap", "--can-port", "1", "--cycles", "0"],
+])
+def test_cycles_below_one_exit_2_naming_the_option(argv, capsys):
+    with pytest.raises(SystemExit) as info:
+        cli.main(argv)
+    assert info.value.code == 2
+    err = one_error_line(capsys)
+    assert "argument --cycles" in err and "rig " in err
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["tolerance", "--samples", "1"], "--samples"), (["tolerance", "--workers", "0"], "--workers"),
+    (["serve", str(DEMO), "--wait", "-1"], "--wait"), (["serve", str(DEMO), "--port", "70000"], "--port"),
+    (["record", str(DEMO), "-o", "x.mcap", "--can-port", "0"], "--can-port"),
+])
+def test_other_counts_are_checked_too(argv, option, capsys):
+    with pytest.raises(SystemExit) as info:
+        cli.main(argv)
+    assert info.value.code == 2 and f"argument {option}" in one_error_line(capsys)
+
+
+def test_quiet_is_accepted_after_the_command_too(tmp_path, capsys):
+    args = cli.build_parser().parse_args(["run", "-q", "--cycles", "2"])
+    assert args.quiet and args.cycles == 2
+    assert cli.build_parser().parse_args(["-q", "run"]).quiet
+    assert not cli.build_parser().parse_args(["run"]).quiet
+
+
+# -- plant kinds ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("command", ["summary", "tolerance"])
+def test_cam_bar_commands_on_a_clutch_scene_say_so(command, tmp_path, capsys):
+    assert cli.main([command, str(CLUTCH), *(["--png", str(tmp_path / "c.png")] if command == "summary"
+                                              else ["-o", str(tmp_path)])]) == 2
+    err = one_error_line(capsys)
+    assert f"rig {command} needs a cam-bar scene" in err and "'clutch_dynamic' scene" in err and "F_a1" not in err
+
+
+# -- output paths -----------------------------------------------------------------------------------
+@pytest.fixture
+def foreign(tmp_path) -> Path:
+    """A file rig did not write (think /etc/passwd)."""
+    path = tmp_path / "passwd"
+    path.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    return path
+
+
+def test_an_existing_foreign_file_is_never_overwritten(foreign, capsys):
+    assert cli.main(["-q", "run", "--cycles", "1", "-o", str(foreign)]) == 2
+    err = one_error_line(capsys)
+    assert f"cannot write the recording to {foreign}: it exists and is not a recording file rig wrote" in err
+    assert foreign.read_text() == "root:x:0:0:root:/root:/bin/bash\n"
+    assert not foreign.with_suffix(".cycle.png").exists() and not foreign.with_name("passwd.cycle.png").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (lambda t: ["run", "--cycles", "1", "-o", str(t)], "cannot write the recording to {t}: it is a directory"),
+    (lambda t: ["run", "--cycles", "1", "-o", str(t / "passwd" / "x.mcap")],
+     "cannot write the recording to {t}/passwd/x.mcap: {t}/passwd is a file, not a directory"),
+    (lambda t: ["run", "--cycles", "1", "-o", str(t / "x.mcap"), "--report-dir", str(t / "passwd")],
+     "cannot write the report to {t}/passwd: it exists and is not a directory"),
+    (lambda t: ["record", str(DEMO), "-o", str(t / "passwd"), "--can-port", "1"],
+     "cannot write the recording to {t}/passwd: it exists and is not a recording file"),
+    (lambda t: ["report", str(t / "passwd"), "-o", str(t / "passwd")],
+     "cannot write the report to {t}/passwd: that is the recording"),
+    (lambda t: ["summary", "--png", str(t / "passwd")], "cannot write the cycle chart to {t}/passwd: it exists"),
+    (lambda t: ["tolerance", "-o", str(t / "passwd")], "cannot write the tolerance chart to {t}/passwd: it exists"),
+    (lambda t: ["serve", str(DEMO), "--endpoints", str(t / "passwd")], "cannot write the endpoints to {t}/passwd: "),
+    (lambda t: ["export-can", str(t / "a.mcap"), "-o", str(t)], "cannot write the CAN trace to {t}: it is a directory"),
+])
+def test_output_path_errors_name_the_path_in_plain_words(tmp_path, foreign, capsys, argv, message):
+    assert cli.main(["-q", *argv(tmp_path)]) == 2
+    err = one_error_line(capsys)
+    assert message.format(t=tmp_path) in err and "Errno" not in err
+    assert foreign.read_text().startswith("root:")
+
+
+def test_a_directory_without_write_permission_is_named(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(cli.os, "access", lambda path, mode: Path(path) != tmp_path)
+    assert cli.main(["-q", "run", "--cycles", "1", "-o", str(tmp_path / "sub" / "x.mcap")]) == 2
+    assert f"permission denied (cannot create files in {tmp_path})" in one_error_line(capsys)
+
+
+def test_rig_replaces_its_own_recordings_and_charts(tmp_path):
+    for name, magic, what in (("a.mcap", cli.MCAP_MAGIC, "recording"), ("a.png", cli.PNG_MAGIC, "cycle chart")):
+        (tmp_path / name).write_bytes(magic + b"...")
+        cli._writable_file(tmp_path / name, what, magic)           # no error
+        (tmp_path / name).write_bytes(b"")
+        cli._writable_file(tmp_path / name, what, magic)           # an empty file holds nothing to lose
+    cli._writable_file(tmp_path / "new" / "deeper" / "b.mcap", "recording", cli.MCAP_MAGIC)
+    cli._writable_dir(tmp_path / "new" / "report", "report")
+
+
+def test_os_errors_read_as_plain_words():
+    assert cli._plain(FileExistsError(17, "File exists", "/etc/passwd")) == "/etc/passwd: file exists"
+    assert cli._plain(PermissionError(13, "Permission denied", "/x", None)) == "/x: permission denied"
+
+
+# -- run failures: exit 1 -----------------------------------------------------------------------------
+def test_record_against_a_closed_port_is_one_line_and_exit_1(tmp_path):
+    """python-can alone logs every failed attempt for 10 s (~200 000 lines); rig says it once."""
+    import socket
+    with socket.socket() as s:                   # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    out = tmp_path / "x.mcap"
+    start = time.monotonic()
+    proc = subprocess.run([sys.executable, "-m", "rig.cli", "record", str(DEMO), "-o", str(out), "--can-port",
+                           str(port)], capture_output=True, text=True, timeout=30, cwd=tmp_path,
+                          env={**os.environ, "MPLBACKEND": "Agg"})
+    elapsed = time.monotonic() - start
+    lines = proc.stderr.splitlines()
+    assert proc.returncode == 1, proc.stderr
+    assert len(lines) <= 3 and elapsed < 10, (elapsed, lines[:5])
+    assert re.search(rf"cannot connect to socketcand at 127\.0\.0\.1:{port}: connection refused", proc.stderr)
+    assert not out.exists()
+
+
+def test_a_server_that_is_not_socketcand_is_named(tmp_path):
+    import socket
+    import threading
+    from rig.runner.session import RunError, record_scene
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        port = server.getsockname()[1]
+
+        def greet():
+            conn, _ = server.accept()
+            conn.sendall(b"SSH-2.0-OpenSSH_9.2\r\n")
+            conn.close()
+        threading.Thread(target=greet, daemon=True).start()
+        with pytest.raises(RunError, match=rf"127.0.0.1:{port}: not a socketcand server \(it said b'SSH-2.0"):
+            record_scene(DEMO, tmp_path / "x.mcap", can_port=port, serial_port=None, connect_timeout=2.0)
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_cycles_on_a_duration_scene_is_a_usage_error(tmp_path, capsys):
+    assert cli.main(["-q", "run", str(CLUTCH), "--cycles", "2", "-o", str(tmp_path / "c.mcap")]) == 2
+    assert f"--cycles given, but {CLUTCH} runs for a duration" in one_error_line(capsys)
