@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import orjson
 from mcap.exceptions import EndOfFile, InvalidMagic
-from mcap.records import Attachment, Channel, Footer, Message, Metadata
+from mcap.records import Attachment, Channel, DataEnd, Footer, Message, Metadata
 from mcap.stream_reader import StreamReader
 
 from rig.recorder import schemas as S
@@ -134,9 +134,9 @@ class _Collector:
             topic = self.channels.get(record.channel_id)
             if topic is None:
                 raise ValueError(f"message on unknown channel id {record.channel_id}")
+            self._message(topic, record.data)
             rec.message_counts[topic] = rec.message_counts.get(topic, 0) + 1
             self.last_log_ns = max(self.last_log_ns, record.log_time)
-            self._message(topic, record.data)
         elif isinstance(record, Attachment):
             if record.name == S.SCENE_ATTACHMENT:
                 rec.scene_text = record.data.decode("utf-8")
@@ -163,13 +163,22 @@ class _Collector:
             self.blocks[topic].append(decode_block(data))
 
     def finish(self) -> Recording:
-        start = int(self.rec.metadata.get(S.RIG_METADATA, {}).get("wall_clock_start", 0))
-        self.rec.last_time = max(self.last_log_ns - start, 0) / 1e9
         for topic, blocks in self.blocks.items():
             self.rec.series[topic] = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
         if self.can:
             self.rec.can_frames = _can(self.can)
+        start = _metadata_number(self.rec, S.RIG_METADATA, "wall_clock_start", "0", int)
+        self.rec.last_time = max(self.last_log_ns - start, 0) / 1e9
         return self.rec
+
+
+def _metadata_number(rec: Recording, name: str, key: str, default: str, kind: type) -> Any:
+    """Metadata value ``name.key`` read as ``kind``; a ValueError naming it when it is not a number."""
+    text = rec.metadata.get(name, {}).get(key, default)
+    try:
+        return kind(text)
+    except ValueError:
+        raise ValueError(f"metadata {name}.{key} = {text!r} is not a number") from None
 
 
 def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
@@ -186,8 +195,11 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     footer = False
     try:
         with open(path, "rb") as f:
+            data_end = False
             for record in StreamReader(f, validate_crcs=True).records:
-                collector.add(record)
+                if not data_end:            # the summary after DataEnd only repeats (and has no CRC check)
+                    collector.add(record)
+                data_end = data_end or isinstance(record, DataEnd)
                 footer = footer or isinstance(record, Footer)
     except OSError as exc:
         raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from None
@@ -203,10 +215,14 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     if not footer and not rec.truncated:
         rec.truncated = True
         rec.problems.append("file ends without a footer (recording was not closed)")
-    collector.finish()
-    if rec.interrupted is not None:
-        rec.problems.append(f"run interrupted at {float(rec.end.get('simulation_time', 'nan')):.3f} s of "
-                            f"simulation time: {rec.interrupted}")
+    try:
+        collector.finish()
+        if rec.interrupted is not None:
+            t = _metadata_number(rec, S.END_METADATA, "simulation_time", "nan", float)
+            rec.problems.append(f"run interrupted at {t:.3f} s of simulation time: {rec.interrupted}")
+    except ValueError as exc:  # a damaged metadata value
+        rec.truncated = True
+        rec.problems.append(f"damaged {exc}")
     rec.complete = not rec.truncated and rec.interrupted is None
     if rec.truncated and not allow_partial:
         raise RecordingError(f"{path}: truncated or corrupt MCAP recording: {'; '.join(rec.problems)}. "
