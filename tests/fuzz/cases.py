@@ -4,7 +4,7 @@ The fuzz tests record through the ``fuzz_cases`` fixture (``tests/fuzz/conftest.
 ``fuzz-cases.json`` into pytest's base temporary directory at the end of the session and prints the
 table in pytest's terminal summary. Run as a script to summarize a written file::
 
-    python tests/fuzz/cases.py [FILE]     # default: the latest pytest session's fuzz-cases.json
+    python tests/fuzz/cases.py [FILE]     # default: the newest fuzz-cases.json of pytest's sessions
 """
 from __future__ import annotations
 
@@ -89,8 +89,11 @@ def table(counts: dict[str, dict]) -> list[str]:
 
 
 def latest_file() -> Path:
-    """``fuzz-cases.json`` of the latest pytest session (pytest's ``pytest-current`` base directory)."""
-    return Path(tempfile.gettempdir()) / f"pytest-of-{getpass.getuser()}" / "pytest-current" / FILE_NAME
+    """The newest ``fuzz-cases.json`` among pytest's base directories (``pytest-current`` may belong to
+    another session running meanwhile)."""
+    root = Path(tempfile.gettempdir()) / f"pytest-of-{getpass.getuser()}"
+    files = sorted(root.glob(f"pytest-*/{FILE_NAME}"), key=lambda p: p.stat().st_mtime)
+    return files[-1] if files else root / "pytest-current" / FILE_NAME
 
 
 def main(argv: list[str]) -> int:

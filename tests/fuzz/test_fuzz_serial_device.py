@@ -9,6 +9,7 @@ device report an internal fault (status 09).
 """
 from __future__ import annotations
 
+import copy
 import json
 import re
 import socket
@@ -235,7 +236,7 @@ def test_stx_in_the_check_characters_starts_a_new_frame() -> None:
 
 
 # -- the dispatcher --------------------------------------------------------------------------------
-def measured_unit() -> DigiForce:
+def _measure() -> DigiForce:
     """A unit with a curve of 130 pairs (as in docs/serial-protocol.md §6.5) and a result."""
     unit = DigiForce()
     i = np.arange(140)
@@ -247,9 +248,17 @@ def measured_unit() -> DigiForce:
     return unit
 
 
+MEASURED = _measure()
+
+
+def measured_unit() -> DigiForce:
+    """A fresh copy of :data:`MEASURED` (copying is 20 times faster than loading the unit's description)."""
+    return copy.deepcopy(MEASURED)
+
+
 def gist(text: str) -> str:
     """``text`` with quoted values and numbers masked, cut short: one count per kind of message."""
-    return re.split(r",? got ", re.sub(r"'[^']*'|\"[^\"]*\"|-?\d[\w.+-]*", "...", text))[0][:60]
+    return re.split(r",? got | \(", re.sub(r"'[^']*'|\"[^\"]*\"|-?\d[\w.+-]*", "...", text))[0][:60]
 
 
 def check_response(command: str, response: str) -> str:
@@ -395,7 +404,7 @@ def served():
             line.sock.close()
 
 
-@settings(max_examples=80, **FUZZ)
+@settings(max_examples=200, **FUZZ)
 @given(pieces, st.data())
 def test_served_device_on_fuzzed_line(fuzz_cases, mutate, served, stream, data) -> None:
     """A running SerialDevice answers a random, mutated stream (then a status request) exactly as the

@@ -9,6 +9,7 @@ damaged only in ways the block check detects returns exactly what it returns on 
 """
 from __future__ import annotations
 
+import copy
 import re
 import threading
 from typing import Any, Callable
@@ -33,7 +34,7 @@ FUZZ = dict(derandomize=True, database=None, deadline=None,
 printable = st.text(alphabet=st.characters(min_codepoint=0x20, max_codepoint=0x7E), max_size=60)
 
 
-def measured_unit() -> DigiForce:
+def _measure() -> DigiForce:
     """A unit with a curve of 130 pairs (as in docs/serial-protocol.md §6.5) and a result."""
     unit = DigiForce()
     i = np.arange(140)
@@ -43,6 +44,14 @@ def measured_unit() -> DigiForce:
     unit.feed(t[10:], x_volts[10:], y_ratio[10:])
     unit.stop()
     return unit
+
+
+MEASURED = _measure()
+
+
+def measured_unit() -> DigiForce:
+    """A fresh copy of :data:`MEASURED` (copying is 20 times faster than loading the unit's description)."""
+    return copy.deepcopy(MEASURED)
 
 
 def _answers() -> list[bytes]:
