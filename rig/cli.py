@@ -101,10 +101,9 @@ def _print_stand_summary(rec: Any) -> bool:
     return bool(lines)
 
 
-def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None, progress: bool = False,
-            ok_plots: int = 0) -> Path:
+def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None, progress: bool = False) -> Path:
     """Write the report of a recording (path or an already-read Recording, with its analysis if known);
-    ``progress``: a bar on stderr counting the report's sections; ``ok_plots``: OK curves plotted one by one."""
+    ``progress``: a bar on stderr counting the report's sections."""
     from rig.analysis.report import SECTIONS, write_report
     from rig.console import progress as progress_bar
     with progress_bar(len(SECTIONS), "report", " sections", progress) as bar:
@@ -117,7 +116,7 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
                     bar.update()
             return run
         sections = [(name, counted(name, section)) for name, section in SECTIONS]
-        return write_report(recording, out_dir, fmt=fmt, analysis=analysis, sections=sections, ok_plots=ok_plots)
+        return write_report(recording, out_dir, fmt=fmt, analysis=analysis, sections=sections)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -144,7 +143,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
     if not args.no_report:
-        report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet, ok_plots=args.ok_plots)
+        report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet)
         print(f"report: {report}")
     return 0
 
@@ -196,7 +195,7 @@ def cmd_report(args: argparse.Namespace) -> int:
                              f"`rig report --partial {path}` reports what it holds") from None
     if not rec.complete:
         print(f"{path}: incomplete recording; " + "; ".join(losses(rec)))
-    print(f"report: {_report(rec, out, args.format, progress=not args.quiet, ok_plots=args.ok_plots)}")
+    print(f"report: {_report(rec, out, args.format, progress=not args.quiet)}")
     return 0
 
 
@@ -237,8 +236,8 @@ def _scene_config(scene: Path, cycles: int | None) -> Any:
 
 def _needs_cam_bar(scene: Path, plant: str, command: str) -> None:
     if plant != "cam_bar":
-        raise UsageError(f"{command} needs a cam-bar scene ([scene] plant = \"cam_bar\", e.g. {DEFAULT_SCENE.name}); "
-                         f"{scene} is a {plant!r} scene")
+        raise UsageError(f"{command} needs plant \"cam_bar\" in [scene] (a cam-bar scene such as "
+                         f"{DEFAULT_SCENE.name}); {scene} is a {plant!r} scene")
 
 
 def cmd_tolerance(args: argparse.Namespace) -> int:
@@ -377,8 +376,6 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--report-dir", help="report directory (default: next to the recording)")
     run.add_argument("--format", choices=("html", "md"), default="html")
     run.add_argument("--no-report", action="store_true")
-    run.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
-                     help="also plot the first N OK curves one by one (NOK curves always are)")
     run.set_defaults(func=cmd_run)
     serve = sub.add_parser("serve", parents=[quiet],
                            help="run the simulated machine: CAN over socketcand, serial on a pty")
@@ -407,8 +404,6 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--format", choices=("html", "md"), default="html")
     rep.add_argument("--partial", action="store_true",
                      help="report what a truncated recording (a killed run) holds and what was lost")
-    rep.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
-                     help="also plot the first N OK curves one by one (NOK curves always are)")
     rep.set_defaults(func=cmd_report)
     exp = sub.add_parser("export-can", parents=[quiet],
                          help="write the recording's CAN bus traffic (/can/raw) as a CAN trace: "

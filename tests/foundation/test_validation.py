@@ -127,7 +127,8 @@ def test_cam_bar_commands_on_a_clutch_scene_say_so(command, tmp_path, capsys):
     assert cli.main([command, str(CLUTCH), *(["--png", str(tmp_path / "c.png")] if command == "summary"
                                               else ["-o", str(tmp_path)])]) == 2
     err = one_error_line(capsys)
-    assert f"rig {command} needs a cam-bar scene" in err and "'clutch_dynamic' scene" in err and "F_a1" not in err
+    assert f'rig {command} needs plant "cam_bar" in [scene] (a cam-bar scene' in err and "'clutch_dynamic' scene" in err
+    assert "F_a1" not in err
 
 
 # -- output paths -----------------------------------------------------------------------------------
