@@ -59,7 +59,11 @@ class CurveMemory:
 
     # --- Δt ---------------------------------------------------------------------------------------
     def _cells(self, t: np.ndarray) -> np.ndarray:
-        return np.floor((t - self.anchor) / self.delta + _REL)
+        """Δt interval of each time (s): the slack covers the rounding of ``t - anchor``, which grows with the
+        magnitude of the times (4 ulp of them), not only with the step: without it, samples on the interval
+        boundaries fall into the previous interval and are skipped once t passes ~500 s at 0.1 ms."""
+        slack = _REL + 4.0 * np.finfo(float).eps * (np.abs(t) + abs(self.anchor)) / self.delta
+        return np.floor((t - self.anchor) / self.delta + slack)
 
     def _first_in_cell(self, t: np.ndarray, last_cell: float) -> np.ndarray:
         cells = self._cells(t)
