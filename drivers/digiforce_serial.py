@@ -6,6 +6,8 @@ retry after ``timeout``; after ``retries`` repeats a :class:`DigiForceLinkError`
 port and tries. Error statuses from the device raise :class:`DigiForceError`. JSON payloads are parsed
 strictly (RFC 8259: ``NaN``/``Infinity`` tokens are a link error); a non-finite value arrives as ``null``
 listed in the payload's ``non_finite`` object (JSON Pointer → ``"NaN"``, ``"Infinity"``, ``"-Infinity"``).
+A payload not of its documented form (a JSON object, ``active,count``, a curve block) is a
+:class:`DigiForceLinkError` saying "malformed response".
 """
 from __future__ import annotations
 

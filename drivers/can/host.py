@@ -59,7 +59,7 @@ class _Rx(NamedTuple):
 @dataclass(frozen=True)
 class LinkEvent:
     """Something wrong on the link: ``kind`` is one of sequence_gap, unknown_frame, bad_length,
-    decode_error, error_frame, curve; ``count`` = frames (or pairs) concerned."""
+    decode_error, error_frame, curve, result; ``count`` = frames (or pairs, or missing values) concerned."""
 
     time: float
     kind: str

@@ -72,10 +72,12 @@ class CaseLog:
         assert elapsed <= limit, f"{target}: one example took {elapsed:.2f} s (limit {limit} s)"
 
     def as_dict(self) -> dict[str, dict]:
+        """``{target: {"examples": n, "outcomes": {reason: count}}}``, sorted."""
         return {t: {"examples": n, "outcomes": dict(sorted(self.outcomes[t].items()))}
                 for t, n in sorted(self.examples.items())}
 
     def write(self, path: Path) -> None:
+        """Write :meth:`as_dict` to ``path`` as JSON."""
         path.write_text(json.dumps(self.as_dict(), indent=1) + "\n", encoding="utf-8")
 
 
@@ -97,6 +99,7 @@ def latest_file() -> Path:
 
 
 def main(argv: list[str]) -> int:
+    """Print the table of ``argv[0]`` (default: :func:`latest_file`); 1 when there is none."""
     path = Path(argv[0]) if argv else latest_file()
     if not path.is_file():
         print(f"no fuzz case counts at {path} (run: python -m pytest tests/fuzz)", file=sys.stderr)

@@ -29,6 +29,7 @@ def fuzz_cases(request, tmp_path_factory) -> "cases.CaseLog":
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
+    """The case counts of the session, as a table in pytest's summary."""
     log = config.stash.get(_LOG_KEY, None)
     if log is None or not log.examples:
         return

@@ -10,6 +10,7 @@ readings, counters).
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -21,13 +22,14 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from drivers.can.host import DBC_PATH, CanHost
+from drivers.can.host import DBC_PATH, CanHost, LinkEvent
 from rig.blockbus import FrameBlock
 from rig.recorder import read_recording
 
 DB = cantools.database.load_file(str(DBC_PATH))
 DEVICE_IDS = {m.frame_id: m.length for m in DB.messages if "DEVICE" in m.senders}
 COMMAND_ID = DB.get_message_by_name("HostCommand").frame_id
+DOCUMENTED_KINDS = set(re.search(r"``kind`` is one of ([\w,\s]+);", LinkEvent.__doc__)[1].replace(",", " ").split())
 DECODED_KINDS = {"sequence_gap", "decode_error", "curve", "result"}    # what a frame of the right length may raise
 FUZZ = dict(derandomize=True, database=None, deadline=None,
             suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -76,6 +78,7 @@ def make_host():
 
 
 def _array(a: np.ndarray | None) -> Any:
+    """``a`` comparable bit for bit (NaN equal to NaN)."""
     return None if a is None else (a.dtype.str, a.shape, a.tobytes())
 
 
@@ -121,16 +124,20 @@ def receive_one_by_one(host: CanHost, msgs: list[can.Message], case) -> None:
 
 
 def receive_in_blocks(host: CanHost, msgs: list[can.Message], cuts: list[int]) -> None:
+    """``host.receive_block`` on ``msgs`` cut into blocks at ``cuts``."""
     bounds = [0, *sorted(cuts), len(msgs)]
     for a, b in zip(bounds, bounds[1:]):
         host.receive_block(FrameBlock.of_messages(msgs[a:b]))
 
 
 def check_both_ways(make_host, msgs: list[can.Message], cuts: list[int], case) -> None:
+    """Frame by frame and in blocks cut at ``cuts``: the same state, events only of documented kinds."""
     one, block = make_host(), make_host()
     receive_one_by_one(one, msgs, case)
     receive_in_blocks(block, msgs, cuts)
-    assert state(block) == state(one)
+    got = state(one)
+    assert state(block) == got
+    assert {e.kind for e in got["events"]} <= DOCUMENTED_KINDS
 
 
 @settings(max_examples=150, **FUZZ)

@@ -29,10 +29,12 @@ FUZZ = dict(derandomize=True, database=None, deadline=None,
 
 
 def _array(a: Any) -> Any:
+    """``a`` comparable bit for bit (NaN equal to NaN)."""
     return None if a is None else (np.asarray(a).dtype.str, np.asarray(a).shape, np.asarray(a).tobytes())
 
 
 def curve_key(c) -> tuple:
+    """A curve record, comparable."""
     return (c.number, c.program, *(_array(a) for a in (c.t, c.x, c.y, c.angle)),
             tuple(sorted((k, _array(v)) for k, v in c.theory.items())), repr(sorted(c.extra.items())))
 
@@ -104,6 +106,7 @@ class Original(tuple):
 
 @pytest.fixture(scope="module")
 def original(demo_recording: Path) -> Original:
+    """The demo file's bytes and recording; notes its records for the damage strategies."""
     raw = demo_recording.read_bytes()
     spans = top_level_records(raw)
     RAW_SPANS[:] = [(start, end) for start, end, _ in spans]
@@ -147,6 +150,8 @@ def check_part_of(part: Recording, whole: Recording) -> None:
 @settings(max_examples=150, **FUZZ)
 @given(st.data())
 def test_damaged_recordings(fuzz_cases, mutate, original, target, data) -> None:
+    """Damage anywhere, in any record or in a metadata value: a RecordingError or the whole content strictly;
+    a Recording part of the original (or a RecordingError) with ``allow_partial``; no hang."""
     raw, whole = original
     ops = data.draw(st.one_of(mutate.mutations(len(raw)), record_damage(raw), metadata_damage()))
     target.write_bytes(mutate.apply(raw, ops))

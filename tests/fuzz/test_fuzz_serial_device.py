@@ -46,6 +46,7 @@ FUZZ = dict(derandomize=True, database=None, deadline=None,
 
 # -- strategies ------------------------------------------------------------------------------------
 def _schema(command: str) -> jsonschema.Draft202012Validator:
+    """The validator of ``command``'s JSON payload (docs/schemas)."""
     doc = json.loads((SCHEMAS / f"serial-{PAYLOAD_SCHEMAS[command]}.schema.json").read_text(encoding="utf-8"))
     return jsonschema.Draft202012Validator(doc)
 
@@ -149,7 +150,8 @@ def raw_frame(address: bytes, seq: bytes, command: bytes, data: bytes, good_chec
 
 frames = st.builds(
     raw_frame,
-    st.one_of(st.just(b"01"), st.sampled_from([b"02", b"FE", b"00", b"FF", b"0a", b"1"]), st.binary(min_size=2, max_size=2)),
+    st.one_of(st.just(b"01"), st.sampled_from([b"02", b"FE", b"00", b"FF", b"0a", b"1"]),
+              st.binary(min_size=2, max_size=2)),
     st.one_of(st.integers(0, 9).map(lambda d: b"%d" % d), st.binary(min_size=1, max_size=1)),
     st.one_of(commands.map(str.encode), st.binary(max_size=3)),
     st.one_of(request_data.map(str.encode), st.binary(max_size=40)),
@@ -357,6 +359,7 @@ class Expected:
         self.last_frame: host.Frame | None = None
 
     def answers(self, events: list) -> list[tuple]:
+        """The transmissions due for the receiver events of a stream: ``(kind, request or reason)``."""
         out, last = [], self.last_frame is not None
         for e in events:
             if e.address != ADDRESS:
@@ -372,6 +375,7 @@ class Expected:
         return out
 
     def check(self, expected: list[tuple], got: list[host.Event], case) -> None:
+        """Checks what the device sent against :meth:`answers`, counting the outcomes."""
         for (kind, what), event in zip(expected, got):
             if kind == "nak":
                 assert event == host.Handshake(False, ADDRESS), (what, event)

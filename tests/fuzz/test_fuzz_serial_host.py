@@ -26,7 +26,8 @@ from firmware_sim.serial_protocol import framing as dev
 from firmware_sim.serial_protocol.commands import Commands
 
 ADDRESS = 1
-CORRUPT_REASONS = {"block check": r"block check b'.*' does not match b'..'", "malformed header": r"malformed header b'.*'",
+CORRUPT_REASONS = {"block check": r"block check b'.*' does not match b'..'",
+                   "malformed header": r"malformed header b'.*'",
                    "control byte": r"control byte 0x[0-9A-F]{2} inside a frame",
                    "too long": rf"frame longer than {host.MAX_DATA} data bytes"}
 FUZZ = dict(derandomize=True, database=None, deadline=None,
@@ -140,6 +141,7 @@ class FuzzedLine:
 
     # the device
     def write(self, data: bytes) -> int:
+        """The host writes: the device receives, answers (docs §3), each transmission altered by a plan."""
         for event in self.receiver.feed(data):
             if event.address != ADDRESS:
                 continue
@@ -170,6 +172,7 @@ class FuzzedLine:
         return sum(len(d) for t, d in self.queue if t <= self.clock.now)
 
     def read(self, size: int = 1) -> bytes:
+        """Up to ``size`` bytes that have arrived; none within the read timeout advances the clock."""
         ready = [d for t, d in self.queue if t <= self.clock.now]
         if not ready:       # nothing arrives within the port's read timeout: time passes
             later = [t for t, _ in self.queue]
@@ -244,7 +247,7 @@ byte_ops = st.lists(st.one_of(st.tuples(st.just("flip"), st.integers(0, 4000), s
 text_ops = st.lists(st.one_of(st.tuples(st.just("flip"), st.integers(0, 3000), st.integers(1, 127)),
                               st.tuples(st.just("truncate"), st.integers(0, 3000), st.none()),
                               st.tuples(st.just("insert"), st.integers(0, 3000),
-                                        st.sampled_from([b",", b"{", b"}", b"[", b'"', b"=", b"-", b"A", b"9", b"NaN"])),
+                                        st.sampled_from([b",", b"{", b"}", b"[", b'"', b"=", b"-", b"9", b"NaN"])),
                               st.tuples(st.just("delete"), st.integers(0, 3000), st.integers(1, 16))),
                     min_size=1, max_size=3)
 plans = st.one_of(st.just(("clean",)), st.just(("silence",)), st.just(("stale",)), st.just(("other address",)),
@@ -253,7 +256,7 @@ plans = st.one_of(st.just(("clean",)), st.just(("silence",)), st.just(("stale",)
                   st.tuples(st.just("garbage"), st.binary(min_size=1, max_size=40)),
                   st.tuples(st.just("payload"), text_ops),
                   st.tuples(st.just("status"), st.one_of(
-                      st.sampled_from(["", "0", "00", "01", "09", "99", "x0", " 0", "00" + "[" * 3000, "00" + "{}" * 9]),
+                      st.sampled_from(["", "0", "00", "01", "09", "99", "x0", " 0", "00" + "[" * 3000, "00{}"]),
                       printable)))
 CALLS: dict[str, Callable[[DigiForceClient], Any]] = {
     "identify": lambda c: c.identify(), "active_program": lambda c: c.active_program(),

@@ -178,6 +178,7 @@ def read_until(sock: socket.socket, done, limit: float) -> str:
 
 
 def connect(port: int) -> socket.socket:
+    """A client connection that got the server's ``< hi >``."""
     sock = socket.create_connection(("127.0.0.1", port), timeout=5)
     assert read_until(sock, lambda t: ">" in t, 5.0) == "< hi >"
     return sock
