@@ -53,13 +53,14 @@ def test_demo_scene_varies_and_is_deterministic_for_its_seed():
 
 
 def test_each_cycle_equals_the_mechanism_with_its_drawn_deviations():
-    plant = _plant({"F_c": "3 N", "sensor_preload": "1 N", "L3": "0.05 mm", "clearance_lambda": "60 / mm"})
-    out = plant.advance(T)
+    variation = {"F_c": "3 N", "sensor_preload": "1 N", "L3": "0.05 mm", "clearance_lambda": "60 / mm"}
+    out = _plant(variation).advance(T)
+    draws = _plant(variation).cycles      # the same seed draws the same deviations again (the run keeps only the latest)
     cycle = np.floor(out["phi"] / tau).astype(int)
     base = _plant(variation=None)
     for c in np.unique(cycle):
         i = cycle == c
-        dev = plant.cycles.deviation(int(c))
+        dev = draws.deviation(int(c))
         assert set(dev.load) == {"F_c", "sensor_preload"} and set(dev.chain) == {"L3", "r"}
         assert -base.clearance <= dev.chain["r"] <= 0.0  # take-up within the groove clearance
         ref = replace(base, F_c=base.F_c + dev.load["F_c"], sensor_preload=base.sensor_preload + dev.load["sensor_preload"])

@@ -88,7 +88,8 @@ class CyclePlant:
     def __init__(self, nominal: "PinInsertionMechanism", variation: CycleVariation, rng: np.random.Generator):
         self.nominal, self.variation, self.rng = nominal, variation, rng
         self._first: int | None = None
-        self._drawn: list[CycleDeviation] = []
+        self._drawn: dict[int, CycleDeviation] = {}      # the latest cycles' draws (cycle index from the first)
+        self._draws = 0                                  # cycles drawn so far
         self._mechs: dict[int, "PinInsertionMechanism"] = {}
 
     def deviation(self, cycle: int) -> CycleDeviation:
@@ -98,8 +99,14 @@ class CyclePlant:
         i = cycle - self._first
         if i < 0:
             raise ValueError(f"variation: cycle {cycle} precedes the first simulated cycle {self._first}")
-        while len(self._drawn) <= i:
-            self._drawn.append(self.variation.draw(self.rng, self.nominal.clearance))
+        if i not in self._drawn and i < self._draws:
+            raise ValueError(f"variation: cycle {cycle} was drawn and forgotten (cycles advance; the previous one "
+                             "is kept)")
+        while self._draws <= i:
+            self._drawn[self._draws] = self.variation.draw(self.rng, self.nominal.clearance)
+            self._draws += 1
+        # cycles advance monotonically: keep the previous one (events refined across a cycle boundary)
+        self._drawn = {k: d for k, d in self._drawn.items() if k >= i - 1}
         return self._drawn[i]
 
     def mechanism(self, cycle: int) -> "PinInsertionMechanism":
