@@ -16,6 +16,7 @@ received before it is lost and reception continues.
 """
 from __future__ import annotations
 
+import itertools
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -122,7 +123,8 @@ class CanHost:
         self.static: list[tuple[float, float, float]] = []      # (t s, angle rad, leaf strain m/m): static rig
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per run
-        self._live_rows: list[tuple[float, int, int]] = []   # (t s, raw x, raw y) of frames received one by one
+        self._live_rows: list[tuple[float, float, list[int], list[int]]] = []   # (t0 s, dt s, raw xs, raw ys) per
+        # frame received one by one
         self._runs = {self.db.get_message_by_name(name).frame_id: handler for name, handler in (
             ("LiveXY", self._live_run), ("LiveXYFD", self._live_run), ("CurveBlock", self._curve_block_run),
             ("CurveBlockFD", self._curve_block_run))}
@@ -281,19 +283,22 @@ class CanHost:
         """One live frame received on its own (LiveXY: one pair; LiveXYFD: NPairs pairs at Tick + i*Dt)."""
         t0 = self._live_time(raw["Tick"])
         if "NPairs" not in raw:
-            self._live_rows.append((t0, raw["X"], raw["Y"]))
+            self._live_rows.append((t0, 0.0, [raw["X"]], [raw["Y"]]))
             return
-        dt = raw["Dt"] * 1e-6
-        for i in range(min(raw["NPairs"], self._fd_pairs)):
-            self._live_rows.append((t0 + i * dt, raw[self._fd_x[i]], raw[self._fd_y[i]]))
+        dt, n = raw["Dt"] * 1e-6, min(raw["NPairs"], self._fd_pairs)
+        self._live_rows.append((t0, dt, [raw[k] for k in self._fd_x[:n]], [raw[k] for k in self._fd_y[:n]]))
         self._device_time = max(self._device_time, t0 + (raw["NPairs"] - 1) * dt)
 
     _live_fd = _live
 
     def _flush_live_rows(self) -> None:
         if self._live_rows:
-            t, x, y = (np.array(c) for c in zip(*self._live_rows))
-            self._live.append((t.astype(float), x.astype(np.int64), y.astype(np.int64)))
+            t0, dt, xs, ys = zip(*self._live_rows)
+            counts = np.array([len(x) for x in xs])
+            slot = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+            t = np.repeat(np.array(t0), counts) + np.repeat(np.array(dt), counts) * slot
+            flat = lambda rows: np.fromiter(itertools.chain.from_iterable(rows), np.int64, slot.size)  # noqa: E731
+            self._live.append((t, flat(xs), flat(ys)))
             self._live_rows = []
 
     def _live_run(self, raw: dict[str, np.ndarray]) -> list[tuple[int, str]]:
