@@ -1,12 +1,37 @@
 """Small validators for program settings (dicts from the host): clear errors naming key and value."""
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Iterator, Mapping
 
 from rig.units import UnitError, to_si
 
 from .errors import DigiForceError
+
+# Set while a program written by a person (a scene's [device.config]) is checked: a bare number where a
+# quantity is expected is then an error instead of an SI value (the device's own API takes SI numbers).
+_UNITS_REQUIRED: contextvars.ContextVar[bool] = contextvars.ContextVar("units_required", default=False)
+
+
+class NormalisedSI(float):
+    """A number the unit normalised itself (SI by construction): accepted without a unit even within
+    :func:`units_required`."""
+
+
+class MissingUnitError(DigiForceError):
+    """A bare number where a quantity with a unit is required (see :func:`units_required`)."""
+
+
+@contextlib.contextmanager
+def units_required() -> Iterator[None]:
+    """Within this block, :func:`quantity` refuses bare numbers for dimensioned quantities."""
+    token = _UNITS_REQUIRED.set(True)
+    try:
+        yield
+    finally:
+        _UNITS_REQUIRED.reset(token)
 
 
 def known_keys(cfg: Mapping[str, Any], keys: Iterable[str], where: str) -> None:
@@ -41,9 +66,13 @@ def text(cfg: Mapping[str, Any], key: str, where: str, default: str | None = Non
 
 
 def quantity(value: Any, unit: str, what: str) -> float:
-    """A number (already in SI ``unit``) or a string with a unit (``"2 mm"``) as a finite SI float."""
+    """A number (already in SI ``unit``) or a string with a unit (``"2 mm"``) as a finite SI float.
+    Inside :func:`units_required` a bare number for a dimensioned ``unit`` is a :class:`MissingUnitError`."""
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise DigiForceError(f"{what}: expected a number or a quantity string, got {value!r}")
+    if isinstance(value, (int, float)) and not isinstance(value, NormalisedSI) and unit not in ("", "1") \
+            and _UNITS_REQUIRED.get():
+        raise MissingUnitError(f"{what}: {value!r} has no unit; write it with its unit, e.g. \"{value} {unit}\"")
     try:
         out = to_si(value, unit, unit if isinstance(value, (int, float)) and unit not in ("", "1") else None, what)
     except UnitError as exc:
@@ -58,7 +87,14 @@ def number(cfg: Mapping[str, Any], key: str, unit: str, where: str, default: Any
     """``cfg[key]`` as an SI quantity; ``default`` when absent; range checks with clear messages."""
     if key not in cfg and default is None:
         raise DigiForceError(f"{where}: missing key {key!r}")
-    value = quantity(cfg.get(key, default), unit, f"{where}.{key}")
+    if key not in cfg:                      # the unit's own default (SI) is not written by anyone
+        token = _UNITS_REQUIRED.set(False)
+        try:
+            value = quantity(default, unit, f"{where}.{key}")
+        finally:
+            _UNITS_REQUIRED.reset(token)
+    else:
+        value = quantity(cfg[key], unit, f"{where}.{key}")
     if positive and not value > 0:
         raise DigiForceError(f"{where}.{key}: must be > 0, got {cfg.get(key, default)!r}")
     if minimum is not None and value < minimum:

@@ -85,10 +85,30 @@ def base_process_values(c: Curve) -> dict[str, float]:
 
 def process_value_names(elements: list[Mapping[str, Any]], has_y2: bool) -> set[str]:
     """Every process value a program produces: base values and ``<element>.<value>``."""
-    names = set(BASE_VALUES) | (set(Y2_VALUES) if has_y2 else set())
+    return set(process_value_axes(elements, has_y2))
+
+
+def process_value_axes(elements: list[Mapping[str, Any]], has_y2: bool) -> dict[str, str]:
+    """Where every process value of a program lies: ``"x"``, ``"y"``, ``"y2"`` (the channel), ``"t"``
+    (``duration``) or ``""`` (``pairs``, a count). Element values lie on the axis their name starts with (Y
+    meaning the element's channel); a threshold's ``at`` on the axis other than the threshold's."""
+    out = {name: "t" if name == "duration" else "" if name == "pairs" else name.split("_")[0]
+           for name in BASE_VALUES + (Y2_VALUES if has_y2 else ())}
     for e in elements:
-        names |= {f"{e['name']}.{v}" for v in ELEMENT_KINDS[e["kind"]].values}
-    return names
+        channel = e.get("channel", "y")
+        for v in ELEMENT_KINDS[e["kind"]].values:
+            if v == "at":
+                out[f"{e['name']}.at"] = "x" if e.get("axis", "y") == "y" else channel
+            else:
+                out[f"{e['name']}.{v}"] = "x" if v.startswith("x") else channel
+    return out
+
+
+def process_value_units(elements: list[Mapping[str, Any]], units: Mapping[str, str]) -> dict[str, str]:
+    """SI unit of every process value a program produces (``units``: the enabled channels' units; see
+    :func:`process_value_axes`): ``duration`` in s, ``pairs`` a pure number."""
+    return {name: "s" if axis == "t" else "1" if axis == "" else units[axis]
+            for name, axis in process_value_axes(elements, "y2" in units).items()}
 
 
 def nan_to_none(value: float) -> float | None:

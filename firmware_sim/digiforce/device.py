@@ -14,14 +14,20 @@ from . import control
 from .channel import InputChain, shunt_ratio
 from .curve import Curve, base_process_values, reference_x, turning_index
 from .description import Description, load_description
-from .elements import Element, build_elements
+from .elements import Element, build_elements, unit_format
 from .errors import DigiForceError
+from .evaluation import evaluate_curve, reference_verdict
 from .memory import CurveMemory
-from .program import default_program, merge, validate_program
+from .program import check_units, default_program, merge, validate_program
 from .results import CurveResult, ElementResult
 from .statistics import ProgramStatistics
 
 _UNIFORM_TOL = 1e-6   # relative spread of sample spacing accepted as one fixed rate
+
+
+def _reason_format(program: dict[str, Any]):
+    """The unit writes the numbers of its reasons in the channels' engineering units (SI)."""
+    return unit_format({ch: c.get("unit", "") for ch, c in program["channels"].items()})
 
 
 class DigiForce:
@@ -76,14 +82,18 @@ class DigiForce:
         """Full, normalised configuration of program ``n`` (JSON-serialisable, SI numbers)."""
         return copy.deepcopy(self._programs[self._check_program(n)])
 
-    def set_program(self, n: int, config: dict[str, Any]) -> None:
+    def set_program(self, n: int, config: dict[str, Any], units_required: bool = False) -> None:
         """Change program ``n``: ``config`` is merged over its current settings (dicts key by key, lists
-        replace) and validated as a whole; nothing changes if it is invalid."""
+        replace) and validated as a whole; nothing changes if it is invalid. ``units_required``: ``config``
+        was written by a person (a scene) and must give every quantity with its unit (a bare number is an
+        error naming its key); otherwise bare numbers are SI, as on the unit's interfaces."""
         n = self._check_program(n)
         if not isinstance(config, dict):
             raise DigiForceError(f"set_program: config must be a dict, got {type(config).__name__}")
+        if units_required:
+            check_units(self._programs[n], config, self.desc, f"program {n}")
         new = validate_program(merge(self._programs[n], config), self.desc, f"program {n}")
-        elements = build_elements(new["elements"])
+        elements = build_elements(new["elements"], _reason_format(new))
         if n == self.active_program:
             self._check_idle("set_program on the active program")
         self._programs[n] = new
@@ -94,7 +104,7 @@ class DigiForce:
         """Build the active program's channels, elements and memory; back to idle."""
         prog = self._programs[self.active_program]
         self._prog = prog
-        self._elements = elements if elements is not None else build_elements(prog["elements"])
+        self._elements = elements if elements is not None else build_elements(prog["elements"], _reason_format(prog))
         self._chains = {ch: InputChain(c, self.desc.inputs[c["input"]], self.desc, self._unit_errors[ch],
                                        self._noise_rngs.get(ch)) for ch, c in prog["channels"].items() if c["enabled"]}
         s = prog["sampling"]
@@ -342,7 +352,7 @@ class DigiForce:
                       sampling={"mode": mem.mode, "delta": mem.delta, "overflow": mem.policy})
         verdicts, values = self.evaluate(curve)
         if ref_problem is not None:
-            verdicts.insert(0, ElementResult("reference", "reference", False, ref_problem))
+            verdicts[:0] = reference_verdict(ref_problem)
         self._eval_time = time.perf_counter() - began
         self._curve_count += 1
         result = CurveResult(number=self._curve_count, program=self.active_program,
@@ -360,15 +370,7 @@ class DigiForce:
 
     def evaluate(self, curve: Curve) -> tuple[list[ElementResult], dict[str, float]]:
         """Verdicts of the active program's enabled elements and all process values for ``curve``."""
-        values = base_process_values(curve)
-        verdicts = []
-        for el in self._elements:
-            part = curve.part(el.part)
-            yv = curve.y if el.channel == "y" else curve.y2
-            ok, reason, vals = el.evaluate(curve.x[part], yv[part])
-            verdicts.append(ElementResult(el.name, el.kind, ok, reason))
-            values.update({f"{el.name}.{k}": v for k, v in vals.items()})
-        return verdicts, values
+        return evaluate_curve(self._elements, curve)
 
     # --- statistics and status --------------------------------------------------------------------
     def statistics(self, program: int | None = None) -> dict[str, Any]:

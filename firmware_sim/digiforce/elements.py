@@ -2,13 +2,19 @@
 
 Elements are data: a dict with ``kind`` (a key of :data:`ELEMENT_KINDS`), ``name``, ``enabled``,
 ``part`` (forward / return / complete), ``channel`` (y or y2) and kind-specific keys. The registry
-turns them into element objects whose ``evaluate(x, y)`` is vectorised over the curve part.
+turns them into element objects whose ``check(x, y)`` is vectorised over the curve part.
 Edge semantics (closed regions, touching, corners, wrong side) are documented in docs/digiforce.md.
+
+A failed check says which rule failed and where (``"entry top: entered through the left side at x = 0.036 m,
+y = -52 N, not through the top"``); numbers are written by a *formatter* ``fmt(channel, value)`` (channel
+``"x"``, ``"y"`` or ``"y2"``, value in SI), so the unit writes its engineering units and a host can write the
+same reasons in the units its user reads (:func:`build_elements`).
 """
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar, Mapping
 
 import numpy as np
 
@@ -21,48 +27,70 @@ SIDE_RULES = SIDES + ("any", "none", "ignore")
 EXTREMES = ("x_max", "x_min", "y_max", "y_min")
 COMMON_KEYS = ("kind", "name", "enabled", "part", "channel")
 Verdict = tuple[bool, str, dict[str, float]]
+Formatter = Callable[[str, float], str]
+
+
+def plain_format(channel: str, value: float) -> str:
+    """A number without a unit (6 significant digits)."""
+    return f"{value:.6g}"
+
+
+def unit_format(units: Mapping[str, str]) -> Formatter:
+    """Numbers (6 significant digits) followed by the channel's unit: ``"0.0412 m"``."""
+    return lambda channel, value: f"{value:.6g} {units[channel]}"
+
+
+@dataclass(frozen=True)
+class Check:
+    """Outcome of one element on one curve part: pass/fail, why (the rule and where; empty when it passed),
+    its process values, and ``at``: the (x, y) where it failed, when there is such a point."""
+
+    ok: bool
+    reason: str = ""
+    values: dict[str, float] = field(default_factory=dict)
+    at: tuple[float, float] | None = None
 
 
 class Element:
-    """Base of all elements: holds the normalised config; subclasses implement ``evaluate``."""
+    """Base of all elements: holds the normalised config; subclasses implement ``check``."""
 
     kind: ClassVar[str]
     keys: ClassVar[tuple[str, ...]]
     values: ClassVar[tuple[str, ...]] = ()
 
-    def __init__(self, cfg: Mapping[str, Any]) -> None:
+    def __init__(self, cfg: Mapping[str, Any], fmt: Formatter | None = None) -> None:
         self.cfg = cfg
         self.name: str = cfg["name"]
         self.part: str = cfg["part"]
         self.channel: str = cfg["channel"]
+        self.fmt: Formatter = fmt or plain_format
 
     @classmethod
     def normalize(cls, cfg: Mapping[str, Any], xu: str, yu: str, where: str) -> dict[str, Any]:
         raise NotImplementedError
 
-    def evaluate(self, x: np.ndarray, y: np.ndarray) -> Verdict:
+    def check(self, x: np.ndarray, y: np.ndarray) -> Check:
         raise NotImplementedError
 
+    def evaluate(self, x: np.ndarray, y: np.ndarray) -> Verdict:
+        """``(ok, reason, process values)`` of the curve part (x, y)."""
+        c = self.check(x, y)
+        return c.ok, c.reason, c.values
 
-def _side_reason(rule: str, entering: bool, inside_at_end: bool, sides: np.ndarray) -> str | None:
-    """Why the entry (``entering``) or exit violates ``rule``; None if it complies."""
-    verb, end, n = ("enters", "starts", len(sides)) if entering else ("leaves", "ends", len(sides))
-    if rule == "ignore":
-        return None
-    if rule == "none":
-        if not inside_at_end:
-            return f"curve must {end[:-1]} inside the window but {end} outside"
-        return None if n == 0 else f"curve {verb} the window although it must {end[:-1]} inside"
-    if inside_at_end:
-        return f"curve {end} inside the window; it must {verb[:-1]} through {rule}"
-    if n == 0:
-        return f"curve never {verb} the window"
-    if n > 1:
-        return f"curve {verb} the window {n} times (exactly once allowed)"
-    if rule != "any" and not sides[0][SIDES.index(rule)]:
-        through = "/".join(s for s, hit in zip(SIDES, sides[0]) if hit)
-        return f"curve {verb} through the {through} side, not through {rule}"
-    return None
+    # number formatting: X in the X channel's terms, Y in those of the element's channel
+    def _x(self, value: float) -> str:
+        return self.fmt("x", float(value))
+
+    def _y(self, value: float) -> str:
+        return self.fmt(self.channel, float(value))
+
+    def _pt(self, x: float, y: float) -> str:
+        return f"x = {self._x(x)}, y = {self._y(y)}"
+
+    @property
+    def _subject(self) -> str:
+        """What the element sees: the forward or return part, or the complete curve."""
+        return {"forward": "the forward part", "return": "the return part"}.get(self.part, "the curve")
 
 
 class _Region(Element):
@@ -71,7 +99,7 @@ class _Region(Element):
     values = ("x_entry", "y_entry", "x_exit", "y_exit")
     region: ConvexQuad
 
-    def evaluate(self, x: np.ndarray, y: np.ndarray) -> Verdict:
+    def check(self, x: np.ndarray, y: np.ndarray) -> Check:
         c = self.region.crossings(x, y)
         nan = math.nan
         vals = {"x_entry": float(c.entry_points[0, 0]) if len(c.entry_points) else nan,
@@ -79,16 +107,57 @@ class _Region(Element):
                 "x_exit": float(c.exit_points[-1, 0]) if len(c.exit_points) else nan,
                 "y_exit": float(c.exit_points[-1, 1]) if len(c.exit_points) else nan}
         entry, exit_, check = self.cfg["entry"], self.cfg["exit"], self.cfg.get("check")
-        reason = (_side_reason(entry, True, c.starts_inside, c.entry_sides)
-                  or _side_reason(exit_, False, c.ends_inside, c.exit_sides))
-        if reason is None and check is not None:
+        failed = (self._side(entry, True, c.starts_inside, c.entry_points, c.entry_sides, x[0], y[0])
+                  or self._side(exit_, False, c.ends_inside, c.exit_points, c.exit_sides, x[-1], y[-1]))
+        if failed is None and check is not None:
             axis = x if check[0] == "x" else y
             i = int(np.argmax(axis) if check.endswith("max") else np.argmin(axis))
             if not self.region.contains(x[i], y[i])[0]:
-                reason = f"{check} at (x={x[i]:.6g}, y={y[i]:.6g}) lies outside the {self.kind}"
-        if reason is None and entry == exit_ == "ignore" and check is None and not c.touched:
-            reason = f"curve does not pass through the {self.kind}"
-        return reason is None, reason or "", vals
+                value, where = ((self._x(x[i]), f"y = {self._y(y[i])}") if check[0] == "x"
+                                else (self._y(y[i]), f"x = {self._x(x[i])}"))
+                failed = (f"check {check}: {check.replace('_', ' ')} {value} at {where} lies "
+                          f"{self._outside(x[i], y[i])}", (float(x[i]), float(y[i])))
+        if failed is None and entry == exit_ == "ignore" and check is None and not c.touched:
+            failed = (f"{self._subject} does not pass through the {self.kind}", None)
+        if failed is None:
+            return Check(True, "", vals)
+        return Check(False, failed[0], vals, failed[1])
+
+    def _side(self, rule: str, entering: bool, inside_at_end: bool, points: np.ndarray, sides: np.ndarray,
+              x_end: float, y_end: float) -> tuple[str, tuple[float, float] | None] | None:
+        """Why the entry (``entering``) or exit violates ``rule`` and where; None if it complies. ``x_end``,
+        ``y_end``: the curve's first (entry) or last (exit) pair."""
+        if rule == "ignore":
+            return None
+        tag = f"{'entry' if entering else 'exit'} {rule}"
+        verb, past, end = ("enter", "entered", "start") if entering else ("leave", "exited", "end")
+        kind, n, who = self.kind, len(points), self._subject
+        first = (float(points[0, 0]), float(points[0, 1])) if n else None
+        end_pt = (float(x_end), float(y_end))
+        if rule == "none":
+            if not inside_at_end:
+                return f"{tag}: {who} must {end} inside the {kind} but {end}s outside, at {self._pt(*end_pt)}", end_pt
+            if n:
+                return (f"{tag}: {who} {past} the {kind} at {self._pt(*first)}; it must {end} inside and never "
+                        f"{verb} it"), first
+            return None
+        through = "any side" if rule == "any" else f"the {rule}"
+        if inside_at_end:
+            return f"{tag}: {who} {end}s inside the {kind}, at {self._pt(*end_pt)}; it must {verb} through {through}", end_pt
+        if n == 0:
+            return f"{tag}: {who} never {'enters' if entering else 'leaves'} the {kind}", None
+        if n > 1:
+            at = "; ".join(self._pt(px, py) for px, py in points[:3]) + ("; …" if n > 3 else "")
+            return f"{tag}: {who} {past} the {kind} {n} times (exactly once allowed), at {at}", first
+        if rule != "any" and not sides[0][SIDES.index(rule)]:
+            used = "/".join(side for side, hit in zip(SIDES, sides[0]) if hit)
+            return f"{tag}: {past} through the {used} side at {self._pt(*first)}, not through the {rule}", first
+        return None
+
+    def _outside(self, px: float, py: float) -> str:
+        """Which sides of the region the point (px, py) lies beyond."""
+        beyond = self.region._signed(np.array([px]), np.array([py]))[:, 0] < 0.0
+        return f"beyond the {'/'.join(s for s, b in zip(SIDES, beyond) if b)} side of the {self.kind}"
 
 
 class Window(_Region):
@@ -97,10 +166,19 @@ class Window(_Region):
     kind = "window"
     keys = ("x_min", "x_max", "y_min", "y_max", "entry", "exit", "check")
 
-    def __init__(self, cfg: Mapping[str, Any]) -> None:
-        super().__init__(cfg)
+    def __init__(self, cfg: Mapping[str, Any], fmt: Formatter | None = None) -> None:
+        super().__init__(cfg, fmt)
         x0, x1, y0, y1 = cfg["x_min"], cfg["x_max"], cfg["y_min"], cfg["y_max"]
         self.region = ConvexQuad([(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
+
+    def _outside(self, px: float, py: float) -> str:
+        c = self.cfg
+        parts = [text for bad, text in (
+            (px < c["x_min"], f"left of the window (x min {self._x(c['x_min'])})"),
+            (px > c["x_max"], f"right of the window (x max {self._x(c['x_max'])})"),
+            (py < c["y_min"], f"below the window (y min {self._y(c['y_min'])})"),
+            (py > c["y_max"], f"above the window (y max {self._y(c['y_max'])})")) if bad]
+        return " and ".join(parts) or "outside the window"
 
     @classmethod
     def normalize(cls, cfg: Mapping[str, Any], xu: str, yu: str, where: str) -> dict[str, Any]:
@@ -122,8 +200,8 @@ class Trapezoid(_Region):
     kind = "trapezoid"
     keys = ("axis", "start", "end", "lower", "upper", "entry", "exit", "check")
 
-    def __init__(self, cfg: Mapping[str, Any]) -> None:
-        super().__init__(cfg)
+    def __init__(self, cfg: Mapping[str, Any], fmt: Formatter | None = None) -> None:
+        super().__init__(cfg, fmt)
         s, e, (l0, l1), (u0, u1) = cfg["start"], cfg["end"], cfg["lower"], cfg["upper"]
         # corners counter-clockwise: bottom-left, bottom-right, top-right, top-left
         corners = [(s, l0), (e, l1), (e, u1), (s, u0)] if cfg["axis"] == "y" else [(l0, s), (u0, s), (u1, e), (l1, e)]
@@ -177,8 +255,9 @@ class Threshold(Element):
                 "direction": checks.choice(cfg, "direction", ("rising", "falling", "any"), where, "rising"),
                 "range": [lo, hi]}
 
-    def evaluate(self, x: np.ndarray, y: np.ndarray) -> Verdict:
-        a, b = (y, x) if self.cfg["axis"] == "y" else (x, y)
+    def check(self, x: np.ndarray, y: np.ndarray) -> Check:
+        axis = self.cfg["axis"]
+        a, b = (y, x) if axis == "y" else (x, y)
         v, direction = self.cfg["value"], self.cfg["direction"]
         a0, a1 = a[:-1], a[1:]
         rising, falling = (a0 < v) & (a1 >= v), (a0 > v) & (a1 <= v)
@@ -192,11 +271,23 @@ class Threshold(Element):
         if hi is not None:
             ok &= at <= hi
         if ok.any():
-            return True, "", {"at": float(at[ok][0])}
-        other = "x" if self.cfg["axis"] == "y" else "y"
-        where = "" if (lo, hi) == (None, None) else f" with {other} in [{lo}, {hi}]"
-        found = f"; crossings at {np.round(at, 9).tolist()[:3]} are outside the range" if len(at) else ""
-        return False, f"curve never crosses {self.cfg['axis']} = {v:g} {direction}{where}{found}", {"at": math.nan}
+            return Check(True, "", {"at": float(at[ok][0])})
+        other = "x" if axis == "y" else "y"
+        fa, fb = (self._y, self._x) if axis == "y" else (self._x, self._y)
+        where = "" if (lo, hi) == (None, None) else \
+            f" with {other} in [{'…' if lo is None else fb(lo)}, {'…' if hi is None else fb(hi)}]"
+        reason = f"{self._subject} never crosses {axis} = {fa(v)} {direction}{where}"
+        if len(at):
+            point = (float(at[0]), float(v)) if axis == "y" else (float(v), float(at[0]))
+            reason += f"; it crosses at {other} = {', '.join(fb(c) for c in at[:3])}, outside the range"
+        else:
+            inside = np.ones(a.shape, bool) if (lo, hi) == (None, None) else \
+                ((b >= lo) if lo is not None else True) & ((b <= hi) if hi is not None else True)
+            pool = np.flatnonzero(inside) if np.any(inside) else np.arange(a.size)
+            i = int(pool[np.argmin(np.abs(a[pool] - v))])
+            point = (float(x[i]), float(y[i]))
+            reason += f"; closest {axis} = {fa(a[i])} at {other} = {fb(b[i])}"
+        return Check(False, reason, {"at": math.nan}, point)
 
 
 class Envelope(Element):
@@ -206,8 +297,8 @@ class Envelope(Element):
     kind = "envelope"
     keys = ("references", "dx", "dy")
 
-    def __init__(self, cfg: Mapping[str, Any]) -> None:
-        super().__init__(cfg)
+    def __init__(self, cfg: Mapping[str, Any], fmt: Formatter | None = None) -> None:
+        super().__init__(cfg, fmt)
         self.grid, self.lower, self.upper = envelope_band(
             [(np.asarray(r["x"]), np.asarray(r["y"])) for r in cfg["references"]], cfg["dx"], cfg["dy"])
 
@@ -235,17 +326,19 @@ class Envelope(Element):
         return {"references": out_refs, "dx": checks.number(cfg, "dx", xu, where, 0.0, minimum=0.0),
                 "dy": checks.number(cfg, "dy", yu, where, 0.0, minimum=0.0)}
 
-    def evaluate(self, x: np.ndarray, y: np.ndarray) -> Verdict:
+    def check(self, x: np.ndarray, y: np.ndarray) -> Check:
         lo = np.interp(x, self.grid, self.lower, left=np.nan, right=np.nan)
         hi = np.interp(x, self.grid, self.upper, left=np.nan, right=np.nan)
         bad = ~((y >= lo) & (y <= hi))
         if not bad.any():
-            return True, "", {}
+            return Check(True)
         i = int(np.argmax(bad))
+        at = (float(x[i]), float(y[i]))
         if np.isnan(lo[i]) or np.isnan(hi[i]):
-            return False, f"pair {i} (x={x[i]:.6g}) lies outside the envelope's X range", {}
+            return Check(False, f"pair {i} at x = {self._x(x[i])} lies outside the envelope's X range", at=at)
         side = "above" if y[i] > hi[i] else "below"
-        return False, f"pair {i} (x={x[i]:.6g}, y={y[i]:.6g}) lies {side} the envelope [{lo[i]:.6g}, {hi[i]:.6g}]", {}
+        return Check(False, f"pair {i} at {self._pt(x[i], y[i])} lies {side} the envelope "
+                            f"[{self._y(lo[i])}, {self._y(hi[i])}]", at=at)
 
 
 def _window_extreme(values: np.ndarray, lo: np.ndarray, hi: np.ndarray, ufunc: np.ufunc, empty: float) -> np.ndarray:
@@ -308,9 +401,10 @@ def normalize_elements(items: Any, units: Mapping[str, str], where: str) -> list
     return out
 
 
-def build_elements(configs: list[dict[str, Any]]) -> list[Element]:
-    """Element objects for the enabled elements of a normalised list."""
+def build_elements(configs: list[dict[str, Any]], fmt: Formatter | None = None) -> list[Element]:
+    """Element objects for the enabled elements of a normalised list; ``fmt`` writes the numbers of their
+    reasons (default: without units, see :func:`unit_format`)."""
     try:
-        return [ELEMENT_KINDS[c["kind"]](c) for c in configs if c["enabled"]]
+        return [ELEMENT_KINDS[c["kind"]](c, fmt) for c in configs if c["enabled"]]
     except ValueError as exc:
         raise DigiForceError(f"elements: {exc}") from None

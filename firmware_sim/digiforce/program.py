@@ -3,6 +3,8 @@
 A program is a JSON-serialisable dict (see docs/digiforce.md). Quantities are SI numbers or strings
 with units (``"2 mm"``); X values are in the X channel's engineering unit, Y values in the Y one's.
 :func:`validate_program` returns the complete, normalised program (all numbers in SI).
+:func:`check_units` is the stricter check of a program a person wrote (a scene's ``[device.config]``):
+there every quantity carries its unit.
 """
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ from rig.units import ureg
 
 from . import checks
 from .description import Description
-from .curve import process_value_names
+from .curve import process_value_units
 from .elements import normalize_elements
 from .errors import DigiForceError
 
@@ -118,17 +120,20 @@ def _trigger(cfg: Any, modes: tuple[str, ...], units: Mapping[str, str], where: 
     return out
 
 
-def _limits(cfg: Any, names: set[str], where: str) -> dict[str, list[float | None]]:
+def _limits(cfg: Any, units: Mapping[str, str], where: str) -> dict[str, list[float | None]]:
+    """``{process value: [lower, upper]}``, each bound a quantity in the value's unit (``units``; X values in
+    the X channel's unit, Y values in the Y one's, ``duration`` in s, ``pairs`` a pure number)."""
     if not isinstance(cfg, Mapping):
         raise DigiForceError(f"{where}: expected a table/dict of [lower, upper] pairs, got {cfg!r}")
     out = {}
     for key, pair in cfg.items():
-        if key not in names:
+        if key not in units:
             raise DigiForceError(f"{where}: {key!r} is not a process value of this program "
-                                 f"(known: {', '.join(sorted(names))})")
-        if not isinstance(pair, (list, tuple)) or len(pair) != 2 or pair == [None, None]:
+                                 f"(known: {', '.join(sorted(units))})")
+        if not isinstance(pair, (list, tuple)) or len(pair) != 2 or list(pair) == [None, None]:
             raise DigiForceError(f"{where}.{key}: expected [lower, upper] (one may be null), got {pair!r}")
-        lo, hi = (None if v is None else checks.quantity(v, "1", f"{where}.{key}") for v in pair)
+        lo, hi = (None if v is None else checks.quantity(v, units[key], f"{where}.{key} ({side})")
+                  for v, side in zip(pair, ("lower", "upper")))
         if lo is not None and hi is not None and not lo < hi:
             raise DigiForceError(f"{where}.{key}: lower limit {lo} must be below upper limit {hi}")
         out[key] = [lo, hi]
@@ -207,6 +212,30 @@ def validate_program(cfg: Any, desc: Description, where: str = "program") -> dic
         raise DigiForceError(f"{w}.y_threshold: only used with mode 'y_threshold', not {r_mode!r}")
 
     elements = normalize_elements(cfg.get("elements", []), units, f"{where}.elements")
-    limits = _limits(cfg.get("limits", {}), process_value_names(elements, "y2" in units), f"{where}.limits")
+    limits = _limits(cfg.get("limits", {}), process_value_units(elements, units), f"{where}.limits")
     return {"name": name, "channels": channels, "control": control, "sampling": sampling, "reference": reference,
             "elements": elements, "limits": limits}
+
+
+def _mark_si(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {k: _mark_si(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_mark_si(v) for v in value]
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return checks.NormalisedSI(value)
+    return value
+
+
+def check_units(base: Mapping[str, Any], config: Mapping[str, Any], desc: Description, where: str = "program") -> None:
+    """Refuse a bare number where ``config`` (written by a person, e.g. a scene's ``[device.config]``) needs a
+    quantity: ``limits.x_max = [0.0415, 0.0425]`` is an error naming ``limits.x_max``, ``["41.5 mm", "42.5 mm"]``
+    is right. ``base``: the normalised program ``config`` is merged over (its SI numbers are the unit's own).
+    Other problems are left to :func:`validate_program` (the full check that follows)."""
+    with checks.units_required():
+        try:
+            validate_program(merge(_mark_si(base), config), desc, where)
+        except checks.MissingUnitError:
+            raise
+        except DigiForceError:
+            pass

@@ -9,12 +9,14 @@ from .curve import Curve, nan_to_none
 
 @dataclass(frozen=True)
 class ElementResult:
-    """Verdict of one evaluation element; ``reason`` is empty when it passed."""
+    """Verdict of one evaluation element; ``reason`` (which rule failed and where) is empty when it passed;
+    ``at``: the (x, y) where it failed, when there is such a point (not part of :meth:`to_dict`)."""
 
     name: str
     kind: str
     ok: bool
-    reason: str
+    reason: str = ""
+    at: tuple[float, float] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "kind": self.kind, "ok": self.ok, "reason": self.reason}

@@ -1,4 +1,9 @@
-"""CSV export of curves and results for spreadsheets (long format, SI units, comma-separated)."""
+"""CSV export of curves and results for spreadsheets (comma-separated, UTF-8).
+
+Values are in the display units (rig.analysis.units), and every column that holds a quantity names its
+unit in brackets (``x [mm]``, ``y_min [N]``, ``t [s]``, ``angle [deg]``; ASCII unit names). Without
+display units the values are SI and the brackets say so.
+"""
 from __future__ import annotations
 
 import csv
@@ -8,35 +13,76 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from rig.analysis.sets import process_values
+from rig.analysis.sets import missing_values, process_values
+from rig.analysis.units import DisplayUnits, Unit, unit
 from rig.recorder import CurveRecord
 
-
-def _cells(values: np.ndarray) -> list[str]:
-    """Shortest round-trip text of each value (``repr``), empty for NaN."""
-    return [repr(v) if v == v else "" for v in values.tolist()]
+NO_REASON = "NOK: the device named no failing element"
 
 
-def export_curves(curves: Sequence[CurveRecord], path: Path) -> Path:
-    """One row per sample: curve, program, i, t, x, y, angle (empty when not measured)."""
-    with open(path, "w", newline="") as f:
+def _cells(values: np.ndarray, digits: int = 9) -> list[str]:
+    """Each value to ``digits`` significant digits (more than the float32 / 20-bit resolution the curves
+    cross the bus with), empty for NaN."""
+    form = f"%.{digits}g"
+    return [form % v if v == v else "" for v in values.tolist()]
+
+
+def column(name: str, u: Unit) -> str:
+    """``name [unit]``; a pure number keeps its bare name."""
+    return f"{name} [{u.ascii}]" if u.ascii else name
+
+
+def _units_of(units: DisplayUnits | Mapping[int, DisplayUnits] | None, program: int) -> DisplayUnits:
+    if isinstance(units, DisplayUnits):
+        return units
+    if units and program in units:
+        return units[program]
+    if units:
+        return next(iter(units.values()))
+    return DisplayUnits({"x": unit("m", "m"), "y": unit("N", "N")})
+
+
+def export_curves(curves: Sequence[CurveRecord], path: Path,
+                  units: DisplayUnits | Mapping[int, DisplayUnits] | None = None) -> Path:
+    """One row per sample: curve, program, i, t, x, y, cam angle (empty when not measured), in the display
+    units of the first curve's program (``units``: one DisplayUnits or one per program)."""
+    du = _units_of(units, curves[0].program if curves else 0)
+    ux, uy, ua, ut = du.channel("x"), du.channel("y"), du.of("rad"), du.of("s")
+    with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["curve", "program", "i", "t_s", "x", "y", "angle_rad"])
+        w.writerow(["curve", "program", "i", column("t", ut), column("x", ux), column("y", uy), column("angle", ua)])
         for c in curves:
-            angle = _cells(c.angle) if c.angle is not None else [""] * c.t.size
-            w.writerows(zip(repeat(c.number), repeat(c.program), range(c.t.size), _cells(c.t), _cells(c.x),
-                            _cells(c.y), angle))
+            angle = _cells(ua(c.angle)) if c.angle is not None else [""] * c.t.size
+            w.writerows(zip(repeat(c.number), repeat(c.program), range(c.t.size), _cells(ut(c.t), 12), _cells(ux(c.x)),
+                            _cells(uy(c.y)), angle))
     return path
 
 
-def export_results(results: Sequence[Mapping], path: Path) -> Path:
-    """One row per curve: number, program, ok, failed elements, then every process value."""
+def reason_text(result: Mapping) -> str:
+    """Why a result is NOK: ``element: reason`` of each failed element, ``; ``-separated; never empty for a
+    NOK result (a failed element without a reason, or a NOK without a failed element, says so)."""
+    failed = [e for e in result.get("elements", []) if not e.get("ok", True)]
+    text = "; ".join(f"{e.get('name')}: {e.get('reason') or 'no reason recorded'}" for e in failed)
+    if not text and not result.get("ok", True):
+        text = NO_REASON
+    return text
+
+
+def export_results(results: Sequence[Mapping], path: Path,
+                   units: DisplayUnits | Mapping[int, DisplayUnits] | None = None) -> Path:
+    """One row per curve: number, program, ok, failed elements, the reason (non-empty for every NOK row),
+    complete (1/0) and the process values that did not arrive, then every process value in its display unit (``units``: one DisplayUnits or one per program)."""
     table = process_values(results)
-    with open(path, "w", newline="") as f:
+    du = _units_of(units, int(results[0].get("program", 0)) if results else 0)
+    shown = {name: du.value(name) for name in table}
+    with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["curve", "program", "ok", "failed_elements", *table])
+        w.writerow(["curve", "program", "ok", "failed_elements", "reason", "complete", "missing",
+                    *(column(name, shown[name]) for name in table)])
         for i, r in enumerate(results):
             failed = ";".join(str(e.get("name")) for e in r.get("elements", []) if not e.get("ok", True))
-            w.writerow([r.get("number"), r.get("program"), int(bool(r["ok"])), failed,
-                        *("" if np.isnan(v[i]) else repr(float(v[i])) for v in table.values())])
+            missing = missing_values(r)
+            w.writerow([r.get("number"), r.get("program"), int(bool(r["ok"])), failed, reason_text(r),
+                        int(r.get("complete", True) is not False), ";".join(missing),
+                        *("" if np.isnan(v[i]) else "%.10g" % shown[name](float(v[i])) for name, v in table.items())])
     return path

@@ -8,9 +8,10 @@ from __future__ import annotations
 from typing import Mapping
 
 import numpy as np
-from scipy import interpolate, optimize, signal
+from scipy import interpolate, signal
 
 _RESCAN = 10   # steps around the correlation peak re-examined by RMS
+_FINE = 4      # sub-steps per step of the final RMS grid
 
 
 def _increasing(s: np.ndarray, what: str) -> None:
@@ -34,7 +35,8 @@ def estimate_lag(s_ref: np.ndarray, ref: np.ndarray, s: np.ndarray, meas: np.nda
     Both signals are resampled on a common uniform grid (finest of the two steps) over their common
     range; the integer-step peak of the cross-correlation (|lag| ≤ ``max_lag``, default half the
     range) is refined below one step by minimising the RMS of ``meas(s) − ref(s − lag)`` with a cubic
-    spline of the reference.
+    spline of the reference (on a grid of a quarter step, then the parabola through the lowest point:
+    the mean square is smooth in the lag).
     """
     s_ref, ref, s, meas = (np.asarray(a, dtype=float) for a in (s_ref, ref, s, meas))
     _increasing(s_ref, "theory")
@@ -54,15 +56,31 @@ def estimate_lag(s_ref: np.ndarray, ref: np.ndarray, s: np.ndarray, meas: np.nda
     k0 = int(k[ok][np.argmax(c[ok])])
     spline = interpolate.CubicSpline(s_ref, ref)
 
-    def cost(lag: float) -> float:
-        return _shifted_rms(s, meas, spline, s_ref[0], s_ref[-1], lag)
-
-    # the finite-window correlation peak can sit a few steps off: rescan nearby steps by RMS, then refine
+    # the finite-window correlation peak can sit a few steps off: rescan nearby steps by RMS (all at once),
+    # then refine
     ks = np.arange(k0 - _RESCAN, k0 + _RESCAN + 1)
-    k1 = int(ks[np.argmin([cost(k * step) for k in ks])])
-    res = optimize.minimize_scalar(cost, bounds=((k1 - 1) * step, (k1 + 1) * step), method="bounded",
-                                   options={"xatol": step * 1e-4})
-    return float(res.x)
+    k1 = int(ks[np.argmin(_shifted_rms_many(s, meas, spline, s_ref[0], s_ref[-1], ks * step))])
+    # below one step: the RMS on a grid of step/_FINE over [k1 − 1, k1 + 1] steps, then the vertex of the
+    # parabola through the lowest grid point and its neighbours
+    lags = (k1 + np.linspace(-1.0, 1.0, 2 * _FINE + 1)) * step
+    rms = _shifted_rms_many(s, meas, spline, s_ref[0], s_ref[-1], lags)
+    i = int(np.clip(np.argmin(rms), 1, lags.size - 2))
+    y0, y1, y2 = rms[i - 1:i + 2] ** 2
+    den = y0 - 2 * y1 + y2
+    h = lags[1] - lags[0]
+    shift = 0.5 * h * (y0 - y2) / den if den > 0 and np.isfinite(den) else 0.0
+    return float(lags[i] + np.clip(shift, -h, h))
+
+
+def _shifted_rms_many(s: np.ndarray, meas: np.ndarray, ref: interpolate.CubicSpline, lo: float, hi: float,
+                      lags: np.ndarray) -> np.ndarray:
+    """:func:`_shifted_rms` for several lags in one spline evaluation (inf where < 2 samples overlap)."""
+    shifted = s[None, :] - lags[:, None]
+    keep = (shifted >= lo) & (shifted <= hi)
+    err = np.where(keep, meas[None, :] - ref(np.clip(shifted, lo, hi)), 0.0)
+    n = keep.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n >= 2, np.sqrt(np.sum(err ** 2, axis=1) / np.maximum(n, 1)), np.inf)
 
 
 def compare_theory(t: np.ndarray, meas: np.ndarray, theory: Mapping[str, np.ndarray], signal_name: str = "y",

@@ -3,10 +3,14 @@
 Figures are plain :class:`matplotlib.figure.Figure` objects (no pyplot bookkeeping) with fixed margins
 in inches and fixed title heights: ``tight_layout`` or automatic title placement would draw every
 figure an extra time, which made report writing several times slower.
+
+Data come in SI and are drawn in display units (rig.analysis.units); every axis is labelled with its
+quantity and unit.
 """
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -14,67 +18,125 @@ import matplotlib
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from rig.analysis.elements_plot import draw_elements
+from rig.analysis.elements_plot import FAILED, draw_elements
+from rig.analysis.units import QUANTITY, DisplayUnits, Unit
 from rig.recorder import CurveRecord
 
 DPI = 90
-MARGINS = (0.8, 0.2, 0.55, 0.4)    # inches around the axes grid: left, right, bottom, top
+MARGINS = (0.85, 0.2, 0.55, 0.4)   # inches around the axes grid: left, right, bottom, top
 ENVELOPE_BUCKETS = 1500            # long signals are drawn as their min/max over this many time buckets
+OK_COLOR, NOK_COLOR = "tab:blue", FAILED
+REASON_LINE = 0.17                 # inches per line of reasons under a curve's panels
 
 
 def figure(nrows: int = 1, ncols: int = 1, size: tuple[float, float] = (7, 4.5), **kw: Any) -> tuple[Figure, Any]:
     """A figure (inches) and its axes like ``plt.subplots``, titles at a fixed height above the axes."""
-    with matplotlib.rc_context({"axes.titley": 1.0}):
+    with matplotlib.rc_context({"axes.titley": 1.0, "axes.formatter.useoffset": False}):
         fig = Figure(figsize=size)
         return fig, fig.subplots(nrows, ncols, **kw)
 
 
-def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3) -> Path:
-    """Place the axes with :data:`MARGINS` (spacing as fractions of an axes) and write the PNG."""
+def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3, bottom: float | None = None,
+         left: float | None = None) -> Path:
+    """Place the axes with :data:`MARGINS` (``bottom``/``left``: other margins in inches; spacing as fractions
+    of an axes) and write the PNG."""
     w, h = fig.get_size_inches()
-    left, right, bottom, top = MARGINS
+    m_left, right, m_bottom, top = MARGINS
+    left, bottom = m_left if left is None else left, m_bottom if bottom is None else bottom
     fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
                         wspace=wspace, hspace=hspace)
     fig.savefig(path, dpi=DPI)
     return path
 
 
+def _ticks(ax: Axes, x: int = 6, y: int = 6) -> None:
+    """At most ``x``/``y`` tick labels per axis (they never overlap at the figure sizes used here)."""
+    ax.xaxis.set_major_locator(MaxNLocator(x))
+    ax.yaxis.set_major_locator(MaxNLocator(y))
+
+
+def channel_label(units: DisplayUnits, ch: str) -> str:
+    """``"displacement X (mm)"``: what the channel measures, the channel and its display unit."""
+    u = units.channel(ch)
+    quantity = {"length": "displacement"}.get(QUANTITY.get(u.si, ""), QUANTITY.get(u.si, ""))
+    return u.axis(f"{quantity} {ch.upper()}".strip())
+
+
 def _style(bad: bool, single: bool) -> dict:
-    """Line style of a measured curve: NOK red, OK blue, faint when many curves overlap."""
-    return {"lw": 0.8, "color": "tab:red" if bad else "tab:blue", "alpha": 0.9 if bad or single else 0.5}
+    """Line style of a measured curve: NOK red, OK blue, faint when many curves overlap; a curve drawn
+    alone is dark (its failed elements are the red)."""
+    if single:
+        return {"lw": 0.9, "color": "0.15", "alpha": 0.95, "zorder": 4}
+    return {"lw": 1.0 if bad else 0.8, "color": NOK_COLOR if bad else OK_COLOR, "alpha": 0.95 if bad else 0.45,
+            "zorder": 4 if bad else 1}
 
 
-def _xy(ax: Axes, curves: Sequence[CurveRecord], elements: list, nok: set[int], units: tuple[str, str]) -> list[str]:
-    """Y over X of the curves (NOK red, on top) with the evaluation elements; notes on skipped elements."""
-    for c in sorted(curves, key=lambda c: c.number in nok):
-        ax.plot(c.x, c.y, **_style(c.number in nok, len(curves) == 1))
-    notes = draw_elements(ax, elements)
-    ax.set(xlabel=f"X ({units[0]})", ylabel=f"Y ({units[1]})")
+def _legend(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], theory: bool = False) -> None:
+    n_nok = sum(c.number in nok for c in curves)
+    handles = [Line2D([], [], color=OK_COLOR, lw=1.2, label=f"OK ({len(curves) - n_nok})")]
+    if n_nok:
+        handles.append(Line2D([], [], color=NOK_COLOR, lw=1.5, label=f"NOK ({n_nok})"))
+    if theory:
+        handles.append(Line2D([], [], color="k", ls="--", lw=0.8, label="theory"))
+    ax.legend(handles=handles, fontsize=7, loc="best", framealpha=0.85)
+
+
+def _joined(parts: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Several polylines as one, NaN between them: one artist instead of one per curve (fast to draw)."""
+    gap = np.array([np.nan])
+    xs = [a for x, _ in parts for a in (np.asarray(x, float), gap)]
+    ys = [a for _, y in parts for a in (np.asarray(y, float), gap)]
+    return (np.concatenate(xs), np.concatenate(ys)) if parts else (np.array([]), np.array([]))
+
+
+def _plot_groups(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], xy: Any) -> None:
+    """Draw ``xy(curve) -> (x, y)`` of the OK curves, then of the NOK ones on top, one artist each."""
+    single = len(curves) == 1
+    for bad in (False, True):
+        group = [xy(c) for c in curves if (c.number in nok) == bad]
+        if group:
+            ax.plot(*_joined(group), **_style(bad, single))
+
+
+def _xy(ax: Axes, curves: Sequence[CurveRecord], elements: list, nok: set[int], units: DisplayUnits,
+        failed: Mapping[str, str] | None = None, marks: Sequence[tuple[float, float]] = ()) -> list[str]:
+    """Y over X of the curves (NOK red, on top) with the evaluation elements (failed ones highlighted) and
+    the points where they failed (``marks``, SI); notes on skipped elements."""
+    ux, uy = units.channel("x"), units.channel("y")
+    _plot_groups(ax, curves, nok, lambda c: (ux(c.x), uy(c.y)))
+    notes = draw_elements(ax, elements, ux.factor, uy.factor, failed)
+    for x, y in marks:
+        ax.plot([ux(x)], [uy(y)], marker="X", ms=10, mfc=NOK_COLOR, mec="white", mew=1.0, zorder=6)
+    ax.set(xlabel=channel_label(units, "x"), ylabel=channel_label(units, "y"))
+    _ticks(ax)
     ax.grid(alpha=0.3)
     return notes
 
 
 def _theory_abscissa(curve: CurveRecord, axis: str) -> np.ndarray | None:
-    """Abscissa of the curve's Y theory: time since the curve start (s) or cam angle (deg); None if absent."""
+    """Abscissa of the curve's Y theory: time since the curve start (s) or cam angle (rad); None if absent."""
     if "y" not in curve.theory:
         return None
     if axis == "t":
         return curve.theory.get("t", curve.t) - curve.t[0]
-    angle = curve.theory.get("angle", curve.angle if "t" not in curve.theory else None)
-    return None if angle is None else np.degrees(angle)
+    return curve.theory.get("angle", curve.angle if "t" not in curve.theory else None)
 
 
-def _over(ax: Axes, curves: Sequence[CurveRecord], axis: str, nok: set[int], y_unit: str) -> None:
+def _over(ax: Axes, curves: Sequence[CurveRecord], axis: str, nok: set[int], units: DisplayUnits) -> None:
     """Measured Y (NOK red) and its theory (dashed) over time since the curve start or over cam angle."""
-    for c in sorted(curves, key=lambda c: c.number in nok):
-        s = c.t - c.t[0] if axis == "t" else np.degrees(c.angle)
-        ax.plot(s, c.y, **_style(c.number in nok, len(curves) == 1))
-        th = _theory_abscissa(c, axis)
-        if th is not None:
-            ax.plot(th, c.theory["y"], "--", lw=0.8, color="k", alpha=0.7 if len(curves) == 1 else 0.25)
-    ax.set(xlabel="time since curve start (s)" if axis == "t" else "cam angle (deg)", ylabel=f"Y ({y_unit})")
+    uy, ut, ua = units.channel("y"), units.of("s"), units.of("rad")
+    u = ut if axis == "t" else ua
+    _plot_groups(ax, curves, nok, lambda c: (u(c.t - c.t[0] if axis == "t" else c.angle), uy(c.y)))
+    theory = [(u(th), uy(c.theory["y"])) for c in curves if (th := _theory_abscissa(c, axis)) is not None]
+    if theory:
+        ax.plot(*_joined(theory), "--", lw=0.8, color="0.45" if len(curves) == 1 else "k",
+                alpha=0.9 if len(curves) == 1 else 0.25, zorder=5)
+    ax.set(xlabel=u.axis("time since curve start") if axis == "t" else u.axis("cam angle"),
+           ylabel=channel_label(units, "y"))
+    _ticks(ax)
     ax.grid(alpha=0.3)
 
 
@@ -84,54 +146,74 @@ def _axes_of(curves: Sequence[CurveRecord]) -> list[str]:
 
 
 def force_displacement(curves: Sequence[CurveRecord], elements: list, path: Path, title: str,
-                       nok: set[int] = frozenset(), units: tuple[str, str] = ("SI", "SI")) -> tuple[Path, list[str]]:
+                       nok: set[int] = frozenset(), units: DisplayUnits | None = None) -> tuple[Path, list[str]]:
     """Y over X of the curves (NOK in red, drawn on top) with the program's evaluation elements."""
-    fig, ax = figure(size=(7, 4.5))
+    units = units or DisplayUnits()
+    fig, ax = figure(size=(7.5, 4.8))
     notes = _xy(ax, curves, elements, nok, units)
-    ax.set_title(title)
+    _legend(ax, curves, nok)
+    ax.set_title(title, loc="left", fontsize=10)
     return save(fig, path), notes
 
 
 def signals_over(curves: Sequence[CurveRecord], path: Path, title: str, nok: set[int] = frozenset(),
-                 y_unit: str = "SI") -> Path:
+                 units: DisplayUnits | None = None) -> Path:
     """Y of all curves over time since each curve's start and over cam angle (if measured), theory dashed."""
+    units = units or DisplayUnits()
     axes = _axes_of(curves)
-    fig, axs = figure(1, len(axes), size=(5.5 * len(axes), 3.8), sharey=True, squeeze=False)
+    fig, axs = figure(1, len(axes), size=(5.6 * len(axes), 3.9), sharey=True, squeeze=False)
     for ax, axis in zip(axs[0], axes):
-        _over(ax, curves, axis, nok, y_unit)
-    axs[0, 0].set_title(title, loc="left")
+        _over(ax, curves, axis, nok, units)
+    axs[0, 0].set_title(title, loc="left", fontsize=10)
+    _legend(axs[0, -1], curves, nok, theory=any("y" in c.theory for c in curves))
     for ax in axs[0, 1:]:
         ax.set_ylabel("")
     return save(fig, path, wspace=0.08)
 
 
 def curve_panels(curve: CurveRecord, elements: list, path: Path, nok: set[int] = frozenset(),
-                 units: tuple[str, str] = ("SI", "SI")) -> Path:
-    """One curve: Y over X with the elements, Y over time and over cam angle (if measured) with theory."""
+                 units: DisplayUnits | None = None, failed: Mapping[str, str] | None = None,
+                 reasons: Sequence[str] = (), marks: Sequence[tuple[float, float]] = ()) -> Path:
+    """One curve: Y over X with the elements, Y over time and over cam angle (if measured) with theory.
+    A NOK curve: ``failed`` elements highlighted, ``marks`` (SI points) where they failed, ``reasons``
+    written under the panels."""
+    units = units or DisplayUnits()
     axes = _axes_of([curve])
-    fig, axs = figure(1, 1 + len(axes), size=(4.2 * (1 + len(axes)), 3.5), sharey=True, squeeze=False)
-    _xy(axs[0, 0], [curve], elements, nok, units)
+    width = 5.6 + 3.7 * len(axes)
+    lines = [line for r in reasons for line in textwrap.wrap(r, int(width * 15), subsequent_indent="    ")]
+    bottom = MARGINS[2] + (0.15 + REASON_LINE * len(lines) if lines else 0.0)
+    fig, axs = figure(1, 1 + len(axes), size=(width, 3.9 + bottom - MARGINS[2]), sharey=True, squeeze=False,
+                      gridspec_kw={"width_ratios": [1.5] + [1.0] * len(axes)})
+    _xy(axs[0, 0], [curve], elements, nok, units, failed, marks)
     for ax, axis in zip(axs[0, 1:], axes):
-        _over(ax, [curve], axis, nok, units[1])
+        _over(ax, [curve], axis, nok, units)
         ax.set_ylabel("")
-    verdict = "NOK" if curve.number in nok else "OK"
-    axs[0, 0].set_title(f"curve {curve.number} ({verdict})", loc="left")
-    return save(fig, path, wspace=0.08)
+    bad = curve.number in nok
+    axs[0, 0].set_title(f"curve {curve.number}: {'NOK' if bad else 'OK'}", loc="left", fontsize=10,
+                        fontweight="bold", color=NOK_COLOR if bad else "tab:green")
+    for i, line in enumerate(lines):
+        fig.text(MARGINS[0] / width, (bottom - MARGINS[2] - 0.05 - REASON_LINE * (i + 0.5)) / fig.get_figheight(),
+                 line, fontsize=8, color=NOK_COLOR if bad else "k", va="center", family="monospace")
+    return save(fig, path, wspace=0.08, bottom=bottom)
 
 
 def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
-    """Histogram of one process value with its limits (red), mean (black) and mean ± 3σ (dashed)."""
-    v = values[np.isfinite(values)]
+    """Histogram of one process value (SI ``values``; ``stats`` in display units with its ``factor``) with
+    its limits (red), mean (black) and mean ± 3σ (dashed)."""
+    v = values[np.isfinite(values)] * stats.get("factor", 1.0)
     ax.hist(v, bins=max(5, min(40, int(np.sqrt(v.size)) + 1)), color="tab:blue", alpha=0.7)
     for key, style in (("lsl", "r-"), ("usl", "r-"), ("minus_3sigma", "k--"), ("plus_3sigma", "k--"),
                        ("mean", "k-")):
         if stats.get(key) is not None:
-            ax.axvline(stats[key], color=style[0], ls=style[1:], lw=1)
+            ax.axvline(stats[key], color=style[0], ls=style[1:], lw=1.2 if style[0] == "r" else 1)
     unit = f" ({stats['unit']})" if stats.get("unit") else ""
-    ax.set_title(f"{stats['name']}: n={stats['n']}, Cp={_f(stats['cp'])}, Cpk={_f(stats['cpk'])}", fontsize=9)
+    cap = f", Cp {_f(stats['cp'])}, Cpk {_f(stats['cpk'])}" if stats.get("cp") is not None or \
+        stats.get("cpk") is not None else ""
+    ax.set_title(f"{stats['name']}: n = {stats['n']}{cap}", fontsize=9, loc="left")
     ax.set_xlabel(f"{stats['name']}{unit}", fontsize=9)
-    ax.xaxis.set_major_locator(MaxNLocator(5))
-    ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 4))
+    ax.xaxis.set_major_locator(MaxNLocator(4))
+    ax.yaxis.set_major_locator(MaxNLocator(4, integer=True))
+    ax.ticklabel_format(axis="x", style="plain", useOffset=False)
     ax.tick_params(labelsize=8)
 
 
@@ -140,14 +222,14 @@ def histograms(table: Mapping[str, np.ndarray], stats: Mapping[str, Mapping], pa
     names = list(stats)
     ncols = min(ncols, len(names))
     nrows = math.ceil(len(names) / ncols)
-    fig, axs = figure(nrows, ncols, size=(4.2 * ncols, 2.6 * nrows), squeeze=False)
+    fig, axs = figure(nrows, ncols, size=(4.3 * ncols, 2.7 * nrows), squeeze=False)
     for ax, name in zip(axs.flat, names):
         _histogram(ax, table[name], stats[name])
     for ax in axs[:, 0]:
         ax.set_ylabel("count")
     for ax in axs.flat[len(names):]:
         ax.set_visible(False)
-    return save(fig, path, wspace=0.3, hspace=0.75)
+    return save(fig, path, wspace=0.3, hspace=0.8, left=0.6)
 
 
 def envelope(t: np.ndarray, y: np.ndarray, buckets: int = ENVELOPE_BUCKETS) -> tuple[np.ndarray, np.ndarray]:
@@ -167,14 +249,69 @@ def envelope(t: np.ndarray, y: np.ndarray, buckets: int = ENVELOPE_BUCKETS) -> t
 
 
 def series(data: Mapping[str, np.ndarray], names: Sequence[str], path: Path, title: str, ylabel: str) -> Path:
-    """Several signals of a bulk series over time (for truth, transducers or extension sections)."""
+    """Several signals of a bulk series over time (for transducers or extension sections)."""
     fig, ax = figure(size=(7, 3.5))
     for n in names:
         ax.plot(*envelope(data["t"], data[n]), lw=0.8, label=n)
     ax.set(xlabel="t (s)", ylabel=ylabel, title=title)
+    _ticks(ax)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return save(fig, path)
+
+
+SCALE_SPLIT = 4.0     # signals of one unit whose ranges differ by more than this get separate axes
+
+
+def truth_groups(data: Mapping[str, np.ndarray], names: Sequence[str], units: DisplayUnits
+                 ) -> list[tuple[Unit, str, list[str]]]:
+    """Signals grouped by display unit, then split where their ranges differ by more than
+    :data:`SCALE_SPLIT` (a 9° follower swing is not drawn on the axis of a 360° cam angle):
+    ``[(unit, quantity, names)]`` in the order the units first appear."""
+    by_unit: dict[str, tuple[Unit, list[str]]] = {}
+    for n in names:
+        u = units.signal(n)
+        by_unit.setdefault(u.label, (u, []))[1].append(n)
+    out = []
+    for u, members in by_unit.values():
+        quantity = QUANTITY.get(u.si, "value")
+        span = {n: float(np.ptp(u(data[n]))) if data[n].size else 0.0 for n in members}
+        group: list[str] = []
+        for n in sorted(members, key=lambda n: -span[n]):
+            if group and span[n] * SCALE_SPLIT < span[group[0]]:
+                out.append((u, quantity, group))
+                group = []
+            group.append(n)
+        out.append((u, quantity, group))
+    return out
+
+
+def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Path, units: DisplayUnits,
+                 window: tuple[float, float] | None = None, title: str = "plant truth") -> Path:
+    """Plant truth signals over time, one axis per display unit (and per scale, :func:`truth_groups`),
+    stacked with a common time axis; ``window``: the time range shown (s)."""
+    t = data["t"]
+    keep = slice(None) if window is None else (t >= window[0]) & (t <= window[1])
+    shown = {n: np.asarray(data[n])[keep] for n in names}
+    tt = t[keep]
+    groups = truth_groups(shown, names, units)
+    fig, axs = figure(len(groups), 1, size=(8.5, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
+    for ax, (u, quantity, members) in zip(axs[:, 0], groups):
+        for n in members:
+            ax.plot(*envelope(tt, u(shown[n])), lw=0.9, label=n)
+        ax.set_ylabel(u.axis(quantity), fontsize=8)
+        lo, hi = ax.get_ylim()
+        if hi - lo < 1e-9 * max(1.0, abs(hi)):         # a constant signal: a readable band around it
+            mid = (hi + lo) / 2
+            ax.set_ylim(mid - 0.05 * max(abs(mid), 1e-9), mid + 0.05 * max(abs(mid), 1e-9))
+        ax.yaxis.set_major_locator(MaxNLocator(4))
+        ax.tick_params(labelsize=8)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right", ncols=min(4, len(members)), framealpha=0.85)
+    axs[-1, 0].set_xlabel(units.of("s").axis("time"))
+    axs[-1, 0].xaxis.set_major_locator(MaxNLocator(8))
+    axs[0, 0].set_title(title, loc="left", fontsize=10)
+    return save(fig, path, hspace=0.12, left=1.0)
 
 
 def _f(v: float | None) -> str:

@@ -1,8 +1,16 @@
-"""HTML or Markdown report of a recording: tables, PNG plots, CSV export; extensible by sections.
+"""HTML or Markdown report of a recording, laid out like an instrument's: the verdict first, details after.
 
-A *section* is a function ``(ctx: ReportContext) -> list[Block]``; it returns ``[]`` when it does not
-apply (e.g. no curves). Other modules add sections with :func:`register_section` (a clutch recording
-adds torque vs time, etc.).
+1. **Verdict**: n, OK/NOK, Cp/Cpk of every process value that has limits (limits and values in display
+   units), what failed and why (each NOK curve's failed elements with their reasons), warnings.
+2. **NOK curves**: one figure per NOK curve (up to ``nok_plots``, the count says how many of how many),
+   the failed elements drawn red and thick, labelled, and the points where they failed marked.
+3. Details: process values (table, histograms, host vs device statistics), all curves overlaid (NOK red on
+   top), individual OK curves only on demand (``ok_plots``), extension sections (clutch), theory vs
+   measurement, events, plant truth (one axis per quantity), the recording, exports (CSV).
+
+Numbers are shown in the display units (rig.analysis.units). A *section* is a function
+``(ctx: ReportContext) -> list[Block]``; it returns ``[]`` when it does not apply (e.g. no curves).
+Other modules add sections with :func:`register_section` (they go before the closing details).
 """
 from __future__ import annotations
 
@@ -18,8 +26,13 @@ from rig.analysis.device import agreement_text
 from rig.analysis.export import export_curves, export_results
 from rig.analysis.sets import by_program, process_values
 from rig.analysis.summary import analyse
+from rig.analysis.units import DisplayUnits, recording_units
 from rig.recorder import Recording, read_recording
 from rig.recorder.completeness import losses
+
+NOK_PLOTS = 12        # NOK curves plotted by default (the report says how many of how many)
+NOK_ROWS = 60         # rows of the "what failed and why" table (all of them are in results.csv)
+CAPABLE, MARGINAL = 1.33, 1.0
 
 
 @dataclass
@@ -31,12 +44,21 @@ class Heading:
 @dataclass
 class Text:
     text: str
+    kind: str = ""        # "", "warning" or "note": how the HTML shows it
+
+
+@dataclass
+class Banner:
+    """The verdict in one line, green (``ok``) or red."""
+    text: str
+    ok: bool
 
 
 @dataclass
 class Table:
     headers: list[str]
     rows: list[list[Any]]
+    collapsed: str | None = None     # HTML: folded away under this summary line (long tables)
 
 
 @dataclass
@@ -45,17 +67,19 @@ class Figure:
     caption: str
 
 
-Block = Heading | Text | Table | Figure
+Block = Heading | Text | Banner | Table | Figure
 
 
 @dataclass
 class ReportContext:
-    """What sections see: the recording, its analysis, the output directory and a figure counter."""
+    """What sections see: the recording, its analysis, the output directory, how many OK and NOK curves get
+    their own figure, and a figure counter."""
 
     recording: Recording
     analysis: dict
     out_dir: Path
-    max_curve_plots: int = 4
+    ok_plots: int = 0
+    nok_plots: int = NOK_PLOTS
     _count: list[int] = field(default_factory=lambda: [0])
 
     def figure_path(self, stem: str) -> Path:
@@ -65,14 +89,30 @@ class ReportContext:
     def figure(self, path: Path, caption: str) -> Figure:
         return Figure(path.relative_to(self.out_dir).as_posix(), caption)
 
+    def units(self, program: int) -> DisplayUnits:
+        """Display units of a program (from the analysis, else from the recording)."""
+        known = self.analysis.get("units") or {}
+        return known[program] if program in known else recording_units(self.recording, program)
+
+    @property
+    def nok(self) -> set[int]:
+        return {v["number"] for v in self.analysis["verdicts"] if not v["ok"]}
+
 
 Section = Callable[[ReportContext], list[Block]]
 SECTIONS: list[tuple[str, Section]] = []
+TAIL = ("theory", "events", "truth", "overview", "exports")     # closing details: extensions go before them
 
 
 def register_section(name: str, section: Section) -> None:
-    """Append a section to the default report (replacing one of the same name)."""
-    SECTIONS[:] = [(n, s) for n, s in SECTIONS if n != name] + [(name, section)]
+    """Add a section to the default report (replacing one of the same name): before the closing details
+    (:data:`TAIL`), or at its place in the tail for those."""
+    rest = [(n, s) for n, s in SECTIONS if n != name]
+    if name in TAIL:
+        SECTIONS[:] = rest + [(name, section)]
+        return
+    at = next((i for i, (n, _) in enumerate(rest) if n in TAIL), len(rest))
+    SECTIONS[:] = rest[:at] + [(name, section)] + rest[at:]
 
 
 def fmt(v: Any) -> str:
@@ -82,60 +122,186 @@ def fmt(v: Any) -> str:
     if isinstance(v, bool):
         return "yes" if v else "no"
     if isinstance(v, float):
-        return f"{v:.4g}"
+        return "—" if v != v else f"{v:.4g}"
     return str(v)
 
 
-# -- default sections ------------------------------------------------------------------------------
-def _complete(rec: Recording) -> str:
-    """The overview's ``complete`` cell: yes, or why not (truncated file, interrupted run)."""
-    if rec.complete:
-        return "yes"
-    return "no: " + ", ".join(why for why, applies in (("file truncated (run killed or file cut)", rec.truncated),
-                                                       (f"run interrupted ({rec.interrupted})", rec.interrupted))
-                              if applies)
+def _num(v: float | None, digits: int = 4) -> str:
+    return "—" if v is None or v != v else f"{v:.{digits}g}"
 
 
-def overview(ctx: ReportContext) -> list[Block]:
-    rec = ctx.recording
-    meta = rec.metadata.get("rig", {})
-    rows = [[k, v] for k, v in sorted(meta.items())]
-    rows += [["messages", rec.summary()], ["complete", _complete(rec)]]
-    blocks: list[Block] = [Heading("Recording", 2), Text(f"File: {rec.path}"), Table(["key", "value"], rows)]
-    lost = losses(rec)
-    if lost:
-        blocks += [Text("Warning: this recording is incomplete; the report shows what it holds."),
-                   Table(["what is incomplete or lost"], [[line] for line in lost])]
-    return blocks
+# -- 1. the verdict --------------------------------------------------------------------------------
+def _capability(cpk: float | None) -> str:
+    if cpk is None:
+        return "—"
+    return "capable" if cpk >= CAPABLE else "marginal" if cpk >= MARGINAL else "NOT capable"
+
+
+def _limits_text(v: dict) -> str:
+    lsl, usl, unit = v.get("lsl"), v.get("usl"), v.get("unit", "")
+    if lsl is not None and usl is not None:
+        text = f"{_num(lsl)} … {_num(usl)}"
+    elif lsl is not None:
+        text = f"≥ {_num(lsl)}"
+    else:
+        text = f"≤ {_num(usl)}"
+    return f"{text} {unit}".rstrip()
+
+
+def _capability_table(values: dict) -> Table | None:
+    rows = [[name, v["n"], _limits_text(v), f"{_num(v['mean'])} {v.get('unit', '')}".rstrip(),
+             f"{_num(v['std'], 3)} {v.get('unit', '')}".rstrip(), v["cp"], v["cpk"], _capability(v["cpk"])]
+            for name, v in values.items() if v.get("lsl") is not None or v.get("usl") is not None]
+    if not rows:
+        return None
+    return Table(["process value", "n", "limits", "mean", "σ", "Cp", "Cpk", f"Cpk ≥ {CAPABLE}"], rows)
+
+
+def _failures(ctx: ReportContext) -> tuple[list[list[Any]], int]:
+    """Rows of the "what failed and why" table (NOK or incomplete curves) and how many curves there are."""
+    rows, curves = [], 0
+    for v in ctx.analysis["verdicts"]:
+        if v["ok"] and v["complete"]:
+            continue
+        curves += 1
+        complete = _completeness(v)
+        failed = v["failed"] or ([{"name": "—", "reason": "the device named no failing element"}]
+                                 if not v["ok"] else [{"name": "", "reason": ""}])
+        for f in failed:
+            rows.append([v["number"], f["name"], f.get("reason") or ("no reason recorded" if not v["ok"] else ""),
+                         complete])
+    return rows, curves
 
 
 def _completeness(verdict: dict) -> str:
-    """Verdict-table cell: ``yes`` or the process values that did not arrive."""
+    """Table cell: ``yes`` or the process values that did not arrive."""
     return "yes" if verdict["complete"] else f"no, missing {', '.join(verdict['missing']) or '(not named)'}"
 
 
-def verdicts(ctx: ReportContext) -> list[Block]:
-    rows = [[v["number"], v["program"], "OK" if v["ok"] else "NOK",
-             "; ".join(f"{f['name']} ({f['reason']})" if f.get("reason") else str(f["name"]) for f in v["failed"]),
-             _completeness(v)]
-            for v in ctx.analysis["verdicts"]]
-    if not rows:
+def verdict(ctx: ReportContext) -> list[Block]:
+    a, rec = ctx.analysis, ctx.recording
+    verdicts = a["verdicts"]
+    if not verdicts and not rec.curves:
         return []
-    blocks: list[Block] = [Heading("Curves: OK / NOK")]
-    if ctx.analysis["incomplete"]:
-        blocks.append(Text(f"Warning: {len(ctx.analysis['incomplete'])} incomplete result(s); their missing "
-                           "process values are left out of the statistics, the values that arrived are used."))
-    return blocks + [Table(["curve", "program", "result", "failing elements", "complete"], rows)]
+    n, nok = len(verdicts), sum(not v["ok"] for v in verdicts)
+    names = {p: rec.programs.get(p, {}).get("name") for p in a["sets"]}
+    what = ", ".join(f"program {p}" + (f" “{names[p]}”" if names.get(p) else "") for p in a["sets"])
+    text = (f"OK: all {n} curves passed" if nok == 0 else f"NOK: {nok} of {n} curves failed, {n - nok} OK") + \
+        (f" ({what})" if what else "")
+    blocks: list[Block] = [Heading("Verdict"), Banner(text, nok == 0)]
+    for program, s in a["sets"].items():
+        table = _capability_table(s["values"])
+        label = f"program {program}" if len(a["sets"]) > 1 else "the process"
+        if table is not None:
+            blocks += [Text(f"Capability of {label} against the program's limits (Cp needs both limits; capable: "
+                            f"Cpk ≥ {CAPABLE}, marginal: {MARGINAL}…{CAPABLE}):"), table]
+        else:
+            blocks.append(Text(f"No limits in program {program}: no Cp/Cpk (set [device.config.limits])."))
+        by_element = ", ".join(f"{k} {v}×" for k, v in s["nok_by_element"].items())
+        if by_element:
+            blocks.append(Text(f"Failed elements, program {program}: {by_element}."))
+    rows, curves = _failures(ctx)
+    if rows:
+        shown = rows[:NOK_ROWS]
+        blocks += [Heading("What failed and why", 3),
+                   Table(["curve", "failed element", "reason", "complete"], shown)]
+        if len(shown) < len(rows):
+            blocks.append(Text(f"The first {len(shown)} of {len(rows)} rows ({curves} curves); results.csv has all "
+                               "of them.", "note"))
+    blocks += [Text(f"Warning: {w}", "warning") for w in _warnings(ctx)]
+    return blocks
 
 
-def _device_table(agreement: dict) -> list[Block]:
+def _warnings(ctx: ReportContext) -> list[str]:
+    a, out = ctx.analysis, []
+    lost = losses(ctx.recording)
+    if lost:
+        out.append("this recording is incomplete; the report shows what it holds: " + "; ".join(lost))
+    if a["incomplete"]:
+        out.append(f"{len(a['incomplete'])} incomplete result(s); their missing process values are left out of "
+                   "the statistics, the values that arrived are used")
+    for program, s in a["sets"].items():
+        out += [f"program {program}: {w}" if len(a["sets"]) > 1 else w for w in s["warnings"]]
+        agreement = s.get("device_agreement") or {}
+        if agreement.get("comparable") and not agreement.get("equal"):
+            out.append(f"device statistics: {agreement_text(agreement)}")
+    mismatches = a["events"].get("verdict_mismatch", 0)
+    if mismatches:
+        out.append(f"{mismatches} curve(s) whose re-evaluation on the host differs from the device's verdict "
+                   "(events verdict_mismatch); the device's verdict is shown")
+    return out
+
+
+# -- 2. NOK curves ---------------------------------------------------------------------------------
+def _elements(rec: Recording, program: int) -> list:
+    return rec.programs.get(program, {}).get("elements", [])
+
+
+def _failure_marks(ctx: ReportContext, curve: Any) -> list[tuple[float, float]]:
+    """Where the curve's failed elements failed (SI), from re-running the unit's evaluation on it."""
+    program = ctx.recording.programs.get(curve.program)
+    if not program or not program.get("elements"):
+        return []
+    try:
+        from firmware_sim.digiforce.evaluation import Reevaluation
+        verdicts = Reevaluation(program).verdicts(curve.t, curve.x, curve.y)
+    except Exception:  # a hand-made program the unit's code cannot evaluate: no marks
+        return []
+    return [v.at for v in verdicts if v is not None and not v.ok and v.at is not None]
+
+
+def _short_rule(reason: str) -> str:
+    """The rule part of a reason (``"exit top"`` of ``"exit top: …"``), for the label on the plot."""
+    head = reason.split(":", 1)[0]
+    return head if len(head) <= 24 and head != reason else "failed"
+
+
+def curve_figure(ctx: ReportContext, curve: Any, verdict_row: dict | None) -> Figure:
+    failed = {f["name"]: f.get("reason") or "" for f in (verdict_row or {}).get("failed", [])}
+    bad = curve.number in ctx.nok
+    path = plots.curve_panels(curve, _elements(ctx.recording, curve.program), ctx.figure_path(f"curve_c{curve.number}"),
+                              ctx.nok, ctx.units(curve.program), {k: _short_rule(r) for k, r in failed.items()},
+                              [f"{k}: {r}" for k, r in failed.items()],
+                              _failure_marks(ctx, curve) if bad else ())
+    if bad:
+        caption = f"Curve {curve.number}, NOK: " + (", ".join(f"{k} ({_short_rule(r)})" for k, r in failed.items())
+                                                   or "the device named no failing element") + \
+            " failed (why: under the plot; ✖ where)"
+    else:
+        caption = f"Curve {curve.number}, OK"
+    return ctx.figure(path, caption + ". Y over X with the evaluation elements (failed ones red), over time and "
+                                      "over cam angle (theory dashed).")
+
+
+def nok_curves(ctx: ReportContext) -> list[Block]:
+    rec = ctx.recording
+    nok = [c for c in rec.curves if c.number in ctx.nok]
+    if not nok:
+        return []
+    rows = {v["number"]: v for v in ctx.analysis["verdicts"]}
+    shown = nok[:ctx.nok_plots]
+    blocks: list[Block] = [Heading("NOK curves"),
+                           Text(f"{len(shown)} of {len(nok)} NOK curves plotted" +
+                                ("." if len(shown) == len(nok) else
+                                 f" (the first {len(shown)}; all are red in the overlay below and listed in "
+                                 "results.csv)."))]
+    return blocks + [curve_figure(ctx, c, rows.get(c.number)) for c in shown]
+
+
+# -- 3. details ------------------------------------------------------------------------------------
+def _device_table(agreement: dict, values: dict) -> list[Block]:
     """Host vs device n, mean and σ per compared process value (when the comparison was made)."""
     if not agreement["comparable"]:
         return []
-    rows = [[name, v["host"]["n"], v["device"]["n"], v["host"]["mean"], v["device"]["mean"], v["host"]["std"],
-             v["device"]["std"], ", ".join(v["differs"]) or "equal"] for name, v in agreement["values"].items()]
-    blocks: list[Block] = [Table(["value", "n host", "n device", "mean host", "mean device", "σ host", "σ device",
-                                  "agreement"], [[fmt(c) for c in r] for r in rows])]
+    rows = []
+    for name, v in agreement["values"].items():
+        f, unit = values.get(name, {}).get("factor", 1.0), values.get(name, {}).get("unit", "")
+        scale = (lambda x: None if x is None else x * f)
+        rows.append([name, unit, v["host"]["n"], v["device"]["n"], scale(v["host"]["mean"]),
+                     scale(v["device"]["mean"]), scale(v["host"]["std"]), scale(v["device"]["std"]),
+                     ", ".join(v["differs"]) or "equal"])
+    blocks: list[Block] = [Table(["value", "unit", "n host", "n device", "mean host", "mean device", "σ host",
+                                  "σ device", "agreement"], rows)]
     if agreement["device_only"]:
         blocks.append(Text(f"Kept by the device but not sent to the host (not compared): "
                            f"{', '.join(agreement['device_only'])}."))
@@ -150,16 +316,16 @@ def _values_table(values: dict) -> Table:
              v["trend"]["drift"]] for name, v in values.items()]
     return Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
                   "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
-                 [[fmt(c) for c in r] for r in rows])
+                 rows)
 
 
 def set_statistics(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = []
     for program, s in ctx.analysis["sets"].items():
-        blocks += [Heading(f"Set statistics, program {program}"),
+        blocks += [Heading(f"Process values, program {program}"),
                    Text(f"{s['n']} curves, {s['ok']} OK, {s['nok']} NOK, {s['incomplete']} incomplete; "
-                        f"NOK by element: {', '.join(f'{k}: {v}' for k, v in s['nok_by_element'].items()) or 'none'}")]
-        blocks += [Text(f"Warning: {w}") for w in s["warnings"]]
+                        f"NOK by element: {', '.join(f'{k}: {v}' for k, v in s['nok_by_element'].items()) or 'none'}"
+                        ". Values in the units the scene writes them in; limits, mean and ±3σ band in the same unit.")]
         if s["values"]:
             blocks.append(_values_table(s["values"]))
             table = process_values(by_program(ctx.recording.results)[program])
@@ -167,60 +333,78 @@ def set_statistics(ctx: ReportContext) -> list[Block]:
             blocks.append(ctx.figure(path, f"Program {program}: histogram of each process value with its limits "
                                            "(red), mean (black) and μ ± 3σ (dashed)"))
         agreement = s["device_agreement"]
-        blocks += [Text(f"Device statistics: {agreement_text(agreement)}")] + _device_table(agreement)
+        blocks += [Text(f"Device statistics: {agreement_text(agreement)}")] + _device_table(agreement, s["values"])
     return blocks
-
-
-def _elements(rec: Recording, program: int) -> list:
-    return rec.programs.get(program, {}).get("elements", [])
-
-
-def _units(rec: Recording, program: int) -> tuple[str, str]:
-    """Engineering units of the X and Y channels from the program config (``channels.<ch>.unit``)."""
-    channels = rec.programs.get(program, {}).get("channels", {})
-    return channels.get("x", {}).get("unit", "SI"), channels.get("y", {}).get("unit", "SI")
 
 
 def curves(ctx: ReportContext) -> list[Block]:
     rec = ctx.recording
     if not rec.curves:
         return []
-    nok = {v["number"] for v in ctx.analysis["verdicts"] if not v["ok"]}
-    blocks: list[Block] = [Heading("Curves")]
+    nok = ctx.nok
+    blocks: list[Block] = []
     for program in sorted({c.program for c in rec.curves}):
         chosen = [c for c in rec.curves if c.program == program]
-        units = _units(rec, program)
+        units = ctx.units(program)
+        n_nok = sum(c.number in nok for c in chosen)
+        title = f"program {program}: {len(chosen)} curves, {n_nok} NOK (red, on top)"
+        blocks.append(Heading(f"All curves, program {program}"))
         path, notes = plots.force_displacement(chosen, _elements(rec, program), ctx.figure_path(f"xy_p{program}"),
-                                               f"program {program}: {len(chosen)} curves (NOK red)", nok, units)
-        blocks.append(ctx.figure(path, f"Program {program}: Y over X with evaluation elements "
+                                               title, nok, units)
+        blocks.append(ctx.figure(path, f"Program {program}: Y over X with the evaluation elements "
                                        "(entry side green, exit side red dashed)"))
-        blocks += [Text(f"Note: {n}") for n in notes]
-        path = plots.signals_over(chosen, ctx.figure_path(f"ys_p{program}"),
-                                  f"program {program}: {len(chosen)} curves (NOK red)", nok, units[1])
+        blocks += [Text(f"Note: {n}", "note") for n in notes]
+        path = plots.signals_over(chosen, ctx.figure_path(f"ys_p{program}"), title, nok, units)
         blocks.append(ctx.figure(path, f"Program {program}: Y over time since each curve's start and over cam "
                                        "angle, all curves (NOK red), theory dashed"))
-    shown = sorted(rec.curves, key=lambda c: (c.number not in nok, c.number))[:ctx.max_curve_plots]
-    if len(shown) < len(rec.curves):
-        blocks.append(Text(f"Individual plots for {len(shown)} of {len(rec.curves)} curves (NOK first); "
-                           "the plots above show all of them."))
-    for c in sorted(shown, key=lambda c: c.number):
-        path = plots.curve_panels(c, _elements(rec, c.program), ctx.figure_path(f"curve_c{c.number}"), nok,
-                                  _units(rec, c.program))
-        blocks.append(ctx.figure(path, f"Curve {c.number}: Y over X with evaluation elements, over time and over "
-                                       "cam angle (theory dashed)"))
-    return blocks
+    ok = [c for c in rec.curves if c.number not in nok]
+    shown = ok[:ctx.ok_plots]
+    if ok:
+        blocks.append(Text(f"Individual plots of OK curves: {len(shown)} of {len(ok)}" +
+                           (" (more with --ok-plots N)." if len(shown) < len(ok) else "."), "note"))
+    rows = {v["number"]: v for v in ctx.analysis["verdicts"]}
+    return blocks + [curve_figure(ctx, c, rows.get(c.number)) for c in shown]
+
+
+def curve_table(ctx: ReportContext) -> list[Block]:
+    """Every curve's verdict, failed elements and completeness (folded away in HTML)."""
+    rows = [[v["number"], v["program"], "OK" if v["ok"] else "NOK",
+             "; ".join(f"{f['name']} ({f['reason']})" if f.get("reason") else str(f["name"]) for f in v["failed"]),
+             _completeness(v)]
+            for v in ctx.analysis["verdicts"]]
+    if not rows:
+        return []
+    return [Heading("Curve by curve"),
+            Table(["curve", "program", "result", "failing elements", "complete"], rows,
+                  collapsed=f"{len(rows)} curves: verdict, failed elements, completeness")]
 
 
 def theory(ctx: ReportContext) -> list[Block]:
-    rows = [[r["curve"], r["signal"], r.get("lag_time"), None if r.get("lag_angle") is None
-             else float(np.degrees(r["lag_angle"])), r.get("angle_method"), r.get("rms_before"), r.get("rms_after"),
-             r.get("peak_difference"), r.get("error")] for r in ctx.analysis["theory"]]
+    rows = ctx.analysis["theory"]
+    ok = [r for r in rows if r.get("lag_time") is not None]
     if not rows:
         return []
-    return [Heading("Theory vs measurement"),
-            Text("Lag > 0: the measurement is late. RMS deviation before and after removing the time lag."),
-            Table(["curve", "signal", "lag (s)", "lag (deg)", "angle method", "RMS before", "RMS after",
-                   "peak diff", "error"], [[fmt(c) for c in r] for r in rows])]
+    program = ctx.recording.curves[0].program if ctx.recording.curves else 0
+    units = ctx.units(program)
+    table = []
+    for signal in sorted({r["signal"] for r in ok}):
+        rs = [r for r in ok if r["signal"] == signal]
+        u = units.channel(signal)
+        lag = np.array([r["lag_time"] for r in rs]) * 1e3
+        angle = [np.degrees(r["lag_angle"]) for r in rs if r.get("lag_angle") is not None]
+        table.append([signal.upper(), len(rs), float(lag.mean()), f"{lag.min():.3g} … {lag.max():.3g}",
+                      float(np.mean(angle)) if angle else None, u.label,
+                      float(np.mean([u(r["rms_before"]) for r in rs])), float(np.mean([u(r["rms_after"]) for r in rs])),
+                      float(np.mean([u(r["peak_difference"]) for r in rs]))])
+    blocks: list[Block] = [Heading("Theory vs measurement"),
+                           Text("Lag > 0: the measurement is late. RMS deviation before and after removing the time "
+                                "lag, means over the curves."),
+                           Table(["signal", "curves", "mean lag (ms)", "lag range (ms)", "mean lag (°)", "unit",
+                                  "RMS before", "RMS after", "mean peak diff"], table)]
+    errors = [r for r in rows if r.get("error")]
+    if errors:
+        blocks.append(Text(f"Not compared for {len(errors)} curve/signal pair(s): {errors[0]['error']}", "note"))
+    return blocks
 
 
 def events(ctx: ReportContext) -> list[Block]:
@@ -228,28 +412,73 @@ def events(ctx: ReportContext) -> list[Block]:
     return [Heading("Events"), Table(["kind", "count"], [[k, v] for k, v in sorted(counts.items())])] if counts else []
 
 
+TRUTH_CYCLES = 3      # the plant truth chart shows this many machine cycles (the shapes stay visible)
+
+
+def _truth_window(rec: Recording, t: np.ndarray) -> tuple[tuple[float, float] | None, str]:
+    starts = np.array([c.t[0] for c in rec.curves]) if rec.curves else np.array([])
+    if starts.size > TRUTH_CYCLES and t.size:
+        period = float(np.median(np.diff(starts)))
+        end = float(starts[0] + TRUTH_CYCLES * period)
+        if end < t[-1]:
+            return (float(t[0]), end), (f"the first {end - t[0]:.3g} s of {t[-1] - t[0]:.3g} s "
+                                        f"(≈ {TRUTH_CYCLES} machine cycles of {period:.3g} s)")
+    return None, f"{t[-1] - t[0]:.3g} s" if t.size else ""
+
+
 def truth(ctx: ReportContext) -> list[Block]:
     data = ctx.recording.truth
     names = [n for n in data if n != "t"]
-    if not names:
+    if not names or not data["t"].size:
         return []
-    path = plots.series(data, names[:6], ctx.figure_path("truth"), "plant truth", "SI")
-    return [Heading("Plant truth"), ctx.figure(path, f"Plant truth signals ({', '.join(names[:6])})")]
+    program = ctx.recording.curves[0].program if ctx.recording.curves else next(iter(ctx.recording.programs), 0)
+    units = ctx.units(program)
+    if "cam_angle" in names and "phi" in names:
+        names.remove("phi")            # the unwrapped angle: a ramp that squeezes the wrapped one flat
+    window, span = _truth_window(ctx.recording, data["t"])
+    path = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window)
+    return [Heading("Plant truth"),
+            ctx.figure(path, f"Plant truth over {span}, one axis per quantity: {', '.join(names)}")]
+
+
+def overview(ctx: ReportContext) -> list[Block]:
+    rec = ctx.recording
+    meta = rec.metadata.get("rig", {})
+    rows = [[k, v] for k, v in sorted(meta.items())]
+    rows += [["messages", rec.summary()], ["complete", _complete(rec)]]
+    blocks: list[Block] = [Heading("Recording"), Text(f"File: {rec.path}"), Table(["key", "value"], rows)]
+    lost = losses(rec)
+    if lost:
+        blocks += [Text("Warning: this recording is incomplete; the report shows what it holds.", "warning"),
+                   Table(["what is incomplete or lost"], [[line] for line in lost])]
+    return blocks
+
+
+def _complete(rec: Recording) -> str:
+    """The overview's ``complete`` cell: yes, or why not (truncated file, interrupted run)."""
+    if rec.complete:
+        return "yes"
+    return "no: " + ", ".join(why for why, applies in (("file truncated (run killed or file cut)", rec.truncated),
+                                                       (f"run interrupted ({rec.interrupted})", rec.interrupted))
+                              if applies)
 
 
 def exports(ctx: ReportContext) -> list[Block]:
     rec = ctx.recording
+    units = ctx.analysis.get("units")
     files = []
     if rec.curves:
-        files.append(export_curves(rec.curves, ctx.out_dir / "curves.csv"))
+        files.append((export_curves(rec.curves, ctx.out_dir / "curves.csv", units),
+                      "one row per sample: curve, program, i, t, x, y, cam angle (units in the column names)"))
     if rec.results:
-        files.append(export_results(rec.results, ctx.out_dir / "results.csv"))
-    return [Heading("Exports"), Table(["file"], [[f.name] for f in files])] if files else []
+        files.append((export_results(rec.results, ctx.out_dir / "results.csv", units),
+                      "one row per curve: OK/NOK, failed elements and why, completeness, process values"))
+    return [Heading("Exports"), Table(["file", "contents"], [[f.name, what] for f, what in files])] if files else []
 
 
-for _name, _section in (("overview", overview), ("verdicts", verdicts), ("statistics", set_statistics),
-                        ("curves", curves), ("theory", theory), ("events", events), ("truth", truth),
-                        ("exports", exports)):
+for _name, _section in (("verdict", verdict), ("nok_curves", nok_curves), ("statistics", set_statistics),
+                        ("curves", curves), ("curve_table", curve_table), ("theory", theory), ("events", events), ("truth", truth),
+                        ("overview", overview), ("exports", exports)):
     register_section(_name, _section)
 
 
@@ -259,6 +488,8 @@ def _markdown(title: str, blocks: Sequence[Block]) -> str:
     for b in blocks:
         if isinstance(b, Heading):
             out += ["#" * b.level + " " + b.text, ""]
+        elif isinstance(b, Banner):
+            out += [f"**{b.text}**", ""]
         elif isinstance(b, Text):
             out += [b.text, ""]
         elif isinstance(b, Table):
@@ -269,20 +500,49 @@ def _markdown(title: str, blocks: Sequence[Block]) -> str:
     return "\n".join(out)
 
 
+STYLE = """
+body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;max-width:1240px;margin:1em auto;padding:0 1em;
+color:#1d1d1d;line-height:1.35}
+h1{font-size:1.45em;margin-bottom:.2em} h2{font-size:1.2em;border-bottom:2px solid #d8d8d8;padding-bottom:2px;
+margin-top:1.8em} h3{font-size:1.02em;margin:1.2em 0 .3em}
+.banner{font-size:1.45em;font-weight:700;padding:.45em .7em;border-radius:4px;margin:.4em 0 .8em}
+.ok{background:#e1f3df;color:#17631a;border-left:8px solid #2e9b33}
+.nok{background:#fde3e2;color:#9e1b1d;border-left:8px solid #d62728}
+.scroll{overflow-x:auto} table{border-collapse:collapse;font-size:.82em;margin:.4em 0 .8em}
+td,th{border:1px solid #cfcfcf;padding:2px 7px;vertical-align:top} th{background:#f2f2f2;text-align:left}
+td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap} td.bad{color:#b01c1e;font-weight:600}
+p.warning{color:#8a4b00;background:#fff5e0;padding:.2em .5em;border-left:4px solid #e59400}
+p.note{color:#555;font-size:.92em} figure{margin:.8em 0 1.2em} img{max-width:100%;height:auto}
+figcaption{font-size:.9em;color:#444} summary{cursor:pointer;color:#333;margin:.3em 0}
+"""
+
+
+def _cell(c: Any) -> str:
+    text = html.escape(fmt(c))
+    if isinstance(c, (int, float)) and not isinstance(c, bool):
+        return f"<td class='num'>{text}</td>"
+    if c in ("NOK", "NOT capable"):
+        return f"<td class='bad'>{text}</td>"
+    return f"<td>{text}</td>"
+
+
 def _html(title: str, blocks: Sequence[Block]) -> str:
     e = html.escape
     out = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{e(title)}</title>",
-           "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"
-           "font-size:small}td,th{border:1px solid #ccc;padding:2px 6px}</style></head><body>", f"<h1>{e(title)}</h1>"]
+           f"<style>{STYLE}</style></head><body>", f"<h1>{e(title)}</h1>"]
     for b in blocks:
         if isinstance(b, Heading):
             out.append(f"<h{b.level}>{e(b.text)}</h{b.level}>")
+        elif isinstance(b, Banner):
+            out.append(f"<div class='banner {'ok' if b.ok else 'nok'}'>{e(b.text)}</div>")
         elif isinstance(b, Text):
-            out.append(f"<p>{e(b.text)}</p>")
+            out.append(f"<p class='{b.kind}'>{e(b.text)}</p>" if b.kind else f"<p>{e(b.text)}</p>")
         elif isinstance(b, Table):
-            out.append("<table><tr>" + "".join(f"<th>{e(h)}</th>" for h in b.headers) + "</tr>")
-            out += ["<tr>" + "".join(f"<td>{e(fmt(c))}</td>" for c in r) + "</tr>" for r in b.rows]
-            out.append("</table>")
+            if b.collapsed:
+                out.append(f"<details><summary>{e(b.collapsed)}</summary>")
+            out.append("<div class='scroll'><table><tr>" + "".join(f"<th>{e(h)}</th>" for h in b.headers) + "</tr>")
+            out += ["<tr>" + "".join(_cell(c) for c in r) + "</tr>" for r in b.rows]
+            out.append("</table></div>" + ("</details>" if b.collapsed else ""))
         elif isinstance(b, Figure):
             out.append(f"<figure><img src='{e(b.path)}' alt='{e(b.caption)}'><figcaption>{e(b.caption)}"
                        "</figcaption></figure>")
@@ -290,23 +550,27 @@ def _html(title: str, blocks: Sequence[Block]) -> str:
 
 
 def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path, fmt: str = "html",
-                 sections: Sequence[tuple[str, Section]] | None = None, max_curve_plots: int = 4,
-                 analysis: dict | None = None) -> Path:
+                 sections: Sequence[tuple[str, Section]] | None = None, ok_plots: int = 0,
+                 nok_plots: int = NOK_PLOTS, analysis: dict | None = None) -> Path:
     """Write ``report.html`` or ``report.md`` with PNG plots and CSV files into ``out_dir``; return its path.
 
     ``analysis``: the :func:`analyse` result of this recording if the caller already has it (it is
-    computed here otherwise). ``max_curve_plots``: curves (NOK first) that get their own figure.
+    computed here otherwise). ``nok_plots``: NOK curves that get their own figure (in curve order);
+    ``ok_plots``: OK curves that do (none by default: OK curves are in the overlay).
     """
     if fmt not in ("html", "md"):
         raise ValueError(f"report format must be 'html' or 'md', got {fmt!r}")
+    if ok_plots < 0 or nok_plots < 0:
+        raise ValueError(f"numbers of curve plots must be >= 0, got ok_plots={ok_plots}, nok_plots={nok_plots}")
     rec = recording_or_path if isinstance(recording_or_path, Recording) else read_recording(recording_or_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = ReportContext(rec, analyse(rec) if analysis is None else analysis, out, max_curve_plots)
+    ctx = ReportContext(rec, analyse(rec) if analysis is None else analysis, out, ok_plots, nok_plots)
     blocks: list[Block] = []
     for _, section in (SECTIONS if sections is None else sections):
         blocks += section(ctx)
-    title = f"Rig report: {rec.path.name}"
+    scene = rec.metadata.get("rig", {}).get("scene")
+    title = f"Rig report: {rec.path.name}" + (f" (scene {scene})" if scene else "")
     path = out / f"report.{fmt}"
     path.write_text(_markdown(title, blocks) if fmt == "md" else _html(title, blocks), encoding="utf-8")
     return path

@@ -16,6 +16,7 @@ import numpy as np
 from rig.analysis.capability import MIN_SET_SIZE, describe
 from rig.analysis.normality import normality
 from rig.analysis.trend import trend
+from rig.analysis.units import DisplayUnits, Unit, display_units
 
 Limits = Mapping[str, tuple[float | None, float | None]]
 
@@ -54,16 +55,12 @@ def process_values(results: Sequence[Mapping]) -> dict[str, np.ndarray]:
     return {n: np.array([_value(r, n) for r in results]) for n in names}
 
 
-def value_units(program: Mapping | None) -> dict[str, str]:
-    """Units of the X and Y channels from a program config (``channels.<ch>.unit``): ``{"x": …, "y": …}``."""
-    channels = (program or {}).get("channels", {}) or {}
-    return {ch: channels.get(ch, {}).get("unit", "") for ch in ("x", "y")}
-
-
-def unit_of(name: str, units: Mapping[str, str]) -> str:
-    """Unit of a process value: s for ``duration``, else that of the channel its name starts with
-    (``x…``/``y…``, from :func:`value_units`); ``""`` when unknown."""
-    return "s" if name == "duration" else units.get(name[:1], "")
+def _display(units: DisplayUnits | Mapping[str, str] | None) -> DisplayUnits:
+    """Display units as given, or channel unit labels (``{"x": "m", "y": "N"}``: shown as they are)."""
+    if isinstance(units, DisplayUnits):
+        return units
+    labels = dict(units or {})
+    return DisplayUnits({ch: Unit(u, u, 1.0, u) for ch, u in labels.items()})
 
 
 def counts_warning(counts: Mapping[str, int]) -> str | None:
@@ -88,15 +85,23 @@ def limits_from_program(program: Mapping | None) -> dict[str, tuple[float | None
     return out
 
 
+def _scaled(limits: tuple[float | None, float | None] | None, u: Unit) -> tuple[float | None, float | None] | None:
+    return None if limits is None else (u(limits[0]), u(limits[1]))
+
+
 def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
-                   units: Mapping[str, str] | None = None) -> dict:
+                   units: DisplayUnits | Mapping[str, str] | None = None) -> dict:
     """Statistics of one set of curves (one program): counts, NOK per element, incomplete results, and
     per process value n (curves that contributed it), unit, mean/σ/min/max, ±3σ band, Cp/Cpk against
-    ``limits``, normality and trend checks.
+    ``limits`` (SI), normality and trend checks.
 
+    ``units``: the display units (rig.analysis.units.DisplayUnits): every value, limit and band is given
+    in its display unit (``unit``: its label, ``unit_ascii``, ``factor``: display = SI × factor), Cp and
+    Cpk do not depend on it; a plain ``{"x": "m", "y": "N"}`` only labels the SI values.
     A set with fewer than 50 curves carries a warning, and so do values of different n; values with
     < 3 finite entries get only that warning.
     """
+    du = _display(units)
     verdicts = curve_verdicts(results)
     nok_by_element = Counter(f["name"] for v in verdicts for f in v["failed"])
     warnings = []
@@ -113,11 +118,13 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
         if finite.size < 3:
             warnings.append(f"{name}: only {finite.size} finite values, no statistics")
             continue
-        entry = describe(v, (limits or {}).get(name), name)
-        entry["normality"] = normality(finite)
-        entry["trend"] = trend(finite)
+        u = du.value(name)
+        shown = u(v)
+        entry = describe(shown, _scaled((limits or {}).get(name), u), name)
+        entry["normality"] = normality(shown[np.isfinite(shown)])
+        entry["trend"] = trend(shown[np.isfinite(shown)])
         entry["warnings"] = [w for w in entry["warnings"] if "measurements" not in w]
-        entry["unit"] = unit_of(name, units or {})
+        entry.update(unit=u.label, unit_ascii=u.ascii, factor=u.factor)
         values[name] = entry
     return {"n": len(results), "ok": sum(v["ok"] for v in verdicts), "nok": sum(not v["ok"] for v in verdicts),
             "incomplete": sum(not v["complete"] for v in verdicts), "nok_by_element": dict(nok_by_element),
@@ -132,10 +139,13 @@ def by_program(results: Iterable[Mapping]) -> dict[int, list[Mapping]]:
     return dict(sorted(groups.items()))
 
 
-def statistics_by_program(results: Sequence[Mapping], programs: Mapping[int, Mapping] | None = None) -> dict[int, dict]:
-    """:func:`set_statistics` for each program number, limits and units from that program's config."""
-    programs = programs or {}
-    return {p: set_statistics(rs, limits_from_program(programs.get(p)), value_units(programs.get(p)))
+def statistics_by_program(results: Sequence[Mapping], programs: Mapping[int, Mapping] | None = None,
+                          units: Mapping[int, DisplayUnits] | None = None) -> dict[int, dict]:
+    """:func:`set_statistics` for each program number, limits from that program's config; display units
+    from ``units`` (by program) or else from the program alone (rig.analysis.units.display_units)."""
+    programs, units = programs or {}, units or {}
+    return {p: set_statistics(rs, limits_from_program(programs.get(p)),
+                              units.get(p) or display_units(programs.get(p)))
             for p, rs in by_program(results).items()}
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 from rig.analysis.device import device_agreement, final_snapshot
 from rig.analysis.lag import compare_theory
 from rig.analysis.sets import by_program, curve_verdicts, event_counts, incomplete_results, statistics_by_program
+from rig.analysis.units import DisplayUnits, recording_units
 from rig.recorder import CurveRecord, Recording
 
 
@@ -20,21 +21,30 @@ def theory_comparison(curve: CurveRecord) -> list[dict]:
     return out
 
 
-def program_sets(rec: Recording) -> dict[int, dict]:
-    """Set statistics per program, each with its ``device_agreement`` against the device's final snapshot."""
-    sets = statistics_by_program(rec.results, rec.programs)
+def program_units(rec: Recording) -> dict[int, DisplayUnits]:
+    """Display units of every program the recording has results, curves or a configuration of."""
+    numbers = {int(r.get("program", 0)) for r in rec.results} | {c.program for c in rec.curves} | set(rec.programs)
+    return {p: recording_units(rec, p) for p in sorted(numbers)}
+
+
+def program_sets(rec: Recording, units: dict[int, DisplayUnits] | None = None) -> dict[int, dict]:
+    """Set statistics per program (in display units), each with its ``device_agreement`` against the
+    device's final snapshot (in SI, as the device keeps it)."""
+    sets = statistics_by_program(rec.results, rec.programs, units if units is not None else program_units(rec))
     for program, results in by_program(rec.results).items():
         sets[program]["device_agreement"] = device_agreement(results, final_snapshot(rec.statistics, program))
     return sets
 
 
 def analyse(rec: Recording) -> dict:
-    """Verdicts per curve, incomplete results, statistics per program (with the device comparison),
-    theory vs measurement per curve, event counts."""
+    """Verdicts per curve, incomplete results, display units per program, statistics per program (with
+    the device comparison), theory vs measurement per curve, event counts."""
+    units = program_units(rec)
     return {
         "verdicts": curve_verdicts(rec.results),
         "incomplete": incomplete_results(rec.results),
-        "sets": program_sets(rec),
+        "units": units,
+        "sets": program_sets(rec, units),
         "theory": [row for c in rec.curves for row in theory_comparison(c)],
         "events": event_counts(rec.events),
         "device_statistics": rec.statistics[-1] if rec.statistics else None,

@@ -16,10 +16,14 @@ from drivers.can import CanHost
 from drivers.can.drain import drain_block
 from drivers.digiforce_serial import DigiForceClient
 from drivers.encoder import SpeedEstimator, counts_to_angle
+from firmware_sim.digiforce.description import load_description
+from firmware_sim.digiforce.program import default_program, merge, validate_program
+from rig.analysis.units import display_units
 from rig.blockbus import RX, FrameBlock
 from rig.recorder import Recorder
 from rig.runner.config import RunConfig
 from rig.runner.plants import make_plant
+from rig.runner.reasons import ResultExplainer
 
 
 DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
@@ -55,6 +59,7 @@ class Host:
         self.theory = make_plant(cfg.plant, cfg.scene, nominal=True)
         self.program = cfg.device["program"]
         self.program_config: dict[str, Any] | None = None
+        self._explain: ResultExplainer | None = None     # why a curve is NOK (rig.runner.reasons)
         self.truth_t = 0.0
         self._truth: list[dict[str, np.ndarray]] = []
         self._block_n = max(2, round(max(cfg.chunk, THEORY_BLOCK) * cfg.sample_rate))
@@ -192,7 +197,7 @@ class Host:
             self.rec.write_curve(curve.number, curve.program, curve.t, curve.x, curve.y, theory=theory or None,
                                  angle=angle, complete=curve.complete, problems=list(curve.problems))
             if result is not None:
-                self.rec.write_result(self._result_dict(result, curve.program), t=float(curve.t[-1]))
+                self.rec.write_result(self._result_dict(result, curve.program, curve), t=float(curve.t[-1]))
             self._curves.pop(0)
             self._curves_done += 1
             self._truth = [c for c in self._truth if c["t"][-1] >= curve.t[-1]]     # later curves start later
@@ -200,17 +205,30 @@ class Host:
             self.rec.write_result(self._result_dict(self._results.pop(number), self.program), t=self.truth_t)
             self._orphans.discard(number)
 
-    def _result_dict(self, result: Any, program: int) -> dict[str, Any]:
-        elements = (self.program_config or {}).get("elements", [])
-        names = [e.get("name", f"element {i}") for i, e in enumerate(elements)]
-        out = [{"name": names[i] if i < len(names) else f"element {i}",
-                "kind": elements[i].get("kind", "?") if i < len(elements) else "?",
-                "ok": not bool(result.fail_mask >> i & 1), "reason": ""} for i in range(max(len(names), 0))]
+    def _result_dict(self, result: Any, program: int, curve: Any | None = None) -> dict[str, Any]:
+        """The ``/device/result`` message: the device's verdict (FailMask per element) with each failed
+        element's reason from re-evaluating the received ``curve`` (None: it did not arrive complete) on the
+        host (rig.runner.reasons); a disagreement with the device is a ``verdict_mismatch`` event."""
+        out, mismatch = self._explainer().explain(result, curve)
+        if mismatch is not None:
+            when = float(curve.t[-1]) if curve is not None else self.truth_t
+            self.rec.write_event(when, "verdict_mismatch", **mismatch)
         msg = {"number": result.number, "program": program, "ok": bool(result.ok), "elements": out,
                "process_values": dict(result.process_values), "complete": bool(result.complete)}
         if result.missing:
             msg["missing"] = list(result.missing)
         return msg
+
+    def _explainer(self) -> ResultExplainer:
+        """Built once: the program read back from the unit (or, without a serial link, the scene's program
+        as the unit normalises it) and the display units the scene writes it in."""
+        if self._explain is None:
+            program = self.program_config
+            if program is None:
+                desc = load_description(self.cfg.device["description"])
+                program = validate_program(merge(default_program(self.program, desc), self.cfg.device["config"]), desc)
+            self._explain = ResultExplainer(program, display_units(program, self.cfg.device["config"]))
+        return self._explain
 
     def _record_link_events(self) -> None:
         for ev in self.can.take_events():

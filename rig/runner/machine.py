@@ -53,7 +53,7 @@ class Machine:
         self.device = DigiForce(cfg.device["description"], rng=rngs["device"])
         program = cfg.device["program"]
         try:
-            self.device.set_program(program, cfg.device["config"])
+            self.device.set_program(program, cfg.device["config"], units_required=True)   # a scene: units everywhere
             self.device.select_program(program)
         except ValueError as exc:
             raise SceneError(f"{cfg.scene.path} [device]: {exc}") from None

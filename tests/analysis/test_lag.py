@@ -20,7 +20,7 @@ def test_time_lag_sub_sample(lag):
     t = np.arange(0, 0.6, dt)
     t_th = np.arange(0, 0.6, 2.5e-3)                # theory sampled more coarsely
     est = estimate_lag(t_th, force(t_th), t, force(t - lag))
-    assert abs(est - lag) < 0.05 * dt
+    assert abs(est - lag) < 1e-3 * dt
 
 
 def test_angle_lag_and_rms():

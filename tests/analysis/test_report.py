@@ -70,28 +70,49 @@ def test_analysis_of_recording(recording):
     assert lag["rms_after"] < 0.2 * lag["rms_before"]
 
 
-def test_html_report_with_plots_and_csv(recording, tmp_path):
-    path = write_report(recording, tmp_path / "html", fmt="html", max_curve_plots=3)
+def test_html_report_verdict_first_nok_curves_then_details(recording, tmp_path):
+    path = write_report(recording, tmp_path / "html", fmt="html", ok_plots=1)
     text = path.read_text()
-    assert path.name == "report.html" and "<table>" in text and "Set statistics, program 1" in text
+    assert path.name == "report.html" and "<table>" in text
+    # the verdict first, then the NOK curves, then the details
+    order = [text.index(h) for h in ("<h2>Verdict</h2>", "<h2>NOK curves</h2>", "<h2>Process values, program 1</h2>",
+                                      "<h2>All curves, program 1</h2>", "<h2>Plant truth</h2>", "<h2>Exports</h2>")]
+    assert order == sorted(order)
+    assert "<div class='banner nok'>NOK: 4 of 60 curves failed, 56 OK (program 1)</div>" in text
+    assert "<td>35 … 50 N</td>" in text and "<td>≤ 45 mm</td>" in text             # limits in display units
+    assert "<td>W1</td><td>left through right</td>" in text                     # what failed and why
     assert "hologram" in text and "unknown kind" in text                        # skipped element noted
     pngs = sorted(path.parent.glob("*.png"))
     names = [p.name.split("_", 1)[1] for p in pngs]
-    # histograms, Y over X with elements, Y over t and angle (all curves), 3 curves (NOK first), truth
-    assert names == ["hist_p1.png", "xy_p1.png", "ys_p1.png", "curve_c1.png", "curve_c16.png", "curve_c31.png",
-                     "truth.png"]
+    # NOK curves first (all 4), histograms, Y over X with elements, Y over t and angle, 1 OK curve, truth
+    assert names == ["curve_c1.png", "curve_c16.png", "curve_c31.png", "curve_c46.png", "hist_p1.png", "xy_p1.png",
+                     "ys_p1.png", "curve_c2.png", "truth.png"]
     assert all(p.stat().st_size > 5000 and p.name in text for p in pngs)
-    assert "Individual plots for 3 of 60 curves (NOK first)" in text
-    with open(path.parent / "curves.csv") as f:
+    assert "4 of 4 NOK curves plotted." in text and "Individual plots of OK curves: 1 of 56" in text
+    with open(path.parent / "curves.csv", encoding="utf-8") as f:
         rows = list(csv.reader(f))
-    assert rows[0] == ["curve", "program", "i", "t_s", "x", "y", "angle_rad"]
+    assert rows[0] == ["curve", "program", "i", "t [s]", "x [mm]", "y [N]", "angle [deg]"]
     assert len(rows) == 1 + sum(c.t.size for c in recording.curves)
-    c5 = [r for r in rows[1:] if r[0] == "5"]
-    np.testing.assert_array_equal(np.array([float(r[5]) for r in c5]), recording.curves[4].y)
-    with open(path.parent / "results.csv") as f:
+    c5 = np.array([[float(v) for v in r[3:]] for r in rows[1:] if r[0] == "5"])
+    c = recording.curves[4]
+    np.testing.assert_allclose(c5, np.column_stack([c.t, 1e3 * c.x, c.y, np.degrees(c.angle)]), rtol=1e-8, atol=1e-12)
+    with open(path.parent / "results.csv", encoding="utf-8") as f:
         res = list(csv.DictReader(f))
     assert len(res) == 60 and res[0]["ok"] == "0" and res[0]["failed_elements"] == "W1"
-    assert float(res[1]["y_max"]) == recording.results[1]["process_values"]["y_max"]
+    assert res[0]["reason"] == "W1: left through right" and all(r["reason"] for r in res if r["ok"] == "0")
+    assert all(r["reason"] == "" for r in res if r["ok"] == "1")
+    assert float(res[1]["y_max [N]"]) == pytest.approx(recording.results[1]["process_values"]["y_max"], rel=1e-9)
+    assert float(res[1]["x_at_y_max [mm]"]) == pytest.approx(
+        1e3 * recording.results[1]["process_values"]["x_at_y_max"], rel=1e-9)
+
+
+def test_nok_plots_are_limited_and_counted_ok_plots_off_by_default(recording, tmp_path):
+    text = write_report(recording, tmp_path, fmt="md", nok_plots=2).read_text()
+    assert "2 of 4 NOK curves plotted (the first 2;" in text
+    assert "Individual plots of OK curves: 0 of 56 (more with --ok-plots N)." in text
+    assert sorted(p.name.split("_", 1)[1] for p in tmp_path.glob("*curve_c*.png")) == ["curve_c1.png", "curve_c16.png"]
+    with pytest.raises(ValueError, match="must be >= 0"):
+        write_report(recording, tmp_path, ok_plots=-1)
 
 
 def test_report_uses_the_analysis_it_is_given(recording, tmp_path, monkeypatch):
@@ -101,8 +122,8 @@ def test_report_uses_the_analysis_it_is_given(recording, tmp_path, monkeypatch):
         raise AssertionError("write_report analysed the recording again")
 
     monkeypatch.setattr(report, "analyse", no_second_analysis)
-    text = write_report(recording, tmp_path, fmt="md", max_curve_plots=0, analysis=a).read_text()
-    assert "| y_max | 60 |" in text and "not compared: the device sent no statistics for this program" in text
+    text = write_report(recording, tmp_path, fmt="md", nok_plots=0, analysis=a).read_text()
+    assert "| y_max | 60 | N |" in text and "not compared: the device sent no statistics for this program" in text
 
 
 def test_markdown_report_from_path_and_extension_section(tmp_path):
@@ -114,11 +135,12 @@ def test_markdown_report_from_path_and_extension_section(tmp_path):
 
     report.register_section("clutch-test", clutch_section)
     try:
-        out = write_report(path, tmp_path / "md", fmt="md", max_curve_plots=1)
+        out = write_report(path, tmp_path / "md", fmt="md", nok_plots=1)
     finally:
         report.SECTIONS[:] = [s for s in report.SECTIONS if s[0] != "clutch-test"]
     text = out.read_text()
     assert out.name == "report.md" and "## Clutch" in text and "10 curves seen by the extension" in text
+    assert text.index("## All curves") < text.index("## Clutch") < text.index("## Theory vs measurement")   # before the tail
     assert "only 10 measurements" in text and "| curve | program | result |" in text
     assert all((out.parent / p.name).exists() for p in out.parent.glob("*.png"))
     assert "![" in text

@@ -30,12 +30,12 @@ def test_window_left_to_right_passes_and_reports_entry_exit_values():
 def test_window_entering_through_wrong_side_fails_naming_side():
     ok, reason, _ = run(WIN | {"entry": "left", "exit": "right"}, [1.5, 1.5, 3.0], [0.0, 1.5, 1.5])
     assert not ok
-    assert "enters through the bottom side, not through left" in reason
+    assert reason == "entry left: entered through the bottom side at x = 1.5, y = 1, not through the left"
 
 
 def test_window_leaving_through_wrong_side_fails():
     ok, reason, _ = run(WIN | {"entry": "left", "exit": "right"}, [0, 1.5, 1.5], [1.5, 1.5, 3.0])
-    assert not ok and "leaves through the top side, not through right" in reason
+    assert not ok and reason == "exit right: exited through the top side at x = 1.5, y = 2, not through the right"
 
 
 def test_window_missed_fails():
@@ -50,7 +50,7 @@ def test_touching_an_edge_counts_as_inside_entering_and_leaving_there():
     assert ok, reason
     assert vals["y_entry"] == vals["y_exit"] == 1.0
     ok, reason, _ = run(WIN | {"entry": "left", "exit": "right"}, x, y)
-    assert not ok and "enters through the bottom side" in reason
+    assert not ok and "entered through the bottom side at x = 1.5, y = 1" in reason
 
 
 def test_running_along_an_edge_is_inside():
@@ -78,7 +78,8 @@ def test_entering_twice_fails():
     x = [0, 1.5, 1.5, 1.5, 3]
     y = [1.5, 1.5, 2.5, 1.5, 1.5]   # in from the left, out the top, back in from the top, out right
     ok, reason, _ = run(WIN | {"entry": "any", "exit": "any"}, x, y)
-    assert not ok and "enters the window 2 times" in reason
+    assert not ok and reason.startswith("entry any: the curve entered the window 2 times (exactly once allowed), "
+                                        "at x = 1, y = 1.5; x = 1.5, y = 2")
 
 
 def test_block_window_exit_none_requires_ending_inside():
@@ -101,7 +102,7 @@ def test_max_check_y_max_inside_window():
     cfg = WIN | {"entry": "ignore", "exit": "ignore", "check": "y_max"}
     assert run(cfg, x, y)[0]
     ok, reason, _ = run(cfg, x, y + 0.5)   # peak 2.3 above the window
-    assert not ok and "y_max at (x=1.5, y=2.3) lies outside the window" in reason
+    assert not ok and reason == "check y_max: y max 2.3 at x = 1.5 lies above the window (y max 2)"
 
 
 def test_ignore_sides_needs_only_a_touch():
@@ -126,7 +127,7 @@ def test_y_trapezoid_follows_a_rising_band():
 def test_y_trapezoid_leaving_through_sloped_top_fails():
     x = np.linspace(0, 4, 81)
     ok, reason, _ = run(TRAP_Y, x, 0.5 + 0.0 * x)   # flat: leaves through the rising lower edge
-    assert not ok and "leaves through the bottom side, not through right" in reason
+    assert not ok and "exit right: exited through the bottom side at x = 1.5, y = 0.5, not through the right" == reason
 
 
 def test_x_trapezoid_swaps_axes():
@@ -136,7 +137,7 @@ def test_x_trapezoid_swaps_axes():
     ok, reason, _ = run(cfg, 1.5 + 0.1 * y, y)          # inside the band along Y: bottom in, top out
     assert ok, reason
     ok, reason, _ = run(cfg, 1.5 + 0.0 * y, y)          # X stays 1.5: leaves through the left limit
-    assert not ok and "leaves through the left side" in reason
+    assert not ok and reason.startswith("exit top: exited through the left side at x = 1.5, y = 5")
 
 
 def test_point_on_slanted_edge_is_inside():

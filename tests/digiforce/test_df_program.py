@@ -137,3 +137,38 @@ def test_statistics_against_numpy(unit, press):
     unit.reset_statistics()
     assert unit.statistics()["total"] == 0 and unit.statistics()["values"] == {}
     assert unit.statistics(3)["total"] == 0
+
+
+def test_limits_carry_the_units_of_their_process_values():
+    dev = DigiForce()
+    dev.set_program(1, {"elements": [{"kind": "threshold", "name": "S", "axis": "y", "value": "2 N"}],
+                        "limits": {"x_max": ["41.5 mm", "42.5 mm"], "y_min": ["-0.075 kN", "-55 N"],
+                                   "duration": [None, "250 ms"], "pairs": [10, None], "S.at": ["1 cm", None]}})
+    limits = dev.get_program(1)["limits"]
+    assert limits["x_max"] == [0.0415, 0.0425] and limits["y_min"] == [-75.0, -55.0]
+    assert limits["duration"] == [None, 0.25] and limits["pairs"] == [10.0, None] and limits["S.at"] == [0.01, None]
+    with pytest.raises(DigiForceError, match=r"limits.x_max \(lower\): '41.5 N' has the wrong dimension"):
+        dev.set_program(1, {"limits": {"x_max": ["41.5 N", "42.5 mm"]}})
+    with pytest.raises(DigiForceError, match=r"limits.S.at \(lower\).*wrong dimension"):
+        dev.set_program(1, {"limits": {"S.at": ["1 N", None]}})     # a Y threshold's crossing lies on X
+
+
+def test_a_program_written_by_a_person_needs_units_the_interface_takes_si():
+    dev = DigiForce()
+    dev.set_program(1, {"limits": {"x_max": [0.0415, 0.0425]}})      # the unit's interfaces: SI numbers
+    assert dev.get_program(1)["limits"]["x_max"] == [0.0415, 0.0425]
+    with pytest.raises(DigiForceError, match=r'program 2.limits.x_max \(lower\): 0.0415 has no unit; write it with '
+                                             r'its unit, e.g. "0.0415 m"'):
+        dev.set_program(2, {"limits": {"x_max": [0.0415, 0.0425]}}, units_required=True)
+    with pytest.raises(DigiForceError, match=r"program 2.control.start.value: 0.001 has no unit"):
+        dev.set_program(2, {"control": {"start": {"mode": "x", "value": 0.001}}}, units_required=True)
+    with pytest.raises(DigiForceError, match=r"elements\[0\] \(window 'W'\).y_max: 2 has no unit"):
+        dev.set_program(2, {"elements": [{"kind": "window", "name": "W", "x_min": "1 mm", "x_max": "2 mm",
+                                          "y_min": "1 N", "y_max": 2}]}, units_required=True)
+    assert dev.get_program(2) == DigiForce().get_program(2)          # refused: nothing changed
+    # the unit's own (normalised, SI) settings are not the person's: a second scene-style change is fine
+    dev.set_program(2, {"limits": {"x_max": ["41.5 mm", "42.5 mm"]}, "sampling": {"delta": "0.2 ms"}},
+                    units_required=True)
+    dev.set_program(2, {"name": "again", "limits": {"y_max": ["1 N", "2 N"]}}, units_required=True)
+    assert dev.get_program(2)["limits"] == {"x_max": [0.0415, 0.0425], "y_max": [1.0, 2.0]}
+    dev.set_program(2, {"limits": {"pairs": [10, 4000]}}, units_required=True)   # a count needs no unit

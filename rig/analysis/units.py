@@ -1,0 +1,234 @@
+"""Display units: the unit a person reads a quantity in (report, CSV files, console, NOK reasons).
+
+Everything is recorded and computed in SI (m, N, rad, N·m, s). What is *shown* follows the scene:
+
+1. a device channel (X, Y, Y2) is shown in the unit the scene writes that channel's values in: the most
+   frequent unit among the quantities of its ``[device.config]`` (control values, elements, limits) that
+   convert to the channel's engineering unit (``x_max = "43 mm"`` → X in mm; ties: the first written);
+2. a channel the scene writes no value for, and every other quantity, falls back to :data:`DEFAULTS` by
+   dimension — lengths in the unit of a length channel if there is one, else mm; forces in N (or the
+   force channel's unit); angles in °; torques in N·m; speeds in rpm; times in s — and to its SI unit
+   when the dimension is not listed.
+
+:class:`Unit` converts (``unit(si_values)``) and labels (``label`` for people, ``ascii`` for CSV headers).
+"""
+from __future__ import annotations
+
+import tomllib
+from collections import Counter
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+from rig.units import ureg
+
+# display unit by SI unit (the fallback of rule 2)
+DEFAULTS = {"m": "mm", "N": "N", "rad": "deg", "N*m": "N*m", "s": "s", "rad/s": "rpm", "m/s": "mm/s",
+            "1": ""}
+_LABELS = {"degree": ("°", "deg"), "meter * newton": ("N·m", "N*m"), "revolutions_per_minute": ("rpm", "rpm"),
+           "dimensionless": ("", "")}
+_ANGLES = ("radian", "degree", "turn", "revolution", "arcminute", "arcsecond", "grad")
+
+# SI units of the plants' truth signals (rig.plants: cam bar level 1/2, clutch stand and static rig)
+SIGNAL_SI = {
+    "phi": "rad", "cam_angle": "rad", "psi": "rad", "theta": "rad", "psi_kin": "rad", "pressure_angle": "rad",
+    "phi1": "rad", "phi3": "rad", "phi_r": "rad", "angle": "rad",
+    "omega": "rad/s", "omega1": "rad/s", "omega3": "rad/s", "omega_r": "rad/s", "alpha": "rad/s^2",
+    "s": "m", "x_gripper": "m", "r": "m", "delta_w": "m", "delta_o": "m", "v": "m/s", "a": "m/s^2",
+    "F_rod": "N", "rod_tension": "N", "R23": "N", "F_c": "N", "F_a": "N", "N_B": "N", "force": "N",
+    "M23": "N*m", "M_e": "N*m", "M_sigma": "N*m", "drive_torque": "N*m", "M1": "N*m", "M3": "N*m",
+    "M_t": "N*m", "T_c": "N*m", "T_in": "N*m", "T_out": "N*m", "torque": "N*m",
+}
+QUANTITY = {"m": "length", "N": "force", "rad": "angle", "N*m": "torque", "s": "time", "rad/s": "angular speed",
+            "rad/s^2": "angular acceleration", "m/s": "speed", "m/s^2": "acceleration", "1": "number"}
+
+
+def _is_angle(unit: str) -> bool:
+    return any(w in str(ureg.Unit(unit)) for w in _ANGLES)
+
+
+@lru_cache(maxsize=None)
+def _kind(unit: str) -> tuple[str, bool]:
+    """What a unit measures: its dimensionality and whether it is (or contains) an angle."""
+    u = ureg.Unit(unit)
+    return str(u.dimensionality), _is_angle(unit)
+
+
+def same_kind(a: str, b: str) -> bool:
+    """Whether units ``a`` and ``b`` measure the same quantity (mm and m yes; ° and a pure number no)."""
+    try:
+        return _kind(a) == _kind(b)
+    except Exception:  # pint raises several unrelated types for unit text it cannot read
+        return False
+
+
+@dataclass(frozen=True)
+class Unit:
+    """A display unit: ``label`` (``"mm"``, ``"°"``, ``"N·m"``), ``ascii`` (``"deg"``, ``"N*m"``) and
+    ``factor`` (display value = SI value × factor) of the SI unit ``si``."""
+
+    label: str
+    ascii: str
+    factor: float
+    si: str
+
+    def __call__(self, value: Any) -> Any:
+        """SI value(s) in this unit (floats stay floats, None stays None, arrays become arrays)."""
+        if value is None:
+            return None
+        if isinstance(value, (int, float)):
+            return float(value) * self.factor if self.factor != 1.0 else float(value)
+        return np.asarray(value, dtype=float) * self.factor
+
+    def text(self, value: float | None, digits: int = 4) -> str:
+        """``"41.2 mm"`` (``digits`` significant digits) of an SI value; a dash for None."""
+        if value is None or not np.isfinite(value):
+            return "—"
+        number = f"{self(value):.{digits}g}"
+        return f"{number} {self.label}".rstrip() if self.label not in ("°",) else f"{number}°"
+
+    def axis(self, quantity: str) -> str:
+        """Axis label ``"quantity (unit)"``."""
+        return f"{quantity} ({self.label})" if self.label else quantity
+
+
+@lru_cache(maxsize=None)
+def unit(si: str, display: str | None = None) -> Unit:
+    """The :class:`Unit` showing SI unit ``si`` in ``display`` (default :data:`DEFAULTS`, else SI)."""
+    if display is None:
+        display = next((d for s, d in DEFAULTS.items() if s == si), None)
+        if display is None:
+            display = next((d for s, d in DEFAULTS.items() if same_kind(s, si) and s != "1"), si)
+    if si in ("", "1") or display in ("", "1"):
+        return Unit("", "", 1.0, si or "1")
+    pu = ureg.Unit(display)
+    label, text = _LABELS.get(str(pu), (f"{pu:~P}", f"{pu:~C}"))
+    factor = float(ureg.Quantity(1.0, si).to(pu).magnitude)
+    return Unit(label, text, 1.0 if abs(factor - 1.0) < 1e-15 else factor, si)
+
+
+SI_TIME = unit("s")
+
+
+def _strings(node: Any) -> Iterable[str]:
+    """Every string in a nested TOML table (depth first, in writing order)."""
+    if isinstance(node, str):
+        yield node
+    elif isinstance(node, Mapping):
+        for v in node.values():
+            yield from _strings(v)
+    elif isinstance(node, (list, tuple)):
+        for v in node:
+            yield from _strings(v)
+
+
+@lru_cache(maxsize=256)
+def _quantity_unit(text: str) -> str | None:
+    """The unit a quantity string is written in (``"43 mm"`` → ``"millimeter"``); None if it is not one."""
+    try:
+        q = ureg.Quantity(text)
+    except Exception:  # not a quantity (names, modes): pint raises many kinds
+        return None
+    if not isinstance(q, ureg.Quantity) or str(q.units) == "dimensionless":
+        return None
+    return str(q.units)
+
+
+def written_units(config: Mapping | None, si: str) -> str | None:
+    """The unit ``config`` writes quantities of SI unit ``si`` in most often (ties: the first); None if none."""
+    if not config or si in ("", "1"):
+        return None
+    counts: Counter[str] = Counter(u for u in (_quantity_unit(s) for s in _strings(config))
+                                   if u is not None and same_kind(u, si))
+    return max(counts, key=lambda u: counts[u]) if counts else None   # Counter keeps first-seen order on ties
+
+
+@dataclass
+class DisplayUnits:
+    """Display units of one program's channels (``channels``: ``{"x": Unit, "y": Unit, …}``) and of
+    everything else (:meth:`of`); ``axes``: which channel each process value lies on (``t`` for time,
+    ``""`` for pure numbers)."""
+
+    channels: dict[str, Unit] = field(default_factory=dict)
+    axes: dict[str, str] = field(default_factory=dict)
+
+    def of(self, si: str) -> Unit:
+        """Display unit of any SI unit: that of a channel of the same kind, else the default."""
+        for u in self.channels.values():
+            if u.si == si or same_kind(u.si, si):
+                return u if u.si == si else unit(si, _pint_text(u))
+        return unit(si)
+
+    def channel(self, ch: str) -> Unit:
+        return self.channels.get(ch) or unit("1")
+
+    def value(self, name: str) -> Unit:
+        """Display unit of a process value (``x_max``, ``duration``, ``insertion.x_entry`` …)."""
+        axis = self.axes.get(name) or _axis_of_name(name)
+        if axis == "t":
+            return SI_TIME
+        return self.channels.get(axis) or unit("1")
+
+    def signal(self, name: str) -> Unit:
+        """Display unit of a plant truth signal (:data:`SIGNAL_SI`; unknown names stay unconverted)."""
+        si = SIGNAL_SI.get(name)
+        return self.of(si) if si is not None else Unit("SI", "SI", 1.0, "?")
+
+
+def _pint_text(u: Unit) -> str:
+    return {"°": "deg", "N·m": "N*m"}.get(u.label, u.ascii)
+
+
+def _axis_of_name(name: str) -> str:
+    """Channel of a process value by its name alone (element values without a program: by their first letter)."""
+    if name == "duration":
+        return "t"
+    if name == "pairs":
+        return ""
+    base = name.split(".", 1)[-1]
+    return "y2" if base.startswith("y2") else base[:1]
+
+
+def display_units(program: Mapping | None, scene_config: Mapping | None = None) -> DisplayUnits:
+    """Display units of a program (normalised, as the device returns it: ``channels.<ch>.unit`` and
+    ``elements``) written by ``scene_config`` (the scene's raw ``[device.config]``, for rule 1)."""
+    program = program or {}
+    channels = {ch: c.get("unit") for ch, c in (program.get("channels") or {}).items()
+                if isinstance(c, Mapping) and c.get("enabled", True) and c.get("unit")}
+    channels = channels or {"x": "m", "y": "N"}
+    shown = {}
+    for ch, si in channels.items():
+        try:
+            shown[ch] = unit(si, written_units(scene_config, si))
+        except Exception:  # an engineering unit pint cannot read: show it as it is
+            shown[ch] = Unit(si, si, 1.0, si)
+    return DisplayUnits(shown, _axes(program, set(channels)))
+
+
+def _axes(program: Mapping, channels: set[str]) -> dict[str, str]:
+    """Channel of every process value of the program (see firmware_sim.digiforce.curve.process_value_axes)."""
+    try:
+        from firmware_sim.digiforce.curve import process_value_axes
+        return process_value_axes(list(program.get("elements") or []), "y2" in channels)
+    except Exception:  # a program from elsewhere (hand-made recordings): names decide (_axis_of_name)
+        return {}
+
+
+def scene_device_config(scene_text: str | None) -> tuple[int | None, Mapping | None]:
+    """(program number, raw ``[device.config]``) of a scene's text; (None, None) when it has none."""
+    if not scene_text:
+        return None, None
+    try:
+        device = tomllib.loads(scene_text).get("device") or {}
+    except (tomllib.TOMLDecodeError, AttributeError):
+        return None, None
+    config = device.get("config")
+    return device.get("program"), config if isinstance(config, Mapping) else None
+
+
+def recording_units(rec: Any, program: int) -> DisplayUnits:
+    """Display units of ``program`` in a recording (its program attachment and the scene that wrote it)."""
+    number, config = scene_device_config(getattr(rec, "scene_text", None))
+    return display_units(rec.programs.get(program), config if number == program else None)
