@@ -146,3 +146,13 @@ def test_markdown_report_from_path_and_extension_section(tmp_path):
     assert "![" in text
     with pytest.raises(ValueError, match="'pdf'"):
         write_report(path, tmp_path / "x", fmt="pdf")
+
+
+def test_console_summary_says_why_curves_failed_in_display_units(recording, capsys):
+    from rig import cli
+    cli._print_set_summary(analyse(recording))
+    out = capsys.readouterr().out
+    assert "curves: 60, OK 56, NOK 4" in out and "  NOK curve 1: W1: left through right" in out
+    row = next(line for line in out.splitlines() if line.split()[:1] == ["x_at_y_max"])
+    x = np.array([r["process_values"]["x_at_y_max"] for r in recording.results])
+    assert row.split()[1:4] == ["60", "mm", f"{1e3 * x.mean():.4g}"]              # SI m shown in mm
