@@ -101,9 +101,10 @@ def _print_stand_summary(rec: Any) -> bool:
     return bool(lines)
 
 
-def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None, progress: bool = False) -> Path:
+def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None, progress: bool = False,
+            ok_plots: int = 0) -> Path:
     """Write the report of a recording (path or an already-read Recording, with its analysis if known);
-    ``progress``: a bar on stderr counting the report's sections."""
+    ``progress``: a bar on stderr counting the report's sections; ``ok_plots``: OK curves plotted one by one."""
     from rig.analysis.report import SECTIONS, write_report
     from rig.console import progress as progress_bar
     with progress_bar(len(SECTIONS), "report", " sections", progress) as bar:
@@ -116,7 +117,7 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
                     bar.update()
             return run
         sections = [(name, counted(name, section)) for name, section in SECTIONS]
-        return write_report(recording, out_dir, fmt=fmt, analysis=analysis, sections=sections)
+        return write_report(recording, out_dir, fmt=fmt, analysis=analysis, sections=sections, ok_plots=ok_plots)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -136,14 +137,15 @@ def cmd_run(args: argparse.Namespace) -> int:
         _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"))
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet)
-    print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
+    what = f"recorded {summary.curves} curves" if summary.curves else "recorded the run"
+    print(f"{what}, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
           f"({summary.realtime_factor:.1f}x real time; {summary.wall_time:.2f} s with serial set-up and read-back), "
           f"{summary.frames} CAN frames -> {summary.output}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
     if not args.no_report:
-        report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet)
+        report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet, ok_plots=args.ok_plots)
         print(f"report: {report}")
     return 0
 
@@ -174,7 +176,9 @@ def cmd_record(args: argparse.Namespace) -> int:
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet)
     print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated -> {summary.output}")
-    _print_set_summary(_analysed(summary.output)[1])
+    rec, analysis = _analysed(summary.output)
+    if not _print_stand_summary(rec):
+        _print_set_summary(analysis)
     return 0
 
 
@@ -195,7 +199,7 @@ def cmd_report(args: argparse.Namespace) -> int:
                              f"`rig report --partial {path}` reports what it holds") from None
     if not rec.complete:
         print(f"{path}: incomplete recording; " + "; ".join(losses(rec)))
-    print(f"report: {_report(rec, out, args.format, progress=not args.quiet)}")
+    print(f"report: {_report(rec, out, args.format, progress=not args.quiet, ok_plots=args.ok_plots)}")
     return 0
 
 
@@ -376,6 +380,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--report-dir", help="report directory (default: next to the recording)")
     run.add_argument("--format", choices=("html", "md"), default="html")
     run.add_argument("--no-report", action="store_true")
+    run.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
+                     help="also plot the first N OK curves one by one (NOK curves always are)")
     run.set_defaults(func=cmd_run)
     serve = sub.add_parser("serve", parents=[quiet],
                            help="run the simulated machine: CAN over socketcand, serial on a pty")
@@ -404,6 +410,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--format", choices=("html", "md"), default="html")
     rep.add_argument("--partial", action="store_true",
                      help="report what a truncated recording (a killed run) holds and what was lost")
+    rep.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
+                     help="also plot the first N OK curves one by one (NOK curves always are)")
     rep.set_defaults(func=cmd_report)
     exp = sub.add_parser("export-can", parents=[quiet],
                          help="write the recording's CAN bus traffic (/can/raw) as a CAN trace: "
