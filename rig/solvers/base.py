@@ -9,6 +9,8 @@ import math
 import warnings
 from collections.abc import Callable, Sequence
 
+import numpy as np
+
 Rhs = Callable[[float, tuple], Sequence[float]]
 
 
@@ -38,38 +40,54 @@ class StiffnessError(SolverDivergence):
 class StiffnessMonitor:
     """Hairer's stiffness test for explicit RK: h·|λ| ≈ h·‖f(Y_a) − f(Y_b)‖/‖Y_a − Y_b‖ from two stages
     evaluated at (nearly) the same point. ``limit`` = stability boundary of the method on the negative
-    real axis; 15 consecutive steps beyond it report stiffness ('warn', 'raise' or 'ignore')."""
+    real axis; 15 consecutive steps beyond it report stiffness ('warn', 'raise' or 'ignore'). For a
+    ``fixed``-step method that means the solution diverges: the report says so and how to fix it; such a
+    method is also watched for exponential growth of its step increments max|y_new − y| (doubling over
+    each of ``GROWTH_WINDOWS`` consecutive windows of ``GROWTH_STEPS`` steps), the signature of an
+    oscillatory mode outside its stability region (explicit Euler: h·ω_n > 2ζ, although h·|λ| < 2).
+    ``last`` is the latest estimate of h·|λ| (for the messages of a diverged step)."""
 
     STEPS = 15
+    GROWTH_STEPS, GROWTH_WINDOWS = 50, 6
 
-    def __init__(self, method: str, limit: float, policy: str = "warn"):
+    def __init__(self, method: str, limit: float, policy: str = "warn", fixed: bool = False):
         if policy not in ("warn", "raise", "ignore"):
             raise ValueError(f"{method}: stiffness = {policy!r} must be 'warn', 'raise' or 'ignore'")
-        self.method, self.limit, self.policy = method, limit, policy
+        self.method, self.limit, self.policy, self.fixed = method, limit, policy, fixed
         self.count = self.calm = 0
         self.detected_at: float | None = None
-
-    def check(self, t: float, y: tuple, h: float, fa, fb, ya, yb) -> None:
-        """Update with stage derivatives ``fa``, ``fb`` at stage states ``ya``, ``yb`` of a step of size h."""
-        if self.policy == "ignore" or self.detected_at is not None:
-            return
-        num = sum((a - b) ** 2 for a, b in zip(fa, fb))
-        den = sum((a - b) ** 2 for a, b in zip(ya, yb))
-        self.update(t, y, h, h * math.sqrt(num / den) if den > 0.0 else 0.0)
+        self.last = math.nan
+        self._y: np.ndarray | None = None            # growth test: last state, current window, growing windows
+        self._window = [0, 0.0, 0.0, 0]               # steps, max increment, previous window's max, growing
 
     def update_many(self, t, y, h, hl) -> None:
         """:meth:`update` for consecutive steps (arrays; rows of ``y``); calm runs are skipped at once."""
+        known = [v for v in hl if math.isfinite(v)]
+        if known:
+            self.last = float(known[-1])
         if self.policy == "ignore" or self.detected_at is not None:
             return
-        if self.count == 0 and max(hl) <= self.limit:
+        if self.fixed and len(t):
+            self._growth(t, np.asarray(y, dtype=float), h)
+        if self.count == 0 and max(known, default=0.0) <= self.limit:
             self.calm += len(hl)
             return
         for args in zip(t, y, h, hl):
-            self.update(*args)
+            self._stiffness(*args)
 
     def update(self, t: float, y: tuple, h: float, hl: float) -> None:
-        """Update with an estimate ``hl`` of h·|λ| for a step of size h ending at (t, y)."""
+        """Update with an estimate ``hl`` of h·|λ| for a step of size h ending at (t, y); a non-finite estimate
+        (states near overflow) carries no information."""
+        if math.isfinite(hl):
+            self.last = hl
         if self.policy == "ignore" or self.detected_at is not None:
+            return
+        if self.fixed:
+            self._growth([t], np.array([y], dtype=float), [h])
+        self._stiffness(t, y, h, hl)
+
+    def _stiffness(self, t: float, y: tuple, h: float, hl: float) -> None:
+        if not math.isfinite(hl):
             return
         if hl <= self.limit:
             self.calm += 1
@@ -80,14 +98,57 @@ class StiffnessMonitor:
         self.count += 1
         if self.count < self.STEPS:
             return
+        lam = hl / h
+        if self.fixed:
+            self._report(t, y, f"{self.method} unstable at t = {t:.6g} s: h*|lambda| = {hl:.3g} > {self.limit:g} (its "
+                               f"stability limit on the negative real axis) for {self.STEPS} steps (h = {h:.3g} s, "
+                               f"|lambda| = {lam:.3g} 1/s): the solution diverges - reduce h below "
+                               f"{self.limit / lam:.3g} s or use the implicit method Rodas4")
+        else:
+            self._report(t, y, f"{self.method}: problem is stiff at t = {t:.6g} s: h*|lambda| = {hl:.3g} > "
+                               f"{self.limit} for {self.STEPS} steps (h = {h:.3g} s, |lambda| = {lam:.3g} 1/s); the "
+                               f"step size is limited by stability, not accuracy - use the implicit method Rodas4 or "
+                               f"remove the stiffness (e.g. a switched stick-slip friction model instead of a steep "
+                               f"regularisation)")
+
+    def _growth(self, t, y: np.ndarray, h) -> None:
+        """Feed the step ends ``y`` (rows) to the growth test."""
+        rows = y if self._y is None else np.vstack([self._y, y])
+        self._y = y[-1].copy()
+        inc = np.max(np.abs(np.diff(rows, axis=0)), axis=1) if len(rows) > 1 else np.zeros(0)
+        off = len(t) - len(inc)                       # the very first state has no increment
+        w = self._window
+        i = 0
+        while i < len(inc):
+            take = min(self.GROWTH_STEPS - w[0], len(inc) - i)
+            w[0], w[1] = w[0] + take, max(w[1], float(np.max(inc[i:i + take])))
+            i += take
+            if w[0] < self.GROWTH_STEPS:
+                break
+            w[3] = w[3] + 1 if w[2] > 0.0 and w[1] >= 2.0 * w[2] else 0
+            ratio = w[1] / w[2] if w[2] > 0.0 else math.inf
+            w[:3] = [0, 0.0, w[1]]
+            if w[3] >= self.GROWTH_WINDOWS:
+                k = i - 1 + off
+                self._report(float(t[k]), tuple(y[k]), f"{self.method} unstable at t = {float(t[k]):.6g} s: the step "
+                             f"increments grow exponentially (x{ratio:.3g} per {self.GROWTH_STEPS} steps for "
+                             f"{self.GROWTH_WINDOWS * self.GROWTH_STEPS} steps, h = {float(h[k]):.3g} s, h*|lambda| = "
+                             f"{self.last:.3g}): a lightly damped mode outside the method's stability region "
+                             f"(explicit Euler: h*omega_n > 2*zeta) - reduce h or use the implicit method Rodas4 "
+                             f"(stiffness='ignore' if the model itself grows)")
+
+    def _report(self, t: float, y, msg: str) -> None:
         self.detected_at = t
-        msg = (f"{self.method}: problem is stiff at t = {t:.6g} s: h*|lambda| = {hl:.3g} > {self.limit} for "
-               f"{self.STEPS} steps (h = {h:.3g} s, |lambda| = {hl / h:.3g} 1/s); the step size is limited by "
-               f"stability, not accuracy - use an implicit method or remove the stiffness (e.g. a switched "
-               f"stick-slip friction model instead of a steep regularisation)")
         if self.policy == "raise":
             raise StiffnessError(msg, t, y)
-        warnings.warn(msg, StiffnessWarning, stacklevel=5)
+        warnings.warn(msg, StiffnessWarning, stacklevel=6)
+
+
+def lipschitz(fa: Sequence[float], fb: Sequence[float], ya: Sequence[float], yb: Sequence[float]) -> float:
+    """‖fa − fb‖/‖ya − yb‖: estimate of |λ| from derivatives at two nearby states (0 if they coincide)."""
+    num = sum((a - b) * (a - b) for a, b in zip(fa, fb))      # products: no OverflowError near overflow
+    den = sum((a - b) * (a - b) for a, b in zip(ya, yb))
+    return math.sqrt(num / den) if den > 0.0 else 0.0
 
 
 class OdeSolver:

@@ -1,13 +1,13 @@
-"""Right-hand sides compiled with numba, and the Dormand–Prince solver compiled around them.
+"""Right-hand sides compiled with numba, and the solvers compiled around them.
 
 A problem whose RHS is a :class:`JitRhs` (a numba kernel ``kernel(t, y, p, out)`` on float64 arrays plus
-its live parameter vector) lets :class:`rig.solvers.dopri.DormandPrince45` run each step — all stages,
-the error norm, rejections and the step-size controller — in machine code; with the problem's event
-kernels it runs whole stretches of steps, locates event roots and restarts at simple events in machine
-code too, and the Python driver (:func:`rig.solvers.integrate`) only acts where the problem needs it.
-Same method as the Python step (tableau, norm, controller constants of :mod:`rig.solvers.dopri`); the
-tests check the two against each other. The compiled functions are written once in
-:mod:`rig.solvers.dp45_template` and instantiated per kernel by :func:`dp45_step`.
+its live parameter vector) lets every method of :mod:`rig.solvers` (explicit and symplectic Euler, RK4, DP45,
+Rodas4) run each step — all stages, the error norm, rejections and the step-size controller — in machine
+code; with the problem's event kernels it runs whole stretches of steps, locates event roots and restarts at
+simple events in machine code too, and the Python driver (:func:`rig.solvers.integrate`) only acts where the
+problem needs it. Same method as each solver's Python step (tableau, norm, controller constants); the tests
+check the two against each other. The compiled functions are written once as templates
+(:mod:`rig.solvers.templates`) and instantiated per method and kernel by :func:`compiled_solver`.
 """
 from __future__ import annotations
 
@@ -33,8 +33,8 @@ class JitRhs:
     returning its parameter vector p synchronised with the problem's discrete state (called when a
     solver segment starts and on every Python-side call), and ``diagnose()`` explaining non-finite
     derivatives (a message, or None). ``event(t, y, p, k)``, if given, is a compiled kernel for the value
-    of event function k, in the order of ``Problem.events``: then DP45 takes runs of steps in one compiled
-    call until one of them changes sign, and locates roots in compiled code (:func:`dp45_step`).
+    of event function k, in the order of ``Problem.events``: then the solvers take runs of steps in one
+    compiled call until one of them changes sign, and locates roots in compiled code (:func:`compiled_solver`).
     ``act(t, y, p, k, apply)``, if given, tells whether event k (a restart without Python action) can be
     acted on in compiled code and, with ``apply``, does it by updating p: the run then restarts there
     itself. Callable as a plain ``fun(t, y) -> tuple`` (e.g. for scipy)."""
@@ -58,57 +58,65 @@ class JitRhs:
 
 
 #: slots of the compiled step's work vector: T, H_ABS (in, updated to t_new, h_next), T_BOUND, RTOL,
-#: ATOL, MAX_STEP (in), H, NFEV, HL, NEV (out: last step taken, RHS calls, Hairer's stiffness estimate
-#: h·|λ|, events acted on in a run)
-T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, H, NFEV, HL, NEV = range(10)
+#: ATOL, MAX_STEP, NQ (in: settings; NQ = number of positions q of a (q, v) state), H, NFEV, HL, NEV, FAIL
+#: (out: last step taken — or the failed one —, RHS calls, Hairer's stiffness estimate h·|λ|, events acted
+#: on in a run, failure status of a run: 1 step-size underflow, 2 non-finite state of a fixed-step method)
+T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, NQ, H, NFEV, HL, NEV, FAIL = range(12)
+TEMPLATES = Path(__file__).with_name("templates")
+_KERNELS = re.compile(r"# <kernels>\n.*?# </kernels>\n", re.DOTALL)
 
 
 @cache
-def dp45_step(kernel, event=None, act=None):
-    """Compiled adaptive DP5(4) for ``kernel`` (event kernels ``event``, ``act``: :class:`JitRhs`), cached:
+def compiled_solver(method: str, kernel, event=None, act=None):
+    """Compiled steps of ``method`` ("dp45", "rk4", "euler", "symplectic_euler", "rodas4": a template in
+    :mod:`rig.solvers.templates`) for ``kernel`` (event kernels ``event``, ``act``: :class:`JitRhs`), cached:
 
     * ``step(w, y, y_new, K, f, p)`` advances from (w[T], y) with first derivative f by one accepted
-      step, writing the new state into ``y_new``, the stages into K (7, n) and T, H_ABS, H, NFEV, HL into
-      ``w``; returns 0, or 1 on a step-size underflow (state untouched);
+      step, writing the new state into ``y_new``, the method's stage vectors into K (the last row is
+      f(t_new, y_new)) and H, NFEV, HL and (on success) T, H_ABS into ``w``; returns 0, 1 on a step-size
+      underflow (state untouched) or 2 when a fixed-step method's state became non-finite;
     * ``run(w, Y, TT, HH, KK, HL, EV, g, p)`` (with ``event``) takes steps from (w[T], Y[0]) with
       KK[0, 0] the first derivative, storing step ends TT[s + 1], states Y[s + 1], step sizes HH[s],
-      stages KK[s] and h·|λ| HL[s], until an event value in ``g`` (given at the start, updated in place)
-      changes sign or reaches 0, t_bound is reached or the buffers are full; returns the number of steps,
-      or −1 − steps on an underflow. Sign changes that ``act`` accepts (all of them in the step, none
-      exactly zero) are handled in the run as the Python driver would: cut at the earliest root (the
-      step then ends there, TT[s + 1] < TT[s] + HH[s]), act, record (t, k, ±1, y) in EV[w[NEV]], restart
-      with the last step size; the fired event keeps its value past the root, the others are re-evaluated
-      (a zero keeps the old value);
-    * ``locate(t_old, t_new, y_old, K, p, k)``: root of event k on the step's quartic dense output by
-      Brent's method (as scipy's ``brentq``, xtol 1e-15, rtol 4·eps), given a sign change over the step.
+      stage vectors KK[s] and h·|λ| HL[s], until an event value in ``g`` (given at the start, updated in
+      place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the number of
+      steps, or −1 − steps on a failure (status in w[FAIL]). Sign changes that ``act`` accepts (all of them
+      in the step, none exactly zero) are handled in the run as the Python driver would: cut at the
+      earliest root (the step then ends there, TT[s + 1] < TT[s] + HH[s]), act, record (t, k, ±1, y) in
+      EV[w[NEV]], restart with the last step size; the fired event keeps its value past the root, the
+      others are re-evaluated (a zero keeps the old value);
+    * ``locate(t_old, t_new, y_old, K, p, k)``: root of event k on the step's dense output by Brent's
+      method (as scipy's ``brentq``, xtol 1e-15, rtol 4·eps), given a sign change over the step.
 
     Arrays in, status out: numba's call overhead grows with the number of arguments and returned
     objects. The sign test is conservative (any change stops, whatever an event's direction): the
     Python driver then examines that last step as usual.
 
-    Module-level njit functions only (``kernel.py_func`` importable by module and name). The functions
-    live in :mod:`rig.solvers.dp45_template`, copied into ``~/.cache/mechrig`` (``MECHRIG_CACHE``) with
-    the kernels bound, and imported from there: numba then caches them like any module.
+    Module-level njit functions only (``kernel.py_func`` importable by module and name). The shared part
+    (``templates/runs.py``) and the method's step are copied into one module in ``~/.cache/mechrig``
+    (``MECHRIG_CACHE``) with the kernels bound, and imported from there: numba then caches them like any
+    module.
     """
     names = [_import_path(f) for f in (kernel, event, act)]
-    template = Path(__file__).with_name("dp45_template.py").read_text()
-    binding = "\n".join(f"from {mod} import {name} as {alias}" if mod else f"{alias} = {'never' if alias == 'act' else 'None'}"
+    binding = "\n".join(f"from {mod} import {name} as {alias}" if mod
+                        else f"{alias} = {'never' if alias == 'act' else 'None'}"
                         for (mod, name), alias in zip(names, ("kernel", "event", "act")))
-    source = re.sub(r"# <kernels>\n.*?# </kernels>\n", binding + "\n", template, flags=re.DOTALL)
+    step_source = _KERNELS.sub("", (TEMPLATES / f"{method}.py").read_text())
+    source = _KERNELS.sub(binding + "\n", (TEMPLATES / "runs.py").read_text())
+    source = re.sub(r"# <method>\n.*?# </method>\n", lambda _: step_source, source, flags=re.DOTALL)
     # numba checks a cached function against its own file only: key the copy on everything it compiles in
-    # (the kernels' packages, the tableau and slot constants), so an edit there gives a new copy
-    deps = {Path(__file__), Path(__file__).with_name("dopri.py")}
+    # (the kernels' packages, the solvers' tableaus and slot constants), so an edit there gives a new copy
+    deps = set(Path(__file__).parent.glob("*.py"))
     deps |= {q for f in (kernel, event, act) if f is not None
              for q in Path(inspect.getsourcefile(f.py_func)).parent.glob("*.py")}
     digest = hashlib.sha1(source.encode() + b"".join(q.read_bytes() for q in sorted(deps))).hexdigest()[:16]
     folder = Path(os.environ.get("MECHRIG_CACHE") or Path.home() / ".cache" / "mechrig")
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"dp45_{digest}.py"
+    path = folder / f"{method}_{digest}.py"
     if not path.exists() or path.read_text() != source:
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
         os.replace(tmp, path)                       # atomic: parallel processes see whole files only
-    name = f"mechrig_dp45_{digest}"
+    name = f"mechrig_{method}_{digest}"
     module = sys.modules.get(name)
     if module is None:
         spec = importlib.util.spec_from_file_location(name, path)
@@ -126,5 +134,5 @@ def _import_path(f) -> tuple[str, str] | tuple[None, None]:
         return None, None
     mod, name = f.py_func.__module__, f.py_func.__name__
     if getattr(sys.modules.get(mod), name, None) is not f:
-        raise ValueError(f"compiled DP45: {name!r} must be a module-level numba function of an imported module")
+        raise ValueError(f"compiled solver: {name!r} must be a module-level numba function of an imported module")
     return mod, name

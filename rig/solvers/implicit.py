@@ -16,14 +16,15 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, all_finite
-from rig.solvers.dopri import PolynomialDense, initial_step
+from rig.solvers.dense import PolynomialDense
+from rig.solvers.rodas import fd_jacobian
+from rig.solvers.stepper import initial_step
 
 _D = 1.0 / (2.0 + math.sqrt(2.0))
 _E32 = 6.0 + math.sqrt(2.0)
 # continuous extension y(t + θh) = y + h·[θ(1 − θ)/(1 − 2d)·k1 + θ(θ − 2d)/(1 − 2d)·k2]
 _P = np.array([[1.0, -1.0], [-2.0 * _D, 1.0]]) / (1.0 - 2.0 * _D)
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.8, 0.2, 5.0
-_SQRT_EPS = math.sqrt(np.finfo(float).eps)
 Jac = Callable[[float, tuple, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
@@ -56,30 +57,15 @@ class Rosenbrock23(OdeSolver):
         self._K: tuple | None = None
         self.stiff_at: float | None = None
 
-    def _jacobian(self, t: float, y: np.ndarray, f0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """∂f/∂y (forward differences, step √eps·max(|y_j|, atol/rtol)) and ∂f/∂t."""
-        n = y.size
-        jac = np.empty((n, n))
-        floor = max(self.atol / self.rtol, 1e-300)
-        for j in range(n):
-            dy = _SQRT_EPS * max(abs(y[j]), floor)
-            yj = y.copy()
-            yj[j] += dy
-            jac[:, j] = (np.asarray(self.fun(t, tuple(yj)), dtype=float) - f0) / (yj[j] - y[j])
-        dt = _SQRT_EPS * max(abs(t), self.h_abs, 1e-300)
-        dfdt = (np.asarray(self.fun(t + dt, tuple(y)), dtype=float) - f0) / dt
-        self.nfev += n + 1
-        self.njev += 1
-        return jac, dfdt
-
     def _step_impl(self) -> None:
         fun, t = self.fun, self.t
         y, f0 = np.array(self.y), self.f
         if self.jac is None:
-            jac, dfdt = self._jacobian(t, y, f0)
+            jac, dfdt = fd_jacobian(fun, t, y, f0, self.rtol, self.atol, self.h_abs)
+            self.nfev += y.size + 1
         else:
             jac, dfdt = self.jac(t, self.y, f0)
-            self.njev += 1
+        self.njev += 1
         eye = np.eye(y.size)
         h_abs = min(self.h_abs, self.max_step)
         min_step = self._min_step()

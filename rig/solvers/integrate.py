@@ -3,7 +3,9 @@
 A *problem* is a right-hand side plus event functions (and optional times where the RHS jumps);
 a *method* is a solver class. ``integrate`` drives one with the other:
 
-* events are located by root finding (Brent) on the step's dense output and recorded;
+* events are located by root finding (Brent) on the step's dense output and recorded; for a fixed-step
+  method on states stepped from the step's start instead (``state_at``): it has no error control, and its
+  stages past a jump of the RHS at the event would spoil the interpolant;
 * at an event flagged ``restart`` (RHS discontinuous there, e.g. a cam phase boundary) or whose
   ``action`` reports a change of the problem, the step is cut at the event and the solver restarted;
 * ``time_breaks`` (load steps in time) are hit exactly by bounding the solver there and restarting
@@ -29,11 +31,17 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence
-from rig.solvers.dopri import DormandPrince45, fill_dense
+from rig.solvers.dense import fill_dense
+from rig.solvers.dopri import DormandPrince45
+from rig.solvers.euler import Euler, SymplecticEuler
 from rig.solvers.flow import ClosedForm, ClosedFormSolver
+from rig.solvers.implicit import Rosenbrock23
 from rig.solvers.rk4 import RK4
+from rig.solvers.rodas import Rodas4
+from rig.solvers.stepper import FixedStepper
 
-METHODS: dict[str, type[OdeSolver]] = {"DP45": DormandPrince45, "RK4": RK4}
+METHODS: dict[str, type[OdeSolver]] = {"Euler": Euler, "SymplecticEuler": SymplecticEuler, "RK4": RK4,
+                                       "DP45": DormandPrince45, "Rodas4": Rodas4, "Rosenbrock23": Rosenbrock23}
 MAX_STALLED = 50
 STALL_SPAN = 1e-12     # restarts closer than this (relative to max(1, |t|)) do not count as progress
 
@@ -120,12 +128,27 @@ def _past_root(g: Callable[[float, tuple], float], dense: Callable, t_root: floa
     return t_new
 
 
+def _before_root(g: Callable[[float, tuple], float], states: Callable, t_root: float, t_old: float,
+                 rising: bool) -> float:
+    """Last time ≤ ``t_root`` in the step where ``g`` still has its sign before the crossing: a fixed-step
+    method stepping to the root must not evaluate the RHS of the new side (a jump there would enter its last
+    stage)."""
+    dt = 4 * np.finfo(float).eps * max(1.0, abs(t_root))
+    while t_root > t_old:
+        v = g(t_root, states(t_root))
+        if (v < 0.0) if rising else (v > 0.0):
+            return t_root
+        t_root, dt = max(t_old, t_root - dt), 2 * dt
+    return t_old
+
+
 def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[OdeSolver] = "DP45",
               events: Sequence[Event] | None = None, t_eval: Sequence[float] | None = None,
               y0: Sequence[float] | None = None, **options) -> Solution:
-    """Integrate ``problem`` over ``t_span`` with ``method`` ("DP45", "RK4" or a solver class).
+    """Integrate ``problem`` over ``t_span`` with ``method`` (a name of :data:`METHODS` or a solver class).
 
-    ``options`` go to the solver (rtol, atol, first_step, max_step, stiffness for DP45; h, stiffness for RK4).
+    ``options`` go to the solver (rtol, atol, first_step, max_step, stiffness, compiled for DP45 and Rodas4;
+    h, stiffness, compiled for Euler, SymplecticEuler (and nq) and RK4).
     ``t_eval`` (increasing, inside t_span) selects output times, otherwise every step is returned.
     """
     if isinstance(method, str) and method not in METHODS:
@@ -163,6 +186,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         else:
             solver = ClosedFormSolver(exact, t, y, breaks[bi])
         cut = None
+        fixed = isinstance(solver, FixedStepper)     # events on re-stepped states (see the docstring)
         runs = batched and bool(events) and getattr(solver, "can_advance", False)
         while solver.status == "running":
             if runs:                            # compiled run of steps up to a sign change of some event
@@ -203,21 +227,28 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                         t_root = t_new
                     else:
                         dense = dense or solver.dense_output()
-                        g_at = (lambda tt, f=e.fun, d=dense: f(tt, d(tt)))
+                        on = solver.state_at if fixed else dense
+                        g_at = (lambda tt, f=e.fun, d=on: f(tt, d(tt)))
                         if (g_at(t_old) < 0.0) == (b < 0.0):
                             t_root = t_old      # g jumped at a restart (RHS/mode discontinuity): past at once
-                        elif runs:              # compiled events: compiled search on the same dense output
+                        elif runs and not fixed:  # compiled events: compiled search on the same dense output
                             t_root = solver.locate(i)
                         else:
                             t_root = brentq(g_at, t_old, t_new, xtol=1e-15, rtol=4 * np.finfo(float).eps)
                         if e.mode_dependent:
-                            t_root = _past_root(e.fun, dense, t_root, t_new, rising)
+                            t_root = _past_root(e.fun, on, t_root, t_new, rising)
                     hits.append((t_root, i, 1.0 if rising else -1.0))
                 hits.sort()
                 for t_root, i, sign in hits:
                     e = events[i]
                     dense = dense or solver.dense_output()
-                    rec = EventRecord(t_root, e.name, dense(t_root) if t_root < t_new else y_new, sign)
+                    if t_root >= t_new:
+                        y_root = y_new
+                    elif fixed:                 # step to the root from the side where the old RHS holds
+                        y_root = solver.state_at(_before_root(e.fun, solver.state_at, t_root, t_old, sign > 0.0))
+                    else:
+                        y_root = dense(t_root)
+                    rec = EventRecord(t_root, e.name, y_root, sign)
                     records.append(rec)
                     changed = e.action(rec) if e.action is not None else False
                     if e.terminal or e.restart or changed is not False:

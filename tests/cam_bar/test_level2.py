@@ -11,6 +11,7 @@ from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.level2 import ContactLaw, Level2, groove
 from rig.plants.cam_bar.mechanism import RPM
 from rig.solvers import SolverDivergence
+from rig.solvers.rodas import fd_jacobian
 
 NO_SPRING = dict(k=0.0, Me_0=0.0)
 
@@ -54,7 +55,7 @@ def test_groove_geometry_matches_level1_lever_and_finite_differences():
     gp, gm = groove(mech, phi + h), groove(mech, phi - h)
     assert g.lever_p == pytest.approx((gp.lever - gm.lever) / (2 * h), abs=1e-9)
     assert g.psi_p == pytest.approx((gp.psi - gm.psi) / (2 * h), abs=1e-8)
-    assert g.psi == pytest.approx(mech.state(phi).psi, abs=0.0)
+    assert g.psi == pytest.approx(mech.state(phi).psi, abs=1e-14)
     assert np.all(g.rising == (mech.state(phi).s_p > 0))
 
 
@@ -63,12 +64,13 @@ def test_zero_clearance_and_stiff_contact_converge_to_levels_0_and_1():
     l1_switch = degrees(mech.flank_switch_angles()[0])
     dev, err = [], []
     for scale in (1.0, 100.0):
-        run, sig = _window(Level2(mech, _scaled(mech, scale)), 90.0, 175.0, rtol=1e-4, atol=1e-10)
+        run, sig = _window(Level2(mech, _scaled(mech, scale)), 90.0, 175.0, rtol=1e-4, atol=1e-10, method="Rodas4")
         ks = mech.kinetostatics(sig["phi"])
         dev.append(np.max(np.abs(sig["psi"] - mech.state(sig["phi"]).psi)))     # ψ against the cam law
         err.append(np.max(np.abs(sig["R23"] - ks.R23n)) / np.max(np.abs(ks.R23n)))
         assert [e.data["to"] for e in run.switches] == ["other"]
-        assert degrees(run.switches[0].data["phi"]) == pytest.approx(l1_switch, abs=0.05)
+        late = degrees(run.switches[0].data["phi"]) - l1_switch          # the compliant contact delays it
+        assert 0.0 < late < (0.06 if scale == 1.0 else 0.006)
     assert dev[0] < 1e-5 and dev[1] < dev[0] / 30.0           # δ ∝ K^(-0.9): 100× stiffer → 63× closer
     assert err[0] < 0.01 and err[1] < 0.002
 
@@ -142,7 +144,8 @@ def test_gripper_rings_in_the_upper_dwell_at_the_contact_frequency():
     crossings = grid[1:][np.diff(np.sign(xs - np.mean(xs))) != 0]
     f_ring = 0.5 / np.mean(np.diff(crossings))
     y = run.solution.y[:, -1]
-    jac, _ = model.jacobian(float(run.solution.t[-1]), tuple(y), np.array(model.rhs(float(run.solution.t[-1]), tuple(y))))
+    t_end = float(run.solution.t[-1])
+    jac, _ = fd_jacobian(model.rhs, t_end, y, np.array(model.rhs(t_end, tuple(y))), 1e-6, 1e-12, 1e-4)
     f_mode = np.max(np.abs(np.linalg.eigvals(jac).imag)) / (2 * np.pi)   # linearised contact mode
     assert 300.0 < f_mode < 1500.0
     assert f_ring == pytest.approx(f_mode, rel=0.1)

@@ -1,4 +1,5 @@
-"""The implicit Rosenbrock23 solver, and why level 2 needs it: DP45 is stability-limited on the groove contact."""
+"""Implicit solvers on stiff problems, and on level 2: DP45 is stability-limited on the groove contact, Rodas4
+is not; fixed-step explicit methods beyond their limit are reported, not silently wrong."""
 import math
 import warnings
 
@@ -8,6 +9,7 @@ import pytest
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.level2 import Level2
 from rig.solvers import Event, Problem, Rosenbrock23, StiffnessError, StiffnessWarning, integrate
+from rig.solvers.rodas import fd_jacobian
 
 LAM = 1e4
 
@@ -48,35 +50,44 @@ def test_rosenbrock23_error_control_dense_output_and_events():
     assert dp.nsteps > 20 * loose.nsteps and any(issubclass(w.category, StiffnessWarning) for w in caught)
 
 
-def test_user_jacobian_matches_finite_differences():
-    mech = PinInsertionMechanism()
-    model = Level2(mech)
+def test_level2_contact_mode_is_stiff():
+    model = Level2(PinInsertionMechanism())
     t, y = 0.17, model.initial_state(0.17)
-    f = np.array(model.rhs(t, y))
-    jac, dfdt = model.jacobian(t, y, f)
-    solver = Rosenbrock23(model.rhs, t, y, 0.2)
-    ref_jac, ref_dfdt = solver._jacobian(t, np.array(y), f)
-    assert jac == pytest.approx(ref_jac, rel=1e-4, abs=1e-6 * np.max(np.abs(ref_jac)))
-    assert dfdt == pytest.approx(ref_dfdt, rel=1e-3, abs=1e-6 * np.max(np.abs(ref_dfdt)))
+    jac, _ = fd_jacobian(model.rhs, t, np.array(y), np.array(model.rhs(t, y)), 1e-6, 1e-12, 1e-4)
     assert np.max(np.abs(np.linalg.eigvals(jac))) > 2000.0     # the stiff contact mode (1/s)
 
 
-def test_level2_is_stiff_for_dp45_but_not_for_the_implicit_method():
+def test_level2_is_stiff_for_dp45_but_not_for_rodas4():
     model = Level2(PinInsertionMechanism())
     span = (0.0, 0.16)                                          # lower dwell and rise, before F_c acts
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        explicit = model.simulate(span, method="DP45", rtol=1e-3, atol=1e-8).solution
+        explicit = model.simulate(span, method="DP45", rtol=1e-3, atol=1e-8, stiffness="warn").solution
     stiff = [w for w in caught if issubclass(w.category, StiffnessWarning)]
     assert stiff and "stiff at t = " in str(stiff[0].message) and explicit.stiff_at is not None
     with warnings.catch_warnings():
         warnings.simplefilter("error")                          # the implicit method reports nothing
-        implicit = model.simulate(span, rtol=1e-3, atol=1e-8).solution
+        implicit = model.simulate(span, method="Rodas4", rtol=1e-3, atol=1e-8).solution
     assert implicit.stiff_at is None
     h_explicit, h_implicit = np.diff(explicit.t), np.diff(implicit.t)
-    assert np.max(h_explicit) < 2e-3 and np.max(h_implicit) > 5 * np.max(h_explicit)
-    assert implicit.nsteps * 3 < explicit.nsteps and implicit.nfev * 5 < explicit.nfev
-    ref = model.simulate(span, method="DP45", rtol=1e-10, atol=1e-13, stiffness="ignore").solution
-    assert implicit.y_final[0] == pytest.approx(ref.y_final[0], rel=2e-3)
+    assert np.max(h_explicit) < 2e-3 and np.max(h_implicit) > 20 * np.max(h_explicit)
+    assert implicit.nsteps * 5 < explicit.nsteps and implicit.nfev * 5 < explicit.nfev
+    ref = model.simulate(span, method="DP45", rtol=1e-10, atol=1e-15, stiffness="ignore").solution
+    assert implicit.y_final[0] == pytest.approx(ref.y_final[0], rel=1e-4)
     with pytest.raises(StiffnessError, match=r"DP45: problem is stiff at t = .* state"):
         model.simulate(span, method="DP45", rtol=1e-3, atol=1e-8, stiffness="raise")
+
+
+@pytest.mark.parametrize("method, h, cause", [("Euler", 1e-4, "increments grow exponentially"),
+                                             ("RK4", 2e-4, r"h\*\|lambda\| = .* > 2.78")])
+def test_level2_fixed_step_beyond_the_contact_stability_limit_is_reported(method, h, cause):
+    """The contact mode (−509 ± 4121i 1/s in the dwell, up to |λ| ≈ 1.6e4 1/s in the rise): explicit Euler at
+    h = 0.1 ms (h·ω_n = 0.41 > 2ζ = 0.24: a growing oscillation) and RK4 at 0.2 ms (h·|λ| > 2.78) are outside
+    their stability regions — the run stops naming method, time, cause and fix; RK4 at 0.1 ms is accurate."""
+    model = Level2(PinInsertionMechanism())
+    label = {"Euler": "explicit Euler", "RK4": "RK4"}[method]
+    with pytest.raises(StiffnessError, match=rf"{label} unstable at t = .* {cause}.* Rodas4"):
+        model.simulate((0.0, 0.1), method=method, h=h)
+    ref = model.simulate((0.0, 0.1), method="Rodas4", rtol=1e-9, atol=1e-14).solution
+    fine = model.simulate((0.0, 0.1), method="RK4", h=1e-4).solution
+    assert fine.y_final[0] == pytest.approx(ref.y_final[0], rel=1e-6)

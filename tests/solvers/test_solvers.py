@@ -110,7 +110,7 @@ def test_solver_objects_step_interface():
     with pytest.raises(RuntimeError):
         r.step()
     with pytest.raises(ValueError, match="unknown method"):
-        integrate(Problem(oscillator, (1.0, 0.0)), (0, 1), method="Euler")
+        integrate(Problem(oscillator, (1.0, 0.0)), (0, 1), method="Heun")
 
 
 def _stiff(t, y):
@@ -132,10 +132,14 @@ def test_dp45_reports_stiffness_and_can_raise():
 
 
 def test_rk4_too_large_step_on_stiff_problem_is_reported():
-    from rig.solvers import StiffnessWarning
-    with pytest.warns(StiffnessWarning, match="RK4"):
+    """A fixed step beyond the stability limit diverges: reported as such (StiffnessError), or as a warning
+    with stiffness="warn"; a step inside the limit is not reported."""
+    from rig.solvers import StiffnessError, StiffnessWarning
+    with pytest.raises(StiffnessError, match="RK4 unstable"):
+        integrate(Problem(_stiff, (1.0, 1.0)), (0, 0.1), method="RK4", h=1e-3)
+    with pytest.warns(StiffnessWarning, match="RK4 unstable"):
         try:
-            integrate(Problem(_stiff, (1.0, 1.0)), (0, 0.1), method="RK4", h=1e-3)
+            integrate(Problem(_stiff, (1.0, 1.0)), (0, 0.1), method="RK4", h=1e-3, stiffness="warn")
         except SolverDivergence:
             pass                                            # blowing up is a report too
     s = integrate(Problem(_stiff, (1.0, 1.0)), (0, 0.01), method="RK4", h=1e-4, t_eval=[0.01])

@@ -1,6 +1,7 @@
 """Runner interface of the cam-bar plant at fidelity 2: truth from the groove dynamics (:mod:`.level2`).
 
-Integrates with :class:`~rig.solvers.implicit.Rosenbrock23` chunk by chunk, continuing from the last state;
+Integrates the compiled kernel with :data:`~rig.plants.cam_bar.level2.METHOD` (DP45, the fastest of the rig's
+solvers at 1e-6 relative error in e: benchmarks/bench_level2.py) chunk by chunk, continuing from the last state;
 with ``[plant.variation]`` each cam revolution runs with its cycle's mechanism (load parameters) and gets its
 chain stroke deviation Δs added, as at level 1. Events: ``flank_switch`` (data ``phi``, ``to``) from the
 contact onsets of the integration, and ``accel_jump`` program crossings as at level 1.
@@ -18,7 +19,7 @@ from rig.plants.cam_bar.timeline import Timeline
 if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
-RTOL, ATOL = 1e-3, 1e-9
+RTOL, ATOL = 1e-7, 1e-12    # DP45: ≈ 5e-7 of max|e| over a revolution (docs/cam-bar.md)
 
 
 class Level2Timeline(Timeline):

@@ -1,20 +1,29 @@
-"""Template of the compiled DP5(4) step, runs of steps and event location (:mod:`rig.solvers.compiled`).
+"""Template of the compiled step, runs of steps and event location shared by all methods
+(:mod:`rig.solvers.compiled`).
 
-Not used directly: :func:`rig.solvers.compiled.dp45_step` copies this source into a module per kernel,
-binding ``kernel``, ``event`` and ``act`` (the block marked below) to module-level numba functions, so
+Not used directly: :func:`rig.solvers.compiled.compiled_solver` copies this source into a module per method
+and kernel, binding ``kernel``, ``event`` and ``act`` (the block marked below) to module-level numba functions
+and inserting the method's template (``one_step`` and its continuous extension ``P``) in the second block, so
 that numba can cache the compiled code on disk — it cannot cache closures or functions passed as values.
+
+A method's ``one_step(t, h_abs, w, y, y_new, K, p) -> (status, t_new, h, h_next, nfev, h·|λ|)`` advances from
+(t, y) with K[0] = f(t, y) by one accepted step of size h (at most h_abs), writes the new state into
+``y_new``, its stage vectors into K (rows matching the rows of P: y(t + θh) = y + h·Σ_c (Kᵀ P)[:, c]·θ^(c+1))
+and f(t_new, y_new) into the last row of K (the next step's K[0]); status 0, UNDERFLOW or NONFINITE (a
+fixed-step method's state became non-finite: t_new, h are the failed step's). ``w`` holds the solver's
+settings (slots of :mod:`rig.solvers.compiled`).
 """
 import math
 
 import numpy as np
 from numba import njit
 
-from rig.solvers.compiled import ATOL, H, H_ABS, HL, MAX_STEP, NEV, NFEV, RTOL, T, T_BOUND
-from rig.solvers.dopri import _P as P
-from rig.solvers.dopri import A, B, C, E, MAX_FACTOR, MIN_FACTOR, SAFETY
+from rig.solvers.compiled import FAIL, H, H_ABS, HL, MAX_STEP, NEV, NFEV, T, T_BOUND
+
+UNDERFLOW, NONFINITE = 1, 2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def never(t, y, p, k, apply):
     """``act`` for problems without compiled event actions."""
     return False
@@ -23,80 +32,55 @@ def never(t, y, p, k, apply):
 # <kernels>
 kernel = event = act = None  # bound to the problem's kernels in generated copies
 # </kernels>
+# <method>
+one_step = P = None  # the method's step and continuous extension, inserted in generated copies
+# </method>
 
 
-@njit(cache=True)
-def one_step(t, h_abs, t_bound, rtol, atol, y, y_new, K, p):
-    """One accepted step from (t, y), K[0] = f(t, y): (status, t_new, h, h_next, nfev, h·|λ|)."""
-    n = y.size
-    min_step = 10.0 * (np.nextafter(t, np.inf) - t)
-    ys = np.empty(n)
-    rejected = False
-    nfev = 0
-    while True:
-        if h_abs < min_step:
-            return 1, t, h_abs, h_abs, nfev, 0.0
-        h = h_abs
-        t_new = t + h
-        if t_new >= t_bound:
-            t_new = t_bound
-            h = t_new - t
-        for s in range(1, 6):
-            for i in range(n):
-                acc = 0.0
-                for j in range(s):
-                    acc += A[s, j] * K[j, i]
-                ys[i] = y[i] + h * acc
-            kernel(t + C[s] * h, ys, p, K[s])
-        finite = True
-        for i in range(n):
-            acc = 0.0
-            for j in range(6):
-                acc += B[j] * K[j, i]
-            y_new[i] = y[i] + h * acc
-            finite &= math.isfinite(y_new[i])
-        nfev += 5
-        if not finite:
-            h_abs *= MIN_FACTOR
-            continue
-        kernel(t_new, y_new, p, K[6])
-        nfev += 1
-        acc = 0.0
-        for i in range(n):
-            e = 0.0
-            for j in range(7):
-                e += E[j] * K[j, i]
-            d = h * e / (atol + rtol * max(abs(y[i]), abs(y_new[i])))
-            acc += d * d
-        err_norm = math.sqrt(acc / n)
-        if not math.isfinite(err_norm):
-            h_abs *= MIN_FACTOR
-            continue
-        if err_norm < 1.0:
-            factor = MAX_FACTOR if err_norm == 0.0 else min(MAX_FACTOR, SAFETY * err_norm ** -0.2)
-            if rejected:
-                factor = min(1.0, factor)
-            break
-        h_abs *= max(MIN_FACTOR, SAFETY * err_norm ** -0.2)
-        rejected = True
+@njit(cache=True, error_model="numpy")
+def fixed_step(t, h, t_bound):
+    """(h, t_new) of a fixed-step method: the last step is stretched or cut to land on t_bound."""
+    if t_bound - t - h < 1e-6 * h:
+        return t_bound - t, t_bound
+    return h, t + h
+
+
+@njit(cache=True, error_model="numpy")
+def min_step(t):
+    """Smallest step size the time can resolve at t (10 ulp)."""
+    return 10.0 * (np.nextafter(t, np.inf) - t)
+
+
+@njit(cache=True, error_model="numpy")
+def finite(y):
+    """True when every component is finite."""
+    return math.isfinite(y.sum())
+
+
+@njit(cache=True, error_model="numpy")
+def lipschitz(fa, fb, ya, yb):
+    """‖fa − fb‖/‖ya − yb‖: Hairer's estimate of |λ| from derivatives at two nearby states (0 if equal)."""
     num = 0.0
     den = 0.0
-    for i in range(n):
-        num += (K[6, i] - K[5, i]) ** 2
-        den += (y_new[i] - ys[i]) ** 2
-    return 0, t_new, h, h_abs * factor, nfev, (h * math.sqrt(num / den) if den > 0.0 else 0.0)
+    for i in range(ya.size):
+        num += (fa[i] - fb[i]) ** 2
+        den += (ya[i] - yb[i]) ** 2
+    return math.sqrt(num / den) if den > 0.0 else 0.0
 
-@njit(cache=True)
+
+@njit(cache=True, error_model="numpy")
 def step(w, y, y_new, K, f, p):
+    """One accepted step from (w[T], y) with first derivative f (see the module docstring); returns the status
+    and sets H, NFEV, HL and, on success, T, H_ABS in w."""
     K[0] = f
-    status, t_new, h, h_next, nfev, hl = one_step(w[T], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL],
-                                                  w[ATOL], y, y_new, K, p)
-    w[H], w[NFEV] = h, nfev
+    status, t_new, h, h_next, nfev, hl = one_step(w[T], min(w[H_ABS], w[MAX_STEP]), w, y, y_new, K, p)
+    w[H], w[NFEV], w[HL] = h, nfev, hl
     if status == 0:
-        w[T], w[H_ABS], w[HL] = t_new, h_next, hl
+        w[T], w[H_ABS] = t_new, h_next
     return status
 
-@njit(cache=True)
+
+@njit(cache=True, error_model="numpy")
 def coeffs(K, h, Q):
     """Dense-output coefficients Q = h·(Kᵀ P) of one step."""
     for i in range(Q.shape[0]):
@@ -106,7 +90,8 @@ def coeffs(K, h, Q):
                 acc += K[j, i] * P[j, c]
             Q[i, c] = h * acc
 
-@njit(cache=True)
+
+@njit(cache=True, error_model="numpy")
 def g_dense(t, t_old, h, y_old, Q, p, k, y):
     """Event k at time t on the dense output y_old + Σ_c Q[:, c] θ^(c+1) (θ = (t − t_old)/h)."""
     th = (t - t_old) / h
@@ -117,7 +102,8 @@ def g_dense(t, t_old, h, y_old, Q, p, k, y):
         y[i] = y_old[i] + acc * th
     return event(t, y, p, k)
 
-@njit(cache=True)
+
+@njit(cache=True, error_model="numpy")
 def brent(t_old, t_new, y_old, Q, p, k):
     """Root of event k in [t_old, t_new] on the dense output (scipy's brentq.c, xtol 1e-15, rtol 4 eps)."""
     h = t_new - t_old
@@ -162,15 +148,24 @@ def brent(t_old, t_new, y_old, Q, p, k):
         fcur = g_dense(xcur, t_old, h, y_old, Q, p, k, y)
     return xcur
 
-@njit(cache=True)
+
+@njit(cache=True, error_model="numpy")
 def locate(t_old, t_new, y_old, K, p, k):
+    """Root of event k in the step [t_old, t_new] with stage vectors K (a sign change over the step)."""
     Q = np.empty((y_old.size, P.shape[1]))
     coeffs(K, t_new - t_old, Q)
     return brent(t_old, t_new, y_old, Q, p, k)
 
-@njit(cache=True)
-def run(w, Y, TT, HH, KK, HL, EV, g, p):
+
+@njit(cache=True, error_model="numpy")
+def run(w, Y, TT, HH, KK, HL_, EV, g, p):
+    """Steps from (w[T], Y[0]) with KK[0, 0] = f there, storing step ends TT[s + 1], states Y[s + 1], step
+    sizes HH[s], stage vectors KK[s] and h·|λ| HL_[s], until an event value in ``g`` (given at the start,
+    updated in place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the
+    number of steps, or −1 − steps on a failure (status in w[FAIL], the failed step's size in w[H]). Sign
+    changes that ``act`` accepts are acted on in the run (see :func:`rig.solvers.compiled.compiled_solver`)."""
     n = Y.shape[1]
+    last = KK.shape[1] - 1
     g_new, yr = np.empty(g.size), np.empty(n)
     Q = np.empty((n, P.shape[1]))
     TT[0] = w[T]
@@ -180,16 +175,16 @@ def run(w, Y, TT, HH, KK, HL, EV, g, p):
     restarted = False
     for s in range(m):
         if s and not restarted:
-            KK[s, 0] = KK[s - 1, 6]
+            KK[s, 0] = KK[s - 1, last]
         restarted = False
-        status, t_new, h, h_next, nf, hl = one_step(TT[s], min(w[H_ABS], w[MAX_STEP]), w[T_BOUND], w[RTOL],
-                                                    w[ATOL], Y[s], Y[s + 1], KK[s], p)
+        status, t_new, h, h_next, nf, hl = one_step(TT[s], min(w[H_ABS], w[MAX_STEP]), w, Y[s], Y[s + 1], KK[s],
+                                                    p)
         nfev += nf
         w[NFEV], w[NEV] = nfev, ne
         if status:
-            w[H] = h
+            w[H], w[FAIL] = h, status
             return -1 - s
-        TT[s + 1], HH[s], HL[s] = t_new, h, hl
+        TT[s + 1], HH[s], HL_[s] = t_new, h, hl
         w[T], w[H_ABS], w[H] = t_new, h_next, h
         crossed = False
         for k in range(g.size):
@@ -243,4 +238,3 @@ def run(w, Y, TT, HH, KK, HL, EV, g, p):
         w[T], w[H_ABS], w[NFEV], w[NEV] = t_root, h, nfev, ne
         restarted = True
     return m
-

@@ -1,0 +1,412 @@
+"""Compiled (numba) groove dynamics of the pin-insertion mechanism at level 2 (MODELS §3.4) — the one
+implementation behind :class:`rig.plants.cam_bar.level2.Level2`: its right-hand side, its events and the
+quantities its outputs are built from (:func:`evaluate`). Physics, symbols and sign conventions: the module
+docstring of :mod:`rig.plants.cam_bar.level2`.
+
+Everything the kernels need travels in one float64 vector ``p`` (indices below): chain geometry, masses,
+spring, guide friction, insertion force, contact law, the cam-speed profile, the cam program as a segment
+table with the motion laws' coefficients, a one-entry cache of the groove geometry for the events, and the
+first jam of the slider guide (for the diagnosis).
+
+The free-body solution is in closed form: on the actual motion (ψ, ψ̇, ψ̈) the rod and slider follow ψ
+through the level-0 chain, and every force of the level-1 free-body diagrams
+(:mod:`rig.plants.cam_bar.kinetostatics`) is affine in ψ̈ on a friction branch of the slider guide (normal
+force N ≥ 0 or N < 0). The cam moment is M_Σ(ψ̈) = M0 + M1·ψ̈; ℓ·(F_w − F_o) = M_Σ(ψ̈) gives ψ̈ directly. The
+branch N ≥ 0 is taken when consistent, else N < 0; neither is a jam (self-locking guide).
+
+All compiled code of level 2 lives in this one module (numba's disk cache is invalidated by changes to a
+function's own file only, not to the files of the functions it calls).
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numba import njit
+
+from rig.motion.laws import PiecewiseSineLaw, PolynomialLaw
+from rig.motion.registry import get_law
+from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed
+
+if TYPE_CHECKING:
+    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+
+TAU = 1e-3              # s, scale of the velocity state: y = (e, τ·ė)
+TWO_PI = 2.0 * math.pi
+DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinear (as rig.plants.cam_bar.chain)
+
+# p layout: chain, masses, loads, contact, speed profile, event cache, diagnosis, cam program
+(L3, LR, L4, E_SK, S0, X_A0, Y_A0, BRANCH, ROD_SIDE, CAM_DIR,
+ M3, M4, M5, J3, J4, A3, G,
+ MU, V_S, K_SPRING, L_F, ME0, PSI0, F_C, S_PIERCE, PSI_PIERCE,
+ CLEARANCE, K_C, EXPONENT, DAMPING, MAX_PEN,
+ SPEED, PHI0, SP1, SP2, SP3, SP4,
+ EV_T, EV_LEVER, EV_PSI, EV_INSIDE,
+ JAM_T, JAM_PHI,
+ NSEG) = range(44)
+PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
+SEG_ROW = 5
+#: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
+#: ω_mean, amplitude, 2πf
+CONSTANT, RAMP, SINUSOIDAL = 0, 1, 2
+#: motion-law codes at a segment's law offset: DWELL (no law); POLYNOMIAL n, c0..c_{n−1};
+#: SINE_PIECES n, then per piece x_start, c0, c1, w, θ, y_start, y'_start (scaled, as PiecewiseSineLaw)
+DWELL, POLYNOMIAL, SINE_PIECES = 0, 1, 2
+PIECE = 7
+#: events, in the order of :meth:`rig.plants.cam_bar.level2.Level2.problem`
+WORKING, OTHER, OVERLOAD, INSERTION = range(4)
+#: rows of :func:`evaluate`
+OUTPUTS = ("phi", "omega", "alpha", "psi", "psi_d", "psi_dd", "e_dd", "F_w", "F_o", "drive_torque",
+           "p_dissipated", "delta_w", "delta_o", "s", "s_d", "s_dd", "theta_d", "theta_dd", "mu", "F_c",
+           "friction")
+N_OUT = len(OUTPUTS)
+
+
+def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float = 1.0, damping: float = 0.0,
+         max_penetration: float = math.inf, friction_speed: float = 1e-3) -> np.ndarray:
+    """Parameter vector of ``mech`` with the contact law K·δ^p·(1 + α·δ̇) (``stiffness`` K in N/m^p,
+    ``exponent`` p, ``damping`` α in s/m), ``max_penetration`` (m) and the friction regularisation speed
+    ``friction_speed`` (m/s). Raises ValueError for a speed profile or motion law the kernel does not know."""
+    ch = mech.chain
+    top = mech.program.levels[1]
+    s_pierce = top - mech.F_c_travel
+    head = [mech.L3, mech.l3, mech.l4, mech.e_sk, mech.s0, mech.x_A0, mech.y_A0, ch.branch, ch.rod_side,
+            float(mech.cam_direction),
+            mech.m3, mech.m4, mech.m5, mech.J3, mech.J4, mech.a3, mech.g,
+            mech.mu, friction_speed, mech.k, mech.l_F, mech.Me_0, mech.psi0, mech.F_c, s_pierce,
+            float(mech.kinematics(s_pierce).psi),
+            mech.clearance, stiffness, exponent, damping, max_penetration,
+            *_speed(mech.speed),
+            math.nan, 0.0, 0.0, 0.0,
+            math.nan, math.nan,
+            float(len(mech.program.segments))]
+    assert len(head) == PROGRAM
+    table, laws = [], []
+    at = PROGRAM + SEG_ROW * len(mech.program.segments)
+    level = 0.0
+    for start, seg in zip(mech.program.starts, mech.program.segments):
+        h = {"rise": seg.stroke, "return": -seg.stroke}.get(seg.kind, 0.0)
+        code = [float(DWELL)] if seg.kind == "dwell" else _law(seg.law)
+        table += [float(start), seg.angle, level, h, float(at)]
+        laws += code
+        at += len(code)
+        level += h
+    return np.array(head + table + laws, dtype=float)
+
+
+def _speed(speed) -> list[float]:
+    """(kind, φ0, SP1..SP4) of a speed profile."""
+    if isinstance(speed, ConstantSpeed):
+        return [CONSTANT, speed.phi0, speed.omega, 0.0, 0.0, 0.0]
+    if isinstance(speed, RampSpeed):
+        return [RAMP, speed.phi0, speed.omega0, speed.omega1, speed.t_ramp, speed.t_start]
+    if isinstance(speed, SinusoidalSpeed):
+        f = speed.frequency if speed.frequency is not None else speed.omega_mean / TWO_PI
+        return [SINUSOIDAL, speed.phi0, speed.omega_mean, speed.amplitude, 2.0 * math.pi * f, 0.0]
+    raise ValueError(f"level 2: speed profile {type(speed).__name__} is not supported by the compiled kernel "
+                     f"(constant, ramp, sinusoidal)")
+
+
+def _law(name: str) -> list[float]:
+    """Kernel code of a motion law."""
+    law = get_law(name)
+    if isinstance(law, PolynomialLaw):
+        c = law._p[0].coef.tolist()
+        return [float(POLYNOMIAL), float(len(c)), *c]
+    if isinstance(law, PiecewiseSineLaw):
+        rows = np.column_stack([law._xa, law._c0, law._c1, law._w, law._th, law._ya, law._va])
+        return [float(SINE_PIECES), float(len(rows)), *rows.ravel().tolist()]
+    raise ValueError(f"level 2: motion law {name!r} ({type(law).__name__}) is not supported by the compiled "
+                     f"kernel (polynomial and piecewise-sine laws)")
+
+
+# ---- cam speed and program ---------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def drive(t, p):
+    """(φ, ω, ω̇) of the speed profile at time t (rad, rad/s, rad/s²), as :mod:`rig.motion.speed`."""
+    kind = p[SPEED]
+    if kind == CONSTANT:
+        return p[PHI0] + p[SP1] * t, p[SP1], 0.0
+    if kind == RAMP:
+        w0, w1, t_ramp, t_start = p[SP1], p[SP2], p[SP3], p[SP4]
+        rate = (w1 - w0) / t_ramp
+        u = min(max(t - t_start, 0.0), t_ramp)
+        after = max(t - t_start - t_ramp, 0.0)
+        before = min(t, t_start)
+        phi = p[PHI0] + w0 * before + w0 * u + 0.5 * rate * u * u + w1 * after
+        return phi, w0 + rate * u, rate if t_start < t < t_start + t_ramp else 0.0
+    mean, amp, w = p[SP1], p[SP2], p[SP3]
+    return p[PHI0] + mean * t + amp / w * (1.0 - math.cos(w * t)), mean + amp * math.sin(w * t), \
+        amp * w * math.cos(w * t)
+
+
+@njit(cache=True, error_model="numpy")
+def law(p, at, x):
+    """(y, y', y'') of the motion law coded at p[at] at x ∈ [0, 1] (as :mod:`rig.motion.laws`)."""
+    n = int(p[at + 1])
+    if p[at] == POLYNOMIAL:
+        y = p[at + 1 + n]
+        d1 = d2 = 0.0
+        for k in range(n - 2, -1, -1):                # Horner with the first two derivatives
+            d2 = d2 * x + d1
+            d1 = d1 * x + y
+            y = y * x + p[at + 2 + k]
+        return y, d1, 2.0 * d2
+    i = 0
+    while i + 1 < n and p[at + 2 + PIECE * (i + 1)] <= x:
+        i += 1
+    r = at + 2 + PIECE * i
+    xa, c0, c1, w, th, ya, va = p[r], p[r + 1], p[r + 2], p[r + 3], p[r + 4], p[r + 5], p[r + 6]
+    u = x - xa
+    arg = w * u + th
+    v = va + c0 * u - (c1 / w) * (math.cos(arg) - math.cos(th))
+    y = ya + va * u + 0.5 * c0 * u * u - (c1 / w) * ((math.sin(arg) - math.sin(th)) / w - math.cos(th) * u)
+    return y, v, c0 + c1 * math.sin(arg)
+
+
+@njit(cache=True, error_model="numpy")
+def program(phi, p):
+    """(s, s', s'', rise) of the cam program at cam angle φ (m, per rad; as
+    :meth:`rig.motion.program.CamProgram.evaluate`); ``rise``: φ lies in a rise segment (exact, unlike the sign of
+    s' evaluated near the segment's ends)."""
+    x = phi % TWO_PI
+    n = int(p[NSEG])
+    i = 0
+    while i + 1 < n and p[PROGRAM + SEG_ROW * (i + 1)] <= x:
+        i += 1
+    r = PROGRAM + SEG_ROW * i
+    h = p[r + 3]
+    if h == 0.0:
+        return p[r + 2], 0.0, 0.0, False
+    big = p[r + 1]
+    y, y1, y2 = law(p, int(p[r + 4]), (x - p[r]) / big)
+    return p[r + 2] + h * y, h / big * y1, h / (big * big) * y2, h > 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def in_rise(phi, p):
+    """Distance (rad) of φ into the nearest rise segment (> 0 inside, < 0 outside; −1 without rises)."""
+    x = phi % TWO_PI
+    best = -1.0
+    found = False
+    for i in range(int(p[NSEG])):
+        r = PROGRAM + SEG_ROW * i
+        if p[r + 3] > 0.0:
+            d = min(x - p[r], p[r] + p[r + 1] - x)
+            best = d if not found else max(best, d)
+            found = True
+    return best
+
+
+# ---- level-0 chain ----------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def chain_angles(s, p):
+    """(ψ, cos ψ, sin ψ, cos ϑ, sin ϑ, sin(ϑ − ψ)) for slider stroke s (as :meth:`Chain.angles`); ψ = NaN when
+    the chain cannot be assembled or sits at a dead centre."""
+    u = p[S0] - s
+    rho2 = u * u + p[E_SK] ** 2
+    rho = math.sqrt(rho2)
+    cos_g = (p[L3] ** 2 - p[L4] ** 2 + rho2) / (2.0 * p[L3] * rho)
+    if abs(cos_g) > 1.0:
+        return math.nan, 0.0, 0.0, 0.0, 0.0, 0.0
+    psi = math.atan2(p[E_SK], u) - p[BRANCH] * math.acos(cos_g)
+    cp, sp = math.cos(psi), math.sin(psi)
+    ct, st = (u - p[L3] * cp) / p[L4], (p[E_SK] - p[L3] * sp) / p[L4]
+    sin_rel = st * cp - ct * sp
+    if abs(sin_rel) < DEAD_CENTRE_TOL:
+        return math.nan, cp, sp, ct, st, sin_rel
+    return psi, cp, sp, ct, st, sin_rel
+
+
+@njit(cache=True, error_model="numpy")
+def chain_derivatives(cp, sp, ct, st, sin_rel, s_p, s_pp, p):
+    """ψ', ψ'', ϑ', ϑ'' from the loop closure for ds/dq = s_p, d²s/dq² = s_pp (as :meth:`Chain.derivatives`)."""
+    det_l = p[L3] * sin_rel
+    psi_p = -s_p * ct / det_l
+    th_p = s_p * cp / (p[L4] * sin_rel)
+    b1 = -s_pp + p[L3] * psi_p ** 2 * cp + p[L4] * th_p ** 2 * ct
+    b2 = p[L3] * psi_p ** 2 * sp + p[L4] * th_p ** 2 * st
+    return psi_p, (b1 * ct + b2 * st) / det_l, th_p, -(b2 * sp + b1 * cp) / (p[L4] * sin_rel)
+
+
+@njit(cache=True, error_model="numpy")
+def groove(phi, p):
+    """Level-0 follower law and pitch-curve geometry at cam angle φ: (ψ_k, ψ_k', ψ_k'', ℓ, dℓ/dφ, rising)
+    with the lever ℓ = |B_R·t|/|t| of the contact normal about B0, t = dB_R/dφ − d·J·(B_R − A0) the tangent
+    of the relative path, and ``rising``: φ in a rise segment (rad, per rad, m, m/rad; NaN where the chain
+    fails). The insertion force acts only while ``rising`` — the exact form of level 1's s' > 0, whose sign
+    flickers with rounding in the last nanoseconds of a rise and would switch F_c on and off there."""
+    s, s_p, s_pp, rise = program(phi, p)
+    psi, cp, sp, ct, st, sin_rel = chain_angles(s, p)
+    pp, ppp, _, _ = chain_derivatives(cp, sp, ct, st, sin_rel, s_p, s_pp, p)
+    d, lr = p[CAM_DIR], p[LR]
+    bx, by = lr * cp, lr * sp
+    wx, wy = bx - p[X_A0], by - p[Y_A0]
+    dbx, dby = -lr * sp * pp, lr * cp * pp
+    tx, ty = dbx + d * wy, dby - d * wx
+    dtx = -lr * (cp * pp ** 2 + sp * ppp) + d * dby
+    dty = lr * (cp * ppp - sp * pp ** 2) - d * dbx
+    lev = bx * tx + by * ty
+    dlev = dbx * tx + dby * ty + bx * dtx + by * dty
+    tn = math.hypot(tx, ty)
+    dtn = (tx * dtx + ty * dty) / tn
+    sgn = 1.0 if lev > 0.0 else -1.0 if lev < 0.0 else 0.0
+    return psi, pp, ppp, sgn * lev / tn, sgn * (dlev / tn - lev * dtn / tn ** 2), rise
+
+
+# ---- contact and free body ----------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def elastic(delta, p):
+    """K·δ^p for penetration δ > 0, else 0 (N)."""
+    return p[K_C] * delta ** p[EXPONENT] if delta > 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def contact_force(delta, rate, p):
+    """Hunt–Crossley contact force K·δ^p·(1 + α·δ̇) ≥ 0 (N) for penetration δ (m), rate δ̇ (m/s)."""
+    return max(elastic(delta, p) * (1.0 + p[DAMPING] * rate), 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def free_body(psi, psi_d, rising, moment, p):
+    """ψ̈ (rad/s²) at which the cam moment of the free bodies on the actual motion (ψ, ψ̇) equals ``moment``
+    (N·m), and the motion and loads there: (ψ̈, s, ṡ, s̈, ϑ̇, ϑ̈, μ_eff, F_c, friction, status) with status 0,
+    1 (chain cannot be assembled) or 2 (jammed guide). Each force is a pair (value at ψ̈ = 0, slope)."""
+    nan = math.nan
+    l3_, l4_, esk = p[L3], p[L4], p[E_SK]
+    cp, sp = math.cos(psi), math.sin(psi)
+    rad = l4_ * l4_ - (esk - l3_ * sp) ** 2
+    if rad < 0.0:
+        return nan, nan, nan, nan, nan, nan, nan, nan, nan, 1
+    root = p[ROD_SIDE] * math.sqrt(rad)
+    s = p[S0] - (l3_ * cp + root)
+    ct, st = root / l4_, (esk - l3_ * sp) / l4_
+    sin_rel = st * cp - ct * sp
+    if abs(sin_rel) < DEAD_CENTRE_TOL:
+        return nan, nan, nan, nan, nan, nan, nan, nan, nan, 1
+    psi_s, psi_ss, th_s, th_ss = chain_derivatives(cp, sp, ct, st, sin_rel, 1.0, 0.0, p)   # d/ds
+    s_psi = 1.0 / psi_s
+    s_d = s_psi * psi_d
+    s0_, s1_ = -psi_ss * s_psi ** 3 * psi_d * psi_d, s_psi                  # s̈ = s0_ + s1_·ψ̈
+    th_d = th_s * s_d
+    t0_, t1_ = th_ss * s_d * s_d + th_s * s0_, th_s * s1_                  # ϑ̈
+    g, m4, m5 = p[G], p[M4], p[M5]
+    ax0, ax1 = -l3_ * psi_d * psi_d * cp, -l3_ * sp                           # a_C
+    ay0, ay1 = -l3_ * psi_d * psi_d * sp, l3_ * cp
+    dx0, dx1 = l4_ * (-t0_ * st - th_d * th_d * ct), -l4_ * t1_ * st          # a_D − a_C
+    dy0, dy1 = l4_ * (t0_ * ct - th_d * th_d * st), l4_ * t1_ * ct
+    f4x0, f4x1 = -m4 * (ax0 + 0.5 * dx0), -m4 * (ax1 + 0.5 * dx1)
+    f4y0, f4y1 = -m4 * (g + ay0 + 0.5 * dy0), -m4 * (ay1 + 0.5 * dy1)
+    lx, ly = l4_ * ct, l4_ * st
+    m40 = 0.5 * (lx * f4y0 - ly * f4x0) - p[J4] * t0_                       # rod moment about C
+    m41 = 0.5 * (lx * f4y1 - ly * f4x1) - p[J4] * t1_
+    mu = p[MU] * math.tanh(abs(s_d) / p[V_S])
+    f_c = p[F_C] if rising and s >= p[S_PIERCE] else 0.0
+    q0, q1 = f_c + m5 * s0_, m5 * s1_
+    sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0                  # sign of the slider velocity ẋ_D
+    w5 = m5 * g
+    spring = (p[ME0] / p[L_F] + p[K_SPRING] * p[L_F] * (psi - p[PSI0])) * p[L_F]
+    for branch in (1.0, -1.0):                        # guide normal force N ≥ 0 first, as kinetostatics._guide
+        c = mu * sv * branch
+        den = lx + c * ly
+        y0, y1 = (ly * (q0 - c * w5) - m40) / den, (ly * q1 - m41) / den     # R54 = (x54, y)
+        x0, x1 = q0 - c * (y0 + w5), q1 - c * y1
+        r34x0, r34x1 = -x0 - f4x0, -x1 - f4x1
+        r34y0, r34y1 = -y0 - f4y0, -y1 - f4y1
+        m0 = l3_ * (cp * r34y0 - sp * r34x0) + p[M3] * g * p[A3] * cp + spring   # M_Σ = J3·ψ̈ − M_other + M_e
+        m1 = p[J3] + l3_ * (cp * r34y1 - sp * r34x1)
+        acc = (moment - m0) / m1
+        normal = y0 + y1 * acc + w5
+        if c == 0.0 or ((normal >= 0.0) if branch > 0.0 else (normal <= 0.0)):
+            return acc, s, s_d, s0_ + s1_ * acc, th_d, t0_ + t1_ * acc, mu, f_c, -mu * abs(normal) * sv, 0
+    return nan, s, s_d, nan, th_d, nan, mu, f_c, nan, 2
+
+
+@njit(cache=True, error_model="numpy")
+def dynamics(t, e, e_d, p):
+    """Everything at time t for deviation e (rad) and rate ė (rad/s), in the order of :data:`OUTPUTS`, and a
+    status (0, 1 chain cannot be assembled, 2 jammed guide: the values are then NaN)."""
+    phi, omega, alpha = drive(t, p)
+    psi_k, psi_p, psi_pp, lever, lever_p, rising = groove(phi, p)
+    psi = psi_k + e
+    psi_d = omega * psi_p + e_d
+    u = lever * e
+    u_d = lever_p * omega * e + lever * e_d
+    d_w, d_o = -u, u - p[CLEARANCE]
+    f_w, f_o = contact_force(d_w, -u_d, p), contact_force(d_o, u_d, p)
+    acc, s, s_d, s_dd, th_d, th_dd, mu, f_c, friction, status = free_body(psi, psi_d, rising,
+                                                                          lever * (f_w - f_o), p)
+    e_dd = acc - omega * omega * psi_pp - alpha * psi_p
+    drive_torque = (f_w - f_o) * (-lever_p * e + lever * psi_p)     # (F_w − F_o)·∂δ_w/∂φ at fixed ψ
+    p_diss = (f_w - elastic(d_w, p)) * -u_d + (f_o - elastic(d_o, p)) * u_d
+    return (phi, omega, alpha, psi, psi_d, acc, e_dd, f_w, f_o, drive_torque, p_diss, d_w, d_o, s, s_d, s_dd,
+            th_d, th_dd, mu, f_c, friction), status
+
+
+@njit(cache=True, error_model="numpy")
+def rhs(t, y, p, out):
+    """d/dt of (e, τ·ė[, W_drive, W_load, E_dissipated]) into ``out``; NaN where the chain cannot be assembled
+    or the guide jams (then p[JAM_T], p[JAM_PHI] record the first jam)."""
+    if not math.isfinite(y.sum()):
+        out[:] = math.nan
+        return
+    r, status = dynamics(t, y[0], y[1] / TAU, p)
+    if status:
+        out[:] = math.nan
+        if status == 2 and math.isnan(p[JAM_T]):
+            p[JAM_T], p[JAM_PHI] = t, r[0]
+        return
+    out[0] = y[1] / TAU
+    out[1] = TAU * r[6]
+    if y.size > 2:
+        out[2] = r[9] * r[1]                       # drive torque · ω
+        out[3] = -(r[19] + r[20]) * r[14]          # −(F_c + friction)·ṡ
+        out[4] = r[10]
+
+
+@njit(cache=True, error_model="numpy")
+def geometry_at(t, p):
+    """(ℓ, ψ_k, distance into a rise) at time t, cached in p for the last time asked (events share it)."""
+    if p[EV_T] != t:
+        phi = drive(t, p)[0]
+        g = groove(phi, p)
+        p[EV_T], p[EV_LEVER], p[EV_PSI], p[EV_INSIDE] = t, g[3], g[0], in_rise(phi, p)
+    return p[EV_LEVER], p[EV_PSI], p[EV_INSIDE]
+
+
+@njit(cache=True, error_model="numpy")
+def event_value(t, y, p, k):
+    """Event k: WORKING −e (< 0 while pressed into the working flank), OTHER e − c/ℓ (> 0 while pressed into
+    the other flank), OVERLOAD max penetration − p[MAX_PEN] (m), INSERTION > 0 while F_c acts (cam in a rise
+    and ψ past the pierce point, rad)."""
+    if k == WORKING:
+        return -y[0]
+    lever, psi_k, inside = geometry_at(t, p)
+    if k == OTHER:
+        return y[0] - p[CLEARANCE] / lever
+    if k == OVERLOAD:
+        u = y[0] * lever
+        return max(-u, u - p[CLEARANCE]) - p[MAX_PEN]
+    return min(inside, psi_k + y[0] - p[PSI_PIERCE])
+
+
+@njit(cache=True, error_model="numpy")
+def evaluate(t, e, e_d, p):
+    """:func:`dynamics` at many samples: rows of :data:`OUTPUTS` (NaN where the status is not 0)."""
+    out = np.empty((N_OUT, t.size))
+    for m in range(t.size):
+        r, _ = dynamics(t[m], e[m], e_d[m], p)
+        for i in range(N_OUT):
+            out[i, m] = r[i]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def grooves(phi, p):
+    """:func:`groove` at many cam angles: rows ψ_k, ψ_k', ψ_k'', ℓ, dℓ/dφ, rising (1.0 / 0.0)."""
+    out = np.empty((6, phi.size))
+    for m in range(phi.size):
+        out[0, m], out[1, m], out[2, m], out[3, m], out[4, m], rising = groove(phi[m], p)
+        out[5, m] = 1.0 if rising else 0.0
+    return out

@@ -1,0 +1,67 @@
+"""Explicit Euler and semi-implicit (symplectic) Euler, fixed step, order 1 (compiled for a numba RHS, else
+pure Python floats; compiled steps: ``rig/solvers/templates/euler.py``, ``symplectic_euler.py``).
+
+Both interpolate linearly between steps: y(t + θh) = y + θ·(y_new − y).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from rig.solvers.base import Rhs
+from rig.solvers.stepper import FixedStepper
+
+#: continuous extensions: K rows (f(t, y), f(t_new, y_new)) and (f(t, y), (y_new − y)/h, f(t_new, y_new))
+EULER_P = np.array([[1.0], [0.0]])
+SYMPLECTIC_P = np.array([[0.0], [1.0], [0.0]])
+
+
+class Euler(FixedStepper):
+    """Explicit (forward) Euler y_new = y + h·f(t, y) with fixed step ``h`` (s) (see
+    :class:`~rig.solvers.stepper.FixedStepper`): stable for |1 + hλ| ≤ 1, i.e. h·|λ| ≤ 2 on the negative real
+    axis and h·ω_n < 2ζ for a damped oscillation (never for an undamped one); Hairer's stiffness test on
+    f(t, y), f(t_new, y_new) reports h·|λ| > 2 as divergence."""
+
+    order = 1
+    method, label, P, limit = "euler", "explicit Euler", EULER_P, 2.0
+
+    def _python_step(self) -> None:
+        y, f0 = self.y, self.f
+        h, t_new = self._fixed_h()
+        y_new = tuple(a + h * b for a, b in zip(y, f0))
+        self._finish(t_new, y_new, h, (f0,))
+
+
+class SymplecticEuler(FixedStepper):
+    """Semi-implicit (symplectic) Euler for a second-order system with state y = (q, v), the first ``nq``
+    components positions (default half the state): kick v_new = v + h·f_v(t, q, v), then drift
+    q_new = q + h·f_q(t, q, v_new) — explicit, two RHS calls per step, order 1; for a Hamiltonian system
+    with q̇ = v its energy error stays bounded instead of drifting (Hairer–Lubich–Wanner, *Geometric
+    Numerical Integration*, §VI.3). Fixed step ``h`` (s), stability boundary h·ω ≤ 2 for an undamped
+    oscillation (see :class:`~rig.solvers.stepper.FixedStepper`)."""
+
+    order = 1
+    method, label, P, limit = "symplectic_euler", "symplectic Euler", SYMPLECTIC_P, 2.0
+
+    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, h: float = 1e-3,
+                 first_step: float | None = None, stiffness: str = "raise", compiled: bool = True,
+                 nq: int | None = None):
+        n = len(y0)
+        nq = n // 2 if nq is None else nq
+        if not 1 <= nq < n:
+            raise ValueError(f"symplectic Euler: nq = {nq!r} positions must be in 1..{n - 1} for {n} states")
+        self.nq = nq
+        super().__init__(fun, t0, y0, t_bound, h, first_step, stiffness, compiled, nq)
+
+    def _options(self) -> dict:
+        return {"nq": self.nq}
+
+    def _python_step(self) -> None:
+        t, y, f0, nq = self.t, self.y, self.f, self.nq
+        h, t_new = self._fixed_h()
+        kicked = y[:nq] + tuple(a + h * b for a, b in zip(y[nq:], f0[nq:]))
+        f1 = tuple(self.fun(t, kicked))
+        self.nfev += 1
+        y_new = tuple(a + h * b for a, b in zip(y[:nq], f1[:nq])) + kicked[nq:]
+        self._finish(t_new, y_new, h, (f0, f1[:nq] + f0[nq:]))

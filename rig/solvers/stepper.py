@@ -1,0 +1,238 @@
+"""Base of the one-step methods (Euler, symplectic Euler, RK4, DP45, Rodas4): Python and compiled steps,
+compiled runs of steps, dense output, stiffness monitor and divergence reports.
+
+Every method's step from (t, y) yields stage vectors K (rows) with y(t + θh) = y + h·Σ_c (Kᵀ P)[:, c]·θ^(c+1)
+for the method's continuous-extension matrix P, and ends with f(t_new, y_new) as the last row of K (the next
+step's first derivative). With a :class:`~rig.solvers.compiled.JitRhs` right-hand side the step runs in
+machine code (:func:`~rig.solvers.compiled.compiled_solver`, one template per method) and :meth:`advance`
+takes whole runs of steps in one call; otherwise the subclass's pure-Python ``_python_step`` (tuples of
+floats, or numpy for the implicit method) takes the same steps.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessMonitor, all_finite, lipschitz
+from rig.solvers.compiled import FAIL, H, H_ABS, HL, NEV, NFEV, T, JitRhs, compiled_solver
+from rig.solvers.dense import PolynomialDense, StepsDense
+
+UNDERFLOW, NONFINITE = 1, 2          # failure codes of the compiled steps (rig/solvers/templates/runs.py)
+
+
+def initial_step(fun: Rhs, t0: float, y0: tuple, f0: Sequence[float], order: int, rtol: float, atol: float,
+                 t_bound: float) -> float:
+    """Hairer's starting-step heuristic (one extra RHS evaluation)."""
+    sc = [atol + rtol * abs(v) for v in y0]
+    d0 = math.sqrt(sum((v / s) ** 2 for v, s in zip(y0, sc)) / len(y0))
+    d1 = math.sqrt(sum((v / s) ** 2 for v, s in zip(f0, sc)) / len(y0))
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, t_bound - t0)
+    y1 = tuple(v + h0 * f for v, f in zip(y0, f0))
+    f1 = fun(t0 + h0, y1)
+    d2 = math.sqrt(sum(((a - b) / s) ** 2 for a, b, s in zip(f1, f0, sc)) / len(y0)) / h0
+    h1 = max(1e-6, h0 * 1e-3) if max(d1, d2) <= 1e-15 else (0.01 / max(d1, d2)) ** (1 / (order + 1))
+    return min(100 * h0, h1, t_bound - t0)
+
+
+class Stepper(OdeSolver):
+    """A one-step method (see the module docstring). Subclasses set ``method`` (the template name in
+    :mod:`rig.solvers.templates`), ``label`` (name in messages), ``P`` and ``limit`` (stability boundary on
+    the negative real axis of an explicit method; ``inf`` for an implicit one), implement ``_python_step``
+    and call :meth:`_start` at the end of their constructor.
+
+    ``stiffness`` ('warn' | 'raise' | 'ignore'): Hairer's stiffness test on every step (explicit methods);
+    ``stiff_at`` is the time it first fired. ``compiled=False`` forces the Python step for a ``JitRhs``.
+    """
+
+    method: str = ""
+    label: str = ""
+    P: np.ndarray
+    limit: float = math.inf
+    fixed: bool = False
+
+    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, stiffness: str, compiled: bool):
+        super().__init__(fun, t0, y0, t_bound)
+        self.monitor = StiffnessMonitor(self.label, self.limit, stiffness, self.fixed)
+        if not math.isfinite(self.limit):             # implicit: stable on any stiff decay, nothing to report
+            self.monitor.policy = "ignore"
+        self.f = tuple(fun(self.t, self.y))
+        self.nfev = 1
+        self.h_abs = math.nan
+        self._K = None
+        self._jit = self._run = self._locate = None
+        self._compiled = compiled and isinstance(fun, JitRhs)
+
+    def _start(self, h_abs: float, rtol: float = 0.0, atol: float = 0.0, max_step: float = math.inf,
+               nq: int = 0) -> None:
+        """Set the first step size (s) and, for a compiled RHS, bind the compiled steps and their work vector."""
+        self.h_abs = h_abs
+        if self._compiled:
+            fun = self.fun
+            self._jit, self._run, self._locate = compiled_solver(self.method, fun.kernel, fun.event, fun.act)
+            self._p = fun.params()
+            self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
+            self._w = np.array([self.t, h_abs, self.t_bound, rtol, atol, max_step, nq, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+    # ---- steps -------------------------------------------------------------------------------------------
+    def _step_impl(self) -> None:
+        if self._jit is None:
+            return self._python_step()
+        w, K = self._w, np.empty((self.P.shape[0], len(self.y)))
+        status = self._jit(w, self._ya, self._yb, K, self._fa, self._p)
+        self.nfev += int(w[NFEV])
+        if status:
+            self._fail(status, self.t, self.y, self._yb, float(w[H]), float(w[HL]))
+        y = tuple(self._yb.tolist())
+        self._accept(float(w[T]), y, float(w[H]), float(w[HL]), K, float(w[H_ABS]))
+        self._fa = K[-1]
+        self._ya, self._yb = self._yb, self._ya
+
+    def _python_step(self) -> None:
+        raise NotImplementedError
+
+    def _accept(self, t_new: float, y_new: tuple, h: float, hl: float, K, h_next: float) -> None:
+        """Record an accepted step (stage vectors K, estimate hl of h·|λ|, next step size h_next)."""
+        self.monitor.update(t_new, y_new, h, hl)
+        self.t_old, self.y_old = self.t, self.y
+        self.t, self.y, self.f = t_new, y_new, K[-1]
+        self.h_last, self.h_abs, self._K = h, h_next, K
+
+    def _fail(self, status: int, t: float, y: Sequence[float], y_bad: Sequence[float], h: float,
+              hl: float = math.nan) -> None:
+        """Raise for a failed step from (t, y) of size h: step-size underflow, or a non-finite state y_bad."""
+        self.status = "failed"
+        if status == UNDERFLOW:
+            what = f"step size underflow (h = {h:.3g} s)"
+            if isinstance(self.fun, JitRhs):
+                self.fun.fail(t, y, what)
+            raise SolverDivergence(what, t, y)
+        if math.isfinite(hl):
+            self.monitor.last = hl
+        raise self.diverged(t + h, y_bad, h)
+
+    def diverged(self, t: float, y: Sequence[float], h: float) -> SolverDivergence:
+        """The error for a state that became non-finite after a step of size h: names the method, the
+        latest h·|λ| against its stability limit, and the fix."""
+        hl, lim = self.monitor.last, self.limit
+        if hl > lim:
+            cause = (f"{self.label} unstable: h*|lambda| = {hl:.3g} > {lim:g} (its stability limit on the negative "
+                     f"real axis) - reduce h below {lim * h / hl:.3g} s or use the implicit method Rodas4")
+        elif math.isfinite(lim):
+            cause = (f"h*|lambda| = {hl:.3g} on the last step ({self.label} is stable up to {lim:g} on the negative "
+                     f"real axis, less for lightly damped oscillations): reduce h or use the implicit method "
+                     f"Rodas4, unless the model itself diverges")
+        else:
+            cause = "the model itself diverges"
+        why = self.fun.diagnose() if isinstance(self.fun, JitRhs) else None
+        return SolverDivergence(f"{self.label} diverged: non-finite state after a step of h = {h:.3g} s; {cause}"
+                                + (f" ({why})" if why else ""), t, y)
+
+    # ---- compiled runs -----------------------------------------------------------------------------------
+    @property
+    def can_advance(self) -> bool:
+        """True when :meth:`advance` is available (compiled RHS with an event kernel)."""
+        return self._run is not None
+
+    def advance(self, g: np.ndarray, max_steps: int = 256) -> StepsDense | None:
+        """Take accepted steps in one compiled call until an event value (``g``: at the current point, in
+        the order of the RHS's event kernel; updated in place to the values at the last step's start)
+        changes sign, t_bound is reached or ``max_steps`` are taken. The solver then stands after the
+        last step as after :meth:`step`; returns the steps before it (interpolant with ``.T``, ``.Y`` of
+        their ends), or None."""
+        n = len(self.y)
+        Y, TT = np.empty((max_steps + 1, n)), np.empty(max_steps + 1)
+        KK, HH, HL_ = np.empty((max_steps, self.P.shape[0], n)), np.empty(max_steps), np.empty(max_steps)
+        EV = np.empty((max_steps, 3 + n))
+        Y[0], KK[0, 0] = self._ya, self._fa
+        count = self._run(self._w, Y, TT, HH, KK, HL_, EV, g, self._p)
+        self.nfev += int(self._w[NFEV])
+        self.acted = EV[:int(self._w[NEV])]
+        done = count if count >= 0 else -1 - count
+        try:
+            self.monitor.update_many(TT[1:done + 1], Y[1:done + 1], HH[:done], HL_[:done])
+        except SolverDivergence:
+            self.status = "failed"
+            raise
+        if count < 0:
+            self._fail(int(self._w[FAIL]), float(TT[done]), tuple(Y[done]), tuple(Y[done + 1]), float(self._w[H]))
+        self.nsteps += count
+        if TT[count] >= self.t_bound:
+            self.status = "finished"
+        last = count - 1
+        self.t_old, self.y_old = float(TT[last]), tuple(Y[last].tolist())
+        self.t, self.y = float(TT[count]), tuple(Y[count].tolist())
+        self._K, self.f, self._yo = KK[last], KK[last, -1], Y[last]
+        self._ya, self._fa = Y[count].copy(), KK[last, -1]
+        self.h_last, self.h_abs = float(self._w[H]), float(self._w[H_ABS])
+        return StepsDense(TT[:count], HH[:last], Y[:count], KK[:last], self.P) if last else None
+
+    def locate(self, k: int) -> float:
+        """Root of event k (the RHS's event kernel) in the last step taken by :meth:`advance`, which
+        changes sign over it (compiled Brent search on the dense output)."""
+        return self._locate(self.t_old, self.t, self._yo, self._K, self._p, k)
+
+    @property
+    def stiff_at(self) -> float | None:
+        return self.monitor.detected_at
+
+    def dense_output(self) -> PolynomialDense:
+        return PolynomialDense(self.t_old, self.t - self.t_old, self.y_old, self._K, self.P)
+
+
+class FixedStepper(Stepper):
+    """A fixed-step method: step ``h`` (s), the last step shortened (or stretched by < 1e-6·h) to land on
+    t_bound; no error control. ``first_step`` is accepted for interface compatibility and ignored. A step
+    size beyond the method's stability limit is reported by the stiffness test as divergence
+    (``stiffness="raise"``, the default: :class:`~rig.solvers.base.StiffnessError` naming h·|λ| and the fix)
+    and a non-finite state raises :class:`~rig.solvers.base.SolverDivergence` likewise."""
+
+    fixed = True
+
+    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, h: float = 1e-3,
+                 first_step: float | None = None, stiffness: str = "raise", compiled: bool = True, nq: int = 0):
+        super().__init__(fun, t0, y0, t_bound, stiffness, compiled)
+        if not h > 0:
+            raise ValueError(f"{self.label}: step h = {h!r} s must be positive")
+        self.h = h
+        self._start(h, nq=nq)
+
+    def state_at(self, t: float) -> tuple:
+        """State at time t within the last step, by one step of size t − t_old from its start (the same
+        method, Python or compiled) — exact to the method's order even where the RHS jumps after t."""
+        if not t > self.t_old:
+            return self.y_old
+        one = type(self)(self.fun, self.t_old, self.y_old, t, h=t - self.t_old, stiffness="ignore",
+                         compiled=self._compiled, **self._options())
+        one.step()
+        self.nfev += one.nfev
+        return one.y
+
+    def _options(self) -> dict:
+        """Constructor options of a subclass beyond those of :class:`FixedStepper`."""
+        return {}
+
+    def _fixed_h(self) -> tuple[float, float]:
+        """(h, t_new) of the next step (as the compiled ``fixed_step``)."""
+        t, h = self.t, self.h
+        if self.t_bound - t - h < 1e-6 * h:
+            h, t_new = self.t_bound - t, self.t_bound
+        else:
+            t_new = t + h
+        if h < self._min_step():
+            raise SolverDivergence(f"step size underflow (h = {h:.3g} s)", t, self.y)
+        return h, t_new
+
+    def _finish(self, t_new: float, y_new: tuple, h: float, stages: tuple, hl: float | None = None) -> None:
+        """Accept a Python step with its stage vectors (all rows of K but the last, f(t_new, y_new), which is
+        evaluated here) and its estimate of h·|λ| (default h·‖f_new − f‖/‖y_new − y‖), or raise
+        :meth:`diverged` for a non-finite state."""
+        if not all_finite(y_new):
+            self._fail(NONFINITE, self.t, self.y, y_new, h, math.nan if hl is None else hl)
+        f_new = tuple(self.fun(t_new, y_new))
+        self.nfev += 1
+        if hl is None:
+            hl = h * lipschitz(f_new, self.f, y_new, self.y)
+        self._accept(t_new, y_new, h, hl, (*stages, f_new), self.h)

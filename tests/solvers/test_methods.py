@@ -1,0 +1,168 @@
+"""The one-step methods behind one interface: orders of convergence on closed forms, stability limits and clear
+divergence reports, the implicit method on a stiff problem, compiled runs against the Python steps."""
+import math
+
+import numpy as np
+import pytest
+from numba import njit
+
+from rig.solvers import (
+    METHODS,
+    RK4,
+    DormandPrince45,
+    Euler,
+    Event,
+    Problem,
+    Rodas4,
+    SolverDivergence,
+    StiffnessError,
+    SymplecticEuler,
+    integrate,
+)
+from rig.solvers.compiled import JitRhs
+
+W = 3.0
+FIXED = ("Euler", "SymplecticEuler", "RK4")
+
+
+@njit(cache=True)
+def _oscillator(t, y, p, out):
+    """q'' = −ω²q − 2ζωq' with p = (ω, ζ, ·), state (q, q')."""
+    out[0] = y[1]
+    out[1] = -p[0] * p[0] * y[0] - 2.0 * p[1] * p[0] * y[1]
+
+
+@njit(cache=True)
+def _crossings(t, y, p, k):
+    """Event 0: q = 0; event 1: t = p[2] (restart)."""
+    return y[0] if k == 0 else t - p[2]
+
+
+@njit(cache=True)
+def _stiff(t, y, p, out):
+    """y0' = −λ(y0 − cos t) − sin t (solution cos t), y1' = −2·y1; λ = p[0]."""
+    out[0] = -p[0] * (y[0] - math.cos(t)) - math.sin(t)
+    out[1] = -2.0 * y[1]
+
+
+def oscillator(t, y):
+    return (y[1], -W * W * y[0])
+
+
+def stiff(lam: float):
+    return lambda t, y: (-lam * (y[0] - math.cos(t)) - math.sin(t), -2.0 * y[1])
+
+
+def _error_at(method: str, h: float, t_end: float = 2.0) -> float:
+    """|q − cos ωt| at t_end with step h (adaptive methods forced to h: tolerance far above their error)."""
+    opts = {"h": h} if method in FIXED else {"rtol": 1.0, "atol": 1.0, "first_step": h, "max_step": h}
+    sol = integrate(Problem(oscillator, (1.0, 0.0)), (0.0, t_end), method=method, **opts)
+    return abs(sol.y_final[0] - math.cos(W * t_end))
+
+
+@pytest.mark.parametrize("method, h, order", [("Euler", 1e-3, 1), ("SymplecticEuler", 1e-3, 1), ("RK4", 0.02, 4),
+                                              ("DP45", 0.05, 5), ("Rodas4", 0.05, 4)])
+def test_order_of_convergence_on_the_harmonic_oscillator(method, h, order):
+    errors = [_error_at(method, h / 2 ** k) for k in range(3)]
+    observed = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert observed == pytest.approx([order, order], abs=0.3), errors
+
+
+def test_symplectic_euler_keeps_the_energy_error_bounded_where_explicit_euler_drifts():
+    h, periods = 0.01, 20
+    t = np.linspace(0.0, periods * 2 * math.pi / W, 2001)
+    energy = {}
+    for method in ("SymplecticEuler", "Euler"):
+        sol = integrate(Problem(oscillator, (1.0, 0.0)), (0.0, t[-1]), method=method, h=h, t_eval=t)
+        energy[method] = 0.5 * (sol.y[1] ** 2 + W * W * sol.y[0] ** 2) / (0.5 * W * W) - 1.0
+    sym, eul = energy["SymplecticEuler"], energy["Euler"]
+    first, last = np.abs(sym[:200]).max(), np.abs(sym[-200:]).max()
+    assert last < 1.2 * first < 2.4 * h * W                   # O(hω), oscillating, no growth over 20 periods
+    assert eul[-1] > 1.0 and eul[-1] > 50 * last                # (1 + h²ω²)^n: the energy more than doubles
+
+
+@pytest.mark.parametrize("method, limit", [("Euler", 2.0), ("RK4", 2.78)])
+def test_explicit_fixed_step_stability_limit_on_the_real_axis(method, limit):
+    """y' = −λy: stable just inside h·λ = limit, reported as divergence (naming h·|λ| and the fix) outside."""
+    lam = 1000.0
+    decay = Problem(lambda t, y: (-lam * y[0],), (1.0,))
+    inside = integrate(decay, (0.0, 0.5), method=method, h=0.97 * limit / lam)
+    assert abs(inside.y_final[0]) < 1e-3
+    with pytest.raises(StiffnessError, match=rf"unstable at t = .*h\*\|lambda\| = {1.05 * limit:.3g} > {limit:g} .*"
+                                             rf"reduce h below {1e-3 * limit:.3g} s or use the implicit method Rodas4"):
+        integrate(decay, (0.0, 0.2), method=method, h=1.05 * limit / lam)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+@pytest.mark.parametrize("method", ["Euler", "RK4"])
+def test_divergence_is_never_silent(method, compiled):
+    """λ = 1e4, h = 1 ms (h·λ = 10): the stiffness test stops the run; with it switched off the state overflows
+    and the error still names method, time, step and cause."""
+    fun = JitRhs(_stiff, lambda: np.array([1e4])) if compiled else stiff(1e4)
+    label, limit = {"Euler": ("explicit Euler", 2.0), "RK4": ("RK4", 2.78)}[method]
+    with pytest.raises(StiffnessError, match=rf"{label} unstable at t = .*h\*\|lambda\| = 10 > .*reduce h below"):
+        integrate(Problem(fun, (1.0, 1.0)), (0.0, 2.0), method=method, h=1e-3, compiled=compiled)
+    with pytest.raises(SolverDivergence, match=rf"{label} diverged: non-finite state after a step of h = 0.001 s; "
+                                               rf"{label} unstable: h\*\|lambda\| = 10 > .* reduce h below "
+                                               rf"{limit * 1e-4:.3g} s "
+                                               rf"or use the implicit method Rodas4 at t = .* state"):
+        integrate(Problem(fun, (1.0, 1.0)), (0.0, 2.0), method=method, h=1e-3, stiffness="ignore", compiled=compiled)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_rodas4_is_accurate_and_stable_where_explicit_methods_diverge(compiled):
+    fun = JitRhs(_stiff, lambda: np.array([1e4])) if compiled else stiff(1e4)
+    t = np.linspace(0.0, 2.0, 21)
+    sol = integrate(Problem(fun, (1.0, 1.0)), (0.0, 2.0), method="Rodas4", rtol=1e-6, atol=1e-9, t_eval=t,
+                    compiled=compiled)
+    assert np.max(np.abs(sol.y - [np.cos(t), np.exp(-2 * t)])) < 1e-5
+    assert sol.nsteps < 100 and sol.stiff_at is None          # h·λ up to ~1e3
+    forced = integrate(Problem(fun, (1.0, 1.0)), (0.0, 2.0), method="Rodas4", rtol=1.0, atol=1.0, first_step=0.1,
+                       max_step=0.1, compiled=compiled)        # h·λ = 1000 on every step: L-stable, no blow-up
+    assert forced.nsteps == 20 and abs(forced.y_final[0] - math.cos(2.0)) < 1e-3
+
+
+@pytest.mark.parametrize("method", ["Euler", "SymplecticEuler", "RK4", "DP45", "Rodas4"])
+def test_compiled_runs_take_the_python_steps(method):
+    """Same kernel, events (a recorded crossing and a restart), dense output: the compiled runs and the Python
+    steps agree on steps, RHS calls, samples and event times."""
+    p = np.array([W, 0.05, 0.77])
+    opts = {"h": 2e-3} if method in FIXED else {"rtol": 1e-8, "atol": 1e-10}
+    t = np.linspace(0.0, 2.0, 41)
+    runs = []
+    for compiled in (True, False):
+        events = [Event(lambda tt, y: y[0], "zero"), Event(lambda tt, y: tt - p[2], "restart", restart=True)]
+        fun = JitRhs(_oscillator, lambda: p, event=_crossings)
+        runs.append(integrate(Problem(fun, (1.0, 0.0), events), (0.0, 2.0), method=method, t_eval=t,
+                              compiled=compiled, **opts))
+    a, b = runs
+    # Rodas4: its hand-written LU (compiled) and LAPACK (Python) round differently, which may flip an
+    # accept/reject decision: the same steps up to that, then agreement to the tolerance
+    implicit = method == "Rodas4"
+    assert a.nsteps == b.nsteps and a.restarts == b.restarts == 1
+    assert abs(a.nfev - b.nfev) <= (10 if implicit else 0)
+    np.testing.assert_allclose(a.y, b.y, rtol=1e-7 if implicit else 1e-9, atol=1e-11)
+    assert [r.name for r in a.events] == [r.name for r in b.events] and len(a.t_events["zero"]) == 2
+    np.testing.assert_allclose([r.t for r in a.events], [r.t for r in b.events], rtol=1e-8 if implicit else 1e-10)
+    zeta, wd = 0.05, W * math.sqrt(1 - 0.05 ** 2)                                # the damped closed form
+    exact = np.exp(-zeta * W * t) * (np.cos(wd * t) + zeta * W / wd * np.sin(wd * t))
+    assert np.max(np.abs(a.y[0] - exact)) < {"Euler": 0.02, "SymplecticEuler": 0.01}.get(method, 1e-4)
+
+
+@pytest.mark.parametrize("cls, opts", [(Euler, {"h": 0.01}), (SymplecticEuler, {"h": 0.01}), (RK4, {"h": 0.01}),
+                                       (DormandPrince45, {"rtol": 1e-8, "atol": 1e-10}),
+                                       (Rodas4, {"rtol": 1e-8, "atol": 1e-10})])
+def test_solver_objects_share_one_interface(cls, opts):
+    """step(), dense_output() over the last step, status, nfev and nsteps — each method as a class."""
+    s = cls(oscillator, 0.0, (1.0, 0.0), 0.5, **opts)
+    worst = 0.0
+    while s.status == "running":
+        s.step()
+        for th in (0.25, 0.5, 0.75):
+            tt = s.t_old + th * (s.t - s.t_old)
+            worst = max(worst, abs(s.dense_output()(tt)[0] - math.cos(W * tt)))
+    assert s.status == "finished" and s.t == 0.5 and s.nsteps > 0 and s.nfev >= s.nsteps
+    assert worst < (0.02 if cls in (Euler, SymplecticEuler) else 1e-6)
+    assert cls in METHODS.values()
+    with pytest.raises(RuntimeError):
+        s.step()
