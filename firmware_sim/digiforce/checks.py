@@ -6,6 +6,8 @@ import contextvars
 import math
 from typing import Any, Iterable, Iterator, Mapping
 
+import numpy as np
+
 from rig.units import UnitError, to_si
 
 from .errors import DigiForceError
@@ -100,6 +102,34 @@ def number(cfg: Mapping[str, Any], key: str, unit: str, where: str, default: Any
     if minimum is not None and value < minimum:
         raise DigiForceError(f"{where}.{key}: must be >= {minimum}, got {cfg.get(key, default)!r}")
     return value
+
+
+def quantities(cfg: Mapping[str, Any], key: str, unit: str, where: str) -> np.ndarray:
+    """``cfg[key]``, a list of values, as an SI array. The list's unit is ``cfg[key + "_unit"]`` when given
+    (then its items are plain numbers); otherwise each item is a quantity string or (outside
+    :func:`units_required`) an SI number."""
+    values, unit_key = cfg.get(key), f"{key}_unit"
+    what = f"{where}.{key}"
+    if not isinstance(values, (list, tuple)) or not values:
+        raise DigiForceError(f"{what}: expected a non-empty list of values, got {values!r}")
+    if unit_key in cfg:
+        given = text(cfg, unit_key, where)
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            raise DigiForceError(f"{what}: {where}.{unit_key} names the unit ({given!r}); give plain numbers")
+        try:
+            factor = to_si(1.0, unit, given, f"{where}.{unit_key}")
+        except UnitError as exc:
+            raise DigiForceError(str(exc)) from None
+        out = np.asarray(values, dtype=float) * factor
+    else:
+        try:
+            out = np.array([quantity(v, unit, f"{what}[{j}]") for j, v in enumerate(values)])
+        except MissingUnitError:
+            raise MissingUnitError(f"{what}: numbers without a unit; add {unit_key} = \"{unit}\" (or the unit the "
+                                   f"numbers are in), or write each value with its unit") from None
+    if not np.all(np.isfinite(out)):
+        raise DigiForceError(f"{what}: values must be finite")
+    return out
 
 
 def pick_step(value: float, steps: Iterable[float], what: str) -> float:

@@ -310,13 +310,10 @@ class Envelope(Element):
         out_refs = []
         for i, ref in enumerate(refs):
             w = f"{where}.references[{i}]"
-            checks.known_keys(ref, ("x", "y"), w)
-            try:
-                rx, ry = np.asarray(ref.get("x"), dtype=float), np.asarray(ref.get("y"), dtype=float)
-            except (TypeError, ValueError):
-                raise DigiForceError(f"{w}: x and y must be lists of numbers (SI)") from None
-            if rx.ndim != 1 or rx.shape != ry.shape or rx.size < 2 or not np.all(np.isfinite(rx) & np.isfinite(ry)):
-                raise DigiForceError(f"{w}: x and y must be equally long finite lists of at least 2 numbers")
+            checks.known_keys(ref, ("x", "y", "x_unit", "y_unit"), w)
+            rx, ry = (checks.quantities(ref, axis, si, w) for axis, si in (("x", xu), ("y", yu)))
+            if rx.shape != ry.shape or rx.size < 2:
+                raise DigiForceError(f"{w}: x and y must be equally long lists of at least 2 values")
             step = np.diff(rx)
             if np.all(step < 0):
                 rx, ry = rx[::-1], ry[::-1]

@@ -172,3 +172,30 @@ def test_a_program_written_by_a_person_needs_units_the_interface_takes_si():
     dev.set_program(2, {"name": "again", "limits": {"y_max": ["1 N", "2 N"]}}, units_required=True)
     assert dev.get_program(2)["limits"] == {"x_max": [0.0415, 0.0425], "y_max": [1.0, 2.0]}
     dev.set_program(2, {"limits": {"pairs": [10, 4000]}}, units_required=True)   # a count needs no unit
+
+
+def test_envelope_references_take_units_like_every_other_value():
+    """A reference curve written in mm and N gives the same band as the same curve in SI; bare numbers in a
+    scene are refused naming the key; the unit's SI interface keeps taking plain numbers."""
+    env = {"kind": "envelope", "name": "E", "dx": "0.1 mm", "dy": "5 N"}
+    si = {"x": [0.040, 0.041, 0.042], "y": [-10.0, -50.0, -70.0]}
+    dev = DigiForce()
+    dev.set_program(1, {"elements": [env | {"references": [si]}]})
+    dev.set_program(2, {"elements": [env | {"references": [{"x": [40, 41, 42], "x_unit": "mm",
+                                                              "y": [-1e-2, -5e-2, -7e-2], "y_unit": "kN"}]}]},
+                    units_required=True)
+    dev.set_program(3, {"elements": [env | {"references": [{"x": ["40 mm", "4.1 cm", "0.042 m"],
+                                                              "y": ["-10 N", "-50 N", "-70 N"]}]}]},
+                    units_required=True)
+    refs = [dev.get_program(n)["elements"][0]["references"][0] for n in (1, 2, 3)]
+    for r in refs[1:]:
+        assert np.allclose(r["x"], refs[0]["x"], rtol=1e-12) and np.allclose(r["y"], refs[0]["y"], rtol=1e-12)
+    with pytest.raises(DigiForceError, match=r'references\[0\].x: numbers without a unit; add x_unit = "m"'):
+        dev.set_program(4, {"elements": [env | {"references": [si]}]}, units_required=True)
+    with pytest.raises(DigiForceError, match=r"references\[0\].x_unit.*wrong dimension|x_unit.*'N'"):
+        dev.set_program(4, {"elements": [env | {"references": [si | {"x_unit": "N", "y_unit": "N"}]}]},
+                        units_required=True)
+    with pytest.raises(DigiForceError, match=r"x_unit names the unit \('mm'\); give plain numbers"):
+        dev.set_program(4, {"elements": [env | {"references": [{"x": ["40 mm", 41], "x_unit": "mm",
+                                                                  "y": ["1 N", "2 N"]}]}]}, units_required=True)
+    dev.set_program(2, {"name": "renamed"}, units_required=True)     # the normalised SI reference stays valid
