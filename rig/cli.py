@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import os
@@ -15,6 +16,10 @@ from typing import Any, Callable
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SCENE = DATA / "scenes" / "pin_insertion.toml"
 MCAP_MAGIC, PNG_MAGIC, JSON_START = b"\x89MCAP", b"\x89PNG\r\n\x1a\n", b"{"
+# Commands kept in their own packages (python-can style plugins): each module has
+# ``register(sub, parents)`` adding its subparser(s) with ``set_defaults(func=...)``; heavy imports stay
+# inside the command functions so ``rig --help`` stays fast.
+COMMAND_MODULES: tuple[str, ...] = ()
 
 
 class UsageError(Exception):
@@ -434,6 +439,8 @@ def build_parser() -> argparse.ArgumentParser:
     stud = sub.add_parser("studies", parents=[quiet], help="clutch static-characteristic parameter studies (PNG)")
     stud.add_argument("-o", "--output", default="out/studies")
     stud.set_defaults(func=cmd_studies)
+    for module in COMMAND_MODULES:
+        importlib.import_module(module).register(sub, [quiet])
     return p
 
 
