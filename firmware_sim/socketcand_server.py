@@ -41,6 +41,9 @@ BEACON_PORT = 42000
 _HEX = re.compile(r"[0-9A-Fa-f]{1,8}")      # a field of a send command: hex digits only (no sign, 0x or _)
 
 
+MAX_COMMAND = 1024   # characters; the longest command (`< send 1FFFFFFF 64 <128 hex digits> >`) is ~150
+
+
 def frame_line(msg: can.Message) -> str:
     """``< frame ... >`` line of a received frame, as socketcand sends it."""
     fid = f"{msg.arbitration_id:08X}" if msg.is_extended_id else f"{msg.arbitration_id:03X}"
@@ -151,7 +154,7 @@ class SocketcandServer:
                 conn.sendall(text.encode("ascii"))
 
         bus: can.BusABC | None = None
-        buffer, raw = "", False
+        buffer, raw, discarded = "", False, 0
         try:
             reply("< hi >")
             while not self._stop.is_set():
@@ -162,6 +165,12 @@ class SocketcandServer:
                 if not chunk:
                     return
                 bodies, buffer = split_commands(buffer + chunk.decode("ascii", errors="replace"))
+                if len(buffer) > MAX_COMMAND:       # no '>' in sight: garbage, not a command; memory stays bounded
+                    discarded, buffer = discarded + len(buffer), ""
+                elif discarded and bodies:          # one error per run of garbage, when it ends
+                    self._error(f"{discarded} characters without a closing '>' discarded (no command is longer "
+                                f"than {MAX_COMMAND})")
+                    discarded = 0
                 for body in bodies:
                     if body is None:
                         self._error("data outside < > discarded")

@@ -232,3 +232,20 @@ def test_server_on_fuzzed_command_streams(fuzz_cases, mutate, server, stream, da
                      - expected.replies.count("< error could not open bus >"))
         case.outcome("frames sent on the bus and parsed back by python-can", len(frames))
         case.outcome("connection closed (wrong channel)" if expected.closed else "answered the final < echo >")
+
+
+def test_endless_text_without_a_closing_bracket_is_discarded_counted_and_bounded(server) -> None:
+    """1 MB without a ``>`` (a client gone mad) is not kept: it is dropped as it comes, the drop recorded once
+    with its size, and the next command is answered as usual."""
+    from firmware_sim.socketcand_server import MAX_COMMAND
+    srv, _ = server
+    errors_before = len(srv.errors)
+    sock = connect(srv.port)
+    try:
+        sock.sendall(b"< send 123 1 " + b"0" * 1_000_000)
+        sock.sendall(b" >< echo >")
+        assert read_until(sock, lambda t: "< echo >" in t, 30.0).endswith("< echo >")
+    finally:
+        sock.close()
+    dropped = [e for e in srv.errors[errors_before:] if "without a closing '>' discarded" in e]
+    assert len(dropped) == 1 and 1_000_000 - MAX_COMMAND - 4096 <= int(dropped[0].split()[0]) <= 1_000_013
