@@ -31,7 +31,7 @@ from drivers.can.layout import FrameLayout, supports
 from drivers.can.reassembly import Curve, CurveAssembler
 from drivers.can.sequence import SequenceChecker
 from drivers.can.timebase import unwrap
-from rig.blockbus import ERROR, EXTENDED, FrameBlock
+from rig.blockbus import ERROR, EXTENDED, FD, FrameBlock
 
 DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
 COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statistics": 5, "identify": 6,
@@ -55,6 +55,7 @@ class _Rx(NamedTuple):
     data: bytes
     is_error_frame: bool
     is_extended_id: bool = False
+    is_fd: bool = False
 
 
 @dataclass(frozen=True)
@@ -147,7 +148,7 @@ class CanHost:
     def receive(self, msg: can.Message) -> None:
         """Process one received frame; problems become events, never exceptions."""
         self._receive_one(_Rx(msg.timestamp, msg.arbitration_id, bytes(msg.data), msg.is_error_frame,
-                              msg.is_extended_id))
+                              msg.is_extended_id, msg.is_fd))
         self._check_result_timeout()
 
     def receive_many(self, frames: Sequence[can.Message]) -> None:
@@ -166,6 +167,10 @@ class CanHost:
             if fid != self._command.frame_id or msg.is_extended_id:
                 name = f"0x{fid:08X} (extended)" if msg.is_extended_id else f"0x{fid:03X}"
                 self._event(msg, "unknown_frame", 1, f"frame id {name} is not a device frame of the DBC")
+            return
+        if len(msg.data) > 8 and not msg.is_fd:
+            self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(msg.data)} data bytes in a classic "
+                        "(non-FD) frame; more than 8 need CAN FD")
             return
         if len(msg.data) != spec.length:
             self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(msg.data)} data bytes, DBC says {spec.length}")
@@ -196,14 +201,15 @@ class CanHost:
         expected = np.full(ids.shape, -1)
         for fid, length in self._run_lengths.items():
             expected[ids == fid] = length
-        bulk = (expected == block.dlc) & ((block.flags & (ERROR | EXTENDED)) == 0)
+        bulk = (expected == block.dlc) & ((block.flags & (ERROR | EXTENDED)) == 0) & ((block.dlc <= 8) | ((block.flags & FD) != 0))
         start = 0
         for k in np.flatnonzero(~bulk).tolist() + [n]:
             if k > start:
                 self._receive_bulk(block, ids, start, k)
             if k < n:
                 self._receive_one(_Rx(float(block.timestamp[k]), int(ids[k]), block.payload(k),
-                                      bool(block.flags[k] & ERROR), bool(block.flags[k] & EXTENDED)))
+                                      bool(block.flags[k] & ERROR), bool(block.flags[k] & EXTENDED),
+                                      bool(block.flags[k] & FD)))
                 self._check_result_timeout()
             start = k + 1
 

@@ -403,3 +403,20 @@ def test_curve_start_is_exact_for_a_backlog_longer_than_a_counter_wrap(buses, de
     run(node2, host2, late + 1.0)
     (curve2,) = host2.curves()
     np.testing.assert_allclose(curve2.t, t + late - 0.2, rtol=0, atol=5e-6)
+
+
+@pytest.mark.parametrize("one_by_one", [True, False])
+def test_more_than_8_bytes_in_a_classic_frame_is_malformed_not_decoded(buses, one_by_one):
+    """A CurveBlockFD of the DBC's 64 bytes sent as a classic frame (is_fd false) cannot exist on a CAN bus:
+    reported as bad_length naming CAN FD, never decoded, in the frame-by-frame and the block path alike."""
+    from rig.blockbus import FrameBlock
+    _, host_bus = buses
+    host = CanHost(host_bus)
+    bad = can.Message(arbitration_id=0x303, data=bytes(64), is_extended_id=False, is_fd=False, timestamp=0.1)
+    if one_by_one:
+        host.receive(bad)
+    else:
+        host.receive_block(FrameBlock.of_messages([bad, bad]))
+    events = host.events_of("bad_length")
+    assert events and all("classic (non-FD) frame; more than 8 need CAN FD" in e.detail for e in events)
+    assert len(events) == (1 if one_by_one else 2) and host.counters.get("curve", 0) == 0

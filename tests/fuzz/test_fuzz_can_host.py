@@ -101,7 +101,8 @@ def expected_kind(msg: can.Message) -> str | None:
         return "error_frame"
     if msg.is_extended_id or msg.arbitration_id not in DEVICE_IDS:
         return None if (msg.arbitration_id, msg.is_extended_id) == (COMMAND_ID, False) else "unknown_frame"
-    return "bad_length" if len(msg.data) != DEVICE_IDS[msg.arbitration_id] else None
+    return "bad_length" if len(msg.data) != DEVICE_IDS[msg.arbitration_id] or (len(msg.data) > 8 and not msg.is_fd) \
+        else None
 
 
 def receive_one_by_one(host: CanHost, msgs: list[can.Message], case) -> None:
