@@ -1,0 +1,237 @@
+"""Work–precision harness (issue 13): our solvers against scipy and SUNDIALS on the same compiled problem.
+
+For a :class:`~rig.bench.problems.WorkProblem` every method runs a sweep — step sizes for the fixed-step
+methods (ours: euler, semi-implicit euler, rk4), tolerances for the adaptive ones (ours: dp45, rodas4; peers:
+scipy RK45, DOP853, Radau, BDF, LSODA, odeint and CVODE, :mod:`rig.bench.peers`) — and each run gives a row
+``method, setting, error, wall_s, nfev, t_sim, status``: error against a reference, wall time (best of a few
+repeats, caches warm), RHS calls, simulated span (s) and ``ok``, ``diverged: why`` or ``failed: why``.
+
+The reference is our DP45 at rtol 1e-13, confirmed by scipy DOP853 and our Rodas4 at rtol 1e-12 (their
+distances to it are the ``reference`` row's setting and error). Errors below :data:`RESOLVE` times the larger
+distance cannot be told from the reference's own error: such rows get status ``unresolved: …`` and are not
+charted; a distance above :data:`REF_CONFIRM` is reported loudly and marks the reference ``unconfirmed``.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rig.bench.peers import PEERS, run_peer
+from rig.bench.problems import WorkProblem
+from rig.solvers import SolverDivergence, StiffnessWarning, integrate
+
+COLUMNS = ("method", "setting", "error", "wall_s", "nfev", "t_sim", "status")
+OURS = {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45", "rodas4": "Rodas4"}
+FIXED = ("euler", "semi-implicit euler", "rk4")
+METHODS = tuple(OURS) + PEERS
+TARGET = 1e-6            # error of the summary: cheapest run at or below it
+REF_RTOL, CHECK_RTOL = 1e-13, 1e-12
+REF_CONFIRM = 1e-8       # confirmations farther than this from the reference: reference unconfirmed
+RESOLVE = 10.0           # errors below RESOLVE x the reference's distance to its confirmations are unresolved
+
+
+@dataclass
+class Row:
+    """One run of one method at one setting (SI: s)."""
+
+    method: str
+    setting: str
+    error: float
+    wall_s: float
+    nfev: int | None
+    t_sim: float
+    status: str
+
+
+@dataclass
+class Reference:
+    """The reference states on the grid, how they were computed and their distances to the confirmations."""
+
+    y: np.ndarray
+    label: str
+    distances: dict[str, float]
+    wall_s: float
+
+    @property
+    def uncertainty(self) -> float:
+        return max(self.distances.values())
+
+    @property
+    def confirmed(self) -> bool:
+        return self.uncertainty <= REF_CONFIRM
+
+
+@dataclass
+class Result:
+    problem: WorkProblem
+    reference: Reference
+    rows: list[Row]
+
+
+def _ours(problem: WorkProblem, method: str, t_end: float | None = None, **options) -> tuple[np.ndarray, int]:
+    """Our ``method`` on the problem: states on the grid, RHS calls (SolverDivergence on a terminal event)."""
+    t_end = problem.t_sim if t_end is None else t_end
+    grid = problem.grid[problem.grid <= t_end]
+    if method not in FIXED:
+        options = {"stiffness": "ignore", **problem.options, **options}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StiffnessWarning)
+        sol = integrate(problem.make(), (0.0, t_end), method=OURS[method], t_eval=grid, **options)
+    if sol.status == "terminated":
+        raise SolverDivergence(f"{method}: terminal event {sol.events[-1].name!r}", sol.t_final, sol.y_final)
+    return sol.y, sol.nfev
+
+
+def _peer(problem: WorkProblem, method: str, rtol: float, t_end: float | None = None) -> tuple[np.ndarray, int]:
+    t_end = problem.t_sim if t_end is None else t_end
+    grid = problem.grid[problem.grid <= t_end]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)      # overflow in a diverging peer's trial step
+        return run_peer(method, problem.make(), (0.0, t_end), grid, rtol, rtol * problem.atol_scale)
+
+
+def runner(problem: WorkProblem, method: str, value: float, t_end: float | None = None) -> Callable[[], tuple]:
+    """A call running ``method`` at step size / rtol ``value`` over (0, t_end or t_sim)."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r} (known: {', '.join(METHODS)})")
+    if method in FIXED:
+        return lambda: _ours(problem, method, t_end, h=value)
+    if method in OURS:
+        return lambda: _ours(problem, method, t_end, rtol=value, atol=value * problem.atol_scale)
+    return lambda: _peer(problem, method, value, t_end)
+
+
+def setting_of(method: str, value: float) -> str:
+    return f"h={value:g}" if method in FIXED else f"rtol={value:g}"
+
+
+def reference(problem: WorkProblem) -> Reference:
+    """Our DP45 at rtol 1e-13, with its distances to scipy DOP853 and our Rodas4 at rtol 1e-12."""
+    t0 = time.perf_counter()
+    ref, _ = runner(problem, "dp45", REF_RTOL)()
+    wall = time.perf_counter() - t0
+    distances = {}
+    for method in ("scipy DOP853", "rodas4"):
+        y, _ = runner(problem, method, CHECK_RTOL)()
+        distances[f"{method} rtol={CHECK_RTOL:g}"] = problem.error(y, ref)
+    return Reference(ref, f"dp45 rtol={REF_RTOL:g}", distances, wall)
+
+
+def measure(problem: WorkProblem, method: str, value: float, ref: Reference, repeats: int = 3,
+            budget: float = 1.0) -> Row:
+    """One row: best wall time of up to ``repeats`` runs (fewer once they took ``budget`` s together)."""
+    run, setting = runner(problem, method, value), setting_of(method, value)
+    best, spent, n = math.inf, 0.0, 0
+    while n < repeats and (n == 0 or spent < budget):
+        t0 = time.perf_counter()
+        try:
+            y, nfev = run()
+        except SolverDivergence as exc:
+            return Row(method, setting, math.nan, time.perf_counter() - t0, None, problem.t_sim,
+                       "diverged: " + _one_line(exc))
+        except (RuntimeError, ValueError, ArithmeticError) as exc:
+            return Row(method, setting, math.nan, time.perf_counter() - t0, None, problem.t_sim,
+                       "failed: " + _one_line(exc))
+        dt = time.perf_counter() - t0
+        best, spent, n = min(best, dt), spent + dt, n + 1
+    err = problem.error(y, ref.y)
+    if not math.isfinite(err):
+        status = "diverged: non-finite output"
+    elif err < RESOLVE * ref.uncertainty:
+        status = f"unresolved: error below {RESOLVE:g}x the reference uncertainty {ref.uncertainty:.1e}"
+    else:
+        status = "ok"
+    return Row(method, setting, err, best, nfev, problem.t_sim, status)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
+def warm_up(problem: WorkProblem, methods: tuple[str, ...]) -> None:
+    """Compile / load every method's code on a short span (numba caches, imports)."""
+    t_end = float(problem.grid[min(10, problem.grid.size - 1)])
+    for method in methods:
+        value = min(1e-5, t_end / 4) if method in FIXED else 1e-6
+        try:
+            runner(problem, method, value, t_end)()
+        except (SolverDivergence, RuntimeError, ValueError):
+            pass                            # reported by the measured runs
+
+
+def work_precision(problem: WorkProblem, quick: bool = False, methods: tuple[str, ...] = METHODS,
+                   repeats: int | None = None, log: Callable[[str], None] = print) -> Result:
+    """All rows of the problem's sweeps (``quick``: the short ones) for ``methods``; ``log`` gets progress."""
+    sweeps = problem.quick if quick else problem.full
+    repeats = repeats or (3 if quick else 5)
+    warm_up(problem, methods)
+    ref = reference(problem)
+    log(f"{problem.name}: reference {ref.label} ({ref.wall_s:.2f} s); "
+        + ", ".join(f"{k} differs by {d:.1e}" for k, d in ref.distances.items()))
+    if not ref.confirmed:
+        log(f"WARNING: {problem.name}: the reference is NOT confirmed (distance {ref.uncertainty:.1e} > "
+            f"{REF_CONFIRM:g}); errors below {RESOLVE * ref.uncertainty:.1e} are marked unresolved")
+    rows = []
+    for method in methods:
+        for value in (sweeps.steps[method] if method in FIXED else sweeps.tols):
+            row = measure(problem, method, value, ref, repeats)
+            rows.append(row)
+            log(f"  {row.method:20s} {row.setting:12s} " + (
+                f"error {row.error:9.2e}  wall {row.wall_s * 1e3:9.2f} ms  nfev {row.nfev:8d}  "
+                f"{row.t_sim / row.wall_s:8.1f}x real time" if row.status == "ok" else row.status[:110]))
+    return Result(problem, ref, rows)
+
+
+def reference_row(result: Result) -> Row:
+    """The reference as a CSV row: setting names the confirmations and distances, error the larger distance."""
+    ref = result.reference
+    setting = f"{ref.label} vs " + "; ".join(f"{k}: {d:.2e}" for k, d in ref.distances.items())
+    status = "reference" if ref.confirmed else f"reference unconfirmed: distance {ref.uncertainty:.1e} > {REF_CONFIRM:g}"
+    return Row("reference", setting, ref.uncertainty, ref.wall_s, None, result.problem.t_sim, status)
+
+
+def write_csv(result: Result, path: Path) -> None:
+    """``path``: the columns :data:`COLUMNS`, the reference row first."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(COLUMNS)
+        for r in [reference_row(result)] + result.rows:
+            w.writerow([r.method, r.setting, f"{r.error:.6e}", f"{r.wall_s:.6e}", "" if r.nfev is None else r.nfev,
+                        f"{r.t_sim:g}", r.status])
+
+
+def best_runs(rows: list[Row], target: float = TARGET) -> dict[str, Row]:
+    """Per method the cheapest (wall time) ok run with error ≤ ``target``."""
+    best: dict[str, Row] = {}
+    for r in rows:
+        if r.status == "ok" and r.error <= target and (r.method not in best or r.wall_s < best[r.method].wall_s):
+            best[r.method] = r
+    return best
+
+
+def summary(result: Result, target: float = TARGET) -> list[str]:
+    """One line per method (cheapest run with error ≤ target, its real-time factor), then ours against the best
+    peer and against scipy's best."""
+    best = best_runs(result.rows, target)
+    lines = [f"{result.problem.name}: cheapest run with error <= {target:g} per method (t_sim {result.problem.t_sim:g} s):"]
+    for method in dict.fromkeys(r.method for r in result.rows):
+        r = best.get(method)
+        lines.append(f"  {method:20s} " + (f"{r.setting:12s} wall {r.wall_s * 1e3:9.2f} ms  error {r.error:.1e}  "
+                                           f"{r.t_sim / r.wall_s:8.1f}x real time" if r else f"no run reached {target:g}"))
+    ours = min((r for m, r in best.items() if m in OURS), key=lambda r: r.wall_s, default=None)
+    for label, group in (("best peer", PEERS), ("scipy's best", tuple(p for p in PEERS if p.startswith("scipy")))):
+        peer = min((r for m, r in best.items() if m in group), key=lambda r: r.wall_s, default=None)
+        if ours and peer:
+            lines.append(f"  ours best ({ours.method} {ours.setting}, {ours.t_sim / ours.wall_s:.1f}x real time) vs "
+                         f"{label} ({peer.method} {peer.setting}): {peer.wall_s / ours.wall_s:.1f}x faster")
+        else:
+            lines.append(f"  ours vs {label}: no comparison (" + ("ours" if not ours else label) +
+                         f" never reached {target:g})")
+    return lines

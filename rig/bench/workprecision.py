@@ -1,0 +1,81 @@
+"""``rig bench work-precision [--scene SCENE ...] [--quick] -o DIR``: work–precision CSV and chart per scene.
+
+Writes ``DIR/<scene-stem>.csv`` (:data:`rig.bench.harness.COLUMNS`) and ``DIR/<scene-stem>.png``, prints the
+reference check and one summary line per method. Without ``--scene``: the four problems of issue 13
+(:data:`SCENES`). Heavy imports stay in :func:`run_scenes`.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+SCENE_DIR = Path(__file__).resolve().parents[2] / "data" / "scenes"
+SCENES = tuple(SCENE_DIR / f"{name}.toml" for name in
+               ("pin_insertion_l2", "pin_insertion_l2_flank_switch", "clutch_startup", "clutch_shock_short"))
+CSV_HEAD, PNG_HEAD = b"method,setting,error,wall_s,nfev,t_sim,status", b"\x89PNG\r\n\x1a\n"
+
+
+def register(bench_sub: argparse._SubParsersAction, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``work-precision`` under ``rig bench``."""
+    wp = bench_sub.add_parser("work-precision", parents=parents,
+                              help="error against wall time and RHS calls: our solvers, scipy and CVODE (CSV + PNG)")
+    wp.add_argument("--scene", action="append", type=Path,
+                    help="a level-2 cam-bar or clutch_dynamic scene (repeatable; default: the four of issue 13)")
+    wp.add_argument("--quick", action="store_true", help="fewer settings and repeats (about 20 s per problem)")
+    wp.add_argument("-o", "--output", type=Path, required=True, help="directory for <scene>.csv and <scene>.png")
+    wp.set_defaults(func=command)
+
+
+def _check_output(path: Path, head: bytes) -> None:
+    """ValueError unless ``path`` is absent, empty or a file of this kind (rig never overwrites other files)."""
+    if path.is_dir():
+        raise ValueError(f"cannot write {path}: it is a directory")
+    if path.exists():
+        with path.open("rb") as fh:
+            start = fh.read(len(head))
+        if start and start != head:
+            raise ValueError(f"cannot write {path}: it exists and is not a work-precision file rig wrote")
+
+
+def outputs(out: Path, scene: Path) -> tuple[Path, Path]:
+    """The CSV and PNG paths of ``scene`` in ``out``."""
+    return out / f"{scene.stem}.csv", out / f"{scene.stem}.png"
+
+
+def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float | None = None,
+               methods: tuple[str, ...] | None = None) -> list:
+    """Chart every scene into ``out`` (``t_sim`` (s) shortens the span; ``methods`` a subset); the results."""
+    from rig.bench.harness import METHODS, summary, work_precision, write_csv
+    from rig.bench.problems import load_problem
+    from rig.bench.wpchart import plot
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"cannot write to {out}: it exists and is not a directory")
+    for scene in scenes:                     # check every input and output before the long runs
+        if not scene.is_file():
+            raise ValueError(f"scene {scene} does not exist")
+        for path, head in zip(outputs(out, scene), (CSV_HEAD, PNG_HEAD)):
+            _check_output(path, head)
+    out.mkdir(parents=True, exist_ok=True)
+    log = logging.getLogger("rig")
+    results = []
+    for scene in scenes:
+        problem = load_problem(scene, t_sim)
+        result = work_precision(problem, quick, methods or METHODS,
+                                log=lambda line: (log.warning if line.startswith("WARNING") else log.info)(line))
+        csv_path, png_path = outputs(out, scene)
+        write_csv(result, csv_path)
+        plot(result, png_path)
+        ref = result.reference
+        print(f"{problem.name}: reference {ref.label}, " + ", ".join(f"{k} differs by {d:.1e}"
+                                                                     for k, d in ref.distances.items())
+              + ("" if ref.confirmed else "  ** NOT CONFIRMED: errors below it are marked unresolved **"))
+        print("\n".join(summary(result)))
+        print(f"wrote {csv_path} and {png_path}")
+        results.append(result)
+    return results
+
+
+def command(args: argparse.Namespace) -> int:
+    run_scenes(args.scene or list(SCENES), args.output, args.quick)
+    return 0
