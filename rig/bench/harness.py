@@ -58,14 +58,21 @@ class Reference:
     label: str
     distances: dict[str, float]
     wall_s: float
+    failures: dict[str, str]
 
     @property
     def uncertainty(self) -> float:
-        return max(self.distances.values())
+        """The larger distance to a confirmation (inf without any)."""
+        return max(self.distances.values(), default=math.inf)
 
     @property
     def confirmed(self) -> bool:
+        """At least one other method agrees within :data:`REF_CONFIRM` and none disagrees."""
         return self.uncertainty <= REF_CONFIRM
+
+    def describe(self) -> str:
+        return "; ".join([f"{k} differs by {d:.1e}" for k, d in self.distances.items()]
+                         + [f"{k} failed ({why[:100]})" for k, why in self.failures.items()])
 
 
 @dataclass
@@ -117,11 +124,16 @@ def reference(problem: WorkProblem) -> Reference:
     t0 = time.perf_counter()
     ref, _ = runner(problem, "dp45", REF_RTOL)()
     wall = time.perf_counter() - t0
-    distances = {}
+    distances, failures = {}, {}
     for method in ("scipy DOP853", "rodas4"):
-        y, _ = runner(problem, method, CHECK_RTOL)()
-        distances[f"{method} rtol={CHECK_RTOL:g}"] = problem.error(y, ref)
-    return Reference(ref, f"dp45 rtol={REF_RTOL:g}", distances, wall)
+        key = f"{method} rtol={CHECK_RTOL:g}"
+        try:
+            y, _ = runner(problem, method, CHECK_RTOL)()
+        except (SolverDivergence, RuntimeError) as exc:
+            failures[key] = _one_line(exc)
+            continue
+        distances[key] = problem.error(y, ref)
+    return Reference(ref, f"dp45 rtol={REF_RTOL:g}", distances, wall, failures)
 
 
 def measure(problem: WorkProblem, method: str, value: float, ref: Reference, repeats: int = 3,
@@ -173,8 +185,7 @@ def work_precision(problem: WorkProblem, quick: bool = False, methods: tuple[str
     repeats = repeats or (3 if quick else 5)
     warm_up(problem, methods)
     ref = reference(problem)
-    log(f"{problem.name}: reference {ref.label} ({ref.wall_s:.2f} s); "
-        + ", ".join(f"{k} differs by {d:.1e}" for k, d in ref.distances.items()))
+    log(f"{problem.name}: reference {ref.label} ({ref.wall_s:.2f} s); {ref.describe()}")
     if not ref.confirmed:
         log(f"WARNING: {problem.name}: the reference is NOT confirmed (distance {ref.uncertainty:.1e} > "
             f"{REF_CONFIRM:g}); errors below {RESOLVE * ref.uncertainty:.1e} are marked unresolved")
@@ -192,7 +203,8 @@ def work_precision(problem: WorkProblem, quick: bool = False, methods: tuple[str
 def reference_row(result: Result) -> Row:
     """The reference as a CSV row: setting names the confirmations and distances, error the larger distance."""
     ref = result.reference
-    setting = f"{ref.label} vs " + "; ".join(f"{k}: {d:.2e}" for k, d in ref.distances.items())
+    setting = f"{ref.label} vs " + "; ".join([f"{k}: {d:.2e}" for k, d in ref.distances.items()]
+                                             + [f"{k}: failed" for k in ref.failures])
     status = "reference" if ref.confirmed else f"reference unconfirmed: distance {ref.uncertainty:.1e} > {REF_CONFIRM:g}"
     return Row("reference", setting, ref.uncertainty, ref.wall_s, None, result.problem.t_sim, status)
 

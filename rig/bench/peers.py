@@ -68,8 +68,8 @@ def _ivp_backend(method: str) -> Backend:
         s = solve_ivp(_rhs(kernel, p), (t0, t1), y0, method=method, rtol=rtol, atol=atol, events=gs or None,
                       t_eval=ts)
         if s.status < 0:
-            raise RuntimeError(f"scipy {method}: {s.message} at t = {s.t[-1] if s.t.size else t0:.9g} s")
-        samples = s.y[:, :min(s.t.size, times.size)]
+            raise RuntimeError(f"scipy {method}: {s.message} at t = {s.t[-1] if len(s.t) else t0:.9g} s")
+        samples = np.reshape(s.y, (len(y0), -1))[:, :min(len(s.t), times.size)]   # t, y are lists when empty
         if s.status == 1:
             k = next(i for i, te in enumerate(s.t_events) if te.size)
             return Segment(float(s.t_events[k][-1]), s.y_events[k][-1], k, samples, s.nfev)

@@ -1,4 +1,4 @@
-"""``rig bench work-precision [--scene SCENE ...] [--quick] -o DIR``: work–precision CSV and chart per scene.
+"""``rig bench work-precision [--scene SCENE ...] [--quick] [--t-sim S] -o DIR``: work–precision CSV and chart per scene.
 
 Writes ``DIR/<scene-stem>.csv`` (:data:`rig.bench.harness.COLUMNS`) and ``DIR/<scene-stem>.png``, prints the
 reference check and one summary line per method. Without ``--scene``: the four problems of issue 13
@@ -23,6 +23,8 @@ def register(bench_sub: argparse._SubParsersAction, parents: list[argparse.Argum
     wp.add_argument("--scene", action="append", type=Path,
                     help="a level-2 cam-bar or clutch_dynamic scene (repeatable; default: the four of issue 13)")
     wp.add_argument("--quick", action="store_true", help="fewer settings and repeats (about 20 s per problem)")
+    wp.add_argument("--t-sim", type=float, metavar="S",
+                    help="simulate only the first S seconds (default: one revolution / the scene's duration)")
     wp.add_argument("-o", "--output", type=Path, required=True, help="directory for <scene>.csv and <scene>.png")
     wp.set_defaults(func=command)
 
@@ -67,9 +69,9 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
         write_csv(result, csv_path)
         plot(result, png_path)
         ref = result.reference
-        print(f"{problem.name}: reference {ref.label}, " + ", ".join(f"{k} differs by {d:.1e}"
-                                                                     for k, d in ref.distances.items())
-              + ("" if ref.confirmed else "  ** NOT CONFIRMED: errors below it are marked unresolved **"))
+        print(f"{problem.name}: reference {ref.label}; {ref.describe()}"
+              + ("" if ref.confirmed else "  ** REFERENCE NOT CONFIRMED: errors below the distance are marked "
+                 "unresolved **"))
         print("\n".join(summary(result)))
         print(f"wrote {csv_path} and {png_path}")
         results.append(result)
@@ -77,5 +79,5 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
 
 
 def command(args: argparse.Namespace) -> int:
-    run_scenes(args.scene or list(SCENES), args.output, args.quick)
+    run_scenes(args.scene or list(SCENES), args.output, args.quick, args.t_sim)
     return 0

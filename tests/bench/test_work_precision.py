@@ -1,0 +1,105 @@
+"""rig bench work-precision: the harness on short spans, through its public function and the CLI."""
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+import pytest
+
+from rig import cli
+from rig.bench.harness import COLUMNS, METHODS, REF_CONFIRM
+from rig.bench.workprecision import run_scenes
+
+SCENES = Path(__file__).resolve().parents[2] / "data" / "scenes"
+L2 = SCENES / "pin_insertion_l2.toml"
+CLUTCH = SCENES / "clutch_startup.toml"
+REQUIRED = ("euler", "semi-implicit euler", "rk4", "dp45", "rodas4", "scipy RK45", "scipy DOP853", "scipy Radau",
+            "scipy BDF", "scipy LSODA", "scipy odeint", "cvode")
+STATUS = re.compile(r"^(ok|(diverged|failed|unresolved): \S.*)$")
+
+
+def read_rows(path: Path) -> tuple[list[str], list[dict]]:
+    with open(path, newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader)
+        return header, [dict(zip(header, row)) for row in reader]
+
+
+@pytest.fixture(scope="module")
+def level2_run(tmp_path_factory):
+    """Level 2 over its first 80 ms (dwell and the start of the rise), quick sweeps."""
+    out = tmp_path_factory.mktemp("wp")
+    (result,) = run_scenes([L2], out, quick=True, t_sim=0.08)
+    return result, out
+
+
+def test_csv_has_the_columns_every_method_and_valid_statuses(level2_run):
+    _, out = level2_run
+    header, rows = read_rows(out / "pin_insertion_l2.csv")
+    assert tuple(header) == COLUMNS == ("method", "setting", "error", "wall_s", "nfev", "t_sim", "status")
+    assert set(REQUIRED) == set(METHODS) <= {r["method"] for r in rows}
+    runs = [r for r in rows if r["method"] != "reference"]
+    assert all(STATUS.match(r["status"]) for r in runs), [r["status"] for r in runs if not STATUS.match(r["status"])]
+    assert all(float(r["t_sim"]) == 0.08 for r in rows)
+    for r in runs:
+        if r["status"] == "ok":
+            assert float(r["error"]) >= 0.0 and float(r["wall_s"]) > 0.0 and int(r["nfev"]) > 0
+
+
+def test_reference_is_confirmed_by_two_other_methods(level2_run):
+    result, out = level2_run
+    _, rows = read_rows(out / "pin_insertion_l2.csv")
+    ref = [r for r in rows if r["method"] == "reference"]
+    assert len(ref) == 1 and ref[0]["status"] == "reference"
+    assert "scipy DOP853" in ref[0]["setting"] and "rodas4" in ref[0]["setting"]
+    assert set(result.reference.distances) == {"scipy DOP853 rtol=1e-12", "rodas4 rtol=1e-12"}
+    assert 0.0 < float(ref[0]["error"]) == pytest.approx(result.reference.uncertainty, rel=1e-6)
+    assert result.reference.uncertainty <= REF_CONFIRM
+
+
+def test_dp45_error_falls_as_the_tolerance_tightens(level2_run):
+    result, _ = level2_run
+    dp45 = sorted(((float(r.setting.split("=")[1]), r.error) for r in result.rows if r.method == "dp45"), reverse=True)
+    assert len(dp45) >= 4
+    errors = [e for _, e in dp45]
+    assert errors[-1] < errors[0] / 100
+    assert all(b < 2 * a for a, b in zip(errors, errors[1:]))   # no step back up beyond noise
+
+
+def test_every_peer_follows_the_restarts(level2_run):
+    """Each peer at its tightest quick tolerance tracks the reference through the insertion-window restarts."""
+    result, _ = level2_run
+    for method in REQUIRED[5:]:
+        tight = [r for r in result.rows if r.method == method and r.setting == "rtol=1e-08"]
+        assert tight and tight[0].status == "ok" and tight[0].error < 1e-5, (method, tight)
+
+
+def test_chart_is_written(level2_run):
+    _, out = level2_run
+    assert (out / "pin_insertion_l2.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_cli_writes_csv_and_chart_for_a_clutch_scene(tmp_path, capsys):
+    out = tmp_path / "wp"
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "--quick", "--t-sim", "0.05",
+                     "-o", str(out)]) == 0
+    header, rows = read_rows(out / "clutch_startup.csv")
+    assert tuple(header) == COLUMNS
+    assert {r["method"] for r in rows} >= set(REQUIRED)
+    assert (out / "clutch_startup.png").read_bytes()[:4] == b"\x89PNG"
+    text = capsys.readouterr().out
+    assert "clutch_startup: reference dp45" in text and "ours best" in text
+
+
+def test_cli_refuses_a_scene_without_a_work_precision_problem(tmp_path, capsys):
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(SCENES / "pin_insertion.toml"),
+                     "-o", str(tmp_path)]) == 2
+    assert "fidelity = 2" in capsys.readouterr().err
+
+
+def test_cli_never_overwrites_another_file(tmp_path, capsys):
+    (tmp_path / "clutch_startup.csv").write_text("my notes\n")
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "-o", str(tmp_path)]) == 2
+    assert "clutch_startup.csv" in capsys.readouterr().err
+    assert (tmp_path / "clutch_startup.csv").read_text() == "my notes\n"
