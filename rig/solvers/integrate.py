@@ -244,8 +244,10 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     dense = dense or solver.dense_output()
                     if t_root >= t_new:
                         y_root = y_new
-                    elif fixed:                 # step to the root from the side where the old RHS holds
+                    elif fixed and e.action is None:  # step to the root from the side where the old RHS holds
                         y_root = solver.state_at(_before_root(e.fun, solver.state_at, t_root, t_old, sign > 0.0))
+                    elif fixed:                 # a mode switch acts where the old mode is invalid
+                        y_root = solver.state_at(t_root)
                     else:
                         y_root = dense(t_root)
                     rec = EventRecord(t_root, e.name, y_root, sign)

@@ -103,3 +103,16 @@ def test_cli_never_overwrites_another_file(tmp_path, capsys):
     assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "-o", str(tmp_path)]) == 2
     assert "clutch_startup.csv" in capsys.readouterr().err
     assert (tmp_path / "clutch_startup.csv").read_text() == "my notes\n"
+
+
+def test_fixed_step_methods_follow_the_clutch_stick_slip_switches():
+    """Fixed-step methods hand a mode switch the state past the root: before, on the clutch's stick–slip events
+    they handed the state before it and the switch chattered (SolverDivergence, found by this benchmark)."""
+    from rig.bench.harness import measure, reference
+    from rig.bench.problems import load_problem
+    problem = load_problem(CLUTCH, t_sim=0.2)
+    ref = reference(problem)
+    rk4 = measure(problem, "rk4", 2e-4, ref, repeats=1)
+    euler = measure(problem, "euler", 1e-5, ref, repeats=1)
+    assert rk4.status == "ok" and rk4.error < 1e-5, rk4
+    assert euler.status == "ok" and euler.error < 1e-2, euler
