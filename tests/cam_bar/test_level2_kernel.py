@@ -20,13 +20,15 @@ from rig.motion.program import CamProgram, Segment
 from rig.motion.registry import available_laws
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar import level2_kernel as kernel
+from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.mechanism import RPM
 from rig.solvers import SolverDivergence
 
 DATA = np.load(Path(__file__).with_name("data") / "level2_reference.npz")
-CASES = {"nominal": (lambda: PinInsertionMechanism(), 0.4),
-         "switching": (lambda: PinInsertionMechanism(speed=ConstantSpeed(300 * RPM), k=1090.0), 0.2)}
+STEP = InsertionLaw("step")        # the reference predates the pin's force-travel law: constant F_c window
+CASES = {"nominal": (lambda: PinInsertionMechanism(insertion=STEP), 0.4),
+         "switching": (lambda: PinInsertionMechanism(speed=ConstantSpeed(300 * RPM), k=1090.0, insertion=STEP), 0.2)}
 
 
 @pytest.mark.parametrize("case", CASES)

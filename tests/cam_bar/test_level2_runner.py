@@ -70,5 +70,6 @@ def test_level2_scene_records_end_to_end(tmp_path):
     assert np.max(rec.truth["delta_w"]) > 1e-6                   # pressed into the working flank
     curve = rec.curves[0]
     assert 0.041 < curve.x.max() < 0.043
-    level1 = PinInsertionMechanism()                              # F_c step → the rod force overshoots level 1
-    assert curve.y.min() < level1.kinetostatics(np.linspace(0, 2 * np.pi, 3601)).F_rod.min() - 5.0
+    level1 = PinInsertionMechanism()          # the pin's force-travel law: no ringing, the rod force follows level 1
+    peak = level1.kinetostatics(np.linspace(0, 2 * np.pi, 3601)).F_rod.min()
+    assert abs(curve.y.min() - peak) < 5.0                       # F_c drawn with σ = 2 N, transducer noise

@@ -44,7 +44,8 @@ DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinea
  SPEED, PHI0, SP1, SP2, SP3, SP4,
  EV_T, EV_LEVER, EV_PSI, EV_INSIDE,
  JAM_T, JAM_PHI,
- NSEG) = range(44)
+ INS_LAW, INS_UP, INS_DOWN, S_TOP,
+ NSEG) = range(48)
 PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
 SEG_ROW = 5
 #: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
@@ -80,6 +81,7 @@ def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float 
             *_speed(mech.speed),
             math.nan, 0.0, 0.0, 0.0,
             math.nan, math.nan,
+            float(mech.insertion.code), mech.insertion.build_up, mech.insertion.release, top,
             float(len(mech.program.segments))]
     assert len(head) == PROGRAM
     table, laws = [], []
@@ -269,6 +271,25 @@ def contact_force(delta, rate, p):
 
 
 @njit(cache=True, error_model="numpy")
+def smoothstep(u):
+    """3-4-5 step clipped to [0, 1] (as :func:`rig.plants.cam_bar.insertion.smoothstep`)."""
+    u = min(max(u, 0.0), 1.0)
+    return u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
+
+
+@njit(cache=True, error_model="numpy")
+def insertion_force(s, p):
+    """The pin's force–travel law at stroke s with the cam in a rise (N; :mod:`rig.plants.cam_bar.insertion`)."""
+    x = s - p[S_PIERCE]
+    if x < 0.0:
+        return 0.0
+    if p[INS_LAW] == 1.0:
+        return p[F_C]
+    travel = p[S_TOP] - p[S_PIERCE]
+    return p[F_C] * smoothstep(x / (p[INS_UP] * travel)) * smoothstep((travel - x) / (p[INS_DOWN] * travel))
+
+
+@njit(cache=True, error_model="numpy")
 def free_body(psi, psi_d, rising, moment, p):
     """ψ̈ (rad/s²) at which the cam moment of the free bodies on the actual motion (ψ, ψ̇) equals ``moment``
     (N·m), and the motion and loads there: (ψ̈, s, ṡ, s̈, ϑ̇, ϑ̈, μ_eff, F_c, friction, status) with status 0,
@@ -302,7 +323,7 @@ def free_body(psi, psi_d, rising, moment, p):
     m40 = 0.5 * (lx * f4y0 - ly * f4x0) - p[J4] * t0_                       # rod moment about C
     m41 = 0.5 * (lx * f4y1 - ly * f4x1) - p[J4] * t1_
     mu = p[MU] * math.tanh(abs(s_d) / p[V_S])
-    f_c = p[F_C] if rising and s >= p[S_PIERCE] else 0.0
+    f_c = insertion_force(s, p) if rising else 0.0
     q0, q1 = f_c + m5 * s0_, m5 * s1_
     sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0                  # sign of the slider velocity ẋ_D
     w5 = m5 * g

@@ -15,6 +15,7 @@ import numpy as np
 from rig.motion.program import CamProgram, Segment
 from rig.motion.speed import ConstantSpeed, SpeedProfile
 from rig.plants.cam_bar.chain import Angles, Chain, SingularPositionError
+from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
 from rig.plants.cam_bar.switches import flank_switch_angles
 from rig.plants.cam_bar.timeline import Event, Timeline
@@ -168,6 +169,7 @@ class PinInsertionMechanism:
     speed: SpeedProfile = field(default_factory=lambda: ConstantSpeed(150 * RPM))
     variation: CycleVariation | None = None
     rng: np.random.Generator | None = None
+    insertion: InsertionLaw = field(default_factory=InsertionLaw)
 
     def __post_init__(self) -> None:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):
@@ -305,9 +307,10 @@ class PinInsertionMechanism:
         return SpringDesign(f0, fs, travel, (fs - f0) / travel, travel_geo, (fs - f0) / travel_geo)
 
     def insertion_force(self, s: np.ndarray, s_p: np.ndarray) -> np.ndarray:
-        """F_c (N, on the slider along +x, against the rise) where the window is active, else 0."""
-        top = self.program.levels[1]
-        return np.where((s_p > 0.0) & (s >= top - self.F_c_travel), self.F_c, 0.0)
+        """Insertion force (N, on the slider along +x, against the rise): the pin's force–travel law
+        ``insertion`` (:mod:`.insertion`) over the last ``F_c_travel`` of the rise while s' > 0, else 0."""
+        f = self.insertion.force(s, self.program.levels[1], self.F_c_travel, self.F_c)
+        return np.where(np.asarray(s_p) > 0.0, f, 0.0)
 
     # ---- runner interface ----------------------------------------------------------------------------------
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
