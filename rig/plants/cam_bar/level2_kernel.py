@@ -45,7 +45,8 @@ DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinea
  EV_T, EV_LEVER, EV_PSI, EV_INSIDE,
  JAM_T, JAM_PHI,
  INS_LAW, INS_UP, INS_DOWN, S_TOP,
- NSEG) = range(48)
+ GUIDE_MODEL, MU_S, V_STICK, T_STICK,
+ NSEG) = range(52)
 PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
 SEG_ROW = 5
 #: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
@@ -82,6 +83,8 @@ def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float 
             math.nan, 0.0, 0.0, 0.0,
             math.nan, math.nan,
             float(mech.insertion.code), mech.insertion.build_up, mech.insertion.release, top,
+            float(mech.guide.code), mech.guide.static_coefficient(mech.mu), mech.guide.stick_speed,
+            mech.guide.relax_time,
             float(len(mech.program.segments))]
     assert len(head) == PROGRAM
     table, laws = [], []
@@ -290,6 +293,14 @@ def insertion_force(s, p):
 
 
 @njit(cache=True, error_model="numpy")
+def _mu_seen(friction, normal, sv):
+    """The coefficient μ' with friction = −μ'·|N|·sv for the slider-velocity sign sv of the state, so that the
+    level-1 free body (which takes the friction direction from ṡ) reproduces a held or band-slipping guide."""
+    den = abs(normal) * sv
+    return -friction / den if den != 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
 def free_body(psi, psi_d, rising, moment, p):
     """ψ̈ (rad/s²) at which the cam moment of the free bodies on the actual motion (ψ, ψ̇) equals ``moment``
     (N·m), and the motion and loads there: (ψ̈, s, ṡ, s̈, ϑ̇, ϑ̈, μ_eff, F_c, friction, status) with status 0,
@@ -322,12 +333,28 @@ def free_body(psi, psi_d, rising, moment, p):
     lx, ly = l4_ * ct, l4_ * st
     m40 = 0.5 * (lx * f4y0 - ly * f4x0) - p[J4] * t0_                       # rod moment about C
     m41 = 0.5 * (lx * f4y1 - ly * f4x1) - p[J4] * t1_
-    mu = p[MU] * math.tanh(abs(s_d) / p[V_S])
     f_c = insertion_force(s, p) if rising else 0.0
     q0, q1 = f_c + m5 * s0_, m5 * s1_
     sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0                  # sign of the slider velocity ẋ_D
     w5 = m5 * g
     spring = (p[ME0] / p[L_F] + p[K_SPRING] * p[L_F] * (psi - p[PSI0])) * p[L_F]
+    if p[GUIDE_MODEL] == 0.0:
+        mu = p[MU] * math.tanh(abs(s_d) / p[V_S])
+    else:                                             # Karnopp stick-slip (rig.plants.cam_bar.guide_friction)
+        mu = p[MU]
+        if abs(s_d) <= p[V_STICK]:                    # may hold: friction F_f (x54 = q + F_f) with s̈ = −ṡ/T
+            acc = (-s_d / p[T_STICK] - s0_) / s1_
+            ratio = ly / lx                               # R54y = (ly·R54x − M4)/lx
+            x = q0 + q1 * acc
+            y = ratio * x - (m40 + m41 * acc) / lx
+            r34x, r34y = -x - (f4x0 + f4x1 * acc), -y - (f4y0 + f4y1 * acc)
+            m_free = l3_ * (cp * r34y - sp * r34x) + p[M3] * g * p[A3] * cp + spring + p[J3] * acc
+            f_hold = (moment - m_free) / (l3_ * (sp - cp * ratio))
+            normal = y + ratio * f_hold + w5
+            if abs(f_hold) <= p[MU_S] * abs(normal):
+                return acc, s, s_d, s0_ + s1_ * acc, th_d, t0_ + t1_ * acc, _mu_seen(f_hold, normal, sv), f_c, \
+                    f_hold, 0
+            sv = -1.0 if f_hold > 0.0 else 1.0        # slips the way it is pushed: friction against that
     for branch in (1.0, -1.0):                        # guide normal force N ≥ 0 first, as kinetostatics._guide
         c = mu * sv * branch
         den = lx + c * ly
@@ -340,7 +367,9 @@ def free_body(psi, psi_d, rising, moment, p):
         acc = (moment - m0) / m1
         normal = y0 + y1 * acc + w5
         if c == 0.0 or ((normal >= 0.0) if branch > 0.0 else (normal <= 0.0)):
-            return acc, s, s_d, s0_ + s1_ * acc, th_d, t0_ + t1_ * acc, mu, f_c, -mu * abs(normal) * sv, 0
+            friction = -mu * abs(normal) * sv
+            seen = mu if p[GUIDE_MODEL] == 0.0 else _mu_seen(friction, normal, -1.0 if s_d > 0.0 else 1.0)
+            return acc, s, s_d, s0_ + s1_ * acc, th_d, t0_ + t1_ * acc, seen, f_c, friction, 0
     return nan, s, s_d, nan, th_d, nan, mu, f_c, nan, 2
 
 

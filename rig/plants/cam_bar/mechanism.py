@@ -15,6 +15,7 @@ import numpy as np
 from rig.motion.program import CamProgram, Segment
 from rig.motion.speed import ConstantSpeed, SpeedProfile
 from rig.plants.cam_bar.chain import Angles, Chain, SingularPositionError
+from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
 from rig.plants.cam_bar.switches import flank_switch_angles
@@ -170,6 +171,7 @@ class PinInsertionMechanism:
     variation: CycleVariation | None = None
     rng: np.random.Generator | None = None
     insertion: InsertionLaw = field(default_factory=InsertionLaw)
+    guide: GuideFriction = field(default_factory=GuideFriction)       # level 2's slider-guide friction model
 
     def __post_init__(self) -> None:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):
