@@ -4,7 +4,8 @@ For a :class:`~rig.bench.problems.WorkProblem` every method runs a sweep — ste
 methods (ours: euler, semi-implicit euler, rk4), tolerances for the adaptive ones (ours: dp45, rodas4; peers:
 scipy RK45, DOP853, Radau, BDF, LSODA, odeint and CVODE, :mod:`rig.bench.peers`) — and each run gives a row
 ``method, setting, error, wall_s, nfev, t_sim, status``: error against a reference, wall time (best of a few
-repeats, caches warm), RHS calls, simulated span (s) and ``ok``, ``diverged: why`` or ``failed: why``.
+repeats, caches warm), RHS calls, simulated span (s) and ``ok``, ``diverged: why``, ``failed: why`` or
+``inaccurate: …`` (a relative error above 1 that the method did not report as a divergence).
 
 The reference is our DP45 at rtol 1e-13, confirmed by scipy DOP853 and our Rodas4 at rtol 1e-12 (their
 distances to it are the ``reference`` row's setting and error). Errors below :data:`RESOLVE` times the larger
@@ -156,6 +157,8 @@ def measure(problem: WorkProblem, method: str, value: float, ref: Reference, rep
     err = problem.error(y, ref.y)
     if not math.isfinite(err):
         status = "diverged: non-finite output"
+    elif err > 1.0:
+        status = f"inaccurate: relative error {err:.2g} > 1 and no divergence reported by the method"
     elif err < RESOLVE * ref.uncertainty:
         status = f"unresolved: error below {RESOLVE:g}x the reference uncertainty {ref.uncertainty:.1e}"
     else:

@@ -1,5 +1,6 @@
 """Work–precision chart as SciML presents it: error against wall time and error against RHS evaluations, log–log,
-one curve per method (ours solid, peers dashed); only runs whose error the reference resolves (status ok)."""
+one curve per method in sweep order (ours solid, peers dashed); only runs whose error the reference resolves
+(status ok)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -18,14 +19,13 @@ def plot(result: Result, path: Path) -> None:
     methods = list(dict.fromkeys(r.method for r in result.rows))
     colours = [*plt.get_cmap("tab10").colors, "black", "olive", "navy"]
     for colour, method in zip(colours, methods):
-        rows = sorted((r for r in result.rows if r.method == method and r.status == "ok"), key=lambda r: r.wall_s)
+        rows = [r for r in result.rows if r.method == method and r.status == "ok"]     # in sweep order
         if not rows:
             continue
         style = dict(color=colour, marker="o" if method in OURS else "s", ms=4,
                      ls="-" if method in OURS else "--", lw=1.6 if method in OURS else 1.0, label=method)
         axes[0].loglog([r.wall_s for r in rows], [r.error for r in rows], **style)
-        by_work = sorted(rows, key=lambda r: r.nfev)
-        axes[1].loglog([r.nfev for r in by_work], [r.error for r in by_work], **style)
+        axes[1].loglog([r.nfev for r in rows], [r.error for r in rows], **style)
     ref = result.reference
     for ax, xlabel in zip(axes, ("wall time per run [s] (best of repeats)", "right-hand-side evaluations")):
         ax.axhline(TARGET, color="k", ls=":", lw=0.8)
@@ -33,12 +33,12 @@ def plot(result: Result, path: Path) -> None:
         ax.set_ylabel(f"relative max error in {result.problem.quantity}")
         ax.grid(True, which="both", lw=0.3, alpha=0.5)
     axes[0].legend(fontsize=7, ncol=2)
-    failed = sorted({r.method for r in result.rows if r.status.startswith(("diverged", "failed"))})
+    failed = sorted({r.method for r in result.rows if r.status.startswith(("diverged", "failed", "inaccurate"))})
     note = f"reference {ref.label}, confirmations within {ref.uncertainty:.1e}"
     if not ref.confirmed:
         note = "REFERENCE NOT CONFIRMED: " + note
     if failed:
-        note += "; with diverged/failed runs (CSV): " + ", ".join(failed)
+        note += "; diverged, failed or inaccurate runs (not drawn, see the CSV): " + ", ".join(failed)
     fig.suptitle(f"{result.problem.title}\n{note}", fontsize=9, color="k" if ref.confirmed else "red")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
