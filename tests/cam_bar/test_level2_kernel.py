@@ -20,6 +20,7 @@ from rig.motion.program import CamProgram, Segment
 from rig.motion.registry import available_laws
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar import level2_kernel as kernel
+from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.mechanism import RPM
@@ -55,14 +56,16 @@ def test_trajectories_and_events_equal_the_previous_implementation(case):
     np.testing.assert_allclose([r.t for r in sol.events], DATA[f"{case}_event_t"], rtol=0.0, atol=1e-9)
 
 
-def test_closed_form_free_body_solves_the_level1_moment_balance():
+@pytest.mark.parametrize("guide", ["regularised", "stick"])
+def test_closed_form_free_body_solves_the_level1_moment_balance(guide):
     """At the kernel's ψ̈ the level-1 free-body solution of the actual motion needs exactly the cam moment
-    ℓ·(F_w − F_o) the contacts deliver — on both flanks, in free flight, with friction either way."""
-    mech = PinInsertionMechanism(speed=ConstantSpeed(300 * RPM), k=1090.0)
+    ℓ·(F_w − F_o) the contacts deliver — on both flanks, in free flight, with friction either way; with the
+    stick-slip guide also where it holds (dwells: ṡ ≈ 3e-7 m/s is inside the stick band)."""
+    mech = PinInsertionMechanism(speed=ConstantSpeed(300 * RPM), k=1090.0, guide=GuideFriction(guide))
     model = Level2(mech)
     rng = np.random.default_rng(3)
     t = rng.uniform(0.0, 0.2, 400)
-    lever = np.array([kernel.geometry_at(ti, model.params)[0] for ti in t])
+    lever = np.array([kernel.geometry_at(ti, np.zeros(2), model.params)[0] for ti in t])
     e = rng.uniform(-0.5, 1.5, t.size) * mech.clearance / lever          # working flank, gap, other flank
     y = np.array([e, rng.normal(0.0, 1e-6, t.size)])
     dy = model.evaluate(t, y)

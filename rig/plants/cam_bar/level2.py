@@ -33,6 +33,7 @@ from rig.solvers import Event as SolverEvent
 from rig.solvers import JitRhs, OdeSolver, Problem, Solution, SolverDivergence, integrate
 
 if TYPE_CHECKING:
+    from rig.plants.cam_bar.drive import CamDrive
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism, State
 
 TAU = kernel.TAU  # s, scale of the velocity state
@@ -134,6 +135,8 @@ class Dynamics(NamedTuple):
     p_dissipated: np.ndarray
     delta_w: np.ndarray
     delta_o: np.ndarray
+    omega_m: np.ndarray
+    shaft_torque: np.ndarray
     loads: Kinetostatics
     state: "State"
 
@@ -161,6 +164,10 @@ class Level2:
     guide friction (Coulomb friction would chatter while the gripper rings at rest); a penetration beyond
     ``max_penetration`` (m) raises :class:`SolverDivergence` naming time, cam angle and state.
 
+    ``cam_drive`` (default ``mech.cam_drive``) makes the cam angle and speed states driven by a motor through a
+    compliant shaft (:mod:`rig.plants.cam_bar.drive`): y = (e, τ·ė, φ, ω, φ_m, ω_m[, work quadratures]); without
+    it the cam turns by the speed profile.
+
     ``rhs`` is the compiled right-hand side (:class:`~rig.solvers.JitRhs`: callable as ``rhs(t, y) -> tuple``,
     e.g. for scipy) with its event kernel; ``params`` its parameter vector.
     """
@@ -170,16 +177,19 @@ class Level2:
     energy: bool = False
     max_penetration: float = 1e-4
     friction_speed: float = 1e-3
+    cam_drive: "CamDrive | None" = None
 
     def __post_init__(self) -> None:
         mech = self.mech
+        if self.cam_drive is None:
+            self.cam_drive = mech.cam_drive
         if self.contact is None:
             self.contact = ContactLaw.steel_line(mech.roller_width, mech.contact_damping)
         if not self.friction_speed > 0.0:
             raise ValueError(f"friction_speed must be positive, got {self.friction_speed!r} m/s")
         law = self.contact
         self.params = kernel.pack(mech, law.stiffness, law.exponent, law.damping, self.max_penetration,
-                                  self.friction_speed)
+                                  self.friction_speed, self.cam_drive)
         self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value)
 
     def _sync(self) -> np.ndarray:
@@ -203,21 +213,37 @@ class Level2:
     # ---- ODE -----------------------------------------------------------------------------------------------
     def initial_state(self, t0: float) -> tuple:
         """Quasi-static start at ``t0``: the roller pressed into the flank that carries the level-1 contact
-        force (penetration from the contact law), moving with the level-0 law (ė = 0)."""
-        phi, omega, alpha = kernel.drive(t0, self.params)
-        force = float(self.mech.kinetostatics(np.array([phi]), omega, alpha).R23n[0])
+        force (penetration from the contact law), moving with the level-0 law (ė = 0). With a cam drive the cam
+        starts at the speed profile's φ0, at rest or at its nominal speed (``start``), the shaft twisted by the
+        quasi-static drive torque."""
+        drive = self.cam_drive
+        if drive is None:
+            phi, omega, alpha = kernel.drive(t0, self.params)
+        else:
+            phi, alpha = self.mech.speed.phi0, 0.0
+            omega = 0.0 if drive.start == "rest" else self.mech.speed.nominal_omega
+        ks = self.mech.kinetostatics(np.array([phi]), omega, alpha)
+        force = float(ks.R23n[0])
         lever = kernel.groove(phi, self.params)[3]
         delta = float(self.contact.penetration(abs(force)))
         e = -delta / lever if force >= 0.0 else (self.mech.clearance + delta) / lever
-        return (e, 0.0, 0.0, 0.0, 0.0) if self.energy else (e, 0.0)
+        y = (e, 0.0)
+        if drive is not None:
+            torque = float(ks.drive_torque[0])
+            y += (phi, omega, phi + torque / drive.shaft_stiffness, omega)
+        return y + (0.0, 0.0, 0.0) if self.energy else y
+
+    def cam_angle(self, t: float, y: tuple) -> float:
+        """Cam angle φ (rad) at time ``t`` and state ``y``."""
+        return kernel.cam_angle(t, np.asarray(y, dtype=float), self.params)
 
     def flank_of(self, t: float, y: tuple) -> str:
         """Flank the roller is nearer to."""
-        lever = kernel.geometry_at(t, self.params)[0]
+        lever = kernel.geometry_at(t, np.asarray(y, dtype=float), self.params)[0]
         return "working" if y[0] * lever < 0.5 * self.mech.clearance else "other"
 
     def _diverged(self, t: float, y: tuple) -> SolverDivergence:
-        phi = kernel.drive(t, self.params)[0]
+        phi = self.cam_angle(t, y)
         return SolverDivergence(f"roller penetrates a flank by more than {self.max_penetration * 1e3:g} mm at cam "
                                 f"angle φ = {math.degrees(phi):.6g}° (contact stiffness too low, or the solution "
                                 f"diverged: with a fixed-step explicit method reduce h or use Rodas4)", t, y)
@@ -258,7 +284,7 @@ class Level2:
             impacts.append(rec.t)
             if rec.name != flank:
                 flank = rec.name
-                phi = kernel.drive(rec.t, self.params)[0]
+                phi = self.cam_angle(rec.t, rec.y)
                 switches.append(Event(rec.t, "flank_switch", {"phi": phi % math.tau, "to": flank}))
         return Level2Run(sol, switches, impacts, releases, flank)
 
@@ -268,22 +294,25 @@ class Level2:
         (:func:`rig.plants.cam_bar.level2_kernel.evaluate`) and the level-1 free-body solution of the actual
         motion (the insertion force and regularised guide friction as in the kernel)."""
         t = np.asarray(t, dtype=float)
-        out = dict(zip(kernel.OUTPUTS, kernel.evaluate(t, np.asarray(y[0], float), np.asarray(y[1], float) / TAU,
-                                                       self.params)))
+        y = np.asarray(y, dtype=float)
+        y = y if y.ndim == 2 else y.reshape(-1, 1)
+        out = dict(zip(kernel.OUTPUTS, kernel.evaluate(t, y, self.params)))
         mech = self.mech
         from rig.plants.cam_bar.mechanism import State
-        phi, w = out["phi"], out["omega"]
+        phi = out["phi"]
+        w = np.where(np.abs(out["omega"]) < 1e-6, 1e-6, out["omega"])   # cam at rest (drive start-up): φ-rates
         a = mech.chain.angles(out["s"], phi)
         nan = np.full_like(phi, np.nan)       # r', r'' are not used by the kinetostatics
         st = State(phi, w, np.zeros_like(w), out["s"], out["s_d"] / w, out["s_dd"] / w ** 2, a.psi, out["psi_d"] / w,
                    out["psi_dd"] / w ** 2, a.theta, out["theta_d"] / w, out["theta_dd"] / w ** 2,
                    np.hypot(*mech._pitch(a.psi)), nan, nan, a)
         loads = solve(_LoadView(mech, out["mu"], out["F_c"]), st, mech.k)
-        return Dynamics(*(out[k] for k in Dynamics._fields[:13]), loads, st)
+        return Dynamics(*(out[k] for k in Dynamics._fields[:13]), out["omega_m"], out["shaft_torque"], loads, st)
 
     def signals(self, t: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
         """Truth signals (SI) with the keys of level 1; ``R23`` = F_w − F_o (N, > 0 on the working flank);
-        extra: ``psi_kin`` (level-0 ψ), ``delta_w``/``delta_o`` (penetrations, m, negative = gap)."""
+        extra: ``psi_kin`` (level-0 ψ), ``delta_w``/``delta_o`` (penetrations, m, negative = gap), ``motor_speed``
+        (rad/s, cam-shaft referred; the cam speed without a drive) and ``shaft_torque`` (N·m; 0 without a drive)."""
         dy = self.evaluate(t, y)
         st, ks = dy.state, dy.loads
         mech = self.mech
@@ -294,7 +323,8 @@ class Level2:
                 "psi": dy.psi, "theta": st.theta, "r": st.r, "F_rod": ks.F_rod, "rod_tension": ks.rod_tension,
                 "R23": dy.F_w - dy.F_o, "M23": m_sigma - m_e, "M_e": m_e, "M_sigma": m_sigma,
                 "drive_torque": dy.drive_torque, "F_c": ks.F_c, "pressure_angle": ks.pressure_angle,
-                "psi_kin": dy.psi - np.asarray(y[0], float), "delta_w": dy.delta_w, "delta_o": dy.delta_o}
+                "psi_kin": dy.psi - np.asarray(y[0], float), "delta_w": dy.delta_w, "delta_o": dy.delta_o,
+                "motor_speed": dy.omega_m, "shaft_torque": dy.shaft_torque}
 
     def energies(self, t: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
         """Kinetic energy of follower, rod and slider, potentials of gravity, spring and contacts (J)."""

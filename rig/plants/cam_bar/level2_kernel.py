@@ -30,6 +30,7 @@ from rig.motion.registry import get_law
 from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed
 
 if TYPE_CHECKING:
+    from rig.plants.cam_bar.drive import CamDrive
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 TAU = 1e-3              # s, scale of the velocity state: y = (e, τ·ė)
@@ -46,7 +47,8 @@ DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinea
  JAM_T, JAM_PHI,
  INS_LAW, INS_UP, INS_DOWN, S_TOP,
  GUIDE_MODEL, MU_S, V_STICK, T_STICK,
- NSEG) = range(52)
+ DRIVE_ON, W_SYNC, B_MOTOR, M_MAX, J_MOTOR, J_CAM, K_SHAFT, C_SHAFT,
+ NSEG) = range(60)
 PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
 SEG_ROW = 5
 #: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
@@ -61,15 +63,18 @@ WORKING, OTHER, OVERLOAD, INSERTION = range(4)
 #: rows of :func:`evaluate`
 OUTPUTS = ("phi", "omega", "alpha", "psi", "psi_d", "psi_dd", "e_dd", "F_w", "F_o", "drive_torque",
            "p_dissipated", "delta_w", "delta_o", "s", "s_d", "s_dd", "theta_d", "theta_dd", "mu", "F_c",
-           "friction")
+           "friction", "omega_m", "shaft_torque")
 N_OUT = len(OUTPUTS)
 
 
 def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float = 1.0, damping: float = 0.0,
-         max_penetration: float = math.inf, friction_speed: float = 1e-3) -> np.ndarray:
+         max_penetration: float = math.inf, friction_speed: float = 1e-3, cam_drive: "CamDrive | None" = None
+         ) -> np.ndarray:
     """Parameter vector of ``mech`` with the contact law K·δ^p·(1 + α·δ̇) (``stiffness`` K in N/m^p,
-    ``exponent`` p, ``damping`` α in s/m), ``max_penetration`` (m) and the friction regularisation speed
-    ``friction_speed`` (m/s). Raises ValueError for a speed profile or motion law the kernel does not know."""
+    ``exponent`` p, ``damping`` α in s/m), ``max_penetration`` (m), the friction regularisation speed
+    ``friction_speed`` (m/s) and the cam drive (``None``: the speed profile turns the cam). Raises ValueError for
+    a speed profile or motion law the kernel does not know."""
+    d = cam_drive
     ch = mech.chain
     top = mech.program.levels[1]
     s_pierce = top - mech.F_c_travel
@@ -85,6 +90,9 @@ def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float 
             float(mech.insertion.code), mech.insertion.build_up, mech.insertion.release, top,
             float(mech.guide.code), mech.guide.static_coefficient(mech.mu), mech.guide.stick_speed,
             mech.guide.relax_time,
+            0.0 if d is None else 1.0, *([0.0] * 7 if d is None else
+                                         [d.synchronous(mech.speed.nominal_omega), d.slope, d.max_torque,
+                                          d.motor_inertia, d.cam_inertia, d.shaft_stiffness, d.shaft_damping]),
             float(len(mech.program.segments))]
     assert len(head) == PROGRAM
     table, laws = [], []
@@ -374,10 +382,22 @@ def free_body(psi, psi_d, rising, moment, p):
 
 
 @njit(cache=True, error_model="numpy")
-def dynamics(t, e, e_d, p):
-    """Everything at time t for deviation e (rad) and rate ė (rad/s), in the order of :data:`OUTPUTS`, and a
-    status (0, 1 chain cannot be assembled, 2 jammed guide: the values are then NaN)."""
-    phi, omega, alpha = drive(t, p)
+def cam_state(t, y, p):
+    """(φ, ω, ω̇ of the speed profile, ω_m, shaft torque) at time t and state y: from the speed profile (ω_m = ω,
+    torque 0), or with the cam drive on from the states (φ, ω, φ_m, ω_m) = y[2:6] (ω̇ then follows from the drive
+    torque in :func:`dynamics`)."""
+    if p[DRIVE_ON] == 0.0:
+        phi, omega, alpha = drive(t, p)
+        return phi, omega, alpha, omega, 0.0
+    return y[2], y[3], 0.0, y[5], p[K_SHAFT] * (y[4] - y[2]) + p[C_SHAFT] * (y[5] - y[3])
+
+
+@njit(cache=True, error_model="numpy")
+def dynamics(e, e_d, phi, omega, alpha, omega_m, shaft, p):
+    """Everything for deviation e (rad) and rate ė (rad/s) with the cam at φ, ω (rad, rad/s), in the
+    order of :data:`OUTPUTS`, and a status (0, 1 chain cannot be assembled, 2 jammed guide: the values are then
+    NaN). ``alpha`` ω̇ of the speed profile; with the cam drive on ω̇ = (``shaft`` torque − drive torque)/J_cam
+    instead (the drive torque depends on the contact forces only, not on ω̇)."""
     psi_k, psi_p, psi_pp, lever, lever_p, rising = groove(phi, p)
     psi = psi_k + e
     psi_d = omega * psi_p + e_d
@@ -387,21 +407,25 @@ def dynamics(t, e, e_d, p):
     f_w, f_o = contact_force(d_w, -u_d, p), contact_force(d_o, u_d, p)
     acc, s, s_d, s_dd, th_d, th_dd, mu, f_c, friction, status = free_body(psi, psi_d, rising,
                                                                           lever * (f_w - f_o), p)
-    e_dd = acc - omega * omega * psi_pp - alpha * psi_p
     drive_torque = (f_w - f_o) * (-lever_p * e + lever * psi_p)     # (F_w − F_o)·∂δ_w/∂φ at fixed ψ
+    if p[DRIVE_ON] != 0.0:
+        alpha = (shaft - drive_torque) / p[J_CAM]
+    e_dd = acc - omega * omega * psi_pp - alpha * psi_p
     p_diss = (f_w - elastic(d_w, p)) * -u_d + (f_o - elastic(d_o, p)) * u_d
     return (phi, omega, alpha, psi, psi_d, acc, e_dd, f_w, f_o, drive_torque, p_diss, d_w, d_o, s, s_d, s_dd,
-            th_d, th_dd, mu, f_c, friction), status
+            th_d, th_dd, mu, f_c, friction, omega_m, shaft), status
 
 
 @njit(cache=True, error_model="numpy")
 def rhs(t, y, p, out):
-    """d/dt of (e, τ·ė[, W_drive, W_load, E_dissipated]) into ``out``; NaN where the chain cannot be assembled
-    or the guide jams (then p[JAM_T], p[JAM_PHI] record the first jam)."""
+    """d/dt of (e, τ·ė[, φ, ω, φ_m, ω_m][, W_drive, W_load, E_dissipated]) into ``out`` (the cam-drive states
+    when p[DRIVE_ON]); NaN where the chain cannot be assembled or the guide jams (then p[JAM_T], p[JAM_PHI] record
+    the first jam)."""
     if not math.isfinite(y.sum()):
         out[:] = math.nan
         return
-    r, status = dynamics(t, y[0], y[1] / TAU, p)
+    phi, omega, alpha, omega_m, shaft = cam_state(t, y, p)
+    r, status = dynamics(y[0], y[1] / TAU, phi, omega, alpha, omega_m, shaft, p)
     if status:
         out[:] = math.nan
         if status == 2 and math.isnan(p[JAM_T]):
@@ -409,19 +433,34 @@ def rhs(t, y, p, out):
         return
     out[0] = y[1] / TAU
     out[1] = TAU * r[6]
-    if y.size > 2:
-        out[2] = r[9] * r[1]                       # drive torque · ω
-        out[3] = -(r[19] + r[20]) * r[14]          # −(F_c + friction)·ṡ
-        out[4] = r[10]
+    k = 2
+    if p[DRIVE_ON] != 0.0:
+        out[2] = omega
+        out[3] = r[2]
+        out[4] = omega_m
+        motor = min(max(p[B_MOTOR] * (p[W_SYNC] - omega_m), -p[M_MAX]), p[M_MAX])
+        out[5] = (motor - shaft) / p[J_MOTOR]
+        k = 6
+    if y.size > k:
+        out[k] = r[9] * r[1]                       # drive torque · ω
+        out[k + 1] = -(r[19] + r[20]) * r[14]      # −(F_c + friction)·ṡ
+        out[k + 2] = r[10]
 
 
 @njit(cache=True, error_model="numpy")
-def geometry_at(t, p):
-    """(ℓ, ψ_k, distance into a rise) at time t, cached in p for the last time asked (events share it)."""
-    if p[EV_T] != t:
-        phi = drive(t, p)[0]
+def cam_angle(t, y, p):
+    """Cam angle φ (rad) at time t and state y (speed profile, or the drive state)."""
+    return drive(t, p)[0] if p[DRIVE_ON] == 0.0 else y[2]
+
+
+@njit(cache=True, error_model="numpy")
+def geometry_at(t, y, p):
+    """(ℓ, ψ_k, distance into a rise) at time t and state y, cached in p for the last cam angle asked (events
+    share it)."""
+    phi = cam_angle(t, y, p)
+    if p[EV_T] != phi:
         g = groove(phi, p)
-        p[EV_T], p[EV_LEVER], p[EV_PSI], p[EV_INSIDE] = t, g[3], g[0], in_rise(phi, p)
+        p[EV_T], p[EV_LEVER], p[EV_PSI], p[EV_INSIDE] = phi, g[3], g[0], in_rise(phi, p)
     return p[EV_LEVER], p[EV_PSI], p[EV_INSIDE]
 
 
@@ -432,7 +471,7 @@ def event_value(t, y, p, k):
     and ψ past the pierce point, rad)."""
     if k == WORKING:
         return -y[0]
-    lever, psi_k, inside = geometry_at(t, p)
+    lever, psi_k, inside = geometry_at(t, y, p)
     if k == OTHER:
         return y[0] - p[CLEARANCE] / lever
     if k == OVERLOAD:
@@ -442,11 +481,14 @@ def event_value(t, y, p, k):
 
 
 @njit(cache=True, error_model="numpy")
-def evaluate(t, e, e_d, p):
-    """:func:`dynamics` at many samples: rows of :data:`OUTPUTS` (NaN where the status is not 0)."""
+def evaluate(t, y, p):
+    """:func:`dynamics` at many samples (states in the columns of ``y``): rows of :data:`OUTPUTS` (NaN where
+    the status is not 0)."""
     out = np.empty((N_OUT, t.size))
     for m in range(t.size):
-        r, _ = dynamics(t[m], e[m], e_d[m], p)
+        ym = y[:, m]
+        phi, omega, alpha, omega_m, shaft = cam_state(t[m], ym, p)
+        r, _ = dynamics(ym[0], ym[1] / TAU, phi, omega, alpha, omega_m, shaft, p)
         for i in range(N_OUT):
             out[i, m] = r[i]
     return out

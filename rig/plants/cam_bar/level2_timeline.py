@@ -4,7 +4,9 @@ Integrates the compiled kernel with :data:`~rig.plants.cam_bar.level2.METHOD` (D
 solvers at 1e-6 relative error in e: benchmarks/bench_level2.py) chunk by chunk, continuing from the last state;
 with ``[plant.variation]`` each cam revolution runs with its cycle's mechanism (load parameters) and gets its
 chain stroke deviation Δs added, as at level 1. Events: ``flank_switch`` (data ``phi``, ``to``) from the
-contact onsets of the integration, and ``accel_jump`` program crossings as at level 1.
+contact onsets of the integration, and ``accel_jump`` program crossings as at level 1. With a cam drive
+(:mod:`.drive`) the cam angle is a state: a chunk runs with the mechanism of the cycle it starts in (the cycle's
+load parameters take over at the first chunk boundary of a revolution).
 """
 from __future__ import annotations
 
@@ -39,7 +41,10 @@ class Level2Timeline(Timeline):
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         self._check_times(t)
         mech = self.mech
-        phi = mech.speed.drive(t).phi
+        if mech.cam_drive is None:
+            phi = mech.speed.drive(t).phi
+        else:        # the cam angle is a state: the chunk runs in the cycle it starts in
+            phi = np.full(t.size, self._state[1][2] if self._state is not None else mech.speed.phi0)
         cycle = np.floor(phi / tau).astype(int) if mech.cycles is not None else np.zeros(t.size, int)
         parts = []
         for c in np.unique(cycle):
@@ -54,6 +59,7 @@ class Level2Timeline(Timeline):
         if not t.size:
             return self._model(min(self._models, default=0)).signals(t, np.zeros((2, 0)))
         out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        phi = out["phi"]
         last_phi = np.array([self._last[1]]) if self._last is not None else phi[:0]
         last_t = np.array([self._last[0]]) if self._last is not None else t[:0]
         self.events.extend(self._program_crossings(np.concatenate([last_t, t]), np.concatenate([last_phi, phi])))

@@ -15,6 +15,7 @@ import numpy as np
 from rig.motion.program import CamProgram, Segment
 from rig.motion.speed import ConstantSpeed, SpeedProfile
 from rig.plants.cam_bar.chain import Angles, Chain, SingularPositionError
+from rig.plants.cam_bar.drive import CamDrive
 from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
@@ -172,6 +173,7 @@ class PinInsertionMechanism:
     rng: np.random.Generator | None = None
     insertion: InsertionLaw = field(default_factory=InsertionLaw)
     guide: GuideFriction = field(default_factory=GuideFriction)       # level 2's slider-guide friction model
+    cam_drive: CamDrive | None = None                                # level 2: motor + shaft turn the cam
 
     def __post_init__(self) -> None:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):

@@ -10,6 +10,7 @@ from typing import Any
 from rig.motion.program import CamProgram, ProgramError, Segment
 from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed, SpeedProfile
 from rig.scene import Field, Scene, SceneError, read_table
+from rig.plants.cam_bar.drive import read_drive
 from rig.plants.cam_bar.guide_friction import read_guide
 from rig.plants.cam_bar.insertion import read_insertion
 from rig.plants.cam_bar.variation import CycleVariation, plant_generator
@@ -38,6 +39,7 @@ PLANT_SCHEMA = {
     "variation": Field(None, None, "per-cycle deviations, table [plant.variation] (rig.plants.cam_bar.variation)"),
     "insertion": Field(None, None, "pin force-travel law, table [plant.insertion] (rig.plants.cam_bar.insertion)"),
     "guide": Field(None, None, "level-2 slider-guide friction, table [plant.guide] (rig.plants.cam_bar.guide_friction)"),
+    "drive": Field(None, None, "level-2 cam drive (motor, shaft), table [plant.drive] (rig.plants.cam_bar.drive)"),
 }
 SEGMENT_SCHEMA = {"kind": Field(None), "angle": Field("rad"), "law": Field(None, None),
                   "stroke": Field("m", None, "defaults to s_H for rise/return")}
@@ -109,6 +111,7 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     kw["speed"] = read_speed(scene.section("speed"), f"{scene.path} [speed]")
     kw["insertion"] = read_insertion(kw.pop("insertion"), f"{scene.path} [plant.insertion]")
     kw["guide"] = read_guide(kw.pop("guide"), f"{scene.path} [plant.guide]")
+    kw["cam_drive"] = read_drive(kw.pop("drive"), f"{scene.path} [plant.drive]")
     variation = kw.pop("variation")
     if variation is not None:
         kw["variation"] = CycleVariation.from_table(variation, f"{scene.path} [plant.variation]")

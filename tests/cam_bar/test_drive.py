@@ -1,0 +1,80 @@
+"""The cam drive at level 2 (rig.plants.cam_bar.drive): motor line, shaft compliance, start-up, speed ripple."""
+from math import radians, tau
+
+import numpy as np
+import pytest
+
+from rig.motion import ConstantSpeed
+from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.drive import CamDrive
+from rig.plants.cam_bar.level2 import Level2
+from rig.plants.cam_bar.mechanism import RPM
+from rig.scene import SceneError, load_scene
+
+from tests.cam_bar.test_cam_bar_scene import write
+
+
+def _run(mech: PinInsertionMechanism, T: float, n: int = 4001):
+    model = Level2(mech)
+    t = np.linspace(0.0, T, n)
+    run = model.simulate((0.0, T), t_eval=t, rtol=1e-7, atol=1e-12)
+    return run, model.signals(t, run.solution.y)
+
+
+def test_drive_off_by_default_and_state_layout():
+    mech = PinInsertionMechanism()
+    assert mech.cam_drive is None and len(Level2(mech).initial_state(0.0)) == 2
+    y0 = Level2(PinInsertionMechanism(cam_drive=CamDrive()), energy=True).initial_state(0.0)
+    assert len(y0) == 9 and y0[2:4] == (0.0, 0.0)                           # (e, τė, φ, ω, φ_m, ω_m, works)
+
+
+def test_a_heavy_stiff_drive_turns_the_cam_at_constant_speed():
+    """Huge inertias: the drive's reaction cannot change the speed, so level 2 equals the constant-speed run."""
+    heavy = CamDrive(motor_inertia=1e4, cam_inertia=1e4, start="running")
+    _, ref = _run(PinInsertionMechanism(), 0.4)
+    _, sig = _run(PinInsertionMechanism(cam_drive=heavy), 0.4)
+    assert np.max(np.abs(sig["omega"] / (150 * RPM) - 1.0)) < 1e-5
+    e_ref, e = ref["psi"] - ref["psi_kin"], sig["psi"] - sig["psi_kin"]
+    assert np.max(np.abs(e - e_ref)) < 1e-4 * np.max(np.abs(e_ref))
+
+
+def test_speed_ripple_from_the_mechanisms_own_reaction_torque():
+    """Running at 150 rpm: the cam slows while it drives the rise and speeds up when the follower drives it back
+    (≈ ±1 rpm: the motor line's droop under the drive torque)."""
+    _, sig = _run(PinInsertionMechanism(cam_drive=CamDrive(start="running")), 0.8)
+    late = sig["t"] > 0.4
+    omega, torque = sig["omega"][late], sig["drive_torque"][late]
+    ripple = np.ptp(omega) / np.mean(omega)
+    assert 0.003 < ripple < 0.05
+    assert np.mean(omega) == pytest.approx(150 * RPM, rel=0.01)
+    droop = np.polyfit(torque, omega, 1)              # steep motor line (J/b ≈ 3 ms): ω ≈ ω_s − T_d/b
+    assert droop[0] == pytest.approx(-1.0 / CamDrive().slope, rel=0.1) and droop[1] == pytest.approx(150 * RPM)
+    assert np.corrcoef(omega, torque)[0, 1] < -0.95
+
+
+def test_start_up_from_rest_and_a_start_phase_jump_with_a_strong_motor():
+    """From rest in the return stroke (260°) with the drawn spring: the default motor (pull-out 60 N·m at the cam)
+    brings the cam to speed without a flank switch; one twice as strong accelerates the cam so hard that the
+    follower, which must follow the return, leaves the working flank (switches in the first 0.1 s)."""
+    speed = ConstantSpeed(150 * RPM, radians(260.0))
+    run, sig = _run(PinInsertionMechanism(k=1090.0, speed=speed, cam_drive=CamDrive()), 0.15)
+    assert sig["omega"][0] == 0.0 and sig["cam_angle"][0] == pytest.approx(radians(260.0))
+    assert np.all(np.abs(sig["omega"][sig["t"] > 0.1] / (150 * RPM) - 1.0) < 0.02)
+    assert run.switches == []
+    run, sig = _run(PinInsertionMechanism(k=1090.0, speed=speed, cam_drive=CamDrive(max_torque=120.0)), 0.1)
+    assert run.switches and run.switches[0].time < 0.05 and sig["R23"].min() < -1000.0
+
+
+def test_scene_table(tmp_path):
+    scene = write(tmp_path, '\n[plant.drive]\nslope = "30 N*m*s/rad"\nstart = "running"\n',
+                  "[[plant.cam_program]]", "[[plant.cam_program]]")
+    drive = PinInsertionMechanism.from_scene(scene).cam_drive
+    assert drive == CamDrive(slope=30.0, start="running") and drive.synchronous(tau) == tau
+    path = tmp_path / "scene.toml"
+    text = path.read_text()
+    for old, new, match in (('start = "running"', 'start = "later"', "start"),
+                            ('slope = "30 N*m*s/rad"', 'slope = "0 N*m*s/rad"', "slope"),
+                            ('slope = "30 N*m*s/rad"', 'gear = 3', "unknown key")):
+        path.write_text(text.replace(old, new))
+        with pytest.raises(SceneError, match=match):
+            PinInsertionMechanism.from_scene(load_scene(path))
