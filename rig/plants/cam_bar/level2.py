@@ -312,14 +312,18 @@ class Level2:
     def signals(self, t: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
         """Truth signals (SI) with the keys of level 1; ``R23`` = F_w − F_o (N, > 0 on the working flank);
         extra: ``psi_kin`` (level-0 ψ), ``delta_w``/``delta_o`` (penetrations, m, negative = gap), ``motor_speed``
-        (rad/s, cam-shaft referred; the cam speed without a drive) and ``shaft_torque`` (N·m; 0 without a drive)."""
+        (rad/s, cam-shaft referred; the cam speed without a drive) and ``shaft_torque`` (N·m; 0 without a drive).
+        With rod pin clearances (``mech.joints``, :mod:`.joints`) ``s`` and ``x_gripper`` include their take-up."""
         dy = self.evaluate(t, y)
         st, ks = dy.state, dy.loads
         mech = self.mech
         m_e = mech.spring_moment(dy.psi)
         m_sigma = ks.M_sigma
+        s = st.s
+        if mech.joints is not None:           # rod pin clearances taken up by the rod force (reduced model)
+            s = s + mech.joints.stroke_offset(ks.rod_tension, st.trig.ct)
         return {"t": np.asarray(t, float), "phi": dy.phi, "cam_angle": np.mod(dy.phi, math.tau), "omega": dy.omega,
-                "alpha": dy.alpha, "s": st.s, "v": st.s_d, "a": st.s_dd, "x_gripper": mech.s0 - st.s,
+                "alpha": dy.alpha, "s": s, "v": st.s_d, "a": st.s_dd, "x_gripper": mech.s0 - s,
                 "psi": dy.psi, "theta": st.theta, "r": st.r, "F_rod": ks.F_rod, "rod_tension": ks.rod_tension,
                 "R23": dy.F_w - dy.F_o, "M23": m_sigma - m_e, "M_e": m_e, "M_sigma": m_sigma,
                 "drive_torque": dy.drive_torque, "F_c": ks.F_c, "pressure_angle": ks.pressure_angle,

@@ -18,6 +18,7 @@ from rig.plants.cam_bar.chain import Angles, Chain, SingularPositionError
 from rig.plants.cam_bar.drive import CamDrive
 from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.insertion import InsertionLaw
+from rig.plants.cam_bar.joints import JointClearance
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
 from rig.plants.cam_bar.switches import flank_switch_angles
 from rig.plants.cam_bar.timeline import Event, Timeline
@@ -174,6 +175,7 @@ class PinInsertionMechanism:
     insertion: InsertionLaw = field(default_factory=InsertionLaw)
     guide: GuideFriction = field(default_factory=GuideFriction)       # level 2's slider-guide friction model
     cam_drive: CamDrive | None = None                                # level 2: motor + shaft turn the cam
+    joints: JointClearance | None = None                             # level 2: rod pin clearances (reduced)
 
     def __post_init__(self) -> None:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):

@@ -13,6 +13,7 @@ from rig.scene import Field, Scene, SceneError, read_table
 from rig.plants.cam_bar.drive import read_drive
 from rig.plants.cam_bar.guide_friction import read_guide
 from rig.plants.cam_bar.insertion import read_insertion
+from rig.plants.cam_bar.joints import read_joints
 from rig.plants.cam_bar.variation import CycleVariation, plant_generator
 from rig.units import UnitError, to_si
 
@@ -40,6 +41,7 @@ PLANT_SCHEMA = {
     "insertion": Field(None, None, "pin force-travel law, table [plant.insertion] (rig.plants.cam_bar.insertion)"),
     "guide": Field(None, None, "level-2 slider-guide friction, table [plant.guide] (rig.plants.cam_bar.guide_friction)"),
     "drive": Field(None, None, "level-2 cam drive (motor, shaft), table [plant.drive] (rig.plants.cam_bar.drive)"),
+    "joints": Field(None, None, "level-2 rod pin clearances, table [plant.joints] (rig.plants.cam_bar.joints)"),
 }
 SEGMENT_SCHEMA = {"kind": Field(None), "angle": Field("rad"), "law": Field(None, None),
                   "stroke": Field("m", None, "defaults to s_H for rise/return")}
@@ -112,6 +114,7 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     kw["insertion"] = read_insertion(kw.pop("insertion"), f"{scene.path} [plant.insertion]")
     kw["guide"] = read_guide(kw.pop("guide"), f"{scene.path} [plant.guide]")
     kw["cam_drive"] = read_drive(kw.pop("drive"), f"{scene.path} [plant.drive]")
+    kw["joints"] = read_joints(kw.pop("joints"), f"{scene.path} [plant.joints]")
     variation = kw.pop("variation")
     if variation is not None:
         kw["variation"] = CycleVariation.from_table(variation, f"{scene.path} [plant.variation]")

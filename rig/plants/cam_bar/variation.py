@@ -11,6 +11,8 @@ the generator the plant carries (seeded from the scene):
   its working flank, i.e. on pitch radius r − c. These change the slider stroke by Δs(φ) from the full
   deviated chain (:class:`rig.plants.cam_bar.tolerance.CamChain`); Δs is added to ``s`` and ``x_gripper``.
   Velocities, accelerations and forces keep the nominal motion (first order: |Δs| ≲ 0.3 mm ≪ 42 mm stroke).
+  At fidelity 2 the roller's place in the groove is simulated, so the clearance draw is the cycle's groove
+  clearance instead (the cycle's mechanism gets ``clearance`` = the drawn value; no take-up in Δs).
 """
 from __future__ import annotations
 
@@ -68,18 +70,21 @@ class CycleVariation:
         """One cycle's deviations; the order of draws is fixed (load, chain, clearance)."""
         load = {k: float(rng.normal(0.0, self.sigma[k])) for k in LOAD_UNITS if k in self.sigma}
         chain = {k: float(rng.normal(0.0, self.sigma[k])) for k in PARAMS if k in self.sigma}
+        take_up = None
         if self.clearance_lambda is not None:
             take_up = float(sample_clearance(rng, self.clearance_lambda, 1, clearance)[0])
             chain["r"] = chain.get("r", 0.0) - take_up
-        return CycleDeviation(load, chain)
+        return CycleDeviation(load, chain, take_up)
 
 
 @dataclass(frozen=True)
 class CycleDeviation:
-    """Deviations of one cycle (SI): load parameters and chain parameters (m)."""
+    """Deviations of one cycle (SI): load parameters and chain parameters (m; ``r`` includes the clearance
+    take-up), and the drawn clearance (m, ``None`` without ``clearance_lambda``)."""
 
     load: Mapping[str, float]
     chain: Mapping[str, float]
+    take_up: float | None = None
 
 
 class CyclePlant:
@@ -110,10 +115,13 @@ class CyclePlant:
         return self._drawn[i]
 
     def mechanism(self, cycle: int) -> "PinInsertionMechanism":
-        """A copy of the nominal mechanism with the cycle's load parameters (the nominal one if none vary)."""
+        """A copy of the nominal mechanism with the cycle's load parameters (the nominal one if none vary); at
+        fidelity 2 also with the cycle's drawn groove clearance."""
         if cycle not in self._mechs:
-            load = self.deviation(cycle).load
-            values = {k: getattr(self.nominal, k) + d for k, d in load.items()}
+            dev = self.deviation(cycle)
+            values = {k: getattr(self.nominal, k) + d for k, d in dev.load.items()}
+            if self.nominal.fidelity == 2 and dev.take_up is not None:
+                values["clearance"] = dev.take_up
             try:
                 mech = replace(self.nominal, variation=None, rng=None, **values) if values else self.nominal
             except ValueError as exc:
@@ -124,8 +132,11 @@ class CyclePlant:
 
     def stroke_deviation(self, cycle: int, phi: np.ndarray) -> np.ndarray:
         """Δs (m) of the cycle's deviated chain at cam angles ``phi`` (zeros if no chain parameter varies)."""
-        dq = self.deviation(cycle).chain
-        if not dq:
+        dev = self.deviation(cycle)
+        dq = dict(dev.chain)
+        if self.nominal.fidelity == 2 and dev.take_up is not None:     # simulated in the groove, not taken up
+            dq["r"] += dev.take_up
+        if not any(dq.values()):
             return np.zeros_like(phi)
         return CamChain.from_mechanism(self.nominal, phi).deviation(dq)[0]
 
