@@ -1,0 +1,30 @@
+"""The machine as drawn / as found / as tested / as designed (issue 14): scenes and the as-drawn flank switches."""
+from math import tau
+from pathlib import Path
+
+import pytest
+
+from rig.plants.cam_bar import PinInsertionMechanism
+from rig.recorder import read_recording
+from rig.runner import run_scene
+from rig.scene import load_scene
+
+SCENES = Path(__file__).resolve().parents[2] / "data" / "scenes"
+MACHINES = {"as_drawn": (1090.0, 300.0), "as_found": (1680.0, 300.0), "as_tested": (1890.0, 150.0),
+            "design": (1190.0, 300.0)}
+
+
+@pytest.mark.parametrize("name", MACHINES)
+def test_scene_is_the_machine_it_names(name):
+    mech = PinInsertionMechanism.from_scene(load_scene(SCENES / f"pin_insertion_{name}.toml"))
+    k, rpm = MACHINES[name]
+    assert mech.fidelity == 2 and mech.guide.model == "stick"
+    assert mech.k == pytest.approx(k) and mech.speed.nominal_omega == pytest.approx(rpm * tau / 60)
+    assert (mech.cam_drive is not None) == (name == "as_tested")
+
+
+def test_as_drawn_records_flank_switches(tmp_path):
+    out = tmp_path / "drawn.mcap"
+    run_scene(SCENES / "pin_insertion_as_drawn.toml", out, cycles=1)
+    switches = [e for e in read_recording(out).events if e["kind"] == "flank_switch"]
+    assert len(switches) >= 2
