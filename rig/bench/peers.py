@@ -7,9 +7,11 @@ segment starts, as our compiled solvers do) as a plain ``f(t, y)`` and the event
 it (where the event function has its new sign: :func:`rig.solvers.integrate._past_root`, on the first-order
 continuation from the root over a few ulps) after the event's action and the problem's ``reset``, as our
 driver does; ``time_breaks`` are hit exactly and passed one ulp later. ``odeint`` has no root finding: its
-events are detected as sign changes between output times and located by Brent's method on ``odeint`` runs
-restarted from the last output before the change (their RHS calls are counted). Recorded-only events (level
-2's flank contacts) are not given to the peers.
+events are detected as sign changes between output times (in calls of :data:`ODEINT_CHUNK` output times) and
+located by Brent's method on ``odeint`` runs restarted from the last output before the change (their RHS calls
+are counted). CVODE is SUNDIALS' BDF (variable order, dense direct solver, its own difference-quotient
+Jacobian) with its own root finding; our kernel writes straight into its derivative array. Recorded-only events
+(level 2's flank contacts) are not given to the peers.
 """
 from __future__ import annotations
 

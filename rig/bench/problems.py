@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +35,7 @@ class Sweeps:
 class WorkProblem:
     """A problem to chart: ``make()`` returns a fresh :class:`Problem` at the initial state (a plant's
     discrete modes are re-selected by its ``reset``); ``component`` the state index compared on ``grid`` (s);
-    ``options`` extra options of our adaptive solvers; sweeps ``full`` and ``quick``."""
+    atol = rtol · ``atol_scale``; sweeps ``full`` and ``quick``."""
 
     name: str
     title: str
@@ -47,7 +47,6 @@ class WorkProblem:
     atol_scale: float
     full: Sweeps
     quick: Sweeps
-    options: dict = field(default_factory=dict)
 
     def error(self, y: np.ndarray, ref: np.ndarray) -> float:
         """max |x − x_ref| / max |x_ref| of the compared component on the grid (NaN anywhere → inf)."""
