@@ -72,12 +72,15 @@ class Reference:
         return self.uncertainty <= REF_CONFIRM
 
     def describe(self) -> str:
+        """The confirmations in words: distances, failures."""
         return "; ".join([f"{k} differs by {d:.1e}" for k, d in self.distances.items()]
                          + [f"{k} failed ({why[:100]})" for k, why in self.failures.items()])
 
 
 @dataclass
 class Result:
+    """The rows of one problem and the reference they were measured against."""
+
     problem: WorkProblem
     reference: Reference
     rows: list[Row]
@@ -123,7 +126,11 @@ def setting_of(method: str, value: float) -> str:
 def reference(problem: WorkProblem) -> Reference:
     """Our DP45 at rtol 1e-13, with its distances to scipy DOP853 and our Rodas4 at rtol 1e-12."""
     t0 = time.perf_counter()
-    ref, _ = runner(problem, "dp45", REF_RTOL)()
+    try:
+        ref, _ = runner(problem, "dp45", REF_RTOL)()
+    except SolverDivergence as exc:
+        raise ValueError(f"{problem.name}: the reference run (dp45 rtol={REF_RTOL:g}) failed, nothing to chart "
+                         f"against: {_one_line(exc)}") from None
     wall = time.perf_counter() - t0
     distances, failures = {}, {}
     for method in ("scipy DOP853", "rodas4"):
