@@ -338,7 +338,8 @@ def _shock_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: flo
 def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int | None,
                   shutdown_window: float | None,
                   band: float = 0.05, dwell: float = 0.05, min_step: float = 1.0,
-                  model_disengagements: int | None = None, trips_motor: bool = False) -> list[Metric]:
+                  model_disengagements: int | None = None, trips_motor: bool = False, lobe: float = LOBE,
+                  apex: float = APEX) -> list[Metric]:
     """Key results of a dynamic-stand run, each relative to a stated reference.
 
     Per stimulus (segments end at the next one or the end of the run): after a start, step or stop the
@@ -347,8 +348,10 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
     over the pre-shock level and the recovery time (back within ``band`` of the shock amplitude). For
     a stop also the standstill (last encoder edge); for a sweep (blocked half) the work on the coupling.
     Whole run: torque extremes, disengagements (apex passes of the measured relative angle), the
-    shutdown rule of the scene, relative slip and when it ended, final speeds.
+    shutdown rule of the scene, relative slip and when it ended, final speeds. ``lobe`` and ``apex`` (rad): the
+    coupling's period in φ_r and its first apex (flat tappets: 120°, 60°; leaf springs: 2φ_d, φ_d).
     """
+    lobe_deg, apex_deg = float(np.degrees(lobe)), float(np.degrees(apex))
     t, m = np.asarray(rec.t, float), np.asarray(rec.torque, float)
     out: list[Metric] = []
     if t.size < 2:
@@ -375,11 +378,11 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
                 work = float(np.sum(0.5 * (m[1:] + m[:-1]) * np.diff(phi)))
                 span = float(np.degrees(phi[-1] - phi[0]))
                 out.append(Metric("work on the coupling", work, "J",
-                                  f"∫M_t dφ_r over the sweep of {span:.4g}° ({span / 120:.3g} lobes); over whole "
+                                  f"∫M_t dφ_r over the sweep of {span:.4g}° ({span / lobe_deg:.3g} lobes); over whole "
                                   "lobes the elastic part cancels and this is the friction loss"))
                 k = int(np.argmax(m))
-                out.append(Metric("relative angle at max torque", float(np.degrees(phi[k]) % 120), "°",
-                                  "position in the lobe (apex at 60°) where the loading peak was read"))
+                out.append(Metric("relative angle at max torque", float(np.degrees(phi[k]) % lobe_deg), "°",
+                                  f"position in the lobe (apex at {apex_deg:.4g}°) where the loading peak was read"))
         elif s.kind == "shock":
             out += _shock_metrics(s, rec, seg_end, pre_start, label, band, dwell, until)
         else:
@@ -395,7 +398,7 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
                 else:
                     out.append(Metric(f"{label}: standstill", None, "s", "still turning at the end of the run"))
     sweep = any(s.kind == "sweep" for s in order)
-    out += _slip_metrics(rec, shutdown_count, shutdown_window, model_disengagements, trips_motor, sweep)
+    out += _slip_metrics(rec, shutdown_count, shutdown_window, model_disengagements, trips_motor, sweep, lobe, apex)
     for name, (_, w, tr, method) in rec.speeds.items():
         ok = np.isfinite(w) & (tr >= rec.end - dwell)
         if not ok.any():
@@ -414,20 +417,20 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
 
 
 def _slip_metrics(rec: StandRecord, shutdown_count: int | None, shutdown_window: float | None, model: int | None,
-                  trips_motor: bool, sweep: bool) -> list[Metric]:
+                  trips_motor: bool, sweep: bool, lobe: float = LOBE, apex: float = APEX) -> list[Metric]:
     if rec.rel_angle is None or rec.t_angle is None or rec.t_angle.size < 2:
         return [Metric("disengagements", None, "", "no encoder readings of both halves")]
     ta, phi = rec.t_angle, rec.rel_angle
-    times = apex_crossings(ta, phi, LOBE, APEX)
+    times = apex_crossings(ta, phi, lobe, apex)
     model_text = "" if model is None else f"; model: {model}"
     when = ("" if not times.size else ", at " + ", ".join(f"{x:.4g}" for x in times) + " s" if times.size <= 4
             else f", {times[0]:.4g} … {times[-1]:.4g} s")
     out = [Metric("disengagements", f"{times.size}{when}", "",
                   f"apex passes of the measured relative angle φ1 − φ3 (encoders, {np.degrees(phi[0]):.3g}° at "
-                  f"power-on; apexes at 60° + k·120°){model_text}")]
+                  f"power-on; apexes at {np.degrees(apex):.4g}° + k·{np.degrees(lobe):.4g}°){model_text}")]
     if shutdown_count is None or shutdown_window is None:
         out.append(Metric("shutdown", None, "", "the recording holds no scene with a shutdown rule"))
-        return out + _slip_angle(ta, phi, times, sweep, rec.end)
+        return out + _slip_angle(ta, phi, times, sweep, rec.end, lobe)
     summary = disengagement_summary(times, shutdown_window, shutdown_count)
     rule = f"{shutdown_count} disengagements within {shutdown_window * 1e3:.4g} ms"
     if summary.shutdown:
@@ -438,16 +441,17 @@ def _slip_metrics(rec: StandRecord, shutdown_count: int | None, shutdown_window:
                                                  for k, x in enumerate(times)))
         out.append(Metric("shutdown", "not required", "", f"at most {most} disengagement(s) within "
                                                           f"{shutdown_window * 1e3:.4g} ms; the scene's rule: {rule}"))
-    return out + _slip_angle(ta, phi, times, sweep, rec.end)
+    return out + _slip_angle(ta, phi, times, sweep, rec.end, lobe)
 
 
-def _slip_angle(ta: np.ndarray, phi: np.ndarray, times: np.ndarray, sweep: bool, end: float) -> list[Metric]:
+def _slip_angle(ta: np.ndarray, phi: np.ndarray, times: np.ndarray, sweep: bool, end: float,
+                lobe: float = LOBE) -> list[Metric]:
     """Net relative angle change (slip when lobes were passed) and when the slip ended."""
     out: list[Metric] = []
     slip = float(np.degrees(phi[-1] - phi[0]))
     name = "relative angle swept" if sweep else "relative slip" if times.size else "relative angle change"
-    out.append(Metric(name, slip, "°", f"net change of φ1 − φ3 from power-on to the end of the run ({slip / 120:.3g} "
-                                       "lobes of 120°)" + ("" if times.size or sweep else
+    out.append(Metric(name, slip, "°", f"net change of φ1 − φ3 from power-on to the end of the run ({slip / np.degrees(lobe):.3g} "
+                                       f"lobes of {np.degrees(lobe):.4g}°)" + ("" if times.size or sweep else
                                                            "; no disengagement: elastic deflection only")))
     if times.size and not sweep:
         away = np.flatnonzero(np.abs(phi - phi[-1]) > SLIP_TOLERANCE)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from drivers.encoder import EDGE_TOLERANCE, SpeedEstimator
-from rig.analysis.clutch_metrics import Metric, StandRecord, Stimulus, stand_metrics
+from rig.analysis.clutch_metrics import APEX, LOBE, Metric, StandRecord, Stimulus, stand_metrics
 from rig.analysis.plots import figure, save
 from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
 from rig.recorder import Recording
@@ -41,8 +41,8 @@ def stimuli(scene: Scene) -> tuple[list[Stimulus], dict[str, Any]]:
     """What the scene does to the stand, in time order, and its shutdown rule (``shutdown_count``,
     ``shutdown_window`` s, ``trip_on_shutdown``). Loads fixed in time (constant, step, shock, brake
     command) give nominal torques; speed- or angle-dependent loads (linear, zone) give none."""
-    from rig.plants.clutch.stand import _LOAD_SCHEMAS, MOTOR_SCHEMA, STAND_SCHEMA
-    p = scene.read("plant", STAND_SCHEMA)
+    from rig.plants.clutch.stand import _LOAD_SCHEMAS, MOTOR_SCHEMA, plant_schema
+    p = scene.read("plant", plant_schema(scene))
     m = scene.read("motor", MOTOR_SCHEMA)
     rule = {"shutdown_count": int(p["shutdown_count"]), "shutdown_window": float(p["shutdown_window"]),
             "trip_on_shutdown": bool(p["trip_on_shutdown"])}
@@ -79,7 +79,7 @@ def stimuli(scene: Scene) -> tuple[list[Stimulus], dict[str, Any]]:
         return None if level is None else level + sum(d for ts, d in steps if ts <= t)
 
     out: list[Stimulus] = []
-    if p["blocked"]:
+    if p.get("blocked"):
         out.append(Stimulus(0.0, "sweep", "driven half blocked, driving half turned slowly"))
     elif p["omega0"] == 0.0:
         out.append(Stimulus(0.0, "start", f"motor on, stand at rest, load {fmt(load_at(0.0))} N·m", 0.0,
@@ -144,6 +144,17 @@ def stand_record(rec: Recording) -> StandRecord | None:
     return StandRecord(torque["t"], torque["torque"], t_angle, rel, speeds, max(last) if last else None, end)
 
 
+def coupling_period(scene: Scene) -> tuple[float, float]:
+    """(period of the coupling in φ_r, its first apex), rad: flat tappets 120°/60°, leaf springs 2φ_d/φ_d."""
+    from rig.plants.clutch.stand import plant_schema
+    p = scene.read("plant", plant_schema(scene))
+    if p["variant"] != "leaf_spring":
+        return LOBE, APEX
+    from rig.plants.clutch.variants import LeafSpringClutch
+    apex = read_table(p["leaf"], LeafSpringClutch.SCHEMA, f"{scene.path} [plant.leaf]")["apex"]
+    return 2.0 * apex, apex
+
+
 def stand_results(rec: Recording) -> tuple[list[Stimulus], list[Metric]] | None:
     """Stimuli of the recorded scene and the key results of the run (None: not a dynamic-stand recording)."""
     data = stand_record(rec)
@@ -152,15 +163,17 @@ def stand_results(rec: Recording) -> tuple[list[Stimulus], list[Metric]] | None:
     scene = _scene(rec)
     stim: list[Stimulus] = []
     rule: dict[str, Any] = {"shutdown_count": None, "shutdown_window": None, "trip_on_shutdown": False}
+    lobe, apex = LOBE, APEX
     if scene is not None and scene.data.get("scene", {}).get("plant") == "clutch_dynamic":
         try:
             stim, rule = stimuli(scene)
+            lobe, apex = coupling_period(scene)
         except (SceneError, ValueError):
             pass                                    # results without stimuli: no step figures, no shutdown rule
     model = sum(1 for e in rec.events if e.get("kind") == "disengagement")
     return stim, stand_metrics(data, stim, rule["shutdown_count"], rule["shutdown_window"], BAND, DWELL,
                                model_disengagements=model if "phi_r" in rec.truth else None,
-                               trips_motor=bool(rule["trip_on_shutdown"]))
+                               trips_motor=bool(rule["trip_on_shutdown"]), lobe=lobe, apex=apex)
 
 
 def summary_lines(rec: Recording) -> list[str] | None:
@@ -245,3 +258,5 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
 
 
 register_section("clutch", clutch_section)
+
+from rig.analysis import stand_comparison as _stand_comparison  # noqa: E402,F401  (registers its section)

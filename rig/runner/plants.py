@@ -29,7 +29,7 @@ PLANTS: dict[str, Callable[[Scene, bool], Any]] = {
 
 #: top-level scene sections each plant reads (the runner's own: rig.runner.config.RUNNER_SECTIONS)
 PLANT_SECTIONS: dict[str, tuple[str, ...]] = {
-    "cam_bar": ("plant", "speed"), "clutch_dynamic": ("plant", "motor", "load"),
+    "cam_bar": ("plant", "speed"), "clutch_dynamic": ("plant", "motor", "load", "comparison"),
     "clutch_static": ("plant", "program")}
 
 

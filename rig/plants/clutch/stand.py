@@ -16,18 +16,17 @@ import numpy as np
 
 from rig.plants.clutch.dynamics import ClutchDynamics
 from rig.plants.clutch.flat_tappet import CLUTCH_SCHEMA, FlatTappetClutch
+from rig.plants.clutch.leaf_dynamics import LeafDynamics
 from rig.plants.clutch.loads import (LinearInSpeed, LinearMotor, Load, LoadSum, ShoeBrake, Zone, constant, shock,
                                      step)
 from rig.plants.events import Event
+from rig.plants.clutch.variants import LeafSpringClutch
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.solvers import EventRecord, integrate
 
-STAND_SCHEMA = {
-    **CLUTCH_SCHEMA,
+_COMMON = {
+    "variant": Field(None, "flat_tappet", "coupling: flat_tappet (MODELS §4.1-4.3) or leaf_spring (§4.5)"),
     "J_down": Field("kg*m^2", 0.0, "inertia downstream of the torque meter (part of J3)"),
-    "friction": Field(None, "stick_slip", "friction model: stick_slip (switched, default) or tanh"),
-    "v_s": Field("m/s", 0.01, "velocity scale of the tanh friction regularisation (friction = tanh)"),
-    "blocked": Field(None, False, "driven half clamped"),
     "omega0": Field("rad/s", 0.0, "initial speed of both halves"),
     "phi_r0": Field("rad", None, "initial relative angle (default: the frictionless static deflection "
                                  "that carries the load torque at t = 0 and omega0)"),
@@ -37,6 +36,27 @@ STAND_SCHEMA = {
     "rtol": Field("1", 1e-7, "solver relative tolerance"),
     "atol": Field("1", 1e-9, "solver absolute tolerance"),
 }
+STAND_SCHEMA = {
+    **CLUTCH_SCHEMA, **_COMMON,
+    "friction": Field(None, "stick_slip", "friction model: stick_slip (switched, default) or tanh"),
+    "v_s": Field("m/s", 0.01, "velocity scale of the tanh friction regularisation (friction = tanh)"),
+    "blocked": Field(None, False, "driven half clamped"),
+}
+LEAF_STAND_SCHEMA = {
+    **_COMMON,
+    "leaf": Field(None, doc="the leaf-spring coupling, table [plant.leaf] (LeafSpringClutch.SCHEMA)"),
+    "J1": Field("kg*m^2", doc="driving-side inertia (motor rotor through the belt, pulleys, driving half)"),
+    "J3": Field("kg*m^2", doc="driven-side inertia (driven half, gear coupling, meter, flywheel, drum)"),
+    "omega_s": Field("rad/s", 1.0, "relative speed regularising the lobe/leaf friction sign (tanh)"),
+}
+
+
+def plant_schema(scene: Scene) -> dict[str, Field]:
+    """The [plant] schema of the scene's coupling variant."""
+    variant = scene.section("plant").get("variant", "flat_tappet")
+    if variant not in ("flat_tappet", "leaf_spring"):
+        raise SceneError(f"{scene.path} [plant]: variant {variant!r} is not flat_tappet or leaf_spring")
+    return LEAF_STAND_SCHEMA if variant == "leaf_spring" else STAND_SCHEMA
 MOTOR_SCHEMA = {
     "a0": Field("N*m", 437.708, "motor line M = a0 - b0*omega"),
     "b0": Field("N*m*s/rad", 3.870, "motor line slope"),
@@ -98,10 +118,18 @@ def load_from_tables(tables: dict[str, Any], where: str) -> LoadSum:
     return LoadSum(parts)
 
 
+def _leaf(p: dict[str, Any], motor: LinearMotor, load: LoadSum, where: str) -> LeafDynamics:
+    """The leaf-spring coupling's dynamics from the stand's [plant] values and its [plant.leaf] table."""
+    if not isinstance(p["leaf"], dict):
+        raise SceneError(f"{where}: the leaf_spring variant needs a table [plant.leaf]")
+    leaf = LeafSpringClutch(**read_table(p["leaf"], LeafSpringClutch.SCHEMA, where))
+    return LeafDynamics(leaf, motor, load, p["J1"], p["J3"], p["J_down"], p["omega_s"])
+
+
 class ClutchStand:
     """Runner-facing plant: ``advance(t)`` returns truth signals, ``events`` lists what happened."""
 
-    def __init__(self, dynamics: ClutchDynamics, omega0: float = 0.0, shutdown_count: int = 2,
+    def __init__(self, dynamics: "ClutchDynamics | LeafDynamics", omega0: float = 0.0, shutdown_count: int = 2,
                  shutdown_window: float = 0.5, trip_on_shutdown: bool = False, rtol: float = 1e-7,
                  atol: float = 1e-9, phi_r0: float | None = None):
         self.dynamics = dynamics
@@ -123,14 +151,17 @@ class ClutchStand:
         plant = scene.section("scene").get("plant")      # the rest of [scene] is the runner's (rig.runner.config)
         if plant != "clutch_dynamic":
             raise SceneError(f"{scene.path} [scene]: plant = {plant!r}, expected 'clutch_dynamic'")
-        p = scene.read("plant", STAND_SCHEMA)
+        p = scene.read("plant", plant_schema(scene))
         m = scene.read("motor", MOTOR_SCHEMA)
         load = load_from_tables(scene.section("load"), str(scene.path))
+        motor = LinearMotor(m["a0"], m["b0"], m["ratio"], m["t_off"])
         try:
-            clutch = FlatTappetClutch(**{k: p[k] for k in CLUTCH_SCHEMA})
-            dyn = ClutchDynamics(clutch, LinearMotor(m["a0"], m["b0"], m["ratio"], m["t_off"]), load,
-                                 v_s=p["v_s"], blocked=bool(p["blocked"]), J_down=p["J_down"],
-                                 friction=p["friction"])
+            if p["variant"] == "leaf_spring":
+                dyn: ClutchDynamics | LeafDynamics = _leaf(p, motor, load, f"{scene.path} [plant.leaf]")
+            else:
+                clutch = FlatTappetClutch(**{k: p[k] for k in CLUTCH_SCHEMA})
+                dyn = ClutchDynamics(clutch, motor, load, v_s=p["v_s"], blocked=bool(p["blocked"]),
+                                     J_down=p["J_down"], friction=p["friction"])
         except ValueError as exc:
             raise SceneError(f"{scene.path} [plant]: {exc}") from None
         try:

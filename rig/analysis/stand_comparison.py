@@ -1,0 +1,143 @@
+"""Thesis against rig for a dynamic-stand run: the scene's ``[[comparison]]`` rows, ``comparison.csv`` and a report
+table (issue 14).
+
+Each row names a quantity the source reports, its value as printed (with units: ``thesis = "14.5 N*m"``), which
+stand result it is compared with (``rig``: a result name of :func:`rig.analysis.clutch_report.stand_results` such
+as ``"start-up: peak torque"`` or ``"disengagements"``; ``part``: ``"value"``, ``"time"`` — when it happened — or
+``"time_after"`` — after its stimulus), whether the scene's unknown parameters were fitted on it (``fitted``) and an
+optional ``note``. The rig value is given in the thesis's unit; a result that does not exist in the run is "n/a"
+with the reason.
+"""
+from __future__ import annotations
+
+import csv
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rig.analysis.clutch_metrics import Metric, Stimulus
+from rig.analysis.report import Block, Heading, ReportContext, Table, Text, register_section
+from rig.recorder import Recording
+from rig.scene import Field, Scene, SceneError, read_table
+from rig.units import UnitError, to_si
+
+PARTS = ("value", "time", "time_after")
+ROW_SCHEMA = {
+    "quantity": Field(None, doc="what the source reports"),
+    "thesis": Field(None, doc="the source's value with its unit, e.g. \"14.5 N*m\" (a count: a plain number)"),
+    "rig": Field(None, doc="stand result it is compared with, e.g. \"start-up: peak torque\""),
+    "part": Field(None, "value", "value, time (when it happened) or time_after (after its stimulus)"),
+    "fitted": Field(None, False, "true if the scene's unknown parameters were fitted on this quantity"),
+    "note": Field(None, "", "what else to know"),
+}
+SI = {"N·m": "N*m", "s": "s", "°": "deg", "%": "1", "rad/s": "rad/s", "J": "J", "": "1"}   # result units
+
+
+@dataclass(frozen=True)
+class Row:
+    """One compared quantity: the thesis value and the rig's, both in ``unit`` (rig: None = n/a, with ``why``)."""
+
+    quantity: str
+    unit: str
+    thesis: float
+    rig: float | None
+    fitted: bool
+    why: str
+
+
+def read_rows(scene: Scene) -> list[dict[str, Any]]:
+    """The scene's ``[[comparison]]`` rows, checked (empty without them)."""
+    rows = scene.data.get("comparison", [])
+    if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+        raise SceneError(f"{scene.path}: 'comparison' must be an array of tables ([[comparison]])")
+    out = []
+    for i, table in enumerate(rows):
+        row = read_table(table, ROW_SCHEMA, f"{scene.path} [[comparison]] {i + 1}")
+        if row["part"] not in PARTS:
+            raise SceneError(f"{scene.path} [[comparison]] {i + 1}: part {row['part']!r} is not one of {PARTS}")
+        out.append(row)
+    return out
+
+
+def _split(text: str, where: str) -> tuple[float, str, str]:
+    """(number as written, unit as written, SI unit) of a thesis value such as "46.6 ms" or "2"."""
+    m = re.fullmatch(r"\s*([-+0-9.eE]+)\s*(.*?)\s*", str(text))
+    if m is None:
+        raise SceneError(f"{where}: thesis value {text!r} is not a number with a unit")
+    number, unit = float(m.group(1)), m.group(2)
+    for si in ("N*m", "s", "rad", "rad/s", "J", "1"):
+        try:
+            to_si(f"1 {unit}" if unit else 1.0, si)
+            return number, unit, si
+        except UnitError:
+            continue
+    raise SceneError(f"{where}: unit {unit!r} of {text!r} is not a torque, time, angle, speed, energy or count")
+
+
+def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> list[Row]:
+    """The rows of ``scene`` with the rig's values from the run's ``metrics`` (stimuli: for ``time_after``)."""
+    by_name = {m.name: m for m in metrics}
+    starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}
+    rows = []
+    for spec in read_rows(scene):
+        where = f"{scene.path} [[comparison]] {spec['quantity']!r}"
+        number, unit, si = _split(spec["thesis"], where)
+        scale = to_si(f"1 {unit}", si) if unit else 1.0
+        metric, value, why = by_name.get(spec["rig"]), None, ""
+        if metric is None:
+            why = f"no result {spec['rig']!r} in this run"
+        elif spec["part"] == "value":
+            value = metric.value
+            if isinstance(value, str):                       # "3, at …": a count first
+                head = re.match(r"\d+", value)
+                value = float(head.group()) if head else None
+            elif value is not None:
+                value = value * to_si(1.0, si, SI.get(metric.unit, metric.unit)) / scale
+            why = "" if value is not None else metric.reference
+        elif metric.at is None:
+            why = f"{spec['rig']!r} has no time"
+        else:
+            origin = next((t for label, t in starts.items() if spec["rig"].startswith(label + ":")), 0.0)
+            value = (metric.at - (origin if spec["part"] == "time_after" else 0.0)) / scale
+        rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"]))
+    return rows
+
+
+def write_csv(rows: list[Row], path: Path) -> Path:
+    """``comparison.csv``: quantity, unit, thesis, rig (empty: n/a), fitted (1/0), note."""
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["quantity", "unit", "thesis", "rig", "fitted", "note"])
+        for r in rows:
+            w.writerow([r.quantity, r.unit, f"{r.thesis:g}", "" if r.rig is None else f"{r.rig:.6g}",
+                        int(r.fitted), r.why])
+    return path
+
+
+def _scene(rec: Recording) -> Scene | None:
+    from rig.analysis.clutch_report import _scene as scene_of
+    return scene_of(rec)
+
+
+def comparison_section(ctx: ReportContext) -> list[Block]:
+    """Thesis against rig (and comparison.csv in the report directory) for a stand scene with [[comparison]]."""
+    from rig.analysis.clutch_report import stand_results
+    scene = _scene(ctx.recording)
+    if scene is None or not scene.data.get("comparison"):
+        return []
+    results = stand_results(ctx.recording)
+    if results is None:
+        return []
+    rows = compare(scene, *results)
+    write_csv(rows, ctx.out_dir / "comparison.csv")
+    fitted = [r.quantity for r in rows if r.fitted]
+    text = ("Fitted on this run: " + ", ".join(fitted) + "; the other rows are predictions.") if fitted else \
+        "Nothing was fitted on this run: every row is a prediction."
+    return [Heading("Thesis against rig"), Text(text + " Also in comparison.csv."),
+            Table(["quantity", "unit", "thesis", "rig", "fitted", "note"],
+                  [[r.quantity, r.unit, f"{r.thesis:g}", "n/a" if r.rig is None else f"{r.rig:.4g}",
+                    "yes" if r.fitted else "no", r.why] for r in rows])]
+
+
+register_section("stand_comparison", comparison_section)

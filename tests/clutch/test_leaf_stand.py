@@ -1,0 +1,88 @@
+"""The leaf-spring coupling on the dynamic stand (issue 14; MODELS §4.4-4.5): its dynamics, the start-up scene in the
+printed units and the thesis-against-rig comparison (comparison.csv)."""
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rig.analysis.clutch_metrics import Metric, Stimulus
+from rig.analysis.report import write_report
+from rig.analysis.stand_comparison import compare
+from rig.plants.clutch.leaf_dynamics import LeafDynamics
+from rig.plants.clutch.loads import LinearMotor, LoadSum, constant
+from rig.plants.clutch.variants import LeafSpringClutch
+from rig.runner import run_scene
+from rig.scene import SceneError, load_scene
+from rig.solvers import integrate
+
+SCENES = Path(__file__).resolve().parents[2] / "data" / "scenes"
+LEAF = dict(width=0.02, thickness=0.002, span=0.12, r0=0.03, r1=0.05, a1=0.02, n=4, apex=math.radians(45.0))
+
+
+def test_coupling_is_the_static_leaf_characteristic_periodic_over_the_disengagement_angle():
+    leaf = LeafSpringClutch(**LEAF, mu=0.1)
+    dyn = LeafDynamics(leaf, LinearMotor(0.0, 0.0), LoadSum([constant(0.0)]), 0.01, 0.005, omega_s=1e-3)
+    phi = np.radians([5.0, 20.0, 44.0])
+    for p in phi:
+        assert dyn.coupling(p, 1.0)[0] == pytest.approx(float(leaf.torque(p, 1.0)), rel=1e-9)   # slipping forward
+        assert dyn.coupling(p, -1.0)[0] == pytest.approx(float(leaf.torque(p, -1.0)), rel=1e-9)
+        assert dyn.coupling(p + 2 * leaf.apex, 1.0)[0] == pytest.approx(dyn.coupling(p, 1.0)[0], rel=1e-9)
+    below, above = dyn.coupling(leaf.apex - 1e-9, 1.0)[0], dyn.coupling(leaf.apex + 1e-9, 1.0)[0]
+    assert below > 20.0 and above < -20.0                # the lobe slides off the leaf: the next leaf pushes on
+
+
+def test_frictionless_free_coupling_conserves_energy_and_disengages():
+    """No motor, no load, μ = 0: ½J1ω1² + ½J3ω3² + V(φr) stays constant; started fast enough the halves pass the
+    disengagement angle (apex events), started slowly they oscillate."""
+    leaf = LeafSpringClutch(**LEAF, mu=0.0)
+    dyn = LeafDynamics(leaf, LinearMotor(0.0, 0.0), LoadSum([constant(0.0)]), 0.01, 0.005)
+    grid = np.linspace(0.0, leaf.apex, 20001)
+    energy_0 = np.concatenate([[0.0], np.cumsum(np.diff(grid) * 0.5 * (leaf.torque(grid[1:], 0) +
+                                                                        leaf.torque(grid[:-1], 0)))])
+
+    def energy(y):
+        w1 = y[1] + y[3]
+        return 0.5 * 0.01 * w1 ** 2 + 0.5 * 0.005 * y[3] ** 2 + np.interp(abs(dyn.reduced(y[0])), grid, energy_0)
+
+    for omega_r, passes in ((5.0, False), (100.0, True)):     # V(φ_d) ≈ 7 J against ½·J_eff·ω_r²
+        hits = []
+        y0 = (0.0, omega_r, 0.0, 0.0)
+        sol = integrate(dyn.problem(y0, lambda rec: hits.append(rec.t) or False), (0.0, 0.3), rtol=1e-10,
+                        atol=1e-12)
+        e = np.array([energy(y) for y in sol.y.T])
+        assert np.max(np.abs(e - e[0])) < 1e-5 * e[0]
+        assert bool(hits) == passes
+
+
+def test_leaf_startup_scene_writes_the_comparison(tmp_path):
+    out = tmp_path / "leaf.mcap"
+    run_scene(SCENES / "clutch_leaf_startup.toml", out)
+    write_report(out, tmp_path / "report")
+    with open(tmp_path / "report" / "comparison.csv", encoding="utf-8") as f:
+        rows = {r["quantity"]: r for r in csv.DictReader(f)}
+    assert list(next(iter(rows.values())))[:4] == ["quantity", "unit", "thesis", "rig"]
+    peak, when, settle = (rows[k] for k in ("start-up peak torque", "time of the start-up peak",
+                                            "settled at the load torque within"))
+    assert (peak["unit"], peak["thesis"], when["unit"]) == ("N*m", "14.5", "ms")
+    assert float(peak["rig"]) == pytest.approx(14.5, rel=0.15)
+    assert float(when["rig"]) == pytest.approx(46.6, rel=0.20)
+    assert 0.0 < float(settle["rig"]) <= 450.0
+    assert rows["disengagements"]["rig"] == "0" and peak["fitted"] == "1" and settle["fitted"] == "0"
+    assert "Thesis against rig" in (tmp_path / "report" / "report.html").read_text(encoding="utf-8")
+
+
+def test_comparison_rows_name_what_is_missing_and_refuse_bad_rows(tmp_path):
+    scene_path = tmp_path / "s.toml"
+    scene_path.write_text('[[comparison]]\nquantity = "stop time"\nthesis = "150 ms"\nrig = "stop at 0.3 s: standstill"\n'
+                          'part = "time_after"\n\n[[comparison]]\nquantity = "peak"\nthesis = "16.5 N*m"\n'
+                          'rig = "max torque"\n')
+    stim = [Stimulus(0.3, "stop", "motor off")]
+    metrics = [Metric("stop at 0.3 s: standstill", 0.2, "s", "", 0.5), Metric("max torque", 18.0, "N·m", "", 0.1)]
+    rows = compare(load_scene(scene_path), stim, metrics)
+    assert rows[0].rig == pytest.approx(200.0) and rows[1].rig == pytest.approx(18.0)
+    assert compare(load_scene(scene_path), stim, metrics[1:])[0].rig is None
+    scene_path.write_text('[[comparison]]\nquantity = "x"\nthesis = "3 furlongs"\nrig = "max torque"\n')
+    with pytest.raises(SceneError, match="furlongs"):
+        compare(load_scene(scene_path), stim, metrics)
