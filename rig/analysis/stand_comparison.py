@@ -3,7 +3,7 @@ table (issue 14).
 
 Each row names a quantity the source reports, its value as printed (with units: ``thesis = "14.5 N*m"``), which
 stand result it is compared with (``rig``: a result name of :func:`rig.analysis.clutch_report.stand_results` such
-as ``"start-up: peak torque"`` or ``"disengagements"``; ``part``: ``"value"``, ``"time"`` — when it happened — or
+as ``"start-up: peak torque"`` or ``"disengagements"`` (a count; ``"shutdown"``: 1 required, 0 not); ``part``: ``"value"``, ``"time"`` — when it happened — or
 ``"time_after"`` — after its stimulus), whether the scene's unknown parameters were fitted on it (``fitted``) and an
 optional ``note``. The rig value is given in the thesis's unit; a result that does not exist in the run is "n/a"
 with the reason.
@@ -31,6 +31,7 @@ ROW_SCHEMA = {
     "fitted": Field(None, False, "true if the scene's unknown parameters were fitted on this quantity"),
     "note": Field(None, "", "what else to know"),
 }
+FLAGS = {"required": 1.0, "not required": 0.0}     # string results compared as numbers
 SI = {"N·m": "N*m", "s": "s", "°": "deg", "%": "1", "rad/s": "rad/s", "J": "J", "": "1"}   # result units
 
 
@@ -89,9 +90,9 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
             why = f"no result {spec['rig']!r} in this run"
         elif spec["part"] == "value":
             value = metric.value
-            if isinstance(value, str):                       # "3, at …": a count first
+            if isinstance(value, str):                       # "3, at …": a count; shutdown "required": 1
                 head = re.match(r"\d+", value)
-                value = float(head.group()) if head else None
+                value = float(head.group()) if head else FLAGS.get(value)
             elif value is not None:
                 value = value * to_si(1.0, si, SI.get(metric.unit, metric.unit)) / scale
             why = "" if value is not None else metric.reference

@@ -86,3 +86,24 @@ def test_comparison_rows_name_what_is_missing_and_refuse_bad_rows(tmp_path):
     scene_path.write_text('[[comparison]]\nquantity = "x"\nthesis = "3 furlongs"\nrig = "max torque"\n')
     with pytest.raises(SceneError, match="furlongs"):
         compare(load_scene(scene_path), stim, metrics)
+
+
+@pytest.mark.parametrize("name", ["clutch_leaf_shock_short", "clutch_leaf_overload_hold", "clutch_leaf_stop"])
+def test_prediction_scenes_use_the_start_up_fit_and_fit_nothing(name):
+    from rig.plants.clutch.stand import ClutchStand
+    scene, startup = load_scene(SCENES / f"{name}.toml"), load_scene(SCENES / "clutch_leaf_startup.toml")
+    assert scene.data["plant"]["leaf"] == startup.data["plant"]["leaf"]
+    for key in ("J1", "J3", "J_down"):
+        assert scene.data["plant"][key] == startup.data["plant"][key]
+    assert {k: scene.data["motor"][k] for k in ("a0", "b0")} == {k: startup.data["motor"][k] for k in ("a0", "b0")}
+    assert not any(row["fitted"] for row in scene.data["comparison"])
+    assert isinstance(ClutchStand.from_scene(scene).dynamics, LeafDynamics)
+
+
+def test_held_overload_disengages_repeatedly_and_calls_for_shutdown(tmp_path):
+    out = tmp_path / "hold.mcap"
+    run_scene(SCENES / "clutch_leaf_overload_hold.toml", out)
+    write_report(out, tmp_path / "report")
+    with open(tmp_path / "report" / "comparison.csv", encoding="utf-8") as f:
+        rows = {r["quantity"]: r for r in csv.DictReader(f)}
+    assert float(rows["disengagements"]["rig"]) >= 2 and rows["shutdown"]["rig"] == "1"
