@@ -1,4 +1,4 @@
-"""The dynamic-stand scenes reproduce the regimes of MODELS.md §4.3/§4.4 (thesis torques read as daN·m)."""
+"""The chapter-4 flat-tappet stand scenes reproduce the regimes of MODELS.md §4.3 (loads are scene assumptions in N·m)."""
 from __future__ import annotations
 
 import math
@@ -28,7 +28,7 @@ def test_startup_holds_and_settles_where_motor_torque_equals_load():
     t, o, st = run("clutch_startup", 0.8)
     assert not kinds(st, "disengagement")
     k = int(np.argmax(o["M_t"]))
-    assert 0.8 * 145.0 < o["M_t"][k] < 1.2 * 145.0          # thesis: 14.5 daN·m peak
+    assert 0.8 * 145.0 < o["M_t"][k] < 1.2 * 145.0          # the rig's 136 N·m peak (docs/clutch.md), a regression band
     assert 0.02 < t[k] < 0.06                                 # thesis: after 46.6 ms
     w_ss = (A0 - 50.0) / B0
     assert o["omega1"][-1] == pytest.approx(w_ss, rel=2e-3) and o["omega3"][-1] == pytest.approx(w_ss, rel=2e-3)
@@ -63,8 +63,8 @@ def test_stop_rises_above_the_running_torque_then_reaches_zero():
     t, o, st = run("clutch_stop", 1.0)
     assert not kinds(st, "disengagement")
     before = t < 0.1
-    assert np.allclose(o["M_t"][before], 100.0, atol=1.0)     # running at 10 daN·m
-    assert 1.3 * 100.0 < o["M_t"].max() < 1.7 * 100.0          # thesis: rises to 14.875 daN·m
+    assert np.allclose(o["M_t"][before], 100.0, atol=1.0)     # running at 100 N·m
+    assert 1.3 * 100.0 < o["M_t"].max() < 1.7 * 100.0          # the brake raised to 165 N·m at the stop
     assert np.all(np.abs(o["omega1"][t > 0.7]) < 0.05) and np.all(np.abs(o["M_t"][t > 0.7]) < 1.0)
 
 
@@ -85,9 +85,9 @@ def test_blocked_sweeps_240_degrees_with_two_apex_passes():
 
 
 def test_literal_newton_metre_shocks_could_not_disengage_the_spec_coupling():
-    """Why the thesis torques are read as daN·m (docs/clutch.md): at φ = 0 cam friction alone holds
-    n·F_a1·μ_B·r0 ≈ 21 N·m, more than an 18.75 N·m shock can ever push through the stand, so in N·m
-    no shock of §4.4 could make the spec coupling slip past an apex; the 165–187.5 N·m readings can."""
+    """One sign that the §4.4 stand tests were not run on the flat-tappet coupling (docs/clutch.md): at φ = 0 cam
+    friction alone holds n·F_a1·μ_B·r0 ≈ 21 N·m, more than an 18.75 N·m shock can ever push through the stand, so
+    no shock of §4.4 could make it slip past an apex; the chapter-4 scenes' 165–187.5 N·m loads can."""
     st = ClutchStand.from_scene(load_scene(SCENES / "clutch_overload_hold.toml"))
     d = st.dynamics
     y = d.initial_state(100.0, 0.0)
