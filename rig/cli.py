@@ -251,7 +251,8 @@ def _needs_cam_bar(scene: Path, plant: str, command: str) -> None:
 
 def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.plants.cam_bar.tolerance import load_tolerances
-    from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_table
+    from rig.executors.options import executor_from_args
+    from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_json, study_table
     from rig.runner.config import read_config
     from rig.runner.plants import make_plant
     from rig.scene import load_scene
@@ -259,12 +260,20 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     chart = Path(args.output) / f"{scene_path.stem}.tolerance.png"
     _writable_dir(Path(args.output), "tolerance chart")
     _writable_file(chart, "tolerance chart", PNG_MAGIC)
+    if args.json:
+        _writable_file(Path(args.json), "tolerance JSON", JSON_START)
     cfg = read_config(load_scene(scene_path))
     _needs_cam_bar(scene_path, cfg.plant, "rig tolerance")
-    study = run_study(make_plant("cam_bar", cfg.scene), load_tolerances(), args.samples, cfg.seed, args.workers,
-                      progress=not args.quiet)
+    with executor_from_args(args) as executor:
+        if not args.quiet:
+            print(f"Monte Carlo on {executor.describe()}", file=sys.stderr)
+        study = run_study(make_plant("cam_bar", cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
+                          progress=not args.quiet, task_samples=args.task_samples)
     print(study_table(study))
     print(f"chart: {plot_study(study, chart)}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(study_json(study), indent=1) + "\n")
+        print(f"JSON: {args.json}")
     return 0
 
 
@@ -371,6 +380,7 @@ def _writable_dir(path: Path, what: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from rig.executors.options import add_executor_arguments
     p = _Parser(prog="rig", description="Virtual test rig for mechanism experiments. "
                 "Without a command: run the pin-insertion demo scene.")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars or notices (warnings and errors stay)")
@@ -432,9 +442,12 @@ def build_parser() -> argparse.ArgumentParser:
                          help="cam-bar linear and Monte-Carlo tolerance analysis (table + PNG)")
     tol.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
     tol.add_argument("--samples", type=_count(2), default=20000, help="Monte-Carlo machines (default 20000)")
-    tol.add_argument("--workers", type=_count(1), default=1,
-                     help="worker processes (results do not depend on it)")
+    add_executor_arguments(tol)
+    tol.add_argument("--task-samples", type=_count(1), default=50_000, metavar="N",
+                     help="machines per task (default 50000); with the seed it fixes the result bit for bit")
     tol.add_argument("-o", "--output", default="out", help="directory of the chart (default out)")
+    tol.add_argument("--json", metavar="FILE", help="also write per-angle mean, sigma, 0.135/99.865 %% points "
+                     "and the linear RSS (m) to FILE")
     tol.set_defaults(func=cmd_tolerance)
     stud = sub.add_parser("studies", parents=[quiet], help="clutch static-characteristic parameter studies (PNG)")
     stud.add_argument("-o", "--output", default="out/studies")

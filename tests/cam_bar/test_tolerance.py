@@ -10,7 +10,7 @@ import pytest
 from rig.plants.cam_bar import PinInsertionMechanism, SingularPositionError
 from rig.plants.cam_bar.fourbar import (EXAMPLE_LENGTHS, EXAMPLE_TOLERANCES, influence_factors,
                                         rocker_angle)
-from rig.plants.cam_bar.montecarlo import monte_carlo, sample_clearance, sample_deviations
+from rig.plants.cam_bar.montecarlo import monte_carlo, sample_clearance, sample_deviations, tasks
 from rig.plants.cam_bar.tolerance import (PARAMS, CamChain, ToleranceSet, linear_analysis,
                                           load_tolerances)
 from rig.scene import SceneError
@@ -70,7 +70,7 @@ def test_linear_sums_follow_their_definitions(chain):
 def test_monte_carlo_sigma_matches_rss_for_small_tolerances(chain):
     tol = ToleranceSet(THESIS)
     lin = linear_analysis(chain, tol)
-    mc = monte_carlo(chain, tol, 20000, seed=7)
+    mc = monte_carlo(chain, tol, 20000, seed=7, percents=(0.135, 50.0, 99.865))
     # σ estimate from n = 20000 has relative standard error 1/sqrt(2n) = 0.5 %
     assert np.max(np.abs(3 * mc.std - lin.rss) / lin.rss) < 0.025
     assert np.max(np.abs(mc.mean)) < 0.05 * np.max(lin.rss)
@@ -104,13 +104,20 @@ def test_clearance_law_is_exponential_and_shifts_the_stroke(chain):
     assert with_c.mean == pytest.approx(-sens_r / lam, abs=0.05 * np.max(np.abs(sens_r)) / lam)
 
 
-def test_results_do_not_depend_on_the_worker_count(chain):
+def test_streamed_statistics_equal_numpy_on_all_samples(chain):
+    """Tasks of 700 machines (the last one shorter), statistics folded pass by pass: the percentiles are
+    numpy's on the whole sample set bit for bit, the moments to rounding."""
     tol = ToleranceSet(THESIS, 60e3)
-    one = monte_carlo(chain, tol, 3000, seed=5, workers=1, chunk=700)
-    two = monte_carlo(chain, tol, 3000, seed=5, workers=2, chunk=700)
-    np.testing.assert_array_equal(one.samples, two.samples)
-    other = monte_carlo(chain, tol, 3000, seed=6, workers=1, chunk=700)
-    assert not np.array_equal(one.samples, other.samples)
+    mc = monte_carlo(chain, tol, 3000, seed=5, task_samples=700, percents=(0.135, 2.5, 50.0, 99.865))
+    every = np.concatenate([b for source in tasks(chain, tol, 3000, 5, 700) for b in source.blocks()])
+    assert every.shape == (3000, PHI.size) and mc.n == 3000
+    for p, values in mc.percentiles.items():
+        np.testing.assert_array_equal(values, np.percentile(every, p, axis=0))
+    np.testing.assert_allclose(mc.mean, every.mean(axis=0), rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(mc.std, every.std(axis=0, ddof=1), rtol=1e-10)
+    np.testing.assert_array_equal(mc.maximum, every.max(axis=0))
+    other = monte_carlo(chain, tol, 3000, seed=6, task_samples=700)
+    assert not np.array_equal(mc.mean, other.mean)
 
 
 def test_fourbar_influence_factors_match_finite_differences():
@@ -146,6 +153,8 @@ def test_bad_inputs_raise_clear_errors(tmp_path, chain):
         load_tolerances(bad)
     with pytest.raises(ValueError, match="n ≥ 2"):
         monte_carlo(chain, ToleranceSet(THESIS), 1, seed=1)
+    with pytest.raises(ValueError, match="task_samples ≥ 1"):
+        monte_carlo(chain, ToleranceSet(THESIS), 10, seed=1, task_samples=0)
 
 
 def test_cli_prints_the_tables_and_writes_the_chart(tmp_path, capsys):

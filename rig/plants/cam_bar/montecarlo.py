@@ -2,21 +2,29 @@
 
 Lengths are normal with σ = T/3. The groove clearance c is exponential, f(c) = λ·exp(−λc) (assumption: a
 roller loose by c sits off its working flank towards the cam centre, so the pitch radius it follows is
-r − c). Samples are drawn and evaluated in fixed-size chunks, each with its own generator from
-``SeedSequence(seed).spawn`` — the result is bit-identical for any number of worker processes.
+r − c). Samples are drawn in tasks of fixed size, each with its own generator from ``SeedSequence(seed).spawn``,
+evaluated by an executor (:mod:`rig.executors`) and summarised by streaming statistics
+(:mod:`rig.analysis.streaming`: moments and exact percentiles, never all samples in memory; each task
+regenerates its samples from its seed in every pass). The result depends on the seed and the task size only:
+it is bit-identical for any executor and number of workers.
 """
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 import numpy as np
 
+from rig.analysis.streaming import column_statistics
 from rig.plants.cam_bar.tolerance import PARAMS, CamChain, ToleranceSet
 
-CHUNK = 2000  # samples per chunk (the unit of parallel work; fixed so results do not depend on workers)
-PERCENTILES = (0.135, 2.5, 50.0, 97.5, 99.865)  # ±3σ and 95 % bands of a normal law
+if TYPE_CHECKING:
+    from rig.executors import Executor
+
+TASK_SAMPLES = 50_000  # machines per task (≈ 0.1–0.2 s a pass on one core at 360 angles); fixed, not per worker
+BLOCK = 2000           # machines drawn and evaluated at once inside a task (≈ 6 MB at 360 angles)
+PERCENTILES = (0.135, 99.865)  # the ±3σ points of a normal law
+PASSES = 3             # passes over the samples a run usually makes: moments, histogram, collect
 
 
 def sample_clearance(rng: np.random.Generator, lam: float, size: int, limit: float | None = None) -> np.ndarray:
@@ -34,51 +42,74 @@ def sample_deviations(rng: np.random.Generator, tol: ToleranceSet, n: int) -> di
     return dq
 
 
-def _run_chunk(chain: CamChain, tol: ToleranceSet, seed: np.random.SeedSequence, n: int) -> np.ndarray:
-    return chain.deviation(sample_deviations(np.random.default_rng(seed), tol, n))
+@dataclass(frozen=True)
+class ChainSamples:
+    """One task's machines: ``n`` deviated chains drawn from ``seed`` in blocks of ``block``; the same
+    blocks every time they are asked for."""
+
+    chain: CamChain
+    tol: ToleranceSet
+    seed: np.random.SeedSequence
+    n: int
+    block: int = BLOCK
+
+    def blocks(self) -> Iterator[np.ndarray]:
+        """Δs (m) of the machines, blocks of shape (≤ block, angles)."""
+        rng = np.random.default_rng(self.seed)
+        for start in range(0, self.n, self.block):
+            dq = sample_deviations(rng, self.tol, min(self.block, self.n - start))
+            yield self.chain.evaluate(self.chain.deviation_rows(dq), self.chain.s)
+
+
+def fold_task(task: tuple[ChainSamples, Callable]) -> object:
+    """Apply a fold of :mod:`rig.analysis.streaming` to one task's blocks (runs on a worker)."""
+    source, fold = task
+    return fold(source.blocks())
 
 
 @dataclass(frozen=True)
 class MonteCarloResult:
-    """Δs(φ) over ``n`` sampled machines (m): per-angle mean, standard deviation, min/max and the
-    ``PERCENTILES``; ``samples`` holds every Δs (n × angles)."""
+    """Δs(φ) over ``n`` sampled machines (m): per-angle mean, standard deviation (ddof 1), min/max and the
+    exact ``percentiles`` {percent: values} (numpy's linear interpolation)."""
 
     phi: np.ndarray
-    samples: np.ndarray
+    n: int
     mean: np.ndarray
     std: np.ndarray
     minimum: np.ndarray
     maximum: np.ndarray
     percentiles: dict[float, np.ndarray]
 
-    @property
-    def n(self) -> int:
-        return self.samples.shape[0]
+
+def tasks(chain: CamChain, tol: ToleranceSet, n: int, seed: int, task_samples: int = TASK_SAMPLES) -> list[ChainSamples]:
+    """The run's tasks: ``task_samples`` machines each (the last one the rest), task i drawn from
+    ``SeedSequence(seed).spawn(count)[i]``."""
+    sizes = [min(task_samples, n - i) for i in range(0, n, task_samples)]
+    return [ChainSamples(chain, tol, s, k) for s, k in zip(np.random.SeedSequence(seed).spawn(len(sizes)), sizes)]
 
 
-def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, workers: int = 1,
-                chunk: int = CHUNK, progress: Callable[[int], object] | None = None) -> MonteCarloResult:
-    """Run ``n`` sampled machines through the full chain in chunks of ``chunk``, on ``workers`` processes;
-    ``progress(k)`` is called as each chunk of k machines is done."""
-    if n < 2 or chunk < 1 or workers < 1:
-        raise ValueError(f"Monte-Carlo run needs n ≥ 2, chunk ≥ 1, workers ≥ 1 (got n={n}, chunk={chunk}, "
-                         f"workers={workers})")
-    sizes = [min(chunk, n - i) for i in range(0, n, chunk)]
-    seeds = np.random.SeedSequence(seed).spawn(len(sizes))
-    args = ([chain] * len(sizes), [tol] * len(sizes), seeds, sizes)
-    by_angle = np.empty((chain.phi.size, n))  # angle-major: the per-angle statistics read contiguous rows
-    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
-    try:
-        parts = pool.map(_run_chunk, *args) if pool else map(_run_chunk, *args)
-        start = 0
-        for part in parts:
-            by_angle[:, start:start + part.shape[0]] = part.T
-            start += part.shape[0]
+def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, executor: "Executor | None" = None,
+                task_samples: int = TASK_SAMPLES, percents: Sequence[float] = PERCENTILES,
+                progress: Callable[[int], object] | None = None) -> MonteCarloResult:
+    """Run ``n`` sampled machines through the full chain on ``executor`` (default serial) in tasks of
+    ``task_samples``; ``progress(k)`` is called as each task has passed k machines (about ``PASSES``
+    passes in all)."""
+    from rig.executors import make_executor
+    if n < 2 or task_samples < 1:
+        raise ValueError(f"Monte-Carlo run needs n ≥ 2 and task_samples ≥ 1 (got n={n}, task_samples={task_samples})")
+    work = tasks(chain, tol, n, seed, task_samples)
+    own = executor is None
+    executor = make_executor("serial") if own else executor
+
+    def run(fold: Callable) -> Iterator[object]:
+        for source, part in zip(work, executor.map(fold_task, [(source, fold) for source in work])):
             if progress is not None:
-                progress(part.shape[0])
+                progress(source.n)
+            yield part
+
+    try:
+        st = column_statistics(run, percents)
     finally:
-        if pool:
-            pool.shutdown()
-    pct = np.percentile(by_angle, PERCENTILES, axis=1)
-    return MonteCarloResult(chain.phi, by_angle.T, by_angle.mean(axis=1), by_angle.std(axis=1, ddof=1),
-                            by_angle.min(axis=1), by_angle.max(axis=1), dict(zip(PERCENTILES, pct)))
+        if own:
+            executor.close()
+    return MonteCarloResult(chain.phi, st.n, st.mean, st.std, st.minimum, st.maximum, st.percentiles)

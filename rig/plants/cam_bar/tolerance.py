@@ -110,30 +110,35 @@ class CamChain:
     def stroke(self, dq: Mapping[str, np.ndarray | float]) -> np.ndarray:
         """Slider stroke s' (m) of the deviated chain, shape (samples, angles): ``dq`` maps parameter names to
         deviations (m), scalars or 1-D arrays over samples; missing names are zero."""
-        unknown = set(dq) - set(PARAMS)
-        if unknown:
-            raise ValueError(f"unknown chain parameter(s) {', '.join(sorted(unknown))} (known: {', '.join(PARAMS)})")
-        d = {k: np.atleast_1d(np.asarray(dq.get(k, 0.0), dtype=float))[:, None] for k in PARAMS}
-        q = {k: self.q[k] + d[k] for k in self.q}
-        x, y, l3 = q["x_A0"], q["y_A0"], q["l3"]
-        r = self.r[None, :] + d["r"]
-        a, b, c = 2.0 * x * l3, 2.0 * y * l3, r * r - x * x - y * y - l3 * l3
-        cos_arg = -c / np.hypot(a, b)
-        if np.any(np.abs(cos_arg) > 1.0):
-            i = int(np.argmax(np.abs(cos_arg) > 1.0))
-            raise SingularPositionError(f"deviated cam side cannot be assembled (pitch radius out of reach of the "
-                                        f"roller arm) at {self._where(i)}")
-        psi = np.arctan2(b, a) + self.cam_branch[None, :] * np.arccos(cos_arg)
-        h = q["e_sk"] - q["L3"] * np.sin(psi)
-        rad = q["l4"] ** 2 - h * h
-        if np.any(rad < 0.0):
-            i = int(np.argmax(rad < 0.0))
-            raise SingularPositionError(f"deviated rod does not reach the slider line at {self._where(i)}")
-        return q["s0"] - (q["L3"] * np.cos(psi) + self.rod_side * np.sqrt(rad))
+        return self.evaluate(self.deviation_rows(dq), np.zeros_like(self.s))
 
     def deviation(self, dq: Mapping[str, np.ndarray | float]) -> np.ndarray:
         """Δs(φ) = s' − s (m), shape (samples, angles)."""
-        return self.stroke(dq) - self.s[None, :]
+        return self.evaluate(self.deviation_rows(dq), self.s)
+
+    @staticmethod
+    def deviation_rows(dq: Mapping[str, np.ndarray | float]) -> np.ndarray:
+        """``dq`` (names → deviations, m) as rows in the order of ``PARAMS``, shape (8, samples)."""
+        unknown = set(dq) - set(PARAMS)
+        if unknown:
+            raise ValueError(f"unknown chain parameter(s) {', '.join(sorted(unknown))} (known: {', '.join(PARAMS)})")
+        cols = [np.atleast_1d(np.asarray(dq.get(k, 0.0), dtype=float)) for k in PARAMS]
+        return np.stack(np.broadcast_arrays(*cols))
+
+    def evaluate(self, rows: np.ndarray, offset: np.ndarray) -> np.ndarray:
+        """s' − ``offset`` (m) per machine and angle for deviation rows as :meth:`deviation_rows` gives them
+        (compiled: :func:`rig.plants.cam_bar.tolerance_kernel.strokes`)."""
+        from rig.plants.cam_bar import tolerance_kernel as kernel
+        q = np.array([self.q.get(k, 0.0) for k in PARAMS])
+        out = np.empty((rows.shape[1], self.phi.size))
+        code, _, j = kernel.strokes(np.ascontiguousarray(rows, dtype=float), q, self.r, self.cam_branch,
+                                    float(self.rod_side), np.ascontiguousarray(offset, dtype=float), out)
+        if code == kernel.CAM_UNREACHABLE:
+            raise SingularPositionError(f"deviated cam side cannot be assembled (pitch radius out of reach of the "
+                                        f"roller arm) at {self._where(j)}")
+        if code == kernel.ROD_UNREACHABLE:
+            raise SingularPositionError(f"deviated rod does not reach the slider line at {self._where(j)}")
+        return out
 
     def sensitivities(self) -> dict[str, np.ndarray]:
         """∂s/∂q_k (m/m) at each angle, corrected formulas of MODELS §3.5."""

@@ -4,13 +4,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from math import degrees
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rig.plants.cam_bar.fourbar import EXAMPLE_LENGTHS, EXAMPLE_TOLERANCES, influence_factors
 from rig.plants.cam_bar.mechanism import PinInsertionMechanism
-from rig.plants.cam_bar.montecarlo import MonteCarloResult, monte_carlo
+from rig.plants.cam_bar.montecarlo import PASSES, PERCENTILES, TASK_SAMPLES, MonteCarloResult, monte_carlo
 from rig.plants.cam_bar.tolerance import PARAMS, CamChain, LinearResult, ToleranceSet, linear_analysis
+
+if TYPE_CHECKING:
+    from rig.executors import Executor
 
 TABLE_ANGLES = (90.0, 120.0, 150.0, 180.0, 200.0, 260.0)  # deg: rise, top of the rise, return
 
@@ -24,20 +28,40 @@ class ToleranceStudy:
     mc_clearance: MonteCarloResult | None
 
 
-def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed: int, workers: int = 1,
-              step_deg: float = 1.0, progress: bool = False) -> ToleranceStudy:
-    """Both methods over one revolution (grid ``step_deg``); ``progress``: a bar on stderr counting the
-    Monte-Carlo machines."""
+def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed: int,
+              executor: "Executor | None" = None, step_deg: float = 1.0, progress: bool = False,
+              task_samples: int = TASK_SAMPLES) -> ToleranceStudy:
+    """Both methods over one revolution (grid ``step_deg``), the Monte-Carlo runs on ``executor`` (default
+    serial); ``progress``: a bar on stderr counting machine evaluations (``PASSES`` passes per run)."""
     from rig.console import progress as progress_bar
     phi = np.radians(np.arange(0.0, 360.0, step_deg))
     chain = CamChain.from_mechanism(mech, phi)
     lengths_only = ToleranceSet(tol.T)
     runs = 1 if tol.clearance_lambda is None else 2
-    with progress_bar(samples * runs, "tolerance", " machines", progress, unit_scale=True) as bar:
-        mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, seed + 1, workers,
-                                                                     progress=bar.update)
-        mc = monte_carlo(chain, lengths_only, samples, seed, workers, progress=bar.update)
+    total = samples * runs * PASSES
+    with progress_bar(total, "tolerance", " machines", progress, unit_scale=True) as bar:
+        def count(k: int) -> None:          # a rare extra refinement pass must not run the bar past 100 %
+            bar.update(min(k, total - bar.n))
+        mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, seed + 1, executor,
+                                                                     task_samples, progress=count)
+        mc = monte_carlo(chain, lengths_only, samples, seed, executor, task_samples, progress=count)
     return ToleranceStudy(linear_analysis(chain, tol), mc, mc_c)
+
+
+def study_json(study: ToleranceStudy) -> dict:
+    """The study as JSON-ready data (m, per cam angle): each Monte-Carlo run's mean, σ and 0.135/99.865 %
+    points beside the linear RSS, worst case and signed sum."""
+    lin = study.linear
+
+    def mc_data(mc: MonteCarloResult) -> dict:
+        return {"machines": mc.n, "mean": mc.mean.tolist(), "std": mc.std.tolist(),
+                **{f"p{p:g}": mc.percentiles[p].tolist() for p in PERCENTILES}}
+
+    out = {"unit": "m", "phi_deg": np.round(np.degrees(lin.phi), 9).tolist(), "linear": {"rss": lin.rss.tolist(),
+           "worst": lin.worst.tolist(), "signed": lin.signed.tolist()}, "monte_carlo": mc_data(study.mc)}
+    if study.mc_clearance is not None:
+        out["monte_carlo_clearance"] = mc_data(study.mc_clearance)
+    return out
 
 
 def _at(phi: np.ndarray, deg: float) -> int:

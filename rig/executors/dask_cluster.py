@@ -1,0 +1,85 @@
+"""The Dask executors: a local cluster, or an existing cluster by scheduler address.
+
+``dask``: ``distributed.LocalCluster`` with ``workers`` single-threaded workers as threads of this process
+(in-process transport; one process's memory; right for numpy/numba work that releases the GIL, like the
+Monte-Carlo kernels). ``dask-processes``: the workers as processes behind nannies, talking over 127.0.0.1
+(for tasks that hold the GIL; each worker process costs ~250 MB). Either way the only sockets are the HTTP
+status servers of scheduler and workers, on 127.0.0.1 at free ports (Dask's default would be every interface). With ``scheduler``: ``distributed.Client(address)`` of an existing cluster, whose workers need
+mechrig installed (tasks are functions of rig's modules).
+"""
+from __future__ import annotations
+
+import logging
+from collections import deque
+from typing import Any, Callable, Iterable, Iterator
+
+from rig.executors import Executor
+
+LOOPBACK_HTTP = "127.0.0.1:0"   # scheduler's and workers' HTTP status servers (else on every interface)
+CONNECT_TIMEOUT = 10  # s to reach a scheduler given by address
+IN_FLIGHT = 2  # tasks per worker submitted ahead of the one whose result is awaited
+
+
+class DaskExecutor(Executor):
+    """Tasks on Dask workers (threads of a local cluster, or a cluster's by ``scheduler``), results in task
+    order."""
+
+    name = "dask"
+    processes = False
+
+    def __init__(self, workers: int = 2, scheduler: str | None = None):
+        from distributed import Client, LocalCluster
+        logging.getLogger("distributed").setLevel(logging.WARNING)   # its start/stop notices are no news
+        self.cluster = None
+        if scheduler is None:
+            where = {"host": "127.0.0.1"} if self.processes else {}   # threads: in-process transport, no socket
+            self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=self.processes,
+                                        dashboard_address=LOOPBACK_HTTP, worker_dashboard_address=LOOPBACK_HTTP,
+                                        silence_logs=logging.WARNING, **where)
+            self.client = Client(self.cluster, set_as_default=False)
+        else:
+            try:
+                self.client = Client(scheduler, set_as_default=False, timeout=CONNECT_TIMEOUT)
+            except OSError as exc:
+                raise ValueError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        self.address = scheduler
+        self.workers = max(1, sum(self.client.nthreads().values()))
+
+    def map(self, fn: Callable[[Any], Any], tasks: Iterable[Any]) -> Iterator[Any]:
+        tasks = iter(tasks)
+        pending: deque = deque()
+
+        def submit() -> None:
+            for task in tasks:
+                pending.append(self.client.submit(fn, task, pure=False))
+                return
+
+        for _ in range(IN_FLIGHT * self.workers):
+            submit()
+        try:
+            while pending:
+                future = pending.popleft()
+                result = future.result()
+                future.release()
+                submit()
+                yield result
+        finally:
+            for future in pending:
+                future.cancel()
+
+    def describe(self) -> str:
+        where = (f"scheduler {self.address}" if self.address else
+                 "local cluster, worker processes on 127.0.0.1" if self.processes else "local cluster, worker threads")
+        return f"dask ({where}), {self.workers} worker{'s' if self.workers != 1 else ''}"
+
+    def close(self) -> None:
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+class DaskProcessesExecutor(DaskExecutor):
+    """A local cluster of worker processes on 127.0.0.1 (``dask-processes``)."""
+
+    name = "dask-processes"
+    processes = True
