@@ -8,7 +8,9 @@ flank (pushes towards larger ψ) sits at u = 0, the other one at u = c; penetrat
 level-0 chain; spring, gravity, guide friction, insertion force and the inertia of all links come from the
 level-1 free-body diagrams (:mod:`rig.plants.cam_bar.kinetostatics`) on the *actual* motion, which give the cam
 moment M_Σ needed for an acceleration ψ̈. It is affine in ψ̈ on each friction branch, so M_Σ(ψ̈) = ℓ·(F_w − F_o)
-is solved in closed form. The cam turns by the mechanism's speed profile.
+is solved in closed form. The cam turns by the mechanism's speed profile, or, with a cam drive
+(:mod:`.drive`), as a state driven by a motor through a compliant shaft. The insertion force follows the pin's
+force–travel law (:mod:`.insertion`) and the slider guide's friction its model (:mod:`.guide_friction`).
 
 The right-hand side, the events and the quantities the outputs are built from are compiled
 (:mod:`rig.plants.cam_bar.level2_kernel`, parameters in one vector); the outputs' joint reactions come from the
@@ -103,10 +105,10 @@ def groove(mech: "PinInsertionMechanism", phi: np.ndarray) -> Groove:
 
 
 class _LoadView:
-    """The mechanism as the level-1 free-body solution sees it in level 2: guide friction regularised to
-    μ·tanh(|ṡ|/v_s) (per sample) and the insertion force acting while the cam is in its rise and the actual
-    stroke is within ``F_c_travel`` of the top (level 1 keys it on the prescribed s' > 0, which the vibrating
-    gripper would toggle)."""
+    """The mechanism as the level-1 free-body solution sees it in level 2: the guide friction as the kernel had it
+    (per sample an effective coefficient: μ·tanh(|ṡ|/v_s) regularised, or the held / slipping force of the
+    stick–slip guide) and the insertion force of the kernel (the law of the actual stroke while the cam is in its
+    rise; level 1 keys it on the prescribed s' > 0, which the vibrating gripper would toggle)."""
 
     def __init__(self, mech: "PinInsertionMechanism", mu: np.ndarray, f_c: np.ndarray):
         self._mech, self.mu, self._f_c = mech, mu, f_c

@@ -5,8 +5,10 @@ docstring of :mod:`rig.plants.cam_bar.level2`.
 
 Everything the kernels need travels in one float64 vector ``p`` (indices below): chain geometry, masses,
 spring, guide friction, insertion force, contact law, the cam-speed profile, the cam program as a segment
-table with the motion laws' coefficients, a one-entry cache of the groove geometry for the events, and the
-first jam of the slider guide (for the diagnosis).
+table with the motion laws' coefficients, a one-entry cache of the groove geometry for the events (keyed on the
+cam angle), the first jam of the slider guide (for the diagnosis), and the optional models of issue 14: the pin's
+force–travel law (:mod:`.insertion`), the stick–slip guide (:mod:`.guide_friction`) and the motor-driven cam
+(:mod:`.drive`, states (φ, ω, φ_m, ω_m) after (e, τ·ė)).
 
 The free-body solution is in closed form: on the actual motion (ψ, ψ̇, ψ̈) the rod and slider follow ψ
 through the level-0 chain, and every force of the level-1 free-body diagrams
