@@ -243,9 +243,14 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
         ax.plot(np.degrees(np.interp(data.t, data.t_angle, data.rel_angle)), data.torque, lw=0.8)
         ax.set(xlabel="relative angle φ1 − φ3 (°)", ylabel="torque M_t (N·m)", title="Torque over relative angle")
         ax.grid(alpha=0.3)
+        scene = _scene(ctx.recording)
+        try:
+            lobe, apex = coupling_period(scene) if scene is not None else (LOBE, APEX)
+        except (SceneError, ValueError):
+            lobe, apex = LOBE, APEX
         blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_torque_angle")),
                                  "Torque over relative angle (encoders on both halves, angle at power-on from the "
-                                 "scene; apexes at 60° + k·120°)"))
+                                 f"scene; apexes at {math.degrees(apex):.4g}° + k·{math.degrees(lobe):.4g}°)"))
     if data.speeds:
         blocks.append(_speed_figure(ctx, data))
     events = [e for e in ctx.recording.events if e.get("kind") in ("disengagement", "shutdown")]
