@@ -18,6 +18,7 @@ import math
 import os
 import re
 import sys
+import threading
 from collections.abc import Callable, Sequence
 from functools import cache
 from pathlib import Path
@@ -64,6 +65,7 @@ class JitRhs:
 T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, NQ, H, NFEV, HL, NEV, FAIL = range(12)
 TEMPLATES = Path(__file__).with_name("templates")
 _KERNELS = re.compile(r"# <kernels>\n.*?# </kernels>\n", re.DOTALL)
+_IMPORTING = threading.Lock()   # threads (e.g. Dask worker threads) must not see a half-executed module
 
 
 @cache
@@ -112,17 +114,18 @@ def compiled_solver(method: str, kernel, event=None, act=None):
     folder = Path(os.environ.get("MECHRIG_CACHE") or Path.home() / ".cache" / "mechrig")
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{method}_{digest}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)                       # atomic: parallel processes see whole files only
     name = f"mechrig_{method}_{digest}"
-    module = sys.modules.get(name)
-    if module is None:
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
+    with _IMPORTING:
+        if not path.exists() or path.read_text() != source:
+            tmp = path.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_text(source)
+            os.replace(tmp, path)                   # atomic: parallel processes see whole files only
+        module = sys.modules.get(name)
+        if module is None:
+            spec = importlib.util.spec_from_file_location(name, path)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            spec.loader.exec_module(module)
     if event is None:
         return module.step, None, None
     return module.step, module.run, module.locate

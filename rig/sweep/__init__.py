@@ -1,0 +1,68 @@
+"""Parameter sweeps: a grid over scene parameters, each point a scene with overrides, built and run like
+``rig run`` builds its plant, reduced to metrics (``rig sweep``).
+
+A parameter is a dotted key into the scene's TOML tree (``plant.k``, ``speed.speed``) and its values are
+scene values (``"1.09 N/mm"``; numbers and booleans as TOML literals). Every point is a task for an executor
+(:mod:`rig.executors`): the rows come back in grid order, the same on every executor.
+"""
+from __future__ import annotations
+
+import copy
+import itertools
+import tomllib
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+from rig.scene import Scene, SceneError
+
+
+@dataclass(frozen=True)
+class Param:
+    """A swept scene key (dotted) and its values, as written in a scene."""
+
+    key: str
+    values: tuple[Any, ...]
+
+
+def _literal(text: str) -> Any:
+    """A TOML literal (number, boolean, quoted string) or else the text itself (e.g. ``"150 rpm"``)."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def parse_param(text: str) -> Param:
+    """``KEY=V1,V2,...`` → :class:`Param`; values split at commas and stripped."""
+    key, sep, values = text.partition("=")
+    key = key.strip()
+    parts = [v.strip() for v in values.split(",")]
+    if not sep or not key or not all(parts) or any(not p for p in key.split(".")):
+        raise ValueError(f"--param {text!r}: expected KEY=VALUE[,VALUE...] with a dotted scene key, e.g. "
+                         f"'plant.k=1.09 N/mm,1.89 N/mm'")
+    if len(key.split(".")) < 2:
+        raise ValueError(f"--param {text!r}: {key!r} names a section, not a key (e.g. plant.k)")
+    return Param(key, tuple(_literal(p) for p in parts))
+
+
+def grid(params: Sequence[Param]) -> list[tuple[Any, ...]]:
+    """Every combination of the values, the last parameter varying fastest."""
+    keys = [p.key for p in params]
+    if len(set(keys)) != len(keys):
+        raise ValueError(f"a parameter is given twice: {', '.join(sorted(k for k in keys if keys.count(k) > 1))}")
+    return list(itertools.product(*(p.values for p in params)))
+
+
+def with_overrides(scene: Scene, overrides: dict[str, Any]) -> Scene:
+    """A copy of ``scene`` with the dotted keys set to the given values; the table a key is in must exist."""
+    data = copy.deepcopy(scene.data)
+    for key, value in overrides.items():
+        *tables, name = key.split(".")
+        node: Any = data
+        for i, part in enumerate(tables):
+            if not isinstance(node, dict) or not isinstance(node.get(part), dict):
+                raise SceneError(f"{scene.path}: cannot set {key!r}: the scene has no table "
+                                 f"[{'.'.join(tables[:i + 1])}]")
+            node = node[part]
+        node[name] = value
+    return Scene(scene.path, data, scene.text)

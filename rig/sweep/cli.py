@@ -1,0 +1,47 @@
+"""``rig sweep``: a grid over scene parameters on an executor → CSV table and map plots."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from rig.executors.options import executor_from_args
+    from rig.scene import load_scene
+    from rig.sweep import parse_param
+    from rig.sweep.plots import plot_sweep
+    from rig.sweep.run import run_sweep, write_table
+    params = [parse_param(p) for p in args.param]
+    scene = load_scene(args.scene)
+    out = Path(args.output)
+    with executor_from_args(args) as executor:
+        if not args.quiet:
+            print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
+        result = run_sweep(scene, params, args.metric, executor, args.revolutions)
+    table = write_table(result, out / "sweep.csv")
+    failed = [(p, e) for p, e in zip(result.points, result.errors) if e]
+    print(f"{len(result.points)} points, {len(failed)} failed -> {table}")
+    for point, error in failed[:5]:
+        print(f"  failed at {', '.join(f'{p.key} = {v}' for p, v in zip(params, point))}: {error}")
+    for path in plot_sweep(result, out):
+        print(f"map: {path}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``rig sweep`` to the ``rig`` parser."""
+    from rig.executors.options import add_executor_arguments
+    from rig.sweep.metrics import METRICS
+    sweep = sub.add_parser("sweep", parents=parents, help="grid over scene parameters -> metrics table and maps")
+    sweep.add_argument("scene")
+    sweep.add_argument("--param", action="append", required=True, metavar="KEY=VALUES",
+                       help="dotted scene key and comma-separated values, e.g. 'plant.k=1.09 N/mm,1.89 N/mm' "
+                            "(repeat for a grid)")
+    sweep.add_argument("--metric", action="append", required=True, choices=tuple(METRICS),
+                       help="metric per point (repeatable): " + "; ".join(f"{k}: {m.doc}" for k, m in METRICS.items()))
+    sweep.add_argument("--revolutions", type=int, default=2,
+                       help="cam revolutions per point, metrics over the last one (cam bar; default 2)")
+    sweep.add_argument("-o", "--output", default="out/sweep", help="directory of table and maps (default out/sweep)")
+    add_executor_arguments(sweep)
+    sweep.set_defaults(func=cmd_sweep)

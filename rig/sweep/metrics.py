@@ -1,0 +1,98 @@
+"""Sweep metrics: what one scene's plant does, as numbers, and the one adapter that builds and runs it.
+
+The plant is built as ``rig run`` builds it (:func:`rig.runner.plants.make_plant`, nominal: without the
+scene's per-cycle variation, so a point is one deterministic machine) and driven through its runner interface
+(``advance(t)`` at the scene's sample rate, ``events``). Cam bar: ``revolutions`` cam revolutions from the
+scene's start, metrics over the last one; clutch stand: the scene's duration.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import tau
+from typing import Any, Callable
+
+import numpy as np
+
+from rig.scene import Scene
+
+CHUNK = 0.1  # s of simulated time per advance() call before the analysed window
+
+
+@dataclass
+class PlantRun:
+    """A plant after its run: truth signals over the analysed window (SI; cam bar: the last revolution),
+    the window (s) and the plant (its events, state)."""
+
+    plant: Any
+    signals: dict[str, np.ndarray]
+    window: tuple[float, float]
+
+    def events(self, kind: str) -> list:
+        a, b = self.window
+        return [e for e in self.plant.events if e.kind == kind and a <= e.time <= b]
+
+
+def run_plant(scene: Scene, revolutions: int = 2) -> PlantRun:
+    """Build the scene's plant and run it (module docstring): the sweep's one adapter to the plants."""
+    from rig.runner.config import read_config
+    from rig.runner.plants import make_plant
+    cfg = read_config(scene)
+    plant = make_plant(cfg.plant, scene, nominal=True)
+    if cfg.plant == "cam_bar":
+        omega = float(plant.speed.drive(np.array([0.0])).omega[0])
+        if not omega > 0.0:
+            raise ValueError(f"{scene.path}: the cam does not turn at t = 0 (ω = {omega} rad/s)")
+        end = revolutions * tau / omega
+        start = end - tau / omega
+    elif cfg.duration is not None:
+        start = end = cfg.duration
+    else:
+        raise ValueError(f"{scene.path}: a {cfg.plant!r} scene needs [scene] duration for a sweep")
+    t = np.arange(0.0, end + 0.5 / cfg.sample_rate, 1.0 / cfg.sample_rate)
+    before = t[t < start]
+    for i in range(0, before.size, max(1, int(CHUNK * cfg.sample_rate))):
+        plant.advance(before[i:i + int(CHUNK * cfg.sample_rate)])
+    window = t[t >= start]
+    signals = plant.advance(window) if window.size else {}
+    return PlantRun(plant, signals, (float(start), float(end)))
+
+
+def _upper_dwell_vibration(run: PlantRun) -> float:
+    """Peak-to-peak deviation of the slider from its level-0 law in the upper dwell (m)."""
+    sig, mech = run.signals, run.plant
+    law = mech.state(sig["phi"]).s
+    top = law >= mech.program.levels[1] - 1e-12
+    return float(np.ptp(sig["s"][top] - law[top])) if top.any() else float("nan")
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A sweep metric: the plants it applies to, its unit, what it is, and how it is computed."""
+
+    plants: tuple[str, ...]
+    unit: str
+    doc: str
+    compute: Callable[[PlantRun], float]
+
+
+METRICS: dict[str, Metric] = {
+    "flank_switches": Metric(("cam_bar",), "1", "flank switches of the roller in the last revolution",
+                             lambda r: float(len(r.events("flank_switch")))),
+    "upper_dwell_vibration": Metric(("cam_bar",), "m", "gripper deviation from its law in the upper dwell, peak to "
+                                    "peak, last revolution (level 2; 0 at levels 0/1)", _upper_dwell_vibration),
+    "rod_force_peak": Metric(("cam_bar",), "N", "largest |F_rod| of the last revolution",
+                             lambda r: float(np.max(np.abs(r.signals["F_rod"])))),
+    "disengagements": Metric(("clutch_dynamic",), "1", "disengagements (apex passes) over the scene's duration",
+                             lambda r: float(len(r.plant.disengagement_times))),
+    "shutdown": Metric(("clutch_dynamic",), "1", "1 if the stand's shutdown rule fired, else 0",
+                       lambda r: float(r.plant.shutdown)),
+}
+
+
+def check_metrics(names: list[str], plant: str) -> None:
+    """A ValueError naming what is wrong unless every metric exists and applies to ``plant``."""
+    for name in names:
+        if name not in METRICS:
+            raise ValueError(f"unknown metric {name!r} (known: {', '.join(METRICS)})")
+        if plant not in METRICS[name].plants:
+            raise ValueError(f"metric {name!r} applies to {', '.join(METRICS[name].plants)} scenes, not {plant!r}")

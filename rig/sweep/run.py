@@ -1,0 +1,80 @@
+"""Running a sweep: one task per grid point on an executor, rows back in grid order, a CSV table."""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Sequence
+
+from rig.scene import Scene, SceneError
+from rig.sweep import Param, grid, with_overrides
+from rig.sweep.metrics import METRICS, check_metrics, run_plant
+
+if TYPE_CHECKING:
+    from rig.executors import Executor
+
+
+@dataclass(frozen=True)
+class PointTask:
+    """One grid point: the scene, its overrides (dotted key → value) and the metrics wanted."""
+
+    scene: Scene
+    overrides: dict[str, Any]
+    metrics: tuple[str, ...]
+    revolutions: int
+
+
+def run_point(task: PointTask) -> tuple[dict[str, float], str]:
+    """The point's metrics, and '' or why the run failed (then the metrics are NaN)."""
+    from rig.plants.cam_bar.chain import SingularPositionError
+    from rig.solvers import SolverDivergence
+    try:
+        run = run_plant(with_overrides(task.scene, task.overrides), task.revolutions)
+        return {m: METRICS[m].compute(run) for m in task.metrics}, ""
+    except (SceneError, SolverDivergence, SingularPositionError, ValueError) as exc:
+        return {m: math.nan for m in task.metrics}, " ".join(str(exc).split())
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """The grid (one tuple of values per point, in the order of ``params``), each point's metrics and error."""
+
+    params: tuple[Param, ...]
+    metrics: tuple[str, ...]
+    points: list[tuple[Any, ...]]
+    values: list[dict[str, float]]
+    errors: list[str]
+
+
+def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], executor: "Executor",
+              revolutions: int = 2) -> SweepResult:
+    """Every grid point of ``params`` on ``executor``; scene and metric errors are raised before anything runs
+    (the first point's plant is built here); a point whose run fails gets NaN metrics and its error."""
+    from rig.runner.config import read_config
+    from rig.runner.plants import make_plant
+    if not params or not metrics:
+        raise ValueError("a sweep needs at least one --param and one --metric")
+    if revolutions < 1:
+        raise ValueError(f"a sweep needs at least 1 revolution, got {revolutions}")
+    check_metrics(list(metrics), read_config(scene).plant)
+    points = grid(params)
+    tasks = [PointTask(scene, {p.key: v for p, v in zip(params, point)}, tuple(metrics), revolutions)
+             for point in points]
+    first = with_overrides(scene, tasks[0].overrides)             # a bad key fails here, named
+    make_plant(read_config(first).plant, first, nominal=True)
+    results = list(executor.map(run_point, tasks))
+    return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results])
+
+
+def write_table(result: SweepResult, path: Path) -> Path:
+    """CSV: one row per point, a column per parameter (values as given), per metric (SI, unit in the header)
+    and ``error``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow([p.key for p in result.params] + [f"{m} [{METRICS[m].unit}]" for m in result.metrics]
+                     + ["error"])
+        for point, values, error in zip(result.points, result.values, result.errors):
+            out.writerow(list(point) + [repr(values[m]) for m in result.metrics] + [error])
+    return path
