@@ -1,5 +1,5 @@
-"""A small Dask cluster for the executor tests: 2 worker threads in this process (in-process transport,
-HTTP status servers on 127.0.0.1 only), shared by the module's tests."""
+"""Shared fixtures: a small Dask cluster for the executor, sweep and batch tests (2 worker threads in this
+process, in-process transport, HTTP status servers on 127.0.0.1 only), started once when first asked for."""
 from __future__ import annotations
 
 import pytest

@@ -1,0 +1,159 @@
+"""Batch analysis: many recordings on an executor → one table (a row per recording) and one report
+(``rig analyse``).
+
+Each recording is a task: read with :func:`rig.recorder.read_recording` and analysed with
+:func:`rig.analysis.analyse` on a worker; only a small summary comes back (verdict counts, event counts and,
+per program and process value, the moments of every curve's value in display units). The combined
+statistics over all recordings merge those moments (:class:`rig.analysis.streaming.Moments`, in the order
+the recordings were given).
+"""
+from __future__ import annotations
+
+import csv
+import glob
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from rig.analysis.streaming import Moments
+
+if TYPE_CHECKING:
+    from rig.executors import Executor
+    from rig.recorder import Recording
+
+STATS = ("n", "mean", "std", "min", "max")
+LISTED = 20  # recordings named per list in the report
+
+
+@dataclass
+class RecordingSummary:
+    """What one recording holds: verdict counts, process values {"p<program>.<name>": (Moments, display
+    unit)}, event counts, whether it is complete, and why it could not be read (``error``)."""
+
+    path: str
+    complete: bool = False
+    curves: int = 0
+    ok: int = 0
+    nok: int = 0
+    values: dict[str, tuple[Moments, str]] = field(default_factory=dict)
+    events: dict[str, int] = field(default_factory=dict)
+    error: str = ""
+
+
+def expand(patterns: Sequence[str]) -> list[Path]:
+    """Paths named by ``patterns`` (globs, ``**`` recursive), sorted per pattern, each once; a pattern that
+    matches nothing is a ValueError naming it."""
+    out: dict[Path, None] = {}
+    for pattern in patterns:
+        hits = sorted(glob.glob(pattern, recursive=True))
+        if not hits:
+            raise ValueError(f"no recording matches {pattern!r}")
+        out.update((Path(h), None) for h in hits if Path(h).is_file())
+    if not out:
+        raise ValueError(f"no recording files in {', '.join(patterns)}")
+    return list(out)
+
+
+def _value_moments(rec: "Recording", units: dict) -> dict[str, tuple[Moments, str]]:
+    """Per program and process value the moments of its finite values in display units (every curve counts,
+    also in sets too small for the per-set statistics)."""
+    from rig.analysis.sets import by_program, process_values
+    out = {}
+    for program, results in by_program(rec.results).items():
+        for name, v in process_values(results).items():
+            u = units[program].value(name)
+            shown = np.asarray(u(v), dtype=float)
+            shown = shown[np.isfinite(shown)]
+            if shown.size:
+                out[f"p{program}.{name}"] = (Moments.of_block(shown[:, None]), u.label)
+    return out
+
+
+def summarise(path: Path) -> RecordingSummary:
+    """Read and analyse one recording (a task)."""
+    from rig.analysis import analyse
+    from rig.recorder import RecordingError, read_recording
+    try:
+        rec = read_recording(path)
+        result = analyse(rec)
+        values = _value_moments(rec, result["units"])
+    except (RecordingError, OSError, ValueError) as exc:
+        return RecordingSummary(str(path), error=" ".join(str(exc).split()))
+    verdicts = result["verdicts"]
+    ok = sum(1 for v in verdicts if v["ok"])
+    return RecordingSummary(str(path), rec.complete, len(verdicts), ok, len(verdicts) - ok, values,
+                            dict(result["events"]))
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """Every recording's summary (in the order given) and the process values merged over all of them."""
+
+    recordings: list[RecordingSummary]
+    combined: dict[str, tuple[Moments, str]]
+
+
+def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
+    """:func:`summarise` every path on ``executor``; merge the process values in path order (units must
+    agree)."""
+    rows = list(executor.map(summarise, paths))
+    combined: dict[str, tuple[Moments, str]] = {}
+    for row in rows:
+        for key, (m, unit) in row.values.items():
+            if key not in combined:
+                combined[key] = (m, unit)
+            elif combined[key][1] != unit:
+                raise ValueError(f"{row.path}: {key} in {unit!r}, earlier recordings in {combined[key][1]!r}")
+            else:
+                combined[key] = (combined[key][0].merge(m), unit)
+    return BatchResult(rows, combined)
+
+
+def _stats(m: Moments) -> tuple:
+    return m.n, float(m.mean[0]), float(m.std(1)[0]) if m.n > 1 else "", float(m.minimum[0]), float(m.maximum[0])
+
+
+def write_table(result: BatchResult, path: Path) -> Path:
+    """CSV, one row per recording: path, complete, curves, OK, NOK, error, then n/mean/std/min/max of every
+    process value any recording has (display units, in the header)."""
+    keys = sorted({k for r in result.recordings for k in r.values})
+    units = {k: u for k, (_, u) in result.combined.items()}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(["recording", "complete", "curves", "ok", "nok", "error"]
+                     + [f"{k} {s}" + (f" [{units[k]}]" if units.get(k) and s != "n" else "") for k in keys for s in STATS])
+        for r in result.recordings:
+            out.writerow([r.path, r.complete, r.curves, r.ok, r.nok, r.error]
+                         + [x for k in keys for x in (_stats(r.values[k][0]) if k in r.values else [""] * 5)])
+    return path
+
+
+def report_lines(result: BatchResult) -> list[str]:
+    """The combined report (Markdown): totals, process values over all recordings, recordings with NOK
+    curves, incomplete and unreadable ones."""
+    recs = result.recordings
+    read = [r for r in recs if not r.error]
+    curves, nok = sum(r.curves for r in read), sum(r.nok for r in read)
+    lines = [f"# Batch analysis of {len(recs)} recordings", "",
+             f"{len(read)} read, {len(recs) - len(read)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
+             + (f" ({100 * nok / curves:.2f} %)" if curves else ""), ""]
+    if result.combined:
+        lines += ["## Process values over all recordings", "",
+                  "| value | unit | n | mean | σ | min | max |", "|---|---|---|---|---|---|---|"]
+        for key, (m, unit) in sorted(result.combined.items()):
+            n, mean, std, lo, hi = _stats(m)
+            lines.append(f"| {key} | {unit} | {n} | {mean:.6g} | {std if std == '' else f'{std:.4g}'} | {lo:.6g} | "
+                         f"{hi:.6g} |")
+        lines.append("")
+    for title, chosen, what in (("Recordings with NOK curves", [r for r in read if r.nok], lambda r: f"{r.nok} NOK of {r.curves}"),
+                                ("Incomplete recordings", [r for r in read if not r.complete], lambda r: "incomplete"),
+                                ("Unreadable recordings", [r for r in recs if r.error], lambda r: r.error)):
+        if chosen:
+            lines += [f"## {title} ({len(chosen)})", ""]
+            lines += [f"* {r.path}: {what(r)}" for r in chosen[:LISTED]]
+            lines += [f"* … and {len(chosen) - LISTED} more (the table has every one)"] if len(chosen) > LISTED else []
+            lines.append("")
+    return lines

@@ -1,0 +1,38 @@
+"""``rig analyse``: many recordings (globs) on an executor → one table and one report."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def cmd_analyse(args: argparse.Namespace) -> int:
+    from rig.analysis.batch import analyse_batch, expand, report_lines, write_table
+    from rig.executors.options import executor_from_args
+    paths = expand(args.recordings)
+    out = Path(args.output)
+    with executor_from_args(args) as executor:
+        if not args.quiet:
+            print(f"analysing {len(paths)} recordings on {executor.describe()}", file=sys.stderr)
+        t0 = time.perf_counter()
+        result = analyse_batch(paths, executor)
+        wall = time.perf_counter() - t0
+    table = write_table(result, out / "recordings.csv")
+    lines = report_lines(result)
+    report = out / "report.md"
+    report.write_text("\n".join(lines) + "\n")
+    print(lines[2])
+    print(f"{len(paths)} recordings analysed in {wall:.1f} s -> {table}, {report}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``rig analyse`` to the ``rig`` parser."""
+    from rig.executors.options import add_executor_arguments
+    p = sub.add_parser("analyse", parents=parents,
+                       help="analyse many recordings (globs) -> one table (a row per recording) and a report")
+    p.add_argument("recordings", nargs="+", help="recording files or glob patterns (quote them; ** recurses)")
+    p.add_argument("-o", "--output", default="out/analyse", help="directory of table and report (default out/analyse)")
+    add_executor_arguments(p)
+    p.set_defaults(func=cmd_analyse)

@@ -1,0 +1,61 @@
+"""rig analyse: many recordings on an executor, one table and one report; the combined statistics are
+those of all curves together."""
+from __future__ import annotations
+
+import csv
+import shutil
+
+import pytest
+
+from rig.analysis.batch import analyse_batch, expand
+from rig.analysis.sets import process_values
+from rig.cli import main
+from rig.executors import make_executor
+from rig.recorder import read_recording
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory):
+    """Two demo runs (2 and 3 cycles), a copy of one, and a truncated file."""
+    root = tmp_path_factory.mktemp("batch")
+    for cycles in (2, 3):
+        assert main(["-q", "run", "--no-report", "--cycles", str(cycles), "-o", str(root / f"run{cycles}.mcap")]) == 0
+    (root / "sub").mkdir()
+    shutil.copy(root / "run2.mcap", root / "sub" / "copy.mcap")
+    data = (root / "run3.mcap").read_bytes()
+    (root / "cut.mcap").write_bytes(data[: len(data) // 2])
+    return root
+
+
+def test_combined_statistics_are_those_of_all_curves(recordings, dask_scheduler):
+    paths = expand([str(recordings / "run*.mcap"), str(recordings / "**" / "copy.mcap")])
+    assert [p.name for p in paths] == ["run2.mcap", "run3.mcap", "copy.mcap"]
+    with make_executor("serial") as ex:
+        serial = analyse_batch(paths, ex)
+    with make_executor("dask", scheduler=dask_scheduler) as ex:
+        dask = analyse_batch(paths, ex)
+    every = [r for p in paths for r in read_recording(p).results]
+    x_max = process_values(every)["x_max"] * 1e3                    # display unit mm
+    m, unit = serial.combined["p1.x_max"]
+    assert unit == "mm" and m.n == 7 == x_max.size
+    assert float(m.mean[0]) == pytest.approx(x_max.mean(), rel=1e-12)
+    assert float(m.std(1)[0]) == pytest.approx(x_max.std(ddof=1), rel=1e-9)
+    assert float(m.maximum[0]) == x_max.max()
+    d, _ = dask.combined["p1.x_max"]
+    assert (d.n, float(d.mean[0]), float(d.m2[0])) == (m.n, float(m.mean[0]), float(m.m2[0]))
+    assert [(r.path, r.curves, r.ok, r.nok) for r in serial.recordings] == [(r.path, r.curves, r.ok, r.nok)
+                                                                            for r in dask.recordings]
+
+
+def test_rig_analyse_writes_table_and_report_and_names_unreadable_files(recordings, tmp_path, capsys):
+    out = tmp_path / "an"
+    assert main(["-q", "analyse", str(recordings / "*.mcap"), "-o", str(out)]) == 0
+    rows = list(csv.DictReader((out / "recordings.csv").open()))
+    assert [r["recording"].rsplit("/", 1)[1] for r in rows] == ["cut.mcap", "run2.mcap", "run3.mcap"]
+    cut, run2, run3 = rows
+    assert cut["error"] and (run2["curves"], run3["curves"]) == ("2", "3")
+    assert run3["p1.x_max n"] == "3" and float(run3["p1.x_max mean [mm]"]) > 40
+    report = (out / "report.md").read_text()
+    assert "3 recordings" in report and "1 unreadable; 5 curves" in report and "cut.mcap" in report
+    assert main(["analyse", str(tmp_path / "nothing*.mcap")]) == 2
+    assert "no recording matches" in capsys.readouterr().err
