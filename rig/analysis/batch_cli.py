@@ -12,7 +12,7 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     from rig.executors.options import executor_from_args
     paths = expand(args.recordings)
     out = Path(args.output)
-    with executor_from_args(args) as executor:
+    with executor_from_args(args, local="dask-processes") as executor:
         if not args.quiet:
             print(f"analysing {len(paths)} recordings on {executor.describe()}", file=sys.stderr)
         t0 = time.perf_counter()
@@ -34,5 +34,5 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
                        help="analyse many recordings (globs) -> one table (a row per recording) and a report")
     p.add_argument("recordings", nargs="+", help="recording files or glob patterns (quote them; ** recurses)")
     p.add_argument("-o", "--output", default="out/analyse", help="directory of table and report (default out/analyse)")
-    add_executor_arguments(p)
+    add_executor_arguments(p, local="dask-processes")
     p.set_defaults(func=cmd_analyse)

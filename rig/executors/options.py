@@ -16,18 +16,24 @@ def _workers(text: str) -> int:
     return value
 
 
-def add_executor_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the executor options to a command's parser."""
+def add_executor_arguments(parser: argparse.ArgumentParser, local: str = "dask") -> None:
+    """Add the executor options to a command's parser; ``local``: the local Dask kind the command uses when
+    more than one worker is asked for without ``--executor`` (pass the same to :func:`executor_from_args`)."""
     parser.add_argument("--executor", choices=tuple(EXECUTORS),
-                        help="where the tasks run (default: dask when --workers > 1 or --scheduler is given, else "
-                             "serial); results do not depend on it")
+                        help=f"where the tasks run (default: {local} when --workers > 1, dask with --scheduler, "
+                             "else serial); results do not depend on it")
     parser.add_argument("--workers", type=_workers, default=1,
-                        help="workers of the local Dask cluster (127.0.0.1; results do not depend on it)")
+                        help="workers of the local Dask cluster (results do not depend on it)")
     parser.add_argument("--scheduler", metavar="ADDR",
                         help="address of an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (its workers need "
                              "mechrig installed)")
 
 
-def executor_from_args(args: argparse.Namespace) -> Executor:
-    """The executor the options name (:func:`rig.executors.make_executor`)."""
-    return make_executor(args.executor, args.workers, args.scheduler)
+def executor_from_args(args: argparse.Namespace, local: str = "dask") -> Executor:
+    """The executor the options name (:func:`rig.executors.make_executor`); without ``--executor``, more than
+    one worker and no scheduler, the local Dask kind ``local`` (``dask-processes`` for tasks that hold the
+    GIL, e.g. Python-level simulation or analysis)."""
+    name = args.executor
+    if name is None and args.scheduler is None and args.workers > 1:
+        name = local
+    return make_executor(name, args.workers, args.scheduler)

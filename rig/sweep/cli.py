@@ -15,7 +15,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     params = [parse_param(p) for p in args.param]
     scene = load_scene(args.scene)
     out = Path(args.output)
-    with executor_from_args(args) as executor:
+    with executor_from_args(args, local="dask-processes") as executor:
         if not args.quiet:
             print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
         result = run_sweep(scene, params, args.metric, executor, args.revolutions)
@@ -43,5 +43,5 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
     sweep.add_argument("--revolutions", type=int, default=2,
                        help="cam revolutions per point, metrics over the last one (cam bar; default 2)")
     sweep.add_argument("-o", "--output", default="out/sweep", help="directory of table and maps (default out/sweep)")
-    add_executor_arguments(sweep)
+    add_executor_arguments(sweep, local="dask-processes")
     sweep.set_defaults(func=cmd_sweep)

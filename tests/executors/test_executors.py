@@ -82,3 +82,27 @@ def test_rig_tolerance_json_is_the_same_on_serial_and_dask(tmp_path, dask_schedu
     assert n == 360 and data["monte_carlo"]["machines"] == 3000 and len(data["linear"]["rss"]) == n
     assert {"mean", "std", "p0.135", "p99.865"} <= set(data["monte_carlo_clearance"])
     assert all(lo <= hi for lo, hi in zip(data["monte_carlo"]["p0.135"], data["monte_carlo"]["p99.865"]))
+
+
+def test_commands_choose_their_local_dask_kind(monkeypatch):
+    import argparse
+
+    from rig.executors import options
+    parser = argparse.ArgumentParser()
+    options.add_executor_arguments(parser, local="dask-processes")
+    monkeypatch.setattr(options, "make_executor", lambda name, workers, scheduler: (name, workers, scheduler))
+    pick = lambda argv: options.executor_from_args(parser.parse_args(argv), local="dask-processes")  # noqa: E731
+    assert pick([]) == (None, 1, None)                               # serial by make_executor's default
+    assert pick(["--workers", "2"]) == ("dask-processes", 2, None)
+    assert pick(["--workers", "2", "--executor", "dask"]) == ("dask", 2, None)
+    assert pick(["--scheduler", "tcp://127.0.0.1:8786"]) == (None, 1, "tcp://127.0.0.1:8786")
+
+
+def test_local_worker_processes_listen_on_loopback_only():
+    import psutil
+    with make_executor("dask-processes", workers=1) as ex:
+        tree = [psutil.Process()] + psutil.Process().children(recursive=True)
+        pids = {p.pid for p in tree}
+        listening = {c.laddr.ip for c in psutil.net_connections("inet") if c.status == "LISTEN" and c.pid in pids}
+        assert listening == {"127.0.0.1"} and len(tree) >= 2          # a nanny/worker process beside this one
+        assert list(ex.map(_slow_square, range(3))) == [0, 1, 4]
