@@ -19,7 +19,7 @@ def _label(value: object) -> str:
 
 
 def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9.]+", "_", text).strip("_")
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_")
 
 
 def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:

@@ -101,3 +101,15 @@ def test_clutch_sweep_counts_disengagements_and_the_shutdown_rule():
     assert result.errors == ["", ""]
     assert weak["disengagements"] >= 4 and stiff["disengagements"] == 0
     assert stiff["shutdown"] == 0.0 and weak["shutdown"] in (0.0, 1.0)
+
+
+def test_a_third_parameter_gives_one_map_per_value(tmp_path):
+    from rig.sweep.plots import plot_sweep
+    params = [parse_param("speed.speed=150 rpm"), parse_param("plant.k=1.89 N/mm"),
+              parse_param("plant.sensor_preload=-25 N,25 N")]
+    with make_executor("serial") as ex:
+        result = run_sweep(load_scene(DEFAULT_SCENE), params, ["rod_force_peak"], ex, revolutions=1)
+    low, high = (v["rod_force_peak"] for v in result.values)
+    assert low != high                                      # the preload is part of the rod force
+    names = sorted(p.name for p in plot_sweep(result, tmp_path))
+    assert names == ["rod_force_peak__plant.sensor_preload_-25_N.png", "rod_force_peak__plant.sensor_preload_25_N.png"]
