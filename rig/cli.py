@@ -141,7 +141,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         _writable_file(out.with_suffix(".cycle.png"), "cycle chart", PNG_MAGIC)
         _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"))
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
-                        progress=not args.quiet)
+                        progress=not args.quiet, fidelity=args.fidelity)
     what = f"recorded {summary.curves} curves" if summary.curves else "recorded the run"
     print(f"{what}, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
           f"({summary.realtime_factor:.1f}x real time; {summary.wall_time:.2f} s with serial set-up and read-back), "
@@ -168,7 +168,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     machine = serve_scene(args.scene, mode="realtime" if args.realtime else None, port=args.port, wait=args.wait,
                           cycles=args.cycles, release_timeout=args.release_timeout, announce=announce,
-                          progress=not args.quiet)
+                          progress=not args.quiet, fidelity=args.fidelity)
     print(f"served {machine.curves} curves, {machine.t:.2f} s simulated", file=sys.stderr)
     return 0
 
@@ -179,7 +179,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     _scene_config(Path(args.scene), args.cycles)
     summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
-                           progress=not args.quiet)
+                           progress=not args.quiet, fidelity=args.fidelity)
     print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated -> {summary.output}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
@@ -390,6 +390,9 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", parents=[quiet], help="run a scene in one process (machine + host) and record it to MCAP")
     run.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
     run.add_argument("-o", "--output", help="recording path (default out/<scene>.mcap)")
+    run.add_argument("--fidelity", type=int, choices=(0, 1, 2),
+                        help="force the model level (default: [scene] fidelity, else the lowest answering "
+                        "[scene] questions)")
     run.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
     run.add_argument("--realtime", action="store_true", help="pace to the wall clock (warns when it falls behind)")
     run.add_argument("--report-dir", help="report directory (default: next to the recording)")
@@ -404,6 +407,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=_port(0), help="socketcand TCP port (default: the scene's, 0 = any)")
     serve.add_argument("--realtime", action="store_true")
     serve.add_argument("--wait", type=_seconds, default=300.0, help="seconds to wait for a host to arm the device")
+    serve.add_argument("--fidelity", type=int, choices=(0, 1, 2),
+                        help="force the model level (default: [scene] fidelity, else the lowest answering "
+                        "[scene] questions)")
     serve.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
     serve.add_argument("--release-timeout", type=_seconds, default=300.0,
                        help="seconds to wait after the run for the host to release the device (CAN Release)")
@@ -416,6 +422,9 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--can-port", type=_port(1), required=True)
     rec.add_argument("--can-channel")
     rec.add_argument("--serial", help="serial port path or URL printed by `rig serve`")
+    rec.add_argument("--fidelity", type=int, choices=(0, 1, 2),
+                        help="force the model level (default: [scene] fidelity, else the lowest answering "
+                        "[scene] questions)")
     rec.add_argument("--cycles", type=_count(1), help="record only the first N curves (>= 1)")
     rec.set_defaults(func=cmd_record)
     rep = sub.add_parser("report", parents=[quiet],

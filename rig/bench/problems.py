@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rig.fidelity import ATOL_SCALE
 from rig.scene import SceneError, load_scene
 from rig.solvers import Problem
 from rig.units import to_si
@@ -85,7 +86,8 @@ def _level2(scene, path: Path) -> WorkProblem:
     quick = Sweeps({"euler": [1e-5, 2.5e-6], "semi-implicit euler": [1e-5, 2.5e-6], "rk4": [5e-5, 2.5e-5, 1.25e-5]},
                    QUICK_TOLS)
     return WorkProblem(path.stem, f"{path.stem}: cam-bar level 2, one revolution ({t_sim:g} s)",
-                       "follower deviation e", lambda: model.problem(y0), t_sim, _grid(t_sim, rate), 0, 1e-5,
+                       "follower deviation e", lambda: model.problem(y0), t_sim, _grid(t_sim, rate), 0,
+                       ATOL_SCALE["cam_bar"],
                        full, quick)
 
 
@@ -100,7 +102,7 @@ def _clutch(scene, path: Path) -> WorkProblem:
     quick = Sweeps({"euler": [1e-4, 1e-5], "semi-implicit euler": [1e-4, 1e-5], "rk4": [2e-4, 5e-5]},
                    QUICK_TOLS)
     return WorkProblem(path.stem, f"{path.stem}: clutch stand, {t_sim:g} s", "relative angle phi_r",
-                       lambda: dyn.problem(y0), t_sim, _grid(t_sim, rate), 0, 1e-3, full, quick)
+                       lambda: dyn.problem(y0), t_sim, _grid(t_sim, rate), 0, ATOL_SCALE["clutch_dynamic"], full, quick)
 
 
 def load_problem(path: str | Path, t_sim: float | None = None) -> WorkProblem:

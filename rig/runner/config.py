@@ -9,6 +9,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from rig.fidelity import Fidelity, choose
 from rig.scene import Field, Scene, SceneError, read_table
 
 SCENE_SCHEMA = {
@@ -20,7 +21,9 @@ SCENE_SCHEMA = {
     "sample_rate": Field("Hz", 10_000.0, "plant/transducer/acquisition sample rate"),
     "chunk": Field("s", 0.02, "simulated time advanced per runner step"),
     "mode": Field(None, "virtual", "'virtual' (as fast as possible) or 'realtime' (paced to the wall clock)"),
-    "fidelity": Field(None, None, "fidelity level of the plant, informative"),
+    "fidelity": Field(None, None, "model level (0/1/2 or kinematic/kinetostatic/dynamic); default: chosen by questions"),
+    "questions": Field(None, None, "what the run must answer, e.g. [\"stroke\", \"dwell_vibration\"] (rig.fidelity)"),
+    "tolerance": Field("1", None, "relative error the answers need (default 1e-6); picks the solver setting"),
     "max_time": Field("s", None, "give up when the cycles are not complete by this simulated time"),
 }
 TRANSDUCER_SCHEMA = {
@@ -95,6 +98,7 @@ class RunConfig:
     can: dict[str, Any]
     serial: dict[str, Any]
     recording: dict[str, Any]
+    fidelity: Fidelity
 
     @property
     def dt(self) -> float:
@@ -236,4 +240,4 @@ def read_config(scene: Scene) -> RunConfig:
     return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=_integer(s["seed"], "seed", where),
                      cycles=cycles, duration=s["duration"], sample_rate=s["sample_rate"], chunk=s["chunk"],
                      mode=s["mode"], max_time=max_time, max_time_given=s["max_time"] is not None, transducers=tuple(transducers), device=device, can=can,
-                     serial=serial, recording=recording)
+                     serial=serial, recording=recording, fidelity=choose(scene, str(s["plant"])))

@@ -56,7 +56,7 @@ class Host:
         self.rec = recorder
         self.serial = (DigiForceClient(serial_port, baudrate=cfg.serial["baudrate"], address=cfg.serial["address"],
                                        timeout=2.0) if serial_port else None)
-        self.theory = make_plant(cfg.plant, cfg.scene, nominal=True)
+        self.theory = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)
         self.program = cfg.device["program"]
         self.program_config: dict[str, Any] | None = None
         self._explain: ResultExplainer | None = None     # why a curve is NOK (rig.runner.reasons)

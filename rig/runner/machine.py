@@ -30,7 +30,7 @@ class Machine:
 
     def __init__(self, cfg: RunConfig, bus: can.BusABC) -> None:
         self.cfg = cfg
-        self.plant = make_plant(cfg.plant, cfg.scene)
+        self.plant = make_plant(cfg.plant, cfg.scene, fidelity=cfg.fidelity)
         names = ["device"] + [t.name for t in cfg.transducers]
         rngs = seeded_generators(cfg.seed, names)
         self.transducers: dict[str, Any] = {}

@@ -3,27 +3,35 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+from rig.fidelity import Fidelity, choose
 from rig.scene import Scene, SceneError
 
 
-def _cam_bar(scene: Scene, nominal: bool = False) -> Any:
+def _cam_bar(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
     from rig.plants.cam_bar import PinInsertionMechanism
-    return PinInsertionMechanism.from_scene(scene, variation=None, rng=None) if nominal else \
-        PinInsertionMechanism.from_scene(scene)
+    setting: dict[str, Any] = {"fidelity": fidelity.level}
+    if fidelity.method is not None:
+        setting.update(method=fidelity.method, method_options=dict(fidelity.options))
+    return PinInsertionMechanism.from_scene(scene, variation=None, rng=None, **setting) if nominal else \
+        PinInsertionMechanism.from_scene(scene, **setting)
 
 
-def _clutch_dynamic(scene: Scene, nominal: bool = False) -> Any:
+def _clutch_dynamic(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
     from rig.plants.clutch.stand import ClutchStand
-    return ClutchStand.from_scene(scene)
+    stand = ClutchStand.from_scene(scene)
+    if fidelity.options:                 # chosen from the work-precision data (else the scene's [plant] rtol/atol)
+        stand.rtol, stand.atol = fidelity.options["rtol"], fidelity.options["atol"]
+    return stand
 
 
-def _clutch_static(scene: Scene, nominal: bool = False) -> Any:
+def _clutch_static(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
     from rig.plants.clutch.static_rig import rig_from_scene
     return rig_from_scene(scene)
 
 
-#: builders take the scene and ``nominal`` (True: the design without per-cycle variation, the host's theory)
-PLANTS: dict[str, Callable[[Scene, bool], Any]] = {
+#: builders take the scene, ``nominal`` (True: the design without per-cycle variation, the host's theory) and
+#: the run's fidelity (level and solver setting, :mod:`rig.fidelity`)
+PLANTS: dict[str, Callable[[Scene, bool, Fidelity], Any]] = {
     "cam_bar": _cam_bar, "clutch_dynamic": _clutch_dynamic, "clutch_static": _clutch_static}
 
 
@@ -33,9 +41,10 @@ PLANT_SECTIONS: dict[str, tuple[str, ...]] = {
     "clutch_static": ("plant", "program")}
 
 
-def make_plant(kind: str, scene: Scene, nominal: bool = False) -> Any:
+def make_plant(kind: str, scene: Scene, nominal: bool = False, fidelity: Fidelity | None = None) -> Any:
     """A fresh plant of ``kind`` built from ``scene`` (each call gives an independent instance);
-    ``nominal`` leaves out the scene's per-cycle variation (the theory the host compares against)."""
+    ``nominal`` leaves out the scene's per-cycle variation (the theory the host compares against);
+    ``fidelity`` (default: :func:`rig.fidelity.choose` on the scene) sets its level and solver."""
     if not isinstance(kind, str) or kind not in PLANTS:
         raise SceneError(f"{scene.path} [scene]: plant {kind!r} is not one of {sorted(PLANTS)}")
-    return PLANTS[kind](scene, nominal)
+    return PLANTS[kind](scene, nominal, choose(scene, kind) if fidelity is None else fidelity)

@@ -18,6 +18,7 @@ from tqdm import tqdm
 
 import rig
 from rig.console import progress as progress_bar, quiet_libraries
+from rig.fidelity import announce as announce_fidelity, choose
 from firmware_sim.serial_device import SerialDevice
 from firmware_sim.socketcand_server import SocketcandServer
 from rig.recorder import Recorder
@@ -64,9 +65,11 @@ class RunSummary:
         return self.simulated_time / self.run_time if self.run_time > 0 else float("inf")
 
 
-def _config(scene_path: str | Path, cycles: int | None, mode: str | None) -> RunConfig:
+def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fidelity: int | None = None) -> RunConfig:
     cfg = read_config(load_scene(scene_path))
     changes: dict[str, Any] = {}
+    if fidelity is not None:
+        changes["fidelity"] = choose(cfg.scene, cfg.plant, fidelity)
     if cycles is not None:
         if cfg.cycles is None:
             raise RunError(f"{scene_path}: --cycles given, but this scene runs for a duration")
@@ -79,6 +82,7 @@ def _config(scene_path: str | Path, cycles: int | None, mode: str | None) -> Run
         changes["mode"] = mode
     if changes:
         cfg = replace(cfg, **changes)
+    announce_fidelity(cfg.fidelity)
     return cfg
 
 
@@ -189,7 +193,8 @@ def _wait_for_go(machine: Machine, timeout: float, idle: Callable[[], None] = la
 def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
     return {"scene": cfg.name, "scene_file": str(cfg.scene.path), "seed": cfg.seed, "plant": cfg.plant,
             "run_mode": mode, "software_version": rig.__version__, "sample_rate": cfg.sample_rate,
-            "cycles": cfg.cycles, "duration": cfg.duration}
+            "cycles": cfg.cycles, "duration": cfg.duration, "fidelity_level": cfg.fidelity.level,
+            "fidelity_reason": cfg.fidelity.reason, "method": cfg.fidelity.method_text}
 
 
 @contextmanager
@@ -219,9 +224,9 @@ def _bus(cfg: RunConfig, channel: str) -> can.BusABC:
 
 
 def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None = None, mode: str | None = None,
-              progress: bool = False) -> RunSummary:
+              progress: bool = False, fidelity: int | None = None) -> RunSummary:
     """Run machine and host in one process: CAN on python-can's ``virtual`` interface, serial on a pty."""
-    cfg = _config(scene_path, cycles, mode)
+    cfg = _config(scene_path, cycles, mode, fidelity)
     output = Path(output)
     channel = f"rig-{uuid.uuid4().hex}"
     wall = time.perf_counter()
@@ -259,7 +264,8 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
 
 def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | None = None,
                 cycles: int | None = None, wait: float = 300.0, release_timeout: float = 300.0,
-                announce: Callable[[dict[str, Any]], None] | None = None, progress: bool = False) -> Machine:
+                announce: Callable[[dict[str, Any]], None] | None = None, progress: bool = False,
+                fidelity: int | None = None) -> Machine:
     """Run the simulated machine as its own process: CAN served over socketcand on 127.0.0.1, serial on a pty.
 
     ``announce`` receives the endpoints (default: print them as one JSON line,
@@ -269,7 +275,7 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
     everything); the links stay up until then, or ``release_timeout`` s after the scene's last cycle, which
     is reported as an error. Frames are stamped in Unix time (:mod:`rig.runner.served`).
     """
-    cfg = _config(scene_path, cycles, mode)
+    cfg = _config(scene_path, cycles, mode, fidelity)
     channel = f"rig-{uuid.uuid4().hex}"
     with can.Bus(interface="blockbus", channel=channel) as bus:
         wire = Anchored(bus)
@@ -325,11 +331,12 @@ def _wait_for_release(machine: Machine, lock: threading.Lock, timeout: float) ->
 
 def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = "127.0.0.1", can_port: int,
                  serial_port: str | None, can_channel: str | None = None, cycles: int | None = None,
-                 idle_timeout: float = 10.0, connect_timeout: float = 2.0, progress: bool = False) -> RunSummary:
+                 idle_timeout: float = 10.0, connect_timeout: float = 2.0, progress: bool = False,
+                 fidelity: int | None = None) -> RunSummary:
     """The host alone: connect to a served machine (socketcand + serial port) and record the scene's run
     (or its first ``cycles`` curves). A server that does not answer within ``connect_timeout`` s is a
     :class:`RunError` naming it."""
-    cfg = _config(scene_path, cycles, None)
+    cfg = _config(scene_path, cycles, None, fidelity)
     output = Path(output)
     wall = time.perf_counter()
     with RunClock(_socketcand(can_host, can_port, can_channel or cfg.can["channel"], connect_timeout)) as bus:

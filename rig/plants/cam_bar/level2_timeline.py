@@ -1,7 +1,8 @@
 """Runner interface of the cam-bar plant at fidelity 2: truth from the groove dynamics (:mod:`.level2`).
 
-Integrates the compiled kernel with :data:`~rig.plants.cam_bar.level2.METHOD` (DP45, the fastest of the rig's
-solvers at 1e-6 relative error in e: benchmarks/bench_level2.py) chunk by chunk, continuing from the last state;
+Integrates the compiled kernel with the mechanism's ``method`` and ``method_options`` (default DP45 at rtol 1e-7,
+≈ 5e-7 of max|e| over a revolution; :mod:`rig.fidelity` picks them from the work–precision data when the scene
+states questions or a tolerance) chunk by chunk, continuing from the last state;
 with ``[plant.variation]`` each cam revolution runs with its cycle's mechanism (load parameters) and gets its
 chain stroke deviation Δs added, as at level 1. Events: ``flank_switch`` (data ``phi``, ``to``) from the
 contact onsets of the integration, and ``accel_jump`` program crossings as at level 1. With a cam drive
@@ -20,9 +21,6 @@ from rig.plants.cam_bar.timeline import Timeline
 
 if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
-
-RTOL, ATOL = 1e-7, 1e-12    # DP45: ≈ 5e-7 of max|e| over a revolution (docs/cam-bar.md)
-
 
 class Level2Timeline(Timeline):
     """Keeps the integration state (t, y, flank in contact) between :meth:`advance` calls."""
@@ -51,7 +49,7 @@ class Level2Timeline(Timeline):
             tt = t[cycle == c]
             model = self._model(int(c))
             t0, y0, flank = self._state if self._state is not None else (tt[0], model.initial_state(tt[0]), None)
-            run = model.simulate((t0, tt[-1]), y0, flank, t_eval=tt, rtol=RTOL, atol=ATOL)
+            run = model.simulate((t0, tt[-1]), y0, flank, t_eval=tt, method=mech.method, **mech.method_options)
             self._state = (run.solution.t_final, run.solution.y_final, run.flank)
             self.events.extend(run.switches)
             part = model.signals(tt, run.solution.y)

@@ -176,6 +176,8 @@ class PinInsertionMechanism:
     guide: GuideFriction = field(default_factory=GuideFriction)       # level 2's slider-guide friction model
     cam_drive: CamDrive | None = None                                # level 2: motor + shaft turn the cam
     joints: JointClearance | None = None                             # level 2: rod pin clearances (reduced)
+    method: str = "DP45"                                             # level 2's solver (rig.solvers.METHODS)
+    method_options: dict[str, float] = field(default_factory=lambda: {"rtol": 1e-7, "atol": 1e-12})
 
     def __post_init__(self) -> None:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):

@@ -84,24 +84,22 @@ def read_speed(table: dict[str, Any], where: str) -> SpeedProfile:
         raise SceneError(f"{where}: {exc}") from None
 
 
-FIDELITY = {"kinematic": 0, "kinetostatic": 1, "dynamic": 2}
-
-
 def read_fidelity(scene: Scene) -> int:
-    """[scene] fidelity: 0/1/2 or "kinematic"/"kinetostatic"/"dynamic" (default 1)."""
-    value = scene.section("scene").get("fidelity", 1)
-    level = FIDELITY.get(value, value) if isinstance(value, str) else value
-    if isinstance(level, bool) or level not in (0, 1, 2):
-        raise SceneError(f"{scene.path} [scene]: 'fidelity' must be 0, 1, 2 or one of {', '.join(FIDELITY)}, "
-                         f"got {value!r}")
-    return int(level)
+    """The level a run of ``scene`` uses (:func:`rig.fidelity.choose`: [scene] fidelity, else the lowest level
+    answering [scene] questions, else 1)."""
+    from rig.fidelity import choose
+    return choose(scene, "cam_bar").level
 
 
 def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     """Keyword arguments of :class:`PinInsertionMechanism` from the scene (SI)."""
     where = f"{scene.path} [plant]"
     kw = scene.read("plant", PLANT_SCHEMA)
-    kw["fidelity"] = read_fidelity(scene)
+    from rig.fidelity import choose
+    choice = choose(scene, "cam_bar")
+    kw["fidelity"] = choice.level
+    if choice.method is not None:
+        kw["method"], kw["method_options"] = choice.method, dict(choice.options)
     rates = kw.pop("spring_rates")
     if not isinstance(rates, list) or not rates:
         raise SceneError(f"{where}: 'spring_rates' must be a non-empty list of quantities like \"1.19 N/mm\"")

@@ -1,0 +1,193 @@
+"""Fidelity chosen by the question: the lowest model level that answers a scene's questions, and for a
+dynamic level the cheapest solver setting that reaches the scene's tolerance in the work–precision data.
+
+A scene states what it asks (``[scene] questions = ["stroke", "dwell_vibration"]``) and how exactly
+(``[scene] tolerance``, relative error, default 1e-6). ``[scene] fidelity`` or ``--fidelity N`` force a
+level instead; a forced level that cannot answer a stated question is reported (warning), not silently
+used. The work–precision data are ``data/work_precision/<scene-stem>.csv`` (``rig bench work-precision``;
+columns method, setting, error, wall_s, nfev, t_sim, status), else the plant's reference problem's file.
+"""
+from __future__ import annotations
+
+import csv
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+from rig.scene import Scene, SceneError
+
+log = logging.getLogger(__name__)
+DATA = Path(__file__).resolve().parents[1] / "data" / "work_precision"
+LEVEL_NAMES = {0: "kinematic", 1: "kinetostatic", 2: "dynamic"}
+#: question → lowest level that answers it, per plant kind (the clutch stand has one, dynamic, model)
+QUESTIONS: dict[str, dict[str, int]] = {
+    "cam_bar": {"stroke": 0, "rod_force": 1, "flank_switches": 1, "dwell_vibration": 2},
+    "clutch_dynamic": {"disengagements": 2, "shutdown": 2, "torque": 2, "speed": 2},
+    "clutch_static": {"characteristic": 1},
+}
+WHY = {"stroke": "the stroke is the cam program's kinematics",
+       "rod_force": "the rod force needs the kinetostatic load balance",
+       "flank_switches": "a flank switch is a sign change of the kinetostatic contact force",
+       "dwell_vibration": "vibration in the dwell needs the groove dynamics with clearance",
+       "disengagements": "disengagement is a dynamic event of the stand",
+       "shutdown": "shutdown follows dynamic disengagements", "torque": "the stand torque is dynamic",
+       "speed": "the stand speed is dynamic", "characteristic": "the static characteristic is a load balance"}
+#: levels each plant kind has, its default level, and the work–precision data of its reference problem
+LEVELS = {"cam_bar": (0, 1, 2), "clutch_dynamic": (2,), "clutch_static": (1,)}
+DEFAULT_LEVEL = {"cam_bar": 1, "clutch_dynamic": 2, "clutch_static": 1}
+REFERENCE_DATA = {"cam_bar": "pin_insertion_l2", "clutch_dynamic": "clutch_startup"}
+#: work–precision method names → names of rig.solvers.METHODS the plant's integration can run
+RUNNABLE = {"cam_bar": {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45",
+                        "dop853": "DOP853", "rodas4": "Rodas4"},
+            "clutch_dynamic": {"dp45": "DP45"}}
+#: atol = rtol · scale of each plant's dynamic problem (its state's magnitude; the work–precision harness's)
+ATOL_SCALE = {"cam_bar": 1e-5, "clutch_dynamic": 1e-3}
+#: the integration setting of a scene that states no questions or tolerance, or that no data answer: the
+#: plant's own (the cam bar's level-2 default; the clutch's [plant] rtol/atol, given as no options here)
+DEFAULT_METHOD = {"cam_bar": ("DP45", {"rtol": 1e-7, "atol": 1e-12}), "clutch_dynamic": ("DP45", {})}
+NAMES = {"kinematic": 0, "kinetostatic": 1, "dynamic": 2}
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """The level a run uses (0 kinematic, 1 kinetostatic, 2 dynamic), why, and its solver setting
+    (``method`` a name of :data:`rig.solvers.METHODS`, ``options`` rtol/atol or h; None below level 2)."""
+
+    level: int
+    reason: str
+    method: str | None = None
+    options: Mapping[str, float] = field(default_factory=dict)
+    unanswered: tuple[str, ...] = ()
+
+    @property
+    def method_text(self) -> str:
+        """``"DP45 rtol=1e-07 atol=1e-12"``, or ``"none (no integration)"`` below level 2."""
+        if self.method is None:
+            return "none (no integration)"
+        return " ".join([self.method, *(f"{k}={v:g}" for k, v in self.options.items())])
+
+    def describe(self) -> str:
+        """One line for the console."""
+        return (f"fidelity L{self.level} ({LEVEL_NAMES[self.level]}): {self.reason}; method {self.method_text}"
+                + (f"; cannot answer {', '.join(self.unanswered)}" if self.unanswered else ""))
+
+
+def parse_level(value: Any, what: str) -> int:
+    """0/1/2 or "kinematic"/"kinetostatic"/"dynamic" as a level; a :class:`SceneError` naming ``what``."""
+    level = NAMES.get(value, value) if isinstance(value, str) else value
+    if isinstance(level, bool) or level not in (0, 1, 2):
+        raise SceneError(f"{what} must be 0, 1, 2 or one of {', '.join(NAMES)}, got {value!r}")
+    return int(level)
+
+
+def _questions(scene: Scene, plant: str, where: str) -> list[str]:
+    asked = scene.section("scene").get("questions", [])
+    if not isinstance(asked, list) or not all(isinstance(q, str) for q in asked):
+        raise SceneError(f"{where}: 'questions' must be a list of strings, got {asked!r}")
+    known = QUESTIONS.get(plant, {})
+    for q in asked:
+        if q not in known:
+            other = [k for k, table in QUESTIONS.items() if q in table]
+            hint = f" (a question for a {other[0]} scene)" if other else ""
+            raise SceneError(f"{where}: question {q!r} is not one a {plant} scene can answer{hint}; "
+                             f"its questions: {', '.join(known) or 'none'}")
+    return asked
+
+
+def _tolerance(scene: Scene, where: str) -> float:
+    from rig.units import UnitError, to_si
+    value = scene.section("scene").get("tolerance", 1e-6)
+    try:
+        tol = to_si(value, "", what=f"{where}: tolerance")
+    except UnitError as exc:
+        raise SceneError(str(exc)) from None
+    if not 0.0 < tol < 1.0:
+        raise SceneError(f"{where}: 'tolerance' is a relative error in (0, 1), got {value!r}")
+    return tol
+
+
+def _options(setting: str, atol_scale: float) -> dict[str, float]:
+    """``"rtol=1e-07"`` / ``"h=2e-05"`` (a work–precision setting) as solver options."""
+    out = {}
+    for part in setting.split():
+        key, _, value = part.partition("=")
+        out[key] = float(value)
+    if "rtol" in out and "atol" not in out:
+        out["atol"] = out["rtol"] * atol_scale
+    return out
+
+
+def cheapest(path: Path, tolerance: float, runnable: Mapping[str, str],
+             atol_scale: float) -> tuple[str, dict[str, float], dict] | None:
+    """The runnable row of a work–precision CSV with status ok and error ≤ ``tolerance`` and the least
+    wall time: (method, options, row); None when no row qualifies."""
+    best = None
+    with path.open(newline="", encoding="utf-8") as f:
+        for row in csv.DictReader(f):
+            if row.get("status") != "ok" or row.get("method") not in runnable:
+                continue
+            error, wall = float(row["error"]), float(row["wall_s"])
+            if math.isfinite(error) and error <= tolerance and (best is None or wall < float(best["wall_s"])):
+                best = row
+    if best is None:
+        return None
+    return runnable[best["method"]], _options(best["setting"], atol_scale), best
+
+
+def _method(scene: Scene, plant: str, tolerance: float, data: Path) -> tuple[str, dict[str, float], str]:
+    runnable = RUNNABLE.get(plant, {})
+    for path in (data / f"{Path(scene.path).stem}.csv", data / f"{REFERENCE_DATA.get(plant, '')}.csv"):
+        if path.is_file():
+            found = cheapest(path, tolerance, runnable, ATOL_SCALE[plant])
+            if found is not None:
+                method, options, row = found
+                per_second = float(row["wall_s"]) / float(row["t_sim"])
+                return method, options, (f"the cheapest setting with error <= {tolerance:g} in {path.name} "
+                                         f"(error {float(row['error']):.1e}, {per_second * 1e3:.1f} ms per simulated s)")
+            method, options = DEFAULT_METHOD[plant]
+            return method, dict(options), f"no setting in {path.name} reaches {tolerance:g}; the plant's default"
+    method, options = DEFAULT_METHOD[plant]
+    return method, dict(options), "no work-precision data for this scene; the plant's default"
+
+
+def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DATA) -> Fidelity:
+    """The fidelity of a run of ``scene`` (a ``plant`` kind): ``forced`` (``--fidelity``) first, then
+    ``[scene] fidelity``, then the lowest level answering ``[scene] questions``, else the plant's default."""
+    where = f"{scene.path} [scene]"
+    asked = _questions(scene, plant, where)
+    levels = LEVELS.get(plant, (1,))
+    need = {q: QUESTIONS[plant][q] for q in asked}
+    explicit = scene.section("scene").get("fidelity")
+    if forced is not None:
+        level, reason = parse_level(forced, "--fidelity"), f"forced by --fidelity {forced}"
+    elif explicit is not None:
+        level, reason = parse_level(explicit, f"{where}: 'fidelity'"), f"[scene] fidelity = {explicit!r}"
+    elif asked:
+        level = max(need.values())
+        top = [q for q in asked if need[q] == level]
+        reason = f"lowest level answering {', '.join(asked)} ({'; '.join(WHY[q] for q in top)})"
+    else:
+        level, reason = DEFAULT_LEVEL.get(plant, 1), "no questions stated; the plant's default level"
+    if level not in levels:
+        if forced is None and explicit is None:
+            raise SceneError(f"{where}: a {plant} plant has levels {levels}, not {level}")
+        raise SceneError(f"{where}: a {plant} plant has levels {', '.join(map(str, levels))}; "
+                         f"{'--fidelity' if forced is not None else 'fidelity'} {level} is not one of them")
+    unanswered = tuple(q for q in asked if need[q] > level)
+    if level < 2:
+        return Fidelity(level, reason, unanswered=unanswered)
+    if asked or "tolerance" in scene.section("scene"):
+        method, options, why = _method(scene, plant, _tolerance(scene, where), data)
+    else:
+        (method, options), why = DEFAULT_METHOD[plant], "no questions or tolerance stated; the plant's own setting"
+    return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered)
+
+
+def announce(fidelity: Fidelity) -> None:
+    """The choice as one console line; a warning naming the questions a forced level cannot answer."""
+    log.info("%s", fidelity.describe().split("; cannot answer")[0])
+    if fidelity.unanswered:
+        need = ", ".join(f"{q} (needs L{max(t.get(q, 0) for t in QUESTIONS.values())})" for q in fidelity.unanswered)
+        log.warning("fidelity L%d cannot answer %s: its answers to them in this run mean nothing", fidelity.level, need)

@@ -1,0 +1,105 @@
+"""Fidelity chosen by the question (rig.fidelity): lowest level per question, solver setting from the
+work-precision data, forced levels, and what a run records."""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import pytest
+
+from rig.cli import main
+from rig.fidelity import choose
+from rig.recorder.reader import read_recording
+from rig.scene import SceneError, load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "data" / "scenes" / "pin_insertion.toml"
+CSV = """method,setting,error,wall_s,nfev,t_sim,status
+reference,dp45 rtol=1e-13,1e-12,0.05,,0.4,reference
+dp45,rtol=1e-07,5e-07,0.005,11000,0.4,ok
+rk4,h=1e-05,2e-07,0.003,160000,0.4,ok
+scipy LSODA,rtol=1e-08,1e-07,0.001,8000,0.4,ok
+rodas4,rtol=1e-06,nan,0.0001,,0.4,diverged: test
+euler,h=1e-05,8e-04,0.0005,40000,0.4,ok
+"""
+
+
+def scene_with(tmp_path: Path, lines: str, name: str = "asked") -> Path:
+    """The demo scene with ``lines`` added to its [scene] table."""
+    text = "\n".join(line for line in DEMO.read_text(encoding="utf-8").splitlines()
+                     if not line.startswith(("questions", "fidelity")))
+    text = text.replace("[scene]\n", f"[scene]\n{lines}\n", 1)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("questions, level", [
+    (["stroke"], 0), (["rod_force"], 1), (["flank_switches"], 1), (["dwell_vibration"], 2),
+    (["stroke", "rod_force"], 1), (["stroke", "dwell_vibration"], 2)])
+def test_the_lowest_level_answering_every_question(tmp_path, questions, level):
+    scene = load_scene(scene_with(tmp_path, f"questions = {questions!r}".replace("'", '"')))
+    choice = choose(scene, "cam_bar")
+    assert choice.level == level and not choice.unanswered
+    assert all(q in choice.reason for q in questions)
+    assert (choice.method is None) == (level < 2)
+
+
+def test_the_cheapest_runnable_setting_within_the_tolerance(tmp_path):
+    data = tmp_path / "wp"
+    data.mkdir()
+    (data / "asked.csv").write_text(CSV, encoding="utf-8")
+    path = scene_with(tmp_path, 'questions = ["dwell_vibration"]\ntolerance = 1e-6')
+    choice = choose(load_scene(path), "cam_bar", data=data)
+    # scipy's LSODA is cheaper but not a method the plant runs; rodas4 diverged; euler misses the tolerance
+    assert (choice.method, dict(choice.options)) == ("RK4", {"h": 1e-5})
+    assert "asked.csv" in choice.reason
+    path = scene_with(tmp_path, 'questions = ["dwell_vibration"]\ntolerance = 3e-7')
+    assert choose(load_scene(path), "cam_bar", data=data).options == {"h": 1e-5}
+    path = scene_with(tmp_path, 'questions = ["dwell_vibration"]\ntolerance = 1e-7')
+    choice = choose(load_scene(path), "cam_bar", data=data)       # nothing reaches 1e-7: the plant's default
+    assert choice.method == "DP45" and "no setting in asked.csv reaches 1e-07" in choice.reason
+    other = tmp_path / "nodata"
+    other.mkdir()
+    choice = choose(load_scene(path), "cam_bar", data=other)
+    assert choice.method == "DP45" and "no work-precision data" in choice.reason
+    # the committed data of the nominal level-2 problem answer a 1e-6 question with one of our methods
+    choice = choose(load_scene(path.with_name("asked.toml")), "cam_bar")
+    assert choice.level == 2 and "pin_insertion_l2.csv" in choice.reason
+
+
+def test_questions_a_plant_cannot_answer_and_bad_settings_are_errors(tmp_path):
+    with pytest.raises(SceneError, match=r"question 'disengagements' is not one a cam_bar scene can answer "
+                                         r"\(a question for a clutch_dynamic scene\)"):
+        choose(load_scene(scene_with(tmp_path, 'questions = ["disengagements"]')), "cam_bar")
+    with pytest.raises(SceneError, match=r"question 'strok' is not one"):
+        choose(load_scene(scene_with(tmp_path, 'questions = ["strok"]')), "cam_bar")
+    with pytest.raises(SceneError, match=r"'tolerance' is a relative error in \(0, 1\)"):
+        choose(load_scene(scene_with(tmp_path, 'questions = ["dwell_vibration"]\ntolerance = 2')), "cam_bar")
+    with pytest.raises(SceneError, match=r"'fidelity' must be 0, 1, 2"):
+        choose(load_scene(scene_with(tmp_path, 'fidelity = 3')), "cam_bar")
+
+
+def test_a_forced_level_wins_and_says_what_it_cannot_answer(tmp_path, caplog):
+    from rig.fidelity import announce
+    scene = load_scene(scene_with(tmp_path, 'questions = ["stroke", "dwell_vibration"]'))
+    choice = choose(scene, "cam_bar", forced=1)
+    assert choice.level == 1 and choice.unanswered == ("dwell_vibration",) and "--fidelity 1" in choice.reason
+    with caplog.at_level(logging.INFO, logger="rig.fidelity"):
+        announce(choice)
+    assert any(r.levelno == logging.WARNING and "cannot answer dwell_vibration (needs L2)" in r.getMessage()
+               for r in caplog.records)
+    explicit = load_scene(scene_with(tmp_path, 'fidelity = "dynamic"'))
+    assert choose(explicit, "cam_bar").level == 2 and choose(explicit, "cam_bar", forced=0).level == 0
+
+
+def test_a_run_records_its_fidelity_and_the_forced_level_is_the_one_simulated(tmp_path):
+    out = tmp_path / "run.mcap"
+    assert main(["-q", "run", str(DEMO), "--cycles", "1", "--no-report", "--fidelity", "2", "-o", str(out)]) == 0
+    meta = read_recording(out).metadata["rig"]
+    assert meta["fidelity_level"] == "2" and meta["fidelity_reason"].startswith("forced by --fidelity 2")
+    assert meta["method"] == "DP45 rtol=1e-07 atol=1e-12"
+    out1 = tmp_path / "run1.mcap"
+    assert main(["-q", "run", str(DEMO), "--cycles", "1", "--no-report", "-o", str(out1)]) == 0
+    meta = read_recording(out1).metadata["rig"]
+    assert (meta["fidelity_level"], meta["method"]) == ("1", "none (no integration)")
