@@ -1,0 +1,25 @@
+"""rig bench fidelity: the demo scene at L0, L1, L2 — each level answers exactly the questions it can, and the
+answers agree across levels where the physics says they must (quasi-static demo machine)."""
+from __future__ import annotations
+
+import csv
+
+import pytest
+
+from rig.cli import main
+from rig.fidelity import QUESTIONS
+
+
+def test_each_level_answers_what_it_can_and_the_answers_agree(tmp_path):
+    assert main(["-q", "bench", "fidelity", "-o", str(tmp_path)]) == 0
+    rows = list(csv.DictReader((tmp_path / "pin_insertion_fidelity.csv").open(encoding="utf-8")))
+    assert (tmp_path / "pin_insertion_fidelity.png").read_bytes().startswith(b"\x89PNG")
+    answer = {(int(r["level"]), r["question"]): r["answer"] for r in rows}
+    for (level, question), value in answer.items():
+        assert (value != "") == (QUESTIONS["cam_bar"][question] <= level), (level, question)
+    assert float(answer[0, "stroke"]) == pytest.approx(42.0, abs=1e-9)          # the cam program's stroke, mm
+    assert float(answer[2, "stroke"]) == pytest.approx(42.0, abs=0.01)          # + the groove play, µm scale
+    assert float(answer[2, "rod_force"]) == pytest.approx(float(answer[1, "rod_force"]), rel=0.01)
+    assert float(answer[1, "flank_switches"]) == float(answer[2, "flank_switches"]) == 0.0   # 1.89 N/mm, 150 rpm
+    assert 0.0 <= float(answer[2, "dwell_vibration"]) < 1.0                    # µm: the spring holds the roller
+    assert all(float(r["wall_s_per_s"]) > 0 for r in rows)
