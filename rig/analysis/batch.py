@@ -1,7 +1,7 @@
 """Batch analysis: many recordings on an executor → one table (a row per recording) and one report
 (``rig analyse``).
 
-Each recording is a task: read with :func:`rig.recorder.read_recording` and analysed with
+Recordings are grouped into tasks (about 8 per worker); each is read with :func:`rig.recorder.read_recording` and analysed with
 :func:`rig.analysis.analyse` on a worker; only a small summary comes back (verdict counts, event counts and,
 per program and process value, the moments of every curve's value in display units). The combined
 statistics over all recordings merge those moments (:class:`rig.analysis.streaming.Moments`, in the order
@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from rig.analysis.streaming import Moments
+from rig.executors import batches
 
 if TYPE_CHECKING:
     from rig.executors import Executor
@@ -87,6 +88,11 @@ def summarise(path: Path) -> RecordingSummary:
                             dict(result["events"]))
 
 
+def summarise_all(paths: list[Path]) -> list[RecordingSummary]:
+    """:func:`summarise` of several recordings (one executor task: a short recording takes ~0.1 s)."""
+    return [summarise(p) for p in paths]
+
+
 @dataclass(frozen=True)
 class BatchResult:
     """Every recording's summary (in the order given) and the process values merged over all of them."""
@@ -98,7 +104,7 @@ class BatchResult:
 def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
     """:func:`summarise` every path on ``executor``; merge the process values in path order (units must
     agree)."""
-    rows = list(executor.map(summarise, paths))
+    rows = [row for part in executor.map(summarise_all, batches(list(paths), executor.workers)) for row in part]
     combined: dict[str, tuple[Moments, str]] = {}
     for row in rows:
         for key, (m, unit) in row.values.items():

@@ -9,8 +9,9 @@ never changes. Results come back in task order; a task's result must depend only
 from __future__ import annotations
 
 import importlib
+import math
 from abc import ABC, abstractmethod
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 #: executor name -> (module, class), imported on use (Dask only when asked for)
 EXECUTORS: dict[str, tuple[str, str]] = {
@@ -42,6 +43,13 @@ class Executor(ABC):
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def batches(items: Sequence[Any], workers: int, per_worker: int = 8) -> list[list[Any]]:
+    """``items`` in consecutive groups, about ``per_worker`` groups per worker: one task per group when single
+    items are too small for a task (use only where an item's result does not depend on its group)."""
+    size = max(1, math.ceil(len(items) / (per_worker * workers)))
+    return [list(items[i:i + size]) for i in range(0, len(items), size)]
 
 
 def default_name(workers: int, scheduler: str | None) -> str:

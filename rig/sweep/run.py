@@ -1,4 +1,4 @@
-"""Running a sweep: grid points grouped into tasks on an executor, rows back in grid order, a CSV table.
+"""Running a sweep: grid points grouped into tasks (about 8 per worker), rows back in grid order, a CSV table.
 
 A point's result depends on the point only, so the grouping (which follows the number of workers) cannot
 change it."""
@@ -10,14 +10,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
+from rig.executors import batches
 from rig.scene import Scene, SceneError
 from rig.sweep import Param, grid, with_overrides
 from rig.sweep.metrics import METRICS, check_metrics, run_plant
 
 if TYPE_CHECKING:
     from rig.executors import Executor
-
-TASKS_PER_WORKER = 8  # points are grouped into about this many tasks per worker (balance vs. per-task overhead)
 
 
 @dataclass(frozen=True)
@@ -73,9 +72,7 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
              for point in points]
     first = with_overrides(scene, tasks[0].overrides)             # a bad key fails here, named
     make_plant(read_config(first).plant, first, nominal=True)
-    size = max(1, math.ceil(len(tasks) / (TASKS_PER_WORKER * executor.workers)))
-    results = [r for part in executor.map(run_points, [tasks[i:i + size] for i in range(0, len(tasks), size)])
-               for r in part]
+    results = [r for part in executor.map(run_points, batches(tasks, executor.workers)) for r in part]
     return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results])
 
 

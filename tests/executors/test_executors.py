@@ -106,3 +106,12 @@ def test_local_worker_processes_listen_on_loopback_only():
         listening = {c.laddr.ip for c in psutil.net_connections("inet") if c.status == "LISTEN" and c.pid in pids}
         assert listening == {"127.0.0.1"} and len(tree) >= 2          # a nanny/worker process beside this one
         assert list(ex.map(_slow_square, range(3))) == [0, 1, 4]
+
+
+def test_batches_keep_every_item_in_order():
+    from rig.executors import batches
+    items = list(range(101))
+    for workers in (1, 2, 7):
+        groups = batches(items, workers)
+        assert [x for g in groups for x in g] == items and len(groups) <= 8 * workers
+    assert batches([1, 2, 3], 2) == [[1], [2], [3]] and batches([], 2) == []
