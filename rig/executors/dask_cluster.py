@@ -3,9 +3,10 @@
 ``dask``: ``distributed.LocalCluster`` with ``workers`` single-threaded workers as threads of this process
 (in-process transport; one process's memory; right for numpy/numba work that releases the GIL, like the
 Monte-Carlo kernels). ``dask-processes``: the workers as processes behind nannies, talking over 127.0.0.1
-(for tasks that hold the GIL; each worker process costs ~250 MB). Either way the only sockets are the HTTP
-status servers of scheduler and workers, on 127.0.0.1 at free ports (Dask's default would be every interface). With ``scheduler``: ``distributed.Client(address)`` of an existing cluster, whose workers need
-mechrig installed (tasks are functions of rig's modules).
+(for tasks that hold the GIL; each worker process costs ~250 MB). Either way every socket is on 127.0.0.1 at
+a free port, the HTTP status servers of scheduler and workers included (Dask's default would put those on every
+interface); no dashboard. With ``scheduler``: ``distributed.Client(address)`` of an existing cluster, whose
+workers need mechrig installed (tasks are functions of rig's modules).
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ class DaskExecutor(Executor):
         logging.getLogger("distributed").setLevel(logging.WARNING)   # its start/stop notices are no news
         self.cluster = None
         if scheduler is None:
-            where = {"host": "127.0.0.1"} if self.processes else {}   # threads: in-process transport, no socket
+            where = {"host": "127.0.0.1"} if self.processes else {}   # threads: in-process transport
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=self.processes,
                                         dashboard_address=LOOPBACK_HTTP, worker_dashboard_address=LOOPBACK_HTTP,
                                         silence_logs=logging.WARNING, **where)
