@@ -1,0 +1,79 @@
+"""Cardan (Hooke) joint at shaft angle α (MODELS §5): tan φ2 = tan φ1 / cos α,
+ω2/ω1 = cos α / (1 − sin²α cos²φ1); and the double joint in Z and W arrangements."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import cos, pi, sin
+
+import numpy as np
+
+ArrayLike = np.ndarray | float
+
+
+def _turns(phi: np.ndarray) -> np.ndarray:
+    """2π times the whole turns between ``phi`` and its principal value (keeps angles continuous)."""
+    return 2 * pi * np.round((phi - np.arctan2(np.sin(phi), np.cos(phi))) / (2 * pi))
+
+
+@dataclass(frozen=True)
+class Cardan:
+    """One joint; ``shaft_angle`` α (rad) between input and output shaft, 0 ≤ α < π/2. φ1 is measured from
+    the position where the input yoke lies in the plane of the two shafts."""
+
+    shaft_angle: float
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.shaft_angle < pi / 2:
+            raise ValueError(f"Cardan shaft_angle must lie in [0, 90°), got {np.degrees(self.shaft_angle):g}°")
+
+    def output_angle(self, phi1: ArrayLike) -> np.ndarray:
+        """φ2 (rad), continuous in φ1 (the same quadrant: tan φ2 = tan φ1 / cos α)."""
+        phi1 = np.asarray(phi1, dtype=float)
+        return np.arctan2(np.sin(phi1), np.cos(phi1) * cos(self.shaft_angle)) + _turns(phi1)
+
+    def input_angle(self, phi2: ArrayLike) -> np.ndarray:
+        """φ1 (rad) for an output angle φ2, continuous: tan φ1 = tan φ2 · cos α."""
+        phi2 = np.asarray(phi2, dtype=float)
+        return np.arctan2(np.sin(phi2) * cos(self.shaft_angle), np.cos(phi2)) + _turns(phi2)
+
+    def speed_ratio(self, phi1: ArrayLike) -> np.ndarray:
+        """ω2/ω1 = cos α / (1 − sin²α cos²φ1): between cos α and 1/cos α."""
+        c = np.cos(np.asarray(phi1, dtype=float))
+        return cos(self.shaft_angle) / (1.0 - sin(self.shaft_angle) ** 2 * c * c)
+
+    def acceleration(self, phi1: ArrayLike, omega1: float) -> np.ndarray:
+        """α2 = dω2/dt (rad/s²) at constant input speed ``omega1`` (rad/s): ω1² · d(ω2/ω1)/dφ1."""
+        phi1 = np.asarray(phi1, dtype=float)
+        s2a = sin(self.shaft_angle) ** 2
+        den = 1.0 - s2a * np.cos(phi1) ** 2
+        return -omega1 ** 2 * cos(self.shaft_angle) * s2a * np.sin(2 * phi1) / den ** 2
+
+
+@dataclass(frozen=True)
+class DoubleCardan:
+    """Two joints through an intermediate shaft, in the Z arrangement (input and output shafts parallel) or
+    the W arrangement (they meet), shaft angles ``angle1`` and ``angle2`` (rad). With the intermediate shaft's
+    two yokes in one plane its second joint works as the first one inverted, tan φ3 = tan φ2 · cos α2, so
+    φ3 = φ1 exactly when α1 = α2 (both arrangements: they differ in where the output shaft points, not in
+    the angle relation). ``yoke_offset`` δ (rad) turns the second yoke out of that plane (an assembly error):
+    tan(φ3 − δ) = tan(φ2 − δ) · cos α2, and the fluctuations no longer cancel."""
+
+    angle1: float
+    angle2: float
+    arrangement: str = "Z"
+    yoke_offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.arrangement not in ("Z", "W"):
+            raise ValueError(f"DoubleCardan arrangement must be 'Z' or 'W', got {self.arrangement!r}")
+        Cardan(self.angle1), Cardan(self.angle2)
+
+    def output_angle(self, phi1: ArrayLike) -> np.ndarray:
+        """φ3 (rad), continuous in φ1."""
+        phi2 = Cardan(self.angle1).output_angle(phi1)
+        return Cardan(self.angle2).input_angle(phi2 - self.yoke_offset) + self.yoke_offset
+
+    def speed_ratio(self, phi1: ArrayLike) -> np.ndarray:
+        """ω3/ω1 = (ω2/ω1) / (ω2/ω3 of the second joint at its angle φ3 − δ)."""
+        phi3 = self.output_angle(phi1)
+        return Cardan(self.angle1).speed_ratio(phi1) / Cardan(self.angle2).speed_ratio(phi3 - self.yoke_offset)

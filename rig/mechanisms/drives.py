@@ -1,0 +1,72 @@
+"""Belt, ratchet and friction-wheel drives (MODELS §5)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import exp, tan
+
+
+@dataclass(frozen=True)
+class Belt:
+    """Flat belt on a pulley: friction coefficient ``mu``, wrap angle ``wrap`` β (rad); ``slip`` (fraction,
+    1–3 % for flat belts) lowers the driven speed."""
+
+    mu: float
+    wrap: float
+    slip: float = 0.02
+
+    def __post_init__(self) -> None:
+        if not self.mu > 0 or not self.wrap > 0:
+            raise ValueError(f"Belt mu and wrap must be positive, got mu = {self.mu!r}, wrap = {self.wrap!r} rad")
+        if not 0 <= self.slip < 1:
+            raise ValueError(f"Belt slip is a fraction in [0, 1), got {self.slip!r}")
+
+    def tensions(self, force: float) -> tuple[float, float]:
+        """Tight- and slack-side tensions F1, F2 (N) transmitting the peripheral ``force`` F1 − F2 (N) at the
+        limit of sliding: F1 = F2 e^{μβ} (Euler–Eytelwein)."""
+        q = exp(self.mu * self.wrap)
+        return force * q / (q - 1), force / (q - 1)
+
+    def output_speed(self, input_speed: float, d1: float, d2: float) -> float:
+        """Driven pulley speed (rad/s) from the driving one for pulley diameters d1, d2 (m), with slip."""
+        return input_speed * d1 / d2 * (1 - self.slip)
+
+
+@dataclass(frozen=True)
+class Ratchet:
+    """Pawl on a tooth inclined at ``tooth_angle`` γ (rad) with friction ``mu``: it stays engaged
+    (self-locking) when tan γ > μ."""
+
+    tooth_angle: float
+    mu: float
+
+    @property
+    def self_locking(self) -> bool:
+        return tan(self.tooth_angle) > self.mu
+
+
+@dataclass(frozen=True)
+class FrictionWheels:
+    """Friction wheels of diameters ``d1`` (driving), ``d2`` (m), relative slip ``slip`` ξ, friction ``mu`` and
+    safety factor ``safety`` c against slipping: ratio i = (D2/D1)/(1 − ξ), pressing force Q = c·F_t/μ."""
+
+    d1: float
+    d2: float
+    mu: float
+    slip: float = 0.0
+    safety: float = 1.5
+
+    def __post_init__(self) -> None:
+        if not (self.d1 > 0 and self.d2 > 0 and self.mu > 0 and self.safety >= 1):
+            raise ValueError(f"FrictionWheels: diameters and mu must be positive and safety >= 1, got "
+                             f"d1 = {self.d1!r}, d2 = {self.d2!r}, mu = {self.mu!r}, safety = {self.safety!r}")
+        if not 0 <= self.slip < 1:
+            raise ValueError(f"FrictionWheels slip is a fraction in [0, 1), got {self.slip!r}")
+
+    @property
+    def ratio(self) -> float:
+        """i = ω1/ω2."""
+        return self.d2 / self.d1 / (1 - self.slip)
+
+    def pressing_force(self, tangential_force: float) -> float:
+        """Q (N) to carry the peripheral force F_t (N)."""
+        return self.safety * tangential_force / self.mu

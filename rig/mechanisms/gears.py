@@ -1,0 +1,97 @@
+"""Profile-shifted external spur gear pair (MODELS §5): inv α_w = inv α0 + 2(x1 + x2)/(z1 + z2)·tan α0,
+a = m(z1 + z2)/2 · cos α0 / cos α_w, and the usual diameters (ISO 21771 / DIN 3960 conventions, addendum
+coefficient 1, dedendum 1.25)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import acos, cos, pi, radians, sin, sqrt, tan
+from typing import NamedTuple
+
+from scipy.optimize import brentq
+
+
+def involute(alpha: float) -> float:
+    """inv α = tan α − α (rad)."""
+    return tan(alpha) - alpha
+
+
+def inverse_involute(value: float) -> float:
+    """α (rad) with inv α = ``value`` ≥ 0 (a root in [0, π/2))."""
+    if value < 0:
+        raise ValueError(f"the involute function is not negative on [0, 90°): inv α = {value!r}")
+    return brentq(lambda a: involute(a) - value, 0.0, pi / 2 - 1e-9, xtol=1e-15, rtol=1e-15)
+
+
+class GearGeometry(NamedTuple):
+    """Lengths in m, angles in rad. ``centre_distance_modification`` y·m = a − a0; ``tip_reduction`` k·m
+    (tooth-height reduction keeping the tip clearance); ``tooth_thickness`` on the reference circles."""
+
+    working_pressure_angle: float
+    centre_distance: float
+    reference_centre_distance: float
+    centre_distance_modification: float
+    tip_reduction: float
+    reference_diameters: tuple[float, float]
+    base_diameters: tuple[float, float]
+    working_diameters: tuple[float, float]
+    tip_diameters: tuple[float, float]
+    root_diameters: tuple[float, float]
+    tooth_thickness: tuple[float, float]
+    contact_ratio: float
+
+
+@dataclass(frozen=True)
+class SpurGearPair:
+    """Teeth ``z1``, ``z2``, ``module`` m (m), profile-shift coefficients ``x1``, ``x2``, ``pressure_angle``
+    α0 (rad, default 20°)."""
+
+    z1: int
+    z2: int
+    module: float
+    x1: float = 0.0
+    x2: float = 0.0
+    pressure_angle: float = radians(20.0)
+
+    def __post_init__(self) -> None:
+        for name in ("z1", "z2"):
+            z = getattr(self, name)
+            if isinstance(z, bool) or not isinstance(z, int) or z < 5:
+                raise ValueError(f"SpurGearPair {name} must be an integer number of teeth >= 5, got {z!r}")
+        if not self.module > 0:
+            raise ValueError(f"SpurGearPair module must be positive (m), got {self.module!r}")
+        if not 0 < self.pressure_angle < radians(45):
+            raise ValueError(f"SpurGearPair pressure_angle must lie in (0, 45°), got {self.pressure_angle!r} rad")
+        for z, x, name in ((self.z1, self.x1, "x1"), (self.z2, self.x2, "x2")):
+            x_min = 1.0 - z * sin(self.pressure_angle) ** 2 / 2     # no undercut: x ≥ 1 − z sin²α0 / 2
+            if x < x_min - 1e-12:
+                raise ValueError(f"SpurGearPair {name} = {x:g} undercuts the {z}-tooth gear (needs {name} >= "
+                                 f"{x_min:.3f})")
+
+    def geometry(self) -> GearGeometry:
+        """The pair's geometry; a pointed tooth tip or a contact ratio below 1 is a ValueError naming it."""
+        m, a0_ = self.module, self.pressure_angle
+        z1, z2, x1, x2 = self.z1, self.z2, self.x1, self.x2
+        aw = inverse_involute(involute(a0_) + 2 * (x1 + x2) / (z1 + z2) * tan(a0_))
+        a_ref = m * (z1 + z2) / 2
+        a = a_ref * cos(a0_) / cos(aw)
+        ym = a - a_ref
+        km = (x1 + x2) * m - ym                        # tip reduction keeping the tip clearance 0.25 m
+        d = (m * z1, m * z2)
+        db = tuple(di * cos(a0_) for di in d)
+        dw = (2 * a * z1 / (z1 + z2), 2 * a * z2 / (z1 + z2))
+        da = (d[0] + 2 * m * (1 + x1) - 2 * km, d[1] + 2 * m * (1 + x2) - 2 * km)
+        df = (d[0] - 2 * m * (1.25 - x1), d[1] - 2 * m * (1.25 - x2))
+        s = tuple(m * (pi / 2 + 2 * x * tan(a0_)) for x in (x1, x2))
+        for i, (z, x) in enumerate(((z1, x1), (z2, x2))):
+            alpha_a = acos(db[i] / da[i])                 # tooth thickness at the tip > 0
+            s_a = da[i] * (s[i] / d[i] + involute(a0_) - involute(alpha_a))
+            if s_a <= 0:
+                raise ValueError(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has a pointed tooth "
+                                 f"(tip thickness {s_a * 1e3:.3f} mm)")
+        pb = pi * m * cos(a0_)
+        path = sqrt(da[0] ** 2 - db[0] ** 2) / 2 + sqrt(da[1] ** 2 - db[1] ** 2) / 2 - a * sin(aw)
+        eps = path / pb
+        if eps < 1.0:
+            raise ValueError(f"SpurGearPair: contact ratio {eps:.3f} < 1 (the teeth lose mesh)")
+        return GearGeometry(aw, a, a_ref, ym, km, d, db, dw, da, df, s, eps)
+

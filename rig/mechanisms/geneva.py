@@ -1,0 +1,78 @@
+"""Geneva (Maltese-cross) drive with ``slots`` z and one pin (MODELS §5): crank radius R1 = L sin(π/z),
+λ = R1/L; during engagement tan φ2 = λ sin φ1 / (1 − λ cos φ1), ω2 = ω1 λ (cos φ1 − λ)/(1 − 2λ cos φ1 + λ²),
+φ1 measured from the crank's centre-line position (pin deepest in the slot); the wheel dwells outside."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import pi, sin, tau
+from typing import NamedTuple
+
+import numpy as np
+
+
+class GenevaMotion(NamedTuple):
+    """Wheel angle φ2 (rad, relative to the slot's centre line; held at the end value in the dwell),
+    velocity ω2 (rad/s) and acceleration α2 (rad/s²) at constant crank speed; ``engaged`` where the pin
+    drives."""
+
+    angle: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    engaged: np.ndarray
+
+
+class GenevaTiming(NamedTuple):
+    """Times (s) of one crank turn and their ratios: motion + dwell = period, k_m = (z − 2)/(2z)."""
+
+    motion_time: float
+    dwell_time: float
+    period: float
+    motion_ratio: float
+    dwell_ratio: float
+
+
+@dataclass(frozen=True)
+class Geneva:
+    """``slots`` z ≥ 3, ``centre_distance`` L (m) between crank and wheel axes."""
+
+    slots: int
+    centre_distance: float
+
+    def __post_init__(self) -> None:
+        if isinstance(self.slots, bool) or not isinstance(self.slots, int) or self.slots < 3:
+            raise ValueError(f"Geneva slots must be an integer >= 3 (a wheel with fewer slots cannot index), "
+                             f"got {self.slots!r}")
+        if not self.centre_distance > 0:
+            raise ValueError(f"Geneva centre_distance must be positive, got {self.centre_distance!r} m")
+
+    @property
+    def crank_radius(self) -> float:
+        """R1 = L sin(π/z) (m): the pin enters the slot tangentially."""
+        return self.centre_distance * sin(pi / self.slots)
+
+    @property
+    def engagement_half_angle(self) -> float:
+        """Crank angle (rad) from the centre line to the pin's entry: π/2 − π/z."""
+        return pi / 2 - pi / self.slots
+
+    def kinematics(self, phi1: np.ndarray | float, omega1: float = 1.0) -> GenevaMotion:
+        """Wheel motion at crank angles ``phi1`` (rad, 0 = centre line) for crank speed ``omega1`` (rad/s)."""
+        lam = sin(pi / self.slots)
+        phi = np.angle(np.exp(1j * np.asarray(phi1, dtype=float)))     # in (−π, π]
+        engaged = np.abs(phi) <= self.engagement_half_angle
+        c = np.cos(phi)
+        den = 1.0 - 2 * lam * c + lam * lam
+        angle = np.arctan2(lam * np.sin(phi), 1.0 - lam * c)
+        end = pi / self.slots
+        angle = np.where(engaged, angle, np.where(phi > 0, end, -end))
+        vel = np.where(engaged, omega1 * lam * (c - lam) / den, 0.0)
+        acc = np.where(engaged, -omega1 ** 2 * lam * (1 - lam * lam) * np.sin(phi) / den ** 2, 0.0)
+        return GenevaMotion(angle, vel, acc, engaged)
+
+    def timing(self, crank_speed: float) -> GenevaTiming:
+        """Motion and dwell times of one crank turn at ``crank_speed`` (rad/s)."""
+        if not crank_speed > 0:
+            raise ValueError(f"Geneva crank_speed must be positive (rad/s), got {crank_speed!r}")
+        period = tau / crank_speed
+        motion = 2 * self.engagement_half_angle / crank_speed
+        return GenevaTiming(motion, period - motion, period, motion / period, (period - motion) / period)

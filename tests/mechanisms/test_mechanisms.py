@@ -1,0 +1,167 @@
+"""The mechanism library against closed forms and identities (issue 16): Cardan extremes and mean ratio,
+double-Cardan cancellation, Geneva timing and kinematics, gear geometry consistency, mobility, Willis."""
+from __future__ import annotations
+
+from math import cos, degrees, pi, radians, tan
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from scipy.integrate import trapezoid
+
+from rig.mechanisms import (Belt, Cardan, DoubleCardan, FrictionWheels, Geneva, Ratchet, SpurGearPair, involute,
+                            inverse_involute, mobility, willis)
+
+TURN = np.linspace(0.0, 2 * pi, 200001)
+
+
+@pytest.mark.parametrize("alpha_deg", [0.0, 10.0, 30.0, 45.0, 60.0])
+def test_cardan_ratio_lies_between_cos_and_its_inverse_and_averages_one(alpha_deg):
+    c = Cardan(radians(alpha_deg))
+    r = c.speed_ratio(TURN)
+    assert r.min() == pytest.approx(cos(radians(alpha_deg)), rel=1e-12)
+    assert r.max() == pytest.approx(1 / cos(radians(alpha_deg)), rel=1e-9)
+    assert trapezoid(r, TURN) / (2 * pi) == pytest.approx(1.0, rel=1e-9)       # one output turn per input turn
+    phi2 = c.output_angle(TURN)
+    assert phi2[-1] - phi2[0] == pytest.approx(2 * pi, rel=1e-12)
+    assert np.allclose(np.tan(phi2[1:-1:997]) * cos(radians(alpha_deg)), np.tan(TURN[1:-1:997]), atol=1e-6,
+                       rtol=1e-9) or alpha_deg == 0
+    # speed ratio = dφ2/dφ1 and acceleration = ω1² d(ratio)/dφ1 (finite differences)
+    h = 1e-6
+    phi = np.linspace(0.1, 6.0, 37)
+    assert np.allclose((c.output_angle(phi + h) - c.output_angle(phi - h)) / (2 * h), c.speed_ratio(phi), atol=1e-8)
+    w1 = 15.0
+    assert np.allclose(w1 ** 2 * (c.speed_ratio(phi + h) - c.speed_ratio(phi - h)) / (2 * h),
+                       c.acceleration(phi, w1), rtol=1e-6, atol=1e-6)
+    assert np.allclose(c.input_angle(c.output_angle(TURN[::1001])), TURN[::1001], atol=1e-12)
+
+
+@pytest.mark.parametrize("arrangement", ["Z", "W"])
+def test_double_cardan_cancels_with_equal_angles_and_yokes_in_one_plane(arrangement):
+    equal = DoubleCardan(radians(25), radians(25), arrangement)
+    assert np.max(np.abs(equal.output_angle(TURN) - TURN)) < 1e-12
+    assert np.max(np.abs(equal.speed_ratio(TURN) - 1.0)) < 1e-12
+    unequal = DoubleCardan(radians(25), radians(15), arrangement)
+    misassembled = DoubleCardan(radians(25), radians(25), arrangement, yoke_offset=radians(90))
+    for d in (unequal, misassembled):
+        assert np.ptp(d.speed_ratio(TURN)) > 0.05
+        assert trapezoid(d.speed_ratio(TURN), TURN) / (2 * pi) == pytest.approx(1.0, rel=1e-9)
+    # a 90° yoke error doubles the single joint's fluctuation instead of cancelling it: cos²α .. 1/cos²α
+    r = misassembled.speed_ratio(TURN)
+    assert r.min() == pytest.approx(cos(radians(25)) ** 2, rel=1e-9)
+    assert r.max() == pytest.approx(1 / cos(radians(25)) ** 2, rel=1e-9)
+    with pytest.raises(ValueError, match="arrangement must be 'Z' or 'W'"):
+        DoubleCardan(0.1, 0.1, "X")
+
+
+@pytest.mark.parametrize("z", [3, 4, 5, 6, 8, 12])
+def test_geneva_timing_and_kinematics(z):
+    g = Geneva(z, 0.05)
+    t = g.timing(10.0)
+    assert t.motion_time + t.dwell_time == pytest.approx(t.period, rel=1e-15)
+    assert t.motion_ratio == pytest.approx((z - 2) / (2 * z), rel=1e-12)
+    assert t.dwell_ratio == pytest.approx(1 - (z - 2) / (2 * z), rel=1e-12)
+    phi = np.linspace(-pi, pi, 400001)
+    m = g.kinematics(phi, 1.0)
+    engaged = m.engaged
+    # the wheel turns one slot pitch per crank turn: ∫ω2 dφ1 = 2π/z, and the angle goes from −π/z to π/z
+    assert trapezoid(m.velocity, phi) == pytest.approx(2 * pi / z, rel=1e-6)
+    assert m.angle[engaged].min() == pytest.approx(-pi / z, abs=1e-4) and m.angle[-1] == pytest.approx(pi / z)
+    # the pin enters and leaves tangentially: no speed jump at the ends of engagement
+    assert np.max(np.abs(m.velocity[engaged][[0, -1]])) < 1e-4
+    # velocity and acceleration are the derivatives (finite differences inside the engagement)
+    inner = np.flatnonzero(engaged)[5:-5:1000]
+    assert np.allclose(np.gradient(m.angle, phi)[inner], m.velocity[inner], rtol=1e-5, atol=1e-8)
+    assert np.allclose(np.gradient(m.velocity, phi)[inner], m.acceleration[inner], rtol=1e-4, atol=1e-6)
+    assert np.all(m.velocity[~engaged] == 0.0) and np.all(m.acceleration[~engaged] == 0.0)
+    assert g.crank_radius == pytest.approx(0.05 * np.sin(pi / z))
+
+
+def test_geneva_of_the_student_project():
+    """z = 5, L = 50 mm, driven from 1140 rpm through 34/80: the crank turns at 484.5 rpm."""
+    crank = 1140 * 34 / 80 * 2 * pi / 60
+    t = Geneva(5, 0.050).timing(crank)
+    assert t.period == pytest.approx(60 / 484.5, rel=1e-12)
+    assert t.motion_time == pytest.approx(0.3 * 60 / 484.5, rel=1e-12)
+
+
+@pytest.mark.parametrize("bad, message", [((2, 0.05), "slots must be an integer >= 3"),
+                                          ((5, 0.0), "centre_distance must be positive")])
+def test_geneva_refuses_impossible_input(bad, message):
+    with pytest.raises(ValueError, match=message):
+        Geneva(*bad)
+
+
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@given(st.floats(radians(1), radians(60)))
+def test_inverse_involute_inverts(alpha):
+    """Pressure angles of real gears (inv α ≈ α³/3 cancels in floating point below ~1°)."""
+    assert inverse_involute(involute(alpha)) == pytest.approx(alpha, abs=1e-10)
+
+
+def test_gear_pair_of_the_student_project_is_consistent():
+    pair = SpurGearPair(34, 80, 4.5e-3, 0.98, 1.81)
+    g = pair.geometry()
+    a0, aw = radians(20), g.working_pressure_angle
+    # the working pressure angle solves the involute equation and fixes the centre distance: a cos αw = a0 cos α0
+    assert involute(aw) == pytest.approx(involute(a0) + 2 * (0.98 + 1.81) / 114 * tan(a0), rel=1e-12)
+    assert g.centre_distance * cos(aw) == pytest.approx(g.reference_centre_distance * cos(a0), rel=1e-12)
+    assert g.reference_centre_distance == pytest.approx(0.2565)
+    assert sum(g.working_diameters) / 2 == pytest.approx(g.centre_distance, rel=1e-12)
+    assert g.working_diameters[0] * cos(aw) == pytest.approx(g.base_diameters[0], rel=1e-12)
+    # tip clearance kept at 0.25 m: a = (da1 + df2)/2 + 0.25 m
+    assert (g.tip_diameters[0] + g.root_diameters[1]) / 2 + 0.25 * 4.5e-3 == pytest.approx(g.centre_distance, rel=1e-12)
+    assert 1.0 < g.contact_ratio < 2.0
+    assert degrees(aw) == pytest.approx(25.70, abs=0.01)
+
+
+def test_unshifted_gears_have_the_standard_geometry_and_contact_ratio():
+    g = SpurGearPair(20, 40, 2e-3).geometry()
+    assert g.working_pressure_angle == pytest.approx(radians(20), abs=1e-12)
+    assert g.centre_distance == pytest.approx(0.060, rel=1e-12) and g.tip_reduction == pytest.approx(0, abs=1e-15)
+    assert g.tip_diameters == pytest.approx((0.044, 0.084)) and g.root_diameters == pytest.approx((0.035, 0.075))
+    # textbook value for 20/40 teeth, 20°: ε ≈ 1.64
+    assert g.contact_ratio == pytest.approx(1.64, abs=0.01)
+
+
+def test_gears_refuse_undercut_and_bad_input():
+    with pytest.raises(ValueError, match=r"x1 = 0 undercuts the 12-tooth gear \(needs x1 >= 0.298\)"):
+        SpurGearPair(12, 40, 2e-3)
+    with pytest.raises(ValueError, match="module must be positive"):
+        SpurGearPair(20, 40, 0.0)
+    with pytest.raises(ValueError, match="pointed tooth"):
+        SpurGearPair(12, 40, 2e-3, 1.5, 0.0).geometry()
+
+
+def test_mobility_of_the_course_examples():
+    assert mobility(4, 4, 0) == 1                        # four-bar linkage
+    assert mobility(4, 4, 0) == mobility(4, 4, 0, 0, 0)  # slider-crank has the same count
+    assert mobility(3, 2, 1) == 1                        # cam with a flat-faced follower
+    assert mobility(4, 3, 1, redundant=1) == 1           # roller follower: the roller's spin is an idle motion
+    assert mobility(5, 5, 0) == 2                        # five-bar linkage
+    assert mobility(5, 6, 0, passive=-1) == 1            # parallelogram with a redundant (passive) link
+    with pytest.raises(ValueError, match="n counts the frame"):
+        mobility(0, 0, 0)
+
+
+def test_willis_planetary_and_differential():
+    # planetary, ring held (n3 = 0), sun 30 teeth, ring 90: i0 = −90/30 = −3 → carrier = n1/4
+    out = willis(n1=1000.0, n3=0.0, carrier=None, ratio=-3.0)
+    assert out["carrier"] == pytest.approx(250.0)
+    assert willis(n1=None, n3=0.0, carrier=250.0, ratio=-3.0)["n1"] == pytest.approx(1000.0)
+    # car differential (i0 = −1): the carrier turns at the mean of the wheels
+    assert willis(n1=110.0, n3=90.0, carrier=None, ratio=-1.0)["carrier"] == pytest.approx(100.0)
+    with pytest.raises(ValueError, match="exactly two"):
+        willis(1.0, None, None, -1.0)
+
+
+def test_belt_ratchet_and_friction_wheels():
+    belt = Belt(0.3, pi)
+    f1, f2 = belt.tensions(500.0)
+    assert f1 - f2 == pytest.approx(500.0) and f1 / f2 == pytest.approx(np.exp(0.3 * pi))
+    assert belt.output_speed(100.0, 0.1, 0.2) == pytest.approx(49.0)
+    assert Ratchet(radians(20), 0.15).self_locking and not Ratchet(radians(5), 0.15).self_locking
+    w = FrictionWheels(0.1, 0.3, 0.4, slip=0.02, safety=1.5)
+    assert w.ratio == pytest.approx(3 / 0.98) and w.pressing_force(100.0) == pytest.approx(375.0)
+    with pytest.raises(ValueError, match="slip is a fraction"):
+        Belt(0.3, pi, slip=1.5)
