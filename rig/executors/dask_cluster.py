@@ -4,9 +4,10 @@
 (in-process transport; one process's memory; right for numpy/numba work that releases the GIL, like the
 Monte-Carlo kernels). ``dask-processes``: the workers as processes behind nannies, talking over 127.0.0.1
 (for tasks that hold the GIL; each worker process costs ~250 MB). Either way every socket is on 127.0.0.1 at
-a free port, the HTTP status servers of scheduler and workers included (Dask's default would put those on every
-interface); no dashboard. With ``scheduler``: ``distributed.Client(address)`` of an existing cluster, whose
-workers need mechrig installed (tasks are functions of rig's modules).
+a free port, the HTTP status servers of scheduler and workers included (Dask's default would put those on
+every interface); the scheduler's dashboard is off (a worker's would need bokeh, which rig does not install).
+With ``scheduler``: ``distributed.Client(address)`` of an existing cluster, whose workers need mechrig
+installed (tasks are functions of rig's modules).
 """
 from __future__ import annotations
 
@@ -36,7 +37,8 @@ class DaskExecutor(Executor):
             where = {"host": "127.0.0.1"} if self.processes else {}   # threads: in-process transport
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=self.processes,
                                         dashboard_address=LOOPBACK_HTTP, worker_dashboard_address=LOOPBACK_HTTP,
-                                        silence_logs=logging.WARNING, **where)
+                                        scheduler_kwargs={"dashboard": False}, silence_logs=logging.WARNING,
+                                        **where)
             self.client = Client(self.cluster, set_as_default=False)
         else:
             try:
