@@ -11,7 +11,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping, TypeVar
 
 from rig.units import UnitError, to_si
 
@@ -87,6 +87,24 @@ def _match(key: str, schema: Mapping[str, Field]) -> tuple[str, str | None] | No
     if best is None or schema[best].unit is None:
         return None
     return best, key[len(best) + 1:]
+
+
+T = TypeVar("T")
+
+
+def read_subtable(table: Any, schema: Mapping[str, Field], where: str, name: str, build: Callable[[dict], T],
+                  default: T) -> T:
+    """An optional sub-table ``[<section>.<name>]``: ``default`` when absent, else ``build`` of its checked values
+    (SI); a ValueError of ``build`` becomes a :class:`SceneError` naming ``where``."""
+    if table is None:
+        return default
+    if not isinstance(table, dict):
+        raise SceneError(f"{where}: '{name}' must be a table ([...{name}])")
+    values = read_table(table, schema, where)
+    try:
+        return build(values)
+    except ValueError as exc:
+        raise SceneError(f"{where}: {exc}") from None
 
 
 def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str,

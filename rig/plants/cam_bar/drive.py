@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from rig.scene import Field, SceneError, read_table
+from rig.scene import Field, read_subtable
 
 STARTS = {"rest": 0, "running": 1}
 SCHEMA = {
@@ -68,12 +68,4 @@ class CamDrive:
 
 def read_drive(table: Any, where: str) -> CamDrive | None:
     """A :class:`CamDrive` from a ``[plant.drive]`` table (``None``: no drive, the speed profile turns the cam)."""
-    if table is None:
-        return None
-    if not isinstance(table, dict):
-        raise SceneError(f"{where}: 'drive' must be a table ([plant.drive])")
-    v = read_table(table, SCHEMA, where)
-    try:
-        return CamDrive(**{**v, "start": str(v["start"])})
-    except ValueError as exc:
-        raise SceneError(f"{where}: {exc}") from None
+    return read_subtable(table, SCHEMA, where, "drive", lambda v: CamDrive(**{**v, "start": str(v["start"])}), None)

@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from rig.scene import Field, SceneError, read_table
+from rig.scene import Field, read_subtable
 
 MODELS = {"regularised": 0, "stick": 1}     # codes of the compiled kernel (level2_kernel.GUIDE_MODEL)
 SCHEMA = {
@@ -60,12 +60,5 @@ class GuideFriction:
 
 def read_guide(table: Any, where: str) -> GuideFriction:
     """A :class:`GuideFriction` from a ``[plant.guide]`` table (``None``: the regularised default)."""
-    if table is None:
-        return GuideFriction()
-    if not isinstance(table, dict):
-        raise SceneError(f"{where}: 'guide' must be a table ([plant.guide])")
-    v = read_table(table, SCHEMA, where)
-    try:
-        return GuideFriction(str(v["model"]), v["static"], v["stick_speed"], v["relax_time"])
-    except ValueError as exc:
-        raise SceneError(f"{where}: {exc}") from None
+    return read_subtable(table, SCHEMA, where, "guide", lambda v: GuideFriction(
+        str(v["model"]), v["static"], v["stick_speed"], v["relax_time"]), GuideFriction())

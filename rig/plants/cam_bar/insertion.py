@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from rig.scene import Field, SceneError, read_table
+from rig.scene import Field, read_subtable
 
 LAWS = {"bump": 0, "step": 1}      # codes of the compiled kernel (level2_kernel.INS_LAW)
 SCHEMA = {
@@ -75,12 +75,5 @@ class InsertionLaw:
 
 def read_insertion(table: Any, where: str) -> InsertionLaw:
     """An :class:`InsertionLaw` from a ``[plant.insertion]`` table (``None``: the default bump)."""
-    if table is None:
-        return InsertionLaw()
-    if not isinstance(table, dict):
-        raise SceneError(f"{where}: 'insertion' must be a table ([plant.insertion])")
-    v = read_table(table, SCHEMA, where)
-    try:
-        return InsertionLaw(str(v["law"]), v["build_up"], v["release"])
-    except ValueError as exc:
-        raise SceneError(f"{where}: {exc}") from None
+    return read_subtable(table, SCHEMA, where, "insertion",
+                         lambda v: InsertionLaw(str(v["law"]), v["build_up"], v["release"]), InsertionLaw())

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from rig.scene import Field, SceneError, read_table
+from rig.scene import Field, read_subtable
 
 SCHEMA = {
     "follower": Field("m", 0.0, "diametral clearance of the rod's pin at the follower (C)"),
@@ -50,11 +50,4 @@ class JointClearance:
 
 def read_joints(table: Any, where: str) -> JointClearance | None:
     """A :class:`JointClearance` from a ``[plant.joints]`` table (``None``: rigid joints)."""
-    if table is None:
-        return None
-    if not isinstance(table, dict):
-        raise SceneError(f"{where}: 'joints' must be a table ([plant.joints])")
-    try:
-        return JointClearance(**read_table(table, SCHEMA, where))
-    except ValueError as exc:
-        raise SceneError(f"{where}: {exc}") from None
+    return read_subtable(table, SCHEMA, where, "joints", lambda v: JointClearance(**v), None)
