@@ -19,7 +19,8 @@ MCAP_MAGIC, PNG_MAGIC, JSON_START = b"\x89MCAP", b"\x89PNG\r\n\x1a\n", b"{"
 # Commands kept in their own packages (python-can style plugins): each module has
 # ``register(sub, parents)`` adding its subparser(s) with ``set_defaults(func=...)``; heavy imports stay
 # inside the command functions so ``rig --help`` stays fast.
-COMMAND_MODULES: tuple[str, ...] = ("rig.bench.cli", "rig.sweep.cli", "rig.analysis.batch_cli")
+COMMAND_MODULES: tuple[str, ...] = ("rig.bench.cli", "rig.sweep.cli", "rig.analysis.batch_cli",
+                                     "rig.cam_design_cli")
 
 
 class UsageError(Exception):

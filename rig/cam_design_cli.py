@@ -1,0 +1,40 @@
+"""``rig cam-design [SCENE]``: the cam-design checks of a cam-bar scene against their limits, and a chart.
+
+Kept outside :mod:`rig.mechanisms` so that ``rig --help`` does not import numpy; the work happens in
+:mod:`rig.mechanisms.cam.design`.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "data" / "scenes" / "pin_insertion.toml"
+
+
+def cmd_cam_design(args: argparse.Namespace) -> int:
+    from rig.mechanisms.cam.design import design_checks, format_checks, mechanism_from_scene, plot_design
+    options = {} if args.sigma_allow is None else {"sigma_allow": args.sigma_allow * 1e6}
+    if args.load_coefficient is not None:
+        options["load_coefficient"] = args.load_coefficient
+    mech = mechanism_from_scene(args.scene)
+    design = design_checks(mech, high_speed=not args.low_speed, **options)
+    print(f"cam design checks for {args.scene}")
+    print(format_checks(design))
+    print(f"chart: {plot_design(design, args.output)}")
+    return 0 if all(c.ok for c in design.checks) else 1
+
+
+def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``rig cam-design`` to the ``rig`` parser."""
+    p = sub.add_parser("cam-design", parents=parents,
+                       help="cam checks (pressure angle, undercut, Hertz, sizing, cusps, synthesis) and chart")
+    p.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),
+                   help="cam-bar scene (default data/scenes/pin_insertion.toml)")
+    p.add_argument("--low-speed", action="store_true",
+                   help="oscillating follower at low speed: pressure-angle limit 45° instead of 30°")
+    p.add_argument("--sigma-allow", type=float, metavar="MPA",
+                   help="permissible Hertz stress (MPa; default 1200, an assumption for hardened steel)")
+    p.add_argument("--load-coefficient", type=float, metavar="Q/F",
+                   help="load coefficient Φ_L of the H/h optimum (default 0.5, an assumption)")
+    p.add_argument("-o", "--output", default="out/cam_design.png", help="chart PNG (default out/cam_design.png)")
+    p.set_defaults(func=cmd_cam_design)

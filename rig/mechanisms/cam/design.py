@@ -1,0 +1,207 @@
+"""Cam-design checks of the pin-insertion mechanism (MODELS §2, §3.6): each with its value, limit and verdict.
+
+Pressure angle and contact force come from the level-1 kinetostatics at the nominal speed with the mounted
+spring; curvature from the pitch curve (:mod:`.pitch`); Hertz stress on the flank that carries the load.
+The translating-follower sizing (Flocke, guide, H/h) is applied to the program's first rise as a design
+alternative, and so is an oscillating flat-faced follower on the same follower swing. Series synthesis
+inverts the follower–rod–slider chain (an offset slider-crank) for the programmed slider law.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from math import degrees, radians, tau
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rig.mechanisms.cam.flat_follower import FlatFollower
+from rig.mechanisms.cam.hertz import STEEL_E, STEEL_NU, effective_modulus, hertz_line_stress
+from rig.mechanisms.cam.limits import pressure_angle_limit, undercut_radius
+from rig.mechanisms.cam.pitch import flank_radius, pitch_curve
+from rig.mechanisms.cam.sizing import SizeModel, exact_base_radius, flocke_base_radius, pressure_angles
+from rig.mechanisms.cam.synthesis import SliderCrank, round_trip_error, synthesize
+from rig.motion.registry import get_law
+
+if TYPE_CHECKING:
+    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+
+SIGMA_ALLOW = 1200e6        # Pa, assumption: permissible contact stress of a hardened steel cam (no source value)
+LOAD_COEFFICIENT = 0.5      # Φ_L = Q/F for the H/h optimum, assumption (no source value)
+ROUND_TRIP_TOL = 1e-10
+
+
+@dataclass(frozen=True)
+class Check:
+    """One row: ``value`` and ``limit`` in display units ``unit``; ``relation`` '≤' or '≥', or 'info' for a
+    figure compared with the limit but not a verdict; ``note`` says how."""
+
+    name: str
+    value: float
+    limit: float
+    unit: str
+    relation: str
+    note: str = ""
+
+    @property
+    def ok(self) -> bool:
+        if self.relation == "info":
+            return True
+        return bool(self.value <= self.limit if self.relation == "≤" else self.value >= self.limit)
+
+
+@dataclass
+class CamDesign:
+    """Curves over one revolution (SI, rad) and the check rows."""
+
+    phi: np.ndarray
+    pressure_angle: np.ndarray
+    pressure_limit: float
+    rho: np.ndarray
+    undercut: float
+    sigma_h: np.ndarray
+    sigma_allow: float
+    checks: list[Check] = field(default_factory=list)
+
+
+def mechanism_from_scene(path: str | Path) -> "PinInsertionMechanism":
+    """The adapter: a scene file → :class:`PinInsertionMechanism` (its [plant] and [speed])."""
+    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+    from rig.scene import load_scene
+    return PinInsertionMechanism.from_scene(load_scene(path))
+
+
+def _first_rise(mech: "PinInsertionMechanism"):
+    for seg in mech.program.segments:
+        if seg.kind == "rise":
+            return seg
+    raise ValueError("the cam program has no rise")
+
+
+def design_checks(mech: "PinInsertionMechanism", high_speed: bool = True, n: int = 3600,
+                  sigma_allow: float = SIGMA_ALLOW, load_coefficient: float = LOAD_COEFFICIENT,
+                  E: float = STEEL_E, nu: float = STEEL_NU) -> CamDesign:
+    """All checks for ``mech`` over ``n`` cam angles; ``high_speed`` picks the 30° (else 45°) limit."""
+    phi = np.linspace(0.0, tau, n, endpoint=False)
+    ks = mech.kinetostatics(phi)
+    pc = pitch_curve(mech, phi)
+    a_lim = pressure_angle_limit("oscillating", high_speed)
+    cut = undercut_radius(mech.r_R)
+    working = ks.R23n >= 0.0
+    sigma = hertz_line_stress(ks.R23n, mech.roller_width, mech.r_R, flank_radius(pc.rho, mech.r_R, working),
+                              effective_modulus(E, nu, E, nu))
+    out = CamDesign(phi, ks.pressure_angle, a_lim, pc.rho, cut, sigma, sigma_allow)
+    c = out.checks
+    i = int(np.argmax(ks.pressure_angle))
+    c.append(Check("max pressure angle", degrees(ks.pressure_angle[i]), degrees(a_lim), "°", "≤",
+                   f"at φ = {degrees(phi[i]):.1f}°, oscillating follower, {'high' if high_speed else 'low'} speed"))
+    convex = pc.rho > 0.0
+    i = int(np.argmin(np.where(convex, pc.rho, np.inf)))
+    c.append(Check("min convex pitch radius", pc.rho[i] * 1e3, cut * 1e3, "mm", "≥",
+                   f"at φ = {degrees(phi[i]):.1f}°, undercut limit r_R/0.7, r_R = {mech.r_R * 1e3:g} mm"))
+    if not convex.all():
+        i = int(np.argmin(np.where(convex, np.inf, -pc.rho)))
+        c.append(Check("min concave pitch radius", -pc.rho[i] * 1e3, cut * 1e3, "mm", "≥",
+                       f"at φ = {degrees(phi[i]):.1f}°, outer flank of the groove"))
+    i = int(np.argmax(sigma))
+    c.append(Check("max Hertz stress", sigma[i] / 1e6, sigma_allow / 1e6, "MPa", "≤",
+                   f"at φ = {degrees(phi[i]):.1f}°, |R23| = {abs(ks.R23n[i]):.1f} N on the "
+                   f"{'working' if working[i] else 'outer'} flank, width {mech.roller_width * 1e3:g} mm, steel "
+                   f"E = {E / 1e9:g} GPa, ν = {nu:g} (assumptions)"))
+    c.extend(_sizing_checks(mech, load_coefficient))
+    c.append(_flat_follower_check(mech, phi, pc))
+    c.append(_synthesis_check(mech, phi))
+    return out
+
+
+def _sizing_checks(mech: "PinInsertionMechanism", load: float) -> list[Check]:
+    seg = _first_rise(mech)
+    law, h, big_phi = get_law(seg.law), seg.stroke, seg.angle
+    a_lim = pressure_angle_limit("translating")
+    rf = flocke_base_radius(law, h, big_phi, a_lim)
+    re = exact_base_radius(law, h, big_phi, a_lim)
+    what = f"centric translating roller follower on the rise ({seg.law}, h = {h * 1e3:g} mm, Φ = {degrees(big_phi):g}°)"
+    rows = [Check("Flocke base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, rf).max()),
+                  degrees(a_lim), "°", "info", f"r_b = {rf * 1e3:.2f} mm for {what}: evaluated at s'_max it is too small"),
+            Check("exact base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, re).max()),
+                  degrees(a_lim), "°", "≤", f"r_b = {re * 1e3:.2f} mm (max over the rise, not at s'_max)")]
+    model = SizeModel(law, big_phi, mech.mu, load)
+    opt = model.optimum()
+    rows.append(Check("optimum pressure angle (dH/dα = 0)", degrees(opt.alpha), degrees(model.alpha_lock), "°", "≤",
+                      f"H/h = {opt.total:.4f}, r_b/h = {opt.base:.4f}, b/h = {opt.guide:.4f} (μ = {mech.mu:g}, "
+                      f"Φ_L = {load:g}); limit: self-locking angle"))
+    rows.append(Check("optimum: centric base radius r_b/h", opt.base, 0.0, "", "≥",
+                      "a negative value means the formula is outside its range at this α"))
+    return rows
+
+
+def _flat_follower_check(mech: "PinInsertionMechanism", phi: np.ndarray, pc) -> Check:
+    """The same follower swing on an oscillating flat-faced follower: R_b,min without cusps vs this cam."""
+    st = mech.state(phi)
+    r_top = float(st.r[np.argmax(st.s)])
+    sign = 1.0 if r_top >= st.r[np.argmin(st.s)] else -1.0  # lift = swing that moves the follower outwards
+    psi_low = float(st.psi[np.argmin(st.s)])
+
+    def law(f: np.ndarray):
+        s = mech.state(f)
+        return sign * (s.psi - psi_low), sign * s.psi_p, sign * s.psi_pp
+
+    pivot = float(np.hypot(mech.x_A0, mech.y_A0))
+    rb_min = FlatFollower(pivot, 0.0, law).min_base_radius(phi)
+    rb_cam = float(np.min(np.hypot(pc.x, pc.y))) - mech.r_R
+    return Check("flat-faced follower: base radius", rb_cam * 1e3, rb_min * 1e3, "mm", "≥",
+                 f"present cam's smallest profile radius vs the cusp-free minimum for the same swing "
+                 f"(A = {pivot * 1e3:.2f} mm, e = 0)")
+
+
+def _synthesis_check(mech: "PinInsertionMechanism", phi: np.ndarray) -> Check:
+    st = mech.state(phi)
+    crank = SliderCrank(mech.L3, mech.l4, mech.e_sk, mech.chain.rod_side)
+    x = mech.s0 - st.s
+    law = synthesize(crank, x, -st.s_p, -st.s_pp)
+    dpsi = float(np.max(np.abs(np.angle(np.exp(1j * (law.q - st.psi))))))
+    return Check("series synthesis round trip", round_trip_error(crank, law, x) * 1e3, ROUND_TRIP_TOL * 1e3, "mm",
+                 "≤", f"slider law → follower law (slider-crank L3/l4/e_sk) → slider law; follower law vs the "
+                      f"chain: max |Δψ| = {degrees(dpsi):.2e}°")
+
+
+def format_checks(design: CamDesign) -> str:
+    """Table: check, value, limit, unit, PASS/FAIL, note."""
+    lines = [f"{'check':<42} {'value':>11} {'':4} {'limit':>11} {'unit':<4} {'':4}  note"]
+    for ch in design.checks:
+        verdict = "info" if ch.relation == "info" else "PASS" if ch.ok else "FAIL"
+        rel = "vs" if ch.relation == "info" else ch.relation
+        lines.append(f"{ch.name:<42} {ch.value:11.5g} {rel:^4} {ch.limit:11.5g} {ch.unit:<4} {verdict:4}  {ch.note}")
+    return "\n".join(lines)
+
+
+def plot_design(design: CamDesign, path: str | Path) -> Path:
+    """PNG: pressure angle with its limit, pitch-curve radius with the undercut limit, Hertz stress."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    deg = np.degrees(design.phi)
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 8))
+    axes[0].plot(deg, np.degrees(design.pressure_angle))
+    axes[0].axhline(degrees(design.pressure_limit), color="r", ls="--", label="limit")
+    axes[0].set_ylabel("pressure angle (°)")
+    rho = np.clip(design.rho * 1e3, -300.0, 300.0)
+    axes[1].plot(deg, rho, label="ρ pitch curve (clipped ±300)")
+    for sgn in (1, -1):
+        axes[1].axhline(sgn * design.undercut * 1e3, color="r", ls="--", label="±r_R/0.7" if sgn > 0 else None)
+    axes[1].set_ylabel("ρ (mm)")
+    axes[2].plot(deg, design.sigma_h / 1e6)
+    axes[2].axhline(design.sigma_allow / 1e6, color="r", ls="--", label="permissible (assumed)")
+    axes[2].set_ylabel("σ_H (MPa)")
+    for ax in axes:
+        ax.grid(True)
+        ax.legend(loc="best", fontsize=8)
+    axes[-1].set_xlabel("cam angle φ (°)")
+    fig.suptitle("cam design checks")
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
