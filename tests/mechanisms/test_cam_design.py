@@ -1,0 +1,212 @@
+"""Cam design (rig.mechanisms.cam): closed forms, hand values and independent computations."""
+from __future__ import annotations
+
+from math import asin, pi, radians, sin, sqrt
+
+import numpy as np
+import pytest
+
+from rig.mechanisms.cam import (DoubleSlider, FlatFollower, FourBar, SizeModel, SliderCrank, SlottedLink,
+                                centric_base_ratio, curvature_radius, effective_modulus, exact_base_radius,
+                                flocke_base_radius, hertz_line_stress, pressure_angle_limit, pressure_angles,
+                                round_trip_error, synthesize, undercut_radius)
+from rig.mechanisms.cam.pitch import pitch_curve
+from rig.motion import CamProgram, Segment, get_law
+from rig.plants.cam_bar.chain import SingularPositionError
+from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+
+
+@pytest.fixture(scope="module")
+def mech() -> PinInsertionMechanism:
+    return PinInsertionMechanism()
+
+
+def test_limits():
+    assert pressure_angle_limit("translating") == pytest.approx(radians(30))
+    assert pressure_angle_limit("oscillating", high_speed=True) == pytest.approx(radians(30))
+    assert pressure_angle_limit("oscillating", high_speed=False) == pytest.approx(radians(45))
+    assert undercut_radius(0.007) == pytest.approx(0.01)
+    with pytest.raises(ValueError, match="follower"):
+        pressure_angle_limit("rotating")
+
+
+def test_curvature_of_a_parametric_circle_and_ellipse():
+    t = np.linspace(0.0, 2 * pi, 50)
+    r = 0.03
+    rho = curvature_radius(-r * np.sin(t), r * np.cos(t), -r * np.cos(t), -r * np.sin(t))
+    assert np.allclose(rho, r, rtol=1e-14)
+    a, b = 0.05, 0.02                      # ellipse (a cos t, b sin t): ρ = b²/a at the ends of the major axis
+    assert curvature_radius(0.0, b, -a, 0.0) == pytest.approx(b * b / a)
+
+
+def test_dwell_pitch_curve_is_a_circle_of_radius_r(mech):
+    phi = np.radians(np.linspace(1.0, 59.0, 30))     # first dwell of the default program
+    pc, st = pitch_curve(mech, phi), mech.state(phi)
+    assert np.ptp(st.r) < 1e-15
+    assert np.allclose(pc.rho, st.r, rtol=1e-12)
+    assert np.allclose(np.hypot(pc.x, pc.y), st.r, rtol=1e-14)
+
+
+@pytest.mark.parametrize("direction", [1, -1])
+def test_pitch_curvature_against_finite_differences(direction):
+    mech = PinInsertionMechanism(cam_direction=direction)
+    phi = np.radians(np.array([75.0, 100.0, 130.0, 160.0, 240.0, 270.0, 300.0]))
+    h = 1e-4
+    a, b, c = (pitch_curve(mech, phi + k * h) for k in (-1, 0, 1))
+    dx, dy = (c.x - a.x) / (2 * h), (c.y - a.y) / (2 * h)
+    ddx, ddy = (c.x - 2 * b.x + a.x) / h ** 2, (c.y - 2 * b.y + a.y) / h ** 2
+    fd = -direction * curvature_radius(dx, dy, ddx, ddy)   # the cam frame runs clockwise for a ccw cam
+    assert np.allclose(fd, b.rho, rtol=1e-5)
+
+
+def test_hertz_hand_value():
+    e_star = effective_modulus()                      # 2/(2·(1 − 0.3²)/210 GPa) = 230.77 GPa
+    assert e_star == pytest.approx(210e9 / 0.91)
+    # F = 1000 N, b = 10 mm, r_R = 8 mm, ρ_C = 40 mm: σ² = 1000/0.02 · 230.77e9/π · (125 + 25)
+    sigma = hertz_line_stress(1000.0, 0.010, 0.008, 0.040)
+    assert sigma == pytest.approx(sqrt(5e4 * (210e9 / 0.91) / pi * 150.0), rel=1e-12)
+    assert sigma == pytest.approx(742.2e6, rel=1e-3)
+    # independent textbook form: half-width a = sqrt(4FR/(πLE')), p_max = 2F/(πaL), E' = E/(2(1 − ν²))
+    big_r = 1 / (1 / 0.008 + 1 / 0.040)
+    half = sqrt(4 * 1000.0 * big_r / (pi * 0.010 * 210e9 / (2 * 0.91)))
+    assert sigma == pytest.approx(2 * 1000.0 / (pi * half * 0.010), rel=1e-12)
+    assert hertz_line_stress(-1000.0, 0.010, 0.008, -0.040) < sigma   # concave: lower stress, sign of F ignored
+    with pytest.raises(ValueError, match="tighter than the roller"):
+        hertz_line_stress(1000.0, 0.010, 0.008, -0.006)
+
+
+def test_flocke_forward_check():
+    law, h, big_phi, alpha = get_law("3-4-5"), 0.042, radians(120), radians(30)
+    exact = exact_base_radius(law, h, big_phi, alpha)
+    fine = np.linspace(0.0, 1.0, 200001)
+    assert pressure_angles(law, h, big_phi, exact, x=fine).max() == pytest.approx(alpha, abs=1e-9)
+    flocke = flocke_base_radius(law, h, big_phi, alpha)
+    assert flocke == pytest.approx(h * centric_base_ratio(law, big_phi, alpha), rel=1e-12)
+    # Flocke evaluates at the velocity peak, not where (s' + e)/tan α − s peaks: a little small, α a little big
+    assert flocke < exact
+    assert alpha < pressure_angles(law, h, big_phi, flocke).max() < alpha + radians(2)
+    # offset follower: the exact radius is again the one whose largest pressure angle is α
+    e = 0.01
+    exact_e = exact_base_radius(law, h, big_phi, alpha, e)
+    assert pressure_angles(law, h, big_phi, exact_e, e, x=fine).max() == pytest.approx(alpha, abs=1e-9)
+
+
+def test_flocke_closed_form_for_the_parabolic_law():
+    # parabolic: y'_max = 2 at x = ½, y = ½ there → r_b/h = 2/(Φ tan α) − ½
+    law, big_phi, alpha = get_law("parabolic"), radians(90), radians(30)
+    assert centric_base_ratio(law, big_phi, alpha) == pytest.approx(2 / (big_phi * np.tan(alpha)) - 0.5, rel=1e-9)
+
+
+def test_optimum_pressure_angle_against_a_scan():
+    model = SizeModel(get_law("cycloidal"), radians(100), mu=0.15, load=0.4)
+    opt = model.optimum()
+    alphas = np.linspace(radians(5), model.alpha_lock - 1e-4, 20001)
+    sizes = np.array([model.size(a).total for a in alphas])
+    i = int(np.argmin(sizes))
+    assert abs(opt.alpha - alphas[i]) < 2 * (alphas[1] - alphas[0])
+    assert opt.total <= sizes[i] + 1e-12
+    assert abs(model.derivative(opt.alpha)) < 1e-9
+    h = 1e-6                              # the analytic dH/dα against a central difference
+    a = radians(35)
+    assert model.derivative(a) == pytest.approx((model.size(a + h).total - model.size(a - h).total) / (2 * h),
+                                                rel=1e-6)
+    with pytest.raises(ValueError, match="self-locks"):
+        model.size(model.alpha_lock + 0.01)
+
+
+def _uniform(k: float):
+    return lambda phi: (k * phi, np.full_like(phi, k), np.zeros_like(phi))
+
+
+def test_flat_follower_cusp_limit_for_a_uniform_law():
+    # ψ = kφ: ρ = A sin γ (1 + 2k)/(1 + k)² − e, smallest at the lowest γ = ψ0 − |k|·φ_end
+    A, e, k = 0.1, 0.01, -0.3
+    phi = np.linspace(0.0, 1.0, 501)
+    follower = FlatFollower(A, e, _uniform(k))
+    factor = (1 + 2 * k) / (1 + k) ** 2
+    psi0 = 0.3 + asin(e / (factor * A))
+    assert follower.min_base_radius(phi) == pytest.approx(A * sin(psi0) - e, rel=1e-9)
+    with pytest.raises(ValueError, match="cusp for every base radius"):
+        FlatFollower(A, 0.0, _uniform(-0.6)).min_base_radius(phi)   # k < −½: cusps whatever the radius
+
+
+def test_flat_follower_envelope_curvature_and_cusp_by_finite_differences():
+    prog = CamProgram([Segment("rise", radians(90), "harmonic", radians(20)), Segment("dwell", radians(90)),
+                       Segment("return", radians(90), "harmonic", radians(20)), Segment("dwell", radians(90))])
+    follower = FlatFollower(0.1, 0.0, lambda f: prog.evaluate(f)[:3])
+    rb = follower.min_base_radius()
+    phi = np.linspace(radians(185), radians(265), 4001)   # the return, where ρ is smallest
+    psi = prog.evaluate(phi)[0]
+    theta = np.pi / 2 - (np.arcsin(np.array([rb * 1.02, rb * 0.9]) / 0.1)[:, None] + psi) - phi
+    inner = slice(5, -5)
+    moves = []
+    for k, radius in enumerate((rb * 1.02, rb * 0.9)):
+        pr = follower.profile(radius, phi)
+        dx, dy = np.gradient(pr.x, phi), np.gradient(pr.y, phi)
+        fd = curvature_radius(dx, dy, np.gradient(dx, phi), np.gradient(dy, phi))[inner]
+        rho = pr.rho[inner]
+        far = np.abs(rho) > 1e-3                           # the geometric radius is |ρ| (FD is poor at ρ = 0)
+        assert np.allclose(np.abs(fd[far]), np.abs(rho[far]), rtol=3e-3)
+        # the contact point slides along the face one way; at a cusp it turns back (ρ changes sign)
+        moves.append(np.sign(dx * -np.sin(theta[k]) + dy * np.cos(theta[k]))[inner])
+    assert np.ptp(moves[0]) == 0.0
+    assert np.ptp(moves[1]) == 2.0
+    assert follower.profile(rb * 0.98).has_cusp and not follower.profile(rb * 1.02).has_cusp
+    assert follower.profile(0.04, np.array([3.0])).rho[0] == pytest.approx(0.04)   # dwell: the base circle
+
+
+def _rise(span: float):
+    prog = CamProgram([Segment("rise", radians(150), "cycloidal", 1.0), Segment("dwell", radians(60)),
+                       Segment("return", radians(150), "3-4-5", 1.0)])
+    phi = np.linspace(0.0, 2 * pi, 2000, endpoint=False)
+    m = prog.evaluate(phi)
+    return phi, m.s * span, m.s_p * span, m.s_pp * span
+
+
+@pytest.mark.parametrize("linkage, offset, span", [
+    (SliderCrank(0.03, 0.1, 0.01), 0.08, 0.04),
+    (SliderCrank(0.03, 0.1, 0.01, side=-1.0), -0.12, 0.04),
+    (FourBar(0.1, 0.03, 0.12, 0.07), 1.2, 0.4),
+    (FourBar(0.1, 0.03, 0.12, 0.07, branch=-1.0), -1.6, 0.4),
+    (SlottedLink(0.03, 0.08), -0.15, 0.5),
+    (DoubleSlider(0.05), -0.045, 0.09),
+])
+def test_synthesis_round_trip(linkage, offset, span):
+    phi, o, o_p, o_pp = _rise(span)
+    o = o + offset
+    law = synthesize(linkage, o, o_p, o_pp)
+    assert round_trip_error(linkage, law, o) < 1e-10
+    assert np.ptp(law.q) > 0.05
+    assert np.max(np.abs(np.diff(law.q))) < 0.05               # continuous branch, no jump between roots
+    inner = slice(5, -5)
+    assert np.allclose(np.gradient(law.q, phi)[inner], law.q_p[inner], atol=2e-4 * np.abs(law.q_p).max())
+    assert np.allclose(np.gradient(law.q_p, phi)[inner], law.q_pp[inner], atol=3e-3 * np.abs(law.q_pp).max() + 1e-9)
+
+
+def test_synthesis_of_the_pin_insertion_follower_matches_the_chain(mech):
+    phi = np.linspace(0.0, 2 * pi, 720, endpoint=False)
+    st = mech.state(phi)
+    crank = SliderCrank(mech.L3, mech.l4, mech.e_sk, mech.chain.rod_side)
+    law = synthesize(crank, mech.s0 - st.s, -st.s_p, -st.s_pp)
+    assert np.max(np.abs(np.angle(np.exp(1j * (law.q - st.psi))))) < 1e-12
+    assert np.allclose(law.q_p, st.psi_p, atol=1e-12) and np.allclose(law.q_pp, st.psi_pp, atol=1e-11)
+
+
+def test_synthesis_refuses_an_unreachable_output():
+    with pytest.raises(SingularPositionError, match="cannot reach"):
+        synthesize(SlottedLink(0.03, 0.08), np.array([0.0, 0.5]), np.zeros(2), np.zeros(2))  # > asin(r/d)
+    with pytest.raises(ValueError, match="length r"):
+        DoubleSlider(0.0)
+
+
+def test_design_checks_of_the_scene(tmp_path):
+    from rig.mechanisms.cam.design import design_checks, format_checks, mechanism_from_scene, plot_design
+    design = design_checks(mechanism_from_scene("data/scenes/pin_insertion.toml"), n=720)
+    names = {c.name: c for c in design.checks}
+    assert names["max pressure angle"].value == pytest.approx(np.degrees(design.pressure_angle.max()))
+    assert names["min convex pitch radius"].limit == pytest.approx(8.0 / 0.7)
+    assert names["series synthesis round trip"].ok
+    text = format_checks(design)
+    assert "max Hertz stress" in text and "MPa" in text
+    png = plot_design(design, tmp_path / "cam.png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
