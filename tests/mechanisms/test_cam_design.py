@@ -152,7 +152,7 @@ def test_flat_follower_envelope_curvature_and_cusp_by_finite_differences():
     assert np.ptp(moves[0]) == 0.0
     assert np.ptp(moves[1]) == 2.0
     assert follower.profile(rb * 0.98).has_cusp and not follower.profile(rb * 1.02).has_cusp
-    assert follower.profile(0.04, np.array([3.0])).rho[0] == pytest.approx(0.04)   # dwell: the base circle
+    assert follower.profile(0.04, np.array([radians(315)])).rho[0] == pytest.approx(0.04)   # dwell: the base circle
 
 
 def _rise(span: float):
