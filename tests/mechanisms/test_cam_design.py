@@ -210,3 +210,14 @@ def test_design_checks_of_the_scene(tmp_path):
     assert "max Hertz stress" in text and "MPa" in text
     png = plot_design(design, tmp_path / "cam.png")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_rig_cam_design_command(tmp_path, capsys):
+    from rig.cli import main
+    png = tmp_path / "chart.png"
+    assert main(["cam-design", "--low-speed", "-o", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "max pressure angle" in out and "45" in out and "FAIL" not in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["cam-design", "--load-coefficient", "0", "-o", str(png)]) == 1   # r_b/h < 0 at the optimum
+    assert "FAIL" in capsys.readouterr().out

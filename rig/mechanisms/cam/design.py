@@ -9,7 +9,7 @@ inverts the follower–rod–slider chain (an offset slider-crank) for the progr
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import degrees, radians, tau
+from math import degrees, tau
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -18,7 +18,7 @@ import numpy as np
 from rig.mechanisms.cam.flat_follower import FlatFollower
 from rig.mechanisms.cam.hertz import STEEL_E, STEEL_NU, effective_modulus, hertz_line_stress
 from rig.mechanisms.cam.limits import pressure_angle_limit, undercut_radius
-from rig.mechanisms.cam.pitch import flank_radius, pitch_curve
+from rig.mechanisms.cam.pitch import PitchCurve, flank_radius, pitch_curve
 from rig.mechanisms.cam.sizing import SizeModel, exact_base_radius, flocke_base_radius, pressure_angles
 from rig.mechanisms.cam.synthesis import SliderCrank, round_trip_error, synthesize
 from rig.motion.registry import get_law
@@ -135,7 +135,7 @@ def _sizing_checks(mech: "PinInsertionMechanism", load: float) -> list[Check]:
     return rows
 
 
-def _flat_follower_check(mech: "PinInsertionMechanism", phi: np.ndarray, pc) -> Check:
+def _flat_follower_check(mech: "PinInsertionMechanism", phi: np.ndarray, pc: PitchCurve) -> Check:
     """The same follower swing on an oscillating flat-faced follower: R_b,min without cusps vs this cam."""
     st = mech.state(phi)
     r_top = float(st.r[np.argmax(st.s)])

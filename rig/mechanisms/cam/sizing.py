@@ -101,9 +101,11 @@ class SizeModel:
     dH/dα = 0 from the analytic derivative."""
 
     def __init__(self, law: MotionLaw, big_phi: float, mu: float, load: float = 0.0):
-        _check(1.0, big_phi, 0.5)
+        _check(1.0, big_phi, 0.5)   # validates Φ (h and α are not parameters of the model)
         if mu < 0.0:
             raise ValueError(f"friction coefficient μ must not be negative, got {mu!r}")
+        if not 0.0 <= load < 1.0:
+            raise ValueError(f"load coefficient Φ_L = Q/F must lie in [0, 1), got {load!r}")
         self.big_phi, self.mu, self.load = big_phi, mu, load
         _, self.v, self.y = peak_velocity(law)
 
