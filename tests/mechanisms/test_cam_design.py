@@ -105,6 +105,7 @@ def test_optimum_pressure_angle_against_a_scan():
     i = int(np.argmin(sizes))
     assert abs(opt.alpha - alphas[i]) < 2 * (alphas[1] - alphas[0])
     assert opt.total <= sizes[i] + 1e-12
+    assert abs(model.scan().alpha - opt.alpha) < 1e-4
     assert abs(model.derivative(opt.alpha)) < 1e-9
     h = 1e-6                              # the analytic dH/dα against a central difference
     a = radians(35)

@@ -126,10 +126,11 @@ def _sizing_checks(mech: "PinInsertionMechanism", load: float) -> list[Check]:
             Check("exact base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, re).max()),
                   degrees(a_lim), "°", "≤", f"r_b = {re * 1e3:.2f} mm (max over the rise, not at s'_max)")]
     model = SizeModel(law, big_phi, mech.mu, load)
-    opt = model.optimum()
+    opt, scan = model.optimum(), model.scan()
     rows.append(Check("optimum pressure angle (dH/dα = 0)", degrees(opt.alpha), degrees(model.alpha_lock), "°", "≤",
                       f"H/h = {opt.total:.4f}, r_b/h = {opt.base:.4f}, b/h = {opt.guide:.4f} (μ = {mech.mu:g}, "
-                      f"Φ_L = {load:g}); limit: self-locking angle"))
+                      f"Φ_L = {load:g}; scan: {degrees(scan.alpha):.3f}°, H/h = {scan.total:.4f}); "
+                      "limit: self-locking angle"))
     rows.append(Check("optimum: centric base radius r_b/h", opt.base, 0.0, "", "≥",
                       "a negative value means the formula is outside its range at this α"))
     return rows

@@ -130,6 +130,11 @@ class SizeModel:
         g_d = self.mu * (1.0 - self.load * c) / den ** 2
         return 2.0 * base_d + g_d * (1.0 + 2.0 * base) + 2.0 * g * base_d
 
+    def scan(self, n: int = 20001) -> TotalSize:
+        """The smallest H/h on ``n`` pressure angles between 0.1° and the self-locking angle (a check)."""
+        sizes = [self.size(a) for a in np.linspace(np.radians(0.1), self.alpha_lock * (1.0 - 1e-6), n)]
+        return min(sizes, key=lambda t: t.total)
+
     def optimum(self) -> TotalSize:
         """The size at the root of dH/dα = 0 between 0 and the self-locking angle."""
         hi = self.alpha_lock
