@@ -222,3 +222,10 @@ def test_rig_cam_design_command(tmp_path, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["cam-design", "--load-coefficient", "0", "-o", str(png)]) == 1   # r_b/h < 0 at the optimum
     assert "FAIL" in capsys.readouterr().out
+
+
+def test_cam_design_refuses_a_scene_without_a_cam():
+    from rig.mechanisms.cam.design import mechanism_from_scene
+    from rig.scene import SceneError
+    with pytest.raises(SceneError, match="no cam to design"):
+        mechanism_from_scene("data/scenes/clutch_stop.toml")

@@ -21,6 +21,7 @@ from rig.mechanisms.cam.limits import pressure_angle_limit, undercut_radius
 from rig.mechanisms.cam.pitch import PitchCurve, flank_radius, pitch_curve
 from rig.mechanisms.cam.sizing import SizeModel, exact_base_radius, flocke_base_radius, pressure_angles
 from rig.mechanisms.cam.synthesis import SliderCrank, round_trip_error, synthesize
+from rig.motion.program import Segment
 from rig.motion.registry import get_law
 
 if TYPE_CHECKING:
@@ -65,13 +66,17 @@ class CamDesign:
 
 
 def mechanism_from_scene(path: str | Path) -> "PinInsertionMechanism":
-    """The adapter: a scene file → :class:`PinInsertionMechanism` (its [plant] and [speed])."""
+    """The adapter: a cam-bar scene file → :class:`PinInsertionMechanism` (its [plant] and [speed])."""
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
-    from rig.scene import load_scene
-    return PinInsertionMechanism.from_scene(load_scene(path))
+    from rig.scene import SceneError, load_scene
+    scene = load_scene(path)
+    plant = scene.data.get("scene", {}).get("plant", "cam_bar")
+    if plant != "cam_bar":
+        raise SceneError(f"{scene.path} [scene]: plant {plant!r} has no cam to design (cam-design needs cam_bar)")
+    return PinInsertionMechanism.from_scene(scene)
 
 
-def _first_rise(mech: "PinInsertionMechanism"):
+def _first_rise(mech: "PinInsertionMechanism") -> Segment:
     for seg in mech.program.segments:
         if seg.kind == "rise":
             return seg
