@@ -55,6 +55,7 @@ class StiffnessMonitor:
             raise ValueError(f"{method}: stiffness = {policy!r} must be 'warn', 'raise' or 'ignore'")
         self.method, self.limit, self.policy, self.fixed = method, limit, policy, fixed
         self.count = self.calm = 0
+        self._recent: list[float] = []               # the latest estimates beyond the limit
         self.detected_at: float | None = None
         self.last = math.nan
         self._y: np.ndarray | None = None            # growth test: last state, current window, growing windows
@@ -92,12 +93,16 @@ class StiffnessMonitor:
         if hl <= self.limit:
             self.calm += 1
             if self.calm >= 6:
-                self.count = 0
+                self.count, self._recent = 0, []
             return
         self.calm = 0
         self.count += 1
+        self._recent = (self._recent + [hl])[-self.STEPS:]
         if self.count < self.STEPS:
             return
+        steady = max(self._recent) <= 1.01 * min(self._recent)     # a real decay: the estimate is exact and constant
+        if self.fixed and not (steady or self._window[3] >= 1):
+            return      # estimates of an oscillatory mode scatter: a fixed step is unstable only if it grows
         lam = hl / h
         if self.fixed:
             self._report(t, y, f"{self.method} unstable at t = {t:.6g} s: h*|lambda| = {hl:.3g} > {self.limit:g} (its "

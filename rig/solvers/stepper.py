@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessMonitor, all_finite, lipschitz
+from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessError, StiffnessMonitor, all_finite, lipschitz
 from rig.solvers.compiled import FAIL, H, H_ABS, HL, NEV, NFEV, T, JitRhs, compiled_solver
 from rig.solvers.dense import PolynomialDense, StepsDense
 
@@ -127,8 +127,9 @@ class Stepper(OdeSolver):
         else:
             cause = "the model itself diverges"
         why = self.fun.diagnose() if isinstance(self.fun, JitRhs) else None
-        return SolverDivergence(f"{self.label} diverged: non-finite state after a step of h = {h:.3g} s; {cause}"
-                                + (f" ({why})" if why else ""), t, y)
+        kind = StiffnessError if hl > lim else SolverDivergence      # unstable step: the stiffness report's class
+        return kind(f"{self.label} diverged: non-finite state after a step of h = {h:.3g} s; {cause}"
+                    + (f" ({why})" if why else ""), t, y)
 
     # ---- compiled runs -----------------------------------------------------------------------------------
     @property

@@ -1,0 +1,74 @@
+"""Stability boundaries of the fixed-step methods on a linear oscillator x'' + 2ζω x' + ω² x = 0, as theory
+predicts: explicit Euler h·ω < 2ζ (|1 + hλ| ≤ 1), symplectic Euler h·ω < 2 (undamped), RK4 h·ω < 2√2 on the
+imaginary axis (|R(ix)| = 1 with R(z) = 1 + z + z²/2 + z³/6 + z⁴/24); no step limit for Rodas4. Inside the
+boundary the run ends bounded (and is not reported: the scattered h·|λ| estimates of an oscillatory mode used
+to stop stable symplectic-Euler and RK4 runs); outside it the divergence is detected and named, except explicit
+Euler's slow growth just beyond 2ζ/ω_n, which is still silent (asserted as such, an open defect)."""
+from __future__ import annotations
+
+import math
+import warnings
+
+import pytest
+from scipy.optimize import brentq
+
+from rig.solvers import Problem, SolverDivergence, integrate
+
+W = 2 * math.pi * 100.0       # ω_n, rad/s
+
+
+def rk4_boundary() -> float:
+    """h·ω where |R(i·x)| = 1 for RK4's stability polynomial (independent of the solver code)."""
+    r = lambda x: abs(1 + 1j * x + (1j * x) ** 2 / 2 + (1j * x) ** 3 / 6 + (1j * x) ** 4 / 24) - 1.0
+    return brentq(r, 2.0, 3.0, xtol=1e-14)
+
+
+LIMITS = {"Euler": (lambda: 2 * 0.1, 0.1), "SymplecticEuler": (lambda: 2.0, 0.0), "RK4": (rk4_boundary, 0.0)}
+
+
+def run(method: str, hw: float, zeta: float, periods: int = 300) -> float:
+    """|x| after ``periods`` periods from x = 1 at fixed step h = hw/ω."""
+    def f(t, y):
+        return (y[1], -W * W * y[0] - 2 * zeta * W * y[1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sol = integrate(Problem(f, (1.0, 0.0)), (0.0, periods * 2 * math.pi / W), method=method, h=hw / W,
+                        t_eval=[periods * 2 * math.pi / W])
+    return float(abs(sol.y[0, -1]))
+
+
+def test_rk4_boundary_is_the_textbook_value():
+    assert rk4_boundary() == pytest.approx(2 * math.sqrt(2), rel=1e-10)
+
+
+@pytest.mark.parametrize("method", list(LIMITS))
+def test_inside_the_boundary_bounded_outside_detected(method):
+    limit, zeta = LIMITS[method][0](), LIMITS[method][1]
+    hw = 0.9 * limit
+    # stable: Euler and RK4 decay; symplectic Euler stays on its invariant ellipse, |x| <= 1/(1 - (hω/2)²)
+    bound = 1.0 / (1.0 - (hw / 2) ** 2) if method == "SymplecticEuler" else 1.0
+    assert run(method, hw, zeta) <= bound + 1e-9
+    if method == "Euler":
+        # just outside 2ζ/ω_n explicit Euler grows slowly (×1.002 per step): not detected yet, an open defect
+        # (docs/solvers.md); what the run returns then is far from the decayed answer
+        assert run(method, 1.1 * limit, zeta) > 1.0
+        return
+    with pytest.raises(SolverDivergence, match=r"unstable at t = .* s: .*h = .* s.*implicit method Rodas4"):
+        run(method, 1.1 * limit, zeta)
+
+
+def test_symplectic_euler_keeps_the_amplitude_inside_its_boundary():
+    """Undamped: symplectic Euler neither decays nor grows (its error is a phase and a bounded ellipse)."""
+    amplitudes = [run("SymplecticEuler", 1.8, 0.0, periods) for periods in (100, 200, 300)]
+    assert all(0.1 < a <= 1.0 / (1.0 - 0.9 ** 2) for a in amplitudes)
+
+
+def test_rodas4_has_no_step_limit_on_the_contact_mode():
+    """ω = 2π·1e5 rad/s, ζ = 0.1, over 0.1 s (1e4 periods): Rodas4 resolves the ringing while it matters, then
+    steps far beyond every explicit boundary (h·ω ≫ 2.83) and ends at rest; RK4 would need 0.1·ω/2.83 ≈ 22 000
+    steps at its boundary."""
+    w = 2 * math.pi * 1e5
+    sol = integrate(Problem(lambda t, y: (y[1], -w * w * y[0] - 2 * 0.1 * w * y[1]), (1.0, 0.0)), (0.0, 0.1),
+                    method="Rodas4", rtol=1e-6, atol=1e-9)
+    assert abs(sol.y_final[0]) < 1e-6
+    assert sol.nsteps < 0.1 * w / rk4_boundary() / 5 and sol.h_last * w > 100.0
