@@ -52,6 +52,18 @@ def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3, bot
     return path
 
 
+def write_tight(fig: Figure, path: str | Path, dpi: int = 100) -> Path:
+    """A stand-alone chart (not the report's fixed-margin layout): tight layout, parent directories made, PNG
+    written, figure closed."""
+    import matplotlib.pyplot as plt
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def _ticks(ax: Axes, x: int = 6, y: int = 6) -> None:
     """At most ``x``/``y`` tick labels per axis (they never overlap at the figure sizes used here)."""
     ax.xaxis.set_major_locator(MaxNLocator(x))

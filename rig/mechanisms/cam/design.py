@@ -187,6 +187,8 @@ def plot_design(design: CamDesign, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from rig.analysis.plots import write_tight
+
     deg = np.degrees(design.phi)
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 8))
     axes[0].plot(deg, np.degrees(design.pressure_angle))
@@ -205,9 +207,4 @@ def plot_design(design: CamDesign, path: str | Path) -> Path:
         ax.legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("cam angle φ (°)")
     fig.suptitle("cam design checks")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return write_tight(fig, path)

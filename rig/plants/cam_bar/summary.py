@@ -45,6 +45,8 @@ def plot_cycle(mech: PinInsertionMechanism, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from rig.analysis.plots import write_tight
+
     phi = np.linspace(0.0, tau, 1441)
     st = mech.state(phi)
     ks = mech.kinetostatics(phi)
@@ -61,8 +63,4 @@ def plot_cycle(mech: PinInsertionMechanism, path: str | Path) -> Path:
     axes[3].legend()
     axes[-1].set_xlabel("cam angle φ (°)")
     fig.suptitle(f"pin-insertion mechanism, {mech.speed.nominal_omega * 60 / tau:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return write_tight(fig, path)

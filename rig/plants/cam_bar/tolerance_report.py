@@ -107,6 +107,8 @@ def plot_study(study: ToleranceStudy, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from rig.analysis.plots import write_tight
+
     lin, mc, mcc = study.linear, study.mc, study.mc_clearance
     deg, um = np.degrees(lin.phi), 1e6
     fig, ax = plt.subplots(figsize=(12, 5))
@@ -126,9 +128,4 @@ def plot_study(study: ToleranceStudy, path: str | Path) -> Path:
     ax.set_title("slider-stroke deviation of the pin-insertion chain")
     ax.grid(True)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return write_tight(fig, path)
