@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import importlib
 
-BENCH_MODULES: tuple[str, ...] = ("rig.bench.workprecision", "rig.bench.fidelity")
+BENCH_MODULES: tuple[str, ...] = ("rig.bench.workprecision", "rig.bench.fidelity", "rig.bench.stability")
 
 
 def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentParser]) -> None:
