@@ -63,16 +63,18 @@ class StiffnessMonitor:
 
     def update_many(self, t, y, h, hl) -> None:
         """:meth:`update` for consecutive steps (arrays; rows of ``y``); calm runs are skipped at once."""
-        known = [v for v in hl if math.isfinite(v)]
-        if known:
+        hl = np.asarray(hl, dtype=float)
+        known = hl[np.isfinite(hl)]
+        if known.size:
             self.last = float(known[-1])
         if self.policy == "ignore" or self.detected_at is not None:
             return
         if self.fixed and len(t):
             self._growth(t, np.asarray(y, dtype=float), h)
-        if self.count == 0 and max(known, default=0.0) <= self.limit:
+        if self.count == 0 and (known.size == 0 or known.max() <= self.limit):
             self.calm += len(hl)
             return
+        hl = hl.tolist()
         for args in zip(t, y, h, hl):
             self._stiffness(*args)
 

@@ -5,8 +5,8 @@ docstring of :mod:`rig.plants.cam_bar.level2`.
 
 Everything the kernels need travels in one float64 vector ``p`` (indices below): chain geometry, masses,
 spring, guide friction, insertion force, contact law, the cam-speed profile, the cam program as a segment
-table with the motion laws' coefficients, a one-entry cache of the groove geometry for the events (keyed on the
-cam angle), the first jam of the slider guide (for the diagnosis), and the optional models of issue 14: the pin's
+table with the motion laws' coefficients, one-entry caches of the groove geometry and of the distance into a rise
+(keyed on the cam angle: a step's last stages, its end and the events share one cam angle), the first jam of the slider guide (for the diagnosis), and the optional models of issue 14: the pin's
 force–travel law (:mod:`.insertion`), the stick–slip guide (:mod:`.guide_friction`) and the motor-driven cam
 (:mod:`.drive`, states (φ, ω, φ_m, ω_m) after (e, τ·ė)).
 
@@ -45,12 +45,12 @@ DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinea
  MU, V_S, K_SPRING, L_F, ME0, PSI0, F_C, S_PIERCE, PSI_PIERCE,
  CLEARANCE, K_C, EXPONENT, DAMPING, MAX_PEN,
  SPEED, PHI0, SP1, SP2, SP3, SP4,
- EV_T, EV_LEVER, EV_PSI, EV_INSIDE,
+ GC_PHI, GC_PSI, GC_PP, GC_PPP, GC_LEV, GC_LEVP, GC_RISE, IR_PHI, IR_VALUE,
  JAM_T, JAM_PHI,
  INS_LAW, INS_UP, INS_DOWN, S_TOP,
  GUIDE_MODEL, MU_S, V_STICK, T_STICK,
  DRIVE_ON, W_SYNC, B_MOTOR, M_MAX, J_MOTOR, J_CAM, K_SHAFT, C_SHAFT,
- NSEG) = range(60)
+ NSEG) = range(65)
 PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
 SEG_ROW = 5
 #: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
@@ -87,7 +87,7 @@ def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float 
             float(mech.kinematics(s_pierce).psi),
             mech.clearance, stiffness, exponent, damping, max_penetration,
             *_speed(mech.speed),
-            math.nan, 0.0, 0.0, 0.0,
+            math.nan, *[0.0] * 6, math.nan, 0.0,
             math.nan, math.nan,
             float(mech.insertion.code), mech.insertion.build_up, mech.insertion.release, top,
             float(mech.guide.code), mech.guide.static_coefficient(mech.mu), mech.guide.stick_speed,
@@ -137,7 +137,7 @@ def _law(name: str) -> list[float]:
 
 
 # ---- cam speed and program ---------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def drive(t, p):
     """(φ, ω, ω̇) of the speed profile at time t (rad, rad/s, rad/s²), as :mod:`rig.motion.speed`."""
     kind = p[SPEED]
@@ -156,7 +156,7 @@ def drive(t, p):
         amp * w * math.cos(w * t)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def law(p, at, x):
     """(y, y', y'') of the motion law coded at p[at] at x ∈ [0, 1] (as :mod:`rig.motion.laws`)."""
     n = int(p[at + 1])
@@ -180,7 +180,7 @@ def law(p, at, x):
     return y, v, c0 + c1 * math.sin(arg)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def program(phi, p):
     """(s, s', s'', rise) of the cam program at cam angle φ (m, per rad; as
     :meth:`rig.motion.program.CamProgram.evaluate`); ``rise``: φ lies in a rise segment (exact, unlike the sign of
@@ -199,7 +199,7 @@ def program(phi, p):
     return p[r + 2] + h * y, h / big * y1, h / (big * big) * y2, h > 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def in_rise(phi, p):
     """Distance (rad) of φ into the nearest rise segment (> 0 inside, < 0 outside; −1 without rises)."""
     x = phi % TWO_PI
@@ -215,7 +215,7 @@ def in_rise(phi, p):
 
 
 # ---- level-0 chain ----------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def chain_angles(s, p):
     """(ψ, cos ψ, sin ψ, cos ϑ, sin ϑ, sin(ϑ − ψ)) for slider stroke s (as :meth:`Chain.angles`); ψ = NaN when
     the chain cannot be assembled or sits at a dead centre."""
@@ -226,7 +226,8 @@ def chain_angles(s, p):
     if abs(cos_g) > 1.0:
         return math.nan, 0.0, 0.0, 0.0, 0.0, 0.0
     psi = math.atan2(p[E_SK], u) - p[BRANCH] * math.acos(cos_g)
-    cp, sp = math.cos(psi), math.sin(psi)
+    sin_g = p[BRANCH] * math.sqrt((1.0 - cos_g) * (1.0 + cos_g))     # ψ = atan2(e, u) − branch·γ, by identities
+    cp, sp = (u * cos_g + p[E_SK] * sin_g) / rho, (p[E_SK] * cos_g - u * sin_g) / rho
     ct, st = (u - p[L3] * cp) / p[L4], (p[E_SK] - p[L3] * sp) / p[L4]
     sin_rel = st * cp - ct * sp
     if abs(sin_rel) < DEAD_CENTRE_TOL:
@@ -234,7 +235,7 @@ def chain_angles(s, p):
     return psi, cp, sp, ct, st, sin_rel
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def chain_derivatives(cp, sp, ct, st, sin_rel, s_p, s_pp, p):
     """ψ', ψ'', ϑ', ϑ'' from the loop closure for ds/dq = s_p, d²s/dq² = s_pp (as :meth:`Chain.derivatives`)."""
     det_l = p[L3] * sin_rel
@@ -245,7 +246,18 @@ def chain_derivatives(cp, sp, ct, st, sin_rel, s_p, s_pp, p):
     return psi_p, (b1 * ct + b2 * st) / det_l, th_p, -(b2 * sp + b1 * cp) / (p[L4] * sin_rel)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
+def groove_at(phi, p):
+    """:func:`groove` through the one-entry cache in p (keyed on φ)."""
+    if p[GC_PHI] != phi:
+        g = groove(phi, p)
+        p[GC_PSI], p[GC_PP], p[GC_PPP], p[GC_LEV], p[GC_LEVP] = g[0], g[1], g[2], g[3], g[4]
+        p[GC_RISE] = 1.0 if g[5] else 0.0
+        p[GC_PHI] = phi
+    return p[GC_PSI], p[GC_PP], p[GC_PPP], p[GC_LEV], p[GC_LEVP], p[GC_RISE] != 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def groove(phi, p):
     """Level-0 follower law and pitch-curve geometry at cam angle φ: (ψ_k, ψ_k', ψ_k'', ℓ, dℓ/dφ, rising)
     with the lever ℓ = |B_R·t|/|t| of the contact normal about B0, t = dB_R/dφ − d·J·(B_R − A0) the tangent
@@ -264,33 +276,34 @@ def groove(phi, p):
     dty = lr * (cp * ppp - sp * pp ** 2) - d * dbx
     lev = bx * tx + by * ty
     dlev = dbx * tx + dby * ty + bx * dtx + by * dty
-    tn = math.hypot(tx, ty)
+    tn = math.sqrt(tx * tx + ty * ty)
     dtn = (tx * dtx + ty * dty) / tn
     sgn = 1.0 if lev > 0.0 else -1.0 if lev < 0.0 else 0.0
     return psi, pp, ppp, sgn * lev / tn, sgn * (dlev / tn - lev * dtn / tn ** 2), rise
 
 
 # ---- contact and free body ----------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def elastic(delta, p):
     """K·δ^p for penetration δ > 0, else 0 (N)."""
     return p[K_C] * delta ** p[EXPONENT] if delta > 0.0 else 0.0
 
 
-@njit(cache=True, error_model="numpy")
-def contact_force(delta, rate, p):
-    """Hunt–Crossley contact force K·δ^p·(1 + α·δ̇) ≥ 0 (N) for penetration δ (m), rate δ̇ (m/s)."""
-    return max(elastic(delta, p) * (1.0 + p[DAMPING] * rate), 0.0)
+@njit(cache=True, error_model="numpy", inline="always")
+def contact_force(spring, rate, p):
+    """Hunt–Crossley contact force K·δ^p·(1 + α·δ̇) ≥ 0 (N) from its elastic part ``spring`` = K·δ^p
+    (:func:`elastic`, N) and the penetration rate δ̇ (m/s)."""
+    return max(spring * (1.0 + p[DAMPING] * rate), 0.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def smoothstep(u):
     """3-4-5 step clipped to [0, 1] (as :func:`rig.plants.cam_bar.insertion.smoothstep`)."""
     u = min(max(u, 0.0), 1.0)
     return u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def insertion_force(s, p):
     """The pin's force–travel law at stroke s with the cam in a rise (N; :mod:`rig.plants.cam_bar.insertion`)."""
     x = s - p[S_PIERCE]
@@ -302,7 +315,7 @@ def insertion_force(s, p):
     return p[F_C] * smoothstep(x / (p[INS_UP] * travel)) * smoothstep((travel - x) / (p[INS_DOWN] * travel))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _mu_seen(friction, normal, sv):
     """The coefficient μ' with friction = −μ'·|N|·sv for the slider-velocity sign sv of the state, so that the
     level-1 free body (which takes the friction direction from ṡ) reproduces a held or band-slipping guide."""
@@ -310,7 +323,7 @@ def _mu_seen(friction, normal, sv):
     return -friction / den if den != 0.0 else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def free_body(psi, psi_d, rising, moment, p):
     """ψ̈ (rad/s²) at which the cam moment of the free bodies on the actual motion (ψ, ψ̇) equals ``moment``
     (N·m), and the motion and loads there: (ψ̈, s, ṡ, s̈, ϑ̇, ϑ̈, μ_eff, F_c, friction, status) with status 0,
@@ -383,7 +396,7 @@ def free_body(psi, psi_d, rising, moment, p):
     return nan, s, s_d, nan, th_d, nan, mu, f_c, nan, 2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def cam_state(t, y, p):
     """(φ, ω, ω̇ of the speed profile, ω_m, shaft torque) at time t and state y: from the speed profile (ω_m = ω,
     torque 0), or with the cam drive on from the states (φ, ω, φ_m, ω_m) = y[2:6] (ω̇ then follows from the drive
@@ -394,26 +407,27 @@ def cam_state(t, y, p):
     return y[2], y[3], 0.0, y[5], p[K_SHAFT] * (y[4] - y[2]) + p[C_SHAFT] * (y[5] - y[3])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def dynamics(e, e_d, phi, omega, alpha, omega_m, shaft, p):
     """Everything for deviation e (rad) and rate ė (rad/s) with the cam at φ, ω (rad, rad/s), in the
     order of :data:`OUTPUTS`, and a status (0, 1 chain cannot be assembled, 2 jammed guide: the values are then
     NaN). ``alpha`` ω̇ of the speed profile; with the cam drive on ω̇ = (``shaft`` torque − drive torque)/J_cam
     instead (the drive torque depends on the contact forces only, not on ω̇)."""
-    psi_k, psi_p, psi_pp, lever, lever_p, rising = groove(phi, p)
+    psi_k, psi_p, psi_pp, lever, lever_p, rising = groove_at(phi, p)
     psi = psi_k + e
     psi_d = omega * psi_p + e_d
     u = lever * e
     u_d = lever_p * omega * e + lever * e_d
     d_w, d_o = -u, u - p[CLEARANCE]
-    f_w, f_o = contact_force(d_w, -u_d, p), contact_force(d_o, u_d, p)
+    el_w, el_o = elastic(d_w, p), elastic(d_o, p)
+    f_w, f_o = contact_force(el_w, -u_d, p), contact_force(el_o, u_d, p)
     acc, s, s_d, s_dd, th_d, th_dd, mu, f_c, friction, status = free_body(psi, psi_d, rising,
                                                                           lever * (f_w - f_o), p)
     drive_torque = (f_w - f_o) * (-lever_p * e + lever * psi_p)     # (F_w − F_o)·∂δ_w/∂φ at fixed ψ
     if p[DRIVE_ON] != 0.0:
         alpha = (shaft - drive_torque) / p[J_CAM]
     e_dd = acc - omega * omega * psi_pp - alpha * psi_p
-    p_diss = (f_w - elastic(d_w, p)) * -u_d + (f_o - elastic(d_o, p)) * u_d
+    p_diss = (f_w - el_w) * -u_d + (f_o - el_o) * u_d
     return (phi, omega, alpha, psi, psi_d, acc, e_dd, f_w, f_o, drive_torque, p_diss, d_w, d_o, s, s_d, s_dd,
             th_d, th_dd, mu, f_c, friction, omega_m, shaft), status
 
@@ -449,21 +463,20 @@ def rhs(t, y, p, out):
         out[k + 2] = r[10]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def cam_angle(t, y, p):
     """Cam angle φ (rad) at time t and state y (speed profile, or the drive state)."""
     return drive(t, p)[0] if p[DRIVE_ON] == 0.0 else y[2]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def geometry_at(t, y, p):
-    """(ℓ, ψ_k, distance into a rise) at time t and state y, cached in p for the last cam angle asked (events
-    share it)."""
+    """(ℓ, ψ_k, distance into a rise) at time t and state y (cached in p for the last cam angle)."""
     phi = cam_angle(t, y, p)
-    if p[EV_T] != phi:
-        g = groove(phi, p)
-        p[EV_T], p[EV_LEVER], p[EV_PSI], p[EV_INSIDE] = phi, g[3], g[0], in_rise(phi, p)
-    return p[EV_LEVER], p[EV_PSI], p[EV_INSIDE]
+    g = groove_at(phi, p)
+    if p[IR_PHI] != phi:
+        p[IR_PHI], p[IR_VALUE] = phi, in_rise(phi, p)
+    return g[3], g[0], p[IR_VALUE]
 
 
 @njit(cache=True, error_model="numpy")

@@ -18,6 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
+from rig.solvers.borrow import borrowed
 from rig.solvers.compiled import FAIL, H, H_ABS, HL, MAX_STEP, NEV, NFEV, T, T_BOUND
 
 UNDERFLOW, NONFINITE = 1, 2
@@ -72,6 +73,7 @@ def lipschitz(fa, fb, ya, yb):
 def step(w, y, y_new, K, f, p):
     """One accepted step from (w[T], y) with first derivative f (see the module docstring); returns the status
     and sets H, NFEV, HL and, on success, T, H_ABS in w."""
+    w, y, y_new, K, f, p = borrowed(w), borrowed(y), borrowed(y_new), borrowed(K), borrowed(f), borrowed(p)
     K[0] = f
     status, t_new, h, h_next, nfev, hl = one_step(w[T], min(w[H_ABS], w[MAX_STEP]), w, y, y_new, K, p)
     w[H], w[NFEV], w[HL] = h, nfev, hl
@@ -152,6 +154,7 @@ def brent(t_old, t_new, y_old, Q, p, k):
 @njit(cache=True, error_model="numpy")
 def locate(t_old, t_new, y_old, K, p, k):
     """Root of event k in the step [t_old, t_new] with stage vectors K (a sign change over the step)."""
+    y_old, K, p = borrowed(y_old), borrowed(K), borrowed(p)
     Q = np.empty((y_old.size, P.shape[1]))
     coeffs(K, t_new - t_old, Q)
     return brent(t_old, t_new, y_old, Q, p, k)
@@ -164,6 +167,8 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p):
     updated in place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the
     number of steps, or −1 − steps on a failure (status in w[FAIL], the failed step's size in w[H]). Sign
     changes that ``act`` accepts are acted on in the run (see :func:`rig.solvers.compiled.compiled_solver`)."""
+    w, Y, TT, HH, KK, HL_, EV, g, p = (borrowed(w), borrowed(Y), borrowed(TT), borrowed(HH), borrowed(KK),
+                                       borrowed(HL_), borrowed(EV), borrowed(g), borrowed(p))
     n = Y.shape[1]
     last = KK.shape[1] - 1
     g_new, yr = np.empty(g.size), np.empty(n)
