@@ -24,7 +24,7 @@ from scipy.integrate import odeint, solve_ivp
 from scipy.optimize import brentq
 
 from rig.solvers import EventRecord, Problem, SolverDivergence
-from rig.solvers.integrate import MAX_STALLED, STALL_SPAN, _past_root
+from rig.solvers.integrate import MAX_STALLED, STALL_SPAN, _past_root, breaks_in
 
 SOLVE_IVP = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 PEERS = tuple(f"scipy {m}" for m in SOLVE_IVP) + ("scipy odeint", "cvode")
@@ -172,7 +172,7 @@ def run_peer(name: str, problem: Problem, t_span: tuple[float, float], grid: np.
     kernel, params = problem.fun.kernel, problem.fun.params
     acting = [e for e in problem.events if e.restart or e.action or e.terminal]
     t_end = float(t_span[1])
-    edges = [b for b in sorted(problem.time_breaks) if t_span[0] < b < t_end] + [t_end]
+    edges = breaks_in(problem, float(t_span[0]), t_end) + [t_end]
     y = np.array(problem.y0, dtype=float)
     out = np.empty((y.size, grid.size))
     i = int(np.searchsorted(grid, t_span[0], side="right"))

@@ -56,8 +56,10 @@ def _eval_steps(T, H, Y, K, P, t):
     out = np.empty((n, t.size))
     Q = np.zeros((n, order))
     s_cur = -1
+    s = max(np.searchsorted(T, t[0], side="right") - 1, 0) if t.size else 0
     for m in range(t.size):
-        s = min(max(np.searchsorted(T, t[m], side="right") - 1, 0), last)
+        while s < last and T[s + 1] <= t[m]:          # sorted times: walk the steps forward
+            s += 1
         h = H[s]
         if s != s_cur:                                 # coefficients of step s: h·(Kᵀ P)
             Q[:] = 0.0

@@ -78,7 +78,8 @@ class Event:
 
 @dataclass
 class Problem:
-    """Right-hand side ``fun(t, y)``, initial state, events, times where the RHS is discontinuous and
+    """Right-hand side ``fun(t, y)``, initial state, events, times where the RHS or its derivatives jump
+    (a sequence, or a function ``(t0, tf) -> sequence`` of those in a span) and
     ``reset(t, y) -> bool`` (re-selects a discrete mode at the start and after restarts; True if changed);
     ``flow(t, y, t_bound)`` returns the exact solution from (t, y) in the current mode, or None
     (asked at the start of every solver segment)."""
@@ -86,7 +87,7 @@ class Problem:
     fun: Rhs
     y0: Sequence[float]
     events: Sequence[Event] = ()
-    time_breaks: Sequence[float] = ()
+    time_breaks: Sequence[float] | Callable[[float, float], Sequence[float]] = ()
     reset: Callable[[float, tuple], bool] | None = None
     flow: Callable[[float, tuple, float], ClosedForm | None] | None = None
 
@@ -108,6 +109,12 @@ class Solution:
     restarts: int = 0
     stiff_at: float | None = None
     t_events: dict[str, list[float]] = field(default_factory=dict)
+
+
+def breaks_in(problem: Problem, t0: float, tf: float) -> list[float]:
+    """The problem's time breaks strictly inside (t0, tf), sorted (s)."""
+    known = problem.time_breaks(t0, tf) if callable(problem.time_breaks) else problem.time_breaks
+    return sorted(b for b in known if t0 < b < tf)
 
 
 def _make_solver(method, fun, t, y, t_bound, options):
@@ -158,7 +165,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     y = tuple(float(v) for v in (problem.y0 if y0 is None else y0))
     batched = events is None                    # the RHS's event kernel, if any, matches problem.events
     events = list(problem.events if events is None else events)
-    breaks = sorted(b for b in problem.time_breaks if t0 < b < tf) + [tf]
+    breaks = breaks_in(problem, t0, tf) + [tf]
     if t_eval is not None:
         t_eval = np.asarray(t_eval, dtype=float)
         if t_eval.size and (np.any(np.diff(t_eval) < 0) or t_eval[0] < t0 or t_eval[-1] > tf):

@@ -16,9 +16,11 @@ def test_limits_are_reported_and_only_euler_can_be_silent():
     assert {r["class"] for r in rows} <= set(CLASSES)
     assert len(rows) == 2 * (2 * len(FIXED) + len(ADAPTIVE))
     cell = {(r["method"], r["h"], r["stiffness_factor"]): r for r in rows}
-    for method in FIXED:                       # h = 0.4 ms is beyond every explicit limit on the contact
+    for method in ("euler", "semi-implicit euler"):   # h = 0.4 ms is beyond both Euler limits on the contact
         for f in (1.0, 4.0):
             assert cell[method, 4e-4, f]["class"] == "detected" and cell[method, 4e-4, f]["message"]
+    for f in (1.0, 4.0):       # RK4 (h*omega_n = 1.65 at x1, inside 2*sqrt(2)): never a silent wrong answer
+        assert cell["rk4", 4e-4, f]["class"] != "silent"
     for f in (1.0, 4.0):
         assert cell["rk4", 2.5e-5, f]["class"] == "converged"
         assert cell["semi-implicit euler", 2.5e-5, f]["class"] == "converged"

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -257,7 +258,33 @@ class Level2:
         events = [SolverEvent(self._event(kernel.WORKING), "working"), SolverEvent(self._event(kernel.OTHER), "other"),
                   SolverEvent(self._event(kernel.OVERLOAD), "overload", direction=1.0, terminal=True),
                   SolverEvent(self._event(kernel.INSERTION), "insertion", restart=True, mode_dependent=True)]
-        return Problem(self.rhs, y0, events)
+        return Problem(self.rhs, y0, events, time_breaks=self.program_breaks)
+
+    def program_breaks(self, t0: float, tf: float) -> list[float]:
+        """Times in (t0, tf) (s) at which a cam turned at constant speed passes a boundary of its program's
+        segments or motion-law pieces — where ψ_k'' and so the RHS's derivatives jump: the solvers restart
+        there instead of rejecting steps across it. None for other speed profiles or a driven cam (the
+        boundaries then depend on the state)."""
+        p = self.params
+        if self.cam_drive is not None or p[kernel.SPEED] != kernel.CONSTANT or not p[kernel.SP1] > 0.0:
+            return []
+        phi0, omega = p[kernel.PHI0], p[kernel.SP1]
+        first, last = math.floor((phi0 + omega * t0) / math.tau), math.ceil((phi0 + omega * tf) / math.tau)
+        angles = np.add.outer(math.tau * np.arange(first, last + 1), self._boundaries).ravel()
+        times = (angles - phi0) / omega
+        return times[(times > t0) & (times < tf)].tolist()
+
+    @cached_property
+    def _boundaries(self) -> np.ndarray:
+        """Cam angles in [0, 2π) of the program's segment and law-piece boundaries (rad)."""
+        p, out = self.params, []
+        for i in range(int(p[kernel.NSEG])):
+            r = kernel.PROGRAM + kernel.SEG_ROW * i
+            start, angle, at = p[r], p[r + 1], int(p[r + 4])
+            out.append(start)
+            if p[at] == kernel.SINE_PIECES:
+                out += [start + angle * p[at + 2 + kernel.PIECE * k] for k in range(1, int(p[at + 1]))]
+        return np.unique(np.mod(out, math.tau))
 
     def simulate(self, t_span: tuple[float, float], y0: tuple | None = None, flank: str | None = None,
                  method: str | type[OdeSolver] = METHOD, t_eval=None, **options) -> Level2Run:

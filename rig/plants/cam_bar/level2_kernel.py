@@ -45,12 +45,12 @@ DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinea
  MU, V_S, K_SPRING, L_F, ME0, PSI0, F_C, S_PIERCE, PSI_PIERCE,
  CLEARANCE, K_C, EXPONENT, DAMPING, MAX_PEN,
  SPEED, PHI0, SP1, SP2, SP3, SP4,
- GC_PHI, GC_PSI, GC_PP, GC_PPP, GC_LEV, GC_LEVP, GC_RISE, IR_PHI, IR_VALUE,
+ GC_PHI, GC_PSI, GC_PP, GC_PPP, GC_LEV, GC_LEVP, GC_RISE, GC_COS, GC_SIN, IR_PHI, IR_VALUE,
  JAM_T, JAM_PHI,
  INS_LAW, INS_UP, INS_DOWN, S_TOP,
  GUIDE_MODEL, MU_S, V_STICK, T_STICK,
  DRIVE_ON, W_SYNC, B_MOTOR, M_MAX, J_MOTOR, J_CAM, K_SHAFT, C_SHAFT,
- NSEG) = range(65)
+ NSEG) = range(67)
 PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
 SEG_ROW = 5
 #: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
@@ -87,7 +87,7 @@ def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float 
             float(mech.kinematics(s_pierce).psi),
             mech.clearance, stiffness, exponent, damping, max_penetration,
             *_speed(mech.speed),
-            math.nan, *[0.0] * 6, math.nan, 0.0,
+            math.nan, *[0.0] * 8, math.nan, 0.0,
             math.nan, math.nan,
             float(mech.insertion.code), mech.insertion.build_up, mech.insertion.release, top,
             float(mech.guide.code), mech.guide.static_coefficient(mech.mu), mech.guide.stick_speed,
@@ -181,11 +181,18 @@ def law(p, at, x):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def wrap(phi):
+    """φ mod 2π in [0, 2π) (rad; by floor, cheaper than the float modulo, equal to it within an ulp)."""
+    x = phi - TWO_PI * math.floor(phi / TWO_PI)
+    return x if x < TWO_PI else 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def program(phi, p):
     """(s, s', s'', rise) of the cam program at cam angle φ (m, per rad; as
     :meth:`rig.motion.program.CamProgram.evaluate`); ``rise``: φ lies in a rise segment (exact, unlike the sign of
     s' evaluated near the segment's ends)."""
-    x = phi % TWO_PI
+    x = wrap(phi)
     n = int(p[NSEG])
     i = 0
     while i + 1 < n and p[PROGRAM + SEG_ROW * (i + 1)] <= x:
@@ -202,7 +209,7 @@ def program(phi, p):
 @njit(cache=True, error_model="numpy", inline="always")
 def in_rise(phi, p):
     """Distance (rad) of φ into the nearest rise segment (> 0 inside, < 0 outside; −1 without rises)."""
-    x = phi % TWO_PI
+    x = wrap(phi)
     best = -1.0
     found = False
     for i in range(int(p[NSEG])):
@@ -253,13 +260,15 @@ def groove_at(phi, p):
         g = groove(phi, p)
         p[GC_PSI], p[GC_PP], p[GC_PPP], p[GC_LEV], p[GC_LEVP] = g[0], g[1], g[2], g[3], g[4]
         p[GC_RISE] = 1.0 if g[5] else 0.0
+        p[GC_COS], p[GC_SIN] = g[6], g[7]
         p[GC_PHI] = phi
-    return p[GC_PSI], p[GC_PP], p[GC_PPP], p[GC_LEV], p[GC_LEVP], p[GC_RISE] != 0.0
+    return p[GC_PSI], p[GC_PP], p[GC_PPP], p[GC_LEV], p[GC_LEVP], p[GC_RISE] != 0.0, p[GC_COS], p[GC_SIN]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def groove(phi, p):
-    """Level-0 follower law and pitch-curve geometry at cam angle φ: (ψ_k, ψ_k', ψ_k'', ℓ, dℓ/dφ, rising)
+    """Level-0 follower law and pitch-curve geometry at cam angle φ: (ψ_k, ψ_k', ψ_k'', ℓ, dℓ/dφ, rising, cos ψ_k,
+    sin ψ_k)
     with the lever ℓ = |B_R·t|/|t| of the contact normal about B0, t = dB_R/dφ − d·J·(B_R − A0) the tangent
     of the relative path, and ``rising``: φ in a rise segment (rad, per rad, m, m/rad; NaN where the chain
     fails). The insertion force acts only while ``rising`` — the exact form of level 1's s' > 0, whose sign
@@ -279,7 +288,7 @@ def groove(phi, p):
     tn = math.sqrt(tx * tx + ty * ty)
     dtn = (tx * dtx + ty * dty) / tn
     sgn = 1.0 if lev > 0.0 else -1.0 if lev < 0.0 else 0.0
-    return psi, pp, ppp, sgn * lev / tn, sgn * (dlev / tn - lev * dtn / tn ** 2), rise
+    return psi, pp, ppp, sgn * lev / tn, sgn * (dlev / tn - lev * dtn / tn ** 2), rise, cp, sp
 
 
 # ---- contact and free body ----------------------------------------------------------------------------------
@@ -324,13 +333,23 @@ def _mu_seen(friction, normal, sv):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def free_body(psi, psi_d, rising, moment, p):
+def cos_sin(x):
+    """(cos x, sin x): Taylor polynomials for |x| < 1e-2 (x is the small deviation e; their remainders are
+    below 1e-21, far under an ulp), else the library functions."""
+    if abs(x) >= 1e-2:
+        return math.cos(x), math.sin(x)
+    x2 = x * x
+    return 1.0 - x2 * (0.5 - x2 * (1.0 / 24.0 - x2 * (1.0 / 720.0 - x2 / 40320.0))), \
+        x * (1.0 - x2 * (1.0 / 6.0 - x2 * (1.0 / 120.0 - x2 * (1.0 / 5040.0 - x2 / 362880.0))))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def free_body(psi, cp, sp, psi_d, rising, moment, p):
     """ψ̈ (rad/s²) at which the cam moment of the free bodies on the actual motion (ψ, ψ̇) equals ``moment``
     (N·m), and the motion and loads there: (ψ̈, s, ṡ, s̈, ϑ̇, ϑ̈, μ_eff, F_c, friction, status) with status 0,
     1 (chain cannot be assembled) or 2 (jammed guide). Each force is a pair (value at ψ̈ = 0, slope)."""
     nan = math.nan
     l3_, l4_, esk = p[L3], p[L4], p[E_SK]
-    cp, sp = math.cos(psi), math.sin(psi)
     rad = l4_ * l4_ - (esk - l3_ * sp) ** 2
     if rad < 0.0:
         return nan, nan, nan, nan, nan, nan, nan, nan, nan, 1
@@ -362,7 +381,8 @@ def free_body(psi, psi_d, rising, moment, p):
     w5 = m5 * g
     spring = (p[ME0] / p[L_F] + p[K_SPRING] * p[L_F] * (psi - p[PSI0])) * p[L_F]
     if p[GUIDE_MODEL] == 0.0:
-        mu = p[MU] * math.tanh(abs(s_d) / p[V_S])
+        x = abs(s_d) / p[V_S]
+        mu = p[MU] if x > 20.0 else p[MU] * math.tanh(x)     # tanh(x) rounds to 1 beyond x ≈ 19
     else:                                             # Karnopp stick-slip (rig.plants.cam_bar.guide_friction)
         mu = p[MU]
         if abs(s_d) <= p[V_STICK]:                    # may hold: friction F_f (x54 = q + F_f) with s̈ = −ṡ/T
@@ -413,15 +433,17 @@ def dynamics(e, e_d, phi, omega, alpha, omega_m, shaft, p):
     order of :data:`OUTPUTS`, and a status (0, 1 chain cannot be assembled, 2 jammed guide: the values are then
     NaN). ``alpha`` ω̇ of the speed profile; with the cam drive on ω̇ = (``shaft`` torque − drive torque)/J_cam
     instead (the drive torque depends on the contact forces only, not on ω̇)."""
-    psi_k, psi_p, psi_pp, lever, lever_p, rising = groove_at(phi, p)
+    psi_k, psi_p, psi_pp, lever, lever_p, rising, ck, sk = groove_at(phi, p)
     psi = psi_k + e
+    ce, se = cos_sin(e)
+    cp, sp = ck * ce - sk * se, sk * ce + ck * se                   # cos, sin of ψ = ψ_k + e
     psi_d = omega * psi_p + e_d
     u = lever * e
     u_d = lever_p * omega * e + lever * e_d
     d_w, d_o = -u, u - p[CLEARANCE]
     el_w, el_o = elastic(d_w, p), elastic(d_o, p)
     f_w, f_o = contact_force(el_w, -u_d, p), contact_force(el_o, u_d, p)
-    acc, s, s_d, s_dd, th_d, th_dd, mu, f_c, friction, status = free_body(psi, psi_d, rising,
+    acc, s, s_d, s_dd, th_d, th_dd, mu, f_c, friction, status = free_body(psi, cp, sp, psi_d, rising,
                                                                           lever * (f_w - f_o), p)
     drive_torque = (f_w - f_o) * (-lever_p * e + lever * psi_p)     # (F_w − F_o)·∂δ_w/∂φ at fixed ψ
     if p[DRIVE_ON] != 0.0:
@@ -514,6 +536,6 @@ def grooves(phi, p):
     """:func:`groove` at many cam angles: rows ψ_k, ψ_k', ψ_k'', ℓ, dℓ/dφ, rising (1.0 / 0.0)."""
     out = np.empty((6, phi.size))
     for m in range(phi.size):
-        out[0, m], out[1, m], out[2, m], out[3, m], out[4, m], rising = groove(phi[m], p)
+        out[0, m], out[1, m], out[2, m], out[3, m], out[4, m], rising, _, _ = groove(phi[m], p)
         out[5, m] = 1.0 if rising else 0.0
     return out
