@@ -182,6 +182,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     reset(t, y)
     g_old = [e.fun(t, y) for e in events]
     stalled, t_last_cut, stiff_at = 0, math.nan, None
+    monitor = None
     records: list[EventRecord] = []
     nfev = nsteps = restarts = 0
     status, h_next = "finished", options.pop("first_step", None)
@@ -190,6 +191,10 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         exact = problem.flow(t, y, breaks[bi]) if problem.flow else None
         if exact is None:
             solver = _make_solver(method, fun, t, y, breaks[bi], dict(options, first_step=h_next))
+            if monitor is not None and hasattr(solver, "monitor"):
+                monitor.watch = solver.monitor.watch    # the stiffness/growth watch spans restarts (else a
+                solver.monitor = monitor                # diverging run bouncing between contacts is never reported)
+            monitor = getattr(solver, "monitor", monitor)
         else:
             solver = ClosedFormSolver(exact, t, y, breaks[bi])
         cut = None
@@ -218,6 +223,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
             t_old, t_new, y_new = solver.t_old, solver.t, solver.y
             dense = None
             hits = []
+            simultaneous: set[int] = set()
             if events:
                 g_new = [e.fun(t_new, y_new) for e in events]
                 for i, e in enumerate(events):
@@ -246,7 +252,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                             t_root = _past_root(e.fun, on, t_root, t_new, rising)
                     hits.append((t_root, i, 1.0 if rising else -1.0))
                 hits.sort()
-                for t_root, i, sign in hits:
+                for n_hit, (t_root, i, sign) in enumerate(hits):
                     e = events[i]
                     dense = dense or solver.dense_output()
                     if t_root >= t_new:
@@ -262,6 +268,11 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     changed = e.action(rec) if e.action is not None else False
                     if e.terminal or e.restart or changed is not False:
                         cut = (t_root, changed if isinstance(changed, tuple) else rec.y, e.terminal)
+                        near = 4 * np.finfo(float).eps * max(1.0, abs(t_root))
+                        for t2, i2, sign2 in hits[n_hit + 1:]:    # crossings at the same instant (e.g. contact
+                            if t2 - t_root <= near and not events[i2].mode_dependent:   # moving flank to flank)
+                                records.append(EventRecord(t_root, events[i2].name, rec.y, sign2))
+                                simultaneous.add(i2)
                         break
             t_stop = cut[0] if cut else t_new
             if t_eval is not None:
@@ -283,7 +294,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     ts.append(t)
                     ys.append(y)
                 reset(t, y)
-                fired = {i for tr, i, _ in hits if tr <= t and not events[i].mode_dependent}
+                fired = {i for tr, i, _ in hits if tr <= t and not events[i].mode_dependent} | simultaneous
                 g_old = [g_new[i] if i in fired else e.fun(t, y) if e.mode_dependent else (e.fun(t, y) or g_old[i])
                          for i, e in enumerate(events)]
                 stalled = stalled + 1 if t - t_last_cut <= STALL_SPAN * max(1.0, abs(t)) else 0
@@ -324,4 +335,5 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     t_events: dict[str, list[float]] = {}
     for r in records:
         t_events.setdefault(r.name, []).append(r.t)
+    nfev += monitor.calls if monitor is not None else 0      # the fixed-step amplification test's RHS calls
     return Solution(t_out, y_out, records, status, t, y, nfev, nsteps, h_next, restarts, stiff_at, t_events)

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessError, StiffnessMonitor, all_finite, lipschitz
+from rig.solvers.amplification import Amplification
 from rig.solvers.compiled import FAIL, H, H_ABS, HL, NEV, NFEV, T, JitRhs, compiled_solver
 from rig.solvers.dense import PolynomialDense, StepsDense
 
@@ -111,13 +112,22 @@ class Stepper(OdeSolver):
             raise SolverDivergence(what, t, y)
         if math.isfinite(hl):
             self.monitor.last = hl
-        raise self.diverged(t + h, y_bad, h)
+        raise self.diverged(t + h, y_bad, h, (t, y))
 
-    def diverged(self, t: float, y: Sequence[float], h: float) -> SolverDivergence:
-        """The error for a state that became non-finite after a step of size h: names the method, the
-        latest h·|λ| against its stability limit, and the fix."""
+    def diverged(self, t: float, y: Sequence[float], h: float, last: tuple | None = None) -> SolverDivergence:
+        """The error for a state that became non-finite after a step of size h: names the method, the mode the
+        step amplified at the ``last`` finite (t, y) (fixed-step methods) or the latest h·|λ| against the
+        stability limit, and the fix."""
         hl, lim = self.monitor.last, self.limit
-        if hl > lim:
+        watch = self.monitor.watch
+        got = watch.check(last[0], last[1], h) if watch is not None and last is not None else None
+        if got is not None and got[0] > 1.0 and got[0] > got[1] * (1.0 + self.monitor.EXCESS):
+            rho, lam = got[0], got[2]
+            cause = (f"{self.label} unstable: the step amplified the mode lambda = {lam.real:.4g}{lam.imag:+.4g}j 1/s "
+                     f"by {rho:.4g} per step (h*|lambda| = {h * abs(lam):.3g}) - reduce h below "
+                     f"{watch.largest_stable_step(last[0], last[1], h):.3g} s or use the implicit method Rodas4")
+            hl = math.inf                    # an unstable step: reported as such
+        elif hl > lim:
             cause = (f"{self.label} unstable: h*|lambda| = {hl:.3g} > {lim:g} (its stability limit on the negative "
                      f"real axis) - reduce h below {lim * h / hl:.3g} s or use the implicit method Rodas4")
         elif math.isfinite(lim):
@@ -199,6 +209,7 @@ class FixedStepper(Stepper):
             raise ValueError(f"{self.label}: step h = {h!r} s must be positive")
         self.h = h
         self._start(h, nq=nq)
+        self.monitor.watch = Amplification(fun, self.method, nq)
 
     def state_at(self, t: float) -> tuple:
         """State at time t within the last step, by one step of size t − t_old from its start (the same

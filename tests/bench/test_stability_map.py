@@ -1,6 +1,6 @@
 """rig bench stability on a short span: beyond their stability limits the fixed-step methods stop with a
-report; inside them they converge; the adaptive methods converge everywhere; a silent wrong answer appears
-only where the open defect is (explicit Euler's slow growth, docs/solvers.md) and is counted, not hidden."""
+report (explicit Euler's slow growth included); inside them they converge or are merely inaccurate; the adaptive
+methods converge everywhere; no cell is a silent wrong answer."""
 from __future__ import annotations
 
 import csv
@@ -11,22 +11,21 @@ from rig.cli import DATA, main
 SCENE = DATA / "scenes" / "pin_insertion_l2.toml"
 
 
-def test_limits_are_reported_and_only_euler_can_be_silent():
+def test_limits_are_reported_and_no_cell_is_silent():
     rows = stability_map(SCENE, t_sim=0.1, steps=[4e-4, 2.5e-5], factors=[1.0, 4.0])
     assert {r["class"] for r in rows} <= set(CLASSES)
     assert len(rows) == 2 * (2 * len(FIXED) + len(ADAPTIVE))
     cell = {(r["method"], r["h"], r["stiffness_factor"]): r for r in rows}
-    for method in ("euler", "semi-implicit euler"):   # h = 0.4 ms is beyond both Euler limits on the contact
-        for f in (1.0, 4.0):
-            assert cell[method, 4e-4, f]["class"] == "detected" and cell[method, 4e-4, f]["message"]
-    for f in (1.0, 4.0):       # RK4 (h*omega_n = 1.65 at x1, inside 2*sqrt(2)): never a silent wrong answer
-        assert cell["rk4", 4e-4, f]["class"] != "silent"
+    # h = 0.4 ms against the contact mode (omega_n = 4.2e3 1/s at x1, 7.2e3 at x4, zeta 0.04-0.08): beyond explicit
+    # Euler's 2*zeta everywhere, beyond symplectic Euler's 2 at x4 only, inside RK4's region (damped) at both
     for f in (1.0, 4.0):
-        assert cell["rk4", 2.5e-5, f]["class"] == "converged"
-        assert cell["semi-implicit euler", 2.5e-5, f]["class"] == "converged"
-        for method in ADAPTIVE:
-            assert cell[method, "", f]["class"] == "converged"
-    assert all(r["method"] == "euler" for r in rows if r["class"] == "silent")
+        assert cell["euler", 4e-4, f]["class"] == "detected" and cell["euler", 4e-4, f]["message"]
+        assert cell["rk4", 4e-4, f]["class"] in ("converged", "inaccurate")
+    assert cell["semi-implicit euler", 4e-4, 4.0]["class"] == "detected"
+    assert cell["semi-implicit euler", 4e-4, 1.0]["class"] in ("converged", "inaccurate")
+    for f in (1.0, 4.0):     # h = 25 us: h*omega_n = 0.10 / 0.18 > 2*zeta: explicit Euler's slow growth, reported
+        assert "the step amplifies the mode" in cell["euler", 2.5e-5, f]["message"]
+    assert not [r for r in rows if r["class"] == "silent"]
 
 
 def test_command_writes_csv_and_png(tmp_path):

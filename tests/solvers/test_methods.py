@@ -1,6 +1,7 @@
 """The one-step methods behind one interface: orders of convergence on closed forms, stability limits and clear
 divergence reports, the implicit method on a stiff problem, compiled runs against the Python steps."""
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from rig.solvers import (
     Rodas4,
     SolverDivergence,
     StiffnessError,
+    StiffnessWarning,
     SymplecticEuler,
     integrate,
 )
@@ -73,7 +75,12 @@ def test_symplectic_euler_keeps_the_energy_error_bounded_where_explicit_euler_dr
     t = np.linspace(0.0, periods * 2 * math.pi / W, 2001)
     energy = {}
     for method in ("SymplecticEuler", "Euler"):
-        sol = integrate(Problem(oscillator, (1.0, 0.0)), (0.0, t[-1]), method=method, h=h, t_eval=t)
+        with warnings.catch_warnings(record=True) as caught:    # explicit Euler's growth is reported, not stopped
+            warnings.simplefilter("always")
+            sol = integrate(Problem(oscillator, (1.0, 0.0)), (0.0, t[-1]), method=method, h=h, t_eval=t,
+                            stiffness="warn")
+        reported = [w for w in caught if issubclass(w.category, StiffnessWarning)]
+        assert bool(reported) == (method == "Euler")
         energy[method] = 0.5 * (sol.y[1] ** 2 + W * W * sol.y[0] ** 2) / (0.5 * W * W) - 1.0
     sym, eul = energy["SymplecticEuler"], energy["Euler"]
     first, last = np.abs(sym[:200]).max(), np.abs(sym[-200:]).max()
@@ -88,8 +95,10 @@ def test_explicit_fixed_step_stability_limit_on_the_real_axis(method, limit):
     decay = Problem(lambda t, y: (-lam * y[0],), (1.0,))
     inside = integrate(decay, (0.0, 0.5), method=method, h=0.97 * limit / lam)
     assert abs(inside.y_final[0]) < 1e-3
-    with pytest.raises(StiffnessError, match=rf"unstable at t = .*h\*\|lambda\| = {1.05 * limit:.3g} > {limit:g} .*"
-                                             rf"reduce h below {1e-3 * limit:.3g} s or use the implicit method Rodas4"):
+    exact = {"Euler": 2.0, "RK4": 2.785293563}[method]      # where |R(-x)| = 1 on the negative real axis
+    with pytest.raises(StiffnessError, match=rf"unstable at t = .*lambda = -1000\+0j 1/s .*h\*\|lambda\| = "
+                                             rf"{1.05 * limit:.3g}.* reduce h below {exact / lam:.3g} s or use the "
+                                             rf"implicit method Rodas4"):
         integrate(decay, (0.0, 0.2), method=method, h=1.05 * limit / lam)
 
 
@@ -100,12 +109,15 @@ def test_divergence_is_never_silent(method, compiled):
     and the error still names method, time, step and cause."""
     fun = JitRhs(_stiff, lambda: np.array([1e4])) if compiled else stiff(1e4)
     label, limit = {"Euler": ("explicit Euler", 2.0), "RK4": ("RK4", 2.78)}[method]
-    with pytest.raises(StiffnessError, match=rf"{label} unstable at t = .*h\*\|lambda\| = 10 > .*reduce h below"):
+    with pytest.raises(StiffnessError, match=rf"{label} unstable at t = .*lambda = -1e\+04\+0j 1/s .*h\*\|lambda\| = "
+                                             rf"10\b.*reduce h below"):
         integrate(Problem(fun, (1.0, 1.0)), (0.0, 2.0), method=method, h=1e-3, compiled=compiled)
+    exact = {"Euler": 2.0, "RK4": 2.785293563}[method] / 1e4       # the stable step, from the amplification test
     with pytest.raises(SolverDivergence, match=rf"{label} diverged: non-finite state after a step of h = 0.001 s; "
-                                               rf"{label} unstable: h\*\|lambda\| = 10 > .* reduce h below "
-                                               rf"{limit * 1e-4:.3g} s "
-                                               rf"or use the implicit method Rodas4 at t = .* state"):
+                                               rf"{label} unstable: (the step amplified the mode lambda = -1e\+04\+0j "
+                                               rf"1/s by .* per step \(h\*\|lambda\| = 10\) - reduce h below "
+                                               rf"{exact:.3g}|h\*\|lambda\| = 10 > .* reduce h below {limit * 1e-4:.3g})"
+                                               rf" s or use the implicit method Rodas4 at t = .* state"):
         integrate(Problem(fun, (1.0, 1.0)), (0.0, 2.0), method=method, h=1e-3, stiffness="ignore", compiled=compiled)
 
 

@@ -1,9 +1,9 @@
 """Stability boundaries of the fixed-step methods on a linear oscillator x'' + 2ζω x' + ω² x = 0, as theory
 predicts: explicit Euler h·ω < 2ζ (|1 + hλ| ≤ 1), symplectic Euler h·ω < 2 (undamped), RK4 h·ω < 2√2 on the
 imaginary axis (|R(ix)| = 1 with R(z) = 1 + z + z²/2 + z³/6 + z⁴/24); no step limit for Rodas4. Inside the
-boundary the run ends bounded (and is not reported: the scattered h·|λ| estimates of an oscillatory mode used
-to stop stable symplectic-Euler and RK4 runs); outside it the divergence is detected and named, except explicit
-Euler's slow growth just beyond 2ζ/ω_n, which is still silent (asserted as such, an open defect)."""
+boundary the run ends bounded and is not reported; outside it the divergence is detected and named — explicit
+Euler's slow growth just beyond 2ζ/ω_n included (×1.002 per step: the state stays finite for thousands of steps,
+so only a test of the step's amplification against the exact flow, rig.solvers.amplification, can see it)."""
 from __future__ import annotations
 
 import math
@@ -48,13 +48,22 @@ def test_inside_the_boundary_bounded_outside_detected(method):
     # stable: Euler and RK4 decay; symplectic Euler stays on its invariant ellipse, |x| <= 1/(1 - (hω/2)²)
     bound = 1.0 / (1.0 - (hw / 2) ** 2) if method == "SymplecticEuler" else 1.0
     assert run(method, hw, zeta) <= bound + 1e-9
-    if method == "Euler":
-        # just outside 2ζ/ω_n explicit Euler grows slowly (×1.002 per step): not detected yet, an open defect
-        # (docs/solvers.md); what the run returns then is far from the decayed answer
-        assert run(method, 1.1 * limit, zeta) > 1.0
-        return
     with pytest.raises(SolverDivergence, match=r"unstable at t = .* s: .*h = .* s.*implicit method Rodas4"):
         run(method, 1.1 * limit, zeta)
+
+
+@pytest.mark.parametrize("side", [0.98, 1.02])
+def test_explicit_euler_slow_growth_is_reported_just_beyond_two_zeta(side):
+    """h·ω_n = 2ζ·(1 ± 2 %): per step |1 + hλ| = 0.9996 / 1.0004 — below, the run decays unreported; above, it
+    is stopped with the step that keeps the mode stable (2ζ/ω_n) in the message."""
+    hw = side * 2 * 0.1
+    if side < 1.0:
+        assert run("Euler", hw, 0.1, periods=2000) < 1.0
+        return
+    with pytest.raises(SolverDivergence, match=r"grows without physical cause - reduce h below (\S+) s") as err:
+        run("Euler", hw, 0.1, periods=2000)
+    h_ok = float(str(err.value).split("reduce h below ")[1].split(" s")[0])
+    assert h_ok == pytest.approx(2 * 0.1 / W, rel=2e-3)
 
 
 def test_symplectic_euler_keeps_the_amplitude_inside_its_boundary():

@@ -193,7 +193,7 @@ class Level2:
         law = self.contact
         self.params = kernel.pack(mech, law.stiffness, law.exponent, law.damping, self.max_penetration,
                                   self.friction_speed, self.cam_drive)
-        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value)
+        self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value, kernel.event_action)
 
     def _sync(self) -> np.ndarray:
         """The parameter vector with the jam record cleared."""
@@ -253,9 +253,10 @@ class Level2:
 
     def problem(self, y0: tuple) -> Problem:
         """The ODE with contact events "working" / "other" (penetration of that flank changes sign: sign +1 onset,
-        −1 release), a terminal "overload" (penetration beyond ``max_penetration``) and "insertion" (F_c
+        −1 release; restarts, since the contact force's derivatives jump there), a terminal "overload" (penetration beyond ``max_penetration``) and "insertion" (F_c
         switches: restart), in the order of the event kernel."""
-        events = [SolverEvent(self._event(kernel.WORKING), "working"), SolverEvent(self._event(kernel.OTHER), "other"),
+        events = [SolverEvent(self._event(kernel.WORKING), "working", restart=True),
+                  SolverEvent(self._event(kernel.OTHER), "other", restart=True),
                   SolverEvent(self._event(kernel.OVERLOAD), "overload", direction=1.0, terminal=True),
                   SolverEvent(self._event(kernel.INSERTION), "insertion", restart=True, mode_dependent=True)]
         return Problem(self.rhs, y0, events, time_breaks=self.program_breaks)

@@ -518,6 +518,14 @@ def event_value(t, y, p, k):
 
 
 @njit(cache=True, error_model="numpy")
+def event_action(t, y, p, k, apply):
+    """Whether event k is a restart the compiled solver run may take itself: a contact onset or release on either
+    flank (the contact force's derivatives jump there; nothing in p changes). Not the insertion switch (its
+    mode-dependent root is placed by the Python driver) nor the terminal overload."""
+    return k == WORKING or k == OTHER
+
+
+@njit(cache=True, error_model="numpy")
 def evaluate(t, y, p):
     """:func:`dynamics` at many samples (states in the columns of ``y``): rows of :data:`OUTPUTS` (NaN where
     the status is not 0)."""

@@ -1,0 +1,98 @@
+"""Does a fixed-step method amplify what the physics damps? The test behind the fixed-step divergence reports.
+
+Linearised at a state, the ODE is y' = J·y; one step of a method maps y to M(hJ)·y. The method is unstable on
+that state when the spectral radius of M exceeds 1 while the exact flow exp(hJ) does not grow (or grows less):
+its solution then grows without physical cause. This is independent of how the state is scaled (unlike
+Hairer's estimate ‖Δf‖/‖Δy‖, which on a scaled state (x, τ·ẋ) reads τ·ω² for an oscillation of ω) and it
+catches the slow growth of explicit Euler on a lightly damped mode just beyond h·ω_n = 2ζ, where the state
+stays finite for a long time. J comes from forward differences of the right-hand side (n + 1 calls).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from rig.solvers.base import SolverDivergence
+
+#: stability polynomials R(z) of the one-stage-family methods (M = R(hJ))
+POLYNOMIALS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "euler": lambda z: 1.0 + z,
+    "rk4": lambda z: 1.0 + z + z * z / 2.0 + z ** 3 / 6.0 + z ** 4 / 24.0,
+}
+
+
+def jacobian(fun: Callable, t: float, y: Sequence[float]) -> np.ndarray | None:
+    """Forward-difference Jacobian ∂f/∂y at (t, y) (None where the RHS is not finite)."""
+    y = np.asarray(y, dtype=float)
+    try:
+        with np.errstate(all="ignore"):
+            f0 = np.asarray(fun(t, tuple(y)), dtype=float)
+            if not np.all(np.isfinite(f0)):
+                return None
+            floor = 1e-6 * max(float(np.max(np.abs(y))), 1e-300)
+            J = np.empty((y.size, y.size))
+            for j in range(y.size):
+                d = 1.5e-8 * max(abs(y[j]), floor)
+                yj = y.copy()
+                yj[j] += d
+                J[:, j] = (np.asarray(fun(t, tuple(yj)), dtype=float) - f0) / (yj[j] - y[j])
+    except (SolverDivergence, ArithmeticError):      # a state near overflow: no linearisation there
+        return None
+    return J if np.all(np.isfinite(J)) else None
+
+
+def step_matrix(method: str, hJ: np.ndarray, nq: int = 0) -> np.ndarray:
+    """M of one step of ``method`` on y' = J·y (``nq``: positions first, for symplectic Euler's kick–drift)."""
+    n = hJ.shape[0]
+    if method == "symplectic_euler":
+        q, v = slice(0, nq), slice(nq, n)
+        M = np.eye(n)
+        M[v, :] += hJ[v, :]                                   # kick: v' = v + h·(J_vq q + J_vv v)
+        M[q, :] += hJ[q, q] @ np.eye(n)[q, :] + hJ[q, v] @ M[v, :]    # drift with the kicked v'
+        return M
+    z = hJ
+    power, M = np.eye(n), np.zeros((n, n))
+    coefficients = {"euler": (1.0, 1.0), "rk4": (1.0, 1.0, 1 / 2, 1 / 6, 1 / 24)}[method]
+    for c in coefficients:
+        M += c * power
+        power = power @ z
+    return M
+
+
+def spectral_radius(M: np.ndarray) -> float:
+    return float(np.max(np.abs(np.linalg.eigvals(M))))
+
+
+class Amplification:
+    """The test for one method: ``check(t, y, h)`` → (ρ(M), ρ(exp(hJ)), λ) with λ the eigenvalue of J that the
+    method amplifies most, or None where J is not available (n + 1 RHS calls)."""
+
+    def __init__(self, fun: Callable, method: str, nq: int = 0):
+        self.fun, self.method, self.nq = fun, method, nq
+
+    def check(self, t: float, y: Sequence[float], h: float) -> tuple[float, float, complex] | None:
+        J = jacobian(self.fun, t, y)
+        if J is None:
+            return None
+        lam = np.linalg.eigvals(J)
+        exact = float(np.max(np.exp(h * lam.real)))
+        rho = spectral_radius(step_matrix(self.method, h * J, self.nq))
+        worst = lam[np.argmax(np.abs(POLYNOMIALS[self.method](h * lam)))] if self.method in POLYNOMIALS \
+            else lam[np.argmax(np.abs(lam))]
+        return rho, exact, complex(worst)
+
+    def largest_stable_step(self, t: float, y: Sequence[float], h: float) -> float:
+        """The largest step ≤ h (s) at which the method does not amplify at (t, y) (bisection on ρ(M) ≤ 1)."""
+        J = jacobian(self.fun, t, y)
+        if J is None:
+            return math.nan
+        lo, hi = 0.0, h
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            if spectral_radius(step_matrix(self.method, mid * J, self.nq)) <= 1.0 + 1e-12:
+                lo = mid
+            else:
+                hi = mid
+        return lo
