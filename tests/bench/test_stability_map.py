@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import csv
 
+import pytest
+
 from rig.bench.stability import ADAPTIVE, CLASSES, FIXED, stability_map
 from rig.cli import DATA, main
 
@@ -31,5 +33,13 @@ def test_limits_are_reported_and_no_cell_is_silent():
 def test_command_writes_csv_and_png(tmp_path):
     assert main(["-q", "bench", "stability", "--quick", "-o", str(tmp_path)]) == 0
     rows = list(csv.DictReader((tmp_path / "stability.csv").open(encoding="utf-8")))
-    assert rows and list(rows[0]) == ["method", "h", "stiffness_factor", "class", "error", "nfev", "message"]
+    assert rows and list(rows[0]) == ["method", "h", "stiffness_factor", "cam_speed_rpm", "class", "error", "nfev",
+                                  "message"]
     assert (tmp_path / "stability.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_cam_speed_axis():
+    rows = stability_map(SCENE, t_sim=0.05, steps=[1e-4], factors=[1.0], speeds=[1.0, 2.0])
+    assert sorted({float(r["cam_speed_rpm"]) for r in rows}) == pytest.approx([150.0, 300.0])
+    assert len(rows) == 2 * (len(FIXED) + len(ADAPTIVE))
+    assert not [r for r in rows if r["class"] == "silent"]
