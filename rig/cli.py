@@ -28,10 +28,10 @@ class UsageError(Exception):
 
 
 def _print_cam_bar_summary(scene_path: Path, png: Path) -> None:
+    from rig.plants.cam_bar import PinInsertionMechanism
     from rig.plants.cam_bar.summary import plot_cycle, summary_table
-    from rig.runner.plants import make_plant
     from rig.scene import load_scene
-    mech = make_plant("cam_bar", load_scene(scene_path))
+    mech = PinInsertionMechanism.from_scene(load_scene(scene_path))
     print(summary_table(mech))
     png.parent.mkdir(parents=True, exist_ok=True)
     plot_cycle(mech, png)
@@ -255,7 +255,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.executors.options import executor_from_args
     from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_json, study_table
     from rig.runner.config import read_config
-    from rig.runner.plants import make_plant
+    from rig.plants.cam_bar import PinInsertionMechanism
     from rig.scene import load_scene
     scene_path = Path(args.scene)
     chart = Path(args.output) / f"{scene_path.stem}.tolerance.png"
@@ -268,7 +268,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     with executor_from_args(args) as executor:
         if not args.quiet:
             print(f"Monte Carlo on {executor.describe()}", file=sys.stderr)
-        study = run_study(make_plant("cam_bar", cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
+        study = run_study(PinInsertionMechanism.from_scene(cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
                           progress=not args.quiet, task_samples=args.task_samples)
     print(study_table(study))
     print(f"chart: {plot_study(study, chart)}")

@@ -55,7 +55,7 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
         raise SceneError(f"{scene_path} [scene]: rig bench fidelity compares the cam-bar levels; plant is "
                          f"{scene.section('scene').get('plant')!r}")
     l2 = choose(scene, "cam_bar", forced=2)
-    mech = PinInsertionMechanism.from_scene(scene, variation=None, rng=None, fidelity=1)
+    mech = PinInsertionMechanism.from_scene(scene)
     omega = mech.speed.nominal_omega
     rate = read_config(scene).sample_rate
     T = 2 * math.pi / omega

@@ -75,7 +75,7 @@ def _level2(scene, path: Path) -> WorkProblem:
     if read_fidelity(scene) != 2:
         raise SceneError(f"{path} [scene]: work-precision charts level 2 of the cam-bar plant; set fidelity = 2 "
                          f"(e.g. data/scenes/pin_insertion_l2.toml)")
-    mech = PinInsertionMechanism.from_scene(scene, variation=None, rng=None, fidelity=1)
+    mech = PinInsertionMechanism.from_scene(scene)
     model = Level2(mech)
     t_sim = 2 * math.pi / mech.speed.nominal_omega
     y0 = model.initial_state(0.0)

@@ -8,12 +8,11 @@ from rig.scene import Scene, SceneError
 
 
 def _cam_bar(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
-    from rig.plants.cam_bar import PinInsertionMechanism
+    from rig.plants.cam_bar.plant import CamBarPlant
     setting: dict[str, Any] = {"fidelity": fidelity.level}
     if fidelity.method is not None:
         setting.update(method=fidelity.method, method_options=dict(fidelity.options))
-    return PinInsertionMechanism.from_scene(scene, variation=None, rng=None, **setting) if nominal else \
-        PinInsertionMechanism.from_scene(scene, **setting)
+    return CamBarPlant.from_scene(scene, nominal, **setting)
 
 
 def _clutch_dynamic(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:

@@ -39,7 +39,7 @@ def run_plant(scene: Scene, revolutions: int = 2) -> PlantRun:
     cfg = read_config(scene)
     plant = make_plant(cfg.plant, scene, nominal=True)
     if cfg.plant == "cam_bar":
-        omega = float(plant.speed.drive(np.array([0.0])).omega[0])
+        omega = float(plant.mech.speed.drive(np.array([0.0])).omega[0])
         if not omega > 0.0:
             raise ValueError(f"{scene.path}: the cam does not turn at t = 0 (ω = {omega} rad/s)")
         end = revolutions * tau / omega
@@ -59,7 +59,7 @@ def run_plant(scene: Scene, revolutions: int = 2) -> PlantRun:
 
 def _upper_dwell_vibration(run: PlantRun) -> float:
     """Peak-to-peak deviation of the slider from its level-0 law in the upper dwell (m)."""
-    sig, mech = run.signals, run.plant
+    sig, mech = run.signals, run.plant.mech
     law = mech.state(sig["phi"]).s
     top = law >= mech.program.levels[1] - 1e-12
     return float(np.ptp(sig["s"][top] - law[top])) if top.any() else float("nan")

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.plant import CamBarPlant
 from rig.recorder import read_recording
 from rig.runner import run_scene
 from rig.scene import load_scene
@@ -16,9 +16,10 @@ MACHINES = {"as_drawn": (1090.0, 300.0), "as_found": (1680.0, 300.0), "as_tested
 
 @pytest.mark.parametrize("name", MACHINES)
 def test_scene_is_the_machine_it_names(name):
-    mech = PinInsertionMechanism.from_scene(load_scene(SCENES / f"pin_insertion_{name}.toml"))
+    plant = CamBarPlant.from_scene(load_scene(SCENES / f"pin_insertion_{name}.toml"))
+    mech = plant.mech
     k, rpm = MACHINES[name]
-    assert mech.fidelity == 2 and mech.guide.model == "stick"
+    assert plant.setting.fidelity == 2 and mech.guide.model == "stick"
     assert mech.k == pytest.approx(k) and mech.speed.nominal_omega == pytest.approx(rpm * tau / 60)
     assert (mech.cam_drive is not None) == (name == "as_tested")
 

@@ -1,10 +1,10 @@
 """Rod pin-joint clearances (reduced model, rig.plants.cam_bar.joints) and the per-cycle clearance draw at level 2."""
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.plant import CamBarPlant, Setting
 from rig.plants.cam_bar.joints import JointClearance
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.variation import CycleVariation
@@ -43,14 +43,14 @@ def test_gripper_wanders_in_the_dwells_where_the_rod_is_unloaded():
 
 
 def test_level2_cycles_draw_their_groove_clearance(tmp_path):
-    mech = PinInsertionMechanism(fidelity=2, variation=CycleVariation(clearance_lambda=1 / 20e-6),
-                                 rng=np.random.default_rng(4))
+    variation = CycleVariation(clearance_lambda=1 / 20e-6)
+    mech = CamBarPlant(PinInsertionMechanism(), Setting(fidelity=2, variation=variation, rng=np.random.default_rng(4)))
     for c in range(3):                                                # cycles advance: draw, then use
         take_up = mech.cycles.deviation(c).take_up
         assert mech.cycles.mechanism(c).clearance == take_up and 0.0 <= take_up <= 0.05e-3
         assert np.all(mech.cycles.stroke_deviation(c, np.linspace(0, 6, 7)) == 0.0)  # simulated, not offset
-    level1 = replace(mech, fidelity=1, rng=np.random.default_rng(4))
-    assert level1.cycles.mechanism(0).clearance == mech.clearance                     # level 1: a take-up
+    level1 = CamBarPlant(mech.mech, Setting(fidelity=1, variation=variation, rng=np.random.default_rng(4)))
+    assert level1.cycles.mechanism(0).clearance == mech.mech.clearance                # level 1: a take-up
     assert np.any(level1.cycles.stroke_deviation(0, np.linspace(0, 6, 7)) != 0.0)
 
 

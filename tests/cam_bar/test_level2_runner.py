@@ -7,6 +7,7 @@ import pytest
 from rig.motion import ConstantSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.mechanism import RPM
+from rig.plants.cam_bar.plant import CamBarPlant, Setting
 from rig.plants.cam_bar.scene_io import read_fidelity
 from rig.plants.cam_bar.variation import CycleVariation
 from rig.recorder import read_recording
@@ -20,27 +21,27 @@ SCENE = ROOT / "data" / "scenes" / "pin_insertion_l2.toml"
 def test_fidelity_is_read_from_the_scene(tmp_path):
     assert read_fidelity(load_scene(SCENE)) == 2
     assert read_fidelity(load_scene(ROOT / "data" / "scenes" / "pin_insertion.toml")) == 1
-    assert PinInsertionMechanism.from_scene(load_scene(SCENE)).fidelity == 2
+    assert CamBarPlant.from_scene(load_scene(SCENE)).setting.fidelity == 2
     bad = tmp_path / "bad.toml"
     bad.write_text(SCENE.read_text().replace("fidelity = 2 ", 'fidelity = "exact" '))
     with pytest.raises(SceneError, match="'fidelity' must be 0, 1, 2 .* got 'exact'"):
         read_fidelity(load_scene(bad))
     with pytest.raises(ValueError, match="fidelity must be 0, 1 or 2"):
-        PinInsertionMechanism(fidelity=3)
+        Setting(fidelity=3)
 
 
 def test_advance_in_chunks_continues_the_integration_and_reports_flank_switches():
     omega = 300 * RPM
     t = 0.125 + np.arange(1, 201) * 1e-4  # 225°…261° of the return at 300 rpm
-    one = PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0, fidelity=2)
-    chunked = PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0, fidelity=2)
+    one = CamBarPlant(PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0), Setting(fidelity=2))
+    chunked = CamBarPlant(PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0), Setting(fidelity=2))
     full = one.advance(t)
     parts = [chunked.advance(c) for c in np.array_split(t, 5)]
     for key, tol in (("s", 2e-6), ("psi", 1e-5), ("phi", 0.0)):
         assert np.concatenate([p[key] for p in parts]) == pytest.approx(full[key], abs=tol), key
-    level1 = PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0).advance(t)
-    assert full["s"] == pytest.approx(level1["s"], abs=4 * one.clearance * one.L3 / one.l3)
-    assert np.max(np.abs(full["s"] - level1["s"])) > one.clearance   # but the roller crossed the groove
+    level1 = CamBarPlant(PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0)).advance(t)
+    assert full["s"] == pytest.approx(level1["s"], abs=4 * one.mech.clearance * one.mech.L3 / one.mech.l3)
+    assert np.max(np.abs(full["s"] - level1["s"])) > one.mech.clearance   # but the roller crossed the groove
     kinds = [(e.kind, e.data.get("to")) for e in one.events if e.kind == "flank_switch"]
     assert kinds == [("flank_switch", "other"), ("flank_switch", "working")]
     assert [e.kind for e in chunked.events] == [e.kind for e in one.events]
@@ -48,8 +49,8 @@ def test_advance_in_chunks_continues_the_integration_and_reports_flank_switches(
 
 
 def test_per_cycle_variation_runs_each_revolution_with_its_own_loads():
-    mech = PinInsertionMechanism(fidelity=2, variation=CycleVariation({"sensor_preload": 2.0}),
-                                 rng=np.random.default_rng(7))
+    mech = CamBarPlant(PinInsertionMechanism(), Setting(fidelity=2, variation=CycleVariation({"sensor_preload": 2.0}),
+                                                        rng=np.random.default_rng(7)))
     t = np.arange(0.39, 0.41, 1e-4)       # across the boundary of revolutions 0 and 1 at 150 rpm
     out = mech.advance(t)
     cycle = out["phi"] // (2 * np.pi)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.plant import CamBarPlant, Setting
 from rig.plants.cam_bar.tolerance import CamChain
 from rig.plants.cam_bar.variation import CycleVariation, plant_generator
 from rig.scene import SceneError, load_scene
@@ -18,7 +18,7 @@ SCENE = Path(__file__).resolve().parents[2] / "data" / "scenes" / "pin_insertion
 T = np.arange(1, 16000) * 1e-4  # 1.6 s at 10 kHz: 4 whole cycles at 150 rpm
 
 
-def _plant(variation: dict | None = "demo", seed: int | None = None) -> PinInsertionMechanism:
+def _plant(variation: dict | None = "demo", seed: int | None = None) -> CamBarPlant:
     scene = load_scene(SCENE)
     scene.data = copy.deepcopy(scene.data)
     if variation != "demo":
@@ -27,7 +27,7 @@ def _plant(variation: dict | None = "demo", seed: int | None = None) -> PinInser
             scene.data["plant"]["variation"] = variation
     if seed is not None:
         scene.data["scene"]["seed"] = seed
-    return PinInsertionMechanism.from_scene(scene)
+    return CamBarPlant.from_scene(scene)
 
 
 def _per_cycle(out: dict, key: str, fn) -> np.ndarray:
@@ -37,7 +37,7 @@ def _per_cycle(out: dict, key: str, fn) -> np.ndarray:
 
 def test_demo_scene_varies_and_is_deterministic_for_its_seed():
     a, b = _plant(), _plant()
-    assert a.variation is not None and a.variation.clearance_lambda == pytest.approx(60e3)
+    assert a.setting.variation is not None and a.setting.variation.clearance_lambda == pytest.approx(60e3)
     out = a.advance(T)
     parts = [b.advance(c) for c in np.array_split(T, 13)]  # chunking does not change the draws
     for key in ("s", "x_gripper", "F_rod", "R23"):
@@ -57,7 +57,7 @@ def test_each_cycle_equals_the_mechanism_with_its_drawn_deviations():
     out = _plant(variation).advance(T)
     draws = _plant(variation).cycles      # the same seed draws the same deviations again (the run keeps only the latest)
     cycle = np.floor(out["phi"] / tau).astype(int)
-    base = _plant(variation=None)
+    base = _plant(variation=None).mech
     for c in np.unique(cycle):
         i = cycle == c
         dev = draws.deviation(int(c))
@@ -107,4 +107,4 @@ def test_bad_variation_tables_are_clear_errors(table, message):
 
 def test_variation_needs_a_generator():
     with pytest.raises(ValueError, match="needs a numpy Generator"):
-        PinInsertionMechanism(variation=CycleVariation({"F_c": 1.0}))
+        Setting(variation=CycleVariation({"F_c": 1.0}))

@@ -190,7 +190,7 @@ def test_tolerance_shows_the_monte_carlo_machines(capsys):
     from rig.plants.cam_bar.tolerance_report import run_study
     from rig.runner.plants import make_plant
     from rig.scene import load_scene
-    mech = make_plant("cam_bar", load_scene(DEMO))
+    mech = make_plant("cam_bar", load_scene(DEMO)).mech
     quiet = run_study(mech, load_tolerances(), 300, 1, step_deg=10.0)
     assert capsys.readouterr().err == ""
     shown = run_study(mech, load_tolerances(), 300, 1, step_deg=10.0, progress=True)

@@ -35,7 +35,7 @@ def test_overrides_change_a_copy_and_name_missing_tables():
     scene = load_scene(DEFAULT_SCENE)
     changed = with_overrides(scene, {"plant.k": "1.09 N/mm", "speed.speed": "300 rpm"})
     assert changed.data["plant"]["k"] == "1.09 N/mm" and scene.data["plant"]["k"] == "1.89 N/mm"
-    assert make_plant("cam_bar", changed).k == pytest.approx(1090.0)
+    assert make_plant("cam_bar", changed).mech.k == pytest.approx(1090.0)
     with pytest.raises(SceneError, match=r"no table \[motor\]"):
         with_overrides(scene, {"motor.a0": "1 N*m"})
 
@@ -51,7 +51,7 @@ def test_cam_bar_metrics_equal_the_plant_computed_directly():
     switches = [v["flank_switches"] for v in result.values]
     assert max(switches) > 0                                    # the sweep does reach switching points
     for (speed, rate), values in zip(result.points, result.values):
-        mech = make_plant("cam_bar", with_overrides(scene, {"speed.speed": speed, "plant.k": rate}), nominal=True)
+        mech = make_plant("cam_bar", with_overrides(scene, {"speed.speed": speed, "plant.k": rate}), nominal=True).mech
         omega = float(speed.split()[0]) * RPM
         assert values["flank_switches"] == len(mech.flank_switch_angles(omega=omega))
         phi = np.linspace(0.0, 2 * np.pi, 3601)

@@ -49,8 +49,7 @@ def jump_map(mech: PinInsertionMechanism, speeds=SPEEDS_RPM, rates=RATES, cleara
         t = np.linspace((revolutions - 1) * period, revolutions * period, samples)
         for j, k in enumerate(rates):
             for m, c in enumerate(clearances):
-                machine = replace(mech, k=k, clearance=c, speed=ConstantSpeed(rpm * RPM), variation=None, rng=None,
-                                  cam_drive=None, fidelity=1)
+                machine = replace(mech, k=k, clearance=c, speed=ConstantSpeed(rpm * RPM), cam_drive=None)
                 model = Level2(machine)
                 run = model.simulate((0.0, t[-1]), t_eval=t, rtol=1e-7, atol=1e-12)
                 sig = model.signals(t, run.solution.y)

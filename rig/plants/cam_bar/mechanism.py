@@ -1,4 +1,7 @@
-"""The pin-insertion cam-bar mechanism (MODELS §3): parameters, level-0 kinematics, level-1 entry points.
+"""The pin-insertion cam-bar mechanism (MODELS §3): its description (geometry, masses, spring, contact, loads,
+cam program and speed), level-0 kinematics and level-1 entry points. How a run simulates it (level, solver,
+per-cycle variation) is :class:`rig.plants.cam_bar.plant.Setting`; the runner's plant is
+:class:`rig.plants.cam_bar.plant.CamBarPlant`.
 
 Frame: follower pivot B0 at the origin, x to the right, y up, gravity along −y, angles counter-clockwise
 from +x. The cam program prescribes the slider stroke s(φ); the follower angle ψ, the rod angle ϑ and
@@ -21,8 +24,6 @@ from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.joints import JointClearance
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
 from rig.plants.cam_bar.switches import flank_switch_angles
-from rig.plants.cam_bar.timeline import Event, Timeline
-from rig.plants.cam_bar.variation import CyclePlant, CycleVariation
 
 if TYPE_CHECKING:
     from rig.scene import Scene
@@ -125,10 +126,9 @@ class PinInsertionMechanism:
     ``None`` mean m3·L3²/3 about B0, m4·l4²/12 about the rod centre, follower CoG at L3/2).
     ``cam_direction`` +1: the cam turns counter-clockwise. The insertion force ``F_c`` acts on the slider
     against its motion during the rise once the stroke is within ``F_c_travel`` of the top.
-    ``variation`` (with the generator ``rng``) makes every cam revolution draw its own deviations
-    (:mod:`rig.plants.cam_bar.variation`); without it all cycles are identical.
-    ``fidelity`` 2 makes :meth:`advance` integrate the level-2 groove dynamics (:mod:`.level2`; contact over
-    ``roller_width`` (m) with Hunt–Crossley damping ``contact_damping`` (s/m)); 0 and 1 give level-1 truth.
+    Level 2 (:mod:`.level2`) models the contact over ``roller_width`` (m) with Hunt–Crossley damping
+    ``contact_damping`` (s/m), the slider guide's friction ``guide``, the optional cam drive and rod pin
+    clearances.
     """
 
     L3: float = 0.260
@@ -158,7 +158,6 @@ class PinInsertionMechanism:
     clearance: float = 0.05e-3
     roller_width: float = 0.010
     contact_damping: float = 20.0
-    fidelity: int = 1
     alpha_sk: float = radians(4.65)
     J3: float | None = None
     J4: float | None = None
@@ -170,14 +169,10 @@ class PinInsertionMechanism:
     cam_direction: int = 1
     program: CamProgram = field(default_factory=default_program)
     speed: SpeedProfile = field(default_factory=lambda: ConstantSpeed(150 * RPM))
-    variation: CycleVariation | None = None
-    rng: np.random.Generator | None = None
     insertion: InsertionLaw = field(default_factory=InsertionLaw)
     guide: GuideFriction = field(default_factory=GuideFriction)       # level 2's slider-guide friction model
     cam_drive: CamDrive | None = None                                # level 2: motor + shaft turn the cam
     joints: JointClearance | None = None                             # level 2: rod pin clearances (reduced)
-    method: str = "DP45"                                             # level 2's solver (rig.solvers.METHODS)
-    method_options: dict[str, float] = field(default_factory=lambda: {"rtol": 1e-7, "atol": 1e-12})
 
     def __post_init__(self) -> None:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):
@@ -200,16 +195,6 @@ class PinInsertionMechanism:
         self.spring_rates = tuple(float(k) for k in self.spring_rates)
         self.chain = self._assemble()
         self.psi0 = float(self.chain.angles(np.array([self.s_Srest])).psi[0])
-        if self.variation is not None and self.rng is None:
-            raise ValueError("variation needs a numpy Generator (rng) to draw the per-cycle deviations")
-        self.cycles = None if self.variation is None else CyclePlant(self, self.variation, self.rng)
-        if self.fidelity not in (0, 1, 2):
-            raise ValueError(f"fidelity must be 0, 1 or 2, got {self.fidelity!r}")
-        if self.fidelity == 2:
-            from rig.plants.cam_bar.level2_timeline import Level2Timeline
-            self._timeline: Timeline = Level2Timeline(self)
-        else:
-            self._timeline = Timeline(self)
 
     def _assemble(self) -> Chain:
         """Pick the branch nearest the machine's start angle and check the whole stroke range on it."""
@@ -237,7 +222,8 @@ class PinInsertionMechanism:
 
     @classmethod
     def from_scene(cls, scene: "Scene", **overrides: Any) -> "PinInsertionMechanism":
-        """Build from a scene's [plant] (with [[plant.cam_program]]) and [speed] sections."""
+        """Build from a scene's [plant] (with [[plant.cam_program]]) and [speed] sections (the description only;
+        the run's setting: :func:`rig.plants.cam_bar.scene_io.read_setting`)."""
         from rig.plants.cam_bar.scene_io import read_mechanism_kwargs
         from rig.scene import SceneError
         try:
@@ -319,13 +305,3 @@ class PinInsertionMechanism:
         ``insertion`` (:mod:`.insertion`) over the last ``F_c_travel`` of the rise while s' > 0, else 0."""
         f = self.insertion.force(s, self.program.levels[1], self.F_c_travel, self.F_c)
         return np.where(np.asarray(s_p) > 0.0, f, 0.0)
-
-    # ---- runner interface ----------------------------------------------------------------------------------
-    def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
-        """Physical truth (SI) at increasing times ``t`` (s), continuing from the previous call."""
-        return self._timeline.advance(np.asarray(t, dtype=float))
-
-    @property
-    def events(self) -> list[Event]:
-        """Flank switches and acceleration-jump crossings found so far, in time order."""
-        return list(self._timeline.events)

@@ -95,11 +95,7 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     """Keyword arguments of :class:`PinInsertionMechanism` from the scene (SI)."""
     where = f"{scene.path} [plant]"
     kw = scene.read("plant", PLANT_SCHEMA)
-    from rig.fidelity import choose
-    choice = choose(scene, "cam_bar")
-    kw["fidelity"] = choice.level
-    if choice.method is not None:
-        kw["method"], kw["method_options"] = choice.method, dict(choice.options)
+    kw.pop("variation")                                  # the run's setting (read_setting)
     rates = kw.pop("spring_rates")
     if not isinstance(rates, list) or not rates:
         raise SceneError(f"{where}: 'spring_rates' must be a non-empty list of quantities like \"1.19 N/mm\"")
@@ -113,7 +109,19 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     kw["guide"] = read_guide(kw.pop("guide"), f"{scene.path} [plant.guide]")
     kw["cam_drive"] = read_drive(kw.pop("drive"), f"{scene.path} [plant.drive]")
     kw["joints"] = read_joints(kw.pop("joints"), f"{scene.path} [plant.joints]")
-    variation = kw.pop("variation")
+    return kw
+
+
+def read_setting(scene: Scene) -> dict[str, Any]:
+    """Keyword arguments of :class:`rig.plants.cam_bar.plant.Setting` from the scene: the level and level-2 method
+    (:func:`rig.fidelity.choose`), the per-cycle variation [plant.variation] and its generator (under [scene]
+    seed)."""
+    from rig.fidelity import choose
+    choice = choose(scene, "cam_bar")
+    kw: dict[str, Any] = {"fidelity": choice.level}
+    if choice.method is not None:
+        kw["method"], kw["method_options"] = choice.method, dict(choice.options)
+    variation = scene.read("plant", PLANT_SCHEMA)["variation"]
     if variation is not None:
         kw["variation"] = CycleVariation.from_table(variation, f"{scene.path} [plant.variation]")
         seed = scene.section("scene").get("seed")

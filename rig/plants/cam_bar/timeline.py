@@ -21,13 +21,15 @@ from rig.plants.events import Event
 
 if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+    from rig.plants.cam_bar.variation import CyclePlant
 
 
 class Timeline:
-    """Evaluates the mechanism along the speed profile and keeps the last sample to continue across calls."""
+    """Evaluates the mechanism (each cycle's, with ``cycles``) along the speed profile and keeps the last sample
+    to continue across calls."""
 
-    def __init__(self, mech: "PinInsertionMechanism"):
-        self.mech = mech
+    def __init__(self, mech: "PinInsertionMechanism", cycles: "CyclePlant | None" = None):
+        self.mech, self.cycles = mech, cycles
         self.events: list[Event] = []
         self._last: tuple[float, float, float] | None = None  # (t, unwrapped φ, R23n)
         self._program_events = mech.program.events()
@@ -38,7 +40,7 @@ class Timeline:
         return float(mech.kinetostatics(dr.phi, dr.omega, dr.alpha).R23n[0])
 
     def _mechanism(self, cycle: int) -> "PinInsertionMechanism":
-        return self.mech if self.mech.cycles is None else self.mech.cycles.mechanism(cycle)
+        return self.mech if self.cycles is None else self.cycles.mechanism(cycle)
 
     def _truth(self, mech: "PinInsertionMechanism", t: np.ndarray, phi: np.ndarray, omega: np.ndarray,
                alpha: np.ndarray) -> dict[str, np.ndarray]:
@@ -61,14 +63,14 @@ class Timeline:
         self._check_times(t)
         mech = self.mech
         dr = mech.speed.drive(t)
-        if mech.cycles is None or not t.size:
+        if self.cycles is None or not t.size:
             out = self._truth(mech, t, dr.phi, dr.omega, dr.alpha)
         else:  # one cycle (cam revolution) at a time, each with its own deviations
             cycle = np.floor(dr.phi / tau).astype(int)
             parts = []
             for c in np.unique(cycle):
                 i = cycle == c
-                part = self._truth(mech.cycles.mechanism(int(c)), t[i], dr.phi[i], dr.omega[i], dr.alpha[i])
+                part = self._truth(self.cycles.mechanism(int(c)), t[i], dr.phi[i], dr.omega[i], dr.alpha[i])
                 parts.append(self._deviate(part, int(c)))
             out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         if t.size:
@@ -78,7 +80,7 @@ class Timeline:
 
     def _deviate(self, part: dict[str, np.ndarray], cycle: int) -> dict[str, np.ndarray]:
         """Add the cycle's chain stroke deviation Δs(φ) to ``s`` and ``x_gripper`` of a truth chunk."""
-        ds = self.mech.cycles.stroke_deviation(cycle, part["phi"])
+        ds = self.cycles.stroke_deviation(cycle, part["phi"])
         part["s"], part["x_gripper"] = part["s"] + ds, part["x_gripper"] - ds
         return part
 

@@ -88,10 +88,12 @@ class CycleDeviation:
 
 
 class CyclePlant:
-    """Hands out, per cycle number, the mechanism to evaluate and the stroke deviation Δs(φ) (m)."""
+    """Hands out, per cycle number, the mechanism to evaluate and the stroke deviation Δs(φ) (m); at ``fidelity``
+    2 the drawn clearance is the cycle's groove clearance (simulated), else it is taken up in the chain."""
 
-    def __init__(self, nominal: "PinInsertionMechanism", variation: CycleVariation, rng: np.random.Generator):
-        self.nominal, self.variation, self.rng = nominal, variation, rng
+    def __init__(self, nominal: "PinInsertionMechanism", variation: CycleVariation, rng: np.random.Generator,
+                 fidelity: int = 1):
+        self.nominal, self.variation, self.rng, self.fidelity = nominal, variation, rng, fidelity
         self._first: int | None = None
         self._drawn: dict[int, CycleDeviation] = {}      # the latest cycles' draws (cycle index from the first)
         self._draws = 0                                  # cycles drawn so far
@@ -120,10 +122,10 @@ class CyclePlant:
         if cycle not in self._mechs:
             dev = self.deviation(cycle)
             values = {k: getattr(self.nominal, k) + d for k, d in dev.load.items()}
-            if self.nominal.fidelity == 2 and dev.take_up is not None:
+            if self.fidelity == 2 and dev.take_up is not None:
                 values["clearance"] = dev.take_up
             try:
-                mech = replace(self.nominal, variation=None, rng=None, **values) if values else self.nominal
+                mech = replace(self.nominal, **values) if values else self.nominal
             except ValueError as exc:
                 raise ValueError(f"variation: cycle {cycle} drew an invalid parameter set: {exc}") from None
             # cycles advance monotonically; keep the previous one for events refined across a cycle boundary
@@ -134,7 +136,7 @@ class CyclePlant:
         """Δs (m) of the cycle's deviated chain at cam angles ``phi`` (zeros if no chain parameter varies)."""
         dev = self.deviation(cycle)
         dq = dict(dev.chain)
-        if self.nominal.fidelity == 2 and dev.take_up is not None:     # simulated in the groove, not taken up
+        if self.fidelity == 2 and dev.take_up is not None:     # simulated in the groove, not taken up
             dq["r"] += dev.take_up
         if not any(dq.values()):
             return np.zeros_like(phi)
