@@ -25,38 +25,45 @@ def seeded_generators(seed: int, names: list[str]) -> dict[str, np.random.Genera
     return {name: np.random.default_rng(child) for name, child in zip(names, children)}
 
 
+def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
+    """The scene's transducers (by name, faults injected) and its configured acquisition unit, each with its own
+    generator under the scene's seed."""
+    names = ["device"] + [t.name for t in cfg.transducers]
+    rngs = seeded_generators(cfg.seed, names)
+    transducers: dict[str, Any] = {}
+    for spec in cfg.transducers:
+        where = f"{cfg.scene.path} [transducers.{spec.name}]"
+        try:
+            sensor = load_transducer(spec.description, rngs[spec.name], **spec.overrides)
+            for fault in spec.faults:
+                fault = dict(fault)
+                kind = fault.pop("fault")
+                at = to_si(fault.pop("at", "0 s"), "s", what=f"{where} fault 'at'")
+                until = to_si(fault.pop("until", "inf s"), "s", what=f"{where} fault 'until'")
+                sensor.inject(kind, at=at, until=until, **fault)
+        except SceneError as exc:      # the description's own errors name its file; say which transducer
+            message = str(exc)
+            raise SceneError(message if message.startswith(where) else f"{where}: {message}") from None
+        except (ValueError, KeyError, TypeError) as exc:
+            raise SceneError(f"{where}: {exc}") from None
+        transducers[spec.name] = sensor
+    device = DigiForce(cfg.device["description"], rng=rngs["device"])
+    program = cfg.device["program"]
+    try:
+        device.set_program(program, cfg.device["config"], units_required=True)   # a scene: units everywhere
+        device.select_program(program)
+    except ValueError as exc:
+        raise SceneError(f"{cfg.scene.path} [device]: {exc}") from None
+    return transducers, device
+
+
 class Machine:
     """Plant, transducers and the acquisition unit on a CAN bus, stepped in virtual time."""
 
     def __init__(self, cfg: RunConfig, bus: can.BusABC) -> None:
         self.cfg = cfg
         self.plant = make_plant(cfg.plant, cfg.scene, fidelity=cfg.fidelity)
-        names = ["device"] + [t.name for t in cfg.transducers]
-        rngs = seeded_generators(cfg.seed, names)
-        self.transducers: dict[str, Any] = {}
-        for spec in cfg.transducers:
-            where = f"{cfg.scene.path} [transducers.{spec.name}]"
-            try:
-                sensor = load_transducer(spec.description, rngs[spec.name], **spec.overrides)
-                for fault in spec.faults:
-                    fault = dict(fault)
-                    kind = fault.pop("fault")
-                    at = to_si(fault.pop("at", "0 s"), "s", what=f"{where} fault 'at'")
-                    until = to_si(fault.pop("until", "inf s"), "s", what=f"{where} fault 'until'")
-                    sensor.inject(kind, at=at, until=until, **fault)
-            except SceneError as exc:      # the description's own errors name its file; say which transducer
-                message = str(exc)
-                raise SceneError(message if message.startswith(where) else f"{where}: {message}") from None
-            except (ValueError, KeyError, TypeError) as exc:
-                raise SceneError(f"{where}: {exc}") from None
-            self.transducers[spec.name] = sensor
-        self.device = DigiForce(cfg.device["description"], rng=rngs["device"])
-        program = cfg.device["program"]
-        try:
-            self.device.set_program(program, cfg.device["config"], units_required=True)   # a scene: units everywhere
-            self.device.select_program(program)
-        except ValueError as exc:
-            raise SceneError(f"{cfg.scene.path} [device]: {exc}") from None
+        self.transducers, self.device = instruments(cfg)
         c = cfg.can
         self.node = CanNode(bus, self.device, bitrate=c["bitrate"], fd=bool(c["fd"]),
                             data_bitrate=c["data_bitrate"], live_share=c["live_share"], tx_curves=c["tx_curves"])

@@ -7,6 +7,7 @@ scene's start, metrics over the last one; clutch stand: the scene's duration.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from math import tau
 from typing import Any, Callable
@@ -16,16 +17,18 @@ import numpy as np
 from rig.scene import Scene
 
 CHUNK = 0.1  # s of simulated time per advance() call before the analysed window
+OK_CYCLES = 20  # curves of ok_share when the scene states no [scene] cycles
 
 
 @dataclass
 class PlantRun:
     """A plant after its run: truth signals over the analysed window (SI; cam bar: the last revolution),
-    the window (s) and the plant (its events, state)."""
+    the window (s), the plant (its events, state) and the scene it was built from."""
 
     plant: Any
     signals: dict[str, np.ndarray]
     window: tuple[float, float]
+    scene: Scene | None = None
 
     def events(self, kind: str) -> list:
         a, b = self.window
@@ -54,7 +57,7 @@ def run_plant(scene: Scene, revolutions: int = 2) -> PlantRun:
         plant.advance(before[i:i + int(CHUNK * cfg.sample_rate)])
     window = t[t >= start]
     signals = plant.advance(window) if window.size else {}
-    return PlantRun(plant, signals, (float(start), float(end)))
+    return PlantRun(plant, signals, (float(start), float(end)), scene)
 
 
 def _upper_dwell_vibration(run: PlantRun) -> float:
@@ -63,6 +66,36 @@ def _upper_dwell_vibration(run: PlantRun) -> float:
     law = mech.state(sig["phi"]).s
     top = law >= mech.program.levels[1] - 1e-12
     return float(np.ptp(sig["s"][top] - law[top])) if top.any() else float("nan")
+
+
+def ok_share(scene: Scene, cycles: int = OK_CYCLES) -> float:
+    """Share of machine cycles the acquisition unit judges OK (0…1): the scene's plant *with* its per-cycle
+    variation (the scene's seed) through its X and Y transducers into its DigiForce program, ``cycles`` curves
+    (the scene's [scene] cycles when it states them) — the device side of ``rig run`` without the bus."""
+    from rig.runner.config import read_config
+    from rig.runner.machine import instruments
+    from rig.runner.plants import make_plant
+    cfg = read_config(scene)
+    cycles = cfg.cycles or cycles
+    plant = make_plant(cfg.plant, scene)
+    transducers, device = instruments(cfg)
+    x, y = cfg.role("x"), cfg.role("y")
+    if x is None or y is None:
+        raise ValueError(f"{scene.path}: ok_share needs transducers in the roles 'x' and 'y' (the unit's channels)")
+    n = max(2, round(CHUNK * cfg.sample_rate))
+    ok = done = step = 0
+    limit = cfg.duration if cfg.duration is not None else math.inf
+    while done < cycles:
+        t = (step * n + 1 + np.arange(n)) / cfg.sample_rate
+        if t[0] > limit + 60.0:
+            raise ValueError(f"{scene.path}: only {done} of {cycles} curves by t = {t[0]:.3g} s (ok_share)")
+        step += 1
+        truth = plant.advance(t)
+        for result in device.feed(t, transducers[x.name].measure(t, truth[x.signal]),
+                                  transducers[y.name].measure(t, truth[y.signal])):
+            ok += bool(result.ok)
+            done += 1
+    return ok / done
 
 
 @dataclass(frozen=True)
@@ -82,6 +115,9 @@ METRICS: dict[str, Metric] = {
                                     "peak, last revolution (level 2; 0 at levels 0/1)", _upper_dwell_vibration),
     "rod_force_peak": Metric(("cam_bar",), "N", "largest |F_rod| of the last revolution",
                              lambda r: float(np.max(np.abs(r.signals["F_rod"])))),
+    "ok_share": Metric(("cam_bar",), "1", f"share of cycles the DigiForce program judges OK, with the scene's "
+                       f"per-cycle variation ([scene] cycles, else {OK_CYCLES})",
+                       lambda r: ok_share(r.scene)),
     "disengagements": Metric(("clutch_dynamic",), "1", "disengagements (apex passes) over the scene's duration",
                              lambda r: float(len(r.plant.disengagement_times))),
     "shutdown": Metric(("clutch_dynamic",), "1", "1 if the stand's shutdown rule fired, else 0",

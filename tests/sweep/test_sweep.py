@@ -113,3 +113,19 @@ def test_a_third_parameter_gives_one_map_per_value(tmp_path):
     assert low != high                                      # the preload is part of the rod force
     names = sorted(p.name for p in plot_sweep(result, tmp_path))
     assert names == ["rod_force_peak__plant.sensor_preload_-25_N.png", "rod_force_peak__plant.sensor_preload_25_N.png"]
+
+
+def test_ok_share_falls_as_the_insertion_force_leaves_the_window(dask_scheduler):
+    """The device's own verdicts with the scene's per-cycle variation: the demo's machine is all OK; as the
+    piercing force grows towards the window's -75 N bottom the share falls, the same on any executor."""
+    scene = with_overrides(load_scene(DEFAULT_SCENE), {"scene.cycles": 20})
+    params = [parse_param("plant.F_c=40 N,58 N,62 N")]
+    with make_executor("serial") as ex:
+        serial = run_sweep(scene, params, ["ok_share"], ex, revolutions=1)
+    with make_executor("dask", scheduler=dask_scheduler) as ex:
+        dask = run_sweep(scene, params, ["ok_share"], ex, revolutions=1)
+    shares = [v["ok_share"] for v in serial.values]
+    assert serial.errors == ["", "", ""] and shares[0] == 1.0
+    assert shares[0] > shares[1] > shares[2] and 0.0 < shares[2] < 1.0
+    assert all(round(s * 20) == s * 20 for s in shares)      # a share of 20 curves
+    assert dask.values == serial.values
