@@ -23,7 +23,7 @@ import binascii
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import can
 import cantools
@@ -122,6 +122,8 @@ class _Packing:
 #: so a later curve never overtakes an earlier one (live data and status still win arbitration)
 TRANSFER_FRAMES = frozenset({"CurveHeader", "CurveTiming", "CurveTimes", "CurveBlock", "CurveBlockFD", "CurveEnd",
                              "Result", "ResultValue"})
+#: the unit's own frames: everything else a device sends in the DBC is a reading (publish_reading)
+OWN_FRAMES = TRANSFER_FRAMES | {"Heartbeat", "StatusCounters", "TxStatus", "CommandAck", "LiveXY", "LiveXYFD"}
 _COLUMNS = ("ready", "expires", "rank", "frame_id", "duration", "pairs", "transfer_end", "is_fd", "dlc", "data")
 
 
@@ -399,36 +401,32 @@ class CanNode:
         self._enqueue_rows("CurveTimes", {"CurveNo": np.full(len(pairs), number % 16), "Block": np.arange(len(pairs)),
                                           "T0": pairs[:, 0], "T1": pairs[:, 1]}, np.full(len(pairs), float(t)))
 
-    def publish_encoders(self, t: float | np.ndarray, counts: Sequence, edge_times: Sequence) -> None:
-        """Queue latched counts and last edge times (s, device time) of encoders 1 and 2 at times ``t`` (s):
-        ``counts`` and ``edge_times`` have 2 rows (encoder 1, 2), one column per reading (or 2 values)."""
+    def publish_reading(self, name: str, t: float | np.ndarray, values: dict[str, Any]) -> None:
+        """Queue readings taken at times ``t`` (s) in frames of DBC message ``name``: ``values`` maps its signal
+        names to physical values (the DBC's units; one per reading or one for all). Signed signals are quantised
+        with the DBC scale and clipped to their range (counted in :attr:`clipped`); unsigned ones are device-time
+        stamps and wrap modulo their range (``EdgeTime``); ``Tick`` is the reading time unless given; signals
+        not given are 0. The scene's wiring (``to = "can.MESSAGE[.SIGNAL]"``) says which transducer fills which."""
+        msg = self._msg.get(name)
+        if msg is None or name in OWN_FRAMES or "DEVICE" not in msg.senders:
+            raise ValueError(f"{name!r} is not a device reading message of the DBC")
         t = np.atleast_1d(np.asarray(t, float))
-        counts, edges = np.asarray(counts, np.int64), np.asarray(edge_times, float)
-        if counts.shape[0] != 2 or edges.shape[0] != 2:
-            raise ValueError(f"publish_encoders needs 2 counts and 2 edge times, got {len(counts)} and {len(edges)}")
-        counts, edges = counts.reshape(2, t.size), edges.reshape(2, t.size)
-        for i in range(2):
-            self._enqueue_rows(f"Encoder{i + 1}", {"Count": counts[i],
-                                                   "EdgeTime": np.rint(edges[i] / 1e-6).astype(np.int64) % (1 << 24)}, t)
-
-    def publish_torque(self, t: float | np.ndarray, torque: float | np.ndarray, brake_force: float | np.ndarray) -> None:
-        """Queue torque (N·m) and brake force (N) readings taken at times ``t`` (s)."""
-        t = np.atleast_1d(np.asarray(t, float))
-        (rt, kt), (rb, kb) = (quantise(np.broadcast_to(v, t.shape), lsb) for v, lsb in (
-            (torque, self._msg["Torque"].get_signal_by_name("Torque").scale), (brake_force, Y_LSB)))
-        self.clipped += kt + kb
-        self._enqueue_rows("Torque", {"Tick": np.rint(t / TICK).astype(np.int64) % 65536, "Torque": rt,
-                                      "BrakeForce": rb}, t)
-
-    def publish_static(self, t: float | np.ndarray, angle: float | np.ndarray, strain: float | np.ndarray) -> None:
-        """Queue static-rig readings taken at times ``t`` (s): angle (rad) and leaf strain (m/m)."""
-        msg = self._msg["StaticRig"]
-        t = np.atleast_1d(np.asarray(t, float))
-        (ra, ka), (rs, ks) = (quantise(np.broadcast_to(v, t.shape), msg.get_signal_by_name(name).scale)
-                              for v, name in ((angle, "Angle"), (strain, "Strain")))
-        self.clipped += ka + ks
-        self._enqueue_rows("StaticRig", {"Tick": np.rint(t / TICK).astype(np.int64) % 65536, "Angle": ra,
-                                         "Strain": rs}, t)
+        signals = {s.name: s for s in msg.signals}
+        stamps = {"Tick": t} if "Tick" in signals else {}
+        columns = {}
+        for signal, value in {**stamps, **values}.items():
+            spec = signals.get(signal)
+            if spec is None or signal == "Seq":
+                raise ValueError(f"{name} has no signal {signal!r} (it has "
+                                 f"{', '.join(s.name for s in msg.signals if s.name != 'Seq')})")
+            raw = np.rint(np.broadcast_to(np.asarray(value, float), t.shape) / spec.scale)
+            if spec.is_signed:
+                lo, hi = -(1 << (spec.length - 1)), (1 << (spec.length - 1)) - 1
+                self.clipped += int(np.count_nonzero((raw < lo) | (raw > hi)))
+                columns[signal] = np.clip(raw, lo, hi).astype(np.int64)
+            else:
+                columns[signal] = raw.astype(np.int64) % (1 << spec.length)
+        self._enqueue_rows(name, columns, t)
 
     def publish_status(self, t: float, run_ended: bool = False) -> None:
         """Queue a heartbeat, the status counters and the transmit-queue status at time ``t`` (s)."""

@@ -105,8 +105,11 @@ class CanHost:
                           "LiveXY": self._live, "LiveXYFD": self._live_fd, "CurveHeader": self._curve_header, "CurveTiming": self._curve_timing, "CurveTimes": self._curve_times,
                           "CurveBlock": self._curve_block, "CurveBlockFD": self._curve_block_fd,
                           "CurveEnd": self._curve_end, "Result": self._result, "ResultValue": self._result_value,
-                          "Encoder1": self._encoder, "Encoder2": self._encoder, "Torque": self._torque,
-                          "StaticRig": self._static, "CommandAck": self._ack, "TxStatus": self._tx_status}
+                          "CommandAck": self._ack, "TxStatus": self._tx_status}
+        for m in self._by_id.values():      # every other device frame is a reading: a counter or Tick-stamped values
+            if m.name not in self._handlers:
+                names = {sg.name for sg in m.signals}
+                self._handlers[m.name] = self._counter if {"Count", "EdgeTime"} <= names else self._reading
         self.sequence = SequenceChecker()
         self.assembler = CurveAssembler(self.x_lsb, self.y_lsb, self._fd_pairs)
         self.events: list[LinkEvent] = []
@@ -118,10 +121,8 @@ class CanHost:
         self.drop_reports: list[dict[str, float]] = []   # not yet taken (see take_drop_reports)
         self._drops_reported, self._drops_at = 0, -float("inf")
         self.results: dict[int, CurveResult] = {}                # released results not yet taken
-        self.encoders: dict[int, dict[str, float]] = {}
-        self.torque: list[tuple[float, float, float]] = []      # (t s, torque N*m, brake force N)
-        self.encoder_log: list[tuple[int, float, int, float]] = []  # (encoder 1/2, received s, count, edge time s)
-        self.static: list[tuple[float, float, float]] = []      # (t s, angle rad, leaf strain m/m): static rig
+        self.counters_log: list[tuple[str, float, int, float]] = []   # (message, received s, count, edge time s)
+        self.readings: list[tuple[str, float, dict[str, float]]] = []   # (message, t s, {signal: DBC units})
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per run
         self._live_rows: list[tuple[float, float, list[int], list[int]]] = []   # (t0 s, dt s, raw xs, raw ys) per
@@ -459,25 +460,22 @@ class CanHost:
             self.results.pop(res.number, None)
         return out
 
-    def _encoder(self, msg, spec, raw) -> None:
-        reading = {"count": raw["Count"], "edge_time": unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, self._device_time),
-                   "received": msg.timestamp}
-        self.encoders[int(spec.name[-1])] = reading
-        self.encoder_log.append((int(spec.name[-1]), reading["received"], reading["count"], reading["edge_time"]))
+    def _counter(self, msg, spec, raw) -> None:
+        """A counter's latched count and last edge time (device time, unwrapped)."""
+        self.counters_log.append((spec.name, msg.timestamp, raw["Count"],
+                                  unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, self._device_time)))
 
-    def _torque(self, msg, spec, raw) -> None:
-        torque = raw["Torque"] * spec.get_signal_by_name("Torque").scale
-        self.torque.append((self._live_time(raw["Tick"]), torque, raw["BrakeForce"] * self.y_lsb))
-
-    def _static(self, msg, spec, raw) -> None:
-        self.static.append((self._live_time(raw["Tick"]), raw["Angle"] * spec.get_signal_by_name("Angle").scale,
-                            raw["Strain"] * spec.get_signal_by_name("Strain").scale))
+    def _reading(self, msg, spec, raw) -> None:
+        """Readings in the DBC's units at their Tick (device time; the frame's time without one)."""
+        t = self._live_time(raw["Tick"]) if "Tick" in raw else msg.timestamp
+        self.readings.append((spec.name, t, {sg.name: raw[sg.name] * sg.scale + sg.offset for sg in spec.signals
+                                             if sg.name not in ("Seq", "Tick")}))
 
     def take_readings(self) -> dict[str, list]:
-        """Readings received since the last call, and forgets them: ``torque`` (t s, N·m, brake N),
-        ``encoders`` (encoder 1/2, received s, count, edge time s), ``static`` (t s, rad, m/m)."""
-        out = {"torque": self.torque, "encoders": self.encoder_log, "static": self.static}
-        self.torque, self.encoder_log, self.static = [], [], []
+        """Readings received since the last call, and forgets them: ``counters`` (message, received s, count,
+        edge time s) and ``readings`` (message, t s, {signal: value in the DBC's unit})."""
+        out = {"counters": self.counters_log, "readings": self.readings}
+        self.counters_log, self.readings = [], []
         return out
 
     def take_drop_reports(self) -> list[dict[str, float]]:

@@ -1,7 +1,7 @@
 """Report section for static clutch rig recordings (MODELS.md §4.4).
 
 Measured: the potentiometer angle read by the multimeter and the leaf strain from the half-bridge
-amplifier (``/stand/static``, sent in ``StaticRig`` CAN frames). The load is known from the weights on
+amplifier (``/stand/static_rig``, sent in ``StaticRig`` CAN frames). The load is known from the weights on
 the 1000 mm lever (the applied torque the host logs in ``/plant/truth``). Theory: the clutch's
 loading/unloading characteristic rebuilt from the recorded scene (:mod:`rig.analysis.static_loops`).
 """
@@ -19,7 +19,7 @@ from rig.plants.clutch.static_rig import StaticClutchRig, rig_from_scene
 from rig.recorder import Recording
 from rig.scene import Scene, SceneError
 
-TOPIC = "/stand/static"
+TOPIC = "/stand/static_rig"
 
 
 def static_rig(rec: Recording) -> StaticClutchRig:

@@ -5,6 +5,7 @@ Plant sections ([plant], [speed], [load], ...) belong to the plant modules and a
 from __future__ import annotations
 
 import difflib
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -29,11 +30,12 @@ SCENE_SCHEMA = {
 TRANSDUCER_SCHEMA = {
     "description": Field(None, doc="device description name in data/devices or a path"),
     "signal": Field(None, doc="plant truth signal the transducer measures"),
-    "role": Field(None, doc="where its output goes: 'x', 'y' (device channels), 'encoder1', 'encoder2', "
-                            "'torque', 'brake', 'angle', 'strain' (static rig), or 'record' (recorded only)"),
+    "to": Field(None, doc="where its output goes: 'device.x' / 'device.y' (the unit's channels), "
+                          "'can.MESSAGE.SIGNAL' (a reading in a DBC signal, e.g. 'can.Torque.Torque') or "
+                          "'can.MESSAGE' (a counter's Count and EdgeTime, e.g. 'can.Encoder1')"),
     "overrides": Field(None, {}, "description values to override, with units"),
     "faults": Field(None, [], "list of {fault = ..., at = '.. s', ...} tables"),
-    "rate": Field("Hz", None, "publishing rate of encoder/torque/brake readings (default: once per chunk)"),
+    "rate": Field("Hz", None, "publishing rate of its CAN frames (default: once per chunk)"),
 }
 DEVICE_SCHEMA = {
     "program": Field("1", 0, "program number the run uses"),
@@ -64,18 +66,79 @@ RUNNER_SECTIONS = ("scene", "transducers", "device", "links", "recording")
 LINKS = ("can", "serial")
 MODES = ("virtual", "realtime")
 IN_PROCESS_INTERFACES = ("blockbus", "virtual")
-ROLES = ("x", "y", "encoder1", "encoder2", "torque", "brake", "angle", "strain", "record")
+CHANNELS = ("x", "y")
 
 
 @dataclass(frozen=True)
 class TransducerSpec:
+    """One ``[transducers.NAME]``: the plant ``signal`` it measures and where its output goes (``to``):
+    ``channel`` of the unit, or CAN ``message`` and its ``frame_signal`` (None: a counter's Count and EdgeTime)."""
+
     name: str
     description: str
     signal: str
-    role: str
+    to: str
     overrides: dict[str, Any] = field(default_factory=dict)
     faults: list[dict[str, Any]] = field(default_factory=list)
     rate: float | None = None
+
+    @property
+    def channel(self) -> str | None:
+        return self.to.split(".")[1] if self.to.startswith("device.") else None
+
+    @property
+    def message(self) -> str | None:
+        return self.to.split(".")[1] if self.to.startswith("can.") else None
+
+    @property
+    def frame_signal(self) -> str | None:
+        parts = self.to.split(".")
+        return parts[2] if parts[0] == "can" and len(parts) == 3 else None
+
+
+def read_wire(to: Any, where: str) -> str:
+    """Check a transducer's ``to`` against the unit's channels and the DBC's device frames (SceneError naming
+    what is wrong); returns it."""
+    from firmware_sim.can_node import OWN_FRAMES
+    if not isinstance(to, str) or not to.startswith(("device.", "can.")):
+        raise SceneError(f"{where}: key 'to' must be 'device.x', 'device.y', 'can.MESSAGE' or 'can.MESSAGE.SIGNAL', "
+                         f"got {to!r}")
+    parts = to.split(".")
+    if parts[0] == "device":
+        if len(parts) != 2 or parts[1] not in CHANNELS:
+            raise SceneError(f"{where}: key 'to' = {to!r}: the unit's channels are 'device.x' and 'device.y'")
+        return to
+    db = _device_dbc()
+    readings = sorted(m.name for m in db.messages if "DEVICE" in m.senders and m.name not in OWN_FRAMES)
+    if len(parts) not in (2, 3) or parts[1] not in readings:
+        raise SceneError(f"{where}: key 'to' = {to!r}: no reading message {parts[1] if len(parts) > 1 else ''!r} "
+                         f"in the DBC (readings: {', '.join(readings)})")
+    msg = db.get_message_by_name(parts[1])
+    names = [s.name for s in msg.signals if s.name not in ("Seq", "Tick")]
+    if len(parts) == 2 and not {"Count", "EdgeTime"} <= set(names):
+        raise SceneError(f"{where}: key 'to' = {to!r}: {parts[1]} carries no counter (Count, EdgeTime); "
+                         f"name its signal: {', '.join(f'{to}.{n}' for n in names)}")
+    if len(parts) == 3 and parts[2] not in names:
+        raise SceneError(f"{where}: key 'to' = {to!r}: {parts[1]} has no signal {parts[2]!r} "
+                         f"(it has {', '.join(names)})")
+    return to
+
+
+@functools.lru_cache(maxsize=1)
+def _device_dbc() -> Any:
+    """The DBC the simulated machine sends by (the scene wires transducers into its messages)."""
+    import cantools
+    from firmware_sim.can_node import DBC_PATH
+    return cantools.database.load_file(str(DBC_PATH))
+
+
+def frames_of(transducers: tuple[TransducerSpec, ...] | list[TransducerSpec]) -> dict[str, list[TransducerSpec]]:
+    """The CAN reading messages the transducers fill, with the transducers wired to each (scene order)."""
+    out: dict[str, list[TransducerSpec]] = {}
+    for spec in transducers:
+        if spec.message is not None:
+            out.setdefault(spec.message, []).append(spec)
+    return out
 
 
 @dataclass(frozen=True)
@@ -104,8 +167,13 @@ class RunConfig:
     def dt(self) -> float:
         return 1.0 / self.sample_rate
 
-    def role(self, role: str) -> TransducerSpec | None:
-        return next((t for t in self.transducers if t.role == role), None)
+    def wired(self, to: str) -> TransducerSpec | None:
+        """The transducer whose output goes to ``to`` (e.g. 'device.x', 'can.Encoder1'), if any."""
+        return next((t for t in self.transducers if t.to == to), None)
+
+    def frames(self) -> dict[str, list[TransducerSpec]]:
+        """The CAN reading messages the scene's transducers fill, with the transducers wired to each."""
+        return frames_of(self.transducers)
 
 
 def default_max_time(cycles: int) -> float:
@@ -186,19 +254,23 @@ def read_config(scene: Scene) -> RunConfig:
         if not isinstance(table, dict):
             raise SceneError(f"{tw}: must be a table")
         t = read_table(table, TRANSDUCER_SCHEMA, tw)
-        _one_of(t["role"], ROLES, "role", tw)
+        read_wire(t["to"], tw)
         _of_type(t["description"], str, "description", tw, "a device description name or path")
         _of_type(t["signal"], str, "signal", tw, "the name of a plant truth signal")
         _of_type(t["overrides"], dict, "overrides", tw, "a table of description values, e.g. { range_max = \"5 mm\" }")
         faults = _of_type(t["faults"], list, "faults", tw, "an array of tables [{ fault = ..., at = \"1 s\" }, ...]")
         for i, fault in enumerate(faults):
             _of_type(fault, dict, f"faults[{i}]", tw, "a table { fault = ..., at = \"1 s\", ... }")
-        transducers.append(TransducerSpec(name, t["description"], t["signal"], t["role"], dict(t["overrides"]),
+        transducers.append(TransducerSpec(name, t["description"], t["signal"], t["to"], dict(t["overrides"]),
                                           list(t["faults"]), t["rate"]))
-    roles = [t.role for t in transducers if t.role != "record"]
-    for role in set(roles):
-        if roles.count(role) > 1:
-            raise SceneError(f"{scene.path} [transducers]: role {role!r} is given to more than one transducer")
+    wires = [t.to for t in transducers]
+    for to in set(wires):
+        if wires.count(to) > 1:
+            raise SceneError(f"{scene.path} [transducers]: 'to' = {to!r} is given to more than one transducer")
+    for message, specs in frames_of(transducers).items():
+        if len({s.rate for s in specs}) > 1:
+            raise SceneError(f"{scene.path} [transducers]: {', '.join(s.name for s in specs)} share CAN message "
+                             f"{message} (one frame carries them all) but state different rates")
     device = scene.read("device", DEVICE_SCHEMA, required=False)
     dw = f"{scene.path} [device]"
     device["program"] = _integer(device["program"], "program", dw)

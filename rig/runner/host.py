@@ -5,6 +5,7 @@ hardware. The "theoretical curve" comes from its own plant model built from the 
 """
 from __future__ import annotations
 
+import re
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,16 @@ def encoder_resolution(spec: Any) -> float:
     table = tomllib.loads(path.read_text(encoding="utf-8"))["transducer"]
     ppr = float(spec.overrides.get("ppr", table["ppr"]))
     return counts_to_angle(1, int(ppr), int(float(spec.overrides.get("multiplier", table.get("multiplier", 4)))))
+
+
+def snake(name: str) -> str:
+    """A DBC name in snake case: ``BrakeForce`` → ``brake_force``, ``Encoder1`` → ``encoder1``."""
+    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()
+
+
+def stand_topic(message: str) -> str:
+    """The recording topic of a CAN reading message: ``/stand/`` and its name in snake case."""
+    return f"/stand/{snake(message)}"
 
 
 THEORY_BLOCK = 0.5        # s of theory computed per plant call (on a fixed grid: the same calls in every run)
@@ -71,9 +82,12 @@ class Host:
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
         self.frames = 0
-        self._rad_per_count = {i: encoder_resolution(spec) for i in (1, 2)     # the encoders the scene declares
-                               if (spec := cfg.role(f"encoder{i}")) is not None}
-        self._speed = {i: SpeedEstimator(r) for i, r in self._rad_per_count.items()}    # one per encoder, across chunks
+        frames = cfg.frames()                                   # the reading messages the scene wires
+        self._rad_per_count = {m: encoder_resolution(specs[0]) for m, specs in frames.items()
+                               if specs[0].frame_signal is None}
+        self._speed = {m: SpeedEstimator(r) for m, r in self._rad_per_count.items()}   # one per counter, across chunks
+        self._readings = {m: [s.frame_signal for s in specs] for m, specs in frames.items()
+                          if m not in self._rad_per_count}
 
     # ---------------------------------------------------------------- configuration
     def arm(self) -> None:
@@ -116,26 +130,25 @@ class Host:
         self._record_link_events()
 
     def _record_stand(self) -> None:
-        """Torque-meter and encoder readings (the stand's samples M_t, T_in, T_out; encoders the scene
-        declares) and static-rig readings (angle, leaf strain of the roles the scene declares) as bulk blocks.
-        Encoder speeds come from the latched edge times (drivers.encoder.SpeedEstimator: frequency method at
-        high speed, period method at low speed), never from the reading times, which the bus delays."""
+        """The reading messages the scene wires, as bulk blocks on ``/stand/<message>`` (:func:`stand_topic`):
+        a counter's count, edge time, angle and speed (drivers.encoder.SpeedEstimator from the latched edge
+        times, never from the reading times, which the bus delays); any other message the signals the scene's
+        transducers fill (fields in snake case: BrakeForce → brake_force), in the DBC's units."""
         new = self.can.take_readings()
-        if new["torque"]:
-            t, torque, brake = (np.array(c, dtype=float) for c in zip(*new["torque"]))
-            self.rec.write_block("/stand/torque", t, {"torque": torque, "brake_force": brake})
-        for enc, rad_per_count in self._rad_per_count.items():
-            rows = [r for r in new["encoders"] if r[0] == enc]
+        for message, rad_per_count in self._rad_per_count.items():
+            rows = [r for r in new["counters"] if r[0] == message]
             if rows:
-                _, t, count, edge = (np.array(c, dtype=float) for c in zip(*rows))
-                speed = self._speed[enc].update(t, count.astype(np.int64), edge)
-                self.rec.write_block(f"/stand/encoder{enc}", t, {
+                t, count, edge = (np.array(c, dtype=float) for c in list(zip(*rows))[1:])
+                speed = self._speed[message].update(t, count.astype(np.int64), edge)
+                self.rec.write_block(stand_topic(message), t, {
                     "count": count, "edge_time": edge, "angle": count * rad_per_count, "speed": speed.speed,
                     "speed_time": speed.time, "speed_method": speed.method.astype(float)})
-        if new["static"]:
-            t, angle, strain = (np.array(c, dtype=float) for c in zip(*new["static"]))
-            fields = {"angle": angle, "strain": strain}
-            self.rec.write_block("/stand/static", t, {r: fields[r] for r in fields if self.cfg.role(r) is not None})
+        for message, signals in self._readings.items():
+            rows = [r for r in new["readings"] if r[0] == message]
+            if rows:
+                t = np.array([r[1] for r in rows])
+                self.rec.write_block(stand_topic(message), t, {
+                    snake(name): np.array([r[2][name] for r in rows]) for name in signals})
 
     def _advance_theory(self, until: float) -> None:
         """Run the theory model on the machine's sample grid, in fixed blocks, until it covers ``until`` (s);
@@ -187,7 +200,7 @@ class Host:
             self._advance_theory(float(curve.t[-1]))
             theory = {}
             for role in ("x", "y"):
-                spec = self.cfg.role(role)
+                spec = self.cfg.wired(f"device.{role}")
                 values = None if spec is None else self._truth_at(curve.t, spec.signal)
                 if values is not None:
                     theory[role] = values

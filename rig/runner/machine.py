@@ -13,7 +13,7 @@ import numpy as np
 from firmware_sim.can_node import CanNode
 from firmware_sim.digiforce import DigiForce
 from firmware_sim.transducers import load_transducer
-from rig.runner.config import RunConfig
+from rig.runner.config import RunConfig, TransducerSpec
 from rig.runner.plants import make_plant
 from rig.scene import SceneError
 from rig.units import to_si
@@ -64,6 +64,15 @@ class Machine:
         self.cfg = cfg
         self.plant = make_plant(cfg.plant, cfg.scene, fidelity=cfg.fidelity)
         self.transducers, self.device = instruments(cfg)
+        for spec in cfg.transducers:
+            counter = hasattr(self.transducers[spec.name], "sample")
+            if spec.message is not None and counter != (spec.frame_signal is None):
+                raise SceneError(f"{cfg.scene.path} [transducers.{spec.name}] to = {spec.to!r}: " + (
+                    f"a counter fills a message's Count and EdgeTime: write 'can.{spec.message}'" if counter
+                    else "a reading goes into one signal: write 'can.MESSAGE.SIGNAL'"))
+            if spec.channel is not None and counter:
+                raise SceneError(f"{cfg.scene.path} [transducers.{spec.name}]: a counter cannot feed the unit's "
+                                 f"analog channel {spec.channel!r}")
         c = cfg.can
         self.node = CanNode(bus, self.device, bitrate=c["bitrate"], fd=bool(c["fd"]),
                             data_bitrate=c["data_bitrate"], live_share=c["live_share"], tx_curves=c["tx_curves"])
@@ -74,24 +83,13 @@ class Machine:
         self.curves = 0
 
     def _bus_plan(self) -> dict[str, float]:
-        """Share of the bus each periodic stream takes (status, encoders, torque, static rig); a SceneError
-        when they alone need more than the bus (curves and live data come on top)."""
+        """Share of the bus each periodic stream takes (status, each reading message the scene wires); a
+        SceneError when they alone need more than the bus (curves and live data come on top)."""
         node, cfg = self.node, self.cfg
-        per_chunk = 1.0 / cfg.chunk
-
-        def rate(role: str) -> float:
-            return cfg.role(role).rate or per_chunk
-
         plan = {"status": sum(node.frame_time_planned(n) for n in ("Heartbeat", "StatusCounters", "TxStatus"))
                 / node.heartbeat_period}
-        enc = next((r for r in ("encoder1", "encoder2") if cfg.role(r) is not None), None)
-        if enc is not None:
-            plan["encoders"] = rate(enc) * (node.frame_time_planned("Encoder1") + node.frame_time_planned("Encoder2"))
-        if cfg.role("torque") is not None:
-            plan["torque"] = rate("torque") * node.frame_time_planned("Torque")
-        static = next((r for r in ("angle", "strain") if cfg.role(r) is not None), None)
-        if static is not None:
-            plan["static"] = rate(static) * node.frame_time_planned("StaticRig")
+        for message, specs in cfg.frames().items():
+            plan[message] = (specs[0].rate or 1.0 / cfg.chunk) * node.frame_time_planned(message)
         if sum(plan.values()) > 1.0:
             shares = ", ".join(f"{k} {v:.0%}" for k, v in plan.items())
             raise SceneError(f"{cfg.scene.path} [links.can]: the periodic frames alone need {sum(plan.values()):.0%} "
@@ -99,55 +97,51 @@ class Machine:
                              "transducers' publishing rates")
         return plan
 
-    def _publish_indices(self, role: str, first_sample: int, n: int) -> np.ndarray:
-        """Indices in a chunk (whose first sample has global number ``first_sample``) at which a role's
-        reading is published: global sample numbers that are multiples of ``sample_rate / rate``."""
-        rate = self.cfg.role(role).rate
+    def _publish_indices(self, rate: float | None, first_sample: int, n: int) -> np.ndarray:
+        """Indices in a chunk (whose first sample has global number ``first_sample``) at which readings at
+        ``rate`` (Hz; None: once per chunk) are published: global sample numbers that are multiples of
+        ``sample_rate / rate``."""
         every = n if rate is None else max(1, round(self.cfg.sample_rate / rate))
         return np.arange((-first_sample) % every, n, every)
 
-    def _physical(self, signal: dict[str, np.ndarray], role: str, idx: np.ndarray) -> np.ndarray:
-        """A role's output at ``idx`` scaled back to its quantity (SI) with the nominal sensitivity,
-        as the unit's display does; zeros when the scene has no transducer in that role."""
-        if role not in signal:
-            return np.zeros(idx.size)
-        return np.ravel(self.transducers[self.cfg.role(role).name].to_physical(signal[role][idx]))
+    def _frame_values(self, spec: TransducerSpec, output: Any, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """What transducer ``spec`` puts in its CAN message at ``idx``: a counter its latched Count and last
+        EdgeTime, any other its reading scaled back to its quantity (SI) with the nominal sensitivity, as the
+        instrument's display does."""
+        if spec.frame_signal is None:
+            return {"Count": output.count[idx], "EdgeTime": np.nan_to_num(output.edge_time[idx])}
+        reading = self.transducers[spec.name].to_physical(output[idx])
+        return {spec.frame_signal: np.ravel(reading)}
 
     def step(self) -> dict[str, np.ndarray]:
-        """Advance one chunk; returns the plant truth of the chunk (SI, with its times ``t``)."""
+        """Advance one chunk; returns the plant truth of the chunk (SI, with its times ``t``). Every output
+        goes where the scene wires it (``to``): the unit's channels or a CAN reading message."""
         dt = self.cfg.dt
         i0 = self._step_index * self._n
         t = (i0 + 1 + np.arange(self._n)) * dt
         self._step_index += 1
         truth = self.plant.advance(t)
-        signal = {}
+        output = {}
         for spec in self.cfg.transducers:
             if spec.signal not in truth:
                 raise SceneError(f"{self.cfg.scene.path} [transducers.{spec.name}]: the plant has no signal "
                                  f"{spec.signal!r} (it has {', '.join(sorted(k for k in truth if k != 't'))})")
             sensor = self.transducers[spec.name]
-            if spec.role in ("encoder1", "encoder2"):
-                signal[spec.role] = sensor.sample(t, truth[spec.signal])
-            else:
-                signal[spec.role] = sensor.measure(t, truth[spec.signal])
-        if "x" in signal and "y" in signal:
-            for result in self.device.feed(t, signal["x"], signal["y"]):     # queued when the curve ends
+            read = sensor.sample if hasattr(sensor, "sample") else sensor.measure
+            output[spec.name] = read(t, truth[spec.signal])
+        x, y = self.cfg.wired("device.x"), self.cfg.wired("device.y")
+        if x is not None and y is not None:
+            for result in self.device.feed(t, output[x.name], output[y.name]):     # queued when the curve ends
                 self.node.publish_measurement(float(np.asarray(result.curve.t)[-1]), result)
                 self.curves += 1
             live = self.device.live_values()
             self.node.publish_live(t, live["x"], live["y"])
-        if "encoder1" in signal or "encoder2" in signal:
-            latched = [signal.get(r) for r in ("encoder1", "encoder2")]
-            idx = self._publish_indices("encoder1" if latched[0] is not None else "encoder2", i0 + 1, t.size)
-            zeros = np.zeros(idx.size)
-            self.node.publish_encoders(t[idx], [zeros if s is None else s.count[idx] for s in latched],
-                                       [zeros if s is None else np.nan_to_num(s.edge_time[idx]) for s in latched])
-        if "torque" in signal:
-            idx = self._publish_indices("torque", i0 + 1, t.size)
-            self.node.publish_torque(t[idx], self._physical(signal, "torque", idx), self._physical(signal, "brake", idx))
-        if "angle" in signal or "strain" in signal:       # static rig: one frame per reading of both
-            idx = self._publish_indices("angle" if "angle" in signal else "strain", i0 + 1, t.size)
-            self.node.publish_static(t[idx], self._physical(signal, "angle", idx), self._physical(signal, "strain", idx))
+        for message, specs in self.cfg.frames().items():
+            idx = self._publish_indices(specs[0].rate, i0 + 1, t.size)
+            values: dict[str, np.ndarray] = {}
+            for spec in specs:
+                values.update(self._frame_values(spec, output[spec.name], idx))
+            self.node.publish_reading(message, t[idx], values)
         self.node.advance_to(float(t[-1]))
         self.t = float(t[-1])
         return truth

@@ -79,9 +79,9 @@ def ok_share(scene: Scene, cycles: int = OK_CYCLES) -> float:
     cycles = cfg.cycles or cycles
     plant = make_plant(cfg.plant, scene)
     transducers, device = instruments(cfg)
-    x, y = cfg.role("x"), cfg.role("y")
+    x, y = cfg.wired("device.x"), cfg.wired("device.y")
     if x is None or y is None:
-        raise ValueError(f"{scene.path}: ok_share needs transducers in the roles 'x' and 'y' (the unit's channels)")
+        raise ValueError(f"{scene.path}: ok_share needs transducers wired to device.x and device.y")
     n = max(2, round(CHUNK * cfg.sample_rate))
     ok = done = step = 0
     limit = cfg.duration if cfg.duration is not None else math.inf

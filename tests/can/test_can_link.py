@@ -243,15 +243,20 @@ def test_encoders_and_torque(buses, device):
     host = CanHost(host_bus)
     node.advance_to(20.0)                              # heartbeats bring the host to device time ~20 s
     host.poll()
-    node.publish_encoders(20.0, [123456, -42], [19.9871234, 18.5])
-    node.publish_torque(20.0005, 212.3456, 1503.2)     # 1 mN·m steps, ±524 N·m (DBC)
+    node.publish_reading("Encoder1", 20.0, {"Count": 123456, "EdgeTime": 19.9871234})   # wraps at 16.78 s
+    node.publish_reading("Encoder2", 20.0, {"Count": -42, "EdgeTime": 18.5})
+    node.publish_reading("Torque", 20.0005, {"Torque": 212.3456, "BrakeForce": 1503.2})  # 1 mN·m steps, ±524 N·m
+    node.publish_reading("StaticRig", 20.0005, {"Angle": 99.0})             # beyond ±10.49 rad: clipped, counted
     node.advance_to(20.01)
     host.poll()
-    assert host.encoders[1]["count"] == 123456 and host.encoders[2]["count"] == -42
-    assert host.encoders[1]["edge_time"] == pytest.approx(19.987123, abs=1e-6)
-    assert host.encoders[2]["edge_time"] == pytest.approx(18.5, abs=1e-6)
-    (tq,) = host.torque
-    assert tq == pytest.approx((20.0005, 212.3456, 1503.2), abs=5e-3)
+    readings = host.take_readings()
+    (e1, e2) = readings["counters"]
+    assert (e1[0], e1[2], e2[0], e2[2]) == ("Encoder1", 123456, "Encoder2", -42)
+    assert e1[3] == pytest.approx(19.987123, abs=1e-6) and e2[3] == pytest.approx(18.5, abs=1e-6)
+    (tq, st) = readings["readings"]
+    assert tq[0] == "Torque" and tq[1] == pytest.approx(20.0005, abs=1e-4)
+    assert tq[2] == pytest.approx({"Torque": 212.3456, "BrakeForce": 1503.2}, abs=5e-3)
+    assert st[0] == "StaticRig" and st[2] == pytest.approx({"Angle": 10.48574, "Strain": 0.0}) and node.clipped == 1
     assert host.events == []
 
 
@@ -261,8 +266,10 @@ def test_bad_calls_are_named(buses, device):
         node.publish_live(np.array([0.0, 0.1, 0.3]), np.zeros(3), np.zeros(3))
     with pytest.raises(ValueError, match=">= 2 samples"):
         node.publish_live(np.array([0.0]), np.zeros(1), np.zeros(1))
-    with pytest.raises(ValueError, match="2 counts"):
-        node.publish_encoders(0.0, [1], [0.0])
+    with pytest.raises(ValueError, match="not a device reading message"):
+        node.publish_reading("CurveBlock", 0.0, {"X0": 1.0})
+    with pytest.raises(ValueError, match="Torque has no signal 'Torq'.*Torque, BrakeForce"):
+        node.publish_reading("Torque", 0.0, {"Torq": 1.0})
     node.advance_to(1.0)
     with pytest.raises(ValueError, match="back in time"):
         node.advance_to(0.5)
@@ -276,7 +283,8 @@ def test_live_frames_stuck_behind_higher_priority_traffic_go_stale(buses, device
     t = np.arange(1000) / 10_000.0
     factor = node.publish_live(t, np.zeros(1000), np.zeros(1000))
     for _ in range(300):                       # then 600 encoder frames = 162 ms of wire time from t = 0
-        node.publish_encoders(0.0, [1, 2], [0.0, 0.0])
+        for encoder in ("Encoder1", "Encoder2"):
+            node.publish_reading(encoder, 0.0, {"Count": 1, "EdgeTime": 0.0})
     node.advance_to(0.5)
     ids = []
     while (m := host_bus.recv(0)) is not None:

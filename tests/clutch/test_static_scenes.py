@@ -47,7 +47,7 @@ def test_scene_records_measured_channels(recordings, name):
     summary, rec = recordings[name]
     duration = to_si(tomllib.loads(rec.scene_text)["scene"]["duration"], "s")
     assert duration <= summary.simulated_time < duration + 3.0      # the run ends with the program
-    readings = rec.series["/stand/static"]
+    readings = rec.series["/stand/static_rig"]
     assert set(readings) == ({"t", "angle", "strain"} if name == "clutch_static_leaf" else {"t", "angle"})
     assert readings["t"].size == pytest.approx(PUBLISH_RATE * duration, abs=2)
     assert not [e for e in rec.events if e["kind"] == "sequence_gap"]
@@ -65,7 +65,7 @@ def test_scene_records_measured_channels(recordings, name):
 def test_leaf_strain_measured_against_characteristic(recordings):
     _, rec = recordings["clutch_static_leaf"]
     rig = static_rig(rec)
-    r = rec.series["/stand/static"]
+    r = rec.series["/stand/static_rig"]
     truth = np.interp(r["t"], rec.truth["t"], rec.truth["leaf_strain"])
     # bridge amplifier: +-5000 um/m over 10 V, errors 0.5 % + 0.1 % + 0.2 % of FS and 1 % of the reading
     bound = 5000e-6 * (0.005 + 0.001 + 0.002) + 0.01 * np.abs(truth) + 5 * 2e-3 / 2000.0 + 1e-8
@@ -161,21 +161,24 @@ def test_theory_rejects_an_empty_cycle():
 
 
 def test_transducer_signal_the_plant_lacks_is_a_scene_error(tmp_path):
-    text = (SCENES / "clutch_static_flat_tappet.toml").read_text().replace(
-        "[transducers.angle_pot]", '[transducers.leaf_bridge]\ndescription = "leaf_half_bridge"\n'
-        'signal = "leaf_strain"\nrole = "strain"\n\n[transducers.angle_pot]', 1)
+    bridge = ('[transducers.leaf_bridge]\ndescription = "leaf_half_bridge"\nsignal = "leaf_strain"\n'
+              'to = "can.StaticRig.Strain"\n')
     scene = tmp_path / "clutch_static_bad.toml"
-    scene.write_text(text)
+    flat = (SCENES / "clutch_static_flat_tappet.toml").read_text()
+    scene.write_text(flat.replace("[transducers.angle_pot]", bridge + "\n[transducers.angle_pot]", 1))
+    with pytest.raises(SceneError, match=r"leaf_bridge, angle_pot share CAN message StaticRig .* different rates"):
+        run_scene(scene, tmp_path / "bad.mcap")                 # one frame carries both: one rate
+    scene.write_text(flat.replace("[transducers.angle_pot]", bridge + 'rate = "30 Hz"\n\n[transducers.angle_pot]', 1))
     with pytest.raises(SceneError, match=r"\[transducers.leaf_bridge\].*no signal 'leaf_strain'") as info:
         run_scene(scene, tmp_path / "bad.mcap")
     assert str(scene) in str(info.value) and "relative_angle" in str(info.value)
 
 
-def test_unknown_role_is_a_scene_error(tmp_path):
-    text = (SCENES / "clutch_static_rubber_table.toml").read_text().replace('role = "angle"', 'role = "dmm"', 1)
+def test_unknown_destination_is_a_scene_error(tmp_path):
+    text = (SCENES / "clutch_static_rubber_table.toml").read_text().replace('to = "can.StaticRig.Angle"', 'to = "dmm"', 1)
     scene = tmp_path / "clutch_static_bad_role.toml"
     scene.write_text(text)
-    with pytest.raises(SceneError, match=r"\[transducers.angle_pot\].*'role'.*'dmm'"):
+    with pytest.raises(SceneError, match=r"\[transducers.angle_pot\].*'to'.*'device.x'.*got 'dmm'"):
         run_scene(scene, tmp_path / "bad.mcap")
 
 

@@ -91,7 +91,7 @@ def state(host: CanHost) -> dict[str, Any]:
                        for c in host.take_curves()],
             "live": [_array(a) for a in (t, x, y)], "readings": host.take_readings(), "acks": host.acks,
             "drops": host.take_drop_reports(), "status": host.status, "counters": host.counters,
-            "encoders": host.encoders, "missed": host.sequence.missed, "frames": host.frames_received,
+            "missed": host.sequence.missed, "frames": host.frames_received,
             "device_time": host.device_time, "run_ended": host.run_ended}
 
 

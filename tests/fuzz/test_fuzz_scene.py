@@ -46,7 +46,7 @@ SCALARS = NUMBERS + ['"abc"', '""', "true", "false", "[]", "[1, 2]", '["1 mm", "
 FACTORS = [-1.0, 0.0, 1e-6, 1e-3, 0.5, 2.0, 10.0, 1e3, 1e6]
 KEYS = ["name", "plant", "seed", "cycles", "duration", "sample_rate", "chunk", "mode", "fidelity", "max_time",
         "L3", "L3_mm", "L3_kg", "k_N_per_mm", "speed", "profile", "speed_end", "ramp_time", "amplitude",
-        "description", "signal", "role", "rate", "overrides", "faults", "program", "config", "interface",
+        "description", "signal", "to", "rate", "overrides", "faults", "program", "config", "interface",
         "bitrate", "fd", "data_bitrate", "live_share", "tx_curves", "port", "enabled", "baudrate", "address",
         "truth_signals", "encoding", "compression", "variant", "lever_arm", "force", "kind", "angle", "law",
         "stroke", "zz", "x_mm_mm", "_", "a b", '"quoted key"', "F_c_travel_ms", "clearance_lambda"]

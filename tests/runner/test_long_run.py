@@ -71,6 +71,6 @@ def test_cycles_from_the_command_line_raise_the_time_limit():
 def test_periodic_frames_that_cannot_fit_the_bus_are_a_scene_error(tmp_path: Path):
     from rig.scene import SceneError
     fast = tmp_path / "fast_encoder.toml"
-    fast.write_text(SCENE.read_text().replace('rate = "100 Hz"', 'rate = "5 kHz"', 1))
-    with pytest.raises(SceneError, match=r"\[links.can\].*periodic frames alone need 13\d% .*encoders 13\d%"):
+    fast.write_text(SCENE.read_text().replace('rate = "100 Hz"', 'rate = "10 kHz"', 1))
+    with pytest.raises(SceneError, match=r"\[links.can\].*periodic frames alone need 13\d% .*Encoder1 13\d%"):
         run_scene(fast, tmp_path / "fast.mcap", cycles=1)

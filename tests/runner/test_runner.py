@@ -148,7 +148,12 @@ def test_interrupted_run_leaves_a_valid_recording(tmp_path: Path, monkeypatch):
 
 
 @pytest.mark.parametrize("old, new, message", [
-    ('role = "y"', 'role = "z"', r"\[transducers.rod_force\].*role"),
+    ('to = "device.y"', 'to = "device.z"', r"\[transducers.rod_force\].*'device.x' and 'device.y'"),
+    ('to = "device.y"', 'to = "can.Torque.Torq"', r"\[transducers.rod_force\].*Torque has no signal 'Torq'.*Torque, BrakeForce"),
+    ('to = "device.y"', 'to = "can.Nope.X"', r"\[transducers.rod_force\].*no reading message 'Nope'.*Encoder1"),
+    ('to = "device.y"', 'to = "can.Torque"', r"\[transducers.rod_force\].*Torque carries no counter"),
+    ('to = "can.Encoder1"', 'to = "can.Encoder1.Count"', r"\[transducers.cam_encoder\].*a counter fills.*'can.Encoder1'"),
+    ('to = "device.x"', 'to = "device.y"', r"'device.y' is given to more than one transducer"),
     ('signal = "F_rod"', 'signal = "F_nope"', r"no signal 'F_nope'"),
     ('mode = "virtual"', 'mode = "turbo"', r"\[scene\].*'mode'"),
     ('description = "burster_8411"', 'description = "no_such_sensor"', r"no_such_sensor"),
@@ -161,7 +166,7 @@ def test_bad_scene_is_a_clear_error(tmp_path: Path, old: str, new: str, message:
 
 def test_config_reads_the_demo_scene():
     cfg = read_config(load_scene(SCENE))
-    assert cfg.cycles == 50 and cfg.sample_rate == 10_000 and cfg.role("x").signal == "s"
+    assert cfg.cycles == 50 and cfg.sample_rate == 10_000 and cfg.wired("device.x").signal == "s"
 
 
 def test_recorded_values_equal_the_raw_frames_decoded_with_cantools_and_the_dbc_alone(in_process: Path):
