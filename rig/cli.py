@@ -95,13 +95,14 @@ def _print_set_summary(result: dict) -> None:
 
 
 def _print_stand_summary(rec: Any) -> bool:
-    """Console summary of a clutch-stand run (dynamic stand or static rig, no curves): its key results,
+    """Console summary of a stand run (clutch dynamic stand or static rig, lab bench; no curves): its key results,
     each with what it is relative to. False (nothing printed) for other recordings."""
     if rec.curves:
         return False
     from rig.analysis.clutch_report import summary_lines
+    from rig.analysis.lab_report import summary_lines as lab_lines
     from rig.analysis.static_clutch_report import summary_lines as static_lines
-    lines = summary_lines(rec) or static_lines(rec)
+    lines = lab_lines(rec) or summary_lines(rec) or static_lines(rec)
     if lines:
         print("\n".join(lines))
     return bool(lines)

@@ -8,10 +8,12 @@ from .base import Transducer
 from .bridge import StrainGaugeBridge, shunt_ratio
 from .description import REGISTRY, load_transducer
 from .encoder import EncoderSample, IncrementalEncoder
+from .lab import PulseCounter, SpeedIndicator, Stroboscope, Tachogenerator
 from .lowpass import LowPass, frequency_response
 from .lvdt import LVDT
 from .potentiometer import PotentiometerDMM
 
-__all__ = ["AnalogTransducer", "EncoderSample", "IncrementalEncoder", "LVDT", "LowPass", "PotentiometerDMM",
+__all__ = ["AnalogTransducer", "EncoderSample", "IncrementalEncoder", "LVDT", "LowPass", "PotentiometerDMM", "PulseCounter",
+           "SpeedIndicator", "Stroboscope", "Tachogenerator",
            "REGISTRY", "StrainAmplifier", "StrainGaugeBridge", "Transducer", "frequency_response", "load_transducer",
            "shunt_ratio"]

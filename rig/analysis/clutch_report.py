@@ -126,9 +126,9 @@ def _speeds(e: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def stand_record(rec: Recording) -> StandRecord | None:
-    """The measured signals of a dynamic-stand recording (None: no torque readings)."""
+    """The measured signals of a dynamic-stand recording (None: no torque readings, or another plant's)."""
     torque = rec.series.get("/stand/torque")
-    if not torque or torque["t"].size < 2:
+    if not torque or torque["t"].size < 2 or rec.metadata.get("rig", {}).get("plant", "clutch_dynamic") != "clutch_dynamic":
         return None
     encs = {i: rec.series.get(f"/stand/encoder{i}") for i in (1, 2)}
     encs = {i: e for i, e in encs.items() if e and e["t"].size >= 2}

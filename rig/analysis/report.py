@@ -577,3 +577,4 @@ def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path,
 
 from rig.analysis import clutch_report as _clutch_report  # noqa: E402,F401  (registers its section)
 from rig.analysis import static_clutch_report as _static_clutch_report  # noqa: E402,F401  (registers its section)
+from rig.analysis import lab_report as _lab_report  # noqa: E402,F401  (registers its section)

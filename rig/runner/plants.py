@@ -28,16 +28,22 @@ def _clutch_static(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
     return rig_from_scene(scene)
 
 
+def _lab_bench(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
+    from rig.plants.lab_bench import LabBench
+    return LabBench.from_scene(scene)
+
+
 #: builders take the scene, ``nominal`` (True: the design without per-cycle variation, the host's theory) and
 #: the run's fidelity (level and solver setting, :mod:`rig.fidelity`)
 PLANTS: dict[str, Callable[[Scene, bool, Fidelity], Any]] = {
-    "cam_bar": _cam_bar, "clutch_dynamic": _clutch_dynamic, "clutch_static": _clutch_static}
+    "cam_bar": _cam_bar, "clutch_dynamic": _clutch_dynamic, "clutch_static": _clutch_static,
+    "lab_bench": _lab_bench}
 
 
 #: top-level scene sections each plant reads (the runner's own: rig.runner.config.RUNNER_SECTIONS)
 PLANT_SECTIONS: dict[str, tuple[str, ...]] = {
     "cam_bar": ("plant", "speed"), "clutch_dynamic": ("plant", "motor", "load", "comparison"),
-    "clutch_static": ("plant", "program")}
+    "clutch_static": ("plant", "program"), "lab_bench": ("plant", "speed", "lab")}
 
 
 def make_plant(kind: str, scene: Scene, nominal: bool = False, fidelity: Fidelity | None = None) -> Any:

@@ -1,0 +1,369 @@
+"""Lab sheets of the course labs (docs/labs.md) from a lab-bench recording, as the student fills them in.
+
+Measured: what the host recorded from the CAN frames (``/stand/encoder1|2``: counts and edge times;
+``/stand/lab_speed``, ``/stand/lab_display``, ``/stand/lab_motion``, ``/stand/torque``). Theory: the host's
+nominal model in ``/plant/truth`` and the mechanism rebuilt from the recorded scene (rig.plants.lab_bench).
+A scene lists its sheets in ``[lab] sheets``; each is a table, a figure and one summary line.
+"""
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from math import cos, radians, tau
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from firmware_sim.transducers.description import read_description, resolve_path
+from rig.analysis.plots import figure, save
+from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
+from rig.plants.lab_bench import LabBench
+from rig.recorder import Recording
+from rig.scene import Field, Scene, SceneError, read_table
+from rig.units import to_si
+
+RPM = tau / 60.0          # rad/s per rpm
+STEP = radians(10.0)      # the sheets' angle step: 36 points per turn
+LAB_SCHEMA = {"sheets": Field(None, doc="lab sheets of the run: speed, cam_follower, cam_torque, cardan, geneva"),
+              "readings": Field(None, None, "times (with units) at which the speed sheet reads every instrument")}
+
+
+@dataclass
+class Sheet:
+    """One filled-in lab sheet: its table, notes, a one-line result and the figure's drawing function."""
+
+    title: str
+    headers: list[str]
+    rows: list[list[Any]]
+    result: str
+    notes: list[str] = field(default_factory=list)
+    draw: Callable[[Any], None] | None = None
+    values: dict[str, float] = field(default_factory=dict)     # the result line's numbers (SI, ratios)
+
+
+@dataclass
+class Lab:
+    """A lab-bench recording with its scene: the bench (theory), [lab], the transducer tables."""
+
+    rec: Recording
+    scene: Scene
+    bench: LabBench
+    lab: dict[str, Any]
+
+    def transducer(self, to: str) -> dict[str, Any] | None:
+        """The scene's transducer table wired to ``to`` (e.g. 'can.LabSpeed.Pulses')."""
+        return next((t for t in self.scene.data.get("transducers", {}).values() if t.get("to") == to), None)
+
+    def setting(self, to: str, key: str, unit: str) -> float:
+        """A description value (SI) of the transducer wired to ``to``, its scene override first."""
+        table = self.transducer(to)
+        if table is None:
+            raise SceneError(f"{self.scene.path}: no transducer wired to {to!r}")
+        value = table.get("overrides", {}).get(key, read_description(resolve_path(table["description"])).get(key))
+        return to_si(value, unit, what=f"{self.scene.path} [transducers] {key}")
+
+    def angle(self, topic: str, signal: str = "phi_in") -> tuple[np.ndarray, np.ndarray]:
+        """Angle (rad) of the shaft whose plant ``signal`` the encoder on ``topic`` measures, at each edge that
+        changed its count: (edge times s, angles rad), strictly increasing in time. The count starts at the
+        shaft's angle at power-on (the zero marks aligned, as the lab sheet asks)."""
+        block = self.rec.series.get(topic)
+        if block is None or block["t"].size < 2:
+            raise SceneError(f"{self.rec.path}: no {topic} readings (is the encoder wired?)")
+        edge, angle = block["edge_time"], block["angle"]
+        ok = np.isfinite(edge)
+        edge, angle = edge[ok], angle[ok]
+        keep = np.r_[True, np.diff(edge) > 0]
+        return edge[keep], angle[keep] + float(self.bench.truth(np.zeros(1))[signal][0])
+
+
+def read_lab(rec: Recording) -> Lab:
+    """The lab of a recording; SceneError when it is not a lab-bench recording with a valid [lab]."""
+    if not rec.scene_text:
+        raise SceneError(f"{rec.path}: the recording holds no scene")
+    try:
+        data = tomllib.loads(rec.scene_text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{rec.path}: recorded scene is not valid TOML: {exc}") from None
+    scene = Scene(Path(f"{rec.path}:scene.toml"), data, rec.scene_text)
+    if data.get("scene", {}).get("plant") != "lab_bench":
+        raise SceneError(f"{rec.path}: not a lab-bench recording")
+    lab = read_table(data.get("lab", {}), LAB_SCHEMA, f"{scene.path} [lab]")
+    unknown = [s for s in lab["sheets"] if s not in SHEETS] if isinstance(lab["sheets"], list) else [lab["sheets"]]
+    if unknown:
+        raise SceneError(f"{scene.path} [lab]: unknown sheet(s) {unknown} (known: {', '.join(SHEETS)})")
+    return Lab(rec, scene, LabBench.from_scene(scene), lab)
+
+
+def _latest(t: np.ndarray, values: np.ndarray, at: float) -> float:
+    """The latest reading at or before ``at`` (s); NaN before the first."""
+    i = int(np.searchsorted(t, at, side="right")) - 1
+    return float(values[i]) if i >= 0 else float("nan")
+
+
+def _last_turn(t_edge: np.ndarray, angle: np.ndarray, start: float = 0.0) -> np.ndarray:
+    """The 36 angles (rad, multiples of 10°) of the last whole turn the encoder saw with 10° to spare on both
+    sides, and those two neighbours (for central differences): 38 angles. The turn begins at ``start`` (rad)."""
+    end = np.floor((angle[-1] - STEP - start) / tau) * tau + start
+    if end - tau - STEP < angle[0]:
+        raise SceneError("the recording holds less than one whole turn of the input shaft (plus 10° each side)")
+    return end - tau + STEP * np.arange(-1, 37)
+
+
+def speed_sheet(lab: Lab) -> Sheet:
+    """Three readings of each instrument against the pulse counter (rpm), error of each and of the mean."""
+    rec = lab.rec
+    holes = lab.setting("can.LabSpeed.Pulses", "holes", "1")
+    gate = lab.setting("can.LabSpeed.Pulses", "gate_time", "s")
+    times = [to_si(v, "s", what=f"{lab.scene.path} [lab] readings") for v in lab.lab["readings"] or ()]
+    if len(times) < 1:
+        raise SceneError(f"{lab.scene.path} [lab]: the speed sheet needs 'readings' (times, e.g. [\"2.5 s\"])")
+    pulses = rec.series.get("/stand/lab_speed", {})
+    display = rec.series.get("/stand/lab_display", {})
+    counter = [_latest(pulses["t"], pulses["pulses"], at) / (holes * gate) * 60.0 for at in times]
+    truth = rec.truth
+    rows = [["pulse counter (N / (z·T))"] + [fmt(v) for v in counter] + [fmt(np.mean(counter)), "reference"]]
+    instruments = [("tachogenerator", pulses, "tacho"), ("mechanical tachometer", display, "tachometer"),
+                   ("stroboscope (60·f_x)", display, "strobe")]
+    errors = {}
+    for name, block, key in instruments:
+        if key not in block:
+            continue
+        read = [_latest(block["t"], block[key], at) / RPM for at in times]
+        errors[name] = (np.mean(read) - np.mean(counter)) / np.mean(counter)
+        rows.append([name] + [f"{fmt(v)} ({100 * (v - c) / c:+.2f} %)" for v, c in zip(read, counter)]
+                    + [fmt(np.mean(read)), f"{100 * errors[name]:+.2f} %"])
+    gate_truth = [float(np.mean(truth["omega_in"][(truth["t"] > at - gate) & (truth["t"] <= at)])) / RPM
+                  for at in times]
+    rows.append(["plant truth (mean over the gate)"] + [fmt(v) for v in gate_truth]
+                + [fmt(np.mean(gate_truth)), f"{100 * (np.mean(counter) - np.mean(gate_truth)) / np.mean(gate_truth):+.2f} % (counter)"])
+    resolution = 60.0 / (holes * gate)
+
+    def draw(ax: Any) -> None:
+        ax.plot(truth["t"], truth["omega_in"] / RPM, color="0.5", lw=0.8, label="plant truth")
+        ax.step(pulses["t"], pulses["pulses"] / (holes * gate) * 60.0, where="post", label="pulse counter")
+        for name, block, key in instruments:
+            if key in block:
+                ax.plot(block["t"], block[key] / RPM, lw=0.8, label=name)
+        ax.plot(times, counter, "kx", ms=8, label="readings")
+        ax.set(xlabel="time (s)", ylabel="speed (rpm)", title="Speed measurement")
+
+    return Sheet("Speed measurement", ["instrument", *[f"reading {i + 1} (rpm)" for i in range(len(times))],
+                                       "mean (rpm)", "error of the mean vs counter"], rows,
+                 "; ".join(f"{k} {100 * v:+.2f} %" for k, v in errors.items()) + " against the counter",
+                 [f"Counter resolution: one pulse in the gate = 60/(z·T) = {resolution:.4g} rpm "
+                  f"(z = {holes:g} holes, T = {gate:g} s).",
+                  "The stroboscope's image also stands still at f_i/k: a reading near 1/k of the others means the "
+                  "flash rate was a sub-multiple (its 'divisor')."], draw,
+                 {"counter_rpm": float(np.mean(counter)), "truth_rpm": float(np.mean(gate_truth)),
+                  "resolution_rpm": resolution, **{f"error {k}": float(v) for k, v in errors.items()}})
+
+
+def cam_follower_sheet(lab: Lab) -> Sheet:
+    """Follower position every 10° of cam angle, differenced numerically against the law's s, s', s''."""
+    rec, program = lab.rec, lab.bench.mechanism
+    t_edge, phi = lab.angle("/stand/encoder1")
+    motion = rec.series.get("/stand/lab_motion")
+    if motion is None or "displacement" not in motion:
+        raise SceneError(f"{rec.path}: no follower displacement readings (/stand/lab_motion)")
+    grid = _last_turn(t_edge, phi)
+    s = np.interp(np.interp(grid, phi, t_edge), motion["t"], motion["displacement"])
+    d1 = (s[2:] - s[:-2]) / (2 * STEP)
+    d2 = (s[2:] - 2 * s[1:-1] + s[:-2]) / STEP ** 2
+    law = program.evaluate(grid[1:-1])
+    exact = program.evaluate(grid)
+    law_d2 = (exact.s[2:] - 2 * exact.s[1:-1] + exact.s[:-2]) / STEP ** 2       # the law differenced the same way
+    rows = [[f"{np.degrees(p) % 360:.0f}", f"{1e3 * a:.3f}", f"{1e3 * b:.3f}", f"{1e6 * (a - b):+.1f}",
+             f"{1e3 * c:.3f}", f"{1e3 * e:.3f}", f"{1e3 * f:.2f}", f"{1e3 * g:.2f}"]
+            for p, a, b, c, e, f, g in zip(grid[1:-1], s[1:-1], law.s, d1, law.s_p, d2, law.s_pp)]
+    peak1, peak2 = np.max(np.abs(law.s_p)), np.max(np.abs(law.s_pp))
+    values = {"ds_max": float(np.max(np.abs(s[1:-1] - law.s))),
+              "d1_rel": float(np.max(np.abs(d1 - law.s_p)) / peak1), "d2_rel": float(np.max(np.abs(d2 - law.s_pp)) / peak2),
+              "law_d2_rel": float(np.max(np.abs(law_d2 - law.s_pp)) / peak2)}
+    result = (f"max |s − law| {1e6 * np.max(np.abs(s[1:-1] - law.s)):.1f} µm; s' within "
+              f"{100 * np.max(np.abs(d1 - law.s_p)) / peak1:.1f} %, s'' within {100 * np.max(np.abs(d2 - law.s_pp)) / peak2:.1f} % "
+              f"of their peaks (the law itself differenced at 10°: s'' within "
+              f"{100 * np.max(np.abs(law_d2 - law.s_pp)) / peak2:.1f} %)")
+
+    def draw(ax: Any) -> None:
+        fine = np.linspace(0, tau, 721)
+        m = program.evaluate(fine)
+        deg = np.degrees(grid[1:-1]) % 360
+        order = np.argsort(deg)
+        for values, law_values, label, scale in ((s[1:-1], m.s, "s (mm)", 1e3), (d1, m.s_p, "s' (mm/rad)", 1e3),
+                                                 (d2, m.s_pp, "s'' (mm/rad²)", 1e3)):
+            line, = ax.plot(np.degrees(fine), scale * law_values, lw=0.9, label=f"law {label}")
+            ax.plot(deg[order], scale * values[order], "o", ms=3, color=line.get_color(), label=f"measured {label}")
+        ax.set(xlabel="cam angle (deg)", ylabel="mm, mm/rad, mm/rad²", title="Cam follower: position every 10°")
+
+    return Sheet("Cam follower", ["cam angle (deg)", "s measured (mm)", "s law (mm)", "difference (µm)",
+                                  "ds/dφ numerical (mm/rad)", "ds/dφ law (mm/rad)", "d²s/dφ² numerical (mm/rad²)",
+                                  "d²s/dφ² law (mm/rad²)"], rows, result,
+                 ["Central differences at h = 10°: the truncation error of s'' is h²/12·s'''' — see the law "
+                  "differenced the same way in the result line; the rest is the LVDT and the encoder."], draw, values)
+
+
+def cam_torque_sheet(lab: Lab) -> Sheet:
+    """Cam-shaft torque from the torque transducer, averaged per 10° of cam angle, against theory."""
+    rec, truth = lab.rec, lab.rec.truth
+    t_edge, phi = lab.angle("/stand/encoder1")
+    torque = rec.series.get("/stand/torque")
+    if torque is None or "torque" not in torque:
+        raise SceneError(f"{rec.path}: no torque readings (/stand/torque)")
+    inside = (torque["t"] >= t_edge[0]) & (torque["t"] <= t_edge[-1])
+    angle = np.interp(torque["t"][inside], t_edge, phi)
+    whole = angle >= np.ceil(angle[0] / tau) * tau                  # from the first whole turn on
+    angle, measured = angle[whole], torque["torque"][inside][whole]
+    bins = np.floor((angle % tau) / STEP).astype(int)
+    theory_at = lambda p: np.interp(p, truth["phi_in"], truth["torque"])      # noqa: E731
+    rows, dev = [], []
+    for k in range(36):
+        here = bins == k
+        if not here.any():
+            continue
+        mean = float(np.mean(measured[here]))
+        theory = float(np.mean(theory_at(angle[here])))
+        dev.append(mean - theory)
+        rows.append([f"{10 * k}–{10 * k + 10}", fmt(mean), fmt(theory), f"{mean - theory:+.4f}", int(here.sum())])
+    turns = np.floor((angle[-1] - angle[0]) / tau)
+    span = angle <= angle[0] + turns * tau                          # whole turns only
+    work = float(np.trapezoid(measured[span], angle[span])) if turns >= 1 else float("nan")
+    peak = float(np.max(np.abs(truth["torque"])))
+    result = (f"max |measured − theory| per 10° bin {np.max(np.abs(dev)):.4f} N·m ({100 * np.max(np.abs(dev)) / peak:.1f} % "
+              f"of the {peak:.3g} N·m peak); work per turn ∮M dφ = {work / max(turns, 1e-9):.4f} J (0 for spring and mass)")
+
+    def draw(ax: Any) -> None:
+        ax.plot(np.degrees(angle % tau), measured, ".", ms=1, color="0.6", label="measured")
+        fine = np.linspace(angle[0], angle[0] + tau, 721)
+        ax.plot(np.degrees(fine % tau), theory_at(fine), ".", ms=1.5, color="tab:red", label="theory M = F·ds/dφ + J·ω̇")
+        ax.set(xlabel="cam angle (deg)", ylabel="torque (N·m)", title="Cam-shaft torque")
+
+    return Sheet("Cam-shaft torque", ["cam angle (deg)", "measured mean (N·m)", "theory (N·m)",
+                                      "difference (N·m)", "readings"], rows, result,
+                 ["The torque shaft is elastic: its 1 kHz bandwidth and the reading rate set how fast a torque "
+                  "change is seen."], draw,
+                 {"deviation_max": float(np.max(np.abs(dev))), "peak": peak, "work_per_turn": work / max(turns, 1.0)})
+
+
+def cardan_sheet(lab: Lab) -> Sheet:
+    """Output angle and speed ratio ω2/ω1 at 36 points of the input turn, against the closed forms."""
+    cardan = lab.bench.mechanism
+    t1, phi1 = lab.angle("/stand/encoder1")
+    t2, phi2 = lab.angle("/stand/encoder2", "phi_out")
+    grid = _last_turn(t1, phi1)
+    out = np.interp(np.interp(grid, phi1, t1), t2, phi2)
+    ratio = (out[2:] - out[:-2]) / (2 * STEP)
+    theory = cardan.speed_ratio(grid[1:-1])
+    lag = out[1:-1] - grid[1:-1]
+    lag_theory = cardan.output_angle(grid[1:-1]) - grid[1:-1]
+    rows = [[f"{np.degrees(p) % 360:.0f}", f"{np.degrees(a):+.3f}", f"{np.degrees(b):+.3f}", f"{c:.4f}", f"{d:.4f}",
+             f"{100 * (c - d) / d:+.2f} %"] for p, a, b, c, d in zip(grid[1:-1], lag, lag_theory, ratio, theory)]
+    a = cardan.shaft_angle
+    turn = np.interp(np.interp([grid[1], grid[1] + tau], phi1, t1), t2, phi2)     # φ2 over one whole input turn
+    mean = (turn[1] - turn[0]) / tau
+    result = (f"ω2/ω1 from {ratio.min():.4f} to {ratio.max():.4f} (theory cos α = {cos(a):.4f}, 1/cos α = "
+              f"{1 / cos(a):.4f}); mean over the turn {mean:.5f} (theory 1)")
+
+    def draw(ax: Any) -> None:
+        fine = np.linspace(0, tau, 721)
+        ax.plot(np.degrees(fine), cardan.speed_ratio(fine), lw=0.9, label="theory cos α/(1 − sin²α cos²φ1)")
+        ax.plot(np.degrees(grid[1:-1]) % 360, ratio, "o", ms=3, label="measured (two encoders, 36 points)")
+        ax.axhline(cos(a), ls=":", color="0.5")
+        ax.axhline(1 / cos(a), ls=":", color="0.5")
+        ax.set(xlabel="input angle φ1 (deg)", ylabel="ω2/ω1", title=f"Cardan joint at α = {np.degrees(a):.3g}°")
+
+    return Sheet("Cardan joint", ["φ1 (deg)", "φ2 − φ1 measured (deg)", "φ2 − φ1 theory (deg)",
+                                  "ω2/ω1 measured", "ω2/ω1 theory", "error"], rows, result,
+                 ["ω2/ω1 by central differences of the output angle over ±10° of input angle."], draw,
+                 {"ratio_min": float(ratio.min()), "ratio_max": float(ratio.max()), "ratio_mean": float(mean),
+                  "lag_error_max": float(np.max(np.abs(lag - lag_theory)))})
+
+
+def geneva_sheet(lab: Lab) -> Sheet:
+    """Wheel angle every 10° of crank and the measured motion and dwell times against k_m = (z − 2)/(2z)."""
+    geneva, truth = lab.bench.mechanism, lab.rec.truth
+    t1, phi1 = lab.angle("/stand/encoder1")
+    t2, phi2 = lab.angle("/stand/encoder2", "phi_out")
+    grid = _last_turn(t1, phi1, start=np.pi)[1:-1]              # from the middle of a dwell
+    wheel = np.interp(np.interp(grid, phi1, t1), t2, phi2)
+    theory = np.interp(grid, truth["phi_in"], truth["phi_out"])
+    rows = [[f"{np.degrees(p) % 360 - 360 * (np.degrees(p) % 360 > 180):.0f}", f"{np.degrees(a - wheel[0]):.2f}", f"{np.degrees(b - theory[0]):.2f}",
+             f"{np.degrees(a - b):+.3f}"] for p, a, b in zip(grid, wheel, theory)]
+    timing = geneva.timing(lab.bench.speed.nominal_omega)
+    count = tau / (lab.setting("can.Encoder2", "ppr", "1") * 4)          # rad per ×4 count of the wheel encoder
+    gaps = np.flatnonzero(np.diff(t2) > 0.5 * timing.dwell_time)        # dwells between two indexings
+    motion = [t2[b] - t2[a + 1] for a, b in zip(gaps[:-1], gaps[1:])]   # whole indexings: first to last count change
+    index = tau / geneva.slots
+    first = truth["phi_out"] - truth["phi_out"][0] <= index              # theory: the first indexing, same detection
+    seen = np.interp([count, index - count], truth["phi_out"][first] - truth["phi_out"][0], truth["t"][first])
+    measured = float(np.mean(motion)) if motion else float("nan")
+    one_count = (seen[1] - seen[0]) / timing.period
+    result = (f"motion {1e3 * measured:.2f} ms, dwell {1e3 * (timing.period - measured):.2f} ms of "
+              f"{1e3 * timing.period:.2f} ms: k_m = {measured / timing.period:.4f} (theory (z − 2)/(2z) = "
+              f"{timing.motion_ratio:.4f}; seen by a counting encoder, from the first to the last count change, "
+              f"between {one_count:.4f} (a whole count at both ends) and {timing.motion_ratio:.4f})")
+
+    def draw(ax: Any) -> None:
+        crank = np.degrees(grid - grid[0]) - 180.0
+        ax.plot(crank, np.degrees(theory - theory[0]), "-", lw=0.9, label="theory")
+        ax.plot(crank, np.degrees(wheel - wheel[0]), "o", ms=3, label="measured (wheel encoder)")
+        ax.set(xlabel="crank angle from the centre line (deg)", ylabel="wheel angle (deg)", title=f"Geneva drive, z = {geneva.slots}")
+
+    return Sheet("Geneva drive", ["crank angle from the centre line (deg)", "wheel measured (deg)", "wheel theory (deg)",
+                                  "difference (deg)"], rows, result,
+                 [f"Motion time: from the first to the last count change of the wheel encoder "
+                  f"({tau / count:.0f} counts per turn) in each index, averaged over {len(motion)} indexings; the wheel "
+                  "enters and leaves its motion tangentially (zero speed), so a counting encoder sees it start "
+                  "late and stop early."], draw,
+                 {"k_m": measured / timing.period, "k_m_theory": timing.motion_ratio, "k_m_one_count": float(one_count),
+                  "indexings": float(len(motion)), "angle_error_max": float(np.max(np.abs(wheel - theory)))})
+
+
+SHEETS: dict[str, Callable[[Lab], Sheet]] = {"speed": speed_sheet, "cam_follower": cam_follower_sheet,
+                                             "cam_torque": cam_torque_sheet, "cardan": cardan_sheet,
+                                             "geneva": geneva_sheet}
+
+
+def lab_sheets(rec: Recording) -> list[Sheet] | None:
+    """The filled-in sheets of a lab recording (None: not a lab-bench recording)."""
+    try:
+        lab = read_lab(rec)
+    except SceneError as exc:
+        if "not a lab-bench recording" in str(exc):
+            return None
+        raise
+    return [SHEETS[name](lab) for name in lab.lab["sheets"]]
+
+
+def summary_lines(rec: Recording) -> list[str] | None:
+    """Console lines of a lab run: each sheet's result (None: not a lab recording)."""
+    try:
+        sheets = lab_sheets(rec)
+    except (SceneError, ValueError) as exc:
+        return [f"lab: no sheet ({exc})"]
+    return None if sheets is None else [f"lab sheet {s.title.lower()}: {s.result}" for s in sheets]
+
+
+def lab_section(ctx: ReportContext) -> list[Block]:
+    try:
+        sheets = lab_sheets(ctx.recording)
+    except (SceneError, ValueError) as exc:
+        return [Heading("Lab sheets"), Text(f"No lab sheet: {exc}", "warning")]
+    if sheets is None:
+        return []
+    blocks: list[Block] = [Heading("Lab sheets")]
+    for sheet in sheets:
+        blocks += [Heading(sheet.title, 3), Text(sheet.result)]
+        if sheet.draw is not None:
+            fig, ax = figure(size=(7, 4.2))
+            sheet.draw(ax)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize="small")
+            stem = sheet.title.lower().replace(" ", "_").replace("-", "_")
+            blocks.append(ctx.figure(save(fig, ctx.figure_path(f"lab_{stem}")), sheet.title))
+        blocks.append(Table(sheet.headers, sheet.rows))
+        blocks += [Text(note, "note") for note in sheet.notes]
+    return blocks
+
+
+register_section("lab_bench", lab_section)

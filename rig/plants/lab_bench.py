@@ -1,0 +1,106 @@
+"""Course lab benches (MODELS §5; DEVICES §1 "lab instruments"): a motor shaft turning at the scene's
+[speed] profile drives one mechanism of the library, chosen by ``[plant] kind``:
+
+* ``disc`` — the shaft alone (speed-measurement lab: slotted disc, tachometer, tachogenerator, stroboscope);
+* ``cardan`` — a Cardan joint at ``shaft_angle`` (output shaft angle and speed, rig.mechanisms.Cardan);
+* ``geneva`` — a Geneva drive with ``slots`` and ``centre_distance`` (wheel angle and speed; the crank angle
+  is measured from the centre line, so ``[speed] phi0 = "180 deg"`` starts in the dwell);
+* ``cam`` — a disc cam with a translating roller follower on its ``[[plant.cam_program]]``, held by a return
+  spring (``spring_rate``, ``spring_preload``) and loaded by the follower's mass: follower position, velocity,
+  acceleration and the cam-shaft torque M = F·ds/dφ + J_cam·ω̇ with F = m·a + k·s + F0 (virtual power:
+  M·ω = F·v + J·ω̇·ω).
+
+Prescribed input motion (closed form, rig.motion.speed): kinematics and quasi-static torque, level 1. Truth
+signals (SI): ``phi_in`` (rad, continuous), ``omega_in`` (rad/s), ``alpha_in`` (rad/s²) and, per kind,
+``phi_out``/``omega_out`` or ``s``/``v``/``a``/``torque``.
+"""
+from __future__ import annotations
+
+from math import tau
+from typing import Any
+
+import numpy as np
+
+from rig.mechanisms import Cardan, Geneva
+from rig.motion.program import CamProgram
+from rig.motion.speed import SpeedProfile
+from rig.plants.events import Event
+from rig.scene import Field, Scene, SceneError
+
+KINDS = ("disc", "cardan", "geneva", "cam")
+SCHEMAS: dict[str, dict[str, Field]] = {
+    "disc": {"kind": Field(None)},
+    "cardan": {"kind": Field(None), "shaft_angle": Field("rad", doc="angle between input and output shaft")},
+    "geneva": {"kind": Field(None), "slots": Field("1"), "centre_distance": Field("m")},
+    "cam": {"kind": Field(None), "cam_program": Field(None, doc="array of tables [[plant.cam_program]]"),
+            "follower_mass": Field("kg", 0.0), "spring_rate": Field("N/m", 0.0),
+            "spring_preload": Field("N", 0.0, "spring force at s = 0"),
+            "cam_inertia": Field("kg*m^2", 0.0, "inertia of the cam shaft beyond the torque transducer")},
+}
+
+
+class LabBench:
+    """One lab bench: ``speed`` (the motor shaft), ``kind`` and its mechanism; ``advance(t)`` gives the truth."""
+
+    def __init__(self, kind: str, speed: SpeedProfile, mechanism: Any = None, follower_mass: float = 0.0,
+                 spring_rate: float = 0.0, spring_preload: float = 0.0, cam_inertia: float = 0.0) -> None:
+        if kind not in KINDS:
+            raise ValueError(f"lab bench kind must be one of {', '.join(KINDS)}, got {kind!r}")
+        self.kind, self.speed, self.mechanism = kind, speed, mechanism
+        self.follower_mass, self.spring_rate = follower_mass, spring_rate
+        self.spring_preload, self.cam_inertia = spring_preload, cam_inertia
+        self.events: list[Event] = []
+        self._t_last = -np.inf
+
+    def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        """Truth at increasing times ``t`` (s), continuing from the previous call."""
+        t = np.asarray(t, dtype=float)
+        if t.ndim != 1 or (t.size and (t[0] <= self._t_last or np.any(np.diff(t) <= 0))):
+            raise ValueError("LabBench.advance needs strictly increasing times after the previous call")
+        if t.size:
+            self._t_last = float(t[-1])
+        return self.truth(t)
+
+    def truth(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        """The bench's signals at times ``t`` (s) (module docstring)."""
+        d = self.speed.drive(t)
+        out = {"t": t, "phi_in": d.phi, "omega_in": d.omega, "alpha_in": d.alpha}
+        if self.kind == "cardan":
+            out["phi_out"] = self.mechanism.output_angle(d.phi)
+            out["omega_out"] = self.mechanism.speed_ratio(d.phi) * d.omega
+        elif self.kind == "geneva":
+            z = self.mechanism.slots
+            motion = self.mechanism.kinematics(d.phi, 1.0)
+            out["phi_out"] = tau / z * np.round(d.phi / tau) + motion.angle + np.pi / z   # 0 at the first dwell
+            out["omega_out"] = motion.velocity * d.omega
+        elif self.kind == "cam":
+            m = self.mechanism.evaluate(d.phi)
+            v, a = d.omega * m.s_p, d.omega ** 2 * m.s_pp + d.alpha * m.s_p
+            force = self.follower_mass * a + self.spring_rate * m.s + self.spring_preload
+            out.update(s=m.s, v=v, a=a, torque=force * m.s_p + self.cam_inertia * d.alpha)
+        return out
+
+    @classmethod
+    def from_scene(cls, scene: Scene) -> "LabBench":
+        """The bench of a scene's [plant] and [speed]; errors name the file, section and key."""
+        from rig.plants.cam_bar.scene_io import read_program, read_speed
+        where = f"{scene.path} [plant]"
+        kind = scene.section("plant").get("kind")
+        if kind not in KINDS:
+            raise SceneError(f"{where}: key 'kind' must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
+        p = scene.read("plant", SCHEMAS[kind])
+        speed = read_speed(scene.section("speed"), f"{scene.path} [speed]")
+        try:
+            if kind == "cardan":
+                return cls(kind, speed, Cardan(p["shaft_angle"]))
+            if kind == "geneva":
+                slots = p["slots"]
+                return cls(kind, speed, Geneva(int(slots) if float(slots).is_integer() else slots,
+                                               p["centre_distance"]))
+            if kind == "cam":
+                program: CamProgram = read_program(p["cam_program"], 0.0, where)
+                return cls(kind, speed, program, p["follower_mass"], p["spring_rate"], p["spring_preload"],
+                           p["cam_inertia"])
+        except ValueError as exc:
+            raise SceneError(f"{where}: {exc}") from None
+        return cls(kind, speed)

@@ -1,0 +1,167 @@
+"""The course labs end to end: plant → transducers → CAN frames → host → recording → lab sheet, each sheet
+against the closed forms of its mechanism (rig.mechanisms), and the frames decoded with cantools alone."""
+from __future__ import annotations
+
+from math import cos, radians, tau
+from pathlib import Path
+
+import cantools
+import numpy as np
+import pytest
+
+from firmware_sim.transducers import load_transducer
+from rig.analysis.lab_report import lab_sheets
+from rig.mechanisms import Cardan, Geneva
+from rig.plants.lab_bench import LabBench
+from rig.recorder import read_recording
+from rig.runner import run_scene
+from rig.scene import SceneError, load_scene
+
+SCENES = Path(__file__).resolve().parents[2] / "data" / "scenes"
+DBC = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
+
+
+def _run(tmp_path_factory, name: str, edit=None):
+    scene = SCENES / f"{name}.toml"
+    if edit is not None:
+        scene = tmp_path_factory.mktemp(name) / f"{name}.toml"
+        scene.write_text(edit((SCENES / f"{name}.toml").read_text()))
+    out = tmp_path_factory.mktemp(f"{name}_run") / f"{name}.mcap"
+    run_scene(scene, out)
+    rec = read_recording(out)
+    return rec, {s.title: s for s in lab_sheets(rec)}
+
+
+@pytest.fixture(scope="module")
+def speed(tmp_path_factory):
+    return _run(tmp_path_factory, "lab_speed")
+
+
+def test_speed_lab_instruments_against_the_counter(speed):
+    rec, sheets = speed
+    v = sheets["Speed measurement"].values
+    assert v["resolution_rpm"] == pytest.approx(10.0)                     # 60 / (6 holes · 1 s)
+    assert abs(v["counter_rpm"] - v["truth_rpm"]) <= v["resolution_rpm"]  # ±1 pulse in the gate
+    assert abs(v["error mechanical tachometer"]) <= 0.05 + 0.01           # ±5 % class, 10 rpm dial
+    assert abs(v["error tachogenerator"]) <= 0.015
+    assert abs(v["error stroboscope (60·f_x)"]) <= 0.005                  # 0.1 Hz dial at 19 Hz, 0.2 % calibration
+    assert len(sheets["Speed measurement"].rows) == 5                     # counter, three instruments, truth
+
+
+def test_speed_lab_frames_decode_with_the_dbc_alone(speed):
+    """/can/raw's LabSpeed frames through cantools give the recorded pulse counts; the counts are the pulses of
+    whole gates: 6 holes × 19 rev/s = 114 per second, ±1."""
+    rec, _ = speed
+    db = cantools.database.load_file(str(DBC))
+    msg = db.get_message_by_name("LabSpeed")
+    raw = rec.can_frames
+    frames = [bytes(d) for i, d in zip(raw["id"], raw["data"]) if i == msg.frame_id]
+    decoded = np.array([msg.decode(d)["Pulses"] for d in frames])
+    recorded = rec.series["/stand/lab_speed"]["pulses"]
+    assert decoded.size == recorded.size > 200 and np.array_equal(decoded, recorded)
+    after_first_gate = recorded[rec.series["/stand/lab_speed"]["t"] > 1.0]
+    assert set(np.unique(after_first_gate)) <= {113.0, 114.0, 115.0}
+
+
+def test_a_stroboscope_at_half_the_rotation_frequency_reads_half(tmp_path_factory):
+    _, sheets = _run(tmp_path_factory, "lab_speed", lambda s: s.replace("divisor = 1", "divisor = 2"))
+    assert sheets["Speed measurement"].values["error stroboscope (60·f_x)"] == pytest.approx(-0.5, abs=0.005)
+
+
+def test_pulse_counter_counts_whole_gates():
+    counter = load_transducer("slotted_disc_6", np.random.default_rng(0), gate_time="0.5 s")
+    t = np.arange(1, 20001) / 10_000.0
+    n = counter.measure(t[:7000], 2 * np.pi * 7.3 * t[:7000])       # 7.3 rev/s, the gate ends inside a chunk
+    n = np.r_[n, counter.measure(t[7000:], 2 * np.pi * 7.3 * t[7000:])]
+    assert np.all(n[t < 0.5] == 0)
+    assert set(np.unique(n[t >= 0.5])) <= {21.0, 22.0}               # 6 · 7.3 · 0.5 = 21.9 pulses per gate
+    assert n[t >= 0.5].mean() == pytest.approx(21.9, abs=0.3)
+
+
+@pytest.fixture(scope="module")
+def cardan(tmp_path_factory):
+    return _run(tmp_path_factory, "lab_cardan")
+
+
+def test_cardan_lab_against_the_closed_form(cardan):
+    """Two encoders, 36 points per turn: the speed ratio by central differences at 10° equals the closed form
+    differenced the same way (1e-3), whose extremes approach cos α and 1/cos α; the mean ratio over a turn
+    is 1; the output angle follows tan φ2 = tan φ1 / cos α within two encoder counts."""
+    _, sheets = cardan
+    v = sheets["Cardan joint"].values
+    joint, h = Cardan(radians(30)), radians(10)
+    phi = np.arange(36) * h
+    differenced = (joint.output_angle(phi + h) - joint.output_angle(phi - h)) / (2 * h)
+    assert v["ratio_min"] == pytest.approx(differenced.min(), abs=1e-3)
+    assert v["ratio_max"] == pytest.approx(differenced.max(), abs=1e-3)
+    assert differenced.min() == pytest.approx(cos(radians(30)), abs=5e-3)
+    assert differenced.max() == pytest.approx(1 / cos(radians(30)), abs=5e-3)
+    assert v["ratio_mean"] == pytest.approx(1.0, abs=1e-4)
+    assert v["lag_error_max"] < 2 * tau / 4096
+    assert len(sheets["Cardan joint"].rows) == 36
+
+
+def test_geneva_lab_motion_ratio(tmp_path_factory):
+    """z = 5: k_m = (z − 2)/(2z) = 0.3; a counting encoder sees the motion from its first to its last count
+    change, so the measured ratio lies between the theory with a whole count at both ends and 0.3."""
+    _, sheets = _run(tmp_path_factory, "lab_geneva")
+    v = sheets["Geneva drive"].values
+    assert v["k_m_theory"] == pytest.approx(3 / 10) == Geneva(5, 0.05).timing(1.0).motion_ratio
+    assert v["k_m_one_count"] <= v["k_m"] <= v["k_m_theory"] and v["indexings"] >= 5
+    assert v["angle_error_max"] < 4 * tau / 4096
+
+
+@pytest.fixture(scope="module")
+def cam(tmp_path_factory):
+    return _run(tmp_path_factory, "lab_cam")
+
+
+def test_cam_follower_lab_differenced_against_the_law(cam):
+    """Position every 10° through an LVDT (100 mm range: its error bound ≈ 0.5 mm here); the numerically
+    differenced s'' is off the law by the central difference's own truncation plus a few per cent."""
+    _, sheets = cam
+    v = sheets["Cam follower"].values
+    assert v["ds_max"] < 0.5e-3
+    assert v["d1_rel"] < 0.05 and v["law_d2_rel"] > 0.05          # 10° is coarse for s'': the lab's lesson
+    assert abs(v["d2_rel"] - v["law_d2_rel"]) < 0.05
+    assert len(sheets["Cam follower"].rows) == 36
+
+
+def test_cam_follower_without_instrument_errors_is_the_law(tmp_path_factory):
+    """An ideal LVDT (no errors, no 100 Hz lag): what is left is the frames' 1 µm step and the encoder."""
+    _, sheets = _run(tmp_path_factory, "lab_cam", lambda s: s.replace(
+        'to = "can.LabMotion.Displacement"', 'to = "can.LabMotion.Displacement"\noverrides = { errors_enabled = false, dynamics_enabled = false }'))
+    v = sheets["Cam follower"].values
+    assert v["ds_max"] < 5e-6                                      # 1 µm LSB and the encoder's angle steps
+    assert v["d2_rel"] == pytest.approx(v["law_d2_rel"], abs=0.01)
+
+
+def test_cam_shaft_torque_lab(cam):
+    _, sheets = cam
+    v = sheets["Cam-shaft torque"].values
+    assert v["deviation_max"] < 0.01 * v["peak"]
+    assert abs(v["work_per_turn"]) < 0.01 * v["peak"] * tau       # spring and mass: no net work per turn
+
+
+def test_cam_bench_torque_is_the_energy_balance():
+    """M dφ = dU + d(½ m v²) + d(½ J ω²) (virtual power) on a ripple drive, checked by integrating the
+    torque against the energies' changes at 1e-4."""
+    scene = load_scene(SCENES / "lab_cam.toml")
+    scene.data["speed"] = {"profile": "sinusoidal", "speed": "30 rpm", "amplitude": "6 rpm", "frequency": "0.7 Hz"}
+    bench = LabBench.from_scene(scene)
+    t = np.linspace(0.0, 3.0, 300_001)
+    x = bench.truth(t)
+    work = np.concatenate([[0.0], np.cumsum(0.5 * (x["torque"][1:] + x["torque"][:-1]) * np.diff(x["phi_in"]))])
+    energy = (0.5 * bench.spring_rate * x["s"] ** 2 + bench.spring_preload * x["s"]
+              + 0.5 * bench.follower_mass * x["v"] ** 2 + 0.5 * bench.cam_inertia * x["omega_in"] ** 2)
+    assert np.max(np.abs(work - (energy - energy[0]))) < 1e-4 * np.max(np.abs(energy - energy[0]))
+
+
+def test_a_lab_scene_names_its_errors(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((SCENES / "lab_geneva.toml").read_text().replace("slots = 5", "slots = 2"))
+    with pytest.raises(SceneError, match=r"\[plant\].*slots must be an integer >= 3"):
+        run_scene(bad, tmp_path / "bad.mcap")
+    bad.write_text((SCENES / "lab_cardan.toml").read_text().replace('kind = "cardan"', 'kind = "hooke"'))
+    with pytest.raises(SceneError, match=r"\[plant\]: key 'kind' must be one of 'disc', 'cardan'"):
+        run_scene(bad, tmp_path / "bad.mcap")
