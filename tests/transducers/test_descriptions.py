@@ -13,7 +13,7 @@ DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
 
 def test_every_description_loads_with_its_registered_class():
     names = sorted(p.stem for p in DEVICES.glob("*.toml") if not p.stem.startswith("digiforce"))
-    assert len(names) == 8
+    assert len(names) == 12
     for name in names:
         s = load_transducer(name, np.random.default_rng(0))
         assert isinstance(s, REGISTRY[type(s).TYPE])
@@ -21,6 +21,8 @@ def test_every_description_loads_with_its_registered_class():
     assert isinstance(load_transducer(DEVICES / "burster_8740.toml", np.random.default_rng(0)), LVDT)
     assert isinstance(load_transducer("encoder_1024", np.random.default_rng(0)), IncrementalEncoder)
     assert isinstance(load_transducer("leaf_half_bridge", np.random.default_rng(0)), StrainAmplifier)
+    assert type(load_transducer("slotted_disc_6", np.random.default_rng(0))).TYPE == "pulse_counter"
+    assert type(load_transducer("stroboscope", np.random.default_rng(0))).TYPE == "stroboscope"
 
 
 def test_values_are_read_in_si_and_overrides_replace_file_values():
