@@ -12,6 +12,7 @@ numba's cache is not.
 """
 from __future__ import annotations
 
+import atexit
 import logging
 import sys
 import threading
@@ -78,8 +79,28 @@ class _Handler(logging.Handler):
             self.handleError(record)
 
 
+SHOWN_PER_KIND = 3            # warnings of one category shown before the rest are only counted
+_warned: dict[str, int] = {}
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    logging.getLogger("rig.warnings").warning("%s: %s", category.__name__, " ".join(str(message).split()))
+    """A warning as one log line; after :data:`SHOWN_PER_KIND` of a category the rest are counted and their
+    number is reported when the process ends (a solver stepping at its stability limit warns every few
+    steps: no floods)."""
+    name = category.__name__
+    _warned[name] = _warned.get(name, 0) + 1
+    log_ = logging.getLogger("rig.warnings")
+    if _warned[name] <= SHOWN_PER_KIND:
+        log_.warning("%s: %s", name, " ".join(str(message).split()))
+    if _warned[name] == SHOWN_PER_KIND:
+        log_.warning("%s: further ones are counted, not shown", name)
+
+
+@atexit.register
+def _report_suppressed() -> None:
+    for name, count in _warned.items():
+        if count > SHOWN_PER_KIND:
+            logging.getLogger("rig.warnings").warning("%s: %d more not shown", name, count - SHOWN_PER_KIND)
 
 
 def configure(quiet: bool = False) -> None:
@@ -94,6 +115,7 @@ def configure(quiet: bool = False) -> None:
     log.setLevel(logging.WARNING if quiet else logging.INFO)
     quiet_libraries()
     warnings.showwarning = _show_warning
+    _warned.clear()
     announce_compilation()
 
 

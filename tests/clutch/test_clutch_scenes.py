@@ -36,15 +36,19 @@ def test_startup_holds_and_settles_where_motor_torque_equals_load():
     assert np.all(np.abs(o["M_t"][late] - 50.0) < 2.5)
 
 
-def test_short_shock_disengages_passes_a_full_turn_and_restabilises():
-    t, o, st = run("clutch_shock_short", 0.6)
-    dis = kinds(st, "disengagement")
-    assert 2 <= len(dis) <= 4 and all(0.1 < x < 0.3 for x in dis)
-    assert not kinds(st, "shutdown")                          # a single shock is not a shutdown condition
-    assert np.ptp(o["phi_r"]) > 2 * math.pi                   # relative angle passes 360°
-    slipping = t[np.abs(o["omega_r"]) > 1.0]
-    assert slipping.max() < 0.45                              # restabilised (thesis: 225 ms after the shock)
-    assert o["omega3"][-1] == pytest.approx((A0 - 10.0) / B0, rel=1e-2)   # recovering (τ = J/b0 ≈ 0.12 s)
+def test_short_large_shock_holds_with_1284_N_and_disengages_with_985_N():
+    """Chapter 4: a short large shock passes without disengagement (the 1284 N spring set, +80 N·m for 55 ms
+    on 10 N·m: 90 N·m below the 120.4 N·m loading peak); the same shock takes the 985 N set (loading peak
+    92.7 N·m) over an apex once. Both recover to the motor line."""
+    for name, passes in (("clutch_shock_short", 0), ("clutch_shock_short_985", 1)):
+        t, o, st = run(name, 0.6)
+        dis = kinds(st, "disengagement")
+        assert len(dis) == passes and all(0.1 < x < 0.3 for x in dis) and not kinds(st, "shutdown")
+        assert (np.ptp(o["phi_r"]) > math.radians(120)) == bool(passes)   # a lobe is 120°
+        assert o["M_t"].max() > 80.0                                      # the shock reaches the torque meter
+        slipping = t[np.abs(o["omega_r"]) > 1.0]
+        assert slipping.max() < 0.45                                      # restabilised
+        assert o["omega3"][-1] == pytest.approx((A0 - 10.0) / B0, rel=1e-2)
 
 
 def test_held_overload_gives_repeated_disengagements_and_a_shutdown_flag():
@@ -63,13 +67,13 @@ def test_stop_rises_above_the_running_torque_then_reaches_zero():
     t, o, st = run("clutch_stop", 1.0)
     assert not kinds(st, "disengagement")
     before = t < 0.1
-    assert np.allclose(o["M_t"][before], 100.0, atol=1.0)     # running at 100 N·m
-    assert 1.3 * 100.0 < o["M_t"].max() < 1.7 * 100.0          # the brake raised to 165 N·m at the stop
-    assert np.all(np.abs(o["omega1"][t > 0.7]) < 0.05) and np.all(np.abs(o["M_t"][t > 0.7]) < 1.0)
+    assert np.allclose(o["M_t"][before], 60.0, atol=1.0)      # running at 60 N·m
+    assert 1.3 * 60.0 < o["M_t"].max() < 1.7 * 60.0            # the brake raised to 90 N·m at the stop
+    assert np.all(np.abs(o["omega1"][t > 0.8]) < 0.05) and np.all(np.abs(o["M_t"][t > 0.8]) < 1.0)
 
 
 def test_shock_then_load_drop_several_disengagements_and_higher_speed():
-    t, o, st = run("clutch_shock_drop", 1.0)
+    t, o, st = run("clutch_shock_drop", 1.3)
     dis = kinds(st, "disengagement")
     assert len(dis) >= 3 and max(dis) < 0.75                  # ratchets until the drop lets it re-engage
     w_before, w_after = o["omega3"][t < 0.1].mean(), o["omega3"][-1]
@@ -109,7 +113,8 @@ def test_equilibrium_start_carries_the_load_elastically():
 def test_band_edge_creep_does_not_chatter(tmp_path, J1):
     """These inertias put the start-up on the edge of the static band (T_req = T_c(σ = −1) to 1e-15):
     a switch located a rounding error early used to chatter into a SolverDivergence (Zeno)."""
-    text = (SCENES / "clutch_startup.toml").read_text().replace('J1 = "0.4 kg*m^2"', f'J1 = "{J1}"')
+    text = (SCENES / "clutch_startup.toml").read_text().replace('J1 = "0.4 kg*m^2"', f'J1 = "{J1}"').replace(
+        'r2 = "30 mm"', 'r2 = "5 mm"')      # the fillet radius the edge case was found with
     p = tmp_path / "edge.toml"
     p.write_text(text)
     st = ClutchStand.from_scene(load_scene(p))

@@ -91,12 +91,12 @@ def test_rig_sweep_refuses_a_metric_of_another_plant_and_bad_keys(tmp_path, caps
 
 
 def test_clutch_sweep_counts_disengagements_and_the_shutdown_rule():
-    """The short 165 N·m shock: the thesis spring set disengages, a stiffer one (1600 N) holds; the shutdown
-    flag rises only where the count reaches the scene's rule (4 within 100 ms) at all."""
+    """The short 80 N·m shock: the thesis spring set (1284 N) holds, a weaker one (800 N) disengages; the
+    shutdown flag rises only where the count reaches the scene's rule (4 within 100 ms) at all."""
     from pathlib import Path
     scene = load_scene(Path(DEFAULT_SCENE).with_name("clutch_shock_short.toml"))
     with make_executor("serial") as ex:
-        result = run_sweep(scene, [parse_param("plant.F_a1=1000 N,1600 N")], ["disengagements", "shutdown"], ex)
+        result = run_sweep(scene, [parse_param("plant.F_a1=800 N,1284 N")], ["disengagements", "shutdown"], ex)
     weak, stiff = result.values
     assert result.errors == ["", ""]
     assert weak["disengagements"] >= 4 and stiff["disengagements"] == 0
