@@ -11,8 +11,6 @@ count is exact.
 from __future__ import annotations
 
 import math
-import tomllib
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -29,11 +27,9 @@ DWELL = 0.05       # s the torque must stay inside the band (and the window of f
 
 
 def _scene(rec: Recording) -> Scene | None:
-    if not rec.scene_text:
-        return None
     try:
-        return Scene(Path(f"{rec.path}:scene.toml"), tomllib.loads(rec.scene_text), rec.scene_text)
-    except tomllib.TOMLDecodeError:
+        return rec.scene()
+    except SceneError:
         return None
 
 

@@ -7,10 +7,8 @@ A scene lists its sheets in ``[lab] sheets``; each is a table, a figure and one 
 """
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from math import cos, radians, tau
-from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -63,13 +61,18 @@ class Lab:
         value = table.get("overrides", {}).get(key, read_description(resolve_path(table["description"])).get(key))
         return to_si(value, unit, what=f"{self.scene.path} [transducers] {key}")
 
+    def readings(self, topic: str, name: str) -> dict[str, np.ndarray]:
+        """The recorded block ``topic`` that has field ``name``; SceneError naming what is missing."""
+        block = self.rec.series.get(topic)
+        if block is None or name not in block:
+            raise SceneError(f"{self.rec.path}: no {name} readings ({topic}: is the transducer wired?)")
+        return block
+
     def angle(self, topic: str, signal: str = "phi_in") -> tuple[np.ndarray, np.ndarray]:
         """Angle (rad) of the shaft whose plant ``signal`` the encoder on ``topic`` measures, at each edge that
         changed its count: (edge times s, angles rad), strictly increasing in time. The count starts at the
         shaft's angle at power-on (the zero marks aligned, as the lab sheet asks)."""
-        block = self.rec.series.get(topic)
-        if block is None or block["t"].size < 2:
-            raise SceneError(f"{self.rec.path}: no {topic} readings (is the encoder wired?)")
+        block = self.readings(topic, "edge_time")
         edge, angle = block["edge_time"], block["angle"]
         ok = np.isfinite(edge)
         edge, angle = edge[ok], angle[ok]
@@ -79,13 +82,8 @@ class Lab:
 
 def read_lab(rec: Recording) -> Lab:
     """The lab of a recording; SceneError when it is not a lab-bench recording with a valid [lab]."""
-    if not rec.scene_text:
-        raise SceneError(f"{rec.path}: the recording holds no scene")
-    try:
-        data = tomllib.loads(rec.scene_text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{rec.path}: recorded scene is not valid TOML: {exc}") from None
-    scene = Scene(Path(f"{rec.path}:scene.toml"), data, rec.scene_text)
+    scene = rec.scene()
+    data = scene.data
     if data.get("scene", {}).get("plant") != "lab_bench":
         raise SceneError(f"{rec.path}: not a lab-bench recording")
     lab = read_table(data.get("lab", {}), LAB_SCHEMA, f"{scene.path} [lab]")
@@ -161,11 +159,9 @@ def speed_sheet(lab: Lab) -> Sheet:
 
 def cam_follower_sheet(lab: Lab) -> Sheet:
     """Follower position every 10° of cam angle, differenced numerically against the law's s, s', s''."""
-    rec, program = lab.rec, lab.bench.mechanism
+    program = lab.bench.mechanism
     t_edge, phi = lab.angle("/stand/encoder1")
-    motion = rec.series.get("/stand/lab_motion")
-    if motion is None or "displacement" not in motion:
-        raise SceneError(f"{rec.path}: no follower displacement readings (/stand/lab_motion)")
+    motion = lab.readings("/stand/lab_motion", "displacement")
     grid = _last_turn(t_edge, phi)
     s = np.interp(np.interp(grid, phi, t_edge), motion["t"], motion["displacement"])
     d1 = (s[2:] - s[:-2]) / (2 * STEP)
@@ -205,11 +201,9 @@ def cam_follower_sheet(lab: Lab) -> Sheet:
 
 def cam_torque_sheet(lab: Lab) -> Sheet:
     """Cam-shaft torque from the torque transducer, averaged per 10° of cam angle, against theory."""
-    rec, truth = lab.rec, lab.rec.truth
+    truth = lab.rec.truth
     t_edge, phi = lab.angle("/stand/encoder1")
-    torque = rec.series.get("/stand/torque")
-    if torque is None or "torque" not in torque:
-        raise SceneError(f"{rec.path}: no torque readings (/stand/torque)")
+    torque = lab.readings("/stand/torque", "torque")
     inside = (torque["t"] >= t_edge[0]) & (torque["t"] <= t_edge[-1])
     angle = np.interp(torque["t"][inside], t_edge, phi)
     whole = angle >= np.ceil(angle[0] / tau) * tau                  # from the first whole turn on

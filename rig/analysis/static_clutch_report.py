@@ -7,8 +7,6 @@ loading/unloading characteristic rebuilt from the recorded scene (:mod:`rig.anal
 """
 from __future__ import annotations
 
-import tomllib
-from pathlib import Path
 
 import numpy as np
 
@@ -17,20 +15,14 @@ from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt,
 from rig.analysis.static_loops import cycle_energy, cycles, reading_points, theory_cycle_energy
 from rig.plants.clutch.static_rig import StaticClutchRig, rig_from_scene
 from rig.recorder import Recording
-from rig.scene import Scene, SceneError
+from rig.scene import SceneError
 
 TOPIC = "/stand/static_rig"
 
 
 def static_rig(rec: Recording) -> StaticClutchRig:
     """The static rig of the recorded scene (theory side); SceneError if the recording has none."""
-    if not rec.scene_text:
-        raise SceneError(f"{rec.path}: the recording holds no scene")
-    try:
-        data = tomllib.loads(rec.scene_text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{rec.path}: recorded scene is not valid TOML: {exc}") from None
-    return rig_from_scene(Scene(Path(f"{rec.path}:scene.toml"), data, rec.scene_text))
+    return rig_from_scene(rec.scene())
 
 
 def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import orjson
@@ -14,6 +14,9 @@ from mcap.stream_reader import StreamReader
 
 from rig.recorder import schemas as S
 from rig.recorder.encoding import decode_array, decode_block, loads_message
+
+if TYPE_CHECKING:
+    from rig.scene import Scene
 
 
 class RecordingError(ValueError):
@@ -88,6 +91,19 @@ class Recording:
     def transducers(self) -> dict[str, dict[str, np.ndarray]]:
         n = len(S.TRANSDUCERS)
         return {k[n:]: v for k, v in self.series.items() if k.startswith(S.TRANSDUCERS)}
+
+    def scene(self) -> "Scene":
+        """The recorded scene, named ``<recording>:scene.toml`` in its errors; SceneError if there is none or
+        it is not valid TOML."""
+        import tomllib
+        from rig.scene import Scene, SceneError
+        if not self.scene_text:
+            raise SceneError(f"{self.path}: the recording holds no scene")
+        try:
+            data = tomllib.loads(self.scene_text)
+        except tomllib.TOMLDecodeError as exc:
+            raise SceneError(f"{self.path}: recorded scene is not valid TOML: {exc}") from None
+        return Scene(Path(f"{self.path}:scene.toml"), data, self.scene_text)
 
     def summary(self) -> str:
         counts = ", ".join(f"{k}: {v}" for k, v in sorted(self.message_counts.items())) or "no messages"
