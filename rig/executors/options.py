@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from rig.executors import EXECUTORS, Executor, make_executor
+from rig.executors import Executor, available, make_executor
 
 
 def _workers(text: str) -> int:
@@ -19,7 +19,7 @@ def _workers(text: str) -> int:
 def add_executor_arguments(parser: argparse.ArgumentParser, local: str = "dask") -> None:
     """Add the executor options to a command's parser; ``local``: the local Dask kind the command uses when
     more than one worker is asked for without ``--executor`` (pass the same to :func:`executor_from_args`)."""
-    parser.add_argument("--executor", choices=tuple(EXECUTORS),
+    parser.add_argument("--executor", choices=tuple(available()),
                         help=f"where the tasks run (default: {local} when --workers > 1, dask with --scheduler, "
                              "else serial); results do not depend on it")
     parser.add_argument("--workers", type=_workers, default=1,

@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from rig.executors import EXECUTORS, default_name, make_executor
+from rig.executors import EXECUTORS, Executor, available, default_name, make_executor
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.montecarlo import monte_carlo
 from rig.plants.cam_bar.tolerance import CamChain, load_tolerances
@@ -20,7 +20,7 @@ def _slow_square(x: int) -> int:
 
 
 def test_executors_are_chosen_by_name():
-    assert set(EXECUTORS) == {"serial", "dask", "dask-processes"}
+    assert set(EXECUTORS) == {"serial", "dask", "dask-processes"} <= set(available())
     assert default_name(1, None) == "serial" and default_name(2, None) == "dask"
     assert default_name(1, "tcp://127.0.0.1:8786") == "dask"
     with make_executor() as ex:
@@ -117,3 +117,34 @@ def test_batches_keep_every_item_in_order():
         groups = batches(items, workers)
         assert [x for g in groups for x in g] == items and len(groups) <= 8 * workers
     assert batches([1, 2, 3], 2) == [[1], [2], [3]] and batches([], 2) == []
+
+
+class _Reversed(Executor):
+    """A plugin executor for the test: runs tasks serially (in task order, as every executor must)."""
+
+    name = "reversed-plugin"
+
+    def __init__(self, workers: int, scheduler: str | None = None) -> None:
+        self.workers, self.scheduler = workers, scheduler
+
+    def map(self, fn, tasks):
+        return iter([fn(t) for t in tasks])
+
+
+def test_executors_from_installed_packages_are_found_by_entry_point(monkeypatch):
+    """A package registering ``[project.entry-points."rig.executor"]`` is usable by name, like python-can's
+    interfaces; it cannot replace a built-in, and a broken registration is a clear error."""
+    import importlib.metadata as md
+    import rig.executors as executors
+    fake = [md.EntryPoint("mine", f"{__name__}:_Reversed", executors.ENTRY_POINT_GROUP),
+            md.EntryPoint("serial", f"{__name__}:_Reversed", executors.ENTRY_POINT_GROUP),
+            md.EntryPoint("broken", f"{__name__}:_Nothing", executors.ENTRY_POINT_GROUP)]
+    monkeypatch.setattr(md, "entry_points", lambda group=None: [e for e in fake if e.group == group])
+    assert {"mine", "broken", "serial", "dask"} <= set(executors.available())
+    with make_executor("mine", workers=3, scheduler="tcp://elsewhere:1") as ex:
+        assert isinstance(ex, _Reversed) and ex.workers == 3 and ex.scheduler == "tcp://elsewhere:1"
+        assert list(ex.map(_slow_square, range(3))) == [0, 1, 4]
+    with make_executor("serial") as ex:
+        assert type(ex).__name__ == "SerialExecutor"
+    with pytest.raises(ValueError, match="executor 'broken': cannot load"):
+        make_executor("broken")
