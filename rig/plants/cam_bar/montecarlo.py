@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 import numpy as np
 
-from rig.analysis.streaming import column_statistics
+from rig.analysis.streaming import ColumnStats, column_statistics
 from rig.plants.cam_bar.tolerance import PARAMS, CamChain, ToleranceSet
 
 if TYPE_CHECKING:
@@ -68,17 +68,11 @@ def fold_task(task: tuple[ChainSamples, Callable]) -> object:
 
 
 @dataclass(frozen=True)
-class MonteCarloResult:
-    """Δs(φ) over ``n`` sampled machines (m): per-angle mean, standard deviation (ddof 1), min/max and the
-    exact ``percentiles`` {percent: values} (numpy's linear interpolation)."""
+class MonteCarloResult(ColumnStats):
+    """Δs(φ) over ``n`` sampled machines (m) at cam angles ``phi`` (rad): the per-angle statistics of
+    :class:`ColumnStats` (mean, σ with ddof 1, min/max, exact percentiles by numpy's linear interpolation)."""
 
     phi: np.ndarray
-    n: int
-    mean: np.ndarray
-    std: np.ndarray
-    minimum: np.ndarray
-    maximum: np.ndarray
-    percentiles: dict[float, np.ndarray]
 
 
 def tasks(chain: CamChain, tol: ToleranceSet, n: int, seed: int, task_samples: int = TASK_SAMPLES) -> list[ChainSamples]:
@@ -112,4 +106,4 @@ def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, executor:
     finally:
         if own:
             executor.close()
-    return MonteCarloResult(chain.phi, st.n, st.mean, st.std, st.minimum, st.maximum, st.percentiles)
+    return MonteCarloResult(**vars(st), phi=chain.phi)
