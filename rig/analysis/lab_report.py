@@ -139,7 +139,9 @@ def speed_sheet(lab: Lab) -> Sheet:
 
     def draw(ax: Any) -> None:
         ax.plot(truth["t"], truth["omega_in"] / RPM, color="0.5", lw=0.8, label="plant truth")
-        ax.step(pulses["t"], pulses["pulses"] / (holes * gate) * 60.0, where="post", label="pulse counter")
+        counted = pulses["t"] >= gate                            # the counter shows 0 until its first gate ends
+        ax.step(pulses["t"][counted], pulses["pulses"][counted] / (holes * gate) * 60.0, where="post",
+                label="pulse counter")
         for name, block, key in instruments:
             if key in block:
                 ax.plot(block["t"], block[key] / RPM, lw=0.8, label=name)

@@ -31,8 +31,9 @@ _LABELS = {"degree": ("°", "deg"), "meter * newton": ("N·m", "N*m"), "revoluti
            "dimensionless": ("", "")}
 _ANGLES = ("radian", "degree", "turn", "revolution", "arcminute", "arcsecond", "grad")
 
-# SI units of the plants' truth signals (rig.plants: cam bar level 1/2, clutch stand and static rig)
+# SI units of the plants' truth signals (rig.plants: cam bar level 1/2, clutch stand and static rig, lab bench)
 SIGNAL_SI = {
+    "phi_in": "rad", "phi_out": "rad", "omega_in": "rad/s", "omega_out": "rad/s", "alpha_in": "rad/s^2",
     "phi": "rad", "cam_angle": "rad", "psi": "rad", "theta": "rad", "psi_kin": "rad", "pressure_angle": "rad",
     "phi1": "rad", "phi3": "rad", "phi_r": "rad", "angle": "rad",
     "omega": "rad/s", "omega1": "rad/s", "omega3": "rad/s", "omega_r": "rad/s", "alpha": "rad/s^2",
