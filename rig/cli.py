@@ -171,7 +171,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     machine = serve_scene(args.scene, mode="realtime" if args.realtime else None, port=args.port, wait=args.wait,
                           cycles=args.cycles, release_timeout=args.release_timeout, announce=announce,
                           progress=not args.quiet, fidelity=args.fidelity)
-    print(f"served {machine.curves} curves, {machine.t:.2f} s simulated", file=sys.stderr)
+    what = f"served {machine.curves} curves" if machine.curves else "served the run"
+    print(f"{what}, {machine.t:.2f} s simulated", file=sys.stderr)
     return 0
 
 
@@ -182,7 +183,8 @@ def cmd_record(args: argparse.Namespace) -> int:
     summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet, fidelity=args.fidelity)
-    print(f"recorded {summary.curves} curves, {summary.simulated_time:.2f} s simulated -> {summary.output}")
+    what = f"recorded {summary.curves} curves" if summary.curves else "recorded the run"
+    print(f"{what}, {summary.simulated_time:.2f} s simulated -> {summary.output}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
