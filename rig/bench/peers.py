@@ -12,6 +12,11 @@ located by Brent's method on ``odeint`` runs restarted from the last output befo
 are counted). CVODE is SUNDIALS' BDF (variable order, dense direct solver, its own difference-quotient
 Jacobian) with its own root finding; our kernel writes straight into its derivative array. Recorded-only events
 (level 2's flank contacts) are not given to the peers.
+
+Restarts at events that change nothing but the smoothness of the right-hand side (level 2's contact onsets and
+releases: the contact force's derivatives jump) help a one-step method and cost a multistep method a new
+start at order 1. The multistep peers therefore also run as ``"<peer> (no restarts)"``: those events are not
+given to them (events with an action, a terminal or a mode-dependent one still are), and they step across.
 """
 from __future__ import annotations
 
@@ -27,7 +32,9 @@ from rig.solvers import EventRecord, Problem, SolverDivergence
 from rig.solvers.integrate import MAX_STALLED, STALL_SPAN, _past_root, breaks_in
 
 SOLVE_IVP = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
-PEERS = tuple(f"scipy {m}" for m in SOLVE_IVP) + ("scipy odeint", "cvode")
+NO_RESTARTS = " (no restarts)"
+PEERS = tuple(f"scipy {m}" for m in SOLVE_IVP) + ("scipy odeint", "cvode") + tuple(
+    f"{m}{NO_RESTARTS}" for m in ("scipy LSODA", "scipy odeint", "cvode"))
 MAX_STEPS = 10 ** 7         # odeint / CVODE step limits per segment (the defaults, 500, end long segments)
 
 
@@ -153,6 +160,7 @@ def _cvode_backend(kernel, p, t0, y0, t1, events, times, rtol, atol) -> Segment:
 
 def backend(name: str) -> Backend:
     """The segment runner of peer ``name`` (one of :data:`PEERS`)."""
+    name = name.removesuffix(NO_RESTARTS)
     if name == "scipy odeint":
         return _odeint_backend
     if name == "cvode":
@@ -170,7 +178,8 @@ def run_peer(name: str, problem: Problem, t_span: tuple[float, float], grid: np.
     fails (its message) or events chatter."""
     run = backend(name)
     kernel, params = problem.fun.kernel, problem.fun.params
-    acting = [e for e in problem.events if e.restart or e.action or e.terminal]
+    smooth_only = not name.endswith(NO_RESTARTS)       # restarts that only mark a jump in a derivative
+    acting = [e for e in problem.events if (e.restart and smooth_only) or e.action or e.terminal or e.mode_dependent]
     t_end = float(t_span[1])
     edges = breaks_in(problem, float(t_span[0]), t_end) + [t_end]
     y = np.array(problem.y0, dtype=float)
