@@ -1,8 +1,37 @@
 """Shared fixtures: a small Dask cluster for the executor, sweep and batch tests (2 worker threads in this
-process, in-process transport, HTTP status servers on 127.0.0.1 only), started once when first asked for."""
+process, in-process transport, HTTP status servers on 127.0.0.1 only), started once when first asked for; and
+a served machine (``rig serve`` in its own process) for the cross-process tests."""
 from __future__ import annotations
 
+import contextlib
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Iterator
+
 import pytest
+
+
+@contextlib.contextmanager
+def served(scene: Path, endpoints: Path, *args: str, timeout: float = 120.0) -> Iterator[dict]:
+    """``rig serve SCENE`` in its own process: yields its endpoints once announced; on leaving, waits for it
+    to exit by itself (it does once its host released it: exit status 0 asserted), else kills it."""
+    serve = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "serve", str(scene), *args,
+                              "--endpoints", str(endpoints), "--wait", str(int(timeout))],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + timeout
+        while not endpoints.exists() or not endpoints.read_text():
+            assert serve.poll() is None, serve.stderr.read()
+            assert time.monotonic() < deadline, "rig serve did not announce its endpoints"
+            time.sleep(0.05)
+        yield json.loads(endpoints.read_text())
+        assert serve.wait(timeout=timeout) == 0, serve.stderr.read()        # it exits once released
+    finally:
+        serve.kill()
+        serve.wait()
 
 
 @pytest.fixture(scope="session")
@@ -12,3 +41,9 @@ def dask_scheduler():
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address="127.0.0.1:0",
                       worker_dashboard_address="127.0.0.1:0") as cluster:
         yield cluster.scheduler_address
+
+
+@pytest.fixture
+def serve_scene():
+    """:func:`served`, for the cross-process tests."""
+    return served

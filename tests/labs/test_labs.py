@@ -167,32 +167,14 @@ def test_a_lab_scene_names_its_errors(tmp_path):
         run_scene(bad, tmp_path / "bad.mcap")
 
 
-def test_a_lab_served_in_its_own_process_records_the_same_readings(cardan, tmp_path):
+def test_a_lab_served_in_its_own_process_records_the_same_readings(cardan, tmp_path, serve_scene):
     """``rig serve`` + the host over socketcand: the wiring comes from the scene on both sides of the wire, so
     the host records the same encoder readings as the in-process run, and the same lab sheet."""
-    import json
-    import subprocess
-    import sys
-    import time
     from rig.runner import record_scene
-    endpoints = tmp_path / "endpoints.json"
-    serve = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "serve", str(SCENES / "lab_cardan.toml"),
-                              "--endpoints", str(endpoints), "--wait", "120"],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while not endpoints.exists() or not endpoints.read_text():
-            assert serve.poll() is None, serve.stderr.read()
-            assert time.monotonic() < deadline, "rig serve did not announce its endpoints"
-            time.sleep(0.05)
-        ep = json.loads(endpoints.read_text())
-        out = tmp_path / "cross.mcap"
+    out = tmp_path / "cross.mcap"
+    with serve_scene(SCENES / "lab_cardan.toml", tmp_path / "endpoints.json") as ep:
         record_scene(SCENES / "lab_cardan.toml", out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
                      serial_port=None, idle_timeout=60.0)
-        assert serve.wait(timeout=120) == 0, serve.stderr.read()
-    finally:
-        serve.kill()
-        serve.wait()
     a, b = cardan[0], read_recording(out)
     for topic in ("/stand/encoder1", "/stand/encoder2"):
         for name in ("count", "edge_time", "angle"):

@@ -1,10 +1,8 @@
 """The rig runner end to end: scene → machine → links → host → MCAP, in one process and across processes."""
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -62,30 +60,20 @@ def _busy_cores(n: int) -> list[subprocess.Popen]:
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
-def test_cross_process_recording_equals_in_process_under_load(in_process: Path, tmp_path: Path):
+def test_cross_process_recording_equals_in_process_under_load(in_process: Path, tmp_path: Path, serve_scene):
     """``rig serve`` + ``rig record`` in two processes, with both cores busy, record every value the
     in-process run records: the run ends at the device's last frame and the served process stays until
     the host releases it, so nothing depends on timing."""
     from rig.runner import record_scene
-    endpoints = tmp_path / "endpoints.json"
     burners = _busy_cores(2)
-    serve = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "serve", str(SCENE), "--cycles", str(CYCLES),
-                              "--endpoints", str(endpoints), "--wait", "120"],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 120
-        while not endpoints.exists() or not endpoints.read_text():
-            assert serve.poll() is None, serve.stderr.read()
-            assert time.monotonic() < deadline, "rig serve did not announce its endpoints"
-            time.sleep(0.05)
-        ep = json.loads(endpoints.read_text())
-        out = tmp_path / "cross.mcap"
-        summary = record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
-                               serial_port=ep["serial"], cycles=CYCLES, idle_timeout=60.0)
-        assert summary.curves == CYCLES
-        assert serve.wait(timeout=120) == 0, serve.stderr.read()        # it exits once released
+        with serve_scene(SCENE, tmp_path / "endpoints.json", "--cycles", str(CYCLES)) as ep:
+            out = tmp_path / "cross.mcap"
+            summary = record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
+                                   serial_port=ep["serial"], cycles=CYCLES, idle_timeout=60.0)
+            assert summary.curves == CYCLES
     finally:
-        for p in burners + [serve]:
+        for p in burners:
             p.kill()
             p.wait()
     a, b = read_recording(in_process), read_recording(out)
