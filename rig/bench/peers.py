@@ -87,10 +87,26 @@ def _ivp_backend(method: str) -> Backend:
 
 
 def _crossings(g: np.ndarray, direction: float) -> np.ndarray:
-    """Indices i where g changes sign strictly between values i and i + 1, in ``direction`` (0: either)."""
-    down, up = (g[:-1] > 0.0) & (g[1:] <= 0.0), (g[:-1] < 0.0) & (g[1:] >= 0.0)
-    return np.flatnonzero(down if direction < 0 else up if direction > 0 else
-                          ((g[:-1] > 0.0) & (g[1:] < 0.0)) | ((g[:-1] < 0.0) & (g[1:] > 0.0)))
+    """Indices i where g crosses zero between values i and i + 1 in ``direction`` (0: either), as our driver
+    counts them (:class:`rig.solvers.integrate.Event`): leaving g = 0 in the event's direction counts."""
+    a, b = g[:-1], g[1:]
+    if direction:
+        return np.flatnonzero((b < 0.0) & (a >= 0.0) if direction < 0 else (b > 0.0) & (a <= 0.0))
+    return np.flatnonzero((a * b < 0.0) | ((b == 0.0) & (a != 0.0)))
+
+
+def _leaving(events: list, f: Callable, t0: float, y0: np.ndarray) -> int | None:
+    """Index of the first directional event whose g is 0 at the segment's start and leaves it in its direction
+    along the first-order continuation (a mode switch due at once: CVODE's root finding, like odeint's output
+    sampling, does not report a root at the initial point); None if there is none."""
+    dy = f(t0, y0)
+    for k, e in enumerate(events):
+        if e.direction and e.fun(t0, tuple(y0)) == 0.0:
+            t1 = t0 + 1e-9 * max(1.0, abs(t0))
+            t = _past_root(e.fun, lambda tt: tuple(y0 + (tt - t0) * dy), t0, t1, e.direction > 0)
+            if t < t1:
+                return k
+    return None
 
 
 # output times per odeint call: it has no root finding, so the part of a call past an event is wasted, and each
@@ -194,7 +210,9 @@ def run_peer(name: str, problem: Problem, t_span: tuple[float, float], grid: np.
             p = params()
             live = [e for e in acting if e.mode_dependent or e.fun(tc, tuple(y)) != 0.0]  # not the one just acted on
             j = int(np.searchsorted(grid, b, side="right"))
-            seg = run(kernel, p, tc, y, b, live, grid[i:j], rtol, atol)
+            now = _leaving(live, _rhs(kernel, p), tc, y)
+            seg = (run(kernel, p, tc, y, b, live, grid[i:j], rtol, atol) if now is None
+                   else Segment(tc, y, now, np.empty((y.size, 0)), 1))
             nfev += seg.nfev
             n = seg.samples.shape[1]
             out[:, i:i + n] = seg.samples

@@ -143,3 +143,16 @@ def test_multistep_peers_may_step_across_the_contact_onsets():
         errors[method] = problem.error(y, ref.y)
     assert calls["scipy odeint (no restarts)"] < calls["scipy odeint"]
     assert errors["scipy odeint (no restarts)"] < 1e-5 and errors["scipy odeint"] < 1e-5
+
+
+def test_peers_take_a_mode_switch_due_at_the_start_of_a_segment():
+    """The clutch start-up begins exactly on the stick–slip boundary (g = 0, leaving it at once): odeint
+    (events from its output samples) and CVODE (its root finding ignores the initial point) must switch there as
+    our driver and solve_ivp do; they used to run on in the old mode and end 0.14 rad off at every tolerance."""
+    from rig.bench.harness import _peer, reference
+    from rig.bench.problems import load_problem
+    problem = load_problem(CLUTCH, t_sim=0.2)
+    ref = reference(problem)
+    for method in ("scipy odeint", "cvode"):
+        y, _ = _peer(problem, method, 1e-8)
+        assert problem.error(y, ref.y) < 1e-6, method
