@@ -283,7 +283,7 @@ def geneva_sheet(lab: Lab) -> Sheet:
     grid = _last_turn(t1, phi1, start=np.pi)[1:-1]              # from the middle of a dwell
     wheel = np.interp(np.interp(grid, phi1, t1), t2, phi2)
     theory = np.interp(grid, truth["phi_in"], truth["phi_out"])
-    rows = [[f"{np.degrees(p) % 360 - 360 * (np.degrees(p) % 360 > 180):.0f}", f"{np.degrees(a - wheel[0]):.2f}", f"{np.degrees(b - theory[0]):.2f}",
+    rows = [[f"{(np.degrees(p) + 180) % 360 - 180:.0f}", f"{np.degrees(a - wheel[0]):.2f}", f"{np.degrees(b - theory[0]):.2f}",
              f"{np.degrees(a - b):+.3f}"] for p, a, b in zip(grid, wheel, theory)]
     timing = geneva.timing(lab.bench.speed.nominal_omega)
     count = tau / (lab.setting("can.Encoder2", "ppr", "1") * 4)          # rad per ×4 count of the wheel encoder

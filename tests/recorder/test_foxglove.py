@@ -181,3 +181,22 @@ def test_only_declared_encoders_are_recorded(demo):
     rec = read_recording(demo)
     assert "/stand/encoder1" in rec.series and "/stand/encoder2" not in rec.series   # the demo declares one
     assert np.isfinite(rec.series["/stand/encoder1"]["angle"]).all()
+
+
+def test_a_lab_recording_keeps_to_the_same_rules(tmp_path):
+    """The reading topics a scene wires (/stand/<message>: encoder, LVDT, torque shaft of the cam lab) load in
+    Foxglove as the demo's do: schema rules, valid messages, no nulls."""
+    out = tmp_path / "lab.mcap"
+    run_scene(ROOT / "data" / "scenes" / "lab_cam.toml", out)
+    jsonschema = pytest.importorskip("jsonschema")
+    seen = set()
+    with open(out, "rb") as f:
+        for schema, channel, msg in make_reader(f).iter_messages():
+            parsed = orjson.loads(schema.data)
+            if channel.topic not in seen:
+                seen.add(channel.topic)
+                assert schema.encoding == "jsonschema" and foxglove_rule_errors(parsed) == [], channel.topic
+            data = orjson.loads(msg.data)
+            assert _nulls(data) == [], channel.topic
+            assert [e.message for e in jsonschema.Draft202012Validator(parsed).iter_errors(data)] == [], channel.topic
+    assert {"/stand/encoder1", "/stand/lab_motion", "/stand/torque", "/plant/truth"} <= seen
