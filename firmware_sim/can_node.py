@@ -37,7 +37,6 @@ DBC_PATH = Path(__file__).resolve().parents[1] / "data" / "can" / "rig.dbc"
 
 X_LSB = 1e-6                     # m per count of every X signal (20-bit signed)
 Y_LSB = 0.005                    # N per count of every Y / force signal (20-bit signed)
-RAW20 = (-(1 << 19), (1 << 19) - 1)
 FD_PAIRS = 11                    # pairs per 64-byte FD frame
 TICK = 1e-4                      # s per count of the 16-bit Tick signals
 T_START_LSB, DT_LSB, T_OFFSET_LSB = 1e-6, 1e-9, 1e-5   # s per count: curve start, uniform step, offsets
@@ -57,11 +56,12 @@ class BusOverload(RuntimeError):
     """More curves wait for the bus than the unit can hold: the configuration cannot fit the bus."""
 
 
-def quantise(values: np.ndarray, lsb: float) -> tuple[np.ndarray, int]:
-    """Raw 20-bit counts of ``values`` (SI) and how many had to be clipped to the signal range."""
+def quantise(values: np.ndarray, lsb: float, bits: int = 20) -> tuple[np.ndarray, int]:
+    """Raw signed ``bits``-bit counts of ``values`` (SI) and how many had to be clipped to the signal range."""
+    lo, hi = -(1 << (bits - 1)), (1 << (bits - 1)) - 1
     raw = np.rint(np.asarray(values, dtype=float) / lsb)
-    clipped = int(np.count_nonzero((raw < RAW20[0]) | (raw > RAW20[1])))
-    return np.clip(raw, *RAW20).astype(np.int64), clipped
+    clipped = int(np.count_nonzero((raw < lo) | (raw > hi)))
+    return np.clip(raw, lo, hi).astype(np.int64), clipped
 
 
 def curve_crc(raw_x: np.ndarray, raw_y: np.ndarray) -> int:
@@ -214,6 +214,7 @@ class CanNode:
         self._order = 0                  # enqueue counter (low bits of the arbitration rank)
         self._seq: dict[int, int] = {}
         self._packing: dict[str, _Packing] = {}
+        self._signals: dict[str, dict[str, Any]] = {}        # reading message -> its DBC signals by name
         self._published_result: Any = None
         self._send_block = getattr(bus, "send_block", None)
         self.live_dropped = 0            # live pairs not sent (decimated, throttled or stale)
@@ -411,7 +412,7 @@ class CanNode:
         if msg is None or name in OWN_FRAMES or "DEVICE" not in msg.senders:
             raise ValueError(f"{name!r} is not a device reading message of the DBC")
         t = np.atleast_1d(np.asarray(t, float))
-        signals = {s.name: s for s in msg.signals}
+        signals = self._signals.get(name) or self._signals.setdefault(name, {s.name: s for s in msg.signals})
         stamps = {"Tick": t} if "Tick" in signals else {}
         columns = {}
         for signal, value in {**stamps, **values}.items():
@@ -419,13 +420,12 @@ class CanNode:
             if spec is None or signal == "Seq":
                 raise ValueError(f"{name} has no signal {signal!r} (it has "
                                  f"{', '.join(s.name for s in msg.signals if s.name != 'Seq')})")
-            raw = np.rint(np.broadcast_to(np.asarray(value, float), t.shape) / spec.scale)
+            value = np.broadcast_to(np.asarray(value, float), t.shape)
             if spec.is_signed:
-                lo, hi = -(1 << (spec.length - 1)), (1 << (spec.length - 1)) - 1
-                self.clipped += int(np.count_nonzero((raw < lo) | (raw > hi)))
-                columns[signal] = np.clip(raw, lo, hi).astype(np.int64)
+                columns[signal], clipped = quantise(value, spec.scale, spec.length)
+                self.clipped += clipped
             else:
-                columns[signal] = raw.astype(np.int64) % (1 << spec.length)
+                columns[signal] = np.rint(value / spec.scale).astype(np.int64) % (1 << spec.length)
         self._enqueue_rows(name, columns, t)
 
     def publish_status(self, t: float, run_ended: bool = False) -> None:

@@ -135,8 +135,11 @@ class Host:
         times, never from the reading times, which the bus delays); any other message the signals the scene's
         transducers fill (fields in snake case: BrakeForce → brake_force), in the DBC's units."""
         new = self.can.take_readings()
+        by_message: dict[str, list] = {}
+        for row in new["counters"] + new["readings"]:           # one pass: the rows of each message, in order
+            by_message.setdefault(row[0], []).append(row)
         for message, rad_per_count in self._rad_per_count.items():
-            rows = [r for r in new["counters"] if r[0] == message]
+            rows = by_message.get(message)
             if rows:
                 t, count, edge = (np.array(c, dtype=float) for c in list(zip(*rows))[1:])
                 speed = self._speed[message].update(t, count.astype(np.int64), edge)
@@ -144,7 +147,7 @@ class Host:
                     "count": count, "edge_time": edge, "angle": count * rad_per_count, "speed": speed.speed,
                     "speed_time": speed.time, "speed_method": speed.method.astype(float)})
         for message, signals in self._readings.items():
-            rows = [r for r in new["readings"] if r[0] == message]
+            rows = by_message.get(message)
             if rows:
                 t = np.array([r[1] for r in rows])
                 self.rec.write_block(stand_topic(message), t, {

@@ -76,6 +76,8 @@ class Machine:
         c = cfg.can
         self.node = CanNode(bus, self.device, bitrate=c["bitrate"], fd=bool(c["fd"]),
                             data_bitrate=c["data_bitrate"], live_share=c["live_share"], tx_curves=c["tx_curves"])
+        self._xy = cfg.wired("device.x"), cfg.wired("device.y")      # the unit's channels, if wired
+        self._frames = cfg.frames()                                    # reading message -> its transducers
         self.bus_plan = self._bus_plan()
         self.t = 0.0
         self._step_index = 0
@@ -88,7 +90,7 @@ class Machine:
         node, cfg = self.node, self.cfg
         plan = {"status": sum(node.frame_time_planned(n) for n in ("Heartbeat", "StatusCounters", "TxStatus"))
                 / node.heartbeat_period}
-        for message, specs in cfg.frames().items():
+        for message, specs in self._frames.items():
             plan[message] = (specs[0].rate or 1.0 / cfg.chunk) * node.frame_time_planned(message)
         if sum(plan.values()) > 1.0:
             shares = ", ".join(f"{k} {v:.0%}" for k, v in plan.items())
@@ -129,14 +131,14 @@ class Machine:
             sensor = self.transducers[spec.name]
             read = sensor.sample if hasattr(sensor, "sample") else sensor.measure
             output[spec.name] = read(t, truth[spec.signal])
-        x, y = self.cfg.wired("device.x"), self.cfg.wired("device.y")
+        x, y = self._xy
         if x is not None and y is not None:
             for result in self.device.feed(t, output[x.name], output[y.name]):     # queued when the curve ends
                 self.node.publish_measurement(float(np.asarray(result.curve.t)[-1]), result)
                 self.curves += 1
             live = self.device.live_values()
             self.node.publish_live(t, live["x"], live["y"])
-        for message, specs in self.cfg.frames().items():
+        for message, specs in self._frames.items():
             idx = self._publish_indices(specs[0].rate, i0 + 1, t.size)
             values: dict[str, np.ndarray] = {}
             for spec in specs:
