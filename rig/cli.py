@@ -94,6 +94,11 @@ def _print_set_summary(result: dict) -> None:
         print("  events: " + ", ".join(f"{k} {v}" for k, v in sorted(result["events"].items())))
 
 
+def _done(verb: str, curves: int) -> str:
+    """'recorded 50 curves', or 'recorded the run' for a stand or lab scene (no curves)."""
+    return f"{verb} {curves} curves" if curves else f"{verb} the run"
+
+
 def _print_stand_summary(rec: Any) -> bool:
     """Console summary of a stand run (clutch dynamic stand or static rig, lab bench; no curves): its key results,
     each with what it is relative to. False (nothing printed) for other recordings."""
@@ -144,7 +149,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"))
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet, fidelity=args.fidelity)
-    what = f"recorded {summary.curves} curves" if summary.curves else "recorded the run"
+    what = _done("recorded", summary.curves)
     print(f"{what}, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
           f"({summary.realtime_factor:.1f}x real time; {summary.wall_time:.2f} s with serial set-up and read-back), "
           f"{summary.frames} CAN frames -> {summary.output}")
@@ -171,8 +176,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     machine = serve_scene(args.scene, mode="realtime" if args.realtime else None, port=args.port, wait=args.wait,
                           cycles=args.cycles, release_timeout=args.release_timeout, announce=announce,
                           progress=not args.quiet, fidelity=args.fidelity)
-    what = f"served {machine.curves} curves" if machine.curves else "served the run"
-    print(f"{what}, {machine.t:.2f} s simulated", file=sys.stderr)
+    print(f"{_done('served', machine.curves)}, {machine.t:.2f} s simulated", file=sys.stderr)
     return 0
 
 
@@ -183,8 +187,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet, fidelity=args.fidelity)
-    what = f"recorded {summary.curves} curves" if summary.curves else "recorded the run"
-    print(f"{what}, {summary.simulated_time:.2f} s simulated -> {summary.output}")
+    print(f"{_done('recorded', summary.curves)}, {summary.simulated_time:.2f} s simulated -> {summary.output}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
