@@ -46,15 +46,15 @@ def run(model: Level2, method, rtol: float) -> tuple[dict, dict]:
 
 
 def main() -> None:
-    mech = PinInsertionMechanism(speed=ConstantSpeed(OMEGA), k=1090.0)
-    model = Level2(mech)
+    mech = PinInsertionMechanism(k=1090.0)
+    model = Level2(mech, ConstantSpeed(OMEGA))
     print("reference: level 2, DP45 rtol 1e-9 ...", flush=True)
     ref, ref_info = run(model, "DP45", 1e-9)
     print(f"  {ref_info['steps']} steps, {ref_info['wall']:.1f} s, {ref_info['switches']} flank switches")
     curves, table = {}, []
-    level0 = mech.state(ref["phi"])
+    level0 = mech.state(ref["phi"], OMEGA)
     curves["level 0 (s)"] = (np.abs(level0.s - ref["s"]), None)
-    level1 = mech.kinetostatics(ref["phi"])
+    level1 = mech.kinetostatics(ref["phi"], OMEGA)
     curves["level 1 (R23; s as level 0)"] = (None, np.abs(level1.R23n - ref["R23"]))
     for method, rtol in RUNS:
         name = f"L2 {method if isinstance(method, str) else method.__name__} rtol {rtol:g}"

@@ -12,12 +12,13 @@ DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "data" / "scenes" / "pin_i
 
 
 def cmd_cam_design(args: argparse.Namespace) -> int:
-    from rig.mechanisms.cam.design import design_checks, format_checks, mechanism_from_scene, plot_design
+    from rig.mechanisms.cam.design import design_checks, format_checks, plot_design
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
     options = {} if args.sigma_allow is None else {"sigma_allow": args.sigma_allow * 1e6}
     if args.load_coefficient is not None:
         options["load_coefficient"] = args.load_coefficient
-    mech = mechanism_from_scene(args.scene)
-    design = design_checks(mech, high_speed=not args.low_speed, **options)
+    mech, omega = cam_bar_from_scene(args.scene)
+    design = design_checks(mech, omega, high_speed=not args.low_speed, **options)
     print(f"cam design checks for {args.scene}")
     print(format_checks(design))
     print(f"chart: {plot_design(design, args.output)}")

@@ -28,13 +28,12 @@ class UsageError(Exception):
 
 
 def _print_cam_bar_summary(scene_path: Path, png: Path) -> None:
-    from rig.plants.cam_bar import PinInsertionMechanism
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
     from rig.plants.cam_bar.summary import plot_cycle, summary_table
-    from rig.scene import load_scene
-    mech = PinInsertionMechanism.from_scene(load_scene(scene_path))
-    print(summary_table(mech))
+    mech, omega = cam_bar_from_scene(scene_path)
+    print(summary_table(mech, omega))
     png.parent.mkdir(parents=True, exist_ok=True)
-    plot_cycle(mech, png)
+    plot_cycle(mech, omega, png)
     print(f"cycle chart: {png}")
 
 

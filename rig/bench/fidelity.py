@@ -48,6 +48,7 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
     from rig.fidelity import QUESTIONS, choose
     from rig.plants.cam_bar import PinInsertionMechanism
     from rig.plants.cam_bar.level2 import Level2
+    from rig.plants.cam_bar.scene_io import read_speed_profile
     from rig.runner.config import read_config
     from rig.scene import SceneError, load_scene
     scene = load_scene(scene_path)
@@ -56,25 +57,26 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
                          f"{scene.section('scene').get('plant')!r}")
     l2 = choose(scene, "cam_bar", forced=2)
     mech = PinInsertionMechanism.from_scene(scene)
-    omega = mech.speed.nominal_omega
+    speed = read_speed_profile(scene)
+    omega = speed.nominal_omega
     rate = read_config(scene).sample_rate
     T = 2 * math.pi / omega
     t = np.arange(0.0, T, 1.0 / rate)
-    phi = mech.speed.drive(t).phi
-    model = Level2(mech)
+    phi = speed.drive(t).phi
+    model = Level2(mech, speed)
     y0 = model.initial_state(0.0)
 
     def level2() -> Any:
         run = model.simulate((0.0, float(t[-1])), y0, t_eval=t, method=l2.method, **l2.options)
         return run, model.signals(t, run.solution.y)
 
-    mech.kinetostatics(phi[:10])
+    mech.kinetostatics(phi[:10], omega)
     level2()                                   # compile / load the caches before timing
-    cost = {0: _best(lambda: mech.state(phi)), 1: _best(lambda: mech.kinetostatics(phi)), 2: _best(level2)}
+    cost = {0: _best(lambda: mech.state(phi)), 1: _best(lambda: mech.kinetostatics(phi, omega)), 2: _best(level2)}
     s0 = cost[0][1].s
     answers = {0: {"stroke": float(np.ptp(s0))},
                1: {"stroke": float(np.ptp(s0)), "rod_force": float(np.max(np.abs(cost[1][1].F_rod))),
-                   "flank_switches": float(len(mech.flank_switch_angles(n=t.size)))}}
+                   "flank_switches": float(len(mech.flank_switch_angles(omega, n=t.size)))}}
     run, sig = cost[2][1]
     answers[2] = {"stroke": float(np.ptp(sig["s"])), "rod_force": float(np.max(np.abs(sig["F_rod"]))),
                   "flank_switches": float(len(run.switches)), "dwell_vibration": _dwell(mech, phi, sig["s"])}

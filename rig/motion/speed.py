@@ -10,6 +10,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+RPM = tau / 60.0  # rad/s per rpm
+
 
 class Drive(NamedTuple):
     """Cam angle (rad), speed (rad/s) and angular acceleration (rad/s²) at some times."""

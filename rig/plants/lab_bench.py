@@ -83,13 +83,13 @@ class LabBench:
     @classmethod
     def from_scene(cls, scene: Scene) -> "LabBench":
         """The bench of a scene's [plant] and [speed]; errors name the file, section and key."""
-        from rig.plants.cam_bar.scene_io import read_program, read_speed
+        from rig.plants.cam_bar.scene_io import read_program, read_speed_profile
         where = f"{scene.path} [plant]"
         kind = scene.section("plant").get("kind")
         if kind not in KINDS:
             raise SceneError(f"{where}: key 'kind' must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
         p = scene.read("plant", SCHEMAS[kind])
-        speed = read_speed(scene.section("speed"), f"{scene.path} [speed]")
+        speed = read_speed_profile(scene)
         try:
             if kind == "cardan":
                 return cls(kind, speed, Cardan(p["shaft_angle"]))

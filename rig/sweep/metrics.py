@@ -42,7 +42,7 @@ def run_plant(scene: Scene, revolutions: int = 2) -> PlantRun:
     cfg = read_config(scene)
     plant = make_plant(cfg.plant, scene, nominal=True)
     if cfg.plant == "cam_bar":
-        omega = float(plant.mech.speed.drive(np.array([0.0])).omega[0])
+        omega = float(plant.speed.drive(np.array([0.0])).omega[0])
         if not omega > 0.0:
             raise ValueError(f"{scene.path}: the cam does not turn at t = 0 (ω = {omega} rad/s)")
         end = revolutions * tau / omega

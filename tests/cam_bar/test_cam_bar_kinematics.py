@@ -57,12 +57,12 @@ def test_phi_derivatives_match_finite_differences():
 
 
 def test_time_derivatives_with_speed_fluctuation():
-    mech = PinInsertionMechanism(speed=SinusoidalSpeed(omega_mean=15.7, amplitude=4.0))
+    mech, speed = PinInsertionMechanism(), SinusoidalSpeed(omega_mean=15.7, amplitude=4.0)
     t = np.linspace(0.01, 0.39, 300)
     h = 1e-6
 
     def at(tt):
-        d = mech.speed.drive(tt)
+        d = speed.drive(tt)
         return mech.state(d.phi, d.omega, d.alpha)
 
     st, up, dn = at(t), at(t + h), at(t - h)

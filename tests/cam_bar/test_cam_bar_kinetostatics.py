@@ -7,6 +7,7 @@ import pytest
 from rig.plants.cam_bar import PinInsertionMechanism
 
 RPM = pi / 30
+OMEGA = 150 * RPM   # the demo machine's cam speed (rad/s)
 PHI = np.linspace(0.0, tau, 1441)[:-1] + 1e-4
 
 
@@ -47,12 +48,12 @@ def test_virtual_power_balance(direction, omega, alpha):
 
 def test_free_body_consistency():
     mech = PinInsertionMechanism(sensor_position=1.0)
-    ks = mech.kinetostatics(PHI)
-    st = mech.state(PHI)
+    ks = mech.kinetostatics(PHI, OMEGA)
+    st = mech.state(PHI, OMEGA)
     e = np.array([np.cos(st.theta), np.sin(st.theta)])
     # sensor at the slider end reads R54 along the rod; at the follower end −R34 along the rod
     assert ks.rod_tension == pytest.approx(ks.R54.x * e[0] + ks.R54.y * e[1], abs=1e-10)
-    at_c = PinInsertionMechanism(sensor_position=0.0).kinetostatics(PHI)
+    at_c = PinInsertionMechanism(sensor_position=0.0).kinetostatics(PHI, OMEGA)
     assert at_c.rod_tension == pytest.approx(-(ks.R34.x * e[0] + ks.R34.y * e[1]), abs=1e-10)
     assert ks.F_rod == pytest.approx(ks.rod_tension + mech.sensor_preload)
     # contact force: magnitude |R23n|, moment about B0 equals M_Σ, sign follows M_Σ
@@ -90,7 +91,7 @@ def test_flank_switches_are_zeros_of_contact_moment():
     mech = PinInsertionMechanism()
     for spring in (False, True):
         omega = 150 * RPM if not spring else 300 * RPM
-        angles = mech.flank_switch_angles(spring=spring, omega=omega)
+        angles = mech.flank_switch_angles(omega, spring=spring)
         assert len(angles) >= 2
         ks_lo = mech.kinetostatics(angles - 1e-6, omega)
         ks_hi = mech.kinetostatics(angles + 1e-6, omega)
@@ -101,13 +102,13 @@ def test_flank_switches_are_zeros_of_contact_moment():
 
 def test_flank_switches_depend_on_speed_and_spring_rate():
     mech = PinInsertionMechanism()
-    table = mech.flank_switch_table()
+    table = mech.flank_switch_table(OMEGA)
     assert len(table["no spring"]) > 0  # without the spring the contact force reverses at 150 rpm
     assert all(len(v) == 0 for k, v in table.items() if k != "no spring")  # springs keep it on the flank
-    counts = [len(mech.flank_switch_angles(k=k, omega=285 * RPM)) for k in mech.spring_rates]
+    counts = [len(mech.flank_switch_angles(285 * RPM, k=k)) for k in mech.spring_rates]
     assert counts == sorted(counts, reverse=True) and counts[0] > 0 and counts[-1] == 0  # stiffer → fewer
-    slow = mech.flank_switch_angles(k=1090.0, omega=290 * RPM)
-    fast = mech.flank_switch_angles(k=1090.0, omega=400 * RPM)
+    slow = mech.flank_switch_angles(290 * RPM, k=1090.0)
+    fast = mech.flank_switch_angles(400 * RPM, k=1090.0)
     assert len(fast) > len(slow) > 0
     assert fast[fast > np.radians(200)][0] < slow[0]  # the return-phase switch comes earlier
 
@@ -126,7 +127,7 @@ def test_spring_design():
 def test_b_min_closed_form_at_rise_start():
     """Just after the rise starts (a ≈ 0, F_c off) the rod only overcomes μ·N: b_min → 2μ·m5·g·x_s5/(μ·N)."""
     mech = PinInsertionMechanism()
-    ks = mech.kinetostatics(np.array([np.radians(60.0) + 1e-7]))
+    ks = mech.kinetostatics(np.array([np.radians(60.0) + 1e-7]), OMEGA)
     n = ks.R15.y[0]
     assert ks.b_min[0] == pytest.approx(2 * mech.m5 * mech.g * mech.x_s5 / abs(n), rel=1e-3)
-    assert np.isnan(mech.kinetostatics(np.array([0.5])).b_min[0])  # at rest in the lower dwell
+    assert np.isnan(mech.kinetostatics(np.array([0.5]), OMEGA).b_min[0])  # at rest in the lower dwell

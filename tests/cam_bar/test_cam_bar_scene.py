@@ -6,6 +6,8 @@ import pytest
 
 from rig.motion import RampSpeed, SinusoidalSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.plant import CamBarPlant, Setting
+from rig.plants.cam_bar.scene_io import read_speed_profile
 from rig.scene import SceneError, load_scene
 
 SCENE = Path(__file__).resolve().parents[2] / "data" / "scenes" / "pin_insertion.toml"
@@ -28,8 +30,10 @@ def test_shipped_scene_equals_defaults():
         assert getattr(m, name) == pytest.approx(getattr(d, name)), name
     assert m.spring_rates == pytest.approx(d.spring_rates)
     phi = np.linspace(0, 6.28, 100)
-    assert m.kinetostatics(phi).R23n == pytest.approx(d.kinetostatics(phi).R23n)
-    assert m.speed.nominal_omega == pytest.approx(d.speed.nominal_omega)
+    speed = read_speed_profile(load_scene(SCENE))
+    assert speed.nominal_omega == pytest.approx(Setting().speed.nominal_omega)
+    assert m.kinetostatics(phi, speed.nominal_omega).R23n == pytest.approx(d.kinetostatics(phi, 5 * np.pi).R23n)
+    assert CamBarPlant.from_scene(load_scene(SCENE)).speed == speed
 
 
 def test_other_sections_are_ignored(tmp_path):
@@ -54,17 +58,17 @@ def test_other_sections_are_ignored(tmp_path):
 def test_errors_name_key_and_file(tmp_path, old, new, message):
     sc = write(tmp_path, "", old, new)
     with pytest.raises(SceneError, match=message) as info:
-        PinInsertionMechanism.from_scene(sc)
+        CamBarPlant.from_scene(sc)
     assert str(sc.path) in str(info.value)
 
 
 def test_speed_profiles_from_scene(tmp_path):
     sc = write(tmp_path, "", 'profile = "constant"', 'profile = "ramp"\nspeed_end = "300 rpm"\nramp_time = "2 s"')
-    speed = PinInsertionMechanism.from_scene(sc).speed
+    speed = CamBarPlant.from_scene(sc).speed
     assert isinstance(speed, RampSpeed) and speed.omega1 == pytest.approx(10 * np.pi)
     sc = write(tmp_path, "", 'profile = "constant"', 'profile = "sinusoidal"\namplitude = "10 rpm"\nfrequency = "5 Hz"')
-    speed = PinInsertionMechanism.from_scene(sc).speed
+    speed = read_speed_profile(sc)
     assert isinstance(speed, SinusoidalSpeed) and speed.frequency == pytest.approx(5.0)
     sc = write(tmp_path, "", 'profile = "constant"', 'profile = "sinusoidal"\namplitude = "200 rpm"')
     with pytest.raises(SceneError, match=r"\[speed\].*amplitude"):
-        PinInsertionMechanism.from_scene(sc)
+        CamBarPlant.from_scene(sc)

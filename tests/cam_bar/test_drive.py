@@ -8,14 +8,15 @@ from rig.motion import ConstantSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.drive import CamDrive
 from rig.plants.cam_bar.level2 import Level2
-from rig.plants.cam_bar.mechanism import RPM
+from rig.plants.cam_bar.plant import DEMO_SPEED
+from rig.motion.speed import RPM
 from rig.scene import SceneError, load_scene
 
 from tests.cam_bar.test_cam_bar_scene import write
 
 
-def _run(mech: PinInsertionMechanism, T: float, n: int = 4001):
-    model = Level2(mech)
+def _run(mech: PinInsertionMechanism, T: float, n: int = 4001, speed=DEMO_SPEED):
+    model = Level2(mech, speed)
     t = np.linspace(0.0, T, n)
     run = model.simulate((0.0, T), t_eval=t, rtol=1e-7, atol=1e-12)
     return run, model.signals(t, run.solution.y)
@@ -23,8 +24,8 @@ def _run(mech: PinInsertionMechanism, T: float, n: int = 4001):
 
 def test_drive_off_by_default_and_state_layout():
     mech = PinInsertionMechanism()
-    assert mech.cam_drive is None and len(Level2(mech).initial_state(0.0)) == 2
-    y0 = Level2(PinInsertionMechanism(cam_drive=CamDrive()), energy=True).initial_state(0.0)
+    assert mech.cam_drive is None and len(Level2(mech, DEMO_SPEED).initial_state(0.0)) == 2
+    y0 = Level2(PinInsertionMechanism(cam_drive=CamDrive()), DEMO_SPEED, energy=True).initial_state(0.0)
     assert len(y0) == 9 and y0[2:4] == (0.0, 0.0)                           # (e, τė, φ, ω, φ_m, ω_m, works)
 
 
@@ -57,11 +58,11 @@ def test_start_up_from_rest_and_a_start_phase_jump_with_a_strong_motor():
     brings the cam to speed without a flank switch; one twice as strong accelerates the cam so hard that the
     follower, which must follow the return, leaves the working flank (switches in the first 0.1 s)."""
     speed = ConstantSpeed(150 * RPM, radians(260.0))
-    run, sig = _run(PinInsertionMechanism(k=1090.0, speed=speed, cam_drive=CamDrive()), 0.15)
+    run, sig = _run(PinInsertionMechanism(k=1090.0, cam_drive=CamDrive()), 0.15, speed=speed)
     assert sig["omega"][0] == 0.0 and sig["cam_angle"][0] == pytest.approx(radians(260.0))
     assert np.all(np.abs(sig["omega"][sig["t"] > 0.1] / (150 * RPM) - 1.0) < 0.02)
     assert run.switches == []
-    run, sig = _run(PinInsertionMechanism(k=1090.0, speed=speed, cam_drive=CamDrive(max_torque=120.0)), 0.1)
+    run, sig = _run(PinInsertionMechanism(k=1090.0, cam_drive=CamDrive(max_torque=120.0)), 0.1, speed=speed)
     assert run.switches and run.switches[0].time < 0.05 and sig["R23"].min() < -1000.0
 
 

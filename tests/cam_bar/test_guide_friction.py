@@ -8,6 +8,7 @@ import pytest
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.level2 import ContactLaw, Level2
+from rig.plants.cam_bar.plant import DEMO_SPEED
 from rig.scene import SceneError, load_scene
 
 from tests.cam_bar.test_cam_bar_scene import write
@@ -17,7 +18,7 @@ NO_SPRING = dict(k=0.0, Me_0=0.0)    # the roller floats in the clearance throug
 
 def _gap(guide: GuideFriction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     mech = PinInsertionMechanism(guide=guide, **NO_SPRING)
-    model = Level2(mech)
+    model = Level2(mech, DEMO_SPEED)
     t = np.linspace(0.0, 0.4, 8001)
     sig = model.signals(t, model.simulate((0.0, 0.4), t_eval=t, rtol=1e-7, atol=1e-12).solution.y)
     return np.degrees(sig["phi"]), -sig["delta_w"], sig["v"]
@@ -40,7 +41,7 @@ def test_stick_holds_the_slider_where_the_regularised_guide_creeps():
 def test_energy_balance_closes_with_stick_slip():
     mech = PinInsertionMechanism(guide=GuideFriction("stick"), **NO_SPRING)
     base = ContactLaw.steel_line(mech.roller_width, mech.contact_damping)
-    model = Level2(mech, ContactLaw(base.stiffness * 0.01, base.exponent, base.damping * 0.1), energy=True,
+    model = Level2(mech, DEMO_SPEED, ContactLaw(base.stiffness * 0.01, base.exponent, base.damping * 0.1), energy=True,
                    max_penetration=1e-3)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -8,7 +8,8 @@ from rig.motion import ConstantSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.level2 import Level2
-from rig.plants.cam_bar.mechanism import RPM
+from rig.plants.cam_bar.plant import DEMO_SPEED
+from rig.motion.speed import RPM
 from rig.scene import SceneError, load_scene
 
 from tests.cam_bar.test_cam_bar_scene import write
@@ -34,20 +35,20 @@ def test_level1_force_follows_the_law_during_the_rise_only():
     mech = PinInsertionMechanism()
     phi = np.linspace(0.0, 2 * np.pi, 7201)
     st = mech.state(phi)
-    ks = mech.kinetostatics(phi)
+    ks = mech.kinetostatics(phi, DEMO_SPEED.omega)
     expected = np.where(st.s_p > 0, mech.F_c * mech.insertion.weight(st.s - (0.042 - mech.F_c_travel), 0.005), 0)
     np.testing.assert_allclose(ks.F_c, expected, atol=1e-12)
     assert ks.F_c.max() == pytest.approx(mech.F_c, rel=1e-3)
     assert np.all(ks.F_c[np.degrees(phi) > 180.0] == 0.0)                  # return stroke: no force
 
 
-def _run(mech, a_deg, b_deg):
-    w = mech.speed.nominal_omega
-    model = Level2(mech)
+def _run(mech, a_deg, b_deg, speed=DEMO_SPEED):
+    w = speed.nominal_omega
+    model = Level2(mech, speed)
     t = np.linspace(radians(a_deg) / w, radians(b_deg) / w, 2001)
     run = model.simulate((t[0], t[-1]), t_eval=t, rtol=1e-7, atol=1e-12)
     sig = model.signals(t, run.solution.y)
-    return sig, mech.kinetostatics(sig["phi"])
+    return sig, mech.kinetostatics(sig["phi"], w)
 
 
 def test_level2_follows_level1_with_the_law_and_rings_with_the_step():
@@ -58,8 +59,7 @@ def test_level2_follows_level1_with_the_law_and_rings_with_the_step():
     assert np.max(np.abs(sig["F_rod"] - ks.F_rod)) < 1.0
     sig_s, ks_s = _run(PinInsertionMechanism(insertion=InsertionLaw("step")), 140.0, 220.0)
     assert np.max(np.abs(sig_s["R23"] - ks_s.R23n)) > 50.0
-    slow = PinInsertionMechanism(speed=ConstantSpeed(30 * RPM))
-    sig, ks = _run(slow, 140.0, 185.0)
+    sig, ks = _run(PinInsertionMechanism(), 140.0, 185.0, ConstantSpeed(30 * RPM))
     assert np.max(np.abs(sig["R23"] - ks.R23n)) < 0.01 * np.max(np.abs(ks.R23n))
     assert np.max(np.abs(sig["F_c"] - ks.F_c)) < 0.5    # the actual stroke lags by the contact deflection (µm)
 

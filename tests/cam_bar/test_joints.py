@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rig.plants.cam_bar import PinInsertionMechanism
-from rig.plants.cam_bar.plant import CamBarPlant, Setting
+from rig.plants.cam_bar.plant import DEMO_SPEED, CamBarPlant, Setting
 from rig.plants.cam_bar.joints import JointClearance
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.variation import CycleVariation
@@ -30,7 +30,7 @@ def test_gripper_wanders_in_the_dwells_where_the_rod_is_unloaded():
     spread = {}
     for joints in (None, JointClearance(20e-6, 20e-6)):
         mech = PinInsertionMechanism(joints=joints)
-        model = Level2(mech)
+        model = Level2(mech, DEMO_SPEED)
         t = np.linspace(0.0, 0.4, 8001)
         sig = model.signals(t, model.simulate((0.0, 0.4), t_eval=t, rtol=1e-7, atol=1e-12).solution.y)
         phi = np.degrees(sig["cam_angle"])

@@ -7,6 +7,7 @@ import pytest
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.jump_map import jump_map, plot
 from rig.plants.cam_bar.level2 import Level2
+from rig.plants.cam_bar.plant import DEMO_SPEED
 
 
 def test_switches_at_the_drawn_spring_and_high_speed_only(tmp_path):
@@ -28,7 +29,7 @@ def test_upper_dwell_gripper_vibration_of_clearance_times_lever_ratio_when_the_r
     moves = {}
     for k, me0 in ((0.0, 0.0), (1890.0, 20.0)):
         mech = PinInsertionMechanism(k=k, Me_0=me0)
-        model = Level2(mech)
+        model = Level2(mech, DEMO_SPEED)
         t = np.linspace(0.0, 0.4, 8001)
         sig = model.signals(t, model.simulate((0.0, 0.4), t_eval=t, rtol=1e-7, atol=1e-12).solution.y)
         phi = np.degrees(sig["cam_angle"])

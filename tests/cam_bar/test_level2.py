@@ -10,7 +10,8 @@ from rig.motion.speed import SinusoidalSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.level2 import ContactLaw, Level2, groove
-from rig.plants.cam_bar.mechanism import RPM
+from rig.plants.cam_bar.plant import DEMO_SPEED
+from rig.motion.speed import RPM
 from rig.solvers import SolverDivergence
 from rig.solvers.rodas import fd_jacobian
 
@@ -23,8 +24,11 @@ def _scaled(mech: PinInsertionMechanism, scale: float) -> ContactLaw:
     return ContactLaw(base.stiffness * scale, base.exponent, base.damping * scale ** 0.5)
 
 
+W = DEMO_SPEED.omega
+
+
 def _window(model: Level2, a_deg: float, b_deg: float, **options):
-    w = model.mech.speed.nominal_omega
+    w = model.speed.nominal_omega
     run = model.simulate((radians(a_deg) / w, radians(b_deg) / w), **{"rtol": 1e-3, "atol": 1e-9, **options})
     return run, model.signals(run.solution.t, run.solution.y)
 
@@ -50,7 +54,7 @@ def test_groove_geometry_matches_level1_lever_and_finite_differences():
     mech = PinInsertionMechanism()
     phi = np.linspace(0.05, 6.2, 40)
     g = groove(mech, phi)
-    ks = mech.kinetostatics(phi)
+    ks = mech.kinetostatics(phi, W)
     assert g.lever == pytest.approx(ks.M_sigma / ks.R23n, rel=1e-12)  # ℓ = B_R × n of level 1
     h = 1e-6
     gp, gm = groove(mech, phi + h), groove(mech, phi - h)
@@ -62,11 +66,11 @@ def test_groove_geometry_matches_level1_lever_and_finite_differences():
 
 def test_zero_clearance_and_stiff_contact_converge_to_levels_0_and_1():
     mech = PinInsertionMechanism(clearance=0.0, F_c=0.0, **NO_SPRING)  # R23 changes sign at 121.1°
-    l1_switch = degrees(mech.flank_switch_angles()[0])
+    l1_switch = degrees(mech.flank_switch_angles(W)[0])
     dev, err = [], []
     for scale in (1.0, 100.0):
-        run, sig = _window(Level2(mech, _scaled(mech, scale)), 90.0, 175.0, rtol=1e-4, atol=1e-10, method="Rodas4")
-        ks = mech.kinetostatics(sig["phi"])
+        run, sig = _window(Level2(mech, DEMO_SPEED, _scaled(mech, scale)), 90.0, 175.0, rtol=1e-4, atol=1e-10, method="Rodas4")
+        ks = mech.kinetostatics(sig["phi"], W)
         dev.append(np.max(np.abs(sig["psi"] - mech.state(sig["phi"]).psi)))     # ψ against the cam law
         err.append(np.max(np.abs(sig["R23"] - ks.R23n)) / np.max(np.abs(ks.R23n)))
         assert [e.data["to"] for e in run.switches] == ["other"]
@@ -79,8 +83,8 @@ def test_zero_clearance_and_stiff_contact_converge_to_levels_0_and_1():
 def test_energy_balance_over_a_cycle_with_speed_variation():
     """W_drive + W(F_c, friction) − E_dissipated = Δ(kinetic + gravity + spring + contact), to the solver's
     accuracy; soft contact (K/100) so that a tight DP45 reference stays affordable."""
-    mech = PinInsertionMechanism(speed=SinusoidalSpeed(150 * RPM, 1.5))
-    model = Level2(mech, _scaled(mech, 0.01), energy=True, max_penetration=1e-3)
+    mech = PinInsertionMechanism()
+    model = Level2(mech, SinusoidalSpeed(150 * RPM, 1.5), _scaled(mech, 0.01), energy=True, max_penetration=1e-3)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         run = model.simulate((0.0, 0.4), method="DP45", rtol=1e-8, atol=1e-12)
@@ -96,10 +100,10 @@ def test_flank_switches_where_level1_predicts_and_fewer_with_a_stiffer_spring():
     omega = 300 * RPM                                          # level 1: switches during the return
     runs = {}
     for k in (1090.0, 1890.0):
-        mech = PinInsertionMechanism(speed=ConstantSpeed(omega), k=k)
-        model = Level2(mech)
+        mech = PinInsertionMechanism(k=k)
+        model = Level2(mech, ConstantSpeed(omega))
         run, sig = _window(model, 200.0, 300.0)
-        l1 = np.degrees(mech.flank_switch_angles(omega=omega))
+        l1 = np.degrees(mech.flank_switch_angles(omega))
         leave = [degrees(t * omega) for t, flank in run.releases if flank == "working"]
         assert leave[0] == pytest.approx(l1[0], abs=0.5)       # the roller leaves where R23n changes sign
         gap = sig["psi"] - sig["psi_kin"]
@@ -115,7 +119,7 @@ def test_jump_at_end_of_active_stroke_and_fourfold_clearance_amplification():
     spread = {}
     for c in (0.05e-3, 0.10e-3):
         mech = PinInsertionMechanism(clearance=c, **NO_SPRING)
-        run, sig = _window(Level2(mech), 100.0, 178.0)
+        run, sig = _window(Level2(mech, DEMO_SPEED), 100.0, 178.0)
         ds = sig["s"] - mech.state(sig["phi"]).s                 # gripper ahead of the level-0 stroke (m)
         phi = np.degrees(sig["phi"])
         assert degrees(run.switches[0].data["phi"]) == pytest.approx(121.1 + 12.0, abs=8.0)
@@ -131,7 +135,7 @@ def test_jump_at_end_of_active_stroke_and_fourfold_clearance_amplification():
 
 def test_gripper_rings_in_the_upper_dwell_at_the_contact_frequency():
     mech = PinInsertionMechanism(insertion=InsertionLaw("step"))   # the constant-F_c window: a load step
-    model = Level2(mech)
+    model = Level2(mech, DEMO_SPEED)
     run, sig = _window(model, 178.0, 220.0, rtol=1e-4)
     phi = np.degrees(sig["phi"])
     t = sig["t"]
@@ -155,15 +159,15 @@ def test_gripper_rings_in_the_upper_dwell_at_the_contact_frequency():
 def test_diverging_run_is_reported_with_time_and_state():
     mech = PinInsertionMechanism()
     law = ContactLaw(ContactLaw.steel_line(0.01).stiffness * 1e-3)          # a far too soft contact
-    start = float(law.penetration(mech.kinetostatics(np.array([0.0])).R23n[0]))
-    soft = Level2(mech, law, max_penetration=1.3 * start)
+    start = float(law.penetration(mech.kinetostatics(np.array([0.0]), W).R23n[0]))
+    soft = Level2(mech, DEMO_SPEED, law, max_penetration=1.3 * start)
     with pytest.raises(SolverDivergence, match=r"penetrates a flank by more than .* mm at cam angle .* t = .* state"
                        ) as caught:
         soft.simulate((0.0, 0.2))
     assert 0.0 < caught.value.t < 0.2                                      # found during the run, not at the start
     with pytest.raises(SolverDivergence, match=r"penetrates"):
-        Level2(mech, law, max_penetration=0.5 * start).simulate((0.0, 0.2))  # already at the start
+        Level2(mech, DEMO_SPEED, law, max_penetration=0.5 * start).simulate((0.0, 0.2))  # already at the start
     with pytest.raises(SolverDivergence, match=r"t = .* state"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            Level2(mech).simulate((0.0, 0.05), method="RK4", h=2e-3)      # beyond RK4's stability limit
+            Level2(mech, DEMO_SPEED).simulate((0.0, 0.05), method="RK4", h=2e-3)      # beyond RK4's stability limit

@@ -23,18 +23,19 @@ from rig.plants.cam_bar import level2_kernel as kernel
 from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.level2 import Level2
-from rig.plants.cam_bar.mechanism import RPM
+from rig.plants.cam_bar.plant import DEMO_SPEED
+from rig.motion.speed import RPM
 from rig.solvers import SolverDivergence
 
 DATA = np.load(Path(__file__).with_name("data") / "level2_reference.npz")
 STEP = InsertionLaw("step")        # the reference predates the pin's force-travel law: constant F_c window
-CASES = {"nominal": (lambda: PinInsertionMechanism(insertion=STEP), 0.4),
-         "switching": (lambda: PinInsertionMechanism(speed=ConstantSpeed(300 * RPM), k=1090.0, insertion=STEP), 0.2)}
+CASES = {"nominal": (lambda: (PinInsertionMechanism(insertion=STEP), DEMO_SPEED), 0.4),
+         "switching": (lambda: (PinInsertionMechanism(k=1090.0, insertion=STEP), ConstantSpeed(300 * RPM)), 0.2)}
 
 
 @pytest.mark.parametrize("case", CASES)
 def test_rhs_equals_the_previous_implementation(case):
-    model = Level2(CASES[case][0](), energy=True)
+    model = Level2(*CASES[case][0](), energy=True)
     f_old = DATA[f"{case}_rhs_f"]
     f_new = np.array([model.rhs(t, tuple(y)) for t, y in zip(DATA[f"{case}_rhs_t"], DATA[f"{case}_rhs_y"])])
     scale = np.max(np.abs(f_old), axis=0)                   # per component: cancellations leave ~1e-16 of it
@@ -46,9 +47,9 @@ def test_rhs_equals_the_previous_implementation(case):
 def test_trajectories_and_events_equal_the_previous_implementation(case):
     """Same DP45 tolerance, compiled runs: e to 1e-8 of its maximum (the reference's own error is ~1e-9), the
     velocity and work quadratures to 1e-7, the same events at the same times."""
-    mech, T = CASES[case][0](), CASES[case][1]
+    (mech, speed), T = CASES[case][0](), CASES[case][1]
     t, y_ref = DATA[f"{case}_t"], DATA[f"{case}_y"]
-    sol = Level2(mech, energy=True).simulate((0.0, T), method="DP45", t_eval=t, rtol=1e-11, atol=1e-15,
+    sol = Level2(mech, speed, energy=True).simulate((0.0, T), method="DP45", t_eval=t, rtol=1e-11, atol=1e-15,
                                              stiffness="ignore").solution
     for i, tol in enumerate((1e-8, 1e-7, 1e-7, 1e-7, 1e-7)):
         assert np.max(np.abs(sol.y[i] - y_ref[i])) < tol * np.max(np.abs(y_ref[i])), i
@@ -61,8 +62,8 @@ def test_closed_form_free_body_solves_the_level1_moment_balance(guide):
     """At the kernel's ψ̈ the level-1 free-body solution of the actual motion needs exactly the cam moment
     ℓ·(F_w − F_o) the contacts deliver — on both flanks, in free flight, with friction either way; with the
     stick-slip guide also where it holds (dwells: ṡ ≈ 3e-7 m/s is inside the stick band)."""
-    mech = PinInsertionMechanism(speed=ConstantSpeed(300 * RPM), k=1090.0, guide=GuideFriction(guide))
-    model = Level2(mech)
+    mech = PinInsertionMechanism(k=1090.0, guide=GuideFriction(guide))
+    model = Level2(mech, ConstantSpeed(300 * RPM))
     rng = np.random.default_rng(3)
     t = rng.uniform(0.0, 0.2, 400)
     lever = np.array([kernel.geometry_at(ti, np.zeros(2), model.params)[0] for ti in t])
@@ -77,8 +78,8 @@ def test_closed_form_free_body_solves_the_level1_moment_balance(guide):
 
 def test_contact_law_drive_and_program_match_the_python_models():
     mech = PinInsertionMechanism()
-    law = Level2(mech).contact
-    p = kernel.pack(mech, law.stiffness, law.exponent, law.damping)
+    law = Level2(mech, DEMO_SPEED).contact
+    p = kernel.pack(mech, DEMO_SPEED, law.stiffness, law.exponent, law.damping)
     delta, rate = np.linspace(-2e-6, 5e-6, 15), np.linspace(-0.05, 0.05, 15)
     expected = law.force(delta, rate)
     assert [kernel.contact_force(kernel.elastic(d, p), r, p) for d, r in zip(delta, rate)] == pytest.approx(expected,
@@ -87,7 +88,7 @@ def test_contact_law_drive_and_program_match_the_python_models():
     for speed in (ConstantSpeed(10.0, phi0=0.3), RampSpeed(5.0, 15.0, 1.0, 0.5), SinusoidalSpeed(15.0, 1.5),
                   SinusoidalSpeed(15.0, 1.5, frequency=4.0)):
         dr = speed.drive(t)
-        got = np.array([kernel.drive(ti, kernel.pack(PinInsertionMechanism(speed=speed))) for ti in t]).T
+        got = np.array([kernel.drive(ti, kernel.pack(PinInsertionMechanism(), speed)) for ti in t]).T
         np.testing.assert_allclose(got, [dr.phi, dr.omega, dr.alpha], rtol=1e-13, atol=1e-12)
     phi = np.linspace(-1.0, 2 * tau, 997)
     for name in available_laws():                            # every registered law in a rise and a return
@@ -106,8 +107,8 @@ def test_unknown_speed_profile_is_refused_and_a_jam_is_named():
         def drive(self, t):
             return ConstantSpeed(10.0).drive(t)
     with pytest.raises(ValueError, match="speed profile Wobble is not supported"):
-        Level2(PinInsertionMechanism(speed=Wobble()))
-    model = Level2(PinInsertionMechanism())
+        Level2(PinInsertionMechanism(), Wobble())
+    model = Level2(PinInsertionMechanism(), DEMO_SPEED)
     model.params[kernel.MU] = 1e3                          # a guide that self-locks under the rod's push
     with pytest.raises(SolverDivergence, match=r"no consistent friction state in the slider guide at t = .* cam angle"):
         model.simulate((0.115, 0.12), rtol=1e-6)

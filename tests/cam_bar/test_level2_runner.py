@@ -6,7 +6,7 @@ import pytest
 
 from rig.motion import ConstantSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
-from rig.plants.cam_bar.mechanism import RPM
+from rig.motion.speed import RPM
 from rig.plants.cam_bar.plant import CamBarPlant, Setting
 from rig.plants.cam_bar.scene_io import read_fidelity
 from rig.plants.cam_bar.variation import CycleVariation
@@ -33,13 +33,13 @@ def test_fidelity_is_read_from_the_scene(tmp_path):
 def test_advance_in_chunks_continues_the_integration_and_reports_flank_switches():
     omega = 300 * RPM
     t = 0.125 + np.arange(1, 201) * 1e-4  # 225°…261° of the return at 300 rpm
-    one = CamBarPlant(PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0), Setting(fidelity=2))
-    chunked = CamBarPlant(PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0), Setting(fidelity=2))
+    one = CamBarPlant(PinInsertionMechanism(k=1090.0), Setting(ConstantSpeed(omega), fidelity=2))
+    chunked = CamBarPlant(PinInsertionMechanism(k=1090.0), Setting(ConstantSpeed(omega), fidelity=2))
     full = one.advance(t)
     parts = [chunked.advance(c) for c in np.array_split(t, 5)]
     for key, tol in (("s", 2e-6), ("psi", 1e-5), ("phi", 0.0)):
         assert np.concatenate([p[key] for p in parts]) == pytest.approx(full[key], abs=tol), key
-    level1 = CamBarPlant(PinInsertionMechanism(speed=ConstantSpeed(omega), k=1090.0)).advance(t)
+    level1 = CamBarPlant(PinInsertionMechanism(k=1090.0), Setting(ConstantSpeed(omega))).advance(t)
     assert full["s"] == pytest.approx(level1["s"], abs=4 * one.mech.clearance * one.mech.L3 / one.mech.l3)
     assert np.max(np.abs(full["s"] - level1["s"])) > one.mech.clearance   # but the roller crossed the groove
     kinds = [(e.kind, e.data.get("to")) for e in one.events if e.kind == "flank_switch"]
@@ -72,5 +72,5 @@ def test_level2_scene_records_end_to_end(tmp_path):
     curve = rec.curves[0]
     assert 0.041 < curve.x.max() < 0.043
     level1 = PinInsertionMechanism()          # the pin's force-travel law: no ringing, the rod force follows level 1
-    peak = level1.kinetostatics(np.linspace(0, 2 * np.pi, 3601)).F_rod.min()
+    peak = level1.kinetostatics(np.linspace(0, 2 * np.pi, 3601), 150 * RPM).F_rod.min()
     assert abs(curve.y.min() - peak) < 5.0                       # F_c drawn with σ = 2 N, transducer noise

@@ -8,6 +8,7 @@ import pytest
 
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.level2 import Level2
+from rig.plants.cam_bar.plant import DEMO_SPEED
 from rig.solvers import Event, Problem, Rosenbrock23, StiffnessError, StiffnessWarning, integrate
 from rig.solvers.rodas import fd_jacobian
 
@@ -51,14 +52,14 @@ def test_rosenbrock23_error_control_dense_output_and_events():
 
 
 def test_level2_contact_mode_is_stiff():
-    model = Level2(PinInsertionMechanism())
+    model = Level2(PinInsertionMechanism(), DEMO_SPEED)
     t, y = 0.17, model.initial_state(0.17)
     jac, _ = fd_jacobian(model.rhs, t, np.array(y), np.array(model.rhs(t, y)), 1e-6, 1e-12, 1e-4)
     assert np.max(np.abs(np.linalg.eigvals(jac))) > 2000.0     # the stiff contact mode (1/s)
 
 
 def test_level2_is_stiff_for_dp45_but_not_for_rodas4():
-    model = Level2(PinInsertionMechanism())
+    model = Level2(PinInsertionMechanism(), DEMO_SPEED)
     span = (0.0, 0.16)                                          # lower dwell and rise, before F_c acts
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -85,7 +86,7 @@ def test_level2_fixed_step_beyond_the_contact_stability_limit_is_reported(method
     and RK4 at 0.8 ms (h·ω_n = 3.3 > 2√2) are outside their stability regions — the run stops naming method,
     time, the amplified mode and the fix; RK4 at 0.2 ms is inside (h·ω_n = 0.84; Hairer's ‖Δf‖/‖Δy‖ on the
     scaled state used to read τ·ω_n² ≈ 1.7e4 1/s here and stop it) and at 0.1 ms accurate."""
-    model = Level2(PinInsertionMechanism())
+    model = Level2(PinInsertionMechanism(), DEMO_SPEED)
     label = {"Euler": "explicit Euler", "RK4": "RK4"}[method]
     with pytest.raises(StiffnessError, match=rf"{label} unstable at t = .* the step amplifies the mode .* Rodas4"):
         model.simulate((0.0, 0.1), method=method, h=h)

@@ -64,7 +64,7 @@ def test_each_cycle_equals_the_mechanism_with_its_drawn_deviations():
         assert set(dev.load) == {"F_c", "sensor_preload"} and set(dev.chain) == {"L3", "r"}
         assert -base.clearance <= dev.chain["r"] <= 0.0  # take-up within the groove clearance
         ref = replace(base, F_c=base.F_c + dev.load["F_c"], sensor_preload=base.sensor_preload + dev.load["sensor_preload"])
-        ks = ref.kinetostatics(out["phi"][i])
+        ks = ref.kinetostatics(out["phi"][i], out["omega"][i], out["alpha"][i])
         np.testing.assert_allclose(out["F_rod"][i], ks.F_rod, rtol=0, atol=1e-9)
         # the stroke follows the deviated chain: L3 + ΔL3 and the loose roller on r − c, from the nominal cam
         ds = CamChain.from_mechanism(base, out["phi"][i]).deviation(dev.chain)[0]

@@ -1,7 +1,7 @@
 """Cam design (rig.mechanisms.cam): closed forms, hand values and independent computations."""
 from __future__ import annotations
 
-from math import asin, pi, radians, sin, sqrt
+from math import asin, pi, radians, sin, sqrt, tau
 
 import numpy as np
 import pytest
@@ -201,8 +201,11 @@ def test_synthesis_refuses_an_unreachable_output():
 
 
 def test_design_checks_of_the_scene(tmp_path):
-    from rig.mechanisms.cam.design import design_checks, format_checks, mechanism_from_scene, plot_design
-    design = design_checks(mechanism_from_scene("data/scenes/pin_insertion.toml"), n=720)
+    from rig.mechanisms.cam.design import design_checks, format_checks, plot_design
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
+    mech, omega = cam_bar_from_scene("data/scenes/pin_insertion.toml")
+    assert omega == pytest.approx(150 * tau / 60)
+    design = design_checks(mech, omega, n=720)
     names = {c.name: c for c in design.checks}
     assert names["max pressure angle"].value == pytest.approx(np.degrees(design.pressure_angle.max()))
     assert names["min convex pitch radius"].limit == pytest.approx(8.0 / 0.7)
@@ -225,7 +228,7 @@ def test_rig_cam_design_command(tmp_path, capsys):
 
 
 def test_cam_design_refuses_a_scene_without_a_cam():
-    from rig.mechanisms.cam.design import mechanism_from_scene
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
     from rig.scene import SceneError
-    with pytest.raises(SceneError, match="no cam to design"):
-        mechanism_from_scene("data/scenes/clutch_stop.toml")
+    with pytest.raises(SceneError, match="clutch_stop.toml .*plant 'clutch.*' is not the cam-bar mechanism"):
+        cam_bar_from_scene("data/scenes/clutch_stop.toml")

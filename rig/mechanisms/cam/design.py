@@ -65,17 +65,6 @@ class CamDesign:
     checks: list[Check] = field(default_factory=list)
 
 
-def mechanism_from_scene(path: str | Path) -> "PinInsertionMechanism":
-    """The adapter: a cam-bar scene file → :class:`PinInsertionMechanism` (its [plant] and [speed])."""
-    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
-    from rig.scene import SceneError, load_scene
-    scene = load_scene(path)
-    plant = scene.data.get("scene", {}).get("plant", "cam_bar")
-    if plant != "cam_bar":
-        raise SceneError(f"{scene.path} [scene]: plant {plant!r} has no cam to design (cam-design needs cam_bar)")
-    return PinInsertionMechanism.from_scene(scene)
-
-
 def _first_rise(mech: "PinInsertionMechanism") -> Segment:
     for seg in mech.program.segments:
         if seg.kind == "rise":
@@ -83,12 +72,13 @@ def _first_rise(mech: "PinInsertionMechanism") -> Segment:
     raise ValueError("the cam program has no rise")
 
 
-def design_checks(mech: "PinInsertionMechanism", high_speed: bool = True, n: int = 3600,
+def design_checks(mech: "PinInsertionMechanism", omega: float, high_speed: bool = True, n: int = 3600,
                   sigma_allow: float = SIGMA_ALLOW, load_coefficient: float = LOAD_COEFFICIENT,
                   E: float = STEEL_E, nu: float = STEEL_NU) -> CamDesign:
-    """All checks for ``mech`` over ``n`` cam angles; ``high_speed`` picks the 30° (else 45°) limit."""
+    """All checks for ``mech`` turning at ``omega`` (rad/s) over ``n`` cam angles; ``high_speed`` picks the 30°
+    (else 45°) limit."""
     phi = np.linspace(0.0, tau, n, endpoint=False)
-    ks = mech.kinetostatics(phi)
+    ks = mech.kinetostatics(phi, omega)
     pc = pitch_curve(mech, phi)
     a_lim = pressure_angle_limit("oscillating", high_speed)
     cut = undercut_radius(mech.r_R)

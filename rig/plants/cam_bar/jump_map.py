@@ -18,9 +18,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rig.motion.speed import ConstantSpeed
+from rig.motion.speed import RPM, ConstantSpeed
 from rig.plants.cam_bar.level2 import Level2
-from rig.plants.cam_bar.mechanism import RPM, PinInsertionMechanism
+from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 SPEEDS_RPM = (100.0, 150.0, 200.0, 250.0, 280.0, 290.0, 300.0)
 RATES = (1090.0, 1190.0, 1680.0, 1890.0)
@@ -49,8 +49,8 @@ def jump_map(mech: PinInsertionMechanism, speeds=SPEEDS_RPM, rates=RATES, cleara
         t = np.linspace((revolutions - 1) * period, revolutions * period, samples)
         for j, k in enumerate(rates):
             for m, c in enumerate(clearances):
-                machine = replace(mech, k=k, clearance=c, speed=ConstantSpeed(rpm * RPM), cam_drive=None)
-                model = Level2(machine)
+                machine = replace(mech, k=k, clearance=c, cam_drive=None)
+                model = Level2(machine, ConstantSpeed(rpm * RPM))
                 run = model.simulate((0.0, t[-1]), t_eval=t, rtol=1e-7, atol=1e-12)
                 sig = model.signals(t, run.solution.y)
                 switches[i, j, m] = sum(1 for e in run.switches if e.time >= t[0])

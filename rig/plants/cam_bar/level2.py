@@ -8,7 +8,7 @@ flank (pushes towards larger ψ) sits at u = 0, the other one at u = c; penetrat
 level-0 chain; spring, gravity, guide friction, insertion force and the inertia of all links come from the
 level-1 free-body diagrams (:mod:`rig.plants.cam_bar.kinetostatics`) on the *actual* motion, which give the cam
 moment M_Σ needed for an acceleration ψ̈. It is affine in ψ̈ on each friction branch, so M_Σ(ψ̈) = ℓ·(F_w − F_o)
-is solved in closed form. The cam turns by the mechanism's speed profile, or, with a cam drive
+is solved in closed form. The cam turns by the given speed profile, or, with a cam drive
 (:mod:`.drive`), as a state driven by a motor through a compliant shaft. The insertion force follows the pin's
 force–travel law (:mod:`.insertion`) and the slider guide's friction its model (:mod:`.guide_friction`).
 
@@ -36,6 +36,7 @@ from rig.solvers import Event as SolverEvent
 from rig.solvers import JitRhs, OdeSolver, Problem, Solution, SolverDivergence, integrate
 
 if TYPE_CHECKING:
+    from rig.motion.speed import SpeedProfile
     from rig.plants.cam_bar.drive import CamDrive
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism, State
 
@@ -160,7 +161,8 @@ class Level2Run:
 
 @dataclass
 class Level2:
-    """Follower dynamics of a :class:`PinInsertionMechanism` with groove clearance ``mech.clearance``.
+    """Follower dynamics of a :class:`PinInsertionMechanism` with groove clearance ``mech.clearance``, its cam
+    turned by ``speed`` (:mod:`rig.motion.speed`).
 
     ``contact`` defaults to :meth:`ContactLaw.steel_line` (``mech.roller_width``, ``mech.contact_damping``);
     ``energy`` appends the work/dissipation quadratures to the state; ``friction_speed`` v_s (m/s) regularises the
@@ -176,6 +178,7 @@ class Level2:
     """
 
     mech: "PinInsertionMechanism"
+    speed: "SpeedProfile"
     contact: ContactLaw | None = None
     energy: bool = False
     max_penetration: float = 1e-4
@@ -191,7 +194,7 @@ class Level2:
         if not self.friction_speed > 0.0:
             raise ValueError(f"friction_speed must be positive, got {self.friction_speed!r} m/s")
         law = self.contact
-        self.params = kernel.pack(mech, law.stiffness, law.exponent, law.damping, self.max_penetration,
+        self.params = kernel.pack(mech, self.speed, law.stiffness, law.exponent, law.damping, self.max_penetration,
                                   self.friction_speed, self.cam_drive)
         self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value, kernel.event_action)
 
@@ -223,8 +226,8 @@ class Level2:
         if drive is None:
             phi, omega, alpha = kernel.drive(t0, self.params)
         else:
-            phi, alpha = self.mech.speed.phi0, 0.0
-            omega = 0.0 if drive.start == "rest" else self.mech.speed.nominal_omega
+            phi, alpha = self.speed.phi0, 0.0
+            omega = 0.0 if drive.start == "rest" else self.speed.nominal_omega
         ks = self.mech.kinetostatics(np.array([phi]), omega, alpha)
         force = float(ks.R23n[0])
         lever = kernel.groove(phi, self.params)[3]

@@ -32,6 +32,7 @@ from rig.motion.registry import get_law
 from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed
 
 if TYPE_CHECKING:
+    from rig.motion.speed import SpeedProfile
     from rig.plants.cam_bar.drive import CamDrive
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
@@ -69,14 +70,17 @@ OUTPUTS = ("phi", "omega", "alpha", "psi", "psi_d", "psi_dd", "e_dd", "F_w", "F_
 N_OUT = len(OUTPUTS)
 
 
-def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float = 1.0, damping: float = 0.0,
-         max_penetration: float = math.inf, friction_speed: float = 1e-3, cam_drive: "CamDrive | None" = None
-         ) -> np.ndarray:
-    """Parameter vector of ``mech`` with the contact law K·δ^p·(1 + α·δ̇) (``stiffness`` K in N/m^p,
-    ``exponent`` p, ``damping`` α in s/m), ``max_penetration`` (m), the friction regularisation speed
-    ``friction_speed`` (m/s) and the cam drive (``None``: the speed profile turns the cam). Raises ValueError for
-    a speed profile or motion law the kernel does not know."""
+def pack(mech: "PinInsertionMechanism", speed: "SpeedProfile | None" = None, stiffness: float = 0.0,
+         exponent: float = 1.0, damping: float = 0.0, max_penetration: float = math.inf, friction_speed: float = 1e-3,
+         cam_drive: "CamDrive | None" = None) -> np.ndarray:
+    """Parameter vector of ``mech`` turned by ``speed`` (``None``: at rest, for the geometry alone) with the
+    contact law K·δ^p·(1 + α·δ̇) (``stiffness`` K in N/m^p, ``exponent`` p, ``damping`` α in s/m),
+    ``max_penetration`` (m), the friction regularisation speed ``friction_speed`` (m/s) and the cam drive
+    (``None``: the speed profile turns the cam; else it starts from the profile's φ0 and nominal speed). Raises
+    ValueError for a speed profile or motion law the kernel does not know."""
     d = cam_drive
+    if d is not None and speed is None:
+        raise ValueError("level 2: a cam drive needs the speed profile it starts from")
     ch = mech.chain
     top = mech.program.levels[1]
     s_pierce = top - mech.F_c_travel
@@ -86,14 +90,14 @@ def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float 
             mech.mu, friction_speed, mech.k, mech.l_F, mech.Me_0, mech.psi0, mech.F_c, s_pierce,
             float(mech.kinematics(s_pierce).psi),
             mech.clearance, stiffness, exponent, damping, max_penetration,
-            *_speed(mech.speed),
+            *_speed(speed),
             math.nan, *[0.0] * 8, math.nan, 0.0,
             math.nan, math.nan,
             float(mech.insertion.code), mech.insertion.build_up, mech.insertion.release, top,
             float(mech.guide.code), mech.guide.static_coefficient(mech.mu), mech.guide.stick_speed,
             mech.guide.relax_time,
             0.0 if d is None else 1.0, *([0.0] * 7 if d is None else
-                                         [d.synchronous(mech.speed.nominal_omega), d.slope, d.max_torque,
+                                         [d.synchronous(speed.nominal_omega), d.slope, d.max_torque,
                                           d.motor_inertia, d.cam_inertia, d.shaft_stiffness, d.shaft_damping]),
             float(len(mech.program.segments))]
     assert len(head) == PROGRAM
@@ -111,7 +115,9 @@ def pack(mech: "PinInsertionMechanism", stiffness: float = 0.0, exponent: float 
 
 
 def _speed(speed) -> list[float]:
-    """(kind, φ0, SP1..SP4) of a speed profile."""
+    """(kind, φ0, SP1..SP4) of a speed profile (``None``: at rest at φ = 0)."""
+    if speed is None:
+        return [CONSTANT, 0.0, 0.0, 0.0, 0.0, 0.0]
     if isinstance(speed, ConstantSpeed):
         return [CONSTANT, speed.phi0, speed.omega, 0.0, 0.0, 0.0]
     if isinstance(speed, RampSpeed):

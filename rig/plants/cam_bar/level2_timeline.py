@@ -20,15 +20,16 @@ from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.timeline import Timeline
 
 if TYPE_CHECKING:
+    from rig.motion.speed import SpeedProfile
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
     from rig.plants.cam_bar.variation import CyclePlant
 
 class Level2Timeline(Timeline):
     """Keeps the integration state (t, y, flank in contact) between :meth:`advance` calls."""
 
-    def __init__(self, mech: "PinInsertionMechanism", cycles: "CyclePlant | None" = None, method: str = "DP45",
-                 options: dict[str, float] | None = None):
-        super().__init__(mech, cycles)
+    def __init__(self, mech: "PinInsertionMechanism", speed: "SpeedProfile", cycles: "CyclePlant | None" = None,
+                 method: str = "DP45", options: dict[str, float] | None = None):
+        super().__init__(mech, speed, cycles)
         self.method, self.options = method, dict(options or {})
         self._state: tuple[float, tuple, str | None] | None = None
         self._models: dict[int, Level2] = {}
@@ -36,16 +37,16 @@ class Level2Timeline(Timeline):
     def _model(self, cycle: int) -> Level2:
         if cycle not in self._models:
             mech = self._mechanism(cycle)
-            self._models = {cycle: Level2(mech)}
+            self._models = {cycle: Level2(mech, self.speed)}
         return self._models[cycle]
 
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         self._check_times(t)
         mech = self.mech
         if mech.cam_drive is None:
-            phi = mech.speed.drive(t).phi
+            phi = self.speed.drive(t).phi
         else:        # the cam angle is a state: the chunk runs in the cycle it starts in
-            phi = np.full(t.size, self._state[1][2] if self._state is not None else mech.speed.phi0)
+            phi = np.full(t.size, self._state[1][2] if self._state is not None else self.speed.phi0)
         cycle = np.floor(phi / tau).astype(int) if self.cycles is not None else np.zeros(t.size, int)
         parts = []
         for c in np.unique(cycle):

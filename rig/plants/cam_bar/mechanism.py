@@ -1,7 +1,7 @@
 """The pin-insertion cam-bar mechanism (MODELS §3): its description (geometry, masses, spring, contact, loads,
-cam program and speed), level-0 kinematics and level-1 entry points. How a run simulates it (level, solver,
-per-cycle variation) is :class:`rig.plants.cam_bar.plant.Setting`; the runner's plant is
-:class:`rig.plants.cam_bar.plant.CamBarPlant`.
+cam program), level-0 kinematics and level-1 entry points, at whatever cam speed the caller gives. How a run
+simulates it (speed profile, level, solver, per-cycle variation) is :class:`rig.plants.cam_bar.plant.Setting`;
+the runner's plant is :class:`rig.plants.cam_bar.plant.CamBarPlant`.
 
 Frame: follower pivot B0 at the origin, x to the right, y up, gravity along −y, angles counter-clockwise
 from +x. The cam program prescribes the slider stroke s(φ); the follower angle ψ, the rod angle ϑ and
@@ -10,13 +10,12 @@ the roller pitch radius r follow from the chain (:mod:`rig.plants.cam_bar.chain`
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import pi, radians, tau
+from math import pi, radians
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from rig.motion.program import CamProgram, Segment
-from rig.motion.speed import ConstantSpeed, SpeedProfile
 from rig.plants.cam_bar.chain import Angles, Chain, SingularPositionError
 from rig.plants.cam_bar.drive import CamDrive
 from rig.plants.cam_bar.guide_friction import GuideFriction
@@ -27,8 +26,6 @@ from rig.plants.cam_bar.switches import flank_switch_angles
 
 if TYPE_CHECKING:
     from rig.scene import Scene
-
-RPM = tau / 60.0
 
 
 def default_program(stroke: float = 0.042) -> CamProgram:
@@ -168,7 +165,6 @@ class PinInsertionMechanism:
     e5: float = 0.02
     cam_direction: int = 1
     program: CamProgram = field(default_factory=default_program)
-    speed: SpeedProfile = field(default_factory=lambda: ConstantSpeed(150 * RPM))
     insertion: InsertionLaw = field(default_factory=InsertionLaw)
     guide: GuideFriction = field(default_factory=GuideFriction)       # level 2's slider-guide friction model
     cam_drive: CamDrive | None = None                                # level 2: motor + shaft turn the cam
@@ -222,8 +218,8 @@ class PinInsertionMechanism:
 
     @classmethod
     def from_scene(cls, scene: "Scene", **overrides: Any) -> "PinInsertionMechanism":
-        """Build from a scene's [plant] (with [[plant.cam_program]]) and [speed] sections (the description only;
-        the run's setting: :func:`rig.plants.cam_bar.scene_io.read_setting`)."""
+        """Build from a scene's [plant] section (with [[plant.cam_program]]; the description only, the run's
+        setting with its [speed]: :func:`rig.plants.cam_bar.scene_io.read_setting`)."""
         from rig.plants.cam_bar.scene_io import read_mechanism_kwargs
         from rig.scene import SceneError
         try:
@@ -248,12 +244,12 @@ class PinInsertionMechanism:
         """Slider stroke s (m) from follower angle ψ (rad), inverse of :meth:`kinematics` on the same branch."""
         return self.chain.slider(np.asarray(psi, dtype=float))
 
-    def state(self, phi: np.ndarray | float, omega: np.ndarray | float | None = None,
+    def state(self, phi: np.ndarray | float, omega: np.ndarray | float = np.nan,
               alpha: np.ndarray | float = 0.0) -> State:
-        """Motion at cam angles ``phi`` (rad); ``omega`` (rad/s) defaults to the speed profile's nominal speed,
-        ``alpha`` = ω̇ (rad/s²). Raises :class:`SingularPositionError` naming the angle at a singular position."""
+        """Motion at cam angles ``phi`` (rad) turning at ``omega`` (rad/s) with ``alpha`` = ω̇ (rad/s²); without
+        ``omega`` the positions and φ-derivatives only (time derivatives NaN). Raises
+        :class:`SingularPositionError` naming the angle at a singular position."""
         phi = np.asarray(phi, dtype=float)
-        omega = self.speed.nominal_omega if omega is None else omega
         m = self.program.evaluate(phi)
         a = self.chain.angles(m.s, phi)
         psi_p, psi_pp, theta_p, theta_pp = self.chain.derivatives(a, m.s_p, m.s_pp)
@@ -268,10 +264,10 @@ class PinInsertionMechanism:
                      a.theta, theta_p, theta_pp, r, r_p, r_pp, a)
 
     # ---- level 1 -------------------------------------------------------------------------------------------
-    def kinetostatics(self, phi: np.ndarray | float, omega: np.ndarray | float | None = None,
+    def kinetostatics(self, phi: np.ndarray | float, omega: np.ndarray | float,
                       alpha: np.ndarray | float = 0.0, k: float | None = None) -> Kinetostatics:
-        """Joint reactions, moments and drive torque at cam angles ``phi`` (see :mod:`.kinetostatics`);
-        ``k`` (N/m) overrides the mounted spring rate."""
+        """Joint reactions, moments and drive torque at cam angles ``phi`` (rad) turning at ``omega`` (rad/s) with
+        ``alpha`` = ω̇ (rad/s²) (see :mod:`.kinetostatics`); ``k`` (N/m) overrides the mounted spring rate."""
         return solve(self, self.state(phi, omega, alpha), self.k if k is None else k)
 
     def spring_moment(self, psi: np.ndarray, k: float | None = None) -> np.ndarray:
@@ -279,16 +275,17 @@ class PinInsertionMechanism:
         k = self.k if k is None else k
         return (self.Me_0 / self.l_F + k * self.l_F * (psi - self.psi0)) * self.l_F
 
-    def flank_switch_angles(self, k: float | None = None, spring: bool = True, omega: float | None = None,
+    def flank_switch_angles(self, omega: float, k: float | None = None, spring: bool = True,
                             n: int = 3600) -> np.ndarray:
-        """Cam angles (rad, in [0, 2π)) where the cam contact force changes sign over one revolution."""
+        """Cam angles (rad, in [0, 2π)) where the cam contact force changes sign over one revolution at the
+        constant speed ``omega`` (rad/s)."""
         return flank_switch_angles(self, self.k if k is None else k, spring, omega, n)
 
-    def flank_switch_table(self, omega: float | None = None) -> dict[str, np.ndarray]:
-        """Flank-switch angles without the spring and with each of ``spring_rates``."""
-        table = {"no spring": self.flank_switch_angles(spring=False, omega=omega)}
+    def flank_switch_table(self, omega: float) -> dict[str, np.ndarray]:
+        """Flank-switch angles at ``omega`` (rad/s) without the spring and with each of ``spring_rates``."""
+        table = {"no spring": self.flank_switch_angles(omega, spring=False)}
         for k in self.spring_rates:
-            table[f"k = {k / 1e3:.2f} N/mm"] = self.flank_switch_angles(k=k, omega=omega)
+            table[f"k = {k / 1e3:.2f} N/mm"] = self.flank_switch_angles(omega, k=k)
         return table
 
     def spring_rate_design(self) -> SpringDesign:

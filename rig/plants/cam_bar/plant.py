@@ -1,10 +1,11 @@
 """The cam-bar plant a run steps: a mechanism (its description, :mod:`.mechanism`) simulated in a setting.
 
 Like scipy's problems and methods: :class:`PinInsertionMechanism` describes the machine (geometry, masses,
-spring, contact, loads, the cam program and speed it is driven with) and carries its models (level 0
-kinematics, level 1 kinetostatics; level 2 in :mod:`.level2`); :class:`Setting` says how a run simulates it
-(the level, the solver of level 2, the per-cycle variation and its generator); :class:`CamBarPlant` composes
-the two behind the runner's interface (``advance(t)`` → truth signals, ``events``).
+spring, contact, loads, the cam program, the optional cam drive) and carries its models at a given cam speed
+(level 0 kinematics, level 1 kinetostatics; level 2 in :mod:`.level2`); :class:`Setting` says how a run
+simulates it (the speed profile the cam is turned with, the level, the solver of level 2, the per-cycle
+variation and its generator); :class:`CamBarPlant` composes the two behind the runner's interface
+(``advance(t)`` → truth signals, ``events``).
 """
 from __future__ import annotations
 
@@ -13,9 +14,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rig.motion.speed import RPM, ConstantSpeed, SpeedProfile
 from rig.plants.cam_bar.timeline import Timeline
 from rig.plants.cam_bar.variation import CyclePlant, CycleVariation
 from rig.plants.events import Event
+
+DEMO_SPEED = ConstantSpeed(150 * RPM)  # the demo machine's cam speed (MODELS §3.1), the default setting
 
 if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
@@ -24,10 +28,12 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class Setting:
-    """How a run simulates a mechanism: ``fidelity`` 0/1 (level-1 truth) or 2 (groove dynamics, integrated by
+    """How a run simulates a mechanism: the cam turns by ``speed`` (:mod:`rig.motion.speed`; with a cam drive its
+    φ0 and nominal speed start the drive); ``fidelity`` 0/1 (level-1 truth) or 2 (groove dynamics, integrated by
     ``method`` with ``method_options``: a name of :data:`rig.solvers.METHODS`); ``variation`` with its generator
     ``rng`` draws every cam revolution's deviations (:mod:`.variation`; without it all cycles are identical)."""
 
+    speed: SpeedProfile = DEMO_SPEED
     fidelity: int = 1
     method: str = "DP45"
     method_options: dict[str, float] = field(default_factory=lambda: {"rtol": 1e-7, "atol": 1e-12})
@@ -51,9 +57,10 @@ class CamBarPlant:
             CyclePlant(mech, setting.variation, setting.rng, setting.fidelity)
         if setting.fidelity == 2:
             from rig.plants.cam_bar.level2_timeline import Level2Timeline
-            self._timeline: Timeline = Level2Timeline(mech, self.cycles, setting.method, setting.method_options)
+            self._timeline: Timeline = Level2Timeline(mech, setting.speed, self.cycles, setting.method,
+                                                      setting.method_options)
         else:
-            self._timeline = Timeline(mech, self.cycles)
+            self._timeline = Timeline(mech, setting.speed, self.cycles)
 
     @classmethod
     def from_scene(cls, scene: "Scene", nominal: bool = False, **setting: Any) -> "CamBarPlant":
@@ -69,6 +76,11 @@ class CamBarPlant:
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """Physical truth (SI) at increasing times ``t`` (s), continuing from the previous call."""
         return self._timeline.advance(np.asarray(t, dtype=float))
+
+    @property
+    def speed(self) -> SpeedProfile:
+        """The speed profile the cam turns by (the setting's)."""
+        return self.setting.speed
 
     @property
     def events(self) -> list[Event]:

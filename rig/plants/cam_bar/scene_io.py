@@ -5,7 +5,8 @@ cam-program table every key is checked (unknown, missing, wrong unit → :class:
 """
 from __future__ import annotations
 
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from rig.motion.program import CamProgram, ProgramError, Segment
 from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed, SpeedProfile
@@ -16,6 +17,9 @@ from rig.plants.cam_bar.insertion import read_insertion
 from rig.plants.cam_bar.joints import read_joints
 from rig.plants.cam_bar.variation import CycleVariation, plant_generator
 from rig.units import UnitError, to_si
+
+if TYPE_CHECKING:
+    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 PLANT_SCHEMA = {
     "L3": Field("m"), "l3": Field("m"), "m3": Field("kg"), "x_A0": Field("m"), "y_A0": Field("m"),
@@ -84,6 +88,24 @@ def read_speed(table: dict[str, Any], where: str) -> SpeedProfile:
         raise SceneError(f"{where}: {exc}") from None
 
 
+def read_speed_profile(scene: Scene) -> SpeedProfile:
+    """The speed profile of the scene's [speed] section (the setting the cam turns by)."""
+    return read_speed(scene.section("speed"), f"{scene.path} [speed]")
+
+
+def cam_bar_from_scene(path: str | Path) -> tuple["PinInsertionMechanism", float]:
+    """A cam-bar scene file → its :class:`PinInsertionMechanism` ([plant]) and nominal cam speed (rad/s, [speed]);
+    :class:`SceneError` for a scene of another plant."""
+    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+    from rig.scene import load_scene
+    scene = load_scene(path)
+    plant = scene.data.get("scene", {}).get("plant", "cam_bar")
+    if plant != "cam_bar":
+        raise SceneError(f"{scene.path} [scene]: plant {plant!r} is not the cam-bar mechanism (needs plant = "
+                         f"\"cam_bar\")")
+    return PinInsertionMechanism.from_scene(scene), read_speed_profile(scene).nominal_omega
+
+
 def read_fidelity(scene: Scene) -> int:
     """The level a run of ``scene`` uses (:func:`rig.fidelity.choose`: [scene] fidelity, else the lowest level
     answering [scene] questions, else 1)."""
@@ -104,7 +126,6 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     except UnitError as exc:
         raise SceneError(str(exc)) from None
     kw["program"] = read_program(kw.pop("cam_program"), kw["s_H"], where)
-    kw["speed"] = read_speed(scene.section("speed"), f"{scene.path} [speed]")
     kw["insertion"] = read_insertion(kw.pop("insertion"), f"{scene.path} [plant.insertion]")
     kw["guide"] = read_guide(kw.pop("guide"), f"{scene.path} [plant.guide]")
     kw["cam_drive"] = read_drive(kw.pop("drive"), f"{scene.path} [plant.drive]")
@@ -113,12 +134,12 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
 
 
 def read_setting(scene: Scene) -> dict[str, Any]:
-    """Keyword arguments of :class:`rig.plants.cam_bar.plant.Setting` from the scene: the level and level-2 method
-    (:func:`rig.fidelity.choose`), the per-cycle variation [plant.variation] and its generator (under [scene]
-    seed)."""
+    """Keyword arguments of :class:`rig.plants.cam_bar.plant.Setting` from the scene: the speed profile [speed], the
+    level and level-2 method (:func:`rig.fidelity.choose`), the per-cycle variation [plant.variation] and its
+    generator (under [scene] seed)."""
     from rig.fidelity import choose
     choice = choose(scene, "cam_bar")
-    kw: dict[str, Any] = {"fidelity": choice.level}
+    kw: dict[str, Any] = {"speed": read_speed_profile(scene), "fidelity": choice.level}
     if choice.method is not None:
         kw["method"], kw["method_options"] = choice.method, dict(choice.options)
     variation = scene.read("plant", PLANT_SCHEMA)["variation"]

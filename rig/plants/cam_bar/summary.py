@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rig.motion.speed import RPM
 from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 
@@ -13,13 +14,14 @@ def _angles(values: np.ndarray) -> str:
     return ", ".join(f"{degrees(a):.1f}°" for a in values) or "none"
 
 
-def summary_table(mech: PinInsertionMechanism) -> str:
-    """Stroke, follower swing, max |R23|, flank switches per spring rate, b_min, spring design (text)."""
+def summary_table(mech: PinInsertionMechanism, omega: float) -> str:
+    """Stroke, follower swing, max |R23|, flank switches per spring rate, b_min, spring design (text) at the cam
+    speed ``omega`` (rad/s)."""
     phi = np.linspace(0.0, tau, 3600, endpoint=False)
-    st = mech.state(phi)
-    ks = mech.kinetostatics(phi)
+    st = mech.state(phi, omega)
+    ks = mech.kinetostatics(phi, omega)
     design = mech.spring_rate_design()
-    rpm = mech.speed.nominal_omega * 60.0 / tau
+    rpm = omega / RPM
     lines = [
         f"pin-insertion cam-bar mechanism at {rpm:.1f} rpm (mounted spring {mech.k / 1e3:.2f} N/mm)",
         f"  slider stroke            {np.ptp(st.s) * 1e3:8.3f} mm",
@@ -34,13 +36,13 @@ def summary_table(mech: PinInsertionMechanism) -> str:
         f" {design.k_geometry / 1e3:.3f} N/mm for the follower's travel {design.travel_geometry * 1e3:.2f} mm",
         "  flank switches (cam angles where the contact force changes sign):",
     ]
-    for label, angles in mech.flank_switch_table().items():
+    for label, angles in mech.flank_switch_table(omega).items():
         lines.append(f"    {label:<16} {_angles(angles)}")
     return "\n".join(lines)
 
 
-def plot_cycle(mech: PinInsertionMechanism, path: str | Path) -> Path:
-    """PNG of s, ψ, R23 and M_Σ over one cam revolution; returns the path written."""
+def plot_cycle(mech: PinInsertionMechanism, omega: float, path: str | Path) -> Path:
+    """PNG of s, ψ, R23 and M_Σ over one cam revolution at ``omega`` (rad/s); returns the path written."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -49,7 +51,7 @@ def plot_cycle(mech: PinInsertionMechanism, path: str | Path) -> Path:
 
     phi = np.linspace(0.0, tau, 1441)
     st = mech.state(phi)
-    ks = mech.kinetostatics(phi)
+    ks = mech.kinetostatics(phi, omega)
     deg = np.degrees(phi)
     fig, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9))
     for ax, y, label in zip(axes, (st.s * 1e3, np.degrees(st.psi), ks.R23n, ks.M_sigma),
@@ -62,5 +64,5 @@ def plot_cycle(mech: PinInsertionMechanism, path: str | Path) -> Path:
     axes[3].axhline(0.0, color="k", lw=0.8)
     axes[3].legend()
     axes[-1].set_xlabel("cam angle φ (°)")
-    fig.suptitle(f"pin-insertion mechanism, {mech.speed.nominal_omega * 60 / tau:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm")
+    fig.suptitle(f"pin-insertion mechanism, {omega / RPM:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm")
     return write_tight(fig, path)

@@ -12,8 +12,9 @@ if TYPE_CHECKING:
 
 
 def contact_moment(mech: "PinInsertionMechanism", phi: np.ndarray, k: float, spring: bool,
-                   omega: float | None) -> np.ndarray:
-    """Cam moment on the follower (N·m): M_Σ with spring rate ``k`` (N/m), or M23 without the spring."""
+                   omega: float) -> np.ndarray:
+    """Cam moment on the follower (N·m) at cam speed ``omega`` (rad/s): M_Σ with spring rate ``k`` (N/m), or M23
+    without the spring."""
     res = mech.kinetostatics(phi, omega, 0.0, k)
     return res.M_sigma if spring else res.M23
 
@@ -24,7 +25,7 @@ def sign_changes(values: np.ndarray) -> np.ndarray:
     return np.flatnonzero(pos[:-1] != pos[1:])
 
 
-def flank_switch_angles(mech: "PinInsertionMechanism", k: float, spring: bool, omega: float | None,
+def flank_switch_angles(mech: "PinInsertionMechanism", k: float, spring: bool, omega: float,
                         n: int) -> np.ndarray:
     """Angles (rad, [0, 2π)) of contact-force sign changes over one revolution at constant speed.
 

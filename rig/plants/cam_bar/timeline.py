@@ -20,22 +20,23 @@ from rig.plants.cam_bar.switches import sign_changes
 from rig.plants.events import Event
 
 if TYPE_CHECKING:
+    from rig.motion.speed import SpeedProfile
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
     from rig.plants.cam_bar.variation import CyclePlant
 
 
 class Timeline:
-    """Evaluates the mechanism (each cycle's, with ``cycles``) along the speed profile and keeps the last sample
-    to continue across calls."""
+    """Evaluates the mechanism (each cycle's, with ``cycles``) along the speed profile ``speed`` and keeps the
+    last sample to continue across calls."""
 
-    def __init__(self, mech: "PinInsertionMechanism", cycles: "CyclePlant | None" = None):
-        self.mech, self.cycles = mech, cycles
+    def __init__(self, mech: "PinInsertionMechanism", speed: "SpeedProfile", cycles: "CyclePlant | None" = None):
+        self.mech, self.speed, self.cycles = mech, speed, cycles
         self.events: list[Event] = []
         self._last: tuple[float, float, float] | None = None  # (t, unwrapped φ, R23n)
         self._program_events = mech.program.events()
 
     def _contact(self, t: float) -> float:
-        dr = self.mech.speed.drive(np.array([t]))
+        dr = self.speed.drive(np.array([t]))
         mech = self._mechanism(int(np.floor(dr.phi[0] / tau)))
         return float(mech.kinetostatics(dr.phi, dr.omega, dr.alpha).R23n[0])
 
@@ -62,7 +63,7 @@ class Timeline:
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         self._check_times(t)
         mech = self.mech
-        dr = mech.speed.drive(t)
+        dr = self.speed.drive(t)
         if self.cycles is None or not t.size:
             out = self._truth(mech, t, dr.phi, dr.omega, dr.alpha)
         else:  # one cycle (cam revolution) at a time, each with its own deviations
@@ -92,7 +93,7 @@ class Timeline:
         found: list[Event] = []
         for i in sign_changes(contact):
             tc = brentq(self._contact, t[i], t[i + 1], xtol=1e-12)
-            phic = float(self.mech.speed.drive(np.array([tc])).phi[0])
+            phic = float(self.speed.drive(np.array([tc])).phi[0])
             found.append(Event(tc, "flank_switch", {"phi": phic % tau,
                                                     "to": "working" if contact[i + 1] >= 0.0 else "other"}))
         self.events.extend(sorted(found + self._program_crossings(t, phi), key=lambda e: e.time))
@@ -104,7 +105,7 @@ class Timeline:
             laps = np.floor((phi - ev.angle) / tau)
             for i in np.flatnonzero(laps[1:] > laps[:-1]):
                 target = ev.angle + tau * laps[i + 1]
-                f = lambda x: float(self.mech.speed.drive(np.array([x])).phi[0]) - target  # noqa: E731
+                f = lambda x: float(self.speed.drive(np.array([x])).phi[0]) - target  # noqa: E731
                 tc = t[i + 1] if f(t[i + 1]) == 0.0 else brentq(f, t[i], t[i + 1], xtol=1e-12)
                 found.append(Event(tc, "accel_jump", {"phi": ev.angle, "jump": float(ev.jump),
                                                       "segment": ev.segment}))
