@@ -5,7 +5,12 @@ a *method* is a solver class. ``integrate`` drives one with the other:
 
 * events are located by root finding (Brent) on the step's dense output and recorded; for a fixed-step
   method on states stepped from the step's start instead (``state_at``): it has no error control, and its
-  stages past a jump of the RHS at the event would spoil the interpolant;
+  stages past a jump of the RHS at the event would spoil the interpolant. At a plain restart (no action,
+  not mode-dependent, a problem without ``reset``: the RHS continuous there, its derivatives jumping, e.g. a
+  contact onset) the state is
+  one step of the method from the step's start landing on the root (``state_at``; error-controlled for the
+  adaptive methods, whose dense output is an order lower), as the compiled runs do at the restarts they take;
+  where an event switches the RHS the state stays on the event surface (the interpolant's, g = 0);
 * at an event flagged ``restart`` (RHS discontinuous there, e.g. a cam phase boundary) or whose
   ``action`` reports a change of the problem, the step is cut at the event and the solver restarted;
 * ``time_breaks`` (load steps in time) are hit exactly by bounding the solver there and restarting
@@ -199,6 +204,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
             solver = ClosedFormSolver(exact, t, y, breaks[bi])
         cut = None
         fixed = isinstance(solver, FixedStepper)     # events on re-stepped states (see the docstring)
+        plain_restarts = problem.reset is None and hasattr(solver, "state_at")   # no mode to re-select
         runs = batched and bool(events) and getattr(solver, "can_advance", False)
         while solver.status == "running":
             if runs:                            # compiled run of steps up to a sign change of some event
@@ -261,6 +267,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                         y_root = solver.state_at(_before_root(e.fun, solver.state_at, t_root, t_old, sign > 0.0))
                     elif fixed:                 # a mode switch acts where the old mode is invalid
                         y_root = solver.state_at(t_root)
+                    elif plain_restarts and e.restart and e.action is None and not e.mode_dependent:
+                        y_root = solver.state_at(t_root)          # a plain restart: land on it with a step
                     else:
                         y_root = dense(t_root)
                     rec = EventRecord(t_root, e.name, y_root, sign)

@@ -192,6 +192,28 @@ class Stepper(OdeSolver):
     def dense_output(self) -> PolynomialDense:
         return PolynomialDense(self.t_old, self.t - self.t_old, self.y_old, self._K, self.P)
 
+    def state_at(self, t: float) -> tuple:
+        """State at time t within the last step, by one step of the method (its error control on, Python or
+        compiled) from the step's start landing on t: it carries the step's error, not the dense output's (one
+        order lower); the dense output's value if that step is refused. Where an event acts (a restart, a mode
+        switch) the state is taken this way, in the compiled runs too (``land`` in
+        :mod:`rig.solvers.templates.runs`)."""
+        if not t > self.t_old:
+            return self.y_old
+        if t >= self.t:
+            return self.y
+        one = type(self)(self.fun, self.t_old, self.y_old, t, first_step=(t - self.t_old) * (1.0 + 1e-9),
+                         stiffness="ignore", compiled=self._compiled, **self._options())
+        one.step()
+        self.nfev += one.nfev
+        if abs(one.t - t) <= 4.0 * np.finfo(float).eps * max(1.0, abs(t)):
+            return one.y
+        return tuple(self.dense_output()(t))
+
+    def _options(self) -> dict:
+        """Constructor options of a subclass beyond those of this class (error control of adaptive methods)."""
+        return {"rtol": self.rtol, "atol": self.atol, "max_step": self.max_step}
+
 
 class FixedStepper(Stepper):
     """A fixed-step method: step ``h`` (s), the last step shortened (or stretched by < 1e-6·h) to land on
@@ -213,7 +235,8 @@ class FixedStepper(Stepper):
 
     def state_at(self, t: float) -> tuple:
         """State at time t within the last step, by one step of size t − t_old from its start (the same
-        method, Python or compiled) — exact to the method's order even where the RHS jumps after t."""
+        method, Python or compiled) — exact to the method's order even where the RHS jumps after t; in the
+        compiled runs too."""
         if not t > self.t_old:
             return self.y_old
         one = type(self)(self.fun, self.t_old, self.y_old, t, h=t - self.t_old, stiffness="ignore",

@@ -151,8 +151,8 @@ def test_compiled_runs_take_the_python_steps(method):
     # Rodas4: its hand-written LU (compiled) and LAPACK (Python) round differently, which may flip an
     # accept/reject decision: the same steps up to that, then agreement to the tolerance
     implicit = method == "Rodas4"
-    assert a.nsteps == b.nsteps and a.restarts == b.restarts == 1
-    assert abs(a.nfev - b.nfev) <= (10 if implicit else 0)
+    assert abs(a.nsteps - b.nsteps) <= (1 if implicit else 0) and a.restarts == b.restarts == 1
+    assert abs(a.nfev - b.nfev) <= (25 if implicit else 0)         # a flipped decision: a step or two
     np.testing.assert_allclose(a.y, b.y, rtol=1e-7 if implicit else 1e-9, atol=1e-11)
     assert [r.name for r in a.events] == [r.name for r in b.events] and len(a.t_events["zero"]) == 2
     np.testing.assert_allclose([r.t for r in a.events], [r.t for r in b.events], rtol=1e-8 if implicit else 1e-10)
@@ -178,3 +178,38 @@ def test_solver_objects_share_one_interface(cls, opts):
     assert cls in METHODS.values()
     with pytest.raises(RuntimeError):
         s.step()
+
+
+
+@njit(cache=True)
+def _quintic(t, y, p, out):
+    """y' = 5t⁴: DP45's step integrates it exactly (order 5), its quartic dense output does not."""
+    out[0] = 5.0 * t ** 4
+
+
+@njit(cache=True)
+def _level(t, y, p, k):
+    """Event 0: y = p[0] (a restart the compiled runs take themselves, :func:`_plain_restart`)."""
+    return y[0] - p[0]
+
+
+@njit(cache=True)
+def _plain_restart(t, y, p, k, apply):
+    return k == 0
+
+
+def test_at_a_plain_restart_the_state_is_a_step_of_the_method_not_the_interpolant():
+    """y = t⁵ crosses 0.5: the root is found on the dense output (quartic, not exact for t⁵), but the state the run
+    restarts from is one DP45 step landing on it (exact for t⁵), in the Python driver and in the compiled runs
+    (restart taken by Python or inside the run) alike; the interpolant's value is off by far more."""
+    p = np.array([0.5])
+    interpolant = []
+    for compiled, act in ((False, None), (True, None), (True, _plain_restart)):
+        fun = JitRhs(_quintic, lambda: p, event=_level, act=act)
+        sol = integrate(Problem(fun, (0.0,), [Event(lambda tt, y: y[0] - p[0], "level", restart=True)]),
+                        (0.0, 1.2), method="DP45", compiled=compiled, rtol=1e-3, atol=1e-3, first_step=0.5)
+        (rec,) = sol.events
+        assert abs(rec.t - 0.5 ** 0.2) < 1e-3 and sol.y_final[0] == pytest.approx(1.2 ** 5, rel=1e-12)
+        assert abs(rec.y[0] - rec.t ** 5) < 1e-14, (compiled, act)        # the step's exact state at the root
+        interpolant.append(abs(p[0] - rec.t ** 5))                        # the dense output's value there is 0.5
+    assert min(interpolant) > 1e-6                                       # what the interpolant would have given

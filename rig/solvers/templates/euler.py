@@ -11,6 +11,7 @@ from rig.solvers.euler import EULER_P as P
 kernel = lipschitz = fixed_step = min_step = finite = None  # bound in generated copies
 UNDERFLOW = NONFINITE = 1
 # </kernels>
+ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver (integrate.py)
 
 
 @njit(cache=True, error_model="numpy")

@@ -13,6 +13,7 @@ from rig.solvers.rodas import A, C, D, GAMMA, MAX_FACTOR, MIN_FACTOR, SAFETY, SQ
 kernel = min_step = None  # bound in generated copies
 UNDERFLOW = 1
 # </kernels>
+ADAPTIVE = True  # error-controlled: lands on the roots of plain restarts (runs.land)
 
 
 @njit(cache=True, error_model="numpy")
