@@ -44,6 +44,7 @@ PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_
 TICK_WRAP = 6.5536          # s, 16-bit Tick at 100 us
 EDGE_WRAP = 16.777216       # s, 24-bit EdgeTime and TStart at 1 us
 START_WRAP = 2.0 ** 40 * 1e-6   # s, 40-bit curve start (TStartHigh:TStart) at 1 us: 12.7 days
+NUMBER_WRAP = 65536         # 16-bit CurveNo of CurveHeader and Result
 PV_END = 255                # ResultValue multiplexer value of the end marker
 
 
@@ -112,6 +113,7 @@ class CanHost:
                 self._handlers[m.name] = self._counter if {"Count", "EdgeTime"} <= names else self._reading
         self.sequence = SequenceChecker()
         self.assembler = CurveAssembler(self.x_lsb, self.y_lsb, self._fd_pairs)
+        self._last_number: dict[str, int] = {}      # last full curve number per frame kind (CurveNo is 16-bit)
         self.events: list[LinkEvent] = []
         self.frames_received = 0
         self.status: dict[str, Any] = {}
@@ -341,10 +343,21 @@ class CanHost:
         for p in problems:
             self._event(msg, "curve", 1, p)
 
+    def _full_number(self, kind: str, curve_no: int) -> int:
+        """The curve number counted on from the 16-bit ``CurveNo`` of a ``kind`` frame (CurveHeader, Result): the
+        number congruent to it modulo 65536 nearest to the one after the last of that kind (the first is taken as
+        is), so numbers keep increasing past 65535 (after 7.3 h at 150 rpm); exact while fewer than 32768 curves
+        pass unseen."""
+        last = self._last_number.get(kind)
+        number = int(curve_no) if last is None else int(unwrap(curve_no, NUMBER_WRAP, last + 1))
+        self._last_number[kind] = number
+        return number
+
     def _curve_header(self, msg, spec, raw) -> None:
-        self._release_pending(msg, f"the header of curve {raw['CurveNo']} arrived")
+        number = self._full_number("header", raw["CurveNo"])
+        self._release_pending(msg, f"the header of curve {number} arrived")
         self._start_high = raw["TStartHigh"] * spec.get_signal_by_name("TStartHigh").scale
-        self._curve_problems(msg, self.assembler.header(raw["CurveNo"], raw["Count"], raw["Program"]))
+        self._curve_problems(msg, self.assembler.header(number, raw["Count"], raw["Program"]))
 
     def _curve_timing(self, msg, spec, raw) -> None:
         scale = {s.name: s.scale for s in spec.signals}
@@ -401,9 +414,10 @@ class CanHost:
 
     # ------------------------------------------------------------------ results
     def _result(self, msg, spec, raw) -> None:
-        self._release_pending(msg, f"the result of curve {raw['CurveNo']} arrived")
+        number = self._full_number("result", raw["CurveNo"])
+        self._release_pending(msg, f"the result of curve {number} arrived")
         first = None if raw["FirstFail"] == 127 else raw["FirstFail"]
-        self._pending = CurveResult(raw["CurveNo"], bool(raw["Ok"]), first, raw["FailMask"], received=msg.timestamp)
+        self._pending = CurveResult(number, bool(raw["Ok"]), first, raw["FailMask"], received=msg.timestamp)
 
     def _result_value(self, msg, spec, raw) -> None:
         res = self._pending

@@ -106,10 +106,12 @@ class CurveAssembler:
         self._got[first:stop] = True
         return None
 
-    def end(self, number: int, count: int, crc: int, clipped: int) -> list[str]:
-        """Close the curve: check number, count, missing pairs and CRC."""
-        if self._number is None or self._number != number:
-            return [f"end frame of curve {number} without its header"]
+    def end(self, number_low16: int, count: int, crc: int, clipped: int) -> list[str]:
+        """Close the curve: check number (its low 16 bits, as the end frame carries it), count, missing pairs and
+        CRC."""
+        if self._number is None or self._number % 65536 != number_low16:
+            return [f"end frame of curve {number_low16} (mod 65536) without its header"]
+        number = self._number
         problems = []
         if count != len(self._got):
             problems.append(f"curve {number}: end frame says {count} pairs, header said {len(self._got)}")

@@ -19,7 +19,7 @@ from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt,
 from rig.plants.lab_bench import LabBench
 from rig.recorder import Recording
 from rig.scene import Field, Scene, SceneError, read_table
-from rig.units import to_si
+from rig.units import UnitError, to_si
 
 RPM = tau / 60.0          # rad/s per rpm
 STEP = radians(10.0)      # the sheets' angle step: 36 points per turn
@@ -80,17 +80,32 @@ class Lab:
         return edge[keep], angle[keep] + float(self.bench.truth(np.zeros(1))[signal][0])
 
 
+def read_lab_section(scene: Scene) -> dict[str, Any]:
+    """The scene's [lab] table, checked: known sheets, reading times with a time unit (the speed sheet needs at
+    least one). ``rig run`` checks it before anything is recorded; SceneError naming the key otherwise."""
+    where = f"{scene.path} [lab]"
+    lab = read_table(scene.data.get("lab", {}), LAB_SCHEMA, where)
+    unknown = [s for s in lab["sheets"] if s not in SHEETS] if isinstance(lab["sheets"], list) else [lab["sheets"]]
+    if unknown:
+        raise SceneError(f"{where}: unknown sheet(s) {unknown} (known: {', '.join(SHEETS)})")
+    readings = lab["readings"] or []
+    if not isinstance(readings, list):
+        raise SceneError(f"{where}: 'readings' must be a list of times, e.g. [\"2.5 s\"]")
+    try:
+        lab["readings"] = [to_si(v, "s", what=f"{where} readings[{i}]") for i, v in enumerate(readings)]
+    except UnitError as exc:
+        raise SceneError(str(exc)) from None
+    if "speed" in lab["sheets"] and not lab["readings"]:
+        raise SceneError(f"{where}: the speed sheet needs 'readings' (times, e.g. [\"2.5 s\"])")
+    return lab
+
+
 def read_lab(rec: Recording) -> Lab:
     """The lab of a recording; SceneError when it is not a lab-bench recording with a valid [lab]."""
     scene = rec.scene()
-    data = scene.data
-    if data.get("scene", {}).get("plant") != "lab_bench":
+    if scene.data.get("scene", {}).get("plant") != "lab_bench":
         raise SceneError(f"{rec.path}: not a lab-bench recording")
-    lab = read_table(data.get("lab", {}), LAB_SCHEMA, f"{scene.path} [lab]")
-    unknown = [s for s in lab["sheets"] if s not in SHEETS] if isinstance(lab["sheets"], list) else [lab["sheets"]]
-    if unknown:
-        raise SceneError(f"{scene.path} [lab]: unknown sheet(s) {unknown} (known: {', '.join(SHEETS)})")
-    return Lab(rec, scene, LabBench.from_scene(scene), lab)
+    return Lab(rec, scene, LabBench.from_scene(scene), read_lab_section(scene))
 
 
 def _latest(t: np.ndarray, values: np.ndarray, at: float) -> float:
@@ -113,9 +128,7 @@ def speed_sheet(lab: Lab) -> Sheet:
     rec = lab.rec
     holes = lab.setting("can.LabSpeed.Pulses", "holes", "1")
     gate = lab.setting("can.LabSpeed.Pulses", "gate_time", "s")
-    times = [to_si(v, "s", what=f"{lab.scene.path} [lab] readings") for v in lab.lab["readings"] or ()]
-    if len(times) < 1:
-        raise SceneError(f"{lab.scene.path} [lab]: the speed sheet needs 'readings' (times, e.g. [\"2.5 s\"])")
+    times = lab.lab["readings"]
     pulses = rec.series.get("/stand/lab_speed", {})
     display = rec.series.get("/stand/lab_display", {})
     counter = [_latest(pulses["t"], pulses["pulses"], at) / (holes * gate) * 60.0 for at in times]

@@ -11,19 +11,35 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from rig.bench.harness import OURS, TARGET, Result  # noqa: E402
+from rig.bench.peers import NO_RESTARTS  # noqa: E402
 
 
 def plot(result: Result, path: Path) -> None:
     """Write the two-panel chart of ``result`` to ``path`` (PNG)."""
+    fig = figure(result)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def figure(result: Result) -> "plt.Figure":
+    """The two-panel chart: error against wall time and against RHS calls, one curve per method with ``ok`` rows
+    (ours solid, peers dashed, a peer stepping across the contact onsets dotted in its sibling's colour)."""
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
     methods = list(dict.fromkeys(r.method for r in result.rows))
-    colours = [*plt.get_cmap("tab10").colors, "black", "olive", "navy"]
-    for colour, method in zip(colours, methods):
+    bases = list(dict.fromkeys(m.removesuffix(NO_RESTARTS) for m in methods))
+    palette = [*plt.get_cmap("tab10").colors, "black", "olive", "navy", "peru", "teal"]
+    if len(bases) > len(palette):
+        raise ValueError(f"work-precision chart: {len(bases)} methods, colours for {len(palette)}")
+    colour_of = dict(zip(bases, palette))
+    for method in methods:
         rows = [r for r in result.rows if r.method == method and r.status == "ok"]     # in sweep order
         if not rows:
             continue
-        style = dict(color=colour, marker="o" if method in OURS else "s", ms=4,
-                     ls="-" if method in OURS else "--", lw=1.6 if method in OURS else 1.0, label=method)
+        variant = method.endswith(NO_RESTARTS)
+        style = dict(color=colour_of[method.removesuffix(NO_RESTARTS)],
+                     marker="^" if variant else "o" if method in OURS else "s", ms=4,
+                     ls=":" if variant else "-" if method in OURS else "--", lw=1.6 if method in OURS else 1.0,
+                     label=method)
         axes[0].loglog([r.wall_s for r in rows], [r.error for r in rows], **style)
         axes[1].loglog([r.nfev for r in rows], [r.error for r in rows], **style)
     ref = result.reference
@@ -41,5 +57,4 @@ def plot(result: Result, path: Path) -> None:
         note += "; diverged, failed or inaccurate runs (not drawn, see the CSV): " + ", ".join(failed)
     fig.suptitle(f"{result.problem.title}\n{note}", fontsize=9, color="k" if ref.confirmed else "red")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig

@@ -29,7 +29,9 @@ def _clutch_static(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
 
 
 def _lab_bench(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
+    from rig.analysis.lab_report import read_lab_section
     from rig.plants.lab_bench import LabBench
+    read_lab_section(scene)                 # the sheets the report will fill: checked before anything is recorded
     return LabBench.from_scene(scene)
 
 

@@ -76,9 +76,20 @@ def test_every_peer_follows_the_restarts(level2_run):
         assert tight and tight[0].status == "ok" and tight[0].error < 1e-5, (method, tight)
 
 
-def test_chart_is_written(level2_run):
-    _, out = level2_run
+def test_chart_is_written_with_every_method_that_has_ok_rows(level2_run):
+    """All of them drawn and named, the peers run across the contact onsets too (two were left out when the
+    methods outnumbered the colours), each variant in its sibling's colour."""
+    from rig.bench.wpchart import figure
+    result, out = level2_run
     assert (out / "pin_insertion_l2.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    drawn = {r.method for r in result.rows if r.status == "ok"}
+    assert {"scipy odeint (no restarts)", "cvode (no restarts)"} <= drawn
+    fig = figure(result)
+    for ax in fig.axes:
+        lines = {line.get_label(): line for line in ax.get_lines() if not line.get_label().startswith("_")}
+        assert set(lines) == drawn
+        assert lines["scipy odeint (no restarts)"].get_color() == lines["scipy odeint"].get_color()
+        assert lines["scipy odeint (no restarts)"].get_linestyle() == ":"
 
 
 def test_cli_writes_csv_and_chart_for_a_clutch_scene(tmp_path, capsys):

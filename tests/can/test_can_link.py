@@ -428,3 +428,19 @@ def test_more_than_8_bytes_in_a_classic_frame_is_malformed_not_decoded(buses, on
     events = host.events_of("bad_length")
     assert events and all("classic (non-FD) frame; more than 8 need CAN FD" in e.detail for e in events)
     assert len(events) == (1 if one_by_one else 2) and host.counters.get("curve", 0) == 0
+
+
+def test_curve_numbers_count_on_past_the_16_bit_wrap(buses, device, rng, elements, make_curve):
+    """CurveNo is 16-bit on the wire: curves 65535, 65536, 65537 (after 7.3 h at 150 rpm) arrive as 65535, 0, 1
+    and the host counts on, curves and results alike, so the recording's numbers stay unique and increasing."""
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)
+    host = CanHost(host_bus)
+    device.number = 65534
+    for k in range(3):
+        t, x, y = make_curve(rng, 100)
+        node.publish_measurement(float(k), device.finish(t + k, x, y, elements[:1], {}))
+        run(node, host, k + 1.0)
+    assert [c.number for c in host.curves()] == [65535, 65536, 65537]
+    assert [r.number for r in host.take_results()] == [65535, 65536, 65537]
+    assert host.events == []

@@ -2,6 +2,8 @@
 against the closed forms of its mechanism (rig.mechanisms), and the frames decoded with cantools alone."""
 from __future__ import annotations
 
+import re
+
 from math import cos, radians, tau
 from pathlib import Path
 
@@ -164,6 +166,20 @@ def test_a_lab_scene_names_its_errors(tmp_path):
         run_scene(bad, tmp_path / "bad.mcap")
     bad.write_text((SCENES / "lab_cardan.toml").read_text().replace('kind = "cardan"', 'kind = "hooke"'))
     with pytest.raises(SceneError, match=r"\[plant\]: key 'kind' must be one of 'disc', 'cardan'"):
+        run_scene(bad, tmp_path / "bad.mcap")
+    # [lab] is checked before the run, not first when the report reads it after a whole recording
+    for old, new, message in (('sheets = ["cardan"]', 'sheets = ["cardn"]', r"\[lab\]: unknown sheet\(s\) \['cardn'\]"),
+                              ('sheets = ["cardan"]', 'sheets = ["cardan"]\nreadings = ["2 kg"]',
+                               r"\[lab\] readings\[0\].*kg")):
+        text = (SCENES / "lab_cardan.toml").read_text()
+        assert old in text
+        bad.write_text(text.replace(old, new))
+        with pytest.raises(SceneError, match=message):
+            run_scene(bad, tmp_path / "bad.mcap")
+        assert not (tmp_path / "bad.mcap").exists()
+    text = (SCENES / "lab_speed.toml").read_text()
+    bad.write_text(re.sub(r"readings = \[.*\n", "", text))
+    with pytest.raises(SceneError, match=r"\[lab\]: the speed sheet needs 'readings'"):
         run_scene(bad, tmp_path / "bad.mcap")
 
 
