@@ -213,3 +213,17 @@ def test_at_a_plain_restart_the_state_is_a_step_of_the_method_not_the_interpolan
         assert abs(rec.y[0] - rec.t ** 5) < 1e-14, (compiled, act)        # the step's exact state at the root
         interpolant.append(abs(p[0] - rec.t ** 5))                        # the dense output's value there is 0.5
     assert min(interpolant) > 1e-6                                       # what the interpolant would have given
+
+
+@pytest.mark.parametrize("method", ["DP45", "RK4"])
+def test_a_time_break_within_an_ulp_of_the_end_is_not_a_restart(method):
+    """A break one ulp before t_bound (a cam-program boundary computed as 1.4 s at the end of a level-2 chunk
+    ending at 1.4000000000000001 s) used to leave the restarted solver an empty span and stop the run."""
+    tf = math.nextafter(1.4, 2.0)
+    opts = {"h": 1e-3} if method in FIXED else {"rtol": 1e-8, "atol": 1e-10}
+    for breaks in ([1.4], [math.nextafter(1.0, 0.0), 1.4]):
+        sol = integrate(Problem(oscillator, (1.0, 0.0), time_breaks=breaks), (1.0, tf), method=method,
+                        t_eval=np.array([1.0, 1.2, tf]), y0=(1.0, 0.0), **opts)
+        assert sol.status == "finished" and sol.t[-1] == tf
+        exact = math.cos(W * (tf - 1.0))
+        assert sol.y[0, -1] == pytest.approx(exact, abs=1e-4 if method in FIXED else 1e-7)
