@@ -112,6 +112,26 @@ def dumps_message(obj: Mapping[str, Any]) -> bytes:
     return orjson.dumps(out, option=_NUMPY)
 
 
+def dumps_rows(columns: Mapping[str, list[float]]) -> list[bytes]:
+    """:func:`dumps_message` of each row of float ``columns`` (Python floats, equal lengths): one flat object per
+    row, ``{name: value}`` in column order, the same bytes ≈ 10× faster (no per-value type dispatch)."""
+    names = list(columns)
+    if NULLS in names:
+        raise ValueError(f"message key {NULLS!r} is reserved (it lists the message's undefined values)")
+    out = []
+    for values in zip(*columns.values()):
+        row = dict(zip(names, values))
+        if all(map(math.isfinite, values)):
+            out.append(orjson.dumps(row))
+            continue
+        bad = [k for k, v in row.items() if not math.isfinite(v)]
+        for k in bad:
+            del row[k]
+        row[NULLS] = [pointer("", k) for k in bad]
+        out.append(orjson.dumps(row))
+    return out
+
+
 def loads_message(data: bytes) -> Any:
     """Parse one message; the places listed in ``"nulls"`` get ``None`` back (and the key is removed)."""
     obj = orjson.loads(data)

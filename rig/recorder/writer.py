@@ -26,7 +26,7 @@ from mcap.writer import CompressionType, Writer
 import rig
 from rig.blockbus import BRS, ERROR, ESI, EXTENDED, FD, RX, FrameBlock, frames_of
 from rig.recorder import schemas as S
-from rig.recorder.encoding import ENCODINGS, NULLS, dumps, dumps_message, encode_array, encode_block
+from rig.recorder.encoding import ENCODINGS, NULLS, dumps, dumps_message, dumps_rows, encode_array, encode_block
 from rig.recorder.log import log_message
 from rig.recorder.view import Decimator
 
@@ -235,8 +235,13 @@ class Recorder:
             return
         cid = self._channel(topic, S.view_schema(f"rig.View{topic}", signals, description), f"rig.View{topic}",
                             {"rate_hz": repr(decimator.rate), "time_unit": "s"})
-        for i in decimator.pick(t).tolist():
-            self._put(cid, to_ns(t[i], topic), dumps_message({"t": t[i], **{k: v[i] for k, v in signals.items()}}))
+        keep = decimator.pick(t)
+        if not keep.size:
+            return
+        columns = {"t": t[keep].tolist(), **{k: np.asarray(v, dtype=np.float64)[keep].tolist()
+                                             for k, v in signals.items()}}
+        for ti, message in zip(columns["t"], dumps_rows(columns)):
+            self._put(cid, to_ns(ti, topic), message)
 
     def write_truth(self, t: np.ndarray, signals: Mapping[str, np.ndarray]) -> None:
         """Physical truth of the plant (``/plant/truth``, and decimated ``/view/plant``)."""

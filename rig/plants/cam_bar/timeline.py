@@ -72,16 +72,18 @@ class Timeline:
             for c in np.unique(cycle):
                 i = cycle == c
                 part = self._truth(self.cycles.mechanism(int(c)), t[i], dr.phi[i], dr.omega[i], dr.alpha[i])
-                parts.append(self._deviate(part, int(c)))
+                parts.append(self._deviate(part, int(c), (part["s"], part["psi"], part["r"])))
             out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         if t.size:
             self._find_events(t, dr.phi, out["R23"])
             self._last = (float(t[-1]), float(dr.phi[-1]), float(out["R23"][-1]))
         return out
 
-    def _deviate(self, part: dict[str, np.ndarray], cycle: int) -> dict[str, np.ndarray]:
-        """Add the cycle's chain stroke deviation Δs(φ) to ``s`` and ``x_gripper`` of a truth chunk."""
-        ds = self.cycles.stroke_deviation(cycle, part["phi"])
+    def _deviate(self, part: dict[str, np.ndarray], cycle: int,
+                 known: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        """Add the cycle's chain stroke deviation Δs(φ) to ``s`` and ``x_gripper`` of a truth chunk (``known``: its
+        level-0 (s, ψ, r), the nominal chain's at level 1)."""
+        ds = self.cycles.stroke_deviation(cycle, part["phi"], known)
         part["s"], part["x_gripper"] = part["s"] + ds, part["x_gripper"] - ds
         return part
 

@@ -86,14 +86,21 @@ class CamChain:
     rod_side: float
 
     @classmethod
-    def from_mechanism(cls, mech: "PinInsertionMechanism", phi: np.ndarray) -> "CamChain":
+    def from_mechanism(cls, mech: "PinInsertionMechanism", phi: np.ndarray,
+                       known: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> "CamChain":
+        """The nominal chain of ``mech`` at cam angles ``phi`` (rad); ``known`` = its level-0 (s, ψ, r) there when
+        the caller has them already."""
         phi = np.asarray(phi, dtype=float)
-        s = mech.program.evaluate(phi).s
-        pos = mech.kinematics(s)
+        if known is None:
+            s = mech.program.evaluate(phi).s
+            pos = mech.kinematics(s)
+            psi, r = pos.psi, pos.r
+        else:
+            s, psi, r = known
         q = {"x_A0": mech.x_A0, "y_A0": mech.y_A0, "l3": mech.l3, "s0": mech.s0, "L3": mech.L3, "l4": mech.l4,
              "e_sk": mech.e_sk}
-        side = np.sign(_wrap(pos.psi - np.arctan2(mech.y_A0, mech.x_A0)))
-        chain = cls(phi, s, pos.psi, pos.r, q, np.where(side == 0.0, 1.0, side), mech.chain.rod_side)
+        side = np.sign(_wrap(psi - np.arctan2(mech.y_A0, mech.x_A0)))
+        chain = cls(phi, s, psi, r, q, np.where(side == 0.0, 1.0, side), mech.chain.rod_side)
         chain._check(chain.psi, chain.q)
         return chain
 

@@ -132,15 +132,17 @@ class CyclePlant:
             self._mechs = {c: m for c, m in self._mechs.items() if c >= cycle - 1} | {cycle: mech}
         return self._mechs[cycle]
 
-    def stroke_deviation(self, cycle: int, phi: np.ndarray) -> np.ndarray:
-        """Δs (m) of the cycle's deviated chain at cam angles ``phi`` (zeros if no chain parameter varies)."""
+    def stroke_deviation(self, cycle: int, phi: np.ndarray,
+                         known: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """Δs (m) of the cycle's deviated chain at cam angles ``phi`` (zeros if no chain parameter varies);
+        ``known``: the nominal level-0 (s, ψ, r) at ``phi`` if the caller has them."""
         dev = self.deviation(cycle)
         dq = dict(dev.chain)
         if self.fidelity == 2 and dev.take_up is not None:     # simulated in the groove, not taken up
             dq["r"] += dev.take_up
         if not any(dq.values()):
             return np.zeros_like(phi)
-        return CamChain.from_mechanism(self.nominal, phi).deviation(dq)[0]
+        return CamChain.from_mechanism(self.nominal, phi, known).deviation(dq)[0]
 
 
 def plant_generator(seed: int) -> np.random.Generator:
