@@ -29,7 +29,8 @@ from rig.bench.problems import WorkProblem
 from rig.solvers import SolverDivergence, StiffnessWarning, integrate
 
 COLUMNS = ("method", "setting", "error", "wall_s", "nfev", "t_sim", "status")
-OURS = {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45", "rodas4": "Rodas4"}
+OURS = {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45", "dop853": "DOP853",
+        "rodas4": "Rodas4"}
 FIXED = ("euler", "semi-implicit euler", "rk4")
 METHODS = tuple(OURS) + PEERS
 TARGET = 1e-6            # error of the summary: cheapest run at or below it

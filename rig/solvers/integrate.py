@@ -37,6 +37,7 @@ from scipy.optimize import brentq
 
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence
 from rig.solvers.dense import fill_dense
+from rig.solvers.dop853 import DOP853
 from rig.solvers.dopri import DormandPrince45
 from rig.solvers.euler import Euler, SymplecticEuler
 from rig.solvers.flow import ClosedForm, ClosedFormSolver
@@ -46,7 +47,8 @@ from rig.solvers.rodas import Rodas4
 from rig.solvers.stepper import FixedStepper
 
 METHODS: dict[str, type[OdeSolver]] = {"Euler": Euler, "SymplecticEuler": SymplecticEuler, "RK4": RK4,
-                                       "DP45": DormandPrince45, "Rodas4": Rodas4, "Rosenbrock23": Rosenbrock23}
+                                       "DP45": DormandPrince45, "DOP853": DOP853, "Rodas4": Rodas4,
+                                       "Rosenbrock23": Rosenbrock23}
 MAX_STALLED = 50
 STALL_SPAN = 1e-12     # restarts closer than this (relative to max(1, |t|)) do not count as progress
 

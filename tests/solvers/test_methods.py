@@ -8,6 +8,7 @@ import pytest
 from numba import njit
 
 from rig.solvers import (
+    DOP853,
     METHODS,
     RK4,
     DormandPrince45,
@@ -63,11 +64,11 @@ def _error_at(method: str, h: float, t_end: float = 2.0) -> float:
 
 
 @pytest.mark.parametrize("method, h, order", [("Euler", 1e-3, 1), ("SymplecticEuler", 1e-3, 1), ("RK4", 0.02, 4),
-                                              ("DP45", 0.05, 5), ("Rodas4", 0.05, 4)])
+                                              ("DP45", 0.05, 5), ("DOP853", 0.2, 8), ("Rodas4", 0.05, 4)])
 def test_order_of_convergence_on_the_harmonic_oscillator(method, h, order):
     errors = [_error_at(method, h / 2 ** k) for k in range(3)]
     observed = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
-    assert observed == pytest.approx([order, order], abs=0.3), errors
+    assert observed == pytest.approx([order, order], abs=0.3 if order < 8 else 0.4), errors   # DOP853: pre-asymptotic
 
 
 def test_symplectic_euler_keeps_the_energy_error_bounded_where_explicit_euler_drifts():
@@ -134,7 +135,7 @@ def test_rodas4_is_accurate_and_stable_where_explicit_methods_diverge(compiled):
     assert forced.nsteps == 20 and abs(forced.y_final[0] - math.cos(2.0)) < 1e-3
 
 
-@pytest.mark.parametrize("method", ["Euler", "SymplecticEuler", "RK4", "DP45", "Rodas4"])
+@pytest.mark.parametrize("method", ["Euler", "SymplecticEuler", "RK4", "DP45", "DOP853", "Rodas4"])
 def test_compiled_runs_take_the_python_steps(method):
     """Same kernel, events (a recorded crossing and a restart), dense output: the compiled runs and the Python
     steps agree on steps, RHS calls, samples and event times."""
@@ -163,6 +164,7 @@ def test_compiled_runs_take_the_python_steps(method):
 
 @pytest.mark.parametrize("cls, opts", [(Euler, {"h": 0.01}), (SymplecticEuler, {"h": 0.01}), (RK4, {"h": 0.01}),
                                        (DormandPrince45, {"rtol": 1e-8, "atol": 1e-10}),
+                                       (DOP853, {"rtol": 1e-8, "atol": 1e-10}),
                                        (Rodas4, {"rtol": 1e-8, "atol": 1e-10})])
 def test_solver_objects_share_one_interface(cls, opts):
     """step(), dense_output() over the last step, status, nfev and nsteps — each method as a class."""
@@ -227,3 +229,22 @@ def test_a_time_break_within_an_ulp_of_the_end_is_not_a_restart(method):
         assert sol.status == "finished" and sol.t[-1] == tf
         exact = math.cos(W * (tf - 1.0))
         assert sol.y[0, -1] == pytest.approx(exact, abs=1e-4 if method in FIXED else 1e-7)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_dop853_takes_scipys_steps(compiled):
+    """The same tableau, error norm and controller as scipy's DOP853: the same step times and the same solution to
+    rounding, and its 7th-order dense output (our polynomial form of scipy's nested one) gives scipy's samples."""
+    from scipy.integrate import solve_ivp
+    p = np.array([W, 0.05, 1e9])
+    fun = JitRhs(_oscillator, lambda: p)
+    t = np.linspace(0.0, 2.0, 41)
+    for rtol in (1e-4, 1e-9):
+        steps = integrate(Problem(fun, (1.0, 0.0)), (0.0, 2.0), method="DOP853", rtol=rtol, atol=rtol,
+                          compiled=compiled, first_step=1e-3)
+        samples = integrate(Problem(fun, (1.0, 0.0)), (0.0, 2.0), method="DOP853", t_eval=t, rtol=rtol, atol=rtol,
+                            compiled=compiled, first_step=1e-3)
+        ref = solve_ivp(lambda tt, y: fun(tt, y), (0.0, 2.0), (1.0, 0.0), method="DOP853", t_eval=t, rtol=rtol,
+                        atol=rtol, first_step=1e-3, dense_output=True)
+        np.testing.assert_allclose(steps.t, ref.sol.ts, rtol=1e-8, atol=1e-15)          # norms round differently
+        np.testing.assert_allclose(samples.y, ref.y, rtol=1e-10, atol=1e-12)
