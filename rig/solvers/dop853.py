@@ -12,14 +12,13 @@ y(t + θh) = y + h·Σ_c (Kᵀ P)[:, c]·θ^(c+1) (P from scipy's nested form, e
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 from numpy.polynomial import polynomial as poly
 from scipy.integrate._ivp import dop853_coefficients as _dc
 
-from rig.solvers.base import Rhs, SolverDivergence, all_finite, lipschitz
-from rig.solvers.stepper import Stepper, initial_step
+from rig.solvers.base import all_finite, lipschitz
+from rig.solvers.stepper import AdaptiveStepper
 
 N_STAGES = _dc.N_STAGES                 # 12
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
@@ -63,7 +62,7 @@ def _dense_matrix() -> np.ndarray:
 P = _dense_matrix()
 
 
-class DOP853(Stepper):
+class DOP853(AdaptiveStepper):
     """Adaptive Dormand–Prince 8(5,3) with FSAL and 7th-order dense output (scipy's DOP853 method).
 
     ``rtol``, ``atol`` (error norm of scipy's DOP853), ``first_step`` (s; default Hairer's heuristic), ``max_step``
@@ -75,19 +74,7 @@ class DOP853(Stepper):
     order = 8
     method, label, P, limit = "dop853", "DOP853", P, 6.1
 
-    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
-                 atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf,
-                 stiffness: str = "warn", compiled: bool = True):
-        if not (rtol > 0 and atol >= 0):
-            raise ValueError(f"DOP853: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
-        super().__init__(fun, t0, y0, t_bound, stiffness, compiled)
-        self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        if first_step is None or not first_step > 0:
-            h_abs = initial_step(fun, self.t, self.y, self.f, 7, rtol, atol, self.t_bound)
-            self.nfev += 1
-        else:
-            h_abs = min(first_step, self.t_bound - self.t)
-        self._start(h_abs, rtol, atol, max_step)
+    error_order = 7
 
     def _python_step(self) -> None:
         fun, t, rtol, atol = self.fun, self.t, self.rtol, self.atol
@@ -96,16 +83,9 @@ class DOP853(Stepper):
         K = np.zeros((16, n))
         K[0] = self.f
         h_abs = min(self.h_abs, self.max_step)
-        min_step = self._min_step()
         rejected = False
         while True:
-            if h_abs < min_step:
-                raise SolverDivergence(f"step size underflow (h = {h_abs:.3g} s)", t, self.y)
-            h = h_abs
-            t_new = t + h
-            if t_new >= self.t_bound:
-                t_new = self.t_bound
-                h = t_new - t
+            h, t_new = self._trial(h_abs)
             for s in range(1, N_STAGES):
                 ys = y + h * (A[s, :s] @ K[:s])
                 K[s] = fun(t + C[s] * h, tuple(ys.tolist()))

@@ -7,12 +7,11 @@ compiled one is ``rig/solvers/templates/dp45.py``.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 
-from rig.solvers.base import Rhs, SolverDivergence, all_finite, lipschitz
-from rig.solvers.stepper import Stepper, initial_step
+from rig.solvers.base import all_finite, lipschitz
+from rig.solvers.stepper import AdaptiveStepper
 from rig.solvers.unrolled import rk_kernels
 
 _A21 = 1 / 5
@@ -50,7 +49,7 @@ def _kernels(n: int):
                       (0.0, _C2, _C3, _C4, _C5, 1.0), (_E1, 0.0, _E3, _E4, _E5, _E6, _E7), n)
 
 
-class DormandPrince45(Stepper):
+class DormandPrince45(AdaptiveStepper):
     """Adaptive Dormand–Prince 5(4) with FSAL, local extrapolation and quartic dense output.
 
     ``rtol``, ``atol`` (scipy's RMS error norm), ``first_step`` (s; default Hairer's heuristic),
@@ -63,35 +62,16 @@ class DormandPrince45(Stepper):
     order = 5
     method, label, P, limit = "dp45", "DP45", P, 3.25
 
-    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
-                 atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf,
-                 stiffness: str = "warn", compiled: bool = True):
-        if not (rtol > 0 and atol >= 0):
-            raise ValueError(f"DormandPrince45: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
-        super().__init__(fun, t0, y0, t_bound, stiffness, compiled)
-        self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        if first_step is None or not first_step > 0:
-            h_abs = initial_step(fun, self.t, self.y, self.f, 4, rtol, atol, self.t_bound)
-            self.nfev += 1
-        else:
-            h_abs = min(first_step, self.t_bound - self.t)
-        self._start(h_abs, rtol, atol, max_step)
+    error_order = 4
 
     def _python_step(self) -> None:
         fun, t, y, k1 = self.fun, self.t, self.y, self.f
         rtol, atol = self.rtol, self.atol
         h_abs = min(self.h_abs, self.max_step)
-        min_step = self._min_step()
         stages, error_norm = _kernels(len(y))
         rejected = False
         while True:
-            if h_abs < min_step:
-                raise SolverDivergence(f"step size underflow (h = {h_abs:.3g} s)", t, y)
-            h = h_abs
-            t_new = t + h
-            if t_new >= self.t_bound:
-                t_new = self.t_bound
-                h = t_new - t
+            h, t_new = self._trial(h_abs)
             y_new, y6, k2, k3, k4, k5, k6 = stages(fun, t, y, k1, h)
             self.nfev += 5
             if not all_finite(y_new):

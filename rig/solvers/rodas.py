@@ -13,13 +13,12 @@ first stage).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
-from rig.solvers.base import Rhs, SolverDivergence
-from rig.solvers.stepper import Stepper, initial_step
+from rig.solvers.base import Rhs
+from rig.solvers.stepper import AdaptiveStepper
 
 GAMMA = 0.25
 A = np.zeros((6, 6))
@@ -65,7 +64,7 @@ def fd_jacobian(fun: Rhs, t: float, y: np.ndarray, f0: np.ndarray, rtol: float, 
     return jac, (np.asarray(fun(t + dt, tuple(y.tolist())), dtype=float) - f0) / dt
 
 
-class Rodas4(Stepper):
+class Rodas4(AdaptiveStepper):
     """Adaptive Rodas4 (see the module docstring): ``rtol``, ``atol`` (RMS norm of k_6/(atol + rtol·max(|y|,
     |y_new|))), ``first_step``, ``max_step`` (s); step factor 0.9·err^(−1/4) within [0.2, 6], no growth right
     after a rejection. Stable on any stiff decay: ``stiffness`` is accepted for interface compatibility and
@@ -74,19 +73,8 @@ class Rodas4(Stepper):
     order = 4
     method, label, P = "rodas4", "Rodas4", P
 
-    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
-                 atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf,
-                 stiffness: str = "ignore", compiled: bool = True):
-        if not (rtol > 0 and atol >= 0):
-            raise ValueError(f"Rodas4: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
-        super().__init__(fun, t0, y0, t_bound, stiffness, compiled)
-        self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        if first_step is None or not first_step > 0:
-            h_abs = initial_step(fun, self.t, self.y, self.f, 3, rtol, atol, self.t_bound)
-            self.nfev += 1
-        else:
-            h_abs = min(first_step, self.t_bound - self.t)
-        self._start(h_abs, rtol, atol, max_step)
+    error_order = 3
+    default_stiffness = "ignore"
 
     def _python_step(self) -> None:
         fun, t, rtol, atol = self.fun, self.t, self.rtol, self.atol
@@ -95,17 +83,10 @@ class Rodas4(Stepper):
         jac, ft = fd_jacobian(fun, t, y, f0, rtol, atol, self.h_abs)
         self.nfev += n + 1
         h_abs = min(self.h_abs, self.max_step)
-        min_step = self._min_step()
         k = np.zeros((6, n))
         rejected = False
         while True:
-            if h_abs < min_step:
-                raise SolverDivergence(f"Rodas4 step size underflow (h = {h_abs:.3g} s)", t, self.y)
-            h = h_abs
-            t_new = t + h
-            if t_new >= self.t_bound:
-                t_new = self.t_bound
-                h = t_new - t
+            h, t_new = self._trial(h_abs)
             lu = lu_factor(np.eye(n) / (h * GAMMA) - jac, check_finite=False)
             for s in range(6):
                 ys = y + A[s, :s] @ k[:s]

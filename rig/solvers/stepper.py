@@ -215,6 +215,39 @@ class Stepper(OdeSolver):
         return {"rtol": self.rtol, "atol": self.atol, "max_step": self.max_step}
 
 
+class AdaptiveStepper(Stepper):
+    """An error-controlled method: ``rtol``, ``atol`` (its error norm), ``first_step`` (s; default Hairer's heuristic
+    for an error estimator of order ``error_order``), ``max_step`` (s); ``stiffness`` defaults to the class's
+    ``default_stiffness``. Subclasses implement ``_python_step``."""
+
+    error_order: int = 4
+    default_stiffness: str = "warn"
+
+    def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
+                 atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf,
+                 stiffness: str | None = None, compiled: bool = True):
+        if not (rtol > 0 and atol >= 0):
+            raise ValueError(f"{type(self).__name__}: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
+        super().__init__(fun, t0, y0, t_bound, self.default_stiffness if stiffness is None else stiffness, compiled)
+        self.rtol, self.atol, self.max_step = rtol, atol, max_step
+        if first_step is None or not first_step > 0:
+            h_abs = initial_step(fun, self.t, self.y, self.f, self.error_order, rtol, atol, self.t_bound)
+            self.nfev += 1
+        else:
+            h_abs = min(first_step, self.t_bound - self.t)
+        self._start(h_abs, rtol, atol, max_step)
+
+    def _trial(self, h_abs: float) -> tuple[float, float]:
+        """(h, t_new) of a trial step of size ``h_abs`` from ``t``, cut to land on t_bound; a step-size underflow
+        raises :class:`SolverDivergence`."""
+        if h_abs < self._min_step():
+            raise SolverDivergence(f"{self.label} step size underflow (h = {h_abs:.3g} s)", self.t, self.y)
+        t_new = self.t + h_abs
+        if t_new >= self.t_bound:
+            return self.t_bound - self.t, self.t_bound
+        return h_abs, t_new
+
+
 class FixedStepper(Stepper):
     """A fixed-step method: step ``h`` (s), the last step shortened (or stretched by < 1e-6·h) to land on
     t_bound; no error control. ``first_step`` is accepted for interface compatibility and ignored. A step

@@ -10,7 +10,7 @@ from rig.solvers.compiled import ATOL, RTOL, T_BOUND
 from rig.solvers.rodas import A, C, D, GAMMA, MAX_FACTOR, MIN_FACTOR, SAFETY, SQRT_EPS, STAGE_T, P
 
 # <kernels>
-kernel = min_step = None  # bound in generated copies
+kernel = min_step = trial = None  # bound in generated copies
 UNDERFLOW = 1
 # </kernels>
 ADAPTIVE = True  # error-controlled: lands on the roots of plain restarts (runs.land)
@@ -77,11 +77,7 @@ def one_step(t, h_abs, w, y, y_new, K, p):
     while True:
         if h_abs < h_min:
             return UNDERFLOW, t, h_abs, h_abs, nfev, 0.0
-        h = h_abs
-        t_new = t + h
-        if t_new >= t_bound:
-            t_new = t_bound
-            h = t_new - t
+        h, t_new = trial(t, h_abs, t_bound)
         for i in range(n):
             for j in range(n):
                 W[i, j] = -J[i, j]

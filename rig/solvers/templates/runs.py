@@ -48,6 +48,15 @@ def fixed_step(t, h, t_bound):
 
 
 @njit(cache=True, error_model="numpy")
+def trial(t, h_abs, t_bound):
+    """(h, t_new) of an adaptive method's trial step of size h_abs from t, cut to land on t_bound."""
+    t_new = t + h_abs
+    if t_new >= t_bound:
+        return t_bound - t, t_bound
+    return h_abs, t_new
+
+
+@njit(cache=True, error_model="numpy")
 def min_step(t):
     """Smallest step size the time can resolve at t (10 ulp)."""
     return 10.0 * (np.nextafter(t, np.inf) - t)
