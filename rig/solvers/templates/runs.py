@@ -181,18 +181,19 @@ def same(a, b):
 
 @njit(cache=True, error_model="numpy")
 def land(t0, t_root, w, y0, K, yr, p):
-    """Redo a step from (t0, y0) as a step of the method itself ending on the root t_root, stages into K: the
+    """Redo a step from (t0, y0) as a step of the method itself ending on the root t_root, its stages into K: the
     state there then carries the step's controlled error, not the interpolant's (one order lower). Returns
-    (RHS calls, step size); step size 0 (and ``yr`` left as interpolated) if that step is refused (error test,
-    underflow) — K then holds the refused stages and the caller restores its own. Only for restarts that change
-    nothing in p: where an event switches the RHS (a new cam segment) the state must stay on the event surface
-    (g = 0 on the interpolant), or the new mode starts from a state on the old side."""
-    t_bound = w[T_BOUND]
+    (RHS calls, step size); if that step is refused (error test, underflow) step size 0, and ``yr`` (as
+    interpolated) and K are left as they were. Only for restarts that change nothing in p: where an event
+    switches the RHS (a new cam segment) the state must stay on the event surface (g = 0 on the interpolant), or
+    the new mode starts from a state on the old side."""
+    t_bound, saved = w[T_BOUND], K.copy()
     w[T_BOUND] = t_root
     y_new = np.empty(yr.size)
     status, t_end, h, _, nf, _ = one_step(t0, (t_root - t0) * (1.0 + 1e-9), w, y0, y_new, K, p)
     w[T_BOUND] = t_bound
     if status != 0 or t_end != t_root:
+        K[:] = saved
         return nf, 0.0
     yr[:] = y_new
     return nf, h
@@ -262,16 +263,13 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p):
         g_dense(t_root, TT[s], h, Y[s], Q, p, k_root, yr)
         if not act(t_root, yr, p, k_root, False):
             return s + 1
-        p_before = p.copy()
+        p_before = p.copy() if ADAPTIVE else p
         act(t_root, yr, p, k_root, True)
         if ADAPTIVE and same(p, p_before):          # a plain restart (the RHS continuous, its derivatives jump):
-            saved = KK[s].copy()                    # land on the root with a step of the method
-            nf, h_root = land(TT[s], t_root, w, Y[s], KK[s], yr, p)
+            nf, h_root = land(TT[s], t_root, w, Y[s], KK[s], yr, p)     # land on the root with a step
             nfev += nf
             if h_root > 0.0:
                 HH[s] = h_root
-            else:
-                KK[s] = saved
         Y[s + 1] = yr
         EV[ne, 0], EV[ne, 1] = t_root, k_root
         EV[ne, 2] = 1.0 if g_new[k_root] > g[k_root] else -1.0
