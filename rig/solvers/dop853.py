@@ -2,7 +2,7 @@
 compiled for a numba RHS, else a numpy step.
 
 The tableau, the combined 5th/3rd-order error estimate and the 7th-order dense output are scipy's
-(``scipy.integrate._ivp.dop853_coefficients``, the same as its ``DOP853``): 12 stages and f(t_new, y_new) per step,
+(:mod:`rig.solvers.dop853_tableau`, a copy of the coefficients of its ``DOP853``): 12 stages and f(t_new, y_new) per step,
 plus 3 stages for the continuous extension — 15 RHS calls per accepted step, against DP45's 6, for an error of
 order 8 instead of 5. Our stage rows: the 12 stages, the 3 extension stages, f(t_new, y_new) last (the next step's
 first stage, as every method of :mod:`rig.solvers.stepper` keeps it); the dense output in the common form
@@ -15,8 +15,8 @@ import math
 
 import numpy as np
 from numpy.polynomial import polynomial as poly
-from scipy.integrate._ivp import dop853_coefficients as _dc
 
+from rig.solvers import dop853_tableau as _dc
 from rig.solvers.base import all_finite, lipschitz
 from rig.solvers.stepper import AdaptiveStepper
 

@@ -248,3 +248,11 @@ def test_dop853_takes_scipys_steps(compiled):
                         atol=rtol, first_step=1e-3, dense_output=True)
         np.testing.assert_allclose(steps.t, ref.sol.ts, rtol=1e-8, atol=1e-15)          # norms round differently
         np.testing.assert_allclose(samples.y, ref.y, rtol=1e-10, atol=1e-12)
+
+
+def test_dop853_tableau_is_scipys():
+    """Our copy of the DOP853 coefficients equals scipy's (a private module: skipped when scipy moves it)."""
+    theirs = pytest.importorskip("scipy.integrate._ivp.dop853_coefficients")
+    from rig.solvers import dop853_tableau as ours
+    for name in ("C", "A", "B", "E3", "E5", "D"):
+        np.testing.assert_array_equal(getattr(ours, name), getattr(theirs, name), err_msg=name)
