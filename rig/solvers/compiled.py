@@ -65,6 +65,7 @@ class JitRhs:
 T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, NQ, H, NFEV, HL, NEV, FAIL = range(12)
 TEMPLATES = Path(__file__).with_name("templates")
 _KERNELS = re.compile(r"# <kernels>\n.*?# </kernels>\n", re.DOTALL)
+_INCLUDE = re.compile(r"^# <include (\w+)>\n", re.MULTILINE)     # a method template's shared part (templates/erk.py)
 _IMPORTING = threading.Lock()   # threads (e.g. Dask worker threads) must not see a half-executed module
 
 
@@ -94,15 +95,17 @@ def compiled_solver(method: str, kernel, event=None, act=None):
     Python driver then examines that last step as usual.
 
     Module-level njit functions only (``kernel.py_func`` importable by module and name). The shared part
-    (``templates/runs.py``) and the method's step are copied into one module in ``~/.cache/mechrig``
-    (``MECHRIG_CACHE``) with the kernels bound, and imported from there: numba then caches them like any
-    module.
+    (``templates/runs.py``) and the method's step (with the templates it includes) are copied into one module
+    in ``~/.cache/mechrig`` (``MECHRIG_CACHE``) with the kernels bound, and imported from there: numba then
+    caches them like any module.
     """
     names = [_import_path(f) for f in (kernel, event, act)]
     binding = "\n".join(f"from {mod} import {name} as {alias}" if mod
                         else f"{alias} = {'never' if alias == 'act' else 'None'}"
                         for (mod, name), alias in zip(names, ("kernel", "event", "act")))
-    step_source = _KERNELS.sub("", (TEMPLATES / f"{method}.py").read_text())
+    step_source = _INCLUDE.sub(lambda m: (TEMPLATES / f"{m[1]}.py").read_text(),
+                               (TEMPLATES / f"{method}.py").read_text())
+    step_source = _KERNELS.sub("", step_source)
     source = _KERNELS.sub(binding + "\n", (TEMPLATES / "runs.py").read_text())
     source = re.sub(r"# <method>\n.*?# </method>\n", lambda _: step_source, source, flags=re.DOTALL)
     # numba checks a cached function against its own file only: key the copy on everything it compiles in

@@ -75,44 +75,33 @@ class DOP853(AdaptiveStepper):
     method, label, P, limit = "dop853", "DOP853", P, 6.1
 
     error_order = 7
+    safety, min_factor, max_factor, exponent = SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT
 
     def _python_step(self) -> None:
-        fun, t, rtol, atol = self.fun, self.t, self.rtol, self.atol
+        fun, t = self.fun, self.t
         y = np.array(self.y)
-        n = y.size
-        K = np.zeros((16, n))
+        K = np.zeros((16, y.size))
         K[0] = self.f
-        h_abs = min(self.h_abs, self.max_step)
-        rejected = False
-        while True:
-            h, t_new = self._trial(h_abs)
+
+        def attempt(h: float, t_new: float) -> tuple[float, tuple]:
             for s in range(1, N_STAGES):
                 ys = y + h * (A[s, :s] @ K[:s])
                 K[s] = fun(t + C[s] * h, tuple(ys.tolist()))
             y_new = y + h * (B @ K[:N_STAGES])
             self.nfev += N_STAGES - 1
             if not all_finite(y_new):
-                h_abs *= MIN_FACTOR
-                continue
+                return math.nan, None
             K[15] = fun(t_new, tuple(y_new.tolist()))
             self.nfev += 1
-            err = error_norm(K, h, y, y_new, rtol, atol)
-            if not math.isfinite(err):
-                h_abs *= MIN_FACTOR
-                continue
-            if err < 1.0:
-                factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** EXPONENT)
-                if rejected:                     # no growth right after a rejection (as scipy)
-                    factor = min(1.0, factor)
-                break
-            h_abs *= max(MIN_FACTOR, SAFETY * err ** EXPONENT)
-            rejected = True
+            return error_norm(K, h, y, y_new, self.rtol, self.atol), (y_new, ys)
+
+        h, t_new, h_next, (y_new, ys) = self._adapt(attempt)
         for e in range(3):                       # the continuous extension's stages (from the earlier rows only)
             K[12 + e] = fun(t + C_EXT[e] * h, tuple((y + h * (A_EXT[e] @ K)).tolist()))
         self.nfev += 3
         new = tuple(y_new.tolist())
         self._accept(t_new, new, h, h * lipschitz(tuple(K[15]), tuple(K[11]), new, tuple(ys.tolist())),
-                     tuple(map(tuple, K.tolist())), h_abs * factor)
+                     tuple(map(tuple, K.tolist())), h_next)
 
 
 def error_norm(K: np.ndarray, h: float, y: np.ndarray, y_new: np.ndarray, rtol: float, atol: float) -> float:

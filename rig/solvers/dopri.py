@@ -31,7 +31,8 @@ P = np.array([
     [0, 127303824393 / 49829197408, -318862633887 / 49829197408, 701980252875 / 199316789632],
     [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
     [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423]])
-SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
+SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0       # the step-size controller (scipy's RK45)
+EXPONENT = -0.2                                       # error estimator of order 4: −1/(order + 1)
 # the tableau as arrays, for the compiled step (rig.solvers.compiled): A[s, j], B, C, E (incl. FSAL stage)
 A = np.zeros((6, 6))
 for _s, _row in enumerate(((_A21,), (_A31, _A32), (_A41, _A42, _A43), (_A51, _A52, _A53, _A54),
@@ -63,32 +64,21 @@ class DormandPrince45(AdaptiveStepper):
     method, label, P, limit = "dp45", "DP45", P, 3.25
 
     error_order = 4
+    safety, min_factor, max_factor, exponent = SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT
 
     def _python_step(self) -> None:
         fun, t, y, k1 = self.fun, self.t, self.y, self.f
-        rtol, atol = self.rtol, self.atol
-        h_abs = min(self.h_abs, self.max_step)
         stages, error_norm = _kernels(len(y))
-        rejected = False
-        while True:
-            h, t_new = self._trial(h_abs)
+
+        def attempt(h: float, t_new: float) -> tuple[float, tuple]:
             y_new, y6, k2, k3, k4, k5, k6 = stages(fun, t, y, k1, h)
             self.nfev += 5
             if not all_finite(y_new):
-                h_abs *= MIN_FACTOR
-                continue
+                return math.nan, None
             k7 = tuple(fun(t_new, y_new))
             self.nfev += 1
-            err_norm = error_norm(y, y_new, k1, k2, k3, k4, k5, k6, k7, h, rtol, atol)
-            if not math.isfinite(err_norm):
-                h_abs *= MIN_FACTOR
-                continue
-            if err_norm < 1.0:
-                factor = MAX_FACTOR if err_norm == 0 else min(MAX_FACTOR, SAFETY * err_norm ** -0.2)
-                if rejected:                     # no growth right after a rejection (as scipy)
-                    factor = min(1.0, factor)
-                break
-            h_abs *= max(MIN_FACTOR, SAFETY * err_norm ** -0.2)
-            rejected = True
-        self._accept(t_new, y_new, h, h * lipschitz(k7, k6, y_new, y6), (k1, k2, k3, k4, k5, k6, k7),
-                     h_abs * factor)
+            return (error_norm(y, y_new, k1, k2, k3, k4, k5, k6, k7, h, self.rtol, self.atol),
+                    (y_new, y6, (k1, k2, k3, k4, k5, k6, k7)))
+
+        h, t_new, h_next, (y_new, y6, K) = self._adapt(attempt)
+        self._accept(t_new, y_new, h, h * lipschitz(K[6], K[5], y_new, y6), K, h_next)

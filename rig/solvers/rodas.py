@@ -46,6 +46,7 @@ P[1:7, 0] = _B + H_DENSE[0]
 P[1:7, 1] = H_DENSE[1] - H_DENSE[0]
 P[1:7, 2] = -H_DENSE[1]
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 6.0
+EXPONENT = -0.25                         # error estimator of order 3: −1/(order + 1)
 SQRT_EPS = math.sqrt(np.finfo(float).eps)
 
 
@@ -74,6 +75,7 @@ class Rodas4(AdaptiveStepper):
     method, label, P = "rodas4", "Rodas4", P
 
     error_order = 3
+    safety, min_factor, max_factor, exponent, accept_one = SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT, True
     default_stiffness = "ignore"
 
     def _python_step(self) -> None:
@@ -82,11 +84,9 @@ class Rodas4(AdaptiveStepper):
         n = y.size
         jac, ft = fd_jacobian(fun, t, y, f0, rtol, atol, self.h_abs)
         self.nfev += n + 1
-        h_abs = min(self.h_abs, self.max_step)
         k = np.zeros((6, n))
-        rejected = False
-        while True:
-            h, t_new = self._trial(h_abs)
+
+        def attempt(h: float, t_new: float) -> tuple[float, np.ndarray]:
             lu = lu_factor(np.eye(n) / (h * GAMMA) - jac, check_finite=False)
             for s in range(6):
                 ys = y + A[s, :s] @ k[:s]
@@ -94,19 +94,10 @@ class Rodas4(AdaptiveStepper):
                 k[s] = lu_solve(lu, fs + C[s, :s] @ k[:s] / h + h * D[s] * ft, check_finite=False)
             self.nfev += 5
             y_new = ys + k[5]
-            err = float(np.sqrt(np.mean((k[5] / (atol + rtol * np.maximum(np.abs(y), np.abs(y_new)))) ** 2)))
-            if not math.isfinite(err):
-                h_abs *= MIN_FACTOR
-                rejected = True
-                continue
-            if err <= 1.0:
-                factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.25)
-                if rejected:
-                    factor = min(1.0, factor)
-                break
-            h_abs *= max(MIN_FACTOR, SAFETY * err ** -0.25)
-            rejected = True
+            return float(np.sqrt(np.mean((k[5] / (atol + rtol * np.maximum(np.abs(y), np.abs(y_new)))) ** 2))), y_new
+
+        h, t_new, h_next, y_new = self._adapt(attempt)
         new = tuple(y_new.tolist())
         f_new = tuple(fun(t_new, new))
         self.nfev += 1
-        self._accept(t_new, new, h, 0.0, (self.f, *map(tuple, (k / h).tolist()), f_new), h_abs * factor)
+        self._accept(t_new, new, h, 0.0, (self.f, *map(tuple, (k / h).tolist()), f_new), h_next)

@@ -11,12 +11,14 @@ floats, or numpy for the implicit method) takes the same steps.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessError, StiffnessMonitor, all_finite, lipschitz
 from rig.solvers.amplification import Amplification
+from rig.solvers.control import step_factor
 from rig.solvers.compiled import FAIL, H, H_ABS, HL, NEV, NFEV, T, JitRhs, compiled_solver
 from rig.solvers.dense import PolynomialDense, StepsDense
 
@@ -222,6 +224,13 @@ class AdaptiveStepper(Stepper):
 
     error_order: int = 4
     default_stiffness: str = "warn"
+    #: the step-size controller (:func:`~rig.solvers.control.step_factor`), set by each method: safety factor,
+    #: bounds of the factor on |h|, exponent −1/(error_order + 1); whether an error norm of exactly 1 is accepted
+    safety: float
+    min_factor: float
+    max_factor: float
+    exponent: float
+    accept_one: bool = False
 
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
                  atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf,
@@ -246,6 +255,28 @@ class AdaptiveStepper(Stepper):
         if t_new >= self.t_bound:
             return self.t_bound - self.t, self.t_bound
         return h_abs, t_new
+
+    def _adapt(self, attempt: Callable[[float, float], tuple[float, Any]]) -> tuple[float, float, float, Any]:
+        """Trial steps until one is accepted: ``attempt(h, t_new)`` returns the trial's error norm (NaN or inf
+        when its state is not finite) and what the caller keeps of it; returns (h, t_new, next |h|, that).
+        A rejected or non-finite trial shrinks |h| (a non-finite one by ``min_factor``); no growth right after a
+        rejection (as scipy)."""
+        h_abs = min(self.h_abs, self.max_step)
+        rejected = False
+        while True:
+            h, t_new = self._trial(h_abs)
+            err, kept = attempt(h, t_new)
+            if not math.isfinite(err):
+                h_abs *= self.min_factor
+                rejected = True
+                continue
+            accepted = err <= 1.0 if self.accept_one else err < 1.0
+            factor = step_factor(err, accepted, rejected, self.exponent, self.safety, self.min_factor,
+                                 self.max_factor)
+            if accepted:
+                return h, t_new, h_abs * factor, kept
+            h_abs *= factor
+            rejected = True
 
 
 class FixedStepper(Stepper):

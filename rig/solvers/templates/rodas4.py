@@ -7,7 +7,8 @@ import numpy as np
 from numba import njit
 
 from rig.solvers.compiled import ATOL, RTOL, T_BOUND
-from rig.solvers.rodas import A, C, D, GAMMA, MAX_FACTOR, MIN_FACTOR, SAFETY, SQRT_EPS, STAGE_T, P
+from rig.solvers.control import step_factor
+from rig.solvers.rodas import A, C, D, EXPONENT, GAMMA, MAX_FACTOR, MIN_FACTOR, SAFETY, SQRT_EPS, STAGE_T, P
 
 # <kernels>
 kernel = min_step = trial = None  # bound in generated copies
@@ -110,12 +111,10 @@ def one_step(t, h_abs, w, y, y_new, K, p):
             h_abs *= MIN_FACTOR
             rejected = True
             continue
+        factor = step_factor(err, err <= 1.0, rejected, EXPONENT, SAFETY, MIN_FACTOR, MAX_FACTOR)
         if err <= 1.0:
-            factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.25)
-            if rejected:
-                factor = min(1.0, factor)
             break
-        h_abs *= max(MIN_FACTOR, SAFETY * err ** -0.25)
+        h_abs *= factor
         rejected = True
     for s in range(1, 7):
         for i in range(n):
