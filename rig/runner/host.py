@@ -155,11 +155,14 @@ class Host:
 
     def _advance_theory(self, until: float) -> None:
         """Run the theory model on the machine's sample grid, in fixed blocks, until it covers ``until`` (s);
-        record it and its events."""
-        dt, n = self.cfg.dt, self._block_n
+        record it and its events. A run of a stated duration ends its last block there (nothing past the run is
+        computed or recorded)."""
+        dt, n, end = self.cfg.dt, self._block_n, self.cfg.duration
         keep = self.cfg.recording["truth_signals"]
-        while self.truth_t < until - 1e-12:
+        while self.truth_t < until - 1e-12 and (end is None or self.truth_t < end - 0.5 * dt):
             t = (self._blocks * n + 1 + np.arange(n)) * dt
+            if end is not None:
+                t = t[t <= end + 0.5 * dt]
             self._blocks += 1
             truth = self.theory.advance(t)
             signals = {k: np.asarray(v, dtype=float) for k, v in truth.items()

@@ -107,3 +107,13 @@ def test_report_table_states_references(runs, tmp_path):
     text = out.read_text()
     assert "| shock at 0.1 s: overshoot | n/a | a shock is a pulse" in text
     assert "relative to / definition" in text and not re.search(r"\b774\.2\b", text)    # the old shock "overshoot"
+
+
+def test_truth_and_events_end_with_the_run(runs):
+    """The plant truth (computed by the host in fixed blocks) stops at the scene's duration, not at the end of
+    the last block: nothing past the run is recorded."""
+    for name, (_, rec) in runs.items():
+        duration = load_scene(SCENES / f"{name}.toml").section("scene")["duration"]
+        end = float(str(duration).split()[0])
+        assert rec.truth["t"][-1] == pytest.approx(end, abs=1e-9), name
+        assert rec.events and max(ev["t"] for ev in rec.events) <= end + 1e-9, name
