@@ -205,9 +205,10 @@ def cam_follower_sheet(lab: Lab) -> Sheet:
                                                  (d2, m.s_pp, "s'' (mm/rad²)", 1e3)):
             line, = ax.plot(np.degrees(fine), scale * law_values, lw=0.9, label=f"law {label}")
             ax.plot(deg[order], scale * values[order], "o", ms=3, color=line.get_color(), label=f"measured {label}")
-        ax.set(xlabel="cam angle (deg)", ylabel="mm, mm/rad, mm/rad²", title="Cam follower: position every 10°")
+        ax.set(xlabel="cam angle (°)", ylabel="s (mm), s' (mm/rad), s'' (mm/rad²)",
+               title="Cam follower: position every 10°")
 
-    return Sheet("Cam follower", ["cam angle (deg)", "s measured (mm)", "s law (mm)", "difference (µm)",
+    return Sheet("Cam follower", ["cam angle (°)", "s measured (mm)", "s law (mm)", "difference (µm)",
                                   "ds/dφ numerical (mm/rad)", "ds/dφ law (mm/rad)", "d²s/dφ² numerical (mm/rad²)",
                                   "d²s/dφ² law (mm/rad²)"], rows, result,
                  ["Central differences at h = 10°: the truncation error of s'' is h²/12·s'''' — see the law "
@@ -225,7 +226,7 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
     angle, measured = angle[whole], torque["torque"][inside][whole]
     bins = np.floor((angle % tau) / STEP).astype(int)
     theory_at = lambda p: np.interp(p, truth["phi_in"], truth["torque"])      # noqa: E731
-    rows, dev = [], []
+    rows, dev, means = [], [], []
     for k in range(36):
         here = bins == k
         if not here.any():
@@ -233,6 +234,7 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
         mean = float(np.mean(measured[here]))
         theory = float(np.mean(theory_at(angle[here])))
         dev.append(mean - theory)
+        means.append((10 * k + 5, mean))
         rows.append([f"{10 * k}–{10 * k + 10}", fmt(mean), fmt(theory), f"{mean - theory:+.4f}", int(here.sum())])
     turns = np.floor((angle[-1] - angle[0]) / tau)
     span = angle <= angle[0] + turns * tau                          # whole turns only
@@ -242,12 +244,16 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
               f"of the {peak:.3g} N·m peak); work per turn ∮M dφ = {work / max(turns, 1e-9):.4f} J (0 for spring and mass)")
 
     def draw(ax: Any) -> None:
-        ax.plot(np.degrees(angle % tau), measured, ".", ms=1, color="0.6", label="measured")
         fine = np.linspace(angle[0], angle[0] + tau, 721)
-        ax.plot(np.degrees(fine % tau), theory_at(fine), ".", ms=1.5, color="tab:red", label="theory M = F·ds/dφ + J·ω̇")
-        ax.set(xlabel="cam angle (deg)", ylabel="torque (N·m)", title="Cam-shaft torque")
+        order = np.argsort(fine % tau)
+        ax.plot(np.degrees(fine % tau)[order], theory_at(fine)[order], "-", lw=1.2, color="tab:red",
+                label="theory M = F·ds/dφ + J·ω̇", zorder=1)
+        ax.plot(np.degrees(angle % tau), measured, ".", ms=1, color="0.3", alpha=0.5, label="measured", zorder=2)
+        ax.plot(*zip(*means), "s", ms=3.5, mfc="none", color="k", label="measured, 10° means",
+                zorder=3)
+        ax.set(xlabel="cam angle (°)", ylabel="torque (N·m)", title="Cam-shaft torque")
 
-    return Sheet("Cam-shaft torque", ["cam angle (deg)", "measured mean (N·m)", "theory (N·m)",
+    return Sheet("Cam-shaft torque", ["cam angle (°)", "measured mean (N·m)", "theory (N·m)",
                                       "difference (N·m)", "readings"], rows, result,
                  ["The torque shaft is elastic: its 1 kHz bandwidth and the reading rate set how fast a torque "
                   "change is seen."], draw,
@@ -279,13 +285,23 @@ def cardan_sheet(lab: Lab) -> Sheet:
         ax.plot(np.degrees(grid[1:-1]) % 360, ratio, "o", ms=3, label="measured (two encoders, 36 points)")
         ax.axhline(cos(a), ls=":", color="0.5")
         ax.axhline(1 / cos(a), ls=":", color="0.5")
-        ax.set(xlabel="input angle φ1 (deg)", ylabel="ω2/ω1", title=f"Cardan joint at α = {np.degrees(a):.3g}°")
+        ax.set(xlabel="input angle φ1 (°)", ylabel="ω2/ω1", title=f"Cardan joint at α = {np.degrees(a):.3g}°")
 
-    return Sheet("Cardan joint", ["φ1 (deg)", "φ2 − φ1 measured (deg)", "φ2 − φ1 theory (deg)",
+    return Sheet("Cardan joint", ["φ1 (°)", "φ2 − φ1 measured (°)", "φ2 − φ1 theory (°)",
                                   "ω2/ω1 measured", "ω2/ω1 theory", "error"], rows, result,
                  ["ω2/ω1 by central differences of the output angle over ±10° of input angle."], draw,
                  {"ratio_min": float(ratio.min()), "ratio_max": float(ratio.max()), "ratio_mean": float(mean),
                   "lag_error_max": float(np.max(np.abs(lag - lag_theory)))})
+
+
+def _counted(t: np.ndarray, edge: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """An encoder's angle at times ``t`` from its count changes (``edge`` s, ``angle`` rad): interpolated between
+    readings that follow each other at the reading rate (a moving shaft), the last count held across a longer
+    gap (a shaft at rest, e.g. a Geneva wheel in its dwell, does not creep between its last and next count)."""
+    i = np.clip(np.searchsorted(edge, t, side="right") - 1, 0, edge.size - 2)
+    gap = edge[i + 1] - edge[i]
+    moving = gap <= 2.0 * np.median(np.diff(edge))
+    return np.where(moving & (t >= edge[i]), np.interp(t, edge, angle), angle[i])
 
 
 def geneva_sheet(lab: Lab) -> Sheet:
@@ -294,7 +310,7 @@ def geneva_sheet(lab: Lab) -> Sheet:
     t1, phi1 = lab.angle("/stand/encoder1")
     t2, phi2 = lab.angle("/stand/encoder2", "phi_out")
     grid = _last_turn(t1, phi1, start=np.pi)[1:-1]              # from the middle of a dwell
-    wheel = np.interp(np.interp(grid, phi1, t1), t2, phi2)
+    wheel = _counted(np.interp(grid, phi1, t1), t2, phi2)
     theory = np.interp(grid, truth["phi_in"], truth["phi_out"])
     rows = [[f"{(np.degrees(p) + 180) % 360 - 180:.0f}", f"{np.degrees(a - wheel[0]):.2f}", f"{np.degrees(b - theory[0]):.2f}",
              f"{np.degrees(a - b):+.3f}"] for p, a, b in zip(grid, wheel, theory)]
@@ -316,10 +332,10 @@ def geneva_sheet(lab: Lab) -> Sheet:
         crank = np.degrees(grid - grid[0]) - 180.0
         ax.plot(crank, np.degrees(theory - theory[0]), "-", lw=0.9, label="theory")
         ax.plot(crank, np.degrees(wheel - wheel[0]), "o", ms=3, label="measured (wheel encoder)")
-        ax.set(xlabel="crank angle from the centre line (deg)", ylabel="wheel angle (deg)", title=f"Geneva drive, z = {geneva.slots}")
+        ax.set(xlabel="crank angle from the centre line (°)", ylabel="wheel angle (°)", title=f"Geneva drive, z = {geneva.slots}")
 
-    return Sheet("Geneva drive", ["crank angle from the centre line (deg)", "wheel measured (deg)", "wheel theory (deg)",
-                                  "difference (deg)"], rows, result,
+    return Sheet("Geneva drive", ["crank angle from the centre line (°)", "wheel measured (°)", "wheel theory (°)",
+                                  "difference (°)"], rows, result,
                  [f"Motion time: from the first to the last count change of the wheel encoder "
                   f"({tau / count:.0f} counts per turn) in each index, averaged over {len(motion)} indexings; the wheel "
                   "enters and leaves its motion tangentially (zero speed), so a counting encoder sees it start "

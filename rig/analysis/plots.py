@@ -40,12 +40,13 @@ def figure(nrows: int = 1, ncols: int = 1, size: tuple[float, float] = (7, 4.5),
 
 
 def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3, bottom: float | None = None,
-         left: float | None = None) -> Path:
-    """Place the axes with :data:`MARGINS` (``bottom``/``left``: other margins in inches; spacing as fractions
-    of an axes) and write the PNG."""
+         left: float | None = None, right: float | None = None) -> Path:
+    """Place the axes with :data:`MARGINS` (``bottom``/``left``/``right``: other margins in inches, e.g. for a
+    legend beside the axes; spacing as fractions of an axes) and write the PNG."""
     w, h = fig.get_size_inches()
-    m_left, right, m_bottom, top = MARGINS
+    m_left, m_right, m_bottom, top = MARGINS
     left, bottom = m_left if left is None else left, m_bottom if bottom is None else bottom
+    right = m_right if right is None else right
     fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
                         wspace=wspace, hspace=hspace)
     fig.savefig(path, dpi=DPI)
@@ -307,7 +308,7 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
     shown = {n: np.asarray(data[n])[keep] for n in names}
     tt = t[keep]
     groups = truth_groups(shown, names, units)
-    fig, axs = figure(len(groups), 1, size=(8.5, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
+    fig, axs = figure(len(groups), 1, size=(9.5, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
     for ax, (u, quantity, members) in zip(axs[:, 0], groups):
         for n in members:
             ax.plot(*envelope(tt, u(shown[n])), lw=0.9, label=n)
@@ -319,11 +320,11 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
         ax.yaxis.set_major_locator(MaxNLocator(4))
         ax.tick_params(labelsize=8)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right", ncols=min(4, len(members)), framealpha=0.85)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
     axs[-1, 0].set_xlabel(units.of("s").axis("time"))
     axs[-1, 0].xaxis.set_major_locator(MaxNLocator(8))
     axs[0, 0].set_title(title, loc="left", fontsize=10)
-    return save(fig, path, hspace=0.12, left=1.0)
+    return save(fig, path, hspace=0.12, left=1.0, right=1.3)      # legends beside the axes: no data hidden
 
 
 def _f(v: float | None) -> str:

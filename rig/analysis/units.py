@@ -5,10 +5,11 @@ Everything is recorded and computed in SI (m, N, rad, N·m, s). What is *shown* 
 1. a device channel (X, Y, Y2) is shown in the unit the scene writes that channel's values in: the most
    frequent unit among the quantities of its ``[device.config]`` (control values, elements, limits) that
    convert to the channel's engineering unit (``x_max = "43 mm"`` → X in mm; ties: the first written);
-2. a channel the scene writes no value for, and every other quantity, falls back to :data:`DEFAULTS` by
-   dimension — lengths in the unit of a length channel if there is one, else mm; forces in N (or the
-   force channel's unit); angles in °; torques in N·m; speeds in rpm; times in s — and to its SI unit
-   when the dimension is not listed.
+2. every other quantity is shown in the unit of a channel of its kind if there is one (lengths as the length
+   channel), else in the unit the whole scene writes quantities of its kind in most often (a clutch scene
+   writing ``omega0 = "110.5 rad/s"`` shows speeds in rad/s; times always in s), else in :data:`DEFAULTS` by
+   dimension — mm,
+   N, °, N·m, rpm, s — and in its SI unit when the dimension is not listed.
 
 :class:`Unit` converts (``unit(si_values)``) and labels (``label`` for people, ``ascii`` for CSV headers).
 """
@@ -40,7 +41,8 @@ SIGNAL_SI = {
     "s": "m", "x_gripper": "m", "r": "m", "delta_w": "m", "delta_o": "m", "v": "m/s", "a": "m/s^2",
     "F_rod": "N", "rod_tension": "N", "R23": "N", "F_c": "N", "F_a": "N", "N_B": "N", "force": "N",
     "M23": "N*m", "M_e": "N*m", "M_sigma": "N*m", "drive_torque": "N*m", "M1": "N*m", "M3": "N*m",
-    "M_t": "N*m", "T_c": "N*m", "T_in": "N*m", "T_out": "N*m", "torque": "N*m",
+    "M_t": "N*m", "T_c": "N*m", "T_in": "N*m", "T_out": "N*m", "torque": "N*m", "shaft_torque": "N*m",
+    "motor_speed": "rad/s", "relative_angle": "rad", "lever_force": "N", "leaf_strain": "1",
 }
 QUANTITY = {"m": "length", "N": "force", "rad": "angle", "N*m": "torque", "s": "time", "rad/s": "angular speed",
             "rad/s^2": "angular acceleration", "m/s": "speed", "m/s^2": "acceleration", "1": "number"}
@@ -154,12 +156,19 @@ class DisplayUnits:
 
     channels: dict[str, Unit] = field(default_factory=dict)
     axes: dict[str, str] = field(default_factory=dict)
+    scene: Mapping | None = None          # the scene's whole table: the units it writes (rule 2)
 
     def of(self, si: str) -> Unit:
-        """Display unit of any SI unit: that of a channel of the same kind, else the default."""
+        """Display unit of any SI unit: that of a channel of the same kind, else the scene's, else the default."""
         for u in self.channels.values():
             if u.si == si or same_kind(u.si, si):
                 return u if u.si == si else unit(si, _pint_text(u))
+        written = written_units(self.scene, si) if si != "s" else None     # times stay in s (durations in ms)
+        if written is not None:
+            try:
+                return unit(si, written)
+            except Exception:  # a unit pint reads but cannot convert to (offset units…): the default
+                pass
         return unit(si)
 
     def channel(self, ch: str) -> Unit:
@@ -192,9 +201,11 @@ def _axis_of_name(name: str) -> str:
     return "y2" if base.startswith("y2") else base[:1]
 
 
-def display_units(program: Mapping | None, scene_config: Mapping | None = None) -> DisplayUnits:
+def display_units(program: Mapping | None, scene_config: Mapping | None = None,
+                  scene: Mapping | None = None) -> DisplayUnits:
     """Display units of a program (normalised, as the device returns it: ``channels.<ch>.unit`` and
-    ``elements``) written by ``scene_config`` (the scene's raw ``[device.config]``, for rule 1)."""
+    ``elements``) written by ``scene_config`` (the scene's raw ``[device.config]``, for rule 1) in ``scene``
+    (the whole raw scene, for rule 2)."""
     program = program or {}
     channels = {ch: c.get("unit") for ch, c in (program.get("channels") or {}).items()
                 if isinstance(c, Mapping) and c.get("enabled", True) and c.get("unit")}
@@ -205,7 +216,7 @@ def display_units(program: Mapping | None, scene_config: Mapping | None = None) 
             shown[ch] = unit(si, written_units(scene_config, si))
         except Exception:  # an engineering unit pint cannot read: show it as it is
             shown[ch] = Unit(si, si, 1.0, si)
-    return DisplayUnits(shown, _axes(program, set(channels)))
+    return DisplayUnits(shown, _axes(program, set(channels)), scene)
 
 
 def _axes(program: Mapping, channels: set[str]) -> dict[str, str]:
@@ -217,19 +228,21 @@ def _axes(program: Mapping, channels: set[str]) -> dict[str, str]:
         return {}
 
 
-def scene_device_config(scene_text: str | None) -> tuple[int | None, Mapping | None]:
-    """(program number, raw ``[device.config]``) of a scene's text; (None, None) when it has none."""
+def scene_device_config(scene_text: str | None) -> tuple[int | None, Mapping | None, Mapping | None]:
+    """(program number, raw ``[device.config]``, the whole raw scene) of a scene's text; Nones where it has
+    none."""
     if not scene_text:
-        return None, None
+        return None, None, None
     try:
-        device = tomllib.loads(scene_text).get("device") or {}
-    except (tomllib.TOMLDecodeError, AttributeError):
-        return None, None
+        scene = tomllib.loads(scene_text)
+    except tomllib.TOMLDecodeError:
+        return None, None, None
+    device = scene.get("device") if isinstance(scene.get("device"), Mapping) else {}
     config = device.get("config")
-    return device.get("program"), config if isinstance(config, Mapping) else None
+    return device.get("program"), config if isinstance(config, Mapping) else None, scene
 
 
 def recording_units(rec: Any, program: int) -> DisplayUnits:
     """Display units of ``program`` in a recording (its program attachment and the scene that wrote it)."""
-    number, config = scene_device_config(getattr(rec, "scene_text", None))
-    return display_units(rec.programs.get(program), config if number == program else None)
+    number, config, scene = scene_device_config(getattr(rec, "scene_text", None))
+    return display_units(rec.programs.get(program), config if number == program else None, scene)

@@ -111,6 +111,8 @@ def test_geneva_lab_motion_ratio(tmp_path_factory):
     assert v["k_m_theory"] == pytest.approx(3 / 10) == Geneva(5, 0.05).timing(1.0).motion_ratio
     assert v["k_m_one_count"] <= v["k_m"] <= v["k_m_theory"] and v["indexings"] >= 5
     assert v["angle_error_max"] < 4 * tau / 4096
+    dwell = [r for r in sheets["Geneva drive"].rows if -180 <= int(r[0]) <= -60]     # the wheel locked
+    assert len(dwell) == 13 and len({r[1] for r in dwell}) == 1          # its count held: no creep across the dwell
 
 
 @pytest.fixture(scope="module")
