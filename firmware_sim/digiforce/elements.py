@@ -148,7 +148,8 @@ class _Region(Element):
             return f"{tag}: {who} never {'enters' if entering else 'leaves'} the {kind}", None
         if n > 1:
             at = "; ".join(self._pt(px, py) for px, py in points[:3]) + ("; …" if n > 3 else "")
-            return f"{tag}: {who} {past} the {kind} {n} times (exactly once allowed), at {at}", first
+            again = (float(points[1, 0]), float(points[1, 1]))         # where it failed: the first crossing too many
+            return f"{tag}: {who} {past} the {kind} {n} times (exactly once allowed), at {at}", again
         if rule != "any" and not sides[0][SIDES.index(rule)]:
             used = "/".join(side for side, hit in zip(SIDES, sides[0]) if hit)
             return f"{tag}: {past} through the {used} side at {self._pt(*first)}, not through the {rule}", first

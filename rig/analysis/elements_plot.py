@@ -37,7 +37,7 @@ class Style:
 
     @property
     def lw(self) -> float:
-        return 2.6 if self.failed is not None else 1.2
+        return 1.8 if self.failed is not None else 1.2      # thick enough to stand out, thin enough to see a curve on it
 
     def label(self, e: Mapping) -> str:
         name = str(e.get("name", e.get("kind")))
@@ -90,7 +90,7 @@ def _threshold(ax: Axes, e: Mapping, style: Style) -> None:
     axis, value = e["axis"], float(e["value"])
     lo, hi = e.get("range") or (None, None)
     color = style.color("tab:purple")
-    line = dict(color=color, ls=":" if style.failed is None else "--", lw=1.5 if style.failed is None else 2.4)
+    line = dict(color=color, ls=":" if style.failed is None else "--", lw=1.5 if style.failed is None else 1.8)
     if axis == "x":
         value *= style.sx
         y0, y1 = (lim if v is None else v * style.sy for v, lim in zip((lo, hi), ax.get_ylim()))

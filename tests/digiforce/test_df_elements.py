@@ -80,6 +80,8 @@ def test_entering_twice_fails():
     ok, reason, _ = run(WIN | {"entry": "any", "exit": "any"}, x, y)
     assert not ok and reason.startswith("entry any: the curve entered the window 2 times (exactly once allowed), "
                                         "at x = 1, y = 1.5; x = 1.5, y = 2")
+    check = MAKE(WIN | {"entry": "any", "exit": "any"}).check(np.asarray(x, float), np.asarray(y, float))
+    assert check.at == (1.5, 2.0)         # marked where it failed: the second entry, not the allowed first one
 
 
 def test_block_window_exit_none_requires_ending_inside():
