@@ -51,11 +51,15 @@ def _print_values(st: dict) -> None:
     print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  "
           f"{'-3s..+3s':>21}  Cp    Cpk   normal drift")
     for name, pv in st.get("values", {}).items():
-        cap = (f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv.get("cp") is not None and pv.get("cpk") is not None
-               else "  -     -  ")
+        if pv.get("cp") is None or pv.get("cpk") is None:
+            cap = "  -     -  "
+        else:
+            cap = f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv["std"] > 0 else " n/a   n/a "    # σ = 0: no spread
+        drift = pv["trend"].get("drift")
+        drift = f"yes: {'; '.join(pv['trend'].get('drift_why') or [])}" if drift else "no" if drift is False else "-"
         print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>5}  {pv['mean']:10.4g} {pv['std']:9.3g} "
               f"{pv['min']:10.4g} {pv['max']:10.4g}  {pv['minus_3sigma']:10.4g}..{pv['plus_3sigma']:<10.4g} {cap}  "
-              f"{str(pv['normality'].get('normal', '-')):6} {pv['trend'].get('drift', '-')}")
+              f"{str(pv['normality'].get('normal', '-')):6} {drift}")
 
 
 NOK_LINES = 5     # NOK curves whose reasons the console summary prints

@@ -7,6 +7,9 @@ import numpy as np
 from scipy import stats
 
 
+ANDERSON_P = (0.01, 0.15)      # the range of the tabulated Anderson–Darling p-values (bounds outside it)
+
+
 def _anderson_p(v: np.ndarray) -> tuple[float, float]:
     """Anderson–Darling A² and its p-value (tabulated, clipped by scipy to 0.01…0.15)."""
     try:

@@ -214,14 +214,29 @@ def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
     """Histogram of one process value (SI ``values``; ``stats`` in display units with its ``factor``) with
     its limits (red), mean (black) and mean ± 3σ (dashed)."""
     v = values[np.isfinite(values)] * stats.get("factor", 1.0)
-    ax.hist(v, bins=max(5, min(40, int(np.sqrt(v.size)) + 1)), color="tab:blue", alpha=0.7)
+    bins = max(5, min(40, int(np.sqrt(v.size)) + 1))
+    spread = v.size > 0 and np.ptp(v) > 0
+    if v.size and not spread:                     # one value repeated: a narrow bar at it, not a made-up width
+        limits = [stats[k] for k in ("lsl", "usl") if stats.get(k) is not None]
+        half = max([abs(v[0] - lim) * 1.2 for lim in limits] + [abs(v[0]) * 1e-3, 1e-12])
+        ax.hist(v, bins=41, range=(v[0] - half, v[0] + half), color="tab:blue", alpha=0.7)
+    else:
+        ax.hist(v, bins=bins, color="tab:blue", alpha=0.7)
     for key, style in (("lsl", "r-"), ("usl", "r-"), ("minus_3sigma", "k--"), ("plus_3sigma", "k--"),
                        ("mean", "k-")):
         if stats.get(key) is not None:
             ax.axvline(stats[key], color=style[0], ls=style[1:], lw=1.2 if style[0] == "r" else 1)
+    for key, name in (("lsl", "LSL"), ("usl", "USL")):              # the limits' values, named on their lines
+        if stats.get(key) is not None:
+            ax.text(stats[key], 1.0, f"{name} {stats[key]:.4g}", transform=ax.get_xaxis_transform(), fontsize=7,
+                    color="r", ha="right" if key == "lsl" else "left", va="top", rotation=90, clip_on=False)
     unit = f" ({stats['unit']})" if stats.get("unit") else ""
-    cap = f", Cp {_f(stats['cp'])}, Cpk {_f(stats['cpk'])}" if stats.get("cp") is not None or \
-        stats.get("cpk") is not None else ""
+    if not spread and (stats.get("cp") is not None or stats.get("cpk") is not None):
+        cap = ", Cp/Cpk n/a (no spread)"
+    elif stats.get("cp") is not None or stats.get("cpk") is not None:
+        cap = f", Cp {_f(stats['cp'], 4)}, Cpk {_f(stats['cpk'], 4)}"
+    else:
+        cap = ""
     ax.set_title(f"{stats['name']}: n = {stats['n']}{cap}", fontsize=9, loc="left")
     ax.set_xlabel(f"{stats['name']}{unit}", fontsize=9)
     ax.xaxis.set_major_locator(MaxNLocator(4))
@@ -327,5 +342,5 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
     return save(fig, path, hspace=0.12, left=1.0, right=1.3)      # legends beside the axes: no data hidden
 
 
-def _f(v: float | None) -> str:
-    return "—" if v is None else f"{v:.3g}"
+def _f(v: float | None, digits: int = 3) -> str:
+    return "—" if v is None else f"{v:.{digits}g}"

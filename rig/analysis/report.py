@@ -24,6 +24,7 @@ import numpy as np
 from rig.analysis import plots
 from rig.analysis.device import agreement_text
 from rig.analysis.export import export_curves, export_results
+from rig.analysis.normality import ANDERSON_P
 from rig.analysis.sets import by_program, process_values
 from rig.analysis.summary import analyse
 from rig.analysis.units import DisplayUnits, recording_units
@@ -131,10 +132,17 @@ def _num(v: float | None, digits: int = 4) -> str:
 
 
 # -- 1. the verdict --------------------------------------------------------------------------------
-def _capability(cpk: float | None) -> str:
+def _capability(cpk: float | None, std: float | None = None) -> str:
     if cpk is None:
         return "—"
+    if std == 0.0:
+        return "n/a: no spread (every value the same, at the instrument's resolution)"
     return "capable" if cpk >= CAPABLE else "marginal" if cpk >= MARGINAL else "NOT capable"
+
+
+def _indices(v: dict) -> list[Any]:
+    """Cp and Cpk cells: n/a without spread (σ = 0 makes them infinite, which says nothing)."""
+    return ["n/a", "n/a"] if v["std"] == 0.0 else [v["cp"], v["cpk"]]
 
 
 def _limits_text(v: dict) -> str:
@@ -150,7 +158,7 @@ def _limits_text(v: dict) -> str:
 
 def _capability_table(values: dict) -> Table | None:
     rows = [[name, v["n"], _limits_text(v), f"{_num(v['mean'])} {v.get('unit', '')}".rstrip(),
-             f"{_num(v['std'], 3)} {v.get('unit', '')}".rstrip(), v["cp"], v["cpk"], _capability(v["cpk"])]
+             f"{_num(v['std'], 3)} {v.get('unit', '')}".rstrip(), *_indices(v), _capability(v["cpk"], v["std"])]
             for name, v in values.items() if v.get("lsl") is not None or v.get("usl") is not None]
     if not rows:
         return None
@@ -311,12 +319,24 @@ def _device_table(agreement: dict, values: dict) -> list[Block]:
 def _values_table(values: dict) -> Table:
     """One row per process value: n, unit, descriptive statistics, capability, normality and trend checks."""
     rows = [[name, v["n"], v["unit"], v["mean"], v["std"], v["min"], v["max"], v["minus_3sigma"], v["plus_3sigma"],
-             v["lsl"], v["usl"], v["cp"], v["cpk"], v["band_within_limits"], v["normality"]["shapiro_p"],
-             v["normality"]["anderson_p"], v["normality"]["normal"], v["trend"]["slope_p"], v["trend"]["runs"]["p"],
-             v["trend"]["drift"]] for name, v in values.items()]
+             v["lsl"], v["usl"], *_indices(v), v["band_within_limits"], v["normality"]["shapiro_p"],
+             _anderson_cell(v["normality"]["anderson_p"]), v["normality"]["normal"], v["trend"]["slope_p"],
+             v["trend"]["runs"]["p"], _drift_cell(v["trend"])] for name, v in values.items()]
     return Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
                   "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
                  rows)
+
+
+def _anderson_cell(p: float | None) -> Any:
+    """The A–D p-value, as a bound where scipy's table clips it (0.01 … 0.15)."""
+    if p is None:
+        return None
+    return f"≤ {ANDERSON_P[0]}" if p <= ANDERSON_P[0] else f"≥ {ANDERSON_P[1]}" if p >= ANDERSON_P[1] else p
+
+
+def _drift_cell(trend: dict) -> str:
+    """``no``, or ``yes:`` and the rules that fired."""
+    return f"yes: {'; '.join(trend.get('drift_why') or [])}".rstrip(": ") if trend["drift"] else "no"
 
 
 def set_statistics(ctx: ReportContext) -> list[Block]:

@@ -43,17 +43,25 @@ def trend(values: Sequence[float], alpha: float = 0.05) -> dict:
     """Linear trend vs sample index (slope per sample, p of slope = 0), runs test, Nelson rule 2.
 
     ``drift`` is True when the slope is significant at ``alpha``, the runs test shows too few runs
-    (z < 0, p < alpha), or 9+ consecutive points lie on one side of the mean.
+    (z < 0, p < alpha), or 9+ consecutive points lie on one side of the mean; ``drift_why`` names the rules
+    that fired (empty without drift).
     """
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size < 3:
         raise ValueError(f"trend: need at least 3 finite values, got {v.size}")
     if np.ptp(v) == 0:
-        return {"slope": 0.0, "slope_p": 1.0, "runs": runs_test(v), "longest_side_run": 0, "drift": False}
+        return {"slope": 0.0, "slope_p": 1.0, "runs": runs_test(v), "longest_side_run": 0, "drift": False,
+                "drift_why": []}
     fit = stats.linregress(np.arange(v.size), v)
     runs = runs_test(v)
     side = longest_side_run(v)
-    drift = (fit.pvalue < alpha or (runs["p"] is not None and runs["z"] < 0 and runs["p"] < alpha) or side >= 9)
+    why = []
+    if fit.pvalue < alpha:
+        why.append(f"slope p {fit.pvalue:.2g} < {alpha:g}")
+    if runs["p"] is not None and runs["z"] < 0 and runs["p"] < alpha:
+        why.append(f"too few runs (p {runs['p']:.2g})")
+    if side >= 9:
+        why.append(f"{side} in a row on one side of the mean (Nelson rule 2: 9)")
     return {"slope": float(fit.slope), "slope_p": float(fit.pvalue), "runs": runs,
-            "longest_side_run": side, "drift": bool(drift)}
+            "longest_side_run": side, "drift": bool(why), "drift_why": why}

@@ -80,3 +80,24 @@ def test_set_statistics_counts_and_limits():
     assert event_counts([{"kind": "gap"}, {"kind": "gap"}, {"kind": "flank"}]) == {"gap": 2, "flank": 1}
     with pytest.raises(ValueError, match="y_max"):
         limits_from_program({"limits": {"y_max": 3.0}})
+
+
+def test_drift_names_the_rules_that_fired():
+    rng = np.random.default_rng(3)
+    steady = trend(rng.normal(0, 1, 200))
+    assert steady["drift"] is False and steady["drift_why"] == []
+    shifted = trend(np.r_[rng.normal(0, 0.1, 25), rng.normal(1, 0.1, 25)])
+    assert shifted["drift"] and any("Nelson rule 2" in w for w in shifted["drift_why"])
+    assert any(w.startswith("slope p") for w in shifted["drift_why"])
+
+
+def test_no_spread_is_not_called_capable(tmp_path):
+    """σ = 0 (every value the same, e.g. at the resolution): Cp/Cpk are infinite, the report says n/a."""
+    from rig.analysis import plots
+    from rig.analysis.report import _capability, _indices
+    stats = describe([42.0] * 5, (41.5, 42.5), "x_max")
+    assert stats["std"] == 0.0 and math.isinf(stats["cp"])
+    assert _indices(stats) == ["n/a", "n/a"] and _capability(stats["cpk"], stats["std"]).startswith("n/a")
+    assert _capability(1.5, 0.1) == "capable" and _capability(1.2, 0.1) == "marginal"
+    path = plots.histograms({"x_max": np.full(5, 42.0)}, {"x_max": {**stats, "unit": "mm"}}, tmp_path / "h.png")
+    assert path.stat().st_size > 0
