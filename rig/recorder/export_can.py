@@ -6,12 +6,14 @@ are written by python-can's writers; ``.mf4`` (ASAM MDF 4.10 bus logging: ``CAN_
 block, never read whole.
 
 Time base: every frame keeps its simulation time (s from the start of the run). Formats with a start date
-in their header (ASC ``Begin Triggerblock``, BLF, TRC, MF4) get the recording's wall-clock start (``rig``
-metadata ``wall_clock_start``, ns since 1970) cut to the second (python-can's ASC header writes milliseconds
-without leading zeros), or 1970-01-01 00:00 UTC (unknown) without it. Readers that add the header date to the
-frame times (python-can's BLF, TRC and MF4 readers) so return trace start + simulation time; ASC (python-can's
-default relative times) and ``.log`` (no header) return simulation time. Python-can reads absolute times as float
-s since 1970, which holds ~0.24 µs: finer BLF/MF4 times survive only relative to the header start.
+in their header (ASC ``date`` and ``Begin Triggerblock``, BLF, TRC, MF4) get the recording's wall-clock start
+(``rig`` metadata ``wall_clock_start``, ns since 1970) to the header's resolution — ASC and BLF (SYSTEMTIME) the
+millisecond, TRC and MF4 finer —, or 1970-01-01 00:00 UTC (unknown) without it. The ASC dates are written with
+zero-padded milliseconds (python-can's writer writes 21.76 for 21.076 s and dates ``date`` at the export).
+Readers that add the header date to the frame times (python-can's BLF, TRC and MF4 readers, and its ASC reader
+with ``relative_timestamp=False``) so return trace start + simulation time; ASC (python-can's default relative
+times) and ``.log`` (no header) return simulation time. Python-can reads absolute times as float s since 1970,
+which holds ~0.24 µs: finer BLF/MF4 times survive only relative to the header start.
 
 What each format keeps, as read back by ``can.LogReader`` (id, extended flag, length and data always):
 
@@ -149,8 +151,8 @@ def _unreadable(path: Path, exc: McapError) -> RecordingError:
 
 
 def trace_start(path: Path) -> float:
-    """Wall-clock start of a recording, whole s since 1970 (metadata ``rig.wall_clock_start``, ns); 0.0 when it
-    has none."""
+    """Wall-clock start of a recording, s since 1970 (metadata ``rig.wall_clock_start``, ns); 0.0 when it has
+    none."""
     try:
         with open(path, "rb") as f:
             meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
@@ -160,7 +162,7 @@ def trace_start(path: Path) -> float:
     if value is None:
         return 0.0
     try:
-        return float(int(value) // 1_000_000_000)
+        return int(value) / 1e9
     except ValueError:
         raise RecordingError(f"{path}: metadata rig.wall_clock_start = {value!r} is not an integer "
                              f"(ns since 1970)") from None
@@ -208,9 +210,21 @@ class _PythonCan:
         self.writer.stop()
 
 
+class _AscWriter(can.ASCWriter):
+    """python-can's ASC writer with both header dates (``date``, ``Begin Triggerblock``) at the trace start,
+    milliseconds zero-padded."""
+
+    def __init__(self, out: Path, start: float):
+        self._start = datetime.fromtimestamp(start)          # local time, as python-can's reader reads it back
+        super().__init__(out)
+
+    def _format_header_datetime(self, dt: datetime) -> str:
+        return self._start.strftime(f"%a %b %d %H:%M:%S.{self._start.microsecond // 1000:03d} %Y")
+
+
 class _Asc(_PythonCan):
     def __init__(self, out: Path, start: float):
-        super().__init__(can.ASCWriter(out))
+        super().__init__(_AscWriter(out, start))
         self.writer.log_event("rig export: times are simulation time, s", start)   # header date = start
         self.writer.started = 0.0            # the writer subtracts this from every time: keep simulation time
 

@@ -1,6 +1,7 @@
 """Read a rig MCAP recording back into arrays; recover what is readable from truncated files."""
 from __future__ import annotations
 
+import os
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,7 +52,7 @@ class Recording:
     ``complete``: the file is whole and the run ended normally. ``truncated``: the file is cut short or
     damaged (read with ``allow_partial``). ``end``: the run's end record (metadata ``rig.end``: ``complete``,
     ``reason``, ``simulation_time``, ``messages``), empty when the writer never closed the file.
-    ``last_time``: simulation time (s) of the latest message read.
+    ``last_time``: simulation time (s) of the latest data read (a sample, a frame or a message).
     """
 
     path: Path
@@ -184,7 +185,11 @@ class _Collector:
         if self.can:
             self.rec.can_frames = _can(self.can)
         start = _metadata_number(self.rec, S.RIG_METADATA, "wall_clock_start", "0", int)
-        self.rec.last_time = max(self.last_log_ns - start, 0) / 1e9
+        # a block's log time is its first sample's: its samples (and a CAN block's frames) reach further
+        ends = [float(s["t"][-1]) for s in self.rec.series.values() if "t" in s and len(s["t"])]
+        if self.rec.can_frames is not None and len(self.rec.can_frames.get("t", ())):
+            ends.append(float(self.rec.can_frames["t"][-1]))
+        self.rec.last_time = max([max(self.last_log_ns - start, 0) / 1e9, *ends])
         return self.rec
 
 
@@ -209,25 +214,34 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     rec = Recording(path=path)
     collector = _Collector(rec)
     footer = False
+    whole = size = 0                        # bytes up to the end of the last whole record; of the file
+    at_end = False                          # a failure came from reading past the end (a cut, not damage)
     try:
         with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
             data_end = False
-            for record in StreamReader(f, validate_crcs=True).records:
-                if not data_end:            # the summary after DataEnd only repeats (and has no CRC check)
-                    collector.add(record)
-                data_end = data_end or isinstance(record, DataEnd)
-                footer = footer or isinstance(record, Footer)
+            try:
+                for record in StreamReader(f, validate_crcs=True).records:
+                    if not data_end:        # the summary after DataEnd only repeats (and has no CRC check)
+                        collector.add(record)
+                    data_end = data_end or isinstance(record, DataEnd)
+                    footer = footer or isinstance(record, Footer)
+                    whole = f.tell()
+            finally:
+                at_end = f.tell() >= size
     except OSError as exc:
         raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from None
     except InvalidMagic:
         raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)") from None
-    except EndOfFile:
-        rec.truncated = True
-        rec.problems.append("file ends inside a record, without a footer (recording was not closed: the "
-                            "process was killed or the file cut)")
     except Exception as exc:  # any decoding failure past the header: keep what was read
         rec.truncated = True
-        rec.problems.append(f"stopped reading at a damaged record ({type(exc).__name__}: {exc})")
+        if isinstance(exc, EndOfFile) or (at_end and whole < size):
+            cut = (f"{size - whole} bytes into a record" if size > whole else
+                   "after a whole record, without the data end, summary and footer")
+            rec.problems.append(f"file ends {cut} (recording was not closed: the process was killed or the file "
+                                "cut)")
+        else:
+            rec.problems.append(f"stopped reading at a damaged record ({type(exc).__name__}: {exc})")
     if not footer and not rec.truncated:
         rec.truncated = True
         rec.problems.append("file ends without a footer (recording was not closed)")

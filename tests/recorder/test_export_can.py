@@ -25,6 +25,8 @@ RESOLUTION = {".asc": 0.5e-6, ".log": 0.5e-6, ".trc": 0.5e-6, ".blf": 1e-9, ".mf
 #: formats whose reader adds the header's start date (the recording's wall-clock start) to the frame times
 ABSOLUTE = {".blf", ".trc", ".mf4"}
 FLOAT_AT_EPOCH = 2.5e-7     # a float of s since 1970 holds ~0.24 µs
+#: resolution of the header's start date (s): ASC prints ms, BLF's SYSTEMTIME holds ms, TRC days as a float, MF4 ns
+HEADER = {".asc": 1e-3, ".blf": 1e-3, ".trc": 2e-6, ".mf4": 1e-6, ".log": 0.0}
 
 
 def time_error(msgs: list[can.Message], t: np.ndarray, start: float, ext: str) -> float:
@@ -64,7 +66,7 @@ def test_every_format_reads_back_the_recorded_frames(recording, tmp_path, ext):
     for flag, key in (("bitrate_switch", "brs"), ("error_state_indicator", "esi"), ("is_error_frame", "error")):
         assert [getattr(m, flag) for m in msgs] == (list(cf[key]) if key in cf else [False] * n)
     err = time_error(msgs, cf["t"], summary.start, ext)
-    assert err <= RESOLUTION[ext] + (FLOAT_AT_EPOCH if summary.start and ext in ABSOLUTE else 1e-12), err
+    assert err <= RESOLUTION[ext] + (FLOAT_AT_EPOCH + HEADER[ext] if summary.start and ext in ABSOLUTE else 1e-12), err
 
 
 def test_mf4_decodes_with_asammdf_bus_logging_and_the_dbc(recording, tmp_path):
@@ -73,7 +75,7 @@ def test_mf4_decodes_with_asammdf_bus_logging_and_the_dbc(recording, tmp_path):
     cf = read_recording(recording).can_frames
     db = cantools.database.load_file(DBC)
     with MDF(out) as mdf:
-        assert mdf.header.start_time == datetime.fromtimestamp(summary.start, timezone.utc)
+        assert abs((mdf.header.start_time - datetime.fromtimestamp(summary.start, timezone.utc)).total_seconds()) <= 1e-6
         with mdf.extract_bus_logging({"CAN": [(DBC, 0)]}) as decoded:
             checked = 0
             for message, signals in (("LiveXY", ("X", "Y", "Tick")), ("Heartbeat", ("DeviceTime", "State")),
@@ -137,10 +139,11 @@ def test_direction_channels_fd_flags_and_error_frames_are_kept(tmp_path, ext):
     out = tmp_path / f"flags{ext}"
     summary = export_can(rec, out)
     assert (summary.frames, summary.error_frames, summary.channels, summary.start) == (7, 1, ["rig", "aux"],
-                                                                                         1_750_000_000.0)
+                                                                                         WALL_START / 1e9)
     msgs = read_back(out)
     assert len(msgs) == len(FRAMES)
-    assert time_error(msgs, np.array([f[0] for f in FRAMES]), summary.start, ext) <= RESOLUTION[ext] + FLOAT_AT_EPOCH
+    assert time_error(msgs, np.array([f[0] for f in FRAMES]), summary.start, ext) <= (
+        RESOLUTION[ext] + FLOAT_AT_EPOCH + (HEADER[ext] if ext in ABSOLUTE else 0.0))
     channel_kind, error_fields = KEEPS[ext]
     for m, (t, fid, ext_id, fd, brs, esi, error, direction, name, data) in zip(msgs, FRAMES):
         assert m.is_error_frame == error
@@ -158,22 +161,25 @@ def test_direction_channels_fd_flags_and_error_frames_are_kept(tmp_path, ext):
 
 def test_headers_carry_the_wall_clock_start(tmp_path):
     rec = _write_mcap(tmp_path / "flags.mcap", _blocks(FRAMES), {"wall_clock_start": str(WALL_START)})
-    start = 1_750_000_000.0
+    start = WALL_START / 1e9                  # 1 750 000 000.123 456 789 s: the fraction is kept, not cut
     for ext in (".asc", ".blf", ".mf4"):
         export_can(rec, tmp_path / f"h{ext}")
     with can.ASCReader(tmp_path / "h.asc", relative_timestamp=False) as asc:
-        assert next(iter(asc)).timestamp == pytest.approx(start + FRAMES[0][0], abs=1e-6)
+        assert next(iter(asc)).timestamp == pytest.approx(start + FRAMES[0][0], abs=HEADER[".asc"])
+    head = (tmp_path / "h.asc").read_text().splitlines()
+    date = head[0].removeprefix("date ")
+    assert date.endswith(".123 2025") and f"Begin Triggerblock {date}" in head     # both: the start, ms padded
     with can.BLFReader(tmp_path / "h.blf") as blf:
-        assert blf.start_timestamp == start
+        assert blf.start_timestamp == pytest.approx(start, abs=HEADER[".blf"])
     with MDF(tmp_path / "h.mf4") as mdf:
-        assert mdf.header.start_time == datetime.fromtimestamp(start, timezone.utc)
+        assert abs((mdf.header.start_time - datetime.fromtimestamp(start, timezone.utc)).total_seconds()) <= 1e-6
     classic = [f for f in FRAMES if not f[3] and not f[6]]
     export_can(_write_mcap(tmp_path / "classic.mcap", _blocks(classic), {"wall_clock_start": str(WALL_START)}),
                tmp_path / "h.trc")
     msgs = read_back(tmp_path / "h.trc")
     assert [(m.arbitration_id, m.is_rx, m.channel, m.data.hex()) for m in msgs] == [
         (f[1], f[7] == "rx", ["rig", "aux"].index(f[8]) + 1, f[9]) for f in classic]
-    assert [m.timestamp - start for m in msgs] == pytest.approx([f[0] for f in classic], abs=1e-6)
+    assert [m.timestamp - start for m in msgs] == pytest.approx([f[0] for f in classic], abs=HEADER[".trc"])
 
 
 def test_trc_refuses_fd_and_error_frames_and_leaves_no_file(tmp_path):

@@ -290,3 +290,26 @@ def test_rows_are_written_as_dumps_message_writes_them():
     assert loads_message(rows[3]) == {"t": cols["t"][3], "a": None, "b": None}
     with pytest.raises(ValueError, match="reserved"):
         dumps_rows({"nulls": [1.0]})
+
+
+def test_a_cut_says_whether_it_ends_inside_a_record_or_after_one(tmp_path):
+    """A killed writer usually leaves whole records without the data end and summary: the reader says so; a cut
+    inside a record says how many bytes of it are there."""
+    from mcap.records import DataEnd
+    from mcap.stream_reader import StreamReader
+    path = tmp_path / "run.mcap"
+    record(path, np.random.default_rng(4), chunk_size=20_000)
+    with open(path, "rb") as f:
+        ends = []
+        for r in StreamReader(f).records:
+            if isinstance(r, DataEnd):
+                break
+            ends.append(f.tell())
+    data = path.read_bytes()
+    boundary = ends[len(ends) // 2]
+    for size, said in ((boundary, "file ends after a whole record, without the data end, summary and footer"),
+                       (boundary + 7, "file ends 7 bytes into a record")):
+        cut = tmp_path / f"cut{size}.mcap"
+        cut.write_bytes(data[:size])
+        partial = read_recording(cut, allow_partial=True)
+        assert partial.truncated and partial.problems[0].startswith(said), partial.problems
