@@ -18,7 +18,7 @@ import numpy as np
 from drivers.encoder import EDGE_TOLERANCE, SpeedEstimator
 from rig.analysis.clutch_metrics import APEX, LOBE, Metric, StandRecord, Stimulus, stand_metrics
 from rig.analysis.plots import figure, save
-from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
+from rig.analysis.report import Banner, Block, Heading, ReportContext, Table, Text, fmt, register_section
 from rig.recorder import Recording
 from rig.scene import Scene, SceneError, read_table
 
@@ -223,12 +223,27 @@ def _speed_figure(ctx: ReportContext, data: StandRecord) -> Block:
                       "1024-line encoder, period below), each mean speed drawn at the middle of its window")
 
 
+def _verdict(metrics: list[Metric]) -> Banner | None:
+    """The stand's outcome in one line: disengagements, the shutdown rule's verdict (red when it requires a
+    shutdown) and the torque peak."""
+    by = {m.name: m for m in metrics}
+    parts = [f"{name} {by[name].value_text()}" for name in ("disengagements", "shutdown", "max torque")
+             if name in by and by[name].value is not None]
+    if not parts:
+        return None
+    shutdown = by.get("shutdown")
+    return Banner("Clutch stand: " + "; ".join(parts), not (shutdown is not None and shutdown.value == "required"))
+
+
 def clutch_section(ctx: ReportContext) -> list[Block]:
     data = stand_record(ctx.recording)
     if data is None:
         return []
     stim, metrics = stand_results(ctx.recording) or ([], [])
     blocks: list[Block] = [Heading("Clutch stand")]
+    banner = _verdict(metrics)
+    if banner is not None:
+        blocks.append(banner)
     if stim:
         blocks.append(Text("The scene: " + "; ".join(f"{s.text} at {s.time:.4g} s" for s in stim) + "."))
     blocks.append(Table(["result", "value", "relative to / definition"],
