@@ -75,10 +75,10 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
     cost = {0: _best(lambda: mech.state(phi)), 1: _best(lambda: mech.kinetostatics(phi, omega)), 2: _best(level2)}
     s0 = cost[0][1].s
     answers = {0: {"stroke": float(np.ptp(s0))},
-               1: {"stroke": float(np.ptp(s0)), "rod_force": float(np.max(np.abs(cost[1][1].F_rod))),
+               1: {"stroke": float(np.ptp(s0)), "rod_force": _peak(cost[1][1].F_rod),
                    "flank_switches": float(len(mech.flank_switch_angles(omega, n=t.size)))}}
     run, sig = cost[2][1]
-    answers[2] = {"stroke": float(np.ptp(sig["s"])), "rod_force": float(np.max(np.abs(sig["F_rod"]))),
+    answers[2] = {"stroke": float(np.ptp(sig["s"])), "rod_force": _peak(sig["F_rod"]),
                   "flank_switches": float(len(run.switches)), "dwell_vibration": _dwell(mech, phi, sig["s"])}
     rows = []
     for level in (0, 1, 2):
@@ -90,6 +90,19 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
                          "unit": unit, "wall_s_per_s": f"{per_s:.4g}",
                          "method": l2.method_text if level == 2 else "none"})
     return rows
+
+
+def _peak(values: np.ndarray) -> float:
+    """The signed value of largest magnitude (the rod force's peak as the console prints it, − = compression)."""
+    values = np.asarray(values, dtype=float)
+    return float(values[np.argmax(np.abs(values))])
+
+
+def _answer(row: dict[str, Any]) -> str:
+    """An answer to 4 digits with its unit; a dash for a question the level cannot answer."""
+    if not row["answer"]:
+        return "—"
+    return f"{float(row['answer']):.4g} {row['unit'] if row['unit'] != 'count' else ''}".rstrip()
 
 
 def write(rows: list[dict[str, Any]], out: Path, name: str) -> tuple[Path, Path]:
@@ -111,9 +124,9 @@ def write(rows: list[dict[str, Any]], out: Path, name: str) -> tuple[Path, Path]
     ax.set_ylabel("wall time per simulated second (s/s)")
     ax.set_title(f"{name}: what each level answers and what it costs (one revolution)")
     for i, lv in enumerate(levels):
-        text = "\n".join(f"{r['question']}: {r['answer']} {r['unit']}" for r in rows if r["level"] == lv and r["answer"])
+        text = "\n".join(f"{r['question']}: {_answer(r)}" for r in rows if r["level"] == lv)
         ax.text(i, cost[i] * 1.3, text, ha="center", va="bottom", fontsize=8)
-    ax.set_ylim(min(cost) / 3, max(cost) * 300)
+    ax.set_ylim(min(cost) / 3, max(cost) * 8)        # room above the tallest bar for its lines
     png = out / f"{name}_fidelity.png"
     fig.savefig(png, dpi=110)
     plt.close(fig)
@@ -128,7 +141,7 @@ def cmd_fidelity(args: argparse.Namespace) -> int:
     csv_path, png = write(rows, out, Path(args.scene).stem)
     for level in (0, 1, 2):
         mine = [r for r in rows if r["level"] == level]
-        answered = ", ".join(f"{r['question']} {r['answer']} {r['unit']}" for r in mine if r["answer"])
+        answered = ", ".join(f"{r['question']} {_answer(r)}" for r in mine if r["answer"])
         print(f"L{level}: {float(mine[0]['wall_s_per_s']) * 1e3:9.3f} ms per simulated s; answers {answered}")
     print(f"wrote {csv_path} and {png}")
     return 0
