@@ -37,7 +37,7 @@ class Style:
 
     @property
     def lw(self) -> float:
-        return 1.8 if self.failed is not None else 1.2      # thick enough to stand out, thin enough to see a curve on it
+        return 1.8 if self.failed is not None else 1.2      # stands out, yet a curve on it stays visible
 
     def label(self, e: Mapping) -> str:
         name = str(e.get("name", e.get("kind")))

@@ -86,3 +86,23 @@ def export_results(results: Sequence[Mapping], path: Path,
                         int(r.get("complete", True) is not False), ";".join(missing),
                         *("" if np.isnan(v[i]) else "%.10g" % shown[name](float(v[i])) for name, v in table.items())])
     return path
+
+
+#: SI units of the stand topics' columns beyond the plants' truth signals (rig.analysis.units.SIGNAL_SI)
+STAND_SI = {"t": "s", "edge_time": "s", "speed_time": "s", "speed": "rad/s", "displacement": "m", "count": "1",
+            "speed_method": "1"}
+
+
+def export_series(series: Mapping[str, np.ndarray], path: Path, units: DisplayUnits | None = None) -> Path:
+    """One recorded stand topic (``t`` and its columns, SI) as CSV, one row per reading, each quantity in its
+    display unit (``units``: the report's; default :data:`~rig.analysis.units.DEFAULTS`), named in brackets."""
+    from rig.analysis.units import SIGNAL_SI
+    du = units or DisplayUnits()
+    names = list(series)
+    shown = [unit("s", "s") if n in ("t", "edge_time", "speed_time") else
+             du.of(STAND_SI.get(n) or SIGNAL_SI.get(n, "1")) for n in names]
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow([column(n, u) for n, u in zip(names, shown)])
+        w.writerows(zip(*(_cells(u(np.asarray(series[n], dtype=float))) for n, u in zip(names, shown))))
+    return path

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import html
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -23,7 +24,7 @@ import numpy as np
 
 from rig.analysis import plots
 from rig.analysis.device import agreement_text
-from rig.analysis.export import export_curves, export_results
+from rig.analysis.export import export_curves, export_results, export_series
 from rig.analysis.normality import ANDERSON_P
 from rig.analysis.sets import by_program, process_values
 from rig.analysis.summary import analyse
@@ -53,6 +54,13 @@ class Banner:
     """The verdict in one line, green (``ok``) or red."""
     text: str
     ok: bool
+
+
+@dataclass(frozen=True)
+class Link:
+    """A table cell linking to a file of the report (``href`` relative to the report)."""
+    text: str
+    href: str
 
 
 @dataclass
@@ -461,10 +469,34 @@ def truth(ctx: ReportContext) -> list[Block]:
             ctx.figure(path, f"Plant truth over {span}, one axis per quantity: {', '.join(names)}")]
 
 
+#: units of the numeric ``rig`` metadata values (the recording keeps them as text, SI)
+_META_UNITS = {"sample_rate": "Hz", "view_rate": "Hz", "duration": "s"}
+
+
+def _meta_value(key: str, value: str) -> str:
+    """A metadata value as a person reads it: with its unit, the wall-clock start as a UTC date (and its ns), a
+    dash for null (e.g. the duration of a run given in cycles)."""
+    if value in ("null", "None", ""):
+        return "—"
+    if key == "wall_clock_start":
+        try:
+            ns = int(value)
+        except ValueError:
+            return value
+        stamp = datetime.fromtimestamp(ns // 1_000_000_000, timezone.utc).strftime("%Y-%m-%d %H:%M:%S")
+        return f"{stamp}.{ns % 1_000_000_000:09d} UTC ({value} ns since 1970)"
+    if key in _META_UNITS:
+        try:
+            return f"{float(value):g} {_META_UNITS[key]}"
+        except ValueError:
+            return value
+    return value
+
+
 def overview(ctx: ReportContext) -> list[Block]:
     rec = ctx.recording
     meta = rec.metadata.get("rig", {})
-    rows = [[k, v] for k, v in sorted(meta.items())]
+    rows = [[k, _meta_value(k, v)] for k, v in sorted(meta.items())]
     rows += [["messages", rec.summary()], ["complete", _complete(rec)]]
     blocks: list[Block] = [Heading("Recording"), Text(f"File: {rec.path}"), Table(["key", "value"], rows)]
     lost = losses(rec)
@@ -493,7 +525,14 @@ def exports(ctx: ReportContext) -> list[Block]:
     if rec.results:
         files.append((export_results(rec.results, ctx.out_dir / "results.csv", units),
                       "one row per curve: OK/NOK, failed elements and why, completeness, process values"))
-    return [Heading("Exports"), Table(["file", "contents"], [[f.name, what] for f, what in files])] if files else []
+    units = ctx.units(rec.curves[0].program if rec.curves else next(iter(rec.programs), 0))
+    for topic, data in rec.series.items():
+        if topic.startswith("/stand/") and "t" in data and len(data["t"]):
+            name = "stand_" + topic.removeprefix("/stand/") + ".csv"
+            files.append((export_series(data, ctx.out_dir / name, units),
+                          f"{topic}: one row per reading ({', '.join(k for k in data if k != 't')})"))
+    return [Heading("Exports"), Table(["file", "contents"], [[Link(f.name, f.name), what] for f, what in files])
+            ] if files else []
 
 
 for _name, _section in (("verdict", verdict), ("nok_curves", nok_curves), ("statistics", set_statistics),
@@ -514,7 +553,8 @@ def _markdown(title: str, blocks: Sequence[Block]) -> str:
             out += [b.text, ""]
         elif isinstance(b, Table):
             out += ["| " + " | ".join(b.headers) + " |", "|" + "---|" * len(b.headers)]
-            out += ["| " + " | ".join(fmt(c).replace("|", "\\|") for c in r) + " |" for r in b.rows] + [""]
+            out += ["| " + " | ".join((f"[{c.text}]({c.href})" if isinstance(c, Link) else fmt(c)).replace("|", "\\|")
+                                      for c in r) + " |" for r in b.rows] + [""]
         elif isinstance(b, Figure):
             out += [f"![{b.caption}]({b.path})", "", f"*{b.caption}*", ""]
     return "\n".join(out)
@@ -538,6 +578,8 @@ figcaption{font-size:.9em;color:#444} summary{cursor:pointer;color:#333;margin:.
 
 
 def _cell(c: Any) -> str:
+    if isinstance(c, Link):
+        return f"<td><a href='{html.escape(c.href)}'>{html.escape(c.text)}</a></td>"
     text = html.escape(fmt(c))
     if isinstance(c, (int, float)) and not isinstance(c, bool):
         return f"<td class='num'>{text}</td>"
@@ -564,8 +606,8 @@ def _html(title: str, blocks: Sequence[Block]) -> str:
             out += ["<tr>" + "".join(_cell(c) for c in r) + "</tr>" for r in b.rows]
             out.append("</table></div>" + ("</details>" if b.collapsed else ""))
         elif isinstance(b, Figure):
-            out.append(f"<figure><img src='{e(b.path)}' alt='{e(b.caption)}'><figcaption>{e(b.caption)}"
-                       "</figcaption></figure>")
+            out.append(f"<figure><a href='{e(b.path)}'><img src='{e(b.path)}' alt='{e(b.caption)}'></a>"
+                       f"<figcaption>{e(b.caption)}</figcaption></figure>")
     return "\n".join(out + ["</body></html>"])
 
 

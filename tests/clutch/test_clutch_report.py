@@ -120,3 +120,13 @@ def test_truth_and_events_end_with_the_run(runs):
         end = float(str(duration).split()[0])
         assert rec.truth["t"][-1] == pytest.approx(end, abs=1e-9), name
         assert rec.events and max(ev["t"] for ev in rec.events) <= end + 1e-9, name
+
+
+def test_stand_readings_are_exported_with_units(runs, tmp_path):
+    out = write_report(runs["clutch_startup"][1], tmp_path / "r")
+    html = out.read_text()
+    for name in ("stand_torque.csv", "stand_encoder1.csv", "stand_encoder2.csv"):
+        assert f"<a href='{name}'>{name}</a>" in html
+    rows = (tmp_path / "r" / "stand_torque.csv").read_text().splitlines()
+    assert rows[0] == "t [s],torque [N*m]" and len(rows) - 1 == runs["clutch_startup"][1].series["/stand/torque"]["t"].size
+    assert "<a href='004_truth.png'><img src='004_truth.png'" in html or "<a href='" in html.split("<figure>")[1]
