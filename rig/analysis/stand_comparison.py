@@ -137,7 +137,7 @@ def comparison_section(ctx: ReportContext) -> list[Block]:
         "Nothing was fitted on this run: every row is a prediction."
     return [Heading("Thesis against rig"), Text(text + " Also in comparison.csv."),
             Table(["quantity", "unit", "thesis", "rig", "fitted", "note"],
-                  [[r.quantity, r.unit, f"{r.thesis:g}", "n/a" if r.rig is None else f"{r.rig:.4g}",
+                  [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", "n/a" if r.rig is None else f"{r.rig:.4g}",
                     "yes" if r.fitted else "no", r.why] for r in rows])]
 
 

@@ -56,11 +56,11 @@ def plot_cycle(mech: PinInsertionMechanism, omega: float, path: str | Path) -> P
     fig, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9))
     for ax, y, label in zip(axes, (st.s * 1e3, np.degrees(st.psi), ks.R23n, ks.M_sigma),
                             ("s (mm)", "ψ (°)", "R23 (N)", "M_Σ (N·m)")):
-        ax.plot(deg, y)
+        ax.plot(deg, y, label=label.split(" (")[0] + (" (with the spring)" if ax is axes[3] else ""))
         ax.set_ylabel(label)
         ax.grid(True)
     axes[2].axhline(0.0, color="k", lw=0.8)
-    axes[3].plot(deg, ks.M23, "--", label="M23 (no spring)")
+    axes[3].plot(deg, ks.M23, "--", label="M23 (without the spring)")
     axes[3].axhline(0.0, color="k", lw=0.8)
     axes[3].legend()
     axes[-1].set_xlabel("cam angle φ (°)")
