@@ -74,3 +74,24 @@ def test_level2_scene_records_end_to_end(tmp_path):
     level1 = PinInsertionMechanism()          # the pin's force-travel law: no ringing, the rod force follows level 1
     peak = level1.kinetostatics(np.linspace(0, 2 * np.pi, 3601), 150 * RPM).F_rod.min()
     assert abs(curve.y.min() - peak) < 5.0                       # F_c drawn with σ = 2 N, transducer noise
+
+
+def test_a_driven_cam_switches_to_the_next_cycles_loads_at_its_revolution_whatever_the_chunk():
+    """With a cam drive the cam angle is a state: each revolution still runs with its own cycle's load parameters
+    from the sample where it begins, so 250 ms chunks (longer than the dwell before the insertion) give the
+    truth of 10 ms chunks; before, a chunk ran whole with the cycle it started in and a revolution began with
+    the last one's insertion force."""
+    from rig.runner.plants import make_plant
+    scene = load_scene(ROOT / "data" / "scenes" / "pin_insertion_as_tested.toml")
+    t = np.arange(1, 12_001) * 1e-4                         # 1.2 s: the start-up and two revolutions more
+    runs = {}
+    for chunk in (0.01, 0.25):
+        plant = make_plant("cam_bar", scene)
+        n = round(chunk * 1e4)
+        parts = [plant.advance(c) for c in np.split(t, range(n, t.size, n))]
+        runs[chunk] = {k: np.concatenate([p[k] for p in parts]) for k in ("R23", "F_rod", "phi")}
+    fine, coarse = runs[0.01], runs[0.25]
+    assert fine["phi"][-1] > 2 * np.pi * 2.5                       # into the third revolution
+    # 1e-3 N apart (the restarts' rounding); a revolution run with the last cycle's loads was 2.6 N off
+    assert np.max(np.abs(coarse["F_rod"] - fine["F_rod"])) < 1e-3 * np.max(np.abs(fine["F_rod"]))
+    assert np.max(np.abs(coarse["R23"] - fine["R23"])) < 1e-3 * np.max(np.abs(fine["R23"]))

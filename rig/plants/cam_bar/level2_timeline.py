@@ -6,8 +6,10 @@ states questions or a tolerance) chunk by chunk, continuing from the last state;
 with ``[plant.variation]`` each cam revolution runs with its cycle's mechanism (load parameters) and gets its
 chain stroke deviation Δs added, as at level 1. Events: ``flank_switch`` (data ``phi``, ``to``) from the
 contact onsets of the integration, and ``accel_jump`` program crossings as at level 1. With a cam drive
-(:mod:`.drive`) the cam angle is a state: a chunk runs with the mechanism of the cycle it starts in (the cycle's
-load parameters take over at the first chunk boundary of a revolution).
+(:mod:`.drive`) the cam angle is a state, known only once integrated: a chunk is integrated with its cycle's
+mechanism, and where the cam angle passes into the next revolution the samples from there on are integrated
+again with the next cycle's, from the last sample before it — the switch falls on the same sample as without a
+drive, whatever the chunk length.
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ class Level2Timeline(Timeline):
         self.method, self.options = method, dict(options or {})
         self._state: tuple[float, tuple, str | None] | None = None
         self._models: dict[int, Level2] = {}
+        self._cycle = 0                     # with a cam drive: the revolution the integration state is in
 
     def _model(self, cycle: int) -> Level2:
         if cycle not in self._models:
@@ -42,22 +45,12 @@ class Level2Timeline(Timeline):
 
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         self._check_times(t)
-        mech = self.mech
-        if mech.cam_drive is None:
+        if self.mech.cam_drive is None:
             phi = self.speed.drive(t).phi
-        else:        # the cam angle is a state: the chunk runs in the cycle it starts in
-            phi = np.full(t.size, self._state[1][2] if self._state is not None else self.speed.phi0)
-        cycle = np.floor(phi / tau).astype(int) if self.cycles is not None else np.zeros(t.size, int)
-        parts = []
-        for c in np.unique(cycle):
-            tt = t[cycle == c]
-            model = self._model(int(c))
-            t0, y0, flank = self._state if self._state is not None else (tt[0], model.initial_state(tt[0]), None)
-            run = model.simulate((t0, tt[-1]), y0, flank, t_eval=tt, method=self.method, **self.options)
-            self._state = (run.solution.t_final, run.solution.y_final, run.flank)
-            self.events.extend(run.switches)
-            part = model.signals(tt, run.solution.y)
-            parts.append(part if self.cycles is None else self._deviate(part, int(c)))
+            cycle = np.floor(phi / tau).astype(int) if self.cycles is not None else np.zeros(t.size, int)
+            parts = [self._integrate(t[cycle == c], int(c)) for c in np.unique(cycle)]
+        else:
+            parts = self._driven(t)
         if not t.size:
             return self._model(min(self._models, default=0)).signals(t, np.zeros((2, 0)))
         out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
@@ -68,3 +61,45 @@ class Level2Timeline(Timeline):
         self.events.sort(key=lambda e: e.time)
         self._last = (float(t[-1]), float(phi[-1]), float(out["R23"][-1]))
         return out
+
+    def _integrate(self, tt: np.ndarray, cycle: int) -> dict[str, np.ndarray]:
+        """Samples ``tt`` (s) integrated with the mechanism of ``cycle``, continuing the state; their signals."""
+        model = self._model(cycle)
+        t0, y0, flank = self._state if self._state is not None else (tt[0], model.initial_state(tt[0]), None)
+        run = model.simulate((t0, tt[-1]), y0, flank, t_eval=tt, method=self.method, **self.options)
+        self._state = (run.solution.t_final, run.solution.y_final, run.flank)
+        self.events.extend(run.switches)
+        part = model.signals(tt, run.solution.y)
+        return part if self.cycles is None else self._deviate(part, cycle)
+
+    def _driven(self, t: np.ndarray) -> list[dict[str, np.ndarray]]:
+        """The samples ``t`` with a cam drive: each revolution's samples with that cycle's mechanism (the cam angle
+        is a state: where it passes into the next revolution, the rest is integrated again from the last sample
+        before the boundary, with the flank in contact there)."""
+        if self.cycles is None:
+            return [self._integrate(t, 0)] if t.size else []
+        parts, i = [], 0
+        while i < t.size:
+            c, start = self._cycle, self._state
+            model = self._model(c)
+            t0, y0, flank = start if start is not None else (t[i], model.initial_state(t[i]), None)
+            run = model.simulate((t0, t[-1]), y0, flank, t_eval=t[i:], method=self.method, **self.options)
+            part = model.signals(t[i:], run.solution.y)
+            beyond = np.flatnonzero(part["phi"] >= tau * (c + 1))
+            if not beyond.size:                 # the rest of the chunk lies in this revolution
+                self._state = (run.solution.t_final, run.solution.y_final, run.flank)
+                self.events.extend(run.switches)
+                parts.append(self._deviate(part, c))
+                break
+            self._cycle = c + 1
+            k = int(beyond[0])
+            if k == 0:                          # passed before the first sample: all of it in the next revolution
+                continue
+            t_k = float(t[i + k - 1])
+            kept = [e for e in run.switches if e.time <= t_k]
+            self.events.extend(kept)
+            self._state = (t_k, tuple(run.solution.y[:, k - 1]), kept[-1].data["to"] if kept else
+                           (flank if flank is not None else model.flank_of(t0, y0)))
+            parts.append(self._deviate({key: v[:k] for key, v in part.items()}, c))
+            i += k
+        return parts
