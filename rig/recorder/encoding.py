@@ -118,18 +118,8 @@ def dumps_rows(columns: Mapping[str, list[float]]) -> list[bytes]:
     names = list(columns)
     if NULLS in names:
         raise ValueError(f"message key {NULLS!r} is reserved (it lists the message's undefined values)")
-    out = []
-    for values in zip(*columns.values()):
-        row = dict(zip(names, values))
-        if all(map(math.isfinite, values)):
-            out.append(orjson.dumps(row))
-            continue
-        bad = [k for k, v in row.items() if not math.isfinite(v)]
-        for k in bad:
-            del row[k]
-        row[NULLS] = [pointer("", k) for k in bad]
-        out.append(orjson.dumps(row))
-    return out
+    return [orjson.dumps(row) if all(map(math.isfinite, values)) else dumps_message(row)   # a NaN: the general way
+            for values in zip(*columns.values()) for row in (dict(zip(names, values)),)]
 
 
 def loads_message(data: bytes) -> Any:
