@@ -22,7 +22,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from rig.analysis.elements_plot import FAILED, draw_elements
-from rig.analysis.units import QUANTITY, DisplayUnits, Unit
+from rig.analysis.units import QUANTITY, SIGNAL_LABEL, DisplayUnits, Unit
 from rig.recorder import CurveRecord
 
 DPI = 90
@@ -89,7 +89,8 @@ def _style(bad: bool, single: bool) -> dict:
 
 def _legend(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], theory: bool = False) -> None:
     n_nok = sum(c.number in nok for c in curves)
-    handles = [Line2D([], [], color=OK_COLOR, lw=1.2, label=f"OK ({len(curves) - n_nok})")]
+    handles = [Line2D([], [], color=OK_COLOR, lw=1.2, label=f"OK ({len(curves) - n_nok})")] if len(curves) > n_nok \
+        else []
     if n_nok:
         handles.append(Line2D([], [], color=NOK_COLOR, lw=1.5, label=f"NOK ({n_nok})"))
     if theory:
@@ -323,10 +324,10 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
     shown = {n: np.asarray(data[n])[keep] for n in names}
     tt = t[keep]
     groups = truth_groups(shown, names, units)
-    fig, axs = figure(len(groups), 1, size=(9.5, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
+    fig, axs = figure(len(groups), 1, size=(10.8, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
     for ax, (u, quantity, members) in zip(axs[:, 0], groups):
         for n in members:
-            ax.plot(*envelope(tt, u(shown[n])), lw=0.9, label=n)
+            ax.plot(*envelope(tt, u(shown[n])), lw=0.9, label=f"{n}: {SIGNAL_LABEL[n]}" if n in SIGNAL_LABEL else n)
         ax.set_ylabel(u.axis(quantity), fontsize=8)
         lo, hi = ax.get_ylim()
         if hi - lo < 1e-9 * max(1.0, abs(hi)):         # a constant signal: a readable band around it
@@ -339,7 +340,7 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
     axs[-1, 0].set_xlabel(units.of("s").axis("time"))
     axs[-1, 0].xaxis.set_major_locator(MaxNLocator(8))
     axs[0, 0].set_title(title, loc="left", fontsize=10)
-    return save(fig, path, hspace=0.12, left=1.0, right=1.3)      # legends beside the axes: no data hidden
+    return save(fig, path, hspace=0.12, left=1.0, right=2.8)      # legends beside the axes: no data hidden
 
 
 def _f(v: float | None, digits: int = 3) -> str:

@@ -44,6 +44,21 @@ SIGNAL_SI = {
     "M_t": "N*m", "T_c": "N*m", "T_in": "N*m", "T_out": "N*m", "torque": "N*m", "shaft_torque": "N*m",
     "motor_speed": "rad/s", "relative_angle": "rad", "lever_force": "N", "leaf_strain": "1",
 }
+#: what each plant truth signal is, for chart legends (the recorded name stays the key)
+SIGNAL_LABEL = {
+    "cam_angle": "cam angle φ (wrapped)", "phi": "cam angle φ", "psi": "follower angle ψ",
+    "psi_kin": "ψ of level 0", "omega": "cam speed", "s": "gripper stroke s",
+    "delta_w": "penetration, working flank", "delta_o": "penetration, other flank", "R23": "contact force R23",
+    "F_rod": "rod force", "M_sigma": "cam-shaft torque M_Σ", "drive_torque": "drive torque needed",
+    "motor_speed": "motor speed (at the cam)", "shaft_torque": "torque in the shaft",
+    "phi1": "driving half φ1", "phi3": "driven half φ3", "phi_r": "relative angle φ1 − φ3",
+    "omega1": "driving half ω1", "omega3": "driven half ω3", "omega_r": "relative speed", "M1": "motor torque",
+    "M3": "load torque", "M_t": "torque-meter shaft", "T_c": "coupling torque", "F_a": "spring force",
+    "N_B": "cam normal force N_B", "phi_in": "input angle", "phi_out": "output angle", "omega_in": "input speed",
+    "omega_out": "output speed", "alpha_in": "input acceleration", "v": "follower speed",
+    "a": "follower acceleration", "torque": "input torque", "relative_angle": "relative angle",
+    "lever_force": "loading-lever force", "leaf_strain": "leaf-spring strain",
+}
 QUANTITY = {"m": "length", "N": "force", "rad": "angle", "N*m": "torque", "s": "time", "rad/s": "angular speed",
             "rad/s^2": "angular acceleration", "m/s": "speed", "m/s^2": "acceleration", "1": "number"}
 

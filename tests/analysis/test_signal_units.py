@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig.analysis.units import SIGNAL_SI
+from rig.analysis.units import SIGNAL_LABEL, SIGNAL_SI
 from rig.runner.plants import make_plant
 from rig.scene import load_scene
 
@@ -18,5 +18,8 @@ def test_every_truth_signal_has_a_unit(path):
     scene = load_scene(path)
     plant = make_plant(scene.section("scene")["plant"], scene)
     truth = plant.advance(np.arange(1, 21) * 1e-4)
-    missing = sorted(k for k, v in truth.items() if k != "t" and np.ndim(v) == 1 and k not in SIGNAL_SI)
-    assert not missing, f"{path.name}: truth signals without an SI unit: {missing}"
+    signals = [k for k, v in truth.items() if k != "t" and np.ndim(v) == 1]
+    assert not (missing := sorted(set(signals) - set(SIGNAL_SI))), f"{path.name}: no SI unit for {missing}"
+    recorded = scene.section("recording").get("truth_signals") if "recording" in scene.data else None
+    unnamed = sorted(k for k in (recorded or signals) if k in signals and k not in SIGNAL_LABEL)
+    assert not unnamed, f"{path.name}: recorded truth signals without a legend label: {unnamed}"
