@@ -188,10 +188,17 @@ def cam_follower_sheet(lab: Lab) -> Sheet:
              f"{1e3 * c:.3f}", f"{1e3 * e:.3f}", f"{1e3 * f:.2f}", f"{1e3 * g:.2f}"]
             for p, a, b, c, e, f, g in zip(grid[1:-1], s[1:-1], law.s, d1, law.s_p, d2, law.s_pp)]
     peak1, peak2 = np.max(np.abs(law.s_p)), np.max(np.abs(law.s_pp))
-    values = {"ds_max": float(np.max(np.abs(s[1:-1] - law.s))),
+    # the difference as a reading lag and an offset: s − law ≈ −(ω τ)·s' + c by least squares, and what remains
+    diff = s[1:-1] - law.s
+    (slope, offset), *_ = np.linalg.lstsq(np.column_stack([law.s_p, np.ones_like(diff)]), diff, rcond=None)
+    lag = -slope / lab.bench.speed.nominal_omega
+    rest = diff - slope * law.s_p - offset
+    values = {"ds_max": float(np.max(np.abs(s[1:-1] - law.s))), "lag": float(lag), "offset": float(offset),
+              "rest_max": float(np.max(np.abs(rest))),
               "d1_rel": float(np.max(np.abs(d1 - law.s_p)) / peak1), "d2_rel": float(np.max(np.abs(d2 - law.s_pp)) / peak2),
               "law_d2_rel": float(np.max(np.abs(law_d2 - law.s_pp)) / peak2)}
-    result = (f"max |s − law| {1e6 * np.max(np.abs(s[1:-1] - law.s)):.1f} µm; s' within "
+    result = (f"max |s − law| {1e6 * np.max(np.abs(s[1:-1] - law.s)):.1f} µm = a reading lag of {1e3 * lag:.2f} ms "
+              f"and an offset of {1e6 * offset:+.1f} µm (least squares) with {1e6 * np.max(np.abs(rest)):.1f} µm left; s' within "
               f"{100 * np.max(np.abs(d1 - law.s_p)) / peak1:.1f} %, s'' within {100 * np.max(np.abs(d2 - law.s_pp)) / peak2:.1f} % "
               f"of their peaks (the law itself differenced at 10°: s'' within "
               f"{100 * np.max(np.abs(law_d2 - law.s_pp)) / peak2:.1f} %)")

@@ -129,6 +129,8 @@ def test_cam_follower_lab_differenced_against_the_law(cam):
     assert v["d1_rel"] < 0.05 and v["law_d2_rel"] > 0.05          # 10° is coarse for s'': the lab's lesson
     assert abs(v["d2_rel"] - v["law_d2_rel"]) < 0.05
     assert len(sheets["Cam follower"].rows) == 36
+    # most of the difference is the LVDT's 100 Hz lag (τ = 1.6 ms) plus the reading's, and its offset
+    assert 1.0e-3 < v["lag"] < 5e-3 and v["rest_max"] < 0.4 * v["ds_max"]
 
 
 def test_cam_follower_without_instrument_errors_is_the_law(tmp_path_factory):
@@ -137,6 +139,7 @@ def test_cam_follower_without_instrument_errors_is_the_law(tmp_path_factory):
         'to = "can.LabMotion.Displacement"', 'to = "can.LabMotion.Displacement"\noverrides = { errors_enabled = false, dynamics_enabled = false }'))
     v = sheets["Cam follower"].values
     assert v["ds_max"] < 5e-6                                      # 1 µm LSB and the encoder's angle steps
+    assert abs(v["lag"]) < 0.5e-3
     assert v["d2_rel"] == pytest.approx(v["law_d2_rel"], abs=0.01)
 
 
