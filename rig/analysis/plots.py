@@ -49,8 +49,28 @@ def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3, bot
     right = m_right if right is None else right
     fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
                         wspace=wspace, hspace=hspace)
+    separate_labels(fig)
     fig.savefig(path, dpi=DPI)
     return path
+
+
+def separate_labels(fig: Figure) -> None:
+    """Move each annotation (element labels) that overlaps an earlier one of its axes down below it, so no label
+    hides another (display space, after the layout)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.text import Annotation
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    for ax in fig.axes:
+        placed = []
+        for ann in (t for t in ax.texts if isinstance(t, Annotation)):
+            for _ in range(12):
+                box = ann.get_window_extent(renderer)
+                hit = next((b for b in placed if b.overlaps(box)), None)
+                if hit is None:
+                    break
+                dx, dy = ann.xyann
+                ann.xyann = (dx, dy - (box.y1 - hit.y0 + 2.0) * 72.0 / fig.dpi)     # points
+            placed.append(ann.get_window_extent(renderer))
 
 
 def write_tight(fig: Figure, path: str | Path, dpi: int = 100) -> Path:
