@@ -223,6 +223,19 @@ def _speed_figure(ctx: ReportContext, data: StandRecord) -> Block:
                       "1024-line encoder, period below), each mean speed drawn at the middle of its window")
 
 
+def _static_characteristic(scene: Scene | None) -> Any:
+    """The static characteristic T(φ_r) of the scene's coupling (loading/unloading branches), None without one."""
+    if scene is None:
+        return None
+    from rig.plants.clutch.stand import ClutchStand
+    from rig.plants.clutch.variants import FlatTappetCharacteristic
+    try:
+        dyn = ClutchStand.from_scene(scene).dynamics
+    except (SceneError, ValueError):
+        return None
+    return FlatTappetCharacteristic(dyn.clutch) if hasattr(dyn, "clutch") else getattr(dyn, "leaf", None)
+
+
 def _verdict(metrics: list[Metric]) -> Banner | None:
     """The stand's outcome in one line: disengagements, the shutdown rule's verdict (red when it requires a
     shutdown) and the torque peak."""
@@ -251,10 +264,18 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     blocks.append(_torque_figure(ctx, data, stim))
     if data.rel_angle is not None:
         fig, ax = figure(size=(6, 4))
-        ax.plot(np.degrees(np.interp(data.t, data.t_angle, data.rel_angle)), data.torque, lw=0.8)
+        ax.plot(np.degrees(np.interp(data.t, data.t_angle, data.rel_angle)), data.torque, lw=0.8,
+                label="measured (torque meter over the encoders' φ1 − φ3)")
+        scene = _scene(ctx.recording)
+        static = _static_characteristic(scene)
+        if static is not None:
+            phi = np.linspace(static.phi_min, static.apex, 241)
+            for direction, ls, what in ((1.0, "--", "loading"), (-1.0, ":", "unloading")):
+                ax.plot(np.degrees(phi), static.torque(phi, direction), ls, color="k", lw=1.0,
+                        label=f"static characteristic, {what} (model, one lobe)")
+            ax.legend(fontsize=7, loc="best")
         ax.set(xlabel="relative angle φ1 − φ3 (°)", ylabel="torque M_t (N·m)", title="Torque over relative angle")
         ax.grid(alpha=0.3)
-        scene = _scene(ctx.recording)
         try:
             lobe, apex = coupling_period(scene) if scene is not None else (LOBE, APEX)
         except (SceneError, ValueError):
