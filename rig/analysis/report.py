@@ -552,9 +552,13 @@ def _markdown(title: str, blocks: Sequence[Block]) -> str:
         elif isinstance(b, Text):
             out += [b.text, ""]
         elif isinstance(b, Table):
+            if b.collapsed:              # folded as in HTML (GitHub and most Markdown viewers render <details>)
+                out += [f"<details><summary>{html.escape(b.collapsed)}</summary>", ""]
             out += ["| " + " | ".join(b.headers) + " |", "|" + "---|" * len(b.headers)]
             out += ["| " + " | ".join((f"[{c.text}]({c.href})" if isinstance(c, Link) else fmt(c)).replace("|", "\\|")
                                       for c in r) + " |" for r in b.rows] + [""]
+            if b.collapsed:
+                out += ["</details>", ""]
         elif isinstance(b, Figure):
             out += [f"![{b.caption}]({b.path})", "", f"*{b.caption}*", ""]
     return "\n".join(out)
