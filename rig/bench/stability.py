@@ -50,8 +50,10 @@ def _run(model: Any, y0: tuple, grid: np.ndarray, method: str, **options: float)
         warnings.simplefilter("ignore", StiffnessWarning)
         sol = integrate(model.problem(y0), (0.0, float(grid[-1])), method=method, t_eval=grid, **options)
     if sol.status == "terminated":       # the model's own stop (a terminal event): reported, not silent
-        raise SolverDivergence(f"{method}: stopped by the terminal event {sol.events[-1].name!r}", sol.t_final,
-                               sol.y_final)
+        step = f", h = {options['h'] * 1e3:g} ms" if "h" in options else f", rtol = {options.get('rtol', '')}"
+        raise SolverDivergence(f"{method}{step}: stopped at t = {sol.t_final:.6g} s by the terminal event "
+                               f"{sol.events[-1].name!r}: {model.diverged(sol.t_final, sol.y_final).what}",
+                               sol.t_final, sol.y_final)
     return sol.y[0], sol.nfev
 
 
@@ -78,7 +80,7 @@ def stability_map(scene_path: str | Path, t_sim: float = 0.2, steps: list[float]
             except SolverDivergence as exc:
                 rows.append({"method": name, "h": options.get("h", ""), "stiffness_factor": f,
                              "cam_speed_rpm": f"{rpm:.4g}", "class": "detected",
-                             "error": "", "nfev": "", "message": " ".join(str(exc).split())[:200]})
+                             "error": "", "nfev": "", "message": " ".join(str(exc).split())})
                 continue
             err = float(np.max(np.abs(e - ref)) / scale)
             err = err if math.isfinite(err) else math.inf

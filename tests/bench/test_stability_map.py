@@ -28,6 +28,9 @@ def test_limits_are_reported_and_no_cell_is_silent():
     for f in (1.0, 4.0):     # h = 25 us: h*omega_n = 0.10 / 0.18 > 2*zeta: explicit Euler's slow growth, reported
         assert "the step amplifies the mode" in cell["euler", 2.5e-5, f]["message"]
     assert not [r for r in rows if r["class"] == "silent"]
+    for r in (r for r in rows if r["class"] == "detected"):     # each names time, step, cause and the fix, whole
+        m = r["message"]
+        assert "t = " in m and "h = " in m and ("Rodas4" in m or "reduce h" in m or "smaller step" in m), m
 
 
 def test_command_writes_csv_and_png(tmp_path):

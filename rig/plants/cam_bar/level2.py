@@ -248,7 +248,8 @@ class Level2:
         lever = kernel.geometry_at(t, np.asarray(y, dtype=float), self.params)[0]
         return "working" if y[0] * lever < 0.5 * self.mech.clearance else "other"
 
-    def _diverged(self, t: float, y: tuple) -> SolverDivergence:
+    def diverged(self, t: float, y: tuple) -> SolverDivergence:
+        """The error for a run stopped by the terminal "overload" event at (t, y): where, and the likely causes."""
         phi = self.cam_angle(t, y)
         return SolverDivergence(f"roller penetrates a flank by more than {self.max_penetration * 1e3:g} mm at cam "
                                 f"angle φ = {math.degrees(phi):.6g}° (contact stiffness too low, or the solution "
@@ -303,10 +304,10 @@ class Level2:
         y0 = self.initial_state(t0) if y0 is None else tuple(y0)
         flank = self.flank_of(t0, y0) if flank is None else flank
         if self._event(kernel.OVERLOAD)(t0, y0) > 0.0:
-            raise self._diverged(t0, y0)
+            raise self.diverged(t0, y0)
         sol = integrate(self.problem(y0), (t0, float(t_span[1])), method=method, t_eval=t_eval, **options)
         if sol.status == "terminated":
-            raise self._diverged(sol.t_final, sol.y_final)
+            raise self.diverged(sol.t_final, sol.y_final)
         switches, impacts, releases = [], [], []
         for rec in sol.events:
             if rec.name not in ("working", "other"):
