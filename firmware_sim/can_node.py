@@ -447,7 +447,9 @@ class CanNode:
 
     # ------------------------------------------------------------------ host commands
     def handle_commands(self) -> int:
-        """Apply every host command waiting on the bus at the device time :attr:`now`; returns how many."""
+        """Apply every host command waiting on the bus at the device time :attr:`now` (each is acknowledged);
+        returns how many were carried out (a rejected one — a short frame, an unknown command, a refused
+        argument — does not count: it does not arm a served device)."""
         done = 0
         while (msg := self.bus.recv(timeout=0.0)) is not None:
             if msg.arbitration_id != self._msg["HostCommand"].frame_id or msg.is_error_frame:
@@ -461,7 +463,7 @@ class CanNode:
                 status = 1
             self._enqueue("CommandAck", {"Cmd": cmd["Cmd"], "Arg": cmd["Arg"], "HostSeq": cmd["HostSeq"],
                                          "AckStatus": status}, self.now)
-            done += 1
+            done += status == 0
         return done
 
     def _apply(self, cmd: int, arg: int) -> int:

@@ -32,3 +32,14 @@ def test_a_short_or_long_host_command_is_rejected_with_an_ack(buses, device, dat
     (ack,) = host.acks
     assert (ack["cmd"], ack["arg"], ack["host_seq"], ack["status"]) == (*echo, "rejected")
     assert node.rx_errors == [f"HostCommand frame with {len(data)} data bytes rejected (expected 8)"]
+
+
+def test_a_rejected_command_does_not_count_as_carried_out(buses, device):
+    """A served device waits for the host's first command before it runs: a rejected one must not start it."""
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, heartbeat_period=0.1)
+    host_bus.send(can.Message(arbitration_id=0x050, data=bytes([3, 5]), is_extended_id=False))
+    host_bus.send(can.Message(arbitration_id=0x050, data=bytes([99, 0, 1, 0, 0, 0, 0, 0]), is_extended_id=False))
+    assert node.handle_commands() == 0                 # a short frame and an unknown command: both acknowledged
+    host_bus.send(can.Message(arbitration_id=0x050, data=bytes([6, 0, 2, 0, 0, 0, 0, 0]), is_extended_id=False))
+    assert node.handle_commands() == 1                 # Identify: carried out
