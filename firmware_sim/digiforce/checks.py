@@ -67,6 +67,10 @@ def text(cfg: Mapping[str, Any], key: str, where: str, default: str | None = Non
     return value
 
 
+#: units a bare number of a channel in SI ``unit`` was likely meant in (the hint of a missing unit)
+_EXAMPLE_UNITS = {"m": ("mm", "m"), "N": ("N", "kN"), "s": ("ms", "s"), "rad": ("deg", "rad"), "N*m": ("N*m",)}
+
+
 def quantity(value: Any, unit: str, what: str) -> float:
     """A number (already in SI ``unit``) or a string with a unit (``"2 mm"``) as a finite SI float.
     Inside :func:`units_required` a bare number for a dimensioned ``unit`` is a :class:`MissingUnitError`."""
@@ -74,7 +78,9 @@ def quantity(value: Any, unit: str, what: str) -> float:
         raise DigiForceError(f"{what}: expected a number or a quantity string, got {value!r}")
     if isinstance(value, (int, float)) and not isinstance(value, NormalisedSI) and unit not in ("", "1") \
             and _UNITS_REQUIRED.get():
-        raise MissingUnitError(f"{what}: {value!r} has no unit; write it with its unit, e.g. \"{value} {unit}\"")
+        examples = " or ".join(f'"{value} {u}"' for u in _EXAMPLE_UNITS.get(unit, (unit,)))
+        raise MissingUnitError(f"{what}: {value!r} has no unit (the channel measures in {unit}); write it with the "
+                               f"unit you mean, e.g. {examples}")
     try:
         out = to_si(value, unit, unit if isinstance(value, (int, float)) and unit not in ("", "1") else None, what)
     except UnitError as exc:

@@ -68,6 +68,15 @@ def test_a_bare_number_in_the_limits_is_an_error_naming_key_and_file(tmp_path):
         run_scene(scene, tmp_path / "bare.mcap", cycles=1)
     message = str(err.value)
     assert str(scene) in message and "limits.x_max" in message and "has no unit" in message
+    assert '"0.0415 mm" or "0.0415 m"' in message                      # the hint offers the unit meant, not SI only
+
+
+def test_rig_run_checks_the_scene_before_writing_anything(tmp_path, capsys):
+    from rig.cli import main
+    scene = variant(tmp_path, "bare2", 'y_min = ["-65 N", "-45 N"]\nx_max = [41.5, 42.5]')
+    assert main(["run", str(scene), "-o", str(tmp_path / "bare2.mcap")]) == 2
+    assert "limits.x_max" in capsys.readouterr().err
+    assert not list(tmp_path.glob("bare2*.png")) and not (tmp_path / "bare2.mcap").exists()
 
 
 def test_every_nok_row_of_results_csv_says_why_in_the_scenes_units(runs, tmp_path):
