@@ -204,7 +204,12 @@ def verdict(ctx: ReportContext) -> list[Block]:
     what = ", ".join(f"program {p}" + (f" “{names[p]}”" if names.get(p) else "") for p in a["sets"])
     text = (f"OK: all {n} curves passed" if nok == 0 else f"NOK: {nok} of {n} curves failed, {n - nok} OK") + \
         (f" ({what})" if what else "")
-    blocks: list[Block] = [Heading("Verdict"), Banner(text, nok == 0)]
+    blocks: list[Block] = [Heading("Verdict")]
+    if not rec.complete:                  # a cut or interrupted recording: said before the verdict it qualifies
+        why = _complete(rec).removeprefix("no: ")
+        blocks.append(Text(f"Warning: incomplete recording ({why}): the verdict covers the {n} curves it holds; "
+                           "what was lost is under Recording.", "warning"))
+    blocks.append(Banner(text, nok == 0))
     for program, s in a["sets"].items():
         table = _capability_table(s["values"])
         label = f"program {program}" if len(a["sets"]) > 1 else "the process"
