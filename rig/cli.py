@@ -10,6 +10,7 @@ import json
 import math
 import os
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
@@ -353,6 +354,11 @@ def _creatable(path: Path, fail: Callable[[str], None]) -> None:
         fail(f"{base} is a file, not a directory")
     if not os.access(base, os.W_OK | os.X_OK):
         fail(f"permission denied (cannot create files in {base})")
+    try:                              # root passes os.access; a read-only or virtual file system does not take files
+        with tempfile.TemporaryFile(dir=base):
+            pass
+    except OSError as exc:
+        fail(f"cannot create files in {base} ({(exc.strerror or str(exc)).lower()})")
 
 
 def _writable_file(path: Path, what: str, magic: bytes | None = None) -> None:

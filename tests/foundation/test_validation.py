@@ -176,6 +176,12 @@ def test_a_directory_without_write_permission_is_named(tmp_path, monkeypatch, ca
     assert f"permission denied (cannot create files in {tmp_path})" in one_error_line(capsys)
 
 
+def test_a_directory_that_takes_no_files_is_named_before_anything_runs(capsys):
+    """/proc passes the permission check for root but takes no files: found before the run, not at the chart."""
+    assert cli.main(["-q", "run", "--cycles", "1", "-o", "/proc/x.mcap"]) == 2
+    assert "cannot write the recording to /proc/x.mcap: cannot create files in /proc" in one_error_line(capsys)
+
+
 def test_rig_replaces_its_own_recordings_and_charts(tmp_path):
     for name, magic, what in (("a.mcap", cli.MCAP_MAGIC, "recording"), ("a.png", cli.PNG_MAGIC, "cycle chart")):
         (tmp_path / name).write_bytes(magic + b"...")
