@@ -147,13 +147,24 @@ class _Region(Element):
         if n == 0:
             return f"{tag}: {who} never {'enters' if entering else 'leaves'} the {kind}", None
         if n > 1:
-            at = "; ".join(self._pt(px, py) for px, py in points[:3]) + ("; …" if n > 3 else "")
+            at = "; ".join(f"through the {self._sides(k, sides)} at {self._pt(px, py)}"
+                           for k, (px, py) in enumerate(points[:3])) + ("; …" if n > 3 else "")
             again = (float(points[1, 0]), float(points[1, 1]))         # where it failed: the first crossing too many
-            return f"{tag}: {who} {past} the {kind} {n} times (exactly once allowed), at {at}", again
+            return f"{tag}: {who} {past} the {kind} {n} times (exactly once allowed): {at}", again
         if rule != "any" and not sides[0][SIDES.index(rule)]:
             used = "/".join(side for side, hit in zip(SIDES, sides[0]) if hit)
             return f"{tag}: {past} through the {used} side at {self._pt(*first)}, not through the {rule}", first
         return None
+
+    def _sides(self, k: int, sides: np.ndarray) -> str:
+        """The side(s) crossing ``k`` passed (``top``, ``bottom/left`` at a corner), with the window's limit there."""
+        names = [s for s, hit in zip(SIDES, sides[k]) if hit]
+        limits = {"left": ("x min", "x_min", self._x), "right": ("x max", "x_max", self._x),
+                  "bottom": ("y min", "y_min", self._y), "top": ("y max", "y_max", self._y)}
+        if self.kind != "window" or len(names) != 1:
+            return "/".join(names) or "boundary"
+        label, key, fmt = limits[names[0]]
+        return f"{names[0]} ({label} {fmt(self.cfg[key])})"
 
     def _outside(self, px: float, py: float) -> str:
         """Which sides of the region the point (px, py) lies beyond."""

@@ -78,8 +78,9 @@ def test_entering_twice_fails():
     x = [0, 1.5, 1.5, 1.5, 3]
     y = [1.5, 1.5, 2.5, 1.5, 1.5]   # in from the left, out the top, back in from the top, out right
     ok, reason, _ = run(WIN | {"entry": "any", "exit": "any"}, x, y)
-    assert not ok and reason.startswith("entry any: the curve entered the window 2 times (exactly once allowed), "
-                                        "at x = 1, y = 1.5; x = 1.5, y = 2")
+    assert not ok and reason.startswith("entry any: the curve entered the window 2 times (exactly once allowed): "
+                                        "through the left (x min 1) at x = 1, y = 1.5; through the top (y max 2) "
+                                        "at x = 1.5, y = 2")
     check = MAKE(WIN | {"entry": "any", "exit": "any"}).check(np.asarray(x, float), np.asarray(y, float))
     assert check.at == (1.5, 2.0)         # marked where it failed: the second entry, not the allowed first one
 
