@@ -37,7 +37,8 @@ ADDRESS = 1
 COMMANDS = ["ID", "PS", "PG", "PW", "ST", "SP", "TA", "CH", "CB", "CT", "CY", "RR", "RS", "RZ", "SS"]
 SCHEMAS = Path(__file__).resolve().parents[2] / "docs" / "schemas"
 PAYLOAD_SCHEMAS = {"PG": "program", "CH": "curve-header", "RR": "result", "RS": "statistics", "SS": "status"}
-BAD_REASONS = {"block check": r"block check b'.*' != b'..'", "malformed header": r"malformed header b'.*'",
+#: a bytes repr is quoted b'…', or b"…" when it holds a single quote
+BAD_REASONS = {"block check": r"block check b(['\"]).*\1 != b'..'", "malformed header": r"malformed header b(['\"]).*\1",
                "control byte": r"control byte 0x[0-9A-F]{2} inside a frame",
                "too long": rf"frame longer than {dev.MAX_DATA} data bytes"}
 FUZZ = dict(derandomize=True, database=None, deadline=None,

@@ -26,8 +26,8 @@ from firmware_sim.serial_protocol import framing as dev
 from firmware_sim.serial_protocol.commands import Commands
 
 ADDRESS = 1
-CORRUPT_REASONS = {"block check": r"block check b'.*' does not match b'..'",
-                   "malformed header": r"malformed header b'.*'",
+CORRUPT_REASONS = {"block check": r"block check b(['\"]).*\1 does not match b'..'",   # b"…" when it holds a '
+                   "malformed header": r"malformed header b(['\"]).*\1",
                    "control byte": r"control byte 0x[0-9A-F]{2} inside a frame",
                    "too long": rf"frame longer than {host.MAX_DATA} data bytes"}
 FUZZ = dict(derandomize=True, database=None, deadline=None,
