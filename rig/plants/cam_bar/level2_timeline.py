@@ -48,7 +48,7 @@ class Level2Timeline(Timeline):
         if self.mech.cam_drive is None:
             phi = self.speed.drive(t).phi
             cycle = np.floor(phi / tau).astype(int) if self.cycles is not None else np.zeros(t.size, int)
-            parts = [self._integrate(t[cycle == c], int(c)) for c in np.unique(cycle)]
+            parts = [self._integrate(t[cycle == c], int(c))[0] for c in np.unique(cycle)]
         else:
             parts = self._driven(t)
         if not t.size:
@@ -62,44 +62,39 @@ class Level2Timeline(Timeline):
         self._last = (float(t[-1]), float(phi[-1]), float(out["R23"][-1]))
         return out
 
-    def _integrate(self, tt: np.ndarray, cycle: int) -> dict[str, np.ndarray]:
-        """Samples ``tt`` (s) integrated with the mechanism of ``cycle``, continuing the state; their signals."""
+    def _integrate(self, tt: np.ndarray, cycle: int, within: bool = False) -> tuple[dict[str, np.ndarray], int]:
+        """Samples ``tt`` (s) integrated with the mechanism of ``cycle``, continuing the state: their signals and
+        how many were kept — all, or with ``within`` (a driven cam, whose angle is a state known only once
+        integrated) those before the first sample in the next revolution, the state then set back to the last of
+        them with the flank in contact there."""
         model = self._model(cycle)
         t0, y0, flank = self._state if self._state is not None else (tt[0], model.initial_state(tt[0]), None)
         run = model.simulate((t0, tt[-1]), y0, flank, t_eval=tt, method=self.method, **self.options)
-        self._state = (run.solution.t_final, run.solution.y_final, run.flank)
-        self.events.extend(run.switches)
         part = model.signals(tt, run.solution.y)
-        return part if self.cycles is None else self._deviate(part, cycle)
+        beyond = np.flatnonzero(part["phi"] >= tau * (cycle + 1)) if within else ()
+        k = int(beyond[0]) if len(beyond) else tt.size
+        if k == 0:                              # passed before the first sample: nothing of it in this revolution
+            return {}, 0
+        if k == tt.size:
+            kept = run.switches
+            self._state = (run.solution.t_final, run.solution.y_final, run.flank)
+        else:
+            kept = [e for e in run.switches if e.time <= tt[k - 1]]
+            self._state = (float(tt[k - 1]), tuple(run.solution.y[:, k - 1]), kept[-1].data["to"] if kept else
+                           (flank if flank is not None else model.flank_of(t0, y0)))
+            part = {key: v[:k] for key, v in part.items()}
+        self.events.extend(kept)
+        return (part if self.cycles is None else self._deviate(part, cycle)), k
 
     def _driven(self, t: np.ndarray) -> list[dict[str, np.ndarray]]:
-        """The samples ``t`` with a cam drive: each revolution's samples with that cycle's mechanism (the cam angle
-        is a state: where it passes into the next revolution, the rest is integrated again from the last sample
-        before the boundary, with the flank in contact there)."""
-        if self.cycles is None:
-            return [self._integrate(t, 0)] if t.size else []
+        """The samples ``t`` with a cam drive: each revolution's samples with that cycle's mechanism (where the cam
+        angle passes into the next revolution, the rest is integrated again from the last sample before it)."""
         parts, i = [], 0
         while i < t.size:
-            c, start = self._cycle, self._state
-            model = self._model(c)
-            t0, y0, flank = start if start is not None else (t[i], model.initial_state(t[i]), None)
-            run = model.simulate((t0, t[-1]), y0, flank, t_eval=t[i:], method=self.method, **self.options)
-            part = model.signals(t[i:], run.solution.y)
-            beyond = np.flatnonzero(part["phi"] >= tau * (c + 1))
-            if not beyond.size:                 # the rest of the chunk lies in this revolution
-                self._state = (run.solution.t_final, run.solution.y_final, run.flank)
-                self.events.extend(run.switches)
-                parts.append(self._deviate(part, c))
-                break
-            self._cycle = c + 1
-            k = int(beyond[0])
-            if k == 0:                          # passed before the first sample: all of it in the next revolution
-                continue
-            t_k = float(t[i + k - 1])
-            kept = [e for e in run.switches if e.time <= t_k]
-            self.events.extend(kept)
-            self._state = (t_k, tuple(run.solution.y[:, k - 1]), kept[-1].data["to"] if kept else
-                           (flank if flank is not None else model.flank_of(t0, y0)))
-            parts.append(self._deviate({key: v[:k] for key, v in part.items()}, c))
-            i += k
+            part, k = self._integrate(t[i:], self._cycle, within=self.cycles is not None)
+            if k:
+                parts.append(part)
+                i += k
+            if i < t.size:
+                self._cycle += 1
         return parts
