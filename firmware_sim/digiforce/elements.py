@@ -157,14 +157,15 @@ class _Region(Element):
         return None
 
     def _sides(self, k: int, sides: np.ndarray) -> str:
-        """The side(s) crossing ``k`` passed (``top``, ``bottom/left`` at a corner), with the window's limit there."""
+        """The side(s) crossing ``k`` passed (``top``, ``bottom/left`` at a corner), with the limit there."""
         names = [s for s, hit in zip(SIDES, sides[k]) if hit]
-        limits = {"left": ("x min", "x_min", self._x), "right": ("x max", "x_max", self._x),
-                  "bottom": ("y min", "y_min", self._y), "top": ("y max", "y_max", self._y)}
-        if self.kind != "window" or len(names) != 1:
+        if len(names) != 1:
             return "/".join(names) or "boundary"
-        label, key, fmt = limits[names[0]]
-        return f"{names[0]} ({label} {fmt(self.cfg[key])})"
+        return f"{names[0]} ({limit})" if (limit := self._limit(names[0])) else names[0]
+
+    def _limit(self, side: str) -> str:
+        """The limit a side stands for (``"y min -56 N"``); empty for a region without one per side."""
+        return ""
 
     def _outside(self, px: float, py: float) -> str:
         """Which sides of the region the point (px, py) lies beyond."""
@@ -183,13 +184,18 @@ class Window(_Region):
         x0, x1, y0, y1 = cfg["x_min"], cfg["x_max"], cfg["y_min"], cfg["y_max"]
         self.region = ConvexQuad([(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
 
+    #: side → (its key, where a point beyond it lies)
+    _SIDE = {"left": ("x_min", "left of"), "right": ("x_max", "right of"), "bottom": ("y_min", "below"),
+             "top": ("y_max", "above")}
+
+    def _limit(self, side: str) -> str:
+        key = self._SIDE[side][0]
+        return f"{key.replace('_', ' ')} {(self._x if key[0] == 'x' else self._y)(self.cfg[key])}"
+
     def _outside(self, px: float, py: float) -> str:
         c = self.cfg
-        parts = [text for bad, text in (
-            (px < c["x_min"], f"left of the window (x min {self._x(c['x_min'])})"),
-            (px > c["x_max"], f"right of the window (x max {self._x(c['x_max'])})"),
-            (py < c["y_min"], f"below the window (y min {self._y(c['y_min'])})"),
-            (py > c["y_max"], f"above the window (y max {self._y(c['y_max'])})")) if bad]
+        beyond = {"left": px < c["x_min"], "right": px > c["x_max"], "bottom": py < c["y_min"], "top": py > c["y_max"]}
+        parts = [f"{self._SIDE[s][1]} the window ({self._limit(s)})" for s, bad in beyond.items() if bad]
         return " and ".join(parts) or "outside the window"
 
     @classmethod
