@@ -55,7 +55,7 @@ def _print_values(st: dict) -> None:
         if pv.get("cp") is None or pv.get("cpk") is None:
             cap = "  -     -  "
         else:
-            cap = f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv["std"] > 0 else " n/a   n/a "    # σ = 0: no spread
+            cap = f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv["spread"] else " n/a   n/a "    # σ = 0: say nothing
         drift = pv["trend"].get("drift")
         drift = f"yes: {'; '.join(pv['trend'].get('drift_why') or [])}" if drift else "no" if drift is False else "-"
         print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>5}  {pv['mean']:10.4g} {pv['std']:9.3g} "

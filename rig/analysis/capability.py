@@ -32,7 +32,8 @@ def describe(values: Sequence[float], limits: tuple[float | None, float | None] 
     """n, mean, σ (sample, ddof=1), min, max, ±3σ band, Cp/Cpk against ``limits`` and warnings.
 
     The ±3σ band is the natural tolerance T = ±3σ of the process; ``band_within_limits`` says whether it
-    fits inside the given limits. NaN values (missing process values) are dropped and counted.
+    fits inside the given limits. ``spread``: σ > 0 (without it Cp/Cpk are infinite and say nothing: every value
+    the same, e.g. at the resolution). NaN values (missing process values) are dropped and counted.
     """
     v = np.asarray(values, dtype=float)
     missing = int(np.count_nonzero(~np.isfinite(v)))
@@ -53,5 +54,5 @@ def describe(values: Sequence[float], limits: tuple[float | None, float | None] 
     if lsl is not None or usl is not None:
         inside = (lsl is None or lo >= lsl) and (usl is None or hi <= usl)
     return {"name": name, "n": n, "mean": mean, "std": std, "min": float(v.min()), "max": float(v.max()),
-            "minus_3sigma": lo, "plus_3sigma": hi, "lsl": lsl, "usl": usl, "cp": cp, "cpk": cpk,
+            "minus_3sigma": lo, "plus_3sigma": hi, "lsl": lsl, "usl": usl, "cp": cp, "cpk": cpk, "spread": std > 0,
             "band_within_limits": inside, "warnings": warnings}

@@ -236,7 +236,7 @@ def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
     its limits (red), mean (black) and mean ± 3σ (dashed)."""
     v = values[np.isfinite(values)] * stats.get("factor", 1.0)
     bins = max(5, min(40, int(np.sqrt(v.size)) + 1))
-    spread = v.size > 0 and np.ptp(v) > 0
+    spread = stats.get("spread", v.size > 0 and np.ptp(v) > 0)
     if v.size and not spread:                     # one value repeated: a narrow bar at it, not a made-up width
         limits = [stats[k] for k in ("lsl", "usl") if stats.get(k) is not None]
         half = max([abs(v[0] - lim) * 1.2 for lim in limits] + [abs(v[0]) * 1e-3, 1e-12])

@@ -140,17 +140,17 @@ def _num(v: float | None, digits: int = 4) -> str:
 
 
 # -- 1. the verdict --------------------------------------------------------------------------------
-def _capability(cpk: float | None, std: float | None = None) -> str:
+def _capability(cpk: float | None, spread: bool = True) -> str:
     if cpk is None:
         return "—"
-    if std == 0.0:
+    if not spread:
         return "n/a: no spread (every value the same, at the instrument's resolution)"
     return "capable" if cpk >= CAPABLE else "marginal" if cpk >= MARGINAL else "NOT capable"
 
 
 def _indices(v: dict) -> list[Any]:
     """Cp and Cpk cells: n/a without spread (σ = 0 makes them infinite, which says nothing)."""
-    return ["n/a", "n/a"] if v["std"] == 0.0 else [v["cp"], v["cpk"]]
+    return [v["cp"], v["cpk"]] if v["spread"] else ["n/a", "n/a"]
 
 
 def _limits_text(v: dict) -> str:
@@ -166,7 +166,7 @@ def _limits_text(v: dict) -> str:
 
 def _capability_table(values: dict) -> Table | None:
     rows = [[name, v["n"], _limits_text(v), f"{_num(v['mean'])} {v.get('unit', '')}".rstrip(),
-             f"{_num(v['std'], 3)} {v.get('unit', '')}".rstrip(), *_indices(v), _capability(v["cpk"], v["std"])]
+             f"{_num(v['std'], 3)} {v.get('unit', '')}".rstrip(), *_indices(v), _capability(v["cpk"], v["spread"])]
             for name, v in values.items() if v.get("lsl") is not None or v.get("usl") is not None]
     if not rows:
         return None
