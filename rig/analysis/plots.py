@@ -59,10 +59,13 @@ def separate_labels(fig: Figure) -> None:
     hides another (display space, after the layout)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.text import Annotation
+    labelled = [(ax, anns) for ax in fig.axes if len(anns := [t for t in ax.texts if isinstance(t, Annotation)]) > 1]
+    if not labelled:                   # nothing can overlap: no renderer needed
+        return
     renderer = FigureCanvasAgg(fig).get_renderer()
-    for ax in fig.axes:
+    for ax, anns in labelled:
         placed = []
-        for ann in (t for t in ax.texts if isinstance(t, Annotation)):
+        for ann in anns:
             for _ in range(12):
                 box = ann.get_window_extent(renderer)
                 hit = next((b for b in placed if b.overlaps(box)), None)

@@ -52,7 +52,7 @@ def _run(model: Any, y0: tuple, grid: np.ndarray, method: str, **options: float)
     if sol.status == "terminated":       # the model's own stop (a terminal event): reported, not silent
         step = f", h = {options['h'] * 1e3:g} ms" if "h" in options else f", rtol = {options.get('rtol', '')}"
         raise SolverDivergence(f"{method}{step}: stopped at t = {sol.t_final:.6g} s by the terminal event "
-                               f"{sol.events[-1].name!r}: {model.diverged(sol.t_final, sol.y_final).what}",
+                               f"{sol.events[-1].name!r}: {model.overload(sol.t_final, sol.y_final)}",
                                sol.t_final, sol.y_final)
     return sol.y[0], sol.nfev
 

@@ -15,13 +15,11 @@ Rhs = Callable[[float, tuple], Sequence[float]]
 
 
 class SolverDivergence(RuntimeError):
-    """The solution became non-finite or the step size underflowed; the message names time and state (``what``:
-    the cause and fix alone)."""
+    """The solution became non-finite or the step size underflowed; the message names time and state."""
 
     def __init__(self, what: str, t: float, y: Sequence[float]):
         state = ", ".join(f"{v:.6g}" for v in y)
         super().__init__(f"solver diverged: {what} at t = {t:.9g} s, state = ({state})")
-        self.what = what
         self.t = t
         self.y = tuple(y)
 

@@ -248,12 +248,14 @@ class Level2:
         lever = kernel.geometry_at(t, np.asarray(y, dtype=float), self.params)[0]
         return "working" if y[0] * lever < 0.5 * self.mech.clearance else "other"
 
-    def diverged(self, t: float, y: tuple) -> SolverDivergence:
-        """The error for a run stopped by the terminal "overload" event at (t, y): where, and the likely causes."""
-        phi = self.cam_angle(t, y)
-        return SolverDivergence(f"roller penetrates a flank by more than {self.max_penetration * 1e3:g} mm at cam "
-                                f"angle φ = {math.degrees(phi):.6g}° (contact stiffness too low, or the solution "
-                                f"diverged: with a fixed-step explicit method reduce h or use Rodas4)", t, y)
+    def overload(self, t: float, y: tuple) -> str:
+        """What the terminal "overload" event at (t, y) means: where, and the likely causes with the fix."""
+        return (f"roller penetrates a flank by more than {self.max_penetration * 1e3:g} mm at cam angle "
+                f"φ = {math.degrees(self.cam_angle(t, y)):.6g}° (contact stiffness too low, or the solution diverged: "
+                f"with a fixed-step explicit method reduce h or use Rodas4)")
+
+    def _diverged(self, t: float, y: tuple) -> SolverDivergence:
+        return SolverDivergence(self.overload(t, y), t, y)
 
     def problem(self, y0: tuple) -> Problem:
         """The ODE with contact events "working" / "other" (penetration of that flank changes sign: sign +1 onset,
@@ -304,10 +306,10 @@ class Level2:
         y0 = self.initial_state(t0) if y0 is None else tuple(y0)
         flank = self.flank_of(t0, y0) if flank is None else flank
         if self._event(kernel.OVERLOAD)(t0, y0) > 0.0:
-            raise self.diverged(t0, y0)
+            raise self._diverged(t0, y0)
         sol = integrate(self.problem(y0), (t0, float(t_span[1])), method=method, t_eval=t_eval, **options)
         if sol.status == "terminated":
-            raise self.diverged(sol.t_final, sol.y_final)
+            raise self._diverged(sol.t_final, sol.y_final)
         switches, impacts, releases = [], [], []
         for rec in sol.events:
             if rec.name not in ("working", "other"):
