@@ -111,6 +111,8 @@ class CanHost:
             if m.name not in self._handlers:
                 names = {sg.name for sg in m.signals}
                 self._handlers[m.name] = self._counter if {"Count", "EdgeTime"} <= names else self._reading
+        self._dispatch = {fid: (spec, spec.length, self._decoder(spec), self._handlers[spec.name])
+                          for fid, spec in self._by_id.items()}     # per frame id: what receiving it takes
         self.sequence = SequenceChecker()
         self.assembler = CurveAssembler(self.x_lsb, self.y_lsb, self._fd_pairs)
         self._last_number: dict[str, int] = {}      # last full curve number per frame kind (CurveNo is 16-bit)
@@ -127,8 +129,10 @@ class CanHost:
         self.readings: list[tuple[str, float, dict[str, float]]] = []   # (message, t s, {signal: DBC units})
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per run
-        self._live_rows: list[tuple[float, float, list[int], list[int]]] = []   # (t0 s, dt s, raw xs, raw ys) per
-        # frame received one by one
+        # live frames received one by one, not yet put in _live: LiveXY as three flat lists (t s, raw x, raw y),
+        # LiveXYFD as rows (t0 s, dt s, raw xs, raw ys); one kind at a time, so arrival order is kept
+        self._live_pairs: tuple[list[float], list[int], list[int]] = ([], [], [])
+        self._live_rows: list[tuple[float, float, list[int], list[int]]] = []
         self._runs = {self.db.get_message_by_name(name).frame_id: handler for name, handler in (
             ("LiveXY", self._live_run), ("LiveXYFD", self._live_run), ("CurveBlock", self._curve_block_run),
             ("CurveBlockFD", self._curve_block_run))}
@@ -150,45 +154,58 @@ class CanHost:
 
     def receive(self, msg: can.Message) -> None:
         """Process one received frame; problems become events, never exceptions."""
-        self._receive_one(_Rx(msg.timestamp, msg.arbitration_id, bytes(msg.data), msg.is_error_frame,
-                              msg.is_extended_id, msg.is_fd))
+        self._receive_one(msg)
         self._check_result_timeout()
 
     def receive_many(self, frames: Sequence[can.Message]) -> None:
         """Process received python-can messages in order (as one block)."""
         self.receive_block(FrameBlock.of_messages(list(frames)))
 
-    def _receive_one(self, msg: _Rx) -> None:
+    def _decoder(self, spec):
+        """Raw values of one payload of ``spec``: the layout's decoder, or cantools' (multiplexed frames)."""
+        layout = self._layouts.get(spec.frame_id)
+        if layout is not None:
+            return layout.decode_one
+        return lambda data: spec.decode(bytes(data), decode_choices=False, scaling=False)
+
+    def _receive_one(self, msg: can.Message | _Rx) -> None:
+        """One frame (a python-can message or an :class:`_Rx`; read, never kept)."""
         self.frames_received += 1
-        self._bus_time = max(self._bus_time, msg.timestamp)
+        if msg.timestamp > self._bus_time:
+            self._bus_time = msg.timestamp
         fid = msg.arbitration_id
         if msg.is_error_frame:
             self._event(msg, "error_frame", 1, "error frame on the bus")
             return
-        spec = None if msg.is_extended_id else self._by_id.get(fid)     # the DBC's ids are all 11-bit
-        if spec is None:
+        entry = None if msg.is_extended_id else self._dispatch.get(fid)     # the DBC's ids are all 11-bit
+        if entry is None:
             if fid != self._command.frame_id or msg.is_extended_id:
                 name = f"0x{fid:08X} (extended)" if msg.is_extended_id else f"0x{fid:03X}"
                 self._event(msg, "unknown_frame", 1, f"frame id {name} is not a device frame of the DBC")
             return
-        if len(msg.data) > 8 and not msg.is_fd:
-            self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(msg.data)} data bytes in a classic "
+        spec, length, decode, handler = entry
+        data = msg.data
+        if len(data) != length:
+            if len(data) > 8 and not msg.is_fd:
+                self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(data)} data bytes in a "
+                            "classic (non-FD) frame; more than 8 need CAN FD")
+            else:
+                self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(data)} data bytes, DBC says "
+                            f"{length}")
+            return
+        if length > 8 and not msg.is_fd:
+            self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(data)} data bytes in a classic "
                         "(non-FD) frame; more than 8 need CAN FD")
             return
-        if len(msg.data) != spec.length:
-            self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(msg.data)} data bytes, DBC says {spec.length}")
-            return
         try:
-            layout = self._layouts.get(fid)
-            raw = (layout.decode_one(msg.data) if layout is not None
-                   else spec.decode(msg.data, decode_choices=False, scaling=False))
+            raw = decode(data)
         except (cantools.database.errors.DecodeError, ValueError, KeyError) as exc:
             self._event(msg, "decode_error", 1, f"{spec.name} (0x{fid:03X}): {exc}")
             return
         gap = self.sequence.check(fid, raw["Seq"])
         if gap:
             self._event(msg, "sequence_gap", gap, f"{spec.name} (0x{fid:03X}): {gap} frame(s) missing before Seq {raw['Seq']}")
-        self._handlers[spec.name](msg, spec, raw)
+        handler(msg, spec, raw)
 
     def receive_block(self, block: FrameBlock) -> None:
         """Process a block of received frames in order, with the outcome of :meth:`receive` on each.
@@ -285,15 +302,23 @@ class CanHost:
 
     def _live_time(self, tick: int) -> float:
         t = unwrap(tick * 1e-4, TICK_WRAP, self._device_time)
-        self._device_time = max(self._device_time, t)
+        if t > self._device_time:
+            self._device_time = t
         return t
 
     def _live(self, msg, spec, raw) -> None:
         """One live frame received on its own (LiveXY: one pair; LiveXYFD: NPairs pairs at Tick + i*Dt)."""
         t0 = self._live_time(raw["Tick"])
         if "NPairs" not in raw:
-            self._live_rows.append((t0, 0.0, [raw["X"]], [raw["Y"]]))
+            if self._live_rows:
+                self._flush_live_rows()
+            t, x, y = self._live_pairs
+            t.append(t0)
+            x.append(raw["X"])
+            y.append(raw["Y"])
             return
+        if self._live_pairs[0]:
+            self._flush_live_rows()
         dt, n = raw["Dt"] * 1e-6, min(raw["NPairs"], self._fd_pairs)
         self._live_rows.append((t0, dt, [raw[k] for k in self._fd_x[:n]], [raw[k] for k in self._fd_y[:n]]))
         self._device_time = max(self._device_time, t0 + (raw["NPairs"] - 1) * dt)
@@ -301,6 +326,10 @@ class CanHost:
     _live_fd = _live
 
     def _flush_live_rows(self) -> None:
+        if self._live_pairs[0]:
+            t, x, y = self._live_pairs
+            self._live.append((np.array(t), np.array(x, dtype=np.int64), np.array(y, dtype=np.int64)))
+            self._live_pairs = ([], [], [])
         if self._live_rows:
             t0, dt, xs, ys = zip(*self._live_rows)
             counts = np.array([len(x) for x in xs])

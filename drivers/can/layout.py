@@ -42,6 +42,8 @@ class FrameLayout:
         self._mask = np.array([(1 << s.length) - 1 for s in sig], dtype=np.uint64)
         self._top = np.array([s.length - 1 for s in sig], dtype=np.int64)
         self._signed_wrap = np.array([1 << s.length if s.signed else 0 for s in sig], dtype=np.int64)
+        self._scalar = tuple((s.name, s.start, (1 << s.length) - 1, 1 << (s.length - 1) if s.signed else 0,
+                              1 << s.length) for s in sig)        # (name, shift, mask, sign bit or 0, wrap)
 
     def decode_one(self, data: bytes | bytearray) -> dict[str, int]:
         """Raw values of one payload of :attr:`length` bytes."""
@@ -49,11 +51,9 @@ class FrameLayout:
             raise ValueError(f"{self.name} (0x{self.frame_id:03X}): {len(data)} data bytes, DBC says {self.length}")
         word = int.from_bytes(data, "little")
         out = {}
-        for s in self.signals:
-            value = (word >> s.start) & ((1 << s.length) - 1)
-            if s.signed and value >> (s.length - 1):
-                value -= 1 << s.length
-            out[s.name] = value
+        for name, start, mask, sign, wrap in self._scalar:
+            value = (word >> start) & mask
+            out[name] = value - wrap if value & sign else value
         return out
 
     def decode(self, payload: np.ndarray) -> dict[str, np.ndarray]:
