@@ -14,6 +14,12 @@ order and the result does not depend on who computed what.
   pass, usually one histogram pass (10⁶–10⁷ samples, 1024 bins: a tail bin holds ~10²) and the collect pass;
   memory: ``bins`` counts per range and at most ``cap`` values per range (unless a range cannot be cut
   further: then all its values are collected).
+* One pass instead, when the number of samples is known beforehand and every wanted order statistic lies
+  among the ``cap`` smallest or largest of its column (the ±3σ points of up to ~3·10⁶ samples at the default
+  ``cap``): each task keeps, beside its moments, the smallest and largest values each column needs (a bounded
+  heap per column: once full, a value costs one comparison); the tails of all tasks are merged the same way and
+  the order statistics picked from them.
+  The same numbers as the passes above, in a third of the work.
 """
 from __future__ import annotations
 
@@ -57,15 +63,76 @@ class MomentsFold:
     """Fold: the :class:`Moments` of a task's blocks."""
 
     def __call__(self, blocks: Iterable[np.ndarray]) -> Moments:
-        out = None
+        return TailsFold(0, 0)(blocks)[0]
+
+
+@njit(cache=True, nogil=True)
+def _keep_smallest(block: np.ndarray, sign: float, buf: np.ndarray, size: np.ndarray, top: np.ndarray) -> None:
+    """Fold ``sign * block`` (rows, columns) into per-column buffers ``buf`` (columns, 2k) that hold the k
+    smallest values seen among their first ``size`` entries: a value below its column's bound ``top`` is
+    appended; a full buffer is cut to its k smallest, whose largest becomes the bound. Once the bound is set a
+    value costs one comparison."""
+    k = buf.shape[1] // 2
+    for j in range(block.shape[1]):          # column by column: one buffer stays in cache
+        b = buf[j]
+        n = size[j]
+        t = top[j]
+        for i in range(block.shape[0]):
+            v = sign * block[i, j]
+            if v < t:
+                b[n] = v
+                n += 1
+                if n == 2 * k:
+                    b[:] = np.partition(b, k - 1)
+                    n = k
+                    t = b[k - 1]
+        size[j] = n
+        top[j] = t
+
+
+class _Tail:
+    """The ``k`` smallest (``largest=False``) or largest values of each column of the blocks added."""
+
+    def __init__(self, k: int, columns: int, largest: bool) -> None:
+        self.k = k
+        self.sign = -1.0 if largest else 1.0           # the largest values are kept as the smallest negated
+        self.buf = np.empty((columns, 2 * k))
+        self.size = np.zeros(columns, dtype=np.int64)
+        self.top = np.full(columns, np.inf)
+
+    def add(self, block: np.ndarray) -> None:
+        if self.k and len(block):
+            _keep_smallest(np.ascontiguousarray(block, dtype=float), self.sign, self.buf, self.size, self.top)
+
+    def values(self) -> np.ndarray:
+        """The kept values, (≤ k, columns), unordered (every column holds as many: all its values, or k)."""
+        k = self.k
+        cols = [b[:n] if n <= k else np.partition(b[:n], k - 1)[:k] for b, n in zip(self.buf, self.size.tolist())]
+        return self.sign * (np.array(cols).T if cols else np.empty((0, 0)))
+
+
+@dataclass(frozen=True)
+class TailsFold:
+    """Fold: the :class:`Moments` of a task's blocks and, per column, its ``low`` smallest and ``high``
+    largest values (arrays of shape (≤ low, columns) and (≤ high, columns), unordered)."""
+
+    low: int
+    high: int
+
+    def __call__(self, blocks: Iterable[np.ndarray]) -> tuple[Moments, np.ndarray, np.ndarray]:
+        out, low, high = None, None, None
         for block in blocks:
             if not len(block):
                 continue
             part = Moments.of_block(block)
             out = part if out is None else out.merge(part)
+            if low is None:
+                low, high = _Tail(self.low, block.shape[1], False), _Tail(self.high, block.shape[1], True)
+            low.add(block)
+            high.add(block)
         if out is None:
             raise ValueError("a task produced no samples")
-        return out
+        return out, low.values(), high.values()
 
 
 @njit(cache=True)
@@ -185,17 +252,67 @@ class ColumnStats:
 Run = Callable[[Callable], Iterable]
 
 
-def column_statistics(run: Run, percents: Sequence[float], bins: int = BINS, cap: int = CAP) -> ColumnStats:
+def _tail_sizes(n: int, percents: Sequence[float]) -> tuple[int, int]:
+    """How many smallest and largest values per column hold the order statistics of ``percents`` of ``n``
+    samples (each percent from the nearer end)."""
+    k0, k1, _ = linear_ranks(n, percents)
+    low = [int(b) + 1 for a, b in zip(k0, k1) if b + 1 <= n - a]
+    high = [n - int(a) for a, b in zip(k0, k1) if b + 1 > n - a]
+    return max(low, default=0), max(high, default=0)
+
+
+def passes(n: int, percents: Sequence[float], cap: int = CAP) -> int:
+    """Passes over the samples :func:`column_statistics` usually makes for ``n`` samples given beforehand:
+    1 when the tails hold every wanted order statistic, else 3 (moments, histogram, collect)."""
+    return 1 if max(_tail_sizes(n, percents)) <= cap else 3
+
+
+def _one_pass(run: Run, n: int, pct: tuple[float, ...], low: int, high: int) -> ColumnStats:
+    """Moments and percentiles from the tasks' tails in one pass (module docstring)."""
+    moments, lows, highs = None, None, None
+    for part, part_low, part_high in run(TailsFold(low, high)):
+        if moments is None:
+            lows, highs = _Tail(low, part.mean.size, False), _Tail(high, part.mean.size, True)
+        moments = part if moments is None else moments.merge(part)
+        lows.add(part_low)
+        highs.add(part_high)
+    if moments is None or moments.n != n:
+        got = 0 if moments is None else moments.n
+        raise RuntimeError(f"the tasks produced {got} samples, {n} were announced")
+    lows, highs = np.sort(lows.values(), axis=0), np.sort(highs.values(), axis=0)
+    k0, k1, gamma = linear_ranks(n, pct)
+    out: dict[float, np.ndarray] = {}
+    for a, b, g, p in zip(k0.tolist(), k1.tolist(), gamma, pct):
+        if b + 1 <= n - a:
+            va, vb = lows[a], lows[b]
+        else:
+            va, vb = highs[a - (n - len(highs))], highs[b - (n - len(highs))]
+        out[p] = _lerp(va, vb, np.full(va.shape, g))
+    return ColumnStats(n, moments.mean, moments.std(1), moments.minimum, moments.maximum, out)
+
+
+def column_statistics(run: Run, percents: Sequence[float], bins: int = BINS, cap: int = CAP,
+                      n: int | None = None) -> ColumnStats:
     """Statistics of all samples the tasks produce; ``run(fold)`` applies a fold to every task's blocks and
-    yields the results in task order. Passes: moments, histogram(s), collect (module docstring)."""
+    yields the results in task order. ``n``: the number of samples, when known beforehand (allows the one-pass
+    method). Passes: one, or moments, histogram(s), collect (module docstring)."""
     if bins < 2 or cap < 2:
         raise ValueError(f"quantile search needs bins >= 2 and cap >= 2, got bins={bins}, cap={cap}")
+    pct = tuple(float(p) for p in percents)
+    if n is not None:
+        if n < 2:
+            raise ValueError("column statistics need at least 2 samples")
+        low, high = _tail_sizes(n, pct)
+        if max(low, high) <= cap:
+            return _one_pass(run, n, pct, low, high)
     moments = None
     for part in run(MomentsFold()):
         moments = part if moments is None else moments.merge(part)
     if moments is None or moments.n < 2:
         raise ValueError("column statistics need at least 2 samples")
-    n, pct = moments.n, tuple(float(p) for p in percents)
+    if n is not None and moments.n != n:
+        raise RuntimeError(f"the tasks produced {moments.n} samples, {n} were announced")
+    n = moments.n
     k0, k1, gamma = linear_ranks(n, pct)
     m, q = moments.mean.size, len(pct)
     lo = np.repeat(moments.minimum[:, None], q, axis=1)

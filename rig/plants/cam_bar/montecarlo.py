@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 import numpy as np
 
-from rig.analysis.streaming import ColumnStats, column_statistics
+from rig.analysis.streaming import ColumnStats, column_statistics, passes
 from rig.plants.cam_bar.tolerance import PARAMS, CamChain, ToleranceSet
 
 if TYPE_CHECKING:
@@ -24,7 +24,6 @@ if TYPE_CHECKING:
 TASK_SAMPLES = 50_000  # machines per task (≈ 0.1–0.2 s a pass on one core at 360 angles); fixed, not per worker
 BLOCK = 2000           # machines drawn and evaluated at once inside a task (≈ 6 MB at 360 angles)
 PERCENTILES = (0.135, 99.865)  # the ±3σ points of a normal law
-PASSES = 3             # passes over the samples a run usually makes: moments, histogram, collect
 
 
 def sample_clearance(rng: np.random.Generator, lam: float, size: int, limit: float | None = None) -> np.ndarray:
@@ -82,12 +81,18 @@ def tasks(chain: CamChain, tol: ToleranceSet, n: int, seed: int, task_samples: i
     return [ChainSamples(chain, tol, s, k) for s, k in zip(np.random.SeedSequence(seed).spawn(len(sizes)), sizes)]
 
 
+def run_passes(n: int, percents: Sequence[float] = PERCENTILES) -> int:
+    """Passes over the ``n`` machines a run usually makes (1 up to ~3·10⁶ machines for the ±3σ points)."""
+    return passes(n, percents)
+
+
 def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, executor: "Executor | None" = None,
                 task_samples: int = TASK_SAMPLES, percents: Sequence[float] = PERCENTILES,
-                progress: Callable[[int], object] | None = None) -> MonteCarloResult:
+                progress: Callable[[int], object] | None = None, one_pass: bool = True) -> MonteCarloResult:
     """Run ``n`` sampled machines through the full chain on ``executor`` (default serial) in tasks of
-    ``task_samples``; ``progress(k)`` is called as each task has passed k machines (about ``PASSES``
-    passes in all)."""
+    ``task_samples``; ``progress(k)`` is called as each task has passed k machines (about
+    :func:`run_passes` passes in all); ``one_pass=False`` takes the histogram passes even where the tails would
+    do (the same numbers; for comparison)."""
     from rig.executors import make_executor
     if n < 2 or task_samples < 1:
         raise ValueError(f"Monte-Carlo run needs n ≥ 2 and task_samples ≥ 1 (got n={n}, task_samples={task_samples})")
@@ -102,7 +107,7 @@ def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, executor:
             yield part
 
     try:
-        st = column_statistics(run, percents)
+        st = column_statistics(run, percents, n=n if one_pass else None)
     finally:
         if own:
             executor.close()
