@@ -48,7 +48,7 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
     from rig.fidelity import QUESTIONS, choose
     from rig.plants.cam_bar import PinInsertionMechanism
     from rig.plants.cam_bar.level2 import Level2
-    from rig.plants.cam_bar.scene_io import read_speed_profile
+    from rig.plants.cam_bar.scene_io import read_level2_model, read_speed_profile
     from rig.runner.config import read_config
     from rig.scene import SceneError, load_scene
     scene = load_scene(scene_path)
@@ -63,7 +63,7 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
     T = 2 * math.pi / omega
     t = np.arange(0.0, T, 1.0 / rate)
     phi = speed.drive(t).phi
-    model = Level2(mech, speed)
+    model = Level2(mech, speed, model=read_level2_model(scene))
     y0 = model.initial_state(0.0)
 
     def level2() -> Any:

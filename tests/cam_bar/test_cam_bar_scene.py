@@ -72,3 +72,20 @@ def test_speed_profiles_from_scene(tmp_path):
     sc = write(tmp_path, "", 'profile = "constant"', 'profile = "sinusoidal"\namplitude = "200 rpm"')
     with pytest.raises(SceneError, match=r"\[speed\].*amplitude"):
         CamBarPlant.from_scene(sc)
+
+
+def test_level2_assumptions_are_the_runs_setting_not_the_mechanism(tmp_path):
+    """contact_damping and [plant.guide] are model assumptions: they reach the level-2 model through the run's
+    setting; the mechanism (the machine) does not hold them."""
+    from rig.plants.cam_bar.level2 import ContactLaw
+    sc = write(tmp_path, '\n[plant.guide]\nmodel = "stick"\n', 'l_F = "100 mm"',
+               'l_F = "100 mm"\ncontact_damping = "35 s/m"')
+    assert not {"contact_damping", "guide"} & set(vars(PinInsertionMechanism.from_scene(sc)))
+    plant = CamBarPlant.from_scene(sc, fidelity=2)
+    assert plant.setting.level2.contact_damping == pytest.approx(35.0)
+    assert plant.setting.level2.guide.model == "stick"
+    model = plant._timeline._model(0)
+    assert model.contact == ContactLaw.steel_line(plant.mech.roller_width, 35.0)
+    assert model.model is plant.setting.level2
+    with pytest.raises(SceneError, match="contact_damping must not be negative"):
+        CamBarPlant.from_scene(write(tmp_path, "", 'l_F = "100 mm"', 'l_F = "100 mm"\ncontact_damping = "-1 s/m"'))

@@ -8,6 +8,8 @@ import pytest
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.level2 import ContactLaw, Level2
+from rig.plants.cam_bar.level2_model import Level2Model
+from rig.plants.cam_bar.scene_io import read_level2_model
 from rig.plants.cam_bar.plant import DEMO_SPEED
 from rig.scene import SceneError, load_scene
 
@@ -17,8 +19,8 @@ NO_SPRING = dict(k=0.0, Me_0=0.0)    # the roller floats in the clearance throug
 
 
 def _gap(guide: GuideFriction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    mech = PinInsertionMechanism(guide=guide, **NO_SPRING)
-    model = Level2(mech, DEMO_SPEED)
+    mech = PinInsertionMechanism(**NO_SPRING)
+    model = Level2(mech, DEMO_SPEED, model=Level2Model(guide=guide))
     t = np.linspace(0.0, 0.4, 8001)
     sig = model.signals(t, model.simulate((0.0, 0.4), t_eval=t, rtol=1e-7, atol=1e-12).solution.y)
     return np.degrees(sig["phi"]), -sig["delta_w"], sig["v"]
@@ -39,10 +41,11 @@ def test_stick_holds_the_slider_where_the_regularised_guide_creeps():
 
 
 def test_energy_balance_closes_with_stick_slip():
-    mech = PinInsertionMechanism(guide=GuideFriction("stick"), **NO_SPRING)
-    base = ContactLaw.steel_line(mech.roller_width, mech.contact_damping)
+    mech = PinInsertionMechanism(**NO_SPRING)
+    stick = Level2Model(guide=GuideFriction("stick"))
+    base = ContactLaw.steel_line(mech.roller_width, stick.contact_damping)
     model = Level2(mech, DEMO_SPEED, ContactLaw(base.stiffness * 0.01, base.exponent, base.damping * 0.1), energy=True,
-                   max_penetration=1e-3)
+                   max_penetration=1e-3, model=stick)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sol = model.simulate((0.0, 0.4), method="DP45", rtol=1e-8, atol=1e-12).solution
@@ -56,7 +59,7 @@ def test_energy_balance_closes_with_stick_slip():
 def test_scene_table_and_bad_values(tmp_path):
     scene = write(tmp_path, '\n[plant.guide]\nmodel = "stick"\nstatic = 0.15\nstick_speed = "0.05 mm/s"\n',
                   "[[plant.cam_program]]", "[[plant.cam_program]]")
-    guide = PinInsertionMechanism.from_scene(scene).guide
+    guide = read_level2_model(scene).guide
     assert guide == GuideFriction("stick", 0.15, 5e-5) and guide.static_coefficient(0.1) == 0.15
     assert GuideFriction().static_coefficient(0.1) == 0.1
     path = tmp_path / "scene.toml"
@@ -65,4 +68,4 @@ def test_scene_table_and_bad_values(tmp_path):
                             ('static = 0.15', 'static = -0.1', "static"), ('static = 0.15', 'mu_s = 0.1', "unknown key")):
         path.write_text(text.replace(old, new))
         with pytest.raises(SceneError, match=match):
-            PinInsertionMechanism.from_scene(load_scene(path))
+            read_level2_model(load_scene(path))

@@ -19,7 +19,7 @@ def test_scene_is_the_machine_it_names(name):
     plant = CamBarPlant.from_scene(load_scene(SCENES / f"pin_insertion_{name}.toml"))
     mech = plant.mech
     k, rpm = MACHINES[name]
-    assert plant.setting.fidelity == 2 and mech.guide.model == "stick"
+    assert plant.setting.fidelity == 2 and plant.setting.level2.guide.model == "stick"
     assert mech.k == pytest.approx(k) and plant.speed.nominal_omega == pytest.approx(rpm * tau / 60)
     assert (mech.cam_drive is not None) == (name == "as_tested")
 

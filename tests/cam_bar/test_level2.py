@@ -10,6 +10,7 @@ from rig.motion.speed import SinusoidalSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.level2 import ContactLaw, Level2, groove
+from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.cam_bar.plant import DEMO_SPEED
 from rig.motion.speed import RPM
 from rig.solvers import SolverDivergence
@@ -20,7 +21,7 @@ NO_SPRING = dict(k=0.0, Me_0=0.0)
 
 def _scaled(mech: PinInsertionMechanism, scale: float) -> ContactLaw:
     """The steel contact with stiffness × scale and damping × √scale (same damping ratio of the contact mode)."""
-    base = ContactLaw.steel_line(mech.roller_width, mech.contact_damping)
+    base = ContactLaw.steel_line(mech.roller_width, Level2Model().contact_damping)
     return ContactLaw(base.stiffness * scale, base.exponent, base.damping * scale ** 0.5)
 
 

@@ -23,6 +23,7 @@ from rig.plants.cam_bar import level2_kernel as kernel
 from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.level2 import Level2
+from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.cam_bar.plant import DEMO_SPEED
 from rig.motion.speed import RPM
 from rig.solvers import SolverDivergence
@@ -62,8 +63,8 @@ def test_closed_form_free_body_solves_the_level1_moment_balance(guide):
     """At the kernel's ψ̈ the level-1 free-body solution of the actual motion needs exactly the cam moment
     ℓ·(F_w − F_o) the contacts deliver — on both flanks, in free flight, with friction either way; with the
     stick-slip guide also where it holds (dwells: ṡ ≈ 3e-7 m/s is inside the stick band)."""
-    mech = PinInsertionMechanism(k=1090.0, guide=GuideFriction(guide))
-    model = Level2(mech, ConstantSpeed(300 * RPM))
+    mech = PinInsertionMechanism(k=1090.0)
+    model = Level2(mech, ConstantSpeed(300 * RPM), model=Level2Model(guide=GuideFriction(guide)))
     rng = np.random.default_rng(3)
     t = rng.uniform(0.0, 0.2, 400)
     lever = np.array([kernel.geometry_at(ti, np.zeros(2), model.params)[0] for ti in t])

@@ -20,6 +20,7 @@ import numpy as np
 
 from rig.motion.speed import RPM, ConstantSpeed
 from rig.plants.cam_bar.level2 import Level2
+from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 SPEEDS_RPM = (100.0, 150.0, 200.0, 250.0, 280.0, 290.0, 300.0)
@@ -39,9 +40,10 @@ class JumpMap(NamedTuple):
 
 
 def jump_map(mech: PinInsertionMechanism, speeds=SPEEDS_RPM, rates=RATES, clearances=CLEARANCES,
-             revolutions: int = 2, samples: int = 1441) -> JumpMap:
-    """Level 2 of ``mech`` (variation and cam drive off) at each cam speed (rpm), spring rate (N/m) and
-    clearance (m); statistics of the last of ``revolutions`` revolutions on ``samples`` points."""
+             revolutions: int = 2, samples: int = 1441, model: Level2Model = Level2Model()) -> JumpMap:
+    """Level 2 of ``mech`` under the assumptions ``model`` (variation and cam drive off) at each cam speed (rpm),
+    spring rate (N/m) and clearance (m); statistics of the last of ``revolutions`` revolutions on ``samples``
+    points."""
     shape = (len(speeds), len(rates), len(clearances))
     switches, gap, grip = np.zeros(shape, int), np.zeros(shape), np.zeros(shape)
     for i, rpm in enumerate(speeds):
@@ -50,9 +52,9 @@ def jump_map(mech: PinInsertionMechanism, speeds=SPEEDS_RPM, rates=RATES, cleara
         for j, k in enumerate(rates):
             for m, c in enumerate(clearances):
                 machine = replace(mech, k=k, clearance=c, cam_drive=None)
-                model = Level2(machine, ConstantSpeed(rpm * RPM))
-                run = model.simulate((0.0, t[-1]), t_eval=t, rtol=1e-7, atol=1e-12)
-                sig = model.signals(t, run.solution.y)
+                level2 = Level2(machine, ConstantSpeed(rpm * RPM), model=model)
+                run = level2.simulate((0.0, t[-1]), t_eval=t, rtol=1e-7, atol=1e-12)
+                sig = level2.signals(t, run.solution.y)
                 switches[i, j, m] = sum(1 for e in run.switches if e.time >= t[0])
                 gap[i, j, m] = max(float(np.max(-sig["delta_w"])), 0.0)
                 grip[i, j, m] = float(np.ptp(sig["s"] - machine.state(sig["phi"]).s))
@@ -91,13 +93,15 @@ def plot(result: JumpMap, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> None:
+    from rig.plants.cam_bar.scene_io import read_level2_model
     from rig.scene import load_scene
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene", nargs="?", default=str(Path(__file__).resolve().parents[3] / "data" / "scenes"
                                                        / "pin_insertion_as_drawn.toml"))
     parser.add_argument("-o", "--output", default="out/jump_map.png")
     args = parser.parse_args(argv)
-    result = jump_map(PinInsertionMechanism.from_scene(load_scene(args.scene)))
+    scene = load_scene(args.scene)
+    result = jump_map(PinInsertionMechanism.from_scene(scene), model=read_level2_model(scene))
     for m, c in enumerate(result.clearances):
         print(f"clearance {c * 1e3:g} mm: switches per revolution (rows: spring rate N/mm; columns: rpm "
               f"{', '.join(f'{v / RPM:g}' for v in result.speeds)})")

@@ -23,7 +23,7 @@ guide friction, and the energy dissipated in the contacts (J).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -31,6 +31,7 @@ import numpy as np
 
 from rig.plants.cam_bar import level2_kernel as kernel
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
+from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.events import Event
 from rig.solvers import Event as SolverEvent
 from rig.solvers import JitRhs, OdeSolver, Problem, Solution, SolverDivergence, integrate
@@ -164,7 +165,9 @@ class Level2:
     """Follower dynamics of a :class:`PinInsertionMechanism` with groove clearance ``mech.clearance``, its cam
     turned by ``speed`` (:mod:`rig.motion.speed`).
 
-    ``contact`` defaults to :meth:`ContactLaw.steel_line` (``mech.roller_width``, ``mech.contact_damping``);
+    ``model`` holds the level's assumptions that are not the machine (:mod:`.level2_model`: contact damping,
+    slider-guide friction model); ``contact`` defaults to :meth:`ContactLaw.steel_line` (``mech.roller_width``,
+    ``model.contact_damping``);
     ``energy`` appends the work/dissipation quadratures to the state; ``friction_speed`` v_s (m/s) regularises the
     guide friction (Coulomb friction would chatter while the gripper rings at rest); a penetration beyond
     ``max_penetration`` (m) raises :class:`SolverDivergence` naming time, cam angle and state.
@@ -184,18 +187,19 @@ class Level2:
     max_penetration: float = 1e-4
     friction_speed: float = 1e-3
     cam_drive: "CamDrive | None" = None
+    model: Level2Model = field(default_factory=Level2Model)
 
     def __post_init__(self) -> None:
         mech = self.mech
         if self.cam_drive is None:
             self.cam_drive = mech.cam_drive
         if self.contact is None:
-            self.contact = ContactLaw.steel_line(mech.roller_width, mech.contact_damping)
+            self.contact = ContactLaw.steel_line(mech.roller_width, self.model.contact_damping)
         if not self.friction_speed > 0.0:
             raise ValueError(f"friction_speed must be positive, got {self.friction_speed!r} m/s")
         law = self.contact
         self.params = kernel.pack(mech, self.speed, law.stiffness, law.exponent, law.damping, self.max_penetration,
-                                  self.friction_speed, self.cam_drive)
+                                  self.friction_speed, self.cam_drive, self.model.guide)
         self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value, kernel.event_action)
 
     def _sync(self) -> np.ndarray:

@@ -30,6 +30,7 @@ from numba import njit
 from rig.motion.laws import PiecewiseSineLaw, PolynomialLaw
 from rig.motion.registry import get_law
 from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed
+from rig.plants.cam_bar.guide_friction import GuideFriction
 
 if TYPE_CHECKING:
     from rig.motion.speed import SpeedProfile
@@ -72,11 +73,12 @@ N_OUT = len(OUTPUTS)
 
 def pack(mech: "PinInsertionMechanism", speed: "SpeedProfile | None" = None, stiffness: float = 0.0,
          exponent: float = 1.0, damping: float = 0.0, max_penetration: float = math.inf, friction_speed: float = 1e-3,
-         cam_drive: "CamDrive | None" = None) -> np.ndarray:
+         cam_drive: "CamDrive | None" = None, guide: GuideFriction = GuideFriction()) -> np.ndarray:
     """Parameter vector of ``mech`` turned by ``speed`` (``None``: at rest, for the geometry alone) with the
     contact law K·δ^p·(1 + α·δ̇) (``stiffness`` K in N/m^p, ``exponent`` p, ``damping`` α in s/m),
-    ``max_penetration`` (m), the friction regularisation speed ``friction_speed`` (m/s) and the cam drive
-    (``None``: the speed profile turns the cam; else it starts from the profile's φ0 and nominal speed). Raises
+    ``max_penetration`` (m), the friction regularisation speed ``friction_speed`` (m/s), the cam drive
+    (``None``: the speed profile turns the cam; else it starts from the profile's φ0 and nominal speed) and the
+    slider-guide friction model ``guide``. Raises
     ValueError for a speed profile or motion law the kernel does not know."""
     d = cam_drive
     if d is not None and speed is None:
@@ -94,8 +96,7 @@ def pack(mech: "PinInsertionMechanism", speed: "SpeedProfile | None" = None, sti
             math.nan, *[0.0] * 8, math.nan, 0.0,
             math.nan, math.nan,
             float(mech.insertion.code), mech.insertion.build_up, mech.insertion.release, top,
-            float(mech.guide.code), mech.guide.static_coefficient(mech.mu), mech.guide.stick_speed,
-            mech.guide.relax_time,
+            float(guide.code), guide.static_coefficient(mech.mu), guide.stick_speed, guide.relax_time,
             0.0 if d is None else 1.0, *([0.0] * 7 if d is None else
                                          [d.synchronous(speed.nominal_omega), d.slope, d.max_torque,
                                           d.motor_inertia, d.cam_inertia, d.shaft_stiffness, d.shaft_damping]),

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rig.plants.cam_bar.level2 import Level2
+from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.cam_bar.timeline import Timeline
 
 if TYPE_CHECKING:
@@ -30,9 +31,9 @@ class Level2Timeline(Timeline):
     """Keeps the integration state (t, y, flank in contact) between :meth:`advance` calls."""
 
     def __init__(self, mech: "PinInsertionMechanism", speed: "SpeedProfile", cycles: "CyclePlant | None" = None,
-                 method: str = "DP45", options: dict[str, float] | None = None):
+                 method: str = "DP45", options: dict[str, float] | None = None, model: Level2Model = Level2Model()):
         super().__init__(mech, speed, cycles)
-        self.method, self.options = method, dict(options or {})
+        self.method, self.options, self.model = method, dict(options or {}), model
         self._state: tuple[float, tuple, str | None] | None = None
         self._models: dict[int, Level2] = {}
         self._cycle = 0                     # with a cam drive: the revolution the integration state is in
@@ -40,7 +41,7 @@ class Level2Timeline(Timeline):
     def _model(self, cycle: int) -> Level2:
         if cycle not in self._models:
             mech = self._mechanism(cycle)
-            self._models = {cycle: Level2(mech, self.speed)}
+            self._models = {cycle: Level2(mech, self.speed, model=self.model)}
         return self._models[cycle]
 
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:

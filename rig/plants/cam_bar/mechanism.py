@@ -18,7 +18,6 @@ import numpy as np
 from rig.motion.program import CamProgram, Segment
 from rig.plants.cam_bar.chain import Angles, Chain, SingularPositionError
 from rig.plants.cam_bar.drive import CamDrive
-from rig.plants.cam_bar.guide_friction import GuideFriction
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.joints import JointClearance
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
@@ -123,9 +122,9 @@ class PinInsertionMechanism:
     ``None`` mean m3·L3²/3 about B0, m4·l4²/12 about the rod centre, follower CoG at L3/2).
     ``cam_direction`` +1: the cam turns counter-clockwise. The insertion force ``F_c`` acts on the slider
     against its motion during the rise once the stroke is within ``F_c_travel`` of the top.
-    Level 2 (:mod:`.level2`) models the contact over ``roller_width`` (m) with Hunt–Crossley damping
-    ``contact_damping`` (s/m), the slider guide's friction ``guide``, the optional cam drive and rod pin
-    clearances.
+    Level 2 (:mod:`.level2`) models the contact over ``roller_width`` (m), the optional cam drive and rod pin
+    clearances; its assumptions that are not the machine (contact damping, guide friction model) are
+    :class:`~rig.plants.cam_bar.level2_model.Level2Model`, part of the run's setting.
     """
 
     L3: float = 0.260
@@ -154,7 +153,6 @@ class PinInsertionMechanism:
     sensor_position: float = 0.5
     clearance: float = 0.05e-3
     roller_width: float = 0.010
-    contact_damping: float = 20.0
     alpha_sk: float = radians(4.65)
     J3: float | None = None
     J4: float | None = None
@@ -166,7 +164,6 @@ class PinInsertionMechanism:
     cam_direction: int = 1
     program: CamProgram = field(default_factory=default_program)
     insertion: InsertionLaw = field(default_factory=InsertionLaw)
-    guide: GuideFriction = field(default_factory=GuideFriction)       # level 2's slider-guide friction model
     cam_drive: CamDrive | None = None                                # level 2: motor + shaft turn the cam
     joints: JointClearance | None = None                             # level 2: rod pin clearances (reduced)
 
@@ -174,7 +171,7 @@ class PinInsertionMechanism:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"cam-bar parameter {name} must be positive, got {getattr(self, name)!r}")
-        for name in ("F_c", "F_c_travel", "mu", "x_s5", "e5", "Me_0", "k", "clearance", "contact_damping"):
+        for name in ("F_c", "F_c_travel", "mu", "x_s5", "e5", "Me_0", "k", "clearance"):
             if getattr(self, name) < 0.0:
                 raise ValueError(f"cam-bar parameter {name} must not be negative, got {getattr(self, name)!r}")
         if not 0.0 <= self.sensor_position <= 1.0:

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rig.motion.speed import RPM, ConstantSpeed, SpeedProfile
+from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.cam_bar.timeline import Timeline
 from rig.plants.cam_bar.variation import CyclePlant, CycleVariation
 from rig.plants.events import Event
@@ -30,13 +31,15 @@ if TYPE_CHECKING:
 class Setting:
     """How a run simulates a mechanism: the cam turns by ``speed`` (:mod:`rig.motion.speed`; with a cam drive its
     φ0 and nominal speed start the drive); ``fidelity`` 0/1 (level-1 truth) or 2 (groove dynamics, integrated by
-    ``method`` with ``method_options``: a name of :data:`rig.solvers.METHODS`); ``variation`` with its generator
+    ``method`` with ``method_options``: a name of :data:`rig.solvers.METHODS`, under the model assumptions
+    ``level2``: :mod:`.level2_model`); ``variation`` with its generator
     ``rng`` draws every cam revolution's deviations (:mod:`.variation`; without it all cycles are identical)."""
 
     speed: SpeedProfile = DEMO_SPEED
     fidelity: int = 1
     method: str = "DP45"
     method_options: dict[str, float] = field(default_factory=lambda: {"rtol": 1e-7, "atol": 1e-12})
+    level2: Level2Model = field(default_factory=Level2Model)
     variation: CycleVariation | None = None
     rng: np.random.Generator | None = None
 
@@ -58,7 +61,7 @@ class CamBarPlant:
         if setting.fidelity == 2:
             from rig.plants.cam_bar.level2_timeline import Level2Timeline
             self._timeline: Timeline = Level2Timeline(mech, setting.speed, self.cycles, setting.method,
-                                                      setting.method_options)
+                                                      setting.method_options, setting.level2)
         else:
             self._timeline = Timeline(mech, setting.speed, self.cycles)
 

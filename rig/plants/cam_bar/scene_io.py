@@ -15,6 +15,7 @@ from rig.plants.cam_bar.drive import read_drive
 from rig.plants.cam_bar.guide_friction import read_guide
 from rig.plants.cam_bar.insertion import read_insertion
 from rig.plants.cam_bar.joints import read_joints
+from rig.plants.cam_bar.level2_model import CONTACT_DAMPING, Level2Model
 from rig.plants.cam_bar.variation import CycleVariation, plant_generator
 from rig.units import UnitError, to_si
 
@@ -34,7 +35,8 @@ PLANT_SCHEMA = {
     "sensor_preload": Field("N"), "sensor_position": Field("1", 0.5, "sensor section along the rod from C"),
     "clearance": Field("m"), "alpha_sk": Field("rad"),
     "roller_width": Field("m", 0.010, "roller/flank contact length for the level-2 contact stiffness (assumption)"),
-    "contact_damping": Field("s/m", 20.0, "Hunt-Crossley damping of the level-2 roller contact (assumption)"),
+    "contact_damping": Field("s/m", CONTACT_DAMPING, "Hunt-Crossley damping of the level-2 roller contact "
+                             "(assumption; the run's level-2 model, not the machine)"),
     "J3": Field("kg*m^2", None, "follower inertia about B0 (default m3·L3²/3)"),
     "J4": Field("kg*m^2", None, "rod inertia about its centre (default m4·l4²/12)"),
     "a3": Field("m", None, "follower CoG distance from B0 (default L3/2)"),
@@ -43,7 +45,8 @@ PLANT_SCHEMA = {
     "cam_program": Field(None, doc="array of tables [[plant.cam_program]]"),
     "variation": Field(None, None, "per-cycle deviations, table [plant.variation] (rig.plants.cam_bar.variation)"),
     "insertion": Field(None, None, "pin force-travel law, table [plant.insertion] (rig.plants.cam_bar.insertion)"),
-    "guide": Field(None, None, "level-2 slider-guide friction, table [plant.guide] (rig.plants.cam_bar.guide_friction)"),
+    "guide": Field(None, None, "level-2 slider-guide friction model, table [plant.guide] "
+                   "(rig.plants.cam_bar.guide_friction; the run's level-2 model)"),
     "drive": Field(None, None, "level-2 cam drive (motor, shaft), table [plant.drive] (rig.plants.cam_bar.drive)"),
     "joints": Field(None, None, "level-2 rod pin clearances, table [plant.joints] (rig.plants.cam_bar.joints)"),
 }
@@ -117,7 +120,8 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     """Keyword arguments of :class:`PinInsertionMechanism` from the scene (SI)."""
     where = f"{scene.path} [plant]"
     kw = scene.read("plant", PLANT_SCHEMA)
-    kw.pop("variation")                                  # the run's setting (read_setting)
+    for name in ("variation", "contact_damping", "guide"):     # the run's setting (read_setting)
+        kw.pop(name)
     rates = kw.pop("spring_rates")
     if not isinstance(rates, list) or not rates:
         raise SceneError(f"{where}: 'spring_rates' must be a non-empty list of quantities like \"1.19 N/mm\"")
@@ -127,19 +131,30 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
         raise SceneError(str(exc)) from None
     kw["program"] = read_program(kw.pop("cam_program"), kw["s_H"], where)
     kw["insertion"] = read_insertion(kw.pop("insertion"), f"{scene.path} [plant.insertion]")
-    kw["guide"] = read_guide(kw.pop("guide"), f"{scene.path} [plant.guide]")
     kw["cam_drive"] = read_drive(kw.pop("drive"), f"{scene.path} [plant.drive]")
     kw["joints"] = read_joints(kw.pop("joints"), f"{scene.path} [plant.joints]")
     return kw
 
 
+def read_level2_model(scene: Scene) -> Level2Model:
+    """The level-2 model assumptions of the scene's [plant]: ``contact_damping`` and [plant.guide]."""
+    kw = scene.read("plant", PLANT_SCHEMA)
+    try:
+        return Level2Model(kw["contact_damping"], read_guide(kw["guide"], f"{scene.path} [plant.guide]"))
+    except ValueError as exc:
+        if isinstance(exc, SceneError):
+            raise
+        raise SceneError(f"{scene.path} [plant]: {exc}") from None
+
+
 def read_setting(scene: Scene) -> dict[str, Any]:
     """Keyword arguments of :class:`rig.plants.cam_bar.plant.Setting` from the scene: the speed profile [speed], the
-    level and level-2 method (:func:`rig.fidelity.choose`), the per-cycle variation [plant.variation] and its
-    generator (under [scene] seed)."""
+    level and level-2 method (:func:`rig.fidelity.choose`), the level-2 model assumptions, the per-cycle variation
+    [plant.variation] and its generator (under [scene] seed)."""
     from rig.fidelity import choose
     choice = choose(scene, "cam_bar")
-    kw: dict[str, Any] = {"speed": read_speed_profile(scene), "fidelity": choice.level}
+    kw: dict[str, Any] = {"speed": read_speed_profile(scene), "fidelity": choice.level,
+                          "level2": read_level2_model(scene)}
     if choice.method is not None:
         kw["method"], kw["method_options"] = choice.method, dict(choice.options)
     variation = scene.read("plant", PLANT_SCHEMA)["variation"]
