@@ -11,7 +11,18 @@ from functools import lru_cache
 
 import pint
 
-ureg = pint.UnitRegistry()
+
+
+def _registry() -> pint.UnitRegistry:
+    """pint's default registry, its parsed definitions cached in the user's cache folder (0.07 s instead of 0.3 s
+    a start); without a usable cache folder, parsed afresh."""
+    try:
+        return pint.UnitRegistry(cache_folder=":auto:")
+    except Exception:                  # noqa: BLE001  (no writable cache folder, a cache pint cannot read)
+        return pint.UnitRegistry()
+
+
+ureg = _registry()
 _INTEGER = re.compile(r"(?<![\w.])(?<![eE][+-])(\d+)(?![\w.])")   # an integer literal, not in a name or float
 
 
