@@ -16,10 +16,11 @@ order and the result does not depend on who computed what.
   further: then all its values are collected).
 * One pass instead, when the number of samples is known beforehand and every wanted order statistic lies
   among the ``cap`` smallest or largest of its column (the ±3σ points of up to ~3·10⁶ samples at the default
-  ``cap``): each task keeps, beside its moments, the smallest and largest values each column needs (a bounded
-  heap per column: once full, a value costs one comparison); the tails of all tasks are merged the same way and
-  the order statistics picked from them.
-  The same numbers as the passes above, in a third of the work.
+  ``cap``): each task keeps, beside its moments, the k smallest and largest values of each column (a buffer of
+  2k values per column, cut to its k smallest by ``np.partition`` when full; once the bound is set a value
+  costs one comparison); the tails of all tasks are merged the same way and the order statistics picked from
+  them. The same numbers as the passes above, every sample generated once instead of three times.
+* Samples must be finite: a NaN or infinite value is an error naming the columns that hold one.
 """
 from __future__ import annotations
 
@@ -267,6 +268,13 @@ def passes(n: int, percents: Sequence[float], cap: int = CAP) -> int:
     return 1 if max(_tail_sizes(n, percents)) <= cap else 3
 
 
+def _check_finite(moments: Moments) -> None:
+    bad = np.flatnonzero(~np.isfinite(moments.mean))
+    if bad.size:
+        raise ValueError(f"samples are not all finite (NaN or infinite values) in {bad.size} column(s), the first "
+                         f"{bad[:5].tolist()}: no statistics")
+
+
 def _one_pass(run: Run, n: int, pct: tuple[float, ...], low: int, high: int) -> ColumnStats:
     """Moments and percentiles from the tasks' tails in one pass (module docstring)."""
     moments, lows, highs = None, None, None
@@ -279,6 +287,7 @@ def _one_pass(run: Run, n: int, pct: tuple[float, ...], low: int, high: int) -> 
     if moments is None or moments.n != n:
         got = 0 if moments is None else moments.n
         raise RuntimeError(f"the tasks produced {got} samples, {n} were announced")
+    _check_finite(moments)
     lows, highs = np.sort(lows.values(), axis=0), np.sort(highs.values(), axis=0)
     k0, k1, gamma = linear_ranks(n, pct)
     out: dict[float, np.ndarray] = {}
@@ -312,6 +321,7 @@ def column_statistics(run: Run, percents: Sequence[float], bins: int = BINS, cap
         raise ValueError("column statistics need at least 2 samples")
     if n is not None and moments.n != n:
         raise RuntimeError(f"the tasks produced {moments.n} samples, {n} were announced")
+    _check_finite(moments)
     n = moments.n
     k0, k1, gamma = linear_ranks(n, pct)
     m, q = moments.mean.size, len(pct)

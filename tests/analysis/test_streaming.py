@@ -95,3 +95,12 @@ def test_a_wrong_announced_count_is_an_error():
         column_statistics(_runner(data, 30, 10), (0.135,), n=120)
     with pytest.raises(RuntimeError, match="produced 100 samples, 120 were announced"):
         column_statistics(_runner(data, 30, 10), (50.0,), cap=4, n=120)
+
+
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")     # inf − inf in the moments, then the error
+@pytest.mark.parametrize("announced", [False, True])
+def test_non_finite_samples_are_an_error_naming_the_columns(announced):
+    data = np.random.default_rng(5).standard_normal((500, 4))
+    data[17, 2], data[3, 3] = np.nan, np.inf
+    with pytest.raises(ValueError, match=r"not all finite .* in 2 column\(s\), the first \[2, 3\]"):
+        column_statistics(_runner(data, 100, 50), (0.135, 99.865), n=len(data) if announced else None)
