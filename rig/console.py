@@ -34,6 +34,7 @@ COMPILED: dict[str, tuple[str, str]] = {
     "rig.solvers.": ("the plant model and its solver", "10-20 s"),
     "mechrig_": ("the plant model and its solver", "10-20 s"),     # solver modules generated per kernel
     "firmware_sim.can_arbitration": ("the CAN arbitration", "1 s"),
+    "firmware_sim.transducers": ("the transducer models", "1 s"),
     "rig.analysis.streaming": ("the Monte-Carlo statistics", "5-10 s"),
 }
 

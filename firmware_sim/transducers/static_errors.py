@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 
 @dataclass(frozen=True)
@@ -67,13 +68,19 @@ class Play:
         if r == 0.0:
             self.z = float(q[-1])
             return q.copy()
-        out = np.empty_like(q)
-        z = self.z
-        for i, v in enumerate(q.tolist()):
-            if v > z + r:
-                z = v - r
-            elif v < z - r:
-                z = v + r
-            out[i] = z
-        self.z = z
+        out = np.empty(q.shape)
+        self.z = _play(np.ascontiguousarray(q, dtype=float).reshape(-1), self.z, r, out.reshape(-1))
         return out
+
+
+@njit(cache=True)
+def _play(q: np.ndarray, z: float, r: float, out: np.ndarray) -> float:
+    """The play operator over ``q`` from state ``z`` into ``out``; returns the final state."""
+    for i in range(q.size):
+        v = q[i]
+        if v > z + r:
+            z = v - r
+        elif v < z - r:
+            z = v + r
+        out[i] = z
+    return z

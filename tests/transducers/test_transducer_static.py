@@ -135,3 +135,17 @@ def test_temperature_effect_scales_with_delta_t():
     z0, z10, z20 = zero_reading(0.0), zero_reading(10.0), zero_reading(20.0)
     assert z10 != z0
     assert z20 - z10 == pytest.approx(z10 - z0, rel=1e-9)
+
+
+def test_play_operator_follows_within_its_radius_across_calls():
+    """The compiled play operator equals the textbook loop, its state carried from one call to the next."""
+    from firmware_sim.transducers.static_errors import Play
+    q = np.cumsum(np.random.default_rng(2).normal(0.0, 0.3, 3000))
+    play = Play(0.5)
+    got = np.concatenate([play(part) for part in np.array_split(q, 7)])
+    z, want = q[0], []
+    for v in q:
+        z = v - 0.5 if v > z + 0.5 else v + 0.5 if v < z - 0.5 else z
+        want.append(z)
+    np.testing.assert_array_equal(got, want)
+    assert np.max(np.abs(got - q)) <= 0.5 and play(q[:0]).size == 0
