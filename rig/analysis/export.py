@@ -70,19 +70,21 @@ def reason_text(result: Mapping) -> str:
 
 def export_results(results: Sequence[Mapping], path: Path,
                    units: DisplayUnits | Mapping[int, DisplayUnits] | None = None) -> Path:
-    """One row per curve: number, program, ok, failed elements, the reason (non-empty for every NOK row),
+    """One row per curve: number, program, ok (1/0) and verdict (OK/NOK), failed elements, the reason (non-empty for
+    every NOK row),
     complete (1/0) and the process values that did not arrive, then every process value in its display unit (``units``: one DisplayUnits or one per program)."""
     table = process_values(results)
     du = _units_of(units, int(results[0].get("program", 0)) if results else 0)
     shown = {name: du.value(name) for name in table}
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["curve", "program", "ok", "failed_elements", "reason", "complete", "missing",
+        w.writerow(["curve", "program", "ok", "verdict", "failed_elements", "reason", "complete", "missing",
                     *(column(name, shown[name]) for name in table)])
         for i, r in enumerate(results):
             failed = ";".join(str(e.get("name")) for e in r.get("elements", []) if not e.get("ok", True))
             missing = missing_values(r)
-            w.writerow([r.get("number"), r.get("program"), int(bool(r["ok"])), failed, reason_text(r),
+            w.writerow([r.get("number"), r.get("program"), int(bool(r["ok"])), "OK" if r["ok"] else "NOK", failed,
+                        reason_text(r),
                         int(r.get("complete", True) is not False), ";".join(missing),
                         *("" if np.isnan(v[i]) else "%.10g" % shown[name](float(v[i])) for name, v in table.items())])
     return path

@@ -98,7 +98,7 @@ def test_html_report_verdict_first_nok_curves_then_details(recording, tmp_path):
     np.testing.assert_allclose(c5, np.column_stack([c.t, 1e3 * c.x, c.y, np.degrees(c.angle)]), rtol=1e-8, atol=1e-12)
     with open(path.parent / "results.csv", encoding="utf-8") as f:
         res = list(csv.DictReader(f))
-    assert len(res) == 60 and res[0]["ok"] == "0" and res[0]["failed_elements"] == "W1"
+    assert len(res) == 60 and res[0]["ok"] == "0" and res[0]["verdict"] == "NOK" and res[0]["failed_elements"] == "W1"
     assert res[0]["reason"] == "W1: left through right" and all(r["reason"] for r in res if r["ok"] == "0")
     assert all(r["reason"] == "" for r in res if r["ok"] == "1")
     assert float(res[1]["y_max [N]"]) == pytest.approx(recording.results[1]["process_values"]["y_max"], rel=1e-9)
