@@ -78,12 +78,18 @@ class PolynomialLaw(MotionLaw):
 
     def __init__(self, name: str, coefficients: list[float]):
         self.name = name
-        self._p = [np.polynomial.Polynomial(coefficients)]
+        p = [np.polynomial.Polynomial(coefficients)]
         for _ in range(3):
-            self._p.append(self._p[-1].deriv())
+            p.append(p[-1].deriv())
+        self._coef = [q.coef for q in p]       # evaluated by polyval: Polynomial's call adds a domain map per call
+
+    @property
+    def power_coefficients(self) -> np.ndarray:
+        """c_0, c_1, ... of y(x) (lowest power first)."""
+        return self._coef[0].copy()
 
     def derivatives(self, x):
-        return tuple(p(x) for p in self._p)  # type: ignore[return-value]
+        return tuple(np.polynomial.polynomial.polyval(x, c) for c in self._coef)  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)

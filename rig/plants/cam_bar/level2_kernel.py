@@ -134,7 +134,7 @@ def _law(name: str) -> list[float]:
     """Kernel code of a motion law."""
     law = get_law(name)
     if isinstance(law, PolynomialLaw):
-        c = law._p[0].coef.tolist()
+        c = law.power_coefficients.tolist()
         return [float(POLYNOMIAL), float(len(c)), *c]
     if isinstance(law, PiecewiseSineLaw):
         rows = np.column_stack([law._xa, law._c0, law._c1, law._w, law._th, law._ya, law._va])
