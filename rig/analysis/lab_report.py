@@ -19,7 +19,7 @@ from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt,
 from rig.plants.lab_bench import LabBench
 from rig.recorder import Recording
 from rig.scene import Field, Scene, SceneError, read_table
-from rig.units import UnitError, to_si
+from rig.units import UnitError, to_si, ureg
 
 RPM = tau / 60.0          # rad/s per rpm
 STEP = radians(10.0)      # the sheets' angle step: 36 points per turn
@@ -123,8 +123,36 @@ def _last_turn(t_edge: np.ndarray, angle: np.ndarray, start: float = 0.0) -> np.
     return end - tau + STEP * np.arange(-1, 37)
 
 
+def class_bound(lab: Lab, to: str, reading: float, counter_step: float) -> float:
+    """Largest error (fraction of the reading) the data sheet allows the instrument wired to ``to`` reading
+    ``reading`` (rad/s) against the counter, worst case: gain error, non-linearity (a fraction of full scale), half
+    the dial step (``resolution``, in output units: mapped to the input through the range) and the counter's own
+    step ``counter_step`` (rad/s). Keys the description lacks count 0."""
+    table = lab.transducer(to)
+    if table is None:
+        raise SceneError(f"{lab.scene.path}: no transducer wired to {to!r}")
+    desc = {**read_description(resolve_path(table["description"])), **table.get("overrides", {})}
+
+    def base(key: str) -> Any:
+        return ureg.Quantity(desc[key]).to_base_units()
+
+    gain = to_si(desc.get("gain_error_max", 0.0), "1", what=f"{to} gain_error_max")
+    linear = to_si(desc.get("nonlinearity_max", 0.0), "1", what=f"{to} nonlinearity_max")
+    span_in = to_si(desc["range_max"], "rad/s", what=f"{to} range_max") - \
+        to_si(desc["range_min"], "rad/s", what=f"{to} range_min")
+    dial = 0.0
+    if "resolution" in desc:
+        step, span_out = base("resolution"), base("output_at_max") - base("output_at_min")
+        if step.dimensionality != span_out.dimensionality:
+            raise SceneError(f"{lab.scene.path}: the resolution of the transducer wired to {to} ({desc['resolution']}) "
+                             f"is not in its output's units ({desc['output_at_max']})")
+        dial = float(step.magnitude / span_out.magnitude) * span_in
+    return gain + (linear * span_in + 0.5 * dial + counter_step) / reading
+
+
 def speed_sheet(lab: Lab) -> Sheet:
-    """Three readings of each instrument against the pulse counter (rpm), error of each and of the mean."""
+    """Three readings of each instrument against the pulse counter (rpm), error of each and of the mean, and
+    whether that error is within the instrument's data-sheet class (:func:`class_bound`)."""
     rec = lab.rec
     holes = lab.setting("can.LabSpeed.Pulses", "holes", "1")
     gate = lab.setting("can.LabSpeed.Pulses", "gate_time", "s")
@@ -133,43 +161,51 @@ def speed_sheet(lab: Lab) -> Sheet:
     display = rec.series.get("/stand/lab_display", {})
     counter = [_latest(pulses["t"], pulses["pulses"], at) / (holes * gate) * 60.0 for at in times]
     truth = rec.truth
-    rows = [["pulse counter (N / (z·T))"] + [fmt(v) for v in counter] + [fmt(np.mean(counter)), "reference"]]
-    instruments = [("tachogenerator", pulses, "tacho"), ("mechanical tachometer", display, "tachometer"),
-                   ("stroboscope (60·f_x)", display, "strobe")]
-    errors = {}
-    for name, block, key in instruments:
+    rows = [["pulse counter (N / (z·T))"] + [fmt(v) for v in counter] + [fmt(np.mean(counter)), "reference", ""]]
+    instruments = [("tachogenerator", pulses, "tacho", "can.LabSpeed.Tacho"),
+                   ("mechanical tachometer", display, "tachometer", "can.LabDisplay.Tachometer"),
+                   ("stroboscope (60·f_x)", display, "strobe", "can.LabDisplay.Strobe")]
+    resolution = 60.0 / (holes * gate)
+    errors, bounds = {}, {}
+    for name, block, key, to in instruments:
         if key not in block:
             continue
         read = [_latest(block["t"], block[key], at) / RPM for at in times]
         errors[name] = (np.mean(read) - np.mean(counter)) / np.mean(counter)
+        bounds[name] = class_bound(lab, to, float(np.mean(counter)) * RPM, resolution * RPM)
+        within = "within" if abs(errors[name]) <= bounds[name] else "OUTSIDE"
         rows.append([name] + [f"{fmt(v)} ({100 * (v - c) / c:+.2f} %)" for v, c in zip(read, counter)]
-                    + [fmt(np.mean(read)), f"{100 * errors[name]:+.2f} %"])
+                    + [fmt(np.mean(read)), f"{100 * errors[name]:+.2f} %", f"±{100 * bounds[name]:.2f} %: {within}"])
     gate_truth = [float(np.mean(truth["omega_in"][(truth["t"] > at - gate) & (truth["t"] <= at)])) / RPM
                   for at in times]
     rows.append(["plant truth (mean over the gate)"] + [fmt(v) for v in gate_truth]
-                + [fmt(np.mean(gate_truth)), f"{100 * (np.mean(counter) - np.mean(gate_truth)) / np.mean(gate_truth):+.2f} % (counter)"])
-    resolution = 60.0 / (holes * gate)
+                + [fmt(np.mean(gate_truth)), f"{100 * (np.mean(counter) - np.mean(gate_truth)) / np.mean(gate_truth):+.2f} % (counter)",
+                   ""])
 
     def draw(ax: Any) -> None:
         ax.plot(truth["t"], truth["omega_in"] / RPM, color="0.5", lw=0.8, label="plant truth")
         counted = pulses["t"] >= gate                            # the counter shows 0 until its first gate ends
         ax.step(pulses["t"][counted], pulses["pulses"][counted] / (holes * gate) * 60.0, where="post",
                 label="pulse counter")
-        for name, block, key in instruments:
+        for name, block, key, _ in instruments:
             if key in block:
                 ax.plot(block["t"], block[key] / RPM, lw=0.8, label=name)
         ax.plot(times, counter, "kx", ms=8, label="readings")
         ax.set(xlabel="time (s)", ylabel="speed (rpm)", title="Speed measurement")
 
     return Sheet("Speed measurement", ["instrument", *[f"reading {i + 1} (rpm)" for i in range(len(times))],
-                                       "mean (rpm)", "error of the mean vs counter"], rows,
-                 "; ".join(f"{k} {100 * v:+.2f} %" for k, v in errors.items()) + " against the counter",
+                                       "mean (rpm)", "error of the mean vs counter", "data-sheet class"], rows,
+                 "; ".join(f"{k} {100 * v:+.2f} % ({'within' if abs(v) <= bounds[k] else 'OUTSIDE'} its "
+                           f"±{100 * bounds[k]:.2f} %)" for k, v in errors.items()) + " against the counter",
                  [f"Counter resolution: one pulse in the gate = 60/(z·T) = {resolution:.4g} rpm "
                   f"(z = {holes:g} holes, T = {gate:g} s).",
                   "The stroboscope's image also stands still at f_i/k: a reading near 1/k of the others means the "
-                  "flash rate was a sub-multiple (its 'divisor')."], draw,
+                  "flash rate was a sub-multiple (its 'divisor').",
+                  "Data-sheet class, worst case against the counter: gain error + non-linearity × full scale + half "
+                  "the dial step + one counter step, each from the instrument's description (data/devices)."], draw,
                  {"counter_rpm": float(np.mean(counter)), "truth_rpm": float(np.mean(gate_truth)),
-                  "resolution_rpm": resolution, **{f"error {k}": float(v) for k, v in errors.items()}})
+                  "resolution_rpm": resolution, **{f"error {k}": float(v) for k, v in errors.items()},
+                  **{f"class {k}": float(v) for k, v in bounds.items()}})
 
 
 def cam_follower_sheet(lab: Lab) -> Sheet:

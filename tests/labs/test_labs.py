@@ -48,6 +48,13 @@ def test_speed_lab_instruments_against_the_counter(speed):
     assert abs(v["error tachogenerator"]) <= 0.015
     assert abs(v["error stroboscope (60·f_x)"]) <= 0.005                  # 0.1 Hz dial at 19 Hz, 0.2 % calibration
     assert len(sheets["Speed measurement"].rows) == 5                     # counter, three instruments, truth
+    # data-sheet classes (data/devices): gain + non-linearity·FS + half the dial step + one counter step (10 rpm)
+    counter = v["counter_rpm"]
+    assert v["class mechanical tachometer"] == pytest.approx(0.05 + (5.0 + 10.0) / counter)
+    assert v["class tachogenerator"] == pytest.approx(0.01 + (0.005 * 3000.0 + 10.0) / counter)
+    assert v["class stroboscope (60·f_x)"] == pytest.approx(0.002 + (0.5 * 6.0 + 10.0) / counter)
+    assert all(abs(v[f"error {k}"]) <= v[f"class {k}"] for k in ("mechanical tachometer", "tachogenerator"))
+    assert "within its" in sheets["Speed measurement"].result
 
 
 def test_speed_lab_frames_decode_with_the_dbc_alone(speed):
@@ -68,6 +75,8 @@ def test_speed_lab_frames_decode_with_the_dbc_alone(speed):
 def test_a_stroboscope_at_half_the_rotation_frequency_reads_half(tmp_path_factory):
     _, sheets = _run(tmp_path_factory, "lab_speed", lambda s: s.replace("divisor = 1", "divisor = 2"))
     assert sheets["Speed measurement"].values["error stroboscope (60·f_x)"] == pytest.approx(-0.5, abs=0.005)
+    assert "stroboscope (60·f_x) -50" in sheets["Speed measurement"].result
+    assert re.search(r"stroboscope \(60·f_x\) -50\.\d\d % \(OUTSIDE its ±\d", sheets["Speed measurement"].result)
 
 
 def test_pulse_counter_counts_whole_gates():
