@@ -54,6 +54,9 @@ class IncrementalEncoder(Transducer):
         "multiplier": Field("1", 4.0, "counter-card decoding ×1, ×2 or ×4"),
         "max_edge_frequency": Field("Hz", math.inf, "highest edge rate the counter card follows"),
         "jitter_rms": Field("s", 0.0, "edge-time jitter (rms)"),
+        "mount_angle": Field("rad", 0.0, "where the code disc's zero sits on the shaft: a shaft resting exactly "
+                             "on a line edge (a rest angle that is a whole number of counts) makes the count "
+                             "flicker, as a real encoder would"),
     }
     FAULTS: ClassVar[dict[str, dict[str, Field]]] = {
         "missed_pulses": {"probability": Field("1", 0.01, "chance that a pulse of A or B is lost")},
@@ -153,6 +156,7 @@ class IncrementalEncoder(Transducer):
     def sample(self, t: np.ndarray, q: np.ndarray) -> EncoderSample:
         """Levels and counter-card latches at times ``t`` [s] for shaft angle ``q`` [rad]; continues state."""
         t, q = self._samples(t, q)
+        q = q + self.p["mount_angle"]
         if t.size == 0:
             return EncoderSample(np.empty((0, 3), np.uint8), np.empty(0, np.int64), np.empty(0), np.empty(0, np.int64))
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(t))):

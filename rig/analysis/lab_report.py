@@ -355,13 +355,15 @@ def geneva_sheet(lab: Lab) -> Sheet:
     grid = _last_turn(t1, phi1, start=np.pi)[1:-1]              # from the middle of a dwell
     wheel = _counted(np.interp(grid, phi1, t1), t2, phi2)
     theory = np.interp(grid, truth["phi_in"], truth["phi_out"])
-    rows = [[f"{(np.degrees(p) + 180) % 360 - 180:.0f}", f"{np.degrees(a - wheel[0]):.2f}", f"{np.degrees(b - theory[0]):.2f}",
-             f"{np.degrees(a - b):+.3f}"] for p, a, b in zip(grid, wheel, theory)]
+    wheel_rel, theory_rel = wheel - wheel[0], theory - theory[0]      # both from the first row (the encoder's zero
+    rows = [[f"{(np.degrees(p) + 180) % 360 - 180:.0f}", f"{np.degrees(a):.2f}", f"{np.degrees(b):.2f}",  # is arbitrary)
+             f"{np.degrees(a - b):+.3f}"] for p, a, b in zip(grid, wheel_rel, theory_rel)]
     timing = geneva.timing(lab.bench.speed.nominal_omega)
     count = tau / (lab.setting("can.Encoder2", "ppr", "1") * 4)          # rad per ×4 count of the wheel encoder
-    gaps = np.flatnonzero(np.diff(t2) > 0.5 * timing.dwell_time)        # dwells between two indexings
-    motion = [t2[b] - t2[a + 1] for a, b in zip(gaps[:-1], gaps[1:])]   # whole indexings: first to last count change
     index = tau / geneva.slots
+    gaps = np.flatnonzero(np.diff(t2) > 0.5 * timing.dwell_time)        # dwells between two indexings
+    runs = [(a + 1, b) for a, b in zip(gaps[:-1], gaps[1:])]            # whole indexings: first to last count change,
+    motion = [t2[b] - t2[a] for a, b in runs if abs(phi2[b] - phi2[a]) >= 0.5 * index]   # not a count flickering at rest
     first = truth["phi_out"] - truth["phi_out"][0] <= index              # theory: the first indexing, same detection
     seen = np.interp([count, index - count], truth["phi_out"][first] - truth["phi_out"][0], truth["t"][first])
     measured = float(np.mean(motion)) if motion else float("nan")
@@ -384,7 +386,7 @@ def geneva_sheet(lab: Lab) -> Sheet:
                   "enters and leaves its motion tangentially (zero speed), so a counting encoder sees it start "
                   "late and stop early."], draw,
                  {"k_m": measured / timing.period, "k_m_theory": timing.motion_ratio, "k_m_one_count": float(one_count),
-                  "indexings": float(len(motion)), "angle_error_max": float(np.max(np.abs(wheel - theory)))})
+                  "indexings": float(len(motion)), "angle_error_max": float(np.max(np.abs(wheel_rel - theory_rel)))})
 
 
 SHEETS: dict[str, Callable[[Lab], Sheet]] = {"speed": speed_sheet, "cam_follower": cam_follower_sheet,

@@ -275,3 +275,16 @@ def test_counts_to_angle_and_bad_arguments():
         enc = encoder()
         enc.measure(np.array([0.0, 1.0]), np.array([0.0, 0.1]))
         enc.measure(np.array([0.5]), np.array([0.2]))
+
+
+def test_a_shaft_resting_on_a_line_edge_flickers_unless_the_disc_is_mounted_off_it():
+    """At rest exactly on a whole count, rounding noise of the angle (±1 ulp) crosses the line edge back and
+    forth: the count changes though the shaft does not turn (the card's dead time drops the edges that follow at
+    once), as a real encoder's would. A disc mounted 0.03° off that angle holds the count."""
+    t = np.arange(1, 2001) * 1e-4
+    rest = 4096 * COUNT                                  # a whole turn: a line edge
+    theta = rest + np.where(np.arange(t.size) % 2 == 0, 0.0, -np.spacing(rest))
+    on_edge = encoder(errors_enabled=False).sample(t, theta).count
+    off_edge = encoder(errors_enabled=False, mount_angle="0.03 deg").sample(t, theta).count
+    assert np.unique(on_edge).size == 2
+    assert np.unique(off_edge).size == 1
