@@ -166,16 +166,18 @@ def speed_sheet(lab: Lab) -> Sheet:
                    ("mechanical tachometer", display, "tachometer", "can.LabDisplay.Tachometer"),
                    ("stroboscope (60·f_x)", display, "strobe", "can.LabDisplay.Strobe")]
     resolution = 60.0 / (holes * gate)
-    errors, bounds = {}, {}
+    errors, bounds, classes = {}, {}, {}
     for name, block, key, to in instruments:
         if key not in block:
             continue
         read = [_latest(block["t"], block[key], at) / RPM for at in times]
         errors[name] = (np.mean(read) - np.mean(counter)) / np.mean(counter)
         bounds[name] = class_bound(lab, to, float(np.mean(counter)) * RPM, resolution * RPM)
+        classes[name] = lab.setting(to, "gain_error_max", "1")
         within = "within" if abs(errors[name]) <= bounds[name] else "OUTSIDE"
         rows.append([name] + [f"{fmt(v)} ({100 * (v - c) / c:+.2f} %)" for v, c in zip(read, counter)]
-                    + [fmt(np.mean(read)), f"{100 * errors[name]:+.2f} %", f"±{100 * bounds[name]:.2f} %: {within}"])
+                    + [fmt(np.mean(read)), f"{100 * errors[name]:+.2f} %",
+                       f"±{100 * bounds[name]:.2f} % (class ±{100 * classes[name]:.2g} %): {within}"])
     gate_truth = [float(np.mean(truth["omega_in"][(truth["t"] > at - gate) & (truth["t"] <= at)])) / RPM
                   for at in times]
     rows.append(["plant truth (mean over the gate)"] + [fmt(v) for v in gate_truth]
@@ -194,15 +196,16 @@ def speed_sheet(lab: Lab) -> Sheet:
         ax.set(xlabel="time (s)", ylabel="speed (rpm)", title="Speed measurement")
 
     return Sheet("Speed measurement", ["instrument", *[f"reading {i + 1} (rpm)" for i in range(len(times))],
-                                       "mean (rpm)", "error of the mean vs counter", "data-sheet class"], rows,
+                                       "mean (rpm)", "error of the mean vs counter", "worst-case limit (data sheet + dials)"], rows,
                  "; ".join(f"{k} {100 * v:+.2f} % ({'within' if abs(v) <= bounds[k] else 'OUTSIDE'} its "
-                           f"±{100 * bounds[k]:.2f} %)" for k, v in errors.items()) + " against the counter",
+                           f"worst-case ±{100 * bounds[k]:.2f} %)" for k, v in errors.items()) + " against the counter",
                  [f"Counter resolution: one pulse in the gate = 60/(z·T) = {resolution:.4g} rpm "
                   f"(z = {holes:g} holes, T = {gate:g} s).",
                   "The stroboscope's image also stands still at f_i/k: a reading near 1/k of the others means the "
                   "flash rate was a sub-multiple (its 'divisor').",
-                  "Data-sheet class, worst case against the counter: gain error + non-linearity × full scale + half "
-                  "the dial step + one counter step, each from the instrument's description (data/devices)."], draw,
+                  "Worst-case limit against the counter: the data-sheet class (gain error) + non-linearity × full "
+                  "scale + half the dial step + one counter step, each from the instrument's description "
+                  "(data/devices)."], draw,
                  {"counter_rpm": float(np.mean(counter)), "truth_rpm": float(np.mean(gate_truth)),
                   "resolution_rpm": resolution, **{f"error {k}": float(v) for k, v in errors.items()},
                   **{f"class {k}": float(v) for k, v in bounds.items()}})
@@ -425,12 +428,13 @@ def lab_section(ctx: ReportContext) -> list[Block]:
     for sheet in sheets:
         blocks += [Heading(sheet.title, 3), Text(sheet.result)]
         if sheet.draw is not None:
-            fig, ax = figure(size=(7, 4.2))
+            fig, ax = figure(size=(9, 4.2))
             sheet.draw(ax)
             ax.grid(alpha=0.3)
-            ax.legend(fontsize="small")
+            ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
             stem = sheet.title.lower().replace(" ", "_").replace("-", "_")
-            blocks.append(ctx.figure(save(fig, ctx.figure_path(f"lab_{stem}")), sheet.title))
+            path = save(fig, ctx.figure_path(f"lab_{stem}"), right=2.3)        # legend beside the axes: no data hidden
+            blocks.append(ctx.figure(path, sheet.title))
         blocks.append(Table(sheet.headers, sheet.rows))
         blocks += [Text(note, "note") for note in sheet.notes]
     return blocks

@@ -49,7 +49,7 @@ SIGNAL_LABEL = {
     "cam_angle": "cam angle φ (wrapped)", "phi": "cam angle φ", "psi": "follower angle ψ",
     "psi_kin": "ψ of level 0", "omega": "cam speed", "s": "gripper stroke s",
     "delta_w": "penetration, working flank", "delta_o": "penetration, other flank", "R23": "contact force R23",
-    "F_rod": "rod force", "M_sigma": "cam-shaft torque M_Σ", "drive_torque": "drive torque needed",
+    "F_rod": "rod force", "M_sigma": "cam moment on the follower, with spring M_Σ", "drive_torque": "drive torque needed",
     "motor_speed": "motor speed (at the cam)", "shaft_torque": "torque in the shaft",
     "phi1": "driving half φ1", "phi3": "driven half φ3", "phi_r": "relative angle φ1 − φ3",
     "omega1": "driving half ω1", "omega3": "driven half ω3", "omega_r": "relative speed", "M1": "motor torque",

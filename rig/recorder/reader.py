@@ -202,6 +202,9 @@ def _metadata_number(rec: Recording, name: str, key: str, default: str, kind: ty
         raise ValueError(f"metadata {name}.{key} = {text!r} is not a number") from None
 
 
+MCAP_MAGIC = b"\x89MCAP0\r\n"     # every MCAP file's first 8 bytes
+
+
 def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     """Read a recording made by :class:`rig.recorder.Recorder`.
 
@@ -219,6 +222,12 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     try:
         with open(path, "rb") as f:
             size = os.fstat(f.fileno()).st_size
+            head = f.read(len(MCAP_MAGIC))
+            if size == 0:
+                raise RecordingError(f"{path}: empty file (0 bytes), not a recording")
+            if not MCAP_MAGIC.startswith(head):
+                raise InvalidMagic(head)
+            f.seek(0)
             data_end = False
             try:
                 for record in StreamReader(f, validate_crcs=True).records:
@@ -233,6 +242,8 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
         raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from None
     except InvalidMagic:
         raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)") from None
+    except RecordingError:
+        raise
     except Exception as exc:  # any decoding failure past the header: keep what was read
         rec.truncated = True
         if isinstance(exc, EndOfFile) or (at_end and whole < size):

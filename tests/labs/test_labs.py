@@ -76,7 +76,7 @@ def test_a_stroboscope_at_half_the_rotation_frequency_reads_half(tmp_path_factor
     _, sheets = _run(tmp_path_factory, "lab_speed", lambda s: s.replace("divisor = 1", "divisor = 2"))
     assert sheets["Speed measurement"].values["error stroboscope (60·f_x)"] == pytest.approx(-0.5, abs=0.005)
     assert "stroboscope (60·f_x) -50" in sheets["Speed measurement"].result
-    assert re.search(r"stroboscope \(60·f_x\) -50\.\d\d % \(OUTSIDE its ±\d", sheets["Speed measurement"].result)
+    assert re.search(r"stroboscope \(60·f_x\) -50\.\d\d % \(OUTSIDE its worst-case ±\d", sheets["Speed measurement"].result)
 
 
 def test_pulse_counter_counts_whole_gates():

@@ -174,6 +174,15 @@ def test_corrupt_and_foreign_files(tmp_path):
     other.write_text("hello, not an mcap file")
     with pytest.raises(RecordingError, match="notes.mcap: not an MCAP file"):
         read_recording(other)
+    for text in ("hello", "hello\n"):                 # shorter than the magic: not taken for a cut recording
+        other.write_text(text)
+        with pytest.raises(RecordingError, match="notes.mcap: not an MCAP file"):
+            read_recording(other, allow_partial=True)
+    other.write_bytes(b"")
+    with pytest.raises(RecordingError, match="notes.mcap: empty file"):
+        read_recording(other, allow_partial=True)
+    other.write_bytes(path.read_bytes()[:5])           # a recording cut inside its magic: partial, holds nothing
+    assert read_recording(other, allow_partial=True).truncated
     with pytest.raises(RecordingError, match="missing.mcap"):
         read_recording(tmp_path / "missing.mcap")
     shutil.copy(path, tmp_path / "copy.mcap")
