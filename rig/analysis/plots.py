@@ -217,7 +217,8 @@ def curve_panels(curve: CurveRecord, elements: list, path: Path, nok: set[int] =
     units = units or DisplayUnits()
     axes = _axes_of([curve])
     width = 5.6 + 3.7 * len(axes)
-    lines = [line for r in reasons for line in textwrap.wrap(r, int(width * 15), subsequent_indent="    ")]
+    chars = int((width - MARGINS[0] - 0.3) * 13.5)      # 8 pt monospace: 0.6·8 pt = 1/15 in a character, with room
+    lines = [line for r in reasons for line in textwrap.wrap(r, chars, subsequent_indent="    ")]
     bottom = MARGINS[2] + (0.15 + REASON_LINE * len(lines) if lines else 0.0)
     fig, axs = figure(1, 1 + len(axes), size=(width, 3.9 + bottom - MARGINS[2]), sharey=True, squeeze=False,
                       gridspec_kw={"width_ratios": [1.5] + [1.0] * len(axes)})
