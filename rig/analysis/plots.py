@@ -245,15 +245,20 @@ def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
         limits = [stats[k] for k in ("lsl", "usl") if stats.get(k) is not None]
         half = max([abs(v[0] - lim) * 1.2 for lim in limits] + [abs(v[0]) * 1e-3, 1e-12])
         ax.hist(v, bins=41, range=(v[0] - half, v[0] + half), color="tab:blue", alpha=0.7)
-    else:
-        ax.hist(v, bins=bins, color="tab:blue", alpha=0.7)
+    else:                                         # bars at least 1/60 of the shown range wide: visible even when
+        marks = [stats[k] for k in ("lsl", "usl", "minus_3sigma", "plus_3sigma") if stats.get(k) is not None]
+        span = max([v.max()] + marks) - min([v.min()] + marks)          # limits far from the data widen the axis
+        width = max(np.ptp(v) / bins, span / 60.0)
+        count = max(1, int(np.ceil(np.ptp(v) / width)))
+        edges = 0.5 * (v.min() + v.max()) + (np.arange(count + 1) - count / 2) * width
+        ax.hist(v, bins=edges, color="tab:blue", alpha=0.7)
     for key, style in (("lsl", "r-"), ("usl", "r-"), ("minus_3sigma", "k--"), ("plus_3sigma", "k--"),
                        ("mean", "k-")):
         if stats.get(key) is not None:
             ax.axvline(stats[key], color=style[0], ls=style[1:], lw=1.2 if style[0] == "r" else 1)
     for key, name in (("lsl", "LSL"), ("usl", "USL")):              # the limits' values, named on their lines
         if stats.get(key) is not None:
-            ax.text(stats[key], 1.0, f"{name} {stats[key]:.4g}", transform=ax.get_xaxis_transform(), fontsize=7,
+            ax.text(stats[key], 0.97, f"{name} {stats[key]:.4g}", transform=ax.get_xaxis_transform(), fontsize=7,
                     color="r", ha="right" if key == "lsl" else "left", va="top", rotation=90, clip_on=False)
     unit = f" ({stats['unit']})" if stats.get("unit") else ""
     if not spread and (stats.get("cp") is not None or stats.get("cpk") is not None):
@@ -266,6 +271,7 @@ def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
     ax.set_xlabel(f"{stats['name']}{unit}", fontsize=9)
     ax.xaxis.set_major_locator(MaxNLocator(4))
     ax.yaxis.set_major_locator(MaxNLocator(4, integer=True))
+    ax.set_ylim(0.0, ax.get_ylim()[1] * 1.25)                  # room for the limit labels above the bars
     ax.ticklabel_format(axis="x", style="plain", useOffset=False)
     ax.tick_params(labelsize=8)
 
