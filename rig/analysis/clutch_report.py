@@ -181,6 +181,10 @@ def summary_lines(rec: Recording) -> list[str] | None:
     lines = ["clutch stand: " + ("; ".join(f"{s.text} at {s.time:.4g} s" for s in stim) or "no stimulus known")]
     width = max(len(m.name) for m in metrics)
     lines += [f"  {m.name:<{width}}  {m.value_text()}  ({m.reference})" for m in metrics]
+    scene = _scene(rec)
+    if scene is not None and scene.data.get("comparison"):
+        from rig.analysis.stand_comparison import agreement_text, compare
+        lines.append(f"  thesis against rig: {agreement_text(compare(scene, stim, metrics))} (comparison.csv)")
     return lines
 
 

@@ -6,7 +6,9 @@ stand result it is compared with (``rig``: a result name of :func:`rig.analysis.
 as ``"start-up: peak torque"`` or ``"disengagements"`` (a count; ``"shutdown"``: 1 required, 0 not); ``part``: ``"value"``, ``"time"`` — when it happened — or
 ``"time_after"`` — after its stimulus), whether the scene's unknown parameters were fitted on it (``fitted``) and an
 optional ``note``. The rig value is given in the thesis's unit; a result that does not exist in the run is "n/a"
-with the reason.
+with the reason. Whether the rig agrees is judged by the row's ``tolerance``: a fraction (``"15 %"``), a value in
+the thesis's unit (``"20 ms"``) or a bound (``"at most"``, ``"at least"``: the thesis value is a limit); without
+one a count (a thesis value without unit) must match exactly and other rows are not judged.
 """
 from __future__ import annotations
 
@@ -30,7 +32,10 @@ ROW_SCHEMA = {
     "part": Field(None, "value", "value, time (when it happened) or time_after (after its stimulus)"),
     "fitted": Field(None, False, "true if the scene's unknown parameters were fitted on this quantity"),
     "note": Field(None, "", "what else to know"),
+    "tolerance": Field(None, None, "how close agrees: \"15 %\", a value in the thesis's unit, \"at most\" or "
+                       "\"at least\" (default: a count exactly, else not judged)"),
 }
+BOUNDS = ("at most", "at least")
 FLAGS = {"required": 1.0, "not required": 0.0}     # string results compared as numbers
 SI = {"N·m": "N*m", "s": "s", "°": "deg", "%": "1", "rad/s": "rad/s", "J": "J", "": "1"}   # result units
 
@@ -45,6 +50,11 @@ class Row:
     rig: float | None
     fitted: bool
     why: str
+    agrees: bool | None = None     # None: not judged (no tolerance) or n/a
+
+    @property
+    def verdict(self) -> str:
+        return "n/a" if self.rig is None else "-" if self.agrees is None else "yes" if self.agrees else "NO"
 
 
 def read_rows(scene: Scene) -> list[dict[str, Any]]:
@@ -101,19 +111,52 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
         else:
             origin = next((t for label, t in starts.items() if spec["rig"].startswith(label + ":")), 0.0)
             value = (metric.at - (origin if spec["part"] == "time_after" else 0.0)) / scale
-        rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"]))
+        agrees = None if value is None else _agrees(spec["tolerance"], number, unit, si, value, where)
+        rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"], agrees))
     return rows
 
 
+def _agrees(tolerance: Any, thesis: float, unit: str, si: str, rig: float, where: str) -> bool | None:
+    """Whether ``rig`` agrees with ``thesis`` (both in ``unit``, whose SI unit is ``si``) under ``tolerance``
+    (module docstring)."""
+    if tolerance is None:
+        return rig == thesis if not unit else None
+    text = str(tolerance).strip()
+    if text in BOUNDS:
+        return rig <= thesis if text == "at most" else rig >= thesis
+    try:
+        if text.endswith("%"):
+            return abs(rig - thesis) <= to_si(text, "1") * abs(thesis)
+        return abs(rig - thesis) <= to_si(text, si) / (to_si(f"1 {unit}", si) if unit else 1.0)
+    except UnitError as exc:
+        raise SceneError(f"{where}: tolerance {text!r}: {exc} (use \"15 %\", a value in {unit or 'counts'}, "
+                         f"\"at most\" or \"at least\")") from None
+
+
 def write_csv(rows: list[Row], path: Path) -> Path:
-    """``comparison.csv``: quantity, unit, thesis, rig (empty: n/a), fitted (1/0), note."""
+    """``comparison.csv``: quantity, unit, thesis, rig (empty: n/a), agrees (yes / NO / - not judged / n/a),
+    fitted (1/0), note."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["quantity", "unit", "thesis", "rig", "fitted", "note"])
+        w.writerow(["quantity", "unit", "thesis", "rig", "agrees", "fitted", "note"])
         for r in rows:
-            w.writerow([r.quantity, r.unit, f"{r.thesis:g}", "" if r.rig is None else f"{r.rig:.6g}",
+            w.writerow([r.quantity, r.unit, f"{r.thesis:g}", "" if r.rig is None else f"{r.rig:.6g}", r.verdict,
                         int(r.fitted), r.why])
     return path
+
+
+def agreement_text(rows: list[Row]) -> str:
+    """One line: how many judged rows agree with the thesis, and which do not."""
+    judged = [r for r in rows if r.agrees is not None]
+    off = [r for r in judged if not r.agrees]
+    missing = [r for r in rows if r.rig is None]
+    text = f"{len(judged) - len(off)} of {len(judged)} judged rows agree with the thesis"
+    if off:
+        text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{' ' + r.unit if r.unit else ''}, "
+                                           f"rig {r.rig:.4g})" for r in off)
+    if missing:
+        text += f"; n/a in this run: {', '.join(r.quantity for r in missing)}"
+    return text
 
 
 def _scene(rec: Recording) -> Scene | None:
@@ -135,10 +178,13 @@ def comparison_section(ctx: ReportContext) -> list[Block]:
     fitted = [r.quantity for r in rows if r.fitted]
     text = ("Fitted on this run: " + ", ".join(fitted) + "; the other rows are predictions.") if fitted else \
         "Nothing was fitted on this run: every row is a prediction."
-    return [Heading("Thesis against rig"), Text(text + " Also in comparison.csv."),
-            Table(["quantity", "unit", "thesis", "rig", "fitted", "note"],
+    agreement = agreement_text(rows)
+    return [Heading("Thesis against rig"),
+            Text(agreement + ".", "warning" if any(r.agrees is False for r in rows) else "note"),
+            Text(text + " Also in comparison.csv."),
+            Table(["quantity", "unit", "thesis", "rig", "agrees", "fitted", "note"],
                   [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", "n/a" if r.rig is None else f"{r.rig:.4g}",
-                    "yes" if r.fitted else "no", r.why] for r in rows])]
+                    r.verdict, "yes" if r.fitted else "no", r.why] for r in rows])]
 
 
 register_section("stand_comparison", comparison_section)

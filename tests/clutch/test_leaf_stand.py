@@ -70,6 +70,7 @@ def test_leaf_startup_scene_writes_the_comparison(tmp_path):
     assert float(when["rig"]) == pytest.approx(46.6, rel=0.20)
     assert 0.0 < float(settle["rig"]) <= 450.0
     assert rows["disengagements"]["rig"] == "0" and peak["fitted"] == "1" and settle["fitted"] == "0"
+    assert [r["agrees"] for r in rows.values()] == ["yes"] * 5          # 15 %, 20 %, at most, exact count, 5 %
     assert "Thesis against rig" in (tmp_path / "report" / "report.html").read_text(encoding="utf-8")
 
 
@@ -107,3 +108,25 @@ def test_held_overload_disengages_repeatedly_and_calls_for_shutdown(tmp_path):
     with open(tmp_path / "report" / "comparison.csv", encoding="utf-8") as f:
         rows = {r["quantity"]: r for r in csv.DictReader(f)}
     assert float(rows["disengagements"]["rig"]) >= 2 and rows["shutdown"]["rig"] == "1"
+
+
+def test_agreement_is_judged_by_each_rows_tolerance(tmp_path):
+    """"15 %", a value in the thesis's unit, "at most"/"at least" bounds; a count without tolerance exactly; other
+    rows without one are not judged; a bad tolerance is a scene error naming it."""
+    from rig.analysis.stand_comparison import agreement_text
+    scene_path = tmp_path / "s.toml"
+    rows = [("peak", "16.5 N*m", "max torque", "15 %"), ("late", "150 ms", "stop at 0.3 s: standstill", "40 ms"),
+            ("within", "150 ms", "stop at 0.3 s: standstill", "at most"), ("n", "2", "disengagements", None),
+            ("loose", "10 N*m", "max torque", None)]
+    scene_path.write_text("".join(f'[[comparison]]\nquantity = "{q}"\nthesis = "{t}"\nrig = "{r}"\npart = '
+                                  f'"{"time_after" if "stop" in r else "value"}"\n'
+                                  + (f'tolerance = "{tol}"\n' if tol else "") + "\n" for q, t, r, tol in rows))
+    stim = [Stimulus(0.3, "stop", "motor off")]
+    metrics = [Metric("stop at 0.3 s: standstill", 0.2, "s", "", 0.48), Metric("max torque", 18.0, "N·m", "", 0.1),
+               Metric("disengagements", "3", "", "")]
+    got = compare(load_scene(scene_path), stim, metrics)
+    assert [r.verdict for r in got] == ["yes", "yes", "NO", "NO", "-"]       # 18 vs 16.5 ± 2.5; 180 vs 150 ± 40
+    assert agreement_text(got).startswith("2 of 4 judged rows agree with the thesis; DISAGREE: within (thesis 150 ms")
+    scene_path.write_text('[[comparison]]\nquantity = "x"\nthesis = "16.5 N*m"\nrig = "max torque"\ntolerance = "3 N"\n')
+    with pytest.raises(SceneError, match="tolerance '3 N'"):
+        compare(load_scene(scene_path), stim, metrics)
