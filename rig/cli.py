@@ -50,17 +50,21 @@ def _print_values(st: dict) -> None:
     """Table of one program's process values in their display units (the unit column; rig.analysis.units):
     n, unit, mean, σ, min, max, ±3σ band, Cp/Cpk against the limits, checks."""
     print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  "
-          f"{'-3s..+3s':>21}  Cp    Cpk   normal drift")
+          f"{'-3s..+3s':>21}  {'Cp':>7} {'Cpk':>7}  normal drift")
     for name, pv in st.get("values", {}).items():
         if pv.get("cp") is None or pv.get("cpk") is None:
-            cap = "  -     -  "
-        else:
-            cap = f"{pv['cp']:5.2f} {pv['cpk']:5.2f}" if pv["spread"] else " n/a   n/a "    # σ = 0: say nothing
+            cap = f"{'-':>7} {'-':>7}"
+        else:                                                                          # σ = 0: say nothing
+            cap = f"{pv['cp']:7.4g} {pv['cpk']:7.4g}" if pv["spread"] else f"{'n/a':>7} {'n/a':>7}"
         drift = pv["trend"].get("drift")
         drift = f"yes: {'; '.join(pv['trend'].get('drift_why') or [])}" if drift else "no" if drift is False else "-"
         print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>5}  {pv['mean']:10.4g} {pv['std']:9.3g} "
               f"{pv['min']:10.4g} {pv['max']:10.4g}  {pv['minus_3sigma']:10.4g}..{pv['plus_3sigma']:<10.4g} {cap}  "
-              f"{str(pv['normality'].get('normal', '-')):6} {drift}")
+              f"{_yes_no(pv['normality'].get('normal')):6} {drift}")
+
+
+def _yes_no(flag: bool | None) -> str:
+    return "-" if flag is None else "yes" if flag else "no"
 
 
 NOK_LINES = 5     # NOK curves whose reasons the console summary prints
@@ -91,9 +95,14 @@ def _print_set_summary(result: dict) -> None:
         print(f"  device statistics (program {program}): {agreement_text(st['device_agreement'])}")
     lags = [row for row in result["theory"] if row.get("lag_time") is not None]
     if lags:
-        lt = sum(r["lag_time"] for r in lags) / len(lags)
-        la = sum(r.get("lag_angle", 0.0) for r in lags) / len(lags)
-        print(f"  theory vs measurement: mean lag {lt * 1e3:.1f} ms = {la * 180 / 3.141592653589793:.1f} deg cam")
+        parts = []
+        for signal in sorted({r["signal"] for r in lags}):
+            rows = [r for r in lags if r["signal"] == signal]
+            lt = sum(r["lag_time"] for r in rows) / len(rows)
+            angles = [r["lag_angle"] for r in rows if r.get("lag_angle") is not None]
+            la = f" = {sum(angles) / len(angles) * 180 / 3.141592653589793:.2f} deg cam" if angles else ""
+            parts.append(f"{signal.upper()} {lt * 1e3:.2f} ms{la}")
+        print(f"  theory vs measurement, mean lag over {len({r['curve'] for r in lags})} curves: {', '.join(parts)}")
     if result["events"]:
         print("  events: " + ", ".join(f"{k} {v}" for k, v in sorted(result["events"].items())))
 

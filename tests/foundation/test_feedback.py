@@ -195,7 +195,7 @@ def test_tolerance_shows_the_monte_carlo_machines(capsys):
     assert capsys.readouterr().err == ""
     shown = run_study(mech, load_tolerances(), 300, 1, step_deg=10.0, progress=True)
     last = bar_lines(capsys.readouterr().err)[-1]
-    assert last.startswith("tolerance: 100%") and "600/600" in last and "machines" in last  # 2 runs, 1 pass
+    assert last.startswith("tolerance, 2 runs of 300 machines: 100%") and "600/600" in last and "machine evaluations" in last
     assert (shown.mc.mean == quiet.mc.mean).all()
 
 

@@ -39,7 +39,8 @@ def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed
     lengths_only = ToleranceSet(tol.T)
     runs = 1 if tol.clearance_lambda is None else 2
     total = samples * runs * run_passes(samples)
-    with progress_bar(total, "tolerance", " machines", progress, unit_scale=True) as bar:
+    label = f"tolerance, {runs} runs of {samples} machines" if runs > 1 else "tolerance"
+    with progress_bar(total, label, " machine evaluations", progress, unit_scale=True) as bar:
         def count(k: int) -> None:          # a rare extra refinement pass must not run the bar past 100 %
             bar.update(min(k, total - bar.n))
         mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, seed + 1, executor,
