@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import exp, tan
+from math import exp, pi, tan
 
 
 @dataclass(frozen=True)
@@ -23,6 +23,9 @@ class Belt:
     def tensions(self, force: float) -> tuple[float, float]:
         """Tight- and slack-side tensions F1, F2 (N) transmitting the peripheral ``force`` F1 − F2 (N) at the
         limit of sliding: F1 = F2 e^{μβ} (Euler–Eytelwein)."""
+        if not force >= 0:
+            raise ValueError(f"Belt peripheral force F1 − F2 must not be negative (N), got {force!r}: a belt pulls, "
+                             "it cannot push; swap the pulleys' roles instead")
         q = exp(self.mu * self.wrap)
         return force * q / (q - 1), force / (q - 1)
 
@@ -38,6 +41,12 @@ class Ratchet:
 
     tooth_angle: float
     mu: float
+
+    def __post_init__(self) -> None:
+        if not 0 < self.tooth_angle < pi / 2:
+            raise ValueError(f"Ratchet tooth_angle must lie in (0, 90°), got {self.tooth_angle!r} rad")
+        if not self.mu >= 0:
+            raise ValueError(f"Ratchet mu must not be negative, got {self.mu!r}")
 
     @property
     def self_locking(self) -> bool:

@@ -4,10 +4,14 @@ coefficient 1, dedendum 1.25)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import acos, cos, pi, radians, sin, sqrt, tan
+from math import acos, cos, degrees, pi, radians, sin, sqrt, tan
 from typing import NamedTuple
 
 from scipy.optimize import brentq
+
+from rig.mechanisms.checks import whole
+
+MODULE_MAX = 0.1      # m: the largest gear module taken for one (larger ones are mm given as m)
 
 
 def involute(alpha: float) -> float:
@@ -54,11 +58,12 @@ class SpurGearPair:
 
     def __post_init__(self) -> None:
         for name in ("z1", "z2"):
-            z = getattr(self, name)
-            if isinstance(z, bool) or not isinstance(z, int) or z < 5:
-                raise ValueError(f"SpurGearPair {name} must be an integer number of teeth >= 5, got {z!r}")
-        if not self.module > 0:
-            raise ValueError(f"SpurGearPair module must be positive (m), got {self.module!r}")
+            object.__setattr__(self, name, whole(getattr(self, name), 5, f"SpurGearPair {name} (teeth)"))
+        if not 0 < self.module <= MODULE_MAX:
+            raise ValueError(f"SpurGearPair module is in metres, positive and at most {MODULE_MAX:g} m (gear modules "
+                             f"run from 0.05 to 50 mm), got {self.module!r} m"
+                             + (f": did you mean {self.module:g} mm = {self.module * 1e-3:g} m?"
+                                if self.module > MODULE_MAX else ""))
         if not 0 < self.pressure_angle < radians(45):
             raise ValueError(f"SpurGearPair pressure_angle must lie in (0, 45°), got {self.pressure_angle!r} rad")
         for z, x, name in ((self.z1, self.x1, "x1"), (self.z2, self.x2, "x2")):
@@ -92,6 +97,8 @@ class SpurGearPair:
         path = sqrt(da[0] ** 2 - db[0] ** 2) / 2 + sqrt(da[1] ** 2 - db[1] ** 2) / 2 - a * sin(aw)
         eps = path / pb
         if eps < 1.0:
-            raise ValueError(f"SpurGearPair: contact ratio {eps:.3f} < 1 (the teeth lose mesh)")
+            raise ValueError(f"SpurGearPair: contact ratio {eps:.3f} < 1 (the teeth lose mesh): the profile shifts "
+                             f"x1 = {x1:g}, x2 = {x2:g} (sum {x1 + x2:g}) spread the gears to a working pressure angle "
+                             f"of {degrees(aw):.1f}°; a smaller shift sum keeps them in mesh")
         return GearGeometry(aw, a, a_ref, ym, km, d, db, dw, da, df, s, eps)
 

@@ -9,6 +9,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rig.mechanisms.checks import whole
+
 
 class GenevaMotion(NamedTuple):
     """Wheel angle φ2 (rad, relative to the slot's centre line; held at the end value in the dwell),
@@ -39,9 +41,7 @@ class Geneva:
     centre_distance: float
 
     def __post_init__(self) -> None:
-        if isinstance(self.slots, bool) or not isinstance(self.slots, int) or self.slots < 3:
-            raise ValueError(f"Geneva slots must be an integer >= 3 (a wheel with fewer slots cannot index), "
-                             f"got {self.slots!r}")
+        object.__setattr__(self, "slots", whole(self.slots, 3, "Geneva slots (a wheel with fewer cannot index)"))
         if not self.centre_distance > 0:
             raise ValueError(f"Geneva centre_distance must be positive, got {self.centre_distance!r} m")
 

@@ -1,18 +1,23 @@
 """Structure of planar mechanisms and gear trains: the lab guide's mobility formula and Willis's formula."""
 from __future__ import annotations
 
+from numbers import Integral
+
+from rig.mechanisms.checks import whole
+
 
 def mobility(n: int, c5: int, c4: int, passive: int = 0, redundant: int = 0) -> int:
     """M = 3(n − 1) − 2·c5 − c4 − passive − redundant (the lab guide's convention): ``n`` links counting the
     frame, ``c5`` lower pairs (one degree of freedom each), ``c4`` higher pairs, ``passive`` ΣL_p (degrees of
     freedom of passive chains, may be negative), ``redundant`` ΣL_id (independent motions such as an idle
     roller's spin)."""
-    for name, v in (("n", n), ("c5", c5), ("c4", c4)):
-        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-            raise ValueError(f"mobility: {name} must be a non-negative integer, got {v!r}")
-    if n < 1:
-        raise ValueError("mobility: n counts the frame, so n >= 1")
-    return 3 * (n - 1) - 2 * c5 - c4 - passive - redundant
+    n = whole(n, 1, "mobility: n (links counting the frame)")
+    c5, c4 = whole(c5, 0, "mobility: c5"), whole(c4, 0, "mobility: c4")
+    redundant = whole(redundant, 0, "mobility: redundant (independent motions)")
+    if isinstance(passive, bool) or not isinstance(passive, Integral):
+        raise ValueError(f"mobility: passive (degrees of freedom of passive chains) must be a whole number, "
+                         f"got {passive!r}")
+    return 3 * (n - 1) - 2 * c5 - c4 - int(passive) - redundant
 
 
 def willis(n1: float | None, n3: float | None, carrier: float | None, ratio: float) -> dict[str, float]:

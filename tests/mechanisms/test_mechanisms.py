@@ -85,7 +85,7 @@ def test_geneva_of_the_student_project():
     assert t.motion_time == pytest.approx(0.3 * 60 / 484.5, rel=1e-12)
 
 
-@pytest.mark.parametrize("bad, message", [((2, 0.05), "slots must be an integer >= 3"),
+@pytest.mark.parametrize("bad, message", [((2, 0.05), r"slots \(a wheel with fewer cannot index\) must be a whole number >= 3"),
                                           ((5, 0.0), "centre_distance must be positive")])
 def test_geneva_refuses_impossible_input(bad, message):
     with pytest.raises(ValueError, match=message):
@@ -127,10 +127,15 @@ def test_unshifted_gears_have_the_standard_geometry_and_contact_ratio():
 def test_gears_refuse_undercut_and_bad_input():
     with pytest.raises(ValueError, match=r"x1 = 0 undercuts the 12-tooth gear \(needs x1 >= 0.298\)"):
         SpurGearPair(12, 40, 2e-3)
-    with pytest.raises(ValueError, match="module must be positive"):
+    with pytest.raises(ValueError, match="module is in metres, positive"):
         SpurGearPair(20, 40, 0.0)
     with pytest.raises(ValueError, match="pointed tooth"):
         SpurGearPair(12, 40, 2e-3, 1.5, 0.0).geometry()
+    with pytest.raises(ValueError, match=r"got 4.5 m: did you mean 4.5 mm = 0.0045 m"):
+        SpurGearPair(34, 80, 4.5)                        # a module in mm given as metres
+    with pytest.raises(ValueError, match=r"contact ratio -0.4\d+ < 1 .* profile shifts x1 = 5, x2 = 5"):
+        SpurGearPair(34, 80, 1e-3, 5, 5).geometry()
+    assert SpurGearPair(np.int64(34), np.int64(80), 2e-3).z1 == 34     # numpy integers are whole numbers too
 
 
 def test_mobility_of_the_course_examples():
@@ -140,8 +145,12 @@ def test_mobility_of_the_course_examples():
     assert mobility(4, 3, 1, redundant=1) == 1           # roller follower: the roller's spin is an idle motion
     assert mobility(5, 5, 0) == 2                        # five-bar linkage
     assert mobility(5, 6, 0, passive=-1) == 1            # parallelogram with a redundant (passive) link
-    with pytest.raises(ValueError, match="n counts the frame"):
+    with pytest.raises(ValueError, match=r"n \(links counting the frame\) must be a whole number >= 1"):
         mobility(0, 0, 0)
+    with pytest.raises(ValueError, match=r"redundant \(independent motions\) must be a whole number >= 0, got -3"):
+        mobility(4, 4, 0, redundant=-3)
+    with pytest.raises(ValueError, match=r"passive .* must be a whole number, got 0.5"):
+        mobility(4, 4, 0, passive=0.5)
 
 
 def test_willis_planetary_and_differential():
@@ -165,3 +174,9 @@ def test_belt_ratchet_and_friction_wheels():
     assert w.ratio == pytest.approx(3 / 0.98) and w.pressing_force(100.0) == pytest.approx(375.0)
     with pytest.raises(ValueError, match="slip is a fraction"):
         Belt(0.3, pi, slip=1.5)
+    with pytest.raises(ValueError, match="peripheral force F1 − F2 must not be negative"):
+        belt.tensions(-100.0)
+    with pytest.raises(ValueError, match=r"Ratchet tooth_angle must lie in \(0, 90°\)"):
+        Ratchet(-1.0, 0.1)
+    with pytest.raises(ValueError, match="Ratchet mu must not be negative"):
+        Ratchet(0.3, -1.0)
