@@ -214,6 +214,10 @@ def test_design_checks_of_the_scene(tmp_path):
     assert "max Hertz stress" in text and "MPa" in text
     png = plot_design(design, tmp_path / "cam.png")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    from rig.mechanisms.cam.design import Check, utilisation        # the bars: the share of each limit used
+    assert utilisation(names["max pressure angle"]) == pytest.approx(names["max pressure angle"].value / 30.0)
+    assert utilisation(Check("r", 20.0, 25.0, "mm", "≥")) == pytest.approx(1.25)      # too small: above 1
+    assert np.isnan(utilisation(Check("r_b/h", -0.1, 0.0, "", "≥")))
 
 
 def test_rig_cam_design_command(tmp_path, capsys):
