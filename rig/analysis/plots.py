@@ -54,17 +54,31 @@ def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3, bot
     return path
 
 
+def _marker_boxes(ax: Axes) -> list:
+    """Display-space boxes of the lone markers of ``ax`` (failure marks: markers without a line, or one point)."""
+    from matplotlib.transforms import Bbox
+    boxes = []
+    for line in ax.lines:
+        lone = line.get_linestyle() in ("None", "none", "", " ") or len(line.get_xdata()) == 1
+        if lone and line.get_marker() not in (None, "None", "none", ""):
+            half = line.get_markersize() * ax.figure.dpi / 72.0 / 2.0 + 1.0
+            for x, y in ax.transData.transform(np.column_stack(line.get_data())):
+                boxes.append(Bbox([[x - half, y - half], [x + half, y + half]]))
+    return boxes
+
+
 def separate_labels(fig: Figure) -> None:
-    """Move each annotation (element labels) that overlaps an earlier one of its axes down below it, so no label
-    hides another (display space, after the layout)."""
+    """Move each annotation (element labels) that overlaps an earlier one of its axes, or a failure mark, down
+    below it, so no label hides another or a mark (display space, after the layout)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.text import Annotation
-    labelled = [(ax, anns) for ax in fig.axes if len(anns := [t for t in ax.texts if isinstance(t, Annotation)]) > 1]
+    labelled = [(ax, anns) for ax in fig.axes if (anns := [t for t in ax.texts if isinstance(t, Annotation)])
+                and (len(anns) > 1 or _marker_boxes(ax))]
     if not labelled:                   # nothing can overlap: no renderer needed
         return
     renderer = FigureCanvasAgg(fig).get_renderer()
     for ax, anns in labelled:
-        placed = []
+        placed = _marker_boxes(ax)
         for ann in anns:
             for _ in range(12):
                 box = ann.get_window_extent(renderer)
