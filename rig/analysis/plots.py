@@ -197,11 +197,13 @@ def _axes_of(curves: Sequence[CurveRecord]) -> list[str]:
 
 
 def force_displacement(curves: Sequence[CurveRecord], elements: list, path: Path, title: str,
-                       nok: set[int] = frozenset(), units: DisplayUnits | None = None) -> tuple[Path, list[str]]:
-    """Y over X of the curves (NOK in red, drawn on top) with the program's evaluation elements."""
+                       nok: set[int] = frozenset(), units: DisplayUnits | None = None,
+                       failed: Mapping[str, str] | None = None) -> tuple[Path, list[str]]:
+    """Y over X of the curves (NOK in red, drawn on top) with the program's evaluation elements (``failed``:
+    ``{name: label}`` of those to highlight)."""
     units = units or DisplayUnits()
     fig, ax = figure(size=(7.5, 4.8))
-    notes = _xy(ax, curves, elements, nok, units)
+    notes = _xy(ax, curves, elements, nok, units, failed)
     _legend(ax, curves, nok)
     ax.set_title(title, loc="left", fontsize=10)
     return save(fig, path), notes

@@ -382,10 +382,18 @@ def curves(ctx: ReportContext) -> list[Block]:
         n_nok = sum(c.number in nok for c in chosen)
         title = f"program {program}: {len(chosen)} curves, {n_nok} NOK (red, on top)"
         blocks.append(Heading(f"All curves, program {program}"))
+        numbers = {c.number for c in chosen}
+        counts: dict[str, int] = {}
+        for v in ctx.analysis["verdicts"]:
+            if v["number"] in numbers:
+                for f in v["failed"]:
+                    counts[f["name"]] = counts.get(f["name"], 0) + 1
+        failed = {name: f"failed in {k} curve{'s' if k > 1 else ''}" for name, k in counts.items()}
         path, notes = plots.force_displacement(chosen, _elements(rec, program), ctx.figure_path(f"xy_p{program}"),
-                                               title, nok, units)
+                                               title, nok, units, failed)
         blocks.append(ctx.figure(path, f"Program {program}: Y over X with the evaluation elements "
-                                       "(entry side green, exit side red dashed)"))
+                                       "(entry side green, exit side red dashed; an element some curve failed red "
+                                       "and labelled with how many)"))
         blocks += [Text(f"Note: {n}", "note") for n in notes]
         path = plots.signals_over(chosen, ctx.figure_path(f"ys_p{program}"), title, nok, units)
         blocks.append(ctx.figure(path, f"Program {program}: Y over time since each curve's start and over cam "
