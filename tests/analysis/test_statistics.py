@@ -89,6 +89,8 @@ def test_drift_names_the_rules_that_fired():
     shifted = trend(np.r_[rng.normal(0, 0.1, 25), rng.normal(1, 0.1, 25)])
     assert shifted["drift"] and any("Nelson rule 2" in w for w in shifted["drift_why"])
     assert any(w.startswith("slope p") for w in shifted["drift_why"])
+    skewed = trend(rng.lognormal(0.0, 1.5, 200))          # no drift, most values below the mean
+    assert not any("Nelson rule 2" in w for w in skewed["drift_why"]) and skewed["longest_side_run"] < 9
 
 
 def test_no_spread_is_not_called_capable(tmp_path):
