@@ -34,7 +34,7 @@ _ANGLES = ("radian", "degree", "turn", "revolution", "arcminute", "arcsecond", "
 
 # SI units of the plants' truth signals (rig.plants: cam bar level 1/2, clutch stand and static rig, lab bench)
 SIGNAL_SI = {
-    "phi_in": "rad", "phi_out": "rad", "omega_in": "rad/s", "omega_out": "rad/s", "alpha_in": "rad/s^2",
+    "phi_in": "rad", "phi_out": "rad", "omega_in": "rad/s", "omega_out": "rad/s", "alpha_in": "rad/s^2", "alpha_out": "rad/s^2",
     "phi": "rad", "cam_angle": "rad", "psi": "rad", "theta": "rad", "psi_kin": "rad", "pressure_angle": "rad",
     "phi1": "rad", "phi3": "rad", "phi_r": "rad", "angle": "rad",
     "omega": "rad/s", "omega1": "rad/s", "omega3": "rad/s", "omega_r": "rad/s", "alpha": "rad/s^2",
@@ -55,7 +55,7 @@ SIGNAL_LABEL = {
     "omega1": "driving half ω1", "omega3": "driven half ω3", "omega_r": "relative speed", "M1": "motor torque",
     "M3": "load torque", "M_t": "torque-meter shaft", "T_c": "coupling torque", "F_a": "spring force",
     "N_B": "cam normal force N_B", "phi_in": "input angle", "phi_out": "output angle", "omega_in": "input speed",
-    "omega_out": "output speed", "alpha_in": "input acceleration", "v": "follower speed",
+    "omega_out": "output speed", "alpha_in": "input acceleration", "alpha_out": "output acceleration", "v": "follower speed",
     "a": "follower acceleration", "torque": "input torque", "relative_angle": "relative angle",
     "lever_force": "loading-lever force", "leaf_strain": "leaf-spring strain",
 }

@@ -12,7 +12,7 @@
 
 Prescribed input motion (closed form, rig.motion.speed): kinematics and quasi-static torque, level 1. Truth
 signals (SI): ``phi_in`` (rad, continuous), ``omega_in`` (rad/s), ``alpha_in`` (rad/s²) and, per kind,
-``phi_out``/``omega_out`` or ``s``/``v``/``a``/``torque``.
+``phi_out``/``omega_out``/``alpha_out`` (rad/s²) or ``s``/``v``/``a``/``torque``.
 """
 from __future__ import annotations
 
@@ -67,12 +67,15 @@ class LabBench:
         out = {"t": t, "phi_in": d.phi, "omega_in": d.omega, "alpha_in": d.alpha}
         if self.kind == "cardan":
             out["phi_out"] = self.mechanism.output_angle(d.phi)
-            out["omega_out"] = self.mechanism.speed_ratio(d.phi) * d.omega
+            ratio = self.mechanism.speed_ratio(d.phi)
+            out["omega_out"] = ratio * d.omega
+            out["alpha_out"] = self.mechanism.acceleration(d.phi, d.omega) + ratio * d.alpha   # ω1²·dr/dφ1 + r·α1
         elif self.kind == "geneva":
             z = self.mechanism.slots
             motion = self.mechanism.kinematics(d.phi, 1.0)
             out["phi_out"] = tau / z * np.round(d.phi / tau) + motion.angle + np.pi / z   # 0 at the first dwell
             out["omega_out"] = motion.velocity * d.omega
+            out["alpha_out"] = motion.acceleration * d.omega ** 2 + motion.velocity * d.alpha
         elif self.kind == "cam":
             m = self.mechanism.evaluate(d.phi)
             v, a = d.omega * m.s_p, d.omega ** 2 * m.s_pp + d.alpha * m.s_p

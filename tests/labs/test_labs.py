@@ -214,3 +214,18 @@ def test_a_lab_served_in_its_own_process_records_the_same_readings(cardan, tmp_p
         for name in ("count", "edge_time", "angle"):
             np.testing.assert_array_equal(a.series[topic][name], b.series[topic][name], err_msg=f"{topic} {name}")
     assert {s.title: s.values for s in lab_sheets(b)} == {t: s.values for t, s in cardan[1].items()}
+
+
+@pytest.mark.parametrize("kind, mechanism", [("cardan", Cardan(radians(30))), ("geneva", Geneva(5, 0.05))])
+def test_bench_output_acceleration_is_the_derivative_of_its_speed(kind, mechanism):
+    """alpha_out = d(omega_out)/dt, with the input speed varying (the r·α1 term) — central differences."""
+    from rig.motion.speed import SinusoidalSpeed
+    bench = LabBench(kind, SinusoidalSpeed(50.0, 5.0, 2.0), mechanism)
+    t = np.linspace(0.01, 0.5, 200_001)
+    truth = bench.truth(t)
+    fd = np.gradient(truth["omega_out"], t)
+    inner = slice(2, -2)
+    scale = np.max(np.abs(truth["alpha_out"]))
+    smooth = np.ones(t.size, bool) if kind == "cardan" else \
+        np.abs(np.gradient(fd, t)) < 1e3 * scale               # Geneva: not at the pin's entry and exit kinks
+    assert np.max(np.abs(fd - truth["alpha_out"])[inner][smooth[inner]]) < 1e-4 * scale
