@@ -133,6 +133,9 @@ class TailsFold:
             high.add(block)
         if out is None:
             raise ValueError("a task produced no samples")
+        if not np.all(np.isfinite(out.mean)):       # NaN/inf: the tails drop them unevenly; the caller names it
+            empty = np.empty((0, out.mean.size))
+            return out, empty, empty
         return out, low.values(), high.values()
 
 

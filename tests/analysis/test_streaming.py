@@ -104,3 +104,7 @@ def test_non_finite_samples_are_an_error_naming_the_columns(announced):
     data[17, 2], data[3, 3] = np.nan, np.inf
     with pytest.raises(ValueError, match=r"not all finite .* in 2 column\(s\), the first \[2, 3\]"):
         column_statistics(_runner(data, 100, 50), (0.135, 99.865), n=len(data) if announced else None)
+    short = np.random.default_rng(6).standard_normal((10, 2))    # a task smaller than the tails, NaN in it
+    short[9, 1] = np.nan
+    with pytest.raises(ValueError, match=r"not all finite .* in 1 column\(s\), the first \[1\]"):
+        column_statistics(_runner(short, 9, 9), (0.135, 99.865), n=10 if announced else None)
