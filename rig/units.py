@@ -12,7 +12,6 @@ from functools import lru_cache
 import pint
 
 
-
 def _registry() -> pint.UnitRegistry:
     """pint's default registry, its parsed definitions cached in the user's cache folder (0.07 s instead of 0.3 s
     a start); without a usable cache folder, parsed afresh."""

@@ -185,17 +185,12 @@ class CanHost:
             return
         spec, length, decode, handler = entry
         data = msg.data
-        if len(data) != length:
-            if len(data) > 8 and not msg.is_fd:
-                self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(data)} data bytes in a "
-                            "classic (non-FD) frame; more than 8 need CAN FD")
-            else:
-                self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(data)} data bytes, DBC says "
-                            f"{length}")
-            return
-        if length > 8 and not msg.is_fd:
+        if len(data) > 8 and not msg.is_fd:
             self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(data)} data bytes in a classic "
                         "(non-FD) frame; more than 8 need CAN FD")
+            return
+        if len(data) != length:
+            self._event(msg, "bad_length", 1, f"{spec.name} (0x{fid:03X}) has {len(data)} data bytes, DBC says {length}")
             return
         try:
             raw = decode(data)

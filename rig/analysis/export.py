@@ -71,8 +71,8 @@ def reason_text(result: Mapping) -> str:
 def export_results(results: Sequence[Mapping], path: Path,
                    units: DisplayUnits | Mapping[int, DisplayUnits] | None = None) -> Path:
     """One row per curve: number, program, ok (1/0) and verdict (OK/NOK), failed elements, the reason (non-empty for
-    every NOK row),
-    complete (1/0) and the process values that did not arrive, then every process value in its display unit (``units``: one DisplayUnits or one per program)."""
+    every NOK row), complete (1/0) and the process values that did not arrive, then every process value in its
+    display unit (``units``: one DisplayUnits or one per program)."""
     table = process_values(results)
     du = _units_of(units, int(results[0].get("program", 0)) if results else 0)
     shown = {name: du.value(name) for name in table}

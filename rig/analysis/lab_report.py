@@ -53,13 +53,16 @@ class Lab:
         """The scene's transducer table wired to ``to`` (e.g. 'can.LabSpeed.Pulses')."""
         return next((t for t in self.scene.data.get("transducers", {}).values() if t.get("to") == to), None)
 
-    def setting(self, to: str, key: str, unit: str) -> float:
-        """A description value (SI) of the transducer wired to ``to``, its scene override first."""
+    def description(self, to: str) -> dict[str, Any]:
+        """The description of the transducer wired to ``to`` with the scene's overrides on top (as written)."""
         table = self.transducer(to)
         if table is None:
             raise SceneError(f"{self.scene.path}: no transducer wired to {to!r}")
-        value = table.get("overrides", {}).get(key, read_description(resolve_path(table["description"])).get(key))
-        return to_si(value, unit, what=f"{self.scene.path} [transducers] {key}")
+        return {**read_description(resolve_path(table["description"])), **table.get("overrides", {})}
+
+    def setting(self, to: str, key: str, unit: str) -> float:
+        """A description value (SI) of the transducer wired to ``to``, its scene override first."""
+        return to_si(self.description(to).get(key), unit, what=f"{self.scene.path} [transducers] {key}")
 
     def readings(self, topic: str, name: str) -> dict[str, np.ndarray]:
         """The recorded block ``topic`` that has field ``name``; SceneError naming what is missing."""
@@ -128,10 +131,7 @@ def class_bound(lab: Lab, to: str, reading: float, counter_step: float) -> float
     ``reading`` (rad/s) against the counter, worst case: gain error, non-linearity (a fraction of full scale), half
     the dial step (``resolution``, in output units: mapped to the input through the range) and the counter's own
     step ``counter_step`` (rad/s). Keys the description lacks count 0."""
-    table = lab.transducer(to)
-    if table is None:
-        raise SceneError(f"{lab.scene.path}: no transducer wired to {to!r}")
-    desc = {**read_description(resolve_path(table["description"])), **table.get("overrides", {})}
+    desc = lab.description(to)
 
     def base(key: str) -> Any:
         return ureg.Quantity(desc[key]).to_base_units()

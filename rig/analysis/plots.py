@@ -72,13 +72,12 @@ def separate_labels(fig: Figure) -> None:
     below it, so no label hides another or a mark (display space, after the layout)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.text import Annotation
-    labelled = [(ax, anns) for ax in fig.axes if (anns := [t for t in ax.texts if isinstance(t, Annotation)])
-                and (len(anns) > 1 or _marker_boxes(ax))]
+    labelled = [(anns, marks) for ax in fig.axes if (anns := [t for t in ax.texts if isinstance(t, Annotation)])
+                and ((marks := _marker_boxes(ax)) or len(anns) > 1)]
     if not labelled:                   # nothing can overlap: no renderer needed
         return
     renderer = FigureCanvasAgg(fig).get_renderer()
-    for ax, anns in labelled:
-        placed = _marker_boxes(ax)
+    for anns, placed in labelled:
         for ann in anns:
             for _ in range(12):
                 box = ann.get_window_extent(renderer)
@@ -90,11 +89,12 @@ def separate_labels(fig: Figure) -> None:
             placed.append(ann.get_window_extent(renderer))
 
 
-def write_tight(fig: Figure, path: str | Path, dpi: int = 100) -> Path:
-    """A stand-alone chart (not the report's fixed-margin layout): tight layout, parent directories made, PNG
-    written, figure closed."""
+def write_tight(fig: Figure, path: str | Path, dpi: int = 100, tight: bool = True) -> Path:
+    """A stand-alone chart (not the report's fixed-margin layout): tight layout (unless the figure placed its axes
+    itself, ``tight=False``), parent directories made, PNG written, figure closed."""
     import matplotlib.pyplot as plt
-    fig.tight_layout()
+    if tight:
+        fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi)

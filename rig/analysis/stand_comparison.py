@@ -111,14 +111,14 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
         else:
             origin = next((t for label, t in starts.items() if spec["rig"].startswith(label + ":")), 0.0)
             value = (metric.at - (origin if spec["part"] == "time_after" else 0.0)) / scale
-        agrees = None if value is None else _agrees(spec["tolerance"], number, unit, si, value, where)
+        agrees = None if value is None else _agrees(spec["tolerance"], number, unit, si, scale, value, where)
         rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"], agrees))
     return rows
 
 
-def _agrees(tolerance: Any, thesis: float, unit: str, si: str, rig: float, where: str) -> bool | None:
-    """Whether ``rig`` agrees with ``thesis`` (both in ``unit``, whose SI unit is ``si``) under ``tolerance``
-    (module docstring)."""
+def _agrees(tolerance: Any, thesis: float, unit: str, si: str, scale: float, rig: float, where: str) -> bool | None:
+    """Whether ``rig`` agrees with ``thesis`` (both in ``unit``: ``scale`` of ``si``, its SI unit, per unit) under
+    ``tolerance`` (module docstring)."""
     if tolerance is None:
         return rig == thesis if not unit else None
     text = str(tolerance).strip()
@@ -127,7 +127,7 @@ def _agrees(tolerance: Any, thesis: float, unit: str, si: str, rig: float, where
     try:
         if text.endswith("%"):
             return abs(rig - thesis) <= to_si(text, "1") * abs(thesis)
-        return abs(rig - thesis) <= to_si(text, si) / (to_si(f"1 {unit}", si) if unit else 1.0)
+        return abs(rig - thesis) <= to_si(text, si) / scale
     except UnitError as exc:
         raise SceneError(f"{where}: tolerance {text!r}: {exc} (use \"15 %\", a value in {unit or 'counts'}, "
                          f"\"at most\" or \"at least\")") from None

@@ -185,6 +185,8 @@ def plot_design(design: CamDesign, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from rig.analysis.plots import write_tight
+
     deg = np.degrees(design.phi)
     fig = plt.figure(figsize=(10, 12))
     grid = fig.add_gridspec(4, 1, height_ratios=[1, 1, 1, 1.4], hspace=0.45, left=0.31, right=0.82, top=0.94,
@@ -222,8 +224,4 @@ def plot_design(design: CamDesign, path: str | Path) -> Path:
     bars.set_xlabel("use of the limit (value/limit for ≤, limit/value for ≥; ≤ 1 passes)")
     bars.set_title("every check against its limit (green PASS, red FAIL, grey information)", fontsize=9, loc="left")
     fig.suptitle("cam design checks")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return write_tight(fig, path, tight=False)             # the grid spec leaves room for names and legends

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 import numpy as np
 
-from rig.analysis.streaming import ColumnStats, column_statistics, passes
+from rig.analysis.streaming import ColumnStats, column_statistics
 from rig.plants.cam_bar.tolerance import PARAMS, CamChain, ToleranceSet
 
 if TYPE_CHECKING:
@@ -81,17 +81,12 @@ def tasks(chain: CamChain, tol: ToleranceSet, n: int, seed: int, task_samples: i
     return [ChainSamples(chain, tol, s, k) for s, k in zip(np.random.SeedSequence(seed).spawn(len(sizes)), sizes)]
 
 
-def run_passes(n: int, percents: Sequence[float] = PERCENTILES) -> int:
-    """Passes over the ``n`` machines a run usually makes (1 up to ~3·10⁶ machines for the ±3σ points)."""
-    return passes(n, percents)
-
-
 def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, executor: "Executor | None" = None,
                 task_samples: int = TASK_SAMPLES, percents: Sequence[float] = PERCENTILES,
                 progress: Callable[[int], object] | None = None, one_pass: bool = True) -> MonteCarloResult:
     """Run ``n`` sampled machines through the full chain on ``executor`` (default serial) in tasks of
     ``task_samples``; ``progress(k)`` is called as each task has passed k machines (about
-    :func:`run_passes` passes in all); ``one_pass=False`` takes the histogram passes even where the tails would
+    :func:`rig.analysis.streaming.passes` passes in all); ``one_pass=False`` takes the histogram passes even where the tails would
     do (the same numbers; for comparison)."""
     from rig.executors import make_executor
     if n < 2 or task_samples < 1:

@@ -10,7 +10,8 @@ import numpy as np
 
 from rig.plants.cam_bar.fourbar import EXAMPLE_LENGTHS, EXAMPLE_TOLERANCES, influence_factors
 from rig.plants.cam_bar.mechanism import PinInsertionMechanism
-from rig.plants.cam_bar.montecarlo import PERCENTILES, TASK_SAMPLES, MonteCarloResult, monte_carlo, run_passes
+from rig.analysis.streaming import passes
+from rig.plants.cam_bar.montecarlo import PERCENTILES, TASK_SAMPLES, MonteCarloResult, monte_carlo
 from rig.plants.cam_bar.tolerance import PARAMS, CamChain, LinearResult, ToleranceSet, linear_analysis
 
 if TYPE_CHECKING:
@@ -32,13 +33,13 @@ def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed
               executor: "Executor | None" = None, step_deg: float = 1.0, progress: bool = False,
               task_samples: int = TASK_SAMPLES) -> ToleranceStudy:
     """Both methods over one revolution (grid ``step_deg``), the Monte-Carlo runs on ``executor`` (default
-    serial); ``progress``: a bar on stderr counting machine evaluations (:func:`run_passes` per run)."""
+    serial); ``progress``: a bar on stderr counting machine evaluations (:func:`rig.analysis.streaming.passes` per run)."""
     from rig.console import progress as progress_bar
     phi = np.radians(np.arange(0.0, 360.0, step_deg))
     chain = CamChain.from_mechanism(mech, phi)
     lengths_only = ToleranceSet(tol.T)
     runs = 1 if tol.clearance_lambda is None else 2
-    total = samples * runs * run_passes(samples)
+    total = samples * runs * passes(samples, PERCENTILES)
     label = f"tolerance, {runs} runs of {samples} machines" if runs > 1 else "tolerance"
     with progress_bar(total, label, " machine evaluations", progress, unit_scale=True) as bar:
         def count(k: int) -> None:          # a rare extra refinement pass must not run the bar past 100 %
