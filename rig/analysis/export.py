@@ -52,10 +52,26 @@ def export_curves(curves: Sequence[CurveRecord], path: Path,
         w = csv.writer(f)
         w.writerow(["curve", "program", "i", column("t", ut), column("x", ux), column("y", uy), column("angle", ua)])
         for c in curves:
-            angle = _cells(ua(c.angle)) if c.angle is not None else [""] * c.t.size
-            w.writerows(zip(repeat(c.number), repeat(c.program), range(c.t.size), _cells(ut(c.t), 12), _cells(ux(c.x)),
-                            _cells(uy(c.y)), angle))
+            columns = [ut(c.t), ux(c.x), uy(c.y)] + ([] if c.angle is None else [ua(c.angle)])
+            if all(np.isfinite(v).all() for v in columns):   # every cell a number: one formatting pass per curve
+                f.write(_rows(c.number, c.program, columns))
+                continue
+            angle = _cells(columns[3]) if c.angle is not None else [""] * c.t.size
+            w.writerows(zip(repeat(c.number), repeat(c.program), range(c.t.size), _cells(columns[0], 12),
+                            _cells(columns[1]), _cells(columns[2]), angle))
     return path
+
+
+def _rows(number: int, program: int, columns: list[np.ndarray]) -> str:
+    """CSV rows ``number, program, i, t, x, y[, angle]`` of finite columns, formatted as :func:`_cells` does
+    (t to 12, the others to 9 significant digits; an empty angle cell when there is no angle column)."""
+    n = columns[0].size
+    row = f"{int(number)},{int(program)},%d,%.12g,%.9g,%.9g" + (",%.9g\r\n" if len(columns) == 4 else ",\r\n")
+    flat = np.empty((n, 1 + len(columns)), dtype=object)
+    flat[:, 0] = range(n)
+    for j, v in enumerate(columns):
+        flat[:, j + 1] = v.tolist()
+    return (row * n) % tuple(flat.ravel().tolist())
 
 
 def reason_text(result: Mapping) -> str:

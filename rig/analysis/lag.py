@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Mapping
 
 import numpy as np
-from scipy import interpolate, signal
+from scipy import fft, interpolate
 
 _RESCAN = 10   # steps around the correlation peak re-examined by RMS
 _FINE = 4      # sub-steps per step of the final RMS grid
@@ -34,13 +34,19 @@ def estimate_lag(s_ref: np.ndarray, ref: np.ndarray, s: np.ndarray, meas: np.nda
 
     Both signals are resampled on a common uniform grid (finest of the two steps) over their common
     range; the integer-step peak of the cross-correlation (|lag| ≤ ``max_lag``, default half the
-    range) is refined below one step by minimising the RMS of ``meas(s) − ref(s − lag)`` with a cubic
-    spline of the reference (on a grid of a quarter step, then the parabola through the lowest point:
-    the mean square is smooth in the lag).
+    range) is rescanned by RMS over nearby steps on that grid, then refined below one step by minimising
+    the RMS of ``meas(s) − ref(s − lag)`` with a cubic spline of the reference (on a grid of a quarter step,
+    then the parabola through the lowest point: the mean square is smooth in the lag).
     """
     s_ref, ref, s, meas = (np.asarray(a, dtype=float) for a in (s_ref, ref, s, meas))
     _increasing(s_ref, "theory")
     _increasing(s, "measurement")
+    return _lag(s_ref, ref, s, meas, max_lag, interpolate.CubicSpline(s_ref, ref))
+
+
+def _lag(s_ref: np.ndarray, ref: np.ndarray, s: np.ndarray, meas: np.ndarray, max_lag: float | None,
+         spline: interpolate.CubicSpline) -> float:
+    """:func:`estimate_lag` on checked arrays, with the reference's spline."""
     lo, hi = max(s_ref[0], s[0]), min(s_ref[-1], s[-1])
     if hi <= lo:
         raise ValueError(f"lag: theory [{s_ref[0]}, {s_ref[-1]}] and measurement [{s[0]}, {s[-1]}] do not overlap")
@@ -48,18 +54,16 @@ def estimate_lag(s_ref: np.ndarray, ref: np.ndarray, s: np.ndarray, meas: np.nda
     grid = np.arange(lo, hi, step)
     a = np.interp(grid, s, meas)
     b = np.interp(grid, s_ref, ref)
-    a, b = a - a.mean(), b - b.mean()
-    c = signal.correlate(a, b, mode="full", method="fft")
-    k = signal.correlation_lags(a.size, b.size, mode="full")
+    k = np.arange(1 - b.size, a.size)                 # lags of the full cross-correlation, in steps
+    c = _correlate(a - a.mean(), b - b.mean())
     limit = (hi - lo) / 2 if max_lag is None else max_lag
     ok = np.abs(k * step) <= limit
     k0 = int(k[ok][np.argmax(c[ok])])
-    spline = interpolate.CubicSpline(s_ref, ref)
 
-    # the finite-window correlation peak can sit a few steps off: rescan nearby steps by RMS (all at once),
-    # then refine
+    # the finite-window correlation peak can sit a few steps off: rescan nearby steps by the RMS of a(i) − b(i − k)
+    # on the grid, then refine with the spline
     ks = np.arange(k0 - _RESCAN, k0 + _RESCAN + 1)
-    k1 = int(ks[np.argmin(_shifted_rms_many(s, meas, spline, s_ref[0], s_ref[-1], ks * step))])
+    k1 = int(ks[np.argmin([_grid_rms(a, b, int(j)) for j in ks])])
     # below one step: the RMS on a grid of step/_FINE over [k1 − 1, k1 + 1] steps, then the vertex of the
     # parabola through the lowest grid point and its neighbours
     lags = (k1 + np.linspace(-1.0, 1.0, 2 * _FINE + 1)) * step
@@ -70,6 +74,23 @@ def estimate_lag(s_ref: np.ndarray, ref: np.ndarray, s: np.ndarray, meas: np.nda
     h = lags[1] - lags[0]
     shift = 0.5 * h * (y0 - y2) / den if den > 0 and np.isfinite(den) else 0.0
     return float(lags[i] + np.clip(shift, -h, h))
+
+
+def _correlate(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Full cross-correlation c[k] = Σ a[i]·b[i − k], k = −(len(b) − 1) … len(a) − 1, by FFT."""
+    n = a.size + b.size - 1
+    size = fft.next_fast_len(n, real=True)
+    c = fft.irfft(fft.rfft(a, size) * np.conj(fft.rfft(b, size)), size)
+    return np.concatenate((c[size - b.size + 1:], c[:a.size]))
+
+
+def _grid_rms(a: np.ndarray, b: np.ndarray, k: int) -> float:
+    """RMS of a[i] − b[i − k] over the indices where both exist (a, b on one grid; inf when fewer than 2)."""
+    n = a.size - abs(k)
+    if n < 2:
+        return np.inf
+    d = a[k:k + n] - b[:n] if k >= 0 else a[:n] - b[-k:n - k]
+    return float(np.sqrt(np.mean(d * d)))
 
 
 def _shifted_rms_many(s: np.ndarray, meas: np.ndarray, ref: interpolate.CubicSpline, lo: float, hi: float,
@@ -100,8 +121,10 @@ def compare_theory(t: np.ndarray, meas: np.ndarray, theory: Mapping[str, np.ndar
     th = np.asarray(theory[signal_name], dtype=float)
     th_t = np.asarray(theory.get("t", t), dtype=float)
     th_angle = theory.get("angle", angle if "t" not in theory else None)
-    lag_t = estimate_lag(th_t, th, t, meas, max_lag)
+    _increasing(th_t, "theory")
+    _increasing(t, "measurement")
     spline = interpolate.CubicSpline(th_t, th)
+    lag_t = _lag(th_t, th, t, meas, max_lag, spline)
     out = {"signal": signal_name, "lag_time": lag_t,
            "rms_before": _shifted_rms(t, meas, spline, th_t[0], th_t[-1], 0.0),
            "rms_after": _shifted_rms(t, meas, spline, th_t[0], th_t[-1], lag_t),

@@ -10,6 +10,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from rig.fidelity import Fidelity, choose
 from rig.scene import Field, Scene, SceneError, read_table
 
@@ -166,6 +168,11 @@ class RunConfig:
     @property
     def dt(self) -> float:
         return 1.0 / self.sample_rate
+
+    def sample_times(self, first: int, n: int) -> np.ndarray:
+        """Times (s) of the ``n`` samples after sample number ``first``: (first + 1 + i) / rate, each the double
+        nearest its exact value (0.0003 s, not 3 × 1e-4 = 0.00030000000000000003)."""
+        return (first + 1 + np.arange(n)) / self.sample_rate
 
     def wired(self, to: str) -> TransducerSpec | None:
         """The transducer whose output goes to ``to`` (e.g. 'device.x', 'can.Encoder1'), if any."""

@@ -160,7 +160,7 @@ class Host:
         dt, n, end = self.cfg.dt, self._block_n, self.cfg.duration
         keep = self.cfg.recording["truth_signals"]
         while self.truth_t < until - 1e-12 and (end is None or self.truth_t < end - 0.5 * dt):
-            t = (self._blocks * n + 1 + np.arange(n)) * dt
+            t = self.cfg.sample_times(self._blocks * n, n)
             if end is not None:
                 t = t[t <= end + 0.5 * dt]
             self._blocks += 1

@@ -118,9 +118,8 @@ class Machine:
     def step(self) -> dict[str, np.ndarray]:
         """Advance one chunk; returns the plant truth of the chunk (SI, with its times ``t``). Every output
         goes where the scene wires it (``to``): the unit's channels or a CAN reading message."""
-        dt = self.cfg.dt
         i0 = self._step_index * self._n
-        t = (i0 + 1 + np.arange(self._n)) * dt
+        t = self.cfg.sample_times(i0, self._n)
         self._step_index += 1
         truth = self.plant.advance(t)
         output = {}
