@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SCENE = DATA / "scenes" / "pin_insertion.toml"
-MCAP_MAGIC, PNG_MAGIC, JSON_START = b"\x89MCAP", b"\x89PNG\r\n\x1a\n", b"{"
+PNG_MAGIC, JSON_START = b"\x89PNG\r\n\x1a\n", b"{"
 # Commands kept in their own packages (python-can style plugins): each module has
 # ``register(sub, parents)`` adding its subparser(s) with ``set_defaults(func=...)``; heavy imports stay
 # inside the command functions so ``rig --help`` stays fast.
@@ -146,6 +146,7 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from rig.recorder.reader import MCAP_MAGIC
     from rig.runner import run_scene
     scene = Path(args.scene)
     out = Path(args.output) if args.output else Path("out") / f"{scene.stem}.mcap"
@@ -194,6 +195,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
+    from rig.recorder.reader import MCAP_MAGIC
     from rig.runner import record_scene
     _writable_file(Path(args.output), "recording", MCAP_MAGIC)
     _scene_config(Path(args.scene), args.cycles)
@@ -387,7 +389,7 @@ def _writable_file(path: Path, what: str, magic: bytes | None = None) -> None:
                 head = f.read(len(magic))
         except OSError as exc:
             fail((exc.strerror or str(exc)).lower())
-        if head and head != magic:
+        if head and not magic.startswith(head):     # empty, or a (possibly cut) file of that kind
             fail(f"it exists and is not a {what} file rig wrote (rig does not overwrite other files)")
     if not os.access(path, os.W_OK):
         fail("permission denied")

@@ -112,26 +112,31 @@ class CamProgram:
         """s and its derivatives w.r.t. φ at cam angles ``phi`` (rad, any real value)."""
         phi = np.asarray(phi, dtype=float)
         shape = phi.shape
-        phi = np.mod(phi.reshape(-1), tau)
+        phi = phi.reshape(-1)
+        if phi.size and not (phi.min() >= 0.0 and phi.max() < tau):      # np.mod costs more than the check
+            phi = np.mod(phi, tau)
         seg_of = np.searchsorted(self._start, phi, side="right") - 1
-        s = self._level[seg_of]
-        s_p = np.zeros_like(phi)
-        s_pp = np.zeros_like(phi)
-        s_ppp = np.zeros_like(phi)
+        # each segment's angles as one slice: in place when φ increases (a revolution, a run's chunk), else sorted
+        order = None if np.all(seg_of[1:] >= seg_of[:-1]) else np.argsort(seg_of, kind="stable")
+        if order is not None:
+            phi, seg_of = phi[order], seg_of[order]
+        bounds = np.searchsorted(seg_of, np.arange(len(self._laws) + 1))
+        out = np.zeros((4, phi.size))
+        out[0] = self._level[seg_of]
         for i, law in enumerate(self._laws):
-            if law is None:
-                continue
-            m = seg_of == i
-            if not m.any():
+            part = slice(bounds[i], bounds[i + 1])
+            if law is None or part.start == part.stop:
                 continue
             big_phi = self.segments[i].angle
-            y, y1, y2, y3 = law.derivatives((phi[m] - self._start[i]) / big_phi)
+            y, y1, y2, y3 = law.derivatives((phi[part] - self._start[i]) / big_phi)
             h = self._h[i]  # negative for a return: s = level − |h|·y
-            s[m] = self._level[i] + h * y
-            s_p[m] = h / big_phi * y1
-            s_pp[m] = h / big_phi ** 2 * y2
-            s_ppp[m] = h / big_phi ** 3 * y3
-        return Motion(s.reshape(shape), s_p.reshape(shape), s_pp.reshape(shape), s_ppp.reshape(shape))
+            out[0, part] = self._level[i] + h * y
+            out[1, part] = h / big_phi * y1
+            out[2, part] = h / big_phi ** 2 * y2
+            out[3, part] = h / big_phi ** 3 * y3
+        if order is not None:
+            out[:, order] = out.copy()
+        return Motion(*(row.reshape(shape) for row in out))
 
     def at_speed(self, phi: np.ndarray, omega: np.ndarray | float, alpha: np.ndarray | float = 0.0) -> TimeMotion:
         """s, v = ω s', a = ω² s'' + ω̇ s' at cam angle φ (rad), speed ω (rad/s), acceleration ω̇ (rad/s²)."""

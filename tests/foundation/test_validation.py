@@ -183,12 +183,18 @@ def test_a_directory_that_takes_no_files_is_named_before_anything_runs(capsys):
 
 
 def test_rig_replaces_its_own_recordings_and_charts(tmp_path):
-    for name, magic, what in (("a.mcap", cli.MCAP_MAGIC, "recording"), ("a.png", cli.PNG_MAGIC, "cycle chart")):
+    from rig.recorder.reader import MCAP_MAGIC
+    for name, magic, what in (("a.mcap", MCAP_MAGIC, "recording"), ("a.png", cli.PNG_MAGIC, "cycle chart")):
         (tmp_path / name).write_bytes(magic + b"...")
         cli._writable_file(tmp_path / name, what, magic)           # no error
         (tmp_path / name).write_bytes(b"")
         cli._writable_file(tmp_path / name, what, magic)           # an empty file holds nothing to lose
-    cli._writable_file(tmp_path / "new" / "deeper" / "b.mcap", "recording", cli.MCAP_MAGIC)
+        (tmp_path / name).write_bytes(magic[:3])
+        cli._writable_file(tmp_path / name, what, magic)           # a cut file of that kind (a killed run's)
+        (tmp_path / name).write_bytes(b"x" + magic)
+        with pytest.raises(cli.UsageError, match="is not a"):
+            cli._writable_file(tmp_path / name, what, magic)       # another file: never overwritten
+    cli._writable_file(tmp_path / "new" / "deeper" / "b.mcap", "recording", MCAP_MAGIC)
     cli._writable_dir(tmp_path / "new" / "report", "report")
 
 
