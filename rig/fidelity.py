@@ -146,10 +146,16 @@ def _method(scene: Scene, plant: str, tolerance: float, data: Path) -> tuple[str
                 per_second = float(row["wall_s"]) / float(row["t_sim"])
                 return method, options, (f"the cheapest setting with error <= {tolerance:g} in {path.name} "
                                          f"(error {float(row['error']):.1e}, {per_second * 1e3:.1f} ms per simulated s)")
-            method, options = DEFAULT_METHOD[plant]
-            return method, dict(options), f"no setting in {path.name} reaches {tolerance:g}; the plant's default"
+            method, options = _default_method(scene, plant)
+            return method, options, f"no setting in {path.name} reaches {tolerance:g}; the plant's default"
+    method, options = _default_method(scene, plant)
+    return method, options, "no work-precision data for this scene; the plant's default"
+
+
+def _default_method(scene: Scene, plant: str) -> tuple[str, dict[str, float]]:
+    """The plant's default method and options, the method as its scene names it (a clutch stand's [plant] method)."""
     method, options = DEFAULT_METHOD[plant]
-    return method, dict(options), "no work-precision data for this scene; the plant's default"
+    return scene.section("plant").get("method", method), dict(options)
 
 
 def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DATA) -> Fidelity:
@@ -181,7 +187,7 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     if asked or "tolerance" in scene.section("scene"):
         method, options, why = _method(scene, plant, _tolerance(scene, where), data)
     else:
-        (method, options), why = DEFAULT_METHOD[plant], "no questions or tolerance stated; the plant's own setting"
+        (method, options), why = _default_method(scene, plant), "no questions or tolerance stated; the plant's own setting"
     return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered)
 
 

@@ -11,6 +11,7 @@ count is exact.
 from __future__ import annotations
 
 import math
+import textwrap
 from typing import Any
 
 import numpy as np
@@ -189,21 +190,41 @@ def summary_lines(rec: Recording) -> list[str] | None:
 
 
 def _torque_figure(ctx: ReportContext, data: StandRecord, stim: list[Stimulus]) -> Block:
-    fig, ax = figure(size=(8, 3.5))
-    ax.plot(data.t, data.torque, lw=0.8, label="torque meter (measured)")
+    fig, ax = figure(size=(10.5, 3.8))
+    ax.plot(data.t, data.torque, lw=1.2, color="tab:blue", label="torque meter (measured)", zorder=2)
     truth = ctx.recording.truth
-    if "M_t" in truth:
-        ax.plot(truth["t"], truth["M_t"], lw=0.8, ls="--", label="plant truth")
-    for s in stim:
-        if s.time > 0:
-            ax.axvline(s.time, color="0.4", lw=0.7, ls=":")
-            ax.annotate(s.kind, (s.time, 1.0), xycoords=("data", "axes fraction"), fontsize="small",
-                        ha="left", va="top", color="0.3")
+    if "M_t" in truth:          # thin and dashed on top: where it coincides with the measurement both stay visible
+        ax.plot(truth["t"], truth["M_t"], lw=0.7, ls="--", color="k", label="plant truth", zorder=3)
+    later = [s for s in stim if s.time > 0]
+    for s in later:
+        ax.axvline(s.time, color="0.4", lw=0.7, ls=":")
+        ax.annotate(s.kind, (s.time, 1.0), xycoords=("data", "axes fraction"), fontsize="small",
+                    ha="left", va="top", color="0.3")
+    scene = _scene(ctx.recording)
+    marks = []
+    if scene is not None and scene.data.get("comparison"):
+        from rig.analysis.stand_comparison import thesis_marks
+        try:
+            marks = thesis_marks(scene, stim)
+        except SceneError:          # the comparison section names the bad row
+            marks = []
+    for m, colour in zip(marks, ("tab:red", "tab:purple", "tab:brown", "tab:olive", "tab:cyan", "tab:pink")):
+        label = textwrap.fill(m.label, 34, subsequent_indent="  ")
+        if m.kind == "point":
+            ax.plot([m.t], [m.torque], "x", ms=9, mew=2, color=colour, label=label, zorder=4)
+        elif m.kind == "level":
+            ax.axhline(m.torque, color=colour, lw=0.9, ls="-.", label=label)
+        else:
+            ax.axvline(m.t, color=colour, lw=0.9, ls="-.", label=label)
     ax.set(xlabel="t (s)", ylabel="torque M_t (N·m)", title="Torque over time", xlim=(0.0, data.end))
     ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
-    return ctx.figure(save(fig, ctx.figure_path("clutch_torque_time")), "Torque over time (dotted: what the scene "
-                                                                          "changes)")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
+    caption = "Torque over time, measured (solid) and the plant model (dashed)"
+    if later:
+        caption += f"; dotted: what the scene changes ({', '.join(f'{s.kind} at {s.time:.4g} s' for s in later)})"
+    if marks:
+        caption += "; dash-dotted lines and crosses: the thesis's values (Thesis against rig, below)"
+    return ctx.figure(save(fig, ctx.figure_path("clutch_torque_time"), right=3.2), caption)
 
 
 def _speed_figure(ctx: ReportContext, data: StandRecord) -> Block:

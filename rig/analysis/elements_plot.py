@@ -19,7 +19,7 @@ from matplotlib.axes import Axes
 from matplotlib.patches import Polygon
 
 SIDES = ("bottom", "right", "top", "left")        # edge i runs from corner i to corner i+1
-_ROLE_STYLE = {"entry": dict(color="tab:green", lw=3.0), "exit": dict(color="tab:red", lw=3.0, ls="--")}
+_ROLE_STYLE = {"entry": dict(color="tab:green", lw=3.0), "exit": dict(color="tab:purple", lw=3.0, ls="--")}
 FAILED = "#d62728"
 
 

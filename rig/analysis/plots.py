@@ -362,18 +362,23 @@ def truth_groups(data: Mapping[str, np.ndarray], names: Sequence[str], units: Di
 
 
 def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Path, units: DisplayUnits,
-                 window: tuple[float, float] | None = None, title: str = "plant truth") -> Path:
+                 window: tuple[float, float] | None = None, title: str = "plant truth"
+                 ) -> tuple[Path, list[list[str]], list[str]]:
     """Plant truth signals over time, one axis per display unit (and per scale, :func:`truth_groups`),
-    stacked with a common time axis; ``window``: the time range shown (s)."""
+    stacked with a common time axis; ``window``: the time range shown (s). A signal constant over the window gets
+    no axis. Returns the chart, the signals of each axis top to bottom, and the constants as ``name = value unit``."""
     t = data["t"]
     keep = slice(None) if window is None else (t >= window[0]) & (t <= window[1])
     shown = {n: np.asarray(data[n])[keep] for n in names}
     tt = t[keep]
-    groups = truth_groups(shown, names, units)
+    constant = [n for n in names if shown[n].size and np.ptp(shown[n]) <= 1e-12 * max(1.0, float(np.abs(shown[n]).max()))]
+    constants = [f"{n} = {units.signal(n).text(float(shown[n][0]))}" for n in constant]
+    groups = truth_groups(shown, [n for n in names if n not in constant], units) or truth_groups(shown, names, units)
     fig, axs = figure(len(groups), 1, size=(10.8, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
     for ax, (u, quantity, members) in zip(axs[:, 0], groups):
         for n in members:
-            ax.plot(*envelope(tt, u(shown[n])), lw=0.9, label=f"{n}: {SIGNAL_LABEL[n]}" if n in SIGNAL_LABEL else n)
+            label = f"{n}: {SIGNAL_LABEL[n]}" if n in SIGNAL_LABEL else n
+            ax.plot(*envelope(tt, u(shown[n])), lw=0.9, label=textwrap.fill(label, 34, subsequent_indent="  "))
         ax.set_ylabel(u.axis(quantity), fontsize=8)
         lo, hi = ax.get_ylim()
         if hi - lo < 1e-9 * max(1.0, abs(hi)):         # a constant signal: a readable band around it
@@ -386,7 +391,8 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
     axs[-1, 0].set_xlabel(units.of("s").axis("time"))
     axs[-1, 0].xaxis.set_major_locator(MaxNLocator(8))
     axs[0, 0].set_title(title, loc="left", fontsize=10)
-    return save(fig, path, hspace=0.12, left=1.0, right=2.8)      # legends beside the axes: no data hidden
+    path = save(fig, path, hspace=0.12, left=1.0, right=2.8)      # legends beside the axes: no data hidden
+    return path, [members for _, _, members in groups], constants
 
 
 def _f(v: float | None, digits: int = 3) -> str:

@@ -6,7 +6,7 @@
    the failed elements drawn red and thick, labelled, and the points where they failed marked.
 3. Details: process values (table, histograms, host vs device statistics), all curves overlaid (NOK red on
    top), individual OK curves only on demand (``ok_plots``), extension sections (clutch), theory vs
-   measurement, events, plant truth (one axis per quantity), the recording, exports (CSV).
+   measurement, events, plant truth (one axis per unit and scale), the recording, exports (CSV).
 
 Numbers are shown in the display units (rig.analysis.units). A *section* is a function
 ``(ctx: ReportContext) -> list[Block]``; it returns ``[]`` when it does not apply (e.g. no curves).
@@ -164,13 +164,44 @@ def _limits_text(v: dict) -> str:
     return f"{text} {unit}".rstrip()
 
 
+def _limited(values: dict) -> dict:
+    """The process values that have a limit."""
+    return {name: v for name, v in values.items() if v.get("lsl") is not None or v.get("usl") is not None}
+
+
 def _capability_table(values: dict) -> Table | None:
     rows = [[name, v["n"], _limits_text(v), f"{_num(v['mean'])} {v.get('unit', '')}".rstrip(),
-             f"{_num(v['std'], 3)} {v.get('unit', '')}".rstrip(), *_indices(v), _capability(v["cpk"], v["spread"])]
-            for name, v in values.items() if v.get("lsl") is not None or v.get("usl") is not None]
+             f"{_num(v['std'], 3)} {v.get('unit', '')}".rstrip(), *_indices(v), _normal_cell(v),
+             _capability(v["cpk"], v["spread"])] for name, v in _limited(values).items()]
     if not rows:
         return None
-    return Table(["process value", "n", "limits", "mean", "σ", "Cp", "Cpk", f"Cpk ≥ {CAPABLE}"], rows)
+    return Table(["process value", "n", "limits", "mean", "σ", "Cp", "Cpk", "normal", f"Cpk ≥ {CAPABLE}"], rows)
+
+
+def _normal_cell(v: dict) -> str:
+    """``yes`` / ``no (Shapiro p …)`` / ``—`` (too few values to test)."""
+    test = v.get("normality") or {}
+    if test.get("normal") is None:
+        return "—"
+    if test["normal"]:
+        return "yes"
+    alpha = test.get("alpha", 0.05)
+    failed = [f"{name} p {_num(p, 2) if not isinstance(cell, str) else cell}" for name, p, cell in (
+        ("Shapiro", test.get("shapiro_p"), None), ("A–D", test.get("anderson_p"), _anderson_cell(test.get("anderson_p"))))
+        if p is not None and p < alpha]
+    return f"no ({', '.join(failed)})" if failed else "no"
+
+
+def _normality_caveat(values: dict) -> str | None:
+    """A note when a limited value fails the normality tests: Cp/Cpk from mean and σ assume a normal law."""
+    names = [name for name, v in _limited(values).items() if v.get("spread") and
+             (v.get("normality") or {}).get("normal") is False]
+    if not names:
+        return None
+    return (f"Cp and Cpk are computed from mean and σ, which assumes a normal distribution; {', '.join(names)} "
+            f"fail{'s' if len(names) == 1 else ''} the normality tests, so {'its' if len(names) == 1 else 'their'} "
+            "Cpk says less about the share outside the limits than the histogram and the ±3σ band do "
+            "(Process values, below).")
 
 
 def _failures(ctx: ReportContext) -> tuple[list[list[Any]], int]:
@@ -216,6 +247,9 @@ def verdict(ctx: ReportContext) -> list[Block]:
         if table is not None:
             blocks += [Text(f"Capability of {label} against the program's limits (Cp needs both limits; capable: "
                             f"Cpk ≥ {CAPABLE}, marginal: {MARGINAL}…{CAPABLE}):"), table]
+            caveat = _normality_caveat(s["values"])
+            if caveat:
+                blocks.append(Text(caveat, "note"))
         else:
             blocks.append(Text(f"No limits in program {program}: no Cp/Cpk (set [device.config.limits])."))
         by_element = ", ".join(f"{k} {v}×" for k, v in s["nok_by_element"].items())
@@ -392,7 +426,7 @@ def curves(ctx: ReportContext) -> list[Block]:
         path, notes = plots.force_displacement(chosen, _elements(rec, program), ctx.figure_path(f"xy_p{program}"),
                                                title, nok, units, failed)
         blocks.append(ctx.figure(path, f"Program {program}: Y over X with the evaluation elements "
-                                       "(entry side green, exit side red dashed; an element some curve failed red "
+                                       "(entry side green, exit side purple dashed; an element some curve failed red "
                                        "and labelled with how many)"))
         blocks += [Text(f"Note: {n}", "note") for n in notes]
         path = plots.signals_over(chosen, ctx.figure_path(f"ys_p{program}"), title, nok, units)
@@ -448,9 +482,33 @@ def theory(ctx: ReportContext) -> list[Block]:
     return blocks
 
 
+#: what an event kind means to the reader of a report (kinds not listed: the plant's or the link's own words)
+EVENT_MEANING = {
+    "flank_switch": "the cam contact force changed sign: the roller crossed to the other groove flank",
+    "accel_jump": "the cam program's acceleration jumps at this angle (a segment boundary)",
+    "disengagement": "the clutch's safety stage let go (relative angle past the engagement)",
+    "reengaged": "the clutch engaged again after a disengagement",
+    "shutdown": "repeated disengagements: the stand switched the motor off",
+    "live_dropped": "live X/Y pairs the unit did not send because the CAN bus was full; live data only feeds "
+                    "displays, curves and results wait in the queue and are never dropped",
+    "device_identified": "the host identified the acquisition unit on the serial link",
+    "link_summary": "frame and byte counts of the links at the end of the run",
+    "sequence_gap": "CAN frames missing between two sequence numbers",
+    "incomplete_curve": "a curve whose frames did not all arrive: its samples are not recorded, its result is",
+    "result_missing": "a curve whose result did not arrive",
+    "verdict_mismatch": "the host's re-evaluation of a curve differs from the device's verdict",
+    "interrupted": "the run stopped early",
+}
+
+
 def events(ctx: ReportContext) -> list[Block]:
     counts = ctx.analysis["events"]
-    return [Heading("Events"), Table(["kind", "count"], [[k, v] for k, v in sorted(counts.items())])] if counts else []
+    if not counts:
+        return []
+    dropped = sum(int(e.get("count", 0)) for e in ctx.recording.events if e.get("kind") == "live_dropped")
+    rows = [[k, v, EVENT_MEANING.get(k, "") + (f" ({dropped} pairs in all)" if k == "live_dropped" else "")]
+            for k, v in sorted(counts.items())]
+    return [Heading("Events"), Table(["kind", "count", "what it means"], rows)]
 
 
 TRUTH_CYCLES = 3      # the plant truth chart shows this many machine cycles (the shapes stay visible)
@@ -477,9 +535,12 @@ def truth(ctx: ReportContext) -> list[Block]:
     if "cam_angle" in names and "phi" in names:
         names.remove("phi")            # the unwrapped angle: a ramp that squeezes the wrapped one flat
     window, span = _truth_window(ctx.recording, data["t"])
-    path = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window)
+    path, panels, constants = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window)
+    axes = " | ".join(", ".join(members) for members in panels)
+    constant = f"; constant over it, so not drawn: {', '.join(constants)}" if constants else ""
     return [Heading("Plant truth"),
-            ctx.figure(path, f"Plant truth over {span}, one axis per quantity: {', '.join(names)}")]
+            ctx.figure(path, f"Plant truth over {span}, one axis per unit (split where ranges differ more than "
+                             f"{plots.SCALE_SPLIT:g}×), top to bottom: {axes}{constant}")]
 
 
 #: units of the numeric ``rig`` metadata values (the recording keeps them as text, SI)
@@ -510,6 +571,11 @@ def overview(ctx: ReportContext) -> list[Block]:
     rec = ctx.recording
     meta = rec.metadata.get("rig", {})
     rows = [[k, _meta_value(k, v)] for k, v in sorted(meta.items())]
+    if _meta_value("duration", meta.get("duration", "")) == "—" and meta.get("cycles") not in (None, "null"):
+        rows = [[k, f"— (the run was given as {meta['cycles']} cycles)" if k == "duration" else v] for k, v in rows]
+    simulated = rec.end.get("simulation_time")
+    if simulated is not None:
+        rows.append(["simulated time", _meta_value("duration", simulated)])
     rows += [["messages", rec.summary()], ["complete", _complete(rec)]]
     blocks: list[Block] = [Heading("Recording"), Text(f"File: {rec.path}"), Table(["key", "value"], rows)]
     lost = losses(rec)

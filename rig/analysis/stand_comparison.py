@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from rig.analysis.clutch_metrics import Metric, Stimulus
-from rig.analysis.report import Block, Heading, ReportContext, Table, Text, register_section
+from rig.analysis.report import Block, Heading, Link, ReportContext, Table, Text, register_section
 from rig.recorder import Recording
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.units import UnitError, to_si
@@ -51,10 +51,20 @@ class Row:
     fitted: bool
     why: str
     agrees: bool | None = None     # None: not judged (no tolerance) or n/a
+    tolerance: str = ""            # as the scene writes it; "exact" for a count without one; "" not judged
 
     @property
     def verdict(self) -> str:
         return "n/a" if self.rig is None else "-" if self.agrees is None else "yes" if self.agrees else "NO"
+
+    @property
+    def deviation(self) -> str:
+        """rig − thesis in the row's unit, and as a share of the thesis value (empty when n/a)."""
+        if self.rig is None:
+            return ""
+        d = self.rig - self.thesis
+        share = f" ({100 * d / abs(self.thesis):+.3g} %)" if self.thesis and self.unit else ""
+        return f"{d:+.3g}{' ' + self.unit.replace('*', '·') if self.unit else ''}{share}"
 
 
 def read_rows(scene: Scene) -> list[dict[str, Any]]:
@@ -112,8 +122,52 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
             origin = next((t for label, t in starts.items() if spec["rig"].startswith(label + ":")), 0.0)
             value = (metric.at - (origin if spec["part"] == "time_after" else 0.0)) / scale
         agrees = None if value is None else _agrees(spec["tolerance"], number, unit, si, scale, value, where)
-        rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"], agrees))
+        tolerance = str(spec["tolerance"]).strip() if spec["tolerance"] is not None else "" if unit else "exact"
+        rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"], agrees,
+                        tolerance))
     return rows
+
+
+@dataclass(frozen=True)
+class Mark:
+    """A thesis value drawn on the torque–time chart: a ``point`` (t, torque), a ``time`` (vertical line at t) or a
+    ``level`` (horizontal line at a torque); SI (s, N·m)."""
+
+    kind: str
+    label: str
+    t: float | None = None
+    torque: float | None = None
+
+
+def thesis_marks(scene: Scene, stimuli: list[Stimulus]) -> list[Mark]:
+    """The scene's thesis values that have a place on the torque–time chart: a torque with its time (two rows of one
+    rig result: value and time) as a point, a torque alone as a level, a time or a duration after its stimulus as a
+    vertical line."""
+    starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}
+    rows = read_rows(scene)
+    si_values = {}
+    for spec in rows:
+        number, unit, si = _split(spec["thesis"], f"{scene.path} [[comparison]] {spec['quantity']!r}")
+        si_values[id(spec)] = (number * (to_si(f"1 {unit}", si) if unit else 1.0), si)
+    origin = {spec["rig"]: next((t for label, t in starts.items() if spec["rig"].startswith(label + ":")), 0.0)
+              for spec in rows}
+    when = {spec["rig"]: si_values[id(spec)][0] + (origin[spec["rig"]] if spec["part"] == "time_after" else 0.0)
+            for spec in rows if spec["part"] != "value"}
+    when_text = {spec["rig"]: spec["thesis"] for spec in rows if spec["part"] != "value"}
+    marks = []
+    for spec in rows:
+        value, si = si_values[id(spec)]
+        label = f"thesis: {spec['quantity']} {spec['thesis']}".replace("*", "·")
+        if spec["part"] == "value" and si == "N*m":
+            t = when.get(spec["rig"])
+            marks.append(Mark("point", f"{label} at {when_text[spec['rig']]}", t, value) if t is not None
+                         else Mark("level", label, torque=value))
+        elif spec["part"] == "value" and si == "s":          # a duration from the result's stimulus
+            marks.append(Mark("time", label, origin[spec["rig"]] + value))
+        elif spec["part"] != "value" and not any(r["rig"] == spec["rig"] and r["part"] == "value" and
+                                                 si_values[id(r)][1] == "N*m" for r in rows):
+            marks.append(Mark("time", label, when[spec["rig"]]))
+    return marks
 
 
 def _agrees(tolerance: Any, thesis: float, unit: str, si: str, scale: float, rig: float, where: str) -> bool | None:
@@ -135,22 +189,26 @@ def _agrees(tolerance: Any, thesis: float, unit: str, si: str, scale: float, rig
 
 def write_csv(rows: list[Row], path: Path) -> Path:
     """``comparison.csv``: quantity, unit, thesis, rig (empty: n/a), agrees (yes / NO / - not judged / n/a),
-    fitted (1/0), note."""
+    fitted (1/0), note, deviation (rig − thesis), tolerance (as the scene writes it; "exact" for a count)."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["quantity", "unit", "thesis", "rig", "agrees", "fitted", "note"])
+        w.writerow(["quantity", "unit", "thesis", "rig", "agrees", "fitted", "note", "deviation", "tolerance"])
         for r in rows:
             w.writerow([r.quantity, r.unit, f"{r.thesis:g}", "" if r.rig is None else f"{r.rig:.6g}", r.verdict,
-                        int(r.fitted), r.why])
+                        int(r.fitted), r.why, r.deviation, r.tolerance])
     return path
 
 
 def agreement_text(rows: list[Row]) -> str:
-    """One line: how many judged rows agree with the thesis, and which do not."""
+    """One line: how many judged predictions agree with the thesis and how many fitted rows the run reproduces
+    (a row fitted on this run agreeing says little), and which rows do not."""
     judged = [r for r in rows if r.agrees is not None]
     off = [r for r in judged if not r.agrees]
     missing = [r for r in rows if r.rig is None]
-    text = f"{len(judged) - len(off)} of {len(judged)} judged rows agree with the thesis"
+    parts = [f"{sum(bool(r.agrees) for r in group)} of {len(group)} {what}" for group, what in (
+        ([r for r in judged if not r.fitted], "predictions agree with the thesis"),
+        ([r for r in judged if r.fitted], "rows fitted on this run reproduced")) if group]
+    text = "; ".join(parts) or "no row judged (no tolerances)"
     if off:
         text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{' ' + r.unit if r.unit else ''}, "
                                            f"rig {r.rig:.4g})" for r in off)
@@ -179,12 +237,18 @@ def comparison_section(ctx: ReportContext) -> list[Block]:
     text = ("Fitted on this run: " + ", ".join(fitted) + "; the other rows are predictions.") if fitted else \
         "Nothing was fitted on this run: every row is a prediction."
     agreement = agreement_text(rows)
+    notes = any(r.why for r in rows)
     return [Heading("Thesis against rig"),
             Text(agreement + ".", "warning" if any(r.agrees is False for r in rows) else "note"),
-            Text(text + " Also in comparison.csv."),
-            Table(["quantity", "unit", "thesis", "rig", "agrees", "fitted", "note"],
+            Text(text + " Agreement is judged by each row's tolerance (a share of the thesis value, a value, or a "
+                 "bound: the thesis value is a limit; a count exactly); deviation = rig − thesis."),
+            Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "fitted"]
+                  + (["note"] if notes else []),
                   [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", "n/a" if r.rig is None else f"{r.rig:.4g}",
-                    r.verdict, "yes" if r.fitted else "no", r.why] for r in rows])]
+                    r.deviation, r.tolerance or "— (not judged)", r.verdict, "yes" if r.fitted else "no"]
+                   + ([r.why] if notes else []) for r in rows]),
+            Table(["file", "contents"], [[Link("comparison.csv", "comparison.csv"), "this table, with the unrounded rig "
+                                                                                   "values"]])]
 
 
 register_section("stand_comparison", comparison_section)

@@ -18,6 +18,8 @@ def _cam_bar(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
 def _clutch_dynamic(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
     from rig.plants.clutch.stand import ClutchStand
     stand = ClutchStand.from_scene(scene)
+    if fidelity.method is not None:      # chosen from the work-precision data, else the scene's [plant] method
+        stand.method = fidelity.method
     if fidelity.options:                 # chosen from the work-precision data (else the scene's [plant] rtol/atol)
         stand.rtol, stand.atol = fidelity.options["rtol"], fidelity.options["atol"]
     return stand

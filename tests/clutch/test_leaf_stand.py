@@ -126,7 +126,21 @@ def test_agreement_is_judged_by_each_rows_tolerance(tmp_path):
                Metric("disengagements", "3", "", "")]
     got = compare(load_scene(scene_path), stim, metrics)
     assert [r.verdict for r in got] == ["yes", "yes", "NO", "NO", "-"]       # 18 vs 16.5 ± 2.5; 180 vs 150 ± 40
-    assert agreement_text(got).startswith("2 of 4 judged rows agree with the thesis; DISAGREE: within (thesis 150 ms")
+    assert agreement_text(got).startswith("2 of 4 predictions agree with the thesis; DISAGREE: within (thesis 150 ms")
+    assert [r.tolerance for r in got] == ["15 %", "40 ms", "at most", "exact", ""]
+    assert (got[0].deviation, got[3].deviation) == ("+1.5 N·m (+9.09 %)", "+1")
     scene_path.write_text('[[comparison]]\nquantity = "x"\nthesis = "16.5 N*m"\nrig = "max torque"\ntolerance = "3 N"\n')
     with pytest.raises(SceneError, match="tolerance '3 N'"):
         compare(load_scene(scene_path), stim, metrics)
+
+
+def test_thesis_values_are_placed_on_the_torque_chart():
+    """The start-up's thesis values: the peak as a point at its time, the settling limit as a time, the final torque as
+    a level (SI: s, N·m)."""
+    from rig.analysis.stand_comparison import thesis_marks
+    marks = thesis_marks(load_scene(SCENES / "clutch_leaf_startup.toml"), [Stimulus(0.0, "start", "power on")])
+    got = {m.kind: m for m in marks}
+    assert sorted(m.kind for m in marks) == ["level", "point", "time"]
+    assert (got["point"].t, got["point"].torque) == (pytest.approx(0.0466), pytest.approx(14.5))
+    assert got["time"].t == pytest.approx(0.45) and got["level"].torque == pytest.approx(5.0)
+    assert got["point"].label == "thesis: start-up peak torque 14.5 N·m at 46.6 ms"

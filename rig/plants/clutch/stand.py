@@ -22,7 +22,7 @@ from rig.plants.clutch.loads import (LinearInSpeed, LinearMotor, Load, LoadSum, 
 from rig.plants.events import Event
 from rig.plants.clutch.variants import LeafSpringClutch
 from rig.scene import Field, Scene, SceneError, read_table
-from rig.solvers import EventRecord, integrate
+from rig.solvers import METHODS, EventRecord, integrate
 
 _COMMON = {
     "variant": Field(None, "flat_tappet", "coupling: flat_tappet (MODELS §4.1-4.3) or leaf_spring (§4.5)"),
@@ -33,6 +33,8 @@ _COMMON = {
     "shutdown_count": Field("1", 2, "disengagements within the window that flag a shutdown"),
     "shutdown_window": Field("s", 0.5, "window for counting disengagements"),
     "trip_on_shutdown": Field(None, False, "switch the motor off when the shutdown flag rises"),
+    "method": Field(None, "DP45", "integration method, a name of rig.solvers.METHODS (Rodas4 for a stiff stand, e.g. "
+                                  "a steep geared motor line: b0/J1 of thousands per second)"),
     "rtol": Field("1", 1e-7, "solver relative tolerance"),
     "atol": Field("1", 1e-9, "solver absolute tolerance"),
 }
@@ -131,7 +133,10 @@ class ClutchStand:
 
     def __init__(self, dynamics: "ClutchDynamics | LeafDynamics", omega0: float = 0.0, shutdown_count: int = 2,
                  shutdown_window: float = 0.5, trip_on_shutdown: bool = False, rtol: float = 1e-7,
-                 atol: float = 1e-9, phi_r0: float | None = None):
+                 atol: float = 1e-9, phi_r0: float | None = None, method: str = "DP45"):
+        if method not in METHODS:
+            raise ValueError(f"method {method!r} is not one of {', '.join(METHODS)}")
+        self.method = method
         self.dynamics = dynamics
         if phi_r0 is None:
             phi_r0 = 0.0 if dynamics.blocked or omega0 == 0.0 else dynamics.equilibrium_angle(omega0)
@@ -166,7 +171,7 @@ class ClutchStand:
             raise SceneError(f"{scene.path} [plant]: {exc}") from None
         try:
             return cls(dyn, p["omega0"], p["shutdown_count"], p["shutdown_window"], bool(p["trip_on_shutdown"]),
-                       p["rtol"], p["atol"], p["phi_r0"])
+                       p["rtol"], p["atol"], p["phi_r0"], p["method"])
         except ValueError as exc:      # no initial state: the load at t = 0 with omega0 / phi_r0
             raise SceneError(f"{scene.path} [plant] (initial state, omega0 and phi_r0 with [motor] and [load]): "
                              f"{exc}") from None
@@ -194,8 +199,8 @@ class ClutchStand:
         if t[0] < self.t or np.any(np.diff(t) <= 0):
             raise ValueError(f"ClutchStand.advance: times must increase from the current time {self.t} s")
         if t[-1] > self.t:
-            sol = integrate(self.dynamics.problem(self.y, self._on_apex), (self.t, float(t[-1])), t_eval=t,
-                            rtol=self.rtol, atol=self.atol, first_step=self._h)
+            sol = integrate(self.dynamics.problem(self.y, self._on_apex), (self.t, float(t[-1])), self.method,
+                            t_eval=t, rtol=self.rtol, atol=self.atol, first_step=self._h)
             for r in sol.events:
                 if r.name in ("phase_boundary", "lobe_wrap", "load_zone"):
                     self.events.append(Event(r.t, r.name, {"phi_r": r.y[0]}))
