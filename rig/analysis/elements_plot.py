@@ -19,7 +19,7 @@ from matplotlib.axes import Axes
 from matplotlib.patches import Polygon
 
 SIDES = ("bottom", "right", "top", "left")        # edge i runs from corner i to corner i+1
-_ROLE_STYLE = {"entry": dict(color="tab:green", lw=3.0), "exit": dict(color="tab:purple", lw=3.0, ls="--")}
+_ROLE_STYLE = {"entry": dict(color="tab:green", lw=3.0), "exit": dict(color="black", lw=3.0, ls="--")}
 FAILED = "#d62728"
 
 
@@ -76,7 +76,7 @@ def _region(ax: Axes, e: Mapping, corners: Sequence[tuple[float, float]], color:
 
 def _window(ax: Axes, e: Mapping, style: Style) -> None:
     x0, x1, y0, y1 = e["x_min"], e["x_max"], e["y_min"], e["y_max"]
-    _region(ax, e, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)], "tab:blue", style)
+    _region(ax, e, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)], "0.3", style)
 
 
 def _trapezoid(ax: Axes, e: Mapping, style: Style) -> None:

@@ -426,7 +426,7 @@ def curves(ctx: ReportContext) -> list[Block]:
         path, notes = plots.force_displacement(chosen, _elements(rec, program), ctx.figure_path(f"xy_p{program}"),
                                                title, nok, units, failed)
         blocks.append(ctx.figure(path, f"Program {program}: Y over X with the evaluation elements "
-                                       "(entry side green, exit side purple dashed; an element some curve failed red "
+                                       "(windows grey, entry side green, exit side black dashed; an element some curve failed red "
                                        "and labelled with how many)"))
         blocks += [Text(f"Note: {n}", "note") for n in notes]
         path = plots.signals_over(chosen, ctx.figure_path(f"ys_p{program}"), title, nok, units)
