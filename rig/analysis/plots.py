@@ -224,6 +224,38 @@ def signals_over(curves: Sequence[CurveRecord], path: Path, title: str, nok: set
     return save(fig, path, wspace=0.08)
 
 
+def theory_residuals(curves: Sequence[CurveRecord], path: Path, title: str, nok: set[int] = frozenset(),
+                     units: DisplayUnits | None = None) -> Path | None:
+    """Measurement minus theory of X and Y for every curve over the time since its start (the theory interpolated
+    to the measured samples; NOK red), with the mean over the curves; None when no curve has a theory."""
+    units = units or DisplayUnits()
+    channels = [ch for ch in ("x", "y") if any(ch in c.theory for c in curves)]
+    if not channels:
+        return None
+    fig, axs = figure(len(channels), 1, size=(9.0, 0.9 + 2.3 * len(channels)), sharex=True, squeeze=False)
+    ut = units.of("s")
+    for ax, ch in zip(axs[:, 0], channels):
+        u = units.channel(ch)
+        with_theory = [c for c in curves if ch in c.theory]
+        lines = {}
+        for c in with_theory:
+            th_t = np.asarray(c.theory.get("t", c.t), dtype=float)
+            res = u(np.asarray(getattr(c, ch), float) - np.interp(c.t, th_t, np.asarray(c.theory[ch], float)))
+            lines[c.number] = (ut(c.t - c.t[0]), res)
+        _plot_groups(ax, with_theory, nok, lambda c: lines[c.number])
+        n = min(x.size for x, _ in lines.values())          # the mean over the samples every curve has
+        ax.plot(next(iter(lines.values()))[0][:n], np.mean([r[:n] for _, r in lines.values()], axis=0), color="k",
+                lw=1.0, label="mean over the curves")
+        ax.axhline(0.0, color="0.5", lw=0.6)
+        ax.set_ylabel(u.axis(f"{ch.upper()} − theory"), fontsize=9)
+        _ticks(ax, 8, 5)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    axs[-1, 0].set_xlabel(ut.axis("time since curve start"))
+    axs[0, 0].set_title(title, loc="left", fontsize=10)
+    return save(fig, path, hspace=0.12)
+
+
 def curve_panels(curve: CurveRecord, elements: list, path: Path, nok: set[int] = frozenset(),
                  units: DisplayUnits | None = None, failed: Mapping[str, str] | None = None,
                  reasons: Sequence[str] = (), marks: Sequence[tuple[float, float]] = ()) -> Path:

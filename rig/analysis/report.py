@@ -479,6 +479,13 @@ def theory(ctx: ReportContext) -> list[Block]:
     errors = [r for r in rows if r.get("error")]
     if errors:
         blocks.append(Text(f"Not compared for {len(errors)} curve/signal pair(s): {errors[0]['error']}", "note"))
+    curves = [c for c in ctx.recording.curves if c.program == program]
+    path = plots.theory_residuals(curves, ctx.figure_path("residuals"), f"program {program}: measurement − theory",
+                                  ctx.nok, units)
+    if path is not None:
+        blocks.append(ctx.figure(path, "Measurement minus theory of every curve at its samples (no lag removed; "
+                                       "NOK red), and their mean (black): where and how far the measurement departs "
+                                       "from the model"))
     return blocks
 
 
