@@ -84,9 +84,10 @@ def test_html_report_verdict_first_nok_curves_then_details(recording, tmp_path):
     assert "hologram" in text and "unknown kind" in text                        # skipped element noted
     pngs = sorted(path.parent.glob("*.png"))
     names = [p.name.split("_", 1)[1] for p in pngs]
-    # NOK curves first (all 4), histograms, Y over X with elements, Y over t and angle, 1 OK curve, truth
+    # NOK curves first (all 4), histograms, Y over X with elements, Y over t and angle, 1 OK curve, measurement −
+    # theory, truth
     assert names == ["curve_c1.png", "curve_c16.png", "curve_c31.png", "curve_c46.png", "hist_p1.png", "xy_p1.png",
-                     "ys_p1.png", "curve_c2.png", "truth.png"]
+                     "ys_p1.png", "curve_c2.png", "residuals.png", "truth.png"]
     assert all(p.stat().st_size > 5000 and p.name in text for p in pngs)
     assert "4 of 4 NOK curves plotted." in text and "Individual plots of OK curves: 1 of 56" in text
     with open(path.parent / "curves.csv", encoding="utf-8") as f:
