@@ -258,10 +258,11 @@ def _scene_config(scene: Path, cycles: int | None) -> Any:
     """The scene's run configuration (scene errors first, before anything starts or is written: the transducers
     and the unit's program are built once to check them); ``--cycles`` only for a scene that counts cycles."""
     from rig.runner.config import read_config
-    from rig.runner.machine import instruments
+    from rig.runner.machine import check_wiring, instruments
     from rig.scene import load_scene
     cfg = read_config(load_scene(scene))
     instruments(cfg)
+    check_wiring(cfg)
     if cycles is not None and cfg.cycles is None:
         raise UsageError(f"--cycles given, but {scene} runs for a duration ([scene] duration), not for cycles")
     return cfg

@@ -615,8 +615,12 @@ def exports(ctx: ReportContext) -> list[Block]:
     for topic, data in rec.series.items():
         if topic.startswith("/stand/") and "t" in data and len(data["t"]):
             name = "stand_" + topic.removeprefix("/stand/") + ".csv"
+            codes = ""
+            if "speed_method" in data:
+                from drivers.encoder import METHOD_NAMES
+                codes = "; speed_method: " + ", ".join(f"{k} {v}" for k, v in sorted(METHOD_NAMES.items()))
             files.append((export_series(data, ctx.out_dir / name, units),
-                          f"{topic}: one row per reading ({', '.join(k for k in data if k != 't')})"))
+                          f"{topic}: one row per reading ({', '.join(k for k in data if k != 't')}){codes}"))
     return [Heading("Exports"), Table(["file", "contents"], [[Link(f.name, f.name), what] for f, what in files])
             ] if files else []
 

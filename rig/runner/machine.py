@@ -57,11 +57,49 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
     return transducers, device
 
 
+def check_signals(cfg: RunConfig, truth: dict[str, Any]) -> None:
+    """A :class:`SceneError` naming the transducer whose ``signal`` the plant's truth does not have."""
+    for spec in cfg.transducers:
+        if spec.signal not in truth:
+            raise SceneError(f"{cfg.scene.path} [transducers.{spec.name}]: the plant has no signal "
+                             f"{spec.signal!r} (it has {', '.join(sorted(k for k in truth if k != 't'))})")
+
+
+def _node(cfg: RunConfig, bus: can.BusABC | None, device: Any) -> CanNode:
+    c = cfg.can
+    return CanNode(bus, device, bitrate=c["bitrate"], fd=bool(c["fd"]), data_bitrate=c["data_bitrate"],
+                   live_share=c["live_share"], tx_curves=c["tx_curves"])
+
+
+def bus_plan(cfg: RunConfig, node: CanNode) -> dict[str, float]:
+    """Share of the bus each periodic stream takes (status, each reading message the scene wires); a SceneError
+    when they alone need more than the bus (curves and live data come on top)."""
+    plan = {"status": sum(node.frame_time_planned(n) for n in ("Heartbeat", "StatusCounters", "TxStatus"))
+            / node.heartbeat_period}
+    for message, specs in cfg.frames().items():
+        plan[message] = (specs[0].rate or 1.0 / cfg.chunk) * node.frame_time_planned(message)
+    if sum(plan.values()) > 1.0:
+        shares = ", ".join(f"{k} {v:.0%}" for k, v in plan.items())
+        raise SceneError(f"{cfg.scene.path} [links.can]: the periodic frames alone need {sum(plan.values()):.0%} "
+                         f"of the {cfg.can['bitrate']:g} bit/s bus ({shares}): raise the bitrate or lower the "
+                         "transducers' publishing rates")
+    return plan
+
+
+def check_wiring(cfg: RunConfig) -> None:
+    """Check, before anything runs or is written, that every transducer reads a signal the plant has (a probe of the
+    nominal plant advanced by one sample) and that the periodic frames fit the bus (:func:`bus_plan`)."""
+    probe = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)
+    check_signals(cfg, probe.advance(cfg.sample_times(0, 1)))
+    bus_plan(cfg, _node(cfg, None, None))
+
+
 class Machine:
     """Plant, transducers and the acquisition unit on a CAN bus, stepped in virtual time."""
 
     def __init__(self, cfg: RunConfig, bus: can.BusABC) -> None:
         self.cfg = cfg
+        check_wiring(cfg)
         self.plant = make_plant(cfg.plant, cfg.scene, fidelity=cfg.fidelity)
         self.transducers, self.device = instruments(cfg)
         for spec in cfg.transducers:
@@ -73,31 +111,14 @@ class Machine:
             if spec.channel is not None and counter:
                 raise SceneError(f"{cfg.scene.path} [transducers.{spec.name}]: a counter cannot feed the unit's "
                                  f"analog channel {spec.channel!r}")
-        c = cfg.can
-        self.node = CanNode(bus, self.device, bitrate=c["bitrate"], fd=bool(c["fd"]),
-                            data_bitrate=c["data_bitrate"], live_share=c["live_share"], tx_curves=c["tx_curves"])
+        self.node = _node(cfg, bus, self.device)
         self._xy = cfg.wired("device.x"), cfg.wired("device.y")      # the unit's channels, if wired
         self._frames = cfg.frames()                                    # reading message -> its transducers
-        self.bus_plan = self._bus_plan()
+        self.bus_plan = bus_plan(cfg, self.node)
         self.t = 0.0
         self._step_index = 0
         self._n = max(2, round(cfg.chunk * cfg.sample_rate))
         self.curves = 0
-
-    def _bus_plan(self) -> dict[str, float]:
-        """Share of the bus each periodic stream takes (status, each reading message the scene wires); a
-        SceneError when they alone need more than the bus (curves and live data come on top)."""
-        node, cfg = self.node, self.cfg
-        plan = {"status": sum(node.frame_time_planned(n) for n in ("Heartbeat", "StatusCounters", "TxStatus"))
-                / node.heartbeat_period}
-        for message, specs in self._frames.items():
-            plan[message] = (specs[0].rate or 1.0 / cfg.chunk) * node.frame_time_planned(message)
-        if sum(plan.values()) > 1.0:
-            shares = ", ".join(f"{k} {v:.0%}" for k, v in plan.items())
-            raise SceneError(f"{cfg.scene.path} [links.can]: the periodic frames alone need {sum(plan.values()):.0%} "
-                             f"of the {cfg.can['bitrate']:g} bit/s bus ({shares}): raise the bitrate or lower the "
-                             "transducers' publishing rates")
-        return plan
 
     def _publish_indices(self, rate: float | None, first_sample: int, n: int) -> np.ndarray:
         """Indices in a chunk (whose first sample has global number ``first_sample``) at which readings at
@@ -123,10 +144,8 @@ class Machine:
         self._step_index += 1
         truth = self.plant.advance(t)
         output = {}
+        check_signals(self.cfg, truth)
         for spec in self.cfg.transducers:
-            if spec.signal not in truth:
-                raise SceneError(f"{self.cfg.scene.path} [transducers.{spec.name}]: the plant has no signal "
-                                 f"{spec.signal!r} (it has {', '.join(sorted(k for k in truth if k != 't'))})")
             sensor = self.transducers[spec.name]
             read = sensor.sample if hasattr(sensor, "sample") else sensor.measure
             output[spec.name] = read(t, truth[spec.signal])

@@ -90,6 +90,20 @@ def test_cli_unknown_section_exits_2_naming_it(tmp_path, capsys):
     assert not (tmp_path / "x.mcap").exists()
 
 
+@pytest.mark.parametrize("old, new, message", [
+    ('signal = "F_rod"', 'signal = "F_rood"', "[transducers.rod_force]: the plant has no signal 'F_rood'"),
+    ("bitrate = 1000000", "bitrate = 10000", "[links.can]: the periodic frames alone need"),
+])
+def test_wiring_errors_are_found_before_anything_is_written(tmp_path, capsys, old, new, message):
+    """What only the plant and the bus can check (a transducer's signal, the bus load) is checked before the summary,
+    its chart and the recording: exit 2, nothing left."""
+    path = edited(tmp_path, DEMO, old, new)
+    out = tmp_path / "out" / "x.mcap"
+    assert cli.main(["-q", "run", str(path), "--cycles", "2", "-o", str(out)]) == 2
+    assert message in one_error_line(capsys)
+    assert not (tmp_path / "out").exists()
+
+
 # -- counts -----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv", [
     ["run", "--cycles", "0"], ["run", "--cycles", "-3"], ["run", "--cycles", "two"],
