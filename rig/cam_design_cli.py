@@ -13,7 +13,9 @@ DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "data" / "scenes" / "pin_i
 
 def cmd_cam_design(args: argparse.Namespace) -> int:
     from rig.mechanisms.cam.design import design_checks, format_checks, plot_design
+    from rig.outputs import PNG_MAGIC, file_parent, writable_file
     from rig.plants.cam_bar.scene_io import cam_bar_from_scene
+    writable_file(Path(args.output), "cam-design chart", PNG_MAGIC)
     options = {} if args.sigma_allow is None else {"sigma_allow": args.sigma_allow * 1e6}
     if args.load_coefficient is not None:
         options["load_coefficient"] = args.load_coefficient
@@ -21,7 +23,7 @@ def cmd_cam_design(args: argparse.Namespace) -> int:
     design = design_checks(mech, omega, high_speed=not args.low_speed, **options)
     print(f"cam design checks for {args.scene}")
     print(format_checks(design))
-    print(f"chart: {plot_design(design, args.output)}")
+    print(f"chart: {plot_design(design, file_parent(Path(args.output)))}")
     return 0 if all(c.ok for c in design.checks) else 1
 
 

@@ -8,24 +8,20 @@ import argparse
 import importlib
 import json
 import math
-import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
+from rig.outputs import (JSON_START, PNG_MAGIC, TRACE_MAGIC, UsageError, claim_dir, file_parent, writable_dir,
+                         writable_file)
+
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SCENE = DATA / "scenes" / "pin_insertion.toml"
-PNG_MAGIC, JSON_START = b"\x89PNG\r\n\x1a\n", b"{"
 # Commands kept in their own packages (python-can style plugins): each module has
 # ``register(sub, parents)`` adding its subparser(s) with ``set_defaults(func=...)``; heavy imports stay
 # inside the command functions so ``rig --help`` stays fast.
 COMMAND_MODULES: tuple[str, ...] = ("rig.bench.cli", "rig.sweep.cli", "rig.analysis.batch_cli",
                                      "rig.cam_design_cli")
-
-
-class UsageError(Exception):
-    """A command-line argument rig cannot use, e.g. an output path it may not write (exit status 2)."""
 
 
 def _print_cam_bar_summary(scene_path: Path, png: Path) -> None:
@@ -132,6 +128,7 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
     ``progress``: a bar on stderr counting the report's sections; ``ok_plots``: OK curves plotted one by one."""
     from rig.analysis.report import SECTIONS, write_report
     from rig.console import progress as progress_bar
+    claim_dir(out_dir)
     with progress_bar(len(SECTIONS), "report", " sections", progress) as bar:
         def counted(name: str, section: Callable) -> Callable:
             def run(ctx: Any) -> list:
@@ -150,16 +147,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     from rig.runner import run_scene
     scene = Path(args.scene)
     out = Path(args.output) if args.output else Path("out") / f"{scene.stem}.mcap"
-    _writable_file(out, "recording", MCAP_MAGIC)
+    writable_file(out, "recording", MCAP_MAGIC)
     report_dir = Path(args.report_dir) if args.report_dir else out.with_suffix("")
     if not args.no_report:
         if report_dir.resolve() == out.resolve():
             raise UsageError(f"cannot write the report to {report_dir}: that is the recording's path; name the "
                              f"recording *.mcap or give --report-dir")
-        _writable_dir(report_dir, "report")
+        writable_dir(report_dir, "report")
     cfg = _scene_config(scene, args.cycles)
     if cfg.plant == "cam_bar":
-        _writable_file(out.with_suffix(".cycle.png"), "cycle chart", PNG_MAGIC)
+        writable_file(out.with_suffix(".cycle.png"), "cycle chart", PNG_MAGIC)
         _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"))
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet, fidelity=args.fidelity)
@@ -179,7 +176,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_serve(args: argparse.Namespace) -> int:
     from rig.runner import serve_scene
     if args.endpoints:
-        _writable_file(Path(args.endpoints), "endpoints", JSON_START)
+        writable_file(Path(args.endpoints), "endpoints", JSON_START)
     _scene_config(Path(args.scene), args.cycles)
 
     def announce(endpoints: dict[str, Any]) -> None:
@@ -197,7 +194,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 def cmd_record(args: argparse.Namespace) -> int:
     from rig.recorder.reader import MCAP_MAGIC
     from rig.runner import record_scene
-    _writable_file(Path(args.output), "recording", MCAP_MAGIC)
+    writable_file(Path(args.output), "recording", MCAP_MAGIC)
     _scene_config(Path(args.scene), args.cycles)
     summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
@@ -216,7 +213,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else path.with_suffix("")
     if out.resolve() == path.resolve():
         raise UsageError(f"cannot write the report to {out}: that is the recording; give -o DIRECTORY")
-    _writable_dir(out, "report")
+    writable_dir(out, "report")
     try:
         rec = read_recording(path, allow_partial=args.partial)
     except RecordingError as exc:
@@ -235,8 +232,9 @@ def cmd_export_can(args: argparse.Namespace) -> int:
     from rig.recorder.export_can import export_can
     if Path(args.output).resolve() == Path(args.recording).resolve():
         raise UsageError(f"cannot write the CAN trace to {args.output}: that is the recording")
-    _writable_file(Path(args.output), "CAN trace")
-    e = export_can(args.recording, args.output)
+    output = Path(args.output)
+    writable_file(output, "CAN trace", TRACE_MAGIC.get(output.suffix.lower()))
+    e = export_can(args.recording, file_parent(output))
     start = datetime.fromtimestamp(e.start, timezone.utc).isoformat() if e.start else "unknown (1970-01-01)"
     print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
           f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}")
@@ -248,7 +246,7 @@ def cmd_summary(args: argparse.Namespace) -> int:
     from rig.scene import load_scene
     scene = Path(args.scene)
     png = Path(args.png) if args.png else Path("out") / f"{scene.stem}.cycle.png"
-    _writable_file(png, "cycle chart", PNG_MAGIC)
+    writable_file(png, "cycle chart", PNG_MAGIC)
     _needs_cam_bar(scene, read_config(load_scene(scene)).plant, "rig summary")
     _print_cam_bar_summary(scene, png)
     return 0
@@ -283,10 +281,10 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.scene import load_scene
     scene_path = Path(args.scene)
     chart = Path(args.output) / f"{scene_path.stem}.tolerance.png"
-    _writable_dir(Path(args.output), "tolerance chart")
-    _writable_file(chart, "tolerance chart", PNG_MAGIC)
+    writable_dir(Path(args.output), "tolerance chart", shared=True)
+    writable_file(chart, "tolerance chart", PNG_MAGIC)
     if args.json:
-        _writable_file(Path(args.json), "tolerance JSON", JSON_START)
+        writable_file(Path(args.json), "tolerance JSON", JSON_START)
     cfg = read_config(load_scene(scene_path))
     _needs_cam_bar(scene_path, cfg.plant, "rig tolerance")
     with executor_from_args(args) as executor:
@@ -297,7 +295,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     print(study_table(study))
     print(f"chart: {plot_study(study, chart)}")
     if args.json:
-        Path(args.json).write_text(json.dumps(study_json(study), indent=1) + "\n")
+        file_parent(Path(args.json)).write_text(json.dumps(study_json(study), indent=1) + "\n")
         print(f"JSON: {args.json}")
     return 0
 
@@ -305,7 +303,8 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
 def cmd_studies(args: argparse.Namespace) -> int:
     from rig.plants.clutch.studies import plot_parameter_studies, write_peak_table
     out = Path(args.output)
-    _writable_dir(out, "studies")
+    writable_dir(out, "studies")
+    claim_dir(out)
     for path in plot_parameter_studies(out) + [write_peak_table(out)]:
         print(path)
     return 0
@@ -350,63 +349,6 @@ def _seconds(text: str) -> float:
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"must be a finite number of seconds >= 0, got {text}")
     return value
-
-
-def _nearest_existing(path: Path) -> Path:
-    path = Path(os.path.abspath(path))
-    while not path.exists() and path != path.parent:
-        path = path.parent
-    return path
-
-
-def _creatable(path: Path, fail: Callable[[str], None]) -> None:
-    """``fail`` unless the missing ``path`` can be made: its nearest existing ancestor is a writable directory."""
-    base = _nearest_existing(path)
-    if not base.is_dir():
-        fail(f"{base} is a file, not a directory")
-    if not os.access(base, os.W_OK | os.X_OK):
-        fail(f"permission denied (cannot create files in {base})")
-    try:                              # root passes os.access; a read-only or virtual file system does not take files
-        with tempfile.TemporaryFile(dir=base):
-            pass
-    except OSError as exc:
-        fail(f"cannot create files in {base} ({(exc.strerror or str(exc)).lower()})")
-
-
-def _writable_file(path: Path, what: str, magic: bytes | None = None) -> None:
-    """A :class:`UsageError` naming ``path`` unless rig may write the file ``what`` there: not a directory,
-    creatable or writable, and — given ``magic``, the first bytes of that kind of file — an existing file
-    only when it is empty or of that kind (rig replaces its own outputs, never another file)."""
-    def fail(why: str) -> None:
-        raise UsageError(f"cannot write the {what} to {path}: {why}")
-    if path.is_dir():
-        fail("it is a directory")
-    if not path.exists():
-        _creatable(path.parent, fail)
-        return
-    if magic is not None:
-        try:
-            with path.open("rb") as f:
-                head = f.read(len(magic))
-        except OSError as exc:
-            fail((exc.strerror or str(exc)).lower())
-        if head and not magic.startswith(head):     # empty, or a (possibly cut) file of that kind
-            fail(f"it exists and is not a {what} file rig wrote (rig does not overwrite other files)")
-    if not os.access(path, os.W_OK):
-        fail("permission denied")
-
-
-def _writable_dir(path: Path, what: str) -> None:
-    """A :class:`UsageError` naming ``path`` unless it is, or can become, a writable directory."""
-    def fail(why: str) -> None:
-        raise UsageError(f"cannot write the {what} to {path}: {why}")
-    if path.exists():
-        if not path.is_dir():
-            fail("it exists and is not a directory")
-        if not os.access(path, os.W_OK | os.X_OK):
-            fail("permission denied")
-        return
-    _creatable(path, fail)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -10,20 +10,26 @@ from pathlib import Path
 def cmd_analyse(args: argparse.Namespace) -> int:
     from rig.analysis.batch import analyse_batch, expand, report_lines, write_table
     from rig.executors.options import executor_from_args
+    from rig.outputs import claim_dir, writable_dir
     paths = expand(args.recordings)
     out = Path(args.output)
+    writable_dir(out, "analysis")
     with executor_from_args(args, local="dask-processes") as executor:
         if not args.quiet:
             print(f"analysing {len(paths)} recordings on {executor.describe()}", file=sys.stderr)
         t0 = time.perf_counter()
         result = analyse_batch(paths, executor)
         wall = time.perf_counter() - t0
-    table = write_table(result, out / "recordings.csv")
+    table = write_table(result, claim_dir(out) / "recordings.csv")
     lines = report_lines(result)
     report = out / "report.md"
     report.write_text("\n".join(lines) + "\n")
     print(lines[2])
     print(f"{len(paths)} recordings analysed in {wall:.1f} s -> {table}, {report}")
+    if not any(not r.error for r in result.recordings):
+        print(f"rig: error: none of the {len(paths)} files could be read as a recording (the reasons are in {report})",
+              file=sys.stderr)
+        return 1
     return 0
 
 

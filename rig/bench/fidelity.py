@@ -134,9 +134,10 @@ def write(rows: list[dict[str, Any]], out: Path, name: str) -> tuple[Path, Path]
 
 
 def cmd_fidelity(args: argparse.Namespace) -> int:
-    from rig.cli import _writable_dir
+    from rig.outputs import claim_dir, writable_dir
     out = Path(args.output)
-    _writable_dir(out, "output")
+    writable_dir(out, "output")
+    claim_dir(out)
     rows = measure(args.scene)
     csv_path, png = write(rows, out, Path(args.scene).stem)
     for level in (0, 1, 2):

@@ -131,9 +131,10 @@ def write(rows: list[dict[str, Any]], out: Path) -> tuple[Path, Path]:
 
 
 def cmd_stability(args: argparse.Namespace) -> int:
-    from rig.cli import _writable_dir
+    from rig.outputs import claim_dir, writable_dir
     out = Path(args.output)
-    _writable_dir(out, "output")
+    writable_dir(out, "output")
+    claim_dir(out)
     rows = stability_map(args.scene, t_sim=0.1 if args.quick else 0.2,
                          steps=STEPS[::2] if args.quick else STEPS, factors=[1.0, 4.0] if args.quick else FACTORS,
                          speeds=[1.0] if args.quick else SPEEDS)

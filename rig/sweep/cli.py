@@ -8,6 +8,7 @@ from pathlib import Path
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.executors.options import executor_from_args
+    from rig.outputs import claim_dir, writable_dir
     from rig.scene import load_scene
     from rig.sweep import parse_param
     from rig.sweep.plots import plot_sweep
@@ -15,11 +16,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     params = [parse_param(p) for p in args.param]
     scene = load_scene(args.scene)
     out = Path(args.output)
+    writable_dir(out, "sweep")
     with executor_from_args(args, local="dask-processes") as executor:
         if not args.quiet:
             print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
         result = run_sweep(scene, params, args.metric, executor, args.revolutions)
-    table = write_table(result, out / "sweep.csv")
+    table = write_table(result, claim_dir(out) / "sweep.csv")
     failed = [(p, e) for p, e in zip(result.points, result.errors) if e]
     print(f"{len(result.points)} points, {len(failed)} failed -> {table}")
     for point, error in failed[:5]:

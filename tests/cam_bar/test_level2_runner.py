@@ -95,3 +95,16 @@ def test_a_driven_cam_switches_to_the_next_cycles_loads_at_its_revolution_whatev
     # 1e-3 N apart (the restarts' rounding); a revolution run with the last cycle's loads was 2.6 N off
     assert np.max(np.abs(coarse["F_rod"] - fine["F_rod"])) < 1e-3 * np.max(np.abs(fine["F_rod"]))
     assert np.max(np.abs(coarse["R23"] - fine["R23"])) < 1e-3 * np.max(np.abs(fine["R23"]))
+
+
+def test_level2_starts_with_its_first_sample_alone():
+    """A first advance of one sample is the initial state (nothing to integrate), and the run goes on from it exactly
+    as in one advance (the runner's wiring probe advances one sample)."""
+    scene = load_scene(SCENE)
+    whole, split = CamBarPlant.from_scene(scene, nominal=True), CamBarPlant.from_scene(scene, nominal=True)
+    t = (1 + np.arange(2000)) / 10_000
+    ref = whole.advance(t)
+    first, rest = split.advance(t[:1]), split.advance(t[1:])
+    for key in ("s", "psi", "R23", "e"):
+        if key in ref:
+            assert np.array_equal(np.concatenate([first[key], rest[key]]), ref[key]), key

@@ -185,7 +185,8 @@ def test_output_path_errors_name_the_path_in_plain_words(tmp_path, foreign, caps
 
 
 def test_a_directory_without_write_permission_is_named(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(cli.os, "access", lambda path, mode: Path(path) != tmp_path)
+    from rig import outputs
+    monkeypatch.setattr(outputs.os, "access", lambda path, mode: Path(path) != tmp_path)
     assert cli.main(["-q", "run", "--cycles", "1", "-o", str(tmp_path / "sub" / "x.mcap")]) == 2
     assert f"permission denied (cannot create files in {tmp_path})" in one_error_line(capsys)
 
@@ -197,19 +198,53 @@ def test_a_directory_that_takes_no_files_is_named_before_anything_runs(capsys):
 
 
 def test_rig_replaces_its_own_recordings_and_charts(tmp_path):
+    from rig.outputs import PNG_MAGIC, UsageError, writable_dir, writable_file
     from rig.recorder.reader import MCAP_MAGIC
-    for name, magic, what in (("a.mcap", MCAP_MAGIC, "recording"), ("a.png", cli.PNG_MAGIC, "cycle chart")):
+    for name, magic, what in (("a.mcap", MCAP_MAGIC, "recording"), ("a.png", PNG_MAGIC, "cycle chart")):
         (tmp_path / name).write_bytes(magic + b"...")
-        cli._writable_file(tmp_path / name, what, magic)           # no error
+        writable_file(tmp_path / name, what, magic)           # no error
         (tmp_path / name).write_bytes(b"")
-        cli._writable_file(tmp_path / name, what, magic)           # an empty file holds nothing to lose
+        writable_file(tmp_path / name, what, magic)           # an empty file holds nothing to lose
         (tmp_path / name).write_bytes(magic[:3])
-        cli._writable_file(tmp_path / name, what, magic)           # a cut file of that kind (a killed run's)
+        writable_file(tmp_path / name, what, magic)           # a cut file of that kind (a killed run's)
         (tmp_path / name).write_bytes(b"x" + magic)
-        with pytest.raises(cli.UsageError, match="is not a"):
-            cli._writable_file(tmp_path / name, what, magic)       # another file: never overwritten
-    cli._writable_file(tmp_path / "new" / "deeper" / "b.mcap", "recording", MCAP_MAGIC)
-    cli._writable_dir(tmp_path / "new" / "report", "report")
+        with pytest.raises(UsageError, match="is not a"):
+            writable_file(tmp_path / name, what, magic)       # another file: never overwritten
+    writable_file(tmp_path / "new" / "deeper" / "b.mcap", "recording", MCAP_MAGIC)
+    writable_dir(tmp_path / "new" / "report", "report")
+
+
+def test_output_directories_holding_other_files_are_refused(tmp_path, capsys):
+    """A directory rig fills with files of its own naming (report, sweep, analysis, studies, bench) must be new,
+    empty or marked as rig's: a user's report.html or recordings.csv there is never replaced."""
+    from rig.outputs import MARK, UsageError, claim_dir, writable_dir
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "report.html").write_text("<html>mine</html>")
+    with pytest.raises(UsageError, match=f"{mine}: it holds files rig did not write"):
+        writable_dir(mine, "report")
+    writable_dir(mine, "tolerance chart", shared=True)       # a directory of individually checked files
+    empty = claim_dir(tmp_path / "rigs" / "report")
+    assert (empty / MARK).is_file()
+    (empty / "report.html").write_text("<html>rig's</html>")
+    writable_dir(empty, "report")                             # rig's own: replaced
+    rec = tmp_path / "r.mcap"
+    assert cli.main(["-q", "run", "--cycles", "1", "-o", str(rec), "--no-report"]) == 0
+    capsys.readouterr()
+    assert cli.main(["-q", "report", str(rec), "-o", str(mine)]) == 2
+    assert "holds files rig did not write" in one_error_line(capsys)
+    assert (mine / "report.html").read_text() == "<html>mine</html>" and not (mine / "curves.csv").exists()
+    assert cli.main(["-q", "report", str(rec), "-o", str(tmp_path / "rep")]) == 0
+    assert cli.main(["-q", "report", str(rec), "-o", str(tmp_path / "rep")]) == 0     # again: rig's own directory
+    for argv, what in ((["cam-design", "-o", str(mine / "report.html")], "cam-design chart"),
+                       (["export-can", str(rec), "-o", str(mine / "report.html")], "CAN trace")):
+        capsys.readouterr()
+        assert cli.main(["-q", *argv]) == 2
+        assert f"cannot write the {what} to {mine / 'report.html'}: it exists and is not a" in one_error_line(capsys)
+    assert (mine / "report.html").read_text() == "<html>mine</html>"
+    trace = tmp_path / "new" / "dir" / "bus.asc"
+    assert cli.main(["-q", "export-can", str(rec), "-o", str(trace)]) == 0
+    assert cli.main(["-q", "export-can", str(rec), "-o", str(trace)]) == 0            # its own trace: replaced
 
 
 def test_os_errors_read_as_plain_words():

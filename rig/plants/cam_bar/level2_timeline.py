@@ -70,6 +70,9 @@ class Level2Timeline(Timeline):
         them with the flank in contact there."""
         model = self._model(cycle)
         t0, y0, flank = self._state if self._state is not None else (tt[0], model.initial_state(tt[0]), None)
+        if tt[-1] <= t0:                        # the very first sample alone: the initial state, nothing to integrate
+            self._state = (t0, y0, flank)
+            return model.signals(tt, np.repeat(np.asarray(y0, dtype=float).reshape(-1, 1), tt.size, axis=1)), tt.size
         run = model.simulate((t0, tt[-1]), y0, flank, t_eval=tt, method=self.method, **self.options)
         part = model.signals(tt, run.solution.y)
         beyond = np.flatnonzero(part["phi"] >= tau * (cycle + 1)) if within else ()

@@ -1,0 +1,107 @@
+"""Where rig may write: output files and directories checked before any work starts (README: "rig replaces its own
+outputs but never overwrites another file").
+
+A file is replaced only when it is new, empty, or of the kind rig writes there (its first bytes, ``magic``). A
+directory is written into only when it is new, empty, or one rig wrote before: rig leaves the marker file
+:data:`MARK` in every output directory it uses, so a directory holding a user's files is never filled with rig's.
+Errors are :class:`UsageError` (exit status 2) naming the path and why, in plain words.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+MARK = ".mechrig"        # in every directory rig writes into
+MARK_TEXT = "mechrig writes its outputs here and may replace them; delete this file to keep rig out\n"
+PNG_MAGIC, JSON_START = b"\x89PNG\r\n\x1a\n", b"{"
+#: first bytes of the CAN trace formats rig exports (python-can's writers; MF4 through asammdf)
+TRACE_MAGIC = {".asc": b"date ", ".blf": b"LOGG", ".log": b"(", ".trc": b";$FILEVERSION", ".mf4": b"MDF "}
+
+
+class UsageError(Exception):
+    """A command-line argument rig cannot use, e.g. an output path it may not write (exit status 2)."""
+
+
+def _nearest_existing(path: Path) -> Path:
+    path = Path(os.path.abspath(path))
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def _creatable(path: Path, fail: Callable[[str], None]) -> None:
+    """``fail`` unless the missing ``path`` can be made: its nearest existing ancestor is a writable directory."""
+    base = _nearest_existing(path)
+    if not base.is_dir():
+        fail(f"{base} is a file, not a directory")
+    if not os.access(base, os.W_OK | os.X_OK):
+        fail(f"permission denied (cannot create files in {base})")
+    try:                              # root passes os.access; a read-only or virtual file system does not take files
+        with tempfile.TemporaryFile(dir=base):
+            pass
+    except OSError as exc:
+        fail(f"cannot create files in {base} ({(exc.strerror or str(exc)).lower()})")
+
+
+def writable_file(path: Path, what: str, magic: bytes | None = None) -> None:
+    """A :class:`UsageError` naming ``path`` unless rig may write the file ``what`` there: not a directory,
+    creatable or writable, and an existing file only when it is empty or — given ``magic``, the first bytes of that
+    kind of file — of that kind (rig replaces its own outputs, never another file; without ``magic`` an existing
+    non-empty file is never replaced)."""
+    path = Path(path)
+
+    def fail(why: str) -> None:
+        raise UsageError(f"cannot write the {what} to {path}: {why}")
+    if path.is_dir():
+        fail("it is a directory")
+    if not path.exists():
+        _creatable(path.parent, fail)
+        return
+    try:
+        with path.open("rb") as f:
+            head = f.read(len(magic) if magic else 1)
+    except OSError as exc:
+        fail((exc.strerror or str(exc)).lower())
+    if head and (magic is None or not magic.startswith(head)):     # empty, or a (possibly cut) file of that kind
+        fail(f"it exists and is not a {what} file rig wrote (rig does not overwrite other files)")
+    if not os.access(path, os.W_OK):
+        fail("permission denied")
+
+
+def writable_dir(path: Path, what: str, shared: bool = False) -> None:
+    """A :class:`UsageError` naming ``path`` unless it is, or can become, a writable directory rig may fill: new,
+    empty, or marked as rig's (:data:`MARK`); ``shared``: a directory rig puts only individually checked files
+    into (:func:`writable_file`), which may hold anything else."""
+    path = Path(path)
+
+    def fail(why: str) -> None:
+        raise UsageError(f"cannot write the {what} to {path}: {why}")
+    if not path.exists():
+        _creatable(path, fail)
+        return
+    if not path.is_dir():
+        fail("it exists and is not a directory")
+    if not os.access(path, os.W_OK | os.X_OK):
+        fail("permission denied")
+    if not shared and not (path / MARK).exists() and any(path.iterdir()):
+        fail(f"it holds files rig did not write (rig writes into a new or empty directory, or one it wrote before: "
+             f"it leaves {MARK} there); choose another directory")
+
+
+def file_parent(path: Path) -> Path:
+    """Make the directory of the output file ``path`` (checked by :func:`writable_file`); returns ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def claim_dir(path: Path) -> Path:
+    """Make the output directory ``path`` (checked by :func:`writable_dir`) and mark it as rig's."""
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
+    mark = path / MARK
+    if not mark.exists():
+        mark.write_text(MARK_TEXT)
+    return path
