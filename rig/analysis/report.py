@@ -505,6 +505,7 @@ EVENT_MEANING = {
     "result_missing": "a curve whose result did not arrive",
     "verdict_mismatch": "the host's re-evaluation of a curve differs from the device's verdict",
     "interrupted": "the run stopped early",
+    "run_short": "the served machine ended its run before this host had recorded the scene's cycles or duration",
 }
 
 

@@ -7,7 +7,8 @@ INFO, WARNING, ERROR = 2, 3, 4          # foxglove.LogLevel values
 
 #: event kinds that say something went wrong on the link, in the data or the machine (else INFO)
 WARNING_KINDS = frozenset({"sequence_gap", "unknown_frame", "bad_length", "decode_error", "error_frame", "curve",
-                           "result", "incomplete_curve", "result_missing", "live_dropped", "shutdown"})
+                           "result", "incomplete_curve", "result_missing", "live_dropped", "shutdown",
+                           "run_short"})
 ERROR_KINDS = frozenset({"interrupted"})
 
 

@@ -345,13 +345,28 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
             host.arm()
             go = time.perf_counter()
             last = time.monotonic()
-            while not host.done() or not host.run_over():
-                if host.poll(0.05):
-                    last = time.monotonic()
-                elif time.monotonic() - last > idle_timeout:
-                    raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
-                                   f"recorded {host.curves_recorded} curves (kept in {output})")
-                _show(bar, cfg, host.curves_recorded, host.truth_t)
+            try:
+                while not host.done() or not host.run_over():
+                    if host.poll(0.05):
+                        last = time.monotonic()
+                    elif host.can.run_ended:       # the served run is shorter than this scene's: keep what it sent
+                        host.poll(0.05)
+                        log.warning("the served machine ended its run after %d curves (its --cycles); this host "
+                                    "was to record %s: recorded what it sent", host.curves_recorded,
+                                    f"{cfg.cycles} curves" if cfg.cycles is not None else f"{cfg.duration:g} s")
+                        rec.write_event(host.can.device_time, "run_short", curves=host.curves_recorded,
+                                        expected=cfg.cycles if cfg.cycles is not None else cfg.duration)
+                        break
+                    elif time.monotonic() - last > idle_timeout:
+                        raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
+                                       f"recorded {host.curves_recorded} curves (kept in {output})")
+                    _show(bar, cfg, host.curves_recorded, host.truth_t)
+            except RunError:
+                try:                               # the served machine need not wait for its release timeout
+                    host.can.send_command("release")
+                except (can.CanError, OSError):
+                    pass
+                raise
             _show(bar, cfg, host.curves_recorded, host.truth_t, force=True)
             run_time = time.perf_counter() - go
             _finishing(bar, cfg, host.truth_t)

@@ -192,3 +192,19 @@ def test_recorded_values_equal_the_raw_frames_decoded_with_cantools_and_the_dbc_
         assert result["process_values"] == {names[k]: v for k, v in values[n].items()}
         assert curve.t[0] == pytest.approx(starts[n], abs=1e-6)
         np.testing.assert_allclose(curve.x, xs[n], rtol=0, atol=1e-12)
+
+
+def test_a_served_run_shorter_than_the_scene_is_recorded_and_released(tmp_path: Path, serve_scene, caplog):
+    """`rig serve --cycles 3` and a host recording the scene (50 cycles) as the README writes it: the machine's
+    last frame (RunEnded) ends the recording with its 3 curves and a warning, and the host releases the served
+    process (it exits by itself: the fixture asserts status 0)."""
+    from rig.runner import record_scene
+    with serve_scene(SCENE, tmp_path / "endpoints.json", "--cycles", "3") as ep:
+        out = tmp_path / "short.mcap"
+        with caplog.at_level("WARNING"):
+            summary = record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
+                                   serial_port=ep["serial"], idle_timeout=60.0)
+    assert summary.curves == 3
+    assert "the served machine ended its run after 3 curves" in caplog.text
+    rec = read_recording(out)
+    assert len(rec.curves) == 3 and [e["kind"] for e in rec.events].count("run_short") == 1
