@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Run a command inside the project's virtual environment, creating it first if needed.
 
-Usage: ``python3 bootstrap.py COMMAND [ARGS...]`` (e.g. ``rig run ...`` or ``pytest``).
+Usage: ``python3 bootstrap.py COMMAND [ARGS...]`` (e.g. ``rig run ...`` or ``pytest``); the command runs in the
+caller's directory (``pytest`` in the project's).
 Needs only Python >= 3.11. The environment lives in ``.venv/`` and is reinstalled whenever
 ``pyproject.toml`` changes (a hash of it is kept in ``.venv/.installed``); the first time that takes a
 few minutes, shown step by step on stderr with pip's progress.
@@ -69,8 +70,9 @@ def main() -> None:
     argv = [str(exe) if exe.exists() else command, *args]
     os.environ["PATH"] = f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"
     os.environ.setdefault("MPLBACKEND", "Agg")
-    os.chdir(ROOT)
-    os.execvp(argv[0], argv)
+    if command == "pytest":          # the project's tests, wherever it is called from
+        os.chdir(ROOT)
+    os.execvp(argv[0], argv)         # anything else in the caller's directory: its relative paths are the caller's
 
 
 if __name__ == "__main__":
