@@ -251,3 +251,18 @@ def test_bootstrap_reports_a_failed_install_in_one_line(bootstrap, monkeypatch):
     with pytest.raises(SystemExit, match=r"bootstrap: pip failed \(exit status 1\)"):
         bootstrap.ensure_environment()
     assert not bootstrap.STAMP.exists()
+
+
+@pytest.mark.parametrize("command, in_root", [("rig", False), ("pytest", True)])
+def test_bootstrap_runs_commands_where_the_user_is_and_the_tests_in_the_project(bootstrap, monkeypatch, tmp_path,
+                                                                               command, in_root):
+    """`python3 /path/bootstrap.py rig report demo.mcap -o rep` from another directory reads and writes there."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    monkeypatch.setattr(bootstrap, "ensure_environment", lambda: None)
+    seen = {}
+    monkeypatch.setattr(bootstrap.os, "execvp", lambda exe, argv: seen.update(cwd=Path.cwd(), argv=argv))
+    monkeypatch.setattr(sys, "argv", ["bootstrap.py", command, "report", "demo.mcap"])
+    bootstrap.main()
+    assert seen["cwd"] == (tmp_path if in_root else elsewhere) and seen["argv"][1:] == ["report", "demo.mcap"]
