@@ -19,7 +19,7 @@ def cmd_cam_design(args: argparse.Namespace) -> int:
     options = {} if args.sigma_allow is None else {"sigma_allow": args.sigma_allow * 1e6}
     if args.load_coefficient is not None:
         options["load_coefficient"] = args.load_coefficient
-    mech, omega = cam_bar_from_scene(args.scene)
+    mech, omega = cam_bar_from_scene(args.scene, "rig cam-design")
     design = design_checks(mech, omega, high_speed=not args.low_speed, **options)
     print(f"cam design checks for {args.scene}")
     print(format_checks(design))

@@ -242,12 +242,12 @@ def cmd_export_can(args: argparse.Namespace) -> int:
 
 
 def cmd_summary(args: argparse.Namespace) -> int:
-    from rig.runner.config import read_config
+    from rig.plants.cam_bar.scene_io import require_cam_bar
     from rig.scene import load_scene
     scene = Path(args.scene)
     png = Path(args.png) if args.png else Path("out") / f"{scene.stem}.cycle.png"
     writable_file(png, "cycle chart", PNG_MAGIC)
-    _needs_cam_bar(scene, read_config(load_scene(scene)).plant, "rig summary")
+    require_cam_bar(load_scene(scene), "rig summary")
     _print_cam_bar_summary(scene, png)
     return 0
 
@@ -266,18 +266,13 @@ def _scene_config(scene: Path, cycles: int | None) -> Any:
     return cfg
 
 
-def _needs_cam_bar(scene: Path, plant: str, command: str) -> None:
-    if plant != "cam_bar":
-        raise UsageError(f"{command} needs plant \"cam_bar\" in [scene] (a cam-bar scene such as "
-                         f"{DEFAULT_SCENE.name}); {scene} is a {plant!r} scene")
-
-
 def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.plants.cam_bar.tolerance import load_tolerances
     from rig.executors.options import executor_from_args
     from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_json, study_table
     from rig.runner.config import read_config
     from rig.plants.cam_bar import PinInsertionMechanism
+    from rig.plants.cam_bar.scene_io import require_cam_bar
     from rig.scene import load_scene
     scene_path = Path(args.scene)
     chart = Path(args.output) / f"{scene_path.stem}.tolerance.png"
@@ -286,7 +281,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     if args.json:
         writable_file(Path(args.json), "tolerance JSON", JSON_START)
     cfg = read_config(load_scene(scene_path))
-    _needs_cam_bar(scene_path, cfg.plant, "rig tolerance")
+    require_cam_bar(cfg.scene, "rig tolerance")
     with executor_from_args(args) as executor:
         if not args.quiet:
             print(f"Monte Carlo on {executor.describe()}", file=sys.stderr)

@@ -48,13 +48,11 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
     from rig.fidelity import QUESTIONS, choose
     from rig.plants.cam_bar import PinInsertionMechanism
     from rig.plants.cam_bar.level2 import Level2
-    from rig.plants.cam_bar.scene_io import read_level2_model, read_speed_profile
+    from rig.plants.cam_bar.scene_io import read_level2_model, read_speed_profile, require_cam_bar
     from rig.runner.config import read_config
-    from rig.scene import SceneError, load_scene
+    from rig.scene import load_scene
     scene = load_scene(scene_path)
-    if scene.section("scene").get("plant") != "cam_bar":
-        raise SceneError(f"{scene_path} [scene]: rig bench fidelity compares the cam-bar levels; plant is "
-                         f"{scene.section('scene').get('plant')!r}")
+    require_cam_bar(scene, "rig bench fidelity")
     l2 = choose(scene, "cam_bar", forced=2)
     mech = PinInsertionMechanism.from_scene(scene)
     speed = read_speed_profile(scene)
@@ -137,9 +135,8 @@ def cmd_fidelity(args: argparse.Namespace) -> int:
     from rig.outputs import claim_dir, writable_dir
     out = Path(args.output)
     writable_dir(out, "output")
-    claim_dir(out)
     rows = measure(args.scene)
-    csv_path, png = write(rows, out, Path(args.scene).stem)
+    csv_path, png = write(rows, claim_dir(out), Path(args.scene).stem)
     for level in (0, 1, 2):
         mine = [r for r in rows if r["level"] == level]
         answered = ", ".join(f"{r['question']} {_answer(r)}" for r in mine if r["answer"])

@@ -60,10 +60,12 @@ def _run(model: Any, y0: tuple, grid: np.ndarray, method: str, **options: float)
 def stability_map(scene_path: str | Path, t_sim: float = 0.2, steps: list[float] = STEPS,
                   factors: list[float] = FACTORS, speeds: list[float] = (1.0,)) -> list[dict[str, Any]]:
     """Rows of the map (module docstring)."""
+    from rig.plants.cam_bar.scene_io import require_cam_bar
     from rig.runner.config import read_config
     from rig.scene import load_scene
     from rig.solvers import SolverDivergence
     scene = load_scene(scene_path)
+    require_cam_bar(scene, "rig bench stability")
     rate = read_config(scene).sample_rate
     grid = np.linspace(0.0, t_sim, int(round(t_sim * rate)) + 1)
     rows: list[dict[str, Any]] = []
@@ -134,11 +136,10 @@ def cmd_stability(args: argparse.Namespace) -> int:
     from rig.outputs import claim_dir, writable_dir
     out = Path(args.output)
     writable_dir(out, "output")
-    claim_dir(out)
     rows = stability_map(args.scene, t_sim=0.1 if args.quick else 0.2,
                          steps=STEPS[::2] if args.quick else STEPS, factors=[1.0, 4.0] if args.quick else FACTORS,
                          speeds=[1.0] if args.quick else SPEEDS)
-    csv_path, png = write(rows, out)
+    csv_path, png = write(rows, claim_dir(out))
     counts = {c: sum(r["class"] == c for r in rows) for c in CLASSES}
     print(", ".join(f"{c} {n}" for c, n in counts.items()) + f" of {len(rows)} cells")
     for r in rows:

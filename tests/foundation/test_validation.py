@@ -136,13 +136,15 @@ def test_quiet_is_accepted_after_the_command_too(tmp_path, capsys):
 
 
 # -- plant kinds ------------------------------------------------------------------------------------
-@pytest.mark.parametrize("command", ["summary", "tolerance"])
+@pytest.mark.parametrize("command", ["summary", "tolerance", "cam-design", "bench stability", "bench fidelity"])
 def test_cam_bar_commands_on_a_clutch_scene_say_so(command, tmp_path, capsys):
-    assert cli.main([command, str(CLUTCH), *(["--png", str(tmp_path / "c.png")] if command == "summary"
-                                              else ["-o", str(tmp_path)])]) == 2
+    out = {"summary": ["--png", str(tmp_path / "c.png")], "cam-design": ["-o", str(tmp_path / "c.png")]}.get(
+        command, ["-o", str(tmp_path / "out")])
+    scene = [str(CLUTCH)] if not command.startswith("bench") else ["--scene", str(CLUTCH)]
+    assert cli.main([*command.split(), *scene, *out]) == 2
     err = one_error_line(capsys)
     assert f'rig {command} needs plant "cam_bar" in [scene] (a cam-bar scene' in err and "'clutch_dynamic' scene" in err
-    assert "F_a1" not in err
+    assert "F_a1" not in err and not (tmp_path / "out").exists() and not (tmp_path / "c.png").exists()
 
 
 # -- output paths -----------------------------------------------------------------------------------

@@ -234,5 +234,5 @@ def test_rig_cam_design_command(tmp_path, capsys):
 def test_cam_design_refuses_a_scene_without_a_cam():
     from rig.plants.cam_bar.scene_io import cam_bar_from_scene
     from rig.scene import SceneError
-    with pytest.raises(SceneError, match="clutch_stop.toml .*plant 'clutch.*' is not the cam-bar mechanism"):
-        cam_bar_from_scene("data/scenes/clutch_stop.toml")
+    with pytest.raises(SceneError, match="rig cam-design needs plant \"cam_bar\".*clutch_stop.toml is a 'clutch"):
+        cam_bar_from_scene("data/scenes/clutch_stop.toml", "rig cam-design")

@@ -96,16 +96,22 @@ def read_speed_profile(scene: Scene) -> SpeedProfile:
     return read_speed(scene.section("speed"), f"{scene.path} [speed]")
 
 
-def cam_bar_from_scene(path: str | Path) -> tuple["PinInsertionMechanism", float]:
+def require_cam_bar(scene: Scene, command: str) -> None:
+    """A :class:`SceneError` saying that ``command`` (e.g. "rig tolerance") needs a cam-bar scene, for a scene of
+    another plant (before its [plant] keys are read as the cam-bar's and found unknown)."""
+    plant = scene.section("scene").get("plant", "cam_bar")
+    if plant != "cam_bar":
+        raise SceneError(f"{command} needs plant \"cam_bar\" in [scene] (a cam-bar scene such as pin_insertion.toml); "
+                         f"{scene.path} is a {plant!r} scene")
+
+
+def cam_bar_from_scene(path: str | Path, command: str = "the cam-bar model") -> tuple["PinInsertionMechanism", float]:
     """A cam-bar scene file → its :class:`PinInsertionMechanism` ([plant]) and nominal cam speed (rad/s, [speed]);
-    :class:`SceneError` for a scene of another plant."""
+    :class:`SceneError` for a scene of another plant (:func:`require_cam_bar`)."""
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
     from rig.scene import load_scene
     scene = load_scene(path)
-    plant = scene.data.get("scene", {}).get("plant", "cam_bar")
-    if plant != "cam_bar":
-        raise SceneError(f"{scene.path} [scene]: plant {plant!r} is not the cam-bar mechanism (needs plant = "
-                         f"\"cam_bar\")")
+    require_cam_bar(scene, command)
     return PinInsertionMechanism.from_scene(scene), read_speed_profile(scene).nominal_omega
 
 
