@@ -49,7 +49,7 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 from rig.recorder import schemas as S
-from rig.recorder.reader import RecordingError
+from rig.recorder.reader import RecordingError, require_whole_file
 
 REQUIRED = ("t", "id", "is_fd", "is_extended", "data")
 OPTIONAL = ("dir", "channel", "brs", "esi", "error")
@@ -326,6 +326,7 @@ def export_can(recording: str | Path, out: str | Path) -> Export:
     if sink_type is None:
         raise ValueError(f"{out}: unknown CAN trace format {out.suffix or '(no extension)'!r}; "
                          f"use one of {', '.join(FORMATS)}")
+    require_whole_file(recording, "exporting CAN")
     start = trace_start(recording)
     blocks = iter_frames(recording)
     first = next(blocks, None)

@@ -202,7 +202,29 @@ def _metadata_number(rec: Recording, name: str, key: str, default: str, kind: ty
         raise ValueError(f"metadata {name}.{key} = {text!r} is not a number") from None
 
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"     # every MCAP file's first 8 bytes
+MCAP_MAGIC = b"\x89MCAP0\r\n"     # every MCAP file's first 8 bytes (and a complete one's last 8)
+
+
+def require_whole_file(path: str | Path, need: str) -> None:
+    """A :class:`RecordingError` in plain words unless ``path`` is a whole MCAP file (its magic at both ends):
+    missing, empty, not MCAP, or cut short (a killed run or a cut copy) — ``need``: what the caller needs it for."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            head = f.read(len(MCAP_MAGIC))
+            f.seek(max(0, size - len(MCAP_MAGIC)))
+            tail = f.read()
+    except OSError as exc:
+        raise RecordingError(f"cannot read recording {path}: {(exc.strerror or str(exc)).lower()}") from None
+    if size == 0:
+        raise RecordingError(f"{path}: empty file (0 bytes), not a recording")
+    if not MCAP_MAGIC.startswith(head[:len(MCAP_MAGIC)]):
+        raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)")
+    if size < 2 * len(MCAP_MAGIC) or tail != MCAP_MAGIC:
+        raise RecordingError(f"{path}: truncated recording (it does not end with MCAP's closing magic: a killed run "
+                             f"or a cut copy); {need} needs a whole file — `rig report --partial {path}` reports "
+                             "what it holds")
 
 
 def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
@@ -239,7 +261,7 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
             finally:
                 at_end = f.tell() >= size
     except OSError as exc:
-        raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from None
+        raise RecordingError(f"cannot read recording {path}: {(exc.strerror or str(exc)).lower()}") from None
     except InvalidMagic:
         raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)") from None
     except RecordingError:

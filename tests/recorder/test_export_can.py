@@ -233,6 +233,14 @@ def test_cli_export_can(recording, tmp_path, capsys):
 def test_truncated_recording_is_an_error(recording, tmp_path):
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(recording.read_bytes()[:200_000])
-    with pytest.raises(RecordingError, match=r"cut.mcap: cannot read the MCAP recording .*needs a complete file"):
+    with pytest.raises(RecordingError, match=r"cut.mcap: truncated recording .*a killed run or a cut copy\); "
+                                             r"exporting CAN needs a whole file .*rig report --partial"):
         export_can(cut, tmp_path / "bus.log")
     assert not (tmp_path / "bus.log").exists()
+
+
+def test_a_missing_recording_is_a_usage_error_as_in_report(tmp_path, capsys):
+    for argv in (["export-can", str(tmp_path / "none.mcap"), "-o", str(tmp_path / "bus.asc")],
+                 ["report", str(tmp_path / "none.mcap"), "-o", str(tmp_path / "rep")]):
+        assert main(["-q", *argv]) == 2
+        assert f"cannot read recording {tmp_path / 'none.mcap'}: no such file or directory" in capsys.readouterr().err
