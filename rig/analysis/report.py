@@ -233,8 +233,12 @@ def verdict(ctx: ReportContext) -> list[Block]:
     n, nok = len(verdicts), sum(not v["ok"] for v in verdicts)
     names = {p: rec.programs.get(p, {}).get("name") for p in a["sets"]}
     what = ", ".join(f"program {p}" + (f" “{names[p]}”" if names.get(p) else "") for p in a["sets"])
+    judged = {v["number"] for v in verdicts}
+    unjudged = [c.number for c in rec.curves if c.number not in judged]
     text = (f"OK: all {n} curves passed" if nok == 0 else f"NOK: {nok} of {n} curves failed, {n - nok} OK") + \
-        (f" ({what})" if what else "")
+        (f" ({what})" if what else "") + \
+        (f"; {len(unjudged)} recorded curve{'s' if len(unjudged) > 1 else ''} without a result, not judged "
+         f"(curve {', '.join(map(str, unjudged[:10]))}{' …' if len(unjudged) > 10 else ''})" if unjudged else "")
     blocks: list[Block] = [Heading("Verdict")]
     if not rec.complete:                  # a cut or interrupted recording: said before the verdict it qualifies
         why = _complete(rec).removeprefix("no: ")
@@ -432,12 +436,12 @@ def curves(ctx: ReportContext) -> list[Block]:
         path = plots.signals_over(chosen, ctx.figure_path(f"ys_p{program}"), title, nok, units)
         blocks.append(ctx.figure(path, f"Program {program}: Y over time since each curve's start and over cam "
                                        "angle, all curves (NOK red), theory dashed"))
-    ok = [c for c in rec.curves if c.number not in nok]
+    rows = {v["number"]: v for v in ctx.analysis["verdicts"]}
+    ok = [c for c in rec.curves if c.number in rows and rows[c.number]["ok"]]
     shown = ok[:ctx.ok_plots]
     if ok:
         blocks.append(Text(f"Individual plots of OK curves: {len(shown)} of {len(ok)}" +
                            (" (more with --ok-plots N)." if len(shown) < len(ok) else "."), "note"))
-    rows = {v["number"]: v for v in ctx.analysis["verdicts"]}
     return blocks + [curve_figure(ctx, c, rows.get(c.number)) for c in shown]
 
 

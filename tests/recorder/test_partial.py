@@ -51,6 +51,12 @@ def test_a_run_killed_halfway_reports_with_partial(tmp_path, capsys):
     assert report.index("Warning: incomplete recording (file truncated") < report.index("**OK: all") if "**OK: all" \
         in report else report.index("Warning: incomplete recording") < report.index("**NOK")   # before the verdict
     assert report.count("| OK |") + report.count("| NOK |") == len(rec.results)      # what it holds, reported
+    with_result = {r["number"] for r in rec.results}
+    unjudged = [c.number for c in rec.curves if c.number not in with_result]
+    assert ("without a result, not judged (curve " + ", ".join(map(str, unjudged[:10]))) in report if unjudged \
+        else "not judged" not in report
+    oks = sum(bool(r["ok"]) for r in rec.results if r["number"] in {c.number for c in rec.curves})
+    assert f"Individual plots of OK curves: 0 of {oks}" in report                    # a curve without result is not OK
 
 
 def test_an_interrupted_run_is_marked_and_its_report_says_so(tmp_path, monkeypatch, capsys):
