@@ -265,13 +265,22 @@ def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: floa
             y0 = float(yp.mean())
         initial_text = f"{y0:.4g} N·m (mean of the {dwell * 1e3:.0f} ms before)"
     yf = float(np.mean(y[t >= t[-1] - dwell]))
-    step = yf - y0
+    step, from_to = yf - y0, f"{y0:.4g} → {yf:.4g} N·m"
+    scene_step = s.after - s.before if s.kind != "start" and None not in (s.before, s.after) else None
+    if s.kind != "start" and not why_unsteady:      # steady before it: within the band of the step (the scene's if known)
+        ref = abs(scene_step if scene_step is not None else step)
+        if np.max(np.abs(yp - y0)) > band * ref:
+            why_unsteady = (f"the torque was not steady before it (it ranged {yp.min():.4g}…{yp.max():.4g} N·m in the "
+                            f"{dwell * 1e3:.0f} ms before, beyond ±{band * ref:.3g} N·m)")
+            if scene_step is not None:              # no measured initial level: the scene's step sets size and band
+                y0, step = yf - scene_step, scene_step
+                from_to = f"of the scene, {s.before:.4g} → {s.after:.4g} N·m"
     final_text = f"mean of the last {dwell * 1e3:.0f} ms {until}"
     nominal = "" if s.after is None else f"; scene load {s.after:.4g} N·m"
     direction = 1.0 if step >= 0 else -1.0
     k = int(np.argmax(direction * y))
     out = [Metric(f"{label}: peak torque", float(y[k]), "N·m",
-                  f"extreme reading in the direction of the step {y0:.4g} → {yf:.4g} N·m, {until}", float(t[k]))]
+                  f"extreme reading in the direction of the step {from_to}, {until}", float(t[k]))]
     k = int(np.argmax(-direction * y))
     if s.kind == "stop" and -direction * (y[k] - y0) > band * abs(step):
         out.append(Metric(f"{label}: torque rise", float(y[k]), "N·m",
@@ -283,9 +292,6 @@ def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: floa
                       Metric(f"{label}: final torque", yf, "N·m", final_text + nominal)]
     sm = step_metrics(t, y, band=band, initial=y0, final=yf, t_step=s.time, dwell=dwell)
     half = float(sm.half_band)
-    if s.kind != "start" and not why_unsteady and np.max(np.abs(yp - y0)) > half:
-        why_unsteady = (f"the torque was not steady before it (it ranged {yp.min():.4g}…{yp.max():.4g} N·m in the "
-                        f"{dwell * 1e3:.0f} ms before, beyond ±{half:.3g} N·m)")
     if not bool(sm.settled):
         why = (f"not settled {until}: the torque does not stay within ±{half:.3g} N·m ({band * 100:g} % of the step) "
                f"of its last level {yf:.4g} N·m for {dwell * 1e3:.0f} ms")

@@ -129,6 +129,10 @@ def test_step_after_an_unsteady_torque_has_no_overshoot_but_a_settling_time():
     m = by_name(stand_metrics(stand(t, y), [step], 4, 0.1))
     assert m["step at 0.4 s: overshoot"].value is None and "not steady" in m["step at 0.4 s: overshoot"].reference
     assert m["step at 0.4 s: settling time"].value > 0.05
+    # no measured initial level: the scene's 40 N·m step sets the band (±2 N·m), 30 exp(−τ/0.05) = 2
+    settle = m["step at 0.4 s: settling time"]
+    assert "5 % of the 40 N·m step" in settle.reference and settle.value == pytest.approx(0.05 * math.log(15), abs=2e-3)
+    assert "step of the scene, 50 → 10 N·m" in m["step at 0.4 s: peak torque"].reference
     steady = np.where(t < 0.4, 50.0, 10.0 - 8.0 * np.exp(-(t - 0.4) / 0.05))    # 50 → 10, dips to 2: 20 %
     m = by_name(stand_metrics(stand(t, steady), [step], 4, 0.1))
     assert m["step at 0.4 s: overshoot"].value == pytest.approx(20.0, rel=1e-3)
