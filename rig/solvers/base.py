@@ -124,8 +124,9 @@ class StiffnessMonitor:
         if self.count < self.STEPS:
             return
         lam = hl / h
-        self._report(t, y, f"{self.method}: problem is stiff at t = {t:.6g} s: h*|lambda| = {hl:.3g} > "
-                           f"{self.limit} for {self.STEPS} steps (h = {h:.3g} s, |lambda| = {lam:.3g} 1/s); the "
+        self._report(t, y, f"{self.method}: problem is stiff at t = {t:.6g} s: h*|lambda| above {self.limit} for "
+                           f"{self.STEPS} steps ({min(self._recent):.4f} … {max(self._recent):.4f}; h = {h:.3g} s, "
+                           f"|lambda| = {lam:.3g} 1/s); the "
                            f"step size is limited by stability, not accuracy - use the implicit method Rodas4 or "
                            f"remove the stiffness (e.g. a switched stick-slip friction model instead of a steep "
                            f"regularisation)")
