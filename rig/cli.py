@@ -44,7 +44,9 @@ def _analysed(recording: Path) -> tuple[Any, dict]:
 
 def _print_values(st: dict) -> None:
     """Table of one program's process values in their display units (the unit column; rig.analysis.units):
-    n, unit, mean, σ, min, max, ±3σ band, Cp/Cpk against the limits, checks."""
+    n, unit, mean, σ, min, max, ±3σ band, Cp/Cpk against the limits, checks (nothing without statistics)."""
+    if not st.get("values"):
+        return
     print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  "
           f"{'-3s..+3s':>21}  {'Cp':>7} {'Cpk':>7}  normal drift")
     for name, pv in st.get("values", {}).items():

@@ -113,10 +113,14 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
     unequal = counts_warning({name: int(np.count_nonzero(np.isfinite(v))) for name, v in table.items()})
     if unequal:
         warnings.append(unequal)
+    few = {name: int(np.count_nonzero(np.isfinite(v))) for name, v in table.items()
+           if np.count_nonzero(np.isfinite(v)) < 3}
+    if few:
+        counts = sorted(set(few.values()))
+        warnings.append(f"no statistics of {'every process value' if len(few) == len(table) else ', '.join(few)}: "
+                        f"{' or '.join(map(str, counts))} finite value{'s' if counts != [1] else ''}, 3 are needed")
     for name, v in table.items():
-        finite = v[np.isfinite(v)]
-        if finite.size < 3:
-            warnings.append(f"{name}: only {finite.size} finite values, no statistics")
+        if name in few:
             continue
         u = du.value(name)
         shown = u(v)
