@@ -89,6 +89,23 @@ def _scaled(limits: tuple[float | None, float | None] | None, u: Unit) -> tuple[
     return None if limits is None else (u(limits[0]), u(limits[1]))
 
 
+def _unit_slip(name: str, x: np.ndarray, limits: tuple[float | None, float | None] | None, unit: str) -> str | None:
+    """A warning when every value lies outside limits of another order of magnitude (≥ 100× apart): a limit written
+    in the wrong unit ("41.5 m" for mm) gives Cp/Cpk that mean nothing (Cpk −2.6e5) and nothing else says so."""
+    bounds = [b for b in (limits or ()) if b is not None and b != 0.0]
+    typical = float(np.median(np.abs(x))) if x.size else 0.0
+    if not bounds or typical == 0.0:
+        return None
+    ratio = max(abs(b) for b in bounds) / typical
+    lo, hi = limits
+    outside = np.all(((x < lo) if lo is not None else False) | ((x > hi) if hi is not None else False))
+    if not outside or 0.01 < ratio < 100.0:
+        return None
+    text = " … ".join("—" if b is None else f"{b:.4g}" for b in (lo, hi))
+    return (f"{name}: every value lies outside its limits {text} {unit}, which are {ratio:.3g}× the measured values "
+            f"(median {typical:.4g} {unit}): a limit in the wrong unit (m for mm)? Cp/Cpk against them mean nothing")
+
+
 def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
                    units: DisplayUnits | Mapping[str, str] | None = None) -> dict:
     """Statistics of one set of curves (one program): counts, NOK per element, incomplete results, and
@@ -124,7 +141,11 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
             continue
         u = du.value(name)
         shown = u(v)
-        entry = describe(shown, _scaled((limits or {}).get(name), u), name)
+        scaled = _scaled((limits or {}).get(name), u)
+        entry = describe(shown, scaled, name)
+        slip = _unit_slip(name, shown[np.isfinite(shown)], scaled, u.label)
+        if slip:
+            warnings.append(slip)
         entry["normality"] = normality(shown[np.isfinite(shown)])
         entry["trend"] = trend(shown[np.isfinite(shown)])
         entry["warnings"] = [w for w in entry["warnings"] if "measurements" not in w]

@@ -97,3 +97,16 @@ def test_every_nok_row_of_results_csv_says_why_in_the_scenes_units(runs, tmp_pat
                         r"it crosses at x = 37\.\d+ mm, outside the range", element["reason"]), element["reason"]
     text = (tmp_path / "report.html").read_text(encoding="utf-8")
     assert "What failed and why" in text and element["reason"] in text
+
+
+def test_limits_in_the_wrong_unit_are_named():
+    """"41.5 m" written for mm: every value lies outside limits 1000× the data — a warning that says so (and a
+    pair of plausible limits, even with every value outside them, is not flagged)."""
+    from rig.analysis.sets import set_statistics
+    results = [{"number": i, "program": 1, "ok": True, "process_values": {"x_max": 0.0421 + 1e-5 * i}}
+               for i in range(10)]
+    slip = set_statistics(results, {"x_max": (41.5, 42.5)}, {"x": "m", "y": "N"})["warnings"]
+    assert any("x_max: every value lies outside its limits 41.5 … 42.5 m, which are 1.01e+03× the measured values"
+               in w and "wrong unit" in w for w in slip)
+    plausible = set_statistics(results, {"x_max": (0.0430, 0.0440)}, {"x": "m", "y": "N"})["warnings"]
+    assert not any("wrong unit" in w for w in plausible)
