@@ -292,22 +292,23 @@ def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
     if v.size and not spread:                     # one value repeated: a narrow bar at it, not a made-up width
         limits = [stats[k] for k in ("lsl", "usl") if stats.get(k) is not None]
         half = max([abs(v[0] - lim) * 1.2 for lim in limits] + [abs(v[0]) * 1e-3, 1e-12])
-        ax.hist(v, bins=41, range=(v[0] - half, v[0] + half), color="tab:blue", alpha=0.7)
+        ax.hist(v, bins=41, range=(v[0] - half, v[0] + half), color="tab:blue", alpha=0.7, ec="white", lw=0.6)
     else:                                         # bars at least 1/60 of the shown range wide: visible even when
         marks = [stats[k] for k in ("lsl", "usl", "minus_3sigma", "plus_3sigma") if stats.get(k) is not None]
         span = max([v.max()] + marks) - min([v.min()] + marks)          # limits far from the data widen the axis
         width = max(np.ptp(v) / bins, span / 60.0)
         count = max(1, int(np.ceil(np.ptp(v) / width)))
         edges = 0.5 * (v.min() + v.max()) + (np.arange(count + 1) - count / 2) * width
-        ax.hist(v, bins=edges, color="tab:blue", alpha=0.7)
+        ax.hist(v, bins=edges, color="tab:blue", alpha=0.7, ec="white", lw=0.6)    # bins apart: equal widths show
     for key, style in (("lsl", "r-"), ("usl", "r-"), ("minus_3sigma", "k--"), ("plus_3sigma", "k--"),
                        ("mean", "k-")):
         if stats.get(key) is not None:
             ax.axvline(stats[key], color=style[0], ls=style[1:], lw=1.2 if style[0] == "r" else 1)
     for key, name in (("lsl", "LSL"), ("usl", "USL")):              # the limits' values, named on their lines
         if stats.get(key) is not None:
-            ax.text(stats[key], 0.97, f"{name} {stats[key]:.4g}", transform=ax.get_xaxis_transform(), fontsize=7,
-                    color="r", ha="right" if key == "lsl" else "left", va="top", rotation=90, clip_on=False)
+            ax.annotate(f"{name} {stats[key]:.4g}", (stats[key], 0.97), xycoords=("data", "axes fraction"),
+                        xytext=(-2 if key == "lsl" else 2, 0), textcoords="offset points", fontsize=7.5, color="r",
+                        ha="right" if key == "lsl" else "left", va="top", rotation=90, annotation_clip=False)
     unit = f" ({stats['unit']})" if stats.get("unit") else ""
     if not spread and (stats.get("cp") is not None or stats.get("cpk") is not None):
         cap = ", Cp/Cpk n/a (no spread)"
