@@ -280,6 +280,13 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     stim, metrics = stand_results(ctx.recording) or ([], [])
     blocks: list[Block] = [Heading("Clutch stand")]
     banner = _verdict(metrics)
+    scene = _scene(ctx.recording)
+    if banner is not None and scene is not None and scene.data.get("comparison"):
+        from rig.analysis.stand_comparison import agreement_text, compare
+        try:                                   # the thesis comparison's outcome up front (its table is below)
+            banner.text += f"; thesis against rig: {agreement_text(compare(scene, stim, metrics)).split('; DISAGREE')[0]}"
+        except SceneError:
+            pass
     if banner is not None:
         blocks.append(banner)
     if stim:
@@ -291,7 +298,6 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
         fig, ax = figure(size=(6, 4))
         ax.plot(np.degrees(np.interp(data.t, data.t_angle, data.rel_angle)), data.torque, lw=0.8,
                 label="measured (torque meter over the encoders' φ1 − φ3)")
-        scene = _scene(ctx.recording)
         static = _static_characteristic(scene)
         if static is not None:
             phi = np.linspace(static.phi_min, static.apex, 241)

@@ -478,8 +478,9 @@ def theory(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = [Heading("Theory vs measurement"),
                            Text("Lag > 0: the measurement is late. RMS deviation before and after removing the time "
                                 "lag, means over the curves."),
-                           Table(["signal", "curves", "mean lag (ms)", "lag range (ms)", "mean lag (°)", "unit",
-                                  "RMS before", "RMS after", "mean peak diff"], table)]
+                           Table(["signal", "curves", "mean lag (ms)", "lag range (ms)", "mean lag (°)",
+                                  "unit of the next three", "RMS before", "RMS after",
+                                  "mean peak diff (max measured − max theory)"], table)]
     errors = [r for r in rows if r.get("error")]
     if errors:
         blocks.append(Text(f"Not compared for {len(errors)} curve/signal pair(s): {errors[0]['error']}", "note"))

@@ -47,7 +47,7 @@ SIGNAL_SI = {
 #: what each plant truth signal is, for chart legends (the recorded name stays the key)
 SIGNAL_LABEL = {
     "cam_angle": "cam angle φ (wrapped)", "phi": "cam angle φ", "psi": "follower angle ψ",
-    "psi_kin": "ψ of level 0", "omega": "cam speed", "s": "gripper stroke s",
+    "psi_kin": "ψ of level 0", "omega": "cam speed", "s": "slider (gripper) stroke s",
     "delta_w": "penetration, working flank", "delta_o": "penetration, other flank", "R23": "contact force R23",
     "F_rod": "rod force", "M_sigma": "cam moment on the follower, with spring M_Σ", "drive_torque": "drive torque needed",
     "motor_speed": "motor speed (at the cam)", "shaft_torque": "torque in the shaft",

@@ -54,7 +54,7 @@ def test_advance_rejects_bad_times():
 def test_summary_and_plot(tmp_path):
     mech = PinInsertionMechanism()
     text = summary_table(mech, 150 * pi / 30)
-    assert "slider stroke" in text and "42.000 mm" in text and "at 150.0 rpm" in text
+    assert "slider (gripper) stroke" in text and "42.000 mm" in text and "at 150.0 rpm" in text
     assert "k = 1.19 N/mm" in text and "no spring" in text and "b_min" in text
     path = plot_cycle(mech, 150 * pi / 30, tmp_path / "cycle.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

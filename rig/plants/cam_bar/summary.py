@@ -24,7 +24,7 @@ def summary_table(mech: PinInsertionMechanism, omega: float) -> str:
     rpm = omega / RPM
     lines = [
         f"pin-insertion cam-bar mechanism at {rpm:.1f} rpm (mounted spring {mech.k / 1e3:.2f} N/mm)",
-        f"  slider stroke            {np.ptp(st.s) * 1e3:8.3f} mm",
+        f"  slider (gripper) stroke  {np.ptp(st.s) * 1e3:8.3f} mm",
         f"  follower swing           {degrees(np.ptp(st.psi)):8.3f}°  (ψ {degrees(st.psi.min()):.2f}°"
         f" … {degrees(st.psi.max()):.2f}°)",
         f"  max |R23|                {np.max(np.abs(ks.R23n)):8.2f} N",
