@@ -3,7 +3,8 @@ outputs but never overwrites another file").
 
 A file is replaced only when it is new, empty, or of the kind rig writes there (its first bytes, ``magic``). A
 directory is written into only when it is new, empty, or one rig wrote before: rig leaves the marker file
-:data:`MARK` in every output directory it uses, so a directory holding a user's files is never filled with rig's.
+:data:`MARK` in every output directory it uses (a report of an earlier rig also counts), so a directory holding a
+user's files is never filled with rig's.
 Errors are :class:`UsageError` (exit status 2) naming the path and why, in plain words.
 """
 from __future__ import annotations
@@ -15,6 +16,9 @@ from typing import Callable
 
 MARK = ".mechrig"        # in every directory rig writes into
 MARK_TEXT = "mechrig writes its outputs here and may replace them; delete this file to keep rig out\n"
+#: files whose first bytes show a directory was rig's before it left :data:`MARK` (reports of earlier versions)
+RIG_MADE = {"report.html": b"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Rig report:",
+            "report.md": b"# Rig report:"}
 PNG_MAGIC, JSON_START = b"\x89PNG\r\n\x1a\n", b"{"
 #: first bytes of the CAN trace formats rig exports (python-can's writers; MF4 through asammdf)
 TRACE_MAGIC = {".asc": b"date ", ".blf": b"LOGG", ".log": b"(", ".trc": b";$FILEVERSION", ".mf4": b"MDF "}
@@ -85,7 +89,7 @@ def writable_dir(path: Path, what: str, shared: bool = False) -> None:
         fail("it exists and is not a directory")
     if not os.access(path, os.W_OK | os.X_OK):
         fail("permission denied")
-    if not shared and not (path / MARK).exists() and any(path.iterdir()):
+    if not shared and not _rig_made(path) and any(path.iterdir()):
         fail(f"it holds files rig did not write (rig writes into a new or empty directory, or one it wrote before: "
              f"it leaves {MARK} there); choose another directory")
 
@@ -95,6 +99,20 @@ def file_parent(path: Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def _rig_made(path: Path) -> bool:
+    """Whether rig wrote into directory ``path`` before: its marker, or a report of an earlier rig."""
+    if (path / MARK).exists():
+        return True
+    for name, head in RIG_MADE.items():
+        try:
+            with open(path / name, "rb") as f:
+                if f.read(len(head)) == head:
+                    return True
+        except OSError:
+            continue
+    return False
 
 
 def claim_dir(path: Path) -> Path:

@@ -230,6 +230,11 @@ def test_output_directories_holding_other_files_are_refused(tmp_path, capsys):
     assert (empty / MARK).is_file()
     (empty / "report.html").write_text("<html>rig's</html>")
     writable_dir(empty, "report")                             # rig's own: replaced
+    earlier = tmp_path / "earlier"                            # a report directory of a rig before the marker
+    earlier.mkdir()
+    (earlier / "report.html").write_text("<!DOCTYPE html><html><head><meta charset='utf-8'><title>Rig report: a.mcap")
+    (earlier / "curves.csv").write_text("curve,program\n")
+    writable_dir(earlier, "report")
     rec = tmp_path / "r.mcap"
     assert cli.main(["-q", "run", "--cycles", "1", "-o", str(rec), "--no-report"]) == 0
     capsys.readouterr()
