@@ -194,10 +194,27 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
+    from rig.fidelity import choose
     from rig.recorder.reader import MCAP_MAGIC
     from rig.runner import record_scene
+    from rig.runner.session import scene_digest
     writable_file(Path(args.output), "recording", MCAP_MAGIC)
-    _scene_config(Path(args.scene), args.cycles)
+    cfg = _scene_config(Path(args.scene), args.cycles)
+    if args.endpoints:                   # what `rig serve --endpoints` wrote: where to connect, and what it serves
+        served = _served(Path(args.endpoints))
+        if served["scene_sha256"] != scene_digest(args.scene):
+            raise UsageError(f"{args.endpoints}: the served machine runs {served['scene']}, not {args.scene} (the "
+                             "files differ): record the scene it serves")
+        level = choose(cfg.scene, cfg.plant, args.fidelity).level
+        if served["fidelity"] != level:
+            raise UsageError(f"{args.endpoints}: the served machine runs {served['scene']} at fidelity L"
+                             f"{served['fidelity']}, this host would record L{level}: give the same --fidelity to "
+                             "both")
+        args.can_host, args.can_port = served["can"]["host"], args.can_port or served["can"]["port"]
+        args.can_channel = args.can_channel or served["can"]["channel"]
+        args.serial = args.serial or served["serial"]
+    elif args.can_port is None:
+        raise UsageError("rig record needs --endpoints FILE (written by `rig serve --endpoints`) or --can-port")
     summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet, fidelity=args.fidelity)
@@ -206,6 +223,21 @@ def cmd_record(args: argparse.Namespace) -> int:
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
     return 0
+
+
+def _served(path: Path) -> dict[str, Any]:
+    """The endpoints file of `rig serve`, with the keys rig record needs (a UsageError naming what is wrong)."""
+    try:
+        served = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise UsageError(f"cannot read the endpoints {path}: {(exc.strerror or str(exc)).lower()}") from None
+    except ValueError as exc:
+        raise UsageError(f"{path}: not the endpoints JSON of `rig serve` ({exc})") from None
+    missing = [k for k in ("can", "serial", "scene", "scene_sha256", "fidelity") if not isinstance(served, dict)
+               or k not in served]
+    if missing:
+        raise UsageError(f"{path}: not the endpoints JSON of this rig's `rig serve` (no {', '.join(missing)})")
+    return served
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -388,7 +420,9 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("scene")
     rec.add_argument("-o", "--output", required=True)
     rec.add_argument("--can-host", default="127.0.0.1")
-    rec.add_argument("--can-port", type=_port(1), required=True)
+    rec.add_argument("--endpoints", metavar="FILE", help="the endpoints `rig serve --endpoints FILE` wrote: where to "
+                     "connect, checked to serve this scene at this fidelity (instead of --can-port/--serial)")
+    rec.add_argument("--can-port", type=_port(1))
     rec.add_argument("--can-channel")
     rec.add_argument("--serial", help="serial port path or URL printed by `rig serve`")
     rec.add_argument("--fidelity", type=int, choices=(0, 1, 2),

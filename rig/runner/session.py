@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import hashlib
 import logging
 import math
 import socket
@@ -314,7 +315,12 @@ def _endpoints(cfg: RunConfig, server: SocketcandServer, serial_dev: SerialDevic
                                             "address": serial_dev.address}
     return {"can": {"interface": "socketcand", "host": server.host, "port": server.port, "channel": cfg.can["channel"]},
             "serial": None if serial_dev is None else serial_dev.port, "serial_link": link,
-            "scene": str(cfg.scene.path)}
+            "scene": str(cfg.scene.path), "scene_sha256": scene_digest(cfg.scene.path), "fidelity": cfg.fidelity.level}
+
+
+def scene_digest(path: str | Path) -> str:
+    """SHA-256 (hex) of a scene file's bytes: which scene a served machine runs."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def _wait_for_release(machine: Machine, lock: threading.Lock, timeout: float) -> None:

@@ -208,3 +208,19 @@ def test_a_served_run_shorter_than_the_scene_is_recorded_and_released(tmp_path: 
     assert "the served machine ended its run after 3 curves" in caplog.text
     rec = read_recording(out)
     assert len(rec.curves) == 3 and [e["kind"] for e in rec.events].count("run_short") == 1
+
+
+def test_record_from_the_endpoints_file_refuses_another_scene(tmp_path: Path, serve_scene, capsys):
+    """`rig record --endpoints FILE` connects where `rig serve` said and checks it serves this scene at this
+    fidelity: another scene or level is a usage error before anything is recorded; the served one records."""
+    from rig.cli import main
+    endpoints = tmp_path / "endpoints.json"
+    other = _scene_variant(tmp_path, "other.toml", **{'sensor_preload = "-25 N"': 'sensor_preload = "0 N"'})
+    with serve_scene(SCENE, endpoints, "--cycles", "2"):
+        out = tmp_path / "r.mcap"
+        assert main(["-q", "record", str(other), "--endpoints", str(endpoints), "-o", str(out)]) == 2
+        assert "the served machine runs" in capsys.readouterr().err and not out.exists()
+        assert main(["-q", "record", str(SCENE), "--endpoints", str(endpoints), "-o", str(out), "--fidelity", "2"]) == 2
+        assert "at fidelity L1, this host would record L2" in capsys.readouterr().err
+        assert main(["-q", "record", str(SCENE), "--endpoints", str(endpoints), "-o", str(out), "--cycles", "2"]) == 0
+    assert len(read_recording(out).curves) == 2
