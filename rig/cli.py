@@ -165,7 +165,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     what = _done("recorded", summary.curves)
     print(f"{what}, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
           f"({summary.realtime_factor:.1f}x real time; {summary.wall_time:.2f} s with serial set-up and read-back), "
-          f"{summary.frames} CAN frames -> {summary.output}")
+          f"{summary.frames} CAN frames received -> {summary.output}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)

@@ -123,6 +123,7 @@ class Recorder:
         self._can: dict[str, list] = {c: [] for c in CAN_COLUMNS}    # buffered frames, by column
         self._can_last = -math.inf
         self._last_ns = self.wall_clock_start      # latest log time written
+        self._data_end = 0.0                       # latest sample time written in any block, curve or frame (s)
         self._closed = False
         meta = {"software_version": rig.__version__, "mcap_version": mcap.__version__,
                 "python": platform.python_version(), "encoding": encoding,
@@ -146,8 +147,9 @@ class Recorder:
 
     @property
     def simulation_time(self) -> float:
-        """Latest simulation time written (s)."""
-        return (self._last_ns - self.wall_clock_start) / 1e9
+        """Latest simulation time written (s): of a message's log time, or of a sample inside a block (a block is
+        logged at its first sample)."""
+        return max((self._last_ns - self.wall_clock_start) / 1e9, self._data_end)
 
     def close(self, interrupted: str | None = None) -> None:
         """Flush buffered blocks, record the end and finish the file (idempotent). ``interrupted``: why the
@@ -220,6 +222,7 @@ class Recorder:
         if t.size == 0:
             return
         to_ns(t[0], topic)
+        self._data_end = max(self._data_end, float(t[-1]))
         block.append(t, sig)
         self._flush(topic, final=False)
 
@@ -277,6 +280,7 @@ class Recorder:
             for k in np.flatnonzero(~np.isfinite(t) | (t < 0))[:1]:
                 to_ns(t[k], S.CAN_RAW)          # raises, naming the bad time
             self._can_last = float(t[-1])
+            self._data_end = max(self._data_end, self._can_last)
         width = frames.data.shape[1]
         text = frames.data.tobytes().hex()
         flags = frames.flags
@@ -329,6 +333,7 @@ class Recorder:
         msg.update(extra)
         cid = self._channel(S.CURVE, S.curve_schema(self.encoding), "rig.Curve", {"encoding": self.encoding})
         self._put(cid, to_ns(t[0], f"{S.CURVE} curve {number}"), dumps_message(msg))
+        self._data_end = max(self._data_end, float(t[-1]))
         self._view(S.VIEW_DEVICE, t, {"x": np.asarray(x, dtype=np.float64), "y": np.asarray(y, dtype=np.float64)},
                    "measured curves' X and Y, one sample per message (decimated /device/curve)")
 

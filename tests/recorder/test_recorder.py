@@ -322,3 +322,13 @@ def test_a_cut_says_whether_it_ends_inside_a_record_or_after_one(tmp_path):
         cut.write_bytes(data[:size])
         partial = read_recording(cut, allow_partial=True)
         assert partial.truncated and partial.problems[0].startswith(said), partial.problems
+
+
+def test_the_end_record_says_how_far_the_data_reaches(tmp_path):
+    """A block is logged at its first sample; the end record's simulation time is its last sample's (as far as the
+    run got), not the log time of the last message."""
+    path = tmp_path / "r.mcap"
+    with Recorder(path) as rec:
+        rec.write_block("/plant/truth", np.linspace(0.0, 2.5, 26), {"s": np.zeros(26)})
+        rec.write_event(1.0, "flank_switch", phi=1.0)
+    assert float(read_recording(path).end["simulation_time"]) == 2.5
