@@ -6,6 +6,7 @@ Kept outside :mod:`rig.mechanisms` so that ``rig --help`` does not import numpy;
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "data" / "scenes" / "pin_insertion.toml"
@@ -16,6 +17,8 @@ def cmd_cam_design(args: argparse.Namespace) -> int:
     from rig.outputs import PNG_MAGIC, file_parent, writable_file
     from rig.plants.cam_bar.scene_io import cam_bar_from_scene
     writable_file(Path(args.output), "cam-design chart", PNG_MAGIC)
+    if args.sigma_allow is not None and not (math.isfinite(args.sigma_allow) and args.sigma_allow > 0):
+        raise ValueError(f"--sigma-allow must be a positive permissible Hertz stress in MPa, got {args.sigma_allow}")
     options = {} if args.sigma_allow is None else {"sigma_allow": args.sigma_allow * 1e6}
     if args.load_coefficient is not None:
         options["load_coefficient"] = args.load_coefficient

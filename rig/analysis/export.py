@@ -7,6 +7,7 @@ display units the values are SI and the brackets say so.
 from __future__ import annotations
 
 import csv
+import functools
 from itertools import repeat
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -16,6 +17,8 @@ import numpy as np
 from rig.analysis.sets import missing_values, process_values
 from rig.analysis.units import DisplayUnits, Unit, unit
 from rig.recorder import CurveRecord
+
+DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
 
 NO_REASON = "NOK: the device named no failing element"
 
@@ -111,14 +114,25 @@ STAND_SI = {"t": "s", "edge_time": "s", "speed_time": "s", "speed": "rad/s", "di
             "speed_method": "1"}
 
 
+@functools.lru_cache(maxsize=1)
+def dbc_units() -> dict[str, str]:
+    """SI unit of every device signal of the DBC by its column name (snake case; "1" for a count): the unit of a
+    reading message's column on its ``/stand/`` topic."""
+    import cantools
+    from rig.recorder.schemas import snake
+    db = cantools.database.load_file(str(DBC_PATH))
+    return {snake(s.name): s.unit or "1" for m in db.messages if "DEVICE" in m.senders for s in m.signals}
+
+
 def export_series(series: Mapping[str, np.ndarray], path: Path, units: DisplayUnits | None = None) -> Path:
     """One recorded stand topic (``t`` and its columns, SI) as CSV, one row per reading, each quantity in its
-    display unit (``units``: the report's; default :data:`~rig.analysis.units.DEFAULTS`), named in brackets."""
+    display unit (``units``: the report's; default :data:`~rig.analysis.units.DEFAULTS`), named in brackets (units
+    from the stand columns, the DBC's signals, the plants' truth signals)."""
     from rig.analysis.units import SIGNAL_SI
     du = units or DisplayUnits()
     names = list(series)
     shown = [unit("s", "s") if n in ("t", "edge_time", "speed_time") else
-             du.of(STAND_SI.get(n) or SIGNAL_SI.get(n, "1")) for n in names]
+             du.of(STAND_SI.get(n) or dbc_units().get(n) or SIGNAL_SI.get(n, "1")) for n in names]
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow([column(n, u) for n, u in zip(names, shown)])

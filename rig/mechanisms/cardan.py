@@ -7,6 +7,8 @@ from math import cos, pi, sin
 
 import numpy as np
 
+from rig.mechanisms.checks import finite_array
+
 ArrayLike = np.ndarray | float
 
 
@@ -28,22 +30,22 @@ class Cardan:
 
     def output_angle(self, phi1: ArrayLike) -> np.ndarray:
         """φ2 (rad), continuous in φ1 (the same quadrant: tan φ2 = tan φ1 / cos α)."""
-        phi1 = np.asarray(phi1, dtype=float)
+        phi1 = finite_array(phi1, "Cardan phi1 (rad)")
         return np.arctan2(np.sin(phi1), np.cos(phi1) * cos(self.shaft_angle)) + _turns(phi1)
 
     def input_angle(self, phi2: ArrayLike) -> np.ndarray:
         """φ1 (rad) for an output angle φ2, continuous: tan φ1 = tan φ2 · cos α."""
-        phi2 = np.asarray(phi2, dtype=float)
+        phi2 = finite_array(phi2, "Cardan phi2 (rad)")
         return np.arctan2(np.sin(phi2) * cos(self.shaft_angle), np.cos(phi2)) + _turns(phi2)
 
     def speed_ratio(self, phi1: ArrayLike) -> np.ndarray:
         """ω2/ω1 = cos α / (1 − sin²α cos²φ1): between cos α and 1/cos α."""
-        c = np.cos(np.asarray(phi1, dtype=float))
+        c = np.cos(finite_array(phi1, "Cardan phi1 (rad)"))
         return cos(self.shaft_angle) / (1.0 - sin(self.shaft_angle) ** 2 * c * c)
 
     def acceleration(self, phi1: ArrayLike, omega1: float) -> np.ndarray:
         """α2 = dω2/dt (rad/s²) at constant input speed ``omega1`` (rad/s): ω1² · d(ω2/ω1)/dφ1."""
-        phi1 = np.asarray(phi1, dtype=float)
+        phi1 = finite_array(phi1, "Cardan phi1 (rad)")
         s2a = sin(self.shaft_angle) ** 2
         den = 1.0 - s2a * np.cos(phi1) ** 2
         return -omega1 ** 2 * cos(self.shaft_angle) * s2a * np.sin(2 * phi1) / den ** 2

@@ -1,8 +1,11 @@
 """Argument checks shared by the mechanism classes."""
 from __future__ import annotations
 
-from numbers import Integral
+import math
+from numbers import Integral, Real
 from typing import Any
+
+import numpy as np
 
 
 def whole(value: Any, minimum: int, what: str) -> int:
@@ -11,3 +14,31 @@ def whole(value: Any, minimum: int, what: str) -> int:
     if isinstance(value, bool) or not isinstance(value, Integral) or value < minimum:
         raise ValueError(f"{what} must be a whole number >= {minimum}, got {value!r}")
     return int(value)
+
+
+def finite(value: Any, what: str) -> float:
+    """``value`` as a float if it is a finite real number (not a bool or a string); else a ValueError starting with
+    ``what``."""
+    if isinstance(value, (bool, str, bytes)) or not isinstance(value, Real) or not math.isfinite(value):
+        raise ValueError(f"{what} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def positive(value: Any, what: str, unit: str = "", at_most: float | None = None, hint: str = "") -> float:
+    """:func:`finite` and > 0 (and ≤ ``at_most``); the message names ``what``, its ``unit`` and a ``hint`` for a value
+    above ``at_most`` (e.g. "did you mean mm")."""
+    v = finite(value, what)
+    if not v > 0.0 or (at_most is not None and v > at_most):
+        bound = f" and at most {at_most:g} {unit}".rstrip() if at_most is not None else ""
+        raise ValueError(f"{what} must be positive{bound}, got {value!r} {unit}".rstrip()
+                         + (f": {hint}" if hint and at_most is not None and v > at_most else ""))
+    return v
+
+
+def finite_array(values: Any, what: str) -> np.ndarray:
+    """``values`` as a float array if every entry is finite; else a ValueError starting with ``what``."""
+    arr = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{what} must be finite, got {values!r}" if arr.size < 5 else f"{what} must be finite "
+                         f"({int(np.count_nonzero(~np.isfinite(arr)))} of {arr.size} values are not)")
+    return arr

@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import exp, pi, tan
+from math import exp, pi, radians, tan, tau
+
+from rig.mechanisms.checks import finite, positive
 
 
 @dataclass(frozen=True)
@@ -15,15 +17,18 @@ class Belt:
     slip: float = 0.02
 
     def __post_init__(self) -> None:
-        if not self.mu > 0 or not self.wrap > 0:
-            raise ValueError(f"Belt mu and wrap must be positive, got mu = {self.mu!r}, wrap = {self.wrap!r} rad")
+        positive(self.mu, "Belt mu")
+        wrap = finite(self.wrap, "Belt wrap")
+        positive(wrap, "Belt wrap", "rad", at_most=tau,
+                 hint=f"a belt wraps a pulley by at most one turn; the angle is in radians: did you mean "
+                      f"{wrap:g}° = {radians(wrap):.4g} rad?")
         if not 0 <= self.slip < 1:
             raise ValueError(f"Belt slip is a fraction in [0, 1), got {self.slip!r}")
 
     def tensions(self, force: float) -> tuple[float, float]:
         """Tight- and slack-side tensions F1, F2 (N) transmitting the peripheral ``force`` F1 − F2 (N) at the
         limit of sliding: F1 = F2 e^{μβ} (Euler–Eytelwein)."""
-        if not force >= 0:
+        if not finite(force, "Belt peripheral force F1 − F2 (N)") >= 0:
             raise ValueError(f"Belt peripheral force F1 − F2 must not be negative (N), got {force!r}: a belt pulls, "
                              "it cannot push; swap the pulleys' roles instead")
         q = exp(self.mu * self.wrap)
@@ -65,6 +70,8 @@ class FrictionWheels:
     safety: float = 1.5
 
     def __post_init__(self) -> None:
+        for name in ("d1", "d2", "mu", "slip", "safety"):
+            finite(getattr(self, name), f"FrictionWheels {name}")
         if not (self.d1 > 0 and self.d2 > 0 and self.mu > 0 and self.safety >= 1):
             raise ValueError(f"FrictionWheels: diameters and mu must be positive and safety >= 1, got "
                              f"d1 = {self.d1!r}, d2 = {self.d2!r}, mu = {self.mu!r}, safety = {self.safety!r}")
@@ -77,5 +84,8 @@ class FrictionWheels:
         return self.d2 / self.d1 / (1 - self.slip)
 
     def pressing_force(self, tangential_force: float) -> float:
-        """Q (N) to carry the peripheral force F_t (N)."""
+        """Q (N) to carry the peripheral force F_t ≥ 0 (N)."""
+        if not finite(tangential_force, "FrictionWheels tangential force F_t (N)") >= 0:
+            raise ValueError(f"FrictionWheels tangential force F_t must not be negative (N), got {tangential_force!r}: "
+                             "the pressing force carries its magnitude")
         return self.safety * tangential_force / self.mu

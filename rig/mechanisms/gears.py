@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 from scipy.optimize import brentq
 
-from rig.mechanisms.checks import whole
+from rig.mechanisms.checks import finite, whole
 
 MODULE_MAX = 0.1      # m: the largest gear module taken for one (larger ones are mm given as m)
 
@@ -28,7 +28,9 @@ def inverse_involute(value: float) -> float:
 
 class GearGeometry(NamedTuple):
     """Lengths in m, angles in rad. ``centre_distance_modification`` y·m = a − a0; ``tip_reduction`` k·m
-    (tooth-height reduction keeping the tip clearance); ``tooth_thickness`` on the reference circles."""
+    (tooth-height reduction keeping the tip clearance); ``tooth_thickness`` on the reference circles (negative for a
+    gear shifted so far negative that its whole tooth lies inside the reference circle: a formal value then, the
+    tooth itself is checked at its tip)."""
 
     working_pressure_angle: float
     centre_distance: float
@@ -64,6 +66,8 @@ class SpurGearPair:
                              f"run from 0.05 to 50 mm), got {self.module!r} m"
                              + (f": did you mean {self.module:g} mm = {self.module * 1e-3:g} m?"
                                 if self.module > MODULE_MAX else ""))
+        for name in ("module", "x1", "x2", "pressure_angle"):
+            finite(getattr(self, name), f"SpurGearPair {name}")
         if not 0 < self.pressure_angle < radians(45):
             raise ValueError(f"SpurGearPair pressure_angle must lie in (0, 45°), got {self.pressure_angle!r} rad")
         for z, x, name in ((self.z1, self.x1, "x1"), (self.z2, self.x2, "x2")):
@@ -76,7 +80,12 @@ class SpurGearPair:
         """The pair's geometry; a pointed tooth tip or a contact ratio below 1 is a ValueError naming it."""
         m, a0_ = self.module, self.pressure_angle
         z1, z2, x1, x2 = self.z1, self.z2, self.x1, self.x2
-        aw = inverse_involute(involute(a0_) + 2 * (x1 + x2) / (z1 + z2) * tan(a0_))
+        inv_w = involute(a0_) + 2 * (x1 + x2) / (z1 + z2) * tan(a0_)
+        if inv_w <= 0.0:
+            raise ValueError(f"SpurGearPair: profile shifts x1 = {x1:g}, x2 = {x2:g} (sum {x1 + x2:g}) leave no working "
+                             f"pressure angle (inv α_w = {inv_w:.3g} ≤ 0): the shift sum must exceed "
+                             f"{-involute(a0_) * (z1 + z2) / (2 * tan(a0_)):.3f}")
+        aw = inverse_involute(inv_w)
         a_ref = m * (z1 + z2) / 2
         a = a_ref * cos(a0_) / cos(aw)
         ym = a - a_ref
@@ -88,6 +97,10 @@ class SpurGearPair:
         df = (d[0] - 2 * m * (1.25 - x1), d[1] - 2 * m * (1.25 - x2))
         s = tuple(m * (pi / 2 + 2 * x * tan(a0_)) for x in (x1, x2))
         for i, (z, x) in enumerate(((z1, x1), (z2, x2))):
+            if da[i] <= db[i]:
+                raise ValueError(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has its tip circle "
+                                 f"({da[i] * 1e3:.3f} mm) inside its base circle ({db[i] * 1e3:.3f} mm): no involute "
+                                 "flank; the shifts (and the tip reduction they cause) are too large")
             alpha_a = acos(db[i] / da[i])                 # tooth thickness at the tip > 0
             s_a = da[i] * (s[i] / d[i] + involute(a0_) - involute(alpha_a))
             if s_a <= 0:

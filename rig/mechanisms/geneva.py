@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rig.mechanisms.checks import whole
+from rig.mechanisms.checks import finite, finite_array, positive, whole
 
 
 class GenevaMotion(NamedTuple):
@@ -42,8 +42,10 @@ class Geneva:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "slots", whole(self.slots, 3, "Geneva slots (a wheel with fewer cannot index)"))
-        if not self.centre_distance > 0:
-            raise ValueError(f"Geneva centre_distance must be positive, got {self.centre_distance!r} m")
+        L = finite(self.centre_distance, "Geneva centre_distance")
+        L = positive(L, "Geneva centre_distance", "m", at_most=5.0,
+                     hint=f"it is in metres: did you mean {L:g} mm = {L * 1e-3:g} m?")
+        object.__setattr__(self, "centre_distance", L)
 
     @property
     def crank_radius(self) -> float:
@@ -57,8 +59,10 @@ class Geneva:
 
     def kinematics(self, phi1: np.ndarray | float, omega1: float = 1.0) -> GenevaMotion:
         """Wheel motion at crank angles ``phi1`` (rad, 0 = centre line) for crank speed ``omega1`` (rad/s)."""
+        finite(omega1, "Geneva omega1 (rad/s)")
+        phi1 = finite_array(phi1, "Geneva crank angles phi1 (rad)")
         lam = sin(pi / self.slots)
-        phi = np.angle(np.exp(1j * np.asarray(phi1, dtype=float)))     # in (−π, π]
+        phi = np.angle(np.exp(1j * phi1))     # in (−π, π]
         engaged = np.abs(phi) <= self.engagement_half_angle
         c = np.cos(phi)
         den = 1.0 - 2 * lam * c + lam * lam
@@ -71,8 +75,7 @@ class Geneva:
 
     def timing(self, crank_speed: float) -> GenevaTiming:
         """Motion and dwell times of one crank turn at ``crank_speed`` (rad/s)."""
-        if not crank_speed > 0:
-            raise ValueError(f"Geneva crank_speed must be positive (rad/s), got {crank_speed!r}")
+        positive(crank_speed, "Geneva crank_speed", "rad/s")
         period = tau / crank_speed
         motion = 2 * self.engagement_half_angle / crank_speed
         return GenevaTiming(motion, period - motion, period, motion / period, (period - motion) / period)

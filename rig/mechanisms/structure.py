@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from numbers import Integral
 
-from rig.mechanisms.checks import whole
+from rig.mechanisms.checks import finite, whole
 
 
 def mobility(n: int, c5: int, c4: int, passive: int = 0, redundant: int = 0) -> int:
@@ -27,8 +27,12 @@ def willis(n1: float | None, n3: float | None, carrier: float | None, ratio: flo
     given = {k: v for k, v in (("n1", n1), ("n3", n3), ("carrier", carrier)) if v is not None}
     if len(given) != 2:
         raise ValueError(f"willis: give exactly two of n1, n3, carrier, got {sorted(given) or 'none'}")
+    for name, v in (("ratio i0", ratio), *given.items()):
+        finite(v, f"willis {name}")
     if ratio == 1:
         raise ValueError("willis: i0 = 1 locks the train (every member turns with the carrier)")
+    if ratio == 0:
+        raise ValueError("willis: i0 = 0 is no gear train (member 1 could not turn with the carrier held)")
     if n1 is None:
         n1 = carrier + ratio * (n3 - carrier)
     elif n3 is None:

@@ -7,10 +7,22 @@ array. Undefined values are listed in each message's ``nulls`` (rig.recorder.enc
 from __future__ import annotations
 
 import json
+import re
 from typing import Iterable
 
 from drivers.can.host import PROCESS_VALUES
 from rig.recorder.encoding import NULLS
+
+
+def snake(name: str) -> str:
+    """A DBC name in snake case: ``BrakeForce`` → ``brake_force``, ``Encoder1`` → ``encoder1``."""
+    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()
+
+
+def stand_topic(message: str) -> str:
+    """The recording topic of a CAN reading message: ``/stand/`` and its name in snake case; its columns are the
+    message's signals in snake case."""
+    return f"/stand/{snake(message)}"
 
 TRUTH = "/plant/truth"
 CAN_RAW = "/can/raw"

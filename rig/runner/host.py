@@ -5,7 +5,6 @@ hardware. The "theoretical curve" comes from its own plant model built from the 
 """
 from __future__ import annotations
 
-import re
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,7 @@ from firmware_sim.digiforce.program import default_program, merge, validate_prog
 from rig.analysis.units import display_units
 from rig.blockbus import RX, FrameBlock
 from rig.recorder import Recorder
+from rig.recorder.schemas import snake, stand_topic
 from rig.runner.config import RunConfig
 from rig.runner.plants import make_plant
 from rig.runner.reasons import ResultExplainer
@@ -37,16 +37,6 @@ def encoder_resolution(spec: Any) -> float:
     table = tomllib.loads(path.read_text(encoding="utf-8"))["transducer"]
     ppr = float(spec.overrides.get("ppr", table["ppr"]))
     return counts_to_angle(1, int(ppr), int(float(spec.overrides.get("multiplier", table.get("multiplier", 4)))))
-
-
-def snake(name: str) -> str:
-    """A DBC name in snake case: ``BrakeForce`` → ``brake_force``, ``Encoder1`` → ``encoder1``."""
-    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()
-
-
-def stand_topic(message: str) -> str:
-    """The recording topic of a CAN reading message: ``/stand/`` and its name in snake case."""
-    return f"/stand/{snake(message)}"
 
 
 THEORY_BLOCK = 0.5        # s of theory computed per plant call (on a fixed grid: the same calls in every run)

@@ -229,3 +229,14 @@ def test_bench_output_acceleration_is_the_derivative_of_its_speed(kind, mechanis
     smooth = np.ones(t.size, bool) if kind == "cardan" else \
         np.abs(np.gradient(fd, t)) < 1e3 * scale               # Geneva: not at the pin's entry and exit kinks
     assert np.max(np.abs(fd - truth["alpha_out"])[inner][smooth[inner]]) < 1e-4 * scale
+
+
+def test_reading_columns_name_their_units_from_the_dbc(speed, tmp_path):
+    """Every quantity column of an exported /stand/ topic names its unit (the DBC signal's, in the display unit):
+    the tachogenerator and the displays read rad/s shown in rpm, the pulse count is a bare number."""
+    from rig.analysis.export import export_series
+    rec, _ = speed
+    for topic, header in (("/stand/lab_speed", "t [s],pulses,tacho [rpm]"),
+                          ("/stand/lab_display", "t [s],tachometer [rpm],strobe [rpm]")):
+        path = export_series(rec.series[topic], tmp_path / "x.csv")
+        assert path.read_text(encoding="utf-8").splitlines()[0] == header

@@ -236,3 +236,11 @@ def test_cam_design_refuses_a_scene_without_a_cam():
     from rig.scene import SceneError
     with pytest.raises(SceneError, match="rig cam-design needs plant \"cam_bar\".*clutch_stop.toml is a 'clutch"):
         cam_bar_from_scene("data/scenes/clutch_stop.toml", "rig cam-design")
+
+
+@pytest.mark.parametrize("value", ["-5", "0", "nan"])
+def test_cam_design_refuses_an_allowed_stress_that_is_not_positive(value, tmp_path, capsys):
+    from rig.cli import main
+    assert main(["-q", "cam-design", "--sigma-allow", value, "-o", str(tmp_path / "c.png")]) == 2
+    assert "--sigma-allow must be a positive permissible Hertz stress in MPa" in capsys.readouterr().err
+    assert not (tmp_path / "c.png").exists()

@@ -2,6 +2,7 @@
 double-Cardan cancellation, Geneva timing and kinematics, gear geometry consistency, mobility, Willis."""
 from __future__ import annotations
 
+import re
 from math import cos, degrees, pi, radians, tan
 
 import numpy as np
@@ -180,3 +181,29 @@ def test_belt_ratchet_and_friction_wheels():
         Ratchet(-1.0, 0.1)
     with pytest.raises(ValueError, match="Ratchet mu must not be negative"):
         Ratchet(0.3, -1.0)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: SpurGearPair(80, 80, 0.002, -3.2, 0).geometry(), "gear 1 (80 teeth, x = -3.2) has its tip circle"),
+    (lambda: SpurGearPair(100, 100, 0.002, -3, -3).geometry(), "leave no working pressure angle"),
+    (lambda: SpurGearPair(20, 40, 0.002, float("nan"), 0), "SpurGearPair x1 must be a finite number"),
+    (lambda: willis(1, None, 0, 0), "i0 = 0 is no gear train"),
+    (lambda: willis(1, float("inf"), None, -4), "willis n3 must be a finite number"),
+    (lambda: Geneva(5, 0.05).timing(float("inf")), "Geneva crank_speed must be a finite number"),
+    (lambda: Geneva(5, 50), "did you mean 50 mm = 0.05 m"),
+    (lambda: Belt(0.3, 180), "did you mean 180° = 3.142 rad"),
+    (lambda: FrictionWheels(0.1, 0.2, 0.3).pressing_force(-10), "tangential force F_t must not be negative"),
+    (lambda: Cardan(0.5).output_angle(float("inf")), "Cardan phi1 (rad) must be finite"),
+    (lambda: Geneva(5, 0.05).kinematics(0.1, float("nan")), "Geneva omega1 (rad/s) must be a finite number"),
+])
+def test_impossible_or_mistyped_input_is_named(make, message):
+    """Geometry that cannot exist, a value in the wrong unit or not a finite number: a ValueError saying which
+    (never scipy's or math's own words, a division by zero or a silent NaN)."""
+    with pytest.raises(ValueError, match=re.escape(message)):
+        make()
+
+
+def test_a_gear_shifted_below_its_reference_circle_is_still_a_gear():
+    """x = −2.5 on 100 teeth: the reference-circle thickness is negative (a formal value), the tooth is real."""
+    g = SpurGearPair(100, 100, 0.002, -2.5, 0).geometry()
+    assert g.tooth_thickness[0] < 0 < g.tip_diameters[0] - g.base_diameters[0] and g.contact_ratio > 1
