@@ -12,6 +12,7 @@ from math import atan, cos, sin, sqrt, tan
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
+from rig.mechanisms.checks import finite
 from rig.motion.laws import MotionLaw
 
 GRID = 4001
@@ -102,7 +103,7 @@ class SizeModel:
 
     def __init__(self, law: MotionLaw, big_phi: float, mu: float, load: float = 0.0):
         _check(1.0, big_phi, 0.5)   # validates Φ (h and α are not parameters of the model)
-        if mu < 0.0:
+        if not finite(mu, "friction coefficient μ") >= 0.0:
             raise ValueError(f"friction coefficient μ must not be negative, got {mu!r}")
         if not 0.0 <= load < 1.0:
             raise ValueError(f"load coefficient Φ_L = Q/F must lie in [0, 1), got {load!r}")
