@@ -46,7 +46,7 @@ class Style:
 
 def _label(ax: Axes, text: str, where: tuple[float, float], color: str, style: Style, **kw: Any) -> None:
     bold = {"fontweight": "bold", "bbox": dict(boxstyle="round,pad=0.15", fc="white", ec=FAILED, lw=0.8, alpha=0.9)} \
-        if style.failed is not None else {}
+        if style.failed is not None else {"bbox": dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.75)}
     ax.annotate(text, where, fontsize=7 if style.failed is None else 7.5, color=color, textcoords="offset points",
                 **(dict(xytext=(2, 2)) | kw | bold))
 
