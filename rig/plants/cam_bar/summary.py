@@ -55,14 +55,14 @@ def plot_cycle(mech: PinInsertionMechanism, omega: float, path: str | Path) -> P
     deg = np.degrees(phi)
     fig, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9))
     for ax, y, label in zip(axes, (st.s * 1e3, np.degrees(st.psi), ks.R23n, ks.M_sigma),
-                            ("s (mm)", "ψ (°)", "R23 (N)", "M_Σ (N·m)")):
-        ax.plot(deg, y, label=label.split(" (")[0] + (" (with the spring)" if ax is axes[3] else ""))
+                            ("s (mm)", "ψ (°)", "R23 (N)", "moment (N·m)")):
+        ax.plot(deg, y, label="M_Σ (with the spring)" if ax is axes[3] else label.split(" (")[0])
         ax.set_ylabel(label)
         ax.grid(True)
     axes[2].axhline(0.0, color="k", lw=0.8)
     axes[3].plot(deg, ks.M23, "--", label="M23 (without the spring)")
     axes[3].axhline(0.0, color="k", lw=0.8)
-    axes[3].legend()
+    axes[3].legend(loc="upper left", bbox_to_anchor=(0.0, -0.28), ncol=2, frameon=False)   # below: no curve hidden
     axes[-1].set_xlabel("cam angle φ (°)")
     fig.suptitle(f"pin-insertion mechanism, {omega / RPM:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm")
     return write_tight(fig, path)
