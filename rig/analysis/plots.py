@@ -399,14 +399,19 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
                  ) -> tuple[Path, list[list[str]], list[str]]:
     """Plant truth signals over time, one axis per display unit (and per scale, :func:`truth_groups`),
     stacked with a common time axis; ``window``: the time range shown (s). A signal constant over the window gets
-    no axis. Returns the chart, the signals of each axis top to bottom, and the constants as ``name = value unit``."""
+    no axis, nor does one equal to an earlier signal of its unit. Returns the chart, the signals of each axis top to
+    bottom, and what was not drawn (``name = value unit``, ``name equals other``)."""
     t = data["t"]
     keep = slice(None) if window is None else (t >= window[0]) & (t <= window[1])
     shown = {n: np.asarray(data[n])[keep] for n in names}
     tt = t[keep]
     constant = [n for n in names if shown[n].size and np.ptp(shown[n]) <= 1e-12 * max(1.0, float(np.abs(shown[n]).max()))]
     constants = [f"{n} = {units.signal(n).text(float(shown[n][0]))}" for n in constant]
-    groups = truth_groups(shown, [n for n in names if n not in constant], units) or truth_groups(shown, names, units)
+    same = {n: next(m for m in names if units.signal(m).si == units.signal(n).si and np.array_equal(shown[m], shown[n]))
+            for n in names}                        # a signal equal to an earlier one of its unit is drawn once, as it
+    constants += [f"{n} equals {m}" for n, m in same.items() if m != n and n not in constant]
+    drawn = [n for n in names if n not in constant and same[n] == n]
+    groups = truth_groups(shown, drawn, units) or truth_groups(shown, names, units)
     fig, axs = figure(len(groups), 1, size=(10.8, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
     for ax, (u, quantity, members) in zip(axs[:, 0], groups):
         for n in members:

@@ -550,7 +550,7 @@ def truth(ctx: ReportContext) -> list[Block]:
     window, span = _truth_window(ctx.recording, data["t"])
     path, panels, constants = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window)
     axes = " | ".join(", ".join(members) for members in panels)
-    constant = f"; constant over it, so not drawn: {', '.join(constants)}" if constants else ""
+    constant = f"; not drawn (constant over it, or equal to a drawn signal): {', '.join(constants)}" if constants else ""
     return [Heading("Plant truth"),
             ctx.figure(path, f"Plant truth over {span}, one axis per unit (split where ranges differ more than "
                              f"{plots.SCALE_SPLIT:g}×), top to bottom: {axes}{constant}")]
