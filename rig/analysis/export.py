@@ -18,7 +18,6 @@ from rig.analysis.sets import missing_values, process_values
 from rig.analysis.units import DisplayUnits, Unit, unit
 from rig.recorder import CurveRecord
 
-DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
 
 NO_REASON = "NOK: the device named no failing element"
 
@@ -119,6 +118,7 @@ def dbc_units() -> dict[str, str]:
     """SI unit of every device signal of the DBC by its column name (snake case; "1" for a count): the unit of a
     reading message's column on its ``/stand/`` topic."""
     import cantools
+    from drivers.can.host import DBC_PATH
     from rig.recorder.schemas import snake
     db = cantools.database.load_file(str(DBC_PATH))
     return {snake(s.name): s.unit or "1" for m in db.messages if "DEVICE" in m.senders for s in m.signals}

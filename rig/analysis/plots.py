@@ -406,10 +406,10 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
     shown = {n: np.asarray(data[n])[keep] for n in names}
     tt = t[keep]
     constant = [n for n in names if shown[n].size and np.ptp(shown[n]) <= 1e-12 * max(1.0, float(np.abs(shown[n]).max()))]
-    constants = [f"{n} = {units.signal(n).text(float(shown[n][0]))}" for n in constant]
+    undrawn = [f"{n} = {units.signal(n).text(float(shown[n][0]))}" for n in constant]
     same = {n: next(m for m in names if units.signal(m).si == units.signal(n).si and np.array_equal(shown[m], shown[n]))
             for n in names}                        # a signal equal to an earlier one of its unit is drawn once, as it
-    constants += [f"{n} equals {m}" for n, m in same.items() if m != n and n not in constant]
+    undrawn += [f"{n} equals {m}" for n, m in same.items() if m != n and n not in constant]
     drawn = [n for n in names if n not in constant and same[n] == n]
     groups = truth_groups(shown, drawn, units) or truth_groups(shown, names, units)
     fig, axs = figure(len(groups), 1, size=(10.8, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
@@ -430,7 +430,7 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
     axs[-1, 0].xaxis.set_major_locator(MaxNLocator(8))
     axs[0, 0].set_title(title, loc="left", fontsize=10)
     path = save(fig, path, hspace=0.12, left=1.0, right=2.8)      # legends beside the axes: no data hidden
-    return path, [members for _, _, members in groups], constants
+    return path, [members for _, _, members in groups], undrawn
 
 
 def _f(v: float | None, digits: int = 3) -> str:

@@ -185,11 +185,16 @@ def _normal_cell(v: dict) -> str:
         return "—"
     if test["normal"]:
         return "yes"
-    alpha = test.get("alpha", 0.05)
-    failed = [f"{name} p {_num(p, 2) if not isinstance(cell, str) else cell}" for name, p, cell in (
-        ("Shapiro", test.get("shapiro_p"), None), ("A–D", test.get("anderson_p"), _anderson_cell(test.get("anderson_p"))))
-        if p is not None and p < alpha]
+    alpha, shapiro, anderson = test.get("alpha", 0.05), test.get("shapiro_p"), test.get("anderson_p")
+    failed = [f"{name} p {cell}" for name, p, cell in (("Shapiro", shapiro, _num(shapiro, 2)),
+                                                        ("A–D", anderson, _fmt_p(_anderson_cell(anderson))))
+              if p is not None and p < alpha]
     return f"no ({', '.join(failed)})" if failed else "no"
+
+
+def _fmt_p(p: Any) -> str:
+    """A p-value, or the bound ("≤ 0.01") a table gives instead of one."""
+    return p if isinstance(p, str) else _num(p, 2)
 
 
 def _normality_caveat(values: dict) -> str | None:
@@ -548,9 +553,9 @@ def truth(ctx: ReportContext) -> list[Block]:
     if "cam_angle" in names and "phi" in names:
         names.remove("phi")            # the unwrapped angle: a ramp that squeezes the wrapped one flat
     window, span = _truth_window(ctx.recording, data["t"])
-    path, panels, constants = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window)
+    path, panels, undrawn = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window)
     axes = " | ".join(", ".join(members) for members in panels)
-    constant = f"; not drawn (constant over it, or equal to a drawn signal): {', '.join(constants)}" if constants else ""
+    constant = f"; not drawn (constant over it, or equal to a drawn signal): {', '.join(undrawn)}" if undrawn else ""
     return [Heading("Plant truth"),
             ctx.figure(path, f"Plant truth over {span}, one axis per unit (split where ranges differ more than "
                              f"{plots.SCALE_SPLIT:g}×), top to bottom: {axes}{constant}")]

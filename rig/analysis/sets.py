@@ -127,11 +127,11 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
                         f"statistics and capability are indicative only")
     values = {}
     table = process_values(results)
-    unequal = counts_warning({name: int(np.count_nonzero(np.isfinite(v))) for name, v in table.items()})
+    finite_n = {name: int(np.count_nonzero(np.isfinite(v))) for name, v in table.items()}
+    unequal = counts_warning(finite_n)
     if unequal:
         warnings.append(unequal)
-    few = {name: int(np.count_nonzero(np.isfinite(v))) for name, v in table.items()
-           if np.count_nonzero(np.isfinite(v)) < 3}
+    few = {name: n for name, n in finite_n.items() if n < 3}
     if few:
         counts = sorted(set(few.values()))
         warnings.append(f"no statistics of {'every process value' if len(few) == len(table) else ', '.join(few)}: "

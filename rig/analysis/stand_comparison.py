@@ -16,7 +16,7 @@ import csv
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from rig.analysis.clutch_metrics import Metric, Stimulus
 from rig.analysis.report import Block, Heading, Link, ReportContext, Table, Text, register_section
@@ -96,15 +96,46 @@ def _split(text: str, where: str) -> tuple[float, str, str]:
     raise SceneError(f"{where}: unit {unit!r} of {text!r} is not a torque, time, angle, speed, energy or count")
 
 
-def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> list[Row]:
-    """The rows of ``scene`` with the rig's values from the run's ``metrics`` (stimuli: for ``time_after``)."""
-    by_name = {m.name: m for m in metrics}
-    starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}
-    rows = []
+@dataclass(frozen=True)
+class Thesis:
+    """One [[comparison]] row read: its spec, the thesis number and unit as written, the SI unit, and ``scale`` (SI
+    per written unit); ``where`` names the row in errors."""
+
+    spec: dict[str, Any]
+    number: float
+    unit: str
+    si: str
+    scale: float
+    where: str
+
+    @property
+    def si_value(self) -> float:
+        return self.number * self.scale
+
+
+def _theses(scene: Scene) -> list[Thesis]:
+    """The scene's [[comparison]] rows with their thesis values read."""
+    out = []
     for spec in read_rows(scene):
         where = f"{scene.path} [[comparison]] {spec['quantity']!r}"
         number, unit, si = _split(spec["thesis"], where)
-        scale = to_si(f"1 {unit}", si) if unit else 1.0
+        out.append(Thesis(spec, number, unit, si, to_si(f"1 {unit}", si) if unit else 1.0, where))
+    return out
+
+
+def _origins(stimuli: list[Stimulus]) -> Callable[[str], float]:
+    """Time (s) of the stimulus a result named ``"<stimulus>: …"`` is measured from (0: the run's start)."""
+    starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}
+    return lambda rig: next((t for label, t in starts.items() if rig.startswith(label + ":")), 0.0)
+
+
+def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> list[Row]:
+    """The rows of ``scene`` with the rig's values from the run's ``metrics`` (stimuli: for ``time_after``)."""
+    by_name = {m.name: m for m in metrics}
+    origin_of = _origins(stimuli)
+    rows = []
+    for th in _theses(scene):
+        spec, number, unit, si, scale, where = th.spec, th.number, th.unit, th.si, th.scale, th.where
         metric, value, why = by_name.get(spec["rig"]), None, ""
         if metric is None:
             why = f"no result {spec['rig']!r} in this run"
@@ -119,8 +150,7 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
         elif metric.at is None:
             why = f"{spec['rig']!r} has no time"
         else:
-            origin = next((t for label, t in starts.items() if spec["rig"].startswith(label + ":")), 0.0)
-            value = (metric.at - (origin if spec["part"] == "time_after" else 0.0)) / scale
+            value = (metric.at - (origin_of(spec["rig"]) if spec["part"] == "time_after" else 0.0)) / scale
         agrees = None if value is None else _agrees(spec["tolerance"], number, unit, si, scale, value, where)
         tolerance = str(spec["tolerance"]).strip() if spec["tolerance"] is not None else "" if unit else "exact"
         rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"], agrees,
@@ -143,30 +173,22 @@ def thesis_marks(scene: Scene, stimuli: list[Stimulus]) -> list[Mark]:
     """The scene's thesis values that have a place on the torque–time chart: a torque with its time (two rows of one
     rig result: value and time) as a point, a torque alone as a level, a time or a duration after its stimulus as a
     vertical line."""
-    starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}
-    rows = read_rows(scene)
-    si_values = {}
-    for spec in rows:
-        number, unit, si = _split(spec["thesis"], f"{scene.path} [[comparison]] {spec['quantity']!r}")
-        si_values[id(spec)] = (number * (to_si(f"1 {unit}", si) if unit else 1.0), si)
-    origin = {spec["rig"]: next((t for label, t in starts.items() if spec["rig"].startswith(label + ":")), 0.0)
-              for spec in rows}
-    when = {spec["rig"]: si_values[id(spec)][0] + (origin[spec["rig"]] if spec["part"] == "time_after" else 0.0)
-            for spec in rows if spec["part"] != "value"}
-    when_text = {spec["rig"]: spec["thesis"] for spec in rows if spec["part"] != "value"}
+    origin_of = _origins(stimuli)
+    theses = _theses(scene)
+    when = {th.spec["rig"]: (th.si_value + (origin_of(th.spec["rig"]) if th.spec["part"] == "time_after" else 0.0),
+                             th.spec["thesis"]) for th in theses if th.spec["part"] != "value"}
+    torques = {th.spec["rig"] for th in theses if th.spec["part"] == "value" and th.si == "N*m"}
     marks = []
-    for spec in rows:
-        value, si = si_values[id(spec)]
-        label = f"thesis: {spec['quantity']} {spec['thesis']}".replace("*", "·")
-        if spec["part"] == "value" and si == "N*m":
-            t = when.get(spec["rig"])
-            marks.append(Mark("point", f"{label} at {when_text[spec['rig']]}", t, value) if t is not None
-                         else Mark("level", label, torque=value))
-        elif spec["part"] == "value" and si == "s":          # a duration from the result's stimulus
-            marks.append(Mark("time", label, origin[spec["rig"]] + value))
-        elif spec["part"] != "value" and not any(r["rig"] == spec["rig"] and r["part"] == "value" and
-                                                 si_values[id(r)][1] == "N*m" for r in rows):
-            marks.append(Mark("time", label, when[spec["rig"]]))
+    for th in theses:
+        rig, part = th.spec["rig"], th.spec["part"]
+        label = f"thesis: {th.spec['quantity']} {th.spec['thesis']}".replace("*", "·")
+        if part == "value" and th.si == "N*m":
+            marks.append(Mark("point", f"{label} at {when[rig][1]}", when[rig][0], th.si_value) if rig in when
+                         else Mark("level", label, torque=th.si_value))
+        elif part == "value" and th.si == "s":             # a duration from the result's stimulus
+            marks.append(Mark("time", label, origin_of(rig) + th.si_value))
+        elif part != "value" and rig not in torques:       # a time without its torque
+            marks.append(Mark("time", label, when[rig][0]))
     return marks
 
 

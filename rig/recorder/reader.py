@@ -205,22 +205,31 @@ def _metadata_number(rec: Recording, name: str, key: str, default: str, kind: ty
 MCAP_MAGIC = b"\x89MCAP0\r\n"     # every MCAP file's first 8 bytes (and a complete one's last 8)
 
 
+def _front(path: Path, f: Any) -> int:
+    """The size of the open recording ``f``, after checking it is not empty and starts as an MCAP file does."""
+    size = os.fstat(f.fileno()).st_size
+    if size == 0:
+        raise RecordingError(f"{path}: empty file (0 bytes), not a recording")
+    if not MCAP_MAGIC.startswith(f.read(len(MCAP_MAGIC))):
+        raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)")
+    return size
+
+
+def _unreadable(path: Path, exc: OSError) -> RecordingError:
+    return RecordingError(f"cannot read recording {path}: {(exc.strerror or str(exc)).lower()}")
+
+
 def require_whole_file(path: str | Path, need: str) -> None:
     """A :class:`RecordingError` in plain words unless ``path`` is a whole MCAP file (its magic at both ends):
     missing, empty, not MCAP, or cut short (a killed run or a cut copy) — ``need``: what the caller needs it for."""
     path = Path(path)
     try:
         with open(path, "rb") as f:
-            size = os.fstat(f.fileno()).st_size
-            head = f.read(len(MCAP_MAGIC))
+            size = _front(path, f)
             f.seek(max(0, size - len(MCAP_MAGIC)))
             tail = f.read()
     except OSError as exc:
-        raise RecordingError(f"cannot read recording {path}: {(exc.strerror or str(exc)).lower()}") from None
-    if size == 0:
-        raise RecordingError(f"{path}: empty file (0 bytes), not a recording")
-    if not MCAP_MAGIC.startswith(head[:len(MCAP_MAGIC)]):
-        raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)")
+        raise _unreadable(path, exc) from None
     if size < 2 * len(MCAP_MAGIC) or tail != MCAP_MAGIC:
         raise RecordingError(f"{path}: truncated recording (it does not end with MCAP's closing magic: a killed run "
                              f"or a cut copy); {need} needs a whole file — `rig report --partial {path}` reports "
@@ -243,12 +252,7 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     at_end = False                          # a failure came from reading past the end (a cut, not damage)
     try:
         with open(path, "rb") as f:
-            size = os.fstat(f.fileno()).st_size
-            head = f.read(len(MCAP_MAGIC))
-            if size == 0:
-                raise RecordingError(f"{path}: empty file (0 bytes), not a recording")
-            if not MCAP_MAGIC.startswith(head):
-                raise InvalidMagic(head)
+            size = _front(path, f)
             f.seek(0)
             data_end = False
             try:
@@ -261,7 +265,7 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
             finally:
                 at_end = f.tell() >= size
     except OSError as exc:
-        raise RecordingError(f"cannot read recording {path}: {(exc.strerror or str(exc)).lower()}") from None
+        raise _unreadable(path, exc) from None
     except InvalidMagic:
         raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)") from None
     except RecordingError:

@@ -86,11 +86,17 @@ def bus_plan(cfg: RunConfig, node: CanNode) -> dict[str, float]:
     return plan
 
 
-def check_wiring(cfg: RunConfig) -> None:
-    """Check, before anything runs or is written, that every transducer reads a signal the plant has (a probe of the
-    nominal plant advanced by one sample) and that the periodic frames fit the bus (:func:`bus_plan`)."""
+def probe_signals(cfg: RunConfig) -> None:
+    """:func:`check_signals` on a probe: the nominal plant advanced by one sample (the varied plant has the same
+    signals)."""
     probe = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)
     check_signals(cfg, probe.advance(cfg.sample_times(0, 1)))
+
+
+def check_wiring(cfg: RunConfig) -> None:
+    """Check, before anything runs or is written, that every transducer reads a signal the plant has
+    (:func:`probe_signals`) and that the periodic frames fit the bus (:func:`bus_plan`)."""
+    probe_signals(cfg)
     bus_plan(cfg, _node(cfg, None, None))
 
 
@@ -99,7 +105,7 @@ class Machine:
 
     def __init__(self, cfg: RunConfig, bus: can.BusABC) -> None:
         self.cfg = cfg
-        check_wiring(cfg)
+        probe_signals(cfg)             # before a recorder opens: the bus plan follows on this machine's own node
         self.plant = make_plant(cfg.plant, cfg.scene, fidelity=cfg.fidelity)
         self.transducers, self.device = instruments(cfg)
         for spec in cfg.transducers:
@@ -144,7 +150,6 @@ class Machine:
         self._step_index += 1
         truth = self.plant.advance(t)
         output = {}
-        check_signals(self.cfg, truth)
         for spec in self.cfg.transducers:
             sensor = self.transducers[spec.name]
             read = sensor.sample if hasattr(sensor, "sample") else sensor.measure
