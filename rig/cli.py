@@ -210,12 +210,10 @@ def cmd_record(args: argparse.Namespace) -> int:
             raise UsageError(f"{args.endpoints}: the served machine runs {served['scene']} at fidelity L"
                              f"{served['fidelity']}, this host would record L{level}: give the same --fidelity to "
                              "both")
-        args.can_host, args.can_port = served["can"]["host"], args.can_port or served["can"]["port"]
-        args.can_channel = args.can_channel or served["can"]["channel"]
-        args.serial = args.serial or served["serial"]
+        _connect_as_served(args, served)
     elif args.can_port is None:
         raise UsageError("rig record needs --endpoints FILE (written by `rig serve --endpoints`) or --can-port")
-    summary = record_scene(args.scene, args.output, can_host=args.can_host, can_port=args.can_port,
+    summary = record_scene(args.scene, args.output, can_host=args.can_host or "127.0.0.1", can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet, fidelity=args.fidelity)
     print(f"{_done('recorded', summary.curves)}, {summary.simulated_time:.2f} s simulated -> {summary.output}")
@@ -223,6 +221,14 @@ def cmd_record(args: argparse.Namespace) -> int:
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
     return 0
+
+
+def _connect_as_served(args: argparse.Namespace, served: dict[str, Any]) -> None:
+    """Where rig record connects: the endpoints' CAN server, channel and serial port, each unless given."""
+    args.can_host = args.can_host or served["can"]["host"]
+    args.can_port = args.can_port or served["can"]["port"]
+    args.can_channel = args.can_channel or served["can"]["channel"]
+    args.serial = args.serial or served["serial"]
 
 
 def _served(path: Path) -> dict[str, Any]:
@@ -419,9 +425,10 @@ def build_parser() -> argparse.ArgumentParser:
     rec = sub.add_parser("record", parents=[quiet], help="the host: connect to `rig serve` and record the run")
     rec.add_argument("scene")
     rec.add_argument("-o", "--output", required=True)
-    rec.add_argument("--can-host", default="127.0.0.1")
+    rec.add_argument("--can-host", help="the socketcand server's address (default: the endpoints', else 127.0.0.1)")
     rec.add_argument("--endpoints", metavar="FILE", help="the endpoints `rig serve --endpoints FILE` wrote: where to "
-                     "connect, checked to serve this scene at this fidelity (instead of --can-port/--serial)")
+                     "connect, checked to serve this scene at this fidelity (--can-host/--can-port/--can-channel/"
+                     "--serial given beside it override its entries)")
     rec.add_argument("--can-port", type=_port(1))
     rec.add_argument("--can-channel")
     rec.add_argument("--serial", help="serial port path or URL printed by `rig serve`")

@@ -224,3 +224,17 @@ def test_record_from_the_endpoints_file_refuses_another_scene(tmp_path: Path, se
         assert "at fidelity L1, this host would record L2" in capsys.readouterr().err
         assert main(["-q", "record", str(SCENE), "--endpoints", str(endpoints), "-o", str(out), "--cycles", "2"]) == 0
     assert len(read_recording(out).curves) == 2
+
+
+def test_connection_options_beside_the_endpoints_file_override_its_entries():
+    """`rig record --endpoints FILE --can-host H ...`: each option given wins over the file's entry, the rest
+    come from the file (the CAN host was once always taken from the file)."""
+    import argparse
+    from rig.cli import _connect_as_served
+    served = {"can": {"host": "127.0.0.1", "port": 29536, "channel": "can0"}, "serial": "/dev/pts/7"}
+    args = argparse.Namespace(can_host="10.0.0.2", can_port=None, can_channel=None, serial="/dev/pts/9")
+    _connect_as_served(args, served)
+    assert (args.can_host, args.can_port, args.can_channel, args.serial) == ("10.0.0.2", 29536, "can0", "/dev/pts/9")
+    args = argparse.Namespace(can_host=None, can_port=4000, can_channel="vcan1", serial=None)
+    _connect_as_served(args, served)
+    assert (args.can_host, args.can_port, args.can_channel, args.serial) == ("127.0.0.1", 4000, "vcan1", "/dev/pts/7")
