@@ -113,12 +113,8 @@ def _done(verb: str, curves: int) -> str:
 def _print_stand_summary(rec: Any) -> bool:
     """Console summary of a stand run (clutch dynamic stand or static rig, lab bench; no curves): its key results,
     each with what it is relative to. False (nothing printed) for other recordings."""
-    if rec.curves:
-        return False
-    from rig.analysis.clutch_report import summary_lines
-    from rig.analysis.lab_report import summary_lines as lab_lines
-    from rig.analysis.static_clutch_report import summary_lines as static_lines
-    lines = lab_lines(rec) or summary_lines(rec) or static_lines(rec)
+    from rig.analysis.stand_summary import stand_lines
+    lines = stand_lines(rec)
     if lines:
         print("\n".join(lines))
     return bool(lines)

@@ -3,7 +3,8 @@
 
 Recordings are grouped into tasks (about 8 per worker); each is read with :func:`rig.recorder.read_recording` and analysed with
 :func:`rig.analysis.analyse` on a worker; only a small summary comes back (verdict counts, event counts and,
-per program and process value, the moments of every curve's value in display units). The combined
+per program and process value, the moments of every curve's value in display units; for a stand or lab
+recording its console lines and, for a dynamic stand, its numeric key results as values ``stand.<name>``). The combined
 statistics over all recordings merge those moments (:class:`rig.analysis.streaming.Moments`, in the order
 the recordings were given).
 """
@@ -30,16 +31,20 @@ LISTED = 20  # recordings named per list in the report
 
 @dataclass
 class RecordingSummary:
-    """What one recording holds: verdict counts, process values {"p<program>.<name>": (Moments, display
-    unit)}, event counts, whether it is complete, and why it could not be read (``error``)."""
+    """What one recording holds: its scene and plant, verdict counts, process values {"p<program>.<name>":
+    (Moments, display unit)} (a dynamic stand's key results as "stand.<name>"), a stand's or lab's summary
+    lines, event counts, whether it is complete, and why it could not be read (``error``)."""
 
     path: str
+    scene: str = ""
+    plant: str = ""
     complete: bool = False
     curves: int = 0
     ok: int = 0
     nok: int = 0
     values: dict[str, tuple[Moments, str]] = field(default_factory=dict)
     events: dict[str, int] = field(default_factory=dict)
+    stand: list[str] = field(default_factory=list)
     error: str = ""
 
 
@@ -75,17 +80,21 @@ def _value_moments(rec: "Recording", units: dict) -> dict[str, tuple[Moments, st
 def summarise(path: Path) -> RecordingSummary:
     """Read and analyse one recording (a task)."""
     from rig.analysis import analyse
+    from rig.analysis.stand_summary import stand_lines, stand_values
     from rig.recorder import RecordingError, read_recording
     try:
         rec = read_recording(path)
         result = analyse(rec)
         values = _value_moments(rec, result["units"])
+        values.update({k: (Moments.of_block(np.array([[v]])), unit) for k, (v, unit) in stand_values(rec).items()})
+        stand = stand_lines(rec) or []
     except (RecordingError, OSError, ValueError) as exc:
         return RecordingSummary(str(path), error=" ".join(str(exc).split()))
     verdicts = result["verdicts"]
     ok = sum(1 for v in verdicts if v["ok"])
-    return RecordingSummary(str(path), rec.complete, len(verdicts), ok, len(verdicts) - ok, values,
-                            dict(result["events"]))
+    meta = rec.metadata.get("rig", {})
+    return RecordingSummary(str(path), str(meta.get("scene", "")), str(meta.get("plant", "")), rec.complete,
+                            len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]), stand)
 
 
 def summarise_all(paths: list[Path]) -> list[RecordingSummary]:
@@ -122,24 +131,26 @@ def _stats(m: Moments) -> tuple:
 
 
 def write_table(result: BatchResult, path: Path) -> Path:
-    """CSV, one row per recording: path, complete, curves, OK, NOK, error, then n/mean/std/min/max of every
-    process value any recording has (display units, in the header)."""
+    """CSV, one row per recording: path, scene, plant, complete, curves, OK, NOK, error, a stand's or lab's
+    summary lines (joined by " | "), then n/mean/std/min/max of every process value (and stand result) any
+    recording has (display units, in the header)."""
     keys = sorted({k for r in result.recordings for k in r.values})
     units = {k: u for k, (_, u) in result.combined.items()}
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         out = csv.writer(f)
-        out.writerow(["recording", "complete", "curves", "ok", "nok", "error"]
+        out.writerow(["recording", "scene", "plant", "complete", "curves", "ok", "nok", "error", "stand"]
                      + [f"{k} {s}" + (f" [{units[k]}]" if units.get(k) and s != "n" else "") for k in keys for s in STATS])
         for r in result.recordings:
-            out.writerow([r.path, r.complete, r.curves, r.ok, r.nok, r.error]
+            out.writerow([r.path, r.scene, r.plant, r.complete, r.curves, r.ok, r.nok, r.error,
+                          " | ".join(line.strip() for line in r.stand)]
                          + [x for k in keys for x in (_stats(r.values[k][0]) if k in r.values else [""] * 5)])
     return path
 
 
 def report_lines(result: BatchResult) -> list[str]:
-    """The combined report (Markdown): totals, process values over all recordings, recordings with NOK
-    curves, incomplete and unreadable ones."""
+    """The combined report (Markdown): totals, process values (and stand results) over all recordings, the
+    stand and lab recordings with their summaries, recordings with NOK curves, incomplete and unreadable ones."""
     recs = result.recordings
     read = [r for r in recs if not r.error]
     curves, nok = sum(r.curves for r in read), sum(r.nok for r in read)
@@ -147,12 +158,21 @@ def report_lines(result: BatchResult) -> list[str]:
              f"{len(read)} read, {len(recs) - len(read)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
              + (f" ({100 * nok / curves:.2f} %)" if curves else ""), ""]
     if result.combined:
-        lines += ["## Process values over all recordings", "",
+        stand = any(key.startswith("stand.") for key in result.combined)
+        lines += ["## Process values" + (" and stand results" if stand else "") + " over all recordings", "",
                   "| value | unit | n | mean | σ | min | max |", "|---|---|---|---|---|---|---|"]
         for key, (m, unit) in sorted(result.combined.items()):
             n, mean, std, lo, hi = _stats(m)
             lines.append(f"| {key} | {unit} | {n} | {mean:.6g} | {std if std == '' else f'{std:.4g}'} | {lo:.6g} | "
                          f"{hi:.6g} |")
+        lines.append("")
+    stands = [r for r in read if r.stand]
+    if stands:
+        lines += [f"## Stand and lab recordings ({len(stands)})", ""]
+        for r in stands[:LISTED]:
+            lines += [f"* {r.path}" + (f" (scene {r.scene})" if r.scene else "") + ":"]
+            lines += [f"  * {line.strip()}" for line in r.stand]
+        lines += [f"* … and {len(stands) - LISTED} more (the table has every one)"] if len(stands) > LISTED else []
         lines.append("")
     for title, chosen, what in (("Recordings with NOK curves", [r for r in read if r.nok], lambda r: f"{r.nok} NOK of {r.curves}"),
                                 ("Incomplete recordings", [r for r in read if not r.complete], lambda r: "incomplete"),

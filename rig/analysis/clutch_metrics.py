@@ -6,6 +6,7 @@ leading axes are independent traces. Units follow the inputs (SI: s, N*m, rad, J
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -202,6 +203,9 @@ class Stimulus:
     duration: float = 0.0
 
 
+FLAGS = {"required": 1.0, "not required": 0.0}     # word results read as numbers (Metric.number)
+
+
 @dataclass(frozen=True)
 class Metric:
     """One result: ``value`` in ``unit`` (None: not applicable), ``reference`` says what it is relative
@@ -212,6 +216,14 @@ class Metric:
     unit: str
     reference: str
     at: float | None = None     # s: when it happened (peaks, events), if that is part of the result
+
+    def number(self) -> float | None:
+        """The result as a number (in ``unit``): a numeric value; a count written with its times ("3, at …") as
+        the count; a shutdown flag as 1 ("required") or 0 ("not required"); None otherwise."""
+        if self.value is None or not isinstance(self.value, str):
+            return None if self.value is None else float(self.value)
+        head = re.match(r"\d+", self.value)
+        return float(head.group()) if head else FLAGS.get(self.value)
 
     def value_text(self) -> str:
         if self.value is None:

@@ -36,7 +36,6 @@ ROW_SCHEMA = {
                        "\"at least\" (default: a count exactly, else not judged)"),
 }
 BOUNDS = ("at most", "at least")
-FLAGS = {"required": 1.0, "not required": 0.0}     # string results compared as numbers
 SI = {"N·m": "N*m", "s": "s", "°": "deg", "%": "1", "rad/s": "rad/s", "J": "J", "": "1"}   # result units
 
 
@@ -140,11 +139,8 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
         if metric is None:
             why = f"no result {spec['rig']!r} in this run"
         elif spec["part"] == "value":
-            value = metric.value
-            if isinstance(value, str):                       # "3, at …": a count; shutdown "required": 1
-                head = re.match(r"\d+", value)
-                value = float(head.group()) if head else FLAGS.get(value)
-            elif value is not None:
+            value = metric.number()                          # a count "3, at …": 3; shutdown "required": 1
+            if value is not None and not isinstance(metric.value, str):
                 value = value * to_si(1.0, si, SI.get(metric.unit, metric.unit)) / scale
             why = "" if value is not None else metric.reference
         elif metric.at is None:

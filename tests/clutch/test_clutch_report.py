@@ -130,3 +130,30 @@ def test_stand_readings_are_exported_with_units(runs, tmp_path):
     rows = (tmp_path / "r" / "stand_torque.csv").read_text().splitlines()
     assert rows[0] == "t [s],torque [N*m]" and len(rows) - 1 == runs["clutch_startup"][1].series["/stand/torque"]["t"].size
     assert "<a href='004_truth.png'><img src='004_truth.png'" in html or "<a href='" in html.split("<figure>")[1]
+
+
+def test_rig_analyse_of_stand_recordings_merges_their_key_results(runs, tmp_path):
+    """`rig analyse` over stand recordings (no curves): each recording's scene, plant and console lines in the
+    table, its numeric key results (counts and the shutdown flag included) merged over the recordings."""
+    import csv
+    from rig.analysis.clutch_metrics import Metric
+    names = ("clutch_startup", "clutch_shock_short_985")
+    paths = [str(runs[n][1].path) for n in names]
+    out = tmp_path / "batch"
+    assert main(["-q", "analyse", *paths, "-o", str(out)]) == 0
+    rows = {r["scene"]: r for r in csv.DictReader((out / "recordings.csv").open())}
+    assert set(rows) == set(names) and {r["plant"] for r in rows.values()} == {"clutch_dynamic"}
+    for name in names:
+        metrics = {m.name: m for m in stand_results(runs[name][1])[1]}
+        row = rows[name]
+        assert "max torque" in row["stand"] and row["curves"] == "0"
+        assert float(row["stand.max_torque mean [N·m]"]) == pytest.approx(metrics["max torque"].value, rel=1e-12)
+        assert float(row["stand.disengagements mean"]) == float(metrics["disengagements"].value.split(",")[0])
+        assert float(row["stand.shutdown mean"]) == {"required": 1.0, "not required": 0.0}[metrics["shutdown"].value]
+    assert float(rows["clutch_shock_short_985"]["stand.disengagements mean"]) >= 1   # the shock slips
+    both = [float(rows[n]["stand.max_torque mean [N·m]"]) for n in names]
+    report = (out / "report.md").read_text()
+    line = next(x for x in report.splitlines() if x.startswith("| stand.max_torque |"))
+    assert line.split("|")[3].strip() == "2" and float(line.split("|")[6]) == pytest.approx(min(both), rel=1e-5)
+    assert "## Stand and lab recordings (2)" in report and "(scene clutch_startup):" in report
+    assert Metric("n", "3, at 0.1 s", "", "").number() == 3.0 and Metric("n", "abc", "", "").number() is None
