@@ -131,3 +131,40 @@ def test_b_min_closed_form_at_rise_start():
     n = ks.R15.y[0]
     assert ks.b_min[0] == pytest.approx(2 * mech.m5 * mech.g * mech.x_s5 / abs(n), rel=1e-3)
     assert np.isnan(mech.kinetostatics(np.array([0.5]), OMEGA).b_min[0])  # at rest in the lower dwell
+
+
+def test_a_self_locking_guide_is_named_at_its_first_angle():
+    """μ so high that no Coulomb state balances the rod somewhere: the vector call names the first such angle,
+    the one a scalar call per angle finds first (the compiled solve goes point by point)."""
+    from rig.plants.cam_bar import JammingError
+    mech = PinInsertionMechanism(mu=300.0)        # the rod lies nearly along the guide: only a huge μ locks it
+    phi = PHI[::8]
+    first = None
+    for p in phi:
+        try:
+            mech.kinetostatics(float(p), OMEGA)
+        except JammingError:
+            first = p
+            break
+    assert first is not None                                   # the premise: this guide does self-lock
+    with pytest.raises(JammingError, match=f"φ = {np.degrees(first):.4g}° \\(μ = 300\\)"):
+        mech.kinetostatics(phi, OMEGA)
+
+
+def test_a_contact_normal_through_the_follower_pivot_is_an_error_naming_the_angle():
+    """Cam pivot A0 at the follower pivot B0 and the follower at rest in φ (a dwell): the relative path's normal
+    passes through B0, so the cam has no lever to drive the follower — an error, not an infinite force."""
+    from rig.plants.cam_bar.kinetostatics import solve
+
+    class AtPivot:                       # the mechanism with its cam pivot moved onto the follower pivot
+        def __init__(self, mech):
+            self._mech, self.x_A0, self.y_A0 = mech, 0.0, 0.0
+
+        def __getattr__(self, name):
+            return getattr(self._mech, name)
+
+    mech = PinInsertionMechanism()
+    dwell = PHI[np.abs(mech.state(PHI, OMEGA).psi_p) == 0.0]
+    assert dwell.size                                          # the program has dwells
+    with pytest.raises(ValueError, match=f"cam cannot drive the follower at φ = {np.degrees(dwell[0]):.4g}°"):
+        solve(AtPivot(mech), mech.state(dwell, OMEGA), mech.k)
