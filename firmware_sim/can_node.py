@@ -178,6 +178,11 @@ class _TxQueue:
             self.transfer_time = 0.0
 
 
+def _filled(value: Any, n: int, dtype: Any) -> np.ndarray:
+    """``value`` (one value, or ``n`` of them) as a new array of ``n`` values of ``dtype``."""
+    return np.full(n, value, dtype) if np.ndim(value) == 0 else np.array(value, dtype).reshape(n)
+
+
 class CanNode:
     """DigiForce-style device on a python-can bus, with a bit budget in virtual time.
 
@@ -241,12 +246,12 @@ class CanNode:
         data[:, :payload.shape[1]] = payload
         rank = (self._priority(name) << 40) | (self._order + np.arange(n, dtype=np.int64))
         self._order += n
-        full = lambda v, dtype: np.broadcast_to(np.asarray(v, dtype), (n,)).copy()  # noqa: E731
-        self._queue.add(_Batch(np.asarray(ready, float).reshape(n), full(np.inf if expires is None else expires, float),
-                               rank, full(msg.frame_id, np.int64),
-                               full(self.timing.frame_time(msg.frame_id, bytes(msg.length), msg.is_fd), float),
-                               full(pairs, np.int64), full(transfer_end, bool), full(msg.is_fd, bool),
-                               full(msg.length, np.int16), data))
+        self._queue.add(_Batch(np.asarray(ready, float).reshape(n),
+                               _filled(np.inf if expires is None else expires, n, float), rank,
+                               _filled(msg.frame_id, n, np.int64),
+                               _filled(self.timing.frame_time(msg.frame_id, bytes(msg.length), msg.is_fd), n, float),
+                               _filled(pairs, n, np.int64), _filled(transfer_end, n, bool), _filled(msg.is_fd, n, bool),
+                               _filled(msg.length, n, np.int16), data))
 
     def _enqueue(self, name: str, signals: dict[str, Any], ready: float, transfer_end: bool = False) -> None:
         """Queue one frame encoded by cantools (Seq is filled in at transmission)."""

@@ -83,8 +83,8 @@ _ROWS = ("r34x", "r34y", "r54x", "r54y", "friction", "normal", "r23x", "r23y", "
 def _solve_points(omega, alpha, s_p, s_pp, psi_p, psi_pp, theta_p, theta_pp, cp, sp, ct, st, f_c, m_e, mu_, prm):
     """The free bodies of the module docstring at each point (1-D arrays; ``f_c`` insertion force, ``m_e`` spring
     moment, ``mu_`` guide friction coefficient). ``prm``: g, L3, l3, l4, a3, m3, m4, m5, J3, J4, x_A0, y_A0, cam
-    direction, sensor position ξ, x_s5, e5. Returns (rows :data:`_ROWS` × points, first jammed point, first point where the
-    contact normal passes through the follower pivot), −1 where there is none."""
+    direction, sensor position ξ, x_s5, e5. Returns (rows :data:`_ROWS` × points, first jammed point, first point
+    where the contact normal passes through the follower pivot), −1 where there is none."""
     g, L3, l3, l4, a3, m3, m4, m5, J3, J4, xa0, ya0, d, xi, x_s5, e5 = (
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9], prm[10], prm[11],
         prm[12], prm[13], prm[14], prm[15])
@@ -114,7 +114,7 @@ def _solve_points(omega, alpha, s_p, s_pp, psi_p, psi_pp, theta_p, theta_pp, cp,
         m4_moment = 0.5 * (dx * f4y - dy * f4x) - J4 * theta_dd
         # slider 5 + rod moment about C → R54 with Coulomb friction μ|N| (N = Y + m5 g): first N ≥ 0, else N < 0
         q = f_c[i] + m5 * s_dd  # F_c − m5·ẍ_D with ẍ_D = −s̈
-        sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0 * s_d   # −sign(ṡ): sign of ẋ_D (NaN kept)
+        sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0 * s_d     # −sign(ṡ): sign of ẋ_D (NaN kept)
         c = mu * sv
         y = (dy * (q - c * w5) - m4_moment) / (dx + c * dy)
         if y + w5 < 0.0 and c != 0.0:
