@@ -4,7 +4,8 @@
 Recordings are grouped into tasks (about 8 per worker); each is read with :func:`rig.recorder.read_recording` and analysed with
 :func:`rig.analysis.analyse` on a worker; only a small summary comes back (verdict counts, event counts and,
 per program and process value, the moments of every curve's value in display units; for a stand or lab
-recording its console lines and, for a dynamic stand, its numeric key results as values ``stand.<name>``). The combined
+recording its console lines and its numeric key results as values ``stand.<name>`` (dynamic clutch stand) or
+``lab.<sheet>.<name>`` (lab sheets)). The combined
 statistics over all recordings merge those moments (:class:`rig.analysis.streaming.Moments`, in the order
 the recordings were given).
 """
@@ -32,7 +33,7 @@ LISTED = 20  # recordings named per list in the report
 @dataclass
 class RecordingSummary:
     """What one recording holds: its scene and plant, verdict counts, process values {"p<program>.<name>":
-    (Moments, display unit)} (a dynamic stand's key results as "stand.<name>"), a stand's or lab's summary
+    (Moments, display unit)} (a stand's or lab's key results as "stand.<name>" / "lab.<sheet>.<name>"), its summary
     lines, event counts, whether it is complete, and why it could not be read (``error``)."""
 
     path: str
@@ -158,8 +159,10 @@ def report_lines(result: BatchResult) -> list[str]:
              f"{len(read)} read, {len(recs) - len(read)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
              + (f" ({100 * nok / curves:.2f} %)" if curves else ""), ""]
     if result.combined:
-        stand = any(key.startswith("stand.") for key in result.combined)
-        lines += ["## Process values" + (" and stand results" if stand else "") + " over all recordings", "",
+        kinds = [what for prefix, what in (("stand.", "stand"), ("lab.", "lab"))
+                 if any(key.startswith(prefix) for key in result.combined)]
+        lines += ["## Process values" + (f" and {' and '.join(kinds)} results" if kinds else "") + " over all recordings",
+                  "",
                   "| value | unit | n | mean | σ | min | max |", "|---|---|---|---|---|---|---|"]
         for key, (m, unit) in sorted(result.combined.items()):
             n, mean, std, lo, hi = _stats(m)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from typing import TYPE_CHECKING
 
+from rig.scene import SceneError
+
 if TYPE_CHECKING:
     from rig.recorder import Recording
 
@@ -21,12 +23,24 @@ def stand_lines(rec: "Recording") -> list[str] | None:
 
 
 def stand_values(rec: "Recording") -> dict[str, tuple[float, str]]:
-    """Key results of a dynamic-stand run as numbers (:meth:`Metric.number`: counts, shutdown 1/0),
-    ``{"stand.<name>": (value, unit)}`` with names in snake case (``stand.start_up_peak_torque``,
-    ``stand.final_speed_ω1``); empty for other recordings."""
-    from rig.analysis.clutch_report import stand_results
-    res = None if rec.curves else stand_results(rec)
-    if res is None:
+    """Key results of a stand or lab run as numbers, ``{key: (value, unit)}``: a dynamic stand's metrics as
+    ``stand.<name>`` (:meth:`Metric.number`: counts, shutdown 1/0; e.g. ``stand.start_up_peak_torque``), a lab
+    sheet's result numbers as ``lab.<sheet>.<name>`` (SI or ratios as the sheet keeps them, unit left empty; e.g.
+    ``lab.cardan_joint.ratio_max``); names in snake case. Empty for other recordings."""
+    if rec.curves:
         return {}
-    return {"stand." + re.sub(r"\W+", "_", m.name.lower()).strip("_"): (number, m.unit)
-            for m in res[1] if (number := m.number()) is not None}
+    from rig.analysis.clutch_report import stand_results
+    from rig.analysis.lab_report import lab_sheets
+    res = stand_results(rec)
+    if res is not None:
+        return {"stand." + _snake(m.name): (number, m.unit) for m in res[1] if (number := m.number()) is not None}
+    try:
+        sheets = lab_sheets(rec) or []
+    except (SceneError, ValueError):
+        return {}                                  # the lab's console line says why there is no sheet
+    return {f"lab.{_snake(sheet.title)}.{_snake(name)}": (float(v), "") for sheet in sheets
+            for name, v in sheet.values.items()}
+
+
+def _snake(name: str) -> str:
+    return re.sub(r"\W+", "_", name.lower()).strip("_")
