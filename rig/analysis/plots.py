@@ -91,14 +91,16 @@ def separate_labels(fig: Figure) -> None:
 
 def write_tight(fig: Figure, path: str | Path, dpi: int = 100, tight: bool = True) -> Path:
     """A stand-alone chart (not the report's fixed-margin layout): tight layout (unless the figure placed its axes
-    itself, ``tight=False``), parent directories made, PNG written, figure closed."""
-    import matplotlib.pyplot as plt
+    itself, ``tight=False``), parent directories made, PNG written, figure closed (a pyplot figure is released
+    by pyplot; a plain :class:`Figure` needs nothing)."""
     if tight:
         fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    if getattr(fig.canvas, "manager", None) is not None:
+        import matplotlib.pyplot as plt
+        plt.close(fig)
     return path
 
 

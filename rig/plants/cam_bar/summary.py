@@ -43,17 +43,13 @@ def summary_table(mech: PinInsertionMechanism, omega: float) -> str:
 
 def plot_cycle(mech: PinInsertionMechanism, omega: float, path: str | Path) -> Path:
     """PNG of s, ψ, R23 and M_Σ over one cam revolution at ``omega`` (rad/s); returns the path written."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from rig.analysis.plots import write_tight
+    from rig.analysis.plots import figure, write_tight
 
     phi = np.linspace(0.0, tau, 1441)
     st = mech.state(phi)
     ks = mech.kinetostatics(phi, omega)
     deg = np.degrees(phi)
-    fig, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9))
+    fig, axes = figure(4, 1, size=(8, 9), sharex=True)
     for ax, y, label in zip(axes, (st.s * 1e3, np.degrees(st.psi), ks.R23n, ks.M_sigma),
                             ("s (mm)", "ψ (°)", "R23 (N)", "moment (N·m)")):
         ax.plot(deg, y, label="M_Σ (with the spring)" if ax is axes[3] else label.split(" (")[0])
