@@ -20,6 +20,7 @@ dropped. Every pair not sent is counted (``LiveDropped`` in ``StatusCounters``; 
 from __future__ import annotations
 
 import binascii
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +35,12 @@ from firmware_sim.can_budget import BusTiming
 from rig.blockbus import BRS, FD, FrameBlock
 
 DBC_PATH = Path(__file__).resolve().parents[1] / "data" / "can" / "rig.dbc"
+
+
+@functools.lru_cache(maxsize=4)
+def load_dbc(path: str) -> cantools.database.Database:
+    """The DBC at ``path``, parsed once per process (read only: everything that uses it shares it)."""
+    return cantools.database.load_file(path)
 
 X_LSB = 1e-6                     # m per count of every X signal (20-bit signed)
 Y_LSB = 0.005                    # N per count of every Y / force signal (20-bit signed)
@@ -205,7 +212,7 @@ class CanNode:
             raise ValueError(f"tx_curves must be >= 1, got {tx_curves}")
         self.bus, self.device = bus, device
         self.timing = BusTiming(float(bitrate), fd, None if data_bitrate is None else float(data_bitrate))
-        self.db = cantools.database.load_file(str(dbc_path))
+        self.db = load_dbc(str(dbc_path))
         self._msg = {m.name: m for m in self.db.messages}
         for m in self.db.messages:
             if "DEVICE" in m.senders and not any(s.name == "Seq" and s.start == 0 and s.length == 8 for s in m.signals):

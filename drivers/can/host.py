@@ -16,6 +16,7 @@ received before it is lost and reception continues.
 """
 from __future__ import annotations
 
+import functools
 import itertools
 from collections import deque
 from dataclasses import dataclass, field
@@ -34,6 +35,12 @@ from drivers.can.timebase import unwrap
 from rig.blockbus import ERROR, EXTENDED, FD, FrameBlock
 
 DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
+
+
+@functools.lru_cache(maxsize=4)
+def load_dbc(path: str) -> cantools.database.Database:
+    """The DBC at ``path``, parsed once per process (read only: everything that uses it shares it)."""
+    return cantools.database.load_file(path)
 COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statistics": 5, "identify": 6,
             "release": 7}
 TARE_CHANNELS = {"x": 0, "y": 1, "y2": 2, None: 3}
@@ -93,7 +100,7 @@ class CanHost:
     def __init__(self, bus: can.BusABC, dbc_path: str | Path = DBC_PATH, result_timeout: float = 1.0) -> None:
         self.bus = bus
         self.result_timeout = result_timeout
-        self.db = cantools.database.load_file(str(dbc_path))
+        self.db = load_dbc(str(dbc_path))
         self._by_id = {m.frame_id: m for m in self.db.messages if "DEVICE" in m.senders}
         self._layouts = {fid: FrameLayout(m) for fid, m in self._by_id.items() if supports(m)}
         self._command = self.db.get_message_by_name("HostCommand")

@@ -129,9 +129,8 @@ def read_wire(to: Any, where: str) -> str:
 @functools.lru_cache(maxsize=1)
 def _device_dbc() -> Any:
     """The DBC the simulated machine sends by (the scene wires transducers into its messages)."""
-    import cantools
-    from firmware_sim.can_node import DBC_PATH
-    return cantools.database.load_file(str(DBC_PATH))
+    from firmware_sim.can_node import DBC_PATH, load_dbc
+    return load_dbc(str(DBC_PATH))
 
 
 def frames_of(transducers: tuple[TransducerSpec, ...] | list[TransducerSpec]) -> dict[str, list[TransducerSpec]]:

@@ -22,13 +22,12 @@ import time
 from typing import Any
 
 import can
-import cantools
 
-from drivers.can.host import DBC_PATH
+from drivers.can.host import DBC_PATH, load_dbc
 from firmware_sim.can_node import CanNode
 from rig.blockbus import FrameBlock
 
-COMMAND_ACK = cantools.database.load_file(str(DBC_PATH)).get_message_by_name("CommandAck").frame_id
+COMMAND_ACK = load_dbc(str(DBC_PATH)).get_message_by_name("CommandAck").frame_id
 
 
 class Anchored:
