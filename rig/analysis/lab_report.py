@@ -37,7 +37,18 @@ class Sheet:
     result: str
     notes: list[str] = field(default_factory=list)
     draw: Callable[[Any], None] | None = None
-    values: dict[str, float] = field(default_factory=dict)     # the result line's numbers (SI, ratios)
+    values: dict[str, float] = field(default_factory=dict)     # the result line's numbers (unit: value_unit)
+
+
+#: units of the sheets' result numbers (Sheet.values); names starting "error " or "class " are ratios
+VALUE_UNITS = {"counter_rpm": "rpm", "truth_rpm": "rpm", "resolution_rpm": "rpm", "ds_max": "m", "lag": "s",
+               "offset": "m", "rest_max": "m", "deviation_max": "N·m", "peak": "N·m", "work_per_turn": "J",
+               "lag_error_max": "rad", "angle_error_max": "rad"}
+
+
+def value_unit(name: str) -> str:
+    """Unit of the sheet result number ``name`` ("1": a ratio or a count)."""
+    return VALUE_UNITS.get(name, "1")
 
 
 @dataclass

@@ -25,12 +25,12 @@ def stand_lines(rec: "Recording") -> list[str] | None:
 def stand_values(rec: "Recording") -> dict[str, tuple[float, str]]:
     """Key results of a stand or lab run as numbers, ``{key: (value, unit)}``: a dynamic stand's metrics as
     ``stand.<name>`` (:meth:`Metric.number`: counts, shutdown 1/0; e.g. ``stand.start_up_peak_torque``), a lab
-    sheet's result numbers as ``lab.<sheet>.<name>`` (SI or ratios as the sheet keeps them, unit left empty; e.g.
+    sheet's result numbers as ``lab.<sheet>.<name>`` (units: :func:`~rig.analysis.lab_report.value_unit`; e.g.
     ``lab.cardan_joint.ratio_max``); names in snake case. Empty for other recordings."""
     if rec.curves:
         return {}
     from rig.analysis.clutch_report import stand_results
-    from rig.analysis.lab_report import lab_sheets
+    from rig.analysis.lab_report import lab_sheets, value_unit
     res = stand_results(rec)
     if res is not None:
         return {"stand." + _snake(m.name): (number, m.unit) for m in res[1] if (number := m.number()) is not None}
@@ -38,7 +38,7 @@ def stand_values(rec: "Recording") -> dict[str, tuple[float, str]]:
         sheets = lab_sheets(rec) or []
     except (SceneError, ValueError):
         return {}                                  # the lab's console line says why there is no sheet
-    return {f"lab.{_snake(sheet.title)}.{_snake(name)}": (float(v), "") for sheet in sheets
+    return {f"lab.{_snake(sheet.title)}.{_snake(name)}": (float(v), value_unit(name)) for sheet in sheets
             for name, v in sheet.values.items()}
 
 
