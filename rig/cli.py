@@ -113,11 +113,11 @@ def _done(verb: str, curves: int) -> str:
 def _print_stand_summary(rec: Any) -> bool:
     """Console summary of a stand run (clutch dynamic stand or static rig, lab bench; no curves): its key results,
     each with what it is relative to. False (nothing printed) for other recordings."""
-    from rig.analysis.stand_summary import stand_lines
-    lines = stand_lines(rec)
-    if lines:
-        print("\n".join(lines))
-    return bool(lines)
+    from rig.analysis.stand_summary import stand_summary
+    summary = stand_summary(rec)
+    if summary is not None:
+        print("\n".join(summary.lines))
+    return summary is not None
 
 
 def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None, progress: bool = False,

@@ -81,21 +81,23 @@ def _value_moments(rec: "Recording", units: dict) -> dict[str, tuple[Moments, st
 def summarise(path: Path) -> RecordingSummary:
     """Read and analyse one recording (a task)."""
     from rig.analysis import analyse
-    from rig.analysis.stand_summary import stand_lines, stand_values
+    from rig.analysis.stand_summary import stand_summary
     from rig.recorder import RecordingError, read_recording
     try:
         rec = read_recording(path)
         result = analyse(rec)
         values = _value_moments(rec, result["units"])
-        values.update({k: (Moments.of_block(np.array([[v]])), unit) for k, (v, unit) in stand_values(rec).items()})
-        stand = stand_lines(rec) or []
+        summary = stand_summary(rec)
+        if summary is not None:
+            values.update({k: (Moments.of_block(np.array([[v]])), unit) for k, (v, unit) in summary.values.items()})
     except (RecordingError, OSError, ValueError) as exc:
         return RecordingSummary(str(path), error=" ".join(str(exc).split()))
     verdicts = result["verdicts"]
     ok = sum(1 for v in verdicts if v["ok"])
     meta = rec.metadata.get("rig", {})
     return RecordingSummary(str(path), str(meta.get("scene", "")), str(meta.get("plant", "")), rec.complete,
-                            len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]), stand)
+                            len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]),
+                            summary.lines if summary is not None else [])
 
 
 def summarise_all(paths: list[Path]) -> list[RecordingSummary]:

@@ -173,12 +173,9 @@ def stand_results(rec: Recording) -> tuple[list[Stimulus], list[Metric]] | None:
                                trips_motor=bool(rule["trip_on_shutdown"]), lobe=lobe, apex=apex)
 
 
-def summary_lines(rec: Recording) -> list[str] | None:
-    """Console lines of a dynamic-stand run: what the scene did, then each key result with its reference."""
-    res = stand_results(rec)
-    if res is None:
-        return None
-    stim, metrics = res
+def summary_lines(rec: Recording, stim: list[Stimulus], metrics: list[Metric]) -> list[str]:
+    """Console lines of a dynamic-stand run (its :func:`stand_results`): what the scene did, then each key result
+    with its reference."""
     lines = ["clutch stand: " + ("; ".join(f"{s.text} at {s.time:.4g} s" for s in stim) or "no stimulus known")]
     width = max(len(m.name) for m in metrics)
     lines += [f"  {m.name:<{width}}  {m.value_text()}  ({m.reference})" for m in metrics]

@@ -1,4 +1,4 @@
-"""Level-1 kinetostatics of the pin-insertion mechanism (MODELS §3.3), link by link, vectorised.
+"""Level-1 kinetostatics of the pin-insertion mechanism (MODELS §3.3), link by link, compiled point by point.
 
 Notation: ``R_ij`` is the force link i exerts on link j (1 frame, 2 cam, 3 follower, 4 rod, 5 slider),
 components in the fixed frame (N); moments are counter-clockwise positive (N·m). Free-body diagrams
@@ -122,8 +122,8 @@ def _solve_points(omega, alpha, s_p, s_pp, psi_p, psi_pp, theta_p, theta_pp, cp,
             if y + w5 > 0.0 and jam < 0:
                 jam = i
         normal = y + w5
-        x = q - mu * abs(normal) * sv
         friction = -mu * abs(normal) * sv
+        x = q + friction
         r34x, r34y = -x - f4x, -y - f4y
         # follower 3: moment about B0 without the cam → M23, then the contact force along the normal
         cx, cy = L3 * c_p, L3 * s_p_
