@@ -173,7 +173,7 @@ def solve(mech: "PinInsertionMechanism", st: "State", k: float) -> Kinetostatics
     prm = np.array([mech.g, mech.L3, mech.l3, mech.l4, mech.a3, mech.m3, mech.m4, mech.m5, mech.J3, mech.J4,
                     mech.x_A0, mech.y_A0, float(mech.cam_direction), mech.sensor_position, mech.x_s5, mech.e5])
     out, jam, bad = _solve_points(*flat, prm)
-    phi = np.broadcast_to(st.phi, shape).ravel()
+    phi = np.broadcast_to(st.phi, shape).ravel() if max(jam, bad) >= 0 else None   # only to name the angle
     if jam >= 0:
         raise JammingError(f"slider self-locks in its guide at cam angle φ = {degrees(float(phi[jam])):.4g}° "
                            f"(μ = {float(flat[-1][jam]):g}): no Coulomb friction state balances the rod")
