@@ -1,51 +1,64 @@
-"""Clearances of the rod's pin joints at level 2 — a reduced model (scene table ``[plant.joints]``).
+"""Clearances of the rod's pin joints at level 2 as degrees of freedom (scene table ``[plant.joints]``).
 
 The rod (4) is pinned to the follower at C and to the gripper slider at D. Each pin sits in its bore with a
 diametral clearance; the sources give none (assumption: a fit like H7/g6 on an 8 mm pin leaves 5…29 µm). Along
-the rod the two clearances act in series: in tension the pins bear on the far sides of their bores and the rod is
-effectively longer by half the summed clearance, in compression shorter by as much. When the rod force changes
-sign the gripper therefore jumps by the summed clearance times ∂s/∂l4 = −1/cos ϑ (≈ 1, the rod lies nearly
-along the guide) — the "clearances not taken up in the same direction" of the thesis.
+the rod the two clearances act in series: the distance |CD| may lie anywhere in l4 ± ½(c_C + c_D) without a
+force ("free play"); beyond it the pins bear on their bores and the rod force follows a linear Hunt–Crossley law
+T = k·δ·(1 + α·δ̇) on the penetration δ past the free play (tension > 0 when |CD| > l4 + play, compression
+beyond the other side, never pulling the pins back across the gap).
 
-Reduced model (not extra degrees of freedom): the take-up follows the rod tension T at the sensor section
-instantly, Δl = ½(c_C + c_D)·tanh(T/F_b), F_b = ``force_band`` (a stand-in for the pins' contact compliance);
-the gripper moves by Δs = −Δl/cos ϑ on top of level 2's motion. Neglected: the slider's inertia across the gap
-(impacts in the pins) and the feedback of that motion on the follower and the groove contact — first order in
-c_j/stroke ≈ 1e-3.
+With joints the slider is a body of its own: level 2 gains the state (z, τ·ż), z = s − s_r(ψ) the slider's
+stroke s against the stroke s_r(ψ) a rigid rod would give at the follower's actual angle ψ. The rod is lumped
+into its two pins (½m4 at C moves with the follower, ½m4 at D with the slider; the rod's own rotary inertia
+J4 − m4·l4²/4 about its centre and the rod's axial compliance beside the pins' are neglected), so its force is
+the same along it. The sensor reads T (plus its preload).
+
+Assumptions (no source gives them): k = 4e7 N/m — two Ø8 × 10 mm steel pins in line contact (Palmgren,
+≈ 2e8 N/m each at 30 N) in series with a Ø6 × 100 mm steel rod (EA/l ≈ 6e7 N/m); α = 20 s/m as the roller
+contact (≈ 5 % of critical for the slider on the pins at 30 N).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
-
-import numpy as np
 
 from rig.scene import Field, read_subtable
 
 SCHEMA = {
     "follower": Field("m", 0.0, "diametral clearance of the rod's pin at the follower (C)"),
     "slider": Field("m", 0.0, "diametral clearance of the rod's pin at the gripper slider (D)"),
-    "force_band": Field("N", 1.0, "rod force over which the pins move across their clearance"),
+    "stiffness": Field("N/m", 4e7, "axial stiffness of the rod with both pins bearing"),
+    "damping": Field("s/m", 20.0, "Hunt-Crossley damping alpha of the pins' contact"),
 }
 
 
 @dataclass(frozen=True)
 class JointClearance:
-    """Diametral clearances of the rod's pins (m) and the take-up force band (N)."""
+    """Diametral clearances of the rod's pins (m), the rod's axial stiffness with the pins bearing (N/m) and the
+    pins' Hunt–Crossley damping α (s/m)."""
 
     follower: float = 0.0
     slider: float = 0.0
-    force_band: float = 1.0
+    stiffness: float = 4e7
+    damping: float = 20.0
 
     def __post_init__(self) -> None:
-        if not (self.follower >= 0.0 and self.slider >= 0.0 and self.force_band > 0.0):
-            raise ValueError(f"joint clearances must not be negative and force_band must be positive, got "
-                             f"{self.follower!r} m, {self.slider!r} m, {self.force_band!r} N")
+        if not (self.follower >= 0.0 and self.slider >= 0.0 and self.stiffness > 0.0 and self.damping >= 0.0):
+            raise ValueError(f"joint clearances must not be negative, the stiffness must be positive and the damping "
+                             f"not negative, got {self.follower!r} m, {self.slider!r} m, {self.stiffness!r} N/m, "
+                             f"{self.damping!r} s/m")
 
-    def stroke_offset(self, tension: np.ndarray, cos_theta: np.ndarray) -> np.ndarray:
-        """Δs (m) of the gripper for rod tension ``tension`` (N, > 0 pulling) and rod direction cos ϑ."""
-        dl = 0.5 * (self.follower + self.slider) * np.tanh(np.asarray(tension, dtype=float) / self.force_band)
-        return -dl / np.asarray(cos_theta, dtype=float)
+    @property
+    def play(self) -> float:
+        """Half the free play of |CD| about l4 (m): ½(c_C + c_D)."""
+        return 0.5 * (self.follower + self.slider)
+
+    def stretch(self, tension: float) -> float:
+        """Static |CD| − l4 (m) under rod tension ``tension`` (N, > 0 pulling)."""
+        if tension == 0.0:
+            return 0.0
+        return math.copysign(self.play + abs(tension) / self.stiffness, tension)
 
 
 def read_joints(table: Any, where: str) -> JointClearance | None:

@@ -5,7 +5,7 @@ normal n (oriented as in level 1, B_R × n = ℓ > 0) is u = ℓ(φ)·e with e =
 from the level-0 law ψ_k (first order in e: |e| ≲ 1e-3 rad, curvature terms ~ c²/ρ are dropped). The working
 flank (pushes towards larger ψ) sits at u = 0, the other one at u = c; penetrations are δ_w = −u and
 δ_o = u − c, each with the compliant contact of :class:`ContactLaw`. The rod and slider follow ψ through the
-level-0 chain; spring, gravity, guide friction, insertion force and the inertia of all links come from the
+level-0 chain (or, with the rod's pin clearances, the slider is a body of its own: :mod:`.joints`); spring, gravity, guide friction, insertion force and the inertia of all links come from the
 level-1 free-body diagrams (:mod:`rig.plants.cam_bar.kinetostatics`) on the *actual* motion, which give the cam
 moment M_Σ needed for an acceleration ψ̈. It is affine in ψ̈ on each friction branch, so M_Σ(ψ̈) = ℓ·(F_w − F_o)
 is solved in closed form. The cam turns by the given speed profile, or, with a cam drive
@@ -17,19 +17,22 @@ The right-hand side, the events and the quantities the outputs are built from ar
 level-1 :func:`~rig.plants.cam_bar.kinetostatics.solve` on the integrated motion.
 
 State ``y = (e, τ·ė)`` (rad, τ = 1 ms so both components are angles and the error control sees the small
-deviation, not ψ ≈ 1.5 rad), optionally followed by the work of the cam drive, of the insertion force and
-guide friction, and the energy dissipated in the contacts (J).
+deviation, not ψ ≈ 1.5 rad), with a cam drive followed by (φ, ω, φ_m, ω_m), with the rod's pin clearances
+(:mod:`.joints`) by the slider's (z, τ·ż) (m: its stroke against the rigid chain's at the actual ψ), optionally
+followed by the work of the cam drive, of the insertion force and guide friction, and the energy dissipated in
+the contacts (J).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from rig.plants.cam_bar import level2_kernel as kernel
+from rig.plants.cam_bar.chain import Angles
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
 from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.events import Event
@@ -232,15 +235,19 @@ class Level2:
         else:
             phi, alpha = self.speed.phi0, 0.0
             omega = 0.0 if drive.start == "rest" else self.speed.nominal_omega
-        ks = self.mech.kinetostatics(np.array([phi]), omega, alpha)
+        mech = self.mech
+        ks = mech.kinetostatics(np.array([phi]), omega, alpha)
         force = float(ks.R23n[0])
         lever = kernel.groove(phi, self.params)[3]
         delta = float(self.contact.penetration(abs(force)))
-        e = -delta / lever if force >= 0.0 else (self.mech.clearance + delta) / lever
+        e = -delta / lever if force >= 0.0 else (mech.clearance + delta) / lever
         y = (e, 0.0)
         if drive is not None:
             torque = float(ks.drive_torque[0])
             y += (phi, omega, phi + torque / drive.shaft_stiffness, omega)
+        if mech.joints is not None:           # the pins bear as the level-1 rod force says: |CD| − l4 ≈ −z·cos ϑ
+            ct = float(mech.state(np.array([phi])).trig.ct[0])
+            y += (-mech.joints.stretch(float(ks.rod_tension[0])) / ct, 0.0)
         return y + (0.0, 0.0, 0.0) if self.energy else y
 
     def cam_angle(self, t: float, y: tuple) -> float:
@@ -341,27 +348,39 @@ class Level2:
         from rig.plants.cam_bar.mechanism import State
         phi = out["phi"]
         w = np.where(np.abs(out["omega"]) < 1e-6, 1e-6, out["omega"])   # cam at rest (drive start-up): φ-rates
-        a = mech.chain.angles(out["s"], phi)
+        a = mech.chain.angles(out["s"], phi) if mech.joints is None else self._rod_angles(out["psi"], out["s"])
         nan = np.full_like(phi, np.nan)       # r', r'' are not used by the kinetostatics
         st = State(phi, w, np.zeros_like(w), out["s"], out["s_d"] / w, out["s_dd"] / w ** 2, a.psi, out["psi_d"] / w,
                    out["psi_dd"] / w ** 2, a.theta, out["theta_d"] / w, out["theta_dd"] / w ** 2,
                    np.hypot(*mech._pitch(a.psi)), nan, nan, a)
         loads = solve(_LoadView(mech, out["mu"], out["F_c"]), st, mech.k)
+        if mech.joints is not None:           # the rod force is the pins', the cam moment the contacts'
+            tension, m_sigma = out["rod_tension"], out["cam_moment"]
+            loads = replace(loads, rod_tension=tension, F_rod=tension + mech.sensor_preload, M_sigma=m_sigma,
+                            M23=m_sigma - loads.M_e)
         return Dynamics(*(out[k] for k in Dynamics._fields[:13]), out["omega_m"], out["shaft_torque"], loads, st)
+
+    def _rod_angles(self, psi: np.ndarray, s: np.ndarray) -> "Angles":
+        """ψ and the rod's angle ϑ from the pins' actual places (follower at ψ, slider at stroke s: the rod
+        through its clearances, not the rigid chain)."""
+        mech = self.mech
+        cp, sp = np.cos(psi), np.sin(psi)
+        theta = np.arctan2(mech.e_sk - mech.L3 * sp, mech.s0 - s - mech.L3 * cp)
+        ct, st = np.cos(theta), np.sin(theta)
+        return Angles(psi, theta, cp, sp, ct, st, st * cp - ct * sp)
 
     def signals(self, t: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
         """Truth signals (SI) with the keys of level 1; ``R23`` = F_w − F_o (N, > 0 on the working flank);
         extra: ``psi_kin`` (level-0 ψ), ``delta_w``/``delta_o`` (penetrations, m, negative = gap), ``motor_speed``
         (rad/s, cam-shaft referred; the cam speed without a drive) and ``shaft_torque`` (N·m; 0 without a drive).
-        With rod pin clearances (``mech.joints``, :mod:`.joints`) ``s`` and ``x_gripper`` include their take-up."""
+        With rod pin clearances (``mech.joints``, :mod:`.joints`) ``s``, ``v``, ``a`` and ``x_gripper`` are the slider's
+        own motion and ``rod_tension``/``F_rod`` the pins' force."""
         dy = self.evaluate(t, y)
         st, ks = dy.state, dy.loads
         mech = self.mech
         m_e = mech.spring_moment(dy.psi)
         m_sigma = ks.M_sigma
         s = st.s
-        if mech.joints is not None:           # rod pin clearances taken up by the rod force (reduced model)
-            s = s + mech.joints.stroke_offset(ks.rod_tension, st.trig.ct)
         return {"t": np.asarray(t, float), "phi": dy.phi, "cam_angle": np.mod(dy.phi, math.tau), "omega": dy.omega,
                 "alpha": dy.alpha, "s": s, "v": st.s_d, "a": st.s_dd, "x_gripper": mech.s0 - s,
                 "psi": dy.psi, "theta": st.theta, "r": st.r, "F_rod": ks.F_rod, "rod_tension": ks.rod_tension,
@@ -371,19 +390,29 @@ class Level2:
                 "motor_speed": dy.omega_m, "shaft_torque": dy.shaft_torque}
 
     def energies(self, t: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
-        """Kinetic energy of follower, rod and slider, potentials of gravity, spring and contacts (J)."""
+        """Kinetic energy of follower, rod and slider, potentials of gravity, spring and contacts (J); with the
+        rod's pin joints the rod's halves move with the follower and the slider (:mod:`.joints`) and the pins'
+        elastic energy is part of ``contact``."""
         mech = self.mech
         dy = self.evaluate(t, y)
         st = dy.state
         a = st.trig
         psi_d, th_d = dy.psi_d, st.theta_d
+        dpsi = dy.psi - mech.psi0
+        spring = mech.Me_0 * dpsi + 0.5 * mech.k * mech.l_F ** 2 * dpsi ** 2
+        contact = self.contact.energy(dy.delta_w) + self.contact.energy(dy.delta_o)
+        joints = mech.joints
+        if joints is not None:
+            half = 0.5 * mech.m4
+            kinetic = 0.5 * ((mech.J3 + half * mech.L3 ** 2) * psi_d ** 2 + (mech.m5 + half) * st.s_d ** 2)
+            gravity = mech.g * (mech.m3 * mech.a3 + half * mech.L3) * a.sp
+            stretch = np.hypot(mech.s0 - st.s - mech.L3 * a.cp, mech.e_sk - mech.L3 * a.sp) - mech.l4
+            pins = 0.5 * joints.stiffness * np.maximum(np.abs(stretch) - joints.play, 0.0) ** 2
+            return {"kinetic": kinetic, "gravity": gravity, "spring": spring, "contact": contact + pins}
         vcx, vcy = -mech.L3 * a.sp * psi_d, mech.L3 * a.cp * psi_d
         vgx = vcx + 0.5 * (-st.s_d - vcx)
         vgy = 0.5 * vcy
         kinetic = 0.5 * (mech.J3 * psi_d ** 2 + mech.m4 * (vgx ** 2 + vgy ** 2) + mech.J4 * th_d ** 2
                          + mech.m5 * st.s_d ** 2)
         gravity = mech.g * (mech.m3 * mech.a3 * a.sp + mech.m4 * (mech.L3 * a.sp + 0.5 * mech.l4 * a.st))
-        dpsi = dy.psi - mech.psi0
-        spring = mech.Me_0 * dpsi + 0.5 * mech.k * mech.l_F ** 2 * dpsi ** 2
-        contact = self.contact.energy(dy.delta_w) + self.contact.energy(dy.delta_o)
         return {"kinetic": kinetic, "gravity": gravity, "spring": spring, "contact": contact}

@@ -8,7 +8,8 @@ spring, guide friction, insertion force, contact law, the cam-speed profile, the
 table with the motion laws' coefficients, one-entry caches of the groove geometry and of the distance into a rise
 (keyed on the cam angle: a step's last stages, its end and the events share one cam angle), the first jam of the slider guide (for the diagnosis), and the optional models of issue 14: the pin's
 force–travel law (:mod:`.insertion`), the stick–slip guide (:mod:`.guide_friction`) and the motor-driven cam
-(:mod:`.drive`, states (φ, ω, φ_m, ω_m) after (e, τ·ė)).
+(:mod:`.drive`, states (φ, ω, φ_m, ω_m) after (e, τ·ė)) and the rod's pin clearances (:mod:`.joints`, the slider's
+state (z, τ·ż) after those, solved by :func:`joint_body` instead of :func:`free_body`).
 
 The free-body solution is in closed form: on the actual motion (ψ, ψ̇, ψ̈) the rod and slider follow ψ
 through the level-0 chain, and every force of the level-1 free-body diagrams
@@ -52,7 +53,8 @@ DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinea
  INS_LAW, INS_UP, INS_DOWN, S_TOP,
  GUIDE_MODEL, MU_S, V_STICK, T_STICK,
  DRIVE_ON, W_SYNC, B_MOTOR, M_MAX, J_MOTOR, J_CAM, K_SHAFT, C_SHAFT,
- NSEG) = range(67)
+ JOINTS_ON, J_PLAY, J_K, J_ALPHA,
+ NSEG) = range(71)
 PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
 SEG_ROW = 5
 #: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
@@ -67,7 +69,7 @@ WORKING, OTHER, OVERLOAD, INSERTION = range(4)
 #: rows of :func:`evaluate`
 OUTPUTS = ("phi", "omega", "alpha", "psi", "psi_d", "psi_dd", "e_dd", "F_w", "F_o", "drive_torque",
            "p_dissipated", "delta_w", "delta_o", "s", "s_d", "s_dd", "theta_d", "theta_dd", "mu", "F_c",
-           "friction", "omega_m", "shaft_torque")
+           "friction", "omega_m", "shaft_torque", "z_dd", "rod_tension", "cam_moment")
 N_OUT = len(OUTPUTS)
 
 
@@ -100,6 +102,7 @@ def pack(mech: "PinInsertionMechanism", speed: "SpeedProfile | None" = None, sti
             0.0 if d is None else 1.0, *([0.0] * 7 if d is None else
                                          [d.synchronous(speed.nominal_omega), d.slope, d.max_torque,
                                           d.motor_inertia, d.cam_inertia, d.shaft_stiffness, d.shaft_damping]),
+            *_joints(mech.joints),
             float(len(mech.program.segments))]
     assert len(head) == PROGRAM
     table, laws = [], []
@@ -113,6 +116,14 @@ def pack(mech: "PinInsertionMechanism", speed: "SpeedProfile | None" = None, sti
         at += len(code)
         level += h
     return np.array(head + table + laws, dtype=float)
+
+
+def _joints(joints) -> list[float]:
+    """(on, half free play, stiffness, damping) of the rod's pin joints (``None``: rigid, level 2 without the
+    slider's state)."""
+    if joints is None:
+        return [0.0, 0.0, 0.0, 0.0]
+    return [1.0, joints.play, joints.stiffness, joints.damping]
 
 
 def _speed(speed) -> list[float]:
@@ -351,20 +362,34 @@ def cos_sin(x):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def rigid_rod(cp, sp, p):
+    """(s, cos ϑ, sin ϑ, sin(ϑ − ψ), ok) of the rigid rod at follower angle ψ (cos, sin): the stroke s (m) the
+    level-0 chain gives; ``ok`` False when the chain cannot be assembled or sits at a dead centre."""
+    l3_, l4_, esk = p[L3], p[L4], p[E_SK]
+    rad = l4_ * l4_ - (esk - l3_ * sp) ** 2
+    if rad < 0.0:
+        return math.nan, 0.0, 0.0, 0.0, False
+    root = p[ROD_SIDE] * math.sqrt(rad)
+    ct, st = root / l4_, (esk - l3_ * sp) / l4_
+    sin_rel = st * cp - ct * sp
+    return p[S0] - (l3_ * cp + root), ct, st, sin_rel, abs(sin_rel) >= DEAD_CENTRE_TOL
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def spring_moment(psi, p):
+    """Moment of the follower's spring at ψ (N·m, towards smaller ψ)."""
+    return (p[ME0] / p[L_F] + p[K_SPRING] * p[L_F] * (psi - p[PSI0])) * p[L_F]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def free_body(psi, cp, sp, psi_d, rising, moment, p):
     """ψ̈ (rad/s²) at which the cam moment of the free bodies on the actual motion (ψ, ψ̇) equals ``moment``
     (N·m), and the motion and loads there: (ψ̈, s, ṡ, s̈, ϑ̇, ϑ̈, μ_eff, F_c, friction, status) with status 0,
     1 (chain cannot be assembled) or 2 (jammed guide). Each force is a pair (value at ψ̈ = 0, slope)."""
     nan = math.nan
-    l3_, l4_, esk = p[L3], p[L4], p[E_SK]
-    rad = l4_ * l4_ - (esk - l3_ * sp) ** 2
-    if rad < 0.0:
-        return nan, nan, nan, nan, nan, nan, nan, nan, nan, 1
-    root = p[ROD_SIDE] * math.sqrt(rad)
-    s = p[S0] - (l3_ * cp + root)
-    ct, st = root / l4_, (esk - l3_ * sp) / l4_
-    sin_rel = st * cp - ct * sp
-    if abs(sin_rel) < DEAD_CENTRE_TOL:
+    l3_, l4_ = p[L3], p[L4]
+    s, ct, st, sin_rel, ok = rigid_rod(cp, sp, p)
+    if not ok:
         return nan, nan, nan, nan, nan, nan, nan, nan, nan, 1
     psi_s, psi_ss, th_s, th_ss = chain_derivatives(cp, sp, ct, st, sin_rel, 1.0, 0.0, p)   # d/ds
     s_psi = 1.0 / psi_s
@@ -386,7 +411,7 @@ def free_body(psi, cp, sp, psi_d, rising, moment, p):
     q0, q1 = f_c + m5 * s0_, m5 * s1_
     sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0                  # sign of the slider velocity ẋ_D
     w5 = m5 * g
-    spring = (p[ME0] / p[L_F] + p[K_SPRING] * p[L_F] * (psi - p[PSI0])) * p[L_F]
+    spring = spring_moment(psi, p)
     if p[GUIDE_MODEL] == 0.0:
         x = abs(s_d) / p[V_S]
         mu = p[MU] if x > 20.0 else p[MU] * math.tanh(x)     # tanh(x) rounds to 1 beyond x ≈ 19
@@ -424,6 +449,70 @@ def free_body(psi, cp, sp, psi_d, rising, moment, p):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def guide_force(push, normal, s_d, m_s, p):
+    """Friction of the slider guide along x (N) for the other x-forces ``push`` = m_s·s̈ without friction (N), guide
+    normal force ``normal`` (N), stroke rate ṡ (m/s) and slider mass ``m_s`` (kg), with the guide's model: the
+    regularised μ·tanh(|ṡ|/v_s), or stick–slip (held within μ_s·|N| to s̈ = −ṡ/T inside the stick band, else
+    slipping the way it is pushed); and the sign of the slider velocity ẋ_D it was taken for."""
+    sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0                  # sign of ẋ_D = −ṡ
+    mu = p[MU]
+    if p[GUIDE_MODEL] == 0.0:
+        x = abs(s_d) / p[V_S]
+        mu = mu if x > 20.0 else mu * math.tanh(x)
+    elif abs(s_d) <= p[V_STICK]:
+        f_hold = push + m_s * s_d / p[T_STICK]
+        if abs(f_hold) <= p[MU_S] * abs(normal):
+            return f_hold, sv
+        sv = -1.0 if f_hold > 0.0 else 1.0
+    return -mu * abs(normal) * sv, sv
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def joint_body(psi, cp, sp, psi_d, z, z_d, rising, moment, p):
+    """Follower and slider as two bodies joined by the rod through its pin clearances (:mod:`.joints`): ψ̈
+    (rad/s²) of the follower under the cam moment ``moment`` (N·m), the slider's stroke deviation rate z̈ (m/s²)
+    for z = s − s_r(ψ), ż, and the motion and loads: (ψ̈, s, ṡ, s̈, ϑ̇, ϑ̈, μ_eff, F_c, friction, z̈, rod tension
+    T, power dissipated in the pins, status) with status 0 or 1 (no rigid chain at ψ to refer z to)."""
+    nan = math.nan
+    s_r, ct, st, sin_rel, ok = rigid_rod(cp, sp, p)
+    if not ok:
+        return nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, 1
+    psi_s, psi_ss, _, _ = chain_derivatives(cp, sp, ct, st, sin_rel, 1.0, 0.0, p)    # d/ds of the rigid chain
+    s_psi = 1.0 / psi_s
+    s_psipsi = -psi_ss * s_psi ** 3                                         # d²s_r/dψ²
+    s, s_d = s_r + z, s_psi * psi_d + z_d
+    l3_, g, half = p[L3], p[G], 0.5 * p[M4]
+    dx, dy = p[S0] - s - l3_ * cp, p[E_SK] - l3_ * sp                      # D − C
+    length = math.sqrt(dx * dx + dy * dy)
+    nx, ny = dx / length, dy / length
+    vx, vy = -s_d + l3_ * sp * psi_d, -l3_ * cp * psi_d                    # v_D − v_C
+    rate = nx * vx + ny * vy
+    stretch, play = length - p[L4], p[J_PLAY]
+    elastic_t = tension = 0.0
+    if stretch > play:                                                       # pins bear: rod in tension
+        elastic_t = p[J_K] * (stretch - play)
+        tension = max(elastic_t * (1.0 + p[J_ALPHA] * rate), 0.0)
+    elif stretch < -play:                                                    # in compression
+        elastic_t = -p[J_K] * (-play - stretch)
+        tension = min(elastic_t * (1.0 - p[J_ALPHA] * rate), 0.0)
+    m_s = p[M5] + half
+    f_c = insertion_force(s, p) if rising else 0.0
+    normal = tension * ny + m_s * g                                          # R54 = T·n, guide N = R54y + W
+    push = tension * nx - f_c                                               # m_s·s̈ = T·n_x − F_c − F_f
+    friction, sv = guide_force(push, normal, s_d, m_s, p)
+    s_dd = (push - friction) / m_s
+    m_other = l3_ * tension * (cp * ny - sp * nx) - (p[M3] * p[A3] + half * l3_) * g * cp - spring_moment(psi, p)
+    acc = (moment + m_other) / (p[J3] + half * l3_ * l3_)
+    z_dd = s_dd - (s_psipsi * psi_d * psi_d + s_psi * acc)
+    th_d = (dx * vy - dy * vx) / (length * length)
+    ax = -s_dd + l3_ * (cp * psi_d * psi_d + sp * acc)                      # a_D − a_C
+    ay = l3_ * (sp * psi_d * psi_d - cp * acc)
+    th_dd = (dx * ay - dy * ax) / (length * length) - 2.0 * rate * th_d / length
+    return acc, s, s_d, s_dd, th_d, th_dd, _mu_seen(friction, normal, sv), f_c, friction, z_dd, tension, \
+        (tension - elastic_t) * rate, 0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def cam_state(t, y, p):
     """(φ, ω, ω̇ of the speed profile, ω_m, shaft torque) at time t and state y: from the speed profile (ω_m = ω,
     torque 0), or with the cam drive on from the states (φ, ω, φ_m, ω_m) = y[2:6] (ω̇ then follows from the drive
@@ -435,11 +524,19 @@ def cam_state(t, y, p):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def dynamics(e, e_d, phi, omega, alpha, omega_m, shaft, p):
+def joint_index(p):
+    """Index of the slider's state z in y (after (e, τ·ė) and the cam drive's states)."""
+    return 2 if p[DRIVE_ON] == 0.0 else 6
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def dynamics(e, e_d, z, z_d, phi, omega, alpha, omega_m, shaft, p):
     """Everything for deviation e (rad) and rate ė (rad/s) with the cam at φ, ω (rad, rad/s), in the
     order of :data:`OUTPUTS`, and a status (0, 1 chain cannot be assembled, 2 jammed guide: the values are then
     NaN). ``alpha`` ω̇ of the speed profile; with the cam drive on ω̇ = (``shaft`` torque − drive torque)/J_cam
-    instead (the drive torque depends on the contact forces only, not on ω̇)."""
+    instead (the drive torque depends on the contact forces only, not on ω̇). With the rod's pin joints
+    (p[JOINTS_ON]) z, ż (m, m/s) are the slider's deviation from the rigid chain (else unused, z̈ = 0 and the
+    rod tension NaN: level 1's free body gives it)."""
     psi_k, psi_p, psi_pp, lever, lever_p, rising, ck, sk = groove_at(phi, p)
     psi = psi_k + e
     ce, se = cos_sin(e)
@@ -450,27 +547,35 @@ def dynamics(e, e_d, phi, omega, alpha, omega_m, shaft, p):
     d_w, d_o = -u, u - p[CLEARANCE]
     el_w, el_o = elastic(d_w, p), elastic(d_o, p)
     f_w, f_o = contact_force(el_w, -u_d, p), contact_force(el_o, u_d, p)
-    acc, s, s_d, s_dd, th_d, th_dd, mu, f_c, friction, status = free_body(psi, cp, sp, psi_d, rising,
-                                                                          lever * (f_w - f_o), p)
+    moment = lever * (f_w - f_o)
+    if p[JOINTS_ON] == 0.0:
+        acc, s, s_d, s_dd, th_d, th_dd, mu, f_c, friction, status = free_body(psi, cp, sp, psi_d, rising, moment, p)
+        z_dd, tension, p_joint = 0.0, math.nan, 0.0
+    else:
+        acc, s, s_d, s_dd, th_d, th_dd, mu, f_c, friction, z_dd, tension, p_joint, status = joint_body(
+            psi, cp, sp, psi_d, z, z_d, rising, moment, p)
     drive_torque = (f_w - f_o) * (-lever_p * e + lever * psi_p)     # (F_w − F_o)·∂δ_w/∂φ at fixed ψ
     if p[DRIVE_ON] != 0.0:
         alpha = (shaft - drive_torque) / p[J_CAM]
     e_dd = acc - omega * omega * psi_pp - alpha * psi_p
-    p_diss = (f_w - el_w) * -u_d + (f_o - el_o) * u_d
+    p_diss = (f_w - el_w) * -u_d + (f_o - el_o) * u_d + p_joint
     return (phi, omega, alpha, psi, psi_d, acc, e_dd, f_w, f_o, drive_torque, p_diss, d_w, d_o, s, s_d, s_dd,
-            th_d, th_dd, mu, f_c, friction, omega_m, shaft), status
+            th_d, th_dd, mu, f_c, friction, omega_m, shaft, z_dd, tension, moment), status
 
 
 @njit(cache=True, error_model="numpy")
 def rhs(t, y, p, out):
-    """d/dt of (e, τ·ė[, φ, ω, φ_m, ω_m][, W_drive, W_load, E_dissipated]) into ``out`` (the cam-drive states
-    when p[DRIVE_ON]); NaN where the chain cannot be assembled or the guide jams (then p[JAM_T], p[JAM_PHI] record
+    """d/dt of (e, τ·ė[, φ, ω, φ_m, ω_m][, z, τ·ż][, W_drive, W_load, E_dissipated]) into ``out`` (the cam-drive
+    states when p[DRIVE_ON], the slider's when p[JOINTS_ON]); NaN where the chain cannot be assembled or the guide jams (then p[JAM_T], p[JAM_PHI] record
     the first jam)."""
     if not math.isfinite(y.sum()):
         out[:] = math.nan
         return
     phi, omega, alpha, omega_m, shaft = cam_state(t, y, p)
-    r, status = dynamics(y[0], y[1] / TAU, phi, omega, alpha, omega_m, shaft, p)
+    j = joint_index(p)
+    joints = p[JOINTS_ON] != 0.0
+    z, z_d = (y[j], y[j + 1] / TAU) if joints else (0.0, 0.0)
+    r, status = dynamics(y[0], y[1] / TAU, z, z_d, phi, omega, alpha, omega_m, shaft, p)
     if status:
         out[:] = math.nan
         if status == 2 and math.isnan(p[JAM_T]):
@@ -486,6 +591,10 @@ def rhs(t, y, p, out):
         motor = min(max(p[B_MOTOR] * (p[W_SYNC] - omega_m), -p[M_MAX]), p[M_MAX])
         out[5] = (motor - shaft) / p[J_MOTOR]
         k = 6
+    if joints:
+        out[k] = z_d
+        out[k + 1] = TAU * r[23]
+        k += 2
     if y.size > k:
         out[k] = r[9] * r[1]                       # drive torque · ω
         out[k + 1] = -(r[19] + r[20]) * r[14]      # −(F_c + friction)·ṡ
@@ -512,7 +621,7 @@ def geometry_at(t, y, p):
 def event_value(t, y, p, k):
     """Event k: WORKING −e (< 0 while pressed into the working flank), OTHER e − c/ℓ (> 0 while pressed into
     the other flank), OVERLOAD max penetration − p[MAX_PEN] (m), INSERTION > 0 while F_c acts (cam in a rise
-    and ψ past the pierce point, rad)."""
+    and ψ past the pierce point, rad; with the pin joints the slider's stroke past it over L3)."""
     if k == WORKING:
         return -y[0]
     lever, psi_k, inside = geometry_at(t, y, p)
@@ -521,7 +630,10 @@ def event_value(t, y, p, k):
     if k == OVERLOAD:
         u = y[0] * lever
         return max(-u, u - p[CLEARANCE]) - p[MAX_PEN]
-    return min(inside, psi_k + y[0] - p[PSI_PIERCE])
+    if p[JOINTS_ON] == 0.0:
+        return min(inside, psi_k + y[0] - p[PSI_PIERCE])
+    c, s = cos_sin(psi_k + y[0])                   # with the pin joints: the slider's own stroke past the point
+    return min(inside, (rigid_rod(c, s, p)[0] + y[joint_index(p)] - p[S_PIERCE]) / p[L3])
 
 
 @njit(cache=True, error_model="numpy")
@@ -537,10 +649,12 @@ def evaluate(t, y, p):
     """:func:`dynamics` at many samples (states in the columns of ``y``): rows of :data:`OUTPUTS` (NaN where
     the status is not 0)."""
     out = np.empty((N_OUT, t.size))
+    j = joint_index(p)
     for m in range(t.size):
         ym = y[:, m]
         phi, omega, alpha, omega_m, shaft = cam_state(t[m], ym, p)
-        r, _ = dynamics(ym[0], ym[1] / TAU, phi, omega, alpha, omega_m, shaft, p)
+        z, z_d = (ym[j], ym[j + 1] / TAU) if p[JOINTS_ON] != 0.0 else (0.0, 0.0)
+        r, _ = dynamics(ym[0], ym[1] / TAU, z, z_d, phi, omega, alpha, omega_m, shaft, p)
         for i in range(N_OUT):
             out[i, m] = r[i]
     return out

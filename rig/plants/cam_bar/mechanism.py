@@ -165,7 +165,7 @@ class PinInsertionMechanism:
     program: CamProgram = field(default_factory=default_program)
     insertion: InsertionLaw = field(default_factory=InsertionLaw)
     cam_drive: CamDrive | None = None                                # level 2: motor + shaft turn the cam
-    joints: JointClearance | None = None                             # level 2: rod pin clearances (reduced)
+    joints: JointClearance | None = None                             # level 2: rod pin clearances (slider DOF)
 
     def __post_init__(self) -> None:
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):
