@@ -90,9 +90,9 @@ def test_level2_cycles_draw_their_groove_clearance(tmp_path):
 
 
 def test_scene_table(tmp_path):
-    scene = write(tmp_path, '\n[plant.joints]\nfollower = "0.02 mm"\nslider = "0.03 mm"\n',
+    scene = write(tmp_path, '\n[plant.joints]\nfollower = "0.02 mm"\nslider = "0.03 mm"\nstiffness = "20 N/um"\n',
                   "[[plant.cam_program]]", "[[plant.cam_program]]")
-    assert PinInsertionMechanism.from_scene(scene).joints == JointClearance(20e-6, 30e-6)
+    assert PinInsertionMechanism.from_scene(scene).joints == JointClearance(20e-6, 30e-6, 2e7)
     path = tmp_path / "scene.toml"
     path.write_text(path.read_text().replace('slider = "0.03 mm"', 'slider = "-0.03 mm"'))
     with pytest.raises(SceneError, match="joint clearances"):
