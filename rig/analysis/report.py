@@ -29,10 +29,12 @@ from rig.analysis.normality import ANDERSON_P
 from rig.analysis.sets import by_program, process_values
 from rig.analysis.summary import analyse
 from rig.analysis.units import DisplayUnits, recording_units
+from rig.outputs import MARK
 from rig.recorder import Recording, read_recording
 from rig.recorder.completeness import losses
 
 NOK_PLOTS = 12        # NOK curves plotted by default (the report says how many of how many)
+MANIFEST = ".mechrig-report"    # in a report directory: the files the last report wrote there
 NOK_ROWS = 60         # rows of the "what failed and why" table (all of them are in results.csv)
 CAPABLE, MARGINAL = 1.33, 1.0
 
@@ -732,6 +734,7 @@ def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path,
     rec = recording_or_path if isinstance(recording_or_path, Recording) else read_recording(recording_or_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    before = _clear_previous(out)
     ctx = ReportContext(rec, analyse(rec) if analysis is None else analysis, out, ok_plots, nok_plots)
     blocks: list[Block] = []
     for _, section in (SECTIONS if sections is None else sections):
@@ -740,7 +743,27 @@ def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path,
     title = f"Rig report: {rec.path.name}" + (f" (scene {scene})" if scene else "")
     path = out / f"report.{fmt}"
     path.write_text(_markdown(title, blocks) if fmt == "md" else _html(title, blocks), encoding="utf-8")
+    written = sorted(p.name for p in out.iterdir()
+                     if p.is_file() and not p.name.startswith(".") and before.get(p.name) != p.stat().st_mtime_ns)
+    (out / MANIFEST).write_text("".join(f"{name}\n" for name in written), encoding="utf-8")
     return path
+
+
+def _clear_previous(out: Path) -> dict[str, int]:
+    """Remove what an earlier report wrote into ``out`` (the names in its :data:`MANIFEST`; without one, in a
+    directory marked as rig's, its numbered figures), so that no figure or CSV of another run is left beside this
+    report; return the files that stay, with their modification times (ns), to tell what this report writes."""
+    listed = out / MANIFEST
+    if listed.exists():
+        names = set(listed.read_text(encoding="utf-8").split())
+    elif (out / MARK).exists():
+        names = {p.name for p in out.glob("[0-9][0-9][0-9]_*.png")}
+    else:
+        names = set()
+    for name in names:
+        if "/" not in name and name not in (MARK, MANIFEST):
+            (out / name).unlink(missing_ok=True)
+    return {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.is_file()}
 
 from rig.analysis import clutch_report as _clutch_report  # noqa: E402,F401  (registers its section)
 from rig.analysis import static_clutch_report as _static_clutch_report  # noqa: E402,F401  (registers its section)

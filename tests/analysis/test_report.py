@@ -157,3 +157,21 @@ def test_console_summary_says_why_curves_failed_in_display_units(recording, caps
     row = next(line for line in out.splitlines() if line.split()[:1] == ["x_at_y_max"])
     x = np.array([r["process_values"]["x_at_y_max"] for r in recording.results])
     assert row.split()[1:4] == ["60", "mm", f"{1e3 * x.mean():.4g}"]              # SI m shown in mm
+
+
+def test_a_report_written_again_leaves_nothing_of_the_earlier_one(recording, tmp_path):
+    """A report directory holds one report: what the earlier report wrote (its manifest) is removed, a stray
+    numbered figure of an older rig in a rig directory too; the user's own files stay."""
+    from rig.outputs import claim_dir
+    out = claim_dir(tmp_path / "rep")
+    (out / "999_old_figure.png").write_bytes(b"old")             # an older rig's report, no manifest
+    (out / "notes.txt").write_text("mine")
+    write_report(recording, out, nok_plots=4)
+    first = set((out / report.MANIFEST).read_text().split())
+    assert not (out / "999_old_figure.png").exists() and (out / "notes.txt").read_text() == "mine"
+    assert {"report.html", "curves.csv", "results.csv"} <= first and "notes.txt" not in first
+    assert {"001_curve_c1.png", "004_curve_c46.png"} <= first                     # the 4 NOK curves
+    write_report(recording, out, nok_plots=0)                     # fewer figures: the others go
+    second = set((out / report.MANIFEST).read_text().split())
+    on_disk = {p.name for p in out.iterdir() if not p.name.startswith(".")}
+    assert on_disk == second | {"notes.txt"} and "004_curve_c46.png" not in on_disk and "004_residuals.png" in second

@@ -301,3 +301,17 @@ def test_a_server_that_is_not_socketcand_is_named(tmp_path):
 def test_cycles_on_a_duration_scene_is_a_usage_error(tmp_path, capsys):
     assert cli.main(["-q", "run", str(CLUTCH), "--cycles", "2", "-o", str(tmp_path / "c.mcap")]) == 2
     assert f"--cycles given, but {CLUTCH} runs for a duration" in one_error_line(capsys)
+
+
+def test_the_console_script_skips_the_teardown_but_not_the_output(tmp_path):
+    """``rig`` leaves through os._exit after main (rig.cli.entry): everything printed reaches a pipe and every file
+    is complete, and the exit status is main's."""
+    png = tmp_path / "cycle.png"
+    proc = subprocess.run([sys.executable, "-m", "rig.cli", "summary", str(DEMO), "--png", str(png)],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path, env={**os.environ, "MPLBACKEND": "Agg"})
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.rstrip().endswith(f"cycle chart: {png}") and "b_min" in proc.stdout
+    assert png.read_bytes().endswith(b"IEND\xaeB`\x82")                              # the PNG's last chunk
+    bad = subprocess.run([sys.executable, "-m", "rig.cli", "run", str(tmp_path / "missing.toml")],
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert bad.returncode == 2 and bad.stderr.startswith("rig: error:")
