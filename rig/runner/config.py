@@ -60,6 +60,7 @@ SERIAL_SCHEMA = {
 }
 RECORDING_SCHEMA = {
     "truth_signals": Field(None, None, "plant truth signals to record (default: all)"),
+    "truth_rate": Field("Hz", None, "rate of /plant/truth, every k-th model sample (default: every sample)"),
     "encoding": Field(None, "json", "'json' (viewer-plottable) or 'base64' (compact)"),
     "compression": Field(None, "zstd"),
 }
@@ -69,6 +70,19 @@ LINKS = ("can", "serial")
 MODES = ("virtual", "realtime")
 IN_PROCESS_INTERFACES = ("blockbus", "virtual")
 CHANNELS = ("x", "y")
+
+
+def _truth_every(rate: float | None, sample_rate: float, where: str) -> int:
+    """Decimation k of the recorded truth for ``[recording] truth_rate`` (Hz; ``None``: 1); a SceneError naming
+    ``where`` unless the rate divides the sample rate into whole steps."""
+    if rate is None:
+        return 1
+    ratio = sample_rate / rate if rate > 0 else math.inf
+    k = round(ratio) if math.isfinite(ratio) else 0
+    if k < 1 or abs(ratio - k) > 1e-9 * ratio:
+        raise SceneError(f"{where}: 'truth_rate' must divide the sample rate ({sample_rate:g} Hz) into whole steps "
+                         f"(e.g. {sample_rate / 10:g} Hz), got {rate:g} Hz")
+    return k
 
 
 @dataclass(frozen=True)
@@ -167,6 +181,11 @@ class RunConfig:
     @property
     def dt(self) -> float:
         return 1.0 / self.sample_rate
+
+    @property
+    def truth_every(self) -> int:
+        """/plant/truth keeps the model samples whose index is a multiple of this (1: every sample)."""
+        return _truth_every(self.recording["truth_rate"], self.sample_rate, "")
 
     def sample_times(self, first: int, n: int) -> np.ndarray:
         """Times (s) of the ``n`` samples after sample number ``first``: (first + 1 + i) / rate, each the double
@@ -313,6 +332,7 @@ def read_config(scene: Scene) -> RunConfig:
     signals = recording["truth_signals"]
     if signals is not None and not (isinstance(signals, list) and all(isinstance(x, str) for x in signals)):
         raise SceneError(f"{rw}: key 'truth_signals' must be a list of signal names, got {signals!r}")
+    _truth_every(recording["truth_rate"], s["sample_rate"], rw)
     max_time = s["max_time"] if s["max_time"] is not None else (
         s["duration"] if s["duration"] is not None else default_max_time(cycles))
     return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=_integer(s["seed"], "seed", where),

@@ -157,7 +157,13 @@ class Host:
             truth = self.theory.advance(t)
             signals = {k: np.asarray(v, dtype=float) for k, v in truth.items()
                        if k != "t" and np.shape(v) == t.shape and (keep is None or k in keep)}
-            self.rec.write_truth(t, signals)
+            k = self.cfg.truth_every              # sample indices first + 1 … (RunConfig.sample_times)
+            if k > 1:
+                j = -(self._blocks - 1) * n - 1
+                keep_at = slice(j % k, None, k)
+                self.rec.write_truth(t[keep_at], {name: v[keep_at] for name, v in signals.items()})
+            else:
+                self.rec.write_truth(t, signals)
             self._truth.append({"t": t, **signals})
             self.truth_t = float(t[-1])
         for ev in self.theory.events[self._plant_events:]:

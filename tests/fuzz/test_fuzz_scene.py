@@ -48,7 +48,7 @@ KEYS = ["name", "plant", "seed", "cycles", "duration", "sample_rate", "chunk", "
         "L3", "L3_mm", "L3_kg", "k_N_per_mm", "speed", "profile", "speed_end", "ramp_time", "amplitude",
         "description", "signal", "to", "rate", "overrides", "faults", "program", "config", "interface",
         "bitrate", "fd", "data_bitrate", "live_share", "tx_curves", "port", "enabled", "baudrate", "address",
-        "truth_signals", "encoding", "compression", "variant", "lever_arm", "force", "kind", "angle", "law",
+        "truth_signals", "truth_rate", "encoding", "compression", "variant", "lever_arm", "force", "kind", "angle", "law",
         "stroke", "zz", "x_mm_mm", "_", "a b", '"quoted key"', "F_c_travel_ms", "clearance_lambda"]
 SECTIONS = ["scene", "plant", "plnt", "speed", "load", "load.brake", "load.none", "load.zz", "motor", "recording",
             "recordng", "device", "device.config", "links", "links.can", "links.cann", "links.serial",

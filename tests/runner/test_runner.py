@@ -50,7 +50,8 @@ def test_in_process_recording_holds_curves_theory_results_statistics(in_process:
     assert len(rec.results) == CYCLES and all("ok" in r for r in rec.results)
     assert rec.statistics, "device statistics read over serial are recorded"
     assert rec.statistics[-1]["total"] == CYCLES and rec.statistics[-1]["ok"] == CYCLES
-    assert rec.truth["t"].size >= CYCLES * 0.4 * 10_000 * 0.9
+    t = rec.truth["t"]                                     # [recording] truth_rate = "1 kHz": every 10th sample
+    assert t.size >= CYCLES * 0.4 * 1_000 * 0.9 and np.allclose(np.diff(t), 1e-3) and np.allclose(t * 1e3, np.round(t * 1e3))
     assert "scene.toml" in str(rec.scene_text) or "[plant]" in rec.scene_text
     assert rec.can_frames is not None
 
@@ -155,6 +156,18 @@ def test_bad_scene_is_a_clear_error(tmp_path: Path, old: str, new: str, message:
 def test_config_reads_the_demo_scene():
     cfg = read_config(load_scene(SCENE))
     assert cfg.cycles == 50 and cfg.sample_rate == 10_000 and cfg.wired("device.x").signal == "s"
+    assert cfg.truth_every == 10
+
+
+@pytest.mark.parametrize("rate, every", [(None, 1), ("10 kHz", 1), ("2 kHz", 5), ("0.1 kHz", 100)])
+def test_truth_rate_is_a_whole_decimation_of_the_sample_rate(tmp_path: Path, rate, every):
+    old = 'truth_rate = "1 kHz"'
+    path = _scene_variant(tmp_path, "t.toml", **{old: "" if rate is None else f'truth_rate = "{rate}"'})
+    assert read_config(load_scene(path)).truth_every == every
+    for bad in ("3 kHz", "20 kHz", "0 Hz"):
+        path = _scene_variant(tmp_path, "t.toml", **{old: f'truth_rate = "{bad}"'})
+        with pytest.raises(SceneError, match=r"\[recording\]: 'truth_rate' must divide the sample rate \(10000 Hz\)"):
+            read_config(load_scene(path))
 
 
 def test_recorded_values_equal_the_raw_frames_decoded_with_cantools_and_the_dbc_alone(in_process: Path):
