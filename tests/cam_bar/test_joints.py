@@ -97,3 +97,17 @@ def test_scene_table(tmp_path):
     path.write_text(path.read_text().replace('slider = "0.03 mm"', 'slider = "-0.03 mm"'))
     with pytest.raises(SceneError, match="joint clearances"):
         PinInsertionMechanism.from_scene(load_scene(path))
+
+
+def test_pins_driven_beyond_the_overload_limit_are_named():
+    """A state with the slider 0.5 mm past the pins' play (what a diverging solution reaches) stops the run with an
+    error that names the pins and the cam angle, not the roller."""
+    from rig.solvers import SolverDivergence
+    mech = PinInsertionMechanism(joints=JointClearance(20e-6, 20e-6))
+    model = Level2(mech, DEMO_SPEED)
+    y0 = list(model.initial_state(0.0))
+    y0[2] = 0.5e-3
+    with pytest.raises(SolverDivergence, match=r"rod's pins penetrate their bores by 0\.4\d* mm .* at cam angle"):
+        model.simulate((0.0, 0.01), y0=y0)
+    y0[2] = 0.0                                                      # inside the limit: runs
+    assert model.simulate((0.0, 0.01), y0=y0).solution.status != "terminated"

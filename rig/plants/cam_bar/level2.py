@@ -261,6 +261,15 @@ class Level2:
 
     def overload(self, t: float, y: tuple) -> str:
         """What the terminal "overload" event at (t, y) means: where, and the likely causes with the fix."""
+        if self.mech.joints is not None:
+            yy = np.asarray(y, dtype=float)
+            psi = kernel.geometry_at(t, yy, self.params)[1] + yy[0]
+            pins = kernel.pin_penetration(psi, yy[kernel.joint_index(self.params)], self.params)
+            if pins > self.max_penetration:
+                return (f"the rod's pins penetrate their bores by {pins * 1e3:.3g} mm (more than "
+                        f"{self.max_penetration * 1e3:g} mm) at cam angle φ = {math.degrees(self.cam_angle(t, y)):.6g}° "
+                        f"(pin stiffness too low, or the solution diverged: with a fixed-step explicit method reduce h "
+                        f"or use Rodas4)")
         return (f"roller penetrates a flank by more than {self.max_penetration * 1e3:g} mm at cam angle "
                 f"φ = {math.degrees(self.cam_angle(t, y)):.6g}° (contact stiffness too low, or the solution diverged: "
                 f"with a fixed-step explicit method reduce h or use Rodas4)")

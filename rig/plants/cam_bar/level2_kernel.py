@@ -620,7 +620,7 @@ def geometry_at(t, y, p):
 @njit(cache=True, error_model="numpy")
 def event_value(t, y, p, k):
     """Event k: WORKING −e (< 0 while pressed into the working flank), OTHER e − c/ℓ (> 0 while pressed into
-    the other flank), OVERLOAD max penetration − p[MAX_PEN] (m), INSERTION > 0 while F_c acts (cam in a rise
+    the other flank), OVERLOAD max penetration (of a flank, or of the rod's pins) − p[MAX_PEN] (m), INSERTION > 0 while F_c acts (cam in a rise
     and ψ past the pierce point, rad; with the pin joints the slider's stroke past it over L3)."""
     if k == WORKING:
         return -y[0]
@@ -629,11 +629,24 @@ def event_value(t, y, p, k):
         return y[0] - p[CLEARANCE] / lever
     if k == OVERLOAD:
         u = y[0] * lever
-        return max(-u, u - p[CLEARANCE]) - p[MAX_PEN]
+        worst = max(-u, u - p[CLEARANCE])
+        if p[JOINTS_ON] != 0.0:
+            worst = max(worst, pin_penetration(psi_k + y[0], y[joint_index(p)], p))
+        return worst - p[MAX_PEN]
     if p[JOINTS_ON] == 0.0:
         return min(inside, psi_k + y[0] - p[PSI_PIERCE])
     c, s = cos_sin(psi_k + y[0])                   # with the pin joints: the slider's own stroke past the point
     return min(inside, (rigid_rod(c, s, p)[0] + y[joint_index(p)] - p[S_PIERCE]) / p[L3])
+
+
+@njit(cache=True, error_model="numpy")
+def pin_penetration(psi, z, p):
+    """How far |CD| lies beyond the pins' free play (m; < 0 inside it) with the follower at ψ and the slider at
+    z past the rigid chain's stroke."""
+    c, s = cos_sin(psi)
+    s_r = rigid_rod(c, s, p)[0]
+    dx, dy = p[S0] - s_r - z - p[L3] * c, p[E_SK] - p[L3] * s
+    return abs(math.sqrt(dx * dx + dy * dy) - p[L4]) - p[J_PLAY]
 
 
 @njit(cache=True, error_model="numpy")
