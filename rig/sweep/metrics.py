@@ -68,6 +68,18 @@ def _upper_dwell_vibration(run: PlantRun) -> float:
     return float(np.ptp(sig["s"][top] - law[top])) if top.any() else float("nan")
 
 
+def _gripper_deviation(run: PlantRun) -> float:
+    """Peak-to-peak deviation of the slider from its level-0 law over the analysed revolution (m)."""
+    sig = run.signals
+    return float(np.ptp(sig["s"] - run.plant.mech.state(sig["phi"]).s))
+
+
+def _roller_gap(run: PlantRun) -> float:
+    """Largest gap the roller opens off the working flank (m, ≥ 0); NaN below level 2 (no groove modelled)."""
+    gap = run.signals.get("delta_w")
+    return max(float(np.max(-gap)), 0.0) if gap is not None else float("nan")
+
+
 def ok_share(scene: Scene, cycles: int = OK_CYCLES) -> float:
     """Share of machine cycles the acquisition unit judges OK (0…1): the scene's plant *with* its per-cycle
     variation (the scene's seed) through its X and Y transducers into its DigiForce program, ``cycles`` curves
@@ -113,6 +125,11 @@ METRICS: dict[str, Metric] = {
                              lambda r: float(len(r.events("flank_switch")))),
     "upper_dwell_vibration": Metric(("cam_bar",), "m", "gripper deviation from its law in the upper dwell, peak to "
                                     "peak, last revolution (level 2; 0 at levels 0/1)", _upper_dwell_vibration),
+    "gripper_deviation": Metric(("cam_bar",), "m", "gripper deviation from its law, peak to peak, last revolution "
+                                "(contact deflection, flight across the groove and pins; 0 at levels 0/1)",
+                                _gripper_deviation),
+    "roller_gap": Metric(("cam_bar",), "m", "largest gap the roller opens off the working flank, last revolution "
+                         "(level 2; NaN below)", _roller_gap),
     "rod_force_peak": Metric(("cam_bar",), "N", "largest |F_rod| of the last revolution",
                              lambda r: float(np.max(np.abs(r.signals["F_rod"])))),
     "ok_share": Metric(("cam_bar",), "1", f"share of cycles the DigiForce program judges OK, with the scene's "

@@ -1,6 +1,8 @@
 """The "where does it jump" map (rig.plants.cam_bar.jump_map): the phenomena appear where the model predicts them
 — flank switches at the drawn spring and high speed, gripper deviation of the order of clearance × L3/l3 when the
 roller crosses the groove — and vanish with a stiffer spring or at a lower speed."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -8,11 +10,19 @@ from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.jump_map import jump_map, plot
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.plant import DEMO_SPEED
+from rig.scene import load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_switches_at_the_drawn_spring_and_high_speed_only(tmp_path):
-    mech = PinInsertionMechanism()
-    result = jump_map(mech, speeds=(150.0, 300.0), rates=(1090.0, 1890.0), clearances=(0.05e-3,), samples=721)
+    """The map of the machine as drawn (its scene) through the sweep machinery, serial and on two worker threads."""
+    from rig.executors import make_executor
+    scene = load_scene(ROOT / "data" / "scenes" / "pin_insertion_as_drawn.toml")
+    mech = PinInsertionMechanism.from_scene(scene)
+    grid = dict(speeds=(150.0, 300.0), rates=(1090.0, 1890.0), clearances=(0.05e-3,))
+    result = jump_map(scene, **grid)
+    assert not result.errors.any()
     sw = result.switches[:, :, 0]
     assert sw[1, 0] >= 2 and sw[0, 0] == 0 and sw[1, 1] == 0 and sw[0, 1] == 0
     ratio = result.gripper[1, 0, 0] / 0.05e-3                          # the roller crossed the groove
@@ -20,6 +30,9 @@ def test_switches_at_the_drawn_spring_and_high_speed_only(tmp_path):
     assert np.all(result.gripper[0, :, 0] < 5e-6)                      # 150 rpm: contact held, µm only
     assert result.gap[1, 0, 0] >= 0.05e-3 > result.gap[1, 1, 0] > 0.0  # stiffer spring: lifts, never arrives
     assert plot(result, tmp_path / "map.png").stat().st_size > 1000
+    with make_executor("dask", 2) as executor:                         # the same map on another executor
+        again = jump_map(scene, executor=executor, **grid)
+    assert np.array_equal(again.switches, result.switches) and np.array_equal(again.gripper, result.gripper)
 
 
 def test_upper_dwell_gripper_vibration_of_clearance_times_lever_ratio_when_the_roller_is_free():

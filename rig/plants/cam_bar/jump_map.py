@@ -1,35 +1,40 @@
-"""Where does the gripper jump? Level 2 over cam speed × spring rate × groove clearance (issue 14).
+"""Where does the gripper jump? Level 2 over cam speed × spring rate × groove clearance (issue 14), on the sweep
+machinery (:mod:`rig.sweep`: any executor, the same map everywhere).
 
-For each point one machine (the scene's, with that speed, spring rate and clearance) runs ``revolutions`` cam
-revolutions at level 2 from the quasi-static start; recorded per point: flank switches in the last revolution,
-the largest gap the roller opens off the working flank (m) and the gripper's peak-to-peak deviation from its
-level-0 law (m). A serial loop (the sweep machinery of the scale-out issue does not exist yet). The sensor
-preload is not an axis: it offsets the reading only (docs/cam-bar.md).
+Each point is the scene's machine (nominal: without its per-cycle variation) forced to level 2, with that speed,
+spring rate and clearance, ``revolutions`` cam revolutions from the scene's start; recorded per point over the
+last revolution: flank switches, the largest gap the roller opens off the working flank (m) and the gripper's
+peak-to-peak deviation from its level-0 law (m). The sensor preload is not an axis: it offsets the reading only
+(docs/cam-bar.md); pin clearances are (``rig sweep … --param plant.joints.follower=…`` on a scene with
+``[plant.joints]``).
 
-Run: python -m rig.plants.cam_bar.jump_map [SCENE] [-o out/jump_map.png]
+Run: python -m rig.plants.cam_bar.jump_map [SCENE] [-o out/jump_map.png] [--executor … --workers N]
 """
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
-from math import tau
 from pathlib import Path
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from rig.motion.speed import RPM, ConstantSpeed
-from rig.plants.cam_bar.level2 import Level2
-from rig.plants.cam_bar.level2_model import Level2Model
-from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+from rig.motion.speed import RPM
+from rig.sweep import Param
+from rig.sweep.run import run_sweep
+
+if TYPE_CHECKING:
+    from rig.executors import Executor
+    from rig.scene import Scene
 
 SPEEDS_RPM = (100.0, 150.0, 200.0, 250.0, 280.0, 290.0, 300.0)
 RATES = (1090.0, 1190.0, 1680.0, 1890.0)
 CLEARANCES = (0.025e-3, 0.05e-3, 0.10e-3)
+METRICS = ("flank_switches", "roller_gap", "gripper_deviation")
 
 
 class JumpMap(NamedTuple):
-    """Results on the grid (speed, rate, clearance): ``switches`` (count), ``gap`` and ``gripper`` (m)."""
+    """Results on the grid (speed, rate, clearance): ``switches`` (count), ``gap`` and ``gripper`` (m), and why a
+    point failed ('' where it ran; its values are then NaN / −1 switches)."""
 
     speeds: np.ndarray      # rad/s
     rates: np.ndarray       # N/m
@@ -37,41 +42,38 @@ class JumpMap(NamedTuple):
     switches: np.ndarray
     gap: np.ndarray
     gripper: np.ndarray
+    errors: np.ndarray
 
 
-def jump_map(mech: PinInsertionMechanism, speeds=SPEEDS_RPM, rates=RATES, clearances=CLEARANCES,
-             revolutions: int = 2, samples: int = 1441, model: Level2Model = Level2Model()) -> JumpMap:
-    """Level 2 of ``mech`` under the assumptions ``model`` (variation and cam drive off) at each cam speed (rpm),
-    spring rate (N/m) and clearance (m); statistics of the last of ``revolutions`` revolutions on ``samples``
-    points."""
+def jump_map(scene: "Scene", speeds=SPEEDS_RPM, rates=RATES, clearances=CLEARANCES, revolutions: int = 2,
+             executor: "Executor | None" = None) -> JumpMap:
+    """The scene's machine at level 2 at each cam speed (rpm), spring rate (N/m) and clearance (m) on ``executor``
+    (default serial): :func:`rig.sweep.run.run_sweep` with the metrics :data:`METRICS`."""
+    from rig.executors import make_executor
+    params = (Param("scene.fidelity", (2,)), Param("speed.speed", tuple(f"{v!r} rpm" for v in speeds)),
+              Param("plant.k", tuple(f"{k!r} N/m" for k in rates)),
+              Param("plant.clearance", tuple(f"{c!r} m" for c in clearances)))
+    if executor is None:
+        with make_executor("serial") as serial:
+            result = run_sweep(scene, params, METRICS, serial, revolutions)
+    else:
+        result = run_sweep(scene, params, METRICS, executor, revolutions)
     shape = (len(speeds), len(rates), len(clearances))
-    switches, gap, grip = np.zeros(shape, int), np.zeros(shape), np.zeros(shape)
-    for i, rpm in enumerate(speeds):
-        period = tau / (rpm * RPM)
-        t = np.linspace((revolutions - 1) * period, revolutions * period, samples)
-        for j, k in enumerate(rates):
-            for m, c in enumerate(clearances):
-                machine = replace(mech, k=k, clearance=c, cam_drive=None)
-                level2 = Level2(machine, ConstantSpeed(rpm * RPM), model=model)
-                run = level2.simulate((0.0, t[-1]), t_eval=t, rtol=1e-7, atol=1e-12)
-                sig = level2.signals(t, run.solution.y)
-                switches[i, j, m] = sum(1 for e in run.switches if e.time >= t[0])
-                gap[i, j, m] = max(float(np.max(-sig["delta_w"])), 0.0)
-                grip[i, j, m] = float(np.ptp(sig["s"] - machine.state(sig["phi"]).s))
-    return JumpMap(np.asarray(speeds) * RPM, np.asarray(rates, float), np.asarray(clearances, float), switches,
-                   gap, grip)
+    column = {m: np.array([v[m] for v in result.values]).reshape(shape) for m in METRICS}
+    switches = np.where(np.isnan(column["flank_switches"]), -1, column["flank_switches"]).astype(int)
+    return JumpMap(np.asarray(speeds, float) * RPM, np.asarray(rates, float), np.asarray(clearances, float),
+                   switches, column["roller_gap"], column["gripper_deviation"],
+                   np.array(result.errors, dtype=object).reshape(shape))
 
 
 def plot(result: JumpMap, path: Path) -> Path:
     """One panel per clearance: switches per revolution (colour) and gripper deviation (µm, text) over speed ×
     spring rate; written to ``path`` (PNG)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     n = len(result.clearances)
-    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.8), sharey=True, constrained_layout=True)
-    axes = np.atleast_1d(axes)
+    fig = Figure(figsize=(4.2 * n, 3.8), constrained_layout=True)
+    axes = np.atleast_1d(fig.subplots(1, n, sharey=True))
     rpm = result.speeds / RPM
     vmax = max(int(result.switches.max()), 1)
     for m, ax in enumerate(axes):
@@ -84,24 +86,24 @@ def plot(result: JumpMap, path: Path) -> Path:
         ax.set_xlabel("cam speed (rpm = pins/min)")
         ax.set_title(f"clearance {result.clearances[m] * 1e3:g} mm")
     axes[0].set_ylabel("spring rate (N/mm)")
-    fig.colorbar(image, ax=axes, label="flank switches per revolution")
+    fig.colorbar(image, ax=list(axes), label="flank switches per revolution")
     fig.suptitle("Where does it jump? Level 2; numbers: gripper deviation from its law, µm peak to peak")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 def main(argv: list[str] | None = None) -> None:
-    from rig.plants.cam_bar.scene_io import read_level2_model
+    from rig.executors.options import add_executor_arguments, executor_from_args
     from rig.scene import load_scene
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene", nargs="?", default=str(Path(__file__).resolve().parents[3] / "data" / "scenes"
                                                        / "pin_insertion_as_drawn.toml"))
     parser.add_argument("-o", "--output", default="out/jump_map.png")
+    add_executor_arguments(parser, local="dask-processes")
     args = parser.parse_args(argv)
-    scene = load_scene(args.scene)
-    result = jump_map(PinInsertionMechanism.from_scene(scene), model=read_level2_model(scene))
+    with executor_from_args(args, local="dask-processes") as executor:
+        result = jump_map(load_scene(args.scene), executor=executor)
     for m, c in enumerate(result.clearances):
         print(f"clearance {c * 1e3:g} mm: switches per revolution (rows: spring rate N/mm; columns: rpm "
               f"{', '.join(f'{v / RPM:g}' for v in result.speeds)})")
@@ -109,6 +111,9 @@ def main(argv: list[str] | None = None) -> None:
             cells = "  ".join(f"{result.switches[i, j, m]:d} ({result.gripper[i, j, m] * 1e6:4.0f} µm)"
                               for i in range(len(result.speeds)))
             print(f"  {k / 1e3:.2f}: {cells}")
+    for index in zip(*np.nonzero(result.errors != "")):
+        print(f"  failed at {result.speeds[index[0]] / RPM:g} rpm, {result.rates[index[1]] / 1e3:g} N/mm, "
+              f"{result.clearances[index[2]] * 1e3:g} mm: {result.errors[index]}")
     print(f"map: {plot(result, Path(args.output))}")
 
 
