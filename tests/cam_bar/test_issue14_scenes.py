@@ -29,3 +29,16 @@ def test_as_drawn_records_flank_switches(tmp_path):
     run_scene(SCENES / "pin_insertion_as_drawn.toml", out, cycles=1)
     switches = [e for e in read_recording(out).events if e["kind"] == "flank_switch"]
     assert len(switches) >= 2
+
+
+def test_worn_pins_strike_where_the_rod_force_reverses(tmp_path):
+    """The as-tested machine with 0.05 mm pins: the slider flies across the play and the recorded rod force (truth and
+    the device's curve) shows the impacts, far beyond the rigid rod's -55 N; the impact lifts the roller."""
+    from rig.plants.cam_bar.joints import JointClearance
+    scene = SCENES / "pin_insertion_worn_pins.toml"
+    assert CamBarPlant.from_scene(load_scene(scene)).mech.joints == JointClearance(5e-5, 5e-5, 4e7)
+    out = tmp_path / "worn.mcap"
+    run_scene(scene, out, cycles=1)
+    rec = read_recording(out)
+    assert rec.truth["F_rod"].min() < -150.0 and rec.truth["R23"].min() == 0.0
+    assert rec.curves[0].y.min() < -150.0
