@@ -211,6 +211,9 @@ def cmd_record(args: argparse.Namespace) -> int:
         _connect_as_served(args, served)
     elif args.can_port is None:
         raise UsageError("rig record needs --endpoints FILE (written by `rig serve --endpoints`) or --can-port")
+    else:
+        print(f"rig record: warning: without --endpoints the scene and fidelity the machine serves are not checked; "
+              f"the recording's theory is {args.scene}'s", file=sys.stderr)
     summary = record_scene(args.scene, args.output, can_host=args.can_host or "127.0.0.1", can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet, fidelity=args.fidelity)

@@ -276,6 +276,7 @@ def test_record_against_a_closed_port_is_one_line_and_exit_1(tmp_path):
     assert proc.returncode == 1, proc.stderr
     assert len(lines) <= 3 and elapsed < 10, (elapsed, lines[:5])
     assert re.search(rf"cannot connect to socketcand at 127\.0\.0\.1:{port}: connection refused", proc.stderr)
+    assert "without --endpoints the scene and fidelity the machine serves are not checked" in lines[0]
     assert not out.exists()
 
 
