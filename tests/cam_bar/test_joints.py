@@ -67,8 +67,8 @@ def test_energy_balance_closes_with_the_pins():
     pin energy), to the solver's accuracy, with a varying cam speed; soft roller contact (K/100)."""
     mech = PinInsertionMechanism(joints=JointClearance(20e-6, 20e-6))
     base = ContactLaw.steel_line(mech.roller_width)
-    model = Level2(mech, SinusoidalSpeed(150 * RPM, 1.5), ContactLaw(base.stiffness * 0.01, base.exponent, base.damping),
-                   energy=True, max_penetration=1e-3)
+    soft = ContactLaw(base.stiffness * 0.01, base.exponent, base.damping)
+    model = Level2(mech, SinusoidalSpeed(150 * RPM, 1.5), soft, energy=True, max_penetration=1e-3)
     sol = model.simulate((0.0, 0.4), method="DP45", rtol=1e-8, atol=1e-12).solution
     energy = model.energies(sol.t[[0, -1]], sol.y[:, [0, -1]])
     change = sum(v[1] - v[0] for v in energy.values())

@@ -5,9 +5,10 @@ normal n (oriented as in level 1, B_R × n = ℓ > 0) is u = ℓ(φ)·e with e =
 from the level-0 law ψ_k (first order in e: |e| ≲ 1e-3 rad, curvature terms ~ c²/ρ are dropped). The working
 flank (pushes towards larger ψ) sits at u = 0, the other one at u = c; penetrations are δ_w = −u and
 δ_o = u − c, each with the compliant contact of :class:`ContactLaw`. The rod and slider follow ψ through the
-level-0 chain (or, with the rod's pin clearances, the slider is a body of its own: :mod:`.joints`); spring, gravity, guide friction, insertion force and the inertia of all links come from the
-level-1 free-body diagrams (:mod:`rig.plants.cam_bar.kinetostatics`) on the *actual* motion, which give the cam
-moment M_Σ needed for an acceleration ψ̈. It is affine in ψ̈ on each friction branch, so M_Σ(ψ̈) = ℓ·(F_w − F_o)
+level-0 chain (with the rod's pin clearances the slider is a body of its own: :mod:`.joints`); spring, gravity,
+guide friction, insertion force and the inertia of all links come from the level-1 free-body diagrams
+(:mod:`rig.plants.cam_bar.kinetostatics`) on the *actual* motion, which give the cam moment M_Σ needed for an
+acceleration ψ̈. It is affine in ψ̈ on each friction branch, so M_Σ(ψ̈) = ℓ·(F_w − F_o)
 is solved in closed form. The cam turns by the given speed profile, or, with a cam drive
 (:mod:`.drive`), as a state driven by a motor through a compliant shaft. The insertion force follows the pin's
 force–travel law (:mod:`.insertion`) and the slider guide's friction its model (:mod:`.guide_friction`).
@@ -266,10 +267,10 @@ class Level2:
             psi = kernel.geometry_at(t, yy, self.params)[1] + yy[0]
             pins = kernel.pin_penetration(psi, yy[kernel.joint_index(self.params)], self.params)
             if pins > self.max_penetration:
+                phi = math.degrees(self.cam_angle(t, y))
                 return (f"the rod's pins penetrate their bores by {pins * 1e3:.3g} mm (more than "
-                        f"{self.max_penetration * 1e3:g} mm) at cam angle φ = {math.degrees(self.cam_angle(t, y)):.6g}° "
-                        f"(pin stiffness too low, or the solution diverged: with a fixed-step explicit method reduce h "
-                        f"or use Rodas4)")
+                        f"{self.max_penetration * 1e3:g} mm) at cam angle φ = {phi:.6g}° (pin stiffness too low, or "
+                        f"the solution diverged: with a fixed-step explicit method reduce h or use Rodas4)")
         return (f"roller penetrates a flank by more than {self.max_penetration * 1e3:g} mm at cam angle "
                 f"φ = {math.degrees(self.cam_angle(t, y)):.6g}° (contact stiffness too low, or the solution diverged: "
                 f"with a fixed-step explicit method reduce h or use Rodas4)")

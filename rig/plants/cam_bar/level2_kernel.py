@@ -620,8 +620,9 @@ def geometry_at(t, y, p):
 @njit(cache=True, error_model="numpy")
 def event_value(t, y, p, k):
     """Event k: WORKING −e (< 0 while pressed into the working flank), OTHER e − c/ℓ (> 0 while pressed into
-    the other flank), OVERLOAD max penetration (of a flank, or of the rod's pins) − p[MAX_PEN] (m), INSERTION > 0 while F_c acts (cam in a rise
-    and ψ past the pierce point, rad; with the pin joints the slider's stroke past it over L3)."""
+    the other flank), OVERLOAD max penetration (of a flank, or of the rod's pins) − p[MAX_PEN] (m), INSERTION > 0
+    while F_c acts (cam in a rise and ψ past the pierce point, rad; with the pin joints the slider's stroke past it
+    over L3)."""
     if k == WORKING:
         return -y[0]
     lever, psi_k, inside = geometry_at(t, y, p)
