@@ -96,6 +96,8 @@ class StiffnessMonitor:
         hl = hl.tolist()
         for args in zip(t, y, h, hl):
             self._stiffness(*args)
+            if self.detected_at is not None:      # reported: once per run, not once per STEPS steps of the batch
+                return
 
     def update(self, t: float, y: tuple, h: float, hl: float) -> None:
         """Update with an estimate ``hl`` of h·|λ| for a step of size h ending at (t, y); a non-finite estimate
