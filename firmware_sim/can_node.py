@@ -20,27 +20,18 @@ dropped. Every pair not sent is counted (``LiveDropped`` in ``StatusCounters``; 
 from __future__ import annotations
 
 import binascii
-import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import can
-import cantools
 import numpy as np
 
 from firmware_sim.can_arbitration import DROPPED, PENDING, SENT, arbitrate
 from firmware_sim.can_budget import BusTiming
 from rig.blockbus import BRS, FD, FrameBlock
-
-DBC_PATH = Path(__file__).resolve().parents[1] / "data" / "can" / "rig.dbc"
-
-
-@functools.lru_cache(maxsize=4)
-def load_dbc(path: str) -> cantools.database.Database:
-    """The DBC at ``path``, parsed once per process (read only: everything that uses it shares it)."""
-    return cantools.database.load_file(path)
+from rig.dbc import DBC_PATH, load_dbc
 
 X_LSB = 1e-6                     # m per count of every X signal (20-bit signed)
 Y_LSB = 0.005                    # N per count of every Y / force signal (20-bit signed)

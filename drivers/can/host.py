@@ -16,7 +16,6 @@ received before it is lost and reception continues.
 """
 from __future__ import annotations
 
-import functools
 import itertools
 from collections import deque
 from dataclasses import dataclass, field
@@ -33,14 +32,8 @@ from drivers.can.reassembly import Curve, CurveAssembler
 from drivers.can.sequence import SequenceChecker
 from drivers.can.timebase import unwrap
 from rig.blockbus import ERROR, EXTENDED, FD, FrameBlock
+from rig.dbc import DBC_PATH, load_dbc
 
-DBC_PATH = Path(__file__).resolve().parents[2] / "data" / "can" / "rig.dbc"
-
-
-@functools.lru_cache(maxsize=4)
-def load_dbc(path: str) -> cantools.database.Database:
-    """The DBC at ``path``, parsed once per process (read only: everything that uses it shares it)."""
-    return cantools.database.load_file(path)
 COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statistics": 5, "identify": 6,
             "release": 7}
 TARE_CHANNELS = {"x": 0, "y": 1, "y2": 2, None: 3}

@@ -117,9 +117,9 @@ STAND_SI = {"t": "s", "edge_time": "s", "speed_time": "s", "speed": "rad/s", "di
 def dbc_units() -> dict[str, str]:
     """SI unit of every device signal of the DBC by its column name (snake case; "1" for a count): the unit of a
     reading message's column on its ``/stand/`` topic."""
-    from drivers.can.host import DBC_PATH, load_dbc
+    from rig.dbc import load_dbc
     from rig.recorder.schemas import snake
-    db = load_dbc(str(DBC_PATH))
+    db = load_dbc()
     return {snake(s.name): s.unit or "1" for m in db.messages if "DEVICE" in m.senders for s in m.signals}
 
 

@@ -143,8 +143,8 @@ def read_wire(to: Any, where: str) -> str:
 @functools.lru_cache(maxsize=1)
 def _device_dbc() -> Any:
     """The DBC the simulated machine sends by (the scene wires transducers into its messages)."""
-    from firmware_sim.can_node import DBC_PATH, load_dbc
-    return load_dbc(str(DBC_PATH))
+    from rig.dbc import load_dbc
+    return load_dbc()
 
 
 def frames_of(transducers: tuple[TransducerSpec, ...] | list[TransducerSpec]) -> dict[str, list[TransducerSpec]]:

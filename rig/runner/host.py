@@ -150,20 +150,17 @@ class Host:
         dt, n, end = self.cfg.dt, self._block_n, self.cfg.duration
         keep = self.cfg.recording["truth_signals"]
         while self.truth_t < until - 1e-12 and (end is None or self.truth_t < end - 0.5 * dt):
-            t = self.cfg.sample_times(self._blocks * n, n)
+            first = self._blocks * n
+            t = self.cfg.sample_times(first, n)
             if end is not None:
                 t = t[t <= end + 0.5 * dt]
             self._blocks += 1
             truth = self.theory.advance(t)
             signals = {k: np.asarray(v, dtype=float) for k, v in truth.items()
                        if k != "t" and np.shape(v) == t.shape and (keep is None or k in keep)}
-            k = self.cfg.truth_every              # sample indices first + 1 … (RunConfig.sample_times)
-            if k > 1:
-                j = -(self._blocks - 1) * n - 1
-                keep_at = slice(j % k, None, k)
-                self.rec.write_truth(t[keep_at], {name: v[keep_at] for name, v in signals.items()})
-            else:
-                self.rec.write_truth(t, signals)
+            k = self.cfg.truth_every              # the samples first + 1, … whose index k divides
+            kept = slice(-(first + 1) % k, None, k)
+            self.rec.write_truth(t[kept], {name: v[kept] for name, v in signals.items()})
             self._truth.append({"t": t, **signals})
             self.truth_t = float(t[-1])
         for ev in self.theory.events[self._plant_events:]:

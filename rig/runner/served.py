@@ -23,11 +23,11 @@ from typing import Any
 
 import can
 
-from drivers.can.host import DBC_PATH, load_dbc
+from rig.dbc import load_dbc
 from firmware_sim.can_node import CanNode
 from rig.blockbus import FrameBlock
 
-COMMAND_ACK = load_dbc(str(DBC_PATH)).get_message_by_name("CommandAck").frame_id
+COMMAND_ACK = load_dbc().get_message_by_name("CommandAck").frame_id
 
 
 class Anchored:

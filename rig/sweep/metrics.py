@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from math import tau
 from typing import Any, Callable
 
@@ -29,6 +30,11 @@ class PlantRun:
     signals: dict[str, np.ndarray]
     window: tuple[float, float]
     scene: Scene | None = None
+
+    @cached_property
+    def law(self) -> np.ndarray:
+        """The slider's level-0 stroke (m) at the analysed samples' cam angles (cam bar)."""
+        return self.plant.mech.state(self.signals["phi"]).s
 
     def events(self, kind: str) -> list:
         a, b = self.window
@@ -62,16 +68,14 @@ def run_plant(scene: Scene, revolutions: int = 2) -> PlantRun:
 
 def _upper_dwell_vibration(run: PlantRun) -> float:
     """Peak-to-peak deviation of the slider from its level-0 law in the upper dwell (m)."""
-    sig, mech = run.signals, run.plant.mech
-    law = mech.state(sig["phi"]).s
+    sig, mech, law = run.signals, run.plant.mech, run.law
     top = law >= mech.program.levels[1] - 1e-12
     return float(np.ptp(sig["s"][top] - law[top])) if top.any() else float("nan")
 
 
 def _gripper_deviation(run: PlantRun) -> float:
     """Peak-to-peak deviation of the slider from its level-0 law over the analysed revolution (m)."""
-    sig = run.signals
-    return float(np.ptp(sig["s"] - run.plant.mech.state(sig["phi"]).s))
+    return float(np.ptp(run.signals["s"] - run.law))
 
 
 def _roller_gap(run: PlantRun) -> float:

@@ -13,6 +13,7 @@ Run: python -m rig.plants.cam_bar.jump_map [SCENE] [-o out/jump_map.png] [--exec
 from __future__ import annotations
 
 import argparse
+from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -53,11 +54,8 @@ def jump_map(scene: "Scene", speeds=SPEEDS_RPM, rates=RATES, clearances=CLEARANC
     params = (Param("scene.fidelity", (2,)), Param("speed.speed", tuple(f"{v!r} rpm" for v in speeds)),
               Param("plant.k", tuple(f"{k!r} N/m" for k in rates)),
               Param("plant.clearance", tuple(f"{c!r} m" for c in clearances)))
-    if executor is None:
-        with make_executor("serial") as serial:
-            result = run_sweep(scene, params, METRICS, serial, revolutions)
-    else:
-        result = run_sweep(scene, params, METRICS, executor, revolutions)
+    with make_executor("serial") if executor is None else nullcontext(executor) as chosen:
+        result = run_sweep(scene, params, METRICS, chosen, revolutions)
     shape = (len(speeds), len(rates), len(clearances))
     column = {m: np.array([v[m] for v in result.values]).reshape(shape) for m in METRICS}
     switches = np.where(np.isnan(column["flank_switches"]), -1, column["flank_switches"]).astype(int)

@@ -382,6 +382,26 @@ def spring_moment(psi, p):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def slider_sign(s_d):
+    """Sign of the slider velocity ẋ_D = −ṡ for stroke rate ṡ (0 at rest)."""
+    return -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def regularised_mu(s_d, p):
+    """The regularised guide's coefficient μ·tanh(|ṡ|/v_s) (tanh rounds to 1 beyond 19: μ itself past 20)."""
+    x = abs(s_d) / p[V_S]
+    return p[MU] if x > 20.0 else p[MU] * math.tanh(x)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def rod_span(cp, sp, s, p):
+    """(x, y, length) of D − C (m) with the follower at ψ (cos, sin) and the slider at stroke s."""
+    dx, dy = p[S0] - s - p[L3] * cp, p[E_SK] - p[L3] * sp
+    return dx, dy, math.sqrt(dx * dx + dy * dy)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def free_body(psi, cp, sp, psi_d, rising, moment, p):
     """ψ̈ (rad/s²) at which the cam moment of the free bodies on the actual motion (ψ, ψ̇) equals ``moment``
     (N·m), and the motion and loads there: (ψ̈, s, ṡ, s̈, ϑ̇, ϑ̈, μ_eff, F_c, friction, status) with status 0,
@@ -409,12 +429,11 @@ def free_body(psi, cp, sp, psi_d, rising, moment, p):
     m41 = 0.5 * (lx * f4y1 - ly * f4x1) - p[J4] * t1_
     f_c = insertion_force(s, p) if rising else 0.0
     q0, q1 = f_c + m5 * s0_, m5 * s1_
-    sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0                  # sign of the slider velocity ẋ_D
+    sv = slider_sign(s_d)
     w5 = m5 * g
     spring = spring_moment(psi, p)
     if p[GUIDE_MODEL] == 0.0:
-        x = abs(s_d) / p[V_S]
-        mu = p[MU] if x > 20.0 else p[MU] * math.tanh(x)     # tanh(x) rounds to 1 beyond x ≈ 19
+        mu = regularised_mu(s_d, p)
     else:                                             # Karnopp stick-slip (rig.plants.cam_bar.guide_friction)
         mu = p[MU]
         if abs(s_d) <= p[V_STICK]:                    # may hold: friction F_f (x54 = q + F_f) with s̈ = −ṡ/T
@@ -454,11 +473,10 @@ def guide_force(push, normal, s_d, m_s, p):
     normal force ``normal`` (N), stroke rate ṡ (m/s) and slider mass ``m_s`` (kg), with the guide's model: the
     regularised μ·tanh(|ṡ|/v_s), or stick–slip (held within μ_s·|N| to s̈ = −ṡ/T inside the stick band, else
     slipping the way it is pushed); and the sign of the slider velocity ẋ_D it was taken for."""
-    sv = -1.0 if s_d > 0.0 else 1.0 if s_d < 0.0 else 0.0                  # sign of ẋ_D = −ṡ
+    sv = slider_sign(s_d)
     mu = p[MU]
     if p[GUIDE_MODEL] == 0.0:
-        x = abs(s_d) / p[V_S]
-        mu = mu if x > 20.0 else mu * math.tanh(x)
+        mu = regularised_mu(s_d, p)
     elif abs(s_d) <= p[V_STICK]:
         f_hold = push + m_s * s_d / p[T_STICK]
         if abs(f_hold) <= p[MU_S] * abs(normal):
@@ -482,8 +500,7 @@ def joint_body(psi, cp, sp, psi_d, z, z_d, rising, moment, p):
     s_psipsi = -psi_ss * s_psi ** 3                                         # d²s_r/dψ²
     s, s_d = s_r + z, s_psi * psi_d + z_d
     l3_, g, half = p[L3], p[G], 0.5 * p[M4]
-    dx, dy = p[S0] - s - l3_ * cp, p[E_SK] - l3_ * sp                      # D − C
-    length = math.sqrt(dx * dx + dy * dy)
+    dx, dy, length = rod_span(cp, sp, s, p)                                 # D − C
     nx, ny = dx / length, dy / length
     vx, vy = -s_d + l3_ * sp * psi_d, -l3_ * cp * psi_d                    # v_D − v_C
     rate = nx * vx + ny * vy
@@ -646,8 +663,7 @@ def pin_penetration(psi, z, p):
     z past the rigid chain's stroke."""
     c, s = cos_sin(psi)
     s_r = rigid_rod(c, s, p)[0]
-    dx, dy = p[S0] - s_r - z - p[L3] * c, p[E_SK] - p[L3] * s
-    return abs(math.sqrt(dx * dx + dy * dy) - p[L4]) - p[J_PLAY]
+    return abs(rod_span(c, s, s_r + z, p)[2] - p[L4]) - p[J_PLAY]
 
 
 @njit(cache=True, error_model="numpy")
