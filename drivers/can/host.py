@@ -136,8 +136,12 @@ class CanHost:
         self._runs = {self.db.get_message_by_name(name).frame_id: handler for name, handler in (
             ("LiveXY", self._live_run), ("LiveXYFD", self._live_run), ("CurveBlock", self._curve_block_run),
             ("CurveBlockFD", self._curve_block_run))}
-        self._run_lengths = {fid: self._layouts[fid].length for fid in self._runs}
+        self._counter_ids = {fid for fid, spec in self._by_id.items()
+                             if self._handlers[spec.name] == self._counter and fid in self._layouts}
+        self._run_lengths = {fid: self._layouts[fid].length for fid in (*self._runs, *self._counter_ids)}
         self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
+        self._run_device_time = 0.0   # the device time before the bulk run being decoded (s)
+        self._run_clock: list[tuple[np.ndarray, np.ndarray]] = []   # its live frames: index, device time after
         self._bus_time = 0.0          # latest frame time stamp (s)
         self._host_seq = 0
         self._sent: list[can.Message] = []   # commands sent, not yet taken (see take_sent)
@@ -205,9 +209,10 @@ class CanHost:
     def receive_block(self, block: FrameBlock) -> None:
         """Process a block of received frames in order, with the outcome of :meth:`receive` on each.
 
-        Well-formed live and curve-block frames between two other frames are decoded together, per
+        Well-formed live, curve-block and counter frames between two other frames are decoded together, per
         frame id: they touch independent state (live buffer and device time; curve assembler, which only
-        header and end frames change), and their events are put back in frame order.
+        header and end frames change; counter rows, unwrapped against the device time the live frames before
+        each left), and their events and counter rows are put back in frame order.
         """
         n = len(block)
         if not n:
@@ -246,7 +251,9 @@ class CanHost:
         """Decode the bulk frames ``start:stop`` of ``block`` together, per frame id."""
         events = []
         run_ids = ids[start:stop]
-        for fid in np.unique(run_ids).tolist():
+        self._run_clock, self._run_device_time = [], self._device_time
+        counters = []
+        for fid in sorted(np.unique(run_ids).tolist(), key=self._counter_ids.__contains__):   # counters last
             index = start + np.flatnonzero(run_ids == fid)
             layout, spec = self._layouts[fid], self._by_id[fid]
             self.frames_received += index.size
@@ -255,7 +262,11 @@ class CanHost:
             for k in np.flatnonzero(gaps).tolist():
                 events.append((int(index[k]), 0, "sequence_gap", int(gaps[k]),
                                f"{spec.name} (0x{fid:03X}): {gaps[k]} frame(s) missing before Seq {raw['Seq'][k]}"))
-            events.extend((int(index[k]), 1, "curve", 1, p) for k, p in self._runs[fid](raw))
+            if fid in self._runs:
+                events.extend((int(index[k]), 1, "curve", 1, p) for k, p in self._runs[fid](raw, index))
+            if fid in self._counter_ids:
+                counters.extend(zip(index.tolist(), self._counter_rows(spec.name, raw, index, block.timestamp)))
+        self.counters_log.extend(row for _, row in sorted(counters, key=lambda r: r[0]))
         for k, _, kind, count, detail in sorted(events, key=lambda e: e[:2]):
             self._event(_Rx(float(block.timestamp[k]), int(ids[k]), b"", False), kind, count, detail)
 
@@ -334,17 +345,21 @@ class CanHost:
             self._live.append((t, flat(xs), flat(ys)))
             self._live_rows = []
 
-    def _live_run(self, raw: dict[str, np.ndarray]) -> list[tuple[int, str]]:
+    def _live_run(self, raw: dict[str, np.ndarray], index: np.ndarray) -> list[tuple[int, str]]:
         """Live frames (LiveXY: one pair at Tick; LiveXYFD: NPairs pairs at Tick + i*Dt), in order."""
         self._flush_live_rows()
+        before = self._device_time
         if "NPairs" not in raw:
-            self._live.append((np.array([self._live_time(tick) for tick in raw["Tick"].tolist()]), raw["X"], raw["Y"]))
+            t = np.array([self._live_time(tick) for tick in raw["Tick"].tolist()])
+            self._run_clock.append((index, np.maximum.accumulate(np.maximum(t, before))))
+            self._live.append((t, raw["X"], raw["Y"]))
             return []
         dt = raw["Dt"] * 1e-6
-        t0 = np.zeros(len(dt))
+        t0, after = np.zeros(len(dt)), np.zeros(len(dt))
         for k, (tick, step, n) in enumerate(zip(raw["Tick"].tolist(), dt.tolist(), raw["NPairs"].tolist())):
             t0[k] = self._live_time(tick)
-            self._device_time = max(self._device_time, t0[k] + (n - 1) * step)
+            self._device_time = after[k] = max(self._device_time, t0[k] + (n - 1) * step)
+        self._run_clock.append((index, after))
         counts = np.minimum(raw["NPairs"], self._fd_pairs)
         first = np.repeat(np.cumsum(counts) - counts, counts)
         slot = np.arange(int(counts.sum())) - first
@@ -405,7 +420,7 @@ class CanHost:
 
     _curve_block_fd = _curve_block
 
-    def _curve_block_run(self, raw: dict[str, np.ndarray]) -> list[tuple[int, str]]:
+    def _curve_block_run(self, raw: dict[str, np.ndarray], index: np.ndarray) -> list[tuple[int, str]]:
         """Curve blocks (CurveBlock: one pair numbered Block of curve CurveNo mod 16; CurveBlockFD: NPairs
         pairs from Block*11 of curve CurveNo mod 256); returns (frame index, problem)."""
         if "NPairs" not in raw:
@@ -502,6 +517,21 @@ class CanHost:
         """A counter's latched count and last edge time (device time, unwrapped)."""
         self.counters_log.append((spec.name, msg.timestamp, raw["Count"],
                                   unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, self._device_time)))
+
+    def _counter_rows(self, name: str, raw: dict[str, np.ndarray], index: np.ndarray,
+                      times: np.ndarray) -> list[tuple[str, float, int, float]]:
+        """The rows :meth:`_counter` adds for the bulk counter frames ``index`` of message ``name`` (``times``: the
+        block's time stamps, s), each edge time unwrapped against the device time as the run's live frames before
+        it left it (``_run_clock``)."""
+        reference: float | np.ndarray = self._run_device_time
+        if self._run_clock:
+            live, after = (np.concatenate(c) for c in zip(*self._run_clock))
+            order = np.argsort(live, kind="stable")
+            live, after = live[order], np.maximum.accumulate(after[order])
+            k = np.searchsorted(live, index)            # live frames of the run before each counter frame
+            reference = np.where(k > 0, after[np.maximum(k - 1, 0)], self._run_device_time)
+        edge = unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, reference)
+        return list(zip(itertools.repeat(name), times[index].tolist(), raw["Count"].tolist(), edge.tolist()))
 
     def _reading(self, msg, spec, raw) -> None:
         """Readings in the DBC's units at their Tick (device time; the frame's time without one)."""

@@ -181,6 +181,33 @@ def test_a_result_timing_out_inside_a_block_is_released_as_frame_by_frame(make_h
     assert [r.complete for r in host.take_results()] == [False]
 
 
+@pytest.mark.parametrize("fd", [False, True])
+def test_counter_frames_in_a_live_run_unwrap_as_frame_by_frame(make_host, fd) -> None:
+    """Counter frames are decoded in bulk with the live data around them; each edge time is unwrapped against the
+    device time the live frames before it left, as frame by frame — also when those frames move it by more than
+    half the 16.8 s wrap of the edge stamp within one run (ticks of 3.2 s steps, near the live stamp's half wrap)."""
+    layout = {m.name: m for m in DB.messages}
+    live = layout["LiveXYFD" if fd else "LiveXY"]
+    fields = {"Seq": 0, "Tick": 0, **({"Dt": 100, "NPairs": 1} if fd else {}),
+              **{s.name: 0 for s in live.signals if s.name[0] in "XY"}}
+    msgs, t = [], 0.0
+    for k in range(12):
+        t += 0.01
+        if k % 3 == 2:
+            data = layout["Encoder1"].encode({"Seq": k, "Count": 100 * k, "EdgeTime": round(k * 3.19e6) % 2 ** 24},
+                                             scaling=False)
+            msgs.append(can.Message(timestamp=t, arbitration_id=layout["Encoder1"].frame_id, data=data,
+                                    is_extended_id=False))
+        else:
+            data = live.encode({**fields, "Seq": k, "Tick": round(k * 3.2e4) % 65536}, scaling=False)
+            msgs.append(can.Message(timestamp=t, arbitration_id=live.frame_id, data=data, is_extended_id=False,
+                                    is_fd=fd))
+    check_both_ways(make_host, msgs, [], SimpleNamespace(outcome=lambda *a: None))
+    host = make_host()
+    host.receive_block(FrameBlock.of_messages(msgs))
+    edges = [row[3] for row in host.take_readings()["counters"]]
+    assert len(edges) == 4 and edges[-1] > 16.777216          # unwrapped past the stamp's wrap
+
 # -- the demo's trace, damaged ---------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def trace(demo_recording: Path) -> list[dict[str, Any]]:
