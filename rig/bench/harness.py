@@ -4,8 +4,9 @@ For a :class:`~rig.bench.problems.WorkProblem` every method runs a sweep — ste
 methods (ours: euler, semi-implicit euler, rk4), tolerances for the adaptive ones (ours: dp45, rodas4; peers:
 scipy RK45, DOP853, Radau, BDF, LSODA, odeint and CVODE, :mod:`rig.bench.peers`) — and each run gives a row
 ``method, setting, error, wall_s, nfev, t_sim, status``: error against a reference, wall time (best of a few
-repeats, caches warm), RHS calls, simulated span (s) and ``ok``, ``diverged: why``, ``failed: why`` or
-``inaccurate: …`` (a relative error above 1 that the method did not report as a divergence).
+repeats, caches warm), RHS calls, simulated span (s) and ``ok``, ``diverged: why``, ``failed: why``,
+``inaccurate: …`` (a relative error above 1 that the method did not report as a divergence), or with a time limit
+per run ``timeout: …`` and ``skipped: …`` (the method's finer settings after a timeout).
 
 The reference is our DP45 at rtol 1e-13, confirmed by scipy DOP853 and our Rodas4 at rtol 1e-12 (their
 distances to it are the ``reference`` row's setting and error). Errors below :data:`RESOLVE` times the larger
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rig.bench.peers import PEERS, run_peer
+from rig.bench.peers import PEERS, TimeLimit, run_peer
 from rig.bench.problems import WorkProblem
 from rig.solvers import SolverDivergence, StiffnessWarning, integrate
 
@@ -101,23 +102,27 @@ def _ours(problem: WorkProblem, method: str, t_end: float | None = None, **optio
     return sol.y, sol.nfev
 
 
-def _peer(problem: WorkProblem, method: str, rtol: float, t_end: float | None = None) -> tuple[np.ndarray, int]:
+def _peer(problem: WorkProblem, method: str, rtol: float, t_end: float | None = None,
+          limit: float | None = None) -> tuple[np.ndarray, int]:
     t_end = problem.t_sim if t_end is None else t_end
     grid = problem.grid[problem.grid <= t_end]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)      # overflow in a diverging peer's trial step
-        return run_peer(method, problem.make(), (0.0, t_end), grid, rtol, rtol * problem.atol_scale)
+        return run_peer(method, problem.make(), (0.0, t_end), grid, rtol, rtol * problem.atol_scale, limit)
 
 
-def runner(problem: WorkProblem, method: str, value: float, t_end: float | None = None) -> Callable[[], tuple]:
-    """A call running ``method`` at step size / rtol ``value`` over (0, t_end or t_sim)."""
+def runner(problem: WorkProblem, method: str, value: float, t_end: float | None = None,
+           limit: float | None = None) -> Callable[[], tuple]:
+    """A call running ``method`` at step size / rtol ``value`` over (0, t_end or t_sim); a peer stops with
+    :class:`~rig.bench.peers.TimeLimit` after ``limit`` s of wall time (our compiled runs cannot be stopped: the
+    sweep skips a method's finer settings after a run of it took longer, :func:`work_precision`)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (known: {', '.join(METHODS)})")
     if method in FIXED:
         return lambda: _ours(problem, method, t_end, h=value)
     if method in OURS:
         return lambda: _ours(problem, method, t_end, rtol=value, atol=value * problem.atol_scale)
-    return lambda: _peer(problem, method, value, t_end)
+    return lambda: _peer(problem, method, value, t_end, limit)
 
 
 def setting_of(method: str, value: float) -> str:
@@ -150,15 +155,20 @@ MAX_RUNS = 50
 
 
 def measure(problem: WorkProblem, method: str, value: float, ref: Reference, repeats: int = 3,
-            budget: float = 1.0) -> Row:
+            budget: float = 1.0, limit: float | None = None) -> Row:
     """One row: best wall time of ``repeats`` runs (fewer once they took ``budget`` s together; more, up to
-    :data:`MAX_RUNS`, until :data:`MIN_TIMED` s were timed: a run of a few ms is noisy on a shared machine)."""
-    run, setting = runner(problem, method, value), setting_of(method, value)
+    :data:`MAX_RUNS`, until :data:`MIN_TIMED` s were timed: a run of a few ms is noisy on a shared machine).
+    ``limit``: wall seconds a run may take (a peer is stopped there: status ``timeout``; ours, compiled, end
+    their run, which is then ``timeout`` too when it took longer)."""
+    run, setting = runner(problem, method, value, limit=limit), setting_of(method, value)
     best, spent, n = math.inf, 0.0, 0
     while n == 0 or (spent < budget and (n < repeats or (spent < MIN_TIMED and n < MAX_RUNS))):
         t0 = time.perf_counter()
         try:
             y, nfev = run()
+        except TimeLimit as exc:
+            return Row(method, setting, math.nan, time.perf_counter() - t0, None, problem.t_sim,
+                       f"timeout: {_one_line(exc)}")
         except SolverDivergence as exc:
             return Row(method, setting, math.nan, time.perf_counter() - t0, None, problem.t_sim,
                        "diverged: " + _one_line(exc))
@@ -167,6 +177,9 @@ def measure(problem: WorkProblem, method: str, value: float, ref: Reference, rep
                        "failed: " + _one_line(exc))
         dt = time.perf_counter() - t0
         best, spent, n = min(best, dt), spent + dt, n + 1
+    if limit is not None and best > limit:
+        return Row(method, setting, math.nan, best, nfev, problem.t_sim,
+                   f"timeout: {method} took {best:.3g} s, over the time limit of {limit:g} s")
     err = problem.error(y, ref.y)
     if not math.isfinite(err):
         status = "diverged: non-finite output"
@@ -195,8 +208,10 @@ def warm_up(problem: WorkProblem, methods: tuple[str, ...]) -> None:
 
 
 def work_precision(problem: WorkProblem, quick: bool = False, methods: tuple[str, ...] = METHODS,
-                   repeats: int | None = None, log: Callable[[str], None] = print) -> Result:
-    """All rows of the problem's sweeps (``quick``: the short ones) for ``methods``; ``log`` gets progress."""
+                   repeats: int | None = None, log: Callable[[str], None] = print, limit: float | None = None) -> Result:
+    """All rows of the problem's sweeps (``quick``: the short ones) for ``methods``; ``log`` gets progress.
+    ``limit``: wall seconds per run (None: none); after a run over it, a method's finer settings (smaller steps,
+    tighter tolerances: slower still) are not run and get the status ``skipped: …``."""
     sweeps = problem.quick if quick else problem.full
     repeats = repeats or (3 if quick else 5)
     warm_up(problem, methods)
@@ -207,8 +222,13 @@ def work_precision(problem: WorkProblem, quick: bool = False, methods: tuple[str
             f"{REF_CONFIRM:g}); errors below {RESOLVE * ref.uncertainty:.1e} are marked unresolved")
     rows = []
     for method in methods:
+        over = None                                  # the setting that ran over the limit
         for value in (sweeps.steps[method] if method in FIXED else sweeps.tols):
-            row = measure(problem, method, value, ref, repeats)
+            row = (measure(problem, method, value, ref, repeats, limit=limit) if over is None else
+                   Row(method, setting_of(method, value), math.nan, math.nan, None, problem.t_sim,
+                       f"skipped: {over} ran over the time limit of {limit:g} s"))
+            if over is None and row.status.startswith("timeout"):
+                over = row.setting
             rows.append(row)
             log(f"  {row.method:20s} {row.setting:12s} " + (
                 f"error {row.error:9.2e}  wall {row.wall_s * 1e3:9.2f} ms  nfev {row.nfev:8d}  "

@@ -21,6 +21,7 @@ given to them (events with an action, a terminal or a mode-dependent one still a
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -186,14 +187,36 @@ def backend(name: str) -> Backend:
     raise ValueError(f"unknown peer {name!r} (known: {', '.join(PEERS)})")
 
 
+class TimeLimit(RuntimeError):
+    """A peer run stopped at its wall-clock limit; ``t``: the simulation time it had reached (s)."""
+
+    def __init__(self, name: str, limit: float, t: float) -> None:
+        super().__init__(f"{name}: stopped after its time limit of {limit:g} s at t = {t:.6g} s")
+        self.limit, self.t = limit, t
+
+
+def _limited(kernel, name: str, limit: float):
+    """``kernel`` raising :class:`TimeLimit` once ``limit`` s of wall time have passed since this call (a clock
+    read per right-hand-side call, ≈ 0.05 µs against the peer's ≈ 1 µs per call through Python)."""
+    deadline = time.perf_counter() + limit
+
+    def limited(t, y, p, dy):
+        if time.perf_counter() > deadline:
+            raise TimeLimit(name, limit, t)
+        kernel(t, y, p, dy)
+    return limited
+
+
 def run_peer(name: str, problem: Problem, t_span: tuple[float, float], grid: np.ndarray, rtol: float,
-             atol: float) -> tuple[np.ndarray, int]:
+             atol: float, limit: float | None = None) -> tuple[np.ndarray, int]:
     """Integrate ``problem`` over ``t_span`` (s) with peer ``name``; states on ``grid`` (n, m) and RHS calls.
 
-    Raises :class:`SolverDivergence` on a non-finite state or a terminal event, RuntimeError when the peer
-    fails (its message) or events chatter."""
+    Raises :class:`SolverDivergence` on a non-finite state or a terminal event, :class:`TimeLimit` after
+    ``limit`` s of wall time (None: none), RuntimeError when the peer fails (its message) or events chatter."""
     run = backend(name)
     kernel, params = problem.fun.kernel, problem.fun.params
+    if limit is not None:
+        kernel = _limited(kernel, name, limit)
     smooth_only = not name.endswith(NO_RESTARTS)       # restarts that only mark a jump in a derivative
     acting = [e for e in problem.events if (e.restart and smooth_only) or e.action or e.terminal or e.mode_dependent]
     t_end = float(t_span[1])

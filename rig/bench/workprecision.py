@@ -1,4 +1,4 @@
-"""``rig bench work-precision [--scene SCENE ...] [--quick] [--t-sim S] -o DIR``: work–precision CSV and chart per scene.
+"""``rig bench work-precision [--scene SCENE ...] [--quick] [--t-sim S] [--time-limit S] -o DIR``: work–precision CSV and chart per scene.
 
 Writes ``DIR/<scene-stem>.csv`` (:data:`rig.bench.harness.COLUMNS`) and ``DIR/<scene-stem>.png``, prints the
 reference check and one summary line per method. Without ``--scene``: the four problems of issue 13
@@ -25,6 +25,9 @@ def register(bench_sub: argparse._SubParsersAction, parents: list[argparse.Argum
     wp.add_argument("--quick", action="store_true", help="fewer settings and repeats (about 20 s per problem)")
     wp.add_argument("--t-sim", type=float, metavar="S",
                     help="simulate only the first S seconds (default: one revolution / the scene's duration)")
+    wp.add_argument("--time-limit", type=float, metavar="S",
+                    help="wall seconds per run: a peer is stopped there, and a method's finer settings after a run "
+                         "over it are skipped (status timeout / skipped in the CSV); default: none")
     wp.add_argument("-o", "--output", type=Path, required=True, help="directory for <scene>.csv and <scene>.png")
     wp.set_defaults(func=command)
 
@@ -46,8 +49,11 @@ def outputs(out: Path, scene: Path) -> tuple[Path, Path]:
 
 
 def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float | None = None,
-               methods: tuple[str, ...] | None = None) -> list:
-    """Chart every scene into ``out`` (``t_sim`` (s) shortens the span; ``methods`` a subset); the results."""
+               methods: tuple[str, ...] | None = None, limit: float | None = None) -> list:
+    """Chart every scene into ``out`` (``t_sim`` (s) shortens the span; ``methods`` a subset; ``limit``: wall
+    seconds per run, :func:`rig.bench.harness.work_precision`); the results."""
+    if limit is not None and not limit > 0:
+        raise ValueError(f"--time-limit must be positive (s), got {limit:g}")
     from rig.bench.harness import METHODS, summary, work_precision, write_csv
     from rig.bench.problems import load_problem
     from rig.bench.wpchart import plot
@@ -64,7 +70,8 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
     for scene in scenes:
         problem = load_problem(scene, t_sim)
         result = work_precision(problem, quick, methods or METHODS,
-                                log=lambda line: (log.warning if line.startswith("WARNING") else log.info)(line))
+                                log=lambda line: (log.warning if line.startswith("WARNING") else log.info)(line),
+                                limit=limit)
         csv_path, png_path = outputs(out, scene)
         write_csv(result, csv_path)
         plot(result, png_path)
@@ -79,5 +86,5 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
 
 
 def command(args: argparse.Namespace) -> int:
-    run_scenes(args.scene or list(SCENES), args.output, args.quick, args.t_sim)
+    run_scenes(args.scene or list(SCENES), args.output, args.quick, args.t_sim, limit=args.time_limit)
     return 0

@@ -48,13 +48,17 @@ def figure(result: Result) -> "plt.Figure":
         ax.set_xlabel(xlabel)
         ax.set_ylabel(f"relative max error in {result.problem.quantity}")
         ax.grid(True, which="both", lw=0.3, alpha=0.5)
-    axes[0].legend(fontsize=7, ncol=2)
+    if axes[0].get_legend_handles_labels()[0]:
+        axes[0].legend(fontsize=7, ncol=2)
     failed = sorted({r.method for r in result.rows if r.status.startswith(("diverged", "failed", "inaccurate"))})
     note = f"reference {ref.label}, confirmations within {ref.uncertainty:.1e}"
     if not ref.confirmed:
         note = "REFERENCE NOT CONFIRMED: " + note
     if failed:
         note += "; diverged, failed or inaccurate runs (not drawn, see the CSV): " + ", ".join(failed)
+    slow = sorted({r.method for r in result.rows if r.status.startswith("timeout")})
+    if slow:
+        note += "; stopped at the time limit from some setting on (not drawn): " + ", ".join(slow)
     fig.suptitle(f"{result.problem.title}\n{note}", fontsize=9, color="k" if ref.confirmed else "red")
     fig.tight_layout()
     return fig

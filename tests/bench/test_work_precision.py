@@ -18,7 +18,7 @@ OURS = ("euler", "semi-implicit euler", "rk4", "dp45", "dop853", "rodas4")
 PEERS = ("scipy RK45", "scipy DOP853", "scipy Radau", "scipy BDF", "scipy LSODA", "scipy odeint", "cvode",
          "scipy LSODA (no restarts)", "scipy odeint (no restarts)", "cvode (no restarts)")
 REQUIRED = OURS + PEERS
-STATUS = re.compile(r"^(ok|(diverged|failed|unresolved|inaccurate): \S.*)$")
+STATUS = re.compile(r"^(ok|(diverged|failed|unresolved|inaccurate|timeout|skipped): \S.*)$")
 
 
 def read_rows(path: Path) -> tuple[list[str], list[dict]]:
@@ -168,3 +168,26 @@ def test_peers_take_a_mode_switch_due_at_the_start_of_a_segment():
     for method in ("scipy odeint", "cvode"):
         y, _ = _peer(problem, method, 1e-8)
         assert problem.error(y, ref.y) < 1e-6, method
+
+
+def test_a_time_limit_stops_peers_and_skips_the_finer_settings(tmp_path):
+    """With a limit no run can meet (1 ns), every peer run stops at its first right-hand-side call, naming the
+    limit and the time reached; our compiled run ends and is marked over the limit; each method's finer settings
+    are skipped, naming the setting that ran over; nothing of it is charted as ok."""
+    (result,) = run_scenes([L2], tmp_path, quick=True, t_sim=0.01, methods=("dp45", "scipy Radau"), limit=1e-9)
+    for method in ("dp45", "scipy Radau"):
+        rows = [r for r in result.rows if r.method == method]
+        assert len(rows) >= 2
+        assert rows[0].status.startswith("timeout: ") and "time limit of 1e-09 s" in rows[0].status
+        assert all(r.status == f"skipped: {rows[0].setting} ran over the time limit of 1e-09 s" for r in rows[1:])
+    radau = next(r for r in result.rows if r.method == "scipy Radau")
+    assert "stopped after its time limit" in radau.status and "at t = 0 s" in radau.status
+    _, rows = read_rows(tmp_path / "pin_insertion_l2.csv")
+    assert all(STATUS.match(r["status"]) for r in rows if r["method"] != "reference")
+    assert (tmp_path / "pin_insertion_l2.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_cli_rejects_a_time_limit_that_is_not_positive(tmp_path, capsys):
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "--time-limit", "0",
+                     "-o", str(tmp_path)]) == 2
+    assert "--time-limit must be positive" in capsys.readouterr().err
