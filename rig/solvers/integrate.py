@@ -269,9 +269,11 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     dense = dense or solver.dense_output()
                     if t_root >= t_new:
                         y_root = y_new
-                    elif fixed and e.action is None:  # step to the root from the side where the old RHS holds
+                    elif fixed and e.action is None and not e.mode_dependent:  # step to the root from the side where
+                        # the old RHS holds
                         y_root = solver.state_at(_before_root(e.fun, solver.state_at, t_root, t_old, sign > 0.0))
-                    elif fixed:                 # a mode switch acts where the old mode is invalid
+                    elif fixed:                 # a mode switch acts where the old mode is invalid (before its root
+                        # the next step would find the same root again: chattering without time advancing)
                         y_root = solver.state_at(t_root)
                     elif plain_restarts and e.restart and e.action is None and not e.mode_dependent:
                         y_root = solver.state_at(t_root)          # a plain restart: land on it with a step

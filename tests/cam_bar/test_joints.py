@@ -125,3 +125,24 @@ def test_two_methods_agree_at_tight_tolerance():
                                                       atol=1e-14).solution.y)
     assert np.max(np.abs(sig["DP45"]["s"] - sig["Rodas4"]["s"])) < 1e-10
     assert np.max(np.abs(sig["DP45"]["rod_tension"] - sig["Rodas4"]["rod_tension"])) < 1e-2
+
+
+def test_fixed_step_methods_pass_the_insertion_switch_with_the_pins_free():
+    """Found by `rig bench work-precision` on the worn-pins scene: a fixed-step method put the state of the
+    insertion switch (a mode-dependent event) a rounding error before its root, found the same root again on the
+    next step and stopped with "event chattering" at every step size. It now lands past the root as for any
+    switch of the RHS: RK4 and the semi-implicit Euler cross it, once, and converge on the DP45 reference."""
+    from rig.bench.problems import load_problem
+    from rig.solvers import integrate
+    problem = load_problem(load_scene("data/scenes/pin_insertion_worn_pins.toml").path, 0.2)
+    ref = integrate(problem.make(), (0.0, 0.2), method="DP45", rtol=1e-11, atol=1e-16, t_eval=problem.grid,
+                    stiffness="ignore")
+    assert [e.sign for e in ref.events if e.name == "insertion"] == [1.0]
+    for method, steps in (("RK4", (5e-5, 2.5e-5)), ("SymplecticEuler", (5e-6, 2.5e-6))):
+        errors = []
+        for h in steps:
+            sol = integrate(problem.make(), (0.0, 0.2), method=method, t_eval=problem.grid, h=h)
+            assert sol.status == "finished"
+            assert [e.sign for e in sol.events if e.name == "insertion"] == [1.0]
+            errors.append(problem.error(sol.y, ref.y))
+        assert errors[1] < errors[0], (method, errors)
