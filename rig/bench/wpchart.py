@@ -3,6 +3,7 @@ one curve per method in sweep order (ours solid, peers dashed); only runs whose 
 (status ok)."""
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -59,6 +60,7 @@ def figure(result: Result) -> "plt.Figure":
     slow = sorted({r.method for r in result.rows if r.status.startswith("timeout")})
     if slow:
         note += "; stopped at the time limit from some setting on (not drawn): " + ", ".join(slow)
-    fig.suptitle(f"{result.problem.title}\n{note}", fontsize=9, color="k" if ref.confirmed else "red")
+    fig.suptitle(f"{result.problem.title}\n" + textwrap.fill(note, 170), fontsize=9,
+                 color="k" if ref.confirmed else "red")
     fig.tight_layout()
     return fig

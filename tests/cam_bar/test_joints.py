@@ -60,6 +60,11 @@ def test_pins_cross_their_clearance_where_the_rod_force_reverses():
     assert sig["rod_tension"].min() < 2.0 * rigid["rod_tension"].min()                # impacts in the pins
     assert sig["R23"].max() > 1.5 * rigid["R23"].max()
     assert np.max(np.abs(ds)) < 2.0 * 40e-6 / 0.9                                     # bounded by the play
+    pins = [e for e in run.solution.events if e.name == "pins"]                     # the solver restarted there
+    signs = [e.sign for e in pins]
+    assert len(pins) >= 4 and all(a != b for a, b in zip(signs, signs[1:]))          # onsets and releases alternate
+    i = np.searchsorted(sig["t"], [e.t for e in pins if e.sign < 0])                 # released: the rod unloaded
+    assert np.all(sig["rod_tension"][np.minimum(i + 1, sig["t"].size - 1)] == 0.0)
 
 
 def test_energy_balance_closes_with_the_pins():

@@ -280,12 +280,15 @@ class Level2:
 
     def problem(self, y0: tuple) -> Problem:
         """The ODE with contact events "working" / "other" (penetration of that flank changes sign: sign +1 onset,
-        −1 release; restarts, since the contact force's derivatives jump there), a terminal "overload" (penetration beyond ``max_penetration``) and "insertion" (F_c
-        switches: restart), in the order of the event kernel."""
+        −1 release; restarts, since the contact force's derivatives jump there), a terminal "overload" (penetration
+        beyond ``max_penetration``), "insertion" (F_c switches: restart) and, with the pin joints, "pins" (the
+        pins start or stop bearing: restart), in the order of the event kernel."""
         events = [SolverEvent(self._event(kernel.WORKING), "working", restart=True),
                   SolverEvent(self._event(kernel.OTHER), "other", restart=True),
                   SolverEvent(self._event(kernel.OVERLOAD), "overload", direction=1.0, terminal=True),
                   SolverEvent(self._event(kernel.INSERTION), "insertion", restart=True, mode_dependent=True)]
+        if self.mech.joints is not None:
+            events.append(SolverEvent(self._event(kernel.PINS), "pins", restart=True))
         return Problem(self.rhs, y0, events, time_breaks=self.program_breaks)
 
     def program_breaks(self, t0: float, tf: float) -> list[float]:

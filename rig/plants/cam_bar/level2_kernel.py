@@ -65,7 +65,7 @@ CONSTANT, RAMP, SINUSOIDAL = 0, 1, 2
 DWELL, POLYNOMIAL, SINE_PIECES = 0, 1, 2
 PIECE = 7
 #: events, in the order of :meth:`rig.plants.cam_bar.level2.Level2.problem`
-WORKING, OTHER, OVERLOAD, INSERTION = range(4)
+WORKING, OTHER, OVERLOAD, INSERTION, PINS = range(5)
 #: rows of :func:`evaluate`
 OUTPUTS = ("phi", "omega", "alpha", "psi", "psi_d", "psi_dd", "e_dd", "F_w", "F_o", "drive_torque",
            "p_dissipated", "delta_w", "delta_o", "s", "s_d", "s_dd", "theta_d", "theta_dd", "mu", "F_c",
@@ -639,10 +639,14 @@ def event_value(t, y, p, k):
     """Event k: WORKING −e (< 0 while pressed into the working flank), OTHER e − c/ℓ (> 0 while pressed into
     the other flank), OVERLOAD max penetration (of a flank, or of the rod's pins) − p[MAX_PEN] (m), INSERTION > 0
     while F_c acts (cam in a rise and ψ past the pierce point, rad; with the pin joints the slider's stroke past it
-    over L3)."""
+    over L3), PINS > 0 while the rod's pins bear (:func:`pin_penetration`, m; −1 without the pin joints)."""
     if k == WORKING:
         return -y[0]
+    if k == PINS and p[JOINTS_ON] == 0.0:
+        return -1.0
     lever, psi_k, inside = geometry_at(t, y, p)
+    if k == PINS:
+        return pin_penetration(psi_k + y[0], y[joint_index(p)], p)
     if k == OTHER:
         return y[0] - p[CLEARANCE] / lever
     if k == OVERLOAD:
@@ -669,9 +673,9 @@ def pin_penetration(psi, z, p):
 @njit(cache=True, error_model="numpy")
 def event_action(t, y, p, k, apply):
     """Whether event k is a restart the compiled solver run may take itself: a contact onset or release on either
-    flank (the contact force's derivatives jump there; nothing in p changes). Not the insertion switch (its
-    mode-dependent root is placed by the Python driver) nor the terminal overload."""
-    return k == WORKING or k == OTHER
+    flank or in the rod's pins (the contact force's derivatives jump there; nothing in p changes). Not the
+    insertion switch (its mode-dependent root is placed by the Python driver) nor the terminal overload."""
+    return k == WORKING or k == OTHER or k == PINS
 
 
 @njit(cache=True, error_model="numpy")
