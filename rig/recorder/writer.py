@@ -82,6 +82,17 @@ class _Block:
         self.count = t.size - stop
 
 
+def _hex_payloads(data: np.ndarray, dlc: np.ndarray) -> np.ndarray:
+    """Each frame's first ``dlc`` payload bytes (rows of ``data``, uint8) as lower-case hex text (a str array)."""
+    n, width = data.shape
+    if not width:
+        return np.full(n, "")
+    out = np.frombuffer(data.tobytes().hex().encode("ascii"), dtype=f"S{2 * width}").astype(f"U{2 * width}")
+    for i in np.flatnonzero(dlc < width).tolist():
+        out[i] = out[i][:2 * int(dlc[i])]
+    return out
+
+
 class Recorder:
     """Write one rig run to an MCAP file.
 
@@ -120,7 +131,8 @@ class Recorder:
         self._writer.start(profile="", library=f"mechrig/{rig.__version__}")
         self._channels: dict[str, int] = {}
         self._blocks: dict[str, _Block] = {}
-        self._can: dict[str, list] = {c: [] for c in CAN_COLUMNS}    # buffered frames, by column
+        self._can: dict[str, list[np.ndarray]] = {c: [] for c in CAN_COLUMNS}   # buffered frames: column chunks
+        self._can_frames = 0                       # frames buffered
         self._can_last = -math.inf
         self._last_ns = self.wall_clock_start      # latest log time written
         self._data_end = 0.0                       # latest sample time written in any block, curve or frame (s)
@@ -281,29 +293,36 @@ class Recorder:
                 to_ns(t[k], S.CAN_RAW)          # raises, naming the bad time
             self._can_last = float(t[-1])
             self._data_end = max(self._data_end, self._can_last)
-        width = frames.data.shape[1]
-        text = frames.data.tobytes().hex()
+        n, width = len(frames), frames.data.shape[1]
         flags = frames.flags
-        cols = {"t": t.tolist(), "id": frames.arbitration_id.tolist(),
-                "dir": np.where((flags & RX) != 0, "rx", "tx").tolist(), "channel": [str(channel)] * len(frames),
-                **{name: ((flags & bit) != 0).tolist() for name, bit in (("is_fd", FD), ("brs", BRS), ("esi", ESI),
-                                                                           ("is_extended", EXTENDED), ("error", ERROR))},
-                "data": [text[2 * width * i:2 * (width * i + d)] for i, d in enumerate(frames.dlc.tolist())]}
-        for name, col in cols.items():
-            self._can[name].extend(col)
+        part = {"t": t, "id": frames.arbitration_id.astype(np.int64), "dir": np.where((flags & RX) != 0, "rx", "tx"),
+                "channel": np.full(n, str(channel)),
+                **{name: (flags & bit) != 0 for name, bit in (("is_fd", FD), ("brs", BRS), ("esi", ESI),
+                                                              ("is_extended", EXTENDED), ("error", ERROR))},
+                "data": _hex_payloads(frames.data, frames.dlc)}
+        for name, col in part.items():
+            self._can[name].append(col)
+        self._can_frames += n
         self._flush_can(final=False)
 
     def _flush_can(self, final: bool) -> None:
-        size = len(self._can["t"])
-        cid = self._channel(S.CAN_RAW, S.CAN_SCHEMA, "rig.CanFrames") if size else None
+        """Write the buffered frames in messages of ``block_size`` frames (``final``: the rest too)."""
+        size = self._can_frames
+        if not size:
+            return
+        cid = self._channel(S.CAN_RAW, S.CAN_SCHEMA, "rig.CanFrames")      # registered with the first frames
+        if size < self.block_size and not final:
+            return
+        cols = {name: np.concatenate(chunks) for name, chunks in self._can.items()}
         start = 0
         while size - start >= self.block_size or (final and start < size):
-            block = {name: col[start:start + self.block_size] for name, col in self._can.items()}
-            block["t"] = np.asarray(block["t"])
+            block = {name: col[start:start + self.block_size] for name, col in cols.items()}
+            for name in ("dir", "channel", "data"):
+                block[name] = block[name].tolist()
             self._put(cid, to_ns(block["t"][0], S.CAN_RAW), dumps_message(block))
             start += block["t"].size
-        for col in self._can.values():
-            del col[:start]
+        self._can = {name: [col[start:]] for name, col in cols.items()}
+        self._can_frames = size - start
 
     # -- device ---------------------------------------------------------------------------------
     def write_curve(self, number: int, program: int, t: np.ndarray, x: np.ndarray, y: np.ndarray,

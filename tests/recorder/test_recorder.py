@@ -332,3 +332,13 @@ def test_the_end_record_says_how_far_the_data_reaches(tmp_path):
         rec.write_block("/plant/truth", np.linspace(0.0, 2.5, 26), {"s": np.zeros(26)})
         rec.write_event(1.0, "flank_switch", phi=1.0)
     assert float(read_recording(path).end["simulation_time"]) == 2.5
+
+
+def test_integer_and_boolean_arrays_are_written_as_their_lists():
+    """Integer and boolean arrays go to orjson as arrays (no Python list per value): the same JSON as their lists,
+    0-d arrays as scalars, strided and 2-D ones too."""
+    import orjson
+    from rig.recorder.encoding import dumps_message
+    for value in (np.array(5), np.array(True), np.arange(10)[::3], np.array([[1, -2], [3, 4]], np.int16),
+                  np.array([True, False]), np.array([0, 255], np.uint8), np.zeros(0, np.int64)):
+        assert dumps_message({"v": value}) == orjson.dumps({"v": value.tolist()})
