@@ -293,7 +293,7 @@ class Recorder:
                 to_ns(t[k], S.CAN_RAW)          # raises, naming the bad time
             self._can_last = float(t[-1])
             self._data_end = max(self._data_end, self._can_last)
-        n, width = len(frames), frames.data.shape[1]
+        n = len(frames)
         flags = frames.flags
         part = {"t": t, "id": frames.arbitration_id.astype(np.int64), "dir": np.where((flags & RX) != 0, "rx", "tx"),
                 "channel": np.full(n, str(channel)),
