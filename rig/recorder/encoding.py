@@ -78,7 +78,7 @@ def to_jsonable(value: Any, nulls: list[str] | None = None, path: str = "") -> A
         if value.dtype.kind == "f":
             return _float_array(value, nulls, path)
         if value.dtype.kind in "biu" and value.ndim:    # booleans and integers: orjson writes them as they are
-            return np.ascontiguousarray(value)
+            return np.ascontiguousarray(value, dtype=value.dtype.newbyteorder("="))   # (native byte order only)
         return to_jsonable(value.tolist(), nulls, path)
     if isinstance(value, (list, tuple)):
         return [to_jsonable(v, nulls, pointer(path, i)) for i, v in enumerate(value)]

@@ -340,5 +340,6 @@ def test_integer_and_boolean_arrays_are_written_as_their_lists():
     import orjson
     from rig.recorder.encoding import dumps_message
     for value in (np.array(5), np.array(True), np.arange(10)[::3], np.array([[1, -2], [3, 4]], np.int16),
-                  np.array([True, False]), np.array([0, 255], np.uint8), np.zeros(0, np.int64)):
+                  np.array([True, False]), np.array([0, 255], np.uint8), np.zeros(0, np.int64),
+                  np.array([1, -70000], dtype=">i4")):
         assert dumps_message({"v": value}) == orjson.dumps({"v": value.tolist()})
