@@ -1,4 +1,5 @@
-"""``rig bench work-precision [--scene SCENE ...] [--quick] [--t-sim S] [--time-limit S] -o DIR``: work–precision CSV and chart per scene.
+"""``rig bench work-precision [--scene SCENE ...] [--quick] [--t-sim S] [--time-limit S] [--target ERROR] -o DIR``:
+work–precision CSV and chart per scene.
 
 Writes ``DIR/<scene-stem>.csv`` (:data:`rig.bench.harness.COLUMNS`) and ``DIR/<scene-stem>.png``, prints the
 reference check and one summary line per method. Without ``--scene``: the four problems of issue 13
@@ -25,6 +26,8 @@ def register(bench_sub: argparse._SubParsersAction, parents: list[argparse.Argum
     wp.add_argument("--quick", action="store_true", help="fewer settings and repeats (about 20 s per problem)")
     wp.add_argument("--t-sim", type=float, metavar="S",
                     help="simulate only the first S seconds (default: one revolution / the scene's duration)")
+    wp.add_argument("--target", type=float, default=None, metavar="ERROR",
+                    help="error at which the printed summary compares the methods (default 1e-6)")
     wp.add_argument("--time-limit", type=float, metavar="S",
                     help="wall seconds per run: a peer is stopped there, and a method's finer settings after a run "
                          "over it are skipped (status timeout / skipped in the CSV); default: none")
@@ -49,12 +52,15 @@ def outputs(out: Path, scene: Path) -> tuple[Path, Path]:
 
 
 def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float | None = None,
-               methods: tuple[str, ...] | None = None, limit: float | None = None) -> list:
+               methods: tuple[str, ...] | None = None, limit: float | None = None, target: float | None = None) -> list:
     """Chart every scene into ``out`` (``t_sim`` (s) shortens the span; ``methods`` a subset; ``limit``: wall
-    seconds per run, :func:`rig.bench.harness.work_precision`); the results."""
+    seconds per run, :func:`rig.bench.harness.work_precision`; ``target``: the error the printed summary compares
+    at, default :data:`rig.bench.harness.TARGET`); the results."""
     if limit is not None and not limit > 0:
         raise ValueError(f"--time-limit must be positive (s), got {limit:g}")
-    from rig.bench.harness import METHODS, summary, work_precision, write_csv
+    if target is not None and not 0.0 < target < 1.0:
+        raise ValueError(f"--target must be a relative error in (0, 1), got {target:g}")
+    from rig.bench.harness import METHODS, TARGET, summary, work_precision, write_csv
     from rig.bench.problems import load_problem
     from rig.bench.wpchart import plot
     if out.exists() and not out.is_dir():
@@ -65,6 +71,7 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
         for path, head in zip(outputs(out, scene), (CSV_HEAD, PNG_HEAD)):
             _check_output(path, head)
     out.mkdir(parents=True, exist_ok=True)
+    goal = TARGET if target is None else target
     log = logging.getLogger("rig")
     results = []
     for scene in scenes:
@@ -74,17 +81,18 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
                                 limit=limit)
         csv_path, png_path = outputs(out, scene)
         write_csv(result, csv_path)
-        plot(result, png_path)
+        plot(result, png_path, goal)
         ref = result.reference
         print(f"{problem.name}: reference {ref.label}; {ref.describe()}"
               + ("" if ref.confirmed else "  ** REFERENCE NOT CONFIRMED: errors below the distance are marked "
                  "unresolved **"))
-        print("\n".join(summary(result)))
+        print("\n".join(summary(result, goal)))
         print(f"wrote {csv_path} and {png_path}")
         results.append(result)
     return results
 
 
 def command(args: argparse.Namespace) -> int:
-    run_scenes(args.scene or list(SCENES), args.output, args.quick, args.t_sim, limit=args.time_limit)
+    run_scenes(args.scene or list(SCENES), args.output, args.quick, args.t_sim, limit=args.time_limit,
+               target=args.target)
     return 0

@@ -191,3 +191,14 @@ def test_cli_rejects_a_time_limit_that_is_not_positive(tmp_path, capsys):
     assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "--time-limit", "0",
                      "-o", str(tmp_path)]) == 2
     assert "--time-limit must be positive" in capsys.readouterr().err
+
+
+def test_the_summary_compares_at_the_target_asked_for(tmp_path, capsys):
+    """``--target``: the printed summary (cheapest run per method, ours against the peers) at that error."""
+    run_scenes([CLUTCH], tmp_path, quick=True, t_sim=0.02, methods=("dp45", "scipy RK45"), target=1e-3)
+    text = capsys.readouterr().out
+    assert "cheapest run with error <= 0.001 per method" in text and "ours best (dp45" in text
+    for bad in ("0", "1", "-1e-6", "nan"):
+        assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), f"--target={bad}",
+                         "-o", str(tmp_path / "x")]) == 2
+        assert "--target must be a relative error in (0, 1)" in capsys.readouterr().err
