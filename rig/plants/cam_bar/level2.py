@@ -419,8 +419,10 @@ class Level2:
             half = 0.5 * mech.m4
             kinetic = 0.5 * ((mech.J3 + half * mech.L3 ** 2) * psi_d ** 2 + (mech.m5 + half) * st.s_d ** 2)
             gravity = mech.g * (mech.m3 * mech.a3 + half * mech.L3) * a.sp
-            stretch = np.hypot(mech.s0 - st.s - mech.L3 * a.cp, mech.e_sk - mech.L3 * a.sp) - mech.l4
-            pins = 0.5 * joints.stiffness * np.maximum(np.abs(stretch) - joints.play, 0.0) ** 2
+            z = np.asarray(y, dtype=float)[kernel.joint_index(self.params)]
+            beyond = np.array([kernel.pin_penetration(float(psi), float(zi), self.params)   # the kernel's own δ
+                               for psi, zi in zip(dy.psi, z)])
+            pins = 0.5 * joints.stiffness * np.maximum(beyond, 0.0) ** 2
             return {"kinetic": kinetic, "gravity": gravity, "spring": spring, "contact": contact + pins}
         vcx, vcy = -mech.L3 * a.sp * psi_d, mech.L3 * a.cp * psi_d
         vgx = vcx + 0.5 * (-st.s_d - vcx)
