@@ -312,8 +312,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.executors.options import executor_from_args
     from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_json, study_table
     from rig.runner.config import read_config
-    from rig.plants.cam_bar import PinInsertionMechanism
-    from rig.plants.cam_bar.scene_io import require_cam_bar
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene, require_cam_bar
     from rig.scene import load_scene
     scene_path = Path(args.scene)
     chart = Path(args.output) / f"{scene_path.stem}.tolerance.png"
@@ -326,7 +325,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     with executor_from_args(args) as executor:
         if not args.quiet:
             print(f"Monte Carlo on {executor.describe()}", file=sys.stderr)
-        study = run_study(PinInsertionMechanism.from_scene(cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
+        study = run_study(mechanism_from_scene(cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
                           progress=not args.quiet, task_samples=args.task_samples)
     print(study_table(study))
     print(f"chart: {plot_study(study, chart)}")

@@ -12,7 +12,7 @@ import numpy as np
 
 from . import control
 from .channel import InputChain, shunt_ratio
-from .curve import Curve, base_process_values, reference_x, turning_index
+from .curve import Curve, reference_x, turning_index
 from .description import Description, load_description
 from .elements import Element, build_elements, unit_format
 from .errors import DigiForceError

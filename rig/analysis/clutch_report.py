@@ -19,7 +19,8 @@ import numpy as np
 from drivers.encoder import EDGE_TOLERANCE, SpeedEstimator
 from rig.analysis.clutch_metrics import APEX, LOBE, Metric, StandRecord, Stimulus, stand_metrics
 from rig.analysis.plots import figure, save
-from rig.analysis.report import Banner, Block, Heading, ReportContext, Table, Text, fmt, register_section
+from rig.analysis.report_blocks import Banner, Block, Heading, Link, ReportContext, Table, Text, fmt
+from rig.analysis.stand_comparison import agreement_text, compare, thesis_marks, write_csv
 from rig.recorder import Recording
 from rig.scene import Scene, SceneError, read_table
 
@@ -181,7 +182,6 @@ def summary_lines(rec: Recording, stim: list[Stimulus], metrics: list[Metric]) -
     lines += [f"  {m.name:<{width}}  {m.value_text()}  ({m.reference})" for m in metrics]
     scene = _scene(rec)
     if scene is not None and scene.data.get("comparison"):
-        from rig.analysis.stand_comparison import agreement_text, compare
         lines.append(f"  thesis against rig: {agreement_text(compare(scene, stim, metrics))} (comparison.csv)")
     return lines
 
@@ -200,7 +200,6 @@ def _torque_figure(ctx: ReportContext, data: StandRecord, stim: list[Stimulus]) 
     scene = _scene(ctx.recording)
     marks = []
     if scene is not None and scene.data.get("comparison"):
-        from rig.analysis.stand_comparison import thesis_marks
         try:
             marks = thesis_marks(scene, stim)
         except SceneError:          # the comparison section names the bad row
@@ -279,7 +278,6 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     banner = _verdict(metrics)
     scene = _scene(ctx.recording)
     if banner is not None and scene is not None and scene.data.get("comparison"):
-        from rig.analysis.stand_comparison import agreement_text, compare
         try:                                   # the thesis comparison's outcome up front (its table is below)
             banner.text += f"; thesis against rig: {agreement_text(compare(scene, stim, metrics)).split('; DISAGREE')[0]}"
         except SceneError:
@@ -322,6 +320,30 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     return blocks
 
 
-register_section("clutch", clutch_section)
 
-from rig.analysis import stand_comparison as _stand_comparison  # noqa: E402,F401  (registers its section)
+def comparison_section(ctx: ReportContext) -> list[Block]:
+    """Thesis against rig (and comparison.csv in the report directory) for a stand scene with [[comparison]]."""
+    scene = _scene(ctx.recording)
+    if scene is None or not scene.data.get("comparison"):
+        return []
+    results = stand_results(ctx.recording)
+    if results is None:
+        return []
+    rows = compare(scene, *results)
+    write_csv(rows, ctx.out_dir / "comparison.csv")
+    fitted = [r.quantity for r in rows if r.fitted]
+    text = ("Fitted on this run: " + ", ".join(fitted) + "; the other rows are predictions.") if fitted else \
+        "Nothing was fitted on this run: every row is a prediction."
+    agreement = agreement_text(rows)
+    notes = any(r.why for r in rows)
+    return [Heading("Thesis against rig"),
+            Text(agreement + ".", "warning" if any(r.agrees is False for r in rows) else "note"),
+            Text(text + " Agreement is judged by each row's tolerance (a share of the thesis value, a value, or a "
+                 "bound: the thesis value is a limit; a count exactly); deviation = rig − thesis."),
+            Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "fitted"]
+                  + (["note"] if notes else []),
+                  [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", "n/a" if r.rig is None else f"{r.rig:.4g}",
+                    r.deviation, r.tolerance or "— (not judged)", r.verdict, "yes" if r.fitted else "no"]
+                   + ([r.why] if notes else []) for r in rows]),
+            Table(["file", "contents"], [[Link("comparison.csv", "comparison.csv"), "this table, with the unrounded rig "
+                                                                                   "values"]])]

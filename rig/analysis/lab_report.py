@@ -15,7 +15,7 @@ import numpy as np
 
 from firmware_sim.transducers.description import read_description, resolve_path
 from rig.analysis.plots import figure, save
-from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
+from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
 from rig.plants.lab_bench import LabBench
 from rig.recorder import Recording
 from rig.scene import Field, Scene, SceneError, read_table
@@ -455,5 +455,3 @@ def lab_section(ctx: ReportContext) -> list[Block]:
         blocks += [Text(note, "note") for note in sheet.notes]
     return blocks
 
-
-register_section("lab_bench", lab_section)

@@ -10,107 +10,38 @@
 
 Numbers are shown in the display units (rig.analysis.units). A *section* is a function
 ``(ctx: ReportContext) -> list[Block]``; it returns ``[]`` when it does not apply (e.g. no curves).
-Other modules add sections with :func:`register_section` (they go before the closing details).
+The sections of the default report are listed here (the clutch, stand-comparison, static-clutch and lab sections come
+from their own modules); :func:`register_section` adds others (before the closing details).
 """
 from __future__ import annotations
 
 import html
-from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from rig.analysis import plots
+from rig.analysis.clutch_report import clutch_section, comparison_section
 from rig.analysis.device import agreement_text
 from rig.analysis.export import export_curves, export_results, export_series
+from rig.analysis.lab_report import lab_section
 from rig.analysis.normality import ANDERSON_P
+from rig.analysis.report_blocks import (NOK_PLOTS, Banner, Block, Figure, Heading, Link, ReportContext, Section, Table,
+                                        Text, fmt)
 from rig.analysis.sets import by_program, process_values
+from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
-from rig.analysis.units import DisplayUnits, recording_units
 from rig.outputs import MARK
 from rig.recorder import Recording, read_recording
 from rig.recorder.completeness import losses
 
-NOK_PLOTS = 12        # NOK curves plotted by default (the report says how many of how many)
 MANIFEST = ".mechrig-report"    # in a report directory: the files the last report wrote there
 NOK_ROWS = 60         # rows of the "what failed and why" table (all of them are in results.csv)
 CAPABLE, MARGINAL = 1.33, 1.0
 
 
-@dataclass
-class Heading:
-    text: str
-    level: int = 2
-
-
-@dataclass
-class Text:
-    text: str
-    kind: str = ""        # "", "warning" or "note": how the HTML shows it
-
-
-@dataclass
-class Banner:
-    """The verdict in one line, green (``ok``) or red."""
-    text: str
-    ok: bool
-
-
-@dataclass(frozen=True)
-class Link:
-    """A table cell linking to a file of the report (``href`` relative to the report)."""
-    text: str
-    href: str
-
-
-@dataclass
-class Table:
-    headers: list[str]
-    rows: list[list[Any]]
-    collapsed: str | None = None     # HTML: folded away under this summary line (long tables)
-
-
-@dataclass
-class Figure:
-    path: str          # relative to the report directory
-    caption: str
-
-
-Block = Heading | Text | Banner | Table | Figure
-
-
-@dataclass
-class ReportContext:
-    """What sections see: the recording, its analysis, the output directory, how many OK and NOK curves get
-    their own figure, and a figure counter."""
-
-    recording: Recording
-    analysis: dict
-    out_dir: Path
-    ok_plots: int = 0
-    nok_plots: int = NOK_PLOTS
-    _count: list[int] = field(default_factory=lambda: [0])
-
-    def figure_path(self, stem: str) -> Path:
-        self._count[0] += 1
-        return self.out_dir / f"{self._count[0]:03d}_{stem}.png"
-
-    def figure(self, path: Path, caption: str) -> Figure:
-        return Figure(path.relative_to(self.out_dir).as_posix(), caption)
-
-    def units(self, program: int) -> DisplayUnits:
-        """Display units of a program (from the analysis, else from the recording)."""
-        known = self.analysis.get("units") or {}
-        return known[program] if program in known else recording_units(self.recording, program)
-
-    @property
-    def nok(self) -> set[int]:
-        return {v["number"] for v in self.analysis["verdicts"] if not v["ok"]}
-
-
-Section = Callable[[ReportContext], list[Block]]
 SECTIONS: list[tuple[str, Section]] = []
 TAIL = ("theory", "events", "truth", "overview", "exports")     # closing details: extensions go before them
 
@@ -124,17 +55,6 @@ def register_section(name: str, section: Section) -> None:
         return
     at = next((i for i, (n, _) in enumerate(rest) if n in TAIL), len(rest))
     SECTIONS[:] = rest[:at] + [(name, section)] + rest[at:]
-
-
-def fmt(v: Any) -> str:
-    """Table cell text: numbers to 4 significant digits, None as a dash."""
-    if v is None:
-        return "—"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, float):
-        return "—" if v != v else f"{v:.4g}"
-    return str(v)
 
 
 def _num(v: float | None, digits: int = 4) -> str:
@@ -639,7 +559,9 @@ def exports(ctx: ReportContext) -> list[Block]:
 
 
 for _name, _section in (("verdict", verdict), ("nok_curves", nok_curves), ("statistics", set_statistics),
-                        ("curves", curves), ("curve_table", curve_table), ("theory", theory), ("events", events), ("truth", truth),
+                        ("curves", curves), ("curve_table", curve_table), ("clutch", clutch_section),
+                        ("stand_comparison", comparison_section), ("clutch_static", static_clutch_section),
+                        ("lab_bench", lab_section), ("theory", theory), ("events", events), ("truth", truth),
                         ("overview", overview), ("exports", exports)):
     register_section(_name, _section)
 
@@ -764,7 +686,3 @@ def _clear_previous(out: Path) -> dict[str, int]:
         if "/" not in name and name not in (MARK, MANIFEST):
             (out / name).unlink(missing_ok=True)
     return {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.is_file()}
-
-from rig.analysis import clutch_report as _clutch_report  # noqa: E402,F401  (registers its section)
-from rig.analysis import static_clutch_report as _static_clutch_report  # noqa: E402,F401  (registers its section)
-from rig.analysis import lab_report as _lab_report  # noqa: E402,F401  (registers its section)

@@ -1,5 +1,5 @@
-"""Thesis against rig for a dynamic-stand run: the scene's ``[[comparison]]`` rows, ``comparison.csv`` and a report
-table (issue 14).
+"""Thesis against rig for a dynamic-stand run: the scene's ``[[comparison]]`` rows and ``comparison.csv`` (issue 14;
+the report's table of them is drawn by :func:`rig.analysis.clutch_report.comparison_section`).
 
 Each row names a quantity the source reports, its value as printed (with units: ``thesis = "14.5 N*m"``), which
 stand result it is compared with (``rig``: a result name of :func:`rig.analysis.clutch_report.stand_results` such
@@ -19,8 +19,6 @@ from pathlib import Path
 from typing import Any, Callable
 
 from rig.analysis.clutch_metrics import Metric, Stimulus
-from rig.analysis.report import Block, Heading, Link, ReportContext, Table, Text, register_section
-from rig.recorder import Recording
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.units import UnitError, to_si
 
@@ -233,40 +231,3 @@ def agreement_text(rows: list[Row]) -> str:
     if missing:
         text += f"; n/a in this run: {', '.join(r.quantity for r in missing)}"
     return text
-
-
-def _scene(rec: Recording) -> Scene | None:
-    from rig.analysis.clutch_report import _scene as scene_of
-    return scene_of(rec)
-
-
-def comparison_section(ctx: ReportContext) -> list[Block]:
-    """Thesis against rig (and comparison.csv in the report directory) for a stand scene with [[comparison]]."""
-    from rig.analysis.clutch_report import stand_results
-    scene = _scene(ctx.recording)
-    if scene is None or not scene.data.get("comparison"):
-        return []
-    results = stand_results(ctx.recording)
-    if results is None:
-        return []
-    rows = compare(scene, *results)
-    write_csv(rows, ctx.out_dir / "comparison.csv")
-    fitted = [r.quantity for r in rows if r.fitted]
-    text = ("Fitted on this run: " + ", ".join(fitted) + "; the other rows are predictions.") if fitted else \
-        "Nothing was fitted on this run: every row is a prediction."
-    agreement = agreement_text(rows)
-    notes = any(r.why for r in rows)
-    return [Heading("Thesis against rig"),
-            Text(agreement + ".", "warning" if any(r.agrees is False for r in rows) else "note"),
-            Text(text + " Agreement is judged by each row's tolerance (a share of the thesis value, a value, or a "
-                 "bound: the thesis value is a limit; a count exactly); deviation = rig − thesis."),
-            Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "fitted"]
-                  + (["note"] if notes else []),
-                  [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", "n/a" if r.rig is None else f"{r.rig:.4g}",
-                    r.deviation, r.tolerance or "— (not judged)", r.verdict, "yes" if r.fitted else "no"]
-                   + ([r.why] if notes else []) for r in rows]),
-            Table(["file", "contents"], [[Link("comparison.csv", "comparison.csv"), "this table, with the unrounded rig "
-                                                                                   "values"]])]
-
-
-register_section("stand_comparison", comparison_section)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from rig.analysis.plots import figure, save
-from rig.analysis.report import Block, Heading, ReportContext, Table, Text, fmt, register_section
+from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
 from rig.analysis.static_loops import cycle_energy, cycles, reading_points, theory_cycle_energy
 from rig.plants.clutch.static_rig import StaticClutchRig, rig_from_scene
 from rig.recorder import Recording
@@ -148,5 +148,3 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
                            f"({rig.clutch.peak_torque:.4g} N·m)."))
     return blocks
 
-
-register_section("clutch_static", static_clutch_section)

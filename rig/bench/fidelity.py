@@ -46,15 +46,14 @@ def _dwell(mech: Any, phi: np.ndarray, s: np.ndarray) -> float:
 def measure(scene_path: str | Path) -> list[dict[str, Any]]:
     """Rows (level, question, answer in display units, unit, wall_s_per_s) for L0, L1, L2 of a cam-bar scene."""
     from rig.fidelity import QUESTIONS, choose
-    from rig.plants.cam_bar import PinInsertionMechanism
     from rig.plants.cam_bar.level2 import Level2
-    from rig.plants.cam_bar.scene_io import read_level2_model, read_speed_profile, require_cam_bar
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_level2_model, read_speed_profile, require_cam_bar
     from rig.runner.config import read_config
     from rig.scene import load_scene
     scene = load_scene(scene_path)
     require_cam_bar(scene, "rig bench fidelity")
     l2 = choose(scene, "cam_bar", forced=2)
-    mech = PinInsertionMechanism.from_scene(scene)
+    mech = mechanism_from_scene(scene)
     speed = read_speed_profile(scene)
     omega = speed.nominal_omega
     rate = read_config(scene).sample_rate

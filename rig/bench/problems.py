@@ -69,13 +69,12 @@ def _halving(h0: float, n: int) -> list[float]:
 
 
 def _level2(scene, path: Path) -> WorkProblem:
-    from rig.plants.cam_bar import PinInsertionMechanism
     from rig.plants.cam_bar.level2 import Level2
-    from rig.plants.cam_bar.scene_io import read_fidelity, read_level2_model, read_speed_profile
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_fidelity, read_level2_model, read_speed_profile
     if read_fidelity(scene) != 2:
         raise SceneError(f"{path} [scene]: work-precision charts level 2 of the cam-bar plant; set fidelity = 2 "
                          f"(e.g. data/scenes/pin_insertion_l2.toml)")
-    mech = PinInsertionMechanism.from_scene(scene)
+    mech = mechanism_from_scene(scene)
     speed = read_speed_profile(scene)
     model = Level2(mech, speed, model=read_level2_model(scene))
     t_sim = 2 * math.pi / speed.nominal_omega

@@ -34,12 +34,11 @@ def _model(scene: Any, factor: float, speed: float = 1.0) -> tuple[Any, tuple, f
     """Level 2 with the contact stiffness scaled by ``factor`` and the cam speed by ``speed``; its initial state
     and cam speed (rpm)."""
     from rig.motion.speed import ConstantSpeed
-    from rig.plants.cam_bar import PinInsertionMechanism
     from rig.plants.cam_bar.level2 import Level2
-    from rig.plants.cam_bar.scene_io import read_level2_model, read_speed_profile
-    base, profile = PinInsertionMechanism.from_scene(scene), read_speed_profile(scene)
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_level2_model, read_speed_profile
+    base, profile = mechanism_from_scene(scene), read_speed_profile(scene)
     omega = profile.nominal_omega * speed
-    mech = PinInsertionMechanism.from_scene(scene, roller_width=base.roller_width * factor)
+    mech = mechanism_from_scene(scene, roller_width=base.roller_width * factor)
     model = Level2(mech, ConstantSpeed(omega, phi0=profile.phi0), model=read_level2_model(scene))
     return model, model.initial_state(0.0), omega * 60.0 / (2.0 * math.pi)
 

@@ -6,6 +6,7 @@ import pytest
 
 from rig.motion import RampSpeed, SinusoidalSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.scene_io import mechanism_from_scene
 from rig.plants.cam_bar.plant import CamBarPlant, Setting
 from rig.plants.cam_bar.scene_io import read_speed_profile
 from rig.scene import SceneError, load_scene
@@ -24,7 +25,7 @@ def write(tmp_path, text, old=None, new=None):
 
 
 def test_shipped_scene_equals_defaults():
-    m = PinInsertionMechanism.from_scene(load_scene(SCENE))
+    m = mechanism_from_scene(load_scene(SCENE))
     d = PinInsertionMechanism()
     for name in ("L3", "l3", "x_A0", "e_sk", "s0", "k", "J3", "J4", "mu", "sensor_preload", "alpha_sk"):
         assert getattr(m, name) == pytest.approx(getattr(d, name)), name
@@ -38,7 +39,7 @@ def test_shipped_scene_equals_defaults():
 
 def test_other_sections_are_ignored(tmp_path):
     sc = write(tmp_path, '\n[extra_section]\ntype = "anything"\n[another.nested]\nanything = 1\n')
-    PinInsertionMechanism.from_scene(sc)
+    mechanism_from_scene(sc)
 
 
 @pytest.mark.parametrize("old, new, message", [
@@ -80,7 +81,7 @@ def test_level2_assumptions_are_the_runs_setting_not_the_mechanism(tmp_path):
     from rig.plants.cam_bar.level2 import ContactLaw
     sc = write(tmp_path, '\n[plant.guide]\nmodel = "stick"\n', 'l_F = "100 mm"',
                'l_F = "100 mm"\ncontact_damping = "35 s/m"')
-    assert not {"contact_damping", "guide"} & set(vars(PinInsertionMechanism.from_scene(sc)))
+    assert not {"contact_damping", "guide"} & set(vars(mechanism_from_scene(sc)))
     plant = CamBarPlant.from_scene(sc, fidelity=2)
     assert plant.setting.level2.contact_damping == pytest.approx(35.0)
     assert plant.setting.level2.guide.model == "stick"

@@ -6,6 +6,7 @@ import pytest
 
 from rig.motion import ConstantSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.scene_io import mechanism_from_scene
 from rig.plants.cam_bar.drive import CamDrive
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.plant import DEMO_SPEED
@@ -69,7 +70,7 @@ def test_start_up_from_rest_and_a_start_phase_jump_with_a_strong_motor():
 def test_scene_table(tmp_path):
     scene = write(tmp_path, '\n[plant.drive]\nslope = "30 N*m*s/rad"\nstart = "running"\n',
                   "[[plant.cam_program]]", "[[plant.cam_program]]")
-    drive = PinInsertionMechanism.from_scene(scene).cam_drive
+    drive = mechanism_from_scene(scene).cam_drive
     assert drive == CamDrive(slope=30.0, start="running") and drive.synchronous(tau) == tau
     path = tmp_path / "scene.toml"
     text = path.read_text()
@@ -78,4 +79,4 @@ def test_scene_table(tmp_path):
                             ('slope = "30 N*m*s/rad"', 'gear = 3', "unknown key")):
         path.write_text(text.replace(old, new))
         with pytest.raises(SceneError, match=match):
-            PinInsertionMechanism.from_scene(load_scene(path))
+            mechanism_from_scene(load_scene(path))

@@ -6,6 +6,7 @@ import pytest
 
 from rig.motion import ConstantSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.scene_io import mechanism_from_scene
 from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.plant import DEMO_SPEED
@@ -66,10 +67,10 @@ def test_level2_follows_level1_with_the_law_and_rings_with_the_step():
 
 def test_scene_table(tmp_path):
     scene = write(tmp_path, '\n[plant.insertion]\nlaw = "step"\n', "[[plant.cam_program]]", "[[plant.cam_program]]")
-    assert PinInsertionMechanism.from_scene(scene).insertion == InsertionLaw("step")
+    assert mechanism_from_scene(scene).insertion == InsertionLaw("step")
     text = tmp_path / "scene.toml"
     base = text.read_text()
     for table, match in (('law = "ramp"', "insertion law"), ('lead = 0.1', "unknown key 'lead'")):
         text.write_text(base.replace('law = "step"', table))
         with pytest.raises(SceneError, match=match):
-            PinInsertionMechanism.from_scene(load_scene(text))
+            mechanism_from_scene(load_scene(text))

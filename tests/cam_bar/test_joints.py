@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.scene_io import mechanism_from_scene
 from rig.plants.cam_bar.plant import DEMO_SPEED, CamBarPlant, Setting
 from rig.plants.cam_bar.joints import JointClearance
 from rig.plants.cam_bar.level2 import ContactLaw, Level2
@@ -97,11 +98,11 @@ def test_level2_cycles_draw_their_groove_clearance(tmp_path):
 def test_scene_table(tmp_path):
     scene = write(tmp_path, '\n[plant.joints]\nfollower = "0.02 mm"\nslider = "0.03 mm"\nstiffness = "20 N/um"\n',
                   "[[plant.cam_program]]", "[[plant.cam_program]]")
-    assert PinInsertionMechanism.from_scene(scene).joints == JointClearance(20e-6, 30e-6, 2e7)
+    assert mechanism_from_scene(scene).joints == JointClearance(20e-6, 30e-6, 2e7)
     path = tmp_path / "scene.toml"
     path.write_text(path.read_text().replace('slider = "0.03 mm"', 'slider = "-0.03 mm"'))
     with pytest.raises(SceneError, match="joint clearances"):
-        PinInsertionMechanism.from_scene(load_scene(path))
+        mechanism_from_scene(load_scene(path))
 
 
 def test_pins_driven_beyond_the_overload_limit_are_named():

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.scene_io import mechanism_from_scene
 from rig.plants.cam_bar.jump_map import jump_map, plot
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.plant import DEMO_SPEED
@@ -19,7 +20,7 @@ def test_switches_at_the_drawn_spring_and_high_speed_only(tmp_path):
     """The map of the machine as drawn (its scene) through the sweep machinery (its results are the same on every
     executor: tests/sweep)."""
     scene = load_scene(ROOT / "data" / "scenes" / "pin_insertion_as_drawn.toml")
-    mech = PinInsertionMechanism.from_scene(scene)
+    mech = mechanism_from_scene(scene)
     grid = dict(speeds=(150.0, 300.0), rates=(1090.0, 1890.0), clearances=(0.05e-3,))
     result = jump_map(scene, **grid)
     assert not result.errors.any()

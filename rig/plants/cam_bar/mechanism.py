@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from math import pi, radians
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -22,9 +22,6 @@ from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.joints import JointClearance
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
 from rig.plants.cam_bar.switches import flank_switch_angles
-
-if TYPE_CHECKING:
-    from rig.scene import Scene
 
 
 def default_program(stroke: float = 0.042) -> CamProgram:
@@ -212,19 +209,6 @@ class PinInsertionMechanism:
             raise SingularPositionError("impossible cam-bar geometry: the rod passes vertical within the stroke "
                                         f"{lo * 1e3:g}..{hi * 1e3:g} mm (slider position not unique)")
         return chain
-
-    @classmethod
-    def from_scene(cls, scene: "Scene", **overrides: Any) -> "PinInsertionMechanism":
-        """Build from a scene's [plant] section (with [[plant.cam_program]]; the description only, the run's
-        setting with its [speed]: :func:`rig.plants.cam_bar.scene_io.read_setting`)."""
-        from rig.plants.cam_bar.scene_io import read_mechanism_kwargs
-        from rig.scene import SceneError
-        try:
-            return cls(**{**read_mechanism_kwargs(scene), **overrides})
-        except (ValueError, TypeError) as exc:
-            if isinstance(exc, SceneError):
-                raise
-            raise SceneError(f"{scene.path} [plant]: {exc}") from None
 
     # ---- level 0 -------------------------------------------------------------------------------------------
     def _pitch(self, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -69,12 +69,11 @@ class CamBarPlant:
     def from_scene(cls, scene: "Scene", nominal: bool = False, **setting: Any) -> "CamBarPlant":
         """The plant of a scene ([plant], [speed], [scene] fidelity/questions/seed); ``nominal`` leaves out the
         per-cycle variation; ``setting`` overrides the scene's (e.g. ``fidelity``, ``method``)."""
-        from rig.plants.cam_bar.mechanism import PinInsertionMechanism
-        from rig.plants.cam_bar.scene_io import read_setting
+        from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_setting
         kw = read_setting(scene)
         if nominal:
             kw.update(variation=None, rng=None)
-        return cls(PinInsertionMechanism.from_scene(scene), Setting(**{**kw, **setting}))
+        return cls(mechanism_from_scene(scene), Setting(**{**kw, **setting}))
 
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """Physical truth (SI) at increasing times ``t`` (s), continuing from the previous call."""

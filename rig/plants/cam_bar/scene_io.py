@@ -6,7 +6,7 @@ cam-program table every key is checked (unknown, missing, wrong unit → :class:
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from rig.motion.program import CamProgram, ProgramError, Segment
 from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed, SpeedProfile
@@ -16,11 +16,9 @@ from rig.plants.cam_bar.guide_friction import read_guide
 from rig.plants.cam_bar.insertion import read_insertion
 from rig.plants.cam_bar.joints import read_joints
 from rig.plants.cam_bar.level2_model import CONTACT_DAMPING, Level2Model
+from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 from rig.plants.cam_bar.variation import CycleVariation, plant_generator
 from rig.units import UnitError, to_si
-
-if TYPE_CHECKING:
-    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 PLANT_SCHEMA = {
     "L3": Field("m"), "l3": Field("m"), "m3": Field("kg"), "x_A0": Field("m"), "y_A0": Field("m"),
@@ -108,11 +106,10 @@ def require_cam_bar(scene: Scene, command: str) -> None:
 def cam_bar_from_scene(path: str | Path, command: str = "the cam-bar model") -> tuple["PinInsertionMechanism", float]:
     """A cam-bar scene file → its :class:`PinInsertionMechanism` ([plant]) and nominal cam speed (rad/s, [speed]);
     :class:`SceneError` for a scene of another plant (:func:`require_cam_bar`)."""
-    from rig.plants.cam_bar.mechanism import PinInsertionMechanism
     from rig.scene import load_scene
     scene = load_scene(path)
     require_cam_bar(scene, command)
-    return PinInsertionMechanism.from_scene(scene), read_speed_profile(scene).nominal_omega
+    return mechanism_from_scene(scene), read_speed_profile(scene).nominal_omega
 
 
 def read_fidelity(scene: Scene) -> int:
@@ -172,3 +169,15 @@ def read_setting(scene: Scene) -> dict[str, Any]:
                              f"got {seed!r}")
         kw["rng"] = plant_generator(seed)
     return kw
+
+
+def mechanism_from_scene(scene: Scene, **overrides: Any) -> PinInsertionMechanism:
+    """The mechanism a scene's [plant] section describes (with [[plant.cam_program]]; the description only, the
+    run's setting with its [speed]: :func:`read_setting`); ``overrides`` replace keyword arguments of
+    :class:`PinInsertionMechanism`. An impossible geometry is a :class:`SceneError` naming the file."""
+    try:
+        return PinInsertionMechanism(**{**read_mechanism_kwargs(scene), **overrides})
+    except (ValueError, TypeError) as exc:
+        if isinstance(exc, SceneError):
+            raise
+        raise SceneError(f"{scene.path} [plant]: {exc}") from None

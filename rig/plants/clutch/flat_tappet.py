@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rig.plants.clutch.geometry import (GeometryError, PhaseLimits, lobe_geometry, make_scalar_geometry,
-                                        phase_limits)
+from rig.plants.clutch.geometry import GeometryError, PhaseLimits, lobe_geometry, phase_limits
+from rig.plants.clutch.kernel import locate_segment, segment_geometry
 from rig.scene import Field
 
 #: Scene schema of a flat-tappet clutch ([plant] table); thesis values, assumptions marked in docs/clutch.md.
@@ -86,8 +86,17 @@ class FlatTappetClutch:
         return lobe_geometry(phi, self.r0, self.r1, self.r2, self.limits)
 
     def scalar_geometry(self):
-        """Fast scalar φ ↦ (k1, k2, dk1/dφ) for ODE right-hand sides."""
-        return make_scalar_geometry(self.r0, self.r1, self.r2, self.limits)
+        """Fast scalar φ ↦ (k1, k2, dk1/dφ, flank) for ODE right-hand sides: flank = +1 on the rising half-lobe
+        (k1 ≥ 0, including φ = 0 and the apex), −1 on the falling one (the compiled
+        :func:`rig.plants.clutch.kernel.segment_geometry` on the segment holding φ; the tests check it against
+        :func:`lobe_geometry`)."""
+        c1, a2, pm, r1, r2 = self.r1 - self.r0, self.limits.a2, self.limits.phi_maxI, self.r1, self.r2
+
+        def geom(phi: float) -> tuple[float, float, float, float]:
+            base, seg = locate_segment(phi, 0.0, pm)
+            return segment_geometry(phi, base, seg, c1, a2, r1, r2, pm)
+
+        return geom
 
     def spring_force(self, phi: np.ndarray | float) -> np.ndarray:
         """Spring force of one tappet F_a = F_a1 + k_a·s (N)."""

@@ -78,18 +78,3 @@ def lobe_geometry(phi: np.ndarray | float, r0: float, r1: float, r2: float,
     dk1 = np.where(first, c1 * np.cos(psi), -a2 * np.cos(APEX - psi))
     k1 = sign * k1
     return {"k1": k1, "k2": k2, "k3": 2.0 * k1 * dk1, "s": k2 - r0, "dk1": dk1}
-
-
-def make_scalar_geometry(r0: float, r1: float, r2: float, limits: PhaseLimits):
-    """Fast scalar version of :func:`lobe_geometry`: φ ↦ (k1, k2, dk1/dφ, flank), flank = +1 on the
-    rising half-lobe (k1 ≥ 0, including φ = 0 and the apex), −1 on the falling one (the compiled
-    :func:`rig.plants.clutch.kernel.segment_geometry` on the segment holding φ; the tests check it against :func:`lobe_geometry`)."""
-    from rig.plants.clutch.kernel import locate_segment, segment_geometry   # kernel imports this module
-
-    c1, a2, pm = r1 - r0, limits.a2, limits.phi_maxI
-
-    def geom(phi: float) -> tuple[float, float, float, float]:
-        base, seg = locate_segment(phi, 0.0, pm)
-        return segment_geometry(phi, base, seg, c1, a2, r1, r2, pm)
-
-    return geom
