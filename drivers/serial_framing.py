@@ -82,11 +82,6 @@ class FrameParser:
         self._ack = False
         self._end = 0
 
-    @property
-    def busy(self) -> bool:
-        """True while in the middle of a frame or handshake (for the inter-character timeout)."""
-        return self._mode != "idle"
-
     def reset(self) -> None:
         """Drop a partial frame (inter-character timeout)."""
         self._mode, self._buf = "idle", bytearray()

@@ -83,11 +83,6 @@ def base_process_values(c: Curve) -> dict[str, float]:
     return out
 
 
-def process_value_names(elements: list[Mapping[str, Any]], has_y2: bool) -> set[str]:
-    """Every process value a program produces: base values and ``<element>.<value>``."""
-    return set(process_value_axes(elements, has_y2))
-
-
 def process_value_axes(elements: list[Mapping[str, Any]], has_y2: bool) -> dict[str, str]:
     """Where every process value of a program lies: ``"x"``, ``"y"``, ``"y2"`` (the channel), ``"t"``
     (``duration``) or ``""`` (``pairs``, a count). Element values lie on the axis their name starts with (Y

@@ -458,10 +458,6 @@ def measured_table(name: str, through_origin: bool = False) -> TabulatedClutch:
     return TabulatedClutch.from_file(DATA_DIR / f"{name}.csv", through_origin)
 
 
-class ShearPinBroken(RuntimeError):
-    """Torque was asked of a shear pin that has already broken."""
-
-
 @dataclass
 class ShearPin:
     """Shear-pin safety coupling: rigid until |M| reaches M_lim = factor·M_tc, then broken for good.
