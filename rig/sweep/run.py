@@ -59,7 +59,7 @@ class SweepResult:
 def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], executor: "Executor",
               revolutions: int = 2) -> SweepResult:
     """Every grid point of ``params`` on ``executor``; scene and metric errors are raised before anything runs
-    (the first point's plant is built here); a point whose run fails gets NaN metrics and its error."""
+    (:func:`_check_buildable`); a point whose run fails gets NaN metrics and its error."""
     from rig.runner.config import read_config
     from rig.runner.plants import make_plant
     if not params or not metrics:
@@ -70,10 +70,26 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
     points = grid(params)
     tasks = [PointTask(scene, {p.key: v for p, v in zip(params, point)}, tuple(metrics), revolutions)
              for point in points]
-    first = with_overrides(scene, tasks[0].overrides)             # a bad key fails here, named
-    make_plant(read_config(first).plant, first, nominal=True)
+    _check_buildable(tasks, make_plant, read_config)
     results = [r for part in executor.map(run_points, batches(tasks, executor.workers)) for r in part]
     return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results])
+
+
+def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) -> None:
+    """Build points' plants in grid order until one builds: a key the scene cannot take fails every point, and its
+    error (naming the key) is raised before anything runs; a point that cannot be built for its own values (an
+    impossible geometry, a negative rate) is left to :func:`run_point`, wherever it lies in the grid."""
+    from rig.plants.cam_bar.chain import SingularPositionError
+    first: Exception | None = None
+    for task in tasks:
+        try:
+            point = with_overrides(task.scene, task.overrides)
+            make_plant(read_config(point).plant, point, nominal=True)
+            return
+        except (SceneError, SingularPositionError, ValueError) as exc:
+            first = first or exc
+    assert first is not None
+    raise first
 
 
 def write_table(result: SweepResult, path: Path) -> Path:

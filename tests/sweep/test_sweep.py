@@ -90,6 +90,22 @@ def test_rig_sweep_refuses_a_metric_of_another_plant_and_bad_keys(tmp_path, caps
     assert "kk" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("values", ["20 mm,125 mm", "125 mm,20 mm"])
+def test_a_point_that_cannot_be_built_gets_its_error_wherever_it_lies(values, tmp_path, capsys):
+    """An impossible rod length is that point's failure (NaN and the reason), first in the grid or last; a grid
+    with no point that builds is refused before anything runs."""
+    out = tmp_path / "sweep"
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", f"plant.l4={values}", "--metric", "rod_force_peak",
+                 "--revolutions", "1", "--executor", "serial", "-o", str(out)]) == 0
+    rows = {r["plant.l4"]: r for r in csv.DictReader((out / "sweep.csv").open())}
+    assert rows["20 mm"]["rod_force_peak [N]"] == "nan" and "impossible cam-bar geometry" in rows["20 mm"]["error"]
+    assert float(rows["125 mm"]["rod_force_peak [N]"]) > 0 and rows["125 mm"]["error"] == ""
+    assert "2 points, 1 failed" in capsys.readouterr().out
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.l4=20 mm,21 mm", "--metric", "rod_force_peak",
+                 "-o", str(tmp_path / "none")]) == 2
+    assert "impossible cam-bar geometry" in capsys.readouterr().err
+
+
 def test_clutch_sweep_counts_disengagements_and_the_shutdown_rule():
     """The short 80 N·m shock: the thesis spring set (1284 N) holds, a weaker one (800 N) disengages; the
     shutdown flag rises only where the count reaches the scene's rule (4 within 100 ms) at all."""

@@ -173,14 +173,15 @@ def format_checks(design: CamDesign) -> str:
 
 def utilisation(check: Check) -> float:
     """How much of its limit a check uses: value/limit for '≤', limit/value for '≥' (≤ 1 passes); NaN where the
-    ratio means nothing (a zero or negative side)."""
+    ratio means nothing (a limit of 0 — "≥ 0" would read 0 whatever the value —, a negative side)."""
     num, den = (check.value, check.limit) if check.relation in ("≤", "info") else (check.limit, check.value)
-    return num / den if num >= 0 and den > 0 else float("nan")
+    return num / den if num >= 0 and den > 0 and check.limit != 0 else float("nan")
 
 
 def plot_design(design: CamDesign, path: str | Path) -> Path:
     """PNG: pressure angle with its limit, pitch-curve radius with the undercut limit, Hertz stress over the cam
-    angle, and every check's use of its limit (bars: green PASS, red FAIL, grey info)."""
+    angle, and every check's use of its limit (bars: green PASS, red FAIL, grey info; a check whose ratio means
+    nothing — a limit of 0 — is a pale hatched bar across in its verdict's colour)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -212,15 +213,21 @@ def plot_design(design: CamDesign, path: str | Path) -> Path:
     use = np.array([utilisation(ch) for ch in design.checks])
     colours = ["0.6" if ch.relation == "info" else "tab:green" if ch.ok else "tab:red" for ch in design.checks]
     rows = np.arange(len(design.checks))[::-1]
-    bars.barh(rows, np.nan_to_num(use, nan=0.0), color=colours)
+    right = max(1.6, float(np.nanmax(use, initial=1.0)) * 1.5)
+    ratio = np.isfinite(use)
+    bars.barh(rows[ratio], use[ratio], color=[c for c, r in zip(colours, ratio) if r])
+    # no ratio (a limit of 0, a negative value): a pale hatched bar across in the verdict's colour, no length
+    bars.barh(rows[~ratio], right, color=[c for c, r in zip(colours, ratio) if not r], alpha=0.3, hatch="//")
     bars.axvline(1.0, color="r", ls="--", lw=1)
     bars.set_yticks(rows, [ch.name for ch in design.checks], fontsize=8)
     for r, u, ch in zip(rows, use, design.checks):
-        text = "n/a" if not np.isfinite(u) else f"{u:.2f}"
         relation = "vs" if ch.relation == "info" else ch.relation
-        bars.text(max(np.nan_to_num(u, nan=0.0), 0.0) + 0.02, r, f"{text}  ({ch.value:.4g} {relation} "
-                  f"{ch.limit:.4g} {ch.unit})", va="center", fontsize=7)
-    bars.set_xlim(0.0, max(1.6, float(np.nanmax(use, initial=1.0)) * 1.5))
+        verdict = "information" if ch.relation == "info" else "PASS" if ch.ok else "FAIL"
+        text = f"{u:.2f}" if np.isfinite(u) else f"{verdict}, no ratio"
+        bars.text((max(u, 0.0) if np.isfinite(u) else 0.0) + 0.02, r, f"{text}  ({ch.value:.4g} {relation} "
+                  f"{ch.limit:.4g} {ch.unit})", va="center", fontsize=7,
+                  bbox=None if np.isfinite(u) else {"facecolor": "white", "edgecolor": "none", "pad": 1.0})
+    bars.set_xlim(0.0, right)
     bars.set_xlabel("use of the limit (value/limit for ≤, limit/value for ≥; ≤ 1 passes)")
     bars.set_title("every check against its limit (green PASS, red FAIL, grey information)", fontsize=9, loc="left")
     fig.suptitle("cam design checks")
