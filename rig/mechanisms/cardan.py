@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import cos, pi, sin
+from math import cos, pi, radians, sin
 
 import numpy as np
 
-from rig.mechanisms.checks import finite_array
+from rig.mechanisms.checks import finite, finite_array
 
 ArrayLike = np.ndarray | float
 
@@ -25,8 +25,12 @@ class Cardan:
     shaft_angle: float
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.shaft_angle < pi / 2:
-            raise ValueError(f"Cardan shaft_angle must lie in [0, 90°), got {np.degrees(self.shaft_angle):g}°")
+        alpha = finite(self.shaft_angle, "Cardan shaft_angle (rad)")
+        if not 0.0 <= alpha < pi / 2:
+            hint = (f": the angle is in radians: did you mean {alpha:g}° = {radians(alpha):.4g} rad?"
+                    if pi / 2 <= alpha < 90.0 else "")
+            raise ValueError(f"Cardan shaft_angle must lie in [0, 90°), got {alpha!r} rad = {np.degrees(alpha):g}°"
+                             + hint)
 
     def output_angle(self, phi1: ArrayLike) -> np.ndarray:
         """φ2 (rad), continuous in φ1 (the same quadrant: tan φ2 = tan φ1 / cos α)."""
@@ -69,6 +73,7 @@ class DoubleCardan:
         if self.arrangement not in ("Z", "W"):
             raise ValueError(f"DoubleCardan arrangement must be 'Z' or 'W', got {self.arrangement!r}")
         Cardan(self.angle1), Cardan(self.angle2)
+        finite(self.yoke_offset, "DoubleCardan yoke_offset (rad)")
 
     def output_angle(self, phi1: ArrayLike) -> np.ndarray:
         """φ3 (rad), continuous in φ1."""

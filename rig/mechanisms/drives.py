@@ -48,9 +48,12 @@ class Ratchet:
     mu: float
 
     def __post_init__(self) -> None:
-        if not 0 < self.tooth_angle < pi / 2:
-            raise ValueError(f"Ratchet tooth_angle must lie in (0, 90°), got {self.tooth_angle!r} rad")
-        if not self.mu >= 0:
+        gamma = finite(self.tooth_angle, "Ratchet tooth_angle (rad)")
+        if not 0 < gamma < pi / 2:
+            hint = (f": the angle is in radians: did you mean {gamma:g}° = {radians(gamma):.4g} rad?"
+                    if pi / 2 <= gamma < 90.0 else "")
+            raise ValueError(f"Ratchet tooth_angle must lie in (0, 90°), got {gamma!r} rad" + hint)
+        if not finite(self.mu, "Ratchet mu") >= 0:
             raise ValueError(f"Ratchet mu must not be negative, got {self.mu!r}")
 
     @property

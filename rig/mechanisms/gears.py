@@ -61,13 +61,13 @@ class SpurGearPair:
     def __post_init__(self) -> None:
         for name in ("z1", "z2"):
             object.__setattr__(self, name, whole(getattr(self, name), 5, f"SpurGearPair {name} (teeth)"))
+        for name in ("module", "x1", "x2", "pressure_angle"):
+            finite(getattr(self, name), f"SpurGearPair {name}")
         if not 0 < self.module <= MODULE_MAX:
             raise ValueError(f"SpurGearPair module is in metres, positive and at most {MODULE_MAX:g} m (gear modules "
                              f"run from 0.05 to 50 mm), got {self.module!r} m"
                              + (f": did you mean {self.module:g} mm = {self.module * 1e-3:g} m?"
                                 if self.module > MODULE_MAX else ""))
-        for name in ("module", "x1", "x2", "pressure_angle"):
-            finite(getattr(self, name), f"SpurGearPair {name}")
         if not 0 < self.pressure_angle < radians(45):
             raise ValueError(f"SpurGearPair pressure_angle must lie in (0, 45°), got {self.pressure_angle!r} rad")
         for z, x, name in ((self.z1, self.x1, "x1"), (self.z2, self.x2, "x2")):

@@ -1,4 +1,5 @@
 """Scene reading: the shipped scene, strict [plant]/[speed]/cam-program tables, tolerant elsewhere."""
+import re
 from pathlib import Path
 
 import numpy as np
@@ -6,9 +7,8 @@ import pytest
 
 from rig.motion import RampSpeed, SinusoidalSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
-from rig.plants.cam_bar.scene_io import mechanism_from_scene
 from rig.plants.cam_bar.plant import CamBarPlant, Setting
-from rig.plants.cam_bar.scene_io import read_speed_profile
+from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_speed_profile
 from rig.scene import SceneError, load_scene
 
 SCENE = Path(__file__).resolve().parents[2] / "data" / "scenes" / "pin_insertion.toml"
@@ -90,3 +90,13 @@ def test_level2_assumptions_are_the_runs_setting_not_the_mechanism(tmp_path):
     assert model.model is plant.setting.level2
     with pytest.raises(SceneError, match="contact_damping must not be negative"):
         CamBarPlant.from_scene(write(tmp_path, "", 'l_F = "100 mm"', 'l_F = "100 mm"\ncontact_damping = "-1 s/m"'))
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"k": -1000.0}, "cam-bar parameter k must not be negative, got -1000.0 N/m"),
+    ({"l4": float("nan")}, "cam-bar parameter l4 must be a finite number, got nan m"),
+    ({"mu": float("inf")}, "cam-bar parameter mu must be a finite number, got inf"),
+])
+def test_a_bad_parameter_is_named_with_its_unit(kw, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        PinInsertionMechanism(**kw)

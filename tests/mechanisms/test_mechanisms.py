@@ -195,6 +195,12 @@ def test_belt_ratchet_and_friction_wheels():
     (lambda: FrictionWheels(0.1, 0.2, 0.3).pressing_force(-10), "tangential force F_t must not be negative"),
     (lambda: Cardan(0.5).output_angle(float("inf")), "Cardan phi1 (rad) must be finite"),
     (lambda: Geneva(5, 0.05).kinematics(0.1, float("nan")), "Geneva omega1 (rad/s) must be a finite number"),
+    (lambda: SpurGearPair(34, 80, "0.0045"), "SpurGearPair module must be a finite number, got '0.0045'"),
+    (lambda: Cardan("0.5"), "Cardan shaft_angle (rad) must be a finite number, got '0.5'"),
+    (lambda: Cardan(30), "did you mean 30° = 0.5236 rad"),
+    (lambda: DoubleCardan(0.1, 0.1, "Z", float("nan")), "DoubleCardan yoke_offset (rad) must be a finite number"),
+    (lambda: Ratchet(0.3, float("nan")), "Ratchet mu must be a finite number, got nan"),
+    (lambda: Ratchet(30, 0.2), "did you mean 30° = 0.5236 rad"),
 ])
 def test_impossible_or_mistyped_input_is_named(make, message):
     """Geometry that cannot exist, a value in the wrong unit or not a finite number: a ValueError saying which

@@ -10,7 +10,7 @@ the roller pitch radius r follow from the chain (:mod:`rig.plants.cam_bar.chain`
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import pi, radians
+from math import isfinite, pi, radians
 from typing import NamedTuple
 
 import numpy as np
@@ -22,6 +22,12 @@ from rig.plants.cam_bar.insertion import InsertionLaw
 from rig.plants.cam_bar.joints import JointClearance
 from rig.plants.cam_bar.kinetostatics import Kinetostatics, solve
 from rig.plants.cam_bar.switches import flank_switch_angles
+
+
+#: SI units of the parameters the constructor checks (its messages name them)
+SI_UNITS = {"L3": "m", "l3": "m", "m3": "kg", "r_R": "m", "l4": "m", "m4": "kg", "e_sk": "m", "l5": "m", "m5": "kg",
+            "s_H": "m", "l_F": "m", "g": "m/s^2", "roller_width": "m", "F_c": "N", "F_c_travel": "m", "mu": "",
+            "x_s5": "m", "e5": "m", "Me_0": "N*m", "k": "N/m", "clearance": "m"}
 
 
 def default_program(stroke: float = 0.042) -> CamProgram:
@@ -165,12 +171,18 @@ class PinInsertionMechanism:
     joints: JointClearance | None = None                             # level 2: rod pin clearances (slider DOF)
 
     def __post_init__(self) -> None:
+        for name, unit in SI_UNITS.items():
+            if not isfinite(getattr(self, name)):
+                raise ValueError(f"cam-bar parameter {name} must be a finite number, got {getattr(self, name)!r} "
+                                 f"{unit}".rstrip())
         for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):
             if not getattr(self, name) > 0.0:
-                raise ValueError(f"cam-bar parameter {name} must be positive, got {getattr(self, name)!r}")
+                raise ValueError(f"cam-bar parameter {name} must be positive, got {getattr(self, name)!r} "
+                                 f"{SI_UNITS[name]}")
         for name in ("F_c", "F_c_travel", "mu", "x_s5", "e5", "Me_0", "k", "clearance"):
-            if getattr(self, name) < 0.0:
-                raise ValueError(f"cam-bar parameter {name} must not be negative, got {getattr(self, name)!r}")
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"cam-bar parameter {name} must not be negative, got {getattr(self, name)!r} "
+                                 f"{SI_UNITS[name]}".rstrip())
         if not 0.0 <= self.sensor_position <= 1.0:
             raise ValueError(f"sensor_position is a fraction of the rod from the follower joint, "
                              f"got {self.sensor_position!r}")
