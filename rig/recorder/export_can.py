@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import struct
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -46,6 +47,7 @@ from asammdf import MDF, Signal, Source
 from asammdf.blocks import v4_constants as v4c
 from can.util import CAN_FD_DLC, len2dlc
 from mcap.exceptions import McapError
+from zstandard import ZstdError
 from mcap.reader import make_reader
 
 from rig.recorder import schemas as S
@@ -146,8 +148,15 @@ def _decode(block: Any, where: str, buses: dict[str, int], last: float) -> Frame
     return f
 
 
-def _unreadable(path: Path, exc: McapError) -> RecordingError:
-    return RecordingError(f"{path}: cannot read the MCAP recording ({exc}); exporting CAN needs a complete file")
+#: what reading a damaged MCAP file raises: mcap's own errors, a chunk that does not decompress (zstd; lz4 raises
+#: RuntimeError), a record cut inside its fields (struct.error)
+DAMAGED = (McapError, ZstdError, RuntimeError, struct.error)
+
+
+def _unreadable(path: Path, exc: Exception) -> RecordingError:
+    return RecordingError(f"{path}: cannot read the MCAP recording, it is damaged ({type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())}); exporting CAN needs an undamaged file — `rig report "
+                          f"--partial {path}` reports what it holds")
 
 
 def trace_start(path: Path) -> float:
@@ -156,7 +165,7 @@ def trace_start(path: Path) -> float:
     try:
         with open(path, "rb") as f:
             meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
-    except McapError as exc:
+    except DAMAGED as exc:
         raise _unreadable(path, exc) from None
     value = meta.get(S.RIG_METADATA, {}).get("wall_clock_start")
     if value is None:
@@ -184,7 +193,7 @@ def iter_frames(path: Path) -> Iterator[Frames]:
                 if len(frames):
                     last = float(frames.t[-1])
                     yield frames
-    except McapError as exc:
+    except DAMAGED as exc:
         raise _unreadable(path, exc) from None
 
 

@@ -239,6 +239,22 @@ def test_truncated_recording_is_an_error(recording, tmp_path):
     assert not (tmp_path / "bus.log").exists()
 
 
+@pytest.mark.parametrize("damage", ["flipped", "zeroed"])
+def test_a_damaged_chunk_is_one_line_naming_the_file_and_no_trace_is_left(recording, tmp_path, capsys, damage):
+    """Bytes flipped or zeroed in the middle of a whole file (its magic intact): the chunk there does not decompress
+    (or fails its CRC); the export stops with one line, exit 2, and leaves no half trace."""
+    data = bytearray(recording.read_bytes())
+    n = len(data) // 2
+    data[n:n + 4096] = bytes(b ^ 0xFF for b in data[n:n + 4096]) if damage == "flipped" else bytes(4096)
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    assert main(["-q", "export-can", str(bad), "-o", str(tmp_path / "bus.asc")]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}: cannot read the MCAP recording, it is damaged (" in err and "rig report --partial" in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "bus.asc").exists()
+
+
 def test_a_missing_recording_is_a_usage_error_as_in_report(tmp_path, capsys):
     for argv in (["export-can", str(tmp_path / "none.mcap"), "-o", str(tmp_path / "bus.asc")],
                  ["report", str(tmp_path / "none.mcap"), "-o", str(tmp_path / "rep")]):
