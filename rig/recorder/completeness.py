@@ -29,8 +29,12 @@ def losses(rec: Recording) -> list[str]:
     if rec.complete:
         return []
     out = list(rec.problems)
-    if rec.truncated:
-        out.append("lost: the messages after the last whole chunk, the summary and the end record")
+    if rec.truncated and rec.data_whole:
+        out.append("nothing of the run is lost: every message up to the file's data end was read"
+                   + ("" if rec.end else "; the run's end record is not in it"))
+    elif rec.truncated:
+        out.append("lost: the messages after the last whole chunk, the summary"
+                   + (" (the run's end record was read)" if rec.end else " and the run's end record"))
     out.append(f"data ends at {rec.last_time:.3f} s of simulation time")
     cycles, duration = _requested(rec, "cycles"), _requested(rec, "duration")
     if cycles is not None and len(rec.curves) < cycles:

@@ -11,7 +11,7 @@ import numpy as np
 import orjson
 from mcap.exceptions import EndOfFile, InvalidMagic
 from mcap.records import Attachment, Channel, DataEnd, Footer, Message, Metadata
-from mcap.stream_reader import StreamReader
+from mcap.stream_reader import CRCValidationError, StreamReader
 
 from rig.recorder import schemas as S
 from rig.recorder.encoding import decode_array, decode_block, loads_message
@@ -53,6 +53,8 @@ class Recording:
     damaged (read with ``allow_partial``). ``end``: the run's end record (metadata ``rig.end``: ``complete``,
     ``reason``, ``simulation_time``, ``messages``), empty when the writer never closed the file.
     ``last_time``: simulation time (s) of the latest data read (a sample, a frame or a message).
+    ``data_whole``: every record up to the data end was read (whatever a truncated file lacks is then only the
+    index after it: summary, footer, closing magic).
     """
 
     path: Path
@@ -70,6 +72,7 @@ class Recording:
     truncated: bool = False
     problems: list[str] = field(default_factory=list)
     last_time: float = 0.0
+    data_whole: bool = True
 
     @property
     def end(self) -> dict[str, str]:
@@ -236,6 +239,20 @@ def require_whole_file(path: str | Path, need: str) -> None:
                              "what it holds")
 
 
+def _cut(size: int, whole: int, data_end: bool, footer: bool) -> str:
+    """Where a cut file ends, in words: what was read before the cut (``whole`` bytes of ``size``)."""
+    into = f"{size - whole} bytes into a record" if size > whole else "after a whole record"
+    if footer:
+        where = "after its footer, without MCAP's closing magic: every record was read"
+    elif data_end:
+        where = f"in its summary ({into}, after the data end): every message and the end record were read"
+    elif whole <= len(MCAP_MAGIC):
+        where = f"after MCAP's opening magic{'' if size == whole else f', {into}'}: no record was written"
+    else:
+        where = f"{into}, without the data end, summary and footer"
+    return f"file ends {where} (recording was not closed: the process was killed or the file cut)"
+
+
 def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     """Read a recording made by :class:`rig.recorder.Recorder`.
 
@@ -247,14 +264,14 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     path = Path(path)
     rec = Recording(path=path)
     collector = _Collector(rec)
-    footer = False
+    footer = data_end = False
     whole = size = 0                        # bytes up to the end of the last whole record; of the file
     at_end = False                          # a failure came from reading past the end (a cut, not damage)
     try:
         with open(path, "rb") as f:
             size = _front(path, f)
+            whole = min(size, len(MCAP_MAGIC))
             f.seek(0)
-            data_end = False
             try:
                 for record in StreamReader(f, validate_crcs=True).records:
                     if not data_end:        # the summary after DataEnd only repeats (and has no CRC check)
@@ -272,16 +289,19 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
         raise
     except Exception as exc:  # any decoding failure past the header: keep what was read
         rec.truncated = True
-        if isinstance(exc, EndOfFile) or (at_end and whole < size):
-            cut = (f"{size - whole} bytes into a record" if size > whole else
-                   "after a whole record, without the data end, summary and footer")
-            rec.problems.append(f"file ends {cut} (recording was not closed: the process was killed or the file "
-                                "cut)")
+        if isinstance(exc, CRCValidationError) and isinstance(exc.record, DataEnd):
+            data_end = True
+            rec.problems.append("the data section's CRC does not match the one written at its end: a record outside "
+                                "the chunks (header, schema, channel or metadata) was altered after the run — every "
+                                "chunk passed its own CRC and every message was read; the metadata may be damaged")
+        elif isinstance(exc, EndOfFile) or (at_end and whole < size):
+            rec.problems.append(_cut(size, whole, data_end, footer))
         else:
             rec.problems.append(f"stopped reading at a damaged record ({type(exc).__name__}: {exc})")
     if not footer and not rec.truncated:
         rec.truncated = True
         rec.problems.append("file ends without a footer (recording was not closed)")
+    rec.data_whole = data_end
     try:
         collector.finish()
         if rec.interrupted is not None:

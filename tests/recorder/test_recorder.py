@@ -324,6 +324,37 @@ def test_a_cut_says_whether_it_ends_inside_a_record_or_after_one(tmp_path):
         assert partial.truncated and partial.problems[0].startswith(said), partial.problems
 
 
+def test_what_a_damaged_or_cut_file_lost_is_what_was_not_read(tmp_path):
+    """A cut in the summary or of the closing magic loses nothing of the run; an altered metadata record fails only
+    the data section's CRC (every chunk passes its own): the reader says so instead of claiming lost messages, and
+    the report's loss lines follow what was read."""
+    from rig.recorder.completeness import losses
+    path = tmp_path / "run.mcap"
+    record(path, np.random.default_rng(4), chunk_size=20_000)
+    whole = read_recording(path)
+    data = path.read_bytes()
+    meta = data.index(b"wall_clock_start")             # a metadata record near the front, outside every chunk
+    altered = bytearray(data)
+    altered[meta] ^= 0x20
+    for name, content, said in (
+            ("no_magic", data[:-8], "file ends after its footer, without MCAP's closing magic: every record was read"),
+            ("in_summary", data[:-100], "file ends in its summary ("),
+            ("altered", bytes(altered), "the data section's CRC does not match the one written at its end")):
+        cut = tmp_path / f"{name}.mcap"
+        cut.write_bytes(content)
+        partial = read_recording(cut, allow_partial=True)
+        assert partial.truncated and partial.data_whole and partial.problems[0].startswith(said), partial.problems
+        assert len(partial.curves) == len(whole.curves) and partial.message_counts == whole.message_counts
+        lines = losses(partial)
+        assert "nothing of the run is lost: every message up to the file's data end was read" in lines, lines
+        assert not any(line.startswith("lost:") for line in lines)
+    cut = tmp_path / "half.mcap"
+    cut.write_bytes(data[: len(data) // 2])
+    partial = read_recording(cut, allow_partial=True)
+    assert not partial.data_whole and any(line.startswith("lost: the messages after the last whole chunk")
+                                          for line in losses(partial))
+
+
 def test_the_end_record_says_how_far_the_data_reaches(tmp_path):
     """A block is logged at its first sample; the end record's simulation time is its last sample's (as far as the
     run got), not the log time of the last message."""
