@@ -115,3 +115,24 @@ def test_a_missing_recording_is_a_one_line_error(tmp_path, capsys, args):
     assert main([*args[:-1], str(tmp_path / args[-1])]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "missing.mcap" in err
+
+
+def test_the_console_script_takes_ctrl_c_before_it_imports_the_command_line():
+    """The console script's module sets its Ctrl-C handler before rig.cli and its imports load: an interrupt while
+    they load is one line and status 130 (checked in a child interpreter, the interrupt raised from the import of
+    rig.cli itself, deterministically)."""
+    code = ("import builtins, os, signal\n"
+            "real = builtins.__import__\n"
+            "def hook(name, *a, **k):\n"
+            "    if name == 'rig.cli':\n"
+            "        os.kill(os.getpid(), signal.SIGINT)\n"
+            "    return real(name, *a, **k)\n"
+            "builtins.__import__ = hook\n"
+            "from rig.launch import entry\n"
+            "entry()\n")
+    done = subprocess.run([sys.executable, "-c", code, "report", "none.mcap"], capture_output=True, text=True,
+                          timeout=120, cwd=ROOT)
+    assert done.returncode == 130 and done.stderr == "rig: interrupted\n", done.stderr
+    import tomllib
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts["rig"] == "rig.launch:entry"
