@@ -287,12 +287,11 @@ class CanHost:
     def _counters(self, msg, spec, raw) -> None:
         self.counters.update({"live_dropped": raw["LiveDropped"], "curve_count": raw["CurveCount"],
                               "curves_pending": raw["CurvesPending"]})
-        if raw["LiveDropped"] != self._drops_reported and self._device_time - self._drops_at >= self.drop_period:
-            self._report_drops()
 
     def _report_drops(self) -> None:
-        """A ``live_dropped`` report (at the device time of the status frames): pairs the unit did not send
-        since the previous report, from its counters."""
+        """A ``live_dropped`` report (at the device time the status frames were taken, from the heartbeat before
+        them): pairs the unit did not send since the previous report, with the live factor, stale count and backlog
+        of the same status (made on its last frame, TxStatus, so that every figure is of one moment)."""
         c = self.counters
         self.drop_reports.append({"t": self._device_time, "count": (c["live_dropped"] - self._drops_reported) % (1 << 32),
                                   "total": c["live_dropped"], "stale": c.get("live_stale", 0),
@@ -303,7 +302,8 @@ class CanHost:
         self.counters.update({"backlog": raw["Backlog"] * spec.get_signal_by_name("Backlog").scale,
                               "live_factor": raw["LiveFactor"], "live_stale": raw["LiveStale"]})
         self.run_ended = self.run_ended or bool(raw["RunEnded"])
-        if self.run_ended and self.counters.get("live_dropped", 0) != self._drops_reported:
+        if self.counters.get("live_dropped", 0) != self._drops_reported and (
+                self.run_ended or self._device_time - self._drops_at >= self.drop_period):
             self._report_drops()
 
     def _live_time(self, tick: int) -> float:

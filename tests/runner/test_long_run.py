@@ -74,3 +74,36 @@ def test_periodic_frames_that_cannot_fit_the_bus_are_a_scene_error(tmp_path: Pat
     fast.write_text(SCENE.read_text().replace('rate = "100 Hz"', 'rate = "10 kHz"', 1))
     with pytest.raises(SceneError, match=r"\[links.can\].*periodic frames alone need 13\d% .*Encoder1 13\d%"):
         run_scene(fast, tmp_path / "fast.mcap", cycles=1)
+
+
+def test_each_live_drop_report_holds_the_figures_of_one_status(tmp_path: Path):
+    """A ``live_dropped`` event's count and total come from the unit's StatusCounters frame and its live factor,
+    stale count and backlog from the TxStatus frame of the same status (after the heartbeat whose device time the
+    event carries) — checked against /can/raw decoded with cantools and the DBC."""
+    import cantools
+    out = tmp_path / "drops.mcap"
+    run_scene(SCENE, out, cycles=6)
+    rec = read_recording(out)
+    db = cantools.database.load_file(ROOT / "data" / "can" / "rig.dbc")
+    names = {m.frame_id: m.name for m in db.messages}
+    statuses, device_time, counters = [], None, None
+    for fid, data in zip(rec.can_frames["id"], rec.can_frames["data"]):
+        name = names.get(int(fid))
+        if name == "Heartbeat":
+            device_time = db.decode_message(int(fid), data)["DeviceTime"]        # s (the DBC scales)
+        elif name == "StatusCounters":
+            counters = db.decode_message(int(fid), data)
+        elif name == "TxStatus":
+            tx = db.decode_message(int(fid), data)
+            statuses.append((round(device_time, 3), counters["LiveDropped"], tx["LiveFactor"], tx["LiveStale"],
+                             tx["Backlog"]))
+    drops = [e for e in rec.events if e["kind"] == "live_dropped"]
+    assert len(drops) >= 3
+    previous = 0
+    for e in drops:
+        status = [s for s in statuses if s[0] == round(e["t"], 3)]
+        assert len(status) == 1, e
+        _, total, factor, stale, backlog = status[0]
+        assert (e["total"], e["count"], e["live_factor"], e["stale"]) == (total, total - previous, factor, stale), e
+        assert e["backlog"] == pytest.approx(backlog, abs=1e-9)
+        previous = total
