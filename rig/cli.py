@@ -482,7 +482,9 @@ def _interrupted(exc: KeyboardInterrupt) -> str:
         return "rig: interrupted"
     recording = getattr(exc, "recording")
     if recording is None:
-        return "rig: interrupted before anything was recorded; no recording was written"
+        kept = getattr(exc, "kept", None)
+        return ("rig: interrupted before anything was recorded; no recording was written"
+                + (f" (the earlier recording at {kept} is kept as it was)" if kept else ""))
     return f"rig: interrupted; what was recorded so far is in {recording} (marked interrupted)"
 
 

@@ -5,6 +5,7 @@ import json
 import hashlib
 import logging
 import math
+import os
 import socket
 import threading
 import time
@@ -40,11 +41,13 @@ class RunError(RuntimeError):
 
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C during a recorded run. ``recording``: the file holding what was recorded (marked
-    interrupted), or None when nothing had been recorded (no file is left)."""
+    interrupted), or None when nothing had been recorded (no new file is left); ``kept``: then the earlier
+    recording at the output path, left as it was (None: there was none)."""
 
-    def __init__(self, recording: Path | None) -> None:
+    def __init__(self, recording: Path | None, kept: Path | None = None) -> None:
         super().__init__()
         self.recording = recording
+        self.kept = kept
 
 
 @dataclass
@@ -201,21 +204,44 @@ def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
 @contextmanager
 def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
     """The run's recorder. On an exception the file is finished marked interrupted, or removed when it
-    holds no message; Ctrl-C becomes :class:`Interrupted` naming what is left."""
+    holds no message — and then an earlier recording at ``output`` (moved aside while the run starts) is put back;
+    Ctrl-C becomes :class:`Interrupted` naming what is left."""
     output.parent.mkdir(parents=True, exist_ok=True)
-    rec = Recorder(output, scene_text=cfg.scene.text, metadata=_metadata(cfg, mode),
-                   encoding=cfg.recording["encoding"], compression=cfg.recording["compression"])
+    earlier = output.with_name(f".{output.name}.earlier")
+    if output.exists():
+        os.replace(output, earlier)
+    else:
+        earlier.unlink(missing_ok=True)
+    try:
+        rec = Recorder(output, scene_text=cfg.scene.text, metadata=_metadata(cfg, mode),
+                       encoding=cfg.recording["encoding"], compression=cfg.recording["compression"])
+    except BaseException:
+        _restore(earlier, output)
+        raise
     try:
         yield rec
     except BaseException as exc:
         kept = rec.messages > 0
         rec.close(interrupted=interruption(exc))
-        if not kept:
+        restored = None
+        if kept:
+            earlier.unlink(missing_ok=True)
+        else:
             output.unlink(missing_ok=True)
+            restored = _restore(earlier, output)
         if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Interrupted):
-            raise Interrupted(output if kept else None) from exc
+            raise Interrupted(output if kept else None, restored) from exc
         raise
     rec.close()
+    earlier.unlink(missing_ok=True)
+
+
+def _restore(earlier: Path, output: Path) -> Path | None:
+    """Put the earlier recording moved aside back at ``output``; its path, or None when there was none."""
+    if not earlier.exists():
+        return None
+    os.replace(earlier, output)
+    return output
 
 
 def _bus(cfg: RunConfig, channel: str) -> can.BusABC:

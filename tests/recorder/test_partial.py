@@ -97,6 +97,30 @@ def test_ctrl_c_before_anything_was_recorded_leaves_no_file(tmp_path, monkeypatc
     assert not out.exists()
 
 
+def test_ctrl_c_before_anything_was_recorded_keeps_the_earlier_recording(tmp_path, monkeypatch, capsys):
+    """Re-running onto an existing recording and stopping before the first message leaves the earlier file as it
+    was (it is moved aside while the run starts, put back when nothing was recorded, and removed once the new run
+    has recorded); a run that records replaces it and leaves nothing aside."""
+    from rig.runner import host as host_module
+    out = tmp_path / "run.mcap"
+    assert main(["-q", "run", str(SCENE), "--cycles", "1", "-o", str(out), "--no-report"]) == 0
+    earlier = out.read_bytes()
+    real_arm = host_module.Host.arm
+
+    def arm(self) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(host_module.Host, "arm", arm)
+    assert main(["-q", "run", str(SCENE), "--cycles", "2", "-o", str(out), "--no-report"]) == 130
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "rig: interrupted before anything was recorded; no recording was written "
+        f"(the earlier recording at {out} is kept as it was)")
+    assert out.read_bytes() == earlier and not [p.name for p in tmp_path.iterdir() if ".earlier" in p.name]
+    monkeypatch.setattr(host_module.Host, "arm", real_arm)
+    assert main(["-q", "run", str(SCENE), "--cycles", "2", "-o", str(out), "--no-report"]) == 0
+    assert len(read_recording(out).curves) == 2 and not [p.name for p in tmp_path.iterdir() if ".earlier" in p.name]
+
+
 def test_ctrl_c_during_imports_prints_one_line(tmp_path, monkeypatch, capsys):
     real_import = builtins.__import__
 
