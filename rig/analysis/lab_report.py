@@ -114,11 +114,14 @@ def read_lab_section(scene: Scene) -> dict[str, Any]:
     return lab
 
 
-def read_lab(rec: Recording) -> Lab:
-    """The lab of a recording; SceneError when it is not a lab-bench recording with a valid [lab]."""
+def read_lab(rec: Recording) -> Lab | None:
+    """The lab of a recording; None when it is not a lab-bench recording (or holds no scene to say so);
+    SceneError when its scene or [lab] is invalid."""
+    if not rec.scene_text:
+        return None
     scene = rec.scene()
     if scene.data.get("scene", {}).get("plant") != "lab_bench":
-        raise SceneError(f"{rec.path}: not a lab-bench recording")
+        return None
     return Lab(rec, scene, LabBench.from_scene(scene), read_lab_section(scene))
 
 
@@ -419,13 +422,8 @@ SHEETS: dict[str, Callable[[Lab], Sheet]] = {"speed": speed_sheet, "cam_follower
 
 def lab_sheets(rec: Recording) -> list[Sheet] | None:
     """The filled-in sheets of a lab recording (None: not a lab-bench recording)."""
-    try:
-        lab = read_lab(rec)
-    except SceneError as exc:
-        if "not a lab-bench recording" in str(exc):
-            return None
-        raise
-    return [SHEETS[name](lab) for name in lab.lab["sheets"]]
+    lab = read_lab(rec)
+    return None if lab is None else [SHEETS[name](lab) for name in lab.lab["sheets"]]
 
 
 def summary_lines(sheets: list[Sheet]) -> list[str]:

@@ -264,3 +264,13 @@ def test_rig_analyse_merges_the_lab_sheets_numbers(speed, cardan, tmp_path):
     report = (out / "report.md").read_text()
     assert "## Process values and lab results over all recordings" in report
     assert "lab sheet cardan joint:" in report and "## Stand and lab recordings (2)" in report
+
+
+def test_a_recording_without_a_scene_has_no_lab_section(tmp_path):
+    """A truncated file that kept no scene is not called a broken lab: no lab section, no warning about it."""
+    from rig.analysis.lab_report import lab_section, lab_sheets
+    from rig.analysis.report_blocks import ReportContext
+    from rig.recorder import Recording
+    rec = Recording(path=tmp_path / "cut.mcap")
+    assert lab_sheets(rec) is None
+    assert lab_section(ReportContext(rec, {"verdicts": []}, tmp_path)) == []
