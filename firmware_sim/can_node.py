@@ -381,7 +381,10 @@ class CanNode:
                                               signal: float(result.process_values[key])}, t)
                 mask |= 1 << pv
         self._enqueue("ResultValue", {"CurveNo": number % 256, "Pv": PV_END, "PvMask": mask,
-                                      "PvCount": bin(mask).count("1")}, t, transfer_end=True)
+                                      "PvCount": bin(mask).count("1"),
+                                      "MemoryFull": int(bool(getattr(result.curve, "overflow", False))),
+                                      "Decimated": int(getattr(result.curve, "decimations", 0) > 0)},
+                      t, transfer_end=True)
         if self.curves_pending > self.tx_curves:
             kind = f"CAN FD {self.timing.bitrate:g}/{self.timing.fast_bitrate:g}" if self.timing.fd else \
                 f"classic CAN {self.timing.bitrate:g}"

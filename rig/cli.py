@@ -83,6 +83,11 @@ def _print_set_summary(result: dict) -> None:
         print(f"  NOK curve {v['number']}: {why or 'the device named no failing element'}")
     if len(nok) > NOK_LINES:
         print(f"  ... and {len(nok) - NOK_LINES} more NOK curves (results.csv has every reason)")
+    cut = [v["number"] for v in verdicts if v.get("memory") == "cut"]
+    if cut:
+        print(f"  warning: {len(cut)} curve(s) filled the unit's curve memory and were cut there (curve "
+              f"{', '.join(map(str, cut[:10]))}{' ...' if len(cut) > 10 else ''}); lower the sample rate, sample by "
+              "dX or set the program's overflow to \"decimate\"")
     incomplete = result["incomplete"]
     if incomplete:
         print(f"  warning: {len(incomplete)} incomplete result(s): " + "; ".join(
@@ -90,7 +95,8 @@ def _print_set_summary(result: dict) -> None:
     for program, st in result["sets"].items():
         for warning in st.get("warnings", []):
             print(f"  warning (program {program}): {warning}")
-        print(f"  program {program}: {st['n']} curves, NOK by element {st['nok_by_element'] or 'none'}")
+        by_element = ", ".join(f"{k} {v}" for k, v in st["nok_by_element"].items()) or "none"
+        print(f"  program {program}: {st['n']} curves, NOK by element: {by_element}")
         _print_values(st)
         print(f"  device statistics (program {program}): {agreement_text(st['device_agreement'])}")
     lags = [row for row in result["theory"] if row.get("lag_time") is not None]

@@ -75,7 +75,8 @@ class LinkEvent:
 class CurveResult:
     """Evaluation result of one curve: OK/NOK, failing elements and process values (SI). ``complete``:
     the end marker arrived with every value it announces; ``missing``: names of values that did not
-    arrive (the announced ones, or all of them when the end marker itself is missing)."""
+    arrive (the announced ones, or all of them when the end marker itself is missing). ``memory_full``: the
+    curve filled the unit's memory and was cut there; ``decimated``: it was thinned to fit (end marker flags)."""
 
     number: int
     ok: bool
@@ -85,6 +86,8 @@ class CurveResult:
     complete: bool = False
     missing: list[str] = field(default_factory=list)
     received: float = 0.0          # bus time of the Result frame (s)
+    memory_full: bool = False
+    decimated: bool = False
 
 
 class CanHost:
@@ -469,6 +472,7 @@ class CanHost:
             announced = [names[i] for i in range(len(names)) if raw["PvMask"] >> i & 1]
             res.missing = [name for name in announced if name not in res.process_values]
             res.complete = not res.missing and raw["PvCount"] == len(announced)
+            res.memory_full, res.decimated = bool(raw.get("MemoryFull", 0)), bool(raw.get("Decimated", 0))
             if not res.complete:
                 self._event(msg, "result", len(res.missing), f"result of curve {res.number}: process values "
                             f"{', '.join(res.missing) or '(count mismatch)'} did not arrive")

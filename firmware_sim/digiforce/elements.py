@@ -299,12 +299,17 @@ class Threshold(Element):
             point = (float(at[0]), float(v)) if axis == "y" else (float(v), float(at[0]))
             reason += f"; it crosses at {other} = {', '.join(fb(c) for c in at[:3])}, outside the range"
         else:
-            inside = np.ones(a.shape, bool) if (lo, hi) == (None, None) else \
-                ((b >= lo) if lo is not None else True) & ((b <= hi) if hi is not None else True)
-            pool = np.flatnonzero(inside) if np.any(inside) else np.arange(a.size)
-            i = int(pool[np.argmin(np.abs(a[pool] - v))])
+            below = np.maximum(lo - b, 0.0) if lo is not None else np.zeros(b.shape)
+            beyond = below + (np.maximum(b - hi, 0.0) if hi is not None else 0.0)     # distance from the range
+            if np.any(beyond == 0.0):
+                pool = np.flatnonzero(beyond == 0.0)
+                i = int(pool[np.argmin(np.abs(a[pool] - v))])
+                reason += f"; closest {axis} = {fa(a[i])} at {other} = {fb(b[i])}"
+            else:                       # nothing in the range: say so, and mark the curve's point nearest to it
+                i = int(np.argmin(beyond))
+                reason += (f"; the curve never reaches that range ({other} spans {fb(float(b.min()))} … "
+                           f"{fb(float(b.max()))})")
             point = (float(x[i]), float(y[i]))
-            reason += f"; closest {axis} = {fa(a[i])} at {other} = {fb(b[i])}"
         return Check(False, reason, {"at": math.nan}, point)
 
 

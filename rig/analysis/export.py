@@ -14,7 +14,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from rig.analysis.sets import missing_values, process_values
+from rig.analysis.sets import memory_note, missing_values, process_values
 from rig.analysis.units import DisplayUnits, Unit, unit
 from rig.recorder import CurveRecord
 
@@ -76,6 +76,10 @@ def _rows(number: int, program: int, columns: list[np.ndarray]) -> str:
     return (row * n) % tuple(flat.ravel().tolist())
 
 
+#: what a NOK reason starts with when the curve filled the unit's curve memory and was cut there
+CUT_BY_MEMORY = "the curve was cut by the full curve memory"
+
+
 def reason_text(result: Mapping) -> str:
     """Why a result is NOK: ``element: reason`` of each failed element, ``; ``-separated; never empty for a
     NOK result (a failed element without a reason, or a NOK without a failed element, says so)."""
@@ -83,28 +87,40 @@ def reason_text(result: Mapping) -> str:
     text = "; ".join(f"{e.get('name')}: {e.get('reason') or 'no reason recorded'}" for e in failed)
     if not text and not result.get("ok", True):
         text = NO_REASON
+    if text and memory_note(result) == "cut":
+        text = f"{CUT_BY_MEMORY}; {text}"
     return text
+
+
+def _shortest(value: float) -> float:
+    """A value that is exactly a float32 (what the unit sends) as the shortest decimal reading back as that float32
+    (0.2547000051 → 0.2547), so that unit conversion does not print its binary tail; other values unchanged."""
+    single = np.float32(value)
+    return float(str(single)) if float(single) == value else value
 
 
 def export_results(results: Sequence[Mapping], path: Path,
                    units: DisplayUnits | Mapping[int, DisplayUnits] | None = None) -> Path:
     """One row per curve: number, program, ok (1/0) and verdict (OK/NOK), failed elements, the reason (non-empty for
-    every NOK row), complete (1/0) and the process values that did not arrive, then every process value in its
-    display unit (``units``: one DisplayUnits or one per program)."""
+    every NOK row), complete (1/0) and the process values that did not arrive, ``memory`` ("cut": the curve filled
+    the unit's curve memory and stops there; "thinned": decimated to fit), then every process value in its display
+    unit (``units``: one DisplayUnits or one per program); a value the unit sent as float32 at that precision
+    (:func:`_shortest`: 0.2547 s, not 0.2547000051)."""
     table = process_values(results)
     du = _units_of(units, int(results[0].get("program", 0)) if results else 0)
     shown = {name: du.value(name) for name in table}
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["curve", "program", "ok", "verdict", "failed_elements", "reason", "complete", "missing",
+        w.writerow(["curve", "program", "ok", "verdict", "failed_elements", "reason", "complete", "missing", "memory",
                     *(column(name, shown[name]) for name in table)])
         for i, r in enumerate(results):
             failed = ";".join(str(e.get("name")) for e in r.get("elements", []) if not e.get("ok", True))
             missing = missing_values(r)
             w.writerow([r.get("number"), r.get("program"), int(bool(r["ok"])), "OK" if r["ok"] else "NOK", failed,
                         reason_text(r),
-                        int(r.get("complete", True) is not False), ";".join(missing),
-                        *("" if np.isnan(v[i]) else "%.10g" % shown[name](float(v[i])) for name, v in table.items())])
+                        int(r.get("complete", True) is not False), ";".join(missing), memory_note(r),
+                        *("" if np.isnan(v[i]) else "%.10g" % shown[name](_shortest(float(v[i])))
+                          for name, v in table.items())])
     return path
 
 

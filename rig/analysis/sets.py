@@ -27,14 +27,22 @@ def missing_values(result: Mapping) -> list[str]:
 
 
 def curve_verdicts(results: Iterable[Mapping]) -> list[dict]:
-    """OK/NOK per curve, the failing elements with their reasons, and completeness (missing values)."""
+    """OK/NOK per curve, the failing elements with their reasons, completeness (missing values) and ``memory``:
+    "cut" when the curve filled the unit's curve memory and was cut there, "thinned" when it was decimated to fit,
+    else ""."""
     out = []
     for r in results:
         failed = [{"name": e.get("name"), "kind": e.get("kind"), "reason": e.get("reason")}
                   for e in r.get("elements", []) if not e.get("ok", True)]
         out.append({"number": r.get("number"), "program": r.get("program"), "ok": bool(r["ok"]), "failed": failed,
-                    "complete": r.get("complete", True) is not False, "missing": missing_values(r)})
+                    "complete": r.get("complete", True) is not False, "missing": missing_values(r),
+                    "memory": memory_note(r)})
     return out
+
+
+def memory_note(result: Mapping) -> str:
+    """"cut" (the curve filled the unit's memory and stops there), "thinned" (decimated to fit) or ""."""
+    return "cut" if result.get("memory_full") else "thinned" if result.get("decimated") else ""
 
 
 def incomplete_results(results: Iterable[Mapping]) -> list[dict]:

@@ -127,6 +127,9 @@ RESULT_SCHEMA = message_schema("rig.CurveResult", {
                        "additionalProperties": _VALUE},
     "complete": {"type": "boolean", "description": "every announced process value arrived"},
     "missing": array_of(STRING, "process values that did not arrive"),
+    "memory_full": {"type": "boolean", "description": "the curve filled the unit's curve memory and was cut there "
+                                                      "(overflow policy stop): elements beyond the cut saw no data"},
+    "decimated": {"type": "boolean", "description": "the curve was thinned to fit the unit's memory (policy decimate)"},
 }, required=("ok",))
 
 _VALUE_STATISTICS = {"type": "object", "properties": {

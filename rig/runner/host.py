@@ -229,6 +229,8 @@ class Host:
                "process_values": dict(result.process_values), "complete": bool(result.complete)}
         if result.missing:
             msg["missing"] = list(result.missing)
+        if result.memory_full or result.decimated:
+            msg["memory_full"], msg["decimated"] = bool(result.memory_full), bool(result.decimated)
         return msg
 
     def _explainer(self) -> ResultExplainer:

@@ -47,6 +47,9 @@ def test_threshold_reason_gives_the_closest_approach_or_the_crossings():
     c = check(th | {"range": [2.0, 3.0]}, [0, 1, 2], [0.0, 1.5, 0.0])
     assert c.reason == "the curve never crosses y = 1 rising with x in [2, 3]; it crosses at x = 0.666667, outside the range"
     assert c.at == pytest.approx((2 / 3, 1.0))
+    c = check(th | {"range": [5.0, 6.0]}, [0, 1, 2], [0.0, 0.5, 0.2])      # a curve cut short of the range
+    assert c.reason == ("the curve never crosses y = 1 rising with x in [5, 6]; the curve never reaches that range "
+                        "(x spans 0 … 2)") and c.at == (2.0, 0.2)
 
 
 def test_envelope_reason_marks_the_pair():
