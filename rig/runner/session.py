@@ -53,7 +53,9 @@ class Interrupted(KeyboardInterrupt):
 @dataclass
 class RunSummary:
     """What a run produced: ``wall_time`` (s) of the whole run, set-up (serial configuration, statistics
-    read-back) included; ``run_time`` (s): its run phase, from the go signal to the last curve recorded."""
+    read-back) included; ``run_time`` (s): its run phase, from the go signal to the last curve recorded;
+    ``simulated_time`` (s): the simulated time the run phase covered (not the time the machine runs on while the
+    statistics are read back)."""
 
     output: Path
     curves: int
@@ -276,7 +278,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                     raise
                 while host.poll():
                     pass
-                run_time = time.perf_counter() - go
+                run_time, simulated = time.perf_counter() - go, machine.t     # the run phase (no read-back)
                 if not host.done():
                     raise RunError(f"the host received only {host.curves_recorded} complete curves of "
                                    f"{machine.curves} measured (see /events in {output})")
@@ -286,7 +288,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
         finally:
             if serial_dev is not None:
                 serial_dev.close()
-    return RunSummary(output, host.curves_recorded, machine.t, time.perf_counter() - wall, host.frames, stats, run_time)
+    return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats, run_time)
 
 
 def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | None = None,
@@ -400,11 +402,11 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                     pass
                 raise
             _show(bar, cfg, host.curves_recorded, host.truth_t, force=True)
-            run_time = time.perf_counter() - go
+            run_time, simulated = time.perf_counter() - go, host.truth_t
             _finishing(bar, cfg, host.truth_t)
             stats = host.finish()
             _finished(bar, cfg, host.truth_t, host.curves_recorded)
-    return RunSummary(output, host.curves_recorded, host.truth_t, time.perf_counter() - wall, host.frames, stats,
+    return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats,
                       run_time)
 
 
