@@ -113,6 +113,11 @@ def _print_set_summary(result: dict) -> None:
         print("  events: " + ", ".join(f"{k} {v}" for k, v in sorted(result["events"].items())))
 
 
+def _compiled(summary: Any) -> str:
+    """The note on a run phase that held numba's one-time compilations (left out of its real-time factor)."""
+    return f" without {summary.compile_time:.1f} s of one-time numba compilation" if summary.compile_time >= 0.05 else ""
+
+
 def _done(verb: str, curves: int) -> str:
     """'recorded 50 curves', or 'recorded the run' for a stand or lab scene (no curves)."""
     return f"{verb} {curves} curves" if curves else f"{verb} the run"
@@ -129,9 +134,10 @@ def _print_stand_summary(rec: Any) -> bool:
 
 
 def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = None, progress: bool = False,
-            ok_plots: int = 0) -> Path:
+            ok_plots: int = 0, nok_plots: int | None = None) -> Path:
     """Write the report of a recording (path or an already-read Recording, with its analysis if known);
-    ``progress``: a bar on stderr counting the report's sections; ``ok_plots``: OK curves plotted one by one."""
+    ``progress``: a bar on stderr counting the report's sections; ``ok_plots`` / ``nok_plots``: OK / NOK curves
+    plotted one by one (None: the report's default, :data:`rig.analysis.report_blocks.NOK_PLOTS`)."""
     from rig.analysis.report import SECTIONS, write_report
     from rig.console import progress as progress_bar
     claim_dir(out_dir)
@@ -145,7 +151,8 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
                     bar.update()
             return run
         sections = [(name, counted(name, section)) for name, section in SECTIONS]
-        return write_report(recording, out_dir, fmt=fmt, analysis=analysis, sections=sections, ok_plots=ok_plots)
+        return write_report(recording, out_dir, fmt=fmt, analysis=analysis, sections=sections, ok_plots=ok_plots,
+                            **({} if nok_plots is None else {"nok_plots": nok_plots}))
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -168,13 +175,14 @@ def cmd_run(args: argparse.Namespace) -> int:
                         progress=not args.quiet, fidelity=args.fidelity)
     what = _done("recorded", summary.curves)
     print(f"{what}, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
-          f"({summary.realtime_factor:.1f}x real time; {summary.wall_time:.2f} s with serial set-up and read-back), "
-          f"{summary.frames} CAN frames received -> {summary.output}")
+          f"({summary.realtime_factor:.1f}x real time{_compiled(summary)}; {summary.wall_time:.2f} s with serial "
+          f"set-up and read-back), {summary.frames} CAN frames received -> {summary.output}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
     if not args.no_report:
-        report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet, ok_plots=args.ok_plots)
+        report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet, ok_plots=args.ok_plots,
+                         nok_plots=args.nok_plots)
         print(f"report: {report}")
     return 0
 
@@ -270,7 +278,8 @@ def cmd_report(args: argparse.Namespace) -> int:
                              f"`rig report --partial {path}` reports what it holds") from None
     if not rec.complete:
         print(f"{path}: incomplete recording; " + "; ".join(losses(rec)))
-    print(f"report: {_report(rec, out, args.format, progress=not args.quiet, ok_plots=args.ok_plots)}")
+    path = _report(rec, out, args.format, progress=not args.quiet, ok_plots=args.ok_plots, nok_plots=args.nok_plots)
+    print(f"report: {path}")
     return 0
 
 
@@ -412,7 +421,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--format", choices=("html", "md"), default="html")
     run.add_argument("--no-report", action="store_true")
     run.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
-                     help="also plot the first N OK curves one by one (NOK curves always are)")
+                     help="also plot the first N OK curves one by one (default 0)")
+    run.add_argument("--nok-plots", type=_count(0), default=None, metavar="N",
+                     help="plot the first N NOK curves one by one with their failed elements (default 12; the "
+                          "report says how many of how many; every reason is in results.csv)")
     run.set_defaults(func=cmd_run)
     serve = sub.add_parser("serve", parents=[quiet],
                            help="run the simulated machine: CAN over socketcand, serial on a pty")
@@ -451,7 +463,10 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--partial", action="store_true",
                      help="report what a truncated recording (a killed run) holds and what was lost")
     rep.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
-                     help="also plot the first N OK curves one by one (NOK curves always are)")
+                     help="also plot the first N OK curves one by one (default 0)")
+    rep.add_argument("--nok-plots", type=_count(0), default=None, metavar="N",
+                     help="plot the first N NOK curves one by one with their failed elements (default 12; the "
+                          "report says how many of how many; every reason is in results.csv)")
     rep.set_defaults(func=cmd_report)
     exp = sub.add_parser("export-can", parents=[quiet],
                          help="write the recording's CAN bus traffic (/can/raw) as a CAN trace: "

@@ -276,8 +276,8 @@ def nok_curves(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = [Heading("NOK curves"),
                            Text(f"{len(shown)} of {len(nok)} NOK curves plotted" +
                                 ("." if len(shown) == len(nok) else
-                                 f" (the first {len(shown)}; all are red in the overlay below and listed in "
-                                 "results.csv)."))]
+                                 f" (the first {len(shown)}, more with --nok-plots N; all are red in the overlay "
+                                 "below and listed in results.csv)."))]
     return blocks + [curve_figure(ctx, c, rows.get(c.number)) for c in shown]
 
 

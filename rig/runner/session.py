@@ -23,6 +23,7 @@ from rig.console import progress as progress_bar, quiet_libraries
 from rig.fidelity import announce as announce_fidelity, choose
 from firmware_sim.serial_device import SerialDevice
 from firmware_sim.socketcand_server import SocketcandServer
+from rig.numba_clock import compile_seconds, watch
 from rig.recorder import Recorder
 from rig.recorder.writer import interruption
 from firmware_sim.can_node import BusOverload
@@ -55,7 +56,8 @@ class RunSummary:
     """What a run produced: ``wall_time`` (s) of the whole run, set-up (serial configuration, statistics
     read-back) included; ``run_time`` (s): its run phase, from the go signal to the last curve recorded;
     ``simulated_time`` (s): the simulated time the run phase covered (not the time the machine runs on while the
-    statistics are read back)."""
+    statistics are read back); ``compile_time`` (s): numba's one-time compilations inside the run phase (a first run
+    in a fresh cache), not counted in :attr:`realtime_factor`."""
 
     output: Path
     curves: int
@@ -64,11 +66,13 @@ class RunSummary:
     frames: int
     statistics: dict[str, Any] = field(default_factory=dict)
     run_time: float = 0.0
+    compile_time: float = 0.0
 
     @property
     def realtime_factor(self) -> float:
-        """Simulated time per wall time of the run phase."""
-        return self.simulated_time / self.run_time if self.run_time > 0 else float("inf")
+        """Simulated time per wall time of the run phase, its one-time numba compilations left out."""
+        busy = self.run_time - self.compile_time
+        return self.simulated_time / busy if busy > 0 else float("inf")
 
 
 def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fidelity: int | None = None) -> RunConfig:
@@ -255,6 +259,7 @@ def _bus(cfg: RunConfig, channel: str) -> can.BusABC:
 def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None = None, mode: str | None = None,
               progress: bool = False, fidelity: int | None = None) -> RunSummary:
     """Run machine and host in one process: CAN on python-can's ``virtual`` interface, serial on a pty."""
+    watch()
     cfg = _config(scene_path, cycles, mode, fidelity)
     output = Path(output)
     channel = f"rig-{uuid.uuid4().hex}"
@@ -269,7 +274,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 host = Host(cfg, host_bus, serial_dev.port if serial_dev else None, rec)
                 host.arm()
                 _wait_for_go(machine, 5.0)
-                go = time.perf_counter()
+                go, compiled = time.perf_counter(), compile_seconds()
                 try:
                     _drive(cfg, machine, lock, bar, host.poll)
                 except RunError:
@@ -279,6 +284,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 while host.poll():
                     pass
                 run_time, simulated = time.perf_counter() - go, machine.t     # the run phase (no read-back)
+                compiled = compile_seconds() - compiled
                 if not host.done():
                     raise RunError(f"the host received only {host.curves_recorded} complete curves of "
                                    f"{machine.curves} measured (see /events in {output})")
@@ -288,7 +294,8 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
         finally:
             if serial_dev is not None:
                 serial_dev.close()
-    return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats, run_time)
+    return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats, run_time,
+                      compiled)
 
 
 def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | None = None,
@@ -370,6 +377,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
     """The host alone: connect to a served machine (socketcand + serial port) and record the scene's run
     (or its first ``cycles`` curves). A server that does not answer within ``connect_timeout`` s is a
     :class:`RunError` naming it."""
+    watch()
     cfg = _config(scene_path, cycles, None, fidelity)
     output = Path(output)
     wall = time.perf_counter()
@@ -377,7 +385,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
         with _recorder(cfg, output, "cross-process") as rec, _progress(cfg, progress) as bar:
             host = Host(cfg, bus, serial_port, rec)
             host.arm()
-            go = time.perf_counter()
+            go, compiled = time.perf_counter(), compile_seconds()
             last = time.monotonic()
             try:
                 while not host.done() or not host.run_over():
@@ -403,11 +411,12 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                 raise
             _show(bar, cfg, host.curves_recorded, host.truth_t, force=True)
             run_time, simulated = time.perf_counter() - go, host.truth_t
+            compiled = compile_seconds() - compiled
             _finishing(bar, cfg, host.truth_t)
             stats = host.finish()
             _finished(bar, cfg, host.truth_t, host.curves_recorded)
     return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats,
-                      run_time)
+                      run_time, compiled)
 
 
 def _socketcand(host: str, port: int, channel: str, timeout: float) -> can.BusABC:

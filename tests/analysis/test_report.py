@@ -109,11 +109,26 @@ def test_html_report_verdict_first_nok_curves_then_details(recording, tmp_path):
 
 def test_nok_plots_are_limited_and_counted_ok_plots_off_by_default(recording, tmp_path):
     text = write_report(recording, tmp_path, fmt="md", nok_plots=2).read_text()
-    assert "2 of 4 NOK curves plotted (the first 2;" in text
+    assert "2 of 4 NOK curves plotted (the first 2, more with --nok-plots N;" in text
     assert "Individual plots of OK curves: 0 of 56 (more with --ok-plots N)." in text
     assert sorted(p.name.split("_", 1)[1] for p in tmp_path.glob("*curve_c*.png")) == ["curve_c1.png", "curve_c16.png"]
     with pytest.raises(ValueError, match="must be >= 0"):
         write_report(recording, tmp_path, ok_plots=-1)
+
+
+def test_rig_report_nok_plots_option(recording, tmp_path, capsys):
+    """`--nok-plots N` plots N NOK curves (default: the report's NOK_PLOTS, which the help text states)."""
+    from rig.analysis.report_blocks import NOK_PLOTS
+    from rig.cli import build_parser, main
+    assert main(["-q", "report", str(recording.path), "-o", str(tmp_path / "all"), "--format", "md",
+                 "--nok-plots", "4"]) == 0
+    assert "4 of 4 NOK curves plotted." in (tmp_path / "all" / "report.md").read_text()
+    assert main(["-q", "report", str(recording.path), "-o", str(tmp_path / "one"), "--format", "md",
+                 "--nok-plots", "1"]) == 0
+    assert len(list((tmp_path / "one").glob("*curve_c*.png"))) == 1
+    helps = [a.help for p in build_parser()._subparsers._group_actions[0].choices.values() for a in p._actions
+             if "--nok-plots" in a.option_strings]
+    assert len(helps) == 2 and all(f"default {NOK_PLOTS};" in h for h in helps)
 
 
 def test_report_uses_the_analysis_it_is_given(recording, tmp_path, monkeypatch):
