@@ -418,8 +418,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
     run.add_argument("--realtime", action="store_true", help="pace to the wall clock (warns when it falls behind)")
     run.add_argument("--report-dir", help="report directory (default: next to the recording)")
-    run.add_argument("--format", choices=("html", "md"), default="html")
-    run.add_argument("--no-report", action="store_true")
+    run.add_argument("--format", choices=("html", "md"), default="html", help="report format (default html)")
+    run.add_argument("--no-report", action="store_true", help="record and print the summary, write no report")
     run.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
                      help="also plot the first N OK curves one by one (default 0)")
     run.add_argument("--nok-plots", type=_count(0), default=None, metavar="N",
@@ -430,7 +430,8 @@ def build_parser() -> argparse.ArgumentParser:
                            help="run the simulated machine: CAN over socketcand, serial on a pty")
     serve.add_argument("scene")
     serve.add_argument("--port", type=_port(0), help="socketcand TCP port (default: the scene's, 0 = any)")
-    serve.add_argument("--realtime", action="store_true")
+    serve.add_argument("--realtime", action="store_true",
+                       help="pace the machine to the wall clock like the real one (default: as fast as it runs)")
     serve.add_argument("--wait", type=_seconds, default=300.0, help="seconds to wait for a host to arm the device")
     serve.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                         help="force the model level (default: [scene] fidelity, else the lowest answering "
@@ -442,13 +443,14 @@ def build_parser() -> argparse.ArgumentParser:
     serve.set_defaults(func=cmd_serve)
     rec = sub.add_parser("record", parents=[quiet], help="the host: connect to `rig serve` and record the run")
     rec.add_argument("scene")
-    rec.add_argument("-o", "--output", required=True)
+    rec.add_argument("-o", "--output", required=True, help="recording path (.mcap)")
     rec.add_argument("--can-host", help="the socketcand server's address (default: the endpoints', else 127.0.0.1)")
     rec.add_argument("--endpoints", metavar="FILE", help="the endpoints `rig serve --endpoints FILE` wrote: where to "
                      "connect, checked to serve this scene at this fidelity (--can-host/--can-port/--can-channel/"
                      "--serial given beside it override its entries)")
-    rec.add_argument("--can-port", type=_port(1))
-    rec.add_argument("--can-channel")
+    rec.add_argument("--can-port", type=_port(1), help="the socketcand server's TCP port (default: the endpoints')")
+    rec.add_argument("--can-channel", help="the CAN channel to open on the server (default: the endpoints', else "
+                     "the scene's [links.can] channel)")
     rec.add_argument("--serial", help="serial port path or URL printed by `rig serve`")
     rec.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                         help="force the model level (default: [scene] fidelity, else the lowest answering "
@@ -459,7 +461,7 @@ def build_parser() -> argparse.ArgumentParser:
                          help="write an HTML/Markdown report with plots and CSV from a recording")
     rep.add_argument("recording")
     rep.add_argument("-o", "--output", help="report directory")
-    rep.add_argument("--format", choices=("html", "md"), default="html")
+    rep.add_argument("--format", choices=("html", "md"), default="html", help="report format (default html)")
     rep.add_argument("--partial", action="store_true",
                      help="report what a truncated recording (a killed run) holds and what was lost")
     rep.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
@@ -476,7 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
     exp.set_defaults(func=cmd_export_can)
     summ = sub.add_parser("summary", parents=[quiet], help="cam-bar kinematics/kinetostatics table and cycle chart")
     summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
-    summ.add_argument("--png")
+    summ.add_argument("--png", help="path of the cycle chart (default out/<scene>.cycle.png)")
     summ.set_defaults(func=cmd_summary)
     tol = sub.add_parser("tolerance", parents=[quiet],
                          help="cam-bar linear and Monte-Carlo tolerance analysis (table + PNG)")
@@ -490,7 +492,7 @@ def build_parser() -> argparse.ArgumentParser:
                      "and the linear RSS (m) to FILE")
     tol.set_defaults(func=cmd_tolerance)
     stud = sub.add_parser("studies", parents=[quiet], help="clutch static-characteristic parameter studies (PNG)")
-    stud.add_argument("-o", "--output", default="out/studies")
+    stud.add_argument("-o", "--output", default="out/studies", help="directory of the charts (default out/studies)")
     stud.set_defaults(func=cmd_studies)
     for module in COMMAND_MODULES:
         importlib.import_module(module).register(sub, [quiet])

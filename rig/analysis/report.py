@@ -434,6 +434,10 @@ EVENT_MEANING = {
     "accel_jump": "the cam program's acceleration jumps at this angle (a segment boundary)",
     "disengagement": "the clutch's safety stage let go (relative angle past the engagement)",
     "reengaged": "the clutch engaged again after a disengagement",
+    "phase_boundary": "the tappets passed from the cam's phase-I arc to its fillet (or back): the clutch's "
+                      "stiffness changes there (relative angle phi_r in the event)",
+    "lobe_wrap": "the relative angle crossed a lobe boundary (the tappets at the base of the next lobe)",
+    "load_zone": "the load's angle-dependent torque changed zone",
     "shutdown": "repeated disengagements: the stand switched the motor off",
     "live_dropped": "live X/Y pairs the unit did not send because the CAN bus was full; live data only feeds "
                     "displays, curves and results wait in the queue and are never dropped",

@@ -157,3 +157,10 @@ def test_rig_analyse_of_stand_recordings_merges_their_key_results(runs, tmp_path
     assert line.split("|")[3].strip() == "2" and float(line.split("|")[6]) == pytest.approx(min(both), rel=1e-5)
     assert "## Stand and lab recordings (2)" in report and "(scene clutch_startup):" in report
     assert Metric("n", "3, at 0.1 s", "", "").number() == 3.0 and Metric("n", "abc", "", "").number() is None
+
+
+def test_every_recorded_event_kind_is_explained_in_the_report(runs):
+    """The events table's "what it means" cell is never empty for what the stands record."""
+    from rig.analysis.report import EVENT_MEANING
+    kinds = {e["kind"] for _, rec in runs.values() for e in rec.events}
+    assert "phase_boundary" in kinds and not kinds - set(EVENT_MEANING), kinds - set(EVENT_MEANING)

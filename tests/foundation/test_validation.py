@@ -316,3 +316,11 @@ def test_the_console_script_skips_the_teardown_but_not_the_output(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "rig.cli", "run", str(tmp_path / "missing.toml")],
                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert bad.returncode == 2 and bad.stderr.startswith("rig: error:")
+
+
+def test_every_option_of_every_command_says_what_it_does():
+    from rig.cli import build_parser
+    commands = build_parser()._subparsers._group_actions[0].choices
+    silent = [f"{name} {'/'.join(a.option_strings)}" for name, sub in commands.items() for a in sub._actions
+              if a.option_strings and not a.help]
+    assert silent == []
