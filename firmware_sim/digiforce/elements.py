@@ -107,8 +107,9 @@ class _Region(Element):
                 "x_exit": float(c.exit_points[-1, 0]) if len(c.exit_points) else nan,
                 "y_exit": float(c.exit_points[-1, 1]) if len(c.exit_points) else nan}
         entry, exit_, check = self.cfg["entry"], self.cfg["exit"], self.cfg.get("check")
-        failed = (self._side(entry, True, c.starts_inside, c.entry_points, c.entry_sides, x[0], y[0])
-                  or self._side(exit_, False, c.ends_inside, c.exit_points, c.exit_sides, x[-1], y[-1]))
+        between = self._excursion(x, y) if max(len(c.entry_points), len(c.exit_points)) > 1 else ""
+        failed = (self._side(entry, True, c.starts_inside, c.entry_points, c.entry_sides, x[0], y[0], between)
+                  or self._side(exit_, False, c.ends_inside, c.exit_points, c.exit_sides, x[-1], y[-1], between))
         if failed is None and check is not None:
             axis = x if check[0] == "x" else y
             i = int(np.argmax(axis) if check.endswith("max") else np.argmin(axis))
@@ -123,10 +124,30 @@ class _Region(Element):
             return Check(True, "", vals)
         return Check(False, failed[0], vals, failed[1])
 
+    def _excursion(self, x: np.ndarray, y: np.ndarray) -> str:
+        """Where the curve, once inside, went farthest out before coming back (what makes it cross more than once):
+        ``"; in between it went below the window (y min -55 N) to y = -56.76 N at x = 39.8 mm, 1.76 N beyond"``;
+        empty when it never comes back."""
+        sv = self.region._signed(x, y)
+        inside = np.flatnonzero(sv.min(axis=0) >= 0.0)
+        if inside.size < 2:
+            return ""
+        span = np.arange(inside[0], inside[-1] + 1)
+        depth = sv[:, span].min(axis=0)
+        if depth.min() >= 0.0:
+            return ""
+        k = int(span[np.argmin(depth)])
+        return f"; in between it went {self._beyond(SIDES[int(np.argmin(sv[:, k]))], float(x[k]), float(y[k]))}"
+
+    def _beyond(self, side: str, px: float, py: float) -> str:
+        """The deepest point of an excursion beyond ``side``, in words."""
+        return f"beyond the {side} side of the {self.kind} to {self._pt(px, py)}"
+
     def _side(self, rule: str, entering: bool, inside_at_end: bool, points: np.ndarray, sides: np.ndarray,
-              x_end: float, y_end: float) -> tuple[str, tuple[float, float] | None] | None:
+              x_end: float, y_end: float, between: str = "") -> tuple[str, tuple[float, float] | None] | None:
         """Why the entry (``entering``) or exit violates ``rule`` and where; None if it complies. ``x_end``,
-        ``y_end``: the curve's first (entry) or last (exit) pair."""
+        ``y_end``: the curve's first (entry) or last (exit) pair; ``between``: :meth:`_excursion`, told when the
+        curve crossed more than once."""
         if rule == "ignore":
             return None
         tag = f"{'entry' if entering else 'exit'} {rule}"
@@ -150,7 +171,7 @@ class _Region(Element):
             at = "; ".join(f"through the {self._sides(k, sides)} at {self._pt(px, py)}"
                            for k, (px, py) in enumerate(points[:3])) + ("; …" if n > 3 else "")
             again = (float(points[1, 0]), float(points[1, 1]))         # where it failed: the first crossing too many
-            return f"{tag}: {who} {past} the {kind} {n} times (exactly once allowed): {at}", again
+            return f"{tag}: {who} {past} the {kind} {n} times (exactly once allowed): {at}{between}", again
         if rule != "any" and not sides[0][SIDES.index(rule)]:
             used = "/".join(side for side, hit in zip(SIDES, sides[0]) if hit)
             return f"{tag}: {past} through the {used} side at {self._pt(*first)}, not through the {rule}", first
@@ -191,6 +212,13 @@ class Window(_Region):
     def _limit(self, side: str) -> str:
         key = self._SIDE[side][0]
         return f"{key.replace('_', ' ')} {(self._x if key[0] == 'x' else self._y)(self.cfg[key])}"
+
+    def _beyond(self, side: str, px: float, py: float) -> str:
+        key = self._SIDE[side][0]
+        fmt, value = (self._x, px) if key[0] == "x" else (self._y, py)
+        other = f"y = {self._y(py)}" if key[0] == "x" else f"x = {self._x(px)}"
+        return (f"{self._SIDE[side][1]} the window ({self._limit(side)}) to {key[0]} = {fmt(value)} at {other}, "
+                f"{fmt(abs(value - self.cfg[key]))} beyond")
 
     def _outside(self, px: float, py: float) -> str:
         c = self.cfg

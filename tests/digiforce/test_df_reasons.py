@@ -78,3 +78,17 @@ def test_host_reevaluation_reproduces_the_units_verdicts(unit, press):
         assert [v.name for v in mine if not v.ok] == [["W_mid", "S_ret", "W_peak"], ["W_mid", "W_peak"],
                                                       ["reference", "W_mid", "W_peak"]][k]
     assert [v.name for v in mine][:1] == ["reference"] and not mine[0].ok
+
+
+def test_a_second_entry_says_where_the_curve_went_out_in_between():
+    """Entered through the top, dipped below y min, came back through the bottom: the reason names the dip's depth
+    beyond the violated limit (the real violation), not only the two entries."""
+    c = check(WIN | {"entry": "top", "exit": "ignore"}, [1.2, 1.3, 1.5, 1.6, 1.7], [2.5, 1.5, 0.7, 1.4, 1.5])
+    assert not c.ok
+    assert c.reason.startswith("entry top: the curve entered the window 2 times (exactly once allowed): through the "
+                               "top (y max 2)")
+    assert c.reason.endswith("; in between it went below the window (y min 1) to y = 0.7 at x = 1.5, 0.3 beyond")
+    trap = {"kind": "trapezoid", "name": "T", "axis": "y", "start": 0.0, "end": 3.0, "lower": [1.0, 1.0],
+            "upper": [2.0, 2.0], "entry": "left", "exit": "ignore"}
+    c = check(trap, [-0.5, 0.5, 1.0, 1.5, 2.0], [1.5, 1.5, 0.5, 1.5, 1.5])
+    assert c.reason.endswith("; in between it went beyond the bottom side of the trapezoid to x = 1, y = 0.5")
