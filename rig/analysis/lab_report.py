@@ -7,6 +7,7 @@ A scene lists its sheets in ``[lab] sheets``; each is a table, a figure and one 
 """
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass, field
 from math import cos, radians, tau
 from typing import Any, Callable
@@ -22,6 +23,7 @@ from rig.scene import Field, Scene, SceneError, read_table
 from rig.units import UnitError, to_si, ureg
 
 RPM = tau / 60.0          # rad/s per rpm
+LEGEND_WIDTH = 30         # characters per line of a legend entry beside a sheet's axes (2.3 in at "small")
 STEP = radians(10.0)      # the sheets' angle step: 36 points per turn
 LAB_SCHEMA = {"sheets": Field(None, doc="lab sheets of the run: speed, cam_follower, cam_torque, cardan, geneva"),
               "readings": Field(None, None, "times (with units) at which the speed sheet reads every instrument")}
@@ -38,6 +40,7 @@ class Sheet:
     notes: list[str] = field(default_factory=list)
     draw: Callable[[Any], None] | None = None
     values: dict[str, float] = field(default_factory=dict)     # the result line's numbers (unit: value_unit)
+    panels: int = 1                      # stacked axes of the figure (draw gets a list of them when more than one)
 
 
 #: units of the sheets' result numbers (Sheet.values); names starting "error " or "class " are ratios
@@ -256,23 +259,25 @@ def cam_follower_sheet(lab: Lab) -> Sheet:
               f"of their peaks (the law itself differenced at 10°: s'' within "
               f"{100 * np.max(np.abs(law_d2 - law.s_pp)) / peak2:.1f} %)")
 
-    def draw(ax: Any) -> None:
+    def draw(axes: list[Any]) -> None:
         fine = np.linspace(0, tau, 721)
         m = program.evaluate(fine)
         deg = np.degrees(grid[1:-1]) % 360
         order = np.argsort(deg)
-        for values, law_values, label, scale in ((s[1:-1], m.s, "s (mm)", 1e3), (d1, m.s_p, "s' (mm/rad)", 1e3),
-                                                 (d2, m.s_pp, "s'' (mm/rad²)", 1e3)):
-            line, = ax.plot(np.degrees(fine), scale * law_values, lw=0.9, label=f"law {label}")
-            ax.plot(deg[order], scale * values[order], "o", ms=3, color=line.get_color(), label=f"measured {label}")
-        ax.set(xlabel="cam angle (°)", ylabel="s (mm), s' (mm/rad), s'' (mm/rad²)",
-               title="Cam follower: position every 10°")
+        for ax, (values, law_values, label, unit) in zip(axes, ((s[1:-1], m.s, "s", "mm"), (d1, m.s_p, "s'", "mm/rad"),
+                                                               (d2, m.s_pp, "s''", "mm/rad²"))):
+            line, = ax.plot(np.degrees(fine), 1e3 * law_values, lw=0.9, label=f"law {label}")
+            ax.plot(deg[order], 1e3 * values[order], "o", ms=3, color=line.get_color(), label=f"measured {label}")
+            ax.set_ylabel(f"{label} ({unit})")
+        axes[0].set_title("Cam follower: position every 10°, its first and second differences")
+        axes[-1].set_xlabel("cam angle (°)")
 
     return Sheet("Cam follower", ["cam angle (°)", "s measured (mm)", "s law (mm)", "difference (µm)",
                                   "ds/dφ numerical (mm/rad)", "ds/dφ law (mm/rad)", "d²s/dφ² numerical (mm/rad²)",
                                   "d²s/dφ² law (mm/rad²)"], rows, result,
                  ["Central differences at h = 10°: the truncation error of s'' is h²/12·s'''' — see the law "
-                  "differenced the same way in the result line; the rest is the LVDT and the encoder."], draw, values)
+                  "differenced the same way in the result line; the rest is the LVDT and the encoder."], draw, values,
+                 panels=3)
 
 
 def cam_torque_sheet(lab: Lab) -> Sheet:
@@ -442,10 +447,15 @@ def lab_section(ctx: ReportContext) -> list[Block]:
     for sheet in sheets:
         blocks += [Heading(sheet.title, 3), Text(sheet.result)]
         if sheet.draw is not None:
-            fig, ax = figure(size=(9, 4.2))
-            sheet.draw(ax)
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
+            fig, axes = figure(sheet.panels, size=(9, 4.2 if sheet.panels == 1 else 2.4 * sheet.panels),
+                               sharex=sheet.panels > 1, squeeze=False)
+            panels = list(axes[:, 0])
+            sheet.draw(panels if sheet.panels > 1 else panels[0])
+            for ax in panels:
+                ax.grid(alpha=0.3)
+                handles, labels = ax.get_legend_handles_labels()      # wrapped to fit the margin beside the axes
+                ax.legend(handles, [textwrap.fill(text, LEGEND_WIDTH) for text in labels], fontsize="small",
+                          loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
             stem = sheet.title.lower().replace(" ", "_").replace("-", "_")
             path = save(fig, ctx.figure_path(f"lab_{stem}"), right=2.3)        # legend beside the axes: no data hidden
             blocks.append(ctx.figure(path, sheet.title))

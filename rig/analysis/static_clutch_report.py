@@ -85,7 +85,7 @@ def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarr
                     ls=":", label=label if k == 0 else None)
     ax.plot(np.degrees(truth["relative_angle"]), truth["torque"], color="0.5", lw=0.8, ls="--", label="plant truth")
     ax.plot(np.degrees(phi_m), torque_m, ".-", ms=2, lw=0.7, color="k", label="measured (multimeter angle)")
-    ax.set(xlabel="relative angle (deg)", ylabel="torque = F·L (N·m)", title="Static rig: torque over relative angle",
+    ax.set(xlabel="relative angle (°)", ylabel="torque = F·L (N·m)", title="Static rig: torque over relative angle",
            ylim=(min(0.0, float(np.min(truth["torque"]))), 1.1 * float(np.max(truth["torque"]))))
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
@@ -104,7 +104,7 @@ def _strain_figure(ctx: ReportContext, rig: StaticClutchRig) -> Block:
                 1e6 * truth["leaf_strain"], "--", color="0.5", lw=0.8, label="plant truth")
     ax.plot(np.degrees(np.mod(readings["angle"] - c.phi_min, c.period) + c.phi_min), 1e6 * readings["strain"],
             ".", ms=2, color="k", label="measured (bridge amplifier vs multimeter angle)")
-    ax.set(xlabel="relative angle in the lobe (deg)", ylabel="leaf strain (µm/m)", title="Leaf strain over angle")
+    ax.set(xlabel="relative angle in the lobe (°)", ylabel="leaf strain (µm/m)", title="Leaf strain over angle")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
     return ctx.figure(save(fig, ctx.figure_path("static_leaf_strain")), "Leaf strain over relative angle")
@@ -136,7 +136,7 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
                      fmt(r["measured"]), fmt(r["truth"]), fmt(r["theory"]),
                      "—" if dev is None else f"{100 * dev:+.2f} %", fmt(r["disengaged"])])
     blocks.append(Heading("Hysteresis-loop energy ∮T dφ per cycle", 3))
-    blocks.append(Table(["cycle", "t (s)", "T min (N·m)", "T max (N·m)", "angle (deg)", "measured (J)",
+    blocks.append(Table(["cycle", "t (s)", "T min (N·m)", "T max (N·m)", "angle (°)", "measured (J)",
                          "plant truth (J)", "theory (J)", "measured − theory", "disengaged"], rows))
     events = [e for e in rec.events if e.get("kind") in ("disengagement", "reengaged")]
     if events:

@@ -27,9 +27,9 @@ from rig.units import ureg
 
 # display unit by SI unit (the fallback of rule 2)
 DEFAULTS = {"m": "mm", "N": "N", "rad": "deg", "N*m": "N*m", "s": "s", "rad/s": "rpm", "m/s": "mm/s",
-            "1": ""}
+            "m/m": "um/m", "1": ""}
 _LABELS = {"degree": ("°", "deg"), "meter * newton": ("N·m", "N*m"), "revolutions_per_minute": ("rpm", "rpm"),
-           "dimensionless": ("", "")}
+           "micrometer / meter": ("µm/m", "um/m"), "dimensionless": ("", "")}
 _ANGLES = ("radian", "degree", "turn", "revolution", "arcminute", "arcsecond", "grad")
 
 # SI units of the plants' truth signals (rig.plants: cam bar level 1/2, clutch stand and static rig, lab bench)
@@ -42,12 +42,12 @@ SIGNAL_SI = {
     "F_rod": "N", "rod_tension": "N", "R23": "N", "F_c": "N", "F_a": "N", "N_B": "N", "force": "N",
     "M23": "N*m", "M_e": "N*m", "M_sigma": "N*m", "drive_torque": "N*m", "M1": "N*m", "M3": "N*m",
     "M_t": "N*m", "T_c": "N*m", "T_in": "N*m", "T_out": "N*m", "torque": "N*m", "shaft_torque": "N*m",
-    "motor_speed": "rad/s", "relative_angle": "rad", "lever_force": "N", "leaf_strain": "1",
+    "motor_speed": "rad/s", "relative_angle": "rad", "lever_force": "N", "leaf_strain": "m/m",
 }
 #: what each plant truth signal is, for chart legends (the recorded name stays the key)
 SIGNAL_LABEL = {
     "cam_angle": "cam angle φ (wrapped)", "phi": "cam angle φ", "psi": "follower angle ψ",
-    "psi_kin": "ψ of level 0", "omega": "cam speed", "s": "slider (gripper) stroke s",
+    "psi_kin": "ψ of level 0", "omega": "cam speed", "s": "stroke s (cam bar: slider/gripper; lab: follower)",
     "delta_w": "penetration, working flank", "delta_o": "penetration, other flank", "R23": "contact force R23",
     "F_rod": "rod force", "M_sigma": "cam moment on the follower, with spring M_Σ", "drive_torque": "drive torque needed",
     "motor_speed": "motor speed (at the cam)", "shaft_torque": "torque in the shaft",
@@ -60,7 +60,8 @@ SIGNAL_LABEL = {
     "lever_force": "loading-lever force", "leaf_strain": "leaf-spring strain",
 }
 QUANTITY = {"m": "length", "N": "force", "rad": "angle", "N*m": "torque", "s": "time", "rad/s": "angular speed",
-            "rad/s^2": "angular acceleration", "m/s": "speed", "m/s^2": "acceleration", "1": "number"}
+            "rad/s^2": "angular acceleration", "m/s": "speed", "m/s^2": "acceleration", "m/m": "strain",
+            "1": "number"}
 
 
 def _is_angle(unit: str) -> bool:

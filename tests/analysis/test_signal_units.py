@@ -23,3 +23,9 @@ def test_every_truth_signal_has_a_unit(path):
     recorded = scene.section("recording").get("truth_signals") if "recording" in scene.data else None
     unnamed = sorted(k for k in (recorded or signals) if k in signals and k not in SIGNAL_LABEL)
     assert not unnamed, f"{path.name}: recorded truth signals without a legend label: {unnamed}"
+
+
+def test_strain_is_shown_in_micrometres_per_metre_and_named_strain():
+    from rig.analysis.units import QUANTITY, SIGNAL_SI, unit
+    u = unit(SIGNAL_SI["leaf_strain"])
+    assert (u.label, u.ascii, u.factor) == ("µm/m", "um/m", 1e6) and QUANTITY[SIGNAL_SI["leaf_strain"]] == "strain"
