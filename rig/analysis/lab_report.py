@@ -20,6 +20,7 @@ from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Tex
 from rig.plants.lab_bench import LabBench
 from rig.recorder import Recording
 from rig.scene import Field, Scene, SceneError, read_table
+from rig.analysis.units import unit as display_unit
 from rig.units import UnitError, to_si, ureg
 
 RPM = tau / 60.0          # rad/s per rpm
@@ -43,15 +44,25 @@ class Sheet:
     panels: int = 1                      # stacked axes of the figure (draw gets a list of them when more than one)
 
 
-#: units of the sheets' result numbers (Sheet.values); names starting "error " or "class " are ratios
+#: SI units of the sheets' result numbers (Sheet.values); names starting "error" or "class" are ratios
 VALUE_UNITS = {"counter_rpm": "rpm", "truth_rpm": "rpm", "resolution_rpm": "rpm", "ds_max": "m", "lag": "s",
-               "offset": "m", "rest_max": "m", "deviation_max": "N·m", "peak": "N·m", "work_per_turn": "J",
+               "offset": "m", "rest_max": "m", "deviation_max": "N*m", "peak": "N*m", "work_per_turn": "J",
                "lag_error_max": "rad", "angle_error_max": "rad"}
 
 
 def value_unit(name: str) -> str:
-    """Unit of the sheet result number ``name`` ("1": a ratio or a count)."""
+    """SI unit of the sheet result number ``name`` ("1": a ratio or a count)."""
     return VALUE_UNITS.get(name, "1")
+
+
+def shown_value(name: str, value: float) -> tuple[float, str]:
+    """A sheet result number in its display unit, as the sheets show it: lengths in mm, angles in °, ratios in %
+    (rig.analysis.units' rules); (value, unit label)."""
+    si = value_unit(name)
+    if si == "1":
+        return (100.0 * value, "%") if name.startswith(("error", "class")) else (value, "")
+    shown = display_unit(si)
+    return float(shown(value)), shown.label
 
 
 @dataclass

@@ -17,7 +17,7 @@ class StandSummary:
     """``lines``: the console lines, each result with what it is relative to; ``values``: ``{key: (value, unit)}``,
     a dynamic stand's metrics as ``stand.<name>`` (:meth:`Metric.number`: counts, shutdown 1/0; e.g.
     ``stand.start_up_peak_torque``), a lab sheet's result numbers as ``lab.<sheet>.<name>`` (units:
-    :func:`~rig.analysis.lab_report.value_unit`; e.g. ``lab.cardan_joint.ratio_max``); names in snake case."""
+    :func:`~rig.analysis.lab_report.shown_value`, display units; e.g. ``lab.cardan_joint.ratio_max``); names in snake case."""
 
     lines: list[str]
     values: dict[str, tuple[float, str]]
@@ -35,7 +35,7 @@ def stand_summary(rec: "Recording") -> StandSummary | None:
         return StandSummary([f"lab: no sheet ({exc})"], {})
     if sheets is not None:
         return StandSummary(lab_report.summary_lines(sheets),
-                            {f"lab.{_snake(sheet.title)}.{_snake(name)}": (float(v), lab_report.value_unit(name))
+                            {f"lab.{_snake(sheet.title)}.{_snake(name)}": lab_report.shown_value(name, float(v))
                              for sheet in sheets for name, v in sheet.values.items()})
     res = clutch_report.stand_results(rec)
     if res is not None:

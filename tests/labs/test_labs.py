@@ -251,8 +251,9 @@ def test_rig_analyse_merges_the_lab_sheets_numbers(speed, cardan, tmp_path):
     rows = {r["scene"]: r for r in csv.DictReader((out / "recordings.csv").open())}
     assert set(rows) == {"lab_speed", "lab_cardan"}
     v = cardan[1]["Cardan joint"].values
-    assert float(rows["lab_cardan"]["lab.cardan_joint.ratio_max mean [1]"]) == pytest.approx(v["ratio_max"], rel=1e-12)
-    assert float(rows["lab_cardan"]["lab.cardan_joint.lag_error_max max [rad]"]) == pytest.approx(v["lag_error_max"])
+    assert float(rows["lab_cardan"]["lab.cardan_joint.ratio_max mean"]) == pytest.approx(v["ratio_max"], rel=1e-12)
+    assert float(rows["lab_cardan"]["lab.cardan_joint.lag_error_max max [°]"]) == pytest.approx(
+        np.degrees(v["lag_error_max"]))                          # display units, as the sheets show them
     counter = speed[1]["Speed measurement"].values["counter_rpm"]
     assert float(rows["lab_speed"]["lab.speed_measurement.counter_rpm mean [rpm]"]) == pytest.approx(counter, rel=1e-12)
     assert rows["lab_speed"]["lab.cardan_joint.ratio_max n"] == ""                  # the speed lab has no Cardan
@@ -260,7 +261,7 @@ def test_rig_analyse_merges_the_lab_sheets_numbers(speed, cardan, tmp_path):
     assert len(errors) == 3                                        # tachogenerator, tachometer, stroboscope
     for k, x in errors.items():                                    # names in snake case, as documented
         key = "lab.speed_measurement." + re.sub(r"\W+", "_", k.lower()).strip("_")
-        assert float(rows["lab_speed"][f"{key} mean [1]"]) == pytest.approx(x, rel=1e-12)
+        assert float(rows["lab_speed"][f"{key} mean [%]"]) == pytest.approx(100 * x, rel=1e-12)
     report = (out / "report.md").read_text()
     assert "## Process values and lab results over all recordings" in report
     assert "lab sheet cardan joint:" in report and "## Stand and lab recordings (2)" in report
