@@ -454,7 +454,8 @@ def lab_section(ctx: ReportContext) -> list[Block]:
         return [Heading("Lab sheets"), Text(f"No lab sheet: {exc}", "warning")]
     if sheets is None:
         return []
-    blocks: list[Block] = [Heading("Lab sheets")]
+    blocks: list[Block] = [Heading("Lab sheets"), Table(["sheet", "result"], [[sheet.title, sheet.result]
+                                                                               for sheet in sheets])]
     for sheet in sheets:
         blocks += [Heading(sheet.title, 3), Text(sheet.result)]
         if sheet.draw is not None:

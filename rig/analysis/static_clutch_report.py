@@ -120,13 +120,6 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
         rig = static_rig(rec)
     except SceneError as exc:
         return blocks + [Text(f"No theory: {exc}")]
-    t_m, phi_m = reading_points(readings["t"], readings["angle"])
-    torque_m = np.interp(t_m, rec.truth["t"], rec.truth["torque"])
-    blocks.append(Text("Torque = lever force × arm, known from the weights; angle = multimeter readings of the "
-                       "potentiometer (each paired with the load when it first appears)."))
-    blocks.append(_torque_angle_figure(ctx, rig, t_m, phi_m, torque_m))
-    if "strain" in readings and hasattr(rig.clutch, "leaf_strain"):
-        blocks.append(_strain_figure(ctx, rig))
     rows = []
     for i, r in enumerate(cycle_table(rec, rig), start=1):
         small = abs(r["theory"]) < 1e-6 * max(abs(r["torque_max"]), 1.0)      # frictionless: no loop
@@ -135,6 +128,7 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
                      "—" if r["angle_min"] is None else f"{np.degrees(r['angle_min']):.3g}–{np.degrees(r['angle_max']):.3g}",
                      fmt(r["measured"]), fmt(r["truth"]), fmt(r["theory"]),
                      "—" if dev is None else f"{100 * dev:+.2f} %", fmt(r["disengaged"])])
+    # the results first (loop energies, disengagements), then how they were measured and the charts
     blocks.append(Heading("Hysteresis-loop energy ∮T dφ per cycle", 3))
     blocks.append(Table(["cycle", "t (s)", "T min (N·m)", "T max (N·m)", "angle (°)", "measured (J)",
                          "plant truth (J)", "theory (J)", "measured − theory", "disengaged"], rows))
@@ -146,5 +140,13 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
     else:
         blocks.append(Text("No disengagement: the load stayed below the loading-branch peak "
                            f"({rig.clutch.peak_torque:.4g} N·m)."))
+    t_m, phi_m = reading_points(readings["t"], readings["angle"])
+    torque_m = np.interp(t_m, rec.truth["t"], rec.truth["torque"])
+    blocks.append(Heading("Torque and angle", 3))
+    blocks.append(Text("Torque = lever force × arm, known from the weights; angle = multimeter readings of the "
+                       "potentiometer (each paired with the load when it first appears)."))
+    blocks.append(_torque_angle_figure(ctx, rig, t_m, phi_m, torque_m))
+    if "strain" in readings and hasattr(rig.clutch, "leaf_strain"):
+        blocks.append(_strain_figure(ctx, rig))
     return blocks
 

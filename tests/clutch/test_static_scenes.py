@@ -138,6 +138,7 @@ def test_report_shows_loop_figure_and_table(recordings, tmp_path, name):
     path = write_report(rec, tmp_path, fmt="md")
     text = path.read_text()
     assert "## Static clutch rig" in text and "Hysteresis-loop energy" in text
+    assert text.index("Hysteresis-loop energy") < text.index("static_torque_angle.png")     # results, then charts
     figures = sorted(p.name for p in tmp_path.glob("*static_torque_angle.png"))
     assert len(figures) == 1 and (tmp_path / figures[0]).stat().st_size > 5000
     assert (len(list(tmp_path.glob("*static_leaf_strain.png"))) == 1) == (name == "clutch_static_leaf")

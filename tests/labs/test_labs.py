@@ -275,3 +275,10 @@ def test_a_recording_without_a_scene_has_no_lab_section(tmp_path):
     rec = Recording(path=tmp_path / "cut.mcap")
     assert lab_sheets(rec) is None
     assert lab_section(ReportContext(rec, {"verdicts": []}, tmp_path)) == []
+
+
+def test_the_lab_report_opens_with_every_sheets_result(cardan, tmp_path):
+    from rig.analysis.report import write_report
+    text = write_report(cardan[0], tmp_path, fmt="md").read_text()
+    summary = text.index("| sheet | result |")
+    assert summary < text.index(".png") and f"| Cardan joint | {cardan[1]['Cardan joint'].result}" in text
