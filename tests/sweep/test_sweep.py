@@ -145,3 +145,10 @@ def test_ok_share_falls_as_the_insertion_force_leaves_the_window(dask_scheduler)
     assert shares[0] > shares[1] > shares[2] and 0.0 < shares[2] < 1.0
     assert all(round(s * 20) == s * 20 for s in shares)      # a share of 20 curves
     assert dask.values == serial.values
+
+
+def test_a_value_set_beside_the_load_tables_says_where_load_keys_go(tmp_path, capsys):
+    assert main(["-q", "sweep", "data/scenes/clutch_shock_short.toml", "--param", "load.amplitude=60 N*m,80 N*m",
+                 "--metric", "disengagements", "-o", str(tmp_path)]) == 2
+    assert ("'load.amplitude' = '60 N*m' is not one (the scene's loads: [load.brake]; set a load's key as "
+            "load.NAME.KEY)") in capsys.readouterr().err

@@ -106,7 +106,11 @@ def load_from_tables(tables: dict[str, Any], where: str) -> LoadSum:
     zone | linear | brake."""
     parts: list[Load] = []
     for name, table in tables.items():
-        if not isinstance(table, dict) or "type" not in table:
+        if not isinstance(table, dict):
+            named = ", ".join(f"[load.{k}]" for k, v in tables.items() if isinstance(v, dict)) or "none"
+            raise SceneError(f"{where}: [load] holds only load tables [load.NAME] (with type = ...); 'load.{name}' = "
+                             f"{table!r} is not one (the scene's loads: {named}; set a load's key as load.NAME.KEY)")
+        if "type" not in table:
             raise SceneError(f"{where}: [load.{name}] must be a table with a 'type' key")
         kind = table["type"]
         if not isinstance(kind, str) or kind not in _LOAD_SCHEMAS:
