@@ -207,9 +207,17 @@ def warm_up(problem: WorkProblem, methods: tuple[str, ...]) -> None:
             pass                            # reported by the measured runs
 
 
+def run_count(problem: WorkProblem, quick: bool = False, methods: tuple[str, ...] = METHODS) -> int:
+    """How many runs :func:`work_precision` makes (its progress total)."""
+    sweeps = problem.quick if quick else problem.full
+    return sum(len(sweeps.steps[m]) if m in FIXED else len(sweeps.tols) for m in methods)
+
+
 def work_precision(problem: WorkProblem, quick: bool = False, methods: tuple[str, ...] = METHODS,
-                   repeats: int | None = None, log: Callable[[str], None] = print, limit: float | None = None) -> Result:
-    """All rows of the problem's sweeps (``quick``: the short ones) for ``methods``; ``log`` gets progress.
+                   repeats: int | None = None, log: Callable[[str], None] = print, limit: float | None = None,
+                   done: Callable[[Row, str], None] | None = None) -> Result:
+    """All rows of the problem's sweeps (``quick``: the short ones) for ``methods``; ``log`` gets the reference and
+    warnings, and each run's line unless ``done`` is given: then ``done(row, line)`` gets them (a progress bar).
     ``limit``: wall seconds per run (None: none); after a run over it, a method's finer settings (smaller steps,
     tighter tolerances: slower still) are not run and get the status ``skipped: …``."""
     sweeps = problem.quick if quick else problem.full
@@ -230,9 +238,10 @@ def work_precision(problem: WorkProblem, quick: bool = False, methods: tuple[str
             if over is None and row.status.startswith("timeout"):
                 over = row.setting
             rows.append(row)
-            log(f"  {row.method:20s} {row.setting:12s} " + (
+            line = f"  {row.method:26s} {row.setting:16s} " + (
                 f"error {row.error:9.2e}  wall {row.wall_s * 1e3:9.2f} ms  nfev {row.nfev:8d}  "
-                f"{row.t_sim / row.wall_s:8.1f}x real time" if row.status == "ok" else row.status[:110]))
+                f"{row.t_sim / row.wall_s:8.1f}x real time" if row.status == "ok" else row.status[:110])
+            (log(line) if done is None else done(row, line))
     return Result(problem, ref, rows)
 
 
@@ -271,7 +280,7 @@ def summary(result: Result, target: float = TARGET) -> list[str]:
     lines = [f"{result.problem.name}: cheapest run with error <= {target:g} per method (t_sim {result.problem.t_sim:g} s):"]
     for method in dict.fromkeys(r.method for r in result.rows):
         r = best.get(method)
-        lines.append(f"  {method:20s} " + (f"{r.setting:12s} wall {r.wall_s * 1e3:9.2f} ms  error {r.error:.1e}  "
+        lines.append(f"  {method:26s} " + (f"{r.setting:16s} wall {r.wall_s * 1e3:9.2f} ms  error {r.error:.1e}  "
                                            f"{r.t_sim / r.wall_s:8.1f}x real time" if r else f"no run reached {target:g}"))
     ours = min((r for m, r in best.items() if m in OURS), key=lambda r: r.wall_s, default=None)
     for label, group in (("best peer", PEERS), ("scipy's best", tuple(p for p in PEERS if p.startswith("scipy")))):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import logging
 from pathlib import Path
+from typing import Any
 
 SCENE_DIR = Path(__file__).resolve().parents[2] / "data" / "scenes"
 SCENES = tuple(SCENE_DIR / f"{name}.toml" for name in
@@ -60,7 +61,8 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
         raise ValueError(f"--time-limit must be positive (s), got {limit:g}")
     if target is not None and not 0.0 < target < 1.0:
         raise ValueError(f"--target must be a relative error in (0, 1), got {target:g}")
-    from rig.bench.harness import METHODS, TARGET, summary, work_precision, write_csv
+    from rig.bench.harness import METHODS, TARGET, run_count, summary, work_precision, write_csv
+    from rig.console import progress
     from rig.bench.problems import load_problem
     from rig.bench.wpchart import plot
     if out.exists() and not out.is_dir():
@@ -76,9 +78,16 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
     results = []
     for scene in scenes:
         problem = load_problem(scene, t_sim)
-        result = work_precision(problem, quick, methods or METHODS,
-                                log=lambda line: (log.warning if line.startswith("WARNING") else log.info)(line),
-                                limit=limit)
+        chosen = methods or METHODS
+        with progress(run_count(problem, quick, chosen), problem.name, " runs") as bar:
+            def done(row: Any, line: str) -> None:
+                log.debug(line)                                  # every run is in the CSV; the bar shows where
+                bar.set_postfix_str(f"{row.method} {row.setting}", refresh=False)
+                bar.update()
+
+            result = work_precision(problem, quick, chosen,
+                                    log=lambda line: (log.warning if line.startswith("WARNING") else log.info)(line),
+                                    limit=limit, done=done)
         csv_path, png_path = outputs(out, scene)
         write_csv(result, csv_path)
         plot(result, png_path, goal)
