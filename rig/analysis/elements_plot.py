@@ -44,11 +44,14 @@ class Style:
         return name if self.failed is None else f"{name} ✗ {self.failed}"
 
 
+LABEL_Z = 6        # element labels above the curves (lines 2-4), so that curves never hide them
+
+
 def _label(ax: Axes, text: str, where: tuple[float, float], color: str, style: Style, **kw: Any) -> None:
     bold = {"fontweight": "bold", "bbox": dict(boxstyle="round,pad=0.15", fc="white", ec=FAILED, lw=0.8, alpha=0.9)} \
         if style.failed is not None else {"bbox": dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.75)}
     ax.annotate(text, where, fontsize=7 if style.failed is None else 7.5, color=color, textcoords="offset points",
-                **(dict(xytext=(2, 2)) | kw | bold))
+                zorder=LABEL_Z, **(dict(xytext=(2, 2)) | kw | bold))
 
 
 def _region(ax: Axes, e: Mapping, corners: Sequence[tuple[float, float]], color: str, style: Style) -> None:
