@@ -283,11 +283,12 @@ class Host:
             self.rec.write_event(float(curve.t[-1]), "result_missing", number=curve.number,
                                  detail="the curve arrived but its Result frame did not")
         stats: dict[str, Any] = {}
+        end = max(self.truth_t, self.can.device_time)     # the run's end: as far as the theory or the unit got
         if self.serial is not None:
             stats = self.serial.read_statistics(self.program)
-            self.rec.write_statistics(stats, t=self.truth_t)
+            self.rec.write_statistics(stats, t=end)
             self.serial.close()
-        self.rec.write_event(self.truth_t, "link_summary", frames=self.frames, **{
+        self.rec.write_event(end, "link_summary", frames=self.frames, **{
             k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))})
         self.can.send_command("release")
         self._record_sent()
