@@ -216,6 +216,7 @@ class Metric:
     unit: str
     reference: str
     at: float | None = None     # s: when it happened (peaks, events), if that is part of the result
+    exceeds: float | None = None    # not reached within the run: the value is known to be above this (in unit)
 
     def number(self) -> float | None:
         """The result as a number (in ``unit``): a numeric value; a count written with its times ("3, at …") as
@@ -414,7 +415,8 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
                                       f"after the stop command: the last encoder count change on either half, none in "
                                       f"the remaining {rec.end - rec.last_edge:.3g} s", rec.last_edge))
                 else:
-                    out.append(Metric(f"{label}: standstill", None, "s", "still turning at the end of the run"))
+                    out.append(Metric(f"{label}: standstill", None, "s", f"still turning at the end of the run, "
+                                      f"{rec.end - s.time:.3g} s after the stop command", exceeds=rec.end - s.time))
     sweep = any(s.kind == "sweep" for s in order)
     out += _slip_metrics(rec, shutdown_count, shutdown_window, model_disengagements, trips_motor, sweep, lobe, apex)
     for name, (_, w, tr, method) in rec.speeds.items():

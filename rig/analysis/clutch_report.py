@@ -342,7 +342,7 @@ def comparison_section(ctx: ReportContext) -> list[Block]:
                  "bound: the thesis value is a limit; a count exactly); deviation = rig − thesis."),
             Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "fitted"]
                   + (["note"] if notes else []),
-                  [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", "n/a" if r.rig is None else _as_precise(r.rig, r.thesis),
+                  [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", r.rig_text() if r.rig is None else _as_precise(r.rig, r.thesis),
                     r.deviation, r.tolerance or "— (not judged)", r.verdict, "yes" if r.fitted else "no"]
                    + ([r.why] if notes else []) for r in rows]),
             Table(["file", "contents"], [[Link("comparison.csv", "comparison.csv"), "this table, with the unrounded rig "

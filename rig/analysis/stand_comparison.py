@@ -34,6 +34,9 @@ ROW_SCHEMA = {
                        "\"at least\" (default: a count exactly, else not judged)"),
 }
 BOUNDS = ("at most", "at least")
+#: a result the run names otherwise when it has none of the kind: a run without disengagement has no "relative slip"
+#: but its net relative angle change (0 lobes slipped, the elastic deflection) is the value to judge
+ALIASES = {"relative slip": ("relative angle change",)}
 SI = {"N·m": "N*m", "s": "s", "°": "deg", "%": "1", "rad/s": "rad/s", "J": "J", "": "1"}   # result units
 
 
@@ -49,10 +52,19 @@ class Row:
     why: str
     agrees: bool | None = None     # None: not judged (no tolerance) or n/a
     tolerance: str = ""            # as the scene writes it; "exact" for a count without one; "" not judged
+    beyond: float | None = None    # rig None: the run ended before the result, which lies above this (in unit)
+
+    def rig_text(self, digits: int = 4) -> str:
+        """The rig value (``digits`` significant), ``> bound`` for a result the run ended before, or n/a."""
+        if self.rig is not None:
+            return f"{self.rig:.{digits}g}"
+        return f"> {self.beyond:.{digits}g}" if self.beyond is not None else "n/a"
 
     @property
     def verdict(self) -> str:
-        return "n/a" if self.rig is None else "-" if self.agrees is None else "yes" if self.agrees else "NO"
+        if self.rig is None:                 # no value, but perhaps known to lie beyond a bound
+            return "NO" if self.agrees is False else "n/a"
+        return "-" if self.agrees is None else "yes" if self.agrees else "NO"
 
     @property
     def deviation(self) -> str:
@@ -133,7 +145,8 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
     rows = []
     for th in _theses(scene):
         spec, number, unit, si, scale, where = th.spec, th.number, th.unit, th.si, th.scale, th.where
-        metric, value, why = by_name.get(spec["rig"]), None, ""
+        metric, value, why = next((by_name[n] for n in (spec["rig"], *ALIASES.get(spec["rig"], ())) if n in by_name),
+                                  None), None, ""
         if metric is None:
             why = f"no result {spec['rig']!r} in this run"
         elif spec["part"] == "value":
@@ -146,9 +159,14 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
         else:
             value = (metric.at - (origin_of(spec["rig"]) if spec["part"] == "time_after" else 0.0)) / scale
         agrees = None if value is None else _agrees(spec["tolerance"], number, unit, si, scale, value, where)
+        beyond = None
+        if value is None and metric is not None and metric.exceeds is not None and spec["part"] == "value":
+            beyond = metric.exceeds * to_si(1.0, si, SI.get(metric.unit, metric.unit)) / scale
+            if str(spec["tolerance"]).strip() == "at most" and beyond > number:
+                agrees = False                     # not reached when the run ended, already past the bound
         tolerance = str(spec["tolerance"]).strip() if spec["tolerance"] is not None else "" if unit else "exact"
         rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"], agrees,
-                        tolerance))
+                        tolerance, beyond))
     return rows
 
 
@@ -220,14 +238,14 @@ def agreement_text(rows: list[Row]) -> str:
     (a row fitted on this run agreeing says little), and which rows do not."""
     judged = [r for r in rows if r.agrees is not None]
     off = [r for r in judged if not r.agrees]
-    missing = [r for r in rows if r.rig is None]
+    missing = [r for r in rows if r.rig is None and r.agrees is None]
     parts = [f"{sum(bool(r.agrees) for r in group)} of {len(group)} {what}" for group, what in (
         ([r for r in judged if not r.fitted], "predictions agree with the thesis"),
         ([r for r in judged if r.fitted], "rows fitted on this run reproduced")) if group]
     text = "; ".join(parts) or "no row judged (no tolerances)"
     if off:
         text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{' ' + r.unit if r.unit else ''}, "
-                                           f"rig {r.rig:.4g})" for r in off)
+                                           f"rig {r.rig_text()}{' ' + r.unit if r.unit else ''})" for r in off)
     if missing:
         text += f"; n/a in this run: {', '.join(r.quantity for r in missing)}"
     return text

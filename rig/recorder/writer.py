@@ -135,6 +135,7 @@ class Recorder:
         self._can_frames = 0                       # frames buffered
         self._can_last = -math.inf
         self._last_ns = self.wall_clock_start      # latest log time written
+        self.last_event_time = 0.0                  # s: the latest event's simulation time (events come in order)
         self._data_end = 0.0                       # latest sample time written in any block, curve or frame (s)
         self._closed = False
         meta = {"software_version": rig.__version__, "mcap_version": mcap.__version__,
@@ -380,6 +381,7 @@ class Recorder:
         if {"t", "kind"} & set(data):
             raise ValueError(f"{S.EVENTS}: event data may not use the keys 't' or 'kind'")
         t_ns = to_ns(t, f"{S.EVENTS} {kind}")
+        self.last_event_time = max(self.last_event_time, float(t))
         self._put(self._channel(S.EVENTS, S.EVENT_SCHEMA, "rig.Event"), t_ns,
                   dumps_message({"t": float(t), "kind": str(kind), **data}))
         self._put(self._channel(S.LOG, S.LOG_SCHEMA, "foxglove.Log"), t_ns,

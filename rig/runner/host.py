@@ -283,7 +283,7 @@ class Host:
             self.rec.write_event(float(curve.t[-1]), "result_missing", number=curve.number,
                                  detail="the curve arrived but its Result frame did not")
         stats: dict[str, Any] = {}
-        end = max(self.truth_t, self.can.device_time)     # the run's end: as far as the theory or the unit got
+        end = max(self.truth_t, self.rec.last_event_time)     # not before an event already recorded
         if self.serial is not None:
             stats = self.serial.read_statistics(self.program)
             self.rec.write_statistics(stats, t=end)
