@@ -76,6 +76,7 @@ class StiffnessMonitor:
         self.watch = None                              # amplification test (fixed-step methods)
         self._steps, self._next_check, self._last_check = 0, self.DENSE, 0
         self._hits = [0, 0, 0.0]                       # positive and negative checks, summed spurious log-growth
+        self._slow = 0.0                               # net spurious log-growth however small per step (see below)
         self.calls = 0                                 # RHS calls the amplification test made
 
     def update_many(self, t, y, h, hl) -> None:
@@ -137,7 +138,10 @@ class StiffnessMonitor:
         """Run the amplification test on the steps due among these (ends t, states y, sizes h): the spurious
         growth log(ρ(M)/ρ(exp(hJ))) is summed over the steps between positive checks; a report once it reaches
         a factor ``SPURIOUS`` over at least two positive checks (more checks where the method damps than positive
-        ones since the first positive one start over; neutral states, e.g. no stiff mode, do not count)."""
+        ones since the first positive one start over; neutral states, e.g. no stiff mode, do not count). Growth
+        below ``EXCESS`` per step is also summed, net of where the method damps (ρ < 1), and reported once it has
+        amplified the mode by ``SPURIOUS`` — explicit Euler on an undamped oscillation at a small h·ω grows by only
+        (h·ω)²/2 per step, but over enough steps that too is a wrong answer."""
         if self.watch is None or self.detected_at is not None:
             return
         first = self._steps
@@ -147,6 +151,13 @@ class StiffnessMonitor:
             got = self.watch.check(float(t[k]), tuple(y[k]), float(h[k]))
             self.calls += len(y[k]) + 1
             since, self._last_check = self._next_check - self._last_check, self._next_check
+            if got is not None and got[0] > 1.0 + 1e-12 and got[0] > got[1]:
+                self._slow += since * math.log(got[0] / got[1])
+            elif got is not None and 0.0 < got[0] < 1.0:
+                self._slow = max(0.0, self._slow + since * math.log(got[0]))
+            if self._slow >= math.log(self.SPURIOUS):
+                self._report_amplification(float(t[k]), tuple(y[k]), float(h[k]), got, self._slow)
+                return
             if got is not None and got[0] > 1.0 + 1e-12 and got[0] > got[1] * (1.0 + self.EXCESS):
                 self._hits[0] += 1
                 self._hits[2] += since * math.log(got[0] / got[1])
@@ -159,17 +170,21 @@ class StiffnessMonitor:
                     self._hits = [0, 0, 0.0]
             self._next_check += self.DENSE if self._hits[0] else self.SPARSE
 
-    def _report_amplification(self, t: float, y: tuple, h: float, got) -> None:
+    def _report_amplification(self, t: float, y: tuple, h: float, got, accumulated: float | None = None) -> None:
         rho, exact, lam = got if got is not None else (math.nan, math.nan, complex(math.nan))
-        zeta = -lam.real / abs(lam) if abs(lam) > 0 else math.nan
+        zeta = -lam.real / abs(lam) + 0.0 if abs(lam) > 0 else math.nan       # + 0.0: no "-0"
         h_ok = self.watch.largest_stable_step(t, y, h)
+        fix = (f"reduce h below {h_ok:.3g} s or use the implicit method Rodas4" if h_ok > 1e-3 * h else
+               "no practical step keeps this method from amplifying a mode this lightly damped: use symplectic "
+               "Euler, RK4 or the implicit method Rodas4")
+        slow = rho <= exact * (1.0 + self.EXCESS)
+        grown = ("" if accumulated is None else
+                 f"; {'slowly, but ' if slow else ''}{math.exp(accumulated):.3g}-fold since the run began")
         self._report(t, y, f"{self.method} unstable at t = {t:.6g} s: at h = {h:.3g} s the step amplifies the "
                            f"mode lambda = {lam.real:.4g}{lam.imag:+.4g}j 1/s (|lambda| = {abs(lam):.4g} 1/s, damping "
                            f"ratio {zeta:.3g}) by {rho:.6g} per step while the exact flow changes it by {exact:.6g} "
                            f"(h*|lambda| = {h * abs(lam):.3g}; {STABLE_WHEN.get(self.method, 'outside its stability region')}"
-                           f"): the solution "
-                           f"grows without physical cause - reduce h below {h_ok:.3g} s or use the implicit method "
-                           f"Rodas4")
+                           f"){grown}: the solution grows without physical cause - {fix}")
 
     def _growth(self, t, y: np.ndarray, h) -> None:
         """Feed the step ends ``y`` (rows) to the growth test."""

@@ -98,7 +98,11 @@ class Stepper(OdeSolver):
 
     def _accept(self, t_new: float, y_new: tuple, h: float, hl: float, K, h_next: float) -> None:
         """Record an accepted step (stage vectors K, estimate hl of h·|λ|, next step size h_next)."""
-        self.monitor.update(t_new, y_new, h, hl)
+        calls = self.monitor.calls
+        try:
+            self.monitor.update(t_new, y_new, h, hl)
+        finally:
+            self.nfev += self.monitor.calls - calls          # the amplification test's RHS calls count too
         self.t_old, self.y_old = self.t, self.y
         self.t, self.y, self.f = t_new, y_new, K[-1]
         self.h_last, self.h_abs, self._K = h, h_next, K
@@ -164,11 +168,14 @@ class Stepper(OdeSolver):
         self.nfev += int(self._w[NFEV])
         self.acted = EV[:int(self._w[NEV])]
         done = count if count >= 0 else -1 - count
+        calls = self.monitor.calls
         try:
             self.monitor.update_many(TT[1:done + 1], Y[1:done + 1], HH[:done], HL_[:done])
         except SolverDivergence:
             self.status = "failed"
             raise
+        finally:
+            self.nfev += self.monitor.calls - calls          # the amplification test's RHS calls count too
         if count < 0:
             self._fail(int(self._w[FAIL]), float(TT[done]), tuple(Y[done]), tuple(Y[done + 1]), float(self._w[H]))
         self.nsteps += count

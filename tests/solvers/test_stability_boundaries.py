@@ -81,3 +81,34 @@ def test_rodas4_has_no_step_limit_on_the_contact_mode():
                     method="Rodas4", rtol=1e-6, atol=1e-9)
     assert abs(sol.y_final[0]) < 1e-6
     assert sol.nsteps < 0.1 * w / rk4_boundary() / 5 and sol.h_last * w > 100.0
+
+
+def test_explicit_euler_growth_too_slow_per_step_is_reported_once_it_adds_up():
+    """Undamped, h·ω = 0.01: explicit Euler grows by (1 + h²ω²)^½ = 1.00005 per step — far below what one check
+    calls growth — yet doubles the amplitude after ln 2 / 5e-5 ≈ 13 900 steps (t ≈ 139 s for ω = 1): reported then,
+    saying it grew slowly and that no step cures it; a run ending before is not."""
+    osc = Problem(lambda t, y: (y[1], -y[0]), (1.0, 0.0))
+    done = integrate(osc, (0.0, 50.0), method="Euler", h=0.01)
+    assert done.status == "finished" and math.hypot(*done.y_final) == pytest.approx(math.exp(5000 * 5e-5), rel=1e-3)
+    with pytest.raises(SolverDivergence, match=r"explicit Euler unstable at t = (\S+) s: .*slowly, but 2(\.\d+)?-fold "
+                                               r"since the run began: .*no practical step") as err:
+        integrate(osc, (0.0, 1000.0), method="Euler", h=0.01)
+    t = float(str(err.value).split("unstable at t = ")[1].split(" s")[0])
+    assert math.log(2) / 5e-5 * 0.01 <= t <= math.log(2) / 5e-5 * 0.01 + 1.0         # within a check's spacing
+
+
+@pytest.mark.parametrize("method", ["Euler", "RK4", "SymplecticEuler"])
+def test_a_fixed_step_solvers_nfev_counts_every_call_its_tests_make(method):
+    """A solver object's nfev counts the amplification test's calls too (they were only in integrate's total)."""
+    import rig.solvers as solvers
+    calls = [0]
+
+    def f(t, y):
+        calls[0] += 1
+        return (y[1], -y[0])
+    solver = getattr(solvers, method)(f, 0.0, (1.0, 0.0), 2.0, h=1e-3)
+    while solver.status == "running":
+        solver.step()
+    assert solver.nfev == calls[0] > 2000
+    calls[0] = 0
+    assert integrate(Problem(f, (1.0, 0.0)), (0.0, 2.0), method=method, h=1e-3).nfev == calls[0]
