@@ -100,3 +100,15 @@ def test_level2_assumptions_are_the_runs_setting_not_the_mechanism(tmp_path):
 def test_a_bad_parameter_is_named_with_its_unit(kw, message):
     with pytest.raises(ValueError, match=re.escape(message)):
         PinInsertionMechanism(**kw)
+
+
+def test_a_sign_change_pair_inside_one_scan_step_at_a_program_boundary_is_found():
+    """At 285-300 rpm without the spring the moment turns positive about 0.08° before the dwell ends at 180° and
+    jumps back across the boundary: both sign changes lie inside one 0.1° scan step (they cancelled); the scan now
+    includes the point just before every program boundary."""
+    from rig.plants.cam_bar.switches import flank_switch_angles
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
+    mech, _ = cam_bar_from_scene("data/scenes/pin_insertion.toml")
+    found = np.degrees(flank_switch_angles(mech, 0.0, False, 300 * 2 * np.pi / 60, 3600))
+    assert np.any(np.abs(found - 180.0) < 1e-6) and np.any((found > 179.85) & (found < 179.99))
+    assert np.any(np.abs(found - 320.0) < 1e-6) and np.any((found > 319.9) & (found < 319.99))

@@ -11,6 +11,9 @@ if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 
+EDGE = 1e-6          # rad: the scan point just before a program boundary (closer ones evaluate as the next segment)
+
+
 def contact_moment(mech: "PinInsertionMechanism", phi: np.ndarray, k: float, spring: bool,
                    omega: float) -> np.ndarray:
     """Cam moment on the follower (N·m) at cam speed ``omega`` (rad/s): M_Σ with spring rate ``k`` (N/m), or M23
@@ -29,9 +32,12 @@ def flank_switch_angles(mech: "PinInsertionMechanism", k: float, spring: bool, o
                         n: int) -> np.ndarray:
     """Angles (rad, [0, 2π)) of contact-force sign changes over one revolution at constant speed.
 
-    Scanned on ``n`` equal steps, each bracket refined with Brent's method to 1e-10 rad.
+    Scanned on ``n`` equal steps and on both sides of every cam-program boundary (the acceleration, and with it the
+    moment, jumps there: a sign change within a sliver before the boundary and back across it would cancel inside one
+    step), each bracket refined with Brent's method to 1e-10 rad.
     """
-    grid = np.linspace(0.0, tau, n + 1)
+    starts = np.mod(mech.program.starts, tau)
+    grid = np.unique(np.concatenate([np.linspace(0.0, tau, n + 1), starts, np.clip(starts - EDGE, 0.0, tau)]))
     m = contact_moment(mech, grid, k, spring, omega)
     found = []
     for i in sign_changes(m):
