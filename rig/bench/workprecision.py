@@ -82,6 +82,8 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
         with progress(run_count(problem, quick, chosen), problem.name, " runs") as bar:
             def done(row: Any, line: str) -> None:
                 log.debug(line)                                  # every run is in the CSV; the bar shows where
+                if bar.n == 0:
+                    bar.reset(total=bar.total)                   # its clock from the first run, not the warm-up
                 bar.set_postfix_str(f"{row.method} {row.setting}", refresh=False)
                 bar.update()
 
