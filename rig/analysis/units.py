@@ -27,9 +27,10 @@ from rig.units import ureg
 
 # display unit by SI unit (the fallback of rule 2)
 DEFAULTS = {"m": "mm", "N": "N", "rad": "deg", "N*m": "N*m", "s": "s", "rad/s": "rpm", "m/s": "mm/s",
-            "m/m": "um/m", "1": ""}
+            "m/s^2": "mm/s^2", "m/m": "um/m", "1": ""}
 _LABELS = {"degree": ("°", "deg"), "meter * newton": ("N·m", "N*m"), "revolutions_per_minute": ("rpm", "rpm"),
-           "micrometer / meter": ("µm/m", "um/m"), "dimensionless": ("", "")}
+           "micrometer / meter": ("µm/m", "um/m"), "millimeter / second ** 2": ("mm/s²", "mm/s^2"),
+           "dimensionless": ("", "")}
 _ANGLES = ("radian", "degree", "turn", "revolution", "arcminute", "arcsecond", "grad")
 
 # SI units of the plants' truth signals (rig.plants: cam bar level 1/2, clutch stand and static rig, lab bench)

@@ -29,3 +29,9 @@ def test_strain_is_shown_in_micrometres_per_metre_and_named_strain():
     from rig.analysis.units import QUANTITY, SIGNAL_SI, unit
     u = unit(SIGNAL_SI["leaf_strain"])
     assert (u.label, u.ascii, u.factor) == ("µm/m", "um/m", 1e6) and QUANTITY[SIGNAL_SI["leaf_strain"]] == "strain"
+
+
+def test_linear_accelerations_follow_the_lengths_in_mm():
+    """Lengths shown in mm, speeds in mm/s: accelerations in mm/s² beside them (they were m/s²)."""
+    from rig.analysis.units import SIGNAL_SI, unit
+    assert (unit(SIGNAL_SI["a"]).label, unit(SIGNAL_SI["v"]).label, unit(SIGNAL_SI["s"]).label) == ("mm/s²", "mm/s", "mm")
