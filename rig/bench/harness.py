@@ -275,7 +275,7 @@ def best_runs(rows: list[Row], target: float = TARGET) -> dict[str, Row]:
 
 def summary(result: Result, target: float = TARGET) -> list[str]:
     """One line per method (cheapest run with error ≤ target, its real-time factor), then ours against the best
-    peer and against scipy's best."""
+    peer (any: scipy's solve_ivp and odeint, CVODE) and against the best of scipy's solve_ivp methods."""
     best = best_runs(result.rows, target)
     lines = [f"{result.problem.name}: cheapest run with error <= {target:g} per method (t_sim {result.problem.t_sim:g} s):"]
     for method in dict.fromkeys(r.method for r in result.rows):
@@ -283,7 +283,8 @@ def summary(result: Result, target: float = TARGET) -> list[str]:
         lines.append(f"  {method:26s} " + (f"{r.setting:16s} wall {r.wall_s * 1e3:9.2f} ms  error {r.error:.1e}  "
                                            f"{r.t_sim / r.wall_s:8.1f}x real time" if r else f"no run reached {target:g}"))
     ours = min((r for m, r in best.items() if m in OURS), key=lambda r: r.wall_s, default=None)
-    for label, group in (("best peer", PEERS), ("scipy's best", tuple(p for p in PEERS if p.startswith("scipy")))):
+    solve_ivp = tuple(p for p in PEERS if p.startswith("scipy") and "odeint" not in p)
+    for label, group in (("best peer", PEERS), ("best solve_ivp", solve_ivp)):
         peer = min((r for m, r in best.items() if m in group), key=lambda r: r.wall_s, default=None)
         if ours and peer:
             lines.append(f"  ours best ({ours.method} {ours.setting}, {ours.t_sim / ours.wall_s:.1f}x real time) vs "

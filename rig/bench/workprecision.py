@@ -24,7 +24,7 @@ def register(bench_sub: argparse._SubParsersAction, parents: list[argparse.Argum
                               help="error against wall time and RHS calls: our solvers, scipy and CVODE (CSV + PNG)")
     wp.add_argument("--scene", action="append", type=Path,
                     help="a level-2 cam-bar or clutch_dynamic scene (repeatable; default: the four of issue 13)")
-    wp.add_argument("--quick", action="store_true", help="fewer settings and repeats (about 20 s per problem)")
+    wp.add_argument("--quick", action="store_true", help="fewer settings and repeats (about 20-45 s per problem)")
     wp.add_argument("--t-sim", type=float, metavar="S",
                     help="simulate only the first S seconds (default: one revolution / the scene's duration)")
     wp.add_argument("--target", type=float, default=None, metavar="ERROR",
@@ -53,10 +53,12 @@ def outputs(out: Path, scene: Path) -> tuple[Path, Path]:
 
 
 def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float | None = None,
-               methods: tuple[str, ...] | None = None, limit: float | None = None, target: float | None = None) -> list:
+               methods: tuple[str, ...] | None = None, limit: float | None = None, target: float | None = None,
+               progress_bars: bool = True) -> list:
     """Chart every scene into ``out`` (``t_sim`` (s) shortens the span; ``methods`` a subset; ``limit``: wall
     seconds per run, :func:`rig.bench.harness.work_precision`; ``target``: the error the printed summary compares
-    at, default :data:`rig.bench.harness.TARGET`); the results."""
+    at, default :data:`rig.bench.harness.TARGET`; ``progress_bars``: a bar over each scene's runs); the results.
+    ``out`` follows rig's rule for output directories (new, empty, or one rig wrote before: rig.outputs)."""
     if limit is not None and not limit > 0:
         raise ValueError(f"--time-limit must be positive (s), got {limit:g}")
     if target is not None and not 0.0 < target < 1.0:
@@ -65,21 +67,21 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
     from rig.console import progress
     from rig.bench.problems import load_problem
     from rig.bench.wpchart import plot
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"cannot write to {out}: it exists and is not a directory")
+    from rig.outputs import claim_dir, writable_dir
+    writable_dir(out, "work-precision charts")
     for scene in scenes:                     # check every input and output before the long runs
         if not scene.is_file():
             raise ValueError(f"scene {scene} does not exist")
         for path, head in zip(outputs(out, scene), (CSV_HEAD, PNG_HEAD)):
             _check_output(path, head)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_dir(out)
     goal = TARGET if target is None else target
     log = logging.getLogger("rig")
     results = []
     for scene in scenes:
         problem = load_problem(scene, t_sim)
         chosen = methods or METHODS
-        with progress(run_count(problem, quick, chosen), problem.name, " runs") as bar:
+        with progress(run_count(problem, quick, chosen), problem.name, " runs", enabled=progress_bars) as bar:
             def done(row: Any, line: str) -> None:
                 log.debug(line)                                  # every run is in the CSV; the bar shows where
                 if bar.n == 0:
@@ -105,5 +107,5 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
 
 def command(args: argparse.Namespace) -> int:
     run_scenes(args.scene or list(SCENES), args.output, args.quick, args.t_sim, limit=args.time_limit,
-               target=args.target)
+               target=args.target, progress_bars=not args.quiet)
     return 0

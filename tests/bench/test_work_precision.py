@@ -113,10 +113,22 @@ def test_cli_refuses_a_scene_without_a_work_precision_problem(tmp_path, capsys):
 
 
 def test_cli_never_overwrites_another_file(tmp_path, capsys):
+    """A directory holding files rig did not write is refused before anything runs (rig's rule for output
+    directories, as the other benches); in a directory rig wrote before, a foreign file of the chart's name is."""
     (tmp_path / "clutch_startup.csv").write_text("my notes\n")
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "-o", str(tmp_path)]) == 2
+    assert "it holds files rig did not write" in capsys.readouterr().err
+    assert (tmp_path / "clutch_startup.csv").read_text() == "my notes\n"
+    (tmp_path / ".mechrig").write_text("rig's\n")
     assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "-o", str(tmp_path)]) == 2
     assert "clutch_startup.csv" in capsys.readouterr().err
     assert (tmp_path / "clutch_startup.csv").read_text() == "my notes\n"
+
+
+def test_quiet_runs_without_a_progress_bar(tmp_path, capsys):
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "--quick", "--t-sim", "0.05",
+                     "-o", str(tmp_path / "wp")]) == 0
+    assert "runs" not in capsys.readouterr().err and (tmp_path / "wp" / ".mechrig").exists()
 
 
 def test_fixed_step_methods_follow_the_clutch_stick_slip_switches():
