@@ -75,6 +75,7 @@ def _print_set_summary(result: dict) -> None:
     per-program warnings, the process-value table and the comparison with the device's statistics, theory
     lag, events."""
     from rig.analysis.device import agreement_text
+    from rig.analysis.sets import memory_warning
     verdicts = result["verdicts"]
     nok = [v for v in verdicts if not v["ok"]]
     print(f"curves: {len(verdicts)}, OK {len(verdicts) - len(nok)}, NOK {len(nok)}")
@@ -83,11 +84,9 @@ def _print_set_summary(result: dict) -> None:
         print(f"  NOK curve {v['number']}: {why or 'the device named no failing element'}")
     if len(nok) > NOK_LINES:
         print(f"  ... and {len(nok) - NOK_LINES} more NOK curves (results.csv has every reason)")
-    cut = [v["number"] for v in verdicts if v.get("memory") == "cut"]
+    cut = memory_warning(verdicts)
     if cut:
-        print(f"  warning: {len(cut)} curve(s) filled the unit's curve memory and were cut there (curve "
-              f"{', '.join(map(str, cut[:10]))}{' ...' if len(cut) > 10 else ''}); lower the sample rate, sample by "
-              "dX or set the program's overflow to \"decimate\"")
+        print(f"  warning: {cut}")
     incomplete = result["incomplete"]
     if incomplete:
         print(f"  warning: {len(incomplete)} incomplete result(s): " + "; ".join(
@@ -138,7 +137,7 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
     """Write the report of a recording (path or an already-read Recording, with its analysis if known);
     ``progress``: a bar on stderr counting the report's sections; ``ok_plots`` / ``nok_plots``: OK / NOK curves
     plotted one by one (None: the report's default, :data:`rig.analysis.report_blocks.NOK_PLOTS`)."""
-    from rig.analysis.report import SECTIONS, write_report
+    from rig.analysis.report import NOK_PLOTS, SECTIONS, write_report
     from rig.console import progress as progress_bar
     claim_dir(out_dir)
     with progress_bar(len(SECTIONS), "report", " sections", progress) as bar:
@@ -152,7 +151,7 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
             return run
         sections = [(name, counted(name, section)) for name, section in SECTIONS]
         return write_report(recording, out_dir, fmt=fmt, analysis=analysis, sections=sections, ok_plots=ok_plots,
-                            **({} if nok_plots is None else {"nok_plots": nok_plots}))
+                            nok_plots=NOK_PLOTS if nok_plots is None else nok_plots)
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -342,15 +342,8 @@ def comparison_section(ctx: ReportContext) -> list[Block]:
                  "bound: the thesis value is a limit; a count exactly); deviation = rig − thesis."),
             Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "fitted"]
                   + (["note"] if notes else []),
-                  [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", r.rig_text() if r.rig is None else _as_precise(r.rig, r.thesis),
+                  [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", r.rig_text(),
                     r.deviation, r.tolerance or "— (not judged)", r.verdict, "yes" if r.fitted else "no"]
                    + ([r.why] if notes else []) for r in rows]),
             Table(["file", "contents"], [[Link("comparison.csv", "comparison.csv"), "this table, with the unrounded rig "
                                                                                    "values"]])]
-
-
-def _as_precise(value: float, reference: float) -> str:
-    """``value`` with at least 4 significant digits and as many as the printed ``reference`` has (rig 100.05 beside
-    thesis 100.18, not 100)."""
-    digits = len(f"{abs(reference):g}".split("e")[0].replace(".", "").lstrip("0")) or 1
-    return f"{value:.{max(4, digits)}g}"

@@ -14,7 +14,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from rig.analysis.sets import memory_note, missing_values, process_values
+from rig.analysis.sets import cut_reason, memory_note, missing_values, process_values
 from rig.analysis.units import DisplayUnits, Unit, unit
 from rig.recorder import CurveRecord
 
@@ -76,10 +76,6 @@ def _rows(number: int, program: int, columns: list[np.ndarray]) -> str:
     return (row * n) % tuple(flat.ravel().tolist())
 
 
-#: what a NOK reason starts with when the curve filled the unit's curve memory and was cut there
-CUT_BY_MEMORY = "the curve was cut by the full curve memory"
-
-
 def reason_text(result: Mapping) -> str:
     """Why a result is NOK: ``element: reason`` of each failed element, ``; ``-separated; never empty for a
     NOK result (a failed element without a reason, or a NOK without a failed element, says so)."""
@@ -87,9 +83,7 @@ def reason_text(result: Mapping) -> str:
     text = "; ".join(f"{e.get('name')}: {e.get('reason') or 'no reason recorded'}" for e in failed)
     if not text and not result.get("ok", True):
         text = NO_REASON
-    if text and memory_note(result) == "cut":
-        text = f"{CUT_BY_MEMORY}; {text}"
-    return text
+    return cut_reason(memory_note(result), text)
 
 
 def _shortest(value: float) -> float:

@@ -56,9 +56,8 @@ def value_unit(name: str) -> str:
 
 
 def shown_value(name: str, value: float) -> tuple[float, str]:
-    """A sheet result number in its display unit, as the sheets show it: lengths in mm, angles in °, errors and
-    relative deviations (``*_rel``) in %
-    (rig.analysis.units' rules); (value, unit label)."""
+    """A sheet result number in its display unit, as the sheets show it (rig.analysis.units' rules): lengths in mm,
+    angles in °, errors and relative deviations (``*_rel``) in %; (value, unit label)."""
     si = value_unit(name)
     if si == "1":
         return (100.0 * value, "%") if name.startswith(("error", "class")) or name.endswith("_rel") else (value, "")

@@ -25,12 +25,12 @@ import numpy as np
 from rig.analysis import plots
 from rig.analysis.clutch_report import clutch_section, comparison_section
 from rig.analysis.device import agreement_text
-from rig.analysis.export import CUT_BY_MEMORY, export_curves, export_results, export_series
+from rig.analysis.export import export_curves, export_results, export_series
 from rig.analysis.lab_report import lab_section
 from rig.analysis.normality import ANDERSON_P
 from rig.analysis.report_blocks import (NOK_PLOTS, Banner, Block, Figure, Heading, Link, ReportContext, Section, Table,
                                         Text, fmt)
-from rig.analysis.sets import by_program, process_values
+from rig.analysis.sets import by_program, cut_reason, memory_warning, process_values
 from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
 from rig.outputs import MARK
@@ -141,9 +141,9 @@ def _failures(ctx: ReportContext) -> tuple[list[list[Any]], int]:
         complete = _completeness(v)
         failed = v["failed"] or ([{"name": "—", "reason": "the device named no failing element"}]
                                  if not v["ok"] else [{"name": "", "reason": ""}])
-        cut = f"{CUT_BY_MEMORY}; " if v.get("memory") == "cut" and not v["ok"] else ""
         for f in failed:
-            rows.append([v["number"], f["name"], cut + (f.get("reason") or ("no reason recorded" if not v["ok"] else "")),
+            rows.append([v["number"], f["name"],
+                         cut_reason(v.get("memory", ""), f.get("reason") or ("no reason recorded" if not v["ok"] else "")),
                          complete])
     return rows, curves
 
@@ -212,12 +212,9 @@ def _warnings(ctx: ReportContext) -> list[str]:
         agreement = s.get("device_agreement") or {}
         if agreement.get("comparable") and not agreement.get("equal"):
             out.append(f"device statistics: {agreement_text(agreement)}")
-    cut = [v["number"] for v in a["verdicts"] if v.get("memory") == "cut"]
+    cut = memory_warning(a["verdicts"])
     if cut:
-        out.append(f"{len(cut)} curve(s) filled the unit's curve memory and were cut there (curve "
-                   f"{', '.join(map(str, cut[:10]))}{' …' if len(cut) > 10 else ''}): elements beyond the cut saw no "
-                   "data and their process values describe the cut curve — lower the sample rate, sample by ΔX or "
-                   "set the program's overflow to \"decimate\"")
+        out.append(cut)
     mismatches = a["events"].get("verdict_mismatch", 0)
     if mismatches:
         out.append(f"{mismatches} curve(s) whose re-evaluation on the host differs from the device's verdict "

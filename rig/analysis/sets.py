@@ -40,6 +40,27 @@ def curve_verdicts(results: Iterable[Mapping]) -> list[dict]:
     return out
 
 
+#: what a NOK reason starts with when the curve filled the unit's curve memory and was cut there
+CUT_BY_MEMORY = "the curve was cut by the full curve memory"
+
+
+def cut_reason(memory: str, reason: str) -> str:
+    """A (non-empty) reason of a curve whose ``memory`` note (:func:`memory_note`) is "cut", prefixed with
+    :data:`CUT_BY_MEMORY`; others unchanged."""
+    return f"{CUT_BY_MEMORY}; {reason}" if memory == "cut" and reason else reason
+
+
+def memory_warning(verdicts: Iterable[Mapping]) -> str | None:
+    """The warning (console and report) about curves cut by the unit's full curve memory; None without any."""
+    cut = [v["number"] for v in verdicts if v.get("memory") == "cut"]
+    if not cut:
+        return None
+    return (f"{len(cut)} curve(s) filled the unit's curve memory and were cut there (curve "
+            f"{', '.join(map(str, cut[:10]))}{' …' if len(cut) > 10 else ''}): elements beyond the cut saw no data "
+            "and their process values describe the cut curve — lower the sample rate, sample by ΔX or set the "
+            "program's overflow to \"decimate\"")
+
+
 def memory_note(result: Mapping) -> str:
     """"cut" (the curve filled the unit's memory and stops there), "thinned" (decimated to fit) or ""."""
     return "cut" if result.get("memory_full") else "thinned" if result.get("decimated") else ""

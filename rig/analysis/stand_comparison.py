@@ -54,8 +54,10 @@ class Row:
     tolerance: str = ""            # as the scene writes it; "exact" for a count without one; "" not judged
     beyond: float | None = None    # rig None: the run ended before the result, which lies above this (in unit)
 
-    def rig_text(self, digits: int = 4) -> str:
-        """The rig value (``digits`` significant), ``> bound`` for a result the run ended before, or n/a."""
+    def rig_text(self) -> str:
+        """The rig value with at least 4 significant digits and as many as the printed thesis value has (rig 100.05
+        beside thesis 100.18, not 100), ``> bound`` for a result the run ended before, or n/a."""
+        digits = max(4, len(f"{abs(self.thesis):g}".split("e")[0].replace(".", "").lstrip("0")))
         if self.rig is not None:
             return f"{self.rig:.{digits}g}"
         return f"> {self.beyond:.{digits}g}" if self.beyond is not None else "n/a"

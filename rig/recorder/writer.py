@@ -88,8 +88,9 @@ def _hex_payloads(data: np.ndarray, dlc: np.ndarray) -> np.ndarray:
     if not width:
         return np.full(n, "")
     out = np.frombuffer(data.tobytes().hex().encode("ascii"), dtype=f"S{2 * width}").astype(f"U{2 * width}")
-    for i in np.flatnonzero(dlc < width).tolist():
-        out[i] = out[i][:2 * int(dlc[i])]
+    for d in np.unique(dlc[dlc < width]).tolist():     # per payload length, not per frame: a shorter string type
+        rows = dlc == d                                 # keeps each row's first 2·d characters
+        out[rows] = out[rows].astype(f"U{2 * d}") if d else ""
     return out
 
 

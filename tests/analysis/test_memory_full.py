@@ -7,7 +7,7 @@ from pathlib import Path
 
 import cantools
 
-from rig.analysis.export import CUT_BY_MEMORY
+from rig.analysis.sets import CUT_BY_MEMORY
 from rig.cli import main
 from rig.recorder import read_recording
 

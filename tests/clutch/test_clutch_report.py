@@ -167,6 +167,9 @@ def test_every_recorded_event_kind_is_explained_in_the_report(runs):
 
 
 def test_rig_values_are_shown_as_precisely_as_the_thesis_values_beside_them():
-    from rig.analysis.clutch_report import _as_precise
-    assert _as_precise(100.05, 100.18) == "100.05"            # was "100" beside 100.18 and a -0.13 deviation
-    assert _as_precise(14.5213, 14.5) == "14.52" and _as_precise(3.0, 3) == "3"
+    from rig.analysis.stand_comparison import Row
+
+    def shown(rig: float, thesis: float) -> str:
+        return Row("q", "N*m", thesis, rig, False, "").rig_text()
+    assert shown(100.05, 100.18) == "100.05"            # was "100" beside 100.18 and a -0.13 deviation
+    assert shown(14.5213, 14.5) == "14.52" and shown(3.0, 3) == "3"
