@@ -275,6 +275,9 @@ def cmd_report(args: argparse.Namespace) -> int:
             raise
         raise RecordingError(f"{path}: truncated or corrupt recording ({'; '.join(exc.partial.problems)}); "
                              f"`rig report --partial {path}` reports what it holds") from None
+    if not rec.message_counts:
+        raise RecordingError(f"{path}: nothing to report, the recording holds no message: "
+                             + "; ".join(rec.problems or ["no message was written"]) + "; no report written")
     if not rec.complete:
         print(f"{path}: incomplete recording; " + "; ".join(losses(rec)))
     path = _report(rec, out, args.format, progress=not args.quiet, ok_plots=args.ok_plots, nok_plots=args.nok_plots)

@@ -59,6 +59,21 @@ def test_a_run_killed_halfway_reports_with_partial(tmp_path, capsys):
     assert f"Individual plots of OK curves: 0 of {oks}" in report                    # a curve without result is not OK
 
 
+@pytest.mark.parametrize("keep", [8, 3000])
+def test_partial_report_of_a_recording_cut_before_its_first_message_is_an_error(tmp_path, capsys, keep):
+    """Cut before any message (after the magic; inside the first chunk): nothing to report is said in one line,
+    exit 2, and no report directory is left behind — not an empty report that looks like a result."""
+    whole = tmp_path / "whole.mcap"
+    assert main(["-q", "run", str(SCENE), "--cycles", "1", "-o", str(whole), "--no-report"]) == 0
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(whole.read_bytes()[:keep])
+    capsys.readouterr()
+    assert main(["report", "--partial", str(cut), "-o", str(tmp_path / "report")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cut.mcap: nothing to report, the recording holds no message: file ends" in err
+    assert not (tmp_path / "report").exists()
+
+
 def test_an_interrupted_run_is_marked_and_its_report_says_so(tmp_path, monkeypatch, capsys):
     from rig.runner import host as host_module
     original = host_module.Host.poll
