@@ -160,6 +160,18 @@ def _before_root(g: Callable[[float, tuple], float], states: Callable, t_root: f
     return t_old
 
 
+def _left_zero(g: Callable[[float, tuple], float], dense: Callable, t_old: float, t_new: float,
+               b: float) -> tuple[float, float]:
+    """For an event an action left on its surface (g = 0 at ``t_old``) and found at ``b`` ≠ 0 at the step's end:
+    the last of 16 points in the step where g is on the other side of zero, and g there (the bracket of the new
+    crossing: a bounce whose whole flight fits in one step); (``t_old``, 0) if g went straight to ``b``'s side."""
+    for t in np.linspace(t_new, t_old, 17)[1:-1]:
+        v = g(float(t), dense(float(t)))
+        if v != 0.0 and (v < 0.0) != (b < 0.0):
+            return float(t), v
+    return t_old, 0.0
+
+
 def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[OdeSolver] = "DP45",
               events: Sequence[Event] | None = None, t_eval: Sequence[float] | None = None,
               y0: Sequence[float] | None = None, **options) -> Solution:
@@ -197,6 +209,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     records: list[EventRecord] = []
     nfev = nsteps = restarts = 0
     status, h_next = "finished", options.pop("first_step", None)
+    first_step = h_next                         # also the first step after an action that changed the state
+    at_zero: set[int] = set()                   # events an action left exactly on their surface (g = 0)
     bi = 0
     while True:
         exact = problem.flow(t, y, breaks[bi]) if problem.flow else None
@@ -240,6 +254,9 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 g_new = [e.fun(t_new, y_new) for e in events]
                 for i, e in enumerate(events):
                     a, b = g_old[i], g_new[i]
+                    t_from = t_old
+                    if a == 0.0 and i in at_zero and b != 0.0:   # a new crossing only if g left zero first
+                        t_from, a = _left_zero(e.fun, dense := dense or solver.dense_output(), t_old, t_new, b)
                     if e.direction:
                         if not (b < 0.0 <= a if e.direction < 0 else a <= 0.0 < b):
                             continue
@@ -254,7 +271,9 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                         dense = dense or solver.dense_output()
                         on = solver.state_at if fixed else dense
                         g_at = (lambda tt, f=e.fun, d=on: f(tt, d(tt)))
-                        if (g_at(t_old) < 0.0) == (b < 0.0):
+                        if t_from > t_old:
+                            t_root = brentq(g_at, t_from, t_new, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                        elif (g_at(t_old) < 0.0) == (b < 0.0):
                             t_root = t_old      # g jumped at a restart (RHS/mode discontinuity): past at once
                         elif runs and not fixed:  # compiled events: compiled search on the same dense output
                             t_root = solver.locate(i)
@@ -283,7 +302,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     records.append(rec)
                     changed = e.action(rec) if e.action is not None else False
                     if e.terminal or e.restart or changed is not False:
-                        cut = (t_root, changed if isinstance(changed, tuple) else rec.y, e.terminal)
+                        cut = (t_root, changed if isinstance(changed, tuple) else rec.y, e.terminal,
+                               isinstance(changed, tuple))
                         near = 4 * np.finfo(float).eps * max(1.0, abs(t_root))
                         for t2, i2, sign2 in hits[n_hit + 1:]:    # crossings at the same instant (e.g. contact
                             if t2 - t_root <= near and not events[i2].mode_dependent:   # moving flank to flank)
@@ -311,8 +331,12 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     ys.append(y)
                 reset(t, y)
                 fired = {i for tr, i, _ in hits if tr <= t and not events[i].mode_dependent} | simultaneous
-                g_old = [g_new[i] if i in fired else e.fun(t, y) if e.mode_dependent else (e.fun(t, y) or g_old[i])
-                         for i, e in enumerate(events)]
+                if cut[3]:                      # the action set a new state: every g from that state; one left on
+                    g_old = [e.fun(t, y) for e in events]      # its surface must leave zero before it can cross
+                    at_zero = {i for i, g in enumerate(g_old) if g == 0.0}
+                else:
+                    g_old = [g_new[i] if i in fired else e.fun(t, y) if e.mode_dependent else (e.fun(t, y) or g_old[i])
+                             for i, e in enumerate(events)]
                 stalled = stalled + 1 if t - t_last_cut <= STALL_SPAN * max(1.0, abs(t)) else 0
                 t_last_cut = t
                 if stalled > MAX_STALLED:
@@ -321,12 +345,13 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 break
             if events:
                 g_old = g_new
+                at_zero = set()
         nfev += solver.nfev
         nsteps += solver.nsteps
         if stiff_at is None:
             stiff_at = getattr(solver, "stiff_at", None)
-        if exact is None:
-            h_next = solver.h_last
+        if exact is None:                       # the old step size means nothing for a state an action set
+            h_next = first_step if cut is not None and cut[3] else solver.h_last
         if cut is None:
             t, y = math.nextafter(solver.t, math.inf), solver.y
             bi += 1

@@ -89,6 +89,32 @@ def test_time_breaks_and_restart_events_handle_discontinuities():
     assert s.restarts >= 1
 
 
+def _bounce_times(g: float, e: float, h0: float, t_end: float) -> list[float]:
+    """Impact times of a ball dropped from ``h0`` (m) under ``g`` (m/s²) with restitution ``e``, closed form."""
+    t, v, times = math.sqrt(2 * h0 / g), math.sqrt(2 * g * h0), []
+    while t <= t_end:
+        times.append(t)
+        v *= e
+        t += 2 * v / g
+    return times
+
+
+@pytest.mark.parametrize("method", ["DP45", "DOP853", "Rodas4"])
+@pytest.mark.parametrize("first_step", [None, 2.0])
+def test_an_action_that_resets_the_state_finds_every_later_crossing(method, first_step):
+    """A bouncing ball: the action leaves the state on the event surface (y = 0) moving away. Every bounce is
+    found, also when a whole flight fits in one step (a first step of 2 s on this polynomial problem); before the
+    fix the step size kept from before the bounce let the ball fall through the ground after the first one."""
+    g, e = 9.81, 0.8
+    ground = Event(lambda t, y: y[0], "ground", direction=-1, action=lambda r: (0.0, -e * r.y[1]))
+    s = integrate(Problem(lambda t, y: (y[1], -g), (1.0, 0.0), events=[ground]), (0, 3), method, rtol=1e-9,
+                  atol=1e-12, first_step=first_step)
+    expected = _bounce_times(g, e, 1.0, 3.0)
+    assert s.status == "finished" and len(expected) == 6
+    np.testing.assert_allclose(s.t_events["ground"], expected, rtol=0, atol=1e-9)
+    assert 0.0 <= s.y_final[0] < 0.2
+
+
 def test_divergence_names_time_and_state():
     with pytest.raises(SolverDivergence, match=r"t = (0\.99|1\.0)"):
         integrate(Problem(lambda t, y: (y[0] ** 2,), (1.0,)), (0, 2), rtol=1e-6, atol=1e-9)
