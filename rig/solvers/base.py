@@ -74,6 +74,7 @@ class StiffnessMonitor:
         self._y: np.ndarray | None = None            # growth test: last state, current window, growing windows
         self._window = [0, 0.0, 0.0, 0]               # steps, max increment, previous window's max, growing
         self.watch = None                              # amplification test (fixed-step methods)
+        self.origin: tuple | None = None               # the run's first (t, y), for the divergence report
         self._steps, self._next_check, self._last_check = 0, self.DENSE, 0
         self._hits = [0, 0, 0.0]                       # positive and negative checks, summed spurious log-growth
         self._slow = 0.0                               # net spurious log-growth however small per step (see below)
@@ -263,7 +264,12 @@ class OdeSolver:
             raise
         except (OverflowError, ZeroDivisionError) as exc:
             self.status = "failed"
-            raise SolverDivergence(f"arithmetic error in the right-hand side ({exc})", self.t, self.y) from None
+            h = getattr(self, "h_abs", math.nan)
+            if isinstance(exc, OverflowError) and hasattr(self, "diverged"):   # the state grew past the floats
+                raise self.diverged(self.t, self.y, h, (self.t, self.y),
+                                    f"the right-hand side overflowed ({exc}) in the step") from None
+            raise SolverDivergence(f"{getattr(self, 'label', '') or type(self).__name__}: arithmetic error in the "
+                                   f"right-hand side ({exc}) in a step of h = {h:.3g} s", self.t, self.y) from None
         self.nsteps += 1
         if self.t >= self.t_bound:
             self.status = "finished"

@@ -59,6 +59,7 @@ class Stepper(OdeSolver):
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, stiffness: str, compiled: bool):
         super().__init__(fun, t0, y0, t_bound)
         self.monitor = StiffnessMonitor(self.label, self.limit, stiffness, self.fixed)
+        self.monitor.origin = (self.t, self.y)
         if not math.isfinite(self.limit):             # implicit: stable on any stiff decay, nothing to report
             self.monitor.policy = "ignore"
         self.f = tuple(fun(self.t, self.y))
@@ -120,18 +121,29 @@ class Stepper(OdeSolver):
             self.monitor.last = hl
         raise self.diverged(t + h, y_bad, h, (t, y))
 
-    def diverged(self, t: float, y: Sequence[float], h: float, last: tuple | None = None) -> SolverDivergence:
-        """The error for a state that became non-finite after a step of size h: names the method, the mode the
-        step amplified at the ``last`` finite (t, y) (fixed-step methods) or the latest h·|λ| against the
-        stability limit, and the fix."""
+    def diverged(self, t: float, y: Sequence[float], h: float, last: tuple | None = None,
+                 what: str = "non-finite state after a step") -> SolverDivergence:
+        """The error for a state that became non-finite (or a right-hand side that overflowed: ``what``) after a
+        step of size h: names the method, the mode the step amplified (fixed-step methods: at the run's first
+        state if it amplifies there — a nonlinear model linearised at a state near overflow would ask for a
+        meaningless step —, else at the ``last`` finite (t, y)) or the latest h·|λ| against the stability limit,
+        and the fix."""
         hl, lim = self.monitor.last, self.limit
         watch = self.monitor.watch
-        got = watch.check(last[0], last[1], h) if watch is not None and last is not None else None
-        if got is not None and got[0] > 1.0 and got[0] > got[1] * (1.0 + self.monitor.EXCESS):
+        got = None
+        for point in (self.monitor.origin, last) if watch is not None else ():
+            if point is not None:
+                got = watch.check(point[0], point[1], h)
+                if got is not None and got[0] > 1.0 and got[0] > got[1] * (1.0 + self.monitor.EXCESS):
+                    break
+                got = None
+        if got is not None:
             rho, lam = got[0], got[2]
-            cause = (f"{self.label} unstable: the step amplified the mode lambda = {lam.real:.4g}{lam.imag:+.4g}j 1/s "
-                     f"by {rho:.4g} per step (h*|lambda| = {h * abs(lam):.3g}) - reduce h below "
-                     f"{watch.largest_stable_step(last[0], last[1], h):.3g} s or use the implicit method Rodas4")
+            where = "from the run's start, " if point is self.monitor.origin else ""
+            cause = (f"{self.label} unstable {where}at t = {point[0]:.6g} s: the step amplified the mode lambda = "
+                     f"{lam.real:.4g}{lam.imag:+.4g}j 1/s by {rho:.4g} per step (h*|lambda| = {h * abs(lam):.3g}) - "
+                     f"reduce h below {watch.largest_stable_step(point[0], point[1], h):.3g} s or use the implicit "
+                     f"method Rodas4")
             hl = math.inf                    # an unstable step: reported as such
         elif hl > lim:
             cause = (f"{self.label} unstable: h*|lambda| = {hl:.3g} > {lim:g} (its stability limit on the negative "
@@ -144,7 +156,7 @@ class Stepper(OdeSolver):
             cause = "the model itself diverges"
         why = self.fun.diagnose() if isinstance(self.fun, JitRhs) else None
         kind = StiffnessError if hl > lim else SolverDivergence      # unstable step: the stiffness report's class
-        return kind(f"{self.label} diverged: non-finite state after a step of h = {h:.3g} s; {cause}"
+        return kind(f"{self.label} diverged: {what} of h = {h:.3g} s; {cause}"
                     + (f" ({why})" if why else ""), t, y)
 
     # ---- compiled runs -----------------------------------------------------------------------------------
