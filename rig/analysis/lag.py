@@ -33,8 +33,9 @@ def estimate_lag(s_ref: np.ndarray, ref: np.ndarray, s: np.ndarray, meas: np.nda
     """Lag of ``meas(s)`` behind ``ref(s_ref)`` (units of s: seconds or radians).
 
     Both signals are resampled on a common uniform grid (finest of the two steps) over their common
-    range; the integer-step peak of the cross-correlation (|lag| ≤ ``max_lag``, default half the
-    range) is rescanned by RMS over nearby steps on that grid, then refined below one step by minimising
+    range; the integer step of least mean square over the overlap (|lag| ≤ ``max_lag``, default half the
+    range; from sums and one FFT correlation) is rescanned by RMS over nearby steps on that grid, then refined
+    below one step by minimising
     the RMS of ``meas(s) − ref(s − lag)`` with a cubic spline of the reference (on a grid of a quarter step,
     then the parabola through the lowest point: the mean square is smooth in the lag).
     """
@@ -54,14 +55,13 @@ def _lag(s_ref: np.ndarray, ref: np.ndarray, s: np.ndarray, meas: np.ndarray, ma
     grid = np.arange(lo, hi, step)
     a = np.interp(grid, s, meas)
     b = np.interp(grid, s_ref, ref)
-    k = np.arange(1 - b.size, a.size)                 # lags of the full cross-correlation, in steps
-    c = _correlate(a - a.mean(), b - b.mean())
+    k, msd = _grid_msd_all(a, b)
     limit = (hi - lo) / 2 if max_lag is None else max_lag
     ok = np.abs(k * step) <= limit
-    k0 = int(k[ok][np.argmax(c[ok])])
+    k0 = int(k[ok][np.argmin(msd[ok])])
 
-    # the finite-window correlation peak can sit a few steps off: rescan nearby steps by the RMS of a(i) − b(i − k)
-    # on the grid, then refine with the spline
+    # the mean square from sums carries rounding: rescan nearby steps by the RMS of a(i) − b(i − k) on the grid,
+    # then refine with the spline
     ks = np.arange(k0 - _RESCAN, k0 + _RESCAN + 1)
     k1 = int(ks[np.argmin([_grid_rms(a, b, int(j)) for j in ks])])
     # below one step: the RMS on a grid of step/_FINE over [k1 − 1, k1 + 1] steps, then the vertex of the
@@ -82,6 +82,20 @@ def _correlate(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     size = fft.next_fast_len(n, real=True)
     c = fft.irfft(fft.rfft(a, size) * np.conj(fft.rfft(b, size)), size)
     return np.concatenate((c[size - b.size + 1:], c[:a.size]))
+
+
+def _grid_msd_all(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every lag k = −(len(b) − 1) … len(a) − 1 (steps) and the mean square of a[i] − b[i − k] over the indices
+    where both exist: Σa² + Σb² − 2·Σa·b over each overlap, the last term one FFT correlation (O(n log n)). The
+    minimum, not the correlation peak: the peak of a finite window of a ramp (the stroke) sits near zero lag
+    whatever the delay, which held the displacement's lag at the rescan's edge."""
+    k = np.arange(1 - b.size, a.size)
+    ca, cb = np.concatenate(([0.0], np.cumsum(a * a))), np.concatenate(([0.0], np.cumsum(b * b)))
+    start = np.maximum(k, 0)                           # overlap in a: [start, stop), in b: [start − k, stop − k)
+    stop = np.minimum(a.size, b.size + k)
+    n = stop - start
+    sq = ca[stop] - ca[start] + cb[stop - k] - cb[start - k] - 2.0 * _correlate(a, b)
+    return k, np.maximum(sq, 0.0) / n
 
 
 def _grid_rms(a: np.ndarray, b: np.ndarray, k: int) -> float:
