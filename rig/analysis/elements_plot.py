@@ -70,11 +70,24 @@ def _region(ax: Axes, e: Mapping, corners: Sequence[tuple[float, float]], color:
         _label(ax, style.label(e), tuple(pts[3]), color, style)
         return
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
-    right = pts[3, 0] > (x0 + x1) / 2             # a region on the right: label from its top-right corner
-    corner = pts[2] if right else pts[3]
-    inside = corner[1] > y1 - 0.12 * (y1 - y0)    # no room above the region: label inside it
-    _label(ax, style.label(e), tuple(corner), color, style, xytext=(-4 if right else 4, -4 if inside else 4),
-           ha="right" if right else "left", va="top" if inside else "bottom")
+    right = pts[3, 0] > (x0 + x1) / 2             # a region on the right: label aligned with its right edge
+    band = 0.08 * (y1 - y0)                       # about a label's height
+    top, bottom = max(pts[2, 1], pts[3, 1]), min(pts[0, 1], pts[1, 1])
+    crowd = {side: _points_in(ax, pts[:, 0].min(), pts[:, 0].max(), lo, lo + band) if inside else np.inf
+             for side, lo, inside in (("above", top, top + band < y1), ("below", bottom - band, bottom - band > y0))}
+    above = crowd["above"] <= crowd["below"]      # outside the region, never over it: the side with less curve
+    corner = (pts[2] if right else pts[3]) if above else (pts[1] if right else pts[0])
+    _label(ax, style.label(e), tuple(corner), color, style, xytext=(0, 3 if above else -3),
+           ha="right" if right else "left", va="bottom" if above else "top")
+
+
+def _points_in(ax: Axes, xa: float, xb: float, ya: float, yb: float) -> int:
+    """How many points of the lines drawn so far (the curves) lie in the box [xa, xb] × [ya, yb]."""
+    count = 0
+    for line in ax.get_lines():
+        x, y = (np.asarray(v, dtype=float) for v in line.get_data())
+        count += int(np.count_nonzero((x >= xa) & (x <= xb) & (y >= ya) & (y <= yb)))
+    return count
 
 
 def _window(ax: Axes, e: Mapping, style: Style) -> None:
@@ -101,8 +114,14 @@ def _threshold(ax: Axes, e: Mapping, style: Style) -> None:
         where, align = (value, y1), "left"
     elif axis == "y":
         value *= style.sy
-        x0, x1 = (lim if v is None else v * style.sx for v, lim in zip((lo, hi), ax.get_xlim()))
+        left, right = ax.get_xlim()
+        x0, x1 = (lim if v is None else v * style.sx for v, lim in zip((lo, hi), (left, right)))
         ax.plot([x0, x1], [value, value], **line)
+        if x0 - left > 0.2 * (right - left):      # a line from inside the axes: label before its start, off the
+            text = f"{e.get('name', 'threshold')} ({e.get('direction', '')})" if style.failed is None \
+                else style.label(e)                # windows that usually sit at the line's end
+            _label(ax, text, (x0, value), color, style, xytext=(-3, 0), ha="right", va="center")
+            return
         where, align = (x1, value), "right"       # label ends at the line's end: stays inside the axes
     else:
         raise ValueError(f"axis must be 'x' or 'y', got {axis!r}")

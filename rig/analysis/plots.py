@@ -227,9 +227,12 @@ def signals_over(curves: Sequence[CurveRecord], path: Path, title: str, nok: set
 
 
 def theory_residuals(curves: Sequence[CurveRecord], path: Path, title: str, nok: set[int] = frozenset(),
-                     units: DisplayUnits | None = None) -> Path | None:
+                     units: DisplayUnits | None = None,
+                     lags: Mapping[tuple[int, str], float] | None = None) -> Path | None:
     """Measurement minus theory of X and Y for every curve over the time since its start (the theory interpolated
-    to the measured samples; NOK red), with the mean over the curves; None when no curve has a theory."""
+    to the measured samples, delayed by the curve's ``lags[(number, channel)]`` (s) where given; NOK red), with the
+    mean over the curves; None when no curve has a theory."""
+    lags = lags or {}
     units = units or DisplayUnits()
     channels = [ch for ch in ("x", "y") if any(ch in c.theory for c in curves)]
     if not channels:
@@ -242,12 +245,18 @@ def theory_residuals(curves: Sequence[CurveRecord], path: Path, title: str, nok:
         lines = {}
         for c in with_theory:
             th_t = np.asarray(c.theory.get("t", c.t), dtype=float)
-            res = u(np.asarray(getattr(c, ch), float) - np.interp(c.t, th_t, np.asarray(c.theory[ch], float)))
+            shift = lags.get((c.number, ch), 0.0)
+            at = c.t - shift                     # no theory before its first or after its last sample: no residual
+            res = u(np.where((at >= th_t[0]) & (at <= th_t[-1]),
+                             np.asarray(getattr(c, ch), float) - np.interp(at, th_t, np.asarray(c.theory[ch], float)),
+                             np.nan))
             lines[c.number] = (ut(c.t - c.t[0]), res)
         _plot_groups(ax, with_theory, nok, lambda c: lines[c.number])
         n = min(x.size for x, _ in lines.values())          # the mean over the samples every curve has
-        ax.plot(next(iter(lines.values()))[0][:n], np.mean([r[:n] for _, r in lines.values()], axis=0), color="k",
-                lw=1.0, label="mean over the curves")
+        stack = np.array([r[:n] for _, r in lines.values()])
+        counts = np.sum(np.isfinite(stack), axis=0)
+        mean = np.where(counts > 0, np.nansum(stack, axis=0) / np.maximum(counts, 1), np.nan)
+        ax.plot(next(iter(lines.values()))[0][:n], mean, color="k", lw=1.0, label="mean over the curves")
         ax.axhline(0.0, color="0.5", lw=0.6)
         ax.set_ylabel(u.axis(f"{ch.upper()} − theory"), fontsize=9)
         _ticks(ax, 8, 5)

@@ -241,9 +241,12 @@ def _failure_marks(ctx: ReportContext, curve: Any) -> list[tuple[float, float]]:
 
 
 def _short_rule(reason: str) -> str:
-    """The rule part of a reason (``"exit top"`` of ``"exit top: …"``), for the label on the plot."""
+    """The rule part of a reason (``"exit top"`` of ``"exit top: …"``; a threshold's "never crossed", an envelope's
+    "outside"), for the label on the plot."""
     head = reason.split(":", 1)[0]
-    return head if len(head) <= 24 and head != reason else "failed"
+    if len(head) <= 24 and head != reason:
+        return head
+    return "never crossed" if "never crosses" in reason else "outside" if " lies " in reason else "failed"
 
 
 def curve_figure(ctx: ReportContext, curve: Any, verdict_row: dict | None) -> Figure:
@@ -416,12 +419,15 @@ def theory(ctx: ReportContext) -> list[Block]:
     if errors:
         blocks.append(Text(f"Not compared for {len(errors)} curve/signal pair(s): {errors[0]['error']}", "note"))
     curves = [c for c in ctx.recording.curves if c.program == program]
-    path = plots.theory_residuals(curves, ctx.figure_path("residuals"), f"program {program}: measurement − theory",
-                                  ctx.nok, units)
+    lags = {(r["curve"], r["signal"]): r["lag_time"] for r in ok}
+    path = plots.theory_residuals(curves, ctx.figure_path("residuals"),
+                                  f"program {program}: measurement − theory, each curve's lag removed", ctx.nok, units,
+                                  lags)
     if path is not None:
-        blocks.append(ctx.figure(path, "Measurement minus theory of every curve at its samples (no lag removed; "
-                                       "NOK red), and their mean (black): where and how far the measurement departs "
-                                       "from the model"))
+        blocks.append(ctx.figure(path, "Measurement minus theory of every curve at its samples, the theory delayed by "
+                                       "the curve's lag from the table (the transducers' filters delay the measurement; "
+                                       "their delay would otherwise dominate), NOK red, and their mean (black): where "
+                                       "and how far the measurement departs from the model"))
     return blocks
 
 
