@@ -263,10 +263,12 @@ def _served(path: Path) -> dict[str, Any]:
 def cmd_report(args: argparse.Namespace) -> int:
     from rig.recorder import RecordingError, read_recording
     from rig.recorder.completeness import losses
+    from rig.recorder.reader import require_recording
     path = Path(args.recording)
     out = Path(args.output) if args.output else path.with_suffix("")
     if out.resolve() == path.resolve():
         raise UsageError(f"cannot write the report to {out}: that is the recording; give -o DIRECTORY")
+    require_recording(path)
     writable_dir(out, "report")
     try:
         rec = read_recording(path, allow_partial=args.partial)
@@ -288,8 +290,10 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_export_can(args: argparse.Namespace) -> int:
     from datetime import datetime, timezone
     from rig.recorder.export_can import export_can
+    from rig.recorder.reader import require_recording
     if Path(args.output).resolve() == Path(args.recording).resolve():
         raise UsageError(f"cannot write the CAN trace to {args.output}: that is the recording")
+    require_recording(args.recording)
     output = Path(args.output)
     writable_file(output, "CAN trace", TRACE_MAGIC.get(output.suffix.lower()))
     e = export_can(args.recording, file_parent(output))

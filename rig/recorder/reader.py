@@ -222,6 +222,17 @@ def _unreadable(path: Path, exc: OSError) -> RecordingError:
     return RecordingError(f"cannot read recording {path}: {(exc.strerror or str(exc)).lower()}")
 
 
+def require_recording(path: str | Path) -> None:
+    """A :class:`RecordingError` in plain words unless ``path`` can be opened and starts as an MCAP file: checked
+    before an output is, so that a missing recording is named as such, not the output in the way."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            _front(path, f)
+    except OSError as exc:
+        raise _unreadable(path, exc) from None
+
+
 def require_whole_file(path: str | Path, need: str) -> None:
     """A :class:`RecordingError` in plain words unless ``path`` is a whole MCAP file (its magic at both ends):
     missing, empty, not MCAP, or cut short (a killed run or a cut copy) — ``need``: what the caller needs it for."""

@@ -156,6 +156,17 @@ def test_a_missing_recording_is_a_one_line_error(tmp_path, capsys, args):
     assert err.count("\n") == 1 and "missing.mcap" in err
 
 
+@pytest.mark.parametrize("args", [["report", "missing.mcap"], ["export-can", "missing.mcap", "-o", "missing/f"]])
+def test_a_missing_recording_is_named_before_an_output_in_the_way(tmp_path, capsys, monkeypatch, args):
+    """The default report directory (the recording's name) and the trace both hold a file rig did not write: the
+    error is about the missing recording, the real problem, not about the output."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "missing").mkdir()
+    (tmp_path / "missing" / "f").write_text("not rig's")
+    assert main(args) == 2
+    assert capsys.readouterr().err == "rig: error: cannot read recording missing.mcap: no such file or directory\n"
+
+
 def test_the_console_script_takes_ctrl_c_before_it_imports_the_command_line():
     """The console script's module sets its Ctrl-C handler before rig.cli and its imports load: an interrupt while
     they load is one line and status 130 (checked in a child interpreter, the interrupt raised from the import of
