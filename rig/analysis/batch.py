@@ -5,9 +5,9 @@ Recordings are grouped into tasks (about 8 per worker); each is read with :func:
 :func:`rig.analysis.analyse` on a worker; only a small summary comes back (verdict counts, event counts and,
 per program and process value, the moments of every curve's value in display units; for a stand or lab
 recording its console lines and its numeric key results as values ``stand.<name>`` (dynamic clutch stand) or
-``lab.<sheet>.<name>`` (lab sheets)). The combined
-statistics over all recordings merge those moments (:class:`rig.analysis.streaming.Moments`, in the order
-the recordings were given).
+``lab.<sheet>.<name>`` (lab sheets)). The combined statistics merge those moments
+(:class:`rig.analysis.streaming.Moments`, in the order the recordings were given) per scene and model level:
+a start-up and a shock test, or a level-1 and a level-2 run of the machine, are not one population.
 """
 from __future__ import annotations
 
@@ -47,6 +47,12 @@ class RecordingSummary:
     events: dict[str, int] = field(default_factory=dict)
     stand: list[str] = field(default_factory=list)
     error: str = ""
+    level: str = ""
+
+    @property
+    def group(self) -> str:
+        """The population its values belong to: scene and model level (``pin_insertion L1``)."""
+        return f"{self.scene or 'unknown scene'}" + (f" L{self.level}" if self.level not in ("", "null") else "")
 
 
 def expand(patterns: Sequence[str]) -> list[Path]:
@@ -97,7 +103,7 @@ def summarise(path: Path) -> RecordingSummary:
     meta = rec.metadata.get("rig", {})
     return RecordingSummary(str(path), str(meta.get("scene", "")), str(meta.get("plant", "")), rec.complete,
                             len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]),
-                            summary.lines if summary is not None else [])
+                            summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")))
 
 
 def summarise_all(paths: list[Path]) -> list[RecordingSummary]:
@@ -107,23 +113,26 @@ def summarise_all(paths: list[Path]) -> list[RecordingSummary]:
 
 @dataclass(frozen=True)
 class BatchResult:
-    """Every recording's summary (in the order given) and the process values merged over all of them."""
+    """Every recording's summary (in the order given) and the process values merged per population
+    (:attr:`RecordingSummary.group`): ``combined[(group, value)] = (Moments, unit)``."""
 
     recordings: list[RecordingSummary]
-    combined: dict[str, tuple[Moments, str]]
+    combined: dict[tuple[str, str], tuple[Moments, str]]
 
 
 def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
-    """:func:`summarise` every path on ``executor``; merge the process values in path order (units must
-    agree)."""
+    """:func:`summarise` every path on ``executor``; merge the process values per scene and level in path
+    order (units must agree within one)."""
     rows = [row for part in executor.map(summarise_all, batches(list(paths), executor.workers)) for row in part]
-    combined: dict[str, tuple[Moments, str]] = {}
+    combined: dict[tuple[str, str], tuple[Moments, str]] = {}
     for row in rows:
-        for key, (m, unit) in row.values.items():
+        for name, (m, unit) in row.values.items():
+            key = (row.group, name)
             if key not in combined:
                 combined[key] = (m, unit)
             elif combined[key][1] != unit:
-                raise ValueError(f"{row.path}: {key} in {unit!r}, earlier recordings in {combined[key][1]!r}")
+                raise ValueError(f"{row.path}: {name} in {unit!r}, earlier recordings of {row.group} in "
+                                 f"{combined[key][1]!r}")
             else:
                 combined[key] = (combined[key][0].merge(m), unit)
     return BatchResult(rows, combined)
@@ -134,20 +143,20 @@ def _stats(m: Moments) -> tuple:
 
 
 def write_table(result: BatchResult, path: Path) -> Path:
-    """CSV, one row per recording: path, scene, plant, complete, curves, OK, NOK, error, a stand's or lab's
+    """CSV, one row per recording: path, scene, level, plant, complete, curves, OK, NOK, error, a stand's or lab's
     summary lines (joined by " | "), then n/mean/std/min/max of every process value (and stand result) any
-    recording has (display units, in the header)."""
-    keys = sorted({k for r in result.recordings for k in r.values})
-    units = {k: u for k, (_, u) in result.combined.items()}
+    recording has (display units, in the header; a value shown in two units gets a column group per unit)."""
+    keys = sorted({(k, u) for r in result.recordings for k, (_, u) in r.values.items()})
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         out = csv.writer(f)
-        out.writerow(["recording", "scene", "plant", "complete", "curves", "ok", "nok", "error", "stand"]
-                     + [f"{k} {s}" + (f" [{units[k]}]" if units.get(k) and s != "n" else "") for k in keys for s in STATS])
+        out.writerow(["recording", "scene", "level", "plant", "complete", "curves", "ok", "nok", "error", "stand"]
+                     + [f"{k} {s}" + (f" [{u}]" if u and s != "n" else "") for k, u in keys for s in STATS])
         for r in result.recordings:
-            out.writerow([r.path, r.scene, r.plant, r.complete, r.curves, r.ok, r.nok, r.error,
+            out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.curves, r.ok, r.nok, r.error,
                           " | ".join(line.strip() for line in r.stand)]
-                         + [x for k in keys for x in (_stats(r.values[k][0]) if k in r.values else [""] * 5)])
+                         + [x for k, u in keys
+                            for x in (_stats(r.values[k][0]) if k in r.values and r.values[k][1] == u else [""] * 5)])
     return path
 
 
@@ -157,19 +166,29 @@ def report_lines(result: BatchResult) -> list[str]:
     recs = result.recordings
     read = [r for r in recs if not r.error]
     curves, nok = sum(r.curves for r in read), sum(r.nok for r in read)
+    groups = sorted({r.group for r in read})
     lines = [f"# Batch analysis of {len(recs)} recordings", "",
              f"{len(read)} read, {len(recs) - len(read)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
-             + (f" ({100 * nok / curves:.2f} %)" if curves else ""), ""]
+             + (f" ({100 * nok / curves:.2f} %)" if curves else "")
+             + (f"; {len(groups)} scenes (scene and model level), each its own population" if len(groups) > 1 else ""),
+             ""]
+    if len(groups) > 1:
+        lines += ["| scene | recordings | curves | OK | NOK |", "|---|---|---|---|---|"]
+        for g in groups:
+            mine = [r for r in read if r.group == g]
+            c, bad = sum(r.curves for r in mine), sum(r.nok for r in mine)
+            lines.append(f"| {g} | {len(mine)} | {c} | {c - bad} | {bad} |")
+        lines.append("")
     if result.combined:
         kinds = [what for prefix, what in (("stand.", "stand"), ("lab.", "lab"))
-                 if any(key.startswith(prefix) for key in result.combined)]
-        lines += ["## Process values" + (f" and {' and '.join(kinds)} results" if kinds else "") + " over all recordings",
-                  "",
-                  "| value | unit | n | mean | σ | min | max |", "|---|---|---|---|---|---|---|"]
-        for key, (m, unit) in sorted(result.combined.items()):
+                 if any(name.startswith(prefix) for _, name in result.combined)]
+        lines += ["## Process values" + (f" and {' and '.join(kinds)} results" if kinds else "")
+                  + " per scene (over all its recordings)", "",
+                  "| scene | value | unit | n | mean | σ | min | max |", "|---|---|---|---|---|---|---|---|"]
+        for (group, name), (m, unit) in sorted(result.combined.items()):
             n, mean, std, lo, hi = _stats(m)
-            lines.append(f"| {key} | {unit} | {n} | {mean:.6g} | {std if std == '' else f'{std:.4g}'} | {lo:.6g} | "
-                         f"{hi:.6g} |")
+            lines.append(f"| {group} | {name} | {unit} | {n} | {mean:.6g} | {std if std == '' else f'{std:.4g}'} | "
+                         f"{lo:.6g} | {hi:.6g} |")
         lines.append("")
     stands = [r for r in read if r.stand]
     if stands:

@@ -36,12 +36,12 @@ def test_combined_statistics_are_those_of_all_curves(recordings, dask_scheduler)
         dask = analyse_batch(paths, ex)
     every = [r for p in paths for r in read_recording(p).results]
     x_max = process_values(every)["x_max"] * 1e3                    # display unit mm
-    m, unit = serial.combined["p1.x_max"]
+    m, unit = serial.combined[("pin_insertion L1", "p1.x_max")]
     assert unit == "mm" and m.n == 7 == x_max.size
     assert float(m.mean[0]) == pytest.approx(x_max.mean(), rel=1e-12)
     assert float(m.std(1)[0]) == pytest.approx(x_max.std(ddof=1), rel=1e-9)
     assert float(m.maximum[0]) == x_max.max()
-    d, _ = dask.combined["p1.x_max"]
+    d, _ = dask.combined[("pin_insertion L1", "p1.x_max")]
     assert (d.n, float(d.mean[0]), float(d.m2[0])) == (m.n, float(m.mean[0]), float(m.m2[0]))
     assert [(r.path, r.curves, r.ok, r.nok) for r in serial.recordings] == [(r.path, r.curves, r.ok, r.nok)
                                                                             for r in dask.recordings]
@@ -59,3 +59,27 @@ def test_rig_analyse_writes_table_and_report_and_names_unreadable_files(recordin
     assert "3 recordings" in report and "1 unreadable; 5 curves" in report and "cut.mcap" in report
     assert main(["analyse", str(tmp_path / "nothing*.mcap")]) == 2
     assert "no recording matches" in capsys.readouterr().err
+
+
+def test_recordings_of_different_scenes_or_levels_are_not_one_population(recordings, tmp_path, capsys):
+    """The same machine at level 0 and at level 1 (or a start-up and a shock test) are two populations: their values
+    are combined per scene and level, and the report says so — not one mean over both."""
+    other = tmp_path / "l0.mcap"
+    assert main(["-q", "run", "--no-report", "--cycles", "2", "--fidelity", "0", "-o", str(other)]) == 0
+    paths = [recordings / "run3.mcap", other]
+    with make_executor("serial") as ex:
+        result = analyse_batch(paths, ex)
+    assert [r.group for r in result.recordings] == ["pin_insertion L1", "pin_insertion L0"]
+    for group, path in (("pin_insertion L1", paths[0]), ("pin_insertion L0", paths[1])):
+        m, unit = result.combined[(group, "p1.x_max")]
+        x_max = process_values(read_recording(path).results)["x_max"] * 1e3
+        assert unit == "mm" and m.n == x_max.size and float(m.mean[0]) == pytest.approx(x_max.mean(), rel=1e-12)
+    out = tmp_path / "an"
+    capsys.readouterr()
+    assert main(["-q", "analyse", *map(str, paths), "-o", str(out)]) == 0
+    report = (out / "report.md").read_text()
+    assert "2 scenes (scene and model level), each its own population" in report
+    assert "| pin_insertion L0 | 1 | 2 | 2 | 0 |" in report and "| pin_insertion L1 | 1 | 3 | 3 | 0 |" in report
+    assert "| pin_insertion L0 | p1.x_max | mm | 2 |" in report and "| pin_insertion L1 | p1.x_max | mm | 3 |" in report
+    rows = list(csv.DictReader((out / "recordings.csv").open()))
+    assert [r["level"] for r in rows] == ["1", "0"]
