@@ -52,6 +52,26 @@ def test_demo_scene_varies_and_is_deterministic_for_its_seed():
     assert np.ptp(_per_cycle(nominal, "s", np.max)) < 1e-12 and np.ptp(_per_cycle(nominal, "F_rod", np.min)) < 1e-9
 
 
+def test_a_chunk_spanning_several_cycles_with_events_in_its_first_is_the_same_and_memory_stays_bounded():
+    """At 1000 rpm a 100 ms chunk spans 2-3 revolutions and the flank switches of its first are refined after its
+    last was drawn: this stopped the run with "cycle 1 was drawn and forgotten". The draws and events are those of
+    small chunks, and the plant keeps only the cycles of the latest chunk (and the one before)."""
+    def fast() -> CamBarPlant:
+        scene = load_scene(SCENE)
+        scene.data = copy.deepcopy(scene.data)
+        scene.data["speed"]["speed"] = "1000 rpm"
+        return CamBarPlant.from_scene(scene)
+    t = np.arange(1, 12001) * 1e-4                               # 1.2 s: 20 revolutions
+    a, b = fast(), fast()
+    big = [a.advance(c) for c in np.array_split(t, 12)]         # 100 ms chunks: up to 3 cycles each
+    small = [b.advance(c) for c in np.array_split(t, 240)]      # 5 ms chunks
+    assert sum(e.kind == "flank_switch" for e in a.events) >= 20
+    assert [(e.kind, e.time) for e in a.events] == [(e.kind, e.time) for e in b.events]
+    for key in ("s", "F_rod", "R23"):
+        np.testing.assert_array_equal(np.concatenate([p[key] for p in big]), np.concatenate([p[key] for p in small]))
+    assert len(a.cycles._mechs) <= 4 and len(a.cycles._drawn) <= 4
+
+
 def test_each_cycle_equals_the_mechanism_with_its_drawn_deviations():
     variation = {"F_c": "3 N", "sensor_preload": "1 N", "L3": "0.05 mm", "clearance_lambda": "60 / mm"}
     out = _plant(variation).advance(T)

@@ -49,8 +49,12 @@ class Level2Timeline(Timeline):
         if self.mech.cam_drive is None:
             phi = self.speed.drive(t).phi
             cycle = np.floor(phi / tau).astype(int) if self.cycles is not None else np.zeros(t.size, int)
+            if self.cycles is not None and t.size:
+                self.cycles.forget_before(int(cycle[0]) - 1)
             parts = [self._integrate(t[cycle == c], int(c))[0] for c in np.unique(cycle)]
         else:
+            if self.cycles is not None:
+                self.cycles.forget_before(self._cycle - 1)
             parts = self._driven(t)
         if not t.size:
             return self._model(min(self._models, default=0)).signals(t, np.zeros((2, 0)))

@@ -68,6 +68,7 @@ class Timeline:
             out = self._truth(mech, t, dr.phi, dr.omega, dr.alpha)
         else:  # one cycle (cam revolution) at a time, each with its own deviations
             cycle = np.floor(dr.phi / tau).astype(int)
+            self.cycles.forget_before(int(cycle[0]) - 1)
             parts = []
             for c in np.unique(cycle):
                 i = cycle == c

@@ -115,9 +115,15 @@ class CyclePlant:
         while self._draws <= i:
             self._drawn[self._draws] = self.variation.draw(self.rng, self.nominal.clearance)
             self._draws += 1
-        # cycles advance monotonically: keep the previous one (events refined across a cycle boundary)
-        self._drawn = {k: d for k, d in self._drawn.items() if k >= i - 1}
         return self._drawn[i]
+
+    def forget_before(self, cycle: int) -> None:
+        """Drop the draws and mechanisms of the cycles before ``cycle`` (the timeline calls it with the cycle
+        before each chunk's first: a chunk's events are refined in any of the cycles it spans, and in the one its
+        previous sample fell in, so that memory stays bounded whatever the speed and the chunk)."""
+        if self._first is not None:
+            self._drawn = {k: d for k, d in self._drawn.items() if k >= cycle - self._first}
+        self._mechs = {c: m for c, m in self._mechs.items() if c >= cycle}
 
     def mechanism(self, cycle: int) -> "PinInsertionMechanism":
         """A copy of the nominal mechanism with the cycle's load parameters (the nominal one if none vary); at
@@ -131,8 +137,7 @@ class CyclePlant:
                 mech = replace(self.nominal, **values) if values else self.nominal
             except ValueError as exc:
                 raise ValueError(f"variation: cycle {cycle} drew an invalid parameter set: {exc}") from None
-            # cycles advance monotonically; keep the previous one for events refined across a cycle boundary
-            self._mechs = {c: m for c, m in self._mechs.items() if c >= cycle - 1} | {cycle: mech}
+            self._mechs[cycle] = mech
         return self._mechs[cycle]
 
     def stroke_deviation(self, cycle: int, phi: np.ndarray,
