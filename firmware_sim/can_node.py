@@ -305,9 +305,10 @@ class CanNode:
         """Queue live pairs sampled at uniformly spaced times ``t`` (s); X in m, Y in N.
 
         The chunk gets at most ``live_share`` of its bus time, and no more than the queued transfer and
-        status frames leave free in it (curves first). It is decimated by the smallest integer factor that
-        fits; returns that factor (0: nothing fits, the chunk is dropped). Pairs not sent are counted in
-        :attr:`live_dropped`.
+        status frames leave free in it (curves first). Only pairs sampled on the ``Tick`` grid (100 µs) are sent,
+        so that every stamp is exact (at 20 kHz every other one), decimated by the smallest integer factor that
+        fits; returns the factor against the samples (0: nothing fits, the chunk is dropped). Pairs not sent are
+        counted in :attr:`live_dropped`.
         """
         t, x, y = (np.asarray(a, dtype=float) for a in (t, x, y))
         if t.ndim != 1 or t.size < 2 or x.shape != t.shape or y.shape != t.shape:
@@ -319,12 +320,14 @@ class CanNode:
         free = max(0.0, t[-1] - max(self.bus_free, t[0] - dt) - self.backlog_time)
         budget = min(self.live_share * t.size * dt, free)
         fits = int(budget / self.frame_time_planned(name) + 1e-9) * per_frame
-        if fits == 0:
+        grid = np.flatnonzero(np.abs(t / TICK - np.rint(t / TICK)) < 1e-3)   # a Tick stamp is exact only on its
+        if fits == 0 or grid.size == 0:                                      # 100 µs grid: 20 kHz sends every other
             self.live_dropped += t.size
             self.live_factor = 0
             return 0
-        factor = self.live_factor = -(-t.size // fits)
-        keep = slice(None, None, factor)
+        step = int(grid[1] - grid[0]) if grid.size > 1 else 1                # samples from one grid sample to the next
+        keep = grid[::-(-grid.size // fits)]
+        factor = self.live_factor = step * -(-grid.size // fits)
         tk, (rx, cx), (ry, cy) = t[keep], quantise(x[keep], X_LSB), quantise(y[keep], Y_LSB)
         self.clipped += cx + cy
         self.live_dropped += t.size - tk.size

@@ -7,6 +7,7 @@ from __future__ import annotations
 import difflib
 import functools
 import math
+from fractions import Fraction
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -70,6 +71,23 @@ LINKS = ("can", "serial")
 MODES = ("virtual", "realtime")
 IN_PROCESS_INTERFACES = ("blockbus", "virtual")
 CHANNELS = ("x", "y")
+
+
+#: the CAN frames' Tick step (s, docs/can-protocol.md): live pairs are sent only at samples on its grid
+TICK = 1e-4
+
+
+def _live_grid(sample_rate: float, where: str) -> int:
+    """Samples from one on the Tick grid to the next (n/rate a multiple of 100 µs every that many samples): the
+    live view's finest step. A SceneError when it is coarser than 10 ms (a rate that rarely meets the grid)."""
+    ratio = Fraction(sample_rate * TICK).limit_denominator(10_000)
+    step = ratio.numerator
+    if abs(float(ratio) - sample_rate * TICK) > 1e-9 * sample_rate * TICK or step / sample_rate > 0.01:
+        raise SceneError(f"{where}: 'sample_rate' = {sample_rate:g} Hz: live pairs go out stamped on the 100 µs Tick "
+                         f"grid of the CAN frames (docs/can-protocol.md), and at this rate too few samples fall on it "
+                         f"(a live view slower than 100 pairs/s); choose 10 kHz times a simple fraction (e.g. 5, 10, "
+                         f"20 or 50 kHz)")
+    return step
 
 
 def _truth_every(rate: float | None, sample_rate: float, where: str) -> int:
@@ -273,6 +291,7 @@ def read_config(scene: Scene) -> RunConfig:
         raise SceneError(f"{where}: key 'duration' must be positive")
     if not s["sample_rate"] > 0 or not s["chunk"] > 0 or s["chunk"] * s["sample_rate"] < 2:
         raise SceneError(f"{where}: 'sample_rate' and 'chunk' must be positive, with >= 2 samples per chunk")
+    _live_grid(s["sample_rate"], where)
     transducers = []
     for name, table in scene.section("transducers", required=False).items():
         tw = f"{scene.path} [transducers.{name}]"

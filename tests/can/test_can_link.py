@@ -157,6 +157,28 @@ def test_fd_live_carries_11_pairs_per_frame(buses, device):
     np.testing.assert_allclose(ly, y, atol=Y_LSB / 2 + 1e-12)
 
 
+@pytest.mark.parametrize("fd", [False, True])
+def test_live_above_the_tick_rate_goes_out_on_the_tick_grid_with_exact_stamps(buses, device, fd):
+    """At 20 kHz (pairs 50 µs apart) only the samples on the 100 µs Tick grid are sent: every stamp exact and
+    increasing across frames and chunks (CAN FD stamped every frame's first pair to the nearest tick, which put it
+    before the previous frame's last pair and stopped the run); the others are counted as not sent."""
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, fd=fd, data_bitrate=4_000_000 if fd else None,
+                   heartbeat_period=1.0, live_share=1.0)
+    host = CanHost(host_bus)
+    fs, sent = 20_000.0, []
+    for k in range(4):
+        t = (1 + np.arange(2000) + k * 2000) / fs
+        factor = node.publish_live(t, 1e-3 * np.sin(t), 100 * np.cos(t))
+        assert factor % 2 == 0                          # a whole number of grid steps
+        sent.append(t[np.abs(t / 1e-4 - np.rint(t / 1e-4)) < 1e-9][::factor // 2])
+        run(node, host, 0.1 * (k + 1))
+    run(node, host, 0.6)
+    lt, _, _ = host.take_live()
+    np.testing.assert_allclose(lt, np.concatenate(sent), rtol=0, atol=1e-9)
+    assert np.all(np.diff(lt) > 0) and lt.size == node.live_sent and node.live_dropped == 8000 - lt.size
+
+
 def test_dropped_frame_is_a_sequence_gap(buses, device, rng, elements, make_curve):
     dev_bus, host_bus = buses
     node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)

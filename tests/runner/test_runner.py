@@ -146,6 +146,8 @@ def test_interrupted_run_leaves_a_valid_recording(tmp_path: Path, monkeypatch):
     ('signal = "F_rod"', 'signal = "F_nope"', r"no signal 'F_nope'"),
     ('mode = "virtual"', 'mode = "turbo"', r"\[scene\].*'mode'"),
     ('description = "burster_8411"', 'description = "no_such_sensor"', r"no_such_sensor"),
+    ('sample_rate = "10 kHz"', 'sample_rate = "9999 Hz"', r"\[scene\]: 'sample_rate' = 9999 Hz: live pairs go out "
+                                                          r"stamped on the 100 µs Tick grid"),
 ])
 def test_bad_scene_is_a_clear_error(tmp_path: Path, old: str, new: str, message: str):
     path = _scene_variant(tmp_path, "bad.toml", **{old: new})
