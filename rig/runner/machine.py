@@ -5,6 +5,9 @@ simulated time; everything random comes from the scene's seed.
 """
 from __future__ import annotations
 
+import difflib
+import logging
+
 from typing import Any
 
 import can
@@ -16,6 +19,8 @@ from firmware_sim.transducers import load_transducer
 from rig.runner.config import RunConfig, TransducerSpec
 from rig.runner.plants import make_plant
 from rig.scene import SceneError
+
+log = logging.getLogger(__name__)
 from rig.units import to_si
 
 
@@ -58,11 +63,23 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
 
 
 def check_signals(cfg: RunConfig, truth: dict[str, Any]) -> None:
-    """A :class:`SceneError` naming the transducer whose ``signal`` the plant's truth does not have."""
+    """A :class:`SceneError` naming the transducer whose ``signal`` the plant's truth does not have, or a
+    ``[recording] truth_signals`` entry that misspells one of its signals (another name it does not have at this
+    model level, e.g. a level-2 signal in a forced level-1 run: a warning, it is not recorded)."""
+    known = sorted(k for k in truth if k != "t")
     for spec in cfg.transducers:
         if spec.signal not in truth:
             raise SceneError(f"{cfg.scene.path} [transducers.{spec.name}]: the plant has no signal "
-                             f"{spec.signal!r} (it has {', '.join(sorted(k for k in truth if k != 't'))})")
+                             f"{spec.signal!r} (it has {', '.join(known)})")
+    absent = [name for name in cfg.recording["truth_signals"] or () if name not in known]
+    for name in absent:
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.8)
+        if close:                           # a misspelling: an error, not a signal silently not recorded
+            raise SceneError(f"{cfg.scene.path} [recording]: 'truth_signals' names {name!r}, which the plant does "
+                             f"not have (did you mean {close[0]!r}?); it has {', '.join(known)}")
+    if absent:
+        log.warning("%s [recording]: 'truth_signals' names %s, which the plant does not have at this model level "
+                    "(L%d): not recorded", cfg.scene.path, ", ".join(map(repr, absent)), cfg.fidelity.level)
 
 
 def _node(cfg: RunConfig, bus: can.BusABC | None, device: Any) -> CanNode:

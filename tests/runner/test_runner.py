@@ -146,6 +146,8 @@ def test_interrupted_run_leaves_a_valid_recording(tmp_path: Path, monkeypatch):
     ('signal = "F_rod"', 'signal = "F_nope"', r"no signal 'F_nope'"),
     ('mode = "virtual"', 'mode = "turbo"', r"\[scene\].*'mode'"),
     ('description = "burster_8411"', 'description = "no_such_sensor"', r"no_such_sensor"),
+    ('"drive_torque"]', '"drive_torquee"]', r"\[recording\]: 'truth_signals' names 'drive_torquee', which the "
+                                             r"plant does not have \(did you mean 'drive_torque'\?\)"),
     ('sample_rate = "10 kHz"', 'sample_rate = "9999 Hz"', r"\[scene\]: 'sample_rate' = 9999 Hz: live pairs go out "
                                                           r"stamped on the 100 µs Tick grid"),
 ])
@@ -253,3 +255,14 @@ def test_connection_options_beside_the_endpoints_file_override_its_entries():
     args = argparse.Namespace(can_host=None, can_port=4000, can_channel="vcan1", serial=None)
     _connect_as_served(args, served)
     assert (args.can_host, args.can_port, args.can_channel, args.serial) == ("127.0.0.1", 4000, "vcan1", "/dev/pts/7")
+
+
+def test_a_truth_signal_of_another_model_level_is_a_warning_not_an_error(tmp_path: Path, caplog):
+    """The as_drawn scene records level-2 signals; forced to level 1 they do not exist: said once, not silent."""
+    import logging
+    with caplog.at_level(logging.WARNING):
+        run_scene(ROOT / "data" / "scenes" / "pin_insertion_as_drawn.toml", tmp_path / "l1.mcap", cycles=1,
+                  fidelity=1)
+    said = [r.getMessage() for r in caplog.records if "truth_signals" in r.getMessage()]
+    assert len(said) == 1 and "'psi_kin', 'delta_w', 'delta_o'" in said[0] and "(L1): not recorded" in said[0]
+    assert "delta_w" not in read_recording(tmp_path / "l1.mcap").truth
