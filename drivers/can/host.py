@@ -505,9 +505,14 @@ class CanHost:
             self._release_pending(_Rx(self._bus_time, self._command.frame_id, b"", False),
                                   f"{self.result_timeout:g} s of bus time passed")
 
-    def flush(self) -> None:
-        """End of reception: release a result still waiting for its end marker, as incomplete."""
-        self._release_pending(_Rx(self._bus_time, self._command.frame_id, b"", False), "the end of the recording")
+    def flush(self, why: str = "the end of the recording") -> None:
+        """End of reception (``why``): a result still waiting for its end marker is released as incomplete, a curve
+        still being transferred becomes an incomplete curve (:meth:`take_curves`) and live pairs not yet reported a
+        last ``live_dropped`` report."""
+        self._release_pending(_Rx(self._bus_time, self._command.frame_id, b"", False), why)
+        self.assembler.abandon(f"its transfer was cut by {why}")
+        if self.counters.get("live_dropped", self._drops_reported) != self._drops_reported:
+            self._report_drops()
 
     def take_results(self) -> list[CurveResult]:
         """Results released (complete or marked incomplete) since the last call, in order."""

@@ -49,7 +49,7 @@ class CurveAssembler:
 
     def header(self, number: int, count: int, program: int) -> list[str]:
         """A new curve starts; an unfinished previous one is closed as incomplete."""
-        problems = self._abandon(f"header of curve {number} arrived before its end frame")
+        problems = self.abandon(f"header of curve {number} arrived before its end frame")
         self._number, self._program = number, program
         self._raw = np.zeros((count, 2), dtype=np.int64)
         self._got = np.zeros(count, dtype=bool)
@@ -129,7 +129,8 @@ class CurveAssembler:
         self._finish(clipped, problems)
         return problems
 
-    def _abandon(self, why: str) -> list[str]:
+    def abandon(self, why: str) -> list[str]:
+        """End the curve being assembled, if any, as incomplete (``why``: what cut it); its problems."""
         if self._number is None:
             return []
         problems = [f"curve {self._number}: {why}"]

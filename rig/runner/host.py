@@ -68,6 +68,7 @@ class Host:
         self._curves: list[Any] = []                    # complete curves waiting for their result or theory
         self._results: dict[int, Any] = {}              # released results by curve number (mod 65536)
         self._curves_done = 0
+        self._beyond = 0                                # curves received after the requested ones (not recorded)
         self._plant_events = 0
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
@@ -177,7 +178,9 @@ class Host:
         """Take the finished curves and released results from the driver: complete curves wait for their
         result; an incomplete curve becomes an event (its result is still recorded)."""
         for curve in self.can.take_curves():
-            if curve.complete and curve.t is not None:
+            if not self._wanted(len(self._curves)):
+                self._beyond += 1              # a served run longer than this host's --cycles: not recorded
+            elif curve.complete and curve.t is not None:
                 self._curves.append(curve)
             else:
                 self.rec.write_event(max(self.can.device_time, 0.0), "incomplete_curve", number=curve.number,
@@ -186,16 +189,23 @@ class Host:
         for res in self.can.take_results():
             self._results[res.number] = res
 
-    def _record_curves(self) -> None:
-        """Record, in order, every curve whose result has arrived; the theory is run on demand to cover it."""
+    def _wanted(self, waiting: int = 0) -> bool:
+        """Whether a curve after the recorded ones and ``waiting`` more is one this host is to record."""
+        return self.cfg.cycles is None or self._curves_done + waiting < self.cfg.cycles
+
+    def _record_curves(self, why_no_result: str | None = None) -> None:
+        """Record, in order, every curve whose result has arrived; the theory is run on demand to cover it. With
+        ``why_no_result`` (the run is over) the curves still waiting are recorded without it, each with a
+        ``result_missing`` event saying why."""
         while self._curves:
             curve = self._curves[0]
             result = self._results.pop(curve.number, None)
             if result is None:
-                if not any(n > curve.number for n in self._results):
+                if why_no_result is None and not any(n > curve.number for n in self._results):
                     break              # its result is still on the way
                 self.rec.write_event(float(curve.t[-1]), "result_missing", number=curve.number,
-                                     detail="a later curve's result arrived first: this curve's Result frame was lost")
+                                     detail=why_no_result or "a later curve's result arrived first: this curve's "
+                                                             "Result frame was lost")
             self._advance_theory(float(curve.t[-1]))
             theory = {}
             for role in ("x", "y"):
@@ -244,6 +254,25 @@ class Host:
             self._explain = ResultExplainer(program, display_units(program, self.cfg.device["config"]))
         return self._explain
 
+    def _close_reception(self, why: str) -> None:
+        """Everything received so far into the recording (``why``: what ends the reception): a curve cut in
+        transfer as an ``incomplete_curve`` event, curves whose result did not come without it, the last live-drop
+        report, and the curves of a longer served run beyond this host's ``--cycles`` as one ``not_recorded``
+        event."""
+        self.can.flush(why)
+        self._collect()
+        self._record_curves(f"the curve arrived but its Result frame did not before {why}")
+        self._record_link_events()
+        if self._beyond:
+            self.rec.write_event(max(self.can.device_time, 0.0), "not_recorded", curves=self._beyond,
+                                 detail=f"the served machine sent {self._beyond} more curve(s) after the {self.cfg.cycles} "
+                                        f"this host was asked to record (--cycles); they are in /can/raw only")
+            self._beyond = 0
+
+    def interrupted(self) -> None:
+        """The run was interrupted (Ctrl-C): what was received is recorded and what was cut is said (events)."""
+        self._close_reception("the interruption of the run")
+
     def _record_link_events(self) -> None:
         for ev in self.can.take_events():
             self.rec.write_event(max(ev.time, 0.0), ev.kind, frame_id=ev.frame_id, count=ev.count, detail=ev.detail)
@@ -273,15 +302,9 @@ class Host:
     def finish(self) -> dict[str, Any]:
         """Release what is still waiting, read the unit's statistics over serial and record them with the
         link counters, then tell the unit the host is done (CAN Release)."""
-        self.can.flush()
-        self._collect()
-        self._record_curves()
+        self._close_reception("the end of the recording")
         if self.cfg.cycles is None:
             self._advance_theory(self.cfg.duration)
-        self._record_link_events()
-        for curve in self._curves:
-            self.rec.write_event(float(curve.t[-1]), "result_missing", number=curve.number,
-                                 detail="the curve arrived but its Result frame did not")
         stats: dict[str, Any] = {}
         end = max(self.truth_t, self.rec.last_event_time)     # not before an event already recorded
         if self.serial is not None:

@@ -242,6 +242,18 @@ def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
     earlier.unlink(missing_ok=True)
 
 
+def _keep_received(host: Host, drain: bool) -> None:
+    """On Ctrl-C: what is already on the wire (``drain``: the in-process bus, whose machine has stopped) and
+    received goes into the recording, and what the interruption cut is said in events (a curve in transfer, the
+    last live drops); a failure doing so is a warning, the interruption goes on."""
+    try:
+        while drain and host.poll():
+            pass
+        host.interrupted()
+    except Exception as exc:  # noqa: BLE001 - the recording is closed as interrupted either way
+        log.warning("could not record what was received before the interruption (%s: %s)", type(exc).__name__, exc)
+
+
 def _restore(earlier: Path, output: Path) -> Path | None:
     """Put the earlier recording moved aside back at ``output``; its path, or None when there was none."""
     if not earlier.exists():
@@ -280,6 +292,9 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 except RunError:
                     while host.poll():         # record what is already on the wire before stopping
                         pass
+                    raise
+                except KeyboardInterrupt:
+                    _keep_received(host, drain=True)
                     raise
                 while host.poll():
                     pass
@@ -403,7 +418,9 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                         raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
                                        f"recorded {host.curves_recorded} curves (kept in {output})")
                     _show(bar, cfg, host.curves_recorded, host.truth_t)
-            except RunError:
+            except (RunError, KeyboardInterrupt) as exc:
+                if isinstance(exc, KeyboardInterrupt):
+                    _keep_received(host, drain=False)
                 try:                               # the served machine need not wait for its release timeout
                     host.can.send_command("release")
                 except (can.CanError, OSError):

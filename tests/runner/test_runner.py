@@ -227,6 +227,24 @@ def test_a_served_run_shorter_than_the_scene_is_recorded_and_released(tmp_path: 
     assert len(rec.curves) == 3 and [e["kind"] for e in rec.events].count("run_short") == 1
 
 
+def test_a_served_run_longer_than_asked_is_recorded_to_the_asked_count(tmp_path: Path, serve_scene):
+    """`rig serve --cycles 8` and `rig record --cycles 3`: the host waits for the machine's run end a little longer
+    (so every run ends at the same frame) but records exactly the 3 curves and results it was asked for (it wrote
+    16 of 10), says how many more it saw in a `not_recorded` event, and leaves no curve it cut unsaid."""
+    from rig.runner import record_scene
+    with serve_scene(SCENE, tmp_path / "endpoints.json", "--cycles", "8") as ep:
+        out = tmp_path / "three.mcap"
+        summary = record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
+                               serial_port=ep["serial"], idle_timeout=60.0, cycles=3)
+    rec = read_recording(out)
+    assert summary.curves == 3 and [c.number for c in rec.curves] == [1, 2, 3]
+    assert [r["number"] for r in rec.results] == [1, 2, 3]
+    beyond = [e for e in rec.events if e["kind"] == "not_recorded"]
+    assert len(beyond) == 1 and beyond[0]["curves"] >= 1 and "after the 3 this host was asked" in beyond[0]["detail"]
+    kinds = {e["kind"] for e in rec.events}
+    assert not kinds & {"incomplete_curve", "result_missing"}
+
+
 def test_record_from_the_endpoints_file_refuses_another_scene(tmp_path: Path, serve_scene, capsys):
     """`rig record --endpoints FILE` connects where `rig serve` said and checks it serves this scene at this
     fidelity: another scene or level is a usage error before anything is recorded; the served one records."""
