@@ -4,7 +4,7 @@ coefficient 1, dedendum 1.25)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import acos, cos, degrees, pi, radians, sin, sqrt, tan
+from math import acos, cos, degrees, hypot, pi, radians, sin, sqrt, tan
 from typing import NamedTuple
 
 from scipy.optimize import brentq
@@ -77,7 +77,9 @@ class SpurGearPair:
                                  f"{x_min:.3f})")
 
     def geometry(self) -> GearGeometry:
-        """The pair's geometry; a pointed tooth tip or a contact ratio below 1 is a ValueError naming it."""
+        """The pair's geometry; a pointed tooth tip, meshing interference (a tip reaching the mate inside its base
+        circle or below its generated involute, the form circle) or a contact ratio below 1 is a ValueError naming
+        it."""
         m, a0_ = self.module, self.pressure_angle
         z1, z2, x1, x2 = self.z1, self.z2, self.x1, self.x2
         inv_w = involute(a0_) + 2 * (x1 + x2) / (z1 + z2) * tan(a0_)
@@ -96,19 +98,42 @@ class SpurGearPair:
         da = (d[0] + 2 * m * (1 + x1) - 2 * km, d[1] + 2 * m * (1 + x2) - 2 * km)
         df = (d[0] - 2 * m * (1.25 - x1), d[1] - 2 * m * (1.25 - x2))
         s = tuple(m * (pi / 2 + 2 * x * tan(a0_)) for x in (x1, x2))
-        for i, (z, x) in enumerate(((z1, x1), (z2, x2))):
-            if da[i] <= db[i]:
+        gears = ((z1, x1), (z2, x2))
+        # Roll lengths (m) along the line of action from each base-circle tangent point T_i: the involute the rack
+        # cuts starts at form_i (its straight flank ends 1·m deep, the undercut limit's convention: form_i ≥ 0
+        # without undercut), on the form circle d_Ff; the tip lies sqrt(r_a² − r_b²) out.
+        form = tuple(d[i] / 2 * sin(a0_) - (1 - x) * m / sin(a0_) for i, (_, x) in enumerate(gears))
+        d_form = tuple(2 * hypot(db[i] / 2, form[i]) for i in (0, 1))
+        for i, (z, x) in enumerate(gears):
+            if da[i] <= d_form[i]:
                 raise ValueError(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has its tip circle "
-                                 f"({da[i] * 1e3:.3f} mm) inside its base circle ({db[i] * 1e3:.3f} mm): no involute "
-                                 "flank; the shifts (and the tip reduction they cause) are too large")
+                                 f"({da[i] * 1e3:.3f} mm) inside its form circle ({d_form[i] * 1e3:.3f} mm, where the "
+                                 f"cut involute starts; base circle {db[i] * 1e3:.3f} mm): no involute flank; the "
+                                 "shifts (and the tip reduction they cause) are too large")
             alpha_a = acos(db[i] / da[i])                 # tooth thickness at the tip > 0
             s_a = da[i] * (s[i] / d[i] + involute(a0_) - involute(alpha_a))
             if s_a <= 0:
                 raise ValueError(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has a pointed tooth "
                                  f"(tip thickness {s_a * 1e3:.3f} mm)")
+        # Meshing interference: gear j's tip meets gear i at T1T2 − tip_j from T_i (T1T2 = a·sin α_w); before
+        # form_i it cuts into the fillet, before T_i into the base circle, where there is no involute.
+        line = a * sin(aw)
+        tip_roll = tuple(sqrt(da[i] ** 2 - db[i] ** 2) / 2 for i in (0, 1))
+        clashes = []
+        for i, j in ((0, 1), (1, 0)):
+            start = line - tip_roll[j]
+            if start < form[i] - 1e-9 * m:
+                where = (f"inside its base circle (d_b = {db[i] * 1e3:.3f} mm): involute interference" if start < 0
+                         else f"below its form circle (d_Ff = {d_form[i] * 1e3:.3f} mm, {form[i] * 1e3:.3f} mm from "
+                              f"T{i + 1}): fillet interference")
+                clashes.append(f"gear {j + 1}'s tip (d_a = {da[j] * 1e3:.3f} mm) runs sqrt(r_a{j + 1}² − r_b{j + 1}²) = "
+                               f"{tip_roll[j] * 1e3:.3f} mm along the line of action and meets gear {i + 1} "
+                               f"({gears[i][0]} teeth, x = {gears[i][1]:g}) {start * 1e3:.3f} mm from T{i + 1}, {where}")
+        if clashes:
+            raise ValueError(f"SpurGearPair interferes: T1T2 = a·sin α_w = {line * 1e3:.3f} mm (a = {a * 1e3:.3f} mm, "
+                             f"α_w = {degrees(aw):.2f}°); " + "; ".join(clashes) + "; the pair has no valid contact ratio")
         pb = pi * m * cos(a0_)
-        path = sqrt(da[0] ** 2 - db[0] ** 2) / 2 + sqrt(da[1] ** 2 - db[1] ** 2) / 2 - a * sin(aw)
-        eps = path / pb
+        eps = (tip_roll[0] + tip_roll[1] - line) / pb
         if eps < 1.0:
             raise ValueError(f"SpurGearPair: contact ratio {eps:.3f} < 1 (the teeth lose mesh): the profile shifts "
                              f"x1 = {x1:g}, x2 = {x2:g} (sum {x1 + x2:g}) spread the gears to a working pressure angle "

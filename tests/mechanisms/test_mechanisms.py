@@ -3,7 +3,7 @@ double-Cardan cancellation, Geneva timing and kinematics, gear geometry consiste
 from __future__ import annotations
 
 import re
-from math import cos, degrees, pi, radians, tan
+from math import cos, degrees, pi, radians, sin, tan
 
 import numpy as np
 import pytest
@@ -134,8 +134,8 @@ def test_gears_refuse_undercut_and_bad_input():
         SpurGearPair(12, 40, 2e-3, 1.5, 0.0).geometry()
     with pytest.raises(ValueError, match=r"got 4.5 m: did you mean 4.5 mm = 0.0045 m"):
         SpurGearPair(34, 80, 4.5)                        # a module in mm given as metres
-    with pytest.raises(ValueError, match=r"contact ratio -0.4\d+ < 1 .* profile shifts x1 = 5, x2 = 5"):
-        SpurGearPair(34, 80, 1e-3, 5, 5).geometry()
+    with pytest.raises(ValueError, match=r"contact ratio 0.958 < 1 .* profile shifts x1 = 0.75, x2 = 0.5"):
+        SpurGearPair(8, 12, 1e-3, 0.75, 0.5).geometry()
     assert SpurGearPair(np.int64(34), np.int64(80), 2e-3).z1 == 34     # numpy integers are whole numbers too
 
 
@@ -185,6 +185,8 @@ def test_belt_ratchet_and_friction_wheels():
 
 @pytest.mark.parametrize("make, message", [
     (lambda: SpurGearPair(80, 80, 0.002, -3.2, 0).geometry(), "gear 1 (80 teeth, x = -3.2) has its tip circle"),
+    (lambda: SpurGearPair(34, 80, 1e-3, 5, 5).geometry(),      # the tip is cut below the rack's flank: no teeth
+     "gear 1 (34 teeth, x = 5) has its tip circle (40.766 mm) inside its form circle (47.404 mm"),
     (lambda: SpurGearPair(100, 100, 0.002, -3, -3).geometry(), "leave no working pressure angle"),
     (lambda: SpurGearPair(20, 40, 0.002, float("nan"), 0), "SpurGearPair x1 must be a finite number"),
     (lambda: willis(1, None, 0, 0), "i0 = 0 is no gear train"),
@@ -210,6 +212,80 @@ def test_impossible_or_mistyped_input_is_named(make, message):
 
 
 def test_a_gear_shifted_below_its_reference_circle_is_still_a_gear():
-    """x = −2.5 on 100 teeth: the reference-circle thickness is negative (a formal value), the tooth is real."""
-    g = SpurGearPair(100, 100, 0.002, -2.5, 0).geometry()
+    """x = −2.5 on 100 teeth: the reference-circle thickness is negative (a formal value), the tooth is real (with
+    x2 = 1: against an unshifted mate the shift sum −2.5 pulls the mate's tip into its fillet)."""
+    g = SpurGearPair(100, 100, 0.002, -2.5, 1.0).geometry()
     assert g.tooth_thickness[0] < 0 < g.tip_diameters[0] - g.base_diameters[0] and g.contact_ratio > 1
+
+
+def _interferes(pair: SpurGearPair) -> tuple[bool, bool]:
+    """(meshing interference, inside a base circle) from Cartesian geometry, independently of geometry(): the
+    mate's tip circle cut with the line of action through the working pitch point, against each gear's form
+    circle, where the generating rack's flank (1·m deep) meets its generating line of action."""
+    m, a0 = pair.module, pair.pressure_angle
+    aw = inverse_involute(involute(a0) + 2 * (pair.x1 + pair.x2) / (pair.z1 + pair.z2) * tan(a0))
+    a = m * (pair.z1 + pair.z2) / 2 * cos(a0) / cos(aw)
+    k = (pair.x1 + pair.x2) * m - (a - m * (pair.z1 + pair.z2) / 2)           # tip reduction
+    centres = (np.array([0.0, 0.0]), np.array([a, 0.0]))
+    pitch = np.array([a * pair.z1 / (pair.z1 + pair.z2), 0.0])
+    u = np.array([sin(aw), cos(aw)])                                          # along the line of action
+    foot = [pitch + np.dot(c - pitch, u) * u for c in centres]                # T1, T2
+    clash, inside = False, False
+    for i, j in ((0, 1), (1, 0)):
+        z, x = (pair.z1, pair.x1) if i == 0 else (pair.z2, pair.x2)
+        zj, xj = (pair.z1, pair.x1) if j == 0 else (pair.z2, pair.x2)
+        r, ra_j = m * z / 2, m * zj / 2 + m * (1 + xj) - k
+        rack = (1 - x) * m                                                    # rack flank end below the pitch line
+        r_form = np.hypot(rack / tan(a0), r - rack)
+        # |pitch + t u − O_j| = r_aj, the root on gear i's side of the pitch point
+        w = pitch - centres[j]
+        b, c = np.dot(w, u), np.dot(w, w) - ra_j ** 2
+        roots = (-b - np.sqrt(b * b - c), -b + np.sqrt(b * b - c))
+        t_i = np.dot(foot[i] - pitch, u)
+        t = roots[0] if t_i < 0 else roots[1]
+        beyond = abs(t) > abs(t_i)                                            # past T_i: inside its base circle
+        below = np.linalg.norm(pitch + t * u - centres[i]) < r_form * (1 - 1e-12)
+        clash, inside = clash or beyond or below, inside or beyond
+    return clash, inside
+
+
+@pytest.mark.parametrize("pair, numbers", [
+    (SpurGearPair(12, 80, 1e-3, 0.3, -1.2), "T1T2 = a·sin α_w = 12.558 mm (a = 45.013 mm, α_w = 16.20°); gear 2's "
+                                              "tip (d_a = 79.426 mm) runs sqrt(r_a2² − r_b2²) = 12.818 mm"),
+    (SpurGearPair(10, 200, 1e-3, 0.42, -1.0), "T1T2 = a·sin α_w = 34.140 mm (a = 104.407 mm, α_w = 19.09°); gear 2's "
+                                              "tip (d_a = 199.974 mm) runs sqrt(r_a2² − r_b2²) = 34.164 mm"),
+])
+def test_gears_refuse_tip_interference_named_with_its_numbers(pair, numbers):
+    """The audit's pairs: gear 2's tip runs past T1 into the pinion's base circle (the undercut check at α0 = 20°
+    passes, but they mesh at α_w < α0); the contact ratio they reported (1.61, 1.48) counted that part."""
+    assert _interferes(pair) == (True, True)
+    with pytest.raises(ValueError, match=re.escape(numbers) + ".*inside its base circle .* involute interference"):
+        pair.geometry()
+
+
+def test_gear_interference_against_the_cartesian_construction():
+    """Over a grid of tooth counts and shifts (from each undercut limit up), geometry() refuses exactly the pairs
+    whose tips reach the mate inside its base circle or below its form circle."""
+    seen = {"ok": 0, "fillet": 0, "base": 0}
+    for z1 in (8, 10, 12, 17, 25, 40):
+        for z2 in (12, 20, 40, 80, 200):
+            for x1 in np.linspace(1 - z1 * np.sin(radians(20)) ** 2 / 2, 1.0, 6):
+                for x2 in np.linspace(1 - z2 * np.sin(radians(20)) ** 2 / 2, 1.0, 8):
+                    pair = SpurGearPair(z1, z2, 1e-3, float(x1), float(x2))
+                    try:
+                        g = pair.geometry()
+                    except ValueError as err:
+                        if "interferes" not in str(err):
+                            if "contact ratio" in str(err):                   # checked after interference
+                                assert not _interferes(pair)[0]
+                            continue
+                        inside = "inside its base circle" in str(err)
+                        assert _interferes(pair) == (True, inside), (z1, z2, x1, x2)
+                        seen["base" if inside else "fillet"] += 1
+                        continue
+                    assert not _interferes(pair)[0], (z1, z2, x1, x2)
+                    # the textbook condition for both gears: each tip stays within T1T2 = a sin α_w
+                    rim = np.sqrt(np.square(g.tip_diameters) - np.square(g.base_diameters)) / 2
+                    assert np.all(rim <= g.centre_distance * np.sin(g.working_pressure_angle))
+                    seen["ok"] += 1
+    assert min(seen.values()) >= 10, seen            # each outcome is exercised
