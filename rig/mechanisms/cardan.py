@@ -47,9 +47,11 @@ class Cardan:
         c = np.cos(finite_array(phi1, "Cardan phi1 (rad)"))
         return cos(self.shaft_angle) / (1.0 - sin(self.shaft_angle) ** 2 * c * c)
 
-    def acceleration(self, phi1: ArrayLike, omega1: float) -> np.ndarray:
-        """α2 = dω2/dt (rad/s²) at constant input speed ``omega1`` (rad/s): ω1² · d(ω2/ω1)/dφ1."""
+    def acceleration(self, phi1: ArrayLike, omega1: ArrayLike) -> np.ndarray:
+        """α2 = dω2/dt (rad/s²) at constant input speed ``omega1`` (rad/s, a scalar or one per φ1):
+        ω1² · d(ω2/ω1)/dφ1."""
         phi1 = finite_array(phi1, "Cardan phi1 (rad)")
+        omega1 = finite_array(omega1, "Cardan omega1 (rad/s)")
         s2a = sin(self.shaft_angle) ** 2
         den = 1.0 - s2a * np.cos(phi1) ** 2
         return -omega1 ** 2 * cos(self.shaft_angle) * s2a * np.sin(2 * phi1) / den ** 2

@@ -36,8 +36,14 @@ def positive(value: Any, what: str, unit: str = "", at_most: float | None = None
 
 
 def finite_array(values: Any, what: str) -> np.ndarray:
-    """``values`` as a float array if every entry is finite; else a ValueError starting with ``what``."""
-    arr = np.asarray(values, dtype=float)
+    """``values`` as a float array if they are numbers (not strings) and every entry is finite; else a ValueError
+    starting with ``what``."""
+    try:
+        if isinstance(values, (str, bytes)):
+            raise TypeError
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be finite numbers, got {values!r}") from None
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{what} must be finite, got {values!r}" if arr.size < 5 else f"{what} must be finite "
                          f"({int(np.count_nonzero(~np.isfinite(arr)))} of {arr.size} values are not)")

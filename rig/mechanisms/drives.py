@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import exp, pi, radians, tan, tau
+from math import expm1, inf, isfinite, pi, radians, tan, tau
 
 from rig.mechanisms.checks import finite, positive
 
@@ -31,12 +31,19 @@ class Belt:
         if not finite(force, "Belt peripheral force F1 − F2 (N)") >= 0:
             raise ValueError(f"Belt peripheral force F1 − F2 must not be negative (N), got {force!r}: a belt pulls, "
                              "it cannot push; swap the pulleys' roles instead")
-        q = exp(self.mu * self.wrap)
-        return force * q / (q - 1), force / (q - 1)
+        grip = expm1(self.mu * self.wrap)                 # e^{μβ} − 1, exact for a small μβ
+        slack = force / grip if grip > 0.0 else inf
+        if not isfinite(slack + force):
+            raise ValueError(f"Belt mu·wrap = {self.mu * self.wrap:g} (mu = {self.mu!r}, wrap = {self.wrap!r} rad) is too "
+                             f"small to carry F1 − F2 = {force!r} N: the slack-side tension F/(e^{{μβ}} − 1) "
+                             "overflows")
+        return slack + force, slack
 
     def output_speed(self, input_speed: float, d1: float, d2: float) -> float:
-        """Driven pulley speed (rad/s) from the driving one for pulley diameters d1, d2 (m), with slip."""
-        return input_speed * d1 / d2 * (1 - self.slip)
+        """Driven pulley speed (rad/s, signed like ``input_speed`` (rad/s): a reversed drive reverses it) for the
+        driving and driven pulley diameters ``d1``, ``d2`` (> 0, m; their ratio counts), with slip."""
+        speed = finite(input_speed, "Belt input_speed (rad/s)")
+        return speed * positive(d1, "Belt d1 (m)") / positive(d2, "Belt d2 (m)") * (1 - self.slip)
 
 
 @dataclass(frozen=True)

@@ -20,9 +20,11 @@ def involute(alpha: float) -> float:
 
 
 def inverse_involute(value: float) -> float:
-    """α (rad) with inv α = ``value`` ≥ 0 (a root in [0, π/2))."""
-    if value < 0:
-        raise ValueError(f"the involute function is not negative on [0, 90°): inv α = {value!r}")
+    """α (rad) with inv α = ``value`` (rad), 0 ≤ value < inv(90° − 1e-9 rad) ≈ 1e9 (a root in [0, π/2))."""
+    top = involute(pi / 2 - 1e-9)
+    if not 0.0 <= finite(value, "inverse_involute value inv α (rad)") < top:
+        raise ValueError(f"inverse_involute value inv α must lie in [0, {top:.3g}) rad (the involute function of "
+                         f"[0, 90°)), got {value!r} rad")
     return brentq(lambda a: involute(a) - value, 0.0, pi / 2 - 1e-9, xtol=1e-15, rtol=1e-15)
 
 

@@ -173,6 +173,10 @@ def test_belt_ratchet_and_friction_wheels():
     assert Ratchet(radians(20), 0.15).self_locking and not Ratchet(radians(5), 0.15).self_locking
     w = FrictionWheels(0.1, 0.3, 0.4, slip=0.02, safety=1.5)
     assert w.ratio == pytest.approx(3 / 0.98) and w.pressing_force(100.0) == pytest.approx(375.0)
+    assert belt.output_speed(-100.0, 0.1, 0.2) == pytest.approx(-49.0)      # a reversed drive: signed speeds
+    # a small μβ: e^{μβ} − 1 without cancellation (F2 = F/(e^{μβ} − 1) ≈ F/μβ·(1 − μβ/2)), no division by zero
+    assert Belt(1e-9, 1.0).tensions(100.0)[1] == pytest.approx(1e11 - 50.0, rel=1e-13)
+    assert Belt(1e-300, 3.0).tensions(100.0) == pytest.approx((100 / 3e-300, 100 / 3e-300), rel=1e-12)
     with pytest.raises(ValueError, match="slip is a fraction"):
         Belt(0.3, pi, slip=1.5)
     with pytest.raises(ValueError, match="peripheral force F1 − F2 must not be negative"):
@@ -203,6 +207,17 @@ def test_belt_ratchet_and_friction_wheels():
     (lambda: DoubleCardan(0.1, 0.1, "Z", float("nan")), "DoubleCardan yoke_offset (rad) must be a finite number"),
     (lambda: Ratchet(0.3, float("nan")), "Ratchet mu must be a finite number, got nan"),
     (lambda: Ratchet(30, 0.2), "did you mean 30° = 0.5236 rad"),
+    (lambda: Cardan(0.2).acceleration(0.2, float("nan")), "Cardan omega1 (rad/s) must be finite, got nan"),
+    (lambda: Cardan(0.2).acceleration(0.2, "10"), "Cardan omega1 (rad/s) must be finite numbers, got '10'"),
+    (lambda: Cardan(0.2).output_angle("abc"), "Cardan phi1 (rad) must be finite numbers, got 'abc'"),
+    (lambda: Belt(0.3, pi).output_speed(100.0, 0.1, -0.2), "Belt d2 (m) must be positive, got -0.2"),
+    (lambda: Belt(0.3, pi).output_speed(100.0, 0.1, 0), "Belt d2 (m) must be positive, got 0"),
+    (lambda: Belt(0.3, pi).output_speed(100.0, float("nan"), 0.2), "Belt d1 (m) must be a finite number, got nan"),
+    (lambda: Belt(0.3, pi).output_speed(float("nan"), 0.1, 0.2), "Belt input_speed (rad/s) must be a finite number"),
+    (lambda: Belt(1e-300, 3).tensions(1e10), "Belt mu·wrap = 3e-300 (mu = 1e-300, wrap = 3 rad) is too small to carry "
+                                             "F1 − F2 = 10000000000.0 N"),
+    (lambda: inverse_involute(float("nan")), "inverse_involute value inv α (rad) must be a finite number, got nan"),
+    (lambda: inverse_involute(1e12), "inverse_involute value inv α must lie in [0, 1e+09) rad"),
 ])
 def test_impossible_or_mistyped_input_is_named(make, message):
     """Geometry that cannot exist, a value in the wrong unit or not a finite number: a ValueError saying which
