@@ -91,6 +91,37 @@ def test_flocke_forward_check():
     assert pressure_angles(law, h, big_phi, exact_e, e, x=fine).max() == pytest.approx(alpha, abs=1e-9)
 
 
+def _smallest_radius_by_bisection(law, h, big_phi, alpha, e, x):
+    """Brute force: the smallest r_b whose forward-checked |pressure angle| stays ≤ α on the grid ``x``."""
+    lo, hi = abs(e) * (1 + 1e-12), 1.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if np.abs(pressure_angles(law, h, big_phi, mid, e, x=x)).max() <= alpha else (mid, hi)
+    return hi
+
+
+def test_exact_base_radius_bounds_the_pressure_angle_on_both_sides():
+    """A negative offset makes s' + e negative near the ends of the rise: the radius must bound α there too
+    (it bounded only the positive side: e = −20 mm gave r_b = 23.5 mm and α down to −58.2°). Offsets where either
+    side binds, against a bisection on the forward check."""
+    h, big_phi, alpha = 0.042, radians(120), radians(30)
+    x = np.linspace(0.0, 1.0, 20001)
+    for law in (get_law("3-4-5"), get_law("cycloidal")):
+        for e in (-0.025, -0.02, -0.015, -0.008, -0.004, 0.0, 0.01):
+            exact = exact_base_radius(law, h, big_phi, alpha, e)
+            assert exact == pytest.approx(_smallest_radius_by_bisection(law, h, big_phi, alpha, e, x), rel=1e-7)
+            angles = pressure_angles(law, h, big_phi, exact, e, x=x)
+            assert np.abs(angles).max() == pytest.approx(alpha, abs=1e-7)
+            if e <= -0.015:  # the start of the rise (s = s' = 0) binds: α = −atan(|e|/d) = −α, r_b = |e|/sin α
+                assert exact == pytest.approx(abs(e) / sin(alpha), rel=1e-12)
+                assert angles.min() == pytest.approx(-alpha)
+
+
+def test_exact_base_radius_names_a_non_finite_offset():
+    with pytest.raises(ValueError, match=r"offset e \(m\) must be a finite number, got nan"):
+        exact_base_radius(get_law("3-4-5"), 0.042, radians(120), radians(30), float("nan"))
+
+
 def test_flocke_closed_form_for_the_parabolic_law():
     # parabolic: y'_max = 2 at x = ½, y = ½ there → r_b/h = 2/(Φ tan α) − ½
     law, big_phi, alpha = get_law("parabolic"), radians(90), radians(30)

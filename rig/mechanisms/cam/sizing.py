@@ -59,10 +59,14 @@ def centric_base_ratio(law: MotionLaw, big_phi: float, alpha: float) -> float:
 
 
 def exact_base_radius(law: MotionLaw, h: float, big_phi: float, alpha: float, e: float = 0.0) -> float:
-    """Smallest r_b (m) keeping the pressure angle ≤ α over the whole rise: max over x of (s' + e)/tan α − s
-    (Flocke takes that maximum at the velocity peak, which is slightly late: its radius is a little small)."""
+    """Smallest r_b (m) keeping |pressure angle| ≤ α (rad) over the whole rise, for the offset ``e`` (m) of either
+    sign: r_b = sqrt(d² + e²), d the max over x of |s' + e|/tan α − s. A negative e makes s' + e negative at the
+    ends of the rise (α down to −atan(|e|/d) at x = 0), so both signs are maximised. Flocke takes the positive
+    side at the velocity peak, which is slightly late: its radius is a little small."""
     _check(h, big_phi, alpha)
-    _, d = _maximise(lambda t: (h / big_phi * law.derivatives(t)[1] + e) / tan(alpha) - h * law.y(t))
+    e = finite(e, "offset e (m)")
+    d = max(_maximise(lambda t: sign * (h / big_phi * law.derivatives(t)[1] + e) / tan(alpha) - h * law.y(t))[1]
+            for sign in (1.0, -1.0))
     return sqrt(max(d, 0.0) ** 2 + e * e)
 
 
