@@ -263,7 +263,8 @@ def test_rig_analyse_merges_the_lab_sheets_numbers(speed, cardan, tmp_path):
         key = "lab.speed_measurement." + re.sub(r"\W+", "_", k.lower()).strip("_")
         assert float(rows["lab_speed"][f"{key} mean [%]"]) == pytest.approx(100 * x, rel=1e-12)
     report = (out / "report.md").read_text()
-    assert "## Process values and lab results over all recordings" in report
+    assert "## Process values and lab results per scene (over all its recordings)" in report
+    assert re.search(r"\| lab_cardan( L\d)? \| lab.cardan_joint.ratio_max \|", report)
     assert "lab sheet cardan joint:" in report and "## Stand and lab recordings (2)" in report
 
 
