@@ -129,6 +129,11 @@ class CurveAssembler:
         self._finish(clipped, problems)
         return problems
 
+    @property
+    def in_transfer(self) -> bool:
+        """Whether a curve's header has arrived and its end has not."""
+        return self._number is not None
+
     def abandon(self, why: str) -> list[str]:
         """End the curve being assembled, if any, as incomplete (``why``: what cut it); its problems."""
         if self._number is None:

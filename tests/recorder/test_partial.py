@@ -98,6 +98,34 @@ def test_an_interrupted_run_is_marked_and_its_report_says_so(tmp_path, monkeypat
     assert "1 of 3 requested curves recorded" in report
 
 
+def test_ctrl_c_during_a_curve_transfer_says_what_it_cut(tmp_path, monkeypatch):
+    """Ctrl-C while a curve is on its way: the recording keeps every curve received whole, the cut one is an
+    `incomplete_curve` event naming the interruption (it used to vanish without a word), and the last
+    `live_dropped` report carries the device's last count."""
+    from rig.runner import host as host_module
+    from rig.runner import run_scene
+    original = host_module.Host.poll
+    fired = []
+
+    def poll(self, timeout: float = 0.0) -> int:
+        n = original(self, timeout)
+        if not fired and self.curves_recorded >= 2 and self.can.assembler.in_transfer:
+            fired.append(self.can.counters.get("live_dropped"))
+            raise KeyboardInterrupt
+        return n
+
+    monkeypatch.setattr(host_module.Host, "poll", poll)
+    out = tmp_path / "cut.mcap"
+    with pytest.raises(KeyboardInterrupt):
+        run_scene(SCENE, out, cycles=10)
+    rec = read_recording(out)
+    cut = [e for e in rec.events if e["kind"] == "incomplete_curve"]
+    assert fired and len(cut) == 1 and "cut by the interruption of the run" in " ".join(cut[0]["problems"])
+    assert cut[0]["number"] == len(rec.curves) + 1 and [c.number for c in rec.curves] == list(range(1, len(rec.curves) + 1))
+    drops = [e for e in rec.events if e["kind"] == "live_dropped"]
+    assert drops and drops[-1]["total"] >= fired[0]
+
+
 def test_ctrl_c_before_anything_was_recorded_leaves_no_file(tmp_path, monkeypatch, capsys):
     from rig.runner import host as host_module
 
