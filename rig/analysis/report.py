@@ -452,6 +452,8 @@ EVENT_MEANING = {
     "verdict_mismatch": "the host's re-evaluation of a curve differs from the device's verdict",
     "interrupted": "the run stopped early",
     "run_short": "the served machine ended its run before this host had recorded the scene's cycles or duration",
+    "not_recorded": "the served machine went on after the curves this host was asked to record (rig record --cycles); "
+                    "the later ones are in /can/raw only",
 }
 
 
