@@ -266,9 +266,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     from rig.recorder.reader import require_recording
     path = Path(args.recording)
     out = Path(args.output) if args.output else path.with_suffix("")
+    require_recording(path)
     if out.resolve() == path.resolve():
         raise UsageError(f"cannot write the report to {out}: that is the recording; give -o DIRECTORY")
-    require_recording(path)
     writable_dir(out, "report")
     try:
         rec = read_recording(path, allow_partial=args.partial)

@@ -331,6 +331,12 @@ def read_config(scene: Scene) -> RunConfig:
     if not 0.0 < can["live_share"] <= 1.0:
         raise SceneError(f"{cw}: key 'live_share' must be in (0, 1], got {can['live_share']}")
     _of_type(can["fd"], bool, "fd", cw, "true or false")
+    if can["data_bitrate"] is not None and not can["fd"]:
+        raise SceneError(f"{cw}: key 'data_bitrate' is the data phase of CAN FD: set fd = true, or remove it for "
+                         f"classic CAN")
+    if can["data_bitrate"] is not None and can["data_bitrate"] < can["bitrate"]:
+        raise SceneError(f"{cw}: key 'data_bitrate' = {can['data_bitrate']} bit/s must be at least 'bitrate' = "
+                         f"{can['bitrate']} bit/s (the data phase is the faster one)")
     _of_type(can["channel"], str, "channel", cw, "a string")
     _of_type(can["host"], str, "host", cw, "a host name or address")
     if can["interface"] not in IN_PROCESS_INTERFACES:

@@ -214,3 +214,8 @@ def test_the_console_script_takes_ctrl_c_before_it_imports_the_command_line():
     import tomllib
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts["rig"] == "rig.launch:entry"
+
+
+def test_a_directory_given_as_the_recording_is_named_as_such(tmp_path, capsys):
+    assert main(["report", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == f"rig: error: cannot read recording {tmp_path}: is a directory\n"

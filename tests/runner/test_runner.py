@@ -148,6 +148,8 @@ def test_interrupted_run_leaves_a_valid_recording(tmp_path: Path, monkeypatch):
     ('description = "burster_8411"', 'description = "no_such_sensor"', r"no_such_sensor"),
     ('"drive_torque"]', '"drive_torquee"]', r"\[recording\]: 'truth_signals' names 'drive_torquee', which the "
                                              r"plant does not have \(did you mean 'drive_torque'\?\)"),
+    ('bitrate = 1000000', 'bitrate = 1000000\ndata_bitrate = 4000000', r"\[links.can\]: key 'data_bitrate' is the "
+                                                                      r"data phase of CAN FD: set fd = true"),
     ('sample_rate = "10 kHz"', 'sample_rate = "9999 Hz"', r"\[scene\]: 'sample_rate' = 9999 Hz: live pairs go out "
                                                           r"stamped on the 100 µs Tick grid"),
 ])
