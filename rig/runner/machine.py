@@ -59,6 +59,12 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
         device.select_program(program)
     except ValueError as exc:
         raise SceneError(f"{cfg.scene.path} [device]: {exc}") from None
+    sampling = device.get_program(program)["sampling"]      # a delta the scene gives must be one the stream has
+    given = "delta" in (cfg.device["config"].get("sampling") or {})
+    if given and sampling["mode"] == "time" and sampling["delta"] < cfg.dt * (1 - 1e-9):
+        raise SceneError(f"{cfg.scene.path} [device.config.sampling]: 'delta' = {sampling['delta'] * 1e3:g} ms is "
+                         f"finer than the machine's samples ({cfg.dt * 1e3:g} ms at [scene] sample_rate = "
+                         f"{cfg.sample_rate:g} Hz): the unit can only take every sample; raise sample_rate or delta")
     return transducers, device
 
 

@@ -150,6 +150,8 @@ def test_interrupted_run_leaves_a_valid_recording(tmp_path: Path, monkeypatch):
                                              r"plant does not have \(did you mean 'drive_torque'\?\)"),
     ('bitrate = 1000000', 'bitrate = 1000000\ndata_bitrate = 4000000', r"\[links.can\]: key 'data_bitrate' is the "
                                                                       r"data phase of CAN FD: set fd = true"),
+    ('delta = "0.1 ms"', 'delta = "0.05 ms"', r"\[device.config.sampling\]: 'delta' = 0.05 ms is finer than the "
+                                              r"machine's samples \(0.1 ms at \[scene\] sample_rate = 10000 Hz\)"),
     ('sample_rate = "10 kHz"', 'sample_rate = "9999 Hz"', r"\[scene\]: 'sample_rate' = 9999 Hz: live pairs go out "
                                                           r"stamped on the 100 µs Tick grid"),
 ])
