@@ -173,11 +173,14 @@ def test_an_existing_foreign_file_is_never_overwritten(foreign, capsys):
     (lambda t: ["record", str(DEMO), "-o", str(t / "passwd"), "--can-port", "1"],
      "cannot write the recording to {t}/passwd: it exists and is not a recording file"),
     (lambda t: ["report", str(t / "passwd"), "-o", str(t / "passwd")],
-     "cannot write the report to {t}/passwd: that is the recording"),
+     "{t}/passwd: not an MCAP file (bad magic bytes)"),                  # the input is named first
+    (lambda t: [(t / "r.mcap").write_bytes(b"\x89MCAP0\r\n") and "report", str(t / "r.mcap"), "-o", str(t / "r.mcap")],
+     "cannot write the report to {t}/r.mcap: that is the recording"),
     (lambda t: ["summary", "--png", str(t / "passwd")], "cannot write the cycle chart to {t}/passwd: it exists"),
     (lambda t: ["tolerance", "-o", str(t / "passwd")], "cannot write the tolerance chart to {t}/passwd: it exists"),
     (lambda t: ["serve", str(DEMO), "--endpoints", str(t / "passwd")], "cannot write the endpoints to {t}/passwd: "),
-    (lambda t: ["export-can", str(t / "a.mcap"), "-o", str(t)], "cannot write the CAN trace to {t}: it is a directory"),
+    (lambda t: [(t / "a.mcap").write_bytes(b"\x89MCAP0\r\n") and "export-can", str(t / "a.mcap"), "-o", str(t)],
+     "cannot write the CAN trace to {t}: it is a directory"),          # an MCAP file's start: the output is next
 ])
 def test_output_path_errors_name_the_path_in_plain_words(tmp_path, foreign, capsys, argv, message):
     assert cli.main(["-q", *argv(tmp_path)]) == 2
