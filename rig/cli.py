@@ -262,7 +262,7 @@ def _served(path: Path) -> dict[str, Any]:
 
 def cmd_report(args: argparse.Namespace) -> int:
     from rig.recorder import RecordingError, read_recording
-    from rig.recorder.completeness import losses
+    from rig.recorder.completeness import losses, nothing_recorded
     from rig.recorder.reader import require_recording
     path = Path(args.recording)
     out = Path(args.output) if args.output else path.with_suffix("")
@@ -277,9 +277,9 @@ def cmd_report(args: argparse.Namespace) -> int:
             raise
         raise RecordingError(f"{path}: truncated or corrupt recording ({'; '.join(exc.partial.problems)}); "
                              f"`rig report --partial {path}` reports what it holds") from None
-    if not rec.message_counts:
-        raise RecordingError(f"{path}: nothing to report, the recording holds no message: "
-                             + "; ".join(rec.problems or ["no message was written"]) + "; no report written")
+    empty = nothing_recorded(rec)
+    if empty is not None:
+        raise RecordingError(f"{path}: nothing to report, {empty}; no report written")
     if not rec.complete:
         print(f"{path}: incomplete recording; " + "; ".join(losses(rec)))
     path = _report(rec, out, args.format, progress=not args.quiet, ok_plots=args.ok_plots, nok_plots=args.nok_plots)

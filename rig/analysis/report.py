@@ -35,7 +35,7 @@ from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
 from rig.outputs import MARK
 from rig.recorder import Recording, read_recording
-from rig.recorder.completeness import losses
+from rig.recorder.completeness import file_problem, losses
 
 MANIFEST = ".mechrig-report"    # in a report directory: the files the last report wrote there
 NOK_ROWS = 60         # rows of the "what failed and why" table (all of them are in results.csv)
@@ -545,7 +545,7 @@ def _complete(rec: Recording) -> str:
     """The overview's ``complete`` cell: yes, or why not (truncated file, interrupted run)."""
     if rec.complete:
         return "yes"
-    return "no: " + ", ".join(why for why, applies in (("file truncated (run killed or file cut)", rec.truncated),
+    return "no: " + ", ".join(why for why, applies in ((file_problem(rec), rec.truncated),
                                                        (f"run interrupted ({rec.interrupted})", rec.interrupted))
                               if applies)
 

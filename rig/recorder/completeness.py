@@ -24,6 +24,22 @@ def _ranges(numbers: list[int]) -> str:
     return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
 
 
+def nothing_recorded(rec: Recording) -> str | None:
+    """Why a recording read with ``allow_partial`` holds nothing to report or analyse (no message), in words; None
+    when it holds messages."""
+    if rec.message_counts:
+        return None
+    return "the recording holds no message: " + "; ".join(rec.problems or ["no message was written"])
+
+
+def file_problem(rec: Recording) -> str:
+    """What is wrong with a truncated recording's file, in a few words: damaged, cut short, or both."""
+    cut = "truncated (run killed or file cut)"
+    if not rec.damaged:
+        return f"file {cut}"
+    return "file damaged" + ("" if rec.read_to_data_end or rec.data_whole else f" and {cut}")
+
+
 def losses(rec: Recording) -> list[str]:
     """Sentences naming why ``rec`` is incomplete and what it lacks; [] for a complete recording."""
     if rec.complete:
@@ -32,14 +48,24 @@ def losses(rec: Recording) -> list[str]:
     if rec.truncated and rec.data_whole:
         out.append("nothing of the run is lost: every message up to the file's data end was read"
                    + ("" if rec.end else "; the run's end record is not in it"))
+    elif rec.truncated and rec.read_to_data_end:
+        out.append(f"lost: only what the damaged part{'s' if len(rec.lost) > 1 else ''} named above held; every "
+                   "other record up to the file's data end was read"
+                   + (" (the run's end record too)" if rec.end else "; the run's end record is not in it"))
     elif rec.truncated:
         out.append("lost: the messages after the last whole chunk, the summary"
                    + (" (the run's end record was read)" if rec.end else " and the run's end record"))
     out.append(f"data ends at {rec.last_time:.3f} s of simulation time")
     cycles, duration = _requested(rec, "cycles"), _requested(rec, "duration")
     if cycles is not None and len(rec.curves) < cycles:
+        numbers = {c.number for c in rec.curves}
+        top = min(max(numbers, default=0), cycles)
+        missing = [_ranges(sorted(set(range(1, top + 1)) - numbers))] if len(numbers) < top else []
+        missing += [str(cycles) if top + 1 == cycles else f"{top + 1}-{cycles}"] if top < cycles else []
+        plural = "s" if cycles - len(rec.curves) > 1 else ""
+        named = f" (curve{plural} {', '.join(missing)})" if rec.lost else ""
         out.append(f"{len(rec.curves)} of {cycles} requested curves recorded; the other {cycles - len(rec.curves)} "
-                   f"are not in the file")
+                   f"are not in the file{named}")
     elif duration is not None and rec.last_time < duration:
         out.append(f"{rec.last_time:.3f} of {duration:g} s requested recorded")
     unmatched = {c.number for c in rec.curves} - {int(r["number"]) for r in rec.results if "number" in r}
