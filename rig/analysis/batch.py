@@ -34,7 +34,9 @@ LISTED = 20  # recordings named per list in the report
 class RecordingSummary:
     """What one recording holds: its scene and plant, verdict counts, process values {"p<program>.<name>":
     (Moments, display unit)} (a stand's or lab's key results as "stand.<name>" / "lab.<sheet>.<name>"), its summary
-    lines, event counts, whether it is complete, and why it could not be read (``error``)."""
+    lines, event counts, whether it is complete and why not (``incomplete``: a cut or damaged file, read with
+    ``allow_partial`` for what it holds, or a run stopped early), and why it could not be read (``error``: nothing
+    in it to analyse)."""
 
     path: str
     scene: str = ""
@@ -48,6 +50,7 @@ class RecordingSummary:
     stand: list[str] = field(default_factory=list)
     error: str = ""
     level: str = ""
+    incomplete: str = ""
 
     @property
     def group(self) -> str:
@@ -89,8 +92,12 @@ def summarise(path: Path) -> RecordingSummary:
     from rig.analysis import analyse
     from rig.analysis.stand_summary import stand_summary
     from rig.recorder import RecordingError, read_recording
+    from rig.recorder.completeness import nothing_recorded
     try:
-        rec = read_recording(path)
+        rec = read_recording(path, allow_partial=True)
+        empty = nothing_recorded(rec)
+        if empty is not None:
+            raise RecordingError(f"{path}: {empty}")
         result = analyse(rec)
         values = _value_moments(rec, result["units"])
         summary = stand_summary(rec)
@@ -103,7 +110,8 @@ def summarise(path: Path) -> RecordingSummary:
     meta = rec.metadata.get("rig", {})
     return RecordingSummary(str(path), str(meta.get("scene", "")), str(meta.get("plant", "")), rec.complete,
                             len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]),
-                            summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")))
+                            summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")),
+                            incomplete=" ".join("; ".join(rec.problems).split()))
 
 
 def summarise_all(paths: list[Path]) -> list[RecordingSummary]:
@@ -143,18 +151,20 @@ def _stats(m: Moments) -> tuple:
 
 
 def write_table(result: BatchResult, path: Path) -> Path:
-    """CSV, one row per recording: path, scene, level, plant, complete, curves, OK, NOK, error, a stand's or lab's
-    summary lines (joined by " | "), then n/mean/std/min/max of every process value (and stand result) any
-    recording has (display units, in the header; a value shown in two units gets a column group per unit)."""
+    """CSV, one row per recording: path, scene, level, plant, complete, why incomplete, curves, OK, NOK, error, a
+    stand's or lab's summary lines (joined by " | "), then n/mean/std/min/max of every process value (and stand
+    result) any recording has (display units, in the header; a value shown in two units gets a column group per
+    unit)."""
     keys = sorted({(k, u) for r in result.recordings for k, (_, u) in r.values.items()})
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         out = csv.writer(f)
-        out.writerow(["recording", "scene", "level", "plant", "complete", "curves", "ok", "nok", "error", "stand"]
+        out.writerow(["recording", "scene", "level", "plant", "complete", "why incomplete", "curves", "ok", "nok",
+                      "error", "stand"]
                      + [f"{k} {s}" + (f" [{u}]" if u and s != "n" else "") for k, u in keys for s in STATS])
         for r in result.recordings:
-            out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.curves, r.ok, r.nok, r.error,
-                          " | ".join(line.strip() for line in r.stand)]
+            out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.incomplete, r.curves, r.ok, r.nok,
+                          r.error, " | ".join(line.strip() for line in r.stand)]
                          + [x for k, u in keys
                             for x in (_stats(r.values[k][0]) if k in r.values and r.values[k][1] == u else [""] * 5)])
     return path
@@ -162,13 +172,16 @@ def write_table(result: BatchResult, path: Path) -> Path:
 
 def report_lines(result: BatchResult) -> list[str]:
     """The combined report (Markdown): totals, process values (and stand results) over all recordings, the
-    stand and lab recordings with their summaries, recordings with NOK curves, incomplete and unreadable ones."""
+    stand and lab recordings with their summaries, recordings with NOK curves, incomplete ones (with the reason: a
+    cut or damaged file analysed for what it holds, a run stopped early) and unreadable ones."""
     recs = result.recordings
     read = [r for r in recs if not r.error]
+    incomplete = [r for r in read if not r.complete]
     curves, nok = sum(r.curves for r in read), sum(r.nok for r in read)
     groups = sorted({r.group for r in read})
     lines = [f"# Batch analysis of {len(recs)} recordings", "",
-             f"{len(read)} read, {len(recs) - len(read)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
+             f"{len(read)} read" + (f" ({len(incomplete)} incomplete)" if incomplete else "")
+             + f", {len(recs) - len(read)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
              + (f" ({100 * nok / curves:.2f} %)" if curves else "")
              + (f"; {len(groups)} scenes (scene and model level), each its own population" if len(groups) > 1 else ""),
              ""]
@@ -199,7 +212,8 @@ def report_lines(result: BatchResult) -> list[str]:
         lines += [f"* … and {len(stands) - LISTED} more (the table has every one)"] if len(stands) > LISTED else []
         lines.append("")
     for title, chosen, what in (("Recordings with NOK curves", [r for r in read if r.nok], lambda r: f"{r.nok} NOK of {r.curves}"),
-                                ("Incomplete recordings", [r for r in read if not r.complete], lambda r: "incomplete"),
+                                ("Incomplete recordings (analysed for what they hold)", incomplete,
+                                 lambda r: r.incomplete or "incomplete"),
                                 ("Unreadable recordings", [r for r in recs if r.error], lambda r: r.error)):
         if chosen:
             lines += [f"## {title} ({len(chosen)})", ""]

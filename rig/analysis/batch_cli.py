@@ -29,7 +29,7 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     if not any(not r.error for r in result.recordings):
         print(f"rig: error: none of the {len(paths)} files could be read as a recording (the reasons are in {report})",
               file=sys.stderr)
-        return 1
+        return 2
     return 0
 
 

@@ -16,7 +16,8 @@ from rig.recorder import read_recording
 
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
-    """Two demo runs (2 and 3 cycles), a copy of one, and a truncated file."""
+    """Two demo runs (2 and 3 cycles), a copy of one, a file cut in its only chunk (it holds no message) and one
+    cut after its data (a run killed while closing its file: every message is there)."""
     root = tmp_path_factory.mktemp("batch")
     for cycles in (2, 3):
         assert main(["-q", "run", "--no-report", "--cycles", str(cycles), "-o", str(root / f"run{cycles}.mcap")]) == 0
@@ -24,6 +25,7 @@ def recordings(tmp_path_factory):
     shutil.copy(root / "run2.mcap", root / "sub" / "copy.mcap")
     data = (root / "run3.mcap").read_bytes()
     (root / "cut.mcap").write_bytes(data[: len(data) // 2])
+    (root / "short.mcap").write_bytes(data[:-100])
     return root
 
 
@@ -48,17 +50,34 @@ def test_combined_statistics_are_those_of_all_curves(recordings, dask_scheduler)
 
 
 def test_rig_analyse_writes_table_and_report_and_names_unreadable_files(recordings, tmp_path, capsys):
+    """A truncated file is read as `rig report --partial` reads it: what it holds is analysed, and it is marked
+    incomplete with the reason; only a file that yields nothing is unreadable."""
     out = tmp_path / "an"
     assert main(["-q", "analyse", str(recordings / "*.mcap"), "-o", str(out)]) == 0
     rows = list(csv.DictReader((out / "recordings.csv").open()))
-    assert [r["recording"].rsplit("/", 1)[1] for r in rows] == ["cut.mcap", "run2.mcap", "run3.mcap"]
-    cut, run2, run3 = rows
-    assert cut["error"] and (run2["curves"], run3["curves"]) == ("2", "3")
+    assert [r["recording"].rsplit("/", 1)[1] for r in rows] == ["cut.mcap", "run2.mcap", "run3.mcap", "short.mcap"]
+    cut, run2, run3, short = rows
+    assert "the recording holds no message: file ends" in cut["error"] and cut["curves"] == "0"
+    assert (run2["curves"], run3["curves"]) == ("2", "3") and run3["complete"] == "True" and not run3["why incomplete"]
     assert run3["p1.x_max n"] == "3" and float(run3["p1.x_max mean [mm]"]) > 40
+    assert not short["error"] and short["complete"] == "False" and short["curves"] == "3"
+    assert short["why incomplete"].startswith("file ends") and "after the data end" in short["why incomplete"]
+    assert short["p1.x_max mean [mm]"] == run3["p1.x_max mean [mm]"]
     report = (out / "report.md").read_text()
-    assert "3 recordings" in report and "1 unreadable; 5 curves" in report and "cut.mcap" in report
+    assert "4 recordings" in report and "3 read (1 incomplete), 1 unreadable; 8 curves" in report
+    incomplete = report[report.index("## Incomplete recordings"):report.index("## Unreadable recordings")]
+    assert f"* {recordings / 'short.mcap'}: file ends" in incomplete and "cut.mcap" not in incomplete
+    assert f"* {recordings / 'cut.mcap'}: {recordings / 'cut.mcap'}: the recording holds no message" in report
     assert main(["analyse", str(tmp_path / "nothing*.mcap")]) == 2
     assert "no recording matches" in capsys.readouterr().err
+
+
+def test_rig_analyse_of_no_readable_recording_is_an_input_error(recordings, tmp_path, capsys):
+    """Nothing could be read (only a file that holds no message): exit status 2, an input error (README), one line."""
+    capsys.readouterr()
+    assert main(["-q", "analyse", str(recordings / "cut.mcap"), "-o", str(tmp_path / "an")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("rig: error: none of the 1 files could be read as a recording")
 
 
 def test_recordings_of_different_scenes_or_levels_are_not_one_population(recordings, tmp_path, capsys):
