@@ -13,7 +13,8 @@ DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "data" / "scenes" / "pin_i
 
 
 def cmd_cam_design(args: argparse.Namespace) -> int:
-    from rig.mechanisms.cam.design import design_checks, format_checks, plot_design
+    from rig.cam_design_chart import plot_design
+    from rig.mechanisms.cam.design import design_checks, format_checks
     from rig.outputs import PNG_MAGIC, file_parent, writable_file
     from rig.plants.cam_bar.scene_io import cam_bar_from_scene
     writable_file(Path(args.output), "cam-design chart", PNG_MAGIC)
