@@ -7,11 +7,12 @@ loading/unloading characteristic rebuilt from the recorded scene (:mod:`rig.anal
 """
 from __future__ import annotations
 
+from typing import Callable
 
 import numpy as np
 
 from rig.analysis.plots import figure, save
-from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
+from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, decimals, fixed, fixed_range, fmt
 from rig.analysis.static_loops import cycle_energy, cycles, reading_points, theory_cycle_energy
 from rig.plants.clutch.static_rig import StaticClutchRig, rig_from_scene
 from rig.recorder import Recording
@@ -45,6 +46,13 @@ def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
     return rows
 
 
+def span_format(rows: list[dict]) -> Callable[[dict], str]:
+    """``"0–60"``: a cycle's time span (s) to three significant digits of the run's end (a 120 s run in whole
+    seconds, a 1.25 s run to 0.01 s; the first cycle starts at the first sample, 0.003333 s, shown as 0)."""
+    places = decimals(max((abs(r["end"]) for r in rows), default=0.0))
+    return lambda r: f"{fixed(r['start'], places)}–{fixed(r['end'], places)}"
+
+
 def summary_lines(rec: Recording) -> list[str] | None:
     """Console lines of a static-rig run: per loading/unloading cycle the torque range, the measured
     angle range and the loop energy measured vs theory (None: not a static-rig recording)."""
@@ -56,18 +64,19 @@ def summary_lines(rec: Recording) -> list[str] | None:
         rows = cycle_table(rec, rig)
     except (SceneError, ValueError) as exc:
         return [f"static clutch rig: no cycle analysis ({exc})"]
-    lines = [f"static clutch rig: {len(rows)} loading/unloading cycle(s); torque = lever force × arm; loop energy "
-             f"∮T dφ measured (multimeter angle) vs theory (characteristic); loading peak "
-             f"{rig.clutch.peak_torque:.4g} N·m"]
+    lines = [f"static clutch rig: {len(rows)} loading/unloading cycle(s); applied torque = lever force × arm (the "
+             f"weights); loop energy ∮T dφ measured (multimeter angle) vs theory (characteristic); the model "
+             f"disengages above its loading-branch peak, {rig.clutch.peak_torque:.4g} N·m"]
+    span = span_format(rows)
     for i, r in enumerate(rows, start=1):
         angle = ("no reading" if r["angle_min"] is None
-                 else f"{np.degrees(r['angle_min']):.3g}…{np.degrees(r['angle_max']):.3g}°")
+                 else f"{fixed_range(np.degrees(r['angle_min']), np.degrees(r['angle_max']))}°")
         small = abs(r["theory"]) < 1e-6 * max(abs(r["torque_max"]), 1.0)
         dev = ("" if r["measured"] is None or small
                else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
         energy = "—" if r["measured"] is None else f"{r['measured']:.4g} J"
-        lines.append(f"  cycle {i} ({r['start']:.4g}–{r['end']:.4g} s): torque {r['torque_min']:.4g} → "
-                     f"{r['torque_max']:.4g} N·m, angle {angle}, loop energy {energy} vs {r['theory']:.4g} J{dev}, "
+        lines.append(f"  cycle {i} ({span(r)} s): applied torque {r['torque_min']:.4g} → "
+                     f"{r['torque_max']:.4g} N·m, measured angle {angle}, loop energy {energy} vs {r['theory']:.4g} J{dev}, "
                      + ("disengaged (slipped a lobe)" if r["disengaged"] else "no disengagement"))
     return lines
 
@@ -121,17 +130,20 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
     except SceneError as exc:
         return blocks + [Text(f"No theory: {exc}")]
     rows = []
-    for i, r in enumerate(cycle_table(rec, rig), start=1):
+    table = cycle_table(rec, rig)
+    span = span_format(table)
+    for i, r in enumerate(table, start=1):
         small = abs(r["theory"]) < 1e-6 * max(abs(r["torque_max"]), 1.0)      # frictionless: no loop
         dev = None if r["measured"] is None or small else (r["measured"] - r["theory"]) / r["theory"]
-        rows.append([i, f"{r['start']:.4g}–{r['end']:.4g}", fmt(r["torque_min"]), fmt(r["torque_max"]),
-                     "—" if r["angle_min"] is None else f"{np.degrees(r['angle_min']):.3g}–{np.degrees(r['angle_max']):.3g}",
+        rows.append([i, span(r), fmt(r["torque_min"]), fmt(r["torque_max"]),
+                     "—" if r["angle_min"] is None else fixed_range(np.degrees(r["angle_min"]), np.degrees(r["angle_max"]),
+                                                                   sep="–"),
                      fmt(r["measured"]), fmt(r["truth"]), fmt(r["theory"]),
                      "—" if dev is None else f"{100 * dev:+.2f} %", fmt(r["disengaged"])])
     # the results first (loop energies, disengagements), then how they were measured and the charts
     blocks.append(Heading("Hysteresis-loop energy ∮T dφ per cycle", 3))
-    blocks.append(Table(["cycle", "t (s)", "T min (N·m)", "T max (N·m)", "angle (°)", "measured (J)",
-                         "plant truth (J)", "theory (J)", "measured − theory", "disengaged"], rows))
+    blocks.append(Table(["cycle", "t (s)", "applied T min (N·m)", "applied T max (N·m)", "measured angle (°)",
+                         "measured (J)", "plant truth (J)", "theory (J)", "measured − theory", "disengaged"], rows))
     events = [e for e in rec.events if e.get("kind") in ("disengagement", "reengaged")]
     if events:
         blocks.append(Table(["t (s)", "event", "details"],

@@ -192,4 +192,26 @@ def test_console_prints_the_cycles_not_curve_counts(recordings, capsys):
         assert "curves:" not in text and text.startswith("static clutch rig:")
         rows = cycle_table(rec, static_rig(rec))
         assert text.count("  cycle ") == len(rows) >= 1
+        # the model's disengagement torque is named as such, the measured torque as the applied one
+        peak = static_rig(rec).clutch.peak_torque
+        assert f"the model disengages above its loading-branch peak, {peak:.4g} N·m" in text
+        assert "; loading peak" not in text and text.count("): applied torque ") == len(rows)
+        assert "(0.00333" not in text and ("  cycle 1 (0–" in text or "  cycle 1 (0.0–" in text)   # not 0.003333 s
         assert ("disengaged (slipped a lobe)" in text) == any(r["disengaged"] for r in rows)
+
+
+def test_cycle_times_have_the_digits_of_the_run():
+    from rig.analysis.static_clutch_report import span_format
+    rows = [{"start": 1 / 300, "end": 60.0}, {"start": 60.0, "end": 120.0}]
+    assert [span_format(rows)(r) for r in rows] == ["0–60", "60–120"]
+    short = [{"start": 1 / 300, "end": 0.6}, {"start": 0.6, "end": 1.25}]
+    assert [span_format(short)(r) for r in short] == ["0.00–0.60", "0.60–1.25"]
+
+
+def test_one_precision_per_number_and_no_negative_zero():
+    from rig.analysis.report_blocks import decimals, fixed, fixed_range
+    assert fixed_range(1.0214, 42.31) == "1.0…42.3" and fixed_range(0.0676, 5.0) == "0.07…5.00"
+    assert fixed_range(2.86, 142.0, sep="–") == "3–142"
+    assert fixed(-0.00004, 4) == "0.0000" and fixed(-0.00004, 4, sign=True) == "0.0000"
+    assert fixed(0.00071, 4, sign=True) == "+0.0007" and fixed(-0.2, 2) == "-0.20" and fixed(None, 2) == "—"
+    assert (decimals(120.0), decimals(0.6), decimals(0.0), decimals(float("nan"))) == (0, 3, 0, 0)
