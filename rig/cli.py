@@ -46,11 +46,13 @@ def _analysed(recording: Path) -> tuple[Any, dict]:
 
 def _print_values(st: dict) -> None:
     """Table of one program's process values in their display units (the unit column; rig.analysis.units):
-    n, unit, mean, σ, min, max, ±3σ band, Cp/Cpk against the limits, checks (nothing without statistics)."""
+    n, unit, mean, σ, min, max, μ±3σ band (one precision per row), Cp/Cpk against the limits, checks (nothing
+    without statistics)."""
     if not st.get("values"):
         return
-    print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean':>10} {'sigma':>9} {'min':>10} {'max':>10}  "
-          f"{'-3s..+3s':>21}  {'Cp':>7} {'Cpk':>7}  normal drift")
+    from rig.analysis.numbers import decimals, fixed
+    print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean μ':>10} {'σ':>9} {'min':>10} {'max':>10}  "
+          f"{'μ−3σ..μ+3σ':>21}  {'Cp':>7} {'Cpk':>7}  normal drift")
     for name, pv in st.get("values", {}).items():
         if pv.get("cp") is None or pv.get("cpk") is None:
             cap = f"{'-':>7} {'-':>7}"
@@ -58,8 +60,11 @@ def _print_values(st: dict) -> None:
             cap = f"{pv['cp']:7.4g} {pv['cpk']:7.4g}" if pv["spread"] else f"{'n/a':>7} {'n/a':>7}"
         drift = pv["trend"].get("drift")
         drift = f"yes: {'; '.join(pv['trend'].get('drift_why') or [])}" if drift else "no" if drift is False else "-"
+        # the band at one precision: three digits of its width (four of the mean when σ = 0)
+        places = decimals(6 * pv["std"], 3) if pv["std"] > 0 else decimals(pv["mean"], 4)
+        band = f"{fixed(pv['minus_3sigma'], places)}..{fixed(pv['plus_3sigma'], places)}"
         print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>5}  {pv['mean']:10.4g} {pv['std']:9.3g} "
-              f"{pv['min']:10.4g} {pv['max']:10.4g}  {pv['minus_3sigma']:10.4g}..{pv['plus_3sigma']:<10.4g} {cap}  "
+              f"{pv['min']:10.4g} {pv['max']:10.4g}  {band:>21}  {cap}  "
               f"{_yes_no(pv['normality'].get('normal')):6} {drift}")
 
 
@@ -105,7 +110,7 @@ def _print_set_summary(result: dict) -> None:
             rows = [r for r in lags if r["signal"] == signal]
             lt = sum(r["lag_time"] for r in rows) / len(rows)
             angles = [r["lag_angle"] for r in rows if r.get("lag_angle") is not None]
-            la = f" = {sum(angles) / len(angles) * 180 / 3.141592653589793:.2f} deg cam" if angles else ""
+            la = f" = {sum(angles) / len(angles) * 180 / math.pi:.2f}° of cam angle" if angles else ""
             parts.append(f"{signal.upper()} {lt * 1e3:.2f} ms{la}")
         print(f"  theory vs measurement, mean lag over {len({r['curve'] for r in lags})} curves: {', '.join(parts)}")
     if result["events"]:

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rig.analysis.numbers import fixed
+
 
 @dataclass(frozen=True)
 class StepMetrics:
@@ -233,7 +235,7 @@ class Metric:
             v = self.value
         else:
             v = f"{self.value:.4g}" if abs(self.value) < 1e4 else f"{self.value:.0f}"
-            v = f"{v} {self.unit}".rstrip()
+            v = f"{v}°" if self.unit == "°" else f"{v} {self.unit}".rstrip()
         return v + (f" at {self.at:.4g} s" if self.at is not None else "")
 
 
@@ -446,7 +448,7 @@ def _slip_metrics(rec: StandRecord, shutdown_count: int | None, shutdown_window:
     when = ("" if not times.size else ", at " + ", ".join(f"{x:.4g}" for x in times) + " s" if times.size <= 4
             else f", {times[0]:.4g} … {times[-1]:.4g} s")
     out = [Metric("disengagements", f"{times.size}{when}", "",
-                  f"apex passes of the measured relative angle φ1 − φ3 (encoders, {np.degrees(phi[0]):.3g}° at "
+                  f"apex passes of the measured relative angle φ1 − φ3 (encoders, {fixed(np.degrees(phi[0]), 2)}° at "
                   f"power-on; apexes at {np.degrees(apex):.4g}° + k·{np.degrees(lobe):.4g}°){model_text}")]
     if shutdown_count is None or shutdown_window is None:
         out.append(Metric("shutdown", None, "", "the recording holds no scene with a shutdown rule"))

@@ -35,7 +35,7 @@ from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
 from rig.outputs import MARK
 from rig.recorder import Recording, read_recording
-from rig.recorder.completeness import file_problem, losses
+from rig.recorder.completeness import file_problem, interruption_text, losses
 
 MANIFEST = ".mechrig-report"    # in a report directory: the files the last report wrote there
 NOK_ROWS = 60         # rows of the "what failed and why" table (all of them are in results.csv)
@@ -170,7 +170,7 @@ def verdict(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = [Heading("Verdict")]
     if not rec.complete:                  # a cut or interrupted recording: said before the verdict it qualifies
         why = _complete(rec).removeprefix("no: ")
-        blocks.append(Text(f"Warning: incomplete recording ({why}): the verdict covers the {n} curves it holds; "
+        blocks.append(Text(f"Warning: incomplete recording, {why}: the verdict covers the {n} curves it holds; "
                            "what was lost is under Recording.", "warning"))
     blocks.append(Banner(text, nok == 0))
     for program, s in a["sets"].items():
@@ -545,9 +545,9 @@ def _complete(rec: Recording) -> str:
     """The overview's ``complete`` cell: yes, or why not (truncated file, interrupted run)."""
     if rec.complete:
         return "yes"
-    return "no: " + ", ".join(why for why, applies in ((file_problem(rec), rec.truncated),
-                                                       (f"run interrupted ({rec.interrupted})", rec.interrupted))
-                              if applies)
+    return "no: " + ", ".join(why for why, applies in (
+        (file_problem(rec), rec.truncated),
+        (rec.interrupted and interruption_text(rec.interrupted), rec.interrupted)) if applies)
 
 
 def exports(ctx: ReportContext) -> list[Block]:

@@ -3,7 +3,6 @@
 (:mod:`rig.analysis.report`) lists the sections and renders their blocks to HTML or Markdown."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -98,26 +97,3 @@ def fmt(v: Any) -> str:
         return "—" if v != v else f"{v:.4g}"
     return str(v)
 
-
-def decimals(magnitude: float, significant: int = 3) -> int:
-    """Decimals that give ``magnitude`` ``significant`` digits (0 for a magnitude of 10^significant or more, and for
-    0 or a non-finite one): the one precision of a column or a range."""
-    magnitude = abs(magnitude)
-    if not math.isfinite(magnitude) or magnitude == 0.0:
-        return 0
-    return max(0, significant - 1 - math.floor(math.log10(magnitude)))
-
-
-def fixed(v: float | None, places: int, sign: bool = False) -> str:
-    """``v`` with ``places`` decimals (``sign``: always signed); a value that rounds to zero is an unsigned zero
-    (never "-0.000" or "+0.000"); a dash for None or NaN."""
-    if v is None or v != v:
-        return "—"
-    text = f"{v:+.{places}f}" if sign else f"{v:.{places}f}"
-    return text[1:] if float(text) == 0.0 and text[0] in "+-" else text
-
-
-def fixed_range(lo: float, hi: float, significant: int = 3, sep: str = "…") -> str:
-    """``"1.0…42.3"``: both ends with the decimals that give the larger one ``significant`` digits."""
-    places = decimals(max(abs(lo), abs(hi)), significant)
-    return f"{fixed(lo, places)}{sep}{fixed(hi, places)}"

@@ -12,7 +12,8 @@ from typing import Callable
 import numpy as np
 
 from rig.analysis.plots import figure, save
-from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, decimals, fixed, fixed_range, fmt
+from rig.analysis.numbers import decimals, fixed, fixed_range
+from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
 from rig.analysis.static_loops import cycle_energy, cycles, reading_points, theory_cycle_energy
 from rig.plants.clutch.static_rig import StaticClutchRig, rig_from_scene
 from rig.recorder import Recording

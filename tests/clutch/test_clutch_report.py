@@ -46,6 +46,8 @@ def test_console_prints_the_stands_key_results_not_curve_counts(runs):
     assert "rule: 4 disengagements within 100 ms" in shock
     assert re.search(r"shock at 0.1 s: overshoot\s+n/a\s+\(a shock is a pulse", shock)
     assert not re.search(r"\b774\.2\b", shock)
+    for text, _ in runs.values():            # angles: attached °, the power-on angle to 0.01° (was '0.000859°')
+        assert re.search(r"encoders, -?\d+\.\d\d° at power-on", text) and " °" not in text
 
 
 def test_stimuli_read_from_the_scenes():

@@ -209,7 +209,7 @@ def test_cycle_times_have_the_digits_of_the_run():
 
 
 def test_one_precision_per_number_and_no_negative_zero():
-    from rig.analysis.report_blocks import decimals, fixed, fixed_range
+    from rig.analysis.numbers import decimals, fixed, fixed_range
     assert fixed_range(1.0214, 42.31) == "1.0…42.3" and fixed_range(0.0676, 5.0) == "0.07…5.00"
     assert fixed_range(2.86, 142.0, sep="–") == "3–142"
     assert fixed(-0.00004, 4) == "0.0000" and fixed(-0.00004, 4, sign=True) == "0.0000"

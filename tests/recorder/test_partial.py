@@ -48,7 +48,7 @@ def test_a_run_killed_halfway_reports_with_partial(tmp_path, capsys):
     assert "no device statistics recorded" in said
     report = (tmp_path / "report" / "report.md").read_text()
     assert "no: file truncated" in report and f"{len(rec.curves)} of 200 requested curves" in report
-    assert report.index("Warning: incomplete recording (file truncated") < report.index("**OK: all") if "**OK: all" \
+    assert report.index("Warning: incomplete recording, file truncated") < report.index("**OK: all") if "**OK: all" \
         in report else report.index("Warning: incomplete recording") < report.index("**NOK")   # before the verdict
     assert report.count("| OK |") + report.count("| NOK |") == len(rec.results)      # what it holds, reported
     with_result = {r["number"] for r in rec.results}
@@ -94,7 +94,9 @@ def test_an_interrupted_run_is_marked_and_its_report_says_so(tmp_path, monkeypat
     assert main(["report", str(out), "-o", str(tmp_path / "report"), "--format", "md"]) == 0
     assert "incomplete recording" in capsys.readouterr().out
     report = (tmp_path / "report" / "report.md").read_text()
-    assert "| complete | no: run interrupted (KeyboardInterrupt) |" in report
+    assert "| complete | no: interrupted by the user (Ctrl-C) |" in report      # no exception name, no "))"
+    assert "Warning: incomplete recording, interrupted by the user (Ctrl-C): the verdict covers" in report
+    assert "| interrupted by the user (Ctrl-C) at " in report and "KeyboardInterrupt" not in report
     assert "1 of 3 requested curves recorded" in report
 
 
@@ -219,3 +221,10 @@ def test_the_console_script_takes_ctrl_c_before_it_imports_the_command_line():
 def test_a_directory_given_as_the_recording_is_named_as_such(tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 2
     assert capsys.readouterr().err == f"rig: error: cannot read recording {tmp_path}: is a directory\n"
+
+
+def test_why_a_run_stopped_in_plain_words():
+    from rig.recorder.completeness import interruption_text
+    assert interruption_text("KeyboardInterrupt") == "interrupted by the user (Ctrl-C)"
+    assert interruption_text("RunError: no host connected") == "stopped by an error — RunError: no host connected"
+    assert interruption_text("unknown reason") == "stopped early (the recording does not say why)"
