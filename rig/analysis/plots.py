@@ -22,7 +22,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from rig.analysis.elements_plot import FAILED, draw_elements
-from rig.analysis.units import QUANTITY, SIGNAL_LABEL, DisplayUnits, Unit
+from rig.analysis.units import QUANTITY, DisplayUnits, Unit, signal_label
 from rig.recorder import CurveRecord
 
 DPI = 90
@@ -417,10 +417,11 @@ def truth_groups(data: Mapping[str, np.ndarray], names: Sequence[str], units: Di
 
 
 def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Path, units: DisplayUnits,
-                 window: tuple[float, float] | None = None, title: str = "plant truth"
+                 window: tuple[float, float] | None = None, title: str = "plant truth", plant: str | None = None
                  ) -> tuple[Path, list[list[str]], list[str]]:
     """Plant truth signals over time, one axis per display unit (and per scale, :func:`truth_groups`),
-    stacked with a common time axis; ``window``: the time range shown (s). A signal constant over the window gets
+    stacked with a common time axis; ``window``: the time range shown (s); ``plant``: whose signals they are (the
+    legend says what each is for that plant, :func:`~rig.analysis.units.signal_label`). A signal constant over the window gets
     no axis, nor does one equal to an earlier signal of its unit. Returns the chart, the signals of each axis top to
     bottom, and what was not drawn (``name = value unit``, ``name equals other``)."""
     t = data["t"]
@@ -437,7 +438,8 @@ def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Pat
     fig, axs = figure(len(groups), 1, size=(10.8, 0.6 + 1.55 * len(groups)), sharex=True, squeeze=False)
     for ax, (u, quantity, members) in zip(axs[:, 0], groups):
         for n in members:
-            label = f"{n}: {SIGNAL_LABEL[n]}" if n in SIGNAL_LABEL else n
+            what = signal_label(n, plant)
+            label = f"{n}: {what}" if what else n
             ax.plot(*envelope(tt, u(shown[n])), lw=0.9, label=textwrap.fill(label, 34, subsequent_indent="  "))
         ax.set_ylabel(u.axis(quantity), fontsize=8)
         lo, hi = ax.get_ylim()

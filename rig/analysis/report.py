@@ -491,7 +491,8 @@ def truth(ctx: ReportContext) -> list[Block]:
     if "cam_angle" in names and "phi" in names:
         names.remove("phi")            # the unwrapped angle: a ramp that squeezes the wrapped one flat
     window, span = _truth_window(ctx.recording, data["t"])
-    path, panels, undrawn = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window)
+    plant = ctx.recording.metadata.get("rig", {}).get("plant")
+    path, panels, undrawn = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window, plant=plant)
     axes = " | ".join(", ".join(members) for members in panels)
     constant = f"; not drawn (constant over it, or equal to a drawn signal): {', '.join(undrawn)}" if undrawn else ""
     return [Heading("Plant truth"),

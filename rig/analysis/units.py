@@ -48,7 +48,7 @@ SIGNAL_SI = {
 #: what each plant truth signal is, for chart legends (the recorded name stays the key)
 SIGNAL_LABEL = {
     "cam_angle": "cam angle φ (wrapped)", "phi": "cam angle φ", "psi": "follower angle ψ",
-    "psi_kin": "ψ of level 0", "omega": "cam speed", "s": "stroke s (cam bar: slider/gripper; lab: follower)",
+    "psi_kin": "ψ of level 0", "omega": "cam speed", "s": "stroke s",
     "delta_w": "penetration, working flank", "delta_o": "penetration, other flank", "R23": "contact force R23",
     "F_rod": "rod force", "M_sigma": "cam moment on the follower, with spring M_Σ", "drive_torque": "drive torque needed",
     "motor_speed": "motor speed (at the cam)", "shaft_torque": "torque in the shaft",
@@ -56,10 +56,21 @@ SIGNAL_LABEL = {
     "omega1": "driving half ω1", "omega3": "driven half ω3", "omega_r": "relative speed", "M1": "motor torque",
     "M3": "load torque", "M_t": "torque-meter shaft", "T_c": "coupling torque", "F_a": "spring force",
     "N_B": "cam normal force N_B", "phi_in": "input angle", "phi_out": "output angle", "omega_in": "input speed",
-    "omega_out": "output speed", "alpha_in": "input acceleration", "alpha_out": "output acceleration", "v": "follower speed",
-    "a": "follower acceleration", "torque": "input torque", "relative_angle": "relative angle",
+    "omega_out": "output speed", "alpha_in": "input acceleration", "alpha_out": "output acceleration", "v": "speed v",
+    "a": "acceleration a", "torque": "input torque", "relative_angle": "relative angle",
     "lever_force": "loading-lever force", "leaf_strain": "leaf-spring strain",
 }
+#: a plant's own meaning of a signal name several plants record (the ``plant`` of the recording's metadata)
+PLANT_SIGNAL_LABEL = {
+    "cam_bar": {"s": "stroke s of the slider (gripper)", "v": "slider speed", "a": "slider acceleration"},
+    "lab_bench": {"s": "follower stroke s", "v": "follower speed", "a": "follower acceleration"},
+}
+
+
+def signal_label(name: str, plant: str | None = None) -> str | None:
+    """What the truth signal ``name`` is, for a chart legend: the plant's own meaning
+    (:data:`PLANT_SIGNAL_LABEL`), else :data:`SIGNAL_LABEL`; None for a signal without one."""
+    return PLANT_SIGNAL_LABEL.get(plant or "", {}).get(name, SIGNAL_LABEL.get(name))
 QUANTITY = {"m": "length", "N": "force", "rad": "angle", "N*m": "torque", "s": "time", "rad/s": "angular speed",
             "rad/s^2": "angular acceleration", "m/s": "speed", "m/s^2": "acceleration", "m/m": "strain",
             "1": "number"}

@@ -35,3 +35,20 @@ def test_linear_accelerations_follow_the_lengths_in_mm():
     """Lengths shown in mm, speeds in mm/s: accelerations in mm/s² beside them (they were m/s²)."""
     from rig.analysis.units import SIGNAL_SI, unit
     assert (unit(SIGNAL_SI["a"]).label, unit(SIGNAL_SI["v"]).label, unit(SIGNAL_SI["s"]).label) == ("mm/s²", "mm/s", "mm")
+
+
+@pytest.mark.parametrize("plant, meaning", [("cam_bar", "s: stroke s of the slider (gripper)"),
+                                            ("lab_bench", "s: follower stroke s")])
+def test_a_truth_legend_names_its_own_plants_meaning(tmp_path, monkeypatch, plant, meaning):
+    """A cam-bar report's 's' is the slider's stroke, a lab report's the follower's: each legend says only its own
+    (both said "stroke s (cam bar: slider/gripper; lab: follower)")."""
+    import rig.analysis.plots as plots
+    from rig.analysis.units import DisplayUnits, signal_label
+    figures = []
+    monkeypatch.setattr(plots, "save", lambda fig, path, **kw: figures.append(fig) or path)
+    t = np.linspace(0.0, 1.0, 50)
+    plots.truth_panels({"t": t, "s": 0.02 * t, "v": 0.02 + 0 * t + t}, ["s", "v"], tmp_path / "truth.png",
+                       DisplayUnits(), plant=plant)
+    legends = [text.get_text().replace("\n ", "") for ax in figures[0].axes for text in ax.get_legend().get_texts()]
+    assert meaning in legends and not any("cam bar:" in x or "lab:" in x for x in legends)
+    assert signal_label("s") == "stroke s" and signal_label("unknown", plant) is None
