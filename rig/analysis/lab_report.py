@@ -15,6 +15,7 @@ from typing import Any, Callable
 import numpy as np
 
 from firmware_sim.transducers.description import read_description, resolve_path
+from rig.analysis.numbers import fixed
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
 from rig.plants.lab_bench import LabBench
@@ -26,6 +27,7 @@ from rig.units import UnitError, to_si, ureg
 RPM = tau / 60.0          # rad/s per rpm
 LEGEND_WIDTH = 30         # characters per line of a legend entry beside a sheet's axes (2.3 in at "small")
 STEP = radians(10.0)      # the sheets' angle step: 36 points per turn
+TORQUE_PLACES = 4         # decimals of the cam-torque table's torque columns (N·m): one precision per column
 LAB_SCHEMA = {"sheets": Field(None, doc="lab sheets of the run: speed, cam_follower, cam_torque, cardan, geneva"),
               "readings": Field(None, None, "times (with units) at which the speed sheet reads every instrument")}
 
@@ -203,13 +205,14 @@ def speed_sheet(lab: Lab) -> Sheet:
         bounds[name] = class_bound(lab, to, float(np.mean(counter)) * RPM, resolution * RPM)
         classes[name] = lab.setting(to, "gain_error_max", "1")
         within = "within" if abs(errors[name]) <= bounds[name] else "OUTSIDE"
-        rows.append([name] + [f"{fmt(v)} ({100 * (v - c) / c:+.2f} %)" for v, c in zip(read, counter)]
-                    + [fmt(np.mean(read)), f"{100 * errors[name]:+.2f} %",
+        rows.append([name] + [f"{fmt(v)} ({fixed(100 * (v - c) / c, 2, sign=True)} %)" for v, c in zip(read, counter)]
+                    + [fmt(np.mean(read)), f"{fixed(100 * errors[name], 2, sign=True)} %",
                        f"±{100 * bounds[name]:.2f} % (class ±{100 * classes[name]:.2g} %): {within}"])
     gate_truth = [float(np.mean(truth["omega_in"][(truth["t"] > at - gate) & (truth["t"] <= at)])) / RPM
                   for at in times]
     rows.append(["plant truth (mean over the gate)"] + [fmt(v) for v in gate_truth]
-                + [fmt(np.mean(gate_truth)), f"{100 * (np.mean(counter) - np.mean(gate_truth)) / np.mean(gate_truth):+.2f} % (counter)",
+                + [fmt(np.mean(gate_truth)),
+                   f"{fixed(100 * (np.mean(counter) - np.mean(gate_truth)) / np.mean(gate_truth), 2, sign=True)} % (counter)",
                    ""])
 
     def draw(ax: Any) -> None:
@@ -251,8 +254,8 @@ def cam_follower_sheet(lab: Lab) -> Sheet:
     law = program.evaluate(grid[1:-1])
     exact = program.evaluate(grid)
     law_d2 = (exact.s[2:] - 2 * exact.s[1:-1] + exact.s[:-2]) / STEP ** 2       # the law differenced the same way
-    rows = [[f"{np.degrees(p) % 360:.0f}", f"{1e3 * a:.3f}", f"{1e3 * b:.3f}", f"{1e6 * (a - b):+.1f}",
-             f"{1e3 * c:.3f}", f"{1e3 * e:.3f}", f"{1e3 * f:.2f}", f"{1e3 * g:.2f}"]
+    rows = [[f"{np.degrees(p) % 360:.0f}", fixed(1e3 * a, 3), fixed(1e3 * b, 3), fixed(1e6 * (a - b), 1, sign=True),
+             fixed(1e3 * c, 3), fixed(1e3 * e, 3), fixed(1e3 * f, 2), fixed(1e3 * g, 2)]
             for p, a, b, c, e, f, g in zip(grid[1:-1], s[1:-1], law.s, d1, law.s_p, d2, law.s_pp)]
     peak1, peak2 = np.max(np.abs(law.s_p)), np.max(np.abs(law.s_pp))
     # the difference as a reading lag and an offset: s − law ≈ −(ω τ)·s' + c by least squares, and what remains
@@ -311,7 +314,8 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
         theory = float(np.mean(theory_at(angle[here])))
         dev.append(mean - theory)
         means.append((10 * k + 5, mean))
-        rows.append([f"{10 * k}–{10 * k + 10}", fmt(mean), fmt(theory), f"{mean - theory:+.4f}", int(here.sum())])
+        rows.append([f"{10 * k}–{10 * k + 10}", fixed(mean, TORQUE_PLACES), fixed(theory, TORQUE_PLACES),
+                     fixed(mean - theory, TORQUE_PLACES, sign=True), int(here.sum())])
     turns = np.floor((angle[-1] - angle[0]) / tau)
     span = angle <= angle[0] + turns * tau                          # whole turns only
     work = float(np.trapezoid(measured[span], angle[span])) if turns >= 1 else float("nan")
@@ -349,8 +353,8 @@ def cardan_sheet(lab: Lab) -> Sheet:
     differenced = (exact_out[2:] - exact_out[:-2]) / (2 * STEP)     # the closed form through the same differences
     lag = out[1:-1] - grid[1:-1]
     lag_theory = exact_out[1:-1] - grid[1:-1]
-    rows = [[f"{np.degrees(p) % 360:.0f}", f"{np.degrees(a):+.3f}", f"{np.degrees(b):+.3f}", f"{c:.4f}", f"{e:.4f}",
-             f"{100 * (c - e) / e:+.2f} %", f"{d:.4f}"]
+    rows = [[f"{np.degrees(p) % 360:.0f}", fixed(np.degrees(a), 3, sign=True), fixed(np.degrees(b), 3, sign=True),
+             fixed(c, 4), fixed(e, 4), f"{fixed(100 * (c - e) / e, 2, sign=True)} %", fixed(d, 4)]
             for p, a, b, c, d, e in zip(grid[1:-1], lag, lag_theory, ratio, theory, differenced)]
     a = cardan.shaft_angle
     turn = np.interp(np.interp([grid[1], grid[1] + tau], phi1, t1), t2, phi2)     # φ2 over one whole input turn
@@ -398,8 +402,9 @@ def geneva_sheet(lab: Lab) -> Sheet:
     wheel = _counted(np.interp(grid, phi1, t1), t2, phi2)
     theory = np.interp(grid, truth["phi_in"], truth["phi_out"])
     wheel_rel, theory_rel = wheel - wheel[0], theory - theory[0]      # both from the first row (the encoder's zero
-    rows = [[f"{(np.degrees(p) + 180) % 360 - 180:.0f}", f"{np.degrees(a):.2f}", f"{np.degrees(b):.2f}",  # is arbitrary)
-             f"{np.degrees(a - b):+.3f}"] for p, a, b in zip(grid, wheel_rel, theory_rel)]
+                                                                      # is arbitrary)
+    rows = [[fixed((np.degrees(p) + 180) % 360 - 180, 0), fixed(np.degrees(a), 2), fixed(np.degrees(b), 2),
+             fixed(np.degrees(a - b), 3, sign=True)] for p, a, b in zip(grid, wheel_rel, theory_rel)]
     timing = geneva.timing(lab.bench.speed.nominal_omega)
     count = tau / (lab.setting("can.Encoder2", "ppr", "1") * 4)          # rad per ×4 count of the wheel encoder
     index = tau / geneva.slots

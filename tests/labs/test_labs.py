@@ -162,6 +162,23 @@ def test_cam_shaft_torque_lab(cam):
     assert abs(v["work_per_turn"]) < 0.01 * v["peak"] * tau       # spring and mass: no net work per turn
 
 
+def _no_negative_zero_and_one_precision_per_column(rows):
+    cells = [str(c) for row in rows for c in row]
+    assert not [c for c in cells if re.fullmatch(r"[-+]0(\.0+)?( %)?", c)]        # "-0.00", "+0.0000" ...
+    for column in zip(*rows):
+        numbers = [str(c).removesuffix(" %") for c in column if re.fullmatch(r"[-+]?\d+\.\d+( %)?", str(c))]
+        assert len({len(c.split(".")[1]) for c in numbers}) <= 1, column       # one number of decimals
+
+
+def test_lab_cam_tables_have_one_precision_per_column_and_no_negative_zero(cam):
+    """The torque column mixed '0.0007143', '0' and '+0.0007'; the follower table showed '-0.00', '-0.000'."""
+    _, sheets = cam
+    for title in ("Cam follower", "Cam-shaft torque"):
+        _no_negative_zero_and_one_precision_per_column(sheets[title].rows)
+    zero = [r for r in sheets["Cam-shaft torque"].rows if r[0] == "120–130"][0]
+    assert zero[2] == "0.0000" and re.fullmatch(r"0\.\d{4}", zero[1]) and re.fullmatch(r"[+-]0\.\d{4}", zero[3])
+
+
 def test_cam_bench_torque_is_the_energy_balance():
     """M dφ = dU + d(½ m v²) + d(½ J ω²) (virtual power) on a ripple drive, checked by integrating the
     torque against the energies' changes at 1e-4."""
