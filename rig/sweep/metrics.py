@@ -116,17 +116,19 @@ def ok_share(scene: Scene, cycles: int = OK_CYCLES) -> float:
 
 @dataclass(frozen=True)
 class Metric:
-    """A sweep metric: the plants it applies to, its unit, what it is, and how it is computed."""
+    """A sweep metric: the plants it applies to, its unit, what it is, and how it is computed; ``integer``: a count
+    or a flag (the table writes it as a whole number, the maps tick and label it in whole numbers)."""
 
     plants: tuple[str, ...]
     unit: str
     doc: str
     compute: Callable[[PlantRun], float]
+    integer: bool = False
 
 
 METRICS: dict[str, Metric] = {
     "flank_switches": Metric(("cam_bar",), "1", "flank switches of the roller in the last revolution",
-                             lambda r: float(len(r.events("flank_switch")))),
+                             lambda r: float(len(r.events("flank_switch"))), integer=True),
     "upper_dwell_vibration": Metric(("cam_bar",), "m", "gripper deviation from its law in the upper dwell, peak to "
                                     "peak, last revolution (level 2; 0 at levels 0/1)", _upper_dwell_vibration),
     "gripper_deviation": Metric(("cam_bar",), "m", "gripper deviation from its law, peak to peak, last revolution "
@@ -140,9 +142,9 @@ METRICS: dict[str, Metric] = {
                        f"per-cycle variation ([scene] cycles, else {OK_CYCLES})",
                        lambda r: ok_share(r.scene)),
     "disengagements": Metric(("clutch_dynamic",), "1", "disengagements (apex passes) over the scene's duration",
-                             lambda r: float(len(r.plant.disengagement_times))),
+                             lambda r: float(len(r.plant.disengagement_times)), integer=True),
     "shutdown": Metric(("clutch_dynamic",), "1", "1 if the stand's shutdown rule fired, else 0",
-                       lambda r: float(r.plant.shutdown)),
+                       lambda r: float(r.plant.shutdown), integer=True),
 }
 
 

@@ -22,17 +22,37 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_")
 
 
+def _value_text(value: float, integer: bool) -> str:
+    return "failed" if np.isnan(value) else f"{value:.0f}" if integer else f"{value:.3g}"
+
+
+def _integer_scale(z: np.ndarray, cmap: str):
+    """A count's colours: one per whole number from the smallest to the largest value, the colour bar ticked at
+    the whole numbers (not at 0.25, 0.75 …); (norm, ticks) or (None, None) when every point failed."""
+    from matplotlib import colormaps
+    from matplotlib.colors import BoundaryNorm
+    if not np.isfinite(z).any():
+        return None, None
+    lo, hi = int(np.nanmin(z)), int(np.nanmax(z))
+    ticks = np.arange(lo, hi + 1)
+    if ticks.size > 12:                             # many counts: a whole-number subset of ticks
+        ticks = ticks[::int(np.ceil(ticks.size / 12))]
+    return BoundaryNorm(np.arange(lo - 0.5, hi + 1.0), colormaps[cmap].N), ticks
+
+
 def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
-    """PNG maps of every metric; returns the files written."""
+    """PNG maps of every metric; returns the files written. A count (:attr:`Metric.integer`) is drawn and labelled in
+    whole numbers."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     out_dir.mkdir(parents=True, exist_ok=True)
     params, written = result.params, []
     index = {point: i for i, point in enumerate(result.points)}
     for metric in result.metrics:
-        unit = METRICS[metric].unit
+        unit, integer = METRICS[metric].unit, METRICS[metric].integer
         title = f"{metric}" + (f" ({unit})" if unit != "1" else "")
         if len(params) == 1:
             p = params[0]
@@ -42,6 +62,8 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
             ax.set_xticks(range(len(y)), [_label(v) for v in p.values])
             ax.set_xlabel(p.key)
             ax.set_ylabel(title)
+            if integer:
+                ax.yaxis.set_major_locator(MaxNLocator(integer=True))
             ax.grid(True)
             path = out_dir / f"{metric}.png"
             fig.tight_layout()
@@ -53,9 +75,10 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
         for combo in itertools.islice(itertools.product(*(p.values for p in rest)), MAX_MAPS):
             z = np.array([[result.values[index[(vx, vy) + combo]][metric] for vx in px.values] for vy in py.values])
             fig, ax = plt.subplots(figsize=(max(5.0, 2.0 + 0.9 * len(px.values)), max(3.5, 1.8 + 0.45 * len(py.values))))
-            image = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
+            norm, ticks = _integer_scale(z, "viridis") if integer else (None, None)
+            image = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis", norm=norm)
             for (j, i), v in np.ndenumerate(z):
-                ax.text(i, j, "failed" if np.isnan(v) else f"{v:.3g}", ha="center", va="center", fontsize=8,
+                ax.text(i, j, _value_text(v, integer), ha="center", va="center", fontsize=8,
                         color="w" if np.isnan(v) or v < np.nanmean(z) else "k")
             ax.set_xticks(range(len(px.values)), [_label(v) for v in px.values])
             ax.set_yticks(range(len(py.values)), [_label(v) for v in py.values])
@@ -63,7 +86,9 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
             ax.set_ylabel(py.key)
             fixed = ", ".join(f"{p.key} = {_label(v)}" for p, v in zip(rest, combo))
             ax.set_title(title + (f"\n{fixed}" if fixed else ""), fontsize=9)
-            fig.colorbar(image, ax=ax)
+            bar = fig.colorbar(image, ax=ax, ticks=ticks)
+            if integer:
+                bar.ax.minorticks_off()
             fig.tight_layout()
             suffix = "".join(f"__{_slug(p.key)}_{_slug(_label(v))}" for p, v in zip(rest, combo))
             path = out_dir / f"{metric}{suffix}.png"

@@ -92,14 +92,22 @@ def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) 
     raise first
 
 
+def cell(metric: str, value: float) -> str:
+    """A metric's CSV cell: a count or flag (:attr:`Metric.integer`) as a whole number ("2", not "2.0"), other
+    values with every digit (``repr``); a failed point's NaN as ``nan``."""
+    if METRICS[metric].integer and math.isfinite(value):
+        return str(int(value))
+    return repr(float(value))
+
+
 def write_table(result: SweepResult, path: Path) -> Path:
-    """CSV: one row per point, a column per parameter (values as given), per metric (SI, unit in the header)
-    and ``error``."""
+    """CSV: one row per point, a column per parameter (values as given), per metric (SI, unit in the header; counts
+    as whole numbers, :func:`cell`) and ``error``."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         out = csv.writer(f)
         out.writerow([p.key for p in result.params] + [f"{m} [{METRICS[m].unit}]" for m in result.metrics]
                      + ["error"])
         for point, values, error in zip(result.points, result.values, result.errors):
-            out.writerow(list(point) + [repr(values[m]) for m in result.metrics] + [error])
+            out.writerow(list(point) + [cell(m, values[m]) for m in result.metrics] + [error])
     return path

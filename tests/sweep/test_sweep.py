@@ -78,7 +78,31 @@ def test_rig_sweep_writes_table_and_maps(tmp_path, capsys):
     assert [(r["speed.speed"], r["plant.k"]) for r in rows] == [("150 rpm", "1.09 N/mm"), ("150 rpm", "1.89 N/mm"),
                                                                 ("300 rpm", "1.09 N/mm"), ("300 rpm", "1.89 N/mm")]
     assert all(r["error"] == "" for r in rows) and (out / "flank_switches.png").stat().st_size > 0
+    assert sorted({r["flank_switches [1]"] for r in rows}) == ["0", "2"]        # a count, not "0.0", "2.0"
     assert "4 points, 0 failed" in capsys.readouterr().out
+
+
+def test_a_count_is_mapped_and_written_in_whole_numbers(tmp_path, monkeypatch):
+    """flank_switches 0 and 2: the colour bar ticks 0, 1, 2 (was 0.00, 0.25 … 2.00), the cells say "2"; a
+    failed point stays "nan" in the table; a metric with a unit keeps every digit."""
+    from matplotlib.figure import Figure
+
+    from rig.sweep.plots import plot_sweep
+    from rig.sweep.run import SweepResult, cell, write_table
+    params = (parse_param(SPEEDS), parse_param(RATES))
+    values = [{"flank_switches": v, "rod_force_peak": 54.5866} for v in (0.0, 0.0, 2.0, float("nan"))]
+    result = SweepResult(params, ("flank_switches", "rod_force_peak"), grid(list(params)), values, [""] * 3 + ["x"])
+    figures = []
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **kw: figures.append(self))
+    plot_sweep(result, tmp_path)
+    counts = figures[0]
+    assert sorted(t.get_text() for t in counts.axes[0].texts) == ["0", "0", "2", "failed"]
+    assert list(counts.axes[1].get_yticks()) == [0, 1, 2]            # the colour bar
+    assert not list(counts.axes[1].yaxis.get_minorticklocs())
+    assert (cell("flank_switches", 2.0), cell("flank_switches", float("nan")), cell("rod_force_peak", 54.5866)) == \
+        ("2", "nan", "54.5866")
+    rows = list(csv.DictReader(write_table(result, tmp_path / "sweep.csv").open()))
+    assert [r["flank_switches [1]"] for r in rows] == ["0", "0", "2", "nan"]
 
 
 def test_rig_sweep_refuses_a_metric_of_another_plant_and_bad_keys(tmp_path, capsys):
