@@ -19,6 +19,7 @@ from rig.outputs import (JSON_START, PNG_MAGIC, TRACE_MAGIC, UsageError, claim_d
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SCENE = DATA / "scenes" / "pin_insertion.toml"
+DEFAULT_SCENE_TEXT = f"data/scenes/{DEFAULT_SCENE.name}"       # the default as --help shows it
 # Commands kept in their own packages (python-can style plugins): each module has
 # ``register(sub, parents)`` adding its subparser(s) with ``set_defaults(func=...)``; heavy imports stay
 # inside the command functions so ``rig --help`` stays fast.
@@ -421,7 +422,8 @@ def build_parser() -> argparse.ArgumentParser:
     quiet.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
     run = sub.add_parser("run", parents=[quiet], help="run a scene in one process (machine + host) and record it to MCAP")
-    run.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
+    run.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),
+                     help=f"scene file (TOML) to run (default {DEFAULT_SCENE_TEXT}, the pin-insertion demo)")
     run.add_argument("-o", "--output", help="recording path (default out/<scene>.mcap)")
     run.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                         help="force the model level (default: [scene] fidelity, else the lowest answering "
@@ -439,21 +441,24 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=cmd_run)
     serve = sub.add_parser("serve", parents=[quiet],
                            help="run the simulated machine: CAN over socketcand, serial on a pty")
-    serve.add_argument("scene")
+    serve.add_argument("scene", help="scene file (TOML) of the machine to serve (required)")
     serve.add_argument("--port", type=_port(0), help="socketcand TCP port (default: the scene's, 0 = any)")
     serve.add_argument("--realtime", action="store_true",
                        help="pace the machine to the wall clock like the real one (default: as fast as it runs)")
-    serve.add_argument("--wait", type=_seconds, default=300.0, help="seconds to wait for a host to arm the device")
+    serve.add_argument("--wait", type=_seconds, default=300.0,
+                       help="seconds to wait for a host to arm the device (default 300)")
     serve.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                         help="force the model level (default: [scene] fidelity, else the lowest answering "
                         "[scene] questions)")
     serve.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
     serve.add_argument("--release-timeout", type=_seconds, default=300.0,
-                       help="seconds to wait after the run for the host to release the device (CAN Release)")
+                       help="seconds to wait after the run for the host to release the device (CAN Release; "
+                            "default 300)")
     serve.add_argument("--endpoints", help="also write the endpoints JSON to this file")
     serve.set_defaults(func=cmd_serve)
     rec = sub.add_parser("record", parents=[quiet], help="the host: connect to `rig serve` and record the run")
-    rec.add_argument("scene")
+    rec.add_argument("scene", help="scene file (TOML) the served machine runs: the recording's theory and checks "
+                     "(required; --endpoints checks that it is the served one)")
     rec.add_argument("-o", "--output", required=True, help="recording path (.mcap)")
     rec.add_argument("--can-host", help="the socketcand server's address (default: the endpoints', else 127.0.0.1)")
     rec.add_argument("--endpoints", metavar="FILE", help="the endpoints `rig serve --endpoints FILE` wrote: where to "
@@ -470,8 +475,9 @@ def build_parser() -> argparse.ArgumentParser:
     rec.set_defaults(func=cmd_record)
     rep = sub.add_parser("report", parents=[quiet],
                          help="write an HTML/Markdown report with plots and CSV from a recording")
-    rep.add_argument("recording")
-    rep.add_argument("-o", "--output", help="report directory")
+    rep.add_argument("recording", help="recording (.mcap) written by rig run or rig record (required)")
+    rep.add_argument("-o", "--output", help="report directory (default: the recording's path without .mcap, "
+                     "out/x.mcap -> out/x)")
     rep.add_argument("--format", choices=("html", "md"), default="html", help="report format (default html)")
     rep.add_argument("--partial", action="store_true",
                      help="report what a truncated recording (a killed run) holds and what was lost")
@@ -484,16 +490,18 @@ def build_parser() -> argparse.ArgumentParser:
     exp = sub.add_parser("export-can", parents=[quiet],
                          help="write the recording's CAN bus traffic (/can/raw) as a CAN trace: "
                          ".asc, .blf, .log (candump), .trc or .mf4 by extension")
-    exp.add_argument("recording")
+    exp.add_argument("recording", help="recording (.mcap) whose CAN traffic is exported (required)")
     exp.add_argument("-o", "--output", required=True, help="trace file; its extension picks the format")
     exp.set_defaults(func=cmd_export_can)
     summ = sub.add_parser("summary", parents=[quiet], help="cam-bar kinematics/kinetostatics table and cycle chart")
-    summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
+    summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),
+                      help=f"cam-bar scene (default {DEFAULT_SCENE_TEXT})")
     summ.add_argument("--png", help="path of the cycle chart (default out/<scene>.cycle.png)")
     summ.set_defaults(func=cmd_summary)
     tol = sub.add_parser("tolerance", parents=[quiet],
                          help="cam-bar linear and Monte-Carlo tolerance analysis (table + PNG)")
-    tol.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
+    tol.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),
+                     help=f"cam-bar scene (default {DEFAULT_SCENE_TEXT})")
     tol.add_argument("--samples", type=_count(2), default=20000, help="Monte-Carlo machines (default 20000)")
     add_executor_arguments(tol)
     tol.add_argument("--task-samples", type=_count(1), default=50_000, metavar="N",

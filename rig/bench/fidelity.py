@@ -146,9 +146,9 @@ def cmd_fidelity(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentParser]) -> None:
     """``rig bench fidelity [--scene SCENE] -o DIR``."""
-    from rig.cli import DEFAULT_SCENE
+    from rig.cli import DEFAULT_SCENE, DEFAULT_SCENE_TEXT
     p = sub.add_parser("fidelity", parents=parents,
                        help="the same cam-bar scene at levels 0, 1 and 2: what each answers and its cost (CSV + PNG)")
-    p.add_argument("--scene", default=str(DEFAULT_SCENE))
+    p.add_argument("--scene", default=str(DEFAULT_SCENE), help=f"cam-bar scene (default {DEFAULT_SCENE_TEXT})")
     p.add_argument("-o", "--output", required=True, help="output directory")
     p.set_defaults(func=cmd_fidelity)

@@ -156,7 +156,8 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
     p = sub.add_parser("stability", parents=parents,
                        help="fixed-step methods x step x contact stiffness x cam speed on the cam-bar level 2: converged, "
                             "inaccurate, detected or silent (CSV + PNG)")
-    p.add_argument("--scene", default=str(DATA / "scenes" / "pin_insertion_l2.toml"))
+    p.add_argument("--scene", default=str(DATA / "scenes" / "pin_insertion_l2.toml"),
+                   help="level-2 cam-bar scene (default data/scenes/pin_insertion_l2.toml)")
     p.add_argument("--quick", action="store_true", help="fewer cells, shorter span")
     p.add_argument("-o", "--output", required=True, help="output directory")
     p.set_defaults(func=cmd_stability)

@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
     from rig.executors.options import add_executor_arguments
     from rig.sweep.metrics import METRICS
     sweep = sub.add_parser("sweep", parents=parents, help="grid over scene parameters -> metrics table and maps")
-    sweep.add_argument("scene")
+    sweep.add_argument("scene", help="scene file (TOML) whose keys --param varies (required)")
     sweep.add_argument("--param", action="append", required=True, metavar="KEY=VALUES",
                        help="dotted scene key and comma-separated values, e.g. 'plant.k=1.09 N/mm,1.89 N/mm' "
                             "(repeat for a grid)")

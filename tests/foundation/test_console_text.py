@@ -31,3 +31,26 @@ def test_the_theory_lag_is_in_degrees_like_every_other_angle(capsys):
     cli._print_set_summary(result)
     out = capsys.readouterr().out
     assert "X 2.47 ms = 2.23° of cam angle" in out and "deg" not in out
+
+
+def _arguments(parser, name="rig"):
+    import argparse
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub, p in action.choices.items():
+                yield from _arguments(p, f"{name} {sub}")
+        elif not isinstance(action, argparse._HelpAction):
+            yield name, action
+
+
+def test_every_argument_has_help_and_an_optional_scene_names_its_default():
+    """`rig run -h` showed 'scene' with no word; cam-design's "cam-bar scene (default data/scenes/...)" is the
+    model."""
+    arguments = list(_arguments(cli.build_parser()))
+    assert not [(name, a.dest) for name, a in arguments if not a.help]
+    for name, a in arguments:
+        if a.dest in ("scene", "recording"):
+            assert ("(default " in a.help) == (a.default is not None), (name, a.help)
+            assert a.default is None or "data/scenes/" in a.help
+    report = {a.dest: a for name, a in arguments if name == "rig report"}
+    assert "without .mcap" in report["output"].help
