@@ -2,8 +2,9 @@
 
 A *schema* is a mapping ``name -> Field``. :func:`read_table` checks a TOML table against it:
 every key must be a field name (``L3 = "260 mm"``) or a field name with a unit suffix
-(``L3_mm = 260``); unknown keys, missing required keys, wrong units and non-finite values (``inf``,
-``nan``) raise :class:`SceneError` naming the key and the file. Values come back in SI.
+(``L3_mm = 260``); unknown keys, missing required keys, wrong units, non-finite values (``inf``,
+``nan``) and values outside a field's range (``Field(minimum=…, maximum=…, positive=…)``) raise :class:`SceneError`
+naming the key and the file, and the value as the scene wrote it (``got "-0.05 mm"``). Values come back in SI.
 """
 from __future__ import annotations
 
@@ -24,15 +25,43 @@ class SceneError(ValueError):
 
 @dataclass(frozen=True)
 class Field:
-    """One scene parameter: its SI unit (``"1"`` = pure number, ``None`` = not a quantity) and default."""
+    """One scene parameter: its SI unit (``"1"`` = pure number, ``None`` = not a quantity) and default; the range
+    of a quantity (SI): ``minimum``/``maximum`` inclusive, ``positive`` excludes 0 (:func:`read_table` checks it
+    and names the value as the scene wrote it)."""
 
     unit: str | None = "1"
     default: Any = REQUIRED
     doc: str = ""
+    minimum: float | None = None
+    maximum: float | None = None
+    positive: bool = False
 
     @property
     def required(self) -> bool:
         return self.default is REQUIRED
+
+    def out_of_range(self, value: float) -> str | None:
+        """What ``value`` (SI) must be when it is outside the range ("must not be negative"), else None."""
+        if not ((self.minimum is not None and value < self.minimum) or (self.maximum is not None and value > self.maximum)
+                or (self.positive and not value > 0.0)):
+            return None
+        unit = "" if self.unit in (None, "1") else f" {self.unit}"          # a bound other than 0 is in SI
+        low = self.minimum if self.minimum is not None else 0.0 if self.positive else None
+        if self.maximum is not None:
+            return (f"must be at most {self.maximum:g}{unit}" if low is None else
+                    f"must be {'above' if self.positive else 'between'} {low:g}{unit} "
+                    f"{'and at most' if self.positive else 'and'} {self.maximum:g}{unit}")
+        if self.positive and low == 0.0:
+            return "must be positive"
+        return "must not be negative" if low == 0.0 else f"must be at least {low:g}{unit}"
+
+
+def as_written(value: Any, unit: str | None = None) -> str:
+    """A scene value as the file wrote it: ``"-0.05 mm"`` (a quantity string, quoted), ``-0.05 mm`` (a number
+    whose key names the unit, ``clearance_mm = -0.05``), ``5.0`` / ``0`` (a number)."""
+    if isinstance(value, str):
+        return f'"{value}"'
+    return f"{value!r}" + (f" {unit}" if unit else "")
 
 
 @dataclass
@@ -137,6 +166,10 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
         if not math.isfinite(out[name]):
             raise SceneError(f"{where}: key {key!r} must be a finite quantity, got {value!r}"
                              + (f" {unit}" if unit else ""))
+        wrong = field.out_of_range(out[name])
+        if wrong is not None:
+            raise SceneError(f"{where}: key {key!r} {wrong}" + (f" ({field.doc})" if field.doc else "")
+                             + f", got {as_written(value, unit)}")
     for name, field in schema.items():
         if name not in out:
             if field.required:

@@ -29,6 +29,28 @@ class UnitError(ValueError):
     """A value has no unit, an unknown unit or a unit of the wrong dimension."""
 
 
+#: an example quantity per SI unit, for the message on a value rig cannot read as a quantity
+EXAMPLES = {"m": "260 mm", "rad": "60 deg", "rad/s": "150 rpm", "s": "100 ms", "N": "40 N", "N/m": "1.89 N/mm",
+            "N*m": "25 N*m", "kg": "0.91 kg", "Hz": "10 kHz", "m/s^2": "9.81 m/s^2", "kg*m^2": "0.02 kg*m^2",
+            "s/m": "0.5 s/m", "1/m": "60 / mm", "1": "0.5"}
+
+
+def example(si_unit: str) -> str:
+    """``"150 rpm"``: a quantity of the kind ``si_unit`` measures, as a scene writes it."""
+    return EXAMPLES.get(si_unit or "1", f"1 {si_unit}")
+
+
+def _unknown(value: object, unit: str | None, si_unit: str, names: tuple[str, ...], what: str) -> UnitError:
+    """The error for a value with a name pint does not know: no quantity at all ("fast"), or an unknown unit."""
+    hint = f'(e.g. "{example(si_unit)}")'
+    if unit is not None:
+        return UnitError(f"{what}: the key's unit {unit!r} is not a unit rig knows {hint}")
+    if isinstance(value, str) and not re.search(r"\d", value):
+        return UnitError(f"{what}: {value!r} is not a quantity with a unit {hint}")
+    unknown = ", ".join(repr(n) for n in names) or "its unit"
+    return UnitError(f"{what}: {value!r}: {unknown} is not a unit rig knows {hint}")
+
+
 def _unit_text(suffix: str) -> str:
     """Turn a key suffix like ``N_per_mm`` or ``N_m`` into a pint unit expression."""
     return suffix.replace("_per_", "/").replace("_", "*")
@@ -77,6 +99,8 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
         return float(value) * _factor(_unit_text(unit), si_unit or "dimensionless")
     except UnitError:
         raise
+    except pint.UndefinedUnitError as exc:
+        raise _unknown(value, unit, si_unit, tuple(getattr(exc, "unit_names", ())), what) from None
     except pint.DimensionalityError:
         raise UnitError(f"{what}: {value!r}{' ' + unit if unit else ''} has the wrong dimension; "
                         f"expected something convertible to {si_unit}") from None

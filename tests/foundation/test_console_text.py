@@ -54,3 +54,45 @@ def test_every_argument_has_help_and_an_optional_scene_names_its_default():
             assert a.default is None or "data/scenes/" in a.help
     report = {a.dest: a for name, a in arguments if name == "rig report"}
     assert "without .mcap" in report["output"].help
+
+
+@pytest.mark.parametrize("line, message", [
+    ('clearance = "-0.05 mm"', "[plant]: key 'clearance' must not be negative (groove clearance), got \"-0.05 mm\""),
+    ("clearance_mm = -0.05", "key 'clearance_mm' must not be negative (groove clearance), got -0.05 mm"),
+    ("sensor_position = 5.0", "key 'sensor_position' must be between 0 and 1 (the rod-force sensor's place along the "
+                              "rod: 0 at the follower joint C, 1 at the slider joint D), got 5.0"),
+    ('l4 = "0 mm"', "key 'l4' must be positive, got \"0 mm\""),
+])
+def test_a_scene_value_out_of_range_is_named_as_the_scene_wrote_it(tmp_path, line, message):
+    """Was "cam-bar parameter clearance must not be negative, got -5e-05 m" (SI, not the scene's mm) and
+    "sensor_position … got 5.0" without the range."""
+    import re
+
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene
+    from rig.scene import SceneError, load_scene
+    key = line.split()[0].split("_mm")[0]
+    text = re.sub(rf"(?m)^{key} = .*$", line, cli.DEFAULT_SCENE.read_text(), count=1)
+    scene = tmp_path / "bad.toml"
+    scene.write_text(text)
+    with pytest.raises(SceneError) as info:
+        mechanism_from_scene(load_scene(scene))
+    assert str(info.value) == f"{scene} [plant]: {message.removeprefix('[plant]: ')}"
+
+
+def test_a_word_where_a_quantity_belongs_is_not_unit_library_jargon():
+    from rig.units import UnitError, to_si
+    with pytest.raises(UnitError) as info:
+        to_si("fast", "rad/s", what="x.toml [speed]: key 'speed'")
+    assert str(info.value) == "x.toml [speed]: key 'speed': 'fast' is not a quantity with a unit (e.g. \"150 rpm\")"
+    assert "registry" not in str(info.value)
+
+
+def test_field_ranges_say_what_the_value_must_be():
+    from rig.scene import Field
+    assert Field("m", minimum=0.0).out_of_range(-1.0) == "must not be negative"
+    assert Field("m", positive=True).out_of_range(0.0) == "must be positive"
+    assert Field("1", minimum=0.0, maximum=1.0).out_of_range(1.5) == "must be between 0 and 1"
+    assert Field("m", minimum=0.001).out_of_range(0.0) == "must be at least 0.001 m"
+    assert Field("1", maximum=2.0).out_of_range(3.0) == "must be at most 2"
+    assert Field("m", positive=True, maximum=1.0).out_of_range(0.0) == "must be above 0 m and at most 1 m"
+    assert Field("1", minimum=0.0, maximum=1.0).out_of_range(0.5) is None

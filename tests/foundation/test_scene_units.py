@@ -31,8 +31,10 @@ def test_to_si_converts(value, unit, si, expected):
 @pytest.mark.parametrize("value, unit, message", [
     ("260 kg", None, "wrong dimension"),
     (260, None, "has no unit"),
-    ("abc", None, "cannot read"),
-    (5, "furlongz", "cannot read"),
+    ("abc", None, "'abc' is not a quantity with a unit \\(e.g. \"260 mm\"\\)"),
+    ("150 rmp", None, "'150 rmp': 'rmp' is not a unit rig knows"),
+    (5, "furlongz", "the key's unit 'furlongz' is not a unit rig knows"),
+    ("1 mm mm +", None, "cannot read"),
     (True, None, "boolean"),
     ("5 mm", "mm", "already names the unit"),
 ])

@@ -145,7 +145,7 @@ KINDS = [("TOML syntax", "not valid TOML"), ("unknown section", r"unknown sectio
          ("unknown key", "unknown key"), ("missing section", r"missing section|missing or malformed \[\[program"),
          ("missing or conflicting keys", r"missing key|give exactly one of|needs both|needs pulse"),
          ("given twice", "given twice"), ("unit: wrong dimension", "wrong dimension"), ("unit: no unit", "has no unit"),
-         ("unit: unreadable", r"cannot read|already names the unit"), ("not finite", "finite quantity"),
+         ("unit: unreadable", r"cannot read|already names the unit|is not a quantity with a unit|is not a unit rig knows"), ("not finite", "finite quantity"),
          ("wrong type", r"must be a table|must be an array|must be a list|must be a string|must be true or false|"
                         r"must be the name|must be a device|must be a host|must be '|expected a number|boolean"),
          ("not one of the choices", r"must be one of|is not one of|unknown type|unknown speed profile"),

@@ -25,6 +25,9 @@ from rig.plants.cam_bar.switches import flank_switch_angles
 
 
 #: SI units of the parameters the constructor checks (its messages name them)
+#: parameters that must be positive / not negative (also checked on a scene's values, scene_io.PLANT_SCHEMA)
+POSITIVE = ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width")
+NON_NEGATIVE = ("F_c", "F_c_travel", "mu", "x_s5", "e5", "Me_0", "k", "clearance")
 SI_UNITS = {"L3": "m", "l3": "m", "m3": "kg", "r_R": "m", "l4": "m", "m4": "kg", "e_sk": "m", "l5": "m", "m5": "kg",
             "s_H": "m", "l_F": "m", "g": "m/s^2", "roller_width": "m", "F_c": "N", "F_c_travel": "m", "mu": "",
             "x_s5": "m", "e5": "m", "Me_0": "N*m", "k": "N/m", "clearance": "m"}
@@ -175,17 +178,17 @@ class PinInsertionMechanism:
             if not isfinite(getattr(self, name)):
                 raise ValueError(f"cam-bar parameter {name} must be a finite number, got {getattr(self, name)!r} "
                                  f"{unit}".rstrip())
-        for name in ("L3", "l3", "m3", "r_R", "l4", "m4", "e_sk", "l5", "m5", "s_H", "l_F", "g", "roller_width"):
+        for name in POSITIVE:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"cam-bar parameter {name} must be positive, got {getattr(self, name)!r} "
                                  f"{SI_UNITS[name]}")
-        for name in ("F_c", "F_c_travel", "mu", "x_s5", "e5", "Me_0", "k", "clearance"):
+        for name in NON_NEGATIVE:
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"cam-bar parameter {name} must not be negative, got {getattr(self, name)!r} "
                                  f"{SI_UNITS[name]}".rstrip())
         if not 0.0 <= self.sensor_position <= 1.0:
-            raise ValueError(f"sensor_position is a fraction of the rod from the follower joint, "
-                             f"got {self.sensor_position!r}")
+            raise ValueError(f"sensor_position is the sensor's place along the rod, from 0 at the follower joint C "
+                             f"to 1 at the slider joint D, got {self.sensor_position!r}")
         if self.cam_direction not in (1, -1):
             raise ValueError(f"cam_direction must be +1 (counter-clockwise) or -1, got {self.cam_direction!r}")
         if self.J3 is None:

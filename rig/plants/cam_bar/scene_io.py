@@ -5,6 +5,7 @@ cam-program table every key is checked (unknown, missing, wrong unit → :class:
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +17,7 @@ from rig.plants.cam_bar.guide_friction import read_guide
 from rig.plants.cam_bar.insertion import read_insertion
 from rig.plants.cam_bar.joints import read_joints
 from rig.plants.cam_bar.level2_model import CONTACT_DAMPING, Level2Model
-from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+from rig.plants.cam_bar.mechanism import NON_NEGATIVE, POSITIVE, PinInsertionMechanism
 from rig.plants.cam_bar.variation import CycleVariation, plant_generator
 from rig.units import UnitError, to_si
 
@@ -30,8 +31,10 @@ PLANT_SCHEMA = {
     "s_Srest": Field("m", 0.0, "spring-point rest position of the thesis design formula"),
     "k": Field("N/m", doc="mounted spring rate"),
     "spring_rates": Field(None, doc="list of spring rates to compare, e.g. [\"1.09 N/mm\", ...]"),
-    "sensor_preload": Field("N"), "sensor_position": Field("1", 0.5, "sensor section along the rod from C"),
-    "clearance": Field("m"), "alpha_sk": Field("rad"),
+    "sensor_preload": Field("N"),
+    "sensor_position": Field("1", 0.5, "the rod-force sensor's place along the rod: 0 at the follower joint C, "
+                             "1 at the slider joint D", minimum=0.0, maximum=1.0),
+    "clearance": Field("m", doc="groove clearance"), "alpha_sk": Field("rad"),
     "roller_width": Field("m", 0.010, "roller/flank contact length for the level-2 contact stiffness (assumption)"),
     "contact_damping": Field("s/m", CONTACT_DAMPING, "Hunt-Crossley damping of the level-2 roller contact "
                              "(assumption; the run's level-2 model, not the machine)"),
@@ -48,6 +51,9 @@ PLANT_SCHEMA = {
     "drive": Field(None, None, "level-2 cam drive (motor, shaft), table [plant.drive] (rig.plants.cam_bar.drive)"),
     "joints": Field(None, None, "level-2 rod pin clearances, table [plant.joints] (rig.plants.cam_bar.joints)"),
 }
+# the ranges PinInsertionMechanism checks, checked on the scene's values (the error shows the value as written)
+PLANT_SCHEMA.update({name: replace(PLANT_SCHEMA[name], positive=True) for name in POSITIVE})
+PLANT_SCHEMA.update({name: replace(PLANT_SCHEMA[name], minimum=0.0) for name in NON_NEGATIVE})
 SEGMENT_SCHEMA = {"kind": Field(None), "angle": Field("rad"), "law": Field(None, None),
                   "stroke": Field("m", None, "defaults to s_H for rise/return")}
 SPEED_SCHEMAS = {
