@@ -14,8 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any, Callable
 
-from rig.outputs import (JSON_START, PNG_MAGIC, TRACE_MAGIC, UsageError, claim_dir, file_parent, writable_dir,
-                         writable_file)
+from rig.outputs import (JSON_START, PNG_MAGIC, TRACE_MAGIC, UsageError, claim_dir, file_parent, recording_file,
+                         writable_dir, writable_file)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SCENE = DATA / "scenes" / "pin_insertion.toml"
@@ -160,17 +160,21 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
                             nok_plots=NOK_PLOTS if nok_plots is None else nok_plots)
 
 
+def _created(folder: Path | None) -> str:
+    """The note on the output line that rig made the recording's folder (it did not exist)."""
+    return f" (created the folder {folder})" if folder is not None and folder.is_dir() else ""
+
+
 def cmd_run(args: argparse.Namespace) -> int:
-    from rig.recorder.reader import MCAP_MAGIC
     from rig.runner import run_scene
     scene = Path(args.scene)
     out = Path(args.output) if args.output else Path("out") / f"{scene.stem}.mcap"
-    writable_file(out, "recording", MCAP_MAGIC)
+    new_folder = recording_file(out)
     report_dir = Path(args.report_dir) if args.report_dir else out.with_suffix("")
     if not args.no_report:
         if report_dir.resolve() == out.resolve():
-            raise UsageError(f"cannot write the report to {report_dir}: that is the recording's path; name the "
-                             f"recording *.mcap or give --report-dir")
+            raise UsageError(f"cannot write the report to {report_dir}: that is the recording's path; give another "
+                             f"--report-dir")
         writable_dir(report_dir, "report")
     cfg = _scene_config(scene, args.cycles)
     if cfg.plant == "cam_bar":
@@ -181,7 +185,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     what = _done("recorded", summary.curves)
     print(f"{what}, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
           f"({summary.realtime_factor:.1f}x real time{_compiled(summary)}; {summary.wall_time:.2f} s with serial "
-          f"set-up and read-back), {summary.frames} CAN frames received -> {summary.output}")
+          f"set-up and read-back), {summary.frames} CAN frames received -> {summary.output}{_created(new_folder)}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
@@ -212,10 +216,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 def cmd_record(args: argparse.Namespace) -> int:
     from rig.fidelity import choose
-    from rig.recorder.reader import MCAP_MAGIC
     from rig.runner import record_scene
     from rig.runner.session import scene_digest
-    writable_file(Path(args.output), "recording", MCAP_MAGIC)
+    new_folder = recording_file(Path(args.output))
     cfg = _scene_config(Path(args.scene), args.cycles)
     if args.endpoints:                   # what `rig serve --endpoints` wrote: where to connect, and what it serves
         served = _served(Path(args.endpoints))
@@ -236,7 +239,8 @@ def cmd_record(args: argparse.Namespace) -> int:
     summary = record_scene(args.scene, args.output, can_host=args.can_host or "127.0.0.1", can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet, fidelity=args.fidelity)
-    print(f"{_done('recorded', summary.curves)}, {summary.simulated_time:.2f} s simulated -> {summary.output}")
+    print(f"{_done('recorded', summary.curves)}, {summary.simulated_time:.2f} s simulated -> {summary.output}"
+          f"{_created(new_folder)}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
@@ -424,7 +428,8 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", parents=[quiet], help="run a scene in one process (machine + host) and record it to MCAP")
     run.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),
                      help=f"scene file (TOML) to run (default {DEFAULT_SCENE_TEXT}, the pin-insertion demo)")
-    run.add_argument("-o", "--output", help="recording path (default out/<scene>.mcap)")
+    run.add_argument("-o", "--output", help="recording path, *.mcap (default out/<scene>.mcap; a missing folder is "
+                     "created and the output line says so)")
     run.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                         help="force the model level (default: [scene] fidelity, else the lowest answering "
                         "[scene] questions)")
@@ -459,7 +464,8 @@ def build_parser() -> argparse.ArgumentParser:
     rec = sub.add_parser("record", parents=[quiet], help="the host: connect to `rig serve` and record the run")
     rec.add_argument("scene", help="scene file (TOML) the served machine runs: the recording's theory and checks "
                      "(required; --endpoints checks that it is the served one)")
-    rec.add_argument("-o", "--output", required=True, help="recording path (.mcap)")
+    rec.add_argument("-o", "--output", required=True, help="recording path, *.mcap (a missing folder is created and "
+                     "the output line says so)")
     rec.add_argument("--can-host", help="the socketcand server's address (default: the endpoints', else 127.0.0.1)")
     rec.add_argument("--endpoints", metavar="FILE", help="the endpoints `rig serve --endpoints FILE` wrote: where to "
                      "connect, checked to serve this scene at this fidelity (--can-host/--can-port/--can-channel/"

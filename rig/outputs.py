@@ -74,6 +74,20 @@ def writable_file(path: Path, what: str, magic: bytes | None = None) -> None:
         fail("permission denied")
 
 
+def recording_file(path: Path) -> Path | None:
+    """Check the output recording ``path`` of ``rig run``/``rig record`` (:func:`writable_file`, then its name:
+    a recording is an MCAP file, ``*.mcap`` — ``-o x.txt`` would write MCAP bytes under a name that says text);
+    returns the folder rig will create for it, None when it exists."""
+    from rig.recorder.reader import MCAP_MAGIC
+    path = Path(path)
+    writable_file(path, "recording", MCAP_MAGIC)
+    if path.suffix.lower() != ".mcap":
+        raise UsageError(f"cannot write the recording to {path}: a recording is an MCAP file, its name must end in "
+                         f".mcap (e.g. {path.with_suffix('.mcap') if path.suffix else path.with_name(path.name + '.mcap')})")
+    folder = Path(os.path.abspath(path)).parent
+    return None if folder.exists() else folder
+
+
 def writable_dir(path: Path, what: str, shared: bool = False) -> None:
     """A :class:`UsageError` naming ``path`` unless it is, or can become, a writable directory rig may fill: new,
     empty, or marked as rig's (:data:`MARK`); ``shared``: a directory rig puts only individually checked files

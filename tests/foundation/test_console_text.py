@@ -96,3 +96,26 @@ def test_field_ranges_say_what_the_value_must_be():
     assert Field("1", maximum=2.0).out_of_range(3.0) == "must be at most 2"
     assert Field("m", positive=True, maximum=1.0).out_of_range(0.0) == "must be above 0 m and at most 1 m"
     assert Field("1", minimum=0.0, maximum=1.0).out_of_range(0.5) is None
+
+
+@pytest.mark.parametrize("name, suggested", [("x.txt", "x.mcap"), ("noext", "noext.mcap")])
+def test_a_recording_must_be_named_mcap(tmp_path, capsys, name, suggested):
+    """`-o x.txt` wrote an MCAP file named .txt; now refused before anything runs, with the name to use."""
+    out = tmp_path / name
+    assert cli.main(["-q", "run", "--cycles", "1", "--no-report", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"rig: error: cannot write the recording to {out}: a recording is an MCAP file, its name must end "
+                   f"in .mcap (e.g. {tmp_path / suggested})\n")
+    assert not out.exists() and not list(tmp_path.iterdir())
+    assert cli.main(["-q", "record", str(cli.DEFAULT_SCENE), "--can-port", "1", "-o", str(out)]) == 2
+    assert "a recording is an MCAP file" in capsys.readouterr().err
+
+
+def test_a_new_folder_for_the_recording_is_made_and_said(tmp_path, capsys):
+    out = tmp_path / "new" / "deeper" / "x.mcap"
+    assert cli.main(["-q", "run", "--cycles", "1", "--no-report", "-o", str(out)]) == 0
+    said = [line for line in capsys.readouterr().out.splitlines() if line.startswith("recorded ")]
+    assert said[0].endswith(f"-> {out} (created the folder {out.parent})") and out.exists()
+    assert cli.main(["-q", "run", "--cycles", "1", "--no-report", "-o", str(out)]) == 0       # it exists now
+    assert [line for line in capsys.readouterr().out.splitlines() if line.startswith("recorded ")][0].endswith(
+        f"-> {out}")
