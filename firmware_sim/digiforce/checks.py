@@ -68,7 +68,8 @@ def text(cfg: Mapping[str, Any], key: str, where: str, default: str | None = Non
 
 
 #: units a bare number of a channel in SI ``unit`` was likely meant in (the hint of a missing unit)
-_EXAMPLE_UNITS = {"m": ("mm", "m"), "N": ("N", "kN"), "s": ("ms", "s"), "rad": ("deg", "rad"), "N*m": ("N*m",)}
+#: the unit a bare number was taken in (SI) first, then the one a scene usually writes
+_EXAMPLE_UNITS = {"m": ("m", "mm"), "N": ("N", "kN"), "s": ("s", "ms"), "rad": ("rad", "deg"), "N*m": ("N*m",)}
 
 
 def quantity(value: Any, unit: str, what: str) -> float:

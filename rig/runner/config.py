@@ -227,7 +227,7 @@ def default_max_time(cycles: int) -> float:
 def _integer(value: float, key: str, where: str, minimum: int = 0, maximum: float = math.inf) -> int:
     if not math.isfinite(value) or value != int(value) or not minimum <= value <= maximum:
         raise SceneError(f"{where}: key {key!r} must be an integer >= {minimum}"
-                         + (f" and <= {maximum}" if maximum < math.inf else "") + f", got {value}")
+                         + (f" and <= {maximum}" if maximum < math.inf else "") + f", got {value:g}")
     return int(value)
 
 

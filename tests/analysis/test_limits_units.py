@@ -68,7 +68,7 @@ def test_a_bare_number_in_the_limits_is_an_error_naming_key_and_file(tmp_path):
         run_scene(scene, tmp_path / "bare.mcap", cycles=1)
     message = str(err.value)
     assert str(scene) in message and "limits.x_max" in message and "has no unit" in message
-    assert '"0.0415 mm" or "0.0415 m"' in message                      # the hint offers the unit meant, not SI only
+    assert '"0.0415 m" or "0.0415 mm"' in message                      # SI (what a bare number is), then the usual unit
 
 
 def test_rig_run_checks_the_scene_before_writing_anything(tmp_path, capsys):

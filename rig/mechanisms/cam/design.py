@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from math import degrees, tau
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -176,59 +175,3 @@ def utilisation(check: Check) -> float:
     ratio means nothing (a limit of 0 — "≥ 0" would read 0 whatever the value —, a negative side)."""
     num, den = (check.value, check.limit) if check.relation in ("≤", "info") else (check.limit, check.value)
     return num / den if num >= 0 and den > 0 and check.limit != 0 else float("nan")
-
-
-def plot_design(design: CamDesign, path: str | Path) -> Path:
-    """PNG: pressure angle with its limit, pitch-curve radius with the undercut limit, Hertz stress over the cam
-    angle, and every check's use of its limit (bars: green PASS, red FAIL, grey info; a check whose ratio means
-    nothing — a limit of 0 — is a pale hatched bar across in its verdict's colour)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from rig.analysis.plots import write_tight
-
-    deg = np.degrees(design.phi)
-    fig = plt.figure(figsize=(10, 12))
-    grid = fig.add_gridspec(4, 1, height_ratios=[1, 1, 1, 1.4], hspace=0.45, left=0.31, right=0.82, top=0.94,
-                            bottom=0.06)          # room for the check names (left) and the legends (right)
-    axes = [fig.add_subplot(grid[0])]
-    axes += [fig.add_subplot(grid[i], sharex=axes[0]) for i in (1, 2)]
-    axes[0].plot(deg, np.degrees(design.pressure_angle), label="pressure angle")
-    axes[0].axhline(degrees(design.pressure_limit), color="r", ls="--", label="limit")
-    axes[0].set_ylabel("pressure angle (°)")
-    rho = np.clip(design.rho * 1e3, -300.0, 300.0)
-    axes[1].plot(deg, rho, label="ρ pitch curve")
-    for sgn in (1, -1):
-        axes[1].axhline(sgn * design.undercut * 1e3, color="r", ls="--", label="±r_R/0.7" if sgn > 0 else None)
-    axes[1].set_ylabel("ρ (mm, clipped at ±300)")
-    axes[2].plot(deg, design.sigma_h / 1e6, label="Hertz stress σ_H")
-    axes[2].axhline(design.sigma_allow / 1e6, color="r", ls="--", label="permissible (assumed)")
-    axes[2].set_ylabel("σ_H (MPa)")
-    for ax in axes:
-        ax.grid(True)
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-    axes[-1].set_xlabel("cam angle φ (°)")
-    bars = fig.add_subplot(grid[3])
-    use = np.array([utilisation(ch) for ch in design.checks])
-    colours = ["0.6" if ch.relation == "info" else "tab:green" if ch.ok else "tab:red" for ch in design.checks]
-    rows = np.arange(len(design.checks))[::-1]
-    right = max(1.6, float(np.nanmax(use, initial=1.0)) * 1.5)
-    ratio = np.isfinite(use)
-    bars.barh(rows[ratio], use[ratio], color=[c for c, r in zip(colours, ratio) if r])
-    # no ratio (a limit of 0, a negative value): a pale hatched bar across in the verdict's colour, no length
-    bars.barh(rows[~ratio], right, color=[c for c, r in zip(colours, ratio) if not r], alpha=0.3, hatch="//")
-    bars.axvline(1.0, color="r", ls="--", lw=1)
-    bars.set_yticks(rows, [ch.name for ch in design.checks], fontsize=8)
-    for r, u, ch in zip(rows, use, design.checks):
-        relation = "vs" if ch.relation == "info" else ch.relation
-        verdict = "information" if ch.relation == "info" else "PASS" if ch.ok else "FAIL"
-        text = f"{u:.2f}" if np.isfinite(u) else f"{verdict}, no ratio"
-        bars.text((max(u, 0.0) if np.isfinite(u) else 0.0) + 0.02, r, f"{text}  ({ch.value:.4g} {relation} "
-                  f"{ch.limit:.4g} {ch.unit})", va="center", fontsize=7,
-                  bbox=None if np.isfinite(u) else {"facecolor": "white", "edgecolor": "none", "pad": 1.0})
-    bars.set_xlim(0.0, right)
-    bars.set_xlabel("use of the limit (value/limit for ≤, limit/value for ≥; ≤ 1 passes)")
-    bars.set_title("every check against its limit (green PASS, red FAIL, grey information)", fontsize=9, loc="left")
-    fig.suptitle("cam design checks")
-    return write_tight(fig, path, tight=False)             # the grid spec leaves room for names and legends
