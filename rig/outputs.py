@@ -78,7 +78,7 @@ def recording_file(path: Path) -> Path | None:
     """Check the output recording ``path`` of ``rig run``/``rig record`` (:func:`writable_file`, then its name:
     a recording is an MCAP file, ``*.mcap`` — ``-o x.txt`` would write MCAP bytes under a name that says text);
     returns the folder rig will create for it, None when it exists."""
-    from rig.recorder.reader import MCAP_MAGIC
+    from rig.recorder.salvage import MCAP_MAGIC
     path = Path(path)
     writable_file(path, "recording", MCAP_MAGIC)
     if path.suffix.lower() != ".mcap":

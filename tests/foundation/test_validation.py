@@ -204,7 +204,7 @@ def test_a_directory_that_takes_no_files_is_named_before_anything_runs(capsys):
 
 def test_rig_replaces_its_own_recordings_and_charts(tmp_path):
     from rig.outputs import PNG_MAGIC, UsageError, writable_dir, writable_file
-    from rig.recorder.reader import MCAP_MAGIC
+    from rig.recorder.salvage import MCAP_MAGIC
     for name, magic, what in (("a.mcap", MCAP_MAGIC, "recording"), ("a.png", PNG_MAGIC, "cycle chart")):
         (tmp_path / name).write_bytes(magic + b"...")
         writable_file(tmp_path / name, what, magic)           # no error
