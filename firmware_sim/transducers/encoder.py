@@ -162,12 +162,19 @@ class IncrementalEncoder(Transducer):
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(t))):
             raise ValueError(f"{self.name}: time or angle contains NaN or inf")
         if self._t is None:
-            k0 = int(math.floor(q[0] / self.step))
+            t_on, q_on = float(t[0]), float(q[0])
+            k0 = int(math.floor(q_on / self.step))
+            if t.size > 1 and 0.0 < t[0] <= (t[1] - t[0]) * (1.0 + 1e-9):   # the stream's first sample after power-on
+                t_on, q_on = 0.0, float(q[0] - t[0] * (q[1] - q[0]) / (t[1] - t[0]))   # at t = 0: the card counts
+                edges = round(q_on / self.step)           # from the shaft's angle then (lab sheets align zero marks); on
+                on_edge = abs(q_on / self.step - edges) < 1e-9   # an edge — the scenes' 0° — whatever the
+                q_on = edges * self.step if on_edge else q_on     # extrapolation's last bit
+                k0 = edges if on_edge else int(math.floor(q_on / self.step))
             s0 = k0 % 4
             self._line[:] = (s0 in (1, 2), s0 in (2, 3), k0 % (4 * self.ppr) == 0)
             self._card_state, self._c4 = s0, k0
             self._c4_origin = int(self._scaled(k0))
-            self._t, self._theta = float(t[0]), float(q[0])
+            self._t, self._theta = t_on, q_on
         tt = np.concatenate(([self._t], t))
         th = np.concatenate(([self._theta], q))
         dt = np.diff(tt)

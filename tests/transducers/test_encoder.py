@@ -288,3 +288,18 @@ def test_a_shaft_resting_on_a_line_edge_flickers_unless_the_disc_is_mounted_off_
     off_edge = encoder(errors_enabled=False, mount_angle="0.03 deg").sample(t, theta).count
     assert np.unique(on_edge).size == 2
     assert np.unique(off_edge).size == 1
+
+
+def test_the_counter_starts_at_power_on_for_a_shaft_already_turning():
+    """The machine's first sample comes one step after power-on (t = 0): the card counts from the shaft's angle at
+    t = 0, so count k's edge is where the shaft passed k counts beyond that (it counted from the first sample,
+    one count late at a crank turning 0.145° in those 50 µs: the Geneva sheet's differences doubled)."""
+    dt, omega = 50e-6, 50.0                                    # 20 kHz, 50 rad/s: 0.143° per sample
+    t = dt * (1 + np.arange(4000))
+    for start in (0.0, 0.3 * COUNT, 7 * COUNT):                # on an edge at t = 0 (the scenes' 0°), between two
+        theta = start + omega * t
+        out = encoder().sample(t, theta)
+        changed = np.flatnonzero(np.diff(np.r_[0, out.count]) != 0)
+        edge_angle = omega * out.edge_time[changed] + start
+        origin = round(start / COUNT) if abs(start / COUNT - round(start / COUNT)) < 1e-9 else math.floor(start / COUNT)
+        np.testing.assert_allclose(edge_angle / COUNT - origin - out.count[changed], 0.0, atol=0.05)
