@@ -208,12 +208,22 @@ def speed_sheet(lab: Lab) -> Sheet:
         rows.append([name] + [f"{fmt(v)} ({fixed(100 * (v - c) / c, 2, sign=True)} %)" for v, c in zip(read, counter)]
                     + [fmt(np.mean(read)), f"{fixed(100 * errors[name], 2, sign=True)} %",
                        f"±{100 * bounds[name]:.2f} % (class ±{100 * classes[name]:.2g} %): {within}"])
-    gate_truth = [float(np.mean(truth["omega_in"][(truth["t"] > at - gate) & (truth["t"] <= at)])) / RPM
-                  for at in times]
+    gate_truth = []                 # the truth over the gate whose count the reading shows: the last one completed
+    for at in times:                # before that count's message (gates run from t = 0), not the second before it
+        i = int(np.searchsorted(pulses["t"], at, side="right")) - 1
+        end = np.floor(pulses["t"][max(i, 0)] / gate + 1e-9) * gate
+        gate_truth.append(float(np.mean(truth["omega_in"][(truth["t"] > end - gate) & (truth["t"] <= end)])) / RPM)
     rows.append(["plant truth (mean over the gate)"] + [fmt(v) for v in gate_truth]
                 + [fmt(np.mean(gate_truth)),
                    f"{fixed(100 * (np.mean(counter) - np.mean(gate_truth)) / np.mean(gate_truth), 2, sign=True)} % (counter)",
                    ""])
+    at_reading = np.interp(times, truth["t"], truth["omega_in"]) / RPM
+    rows.append(["plant truth at the reading"] + [fmt(v) for v in at_reading] + [fmt(np.mean(at_reading)), "", ""])
+    moved = float(np.max(np.abs(at_reading - np.asarray(gate_truth))))
+    drift = ([f"The shaft speed at the readings differs from its mean over the counted gates by up to {moved:.3g} rpm "
+              f"(more than the counter's {resolution:.3g} rpm step): the instruments read the speed of the moment, the "
+              f"counter that of the last completed gate, so their errors against it include the speed's change — "
+              f"a limit exceeded here is not the instrument's fault alone."] if moved > resolution else [])
 
     def draw(ax: Any) -> None:
         ax.plot(truth["t"], truth["omega_in"] / RPM, color="0.5", lw=0.8, label="plant truth")
@@ -231,7 +241,7 @@ def speed_sheet(lab: Lab) -> Sheet:
                  "; ".join(f"{k} {100 * v:+.2f} % ({'within' if abs(v) <= bounds[k] else 'OUTSIDE'} its "
                            f"worst-case ±{100 * bounds[k]:.2f} %)" for k, v in errors.items()) + " against the counter",
                  [f"Counter resolution: one pulse in the gate = 60/(z·T) = {resolution:.4g} rpm "
-                  f"(z = {holes:g} holes, T = {gate:g} s).",
+                  f"(z = {holes:g} holes, T = {gate:g} s).", *drift,
                   "The stroboscope's image also stands still at f_i/k: a reading near 1/k of the others means the "
                   "flash rate was a sub-multiple (its 'divisor').",
                   "Worst-case limit against the counter: the data-sheet class (gain error) + non-linearity × full "

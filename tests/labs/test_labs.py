@@ -46,7 +46,7 @@ def test_speed_lab_instruments_against_the_counter(speed):
     assert abs(v["error mechanical tachometer"]) <= 0.05 + 0.01           # ±5 % class, 10 rpm dial
     assert abs(v["error tachogenerator"]) <= 0.015
     assert abs(v["error stroboscope (60·f_x)"]) <= 0.005                  # 0.1 Hz dial at 19 Hz, 0.2 % calibration
-    assert len(sheets["Speed measurement"].rows) == 5                     # counter, three instruments, truth
+    assert len(sheets["Speed measurement"].rows) == 6       # counter, three instruments, truth over gate, at reading
     # data-sheet classes (data/devices): gain + non-linearity·FS + half the dial step + one counter step (10 rpm)
     counter = v["counter_rpm"]
     assert v["class mechanical tachometer"] == pytest.approx(0.05 + (5.0 + 10.0) / counter)
@@ -54,6 +54,33 @@ def test_speed_lab_instruments_against_the_counter(speed):
     assert v["class stroboscope (60·f_x)"] == pytest.approx(0.002 + (0.5 * 6.0 + 10.0) / counter)
     assert all(abs(v[f"error {k}"]) <= v[f"class {k}"] for k in ("mechanical tachometer", "tachogenerator"))
     assert "within its" in sheets["Speed measurement"].result
+
+
+def test_the_speed_sheets_truth_is_that_of_the_gate_the_counter_shows(tmp_path_factory):
+    """A speed that varies by ±60 rpm at 0.5 Hz: the truth row is the mean over the gate whose count each reading
+    shows (the last completed gate, [1, 2] s for a reading at 2.5 s), not over the second before the reading, and
+    the sheet says that the instruments, reading the speed of the moment, then differ from the counter."""
+    def edit(text):
+        text = re.sub(r'(?m)^amplitude = .*$', 'amplitude = "60 rpm"', text)
+        return re.sub(r'(?m)^frequency = .*$', 'frequency = "0.5 Hz"', text)
+    rec, sheets = _run(tmp_path_factory, "lab_speed", edit)
+    sheet = sheets["Speed measurement"]
+    truth, gate = rec.truth, 1.0
+    counter = [float(x) for x in sheet.rows[0][1:4]]
+    shown = [float(x) for x in next(r for r in sheet.rows if r[0] == "plant truth (mean over the gate)")[1:4]]
+    pulses = rec.series["/stand/lab_speed"]
+    for at, value, count in zip(read_lab_times(rec), shown, counter):
+        end = np.floor(pulses["t"][np.searchsorted(pulses["t"], at, side="right") - 1] / gate + 1e-9) * gate
+        inside = (truth["t"] > end - gate) & (truth["t"] <= end)
+        expected = float(np.mean(truth["omega_in"][inside])) * 60 / tau
+        assert value == pytest.approx(expected, abs=0.6)          # the row's integer rpm
+        assert abs(count - expected) <= 10.0 + 0.6                # the counter within its step of that gate's mean
+    assert any("the instruments read the speed of the moment" in note for note in sheet.notes)
+
+
+def read_lab_times(rec) -> list[float]:
+    from rig.analysis.lab_report import read_lab
+    return read_lab(rec).lab["readings"]
 
 
 def test_speed_lab_frames_decode_with_the_dbc_alone(speed):
