@@ -331,19 +331,24 @@ def comparison_section(ctx: ReportContext) -> list[Block]:
         return []
     rows = compare(scene, *results)
     write_csv(rows, ctx.out_dir / "comparison.csv")
-    fitted = [r.quantity for r in rows if r.fitted]
-    text = ("Fitted on this run: " + ", ".join(fitted) + "; the other rows are predictions.") if fitted else \
-        "Nothing was fitted on this run: every row is a prediction."
+    fitted = [r.quantity for r in rows if r.basis == "fitted"]
+    inputs = [r.quantity for r in rows if r.basis == "input"]
+    text = " ".join(part for part in (
+        ("Fitted on this run: " + ", ".join(fitted) + ".") if fitted else "Nothing was fitted on this run.",
+        ("Set by the scene's inputs (a load it applies, a stimulus chosen for that outcome; they check nothing of the "
+         "model): " + ", ".join(inputs) + ".") if inputs else "",
+        "The other rows are predictions." if len(fitted) + len(inputs) < len(rows) else "No row is a prediction.")
+        if part)
     agreement = agreement_text(rows)
     notes = any(r.why for r in rows)
     return [Heading("Thesis against rig"),
             Text(agreement + ".", "warning" if any(r.agrees is False for r in rows) else "note"),
             Text(text + " Agreement is judged by each row's tolerance (a share of the thesis value, a value, or a "
                  "bound: the thesis value is a limit; a count exactly); deviation = rig − thesis."),
-            Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "fitted"]
+            Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "basis"]
                   + (["note"] if notes else []),
                   [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", r.rig_text(),
-                    r.deviation, r.tolerance or "— (not judged)", r.verdict, "yes" if r.fitted else "no"]
+                    r.deviation, r.tolerance or "— (not judged)", r.verdict, r.basis]
                    + ([r.why] if notes else []) for r in rows]),
             Table(["file", "contents"], [[Link("comparison.csv", "comparison.csv"), "this table, with the unrounded rig "
                                                                                    "values"]])]

@@ -4,8 +4,9 @@ the report's table of them is drawn by :func:`rig.analysis.clutch_report.compari
 Each row names a quantity the source reports, its value as printed (with units: ``thesis = "14.5 N*m"``), which
 stand result it is compared with (``rig``: a result name of :func:`rig.analysis.clutch_report.stand_results` such
 as ``"start-up: peak torque"`` or ``"disengagements"`` (a count; ``"shutdown"``: 1 required, 0 not); ``part``: ``"value"``, ``"time"`` — when it happened — or
-``"time_after"`` — after its stimulus), whether the scene's unknown parameters were fitted on it (``fitted``) and an
-optional ``note``. The rig value is given in the thesis's unit; a result that does not exist in the run is "n/a"
+``"time_after"`` — after its stimulus), whether the scene's unknown parameters were fitted on it (``fitted``) or the
+rig's value follows from what the scene sets rather than from the model (``input``: a load the scene applies, a
+stimulus chosen for that outcome — shown, never counted as a prediction) and an optional ``note``. The rig value is given in the thesis's unit; a result that does not exist in the run is "n/a"
 with the reason. Whether the rig agrees is judged by the row's ``tolerance``: a fraction (``"15 %"``), a value in
 the thesis's unit (``"20 ms"``) or a bound (``"at most"``, ``"at least"``: the thesis value is a limit); without
 one a count (a thesis value without unit) must match exactly and other rows are not judged.
@@ -29,6 +30,8 @@ ROW_SCHEMA = {
     "rig": Field(None, doc="stand result it is compared with, e.g. \"start-up: peak torque\""),
     "part": Field(None, "value", "value, time (when it happened) or time_after (after its stimulus)"),
     "fitted": Field(None, False, "true if the scene's unknown parameters were fitted on this quantity"),
+    "input": Field(None, False, "true if the rig's value follows from what the scene sets (a load it applies, a "
+                   "stimulus chosen for that outcome), not from the model: not a prediction"),
     "note": Field(None, "", "what else to know"),
     "tolerance": Field(None, None, "how close agrees: \"15 %\", a value in the thesis's unit, \"at most\" or "
                        "\"at least\" (default: a count exactly, else not judged)"),
@@ -53,6 +56,13 @@ class Row:
     agrees: bool | None = None     # None: not judged (no tolerance) or n/a
     tolerance: str = ""            # as the scene writes it; "exact" for a count without one; "" not judged
     beyond: float | None = None    # rig None: the run ended before the result, which lies above this (in unit)
+    input: bool = False            # the rig's value follows from the scene's settings: not a prediction
+
+    @property
+    def basis(self) -> str:
+        """What the row is: "fitted" (the scene's unknowns were fitted on it), "input" (follows from the scene's
+        settings) or "predicted"."""
+        return "fitted" if self.fitted else "input" if self.input else "predicted"
 
     def rig_text(self) -> str:
         """The rig value with at least 4 significant digits and as many as the printed thesis value has (rig 100.05
@@ -168,7 +178,7 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
                 agrees = False                     # not reached when the run ended, already past the bound
         tolerance = str(spec["tolerance"]).strip() if spec["tolerance"] is not None else "" if unit else "exact"
         rows.append(Row(spec["quantity"], unit, number, value, bool(spec["fitted"]), why or spec["note"], agrees,
-                        tolerance, beyond))
+                        tolerance, beyond, bool(spec["input"])))
     return rows
 
 
@@ -225,25 +235,29 @@ def _agrees(tolerance: Any, thesis: float, unit: str, si: str, scale: float, rig
 
 def write_csv(rows: list[Row], path: Path) -> Path:
     """``comparison.csv``: quantity, unit, thesis, rig (empty: n/a), agrees (yes / NO / - not judged / n/a),
-    fitted (1/0), note, deviation (rig − thesis), tolerance (as the scene writes it; "exact" for a count)."""
+    fitted (1/0), note, deviation (rig − thesis), tolerance (as the scene writes it; "exact" for a count), basis
+    (fitted / input / predicted)."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["quantity", "unit", "thesis", "rig", "agrees", "fitted", "note", "deviation", "tolerance"])
+        w.writerow(["quantity", "unit", "thesis", "rig", "agrees", "fitted", "note", "deviation", "tolerance", "basis"])
         for r in rows:
             w.writerow([r.quantity, r.unit, f"{r.thesis:g}", "" if r.rig is None else f"{r.rig:.6g}", r.verdict,
-                        int(r.fitted), r.why, r.deviation, r.tolerance])
+                        int(r.fitted), r.why, r.deviation, r.tolerance, r.basis])
     return path
 
 
 def agreement_text(rows: list[Row]) -> str:
-    """One line: how many judged predictions agree with the thesis and how many fitted rows the run reproduces
-    (a row fitted on this run agreeing says little), and which rows do not."""
+    """One line: how many judged predictions agree with the thesis, how many fitted rows the run reproduces (a row
+    fitted on this run agreeing says little) and how many rows set by the scene's inputs it shows (they check
+    nothing of the model), and which rows do not agree."""
     judged = [r for r in rows if r.agrees is not None]
     off = [r for r in judged if not r.agrees]
     missing = [r for r in rows if r.rig is None and r.agrees is None]
     parts = [f"{sum(bool(r.agrees) for r in group)} of {len(group)} {what}" for group, what in (
-        ([r for r in judged if not r.fitted], "predictions agree with the thesis"),
-        ([r for r in judged if r.fitted], "rows fitted on this run reproduced")) if group]
+        ([r for r in judged if r.basis == "predicted"], "predictions agree with the thesis"),
+        ([r for r in judged if r.basis == "fitted"], "rows fitted on this run reproduced"),
+        ([r for r in judged if r.basis == "input"], "rows set by the scene's inputs (no check of the model) as set"))
+        if group]
     text = "; ".join(parts) or "no row judged (no tolerances)"
     if off:
         text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{' ' + r.unit if r.unit else ''}, "

@@ -69,7 +69,8 @@ def test_leaf_startup_scene_writes_the_comparison(tmp_path):
     assert float(peak["rig"]) == pytest.approx(14.5, rel=0.15)
     assert float(when["rig"]) == pytest.approx(46.6, rel=0.20)
     assert 0.0 < float(settle["rig"]) <= 450.0
-    assert rows["disengagements"]["rig"] == "0" and peak["fitted"] == "1" and settle["fitted"] == "0"
+    assert rows["disengagements"]["rig"] == "0" and peak["fitted"] == "1" and settle["fitted"] == "1"
+    assert [r["basis"] for r in rows.values()] == ["fitted"] * 4 + ["input"]    # the final torque is the load set
     assert [r["agrees"] for r in rows.values()] == ["yes"] * 5          # 15 %, 20 %, at most, exact count, 5 %
     assert "Thesis against rig" in (tmp_path / "report" / "report.html").read_text(encoding="utf-8")
 
@@ -177,3 +178,17 @@ def test_a_result_the_run_ended_before_and_a_slip_without_disengagement_are_judg
                                                "150 ms, rig > 400 ms); slip (thesis 360 deg, rig -7 deg)")
     short = Metric("stop at 0.5 s: standstill", None, "s", "still turning", exceeds=0.1)    # ended before the bound
     assert compare(load_scene(scene_path), [Stimulus(0.5, "stop", "motor off")], [short])[0].verdict == "n/a"
+
+
+def test_rows_set_by_the_scene_are_not_counted_as_predictions():
+    """A row whose rig value follows from what the scene sets (the brake load as the final torque) is shown apart:
+    "3 of 3 predictions agree" for a start-up whose parameters were fitted on that very test overstated it."""
+    from rig.analysis.stand_comparison import Row, agreement_text
+    fitted = Row("peak", "N*m", 14.5, 14.56, True, "", True, "15 %")
+    load = Row("final torque", "N*m", 5.0, 5.04, False, "", True, "5 %", input=True)
+    predicted = Row("stop", "ms", 150.0, 120.0, False, "", True, "at most")
+    assert load.basis == "input" and fitted.basis == "fitted" and predicted.basis == "predicted"
+    assert agreement_text([fitted, load, predicted]) == (
+        "1 of 1 predictions agree with the thesis; 1 of 1 rows fitted on this run reproduced; 1 of 1 rows set by the "
+        "scene's inputs (no check of the model) as set")
+    assert agreement_text([fitted, load]).startswith("1 of 1 rows fitted")
