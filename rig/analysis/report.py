@@ -433,7 +433,9 @@ def theory(ctx: ReportContext) -> list[Block]:
 
 #: what an event kind means to the reader of a report (kinds not listed: the plant's or the link's own words)
 EVENT_MEANING = {
-    "flank_switch": "the cam contact force changed sign: the roller crossed to the other groove flank",
+    "flank_switch": "the roller changed groove flank. Level 1: the kinetostatic cam contact force changes sign at phi "
+                    "(the roller would cross). Level 2 (groove dynamics): at phi it reached the other flank (to), "
+                    "having left the one it was on at left_phi (level 1's sign change) after a flight of flight s",
     "accel_jump": "the cam program's acceleration jumps at this angle (a segment boundary)",
     "disengagement": "the clutch's safety stage let go (relative angle past the engagement)",
     "reengaged": "the clutch engaged again after a disengagement",

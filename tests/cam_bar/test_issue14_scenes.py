@@ -29,6 +29,13 @@ def test_as_drawn_records_flank_switches(tmp_path):
     run_scene(SCENES / "pin_insertion_as_drawn.toml", out, cycles=1)
     switches = [e for e in read_recording(out).events if e["kind"] == "flank_switch"]
     assert len(switches) >= 2
+    # the event's phi is the arrival on the other flank; left_phi where the roller left its flank — the angle to
+    # compare with level 1's sign change of the contact force (the arrival is 15° later, after the flight)
+    plant = CamBarPlant.from_scene(load_scene(SCENES / "pin_insertion_as_drawn.toml"), nominal=True, fidelity=1)
+    level1 = plant.mech.flank_switch_angles(300 * tau / 60)             # the scene's 300 pins/min
+    first = switches[0]
+    assert first["to"] == "other" and first["flight"] > 0.0
+    assert abs(first["left_phi"] - level1[0]) < 0.01 and first["phi"] - first["left_phi"] > 0.2   # rad
 
 
 def test_worn_pins_strike_where_the_rod_force_reverses(tmp_path):

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -335,17 +335,23 @@ class Level2:
         if sol.status == "terminated":
             raise self._diverged(sol.t_final, sol.y_final)
         switches, impacts, releases = [], [], []
+        left: dict[str, Any] = {}               # the latest release of each flank (the roller leaving it)
         for rec in sol.events:
             if rec.name not in ("working", "other"):
                 continue
             if rec.sign < 0.0:
                 releases.append((rec.t, rec.name))
+                left[rec.name] = rec
                 continue
             impacts.append(rec.t)
             if rec.name != flank:
+                data = {"phi": self.cam_angle(rec.t, rec.y) % math.tau, "to": rec.name}
+                off = left.get(flank) if flank is not None else None
+                if off is not None:             # where it left the flank it was on: level 1's sign change
+                    data["left_phi"] = self.cam_angle(off.t, off.y) % math.tau
+                    data["flight"] = rec.t - off.t
                 flank = rec.name
-                phi = self.cam_angle(rec.t, rec.y)
-                switches.append(Event(rec.t, "flank_switch", {"phi": phi % math.tau, "to": flank}))
+                switches.append(Event(rec.t, "flank_switch", data))
         return Level2Run(sol, switches, impacts, releases, flank)
 
     # ---- outputs -------------------------------------------------------------------------------------------
