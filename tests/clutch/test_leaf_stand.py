@@ -176,6 +176,10 @@ def test_a_result_the_run_ended_before_and_a_slip_without_disengagement_are_judg
     assert (slip.rig, slip.agrees) == (pytest.approx(-7.0), False)
     assert agreement_text([stopped, slip]) == ("0 of 2 predictions agree with the thesis; DISAGREE: stopped (thesis "
                                                "150 ms, rig > 400 ms); slip (thesis 360 deg, rig -7 deg)")
+    from rig.analysis.stand_comparison import write_csv
+
+    written = list(csv.DictReader(write_csv([stopped, slip], tmp_path / "c.csv").open()))
+    assert [r["rig"] for r in written] == [">400", "-7"]                 # the bound passed is in the CSV too
     short = Metric("stop at 0.5 s: standstill", None, "s", "still turning", exceeds=0.1)    # ended before the bound
     assert compare(load_scene(scene_path), [Stimulus(0.5, "stop", "motor off")], [short])[0].verdict == "n/a"
 
