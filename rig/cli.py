@@ -23,7 +23,7 @@ DEFAULT_SCENE_TEXT = f"data/scenes/{DEFAULT_SCENE.name}"       # the default as 
 # Commands kept in their own packages (python-can style plugins): each module has
 # ``register(sub, parents)`` adding its subparser(s) with ``set_defaults(func=...)``; heavy imports stay
 # inside the command functions so ``rig --help`` stays fast.
-COMMAND_MODULES: tuple[str, ...] = ("rig.bench.cli", "rig.sweep.cli", "rig.analysis.batch_cli",
+COMMAND_MODULES: tuple[str, ...] = ("rig.bench.cli", "rig.sweep.cli", "rig.analyse_cli",
                                      "rig.cam_design_cli")
 
 
