@@ -62,16 +62,18 @@ def writable_file(path: Path, what: str, magic: bytes | None = None) -> None:
         fail("it is a directory")
     if not path.exists():
         _creatable(path.parent, fail)
-        return
-    try:
-        with path.open("rb") as f:
-            head = f.read(len(magic) if magic else 1)
-    except OSError as exc:
-        fail((exc.strerror or str(exc)).lower())
-    if head and (magic is None or not magic.startswith(head)):     # empty, or a (possibly cut) file of that kind
-        fail(f"it exists and is not a {what} file rig wrote (rig does not overwrite other files)")
-    if not os.access(path, os.W_OK):
-        fail("permission denied")
+    else:
+        try:
+            with path.open("rb") as f:
+                head = f.read(len(magic) if magic else 1)
+        except OSError as exc:
+            fail((exc.strerror or str(exc)).lower())
+        if head and (magic is None or not magic.startswith(head)):     # empty, or a (possibly cut) file of that kind
+            fail(f"it exists and is not a {what} file rig wrote (rig does not overwrite other files)")
+        if not os.access(path, os.W_OK):
+            fail("permission denied")
+    if magic == PNG_MAGIC and path.suffix.lower() != ".png":    # matplotlib takes the format from the name
+        fail(f"a chart is a PNG file, its name must end in .png (e.g. {path.with_suffix('.png')})")
 
 
 def recording_file(path: Path) -> Path | None:

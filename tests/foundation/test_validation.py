@@ -177,6 +177,10 @@ def test_an_existing_foreign_file_is_never_overwritten(foreign, capsys):
     (lambda t: [(t / "r.mcap").write_bytes(b"\x89MCAP0\r\n") and "report", str(t / "r.mcap"), "-o", str(t / "r.mcap")],
      "cannot write the report to {t}/r.mcap: that is the recording"),
     (lambda t: ["summary", "--png", str(t / "passwd")], "cannot write the cycle chart to {t}/passwd: it exists"),
+    (lambda t: ["summary", "--png", str(t / "c.txt")], "cannot write the cycle chart to {t}/c.txt: a chart is a PNG "
+                                                       "file, its name must end in .png"),
+    (lambda t: ["cam-design", "-o", str(t / "cd.txt")], "cannot write the cam-design chart to {t}/cd.txt: a chart is a "
+                                                       "PNG file, its name must end in .png (e.g. {t}/cd.png)"),
     (lambda t: ["tolerance", "-o", str(t / "passwd")], "cannot write the tolerance chart to {t}/passwd: it exists"),
     (lambda t: ["serve", str(DEMO), "--endpoints", str(t / "passwd")], "cannot write the endpoints to {t}/passwd: "),
     (lambda t: [(t / "a.mcap").write_bytes(b"\x89MCAP0\r\n") and "export-can", str(t / "a.mcap"), "-o", str(t)],
