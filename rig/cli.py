@@ -267,6 +267,11 @@ def _served(path: Path) -> dict[str, Any]:
                or k not in served]
     if missing:
         raise UsageError(f"{path}: not the endpoints JSON of this rig's `rig serve` (no {', '.join(missing)})")
+    can = served["can"]
+    if not (isinstance(can, dict) and isinstance(can.get("host"), str) and isinstance(can.get("port"), int)
+            and not isinstance(can.get("port"), bool) and 0 < can["port"] < 65536):
+        raise UsageError(f"{path}: \"can\" must be {{\"host\": a host name, \"port\": a TCP port number}}, as "
+                         f"`rig serve --endpoints` writes it; got {can!r}")
     return served
 
 

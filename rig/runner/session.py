@@ -427,7 +427,8 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                     pass
                 raise
             _show(bar, cfg, host.curves_recorded, host.truth_t, force=True)
-            run_time = time.perf_counter() - go   # simulated: the device time the last frames carried (as in-process)
+            run_time = time.perf_counter() - go   # simulated: the device time the last frames carried (as in-process;
+            # a served run longer than asked for: the span recorded, its 2 s wait for the run end included)
             simulated = max(host.truth_t, host.can.device_time)
             compiled = compile_seconds() - compiled
             _finishing(bar, cfg, host.truth_t)

@@ -242,6 +242,7 @@ def test_a_served_run_longer_than_asked_is_recorded_to_the_asked_count(tmp_path:
                                serial_port=ep["serial"], idle_timeout=60.0, cycles=3)
     rec = read_recording(out)
     assert summary.curves == 3 and [c.number for c in rec.curves] == [1, 2, 3]
+    assert summary.simulated_time == pytest.approx(rec.last_time, abs=0.15)     # the span the recording holds
     assert [r["number"] for r in rec.results] == [1, 2, 3]
     beyond = [e for e in rec.events if e["kind"] == "not_recorded"]
     assert len(beyond) == 1 and beyond[0]["curves"] >= 1 and "after the 3 this host was asked" in beyond[0]["detail"]
@@ -288,3 +289,12 @@ def test_a_truth_signal_of_another_model_level_is_a_warning_not_an_error(tmp_pat
     said = [r.getMessage() for r in caplog.records if "truth_signals" in r.getMessage()]
     assert len(said) == 1 and "'psi_kin', 'delta_w', 'delta_o'" in said[0] and "(L1): not recorded" in said[0]
     assert "delta_w" not in read_recording(tmp_path / "l1.mcap").truth
+
+
+def test_an_endpoints_file_with_a_bad_port_is_an_input_error(tmp_path: Path, capsys):
+    from rig.cli import main
+    bad = tmp_path / "ep.json"
+    bad.write_text('{"can": {"host": "127.0.0.1", "port": "abc"}, "serial": "/dev/null", "scene": "x", '
+                   '"scene_sha256": "0", "fidelity": 1}')
+    assert main(["record", str(SCENE), "--endpoints", str(bad), "-o", str(tmp_path / "x.mcap")]) == 2
+    assert '"can" must be {"host": a host name, "port": a TCP port number}' in capsys.readouterr().err
