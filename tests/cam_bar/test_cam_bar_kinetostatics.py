@@ -168,3 +168,13 @@ def test_a_contact_normal_through_the_follower_pivot_is_an_error_naming_the_angl
     assert dwell.size                                          # the program has dwells
     with pytest.raises(ValueError, match=f"cam cannot drive the follower at φ = {np.degrees(dwell[0]):.4g}°"):
         solve(AtPivot(mech), mech.state(dwell, OMEGA), mech.k)
+
+
+def test_the_summary_never_prints_two_flank_switch_angles_alike():
+    """At 300 rpm without spring the force changes sign just before the 320° program boundary and jumps back across
+    it: two angles 0.04° apart, printed with the decimals that tell them apart (not "320.0°, 320.0°")."""
+    from math import radians
+    from rig.plants.cam_bar.summary import _angles
+    assert _angles(np.radians([120.3, 319.96, 320.0])) == "120.30°, 319.96°, 320.00°"
+    assert _angles(np.array([radians(120.3), radians(180.0)])) == "120.3°, 180.0°"
+    assert _angles(np.array([])) == "none"

@@ -11,7 +11,13 @@ from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 
 def _angles(values: np.ndarray) -> str:
-    return ", ".join(f"{degrees(a):.1f}°" for a in values) or "none"
+    """Angles (rad) in degrees, one decimal — more where two neighbours would read alike (a sign change just before
+    a program boundary and the jump back across it: 319.96°, 320.00°, not 320.0°, 320.0°)."""
+    shown = [degrees(a) for a in values]
+    places = 1
+    while places < 4 and len({f"{a:.{places}f}" for a in shown}) < len(shown):
+        places += 1
+    return ", ".join(f"{a:.{places}f}°" for a in shown) or "none"
 
 
 def summary_table(mech: PinInsertionMechanism, omega: float) -> str:
