@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -85,8 +86,36 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
             value = answers[level].get(q) if need <= level else None
             rows.append({"level": level, "question": q, "answer": "" if value is None else f"{value * scale:.6g}",
                          "unit": unit, "wall_s_per_s": f"{per_s:.4g}",
-                         "method": l2.method_text if level == 2 else "none"})
+                         "method": l2.method_text if level == 2 else "none",
+                         "vs_L2": "" if value is None or level == 2 else _deviation(value, answers[2][q], unit)})
     return rows
+
+
+#: a lower level's answer further than this from level 2's (relative; a count: any difference) is flagged
+AGREE = 0.05
+
+
+def _deviation(value: float, reference: float, unit: str) -> str:
+    """How a lower level's answer differs from level 2's: "+0.01 %" (relative), "+2" for a count."""
+    if unit == "count":
+        return f"{value - reference:+g}"
+    return f"{100 * (value - reference) / abs(reference):+.3g} %" if reference else f"{value - reference:+.3g}"
+
+
+def disagreements(rows: list[dict[str, Any]]) -> list[str]:
+    """One line per lower-level answer that level 2 contradicts (beyond :data:`AGREE`, a count at all): at this
+    operating point that question needs level 2, whatever the level table says."""
+    out = []
+    for r in rows:
+        if not r.get("vs_L2"):
+            continue
+        deviation = float(r["vs_L2"].rstrip(" %")) / (1 if r["unit"] == "count" else 100)
+        if (r["unit"] == "count" and deviation != 0) or (r["unit"] != "count" and abs(deviation) > AGREE):
+            l2 = next(x for x in rows if x["level"] == 2 and x["question"] == r["question"])
+            out.append(f"L{r['level']}'s {r['question']} {_answer(r)} differs from L2's {_answer(l2)} ({r['vs_L2']}): "
+                       f"at this operating point the groove dynamics matter (clearance, flank changes) and this question "
+                       f"needs L2")
+    return out
 
 
 def _peak(values: np.ndarray) -> float:
@@ -140,6 +169,8 @@ def cmd_fidelity(args: argparse.Namespace) -> int:
         mine = [r for r in rows if r["level"] == level]
         answered = ", ".join(f"{r['question']} {_answer(r)}" for r in mine if r["answer"])
         print(f"L{level}: {float(mine[0]['wall_s_per_s']) * 1e3:9.3f} ms per simulated s; answers {answered}")
+    for line in disagreements(rows):
+        print(f"rig: warning: {line}", file=sys.stderr)
     print(f"wrote {csv_path} and {png}")
     return 0
 

@@ -23,3 +23,16 @@ def test_each_level_answers_what_it_can_and_the_answers_agree(tmp_path):
     assert float(answer[1, "flank_switches"]) == float(answer[2, "flank_switches"]) == 0.0   # 1.89 N/mm, 150 rpm
     assert 0.0 <= float(answer[2, "dwell_vibration"]) < 1.0                    # µm: the spring holds the roller
     assert all(float(r["wall_s_per_s"]) > 0 for r in rows)
+    from rig.bench.fidelity import disagreements
+    assert disagreements(rows) == []                                            # L1 answers the demo as L2 does
+
+
+def test_a_lower_level_answer_level_2_contradicts_is_flagged():
+    """The machine as drawn (300 rpm, 1.09 N/mm): L1's rod force -89 N against L2's -248 N where the roller changes
+    flank — flagged, not left as an answer beside the other."""
+    from rig.bench.fidelity import disagreements, measure
+    rows = measure("data/scenes/pin_insertion_as_drawn.toml")
+    said = disagreements(rows)
+    assert len(said) == 1 and said[0].startswith("L1's rod_force") and "needs L2" in said[0]
+    l1 = next(r for r in rows if r["level"] == 1 and r["question"] == "rod_force")
+    assert float(l1["vs_L2"].rstrip(" %")) > 50
