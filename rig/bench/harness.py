@@ -15,6 +15,8 @@ charted; a distance above :data:`REF_CONFIRM` is reported loudly and marks the r
 """
 from __future__ import annotations
 
+from collections import Counter
+
 import csv
 import math
 import time
@@ -280,8 +282,11 @@ def summary(result: Result, target: float = TARGET) -> list[str]:
     lines = [f"{result.problem.name}: cheapest run with error <= {target:g} per method (t_sim {result.problem.t_sim:g} s):"]
     for method in dict.fromkeys(r.method for r in result.rows):
         r = best.get(method)
+        stopped = Counter(x.status.split(":")[0] for x in result.rows if x.method == method and x.status != "ok")
+        why = f" ({', '.join(f'{n} {status}' for status, n in stopped.items())})" if stopped else ""
         lines.append(f"  {method:26s} " + (f"{r.setting:16s} wall {r.wall_s * 1e3:9.2f} ms  error {r.error:.1e}  "
-                                           f"{r.t_sim / r.wall_s:8.1f}x real time" if r else f"no run reached {target:g}"))
+                                           f"{r.t_sim / r.wall_s:8.1f}x real time" if r else
+                                           f"no run reached {target:g}{why}"))
     ours = min((r for m, r in best.items() if m in OURS), key=lambda r: r.wall_s, default=None)
     solve_ivp = tuple(p for p in PEERS if p.startswith("scipy") and "odeint" not in p)
     for label, group in (("best peer", PEERS), ("best solve_ivp", solve_ivp)):

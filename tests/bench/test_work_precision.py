@@ -1,6 +1,7 @@
 """rig bench work-precision: the harness on short spans, through its public function and the CLI."""
 from __future__ import annotations
 
+import math
 import csv
 import re
 from pathlib import Path
@@ -215,3 +216,17 @@ def test_the_summary_compares_at_the_target_asked_for(tmp_path, capsys):
         assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), f"--target={bad}",
                          "-o", str(tmp_path / "x")]) == 2
         assert "--target must be a relative error in (0, 1)" in capsys.readouterr().err
+
+
+def test_a_method_that_never_reached_the_target_says_why():
+    """A peer stopped at the time limit (or skipped after it) is not just "no run reached": the line counts them."""
+    from types import SimpleNamespace
+
+    from rig.bench.harness import Result, Row, summary
+    rows = [Row("dp45", "rtol 1e-6", 5e-7, 0.001, 100, 0.1, "ok"),
+            Row("scipy Radau", "rtol 1e-4", 1e-4, 0.02, 50, 0.1, "ok"),
+            Row("scipy Radau", "rtol 1e-6", math.nan, 0.02, None, 0.1, "timeout: stopped after 0.02 s"),
+            Row("scipy Radau", "rtol 1e-8", math.nan, 0.0, None, 0.1, "skipped: a looser setting timed out")]
+    lines = summary(Result(SimpleNamespace(name="p", t_sim=0.1), None, rows), 1e-6)
+    radau = next(line for line in lines if "scipy Radau" in line)
+    assert radau.endswith("no run reached 1e-06 (1 timeout, 1 skipped)")
