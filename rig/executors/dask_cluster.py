@@ -32,6 +32,8 @@ class DaskExecutor(Executor):
     def __init__(self, workers: int = 2, scheduler: str | None = None):
         from distributed import Client, LocalCluster
         logging.getLogger("distributed").setLevel(logging.WARNING)   # its start/stop notices are no news
+        # the tasks map() cancels when it stops early (Ctrl-C, an error) end "with CancelledError": our doing, no news
+        logging.getLogger("distributed.worker.state_machine").setLevel(logging.ERROR)
         self.cluster = None
         if scheduler is None:
             where = {"host": "127.0.0.1"} if self.processes else {}   # threads: in-process transport
