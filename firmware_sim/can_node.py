@@ -320,7 +320,8 @@ class CanNode:
         free = max(0.0, t[-1] - max(self.bus_free, t[0] - dt) - self.backlog_time)
         budget = min(self.live_share * t.size * dt, free)
         fits = int(budget / self.frame_time_planned(name) + 1e-9) * per_frame
-        grid = np.flatnonzero(np.abs(t / TICK - np.rint(t / TICK)) < 1e-3)   # a Tick stamp is exact only on its
+        ticks_at = t / TICK
+        grid = np.flatnonzero(np.abs(ticks_at - np.rint(ticks_at)) < 1e-3)  # a Tick stamp is exact only on its
         if fits == 0 or grid.size == 0:                                      # 100 µs grid: 20 kHz sends every other
             self.live_dropped += t.size
             self.live_factor = 0
@@ -331,7 +332,7 @@ class CanNode:
         tk, (rx, cx), (ry, cy) = t[keep], quantise(x[keep], X_LSB), quantise(y[keep], Y_LSB)
         self.clipped += cx + cy
         self.live_dropped += t.size - tk.size
-        ticks = np.rint(tk / TICK).astype(np.int64) % 65536
+        ticks = np.rint(ticks_at[keep]).astype(np.int64) % 65536
         if not self.timing.fd:
             self._enqueue_rows(name, {"Tick": ticks, "X": rx, "Y": ry}, tk, tk + self.live_max_age, pairs=1)
             return factor

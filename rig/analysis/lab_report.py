@@ -210,8 +210,7 @@ def speed_sheet(lab: Lab) -> Sheet:
                        f"±{100 * bounds[name]:.2f} % (class ±{100 * classes[name]:.2g} %): {within}"])
     gate_truth = []                 # the truth over the gate whose count the reading shows: the last one completed
     for at in times:                # before that count's message (gates run from t = 0), not the second before it
-        i = int(np.searchsorted(pulses["t"], at, side="right")) - 1
-        end = np.floor(pulses["t"][max(i, 0)] / gate + 1e-9) * gate
+        end = np.floor(_latest(pulses["t"], pulses["t"], at) / gate + 1e-9) * gate
         gate_truth.append(float(np.mean(truth["omega_in"][(truth["t"] > end - gate) & (truth["t"] <= end)])) / RPM)
     rows.append(["plant truth (mean over the gate)"] + [fmt(v) for v in gate_truth]
                 + [fmt(np.mean(gate_truth)),

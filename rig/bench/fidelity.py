@@ -106,12 +106,13 @@ def disagreements(rows: list[dict[str, Any]]) -> list[str]:
     """One line per lower-level answer that level 2 contradicts (beyond :data:`AGREE`, a count at all): at this
     operating point that question needs level 2, whatever the level table says."""
     out = []
+    level2 = {r["question"]: r for r in rows if int(r["level"]) == 2}
     for r in rows:
         if not r.get("vs_L2"):
             continue
-        deviation = float(r["vs_L2"].rstrip(" %")) / (1 if r["unit"] == "count" else 100)
-        if (r["unit"] == "count" and deviation != 0) or (r["unit"] != "count" and abs(deviation) > AGREE):
-            l2 = next(x for x in rows if x["level"] == 2 and x["question"] == r["question"])
+        l2 = level2[r["question"]]
+        value, reference = float(r["answer"]), float(l2["answer"])
+        if (value != reference) if r["unit"] == "count" else abs(value - reference) > AGREE * abs(reference):
             out.append(f"L{r['level']}'s {r['question']} {_answer(r)} differs from L2's {_answer(l2)} ({r['vs_L2']}): "
                        f"at this operating point the groove dynamics matter (clearance, flank changes) and this question "
                        f"needs L2")

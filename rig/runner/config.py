@@ -77,9 +77,9 @@ CHANNELS = ("x", "y")
 TICK = 1e-4
 
 
-def _live_grid(sample_rate: float, where: str) -> int:
-    """Samples from one on the Tick grid to the next (n/rate a multiple of 100 µs every that many samples): the
-    live view's finest step. A SceneError when it is coarser than 10 ms (a rate that rarely meets the grid)."""
+def _check_live_grid(sample_rate: float, where: str) -> None:
+    """A SceneError when the samples on the Tick grid (n/rate a multiple of 100 µs every ``step`` samples: the live
+    view's finest step) are further apart than 10 ms — a rate that rarely meets the grid."""
     ratio = Fraction(sample_rate * TICK).limit_denominator(10_000)
     step = ratio.numerator
     if abs(float(ratio) - sample_rate * TICK) > 1e-9 * sample_rate * TICK or step / sample_rate > 0.01:
@@ -87,7 +87,6 @@ def _live_grid(sample_rate: float, where: str) -> int:
                          f"grid of the CAN frames (docs/can-protocol.md), and at this rate too few samples fall on it "
                          f"(a live view slower than 100 pairs/s); choose 10 kHz times a simple fraction (e.g. 5, 10, "
                          f"20 or 50 kHz)")
-    return step
 
 
 def _truth_every(rate: float | None, sample_rate: float, where: str) -> int:
@@ -291,7 +290,7 @@ def read_config(scene: Scene) -> RunConfig:
         raise SceneError(f"{where}: key 'duration' must be positive")
     if not s["sample_rate"] > 0 or not s["chunk"] > 0 or s["chunk"] * s["sample_rate"] < 2:
         raise SceneError(f"{where}: 'sample_rate' and 'chunk' must be positive, with >= 2 samples per chunk")
-    _live_grid(s["sample_rate"], where)
+    _check_live_grid(s["sample_rate"], where)
     transducers = []
     for name, table in scene.section("transducers", required=False).items():
         tw = f"{scene.path} [transducers.{name}]"
