@@ -19,7 +19,7 @@ class SolverDivergence(RuntimeError):
 
     def __init__(self, what: str, t: float, y: Sequence[float]):
         state = ", ".join(f"{v:.6g}" for v in y)
-        super().__init__(f"solver diverged: {what} at t = {t:.9g} s, state = ({state})")
+        super().__init__(f"solver diverged: {what}; state at t = {t:.9g} s: ({state})")
         self.t = t
         self.y = tuple(y)
 
