@@ -290,8 +290,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     except RecordingError as exc:
         if exc.partial is None:
             raise
-        raise RecordingError(f"{path}: truncated or corrupt recording ({'; '.join(exc.partial.problems)}); "
-                             f"`rig report --partial {path}` reports what it holds") from None
+        raise RecordingError(f"{path}: truncated or corrupt recording, no report written; `rig report --partial "
+                             f"{path}` reports what it holds, reading past what is damaged: "
+                             f"{'; '.join(exc.partial.problems)}") from None
     empty = nothing_recorded(rec)
     if empty is not None:
         raise RecordingError(f"{path}: nothing to report, {empty}; no report written")

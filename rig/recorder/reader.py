@@ -298,7 +298,8 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
         rec.problems.append(f"damaged {exc}")
     rec.complete = not rec.truncated and rec.interrupted is None
     if rec.truncated and not allow_partial:
-        raise RecordingError(f"{path}: truncated or corrupt MCAP recording: {'; '.join(rec.problems)}. "
-                             f"Recovered {rec.summary()} (read_recording(..., allow_partial=True) returns it)",
+        raise RecordingError(f"{path}: truncated or corrupt MCAP recording; read_recording(..., allow_partial=True) "
+                             f"returns what it holds ({rec.summary()}), reading past what is damaged: "
+                             f"{'; '.join(rec.problems)}",
                              partial=rec)
     return rec
