@@ -23,6 +23,7 @@ import binascii
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import can
@@ -44,6 +45,7 @@ PV_END = 255                     # ResultValue multiplexer value of the end mark
 COMMANDS = {1: "start", 2: "stop", 3: "select_program", 4: "tare", 5: "reset_statistics", 6: "identify",
             7: "release"}
 TARE_CHANNELS = {0: "x", 1: "y", 2: "y2", 3: None}
+STARTING = ("select_program", "start")   # the commands that start a served unit's run (rig serve)
 STATES = {"idle": 0, "measuring": 1, "armed": 2}
 UNKNOWN_STATE = 15
 PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min", "XAtYMax": "x_at_y_max",
@@ -230,6 +232,10 @@ class CanNode:
         self.rx_errors: list[str] = []   # malformed or unexpected frames received
         self.curves_measured = 0
         self.released = False            # the host said it is done (HostCommand Release)
+        # Set while a served unit waits for its run (rig serve's idle phase): every command but an accepted
+        # SelectProgram or Start is acknowledged through it, at once (by the idle node); the first accepted one
+        # starts the run, is acknowledged here at device time 0 and clears it.
+        self.before_run: Callable[[dict[str, int]], None] | None = None
 
     # ------------------------------------------------------------------ queueing
     def _priority(self, name: str) -> int:
@@ -441,9 +447,9 @@ class CanNode:
     def publish_status(self, t: float, run_ended: bool = False) -> None:
         """Queue a heartbeat, the status counters and the transmit-queue status at time ``t`` (s)."""
         status = self.device.status()
-        last = getattr(self.device, "last_result", None)
+        state, last = self.device.state_at(t)         # at t, which may lie inside the chunk just fed
         self._enqueue("Heartbeat", {
-            "State": STATES.get(status.get("state"), UNKNOWN_STATE),
+            "State": STATES.get(state, UNKNOWN_STATE),
             "LastOk": 2 if last is None else int(bool(last.ok)),
             "Program": int(status.get("program", 0)) % 256,
             "DeviceTime": int(round(t * 1000)) % (1 << 32),
@@ -459,7 +465,8 @@ class CanNode:
     def handle_commands(self) -> int:
         """Apply every host command waiting on the bus at the device time :attr:`now` (each is acknowledged);
         returns how many were carried out (a rejected one — a short frame, an unknown command, a refused
-        argument — does not count: it does not arm a served device)."""
+        argument — does not count). While :attr:`before_run` is set only an accepted SelectProgram or Start
+        counts (it starts the run)."""
         done = 0
         while (msg := self.bus.recv(timeout=0.0)) is not None:
             if msg.arbitration_id != self._msg["HostCommand"].frame_id or msg.is_error_frame:
@@ -471,10 +478,18 @@ class CanNode:
                 self.rx_errors.append(f"HostCommand frame with {len(msg.data)} data bytes rejected (expected 8)")
                 cmd = dict(zip(("Cmd", "Arg", "HostSeq"), bytes(msg.data[:3]).ljust(3, b"\0")))
                 status = 1
-            self._enqueue("CommandAck", {"Cmd": cmd["Cmd"], "Arg": cmd["Arg"], "HostSeq": cmd["HostSeq"],
-                                         "AckStatus": status}, self.now)
+            ack = {"Cmd": int(cmd["Cmd"]), "Arg": int(cmd["Arg"]), "HostSeq": int(cmd["HostSeq"]), "AckStatus": status}
+            if self.before_run is not None and not (status == 0 and COMMANDS.get(ack["Cmd"]) in STARTING):
+                self.before_run(ack)
+                continue
+            self.before_run = None
+            self.acknowledge(ack)
             done += status == 0
         return done
+
+    def acknowledge(self, ack: dict[str, int]) -> None:
+        """Queue a ``CommandAck`` with these signals at the device time :attr:`now`."""
+        self._enqueue("CommandAck", ack, self.now)
 
     def _apply(self, cmd: int, arg: int) -> int:
         """Run one command on the device: 0 done, 1 rejected by the device, 2 unknown command."""

@@ -99,6 +99,7 @@ class SocketcandServer:
         self._threads: list[threading.Thread] = []
         self._lock = threading.Lock()
         self.fd_dropped = 0
+        self.open_buses = 0                # clients that opened the bus and are still connected
         self.errors: list[str] = []        # malformed or unsupported client commands
         self.beacon_to, self.beacon_period = beacon_to, beacon_period
 
@@ -182,6 +183,8 @@ class SocketcandServer:
                             self._error(f"client asked for channel {body[5:].strip()!r}, serving {self.channel!r}")
                             return
                         bus = self.bus_factory()
+                        with self._lock:
+                            self.open_buses += 1
                         reply("< ok >")
                     elif body == "rawmode" and bus is not None and not raw:
                         reply("< ok >")
@@ -204,6 +207,8 @@ class SocketcandServer:
             conn.close()
             if bus is not None:
                 bus.shutdown()
+                with self._lock:
+                    self.open_buses -= 1
 
     def _forward(self, conn: socket.socket, bus: can.BusABC, sending: threading.Lock) -> None:
         """Stream the bus's frames to the client (after the handshake grace time)."""

@@ -51,6 +51,9 @@ class DigiForce:
         self._eval_time: float | None = None
         self._ext_level = False
         self._prev_t: float | None = None
+        # (time s, measuring, last result) at each curve's start and end: the state at a past time of the
+        # latest chunk fed (a status frame due inside a chunk reports the state at its own time)
+        self._changes: deque[tuple[float, bool, CurveResult | None]] = deque([(-math.inf, False, None)], maxlen=256)
         self._setup()
 
     # --- identity and programs --------------------------------------------------------------------
@@ -216,6 +219,16 @@ class DigiForce:
         armed = self._pending_start is not None or self._prog["control"]["start"]["mode"] in ("x", "y", "external")
         return "armed" if armed else "idle"
 
+    def state_at(self, t: float) -> tuple[str, CurveResult | None]:
+        """State and latest result at device time ``t`` (s), which may lie inside the latest chunk fed (any
+        time after the 256th latest curve start or end): curves measured after ``t`` do not count yet."""
+        for when, measuring, result in reversed(self._changes):
+            if when <= t:
+                if measuring:
+                    return "measuring", result
+                return ("idle" if self.state == "idle" else "armed"), result
+        return self.state, self.last_result
+
     # --- acquisition ------------------------------------------------------------------------------
     def _rate(self, t: np.ndarray) -> float | None:
         times = t if self._prev_t is None else np.concatenate([[self._prev_t], t])
@@ -335,6 +348,7 @@ class DigiForce:
                 chain.tare_value = float(eng[ch][start])
         self._measuring = True
         self._t0 = float(t[start])
+        self._changes.append((self._t0, True, self.last_result))
         self._memory.begin(self._t0)
 
     # --- end of a curve: evaluation ---------------------------------------------------------------
@@ -366,6 +380,7 @@ class DigiForce:
                                 f"{mem.decimations} decimations)")
         self._stats[self.active_program].add(result)
         self.last_curve, self.last_result = curve, result
+        self._changes.append((result.t_end, False, result))
         return result
 
     def evaluate(self, curve: Curve) -> tuple[list[ElementResult], dict[str, float]]:

@@ -3,13 +3,14 @@
 On the wire every frame carries Unix time, as socketcand's would. The machine keeps its virtual device
 time; :class:`Anchored` adds an origin (s of Unix time) to the stamps of what it sends:
 
-* idle, before a host arms the device: :class:`IdleStatus` sends heartbeat and status frames from a
-  throwaway node whose clock is the wall clock (origin: the wall-clock time the node started);
+* idle, before a host starts the run: :class:`IdleStatus` sends heartbeat and status frames from a
+  throwaway node whose clock is the wall clock (origin: the wall-clock time the node started), and the
+  answers to the commands that do not start the run;
 * the run: the machine's own node, untouched by the idle phase (its time and ``Seq`` counters start at
   0), with origin ``ceil(wall clock at the go)``, a whole second, so stamps never go back.
 
 :class:`RunClock` is the host's side: it drops the idle frames, i.e. everything before the
-``CommandAck`` answering the host's first command, takes the run's origin from that ack (its stamp is the
+``CommandAck`` accepting the host's SelectProgram or Start that started the run, takes the run's origin from that ack (its stamp is the
 origin plus less than 1 s of device time) and gives the later frames their device time back, in whole
 microseconds as sent — the stamps an in-process run records.
 """
@@ -27,7 +28,17 @@ from rig.dbc import load_dbc
 from firmware_sim.can_node import CanNode
 from rig.blockbus import FrameBlock
 
-COMMAND_ACK = load_dbc().get_message_by_name("CommandAck").frame_id
+_ACK = load_dbc().get_message_by_name("CommandAck")
+_STARTING = {int(code) for code, name in load_dbc().get_message_by_name("HostCommand").get_signal_by_name("Cmd")
+             .choices.items() if str(name) in ("SelectProgram", "Start")}
+
+
+def starts_run(msg: can.Message) -> bool:
+    """Whether ``msg`` acknowledges an accepted SelectProgram or Start: the served run's first frame."""
+    if msg.arbitration_id != _ACK.frame_id or len(msg.data) != _ACK.length:
+        return False
+    ack = _ACK.decode(bytes(msg.data), decode_choices=False)
+    return ack["AckStatus"] == 0 and ack["Cmd"] in _STARTING
 
 
 class Anchored:
@@ -68,6 +79,12 @@ class IdleStatus:
         with self._lock:
             self._node.advance_to(time.monotonic() - self._start)
 
+    def acknowledge(self, ack: dict[str, int]) -> None:
+        """Answer a command received while idle (``CommandAck`` signals ``ack``), stamped now in the idle
+        node's time; it leaves with the next :meth:`advance`. Called with the device lock held."""
+        self._node.now = max(self._node.now, time.monotonic() - self._start)
+        self._node.acknowledge(ack)
+
     def close(self) -> None:
         self._bus.shutdown()
 
@@ -91,8 +108,8 @@ class RunClock(can.BusABC):
         if msg is None:
             return None, False
         if self.origin is None:
-            if not (self._commanded and msg.arbitration_id == COMMAND_ACK):
-                return None, False               # idle traffic: not part of the run
+            if not (self._commanded and starts_run(msg)):
+                return None, False               # idle traffic (answers to idle commands too): not the run
             self.origin = float(math.floor(msg.timestamp))
         msg.timestamp = round((msg.timestamp - self.origin) * 1e6) / 1e6
         return msg, False

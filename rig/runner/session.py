@@ -10,7 +10,7 @@ import socket
 import threading
 import time
 import uuid
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -168,17 +168,21 @@ def _finished(bar: tqdm, cfg: RunConfig, t: float, curves: int) -> None:
 
 
 def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
-           after_step: Callable[[], object]) -> None:
+           after_step: Callable[[], object], host_gone: Callable[[], bool] = lambda: False) -> None:
     """Step the machine until the scene is done or the host released it (paced in real-time mode), then
-    flush its transmit queue. ``after_step`` runs after each step (e.g. the in-process host's poll)."""
+    flush its transmit queue. ``after_step`` runs after each step (e.g. the in-process host's poll);
+    ``host_gone()`` true (the served host disconnected) stops the run with a :class:`RunError`."""
     pace = _Pacer(cfg.mode == "realtime")
     try:
         while not _machine_done(cfg, machine) and not machine.node.released:
+            gone = host_gone()                 # before the step: a Release sent just before leaving counts
             with lock:
                 try:
                     machine.step()
                 except BusOverload as exc:
                     raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
+            if gone and not machine.node.released:
+                raise _host_left(machine, "during the run")
             after_step()
             _show(bar, cfg, machine.curves, machine.t)
             pace(machine.t)
@@ -189,15 +193,25 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
         machine.flush()
 
 
-def _wait_for_go(machine: Machine, timeout: float, idle: Callable[[], None] = lambda: None) -> None:
-    """Wait until the host's first command (program select over CAN) has reached the machine; ``idle()``
-    runs meanwhile, every 5 ms."""
+def _wait_for_go(machine: Machine, timeout: float, idle: Callable[[], None] = lambda: None,
+                 lock: threading.Lock | None = None) -> None:
+    """Wait until the host's first command (program select over CAN) has reached the machine, or the host
+    released it; ``idle()`` runs meanwhile, every 5 ms; ``lock`` guards the device."""
     deadline = time.monotonic() + timeout
-    while machine.node.handle_commands() == 0:
+    while True:
+        with lock or nullcontext():
+            if machine.node.handle_commands() or machine.node.released:
+                return
         if time.monotonic() > deadline:
-            raise RunError(f"no host connected and armed the device within {timeout:g} s")
+            raise RunError(f"no host connected and started a run within {timeout:g} s (of publishing the "
+                           f"endpoints)")
         idle()
         time.sleep(0.005)
+
+
+def _host_left(machine: Machine, when: str) -> RunError:
+    return RunError(f"the host disconnected {when} without releasing the device ({machine.curves} curves served, "
+                    f"{machine.t:.3f} s of device time); stopping")
 
 
 def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
@@ -343,14 +357,26 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                 serial_dev.start()
             (announce or (lambda e: print(json.dumps(e), flush=True)))(_endpoints(cfg, server, serial_dev))
             idle = IdleStatus(machine.node, can.Bus(interface="blockbus", channel=channel), lock)
+            machine.node.before_run = idle.acknowledge
             try:
-                _wait_for_go(machine, wait, idle.advance)
+                _wait_for_go(machine, wait, idle.advance, lock)
+                idle.advance()                          # the last idle answers leave before the run's first frame
             finally:
                 idle.close()
+            if machine.node.before_run is not None:     # released before it started
+                log.warning("the host released the device before starting a run: no run served")
+                return machine
             wire.origin = math.ceil(time.time())
+
+            def gone() -> bool:                        # the host that started the run has left
+                return server.open_buses == 0
             with _progress(cfg, progress) as bar:
-                _drive(cfg, machine, lock, bar, lambda: None)
-            _wait_for_release(machine, lock, release_timeout)
+                _drive(cfg, machine, lock, bar, lambda: None, gone)
+            if machine.node.released and not _machine_done(cfg, machine):
+                log.warning("the host released the device after %d curves (%.3f s of device time), before the end "
+                            "of the scene's run (%s): the run was cut short there", machine.curves, machine.t,
+                            f"{cfg.cycles} cycles" if cfg.cycles is not None else f"{cfg.duration:g} s")
+            _wait_for_release(machine, lock, release_timeout, gone)
         finally:
             server.stop()
             if serial_dev is not None:
@@ -373,15 +399,22 @@ def scene_digest(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _wait_for_release(machine: Machine, lock: threading.Lock, timeout: float) -> None:
-    """Keep the links up until the host sends Release (it has read the statistics and every frame)."""
+def _wait_for_release(machine: Machine, lock: threading.Lock, timeout: float,
+                      host_gone: Callable[[], bool] = lambda: False) -> None:
+    """Keep the links up until the host sends Release (it has read the statistics and every frame); a host
+    that disconnects instead, or no Release within ``timeout`` s, is a :class:`RunError`."""
     deadline = time.monotonic() + timeout
-    while not machine.node.released:
+    while True:
+        gone = host_gone()                    # before reading: a Release sent just before leaving counts
+        with lock:
+            machine.node.handle_commands()
+        if machine.node.released:
+            return
+        if gone:
+            raise _host_left(machine, "after the run")
         if time.monotonic() > deadline:
             raise RunError(f"the host did not release the device within {timeout:g} s after the run "
                            f"({machine.curves} curves served); stopping")
-        with lock:
-            machine.node.handle_commands()
         time.sleep(0.02)
 
 

@@ -55,6 +55,9 @@ class FakeDevice:
     def status(self) -> dict:
         return {"state": self.state, "program": self.program}
 
+    def state_at(self, t: float) -> tuple[str, object]:
+        return self.state, self.last_result
+
     def finish(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, elements: list[ElementResult],
                process_values: dict[str, float]) -> SimpleNamespace:
         self.number += 1

@@ -115,6 +115,7 @@ def _frames(fd: bool, seed: int) -> list[can.Message]:
     with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as dev, \
             can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as rx:
         device = SimpleNamespace(last_result=None, status=lambda: {"state": "measuring", "program": 1})
+        device.state_at = lambda t: ("measuring", device.last_result)
         node = CanNode(dev, device, bitrate=500_000, fd=fd, data_bitrate=2_000_000 if fd else None)
         for k in range(2):
             t = node.now + (1 + np.arange(400)) * 1e-4

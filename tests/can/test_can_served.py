@@ -94,3 +94,73 @@ def test_served_machine_idles_then_runs_once_in_device_time(tmp_path: Path) -> N
     assert [int(raw["id"][k]) for k in received] == [m.arbitration_id for m in run]
     assert [raw["data"][k] for k in received] == [bytes(m.data) for m in run]
     np.testing.assert_array_equal(raw["t"][received], [round((m.timestamp - origin) * 1e6) / 1e6 for m in run])
+
+
+def _serve_in_thread(**kwargs) -> tuple[threading.Thread, queue.Queue, list]:
+    """serve_scene in a thread: (thread, its endpoints queue, [its machine or its exception])."""
+    announced: queue.Queue = queue.Queue()
+    outcome: list = []
+
+    def serve() -> None:
+        try:
+            outcome.append(serve_scene(SCENE, port=0, announce=announced.put, **kwargs))
+        except Exception as exc:                 # noqa: BLE001 - the test reads it
+            outcome.append(exc)
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    return thread, announced, outcome
+
+
+def _ack(bus: can.BusABC, timeout: float) -> dict | None:
+    """The next CommandAck within ``timeout`` s of wall time, decoded."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        msg = bus.recv(0.1)
+        if msg is not None and msg.arbitration_id == ID["CommandAck"]:
+            return DB.decode_message(msg.arbitration_id, msg.data)
+    return None
+
+
+def _command(bus: can.BusABC, cmd: str, arg: int, seq: int) -> None:
+    data = DB.encode_message(ID["HostCommand"], {"Cmd": cmd, "Arg": arg, "HostSeq": seq})
+    bus.send(can.Message(arbitration_id=ID["HostCommand"], data=data, is_extended_id=False))
+
+
+def test_idle_commands_are_answered_at_once_and_only_a_run_command_starts_the_run(caplog) -> None:
+    """Before the run, Identify and a refused SelectProgram get their acks while the unit idles (not when a
+    run starts later); an accepted SelectProgram starts the run, whose first frame is its ack at device
+    time 0; the host's early Release ends the run there."""
+    thread, announced, outcome = _serve_in_thread(cycles=500, wait=60, release_timeout=60)
+    ep = announced.get(timeout=60)
+    with can.Bus(**ep["can"]) as bus:
+        _command(bus, "Identify", 0, 1)
+        ident = _ack(bus, 30)
+        _command(bus, "SelectProgram", 16, 2)                    # programs are 0…15: refused
+        refused = _ack(bus, 30)
+        beat = None
+        while beat is None:                                       # the unit still idles: its idle heartbeats
+            msg = bus.recv(5)
+            if msg is not None and msg.arbitration_id == ID["Heartbeat"]:
+                beat = msg
+        _command(bus, "SelectProgram", 1, 3)
+        started = _ack(bus, 30)
+        _command(bus, "Release", 0, 4)
+        thread.join(timeout=120)
+    assert ident is not None and ident["AckStatus"] == "Done" and ident["Cmd"] == 6 and ident["HostSeq"] == 1
+    assert refused is not None and refused["AckStatus"] == "Rejected" and refused["HostSeq"] == 2
+    assert started is not None and started["AckStatus"] == "Done" and started["HostSeq"] == 3
+    assert not thread.is_alive() and not isinstance(outcome[0], Exception)
+    assert outcome[0].curves < 500 and "the run was cut short there" in caplog.text    # released early
+
+
+def test_a_host_that_disconnects_without_releasing_stops_the_server_at_once() -> None:
+    """The release timeout is for a host that stays connected and silent; one that leaves is noticed at once."""
+    thread, announced, outcome = _serve_in_thread(cycles=3, wait=60, release_timeout=600)
+    ep = announced.get(timeout=60)
+    with can.Bus(**ep["can"]) as bus:
+        _command(bus, "SelectProgram", 1, 1)
+        assert _ack(bus, 30) is not None
+    thread.join(timeout=120)                                      # far below the 600 s release timeout
+    assert not thread.is_alive()
+    assert isinstance(outcome[0], Exception) and "the host disconnected" in str(outcome[0])
+    assert "without releasing the device" in str(outcome[0])

@@ -6,7 +6,6 @@ import os
 import re
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -268,23 +267,37 @@ def test_os_errors_read_as_plain_words():
 
 # -- run failures: exit 1 -----------------------------------------------------------------------------
 def test_record_against_a_closed_port_is_one_line_and_exit_1(tmp_path):
-    """python-can alone logs every failed attempt for 10 s (~200 000 lines); rig says it once."""
+    """python-can alone logs every failed attempt for 10 s (~200 000 lines); rig says it once. (That rig never
+    enters python-can's retry loop is the next test's, without a clock: a timing bound here would fail on a busy
+    machine.)"""
     import socket
     with socket.socket() as s:                   # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     out = tmp_path / "x.mcap"
-    start = time.monotonic()
     proc = subprocess.run([sys.executable, "-m", "rig.cli", "record", str(DEMO), "-o", str(out), "--can-port",
-                           str(port)], capture_output=True, text=True, timeout=30, cwd=tmp_path,
+                           str(port)], capture_output=True, text=True, timeout=120, cwd=tmp_path,
                           env={**os.environ, "MPLBACKEND": "Agg"})
-    elapsed = time.monotonic() - start
     lines = proc.stderr.splitlines()
     assert proc.returncode == 1, proc.stderr
-    assert len(lines) <= 3 and elapsed < 10, (elapsed, lines[:5])
+    assert len(lines) <= 3, lines[:5]
     assert re.search(rf"cannot connect to socketcand at 127\.0\.0\.1:{port}: connection refused", proc.stderr)
     assert "without --endpoints the scene and fidelity the machine serves are not checked" in lines[0]
     assert not out.exists()
+
+
+def test_a_refused_port_never_reaches_python_cans_retry_loop(monkeypatch):
+    """rig probes the port itself (``connect_timeout`` s of refusals) and opens python-can's client only after a
+    socketcand greeting: python-can, which retries a refused connection for 10 s, is never called here."""
+    import socket
+    import can
+    from rig.runner.session import RunError, _socketcand
+    monkeypatch.setattr(can, "Bus", lambda *a, **k: pytest.fail("python-can's client was opened"))
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    with pytest.raises(RunError, match=rf"cannot connect to socketcand at 127\.0\.0\.1:{port}: connection refused"):
+        _socketcand("127.0.0.1", port, "vcan0", 0.2)
 
 
 def test_a_server_that_is_not_socketcand_is_named(tmp_path):

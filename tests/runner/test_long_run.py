@@ -107,3 +107,31 @@ def test_each_live_drop_report_holds_the_figures_of_one_status(tmp_path: Path):
         assert (e["total"], e["count"], e["live_factor"], e["stale"]) == (total, total - previous, factor, stale), e
         assert e["backlog"] == pytest.approx(backlog, abs=1e-9)
         previous = total
+
+
+def test_heartbeats_report_the_state_at_their_own_device_time(tmp_path: Path):
+    """A heartbeat due inside a chunk of samples says what the unit was doing at its DeviceTime (decoded with
+    cantools and the DBC alone): measuring exactly inside a curve, LastOk the verdict of the latest curve ended by
+    then ("none yet" before the first)."""
+    import cantools
+    out = tmp_path / "beats.mcap"
+    run_scene(SCENE, out, cycles=6)
+    rec = read_recording(out)
+    db = cantools.database.load_file(ROOT / "data" / "can" / "rig.dbc")
+    beat_id = db.get_message_by_name("Heartbeat").frame_id
+    beats = [db.decode_message(beat_id, d) for i, d in zip(rec.can_frames["id"], rec.can_frames["data"])
+             if int(i) == beat_id]
+    spans = [(float(c.t[0]), float(c.t[-1])) for c in rec.curves]
+    verdicts = [r["ok"] for r in rec.results]
+    assert len(spans) == len(verdicts) == 6 and len(beats) > 20
+    checked = 0
+    for b in beats[:-1]:                                 # the last: the run's end status
+        t = b["DeviceTime"]
+        if any(abs(t - edge) < 1.5e-3 for span in spans for edge in span):
+            continue                                     # DeviceTime is rounded to 1 ms
+        measuring = any(a <= t < e for a, e in spans)
+        ended = [ok for (a, e), ok in zip(spans, verdicts) if e <= t]
+        assert (b["State"] == "Measuring") == measuring, (t, b)
+        assert b["LastOk"] == ("None" if not ended else ("OK" if ended[-1] else "NOK")), (t, b)
+        checked += 1
+    assert checked > 20

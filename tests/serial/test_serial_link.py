@@ -162,7 +162,9 @@ def test_baud_rate_is_honoured_at_9600(fake) -> None:
         n_bytes = client.bytes_sent - sent - 2 * 3 + client.bytes_received - received   # last ACKs not awaited
     byte_time = n_bytes * 10 / 9600
     assert np.array_equal(curve.y, y[:25]) and byte_time > 0.6
-    assert 0.99 <= elapsed / byte_time <= 1.03, (elapsed, byte_time)
+    # never faster than the line allows (the point of the test); later only by scheduling on a busy machine,
+    # so the upper bound is loose (a wrong baud rate, e.g. 4800, would double the time)
+    assert 0.99 <= elapsed / byte_time <= 1.5, (elapsed, byte_time)
 
 
 def _raw_exchange(port: serial.Serial, data: bytes, wait: float = 0.3) -> list:
