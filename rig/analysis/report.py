@@ -459,11 +459,20 @@ EVENT_MEANING = {
 }
 
 
+def live_pairs_dropped(recorded: list[dict]) -> int:
+    """Live pairs the unit did not send, all reasons: its cumulative count (``total`` of each report, the link
+    summary's ``live_dropped``) at the latest report recorded — right also when reports between were lost (a
+    damaged part of a recording); 0 without any."""
+    totals = [int(e["total"]) for e in recorded if e.get("kind") == "live_dropped" and "total" in e]
+    totals += [int(e["live_dropped"]) for e in recorded if e.get("kind") == "link_summary" and "live_dropped" in e]
+    return max(totals, default=0)
+
+
 def events(ctx: ReportContext) -> list[Block]:
     counts = ctx.analysis["events"]
     if not counts:
         return []
-    dropped = sum(int(e.get("count", 0)) for e in ctx.recording.events if e.get("kind") == "live_dropped")
+    dropped = live_pairs_dropped(ctx.recording.events)
     rows = [[k, v, EVENT_MEANING.get(k, "") + (f" ({dropped} pairs in all)" if k == "live_dropped" else "")]
             for k, v in sorted(counts.items())]
     return [Heading("Events"), Table(["kind", "count", "what it means"], rows)]

@@ -76,7 +76,9 @@ def losses(rec: Recording) -> list[str]:
                    "other record up to the file's data end was read"
                    + (" (the run's end record too)" if rec.end else "; the run's end record is not in it"))
     elif rec.truncated:
-        out.append("lost: the messages after the last whole chunk, the summary"
+        cut = any(part.cut for part in rec.lost)
+        out.append(f"lost: {'the cut chunk named above' if cut else 'the messages after the last whole chunk'}, "
+                   "the summary"
                    + (" (the run's end record was read)" if rec.end else " and the run's end record"))
     out.append(f"data ends at {rec.last_time:.3f} s of simulation time")
     cycles, duration = _requested(rec, "cycles"), _requested(rec, "duration")

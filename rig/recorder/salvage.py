@@ -43,6 +43,7 @@ class LostPart:
     times: tuple[float, float] | None = None
     messages: dict[str, int] | None = None
     held_data: bool = True          # False: an index or framing record (message index, header, data end)
+    cut: bool = False               # the chunk the end of a cut file runs into (no damage: the file stops there)
     uncounted: list[str] = field(default_factory=list)     # topics whose message index was not read
     log_times: tuple[int, int] | None = field(default=None, repr=False)     # ns, as recorded
     channel_messages: dict[int, int] | None = field(default=None, repr=False)      # per channel id
@@ -59,7 +60,7 @@ class LostPart:
                         "damaged)")
         elif self.messages is None and self.what.startswith(("chunk", "a chunk")):
             held.append("how many messages is not known (its message index was not read)")
-        return (f"{self.what} (bytes {self.start}-{self.end}) {self.why}: skipped"
+        return (f"{self.what} (bytes {self.start}-{self.end}) {self.why}: {'lost' if self.cut else 'skipped'}"
                 + (f"; it held {', '.join(held)}" if held else "")
                 + ("" if self.held_data else " (it holds no data of the run: nothing is lost)"))
 
@@ -232,6 +233,16 @@ class DataSectionReader:
         self.rec.lost.append(part)
         return part
 
+    def _lose_cut_chunk(self, pos: int) -> None:
+        """Name the chunk a cut file ends in, with the log times its header gives (the recorder writes a chunk
+        whole, so what it held is lost; its message index, written after it, is not there to count it)."""
+        self.f.seek(pos)
+        head = self.f.read(25)                          # opcode, length, message start and end time
+        if len(head) == 25 and head[0] == Opcode.CHUNK:
+            self.rec.lost.append(LostPart(pos, self.size, self._chunk_name(pos) if self.skipped else
+                                          f"chunk {self.chunks_read + 1}", "is cut by the end of the file",
+                                          log_times=struct.unpack("<QQ", head[9:25]), cut=True))
+
     def _chunk(self, pos: int, end: int, chunk: Chunk) -> LostPart | None:
         """Collect a chunk's records; a LostPart if it fails its CRC or does not decode."""
         self.chunks_read += 1
@@ -304,6 +315,7 @@ class DataSectionReader:
                 record, data = _record(self.f, pos, self.size)
             except _Cut:
                 if self.summary is None and _next_chunk(self.f, pos + 1, self.size) is None:
+                    self._lose_cut_chunk(pos)
                     self._problem(_cut(self.size, min(pos, self.size), False, False), damage=False)
                     return
                 failure = ValueError("its length reaches past the end of the file")
@@ -385,7 +397,8 @@ class DataSectionReader:
             part.name(start, self.collector.channels,
                       set(self.chunks[part.start][1].message_index_offsets) if part.start in self.chunks else set())
         if rec.lost:
-            rec.truncated = rec.damaged = True
+            rec.truncated = True
+            rec.damaged = rec.damaged or any(not part.cut for part in rec.lost)
             rec.problems[:0] = [str(part) for part in rec.lost]
         rec.read_to_data_end = self.data_end
         rec.data_whole = self.data_end and not any(part.held_data for part in rec.lost) and not self.collector.orphans

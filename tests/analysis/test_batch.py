@@ -57,7 +57,8 @@ def test_rig_analyse_writes_table_and_report_and_names_unreadable_files(recordin
     rows = list(csv.DictReader((out / "recordings.csv").open()))
     assert [r["recording"].rsplit("/", 1)[1] for r in rows] == ["cut.mcap", "run2.mcap", "run3.mcap", "short.mcap"]
     cut, run2, run3, short = rows
-    assert "the recording holds no message: file ends" in cut["error"] and cut["curves"] == "0"
+    assert "the recording holds no message: chunk 1 (bytes " in cut["error"] and "is cut by the end of the file" \
+        in cut["error"] and "file ends" in cut["error"] and cut["curves"] == "0"
     assert (run2["curves"], run3["curves"]) == ("2", "3") and run3["complete"] == "True" and not run3["why incomplete"]
     assert run3["p1.x_max n"] == "3" and float(run3["p1.x_max mean [mm]"]) > 40
     assert not short["error"] and short["complete"] == "False" and short["curves"] == "3"

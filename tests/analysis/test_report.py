@@ -190,3 +190,13 @@ def test_a_report_written_again_leaves_nothing_of_the_earlier_one(recording, tmp
     second = set((out / report.MANIFEST).read_text().split())
     on_disk = {p.name for p in out.iterdir() if not p.name.startswith(".")}
     assert on_disk == second | {"notes.txt"} and "004_curve_c46.png" not in on_disk and "004_residuals.png" in second
+
+
+def test_live_pairs_dropped_is_the_latest_cumulative_count_even_with_reports_lost():
+    from rig.analysis.report import live_pairs_dropped
+    reports = [{"kind": "live_dropped", "t": t, "count": c, "total": tot}
+               for t, c, tot in ((1.0, 100, 100), (2.0, 50, 150), (3.0, 70, 220))]
+    del reports[1]                                   # a damaged chunk held it: the sum of counts would say 170
+    assert live_pairs_dropped(reports) == 220
+    assert live_pairs_dropped(reports + [{"kind": "link_summary", "t": 4.0, "live_dropped": 260}]) == 260
+    assert live_pairs_dropped([{"kind": "result", "t": 1.0}]) == 0

@@ -190,11 +190,14 @@ def test_a_cut_file_with_a_damaged_chunk_is_read_on_to_the_cut(whole, tmp_path):
     rec = read_recording(damaged, allow_partial=True)
     kept = set().union(*(_held(whole, chunks[k])[0] for k in (0, 1, 3, 4)))
     assert set(_numbers(rec)) == kept
-    [part] = rec.lost
-    assert part.what == "chunk 3" and part.messages == _held(whole, third)[1]
+    part, cut = rec.lost
+    assert part.what == "chunk 3" and part.messages == _held(whole, third)[1] and not part.cut
+    assert cut.cut and cut.what == "chunk 6" and cut.log_times == (sixth.message_start_time, sixth.message_end_time)
     said = losses(rec)
-    assert "file ends 100 bytes into a record" in said[1]
-    assert any(line.startswith("lost: the messages after the last whole chunk") for line in said)
+    assert said[1].startswith("chunk 6 (bytes ") and "is cut by the end of the file: lost; it held messages logged at" \
+        in said[1]
+    assert "file ends 100 bytes into a record" in said[2]
+    assert any(line.startswith("lost: the cut chunk named above") for line in said)
 
 
 def test_channels_defined_in_a_lost_chunk(whole, tmp_path):

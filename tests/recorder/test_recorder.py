@@ -351,8 +351,15 @@ def test_what_a_damaged_or_cut_file_lost_is_what_was_not_read(tmp_path):
     cut = tmp_path / "half.mcap"
     cut.write_bytes(data[: len(data) // 2])
     partial = read_recording(cut, allow_partial=True)
-    assert not partial.data_whole and any(line.startswith("lost: the messages after the last whole chunk")
-                                          for line in losses(partial))
+    assert not partial.data_whole and not partial.damaged          # cut short, not altered
+    assert any(line.startswith("lost: the cut chunk named above") for line in losses(partial))
+    from mcap.reader import make_reader
+    with open(path, "rb") as f:                                      # the chunk the cut runs into, by the summary
+        [into] = [c for c in make_reader(f).get_summary().chunk_indexes
+                  if c.chunk_start_offset < len(data) // 2 < c.chunk_start_offset + c.chunk_length]
+    [part] = partial.lost
+    assert part.cut and part.start == into.chunk_start_offset
+    assert part.log_times == (into.message_start_time, into.message_end_time)
 
 
 def test_the_end_record_says_how_far_the_data_reaches(tmp_path):
