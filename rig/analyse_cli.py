@@ -9,6 +9,7 @@ from pathlib import Path
 
 def cmd_analyse(args: argparse.Namespace) -> int:
     from rig.analysis.batch import analyse_batch, expand, report_lines, write_table
+    from rig.analysis.numbers import plural
     from rig.executors.options import executor_from_args
     from rig.outputs import claim_dir, writable_dir
     paths = expand(args.recordings)
@@ -16,7 +17,7 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     writable_dir(out, "analysis")
     with executor_from_args(args, local="dask-processes") as executor:
         if not args.quiet:
-            print(f"analysing {len(paths)} recordings on {executor.describe()}", file=sys.stderr)
+            print(f"analysing {plural(len(paths), 'recording')} on {executor.describe()}", file=sys.stderr)
         t0 = time.perf_counter()
         result = analyse_batch(paths, executor)
         wall = time.perf_counter() - t0
@@ -25,7 +26,11 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     report = out / "report.md"
     report.write_text("\n".join(lines) + "\n")
     print(lines[2])
-    print(f"{len(paths)} recordings analysed in {wall:.1f} s -> {table}, {report}")
+    for line in lines[4:]:                       # the notes under the totals (runs that share a seed)
+        if not line.startswith("Note: "):
+            break
+        print(line)
+    print(f"{plural(len(paths), 'recording')} analysed in {wall:.1f} s -> {table}, {report}")
     if not any(not r.error for r in result.recordings):
         print(f"rig: error: none of the {len(paths)} files could be read as a recording (the reasons are in {report})",
               file=sys.stderr)

@@ -8,6 +8,9 @@ recording its console lines and its numeric key results as values ``stand.<name>
 ``lab.<sheet>.<name>`` (lab sheets)). The combined statistics merge those moments
 (:class:`rig.analysis.streaming.Moments`, in the order the recordings were given) per scene and model level:
 a start-up and a shock test, or a level-1 and a level-2 run of the machine, are not one population.
+Copies of one run (the same scene, seed and wall-clock start: a file copied, or a cut copy of it) count once —
+the copy holding the most curves; recordings of one scene made with the same seed repeat one another's values
+(the same machines and draws), which the report says.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from rig.analysis.numbers import plural
 from rig.analysis.streaming import Moments
 from rig.executors import batches
 
@@ -51,6 +55,9 @@ class RecordingSummary:
     error: str = ""
     level: str = ""
     incomplete: str = ""
+    seed: str = ""
+    started: str = ""          # the run's wall-clock start (ns, from its metadata): with scene and seed, which run
+    copy_of: str = ""          # the path of another copy of the same run, counted instead of this one
 
     @property
     def group(self) -> str:
@@ -111,7 +118,8 @@ def summarise(path: Path) -> RecordingSummary:
     return RecordingSummary(str(path), str(meta.get("scene", "")), str(meta.get("plant", "")), rec.complete,
                             len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]),
                             summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")),
-                            incomplete=" ".join("; ".join(rec.problems).split()))
+                            incomplete=" ".join("; ".join(rec.problems).split()), seed=str(meta.get("seed", "")),
+                            started=str(meta.get("wall_clock_start", "")))
 
 
 def summarise_all(paths: list[Path]) -> list[RecordingSummary]:
@@ -132,8 +140,11 @@ def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
     """:func:`summarise` every path on ``executor``; merge the process values per scene and level in path
     order (units must agree within one)."""
     rows = [row for part in executor.map(summarise_all, batches(list(paths), executor.workers)) for row in part]
+    _mark_copies(rows)
     combined: dict[tuple[str, str], tuple[Moments, str]] = {}
     for row in rows:
+        if row.copy_of:
+            continue
         for name, (m, unit) in row.values.items():
             key = (row.group, name)
             if key not in combined:
@@ -144,6 +155,29 @@ def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
             else:
                 combined[key] = (combined[key][0].merge(m), unit)
     return BatchResult(rows, combined)
+
+
+def _mark_copies(rows: list[RecordingSummary]) -> None:
+    """Mark every copy of a run but the one holding the most curves (the first given among equals) as a copy."""
+    runs: dict[tuple[str, str, str], list[RecordingSummary]] = {}
+    for row in rows:
+        if not row.error and row.started:
+            runs.setdefault((row.scene, row.seed, row.started), []).append(row)
+    for copies in runs.values():
+        kept = max(copies, key=lambda r: (r.curves, r.complete))          # max: the first of equals
+        for row in copies:
+            if row is not kept:
+                row.copy_of = kept.path
+
+
+def shared_seeds(rows: list[RecordingSummary]) -> dict[tuple[str, str], list[RecordingSummary]]:
+    """Distinct runs (copies aside) of one scene and model level made with one seed: {(group, seed): runs}, only
+    where there are several — their machines and draws are the same, so their values repeat one another."""
+    out: dict[tuple[str, str], list[RecordingSummary]] = {}
+    for row in rows:
+        if not row.error and not row.copy_of and row.seed not in ("", "null"):
+            out.setdefault((row.group, row.seed), []).append(row)
+    return {key: runs for key, runs in out.items() if len(runs) > 1}
 
 
 def _stats(m: Moments) -> tuple:
@@ -160,11 +194,11 @@ def write_table(result: BatchResult, path: Path) -> Path:
     with path.open("w", newline="") as f:
         out = csv.writer(f)
         out.writerow(["recording", "scene", "level", "plant", "complete", "why incomplete", "curves", "ok", "nok",
-                      "error", "stand"]
+                      "error", "copy of (not counted)", "seed", "stand"]
                      + [f"{k} {s}" + (f" [{u}]" if u and s != "n" else "") for k, u in keys for s in STATS])
         for r in result.recordings:
             out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.incomplete, r.curves, r.ok, r.nok,
-                          r.error, " | ".join(line.strip() for line in r.stand)]
+                          r.error, r.copy_of, r.seed, " | ".join(line.strip() for line in r.stand)]
                          + [x for k, u in keys
                             for x in (_stats(r.values[k][0]) if k in r.values and r.values[k][1] == u else [""] * 5)])
     return path
@@ -175,16 +209,23 @@ def report_lines(result: BatchResult) -> list[str]:
     stand and lab recordings with their summaries, recordings with NOK curves, incomplete ones (with the reason: a
     cut or damaged file analysed for what it holds, a run stopped early) and unreadable ones."""
     recs = result.recordings
-    read = [r for r in recs if not r.error]
-    incomplete = [r for r in read if not r.complete]
+    copies = [r for r in recs if r.copy_of]
+    read = [r for r in recs if not r.error and not r.copy_of]
+    incomplete = [r for r in recs if not r.error and not r.complete]       # copies too: the files are cut
     curves, nok = sum(r.curves for r in read), sum(r.nok for r in read)
     groups = sorted({r.group for r in read})
-    lines = [f"# Batch analysis of {len(recs)} recordings", "",
-             f"{len(read)} read" + (f" ({len(incomplete)} incomplete)" if incomplete else "")
-             + f", {len(recs) - len(read)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
+    lines = [f"# Batch analysis of {plural(len(recs), 'recording')}", "",
+             f"{len(read) + len(copies)} read" + (f" ({len(incomplete)} incomplete)" if incomplete else "")
+             + (f", {len(copies)} of them {'a copy' if len(copies) == 1 else 'copies'} of another run (counted once)"
+                if copies else "")
+             + f", {len(recs) - len(read) - len(copies)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
              + (f" ({100 * nok / curves:.2f} %)" if curves else "")
              + (f"; {len(groups)} scenes (scene and model level), each its own population" if len(groups) > 1 else ""),
              ""]
+    for (group, seed), runs in sorted(shared_seeds(recs).items()):
+        lines += [f"Note: {len(runs)} runs of {group} were made with seed {seed}: the same machines and draws, so "
+                  f"their values repeat one another rather than add independent samples (give each run its own seed)."
+                  f" ({', '.join(r.path for r in runs[:3])}{', …' if len(runs) > 3 else ''})", ""]
     if len(groups) > 1:
         lines += ["| scene | recordings | curves | OK | NOK |", "|---|---|---|---|---|"]
         for g in groups:
@@ -214,6 +255,8 @@ def report_lines(result: BatchResult) -> list[str]:
     for title, chosen, what in (("Recordings with NOK curves", [r for r in read if r.nok], lambda r: f"{r.nok} NOK of {r.curves}"),
                                 ("Incomplete recordings (analysed for what they hold)", incomplete,
                                  lambda r: r.incomplete or "incomplete"),
+                                ("Copies of another run (same scene, seed and start; counted once)", copies,
+                                 lambda r: f"{r.curves} curves; counted: {r.copy_of}"),
                                 ("Unreadable recordings", [r for r in recs if r.error], lambda r: r.error)):
         if chosen:
             lines += [f"## {title} ({len(chosen)})", ""]

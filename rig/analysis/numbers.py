@@ -28,3 +28,8 @@ def fixed_range(lo: float, hi: float, significant: int = 3, sep: str = "…") ->
     """``"1.0…42.3"``: both ends with the decimals that give the larger one ``significant`` digits."""
     places = decimals(max(abs(lo), abs(hi)), significant)
     return f"{fixed(lo, places)}{sep}{fixed(hi, places)}"
+
+
+def plural(n: int, word: str) -> str:
+    """``1 recording``, ``2 recordings`` (regular English plurals only)."""
+    return f"{n} {word}{'' if n == 1 else 's'}"

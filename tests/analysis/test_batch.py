@@ -36,10 +36,11 @@ def test_combined_statistics_are_those_of_all_curves(recordings, dask_scheduler)
         serial = analyse_batch(paths, ex)
     with make_executor("dask", scheduler=dask_scheduler) as ex:
         dask = analyse_batch(paths, ex)
-    every = [r for p in paths for r in read_recording(p).results]
+    every = [r for p in paths[:2] for r in read_recording(p).results]   # the copy of run2 counts once
     x_max = process_values(every)["x_max"] * 1e3                    # display unit mm
     m, unit = serial.combined[("pin_insertion L1", "p1.x_max")]
-    assert unit == "mm" and m.n == 7 == x_max.size
+    assert unit == "mm" and m.n == 5 == x_max.size
+    assert [r.copy_of for r in serial.recordings] == ["", "", str(paths[0])]
     assert float(m.mean[0]) == pytest.approx(x_max.mean(), rel=1e-12)
     assert float(m.std(1)[0]) == pytest.approx(x_max.std(ddof=1), rel=1e-9)
     assert float(m.maximum[0]) == x_max.max()
@@ -65,8 +66,11 @@ def test_rig_analyse_writes_table_and_report_and_names_unreadable_files(recordin
     assert short["why incomplete"].startswith("file ends") and "after the data end" in short["why incomplete"]
     assert short["p1.x_max mean [mm]"] == run3["p1.x_max mean [mm]"]
     report = (out / "report.md").read_text()
-    assert "4 recordings" in report and "3 read (1 incomplete), 1 unreadable; 8 curves" in report
-    incomplete = report[report.index("## Incomplete recordings"):report.index("## Unreadable recordings")]
+    assert short["copy of (not counted)"] == run3["recording"] and not run3["copy of (not counted)"]
+    assert "4 recordings" in report and ("3 read (1 incomplete), 1 of them a copy of another run (counted once), "
+                                         "1 unreadable; 5 curves") in report
+    assert f"* {recordings / 'short.mcap'}: 3 curves; counted: {recordings / 'run3.mcap'}" in report
+    incomplete = report[report.index("## Incomplete recordings"):report.index("## Copies of another run")]
     assert f"* {recordings / 'short.mcap'}: file ends" in incomplete and "cut.mcap" not in incomplete
     assert f"* {recordings / 'cut.mcap'}: {recordings / 'cut.mcap'}: the recording holds no message" in report
     assert main(["analyse", str(tmp_path / "nothing*.mcap")]) == 2
@@ -103,3 +107,19 @@ def test_recordings_of_different_scenes_or_levels_are_not_one_population(recordi
     assert "| pin_insertion L0 | p1.x_max | mm | 2 |" in report and "| pin_insertion L1 | p1.x_max | mm | 3 |" in report
     rows = list(csv.DictReader((out / "recordings.csv").open()))
     assert [r["level"] for r in rows] == ["1", "0"]
+
+
+def test_copies_of_a_run_count_once_and_runs_sharing_a_seed_are_said(recordings):
+    """A file copied, or cut short, is the same run (scene, seed, wall-clock start): its curves count once, in the
+    copy holding most; two runs of one seed repeat one another's values, which the report says."""
+    from rig.analysis.batch import report_lines
+    paths = [recordings / "run3.mcap", recordings / "short.mcap", recordings / "run2.mcap",
+             recordings / "sub" / "copy.mcap"]
+    with make_executor("serial") as ex:
+        result = analyse_batch(paths, ex)
+    assert [r.copy_of for r in result.recordings] == ["", str(paths[0]), "", str(paths[2])]
+    assert result.combined[("pin_insertion L1", "p1.x_max")][0].n == 5
+    lines = report_lines(result)
+    assert lines[2].startswith("4 read (1 incomplete), 2 of them copies of another run (counted once), 0 unreadable; 5 curves")
+    assert any(line.startswith("Note: 2 runs of pin_insertion L1 were made with seed ") for line in lines)
+    assert "## Copies of another run (same scene, seed and start; counted once) (2)" in lines
