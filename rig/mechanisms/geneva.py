@@ -33,6 +33,11 @@ class GenevaTiming(NamedTuple):
     dwell_ratio: float
 
 
+def crank_turns(phi1: np.ndarray) -> np.ndarray:
+    """Whole crank turns k with φ1 − 2πk in (−π, π] (mid-dwell at the turn's ends)."""
+    return np.ceil((phi1 - pi) / tau)
+
+
 @dataclass(frozen=True)
 class Geneva:
     """``slots`` z ≥ 3, ``centre_distance`` L (m) between crank and wheel axes."""
@@ -62,7 +67,7 @@ class Geneva:
         finite(omega1, "Geneva omega1 (rad/s)")
         phi1 = finite_array(phi1, "Geneva crank angles phi1 (rad)")
         lam = sin(pi / self.slots)
-        phi = np.angle(np.exp(1j * phi1))     # in (−π, π]
+        phi = phi1 - tau * crank_turns(phi1)      # in (−π, π]
         engaged = np.abs(phi) <= self.engagement_half_angle
         c = np.cos(phi)
         den = 1.0 - 2 * lam * c + lam * lam
@@ -72,6 +77,13 @@ class Geneva:
         vel = np.where(engaged, omega1 * lam * (c - lam) / den, 0.0)
         acc = np.where(engaged, -omega1 ** 2 * lam * (1 - lam * lam) * np.sin(phi) / den ** 2, 0.0)
         return GenevaMotion(angle, vel, acc, engaged)
+
+    def wheel_angle(self, phi1: np.ndarray | float) -> np.ndarray:
+        """The wheel's turned angle (rad) at crank angles ``phi1`` (rad, from 0, any number of turns), 0 in the
+        dwell before the first engagement: one step of 2π/z per crank turn, continuous through every dwell (a
+        crank angle on an odd multiple of π, mid-dwell, belongs to the same turn here as in :meth:`kinematics`)."""
+        phi1 = finite_array(phi1, "Geneva crank angles phi1 (rad)")
+        return tau / self.slots * crank_turns(phi1) + self.kinematics(phi1).angle + pi / self.slots
 
     def timing(self, crank_speed: float) -> GenevaTiming:
         """Motion and dwell times of one crank turn at ``crank_speed`` (rad/s)."""

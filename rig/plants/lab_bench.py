@@ -16,7 +16,6 @@ signals (SI): ``phi_in`` (rad, continuous), ``omega_in`` (rad/s), ``alpha_in`` (
 """
 from __future__ import annotations
 
-from math import tau
 from typing import Any
 
 import numpy as np
@@ -71,9 +70,8 @@ class LabBench:
             out["omega_out"] = ratio * d.omega
             out["alpha_out"] = self.mechanism.acceleration(d.phi, d.omega) + ratio * d.alpha   # ω1²·dr/dφ1 + r·α1
         elif self.kind == "geneva":
-            z = self.mechanism.slots
             motion = self.mechanism.kinematics(d.phi, 1.0)
-            out["phi_out"] = tau / z * np.round(d.phi / tau) + motion.angle + np.pi / z   # 0 at the first dwell
+            out["phi_out"] = self.mechanism.wheel_angle(d.phi)                            # 0 at the first dwell
             out["omega_out"] = motion.velocity * d.omega
             out["alpha_out"] = motion.acceleration * d.omega ** 2 + motion.velocity * d.alpha
         elif self.kind == "cam":

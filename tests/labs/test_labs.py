@@ -139,15 +139,18 @@ def test_cardan_lab_against_the_closed_form(cardan):
     assert len(sheets["Cardan joint"].rows) == 36 and len(sheets["Cardan joint"].rows[0]) == 7
 
 
-@pytest.mark.parametrize("slots", [5, 4])
-def test_geneva_lab_motion_ratio(tmp_path_factory, slots):
+@pytest.mark.parametrize("slots, speed", [(5, "484.5 rpm"), (4, "484.5 rpm"), (5, "300 rpm")])
+def test_geneva_lab_motion_ratio(tmp_path_factory, slots, speed):
     """k_m = (z − 2)/(2z); a counting encoder sees the motion from its first to its last count change, so the
     measured ratio lies between the theory with a whole count at both ends and k_m. z = 4 rests on whole counts
     (1024 per index): the sheet must not take a count flickering at rest for an indexing."""
-    _, sheets = _run(tmp_path_factory, "lab_geneva", lambda s: s.replace("slots = 5", f"slots = {slots}"))
+    # at 300 rpm from 180° the crank lands exactly on odd multiples of π (mid-dwell) at sample times: the wheel's
+    # truth once jumped a slot pitch there (72° of angle error) and its encoder lost counts for good
+    _, sheets = _run(tmp_path_factory, "lab_geneva", lambda s: s.replace("slots = 5", f"slots = {slots}")
+                     .replace('speed = "484.5 rpm"', f'speed = "{speed}"'))
     v = sheets["Geneva drive"].values
     assert v["k_m_theory"] == pytest.approx((slots - 2) / (2 * slots)) == Geneva(slots, 0.05).timing(1.0).motion_ratio
-    assert v["k_m_one_count"] <= v["k_m"] <= v["k_m_theory"] and v["indexings"] >= 5
+    assert v["k_m_one_count"] <= v["k_m"] <= v["k_m_theory"] and v["indexings"] >= 4
     assert v["angle_error_max"] < 4 * tau / 4096
     dwell = [r for r in sheets["Geneva drive"].rows if -180 <= int(r[0]) <= -60]     # the wheel locked
     assert len(dwell) == 13 and len({r[1] for r in dwell}) == 1          # its count held: no creep across the dwell

@@ -304,3 +304,21 @@ def test_gear_interference_against_the_cartesian_construction():
                     assert np.all(rim <= g.centre_distance * np.sin(g.working_pressure_angle))
                     seen["ok"] += 1
     assert min(seen.values()) >= 10, seen            # each outcome is exercised
+
+
+@pytest.mark.parametrize("z", [4, 5, 6])
+def test_geneva_wheel_angle_is_continuous_through_every_dwell_even_on_odd_multiples_of_pi(z):
+    """A crank angle landing exactly on (2k+1)π (mid-dwell, where the turn count changes) once made the wheel jump a
+    slot pitch for one sample (half-to-even rounding of the turn against a (−π, π] wrap): 60° of false angle error in
+    a lab run at 300 rpm. The angle now steps 2π/z per crank turn and never goes back."""
+    g = Geneva(z, 0.08)
+    omega, t = 300 * 2 * pi / 60, np.arange(0, 2.0, 1 / 20000)
+    for phi0 in (pi, 0.0, 0.3):
+        phi1 = phi0 + omega * t                                  # as the lab's drive computes it
+        assert np.any(np.isclose(np.mod(phi1, 2 * pi), pi, rtol=0, atol=1e-12)) or phi0 == 0.3
+        w = g.wheel_angle(phi1)
+        assert np.all(np.diff(w) >= -1e-12) and np.max(np.diff(w)) < 0.01
+        turns = (phi1[-1] - phi1[0]) / (2 * pi)
+        assert w[-1] - w[0] == pytest.approx(2 * pi / z * turns, abs=2 * pi / z)
+    exact = np.array([pi, 3 * pi, 5 * pi, 7 * pi]) * (1 + np.array([0, 1e-16, -1e-16, 0]))
+    assert np.allclose(g.wheel_angle(exact), 2 * pi / z * np.arange(1, 5), rtol=0, atol=1e-12)
