@@ -1,5 +1,6 @@
 """The stick–slip shoe brake: the driven half held at rest, released at the brake's capacity, and the
 regularised (tanh) brake converging to it as its velocity scale shrinks."""
+import re
 import numpy as np
 import pytest
 
@@ -79,3 +80,12 @@ def test_only_one_stick_slip_brake():
         ClutchDynamics(c, LinearMotor(*MOTOR), two)
     with pytest.raises(ValueError, match="friction = 'dry'"):
         ShoeBrake(0.01, 0.005, 100.0, friction="dry")
+
+
+@pytest.mark.parametrize("force, levels, said", [(-4000.0, (), "is -4000 N (force"),
+                                                 (100.0, (-50.0,), "is -50 N from 0.2 s (force")])
+def test_a_brake_command_that_pulls_is_refused(force, levels, said):
+    """Shoes press: a negative force command once made the brake drive the shaft (to (a0 + 40)/b0 rad/s)."""
+    from rig.plants.clutch.loads import ShoeBrake
+    with pytest.raises(ValueError, match=rf"shoe brake: the force command {re.escape(said)}.*cannot drive the shaft"):
+        ShoeBrake(0.01, 0.02, force, (0.2,) if levels else (), levels)

@@ -166,6 +166,12 @@ class ShoeBrake(Load):
                              f"(gain={self.gain}, tau={self.tau}, omega_s={self.omega_s})")
         if self.friction not in ("tanh", "stick_slip"):
             raise ValueError(f"shoe brake: friction = {self.friction!r} is not 'tanh' or 'stick_slip'")
+        pulled = [(f"from {t:g} s ", f) for t, f in zip(self.times, self.levels) if not f >= 0]
+        if not self.force >= 0 or pulled:
+            when, f = ("", self.force) if not self.force >= 0 else pulled[0]
+            raise ValueError(f"shoe brake: the force command is {f:g} N {when}(force, step_force and force plus "
+                             f"pulse_force): shoes press, they cannot pull, so it must be >= 0 N (a brake cannot drive "
+                             f"the shaft; a driving load is a [load] of type constant, step or shock)")
         self._command = Steps(self.force, self.times, self.levels)
 
     def initial_state(self):
