@@ -54,9 +54,13 @@ def _print_values(st: dict) -> None:
     from rig.analysis.numbers import decimals, fixed
     print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean μ':>10} {'σ':>9} {'min':>10} {'max':>10}  "
           f"{'μ−3σ..μ+3σ':>21}  {'Cp':>7} {'Cpk':>7}  normal drift")
+    outside = []
     for name, pv in st.get("values", {}).items():
         if pv.get("cp") is None or pv.get("cpk") is None:
             cap = f"{'-':>7} {'-':>7}"
+        elif not pv["spread"] and pv["cpk"] < 0:                     # σ = 0 and the one value beyond a limit
+            cap = f"{'n/a':>7} {'-inf':>7}"
+            outside.append(name)
         else:                                                                          # σ = 0: say nothing
             cap = f"{pv['cp']:7.4g} {pv['cpk']:7.4g}" if pv["spread"] else f"{'n/a':>7} {'n/a':>7}"
         drift = pv["trend"].get("drift")
@@ -67,6 +71,8 @@ def _print_values(st: dict) -> None:
         print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>5}  {pv['mean']:10.4g} {pv['std']:9.3g} "
               f"{pv['min']:10.4g} {pv['max']:10.4g}  {band:>21}  {cap}  "
               f"{_yes_no(pv['normality'].get('normal')):6} {drift}")
+    for name in outside:
+        print(f"  {name}: NOT capable, every value outside its limits (Cpk -inf)")
 
 
 def _yes_no(flag: bool | None) -> str:

@@ -62,17 +62,27 @@ def _num(v: float | None, digits: int = 4) -> str:
 
 
 # -- 1. the verdict --------------------------------------------------------------------------------
-def _capability(cpk: float | None, spread: bool = True) -> str:
-    if cpk is None:
+def _outside(v: dict) -> bool:
+    """Every value beyond a limit: no spread and the one value outside (σ = 0 gives Cpk = −∞)."""
+    return not v["spread"] and v["cpk"] is not None and v["cpk"] < 0
+
+
+def _capability(v: dict) -> str:
+    if v["cpk"] is None:
         return "—"
-    if not spread:
+    if _outside(v):
+        return "NOT capable: every value outside the limits"
+    if not v["spread"]:
         return "n/a: no spread (every value the same, at the instrument's resolution)"
-    return "capable" if cpk >= CAPABLE else "marginal" if cpk >= MARGINAL else "NOT capable"
+    return "capable" if v["cpk"] >= CAPABLE else "marginal" if v["cpk"] >= MARGINAL else "NOT capable"
 
 
 def _indices(v: dict) -> list[Any]:
-    """Cp and Cpk cells: n/a without spread (σ = 0 makes them infinite, which says nothing)."""
-    return [v["cp"], v["cpk"]] if v["spread"] else ["n/a", "n/a"]
+    """Cp and Cpk cells: n/a without spread (σ = 0 makes them infinite, which says nothing), except a Cpk of −∞:
+    every value outside a limit."""
+    if v["spread"]:
+        return [v["cp"], v["cpk"]]
+    return ["n/a", "−∞" if _outside(v) else "n/a"]
 
 
 def _limits_text(v: dict) -> str:
@@ -94,7 +104,7 @@ def _limited(values: dict) -> dict:
 def _capability_table(values: dict) -> Table | None:
     rows = [[name, v["n"], _limits_text(v), f"{_num(v['mean'])} {v.get('unit', '')}".rstrip(),
              f"{_num(v['std'], 3)} {v.get('unit', '')}".rstrip(), *_indices(v), _normal_cell(v),
-             _capability(v["cpk"], v["spread"])] for name, v in _limited(values).items()]
+             _capability(v)] for name, v in _limited(values).items()]
     if not rows:
         return None
     return Table(["process value", "n", "limits", "mean", "σ", "Cp", "Cpk", "normal", f"Cpk ≥ {CAPABLE}"], rows)
@@ -640,7 +650,7 @@ def _cell(c: Any) -> str:
     text = html.escape(fmt(c))
     if isinstance(c, (int, float)) and not isinstance(c, bool):
         return f"<td class='num'>{text}</td>"
-    if c in ("NOK", "NOT capable"):
+    if c == "NOK" or (isinstance(c, str) and c.startswith("NOT capable")):
         return f"<td class='bad'>{text}</td>"
     return f"<td>{text}</td>"
 

@@ -25,6 +25,20 @@ def test_the_statistics_table_says_mu_and_sigma_and_gives_each_band_one_precisio
         assert len(lo.split(".")[1]) == len(hi.split(".")[1])
 
 
+def test_limits_no_value_meets_are_said_not_capable_not_n_a(capsys):
+    """σ = 0 makes Cp/Cpk infinite, which says nothing — unless the one value lies beyond a limit (Cpk = −∞): then
+    every value is outside, and the console and the report's capability table say so."""
+    from rig.analysis.report import _capability, _indices
+    inside = {**_value(42.0, 0.0), "cp": float("inf"), "cpk": float("inf"), "lsl": 41.5, "usl": 42.5}
+    outside = {**_value(41.86, 0.0), "cp": float("inf"), "cpk": float("-inf"), "lsl": 50.0, "usl": 60.0}
+    cli._print_values({"values": {"x_ok": inside, "x_max": outside}})
+    out = capsys.readouterr().out.splitlines()
+    assert out[1].split()[-4:-2] == ["n/a", "n/a"] and out[2].split()[-4:-2] == ["n/a", "-inf"]
+    assert out[3] == "  x_max: NOT capable, every value outside its limits (Cpk -inf)"
+    assert _capability(inside).startswith("n/a: no spread") and _indices(inside) == ["n/a", "n/a"]
+    assert _capability(outside) == "NOT capable: every value outside the limits" and _indices(outside) == ["n/a", "−∞"]
+
+
 def test_the_theory_lag_is_in_degrees_like_every_other_angle(capsys):
     result = {"verdicts": [], "incomplete": [], "sets": {}, "events": {},
               "theory": [{"signal": "x", "curve": 1, "lag_time": 2.47e-3, "lag_angle": 0.03892}]}
