@@ -118,6 +118,12 @@ def read_lab_section(scene: Scene) -> dict[str, Any]:
     unknown = [s for s in lab["sheets"] if s not in SHEETS] if isinstance(lab["sheets"], list) else [lab["sheets"]]
     if unknown:
         raise SceneError(f"{where}: unknown sheet(s) {unknown} (known: {', '.join(SHEETS)})")
+    kind = scene.section("plant").get("kind")
+    for sheet in lab["sheets"]:
+        if SHEET_PLANTS.get(sheet, kind) != kind:
+            raise SceneError(f"{where}: sheet {sheet!r} needs a bench of [plant] kind = {SHEET_PLANTS[sheet]!r}, this "
+                             f"scene's is {kind!r} (sheets for it: "
+                             f"{', '.join(n for n in SHEETS if SHEET_PLANTS.get(n, kind) == kind)})")
     readings = lab["readings"] or []
     if not isinstance(readings, list):
         raise SceneError(f"{where}: 'readings' must be a list of times, e.g. [\"2.5 s\"]")
@@ -448,6 +454,10 @@ def geneva_sheet(lab: Lab) -> Sheet:
 SHEETS: dict[str, Callable[[Lab], Sheet]] = {"speed": speed_sheet, "cam_follower": cam_follower_sheet,
                                              "cam_torque": cam_torque_sheet, "cardan": cardan_sheet,
                                              "geneva": geneva_sheet}
+
+
+#: the bench (``[plant] kind``) a sheet needs; a sheet not named here works on any bench
+SHEET_PLANTS = {"cam_follower": "cam", "cam_torque": "cam", "cardan": "cardan", "geneva": "geneva"}
 
 
 def lab_sheets(rec: Recording) -> list[Sheet] | None:

@@ -234,7 +234,9 @@ def test_a_lab_scene_names_its_errors(tmp_path):
     # [lab] is checked before the run, not first when the report reads it after a whole recording
     for old, new, message in (('sheets = ["cardan"]', 'sheets = ["cardn"]', r"\[lab\]: unknown sheet\(s\) \['cardn'\]"),
                               ('sheets = ["cardan"]', 'sheets = ["cardan"]\nreadings = ["2 kg"]',
-                               r"\[lab\] readings\[0\].*kg")):
+                               r"\[lab\] readings\[0\].*kg"),
+                              ('sheets = ["cardan"]', 'sheets = ["geneva"]', r"\[lab\]: sheet 'geneva' needs a bench of "
+                               r"\[plant\] kind = 'geneva', this scene's is 'cardan' \(sheets for it: speed, cardan\)")):
         text = (SCENES / "lab_cardan.toml").read_text()
         assert old in text
         bad.write_text(text.replace(old, new))
