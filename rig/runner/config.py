@@ -223,6 +223,11 @@ def default_max_time(cycles: int) -> float:
     return 3.0 * cycles + 10.0
 
 
+#: serial rates the unit's interface runs at (baud): the range of RS-232 line drivers; below it the set-up alone
+#: (program written and read back, about 2 kB each way) would take minutes
+BAUD_RATES = (1200, 4_000_000)
+
+
 def _integer(value: float, key: str, where: str, minimum: int = 0, maximum: float = math.inf) -> int:
     if not math.isfinite(value) or value != int(value) or not minimum <= value <= maximum:
         raise SceneError(f"{where}: key {key!r} must be an integer >= {minimum}"
@@ -343,7 +348,7 @@ def read_config(scene: Scene) -> RunConfig:
                          f"(the in-process bus), got {can['interface']!r}")
     serial = scene.read("links.serial", SERIAL_SCHEMA, required=False)
     sw = f"{scene.path} [links.serial]"
-    serial["baudrate"] = _integer(serial["baudrate"], "baudrate", sw, 1)
+    serial["baudrate"] = _integer(serial["baudrate"], "baudrate", sw, *BAUD_RATES)
     serial["address"] = _integer(serial["address"], "address", sw, 1)
     _of_type(serial["enabled"], bool, "enabled", sw, "true or false")
     _of_type(serial["port"], str, "port", sw, "'pty', a pyserial URL or a device path")

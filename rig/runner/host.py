@@ -5,6 +5,8 @@ hardware. The "theoretical curve" comes from its own plant model built from the 
 """
 from __future__ import annotations
 
+import json
+import logging
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -28,6 +30,7 @@ from rig.runner.reasons import ResultExplainer
 
 
 DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
+log = logging.getLogger(__name__)
 
 
 def encoder_resolution(spec: Any) -> float:
@@ -40,6 +43,7 @@ def encoder_resolution(spec: Any) -> float:
 
 
 THEORY_BLOCK = 0.5        # s of theory computed per plant call (on a fixed grid: the same calls in every run)
+SLOW_SETUP = 5.0          # s of serial set-up beyond which the host says how long it takes
 RUN_END_WAIT = 2.0        # s of device time a host that has all its curves waits for the machine's run to end
 
 
@@ -84,6 +88,13 @@ class Host:
     def arm(self) -> None:
         """Configure the unit over serial (program from the scene), then select it over CAN: the go signal."""
         if self.serial is not None:
+            desc = load_description(self.cfg.device["description"])
+            full = merge(default_program(self.program, desc), self.cfg.device["config"])
+            setup = (len(json.dumps(self.cfg.device["config"])) + len(json.dumps(full))) * 10 / self.cfg.serial["baudrate"]
+            if setup > SLOW_SETUP:
+                log.warning("configuring the unit over serial at %d baud: the program alone takes about %.0f s on "
+                            "the line (written and read back); the run starts after it", self.cfg.serial["baudrate"],
+                            setup)
             ident = self.serial.identify()
             self.serial.set_program(self.program, self.cfg.device["config"])
             self.serial.select_program(self.program)

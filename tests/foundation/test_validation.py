@@ -344,3 +344,21 @@ def test_every_option_of_every_command_says_what_it_does():
     silent = [f"{name} {'/'.join(a.option_strings)}" for name, sub in commands.items() for a in sub._actions
               if a.option_strings and not a.help]
     assert silent == []
+
+
+def test_a_serial_rate_too_slow_for_the_set_up_is_refused_and_a_slow_one_is_said(tmp_path, monkeypatch, caplog):
+    """123 baud once hung at "0/2 cycles" for minutes (the program written and read back at 12 bytes/s); the scene is
+    refused naming the key, and a set-up slower than a few seconds is announced with its duration."""
+    text = DEMO.read_text()
+    assert "baudrate = 115200" in text
+    slow = tmp_path / "slow.toml"
+    slow.write_text(text.replace("baudrate = 115200", "baudrate = 123", 1))
+    with pytest.raises(SceneError, match=r"\[links.serial\]: key 'baudrate' must be an integer >= 1200 and <= "
+                                         r"4000000, got 123"):
+        read_config(load_scene(slow))
+    import rig.runner.host as host
+    from rig.runner import run_scene
+    monkeypatch.setattr(host, "SLOW_SETUP", 0.0)         # the demo's 115200 baud then counts as slow
+    run_scene(DEMO, tmp_path / "one.mcap", cycles=1)
+    assert re.search(r"configuring the unit over serial at 115200 baud: the program alone takes about \d+ s on the "
+                     r"line", caplog.text)
