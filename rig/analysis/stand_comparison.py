@@ -144,6 +144,13 @@ def _theses(scene: Scene) -> list[Thesis]:
     return out
 
 
+def check_rows(scene: Scene) -> None:
+    """Read every [[comparison]] row as :func:`compare` will — thesis value, unit, tolerance — so a mistake is a
+    SceneError naming the scene before anything is recorded."""
+    for th in _theses(scene):
+        _agrees(th.spec["tolerance"], th.number, th.unit, th.si, th.scale, th.number, th.where)
+
+
 def _origins(stimuli: list[Stimulus]) -> Callable[[str], float]:
     """Time (s) of the stimulus a result named ``"<stimulus>: …"`` is measured from (0: the run's start)."""
     starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}

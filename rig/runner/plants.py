@@ -16,7 +16,9 @@ def _cam_bar(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
 
 
 def _clutch_dynamic(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
+    from rig.analysis.stand_comparison import check_rows
     from rig.plants.clutch.stand import ClutchStand
+    check_rows(scene)                       # the [[comparison]] the report will fill: checked before anything is recorded
     stand = ClutchStand.from_scene(scene)
     if fidelity.method is not None:      # chosen from the work-precision data, else the scene's [plant] method
         stand.method = fidelity.method

@@ -176,3 +176,19 @@ def test_rig_values_are_shown_as_precisely_as_the_thesis_values_beside_them():
         return Row("q", "N*m", thesis, rig, False, "").rig_text()
     assert shown(100.05, 100.18) == "100.05"            # was "100" beside 100.18 and a -0.13 deviation
     assert shown(14.5213, 14.5) == "14.52" and shown(3.0, 3) == "3"
+
+
+@pytest.mark.parametrize("old, new, said", [('thesis = "', 'thesis = "7 N', r"unit 'N.*' of '7 N.*' is not a torque"),
+                                            ('thesis = "', 'thesis = "abc', r"thesis value 'abc.*' is not a number")])
+def test_a_comparison_row_in_error_is_refused_before_the_run(tmp_path, capsys, old, new, said):
+    """A [[comparison]] mistake once surfaced after a whole recording, naming the recording (exit 2 must mean nothing
+    ran): it names the scene and nothing is recorded."""
+    text = (SCENES / "clutch_startup.toml").read_text()
+    assert old in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace(old, new, 1))
+    out = tmp_path / "bad.mcap"
+    capsys.readouterr()
+    assert main(["-q", "run", str(bad), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert re.search(rf"rig: error: {re.escape(str(bad))} \[\[comparison\]\] .*{said}", err) and not out.exists()
