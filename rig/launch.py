@@ -12,7 +12,15 @@ def _interrupted_while_starting(signum: int, frame: object) -> None:
     os._exit(130)
 
 
-signal.signal(signal.SIGINT, _interrupted_while_starting)
+# A worker process that multiprocessing spawns (Dask's) runs the console script again, as __mp_main__, and a Ctrl-C
+# at the terminal reaches every process of the group: the workers ignore it, the parent says it once and closes them.
+if "__mp_main__" in sys.modules:
+    import logging
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # the tasks the parent cancels then end "with CancelledError": its doing, no news (as in rig.executors)
+    logging.getLogger("distributed.worker.state_machine").setLevel(logging.ERROR)
+else:
+    signal.signal(signal.SIGINT, _interrupted_while_starting)
 
 
 def entry() -> None:

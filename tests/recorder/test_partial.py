@@ -6,6 +6,7 @@ from __future__ import annotations
 import builtins
 import os
 import re
+import logging
 import signal
 import subprocess
 import sys
@@ -216,6 +217,24 @@ def test_the_console_script_takes_ctrl_c_before_it_imports_the_command_line():
     import tomllib
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts["rig"] == "rig.launch:entry"
+
+
+def test_worker_processes_spawned_from_the_console_script_leave_ctrl_c_to_their_parent():
+    """Dask's worker processes (multiprocessing spawn) run the console script again as ``__mp_main__``: there a Ctrl-C
+    at the terminal is ignored (the parent prints its one line and closes them; each worker once printed "rig:
+    interrupted", then a traceback), and the tasks the parent cancels are no news. Checked in child interpreters."""
+    code = ("import logging, signal, sys, types\n"
+            "{setup}"
+            "import rig.launch\n"
+            "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN,\n"
+            "      logging.getLogger('distributed.worker.state_machine').level)\n")
+    worker = subprocess.run([sys.executable, "-c", code.format(setup="sys.modules['__mp_main__'] = "
+                                                                     "types.ModuleType('__mp_main__')\n")],
+                            capture_output=True, text=True, timeout=120, cwd=ROOT)
+    parent = subprocess.run([sys.executable, "-c", code.format(setup="")], capture_output=True, text=True,
+                            timeout=120, cwd=ROOT)
+    assert worker.stdout.split() == ["True", str(logging.ERROR)], worker.stderr
+    assert parent.stdout.split() == ["False", "0"], parent.stderr
 
 
 def test_a_directory_given_as_the_recording_is_named_as_such(tmp_path, capsys):
