@@ -27,11 +27,13 @@ COMMAND_MODULES: tuple[str, ...] = ("rig.bench.cli", "rig.sweep.cli", "rig.analy
                                      "rig.cam_design_cli")
 
 
-def _print_cam_bar_summary(scene_path: Path, png: Path) -> None:
+def _print_cam_bar_summary(scene_path: Path, png: Path, run_level: int | None = None) -> None:
+    """Print the level-1 summary of a cam-bar scene and write its cycle chart ``png``; ``run_level``: the level of
+    the run it precedes (None: no run)."""
     from rig.plants.cam_bar.scene_io import cam_bar_from_scene
     from rig.plants.cam_bar.summary import plot_cycle, summary_table
     mech, omega = cam_bar_from_scene(scene_path)
-    print(summary_table(mech, omega))
+    print(summary_table(mech, omega, run_level))
     png.parent.mkdir(parents=True, exist_ok=True)
     plot_cycle(mech, omega, png)
     print(f"cycle chart: {png}")
@@ -185,7 +187,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     cfg = _scene_config(scene, args.cycles)
     if cfg.plant == "cam_bar":
         writable_file(out.with_suffix(".cycle.png"), "cycle chart", PNG_MAGIC)
-        _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"))
+        from rig.fidelity import choose
+        level = choose(cfg.scene, cfg.plant, args.fidelity).level
+        _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"), level)
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet, fidelity=args.fidelity)
     what = _done("recorded", summary.curves)

@@ -56,5 +56,15 @@ def test_summary_and_plot(tmp_path):
     text = summary_table(mech, 150 * pi / 30)
     assert "slider (gripper) stroke" in text and "42.000 mm" in text and "at 150.0 rpm" in text
     assert "k = 1.19 N/mm" in text and "no spring" in text and "b_min" in text
+    assert text.startswith("level 1 (kinetostatic, nominal machine, constant speed):")
+    assert "R23 changes sign" in text and f"k = {mech.k / 1e3:.2f} N/mm (mounted)" in text
+    assert text.count("(mounted)") == 1 and "this run is level" not in text
     path = plot_cycle(mech, 150 * pi / 30, tmp_path / "cycle.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("level, noted", [(None, False), (1, False), (0, True), (2, True)])
+def test_summary_says_when_the_run_uses_another_level(level, noted):
+    """The level-1 numbers printed before a level-2 (or 0) run say they are not the run's own."""
+    text = summary_table(PinInsertionMechanism(), 150 * pi / 30, run_level=level)
+    assert (f"this run is level {level}: these level-1 numbers are not its own" in text) == noted

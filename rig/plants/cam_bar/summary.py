@@ -1,4 +1,5 @@
-"""Demo helpers for the ``rig`` CLI: a text summary and a one-revolution plot of the cam-bar plant."""
+"""Demo helpers for the ``rig`` CLI: a text summary and a one-revolution plot of the cam-bar plant, both from the
+level-1 model (kinetostatics of the nominal machine at constant speed), whatever level a run uses."""
 from __future__ import annotations
 
 from math import degrees, tau
@@ -8,6 +9,9 @@ import numpy as np
 
 from rig.motion.speed import RPM
 from rig.plants.cam_bar.mechanism import PinInsertionMechanism
+
+LEVEL1 = "level 1 (kinetostatic, nominal machine, constant speed)"
+
 
 
 def _angles(values: np.ndarray) -> str:
@@ -20,16 +24,33 @@ def _angles(values: np.ndarray) -> str:
     return ", ".join(f"{a:.{places}f}°" for a in shown) or "none"
 
 
-def summary_table(mech: PinInsertionMechanism, omega: float) -> str:
-    """Stroke, follower swing, max |R23|, flank switches per spring rate, b_min, spring design (text) at the cam
-    speed ``omega`` (rad/s)."""
+def run_level_note(run_level: int | None) -> list[str]:
+    """The line saying the level-1 summary is not the run's own model (none for a level-1 run or no run)."""
+    if run_level is None or run_level == 1:
+        return []
+    return [f"  (this run is level {run_level}: these level-1 numbers are not its own; the run's values are the set "
+            f"statistics, flank_switch events and plant truth below and in the report)"]
+
+
+def _rate_label(mech: PinInsertionMechanism, label: str) -> str:
+    """A flank-switch row's label (:meth:`PinInsertionMechanism.flank_switch_table`), '… (mounted)' on the row of
+    the mounted spring rate."""
+    return f"{label} (mounted)" if label == f"k = {mech.k / 1e3:.2f} N/mm" else label
+
+
+def summary_table(mech: PinInsertionMechanism, omega: float, run_level: int | None = None) -> str:
+    """Level-1 stroke, follower swing, max |R23|, rod force, flank switches per spring rate, b_min, spring design
+    (text) at the constant cam speed ``omega`` (rad/s); ``run_level``: the level of the run it is printed for (a
+    note when that is not 1)."""
     phi = np.linspace(0.0, tau, 3600, endpoint=False)
     st = mech.state(phi, omega)
     ks = mech.kinetostatics(phi, omega)
     design = mech.spring_rate_design()
     rpm = omega / RPM
     lines = [
-        f"pin-insertion cam-bar mechanism at {rpm:.1f} rpm (mounted spring {mech.k / 1e3:.2f} N/mm)",
+        f"{LEVEL1}: pin-insertion cam-bar mechanism at {rpm:.1f} rpm",
+        *run_level_note(run_level),
+        f"  mounted spring           {mech.k / 1e3:8.2f} N/mm",
         f"  slider (gripper) stroke  {np.ptp(st.s) * 1e3:8.3f} mm",
         f"  follower swing           {degrees(np.ptp(st.psi)):8.3f}°  (ψ {degrees(st.psi.min()):.2f}°"
         f" … {degrees(st.psi.max()):.2f}°)",
@@ -40,15 +61,17 @@ def summary_table(mech: PinInsertionMechanism, omega: float) -> str:
         f"  b_min (slider guide)     {np.nanmax(ks.b_min) * 1e3:8.2f} mm",
         f"  spring design k          {design.k / 1e3:8.3f} N/mm (thesis, travel {design.travel_thesis * 1e3:g} mm);"
         f" {design.k_geometry / 1e3:.3f} N/mm for the follower's travel {design.travel_geometry * 1e3:.2f} mm",
-        "  flank switches (cam angles where the contact force changes sign):",
+        "  level-1 flank switches: cam angles φ where the contact force R23 changes sign (there the roller would",
+        "  leave its flank; level 2 simulates the crossing itself), without the spring and per spring rate k:",
     ]
     for label, angles in mech.flank_switch_table(omega).items():
-        lines.append(f"    {label:<16} {_angles(angles)}")
+        lines.append(f"    {_rate_label(mech, label):<24} {_angles(angles)}")
     return "\n".join(lines)
 
 
 def plot_cycle(mech: PinInsertionMechanism, omega: float, path: str | Path) -> Path:
-    """PNG of s, ψ, R23 and M_Σ over one cam revolution at ``omega`` (rad/s); returns the path written."""
+    """PNG of the level-1 s, ψ, R23 and M_Σ over one cam revolution at ``omega`` (rad/s); returns the path
+    written."""
     from rig.analysis.plots import figure, write_tight
 
     phi = np.linspace(0.0, tau, 1441)
@@ -66,5 +89,5 @@ def plot_cycle(mech: PinInsertionMechanism, omega: float, path: str | Path) -> P
     axes[3].axhline(0.0, color="k", lw=0.8)
     axes[3].legend(loc="upper left", bbox_to_anchor=(0.0, -0.28), ncol=2, frameon=False)   # below: no curve hidden
     axes[-1].set_xlabel("cam angle φ (°)")
-    fig.suptitle(f"pin-insertion mechanism, {omega / RPM:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm")
+    fig.suptitle(f"pin-insertion mechanism, {LEVEL1}: {omega / RPM:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm")
     return write_tight(fig, path)
