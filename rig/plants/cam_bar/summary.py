@@ -28,8 +28,8 @@ def run_level_note(run_level: int | None) -> list[str]:
     """The line saying the level-1 summary is not the run's own model (none for a level-1 run or no run)."""
     if run_level is None or run_level == 1:
         return []
-    return [f"  (this run is level {run_level}: these level-1 numbers are not its own; the run's values are the set "
-            f"statistics, flank_switch events and plant truth below and in the report)"]
+    return [f"  (this run is level {run_level}: these level-1 numbers are not its own; its own are the set statistics "
+            f"and events below)"]
 
 
 def _rate_label(mech: PinInsertionMechanism, label: str) -> str:
