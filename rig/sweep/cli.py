@@ -12,7 +12,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.scene import load_scene
     from rig.sweep import parse_param
     from rig.sweep.plots import plot_sweep
-    from rig.sweep.run import run_sweep, write_table
+    from rig.sweep.run import levels_text, run_sweep, write_table
     params = [parse_param(p) for p in args.param]
     scene = load_scene(args.scene)
     out = Path(args.output)
@@ -20,10 +20,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     with executor_from_args(args, local="dask-processes") as executor:
         if not args.quiet:
             print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
-        result = run_sweep(scene, params, args.metric, executor, args.revolutions)
+        result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity)
     table = write_table(result, claim_dir(out) / "sweep.csv")
     failed = [(p, e) for p, e in zip(result.points, result.errors) if e]
-    print(f"{len(result.points)} points, {len(failed)} failed -> {table}")
+    points = f"{len(result.points)} point{'s' if len(result.points) != 1 else ''}"
+    print(f"{points} at model level {levels_text(result.levels)}, {len(failed)} failed -> {table}")
     for point, error in failed[:5]:
         print(f"  failed at {', '.join(f'{p.key} = {v}' for p, v in zip(params, point))}: {error}")
     for path in plot_sweep(result, out):
@@ -41,7 +42,12 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
                        help="dotted scene key and comma-separated values, e.g. 'plant.k=1.09 N/mm,1.89 N/mm' "
                             "(repeat for a grid)")
     sweep.add_argument("--metric", action="append", required=True, choices=tuple(METRICS),
-                       help="metric per point (repeatable): " + "; ".join(f"{k}: {m.doc}" for k, m in METRICS.items()))
+                       help="metric per point (repeatable), [with the lowest model level that answers it]: " + "; ".join(
+                           f"{k} [level >= {m.level}]: {m.doc}" for k, m in METRICS.items()))
+    sweep.add_argument("--fidelity", type=int, choices=(0, 1, 2),
+                       help="model level of every point (default as rig run: [scene] fidelity, else the lowest "
+                            "answering [scene] questions, else the plant's default); a metric below its level is "
+                            "refused (exit 2), not written as 0 or NaN")
     sweep.add_argument("--revolutions", type=int, default=2,
                        help="cam revolutions per point, metrics over the last one (cam bar; default 2)")
     sweep.add_argument("-o", "--output", default="out/sweep", help="directory of table and maps (default out/sweep)")

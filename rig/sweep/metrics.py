@@ -67,7 +67,8 @@ def run_plant(scene: Scene, revolutions: int = 2) -> PlantRun:
 
 
 def _upper_dwell_vibration(run: PlantRun) -> float:
-    """Peak-to-peak deviation of the slider from its level-0 law in the upper dwell (m)."""
+    """Peak-to-peak deviation of the slider from its level-0 law in the upper dwell (m; 0 below level 2, which
+    :func:`check_levels` refuses)."""
     sig, mech, law = run.signals, run.plant.mech, run.law
     top = law >= mech.program.levels[1] - 1e-12
     return float(np.ptp(sig["s"][top] - law[top])) if top.any() else float("nan")
@@ -79,7 +80,8 @@ def _gripper_deviation(run: PlantRun) -> float:
 
 
 def _roller_gap(run: PlantRun) -> float:
-    """Largest gap the roller opens off the working flank (m, ≥ 0); NaN below level 2 (no groove modelled)."""
+    """Largest gap the roller opens off the working flank (m, ≥ 0); NaN below level 2 (no groove modelled;
+    :func:`check_levels` refuses it there)."""
     gap = run.signals.get("delta_w")
     return max(float(np.max(-gap)), 0.0) if gap is not None else float("nan")
 
@@ -117,34 +119,36 @@ def ok_share(scene: Scene, cycles: int = OK_CYCLES) -> float:
 @dataclass(frozen=True)
 class Metric:
     """A sweep metric: the plants it applies to, its unit, what it is, and how it is computed; ``integer``: a count
-    or a flag (the table writes it as a whole number, the maps tick and label it in whole numbers)."""
+    or a flag (the table writes it as a whole number, the maps tick and label it in whole numbers); ``level``: the
+    lowest model level (:mod:`rig.fidelity`) whose plant answers it — below it a sweep refuses the metric."""
 
     plants: tuple[str, ...]
     unit: str
     doc: str
     compute: Callable[[PlantRun], float]
     integer: bool = False
+    level: int = 1
 
 
 METRICS: dict[str, Metric] = {
     "flank_switches": Metric(("cam_bar",), "1", "flank switches of the roller in the last revolution",
                              lambda r: float(len(r.events("flank_switch"))), integer=True),
     "upper_dwell_vibration": Metric(("cam_bar",), "m", "gripper deviation from its law in the upper dwell, peak to "
-                                    "peak, last revolution (level 2; 0 at levels 0/1)", _upper_dwell_vibration),
+                                    "peak, last revolution", _upper_dwell_vibration, level=2),
     "gripper_deviation": Metric(("cam_bar",), "m", "gripper deviation from its law, peak to peak, last revolution "
-                                "(contact deflection, flight across the groove and pins; 0 at levels 0/1)",
-                                _gripper_deviation),
-    "roller_gap": Metric(("cam_bar",), "m", "largest gap the roller opens off the working flank, last revolution "
-                         "(level 2; NaN below)", _roller_gap),
+                                "(contact deflection, flight across the groove and pins)",
+                                _gripper_deviation, level=2),
+    "roller_gap": Metric(("cam_bar",), "m", "largest gap the roller opens off the working flank, last revolution",
+                         _roller_gap, level=2),
     "rod_force_peak": Metric(("cam_bar",), "N", "largest |F_rod| of the last revolution",
                              lambda r: float(np.max(np.abs(r.signals["F_rod"])))),
     "ok_share": Metric(("cam_bar",), "1", f"share of cycles the DigiForce program judges OK, with the scene's "
                        f"per-cycle variation ([scene] cycles, else {OK_CYCLES})",
                        lambda r: ok_share(r.scene)),
     "disengagements": Metric(("clutch_dynamic",), "1", "disengagements (apex passes) over the scene's duration",
-                             lambda r: float(len(r.plant.disengagement_times)), integer=True),
+                             lambda r: float(len(r.plant.disengagement_times)), integer=True, level=2),
     "shutdown": Metric(("clutch_dynamic",), "1", "1 if the stand's shutdown rule fired, else 0",
-                       lambda r: float(r.plant.shutdown), integer=True),
+                       lambda r: float(r.plant.shutdown), integer=True, level=2),
 }
 
 
@@ -155,3 +159,20 @@ def check_metrics(names: list[str], plant: str) -> None:
             raise ValueError(f"unknown metric {name!r} (known: {', '.join(METRICS)})")
         if plant not in METRICS[name].plants:
             raise ValueError(f"metric {name!r} applies to {', '.join(METRICS[name].plants)} scenes, not {plant!r}")
+
+
+def check_levels(names: list[str], levels: list[int], where: str) -> None:
+    """A ValueError unless every point's model level (``levels``, one per grid point of the scene ``where``)
+    answers every metric: it names the metrics, the level they need, the points' level and how to get it."""
+    from rig.fidelity import LEVEL_NAMES
+    short = {m: METRICS[m].level for m in names if min(levels) < METRICS[m].level}
+    if not short:
+        return
+    need = max(short.values())
+    low = sorted({lv for lv in levels if lv < need})
+    runs = (f"runs at level {low[0]} ({LEVEL_NAMES[low[0]]})" if len(set(levels)) == 1 else
+            f"runs {sum(lv < need for lv in levels)} of its {len(levels)} points at level {', '.join(map(str, low))}")
+    what = "; ".join(f"{m!r} needs level {lv} ({LEVEL_NAMES[lv]})" for m, lv in short.items())
+    raise ValueError(f"{where} {runs}; {what}: below that the sweep would write 0 or NaN. Give --fidelity {need} "
+                     f"(or a scene with [scene] fidelity = {need}, e.g. data/scenes/pin_insertion_l2.toml), or leave "
+                     f"the metric out")

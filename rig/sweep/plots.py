@@ -5,11 +5,12 @@ from __future__ import annotations
 import itertools
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from rig.sweep.metrics import METRICS
-from rig.sweep.run import SweepResult
+from rig.sweep.run import SweepResult, levels_text
 
 MAX_MAPS = 24  # per metric: combinations of the third and later parameters drawn
 
@@ -24,6 +25,15 @@ def _slug(text: str) -> str:
 
 def _value_text(value: float, integer: bool) -> str:
     return "failed" if np.isnan(value) else f"{value:.0f}" if integer else f"{value:.3g}"
+
+
+def _no_value_note(ax: Any, values: np.ndarray) -> None:
+    """Write on the axes that no point gave a finite value (the chart would be empty, or look like a result)."""
+    if np.isfinite(values).any():
+        return
+    ax.text(0.5, 0.5, "no finite value: every point failed\n(sweep.csv's error column says why)",
+            transform=ax.transAxes, ha="center", va="center", fontsize=10, color="C3",
+            bbox={"facecolor": "w", "edgecolor": "C3"})
 
 
 def _integer_scale(z: np.ndarray, cmap: str):
@@ -53,15 +63,18 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
     index = {point: i for i, point in enumerate(result.points)}
     for metric in result.metrics:
         unit, integer = METRICS[metric].unit, METRICS[metric].integer
-        title = f"{metric}" + (f" ({unit})" if unit != "1" else "")
+        label = f"{metric}" + (f" ({unit})" if unit != "1" else "")
+        title = f"{label}, model level {levels_text(result.levels)}"
         if len(params) == 1:
             p = params[0]
             y = [result.values[index[(v,)]][metric] for v in p.values]
             fig, ax = plt.subplots(figsize=(6, 4))
             ax.plot(range(len(y)), y, "o-")
+            _no_value_note(ax, np.asarray(y, dtype=float))
             ax.set_xticks(range(len(y)), [_label(v) for v in p.values])
             ax.set_xlabel(p.key)
-            ax.set_ylabel(title)
+            ax.set_ylabel(label)
+            ax.set_title(title, fontsize=9)
             if integer:
                 ax.yaxis.set_major_locator(MaxNLocator(integer=True))
             ax.grid(True)
@@ -86,6 +99,7 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
             ax.set_ylabel(py.key)
             fixed = ", ".join(f"{p.key} = {_label(v)}" for p, v in zip(rest, combo))
             ax.set_title(title + (f"\n{fixed}" if fixed else ""), fontsize=9)
+            _no_value_note(ax, z)
             bar = fig.colorbar(image, ax=ax, ticks=ticks)
             if integer:
                 bar.ax.minorticks_off()

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 from rig.executors import batches
 from rig.scene import Scene, SceneError
 from rig.sweep import Param, grid, with_overrides
-from rig.sweep.metrics import METRICS, check_metrics, run_plant
+from rig.sweep.metrics import METRICS, check_levels, check_metrics, run_plant
 
 if TYPE_CHECKING:
     from rig.executors import Executor
@@ -47,32 +47,61 @@ def run_point(task: PointTask) -> tuple[dict[str, float], str]:
 
 @dataclass(frozen=True)
 class SweepResult:
-    """The grid (one tuple of values per point, in the order of ``params``), each point's metrics and error."""
+    """The grid (one tuple of values per point, in the order of ``params``), each point's metrics, error and model
+    level (:mod:`rig.fidelity`)."""
 
     params: tuple[Param, ...]
     metrics: tuple[str, ...]
     points: list[tuple[Any, ...]]
     values: list[dict[str, float]]
     errors: list[str]
+    levels: list[int]
 
 
 def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], executor: "Executor",
-              revolutions: int = 2) -> SweepResult:
-    """Every grid point of ``params`` on ``executor``; scene and metric errors are raised before anything runs
-    (:func:`_check_buildable`); a point whose run fails gets NaN metrics and its error."""
+              revolutions: int = 2, fidelity: int | None = None) -> SweepResult:
+    """Every grid point of ``params`` on ``executor``, at the model level ``fidelity`` (``--fidelity``; default:
+    each point's own, :func:`rig.fidelity.choose`); scene and metric errors, and metrics a point's level cannot
+    answer (:func:`rig.sweep.metrics.check_levels`), are raised before anything runs (:func:`_check_buildable`); a
+    point whose run fails gets NaN metrics and its error."""
     from rig.runner.config import read_config
     from rig.runner.plants import make_plant
     if not params or not metrics:
         raise ValueError("a sweep needs at least one --param and one --metric")
     if revolutions < 1:
         raise ValueError(f"a sweep needs at least 1 revolution, got {revolutions}")
-    check_metrics(list(metrics), read_config(scene).plant)
+    plant = read_config(scene).plant
+    check_metrics(list(metrics), plant)
+    scene = _forced(scene, params, fidelity)
     points = grid(params)
     tasks = [PointTask(scene, {p.key: v for p, v in zip(params, point)}, tuple(metrics), revolutions)
              for point in points]
+    levels = [point_level(task, plant) for task in tasks]
+    check_levels(list(metrics), levels, str(scene.path) + (f" with --fidelity {fidelity}" if fidelity is not None
+                                                           else ""))
     _check_buildable(tasks, make_plant, read_config)
     results = [r for part in executor.map(run_points, batches(tasks, executor.workers)) for r in part]
-    return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results])
+    return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results],
+                       levels)
+
+
+def _forced(scene: Scene, params: Sequence[Param], fidelity: int | None) -> Scene:
+    """The scene with ``[scene] fidelity`` set to ``fidelity`` (``--fidelity``; unchanged for None); a ValueError
+    when a parameter sweeps that key too."""
+    if fidelity is None:
+        return scene
+    if any(p.key == "scene.fidelity" for p in params):
+        raise ValueError("--fidelity and --param scene.fidelity=… both set the model level: give one")
+    return with_overrides(scene, {"scene.fidelity": fidelity})
+
+
+def point_level(task: PointTask, plant: str) -> int:
+    """The model level a point runs at (:func:`rig.fidelity.choose` on its scene, as ``rig run`` chooses)."""
+    from rig.fidelity import choose
+    try:
+        return choose(with_overrides(task.scene, task.overrides), plant).level
+    except SceneError:
+        return choose(task.scene, plant).level      # the override's own error is raised by _check_buildable
 
 
 def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) -> None:
@@ -92,6 +121,12 @@ def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) 
     raise first
 
 
+def levels_text(levels: Sequence[int]) -> str:
+    """The model levels of a sweep's points: "2", or "1 and 2" when a parameter varies it."""
+    distinct = [str(lv) for lv in sorted(set(levels))]
+    return " and ".join([", ".join(distinct[:-1]), distinct[-1]] if len(distinct) > 1 else distinct)
+
+
 def cell(metric: str, value: float) -> str:
     """A metric's CSV cell: a count or flag (:attr:`Metric.integer`) as a whole number ("2", not "2.0"), other
     values with every digit (``repr``); a failed point's NaN as ``nan``."""
@@ -101,13 +136,13 @@ def cell(metric: str, value: float) -> str:
 
 
 def write_table(result: SweepResult, path: Path) -> Path:
-    """CSV: one row per point, a column per parameter (values as given), per metric (SI, unit in the header; counts
-    as whole numbers, :func:`cell`) and ``error``."""
+    """CSV: one row per point, a column per parameter (values as given), ``level`` (the point's model level), per
+    metric (SI, unit in the header; counts as whole numbers, :func:`cell`) and ``error``."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         out = csv.writer(f)
-        out.writerow([p.key for p in result.params] + [f"{m} [{METRICS[m].unit}]" for m in result.metrics]
+        out.writerow([p.key for p in result.params] + ["level"] + [f"{m} [{METRICS[m].unit}]" for m in result.metrics]
                      + ["error"])
-        for point, values, error in zip(result.points, result.values, result.errors):
-            out.writerow(list(point) + [cell(m, values[m]) for m in result.metrics] + [error])
+        for point, level, values, error in zip(result.points, result.levels, result.values, result.errors):
+            out.writerow(list(point) + [level] + [cell(m, values[m]) for m in result.metrics] + [error])
     return path

@@ -46,8 +46,8 @@ def test_cam_bar_metrics_equal_the_plant_computed_directly():
     scene = load_scene(DEFAULT_SCENE)
     with make_executor("serial") as ex:
         result = run_sweep(scene, [parse_param(SPEEDS), parse_param(RATES)],
-                           ["flank_switches", "rod_force_peak", "upper_dwell_vibration"], ex, revolutions=2)
-    assert result.errors == [""] * 4
+                           ["flank_switches", "rod_force_peak"], ex, revolutions=2)
+    assert result.errors == [""] * 4 and result.levels == [1] * 4
     switches = [v["flank_switches"] for v in result.values]
     assert max(switches) > 0                                    # the sweep does reach switching points
     for (speed, rate), values in zip(result.points, result.values):
@@ -57,7 +57,34 @@ def test_cam_bar_metrics_equal_the_plant_computed_directly():
         phi = np.linspace(0.0, 2 * np.pi, 3601)
         peak = np.max(np.abs(mech.kinetostatics(phi, omega).F_rod))
         assert values["rod_force_peak"] == pytest.approx(peak, rel=2e-3)   # sampled at 10 kHz vs 0.1°
-        assert values["upper_dwell_vibration"] == 0.0            # level 1 follows its law exactly
+
+
+@pytest.mark.parametrize("metric", ["upper_dwell_vibration", "roller_gap", "gripper_deviation"])
+def test_a_level_2_metric_on_a_level_1_scene_is_refused_naming_the_way_to_level_2(metric, tmp_path, capsys):
+    """Level 1 would give 0 or NaN for these (no groove): refused before anything runs or is written."""
+    out = tmp_path / "sweep"
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", RATES, "--metric", "rod_force_peak", "--metric", metric,
+                 "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"runs at level 1 (kinetostatic); '{metric}' needs level 2 (dynamic)" in err
+    assert "--fidelity 2" in err and "rod_force_peak" not in err and not out.exists()
+
+
+def test_fidelity_runs_every_point_at_that_level_and_the_table_says_it(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--fidelity", "2", "--param", "plant.k=1.89 N/mm", "--metric",
+                 "roller_gap", "--revolutions", "1", "--executor", "serial", "-o", str(out)]) == 0
+    rows = list(csv.DictReader((out / "sweep.csv").open()))
+    assert [(r["level"], r["error"]) for r in rows] == [("2", "")] and float(rows[0]["roller_gap [m]"]) >= 0.0
+    assert "1 point at model level 2, 0 failed" in capsys.readouterr().out
+
+
+def test_a_level_swept_below_a_metric_and_a_doubly_set_level_are_refused(tmp_path, capsys):
+    base = ["-q", "sweep", str(DEFAULT_SCENE), "--metric", "roller_gap", "-o", str(tmp_path / "sweep")]
+    assert main(base + ["--param", "scene.fidelity=1,2"]) == 2
+    assert "runs 1 of its 2 points at level 1; 'roller_gap' needs level 2" in capsys.readouterr().err
+    assert main(base + ["--param", "scene.fidelity=2", "--fidelity", "2"]) == 2
+    assert "--fidelity and --param scene.fidelity" in capsys.readouterr().err
 
 
 def test_sweep_rows_are_identical_on_serial_and_dask(dask_scheduler):
@@ -77,9 +104,10 @@ def test_rig_sweep_writes_table_and_maps(tmp_path, capsys):
     rows = list(csv.DictReader((out / "sweep.csv").open()))
     assert [(r["speed.speed"], r["plant.k"]) for r in rows] == [("150 rpm", "1.09 N/mm"), ("150 rpm", "1.89 N/mm"),
                                                                 ("300 rpm", "1.09 N/mm"), ("300 rpm", "1.89 N/mm")]
-    assert all(r["error"] == "" for r in rows) and (out / "flank_switches.png").stat().st_size > 0
+    assert all(r["error"] == "" and r["level"] == "1" for r in rows)
+    assert (out / "flank_switches.png").stat().st_size > 0
     assert sorted({r["flank_switches [1]"] for r in rows}) == ["0", "2"]        # a count, not "0.0", "2.0"
-    assert "4 points, 0 failed" in capsys.readouterr().out
+    assert "4 points at model level 1, 0 failed" in capsys.readouterr().out
 
 
 def test_a_count_is_mapped_and_written_in_whole_numbers(tmp_path, monkeypatch):
@@ -91,7 +119,8 @@ def test_a_count_is_mapped_and_written_in_whole_numbers(tmp_path, monkeypatch):
     from rig.sweep.run import SweepResult, cell, write_table
     params = (parse_param(SPEEDS), parse_param(RATES))
     values = [{"flank_switches": v, "rod_force_peak": 54.5866} for v in (0.0, 0.0, 2.0, float("nan"))]
-    result = SweepResult(params, ("flank_switches", "rod_force_peak"), grid(list(params)), values, [""] * 3 + ["x"])
+    result = SweepResult(params, ("flank_switches", "rod_force_peak"), grid(list(params)), values, [""] * 3 + ["x"],
+                         [1] * 4)
     figures = []
     monkeypatch.setattr(Figure, "savefig", lambda self, *a, **kw: figures.append(self))
     plot_sweep(result, tmp_path)
@@ -103,6 +132,25 @@ def test_a_count_is_mapped_and_written_in_whole_numbers(tmp_path, monkeypatch):
         ("2", "nan", "54.5866")
     rows = list(csv.DictReader(write_table(result, tmp_path / "sweep.csv").open()))
     assert [r["flank_switches [1]"] for r in rows] == ["0", "0", "2", "nan"]
+    assert [r["level"] for r in rows] == ["1"] * 4 and "model level 1" in counts.axes[0].get_title()
+    assert not any("no finite value" in t.get_text() for t in counts.axes[0].texts)
+
+
+@pytest.mark.parametrize("params", [(SPEEDS,), (SPEEDS, RATES)])
+def test_a_chart_without_a_finite_value_says_so(params, tmp_path, monkeypatch):
+    """Every point failed: the line plot or map says so rather than showing empty axes."""
+    from matplotlib.figure import Figure
+
+    from rig.sweep.plots import plot_sweep
+    from rig.sweep.run import SweepResult
+    params = tuple(parse_param(p) for p in params)
+    points = grid(list(params))
+    result = SweepResult(params, ("roller_gap",), points, [{"roller_gap": float("nan")}] * len(points),
+                         ["x"] * len(points), [2] * len(points))
+    figures = []
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **kw: figures.append(self))
+    plot_sweep(result, tmp_path)
+    assert any("no finite value: every point failed" in t.get_text() for t in figures[0].axes[0].texts)
 
 
 def test_rig_sweep_refuses_a_metric_of_another_plant_and_bad_keys(tmp_path, capsys):
@@ -124,7 +172,7 @@ def test_a_point_that_cannot_be_built_gets_its_error_wherever_it_lies(values, tm
     rows = {r["plant.l4"]: r for r in csv.DictReader((out / "sweep.csv").open())}
     assert rows["20 mm"]["rod_force_peak [N]"] == "nan" and "impossible cam-bar geometry" in rows["20 mm"]["error"]
     assert float(rows["125 mm"]["rod_force_peak [N]"]) > 0 and rows["125 mm"]["error"] == ""
-    assert "2 points, 1 failed" in capsys.readouterr().out
+    assert "2 points at model level 1, 1 failed" in capsys.readouterr().out
     assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.l4=20 mm,21 mm", "--metric", "rod_force_peak",
                  "-o", str(tmp_path / "none")]) == 2
     assert "impossible cam-bar geometry" in capsys.readouterr().err
