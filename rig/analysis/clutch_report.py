@@ -342,7 +342,8 @@ def comparison_section(ctx: ReportContext) -> list[Block]:
     agreement = agreement_text(rows)
     notes = any(r.why for r in rows)
     return [Heading("Thesis against rig"),
-            Text(agreement + ".", "warning" if any(r.agrees is False for r in rows) else "note"),
+            Text(agreement[:1].upper() + agreement[1:] + ".", "warning" if any(r.agrees is False for r in rows)
+                 else "note"),
             Text(text + " Agreement is judged by each row's tolerance (a share of the thesis value, a value, or a "
                  "bound: the thesis value is a limit; a count exactly); deviation = rig − thesis."),
             Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "basis"]

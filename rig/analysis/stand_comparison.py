@@ -255,18 +255,37 @@ def write_csv(rows: list[Row], path: Path) -> Path:
     return path
 
 
+def _rows(n: int) -> str:
+    """'1 row', '2 rows'."""
+    return f"{n} row{'' if n == 1 else 's'}"
+
+
+def _inputs_text(group: list[Row], alone: bool) -> str:
+    """The judged rows set by the scene's inputs: they check nothing of the model, so ``alone`` (no prediction or
+    fitted row beside them) the line says first that the run checks nothing."""
+    shown = sum(bool(r.agrees) for r in group)
+    n = len(group)
+    shown_text = "shown as set" if shown == n else "not shown as set" if n == 1 else f"{shown} of them shown as set"
+    if alone:
+        return (f"no check of the model here — its {_rows(n)} {'is' if n == 1 else 'are'} set by the scene's inputs, "
+                f"{shown_text}")
+    return f"{_rows(n)} set by the scene's inputs, {shown_text} (no check of the model)"
+
+
 def agreement_text(rows: list[Row]) -> str:
     """One line: how many judged predictions agree with the thesis, how many fitted rows the run reproduces (a row
-    fitted on this run agreeing says little) and how many rows set by the scene's inputs it shows (they check
-    nothing of the model), and which rows do not agree."""
+    fitted on this run agreeing says little) and how many rows set by the scene's inputs it shows as set (they check
+    nothing of the model: with nothing else judged the line says so first), and which rows do not agree."""
     judged = [r for r in rows if r.agrees is not None]
     off = [r for r in judged if not r.agrees]
     missing = [r for r in rows if r.rig is None and r.agrees is None]
+    inputs = [r for r in judged if r.basis == "input"]
     parts = [f"{sum(bool(r.agrees) for r in group)} of {len(group)} {what}" for group, what in (
         ([r for r in judged if r.basis == "predicted"], "predictions agree with the thesis"),
-        ([r for r in judged if r.basis == "fitted"], "rows fitted on this run reproduced"),
-        ([r for r in judged if r.basis == "input"], "rows set by the scene's inputs (no check of the model) as set"))
+        ([r for r in judged if r.basis == "fitted"], "rows fitted on this run reproduced"))
         if group]
+    if inputs:
+        parts.append(_inputs_text(inputs, alone=not parts))
     text = "; ".join(parts) or "no row judged (no tolerances)"
     if off:
         text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{' ' + r.unit if r.unit else ''}, "

@@ -193,6 +193,23 @@ def test_rows_set_by_the_scene_are_not_counted_as_predictions():
     predicted = Row("stop", "ms", 150.0, 120.0, False, "", True, "at most")
     assert load.basis == "input" and fitted.basis == "fitted" and predicted.basis == "predicted"
     assert agreement_text([fitted, load, predicted]) == (
-        "1 of 1 predictions agree with the thesis; 1 of 1 rows fitted on this run reproduced; 1 of 1 rows set by the "
-        "scene's inputs (no check of the model) as set")
+        "1 of 1 predictions agree with the thesis; 1 of 1 rows fitted on this run reproduced; 1 row set by the "
+        "scene's inputs, shown as set (no check of the model)")
     assert agreement_text([fitted, load]).startswith("1 of 1 rows fitted")
+
+
+def test_a_comparison_of_inputs_only_says_first_that_it_checks_nothing_of_the_model():
+    """clutch_shock_short: its one row is set by its input (the shock size chosen for the regime); the line read
+    "1 of 1 rows set by the scene's inputs (no check of the model) as set"."""
+    from dataclasses import replace
+
+    from rig.analysis.stand_comparison import Row, agreement_text
+    one = Row("disengagements", "", 0.0, 0.0, False, "", True, "exact", input=True)
+    assert agreement_text([one]) == ("no check of the model here — its 1 row is set by the scene's inputs, shown as "
+                                     "set")
+    other = replace(one, quantity="final torque", rig=1.0, agrees=False)
+    assert agreement_text([one, other]).startswith("no check of the model here — its 2 rows are set by the scene's "
+                                                   "inputs, 1 of them shown as set; DISAGREE: final torque")
+    assert agreement_text([other]).startswith("no check of the model here — its 1 row is set by the scene's inputs, "
+                                              "not shown as set")
+    assert agreement_text([replace(one, agrees=None)]) == "no row judged (no tolerances)"
