@@ -491,15 +491,27 @@ def events(ctx: ReportContext) -> list[Block]:
 TRUTH_CYCLES = 3      # the plant truth chart shows this many machine cycles (the shapes stay visible)
 
 
+def _of_simulated(rec: Recording, t: np.ndarray) -> str:
+    """' of the 20.30 s simulated' (the run's recorded simulated time, as the console prints it), else — a file
+    its writer never closed — ' of the 20 s of truth recorded'."""
+    sim = rec.simulation_time
+    return f" of the {sim:.2f} s simulated" if sim is not None else f" of the {t[-1] - t[0]:.3g} s of truth recorded"
+
+
 def _truth_window(rec: Recording, t: np.ndarray) -> tuple[tuple[float, float] | None, str]:
+    """The part of the plant truth the chart shows (None: all of it, s) and its caption's span text."""
     starts = np.array([c.t[0] for c in rec.curves]) if rec.curves else np.array([])
     if starts.size > TRUTH_CYCLES and t.size:
         period = float(np.median(np.diff(starts)))
         end = float(starts[0] + TRUTH_CYCLES * period)
         if end < t[-1]:
-            return (float(t[0]), end), (f"the first {end - t[0]:.3g} s of {t[-1] - t[0]:.3g} s "
+            return (float(t[0]), end), (f"the first {end - t[0]:.3g} s{_of_simulated(rec, t)} "
                                         f"(≈ {TRUTH_CYCLES} machine cycles of {period:.3g} s)")
-    return None, f"{t[-1] - t[0]:.3g} s" if t.size else ""
+    if not t.size:
+        return None, ""
+    sim = rec.simulation_time
+    whole = f"{t[-1] - t[0]:.3g} s"
+    return None, whole if sim is None or f"{sim:.3g} s" == whole else f"{whole}{_of_simulated(rec, t)}"
 
 
 def truth(ctx: ReportContext) -> list[Block]:

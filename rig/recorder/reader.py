@@ -114,8 +114,27 @@ class Recording:
             raise SceneError(f"{self.path}: recorded scene is not valid TOML: {exc}") from None
         return Scene(Path(f"{self.path}:scene.toml"), data, self.scene_text)
 
+    @property
+    def simulation_time(self) -> float | None:
+        """Simulated time of the run (s) as its end record states it; None when the writer never closed the file."""
+        value = self.end.get("simulation_time")
+        return float(value) if value else None
+
+    def _count_text(self, topic: str, count: int) -> str:
+        """'/can/raw: 135 messages (134106 frames: 134104 received, 2 sent)': a ``/can/raw`` message is a batch of
+        frames, so its count is not read as frames; other topics '/device/curve: 50'."""
+        if topic != S.CAN_RAW:
+            return f"{topic}: {count}"
+        messages = f"{topic}: {count} message{'' if count == 1 else 's'}"
+        frames = len(self.can_frames.get("t", ()))
+        if not frames:
+            return messages
+        sent = sum(d == "tx" for d in self.can_frames.get("dir", ()))
+        return f"{messages} ({frames} frames{f': {frames - sent} received, {sent} sent' if sent else ' received'})"
+
     def summary(self) -> str:
-        counts = ", ".join(f"{k}: {v}" for k, v in sorted(self.message_counts.items())) or "no messages"
+        """Messages per topic (/can/raw also its frames), programs and whether the scene is recorded (one line)."""
+        counts = ", ".join(self._count_text(k, v) for k, v in sorted(self.message_counts.items())) or "no messages"
         return f"{counts}; {len(self.programs)} program(s), scene {'present' if self.scene_text else 'absent'}"
 
 

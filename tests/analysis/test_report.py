@@ -200,3 +200,19 @@ def test_live_pairs_dropped_is_the_latest_cumulative_count_even_with_reports_los
     assert live_pairs_dropped(reports) == 220
     assert live_pairs_dropped(reports + [{"kind": "link_summary", "t": 4.0, "live_dropped": 260}]) == 260
     assert live_pairs_dropped([{"kind": "result", "t": 1.0}]) == 0
+
+
+@pytest.mark.parametrize("end, cycles, truth_end, expected", [
+    ({"simulation_time": "20.300405"}, 50, 20.0,
+     "the first 1.2 s of the 20.30 s simulated (≈ 3 machine cycles of 0.4 s)"),
+    ({}, 50, 20.0, "the first 1.2 s of the 20 s of truth recorded (≈ 3 machine cycles of 0.4 s)"),
+    ({"simulation_time": "0.62"}, 0, 0.6, "0.6 s of the 0.62 s simulated"),
+    ({"simulation_time": "0.6"}, 0, 0.6, "0.6 s")])
+def test_truth_caption_states_the_recorded_simulated_time(tmp_path, end, cycles, truth_end, expected):
+    """'over the first 1.29 s of 20 s' read the truth's own span while 20.30 s were simulated (the console's
+    figure): the caption uses the run's end record, and says 'of truth recorded' where there is none."""
+    from rig.recorder.reader import CurveRecord, Recording
+    curves = [CurveRecord(k + 1, 1, 0.4 * k + np.arange(3) * 0.1, np.zeros(3), np.zeros(3)) for k in range(cycles)]
+    rec = Recording(tmp_path / "r.mcap", metadata={"rig.end": end} if end else {}, curves=curves)
+    t = np.linspace(0.0, truth_end, 201)
+    assert report._truth_window(rec, t)[1] == expected

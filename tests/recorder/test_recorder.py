@@ -381,3 +381,15 @@ def test_integer_and_boolean_arrays_are_written_as_their_lists():
                   np.array([True, False]), np.array([0, 255], np.uint8), np.zeros(0, np.int64),
                   np.array([1, -70000], dtype=">i4")):
         assert dumps_message({"v": value}) == orjson.dumps({"v": value.tolist()})
+
+
+def test_summary_counts_can_messages_apart_from_the_frames_they_hold(tmp_path):
+    """A /can/raw message is a batch of frames: '135' beside the console's '134104 CAN frames received' read as
+    frames; the summary says messages and gives the frames, received and sent as the console counts them."""
+    from rig.recorder.reader import Recording
+    rec = Recording(tmp_path / "r.mcap", message_counts={"/can/raw": 135, "/device/curve": 50},
+                    can_frames={"t": np.zeros(5), "dir": ["tx", "rx", "rx", "rx", "rx"]})
+    assert rec.summary().startswith("/can/raw: 135 messages (5 frames: 4 received, 1 sent), /device/curve: 50; ")
+    rec.can_frames["dir"] = ["rx"] * 5
+    assert "/can/raw: 135 messages (5 frames received)" in rec.summary()
+    assert Recording(tmp_path / "r.mcap", message_counts={"/can/raw": 1}).summary().startswith("/can/raw: 1 message;")
