@@ -89,5 +89,5 @@ def plot_cycle(mech: PinInsertionMechanism, omega: float, path: str | Path) -> P
     axes[3].axhline(0.0, color="k", lw=0.8)
     axes[3].legend(loc="upper left", bbox_to_anchor=(0.0, -0.28), ncol=2, frameon=False)   # below: no curve hidden
     axes[-1].set_xlabel("cam angle φ (°)")
-    fig.suptitle(f"pin-insertion mechanism, {LEVEL1}: {omega / RPM:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm")
+    fig.suptitle(f"pin-insertion mechanism, {omega / RPM:.0f} rpm, k = {mech.k / 1e3:.2f} N/mm\n{LEVEL1}")
     return write_tight(fig, path)
