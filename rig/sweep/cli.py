@@ -42,8 +42,8 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
                        help="dotted scene key and comma-separated values, e.g. 'plant.k=1.09 N/mm,1.89 N/mm' "
                             "(repeat for a grid)")
     sweep.add_argument("--metric", action="append", required=True, choices=tuple(METRICS),
-                       help="metric per point (repeatable), [with the lowest model level that answers it]: " + "; ".join(
-                           f"{k} [level >= {m.level}]: {m.doc}" for k, m in METRICS.items()))
+                       help="metric per point (repeatable), [with the lowest model level that answers it]: "
+                            + "; ".join(f"{k} [level >= {m.level}]: {m.doc}" for k, m in METRICS.items()))
     sweep.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                        help="model level of every point (default as rig run: [scene] fidelity, else the lowest "
                             "answering [scene] questions, else the plant's default); a metric below its level is "
