@@ -66,11 +66,20 @@ def as_written(value: Any, unit: str | None = None) -> str:
 
 @dataclass
 class Scene:
-    """A loaded scene: its raw TOML tree and where it came from."""
+    """A loaded scene: its raw TOML tree and where it came from; ``folder``: where the relative paths it names lie
+    (None: the scene file's folder)."""
 
     path: Path
     data: dict[str, Any]
     text: str
+    folder: Path | None = None
+
+    def file(self, written: str | Path) -> Path:
+        """A file the scene names, as written: a relative path is relative to the scene file's folder (not to the
+        current directory), made whole (a worker in another directory finds it too)."""
+        path = Path(written)
+        return path if path.is_absolute() else ((self.folder if self.folder is not None else self.path.parent)
+                                                / path).absolute()
 
     def section(self, name: str, required: bool = True) -> dict[str, Any]:
         """The sub-table ``name`` (dotted for nesting); a missing required one is a :class:`SceneError`."""

@@ -32,12 +32,15 @@ def register(type_name: str) -> Callable[[type], type]:
     return wrap
 
 
+def is_path(name_or_path: str | Path) -> bool:
+    """True for a description file path (``devs/force.toml``), False for a name looked up in ``data/devices``."""
+    p = Path(name_or_path)
+    return p.suffix == ".toml" or p.parent != Path(".")
+
+
 def resolve_path(name_or_path: str | Path) -> Path:
     """A description name (``"burster_8411"``, looked up in ``data/devices``) or a file path."""
-    p = Path(name_or_path)
-    if p.suffix == ".toml" or p.parent != Path("."):
-        return p
-    return DEVICES_DIR / f"{name_or_path}.toml"
+    return Path(name_or_path) if is_path(name_or_path) else DEVICES_DIR / f"{name_or_path}.toml"
 
 
 def read_description(path: Path) -> dict[str, Any]:

@@ -7,6 +7,7 @@ A scene lists its sheets in ``[lab] sheets``; each is a table, a figure and one 
 """
 from __future__ import annotations
 
+import logging
 import textwrap
 from dataclasses import dataclass, field
 from math import cos, radians, tau
@@ -20,9 +21,12 @@ from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
 from rig.plants.lab_bench import KINDS, LabBench
 from rig.recorder import Recording
+from rig.runner.config import described
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.analysis.units import unit as display_unit
 from rig.units import UnitError, to_si, ureg
+
+log = logging.getLogger(__name__)
 
 RPM = tau / 60.0          # rad/s per rpm
 LEGEND_WIDTH = 30         # characters per line of a legend entry beside a sheet's axes (2.3 in at "small")
@@ -85,7 +89,8 @@ class Lab:
         table = self.transducer(to)
         if table is None:
             raise SceneError(f"{self.scene.path}: no transducer wired to {to!r}")
-        return {**read_description(resolve_path(table["description"])), **table.get("overrides", {})}
+        return {**read_description(resolve_path(described(self.scene, table["description"]))),
+                **table.get("overrides", {})}
 
     def setting(self, to: str, key: str, unit: str) -> float:
         """A description value (SI) of the transducer wired to ``to``, its scene override first."""
@@ -475,6 +480,7 @@ def lab_section(ctx: ReportContext) -> list[Block]:
     try:
         sheets = lab_sheets(ctx.recording)
     except (SceneError, ValueError) as exc:
+        log.warning("lab: no sheet in the report (%s)", exc)       # on the console too: the report leaves it out
         return [Heading("Lab sheets"), Text(f"No lab sheet: {exc}", "warning")]
     if sheets is None:
         return []

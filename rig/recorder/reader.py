@@ -112,7 +112,14 @@ class Recording:
             data = tomllib.loads(self.scene_text)
         except tomllib.TOMLDecodeError as exc:
             raise SceneError(f"{self.path}: recorded scene is not valid TOML: {exc}") from None
-        return Scene(Path(f"{self.path}:scene.toml"), data, self.scene_text)
+        return Scene(Path(f"{self.path}:scene.toml"), data, self.scene_text, self.scene_folder)
+
+    @property
+    def scene_folder(self) -> Path:
+        """Where the relative paths the recorded scene names lie: the scene file's folder when the recording names the
+        file whole (``rig run`` does), else — a scene file named relative to an unknown directory — the recording's."""
+        written = Path(self.metadata.get("rig", {}).get("scene_file", ""))
+        return written.parent if written.is_absolute() else self.path.parent
 
     @property
     def simulation_time(self) -> float | None:

@@ -31,7 +31,7 @@ SCENE_SCHEMA = {
     "max_time": Field("s", None, "give up when the cycles are not complete by this simulated time"),
 }
 TRANSDUCER_SCHEMA = {
-    "description": Field(None, doc="device description name in data/devices or a path"),
+    "description": Field(None, doc="device description name in data/devices or a path (relative to the scene file)"),
     "signal": Field(None, doc="plant truth signal the transducer measures"),
     "to": Field(None, doc="where its output goes: 'device.x' / 'device.y' (the unit's channels), "
                           "'can.MESSAGE.SIGNAL' (a reading in a DBC signal, e.g. 'can.Torque.Torque') or "
@@ -43,7 +43,8 @@ TRANSDUCER_SCHEMA = {
 DEVICE_SCHEMA = {
     "program": Field("1", 0, "program number the run uses"),
     "config": Field(None, {}, "program settings merged over the unit's factory program"),
-    "description": Field(None, None, "device description name or path (default: the DigiForce 9310 file)"),
+    "description": Field(None, None, "device description name or path, relative to the scene file (default: the "
+                                      "DigiForce 9310 file)"),
 }
 CAN_SCHEMA = {
     "interface": Field(None, "blockbus", "in one process: 'blockbus' (frames in blocks) or python-can's 'virtual'"),
@@ -162,6 +163,13 @@ def _device_dbc() -> Any:
     """The DBC the simulated machine sends by (the scene wires transducers into its messages)."""
     from rig.dbc import load_dbc
     return load_dbc()
+
+
+def described(scene: Scene, written: str) -> str:
+    """A device description as a scene names it, as the runner opens it: a name (``burster_8411``, in
+    data/devices) as it is, a path relative to the scene file's folder (not the current directory) made whole."""
+    from firmware_sim.transducers.description import is_path
+    return str(scene.file(written)) if is_path(written) else written
 
 
 def frames_of(transducers: tuple[TransducerSpec, ...] | list[TransducerSpec]) -> dict[str, list[TransducerSpec]]:
@@ -309,7 +317,7 @@ def read_config(scene: Scene) -> RunConfig:
         faults = _of_type(t["faults"], list, "faults", tw, "an array of tables [{ fault = ..., at = \"1 s\" }, ...]")
         for i, fault in enumerate(faults):
             _of_type(fault, dict, f"faults[{i}]", tw, "a table { fault = ..., at = \"1 s\", ... }")
-        transducers.append(TransducerSpec(name, t["description"], t["signal"], t["to"], dict(t["overrides"]),
+        transducers.append(TransducerSpec(name, described(scene, t["description"]), t["signal"], t["to"], dict(t["overrides"]),
                                           list(t["faults"]), t["rate"]))
     wires = [t.to for t in transducers]
     for to in set(wires):
@@ -325,6 +333,8 @@ def read_config(scene: Scene) -> RunConfig:
     _of_type(device["config"], dict, "config", dw, "a table [device.config]")
     if device["description"] is not None:
         _of_type(device["description"], str, "description", dw, "a device description name or path")
+        from firmware_sim.transducers.description import resolve_path
+        device["description"] = str(resolve_path(described(scene, device["description"])))
     can = scene.read("links.can", CAN_SCHEMA, required=False)
     cw = f"{scene.path} [links.can]"
     can["bitrate"] = _integer(can["bitrate"], "bitrate", cw, 1)

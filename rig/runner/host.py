@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import json
 import logging
-import tomllib
-from pathlib import Path
 from typing import Any
 
 import can
@@ -20,6 +18,7 @@ from drivers.digiforce_serial import DigiForceClient
 from drivers.encoder import SpeedEstimator, counts_to_angle
 from firmware_sim.digiforce.description import load_description
 from firmware_sim.digiforce.program import default_program, merge, validate_program
+from firmware_sim.transducers.description import read_description, resolve_path
 from rig.analysis.units import display_units
 from rig.blockbus import RX, FrameBlock
 from rig.recorder import Recorder
@@ -29,15 +28,13 @@ from rig.runner.plants import make_plant
 from rig.runner.reasons import ResultExplainer
 
 
-DEVICES = Path(__file__).resolve().parents[2] / "data" / "devices"
 log = logging.getLogger(__name__)
 
 
 def encoder_resolution(spec: Any) -> float:
     """Angle per latched count (rad) of the encoder a scene declares: the host is configured with the
     encoder's data (PPR, decoding) as it would be for real hardware."""
-    path = Path(spec.description) if spec.description.endswith(".toml") else DEVICES / f"{spec.description}.toml"
-    table = tomllib.loads(path.read_text(encoding="utf-8"))["transducer"]
+    table = read_description(resolve_path(spec.description))
     ppr = float(spec.overrides.get("ppr", table["ppr"]))
     return counts_to_angle(1, int(ppr), int(float(spec.overrides.get("multiplier", table.get("multiplier", 4)))))
 

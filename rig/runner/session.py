@@ -215,7 +215,7 @@ def _host_left(machine: Machine, when: str) -> RunError:
 
 
 def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
-    return {"scene": cfg.name, "scene_file": str(cfg.scene.path), "seed": cfg.seed, "plant": cfg.plant,
+    return {"scene": cfg.name, "scene_file": str(cfg.scene.path.resolve()), "seed": cfg.seed, "plant": cfg.plant,
             "run_mode": mode, "software_version": rig.__version__, "sample_rate": cfg.sample_rate,
             "cycles": cfg.cycles, "duration": cfg.duration, "fidelity_level": cfg.fidelity.level,
             "fidelity_reason": cfg.fidelity.reason, "method": cfg.fidelity.method_text}

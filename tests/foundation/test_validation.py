@@ -362,3 +362,43 @@ def test_a_serial_rate_too_slow_for_the_set_up_is_refused_and_a_slow_one_is_said
     run_scene(DEMO, tmp_path / "one.mcap", cycles=1)
     assert re.search(r"configuring the unit over serial at 115200 baud: the program alone takes about \d+ s on the "
                      r"line", caplog.text)
+
+
+# -- files a scene names ------------------------------------------------------------------------------
+def test_relative_description_paths_are_relative_to_the_scene_file_not_the_working_directory(tmp_path, monkeypatch):
+    from firmware_sim.transducers.description import DEVICES_DIR, read_description, resolve_path
+    folder = tmp_path / "sub"
+    (folder / "devs").mkdir(parents=True)
+    (folder / "devs" / "force.toml").write_text((DEVICES_DIR / "burster_8411.toml").read_text(encoding="utf-8"))
+    (folder / "devs" / "unit.toml").write_text((DEVICES_DIR / "digiforce_9310.toml").read_text(encoding="utf-8"))
+    path = edited(folder, DEMO, 'description = "burster_8411"', 'description = "devs/force.toml"')
+    path.write_text(path.read_text().replace("[device]\n", '[device]\ndescription = "devs/unit.toml"\n', 1))
+    monkeypatch.chdir(tmp_path)                       # not the scene's folder: devs/force.toml is not here
+    cfg = read_config(load_scene(Path("sub") / path.name))
+    force = next(t for t in cfg.transducers if t.name == "rod_force")
+    assert Path(force.description) == folder / "devs" / "force.toml"
+    assert read_description(resolve_path(force.description))["type"] == "strain_gauge_bridge"
+    assert Path(cfg.device["description"]) == folder / "devs" / "unit.toml"
+    assert next(t for t in cfg.transducers if t.name == "cam_encoder").description == "encoder_1024"   # a name
+
+
+def test_a_recorded_scene_resolves_its_paths_where_its_file_was(tmp_path):
+    from rig.recorder.reader import Recording
+    text = DEMO.read_text(encoding="utf-8")
+    whole = Recording(tmp_path / "out" / "run.mcap", text, {"rig": {"scene_file": "/lab/scenes/pin.toml"}})
+    assert whole.scene().file("devs/force.toml") == Path("/lab/scenes/devs/force.toml")
+    relative = Recording(tmp_path / "out" / "run.mcap", text, {"rig": {"scene_file": "pin.toml"}})
+    assert relative.scene().file("devs/force.toml") == tmp_path / "out" / "devs" / "force.toml"
+
+
+def test_a_report_without_its_lab_sheet_says_so_on_the_console(tmp_path, caplog):
+    from types import SimpleNamespace
+    from rig.analysis.lab_report import lab_section
+    from rig.recorder.reader import Recording
+    rec = Recording(tmp_path / "run.mcap", (SCENES / "lab_geneva.toml").read_text(encoding="utf-8"))  # no readings
+    with caplog.at_level("WARNING"):
+        blocks = lab_section(SimpleNamespace(recording=rec))
+    reason = blocks[1].text.removeprefix("No lab sheet: ")
+    assert "no edge_time readings" in reason
+    assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"] == [
+        f"lab: no sheet in the report ({reason})"]
