@@ -402,3 +402,15 @@ def test_a_report_without_its_lab_sheet_says_so_on_the_console(tmp_path, caplog)
     assert "no edge_time readings" in reason
     assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"] == [
         f"lab: no sheet in the report ({reason})"]
+
+
+# -- messages in the scene's own terms ----------------------------------------------------------------
+@pytest.mark.parametrize("old, new, message", [
+    ('speed = "150 rpm"', 'speed = "-120 rpm"', r"\[speed\]: key 'speed' must be positive, got \"-120 rpm\"$"),
+    ('profile = "constant"', 'profile = "ramp"\nspeed_end = "-120 rpm"\nramp_time = "1 s"',
+     r"\[speed\]: key 'speed_end' must be positive, got \"-120 rpm\"$"),
+])
+def test_a_negative_speed_is_named_by_its_key_in_the_unit_written(tmp_path, old, new, message):
+    from rig.plants.cam_bar.scene_io import read_speed_profile
+    with pytest.raises(SceneError, match=message):
+        read_speed_profile(load_scene(edited(tmp_path, DEMO, old, new)))

@@ -56,12 +56,15 @@ PLANT_SCHEMA.update({name: replace(PLANT_SCHEMA[name], positive=True) for name i
 PLANT_SCHEMA.update({name: replace(PLANT_SCHEMA[name], minimum=0.0) for name in NON_NEGATIVE})
 SEGMENT_SCHEMA = {"kind": Field(None), "angle": Field("rad"), "law": Field(None, None),
                   "stroke": Field("m", None, "defaults to s_H for rise/return")}
+# the ranges the speed profiles check, checked on the scene's values: the error names the key and the value as written
 SPEED_SCHEMAS = {
-    "constant": {"profile": Field(None), "speed": Field("rad/s"), "phi0": Field("rad", 0.0)},
-    "ramp": {"profile": Field(None), "speed": Field("rad/s"), "speed_end": Field("rad/s"),
-             "ramp_time": Field("s"), "ramp_start": Field("s", 0.0), "phi0": Field("rad", 0.0)},
-    "sinusoidal": {"profile": Field(None), "speed": Field("rad/s", doc="mean speed"),
-                   "amplitude": Field("rad/s"), "frequency": Field("Hz", None, "default: once per revolution"),
+    "constant": {"profile": Field(None), "speed": Field("rad/s", positive=True), "phi0": Field("rad", 0.0)},
+    "ramp": {"profile": Field(None), "speed": Field("rad/s", positive=True), "speed_end": Field("rad/s", positive=True),
+             "ramp_time": Field("s", positive=True), "ramp_start": Field("s", 0.0, minimum=0.0),
+             "phi0": Field("rad", 0.0)},
+    "sinusoidal": {"profile": Field(None), "speed": Field("rad/s", doc="mean speed", positive=True),
+                   "amplitude": Field("rad/s", minimum=0.0),
+                   "frequency": Field("Hz", None, "default: once per revolution", positive=True),
                    "phi0": Field("rad", 0.0)},
 }
 
