@@ -8,6 +8,7 @@ from typing import Any, Iterable, Iterator, Mapping
 
 import numpy as np
 
+from rig.scene import as_written
 from rig.units import UnitError, to_si
 
 from .errors import DigiForceError
@@ -89,6 +90,12 @@ def quantity(value: Any, unit: str, what: str) -> float:
     if not math.isfinite(out):
         raise DigiForceError(f"{what}: must be finite, got {value!r}")
     return out
+
+
+def written(value: Any, unit: str) -> str:
+    """A value as the program wrote it, for a message: ``"42.5 mm"`` (a quantity string) or a plain number with
+    the SI ``unit`` it is read in (``0.0425 m``)."""
+    return as_written(value, None if unit in ("", "1") else unit)
 
 
 def number(cfg: Mapping[str, Any], key: str, unit: str, where: str, default: Any = None,

@@ -231,7 +231,9 @@ class Window(_Region):
         out = {k: checks.number(cfg, k, xu if k[0] == "x" else yu, where) for k in cls.keys[:4]}
         for lo, hi in (("x_min", "x_max"), ("y_min", "y_max")):
             if not out[lo] < out[hi]:
-                raise DigiForceError(f"{where}: {lo} ({out[lo]:g}) must be below {hi} ({out[hi]:g})")
+                u = xu if lo[0] == "x" else yu
+                raise DigiForceError(f"{where}: {lo} {checks.written(cfg[lo], u)} must be below "
+                                     f"{hi} {checks.written(cfg[hi], u)}")
         out["entry"] = checks.choice(cfg, "entry", SIDE_RULES, where, "any")
         out["exit"] = checks.choice(cfg, "exit", SIDE_RULES, where, "any")
         out["check"] = checks.choice(cfg, "check", (None,) + EXTREMES, where, None)
@@ -260,11 +262,13 @@ class Trapezoid(_Region):
         out = {"axis": axis, "start": checks.number(cfg, "start", run_u, where),
                "end": checks.number(cfg, "end", run_u, where)}
         if not out["start"] < out["end"]:
-            raise DigiForceError(f"{where}: start ({out['start']:g}) must be below end ({out['end']:g})")
+            raise DigiForceError(f"{where}: start {checks.written(cfg['start'], run_u)} must be below "
+                                 f"end {checks.written(cfg['end'], run_u)}")
         out["lower"] = [checks.quantity(v, lim_u, f"{where}.lower") for v in _list2(cfg, "lower", where)]
         out["upper"] = [checks.quantity(v, lim_u, f"{where}.upper") for v in _list2(cfg, "upper", where)]
         if not (out["lower"][0] < out["upper"][0] and out["lower"][1] < out["upper"][1]):
-            raise DigiForceError(f"{where}: lower {out['lower']} must be below upper {out['upper']} at both ends")
+            lower, upper = (", ".join(checks.written(v, lim_u) for v in cfg[k]) for k in ("lower", "upper"))
+            raise DigiForceError(f"{where}: lower [{lower}] must be below upper [{upper}] at both ends")
         default_in, default_out = ("left", "right") if axis == "y" else ("bottom", "top")
         out["entry"] = checks.choice(cfg, "entry", SIDE_RULES, where, default_in)
         out["exit"] = checks.choice(cfg, "exit", SIDE_RULES, where, default_out)

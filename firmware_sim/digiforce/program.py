@@ -135,7 +135,8 @@ def _limits(cfg: Any, units: Mapping[str, str], where: str) -> dict[str, list[fl
         lo, hi = (None if v is None else checks.quantity(v, units[key], f"{where}.{key} ({side})")
                   for v, side in zip(pair, ("lower", "upper")))
         if lo is not None and hi is not None and not lo < hi:
-            raise DigiForceError(f"{where}.{key}: lower limit {lo} must be below upper limit {hi}")
+            raise DigiForceError(f"{where}.{key}: lower limit {checks.written(pair[0], units[key])} must be below "
+                                 f"upper limit {checks.written(pair[1], units[key])}")
         out[key] = [lo, hi]
     return out
 

@@ -227,12 +227,14 @@ def test_envelope_dx_widens_steep_parts():
 
 
 @pytest.mark.parametrize("cfg, message", [
-    (WIN | {"x_min": 3.0}, "x_min (3) must be below x_max"),
+    (WIN | {"x_min": 3.0}, "x_min 3.0 m must be below x_max 2.0 m"),
+    (WIN | {"x_min": "43 mm", "x_max": "36 mm"}, 'x_min "43 mm" must be below x_max "36 mm"'),     # as written
     (WIN | {"entry": "north"}, "entry: 'north' is not one of"),
     (WIN | {"x_max": "2 N"}, "wrong dimension"),
     (WIN | {"color": "red"}, "unknown key 'color'"),
     ({"kind": "circle", "name": "C"}, "kind: 'circle' is not one of"),
-    (TRAP_Y | {"lower": [0.0, 3.5]}, "lower [0.0, 3.5] must be below upper"),
+    (TRAP_Y | {"lower": [0.0, 3.5]}, "lower [0.0 N, 3.5 N] must be below upper [1.0 N, 3.0 N]"),
+    (TRAP_Y | {"start": "3 mm", "end": "1 mm"}, 'start "3 mm" must be below end "1 mm"'),
     ({"kind": "envelope", "name": "E", "references": [{"x": [0, 1, 0.5], "y": [0, 1, 2]}]}, "strictly monotonic"),
     (TH | {"part": "middle"}, "part: 'middle' is not one of"),
 ])

@@ -54,7 +54,8 @@ def test_program_roundtrip_is_json_and_normalised():
     ({"sampling": {"overflow": "wrap"}}, "sampling.overflow: 'wrap' is not one of 'stop', 'decimate'"),
     ({"reference": {"mode": "y_threshold"}}, "reference: missing key 'y_threshold'"),
     ({"limits": {"y_mean": [0, 1]}}, "limits: 'y_mean' is not a process value"),
-    ({"limits": {"y_max": [2, 1]}}, "lower limit 2.0 must be below upper limit 1.0"),
+    ({"limits": {"y_max": [2, 1]}}, "lower limit 2 N must be below upper limit 1 N"),
+    ({"limits": {"x_max": ["42.5 mm", "41.5 mm"]}}, 'lower limit "42.5 mm" must be below upper limit "41.5 mm"'),
     ({"elements": [{"kind": "window", "name": "A", "x_min": 0, "x_max": 1, "y_min": 0, "y_max": 1}] * 2},
      "element names must be unique"),
 ])
