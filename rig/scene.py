@@ -26,8 +26,9 @@ class SceneError(ValueError):
 @dataclass(frozen=True)
 class Field:
     """One scene parameter: its SI unit (``"1"`` = pure number, ``None`` = not a quantity) and default; the range
-    of a quantity (SI): ``minimum``/``maximum`` inclusive, ``positive`` excludes 0 (:func:`read_table` checks it
-    and names the value as the scene wrote it)."""
+    of a quantity (SI): ``minimum``/``maximum`` inclusive, ``below`` exclusive, ``positive`` excludes 0
+    (:func:`read_table` checks it and names the value as the scene wrote it); ``says``: the range in the scene's
+    words ("must be at least 0° and below 90°") instead of one in SI."""
 
     unit: str | None = "1"
     default: Any = REQUIRED
@@ -35,6 +36,8 @@ class Field:
     minimum: float | None = None
     maximum: float | None = None
     positive: bool = False
+    below: float | None = None
+    says: str = ""
 
     @property
     def required(self) -> bool:
@@ -43,8 +46,10 @@ class Field:
     def out_of_range(self, value: float) -> str | None:
         """What ``value`` (SI) must be when it is outside the range ("must not be negative"), else None."""
         if not ((self.minimum is not None and value < self.minimum) or (self.maximum is not None and value > self.maximum)
-                or (self.positive and not value > 0.0)):
+                or (self.positive and not value > 0.0) or (self.below is not None and not value < self.below)):
             return None
+        if self.says:
+            return self.says
         unit = "" if self.unit in (None, "1") else f" {self.unit}"          # a bound other than 0 is in SI
         low = self.minimum if self.minimum is not None else 0.0 if self.positive else None
         if self.maximum is not None:

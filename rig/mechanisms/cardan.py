@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import cos, pi, radians, sin
+from math import cos, pi, sin
 
 import numpy as np
 
-from rig.mechanisms.checks import finite, finite_array
+from rig.mechanisms.checks import degrees_hint, finite, finite_array
 
 ArrayLike = np.ndarray | float
 
@@ -27,10 +27,8 @@ class Cardan:
     def __post_init__(self) -> None:
         alpha = finite(self.shaft_angle, "Cardan shaft_angle (rad)")
         if not 0.0 <= alpha < pi / 2:
-            hint = (f": the angle is in radians: did you mean {alpha:g}° = {radians(alpha):.4g} rad?"
-                    if pi / 2 <= alpha < 90.0 else "")
-            raise ValueError(f"Cardan shaft_angle must lie in [0, 90°), got {alpha!r} rad = {np.degrees(alpha):g}°"
-                             + hint)
+            raise ValueError(f"Cardan shaft_angle must lie in [0, 90°) (at 90° the output shaft cannot turn), got "
+                             f"{alpha:.6g} rad = {np.degrees(alpha):.6g}°" + degrees_hint(alpha))
 
     def output_angle(self, phi1: ArrayLike) -> np.ndarray:
         """φ2 (rad), continuous in φ1 (the same quadrant: tan φ2 = tan φ1 / cos α)."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from math import expm1, inf, isfinite, pi, radians, tan, tau
 
-from rig.mechanisms.checks import finite, positive
+from rig.mechanisms.checks import degrees_hint, finite, positive
 
 
 @dataclass(frozen=True)
@@ -57,9 +57,7 @@ class Ratchet:
     def __post_init__(self) -> None:
         gamma = finite(self.tooth_angle, "Ratchet tooth_angle (rad)")
         if not 0 < gamma < pi / 2:
-            hint = (f": the angle is in radians: did you mean {gamma:g}° = {radians(gamma):.4g} rad?"
-                    if pi / 2 <= gamma < 90.0 else "")
-            raise ValueError(f"Ratchet tooth_angle must lie in (0, 90°), got {gamma!r} rad" + hint)
+            raise ValueError(f"Ratchet tooth_angle must lie in (0, 90°), got {gamma!r} rad" + degrees_hint(gamma))
         if not finite(self.mu, "Ratchet mu") >= 0:
             raise ValueError(f"Ratchet mu must not be negative, got {self.mu!r}")
 

@@ -16,6 +16,7 @@ signals (SI): ``phi_in`` (rad, continuous), ``omega_in`` (rad/s), ``alpha_in`` (
 """
 from __future__ import annotations
 
+from math import pi
 from typing import Any
 
 import numpy as np
@@ -29,7 +30,9 @@ from rig.scene import Field, Scene, SceneError
 KINDS = ("disc", "cardan", "geneva", "cam")
 SCHEMAS: dict[str, dict[str, Field]] = {
     "disc": {"kind": Field(None)},
-    "cardan": {"kind": Field(None), "shaft_angle": Field("rad", doc="angle between input and output shaft")},
+    "cardan": {"kind": Field(None), "shaft_angle": Field(
+        "rad", doc="angle between input and output shaft; at 90° the output shaft cannot turn", minimum=0.0,
+        below=pi / 2, says="must be at least 0° and below 90°")},
     "geneva": {"kind": Field(None), "slots": Field("1"), "centre_distance": Field("m")},
     "cam": {"kind": Field(None), "cam_program": Field(None, doc="array of tables [[plant.cam_program]]"),
             "follower_mass": Field("kg", 0.0), "spring_rate": Field("N/m", 0.0),

@@ -414,3 +414,13 @@ def test_a_negative_speed_is_named_by_its_key_in_the_unit_written(tmp_path, old,
     from rig.plants.cam_bar.scene_io import read_speed_profile
     with pytest.raises(SceneError, match=message):
         read_speed_profile(load_scene(edited(tmp_path, DEMO, old, new)))
+
+
+@pytest.mark.parametrize("angle", ['"90 deg"', '"-30 deg"'])
+def test_a_cardan_shaft_angle_out_of_range_says_the_range_and_the_value_as_written(tmp_path, angle):
+    from rig.plants.lab_bench import LabBench
+    path = edited(tmp_path, SCENES / "lab_cardan.toml", 'shaft_angle = "30 deg"', f"shaft_angle = {angle}")
+    with pytest.raises(SceneError) as info:
+        LabBench.from_scene(load_scene(path))
+    assert str(info.value) == (f"{path} [plant]: key 'shaft_angle' must be at least 0° and below 90° (angle between "
+                               f"input and output shaft; at 90° the output shaft cannot turn), got {angle}")

@@ -322,3 +322,12 @@ def test_geneva_wheel_angle_is_continuous_through_every_dwell_even_on_odd_multip
         assert w[-1] - w[0] == pytest.approx(2 * pi / z * turns, abs=2 * pi / z)
     exact = np.array([pi, 3 * pi, 5 * pi, 7 * pi]) * (1 + np.array([0, 1e-16, -1e-16, 0]))
     assert np.allclose(g.wheel_angle(exact), 2 * pi / z * np.arange(1, 5), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("alpha, message", [
+    (pi / 2, r"must lie in \[0, 90°\) \(at 90° the output shaft cannot turn\), got 1.5708 rad = 90°$"),  # no hint
+    (30.0, r"got 30 rad = 1718.87°: was it meant in degrees\? 30° = 0.5236 rad$"),
+])
+def test_a_cardan_shaft_angle_hints_at_degrees_only_for_an_impossible_angle(alpha, message):
+    with pytest.raises(ValueError, match=message):
+        Cardan(alpha)
