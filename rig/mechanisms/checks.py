@@ -38,7 +38,8 @@ def positive(value: Any, what: str, unit: str = "", at_most: float | None = None
 def degrees_hint(angle: float) -> str:
     """A hint for an angle (rad) of π or more but below 90: no angle between shafts or of a tooth is that large, so it
     was likely meant in degrees; empty otherwise (a value with a unit needs no hint)."""
-    return f": was it meant in degrees? {angle:g}° = {math.radians(angle):.4g} rad" if math.pi <= angle < 90.0 else ""
+    return (f": the angle is in radians: did you mean {angle:g}° = {math.radians(angle):.4g} rad?"
+            if math.pi <= angle < 90.0 else "")
 
 
 def finite_array(values: Any, what: str) -> np.ndarray:

@@ -326,7 +326,7 @@ def test_geneva_wheel_angle_is_continuous_through_every_dwell_even_on_odd_multip
 
 @pytest.mark.parametrize("alpha, message", [
     (pi / 2, r"must lie in \[0, 90°\) \(at 90° the output shaft cannot turn\), got 1.5708 rad = 90°$"),  # no hint
-    (30.0, r"got 30 rad = 1718.87°: was it meant in degrees\? 30° = 0.5236 rad$"),
+    (30.0, r"got 30 rad = 1718.87°: the angle is in radians: did you mean 30° = 0.5236 rad\?$"),
 ])
 def test_a_cardan_shaft_angle_hints_at_degrees_only_for_an_impossible_angle(alpha, message):
     with pytest.raises(ValueError, match=message):
