@@ -28,7 +28,8 @@ class Field:
     """One scene parameter: its SI unit (``"1"`` = pure number, ``None`` = not a quantity) and default; the range
     of a quantity (SI): ``minimum``/``maximum`` inclusive, ``below`` exclusive, ``positive`` excludes 0
     (:func:`read_table` checks it and names the value as the scene wrote it); ``says``: the range in the scene's
-    words ("must be at least 0° and below 90°") instead of one in SI."""
+    words ("must be at least 0° and below 90°") instead of one in SI. ``integer``: a whole number (returned as an
+    int); ``plain``: a plain number is in ``unit`` (``bitrate = 500000`` bit/s, or ``"500 kbit/s"``)."""
 
     unit: str | None = "1"
     default: Any = REQUIRED
@@ -38,6 +39,8 @@ class Field:
     positive: bool = False
     below: float | None = None
     says: str = ""
+    integer: bool = False
+    plain: bool = False
 
     @property
     def required(self) -> bool:
@@ -46,11 +49,14 @@ class Field:
     def out_of_range(self, value: float) -> str | None:
         """What ``value`` (SI) must be when it is outside the range ("must not be negative"), else None."""
         if not ((self.minimum is not None and value < self.minimum) or (self.maximum is not None and value > self.maximum)
-                or (self.positive and not value > 0.0) or (self.below is not None and not value < self.below)):
+                or (self.positive and not value > 0.0) or (self.below is not None and not value < self.below)
+                or (self.integer and not float(value).is_integer())):
             return None
         if self.says:
             return self.says
         unit = "" if self.unit in (None, "1") else f" {self.unit}"          # a bound other than 0 is in SI
+        if self.integer:
+            return self.whole()
         low = self.minimum if self.minimum is not None else 0.0 if self.positive else None
         if self.maximum is not None:
             return (f"must be at most {self.maximum:g}{unit}" if low is None else
@@ -59,6 +65,13 @@ class Field:
         if self.positive and low == 0.0:
             return "must be positive"
         return "must not be negative" if low == 0.0 else f"must be at least {low:g}{unit}"
+
+
+    def whole(self) -> str:
+        """What an integer field's value must be: "must be an integer >= 0 and <= 65535"."""
+        unit = "" if self.unit in (None, "1") else f" {self.unit}"
+        return ("must be an integer" + (f" >= {self.minimum:.0f}{unit}" if self.minimum is not None else "")
+                + (f" and <= {self.maximum:.0f}{unit}" if self.maximum is not None else ""))
 
 
 def as_written(value: Any, unit: str | None = None) -> str:
@@ -173,9 +186,14 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
         if field.unit is None:
             out[name] = value
             continue
+        if unit is None and field.plain and isinstance(value, (int, float)) and not isinstance(value, bool):
+            unit = field.unit
         try:
             out[name] = to_si(value, field.unit, unit, what=f"{where}: key {key!r}")
         except UnitError as exc:
+            if field.integer and field.unit == "1":         # not a number at all: say what it must be
+                raise SceneError(f"{where}: key {key!r} {field.whole()}" + (f" ({field.doc})" if field.doc else "")
+                                 + f", got {as_written(value)}") from None
             raise SceneError(str(exc)) from None
         if not math.isfinite(out[name]):
             raise SceneError(f"{where}: key {key!r} must be a finite quantity, got {value!r}"
@@ -184,6 +202,8 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
         if wrong is not None:
             raise SceneError(f"{where}: key {key!r} {wrong}" + (f" ({field.doc})" if field.doc else "")
                              + f", got {as_written(value, unit)}")
+        if field.integer:
+            out[name] = int(out[name])
     for name, field in schema.items():
         if name not in out:
             if field.required:

@@ -31,7 +31,7 @@ class UnitError(ValueError):
 
 #: an example quantity per SI unit, for the message on a value rig cannot read as a quantity
 EXAMPLES = {"m": "260 mm", "rad": "60 deg", "rad/s": "150 rpm", "s": "100 ms", "N": "40 N", "N/m": "1.89 N/mm",
-            "N*m": "25 N*m", "kg": "0.91 kg", "Hz": "10 kHz", "m/s^2": "9.81 m/s^2", "kg*m^2": "0.02 kg*m^2",
+            "N*m": "25 N*m", "kg": "0.91 kg", "Hz": "10 kHz", "bit/s": "500 kbit/s", "m/s^2": "9.81 m/s^2", "kg*m^2": "0.02 kg*m^2",
             "s/m": "0.5 s/m", "1/m": "60 / mm", "1": "0.5"}
 
 

@@ -19,8 +19,8 @@ from rig.scene import Field, Scene, SceneError, read_table
 SCENE_SCHEMA = {
     "name": Field(None), "description": Field(None, ""),
     "plant": Field(None, doc="plant kind, e.g. 'cam_bar' or 'clutch_dynamic'"),
-    "seed": Field("1", doc="seed of every random draw of the run"),
-    "cycles": Field("1", None, "number of device curves (machine cycles) to record"),
+    "seed": Field("1", doc="seed of every random draw of the run", integer=True, minimum=0),
+    "cycles": Field("1", None, "number of device curves (machine cycles) to record", integer=True, minimum=1),
     "duration": Field("s", None, "simulated time to run when the scene has no cycles"),
     "sample_rate": Field("Hz", 10_000.0, "plant/transducer/acquisition sample rate"),
     "chunk": Field("s", 0.02, "simulated time advanced per runner step"),
@@ -41,7 +41,7 @@ TRANSDUCER_SCHEMA = {
     "rate": Field("Hz", None, "publishing rate of its CAN frames (default: once per chunk)"),
 }
 DEVICE_SCHEMA = {
-    "program": Field("1", 0, "program number the run uses"),
+    "program": Field("1", 0, "program number the run uses", integer=True, minimum=0),
     "config": Field(None, {}, "program settings merged over the unit's factory program"),
     "description": Field(None, None, "device description name or path, relative to the scene file (default: the "
                                       "DigiForce 9310 file)"),
@@ -49,16 +49,22 @@ DEVICE_SCHEMA = {
 CAN_SCHEMA = {
     "interface": Field(None, "blockbus", "in one process: 'blockbus' (frames in blocks) or python-can's 'virtual'"),
     "channel": Field(None, "rig"),
-    "bitrate": Field("1", 500_000, "bit/s"), "fd": Field(None, False),
-    "data_bitrate": Field("1", None, "bit/s of the CAN FD data phase"),
+    "bitrate": Field("bit/s", 500_000, "bit/s, e.g. 500000 or \"500 kbit/s\"", integer=True, minimum=1, plain=True),
+    "fd": Field(None, False),
+    "data_bitrate": Field("bit/s", None, "of the CAN FD data phase, e.g. \"2 Mbit/s\"", integer=True, minimum=1,
+                          plain=True),
     "live_share": Field("1", 0.5, "share of the bus for live data"),
-    "tx_curves": Field("1", 4, "curve transfers the unit holds for sending (more: the bus cannot carry the curves)"),
+    "tx_curves": Field("1", 4, "curve transfers the unit holds for sending (more: the bus cannot carry the curves)",
+                       integer=True, minimum=1),
     "host": Field(None, "127.0.0.1", "socketcand server address (cross-process)"),
-    "port": Field("1", 0, "socketcand TCP port (0: any free port)"),
+    "port": Field("1", 0, "socketcand TCP port (0: any free port)", integer=True, minimum=0, maximum=65535),
 }
+#: serial rates the unit's interface runs at (baud): the range of RS-232 line drivers; below it the set-up alone
+#: (program written and read back, about 2 kB each way) would take minutes
+BAUD_RATES = (1200, 4_000_000)
 SERIAL_SCHEMA = {
     "enabled": Field(None, True), "port": Field(None, "pty", "'pty', a pyserial URL or a device path"),
-    "baudrate": Field("1", 115_200), "address": Field("1", 1),
+    "baudrate": Field("1", 115_200, integer=True, minimum=BAUD_RATES[0], maximum=BAUD_RATES[1]), "address": Field("1", 1, integer=True, minimum=1),
 }
 RECORDING_SCHEMA = {
     "truth_signals": Field(None, None, "plant truth signals to record (default: all)"),
@@ -231,18 +237,6 @@ def default_max_time(cycles: int) -> float:
     return 3.0 * cycles + 10.0
 
 
-#: serial rates the unit's interface runs at (baud): the range of RS-232 line drivers; below it the set-up alone
-#: (program written and read back, about 2 kB each way) would take minutes
-BAUD_RATES = (1200, 4_000_000)
-
-
-def _integer(value: float, key: str, where: str, minimum: int = 0, maximum: float = math.inf) -> int:
-    if not math.isfinite(value) or value != int(value) or not minimum <= value <= maximum:
-        raise SceneError(f"{where}: key {key!r} must be an integer >= {minimum}"
-                         + (f" and <= {maximum}" if maximum < math.inf else "") + f", got {value:g}")
-    return int(value)
-
-
 def _of_type(value: Any, types: type | tuple[type, ...], key: str, where: str, what: str) -> Any:
     """``value`` when it is one of ``types`` (bool is not an int here), else a :class:`SceneError`."""
     if not isinstance(value, types) or (isinstance(value, bool) and bool not in (types if isinstance(types, tuple)
@@ -298,7 +292,7 @@ def read_config(scene: Scene) -> RunConfig:
     _one_of(s["mode"], MODES, "mode", where)
     if (s["cycles"] is None) == (s["duration"] is None):
         raise SceneError(f"{where}: give exactly one of 'cycles' and 'duration'")
-    cycles = None if s["cycles"] is None else _integer(s["cycles"], "cycles", where, 1)
+    cycles = s["cycles"]
     if s["duration"] is not None and not s["duration"] > 0:
         raise SceneError(f"{where}: key 'duration' must be positive")
     if not s["sample_rate"] > 0 or not s["chunk"] > 0 or s["chunk"] * s["sample_rate"] < 2:
@@ -329,7 +323,6 @@ def read_config(scene: Scene) -> RunConfig:
                              f"{message} (one frame carries them all) but state different rates")
     device = scene.read("device", DEVICE_SCHEMA, required=False)
     dw = f"{scene.path} [device]"
-    device["program"] = _integer(device["program"], "program", dw)
     _of_type(device["config"], dict, "config", dw, "a table [device.config]")
     if device["description"] is not None:
         _of_type(device["description"], str, "description", dw, "a device description name or path")
@@ -337,11 +330,6 @@ def read_config(scene: Scene) -> RunConfig:
         device["description"] = str(resolve_path(described(scene, device["description"])))
     can = scene.read("links.can", CAN_SCHEMA, required=False)
     cw = f"{scene.path} [links.can]"
-    can["bitrate"] = _integer(can["bitrate"], "bitrate", cw, 1)
-    can["tx_curves"] = _integer(can["tx_curves"], "tx_curves", cw, 1)
-    can["port"] = _integer(can["port"], "port", cw, 0, 65535)
-    if can["data_bitrate"] is not None:
-        can["data_bitrate"] = _integer(can["data_bitrate"], "data_bitrate", cw, 1)
     if not 0.0 < can["live_share"] <= 1.0:
         raise SceneError(f"{cw}: key 'live_share' must be in (0, 1], got {can['live_share']}")
     _of_type(can["fd"], bool, "fd", cw, "true or false")
@@ -358,8 +346,6 @@ def read_config(scene: Scene) -> RunConfig:
                          f"(the in-process bus), got {can['interface']!r}")
     serial = scene.read("links.serial", SERIAL_SCHEMA, required=False)
     sw = f"{scene.path} [links.serial]"
-    serial["baudrate"] = _integer(serial["baudrate"], "baudrate", sw, *BAUD_RATES)
-    serial["address"] = _integer(serial["address"], "address", sw, 1)
     _of_type(serial["enabled"], bool, "enabled", sw, "true or false")
     _of_type(serial["port"], str, "port", sw, "'pty', a pyserial URL or a device path")
     recording = scene.read("recording", RECORDING_SCHEMA, required=False)
@@ -374,7 +360,7 @@ def read_config(scene: Scene) -> RunConfig:
     _truth_every(recording["truth_rate"], s["sample_rate"], rw)
     max_time = s["max_time"] if s["max_time"] is not None else (
         s["duration"] if s["duration"] is not None else default_max_time(cycles))
-    return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=_integer(s["seed"], "seed", where),
+    return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=s["seed"],
                      cycles=cycles, duration=s["duration"], sample_rate=s["sample_rate"], chunk=s["chunk"],
                      mode=s["mode"], max_time=max_time, max_time_given=s["max_time"] is not None, transducers=tuple(transducers), device=device, can=can,
                      serial=serial, recording=recording, fidelity=choose(scene, str(s["plant"])))

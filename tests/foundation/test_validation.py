@@ -424,3 +424,18 @@ def test_a_cardan_shaft_angle_out_of_range_says_the_range_and_the_value_as_writt
         LabBench.from_scene(load_scene(path))
     assert str(info.value) == (f"{path} [plant]: key 'shaft_angle' must be at least 0° and below 90° (angle between "
                                f"input and output shaft; at 90° the output shaft cannot turn), got {angle}")
+
+
+def test_a_seed_that_is_no_number_is_called_a_non_negative_integer(tmp_path):
+    with pytest.raises(SceneError, match=r"\[scene\]: key 'seed' must be an integer >= 0 \(seed of every random draw "
+                                         r"of the run\), got \"abc\"$"):
+        read_config(load_scene(edited(tmp_path, DEMO, "seed = 20240611", 'seed = "abc"')))
+
+
+@pytest.mark.parametrize("written, bits", [("500000", 500_000), ('"500 kbit/s"', 500_000), ('"1 Mbit/s"', 1_000_000)])
+def test_a_bitrate_is_a_number_of_bit_per_second_or_a_bit_rate_with_its_unit(tmp_path, written, bits):
+    cfg = read_config(load_scene(edited(tmp_path, DEMO, "bitrate = 1000000", f"bitrate = {written}")))
+    assert cfg.can["bitrate"] == bits and isinstance(cfg.can["bitrate"], int)
+    with pytest.raises(SceneError, match=r"\[links.can\]: key 'bitrate': '500 ms' has the wrong dimension; expected "
+                                         r"something convertible to bit/s"):
+        read_config(load_scene(edited(tmp_path, DEMO, "bitrate = 1000000", 'bitrate = "500 ms"')))
