@@ -40,6 +40,19 @@ def example(si_unit: str) -> str:
     return EXAMPLES.get(si_unit or "1", f"1 {si_unit}")
 
 
+def unit_of(text: str) -> str | None:
+    """The unit of a quantity string as written (``"N/mm"`` of ``"1.68 N/mm"``); None for a plain number or a text
+    that is no quantity."""
+    m = re.fullmatch(r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(.*?)\s*", text)
+    if m is None or not m.group(1):
+        return None
+    try:
+        ureg.Unit(m.group(1))
+    except Exception:                  # noqa: BLE001  (pint's parser raises many kinds)
+        return None
+    return m.group(1)
+
+
 def _unknown(value: object, unit: str | None, si_unit: str, names: tuple[str, ...], what: str) -> UnitError:
     """The error for a value with a name pint does not know: no quantity at all ("fast"), or an unknown unit."""
     hint = f'(e.g. "{example(si_unit)}")'

@@ -13,7 +13,9 @@ import tomllib
 from dataclasses import dataclass
 from typing import Any, Sequence
 
+from rig.outputs import UsageError
 from rig.scene import Scene, SceneError
+from rig.units import UnitError, to_si, unit_of
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,27 @@ def parse_param(text: str) -> Param:
     if len(key.split(".")) < 2:
         raise ValueError(f"--param {text!r}: {key!r} names a section, not a key (e.g. plant.k)")
     return Param(key, tuple(_literal(p) for p in parts))
+
+
+def check_units(scene: Scene, params: Sequence[Param]) -> None:
+    """A :class:`UsageError` naming the ``--param`` whose value has no unit, or one of another dimension, where the
+    scene writes that key with a unit (``plant.k = "1.68 N/mm"``): the value given, not the scene, is wrong."""
+    for param in params:
+        node: Any = scene.data
+        for part in param.key.split("."):
+            node = node.get(part) if isinstance(node, dict) else None
+        unit = unit_of(node) if isinstance(node, str) else None
+        if unit is None:
+            continue
+        for value in param.values:
+            what = f"--param {param.key}={value}"
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                raise UsageError(f'{what}: {value} has no unit; the scene writes {param.key} = "{node}": give the '
+                                 f'unit, e.g. "{param.key}={value} {unit}"')
+            try:
+                to_si(value, unit, what=what)
+            except UnitError as exc:
+                raise UsageError(str(exc)) from None
 
 
 def grid(params: Sequence[Param]) -> list[tuple[Any, ...]]:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 from rig.executors import batches
 from rig.scene import Scene, SceneError
-from rig.sweep import Param, grid, with_overrides
+from rig.sweep import Param, check_units, grid, with_overrides
 from rig.sweep.metrics import METRICS, check_levels, check_metrics, run_plant
 
 if TYPE_CHECKING:
@@ -72,6 +72,7 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
         raise ValueError(f"a sweep needs at least 1 revolution, got {revolutions}")
     plant = read_config(scene).plant
     check_metrics(list(metrics), plant)
+    check_units(scene, params)
     scene = _forced(scene, params, fidelity)
     points = grid(params)
     tasks = [PointTask(scene, {p.key: v for p, v in zip(params, point)}, tuple(metrics), revolutions)

@@ -224,3 +224,16 @@ def test_a_value_set_beside_the_load_tables_says_where_load_keys_go(tmp_path, ca
                  "--metric", "disengagements", "-o", str(tmp_path)]) == 2
     assert ("'load.amplitude' = '60 N*m' is not one (the scene's loads: [load.brake]; set a load's key as "
             "load.NAME.KEY)") in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value, message", [
+    ("1.09", r'^--param plant.k=1.09: 1.09 has no unit; the scene writes plant.k = "1.89 N/mm": give the unit, '
+             r'e.g. "plant.k=1.09 N/mm"$'),
+    ("1.09 kg", r"^--param plant.k=1.09 kg: '1.09 kg' has the wrong dimension; expected something convertible to N/mm$"),
+])
+def test_a_swept_value_without_the_keys_unit_is_blamed_on_the_param_not_the_scene(value, message):
+    from rig.outputs import UsageError
+    from rig.sweep import check_units
+    with pytest.raises(UsageError, match=message):
+        check_units(load_scene(DEFAULT_SCENE), [parse_param(f"plant.k={value}")])
+    check_units(load_scene(DEFAULT_SCENE), [parse_param("plant.k=1.09 N/mm,1.2 N/m")])     # with units: no error
