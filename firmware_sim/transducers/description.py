@@ -12,7 +12,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from rig.scene import Field, SceneError, read_table
+from rig.scene import Field, Scene, SceneError, read_table
 
 DEVICES_DIR = Path(__file__).resolve().parents[2] / "data" / "devices"
 
@@ -36,6 +36,12 @@ def is_path(name_or_path: str | Path) -> bool:
     """True for a description file path (``devs/force.toml``), False for a name looked up in ``data/devices``."""
     p = Path(name_or_path)
     return p.suffix == ".toml" or p.parent != Path(".")
+
+
+def described(scene: Scene, written: str) -> str:
+    """A device description as a scene names it, as the runner opens it: a name (``burster_8411``, in
+    data/devices) as it is, a path relative to the scene file's folder (not the current directory) made whole."""
+    return str(scene.file(written)) if is_path(written) else written
 
 
 def resolve_path(name_or_path: str | Path) -> Path:

@@ -15,13 +15,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from firmware_sim.transducers.description import read_description, resolve_path
+from firmware_sim.transducers.description import described, read_description, resolve_path
 from rig.analysis.numbers import fixed
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
 from rig.plants.lab_bench import KINDS, LabBench
 from rig.recorder import Recording
-from rig.runner.config import described
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.analysis.units import unit as display_unit
 from rig.units import UnitError, to_si, ureg

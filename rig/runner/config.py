@@ -171,13 +171,6 @@ def _device_dbc() -> Any:
     return load_dbc()
 
 
-def described(scene: Scene, written: str) -> str:
-    """A device description as a scene names it, as the runner opens it: a name (``burster_8411``, in
-    data/devices) as it is, a path relative to the scene file's folder (not the current directory) made whole."""
-    from firmware_sim.transducers.description import is_path
-    return str(scene.file(written)) if is_path(written) else written
-
-
 def frames_of(transducers: tuple[TransducerSpec, ...] | list[TransducerSpec]) -> dict[str, list[TransducerSpec]]:
     """The CAN reading messages the transducers fill, with the transducers wired to each (scene order)."""
     out: dict[str, list[TransducerSpec]] = {}
@@ -282,6 +275,7 @@ def check_sections(scene: Scene, plant: str) -> None:
 
 def read_config(scene: Scene) -> RunConfig:
     """Validate the runner's sections of ``scene``; errors name the file, section and key."""
+    from firmware_sim.transducers.description import described, resolve_path
     from rig.runner.plants import PLANTS
     where = f"{scene.path} [scene]"
     s = scene.read("scene", SCENE_SCHEMA)
@@ -311,8 +305,8 @@ def read_config(scene: Scene) -> RunConfig:
         faults = _of_type(t["faults"], list, "faults", tw, "an array of tables [{ fault = ..., at = \"1 s\" }, ...]")
         for i, fault in enumerate(faults):
             _of_type(fault, dict, f"faults[{i}]", tw, "a table { fault = ..., at = \"1 s\", ... }")
-        transducers.append(TransducerSpec(name, described(scene, t["description"]), t["signal"], t["to"], dict(t["overrides"]),
-                                          list(t["faults"]), t["rate"]))
+        transducers.append(TransducerSpec(name, described(scene, t["description"]), t["signal"], t["to"],
+                                          dict(t["overrides"]), list(t["faults"]), t["rate"]))
     wires = [t.to for t in transducers]
     for to in set(wires):
         if wires.count(to) > 1:
@@ -326,7 +320,6 @@ def read_config(scene: Scene) -> RunConfig:
     _of_type(device["config"], dict, "config", dw, "a table [device.config]")
     if device["description"] is not None:
         _of_type(device["description"], str, "description", dw, "a device description name or path")
-        from firmware_sim.transducers.description import resolve_path
         device["description"] = str(resolve_path(described(scene, device["description"])))
     can = scene.read("links.can", CAN_SCHEMA, required=False)
     cw = f"{scene.path} [links.can]"
