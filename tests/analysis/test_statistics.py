@@ -99,7 +99,9 @@ def test_no_spread_is_not_called_capable(tmp_path):
     from rig.analysis.report import _capability, _indices
     stats = describe([42.0] * 5, (41.5, 42.5), "x_max")
     assert stats["std"] == 0.0 and math.isinf(stats["cp"])
-    assert _indices(stats) == ["n/a", "n/a"] and _capability(stats["cpk"], stats["spread"]).startswith("n/a")
-    assert not stats["spread"] and _capability(1.5) == "capable" and _capability(1.2) == "marginal"
+    assert _indices(stats) == ["n/a", "n/a"] and _capability(stats).startswith("n/a")
+    assert not stats["spread"]
+    assert _capability({"cpk": 1.5, "spread": True}) == "capable"
+    assert _capability({"cpk": 1.2, "spread": True}) == "marginal"
     path = plots.histograms({"x_max": np.full(5, 42.0)}, {"x_max": {**stats, "unit": "mm"}}, tmp_path / "h.png")
     assert path.stat().st_size > 0
