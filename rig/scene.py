@@ -66,7 +66,6 @@ class Field:
             return "must be positive"
         return "must not be negative" if low == 0.0 else f"must be at least {low:g}{unit}"
 
-
     def whole(self) -> str:
         """What an integer field's value must be: "must be an integer >= 0 and <= 65535"."""
         unit = "" if self.unit in (None, "1") else f" {self.unit}"

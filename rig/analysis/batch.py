@@ -99,7 +99,7 @@ def summarise(path: Path) -> RecordingSummary:
     from rig.analysis import analyse
     from rig.analysis.stand_summary import stand_summary
     from rig.recorder import RecordingError, read_recording
-    from rig.recorder.completeness import nothing_recorded
+    from rig.recorder.completeness import losses, nothing_recorded
     try:
         rec = read_recording(path, allow_partial=True)
         empty = nothing_recorded(rec)
@@ -118,7 +118,7 @@ def summarise(path: Path) -> RecordingSummary:
     return RecordingSummary(str(path), str(meta.get("scene", "")), str(meta.get("plant", "")), rec.complete,
                             len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]),
                             summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")),
-                            incomplete=" ".join("; ".join(rec.problems).split()), seed=str(meta.get("seed", "")),
+                            incomplete=" ".join("; ".join(losses(rec)).split()), seed=str(meta.get("seed", "")),
                             started=str(meta.get("wall_clock_start", "")))
 
 

@@ -64,6 +64,7 @@ def test_rig_analyse_writes_table_and_report_and_names_unreadable_files(recordin
     assert run3["p1.x_max n"] == "3" and float(run3["p1.x_max mean [mm]"]) > 40
     assert not short["error"] and short["complete"] == "False" and short["curves"] == "3"
     assert short["why incomplete"].startswith("file ends") and "after the data end" in short["why incomplete"]
+    assert "nothing of the run is lost" in short["why incomplete"]      # the report's loss lines, not only the cut
     assert short["p1.x_max mean [mm]"] == run3["p1.x_max mean [mm]"]
     report = (out / "report.md").read_text()
     assert short["copy of (not counted)"] == run3["recording"] and not run3["copy of (not counted)"]
