@@ -446,6 +446,8 @@ EVENT_MEANING = {
     "flank_switch": "the roller changed groove flank. Level 1: the kinetostatic cam contact force changes sign at phi "
                     "(the roller would cross). Level 2 (groove dynamics): at phi it reached the other flank (to), "
                     "having left the one it was on at left_phi (level 1's sign change) after a flight of flight s",
+    "flank_bounce": "level 2: the roller left its flank at left_phi and struck the same flank again at phi after a "
+                    "flight of flight s (a jump without a switch; after a switch back it bounces, each flight shorter)",
     "accel_jump": "the cam program's acceleration jumps at this angle (a segment boundary)",
     "disengagement": "the clutch's safety stage let go (relative angle past the engagement)",
     "reengaged": "the clutch engaged again after a disengagement",

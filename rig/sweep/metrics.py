@@ -133,6 +133,9 @@ class Metric:
 METRICS: dict[str, Metric] = {
     "flank_switches": Metric(("cam_bar",), "1", "flank switches of the roller in the last revolution",
                              lambda r: float(len(r.events("flank_switch"))), integer=True),
+    "flank_bounces": Metric(("cam_bar",), "1", "bounces of the roller on a flank (it strikes again the flank it "
+                            "left: a jump without a switch) in the last revolution",
+                            lambda r: float(len(r.events("flank_bounce"))), integer=True, level=2),
     "upper_dwell_vibration": Metric(("cam_bar",), "m", "gripper deviation from its law in the upper dwell, peak to "
                                     "peak, last revolution", _upper_dwell_vibration, level=2),
     "gripper_deviation": Metric(("cam_bar",), "m", "gripper deviation from its law, peak to peak, last revolution "

@@ -48,6 +48,32 @@ def test_advance_in_chunks_continues_the_integration_and_reports_flank_switches(
     assert chunked.events[0].time == pytest.approx(one.events[0].time, abs=1e-5)
 
 
+def test_bounces_on_the_flank_it_returned_to_are_events_too():
+    """After the switch back to the working flank at 300 rpm with the drawn spring the roller bounces on it: it
+    leaves and strikes the working flank again, each flight shorter (a jump without a switch). Each bounce is a
+    ``flank_bounce`` event with where it left, where it struck and its flight; chunking the samples changes none."""
+    omega = 300 * RPM
+    t = np.arange(1, 1601) * 1e-4                 # to the switch to the other flank, back, and the bounces after
+    one = CamBarPlant(PinInsertionMechanism(k=1090.0), Setting(ConstantSpeed(omega), fidelity=2))
+    chunked = CamBarPlant(PinInsertionMechanism(k=1090.0), Setting(ConstantSpeed(omega), fidelity=2))
+    one.advance(t)
+    for c in np.array_split(t, 7):
+        chunked.advance(c)
+    kinds = [(e.kind, e.data.get("to", e.data.get("flank"))) for e in one.events if e.kind.startswith("flank_")]
+    assert kinds[:2] == [("flank_switch", "other"), ("flank_switch", "working")]
+    bounces = [e for e in one.events if e.kind == "flank_bounce"]
+    assert len(bounces) >= 2 and all(k == ("flank_bounce", "working") for k in kinds[2:])
+    flights = [e.data["flight"] for e in bounces]
+    assert all(f > 0 for f in flights) and flights == sorted(flights, reverse=True)   # each flight shorter
+    for e in bounces:
+        left, struck = e.data["left_phi"], e.data["phi"]
+        assert 0 < struck - left == pytest.approx(omega * e.data["flight"], rel=1e-6)
+    again = [e for e in chunked.events if e.kind.startswith("flank_")]
+    assert [e.kind for e in again] == [k for k, _ in kinds]
+    assert [e.time for e in again] == pytest.approx([e.time for e in one.events if e.kind.startswith("flank_")],
+                                                    abs=1e-5)
+
+
 def test_per_cycle_variation_runs_each_revolution_with_its_own_loads():
     mech = CamBarPlant(PinInsertionMechanism(), Setting(fidelity=2, variation=CycleVariation({"sensor_preload": 2.0}),
                                                         rng=np.random.default_rng(7)))

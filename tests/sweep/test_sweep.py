@@ -59,7 +59,7 @@ def test_cam_bar_metrics_equal_the_plant_computed_directly():
         assert values["rod_force_peak"] == pytest.approx(peak, rel=2e-3)   # sampled at 10 kHz vs 0.1°
 
 
-@pytest.mark.parametrize("metric", ["upper_dwell_vibration", "roller_gap", "gripper_deviation"])
+@pytest.mark.parametrize("metric", ["upper_dwell_vibration", "roller_gap", "gripper_deviation", "flank_bounces"])
 def test_a_level_2_metric_on_a_level_1_scene_is_refused_naming_the_way_to_level_2(metric, tmp_path, capsys):
     """Level 1 would give 0 or NaN for these (no groove): refused before anything runs or is written."""
     out = tmp_path / "sweep"
@@ -77,6 +77,20 @@ def test_fidelity_runs_every_point_at_that_level_and_the_table_says_it(tmp_path,
     rows = list(csv.DictReader((out / "sweep.csv").open()))
     assert [(r["level"], r["error"]) for r in rows] == [("2", "")] and float(rows[0]["roller_gap [m]"]) >= 0.0
     assert "1 point at model level 2, 0 failed" in capsys.readouterr().out
+
+
+def test_where_level_1_lets_the_roller_leave_its_flank_level_2_lands_it_again_switch_or_bounce():
+    """At 300 rpm level 1's contact force changes sign at both spring rates (the roller leaves the working flank):
+    at level 2 it comes down again, on the other flank (a switch) or on the same one (a bounce) — never neither."""
+    scene = load_scene(DEFAULT_SCENE.parent / "pin_insertion_as_drawn.toml")
+    with make_executor("serial") as ex:
+        result = run_sweep(scene, [parse_param("plant.k=1.09 N/mm,1.89 N/mm")], ["flank_switches", "flank_bounces"],
+                           ex, revolutions=2)
+    assert result.errors == ["", ""] and result.levels == [2, 2]
+    for (rate,), values in zip(result.points, result.values):
+        mech = make_plant("cam_bar", with_overrides(scene, {"plant.k": rate}), nominal=True).mech
+        assert len(mech.flank_switch_angles(300 * RPM)) >= 2
+        assert values["flank_switches"] + values["flank_bounces"] >= 1 and values["flank_bounces"] >= 1
 
 
 def test_a_level_swept_below_a_metric_and_a_doubly_set_level_are_refused(tmp_path, capsys):

@@ -154,14 +154,21 @@ class Dynamics(NamedTuple):
 class Level2Run:
     """An integration of level 2: the solver's solution, the flank switches (``Event`` kind "flank_switch",
     data ``phi`` (rad, wrapped), ``to``: contact arrives on the other flank than the last one), the contact
-    onsets on either flank (``impacts``, times in s), the contact losses (``releases``: (time, flank)) and the
-    flank last in contact."""
+    onsets on either flank (``impacts``, times in s), the contact losses (``releases``: (time, flank)), the flank
+    last in contact and the bounces (``Event`` kind "flank_bounce", data ``phi``, ``flank``, ``left_phi``,
+    ``flight``: the roller left its flank and struck the same one again, a jump without a switch)."""
 
     solution: Solution
     switches: list[Event]
     impacts: list[float]
     releases: list[tuple[float, str]]
     flank: str
+    bounces: list[Event] = field(default_factory=list)
+
+    @property
+    def events(self) -> list[Event]:
+        """Switches and bounces in time order."""
+        return sorted(self.switches + self.bounces, key=lambda e: e.time)
 
 
 @dataclass
@@ -334,7 +341,7 @@ class Level2:
         sol = integrate(self.problem(y0), (t0, float(t_span[1])), method=method, t_eval=t_eval, **options)
         if sol.status == "terminated":
             raise self._diverged(sol.t_final, sol.y_final)
-        switches, impacts, releases = [], [], []
+        switches, impacts, releases, bounces = [], [], [], []
         left: dict[str, Any] = {}               # the latest release of each flank (the roller leaving it)
         for rec in sol.events:
             if rec.name not in ("working", "other"):
@@ -344,15 +351,16 @@ class Level2:
                 left[rec.name] = rec
                 continue
             impacts.append(rec.t)
+            off = left.pop(flank, None) if flank is not None else None    # its flight began there
+            data = {"phi": self.cam_angle(rec.t, rec.y) % math.tau}
+            if off is not None:                 # where it left the flank it was on: level 1's sign change
+                data.update(left_phi=self.cam_angle(off.t, off.y) % math.tau, flight=rec.t - off.t)
             if rec.name != flank:
-                data = {"phi": self.cam_angle(rec.t, rec.y) % math.tau, "to": rec.name}
-                off = left.get(flank) if flank is not None else None
-                if off is not None:             # where it left the flank it was on: level 1's sign change
-                    data["left_phi"] = self.cam_angle(off.t, off.y) % math.tau
-                    data["flight"] = rec.t - off.t
                 flank = rec.name
-                switches.append(Event(rec.t, "flank_switch", data))
-        return Level2Run(sol, switches, impacts, releases, flank)
+                switches.append(Event(rec.t, "flank_switch", {**data, "to": rec.name}))
+            else:                               # back on the flank it left (in this run or an earlier chunk)
+                bounces.append(Event(rec.t, "flank_bounce", {**data, "flank": rec.name}))
+        return Level2Run(sol, switches, impacts, releases, flank, bounces)
 
     # ---- outputs -------------------------------------------------------------------------------------------
     def evaluate(self, t: np.ndarray, y: np.ndarray) -> Dynamics:

@@ -4,8 +4,9 @@ Integrates the compiled kernel with the setting's ``method`` and ``method_option
 ≈ 5e-7 of max|e| over a revolution; :mod:`rig.fidelity` picks them from the work–precision data when the scene
 states questions or a tolerance) chunk by chunk, continuing from the last state;
 with ``[plant.variation]`` each cam revolution runs with its cycle's mechanism (load parameters) and gets its
-chain stroke deviation Δs added, as at level 1. Events: ``flank_switch`` (data ``phi``, ``to``) from the
-contact onsets of the integration, and ``accel_jump`` program crossings as at level 1. With a cam drive
+chain stroke deviation Δs added, as at level 1. Events: ``flank_switch`` (data ``phi``, ``to``) and
+``flank_bounce`` (data ``phi``, ``flank``: the roller struck again the flank it had left) from the contact onsets of
+the integration, and ``accel_jump`` program crossings as at level 1. With a cam drive
 (:mod:`.drive`) the cam angle is a state, known only once integrated: a chunk is integrated with its cycle's
 mechanism, and where the cam angle passes into the next revolution the samples from there on are integrated
 again with the next cycle's, from the last sample before it — the switch falls on the same sample as without a
@@ -84,12 +85,13 @@ class Level2Timeline(Timeline):
         if k == 0:                              # passed before the first sample: nothing of it in this revolution
             return {}, 0
         if k == tt.size:
-            kept = run.switches
+            kept = run.events
             self._state = (run.solution.t_final, run.solution.y_final, run.flank)
         else:
-            kept = [e for e in run.switches if e.time <= tt[k - 1]]
-            self._state = (float(tt[k - 1]), tuple(run.solution.y[:, k - 1]), kept[-1].data["to"] if kept else
-                           (flank if flank is not None else model.flank_of(t0, y0)))
+            kept = [e for e in run.events if e.time <= tt[k - 1]]
+            switched = [e for e in kept if e.kind == "flank_switch"]
+            self._state = (float(tt[k - 1]), tuple(run.solution.y[:, k - 1]), switched[-1].data["to"] if switched
+                           else (flank if flank is not None else model.flank_of(t0, y0)))
             part = {key: v[:k] for key, v in part.items()}
         self.events.extend(kept)
         return (part if self.cycles is None else self._deviate(part, cycle)), k
