@@ -305,11 +305,17 @@ def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: floa
         why = f"no step in the torque ({y0:.4g} → {yf:.4g} N·m, less than {min_step:g} N·m)"
         return out + [Metric(f"{label}: overshoot", None, "%", why), Metric(f"{label}: settling time", None, "s", why),
                       Metric(f"{label}: final torque", yf, "N·m", final_text + nominal)]
-    sm = step_metrics(t, y, band=band, initial=y0, final=yf, t_step=s.time, dwell=dwell)
+    # The level it settles at: the scene's load where the record's end agrees with it (within the band) — in a steady
+    # state the meter carries exactly the load; a record that ends while the stand still accelerates slowly would
+    # otherwise move the band, and the settling time with it, with the record's length.
+    target, target_text = yf, f"{yf:.4g} N·m"
+    if s.kind in ("start", "step") and s.after is not None and abs(yf - s.after) <= band * abs(s.after - y0):
+        target, target_text = s.after, f"the scene's load {s.after:.4g} N·m (the record ends at {yf:.4g} N·m)"
+    sm = step_metrics(t, y, band=band, initial=y0, final=target, t_step=s.time, dwell=dwell)
     half = float(sm.half_band)
     if not bool(sm.settled):
         why = (f"not settled {until}: the torque does not stay within ±{half:.3g} N·m ({band * 100:g} % of the step) "
-               f"of its last level {yf:.4g} N·m for {dwell * 1e3:.0f} ms")
+               f"of {'its last level ' if target == yf else ''}{target_text} for {dwell * 1e3:.0f} ms")
         out += [Metric(f"{label}: overshoot", None, "%", why), Metric(f"{label}: settling time", None, "s", why)]
     else:
         if why_unsteady:
@@ -317,10 +323,10 @@ def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: floa
                                                                 "step from"))
         else:
             out.append(Metric(f"{label}: overshoot", float(sm.overshoot_pct), "%",
-                              f"(peak − final)/(final − initial), initial {initial_text}, final {yf:.4g} N·m"))
+                              f"(peak − final)/(final − initial), initial {initial_text}, final {target_text}"))
         out.append(Metric(f"{label}: settling time", float(sm.settling_time), "s",
                           f"from the {s.kind} at {s.time:.4g} s until the torque stays within ±{half:.3g} N·m "
-                          f"({band * 100:g} % of the {abs(step):.4g} N·m step) of {yf:.4g} N·m"))
+                          f"({band * 100:g} % of the {abs(target - y0):.4g} N·m step) of {target_text}"))
     return out + [Metric(f"{label}: final torque", yf, "N·m", final_text + nominal)]
 
 

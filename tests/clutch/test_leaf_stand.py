@@ -75,6 +75,26 @@ def test_leaf_startup_scene_writes_the_comparison(tmp_path):
     assert "Thesis against rig" in (tmp_path / "report" / "report.html").read_text(encoding="utf-8")
 
 
+def test_the_settling_time_does_not_depend_on_how_long_the_run_goes_on(tmp_path):
+    """The 0.8 s start-up ends while the stand still creeps to its speed (time constant J/b ≈ 0.19 s): the band
+    around the record's last 50 ms (5.044 N·m) once gave 376 ms, 434 ms at 2 s. The band is the scene's load where the
+    record's end lies within it: the same settling time at any length."""
+    from rig.analysis.clutch_report import stand_results
+    from rig.recorder import read_recording
+    times = {}
+    for duration in ("0.8 s", "2 s"):
+        scene = tmp_path / f"leaf_{duration[0]}.toml"
+        text = (SCENES / "clutch_leaf_startup.toml").read_text(encoding="utf-8")
+        assert 'duration = "0.8 s"' in text
+        scene.write_text(text.replace('duration = "0.8 s"', f'duration = "{duration}"'), encoding="utf-8")
+        out = tmp_path / f"leaf_{duration[0]}.mcap"
+        run_scene(scene, out)
+        metric = next(m for m in stand_results(read_recording(out))[1] if m.name == "start-up: settling time")
+        assert "of the scene's load 5 N·m (the record ends at " in metric.reference
+        times[duration] = metric.value
+    assert times["0.8 s"] == pytest.approx(times["2 s"], abs=1e-4) and 0.40 < times["2 s"] < 0.45
+
+
 def test_comparison_rows_name_what_is_missing_and_refuse_bad_rows(tmp_path):
     scene_path = tmp_path / "s.toml"
     scene_path.write_text('[[comparison]]\nquantity = "stop time"\nthesis = "150 ms"\nrig = "stop at 0.3 s: standstill"\n'
