@@ -340,7 +340,8 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
     work = float(np.trapezoid(measured[span], angle[span])) if turns >= 1 else float("nan")
     peak = float(np.max(np.abs(truth["torque"])))
     result = (f"max |measured − theory| per 10° bin {np.max(np.abs(dev)):.4f} N·m ({100 * np.max(np.abs(dev)) / peak:.1f} % "
-              f"of the {peak:.3g} N·m peak); work per turn ∮M dφ = {work / max(turns, 1e-9):.4f} J (0 for spring and mass)")
+              f"of the {peak:.3g} N·m peak); work per turn ∮M dφ = {work / max(turns, 1e-9):.4f} J (0 for spring, "
+              "mass and weight)")
 
     def draw(ax: Any) -> None:
         fine = np.linspace(angle[0], angle[0] + tau, 721)

@@ -6,9 +6,9 @@
 * ``geneva`` — a Geneva drive with ``slots`` and ``centre_distance`` (wheel angle and speed; the crank angle
   is measured from the centre line, so ``[speed] phi0 = "180 deg"`` starts in the dwell);
 * ``cam`` — a disc cam with a translating roller follower on its ``[[plant.cam_program]]``, held by a return
-  spring (``spring_rate``, ``spring_preload``) and loaded by the follower's mass: follower position, velocity,
-  acceleration and the cam-shaft torque M = F·ds/dφ + J_cam·ω̇ with F = m·a + k·s + F0 (virtual power:
-  M·ω = F·v + J·ω̇·ω).
+  spring (``spring_rate``, ``spring_preload``) and loaded by the follower's mass and, rising against ``gravity``,
+  its weight: follower position, velocity, acceleration and the cam-shaft torque M = F·ds/dφ + J_cam·ω̇ with
+  F = m·(a + g) + k·s + F0 (virtual power: M·ω = F·v + J·ω̇·ω).
 
 Prescribed input motion (closed form, rig.motion.speed): kinematics and quasi-static torque, level 1. Truth
 signals (SI): ``phi_in`` (rad, continuous), ``omega_in`` (rad/s), ``alpha_in`` (rad/s²) and, per kind,
@@ -37,6 +37,9 @@ SCHEMAS: dict[str, dict[str, Field]] = {
     "cam": {"kind": Field(None), "cam_program": Field(None, doc="array of tables [[plant.cam_program]]"),
             "follower_mass": Field("kg", 0.0), "spring_rate": Field("N/m", 0.0),
             "spring_preload": Field("N", 0.0, "spring force at s = 0"),
+            "gravity": Field("m/s^2", 0.0, "gravity against the follower's rise (its weight m·g adds to the contact "
+                             "force G of MODELS §2): 9.81 m/s^2 for a follower rising vertically, 0 for a horizontal "
+                             "one", minimum=0.0),
             "cam_inertia": Field("kg*m^2", 0.0, "inertia of the cam shaft beyond the torque transducer")},
 }
 
@@ -45,12 +48,13 @@ class LabBench:
     """One lab bench: ``speed`` (the motor shaft), ``kind`` and its mechanism; ``advance(t)`` gives the truth."""
 
     def __init__(self, kind: str, speed: SpeedProfile, mechanism: Any = None, follower_mass: float = 0.0,
-                 spring_rate: float = 0.0, spring_preload: float = 0.0, cam_inertia: float = 0.0) -> None:
+                 spring_rate: float = 0.0, spring_preload: float = 0.0, cam_inertia: float = 0.0,
+                 gravity: float = 0.0) -> None:
         if kind not in KINDS:
             raise ValueError(f"lab bench kind must be one of {', '.join(KINDS)}, got {kind!r}")
         self.kind, self.speed, self.mechanism = kind, speed, mechanism
         self.follower_mass, self.spring_rate = follower_mass, spring_rate
-        self.spring_preload, self.cam_inertia = spring_preload, cam_inertia
+        self.spring_preload, self.cam_inertia, self.gravity = spring_preload, cam_inertia, gravity
         self.events: list[Event] = []
         self._t_last = -np.inf
 
@@ -80,7 +84,7 @@ class LabBench:
         elif self.kind == "cam":
             m = self.mechanism.evaluate(d.phi)
             v, a = d.omega * m.s_p, d.omega ** 2 * m.s_pp + d.alpha * m.s_p
-            force = self.follower_mass * a + self.spring_rate * m.s + self.spring_preload
+            force = self.follower_mass * (a + self.gravity) + self.spring_rate * m.s + self.spring_preload
             out.update(s=m.s, v=v, a=a, torque=force * m.s_p + self.cam_inertia * d.alpha)
         return out
 
@@ -104,7 +108,7 @@ class LabBench:
             if kind == "cam":
                 program: CamProgram = read_program(p["cam_program"], 0.0, where)
                 return cls(kind, speed, program, p["follower_mass"], p["spring_rate"], p["spring_preload"],
-                           p["cam_inertia"])
+                           p["cam_inertia"], p["gravity"])
         except ValueError as exc:
             raise SceneError(f"{where}: {exc}") from None
         return cls(kind, speed)

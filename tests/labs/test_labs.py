@@ -210,8 +210,8 @@ def test_lab_cam_tables_have_one_precision_per_column_and_no_negative_zero(cam):
 
 
 def test_cam_bench_torque_is_the_energy_balance():
-    """M dφ = dU + d(½ m v²) + d(½ J ω²) (virtual power) on a ripple drive, checked by integrating the
-    torque against the energies' changes at 1e-4."""
+    """M dφ = dU + d(½ m v²) + d(½ J ω²) + d(m g s) (virtual power; the follower rises against its weight) on a
+    ripple drive, checked by integrating the torque against the energies' changes at 1e-4."""
     scene = load_scene(SCENES / "lab_cam.toml")
     scene.data["speed"] = {"profile": "sinusoidal", "speed": "30 rpm", "amplitude": "6 rpm", "frequency": "0.7 Hz"}
     bench = LabBench.from_scene(scene)
@@ -219,8 +219,10 @@ def test_cam_bench_torque_is_the_energy_balance():
     x = bench.truth(t)
     work = np.concatenate([[0.0], np.cumsum(0.5 * (x["torque"][1:] + x["torque"][:-1]) * np.diff(x["phi_in"]))])
     energy = (0.5 * bench.spring_rate * x["s"] ** 2 + bench.spring_preload * x["s"]
-              + 0.5 * bench.follower_mass * x["v"] ** 2 + 0.5 * bench.cam_inertia * x["omega_in"] ** 2)
+              + 0.5 * bench.follower_mass * x["v"] ** 2 + 0.5 * bench.cam_inertia * x["omega_in"] ** 2
+              + bench.follower_mass * bench.gravity * x["s"])
     assert np.max(np.abs(work - (energy - energy[0]))) < 1e-4 * np.max(np.abs(energy - energy[0]))
+    assert bench.gravity == pytest.approx(9.81)                  # the scene's vertical follower: its weight counts
 
 
 def test_a_lab_scene_names_its_errors(tmp_path):
