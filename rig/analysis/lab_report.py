@@ -248,7 +248,9 @@ def speed_sheet(lab: Lab) -> Sheet:
     return Sheet("Speed measurement", ["instrument", *[f"reading {i + 1} (rpm)" for i in range(len(times))],
                                        "mean (rpm)", "error of the mean vs counter", "worst-case limit (data sheet + dials)"], rows,
                  "; ".join(f"{k} {100 * v:+.2f} % ({'within' if abs(v) <= bounds[k] else 'OUTSIDE'} its "
-                           f"worst-case ±{100 * bounds[k]:.2f} %)" for k, v in errors.items()) + " against the counter",
+                           f"worst-case ±{100 * bounds[k]:.2f} %)" for k, v in errors.items()) + " against the counter"
+                 + (f" (the shaft's speed at the readings differs from the counted gates' by up to {moved:.3g} rpm: "
+                    "these errors include that change)" if drift else ""),
                  [f"Counter resolution: one pulse in the gate = 60/(z·T) = {resolution:.4g} rpm "
                   f"(z = {holes:g} holes, T = {gate:g} s).", *drift,
                   "The stroboscope's image also stands still at f_i/k: a reading near 1/k of the others means the "

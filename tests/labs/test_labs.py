@@ -76,6 +76,8 @@ def test_the_speed_sheets_truth_is_that_of_the_gate_the_counter_shows(tmp_path_f
         assert value == pytest.approx(expected, abs=0.6)          # the row's integer rpm
         assert abs(count - expected) <= 10.0 + 0.6                # the counter within its step of that gate's mean
     assert any("the instruments read the speed of the moment" in note for note in sheet.notes)
+    assert "against the counter (the shaft's speed at the readings differs from the counted gates' by up to" \
+        in sheet.result                                          # the console line says it too, not only the report
 
 
 def read_lab_times(rec) -> list[float]:
