@@ -7,7 +7,7 @@ loading/unloading characteristic rebuilt from the recorded scene (:mod:`rig.anal
 """
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -27,8 +27,20 @@ def static_rig(rec: Recording) -> StaticClutchRig:
     return rig_from_scene(rec.scene())
 
 
+def _limit(clutch: Any, short: bool = False) -> str:
+    """Where the characteristic ends: the loading-branch peak the clutch disengages above, or for a measured table
+    its highest torque (the measurements end there)."""
+    from rig.plants.clutch.variants import TabulatedClutch
+    if isinstance(clutch, TabulatedClutch):
+        return (f"the table's highest torque ({clutch.peak_torque:.4g} N·m)" if short else
+                f"holds only up to its table's highest torque, {clutch.peak_torque:.4g} N·m (the measurements end there)")
+    return (f"the loading-branch peak ({clutch.peak_torque:.4g} N·m)" if short else
+            f"disengages above its loading-branch peak, {clutch.peak_torque:.4g} N·m")
+
+
 def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
-    """Per loading/unloading cycle: torque extremes (N·m), measured/truth/theory loop energy (J), slip."""
+    """Per loading/unloading cycle: torque extremes (N·m), measured/truth/theory loop energy (J; ``lossless``: the
+    characteristic has no hysteresis, theory 0 — and a truth of rounding residue shown as 0), slip."""
     truth, readings = rec.truth, rec.series[TOPIC]
     t_m, phi_m = reading_points(readings["t"], readings["angle"])
     torque_m = np.interp(t_m, truth["t"], truth["torque"])
@@ -37,12 +49,15 @@ def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
     for c in cycles(truth["t"], truth["torque"]):
         e_theory, phi_next, slip = theory_cycle_energy(rig.clutch, phi, c.torque_min, c.torque_max)
         inside = (t_m >= c.start) & (t_m <= c.end)
+        residue = 1e-6 * max(abs(c.torque_max), 1.0)       # J: a loop of no area, computed (frictionless)
+        lossless = abs(e_theory) < residue
+        e_truth = cycle_energy(truth["t"], truth["relative_angle"], truth["torque"], c)
         rows.append({"start": c.start, "end": c.end, "torque_min": c.torque_min, "torque_max": c.torque_max,
                      "angle_min": float(phi_m[inside].min()) if inside.any() else None,
                      "angle_max": float(phi_m[inside].max()) if inside.any() else None,
                      "measured": cycle_energy(t_m, phi_m, torque_m, c) if inside.sum() >= 3 else None,
-                     "truth": cycle_energy(truth["t"], truth["relative_angle"], truth["torque"], c),
-                     "theory": e_theory, "disengaged": slip})
+                     "truth": 0.0 if abs(e_truth) < residue else e_truth, "theory": 0.0 if lossless else e_theory,
+                     "lossless": lossless, "disengaged": slip})
         phi = phi_next
     return rows
 
@@ -67,14 +82,13 @@ def summary_lines(rec: Recording) -> list[str] | None:
         return [f"static clutch rig: no cycle analysis ({exc})"]
     lines = [f"static clutch rig: {len(rows)} loading/unloading cycle(s); applied torque = lever force × arm (the "
              f"weights); loop energy ∮T dφ measured (multimeter angle) vs theory (characteristic); the model "
-             f"disengages above its loading-branch peak, {rig.clutch.peak_torque:.4g} N·m"]
+             f"{_limit(rig.clutch)}"]
     span = span_format(rows)
     for i, r in enumerate(rows, start=1):
         angle = ("no reading" if r["angle_min"] is None
                  else f"{fixed_range(np.degrees(r['angle_min']), np.degrees(r['angle_max']))}°")
-        small = abs(r["theory"]) < 1e-6 * max(abs(r["torque_max"]), 1.0)
-        dev = ("" if r["measured"] is None or small
-               else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
+        dev = ("" if r["measured"] is None else " (no hysteresis in the characteristic: the measured loop is the "
+               "readings' lag)" if r["lossless"] else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
         energy = "—" if r["measured"] is None else f"{r['measured']:.4g} J"
         lines.append(f"  cycle {i} ({span(r)} s): applied torque {r['torque_min']:.4g} → "
                      f"{r['torque_max']:.4g} N·m, measured angle {angle}, loop energy {energy} vs {r['theory']:.4g} J{dev}, "
@@ -134,8 +148,7 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
     table = cycle_table(rec, rig)
     span = span_format(table)
     for i, r in enumerate(table, start=1):
-        small = abs(r["theory"]) < 1e-6 * max(abs(r["torque_max"]), 1.0)      # frictionless: no loop
-        dev = None if r["measured"] is None or small else (r["measured"] - r["theory"]) / r["theory"]
+        dev = None if r["measured"] is None or r["lossless"] else (r["measured"] - r["theory"]) / r["theory"]
         rows.append([i, span(r), fmt(r["torque_min"]), fmt(r["torque_max"]),
                      "—" if r["angle_min"] is None else fixed_range(np.degrees(r["angle_min"]), np.degrees(r["angle_max"]),
                                                                    sep="–"),
@@ -151,8 +164,7 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
                             [[fmt(e["t"]), e["kind"], ", ".join(f"{k}={fmt(v)}" for k, v in e.items()
                                                                   if k not in ("t", "kind"))] for e in events]))
     else:
-        blocks.append(Text("No disengagement: the load stayed below the loading-branch peak "
-                           f"({rig.clutch.peak_torque:.4g} N·m)."))
+        blocks.append(Text(f"No disengagement: the load stayed below {_limit(rig.clutch, short=True)}."))
     t_m, phi_m = reading_points(readings["t"], readings["angle"])
     torque_m = np.interp(t_m, rec.truth["t"], rec.truth["torque"])
     blocks.append(Heading("Torque and angle", 3))
