@@ -14,7 +14,7 @@ import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from rig.scene import Scene, SceneError
 
@@ -60,6 +60,7 @@ class Fidelity:
     method: str | None = None
     options: Mapping[str, float] = field(default_factory=dict)
     unanswered: tuple[str, ...] = ()
+    short_of: str = ""      # why the scene's tolerance is not met (no setting in the data reaches it), else ""
 
     @property
     def method_text(self) -> str:
@@ -122,21 +123,34 @@ def _options(setting: str, atol_scale: float) -> dict[str, float]:
 def cheapest(path: Path, tolerance: float, runnable: Mapping[str, str],
              atol_scale: float) -> tuple[str, dict[str, float], dict] | None:
     """The runnable row of a work–precision CSV with status ok and error ≤ ``tolerance`` and the least
-    wall time: (method, options, row); None when no row qualifies."""
+    wall time: (method, options, row); None when no row qualifies (nor any runnable row at all)."""
+    return _pick(path, runnable, atol_scale, lambda error: error <= tolerance, "wall_s")
+
+
+def most_accurate(path: Path, runnable: Mapping[str, str], atol_scale: float) -> tuple[str, dict[str, float], dict] | None:
+    """The runnable row of a work–precision CSV with status ok and the least error: (method, options, row)."""
+    return _pick(path, runnable, atol_scale, lambda error: True, "error")
+
+
+def _pick(path: Path, runnable: Mapping[str, str], atol_scale: float, admits: Callable[[float], bool],
+          least: str) -> tuple[str, dict[str, float], dict] | None:
     best = None
     with path.open(newline="", encoding="utf-8") as f:
         for row in csv.DictReader(f):
             if row.get("status") != "ok" or row.get("method") not in runnable:
                 continue
-            error, wall = float(row["error"]), float(row["wall_s"])
-            if math.isfinite(error) and error <= tolerance and (best is None or wall < float(best["wall_s"])):
+            error = float(row["error"])
+            if math.isfinite(error) and admits(error) and (best is None or float(row[least]) < float(best[least])):
                 best = row
     if best is None:
         return None
     return runnable[best["method"]], _options(best["setting"], atol_scale), best
 
 
-def _method(scene: Scene, plant: str, tolerance: float, data: Path) -> tuple[str, dict[str, float], str]:
+def _method(scene: Scene, plant: str, tolerance: float,
+            data: Path) -> tuple[str, dict[str, float], str, str]:
+    """(method, options, why, short_of): the cheapest setting of the work–precision data that reaches ``tolerance``;
+    where none does, the most accurate one and ``short_of`` saying so."""
     runnable = RUNNABLE.get(plant, {})
     for path in (data / f"{Path(scene.path).stem}.csv", data / f"{REFERENCE_DATA.get(plant, '')}.csv"):
         if path.is_file():
@@ -145,11 +159,18 @@ def _method(scene: Scene, plant: str, tolerance: float, data: Path) -> tuple[str
                 method, options, row = found
                 per_second = float(row["wall_s"]) / float(row["t_sim"])
                 return method, options, (f"the cheapest setting with error <= {tolerance:g} in {path.name} "
-                                         f"(error {float(row['error']):.1e}, {per_second * 1e3:.1f} ms per simulated s)")
+                                         f"(error {float(row['error']):.1e}, {per_second * 1e3:.1f} ms per simulated "
+                                         f"s)"), ""
+            found = most_accurate(path, runnable, ATOL_SCALE[plant])
+            if found is not None:
+                method, options, row = found
+                short = (f"no setting in {path.name} reaches the scene's tolerance {tolerance:g}: this run uses the "
+                         f"most accurate one there, error {float(row['error']):.1e}")
+                return method, options, short, short
             method, options = _default_method(scene, plant)
-            return method, options, f"no setting in {path.name} reaches {tolerance:g}; the plant's default"
+            return method, options, f"no runnable setting in {path.name}; the plant's default", ""
     method, options = _default_method(scene, plant)
-    return method, options, "no work-precision data for this scene; the plant's default"
+    return method, options, "no work-precision data for this scene; the plant's default", ""
 
 
 def _default_method(scene: Scene, plant: str) -> tuple[str, dict[str, float]]:
@@ -184,16 +205,19 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     unanswered = tuple(q for q in asked if need[q] > level)
     if level < 2:
         return Fidelity(level, reason, unanswered=unanswered)
+    short_of = ""
     if asked or "tolerance" in scene.section("scene"):
-        method, options, why = _method(scene, plant, _tolerance(scene, where), data)
+        method, options, why, short_of = _method(scene, plant, _tolerance(scene, where), data)
     else:
         (method, options), why = _default_method(scene, plant), "no questions or tolerance stated; the plant's own setting"
-    return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered)
+    return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered, short_of)
 
 
 def announce(fidelity: Fidelity) -> None:
     """The choice as one console line; a warning naming the questions a forced level cannot answer."""
     log.info("%s", fidelity.describe().split("; cannot answer")[0])
+    if fidelity.short_of:
+        log.warning("%s", fidelity.short_of)
     if fidelity.unanswered:
         need = ", ".join(f"{q} (needs L{max(t.get(q, 0) for t in QUESTIONS.values())})" for q in fidelity.unanswered)
         log.warning("fidelity L%d cannot answer %s: its answers to them in this run mean nothing", fidelity.level, need)

@@ -45,7 +45,7 @@ def test_the_lowest_level_answering_every_question(tmp_path, questions, level):
     assert (choice.method is None) == (level < 2)
 
 
-def test_the_cheapest_runnable_setting_within_the_tolerance(tmp_path):
+def test_the_cheapest_runnable_setting_within_the_tolerance(tmp_path, caplog):
     data = tmp_path / "wp"
     data.mkdir()
     (data / "asked.csv").write_text(CSV, encoding="utf-8")
@@ -57,8 +57,14 @@ def test_the_cheapest_runnable_setting_within_the_tolerance(tmp_path):
     path = scene_with(tmp_path, 'questions = ["dwell_vibration"]\ntolerance = 3e-7')
     assert choose(load_scene(path), "cam_bar", data=data).options == {"h": 1e-5}
     path = scene_with(tmp_path, 'questions = ["dwell_vibration"]\ntolerance = 1e-7')
-    choice = choose(load_scene(path), "cam_bar", data=data)       # nothing reaches 1e-7: the plant's default
-    assert choice.method == "DP45" and "no setting in asked.csv reaches 1e-07" in choice.reason
+    choice = choose(load_scene(path), "cam_bar", data=data)       # nothing reaches 1e-7: the most accurate there,
+    assert (choice.method, dict(choice.options)) == ("RK4", {"h": 1e-5})     # said as a warning (not the default)
+    assert choice.short_of == ("no setting in asked.csv reaches the scene's tolerance 1e-07: this run uses the most "
+                               "accurate one there, error 2.0e-07") and choice.short_of in choice.reason
+    from rig.fidelity import announce
+    with caplog.at_level(logging.INFO):
+        announce(choice)
+    assert [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING] == [choice.short_of]
     other = tmp_path / "nodata"
     other.mkdir()
     choice = choose(load_scene(path), "cam_bar", data=other)
