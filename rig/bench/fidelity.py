@@ -96,10 +96,15 @@ AGREE = 0.05
 
 
 def _deviation(value: float, reference: float, unit: str) -> str:
-    """How a lower level's answer differs from level 2's: "+0.01 %" (relative), "+2" for a count."""
+    """How a lower level's answer differs from level 2's: "+2" for a count; else in magnitude, "-64 % in magnitude"
+    (a signed peak of −89 N against −248 N is 64 % smaller, not "+64 %"), or "opposite sign" when the signs differ."""
     if unit == "count":
         return f"{value - reference:+g}"
-    return f"{100 * (value - reference) / abs(reference):+.3g} %" if reference else f"{value - reference:+.3g}"
+    if not reference:
+        return f"{value - reference:+.3g}"
+    if value and math.copysign(1.0, value) != math.copysign(1.0, reference):
+        return f"opposite sign ({value - reference:+.3g})"
+    return f"{100 * (abs(value) - abs(reference)) / abs(reference):+.3g} % in magnitude"
 
 
 def disagreements(rows: list[dict[str, Any]]) -> list[str]:

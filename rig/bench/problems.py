@@ -70,10 +70,8 @@ def _halving(h0: float, n: int) -> list[float]:
 
 def _level2(scene, path: Path) -> WorkProblem:
     from rig.plants.cam_bar.level2 import Level2
-    from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_fidelity, read_level2_model, read_speed_profile
-    if read_fidelity(scene) != 2:
-        raise SceneError(f"{path} [scene]: work-precision charts level 2 of the cam-bar plant; set fidelity = 2 "
-                         f"(e.g. data/scenes/pin_insertion_l2.toml)")
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_level2_model, read_speed_profile, require_level2
+    require_level2(scene, "rig bench work-precision")
     mech = mechanism_from_scene(scene)
     speed = read_speed_profile(scene)
     model = Level2(mech, speed, model=read_level2_model(scene))

@@ -59,12 +59,12 @@ def _run(model: Any, y0: tuple, grid: np.ndarray, method: str, **options: float)
 def stability_map(scene_path: str | Path, t_sim: float = 0.2, steps: list[float] = STEPS,
                   factors: list[float] = FACTORS, speeds: list[float] = (1.0,)) -> list[dict[str, Any]]:
     """Rows of the map (module docstring)."""
-    from rig.plants.cam_bar.scene_io import require_cam_bar
+    from rig.plants.cam_bar.scene_io import require_level2
     from rig.runner.config import read_config
     from rig.scene import load_scene
     from rig.solvers import SolverDivergence
     scene = load_scene(scene_path)
-    require_cam_bar(scene, "rig bench stability")
+    require_level2(scene, "rig bench stability")
     rate = read_config(scene).sample_rate
     grid = np.linspace(0.0, t_sim, int(round(t_sim * rate)) + 1)
     rows: list[dict[str, Any]] = []

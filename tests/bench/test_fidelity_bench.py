@@ -35,4 +35,7 @@ def test_a_lower_level_answer_level_2_contradicts_is_flagged():
     said = disagreements(rows)
     assert len(said) == 1 and said[0].startswith("L1's rod_force") and "needs L2" in said[0]
     l1 = next(r for r in rows if r["level"] == 1 and r["question"] == "rod_force")
-    assert float(l1["vs_L2"].rstrip(" %")) > 50
+    assert l1["vs_L2"].endswith(" % in magnitude") and float(l1["vs_L2"].split()[0]) < -50   # L1's peak the smaller
+    from rig.bench.fidelity import _deviation
+    assert _deviation(-89.0, -248.0, "N") == "-64.1 % in magnitude" and _deviation(40.0, -248.0, "N").startswith(
+        "opposite sign")

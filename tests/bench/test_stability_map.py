@@ -48,3 +48,14 @@ def test_cam_speed_axis():
     assert sorted({float(r["cam_speed_rpm"]) for r in rows}) == pytest.approx([150.0, 300.0])
     assert len(rows) == 2 * (len(FIXED) + len(ADAPTIVE))
     assert not [r for r in rows if r["class"] == "silent"]
+
+
+def test_a_scene_at_another_level_is_refused_as_work_precision_refuses_it(tmp_path, capsys):
+    """Both benches study level 2: a level-1 scene is refused by both, with the same words (stability once drew a
+    level-2 map for it)."""
+    for bench in ("stability", "work-precision"):
+        assert main(["-q", "bench", bench, "--scene", str(DATA / "scenes" / "pin_insertion.toml"), "--quick",
+                     "-o", str(tmp_path / bench)]) == 2
+        err = capsys.readouterr().err
+        assert f"rig bench {bench} studies level 2 of the cam-bar plant; set fidelity = 2" in err, err
+        assert not (tmp_path / bench / "stability.csv").exists()

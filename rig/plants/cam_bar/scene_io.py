@@ -112,6 +112,15 @@ def require_cam_bar(scene: Scene, command: str) -> None:
                          f"{scene.path} is a {plant!r} scene")
 
 
+def require_level2(scene: Scene, command: str) -> None:
+    """A :class:`SceneError` saying that ``command`` studies level 2 of the cam-bar plant, for a cam-bar scene that
+    runs at another level (its numbers would not be those of the scene the user named)."""
+    require_cam_bar(scene, command)
+    if read_fidelity(scene) != 2:
+        raise SceneError(f"{scene.path} [scene]: {command} studies level 2 of the cam-bar plant; set fidelity = 2 "
+                         f"(e.g. data/scenes/pin_insertion_l2.toml)")
+
+
 def cam_bar_from_scene(path: str | Path, command: str = "the cam-bar model") -> tuple["PinInsertionMechanism", float]:
     """A cam-bar scene file → its :class:`PinInsertionMechanism` ([plant]) and nominal cam speed (rad/s, [speed]);
     :class:`SceneError` for a scene of another plant (:func:`require_cam_bar`)."""
