@@ -25,7 +25,7 @@ def plot(result: Result, path: Path, target: float = TARGET) -> None:
 def figure(result: Result, target: float = TARGET) -> "plt.Figure":
     """The two-panel chart: error against wall time and against RHS calls, one curve per method with ``ok`` rows
     (ours solid, peers dashed, a peer stepping across the contact onsets dotted in its sibling's colour)."""
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6.2))
     methods = list(dict.fromkeys(r.method for r in result.rows))
     bases = list(dict.fromkeys(m.removesuffix(NO_RESTARTS) for m in methods))
     palette = [*plt.get_cmap("tab10").colors, "black", "olive", "navy", "peru", "teal"]
@@ -49,8 +49,11 @@ def figure(result: Result, target: float = TARGET) -> "plt.Figure":
         ax.set_xlabel(xlabel)
         ax.set_ylabel(f"relative max error in {result.problem.quantity}")
         ax.grid(True, which="both", lw=0.3, alpha=0.5)
-    if axes[0].get_legend_handles_labels()[0]:
-        axes[0].legend(fontsize=7, ncol=2)
+    handles, labels = axes[0].get_legend_handles_labels()
+    columns = 6
+    rows_of_legend = -(-len(labels) // columns)
+    if handles:                               # below both panels: inside one it hid curves
+        fig.legend(handles, labels, loc="lower center", ncol=min(columns, len(labels)), fontsize=8, frameon=False)
     failed = sorted({r.method for r in result.rows if r.status.startswith(("diverged", "failed", "inaccurate"))})
     note = f"reference {ref.label}, confirmations within {ref.uncertainty:.1e}"
     if not ref.confirmed:
@@ -62,5 +65,5 @@ def figure(result: Result, target: float = TARGET) -> "plt.Figure":
         note += "; stopped at the time limit from some setting on (not drawn): " + ", ".join(slow)
     fig.suptitle(f"{result.problem.title}\n" + textwrap.fill(note, 170), fontsize=9,
                  color="k" if ref.confirmed else "red")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.035 * rows_of_legend + 0.01, 1.0, 1.0))
     return fig
