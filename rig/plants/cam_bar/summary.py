@@ -13,7 +13,6 @@ from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 LEVEL1 = "level 1 (kinetostatic, nominal machine, constant speed)"
 
 
-
 def _angles(values: np.ndarray) -> str:
     """Angles (rad) in degrees, one decimal — more where two neighbours would read alike (a sign change just before
     a program boundary and the jump back across it: 319.96°, 320.00°, not 320.0°, 320.0°)."""
