@@ -26,10 +26,9 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     report = out / "report.md"
     report.write_text("\n".join(lines) + "\n")
     print(lines[2])
-    for line in lines[4:]:                       # the notes under the totals (runs that share a seed)
-        if not line.startswith("Note: "):
-            break
-        print(line)
+    for line in lines:                           # the notes under the totals (runs that share a seed)
+        if line.startswith("Note: "):
+            print(line)
     print(f"{plural(len(paths), 'recording')} analysed in {wall:.1f} s -> {table}, {report}")
     if not any(not r.error for r in result.recordings):
         print(f"rig: error: none of the {len(paths)} files could be read as a recording (the reasons are in {report})",

@@ -54,7 +54,10 @@ def test_rig_analyse_writes_table_and_report_and_names_unreadable_files(recordin
     """A truncated file is read as `rig report --partial` reads it: what it holds is analysed, and it is marked
     incomplete with the reason; only a file that yields nothing is unreadable."""
     out = tmp_path / "an"
+    capsys.readouterr()
     assert main(["-q", "analyse", str(recordings / "*.mcap"), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out.splitlines()          # run2 and run3: one seed; the console says it too
+    assert sum(line.startswith("Note: 2 runs of pin_insertion L1 were made with seed ") for line in printed) == 1
     rows = list(csv.DictReader((out / "recordings.csv").open()))
     assert [r["recording"].rsplit("/", 1)[1] for r in rows] == ["cut.mcap", "run2.mcap", "run3.mcap", "short.mcap"]
     cut, run2, run3, short = rows
