@@ -126,10 +126,16 @@ def test_cli_never_overwrites_another_file(tmp_path, capsys):
     assert (tmp_path / "clutch_startup.csv").read_text() == "my notes\n"
 
 
-def test_quiet_runs_without_a_progress_bar(tmp_path, capsys):
+def test_quiet_runs_without_a_progress_bar(tmp_path, capsys, monkeypatch):
+    """-q turns the bar off (the bar itself: the clutch CLI test above); the runs are not repeated for it."""
+    from rig.bench import workprecision
+    asked = {}
+    monkeypatch.setattr(workprecision, "run_scenes", lambda *a, **k: asked.update(k) or [])
     assert cli.main(["-q", "bench", "work-precision", "--scene", str(CLUTCH), "--quick", "--t-sim", "0.05",
                      "-o", str(tmp_path / "wp")]) == 0
-    assert "runs" not in capsys.readouterr().err and (tmp_path / "wp" / ".mechrig").exists()
+    assert asked["progress_bars"] is False and capsys.readouterr().err == ""
+    assert cli.main(["bench", "work-precision", "--scene", str(CLUTCH), "--quick", "-o", str(tmp_path / "wp")]) == 0
+    assert asked["progress_bars"] is True
 
 
 def test_fixed_step_methods_follow_the_clutch_stick_slip_switches():
