@@ -187,8 +187,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     cfg = _scene_config(scene, args.cycles)
     if cfg.plant == "cam_bar":
         writable_file(out.with_suffix(".cycle.png"), "cycle chart", PNG_MAGIC)
-        from rig.fidelity import choose
-        level = choose(cfg.scene, cfg.plant, args.fidelity).level
+        level = cfg.fidelity.level if args.fidelity is None else args.fidelity       # --fidelity forces it
         _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"), level)
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet, fidelity=args.fidelity)

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from rig.analysis.clutch_metrics import Metric, Stimulus
+from rig.analysis.numbers import plural
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.units import UnitError, to_si
 
@@ -255,11 +256,6 @@ def write_csv(rows: list[Row], path: Path) -> Path:
     return path
 
 
-def _rows(n: int) -> str:
-    """'1 row', '2 rows'."""
-    return f"{n} row{'' if n == 1 else 's'}"
-
-
 def _inputs_text(group: list[Row], alone: bool) -> str:
     """The judged rows set by the scene's inputs: they check nothing of the model, so ``alone`` (no prediction or
     fitted row beside them) the line says first that the run checks nothing."""
@@ -267,9 +263,9 @@ def _inputs_text(group: list[Row], alone: bool) -> str:
     n = len(group)
     shown_text = "shown as set" if shown == n else "not shown as set" if n == 1 else f"{shown} of them shown as set"
     if alone:
-        return (f"no check of the model here — its {_rows(n)} {'is' if n == 1 else 'are'} set by the scene's inputs, "
+        return (f"no check of the model here — its {plural(n, 'row')} {'is' if n == 1 else 'are'} set by the scene's inputs, "
                 f"{shown_text}")
-    return f"{_rows(n)} set by the scene's inputs, {shown_text} (no check of the model)"
+    return f"{plural(n, 'row')} set by the scene's inputs, {shown_text} (no check of the model)"
 
 
 def agreement_text(rows: list[Row]) -> str:

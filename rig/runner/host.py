@@ -85,9 +85,8 @@ class Host:
     def arm(self) -> None:
         """Configure the unit over serial (program from the scene), then select it over CAN: the go signal."""
         if self.serial is not None:
-            desc = load_description(self.cfg.device["description"])
-            full = merge(default_program(self.program, desc), self.cfg.device["config"])
-            setup = (len(json.dumps(self.cfg.device["config"])) + len(json.dumps(full))) * 10 / self.cfg.serial["baudrate"]
+            written, read_back = json.dumps(self.cfg.device["config"]), json.dumps(self._scene_program())
+            setup = (len(written) + len(read_back)) * 10 / self.cfg.serial["baudrate"]
             if setup > SLOW_SETUP:
                 log.warning("configuring the unit over serial at %d baud: the program alone takes about %.0f s on "
                             "the line (written and read back); the run starts after it", self.cfg.serial["baudrate"],
@@ -251,14 +250,16 @@ class Host:
             msg["memory_full"], msg["decimated"] = bool(result.memory_full), bool(result.decimated)
         return msg
 
+    def _scene_program(self) -> dict[str, Any]:
+        """The scene's program as the unit normalises it: its [device.config] merged over the factory program."""
+        desc = load_description(self.cfg.device["description"])
+        return validate_program(merge(default_program(self.program, desc), self.cfg.device["config"]), desc)
+
     def _explainer(self) -> ResultExplainer:
         """Built once: the program read back from the unit (or, without a serial link, the scene's program
         as the unit normalises it) and the display units the scene writes it in."""
         if self._explain is None:
-            program = self.program_config
-            if program is None:
-                desc = load_description(self.cfg.device["description"])
-                program = validate_program(merge(default_program(self.program, desc), self.cfg.device["config"]), desc)
+            program = self.program_config if self.program_config is not None else self._scene_program()
             self._explain = ResultExplainer(program, display_units(program, self.cfg.device["config"]))
         return self._explain
 

@@ -10,8 +10,8 @@ time; :class:`Anchored` adds an origin (s of Unix time) to the stamps of what it
   0), with origin ``ceil(wall clock at the go)``, a whole second, so stamps never go back.
 
 :class:`RunClock` is the host's side: it drops the idle frames, i.e. everything before the
-``CommandAck`` accepting the host's SelectProgram or Start that started the run, takes the run's origin from that ack (its stamp is the
-origin plus less than 1 s of device time) and gives the later frames their device time back, in whole
+``CommandAck`` accepting the host's SelectProgram or Start that started the run, takes the run's origin from
+that ack (its stamp is the origin plus less than 1 s of device time) and gives the later frames their device time back, in whole
 microseconds as sent — the stamps an in-process run records.
 """
 from __future__ import annotations

@@ -12,6 +12,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.scene import load_scene
     from rig.sweep import parse_param
     from rig.sweep.plots import plot_sweep
+    from rig.analysis.numbers import plural
     from rig.sweep.run import levels_text, run_sweep, write_table
     params = [parse_param(p) for p in args.param]
     scene = load_scene(args.scene)
@@ -23,8 +24,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity)
     table = write_table(result, claim_dir(out) / "sweep.csv")
     failed = [(p, e) for p, e in zip(result.points, result.errors) if e]
-    points = f"{len(result.points)} point{'s' if len(result.points) != 1 else ''}"
-    print(f"{points} at model level {levels_text(result.levels)}, {len(failed)} failed -> {table}")
+    print(f"{plural(len(result.points), 'point')} at model level {levels_text(result.levels)}, {len(failed)} failed -> {table}")
     for point, error in failed[:5]:
         print(f"  failed at {', '.join(f'{p.key} = {v}' for p, v in zip(params, point))}: {error}")
     for path in plot_sweep(result, out):
