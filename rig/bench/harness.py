@@ -266,6 +266,39 @@ def write_csv(result: Result, path: Path) -> None:
                         f"{r.t_sim:g}", r.status])
 
 
+def read_csv(path: Path, problem: WorkProblem) -> Result:
+    """The result a :func:`write_csv` file holds, measured on ``problem`` (its reference row gives the reference's
+    label, distances (the largest exactly, the others to the 3 digits the file keeps) and failures; the reference
+    states are not in the file). ValueError naming the file and line when it is not such a file."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header is None or tuple(header) != COLUMNS:
+            raise ValueError(f"{path}: not a work-precision CSV (its first line must be {','.join(COLUMNS)})")
+        try:
+            rows = [Row(m, s, float(e), float(w), int(n) if n else None, float(t), st) for m, s, e, w, n, t, st in reader]
+        except ValueError as exc:
+            raise ValueError(f"{path} line {reader.line_num}: {exc}") from None
+    if not rows or rows[0].method != "reference":
+        raise ValueError(f"{path}: the first row must be the reference")
+    ref, rows = rows[0], rows[1:]
+    spans = {r.t_sim for r in rows} | {ref.t_sim}
+    if spans != {problem.t_sim}:
+        raise ValueError(f"{path}: measured over {', '.join(f'{t:g}' for t in sorted(spans))} s, the problem "
+                         f"{problem.name} spans {problem.t_sim:g} s")
+    label, _, checks = ref.setting.partition(" vs ")
+    distances, failures = {}, {}
+    for check in filter(None, checks.split("; ")):
+        name, _, value = check.rpartition(": ")
+        if value == "failed":
+            failures[name] = "failed"
+        else:
+            distances[name] = float(value)
+    if distances:                                            # the error column holds the largest one exactly
+        distances[max(distances, key=distances.get)] = ref.error
+    return Result(problem, Reference(np.empty(0), label, distances, ref.wall_s, failures), rows)
+
+
 def best_runs(rows: list[Row], target: float = TARGET) -> dict[str, Row]:
     """Per method the cheapest (wall time) ok run with error ≤ ``target``."""
     best: dict[str, Row] = {}

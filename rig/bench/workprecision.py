@@ -1,9 +1,10 @@
-"""``rig bench work-precision [--scene SCENE ...] [--quick] [--t-sim S] [--time-limit S] [--target ERROR] -o DIR``:
-work–precision CSV and chart per scene.
+"""``rig bench work-precision [--scene SCENE ...] [--quick] [--t-sim S] [--time-limit S] [--target ERROR]
+[--from DIR] -o DIR``: work–precision CSV and chart per scene.
 
 Writes ``DIR/<scene-stem>.csv`` (:data:`rig.bench.harness.COLUMNS`) and ``DIR/<scene-stem>.png``, prints the
 reference check and one summary line per method. Without ``--scene``: the four problems of issue 13
-(:data:`SCENES`). Heavy imports stay in :func:`run_scenes`.
+(:data:`SCENES`). ``--from DIR`` measures nothing: it charts and summarises the CSVs an earlier run wrote there
+(another target, a redrawn chart). Heavy imports stay in :func:`run_scenes`.
 """
 from __future__ import annotations
 
@@ -32,6 +33,9 @@ def register(bench_sub: argparse._SubParsersAction, parents: list[argparse.Argum
     wp.add_argument("--time-limit", type=float, metavar="S",
                     help="wall seconds per run: a peer is stopped there, and a method's finer settings after a run "
                          "over it are skipped (status timeout / skipped in the CSV); default: none")
+    wp.add_argument("--from", dest="measured", type=Path, metavar="DIR",
+                    help="measure nothing: chart and summarise DIR/<scene>.csv of an earlier run (e.g. "
+                         "data/work_precision) at --target")
     wp.add_argument("-o", "--output", type=Path, required=True, help="directory for <scene>.csv and <scene>.png")
     wp.set_defaults(func=command)
 
@@ -54,17 +58,19 @@ def outputs(out: Path, scene: Path) -> tuple[Path, Path]:
 
 def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float | None = None,
                methods: tuple[str, ...] | None = None, limit: float | None = None, target: float | None = None,
-               progress_bars: bool = True) -> list:
+               progress_bars: bool = True, measured: Path | None = None) -> list:
     """Chart every scene into ``out`` (``t_sim`` (s) shortens the span; ``methods`` a subset; ``limit``: wall
     seconds per run, :func:`rig.bench.harness.work_precision`; ``target``: the error the printed summary compares
-    at, default :data:`rig.bench.harness.TARGET`; ``progress_bars``: a bar over each scene's runs); the results.
+    at, default :data:`rig.bench.harness.TARGET`; ``progress_bars``: a bar over each scene's runs; ``measured``: a
+    directory whose ``<scene-stem>.csv`` are read instead of run); the results.
     ``out`` follows rig's rule for output directories (new, empty, or one rig wrote before: rig.outputs)."""
     if limit is not None and not limit > 0:
         raise ValueError(f"--time-limit must be positive (s), got {limit:g}")
     if target is not None and not 0.0 < target < 1.0:
         raise ValueError(f"--target must be a relative error in (0, 1), got {target:g}")
-    from rig.bench.harness import METHODS, TARGET, run_count, summary, work_precision, write_csv
-    from rig.console import progress
+    if measured is not None and (quick or limit is not None or methods is not None):
+        raise ValueError("--from measures nothing: --quick, --time-limit and a method subset do not apply")
+    from rig.bench.harness import METHODS, TARGET, read_csv, summary, write_csv
     from rig.bench.problems import load_problem
     from rig.bench.wpchart import plot
     from rig.outputs import claim_dir, writable_dir
@@ -72,40 +78,54 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
     for scene in scenes:                     # check every input and output before the long runs
         if not scene.is_file():
             raise ValueError(f"scene {scene} does not exist")
+        if measured is not None and not (source := outputs(measured, scene)[0]).is_file():
+            raise ValueError(f"--from {measured}: no {source.name} there for the scene {scene}")
         for path, head in zip(outputs(out, scene), (CSV_HEAD, PNG_HEAD)):
             _check_output(path, head)
     claim_dir(out)
     goal = TARGET if target is None else target
-    log = logging.getLogger("rig")
     results = []
     for scene in scenes:
         problem = load_problem(scene, t_sim)
-        chosen = methods or METHODS
-        with progress(run_count(problem, quick, chosen), problem.name, " runs", enabled=progress_bars) as bar:
-            def done(row: Any, line: str) -> None:
-                log.debug(line)                                  # every run is in the CSV; the bar shows where
-                if bar.n == 0:
-                    bar.reset(total=bar.total)                   # its clock from the first run, not the warm-up
-                bar.set_postfix_str(f"{row.method} {row.setting}", refresh=False)
-                bar.update()
-
-            result = work_precision(problem, quick, chosen,
-                                    log=lambda line: (log.warning if line.startswith("WARNING") else log.info)(line),
-                                    limit=limit, done=done)
         csv_path, png_path = outputs(out, scene)
-        write_csv(result, csv_path)
+        if measured is None:
+            result = _measure(problem, quick, methods or METHODS, limit, progress_bars)
+            write_csv(result, csv_path)
+            origin, wrote = "", f"{csv_path} and {png_path}"
+        else:
+            source = outputs(measured, scene)[0]
+            result = read_csv(source, problem)
+            origin, wrote = f"measured earlier ({source}); ", f"{png_path}"
         plot(result, png_path, goal)
         ref = result.reference
-        print(f"{problem.name}: reference {ref.label}; {ref.describe()}"
+        print(f"{problem.name}: {origin}reference {ref.label}; {ref.describe()}"
               + ("" if ref.confirmed else "  ** REFERENCE NOT CONFIRMED: errors below the distance are marked "
                  "unresolved **"))
         print("\n".join(summary(result, goal)))
-        print(f"wrote {csv_path} and {png_path}")
+        print(f"wrote {wrote}")
         results.append(result)
     return results
 
 
+def _measure(problem: Any, quick: bool, methods: tuple[str, ...], limit: float | None, progress_bars: bool) -> Any:
+    """Run the work–precision sweep of ``problem`` under a progress bar over its runs (every run logged)."""
+    from rig.bench.harness import run_count, work_precision
+    from rig.console import progress
+    log = logging.getLogger("rig")
+    with progress(run_count(problem, quick, methods), problem.name, " runs", enabled=progress_bars) as bar:
+        def done(row: Any, line: str) -> None:
+            log.debug(line)                                  # every run is in the CSV; the bar shows where
+            if bar.n == 0:
+                bar.reset(total=bar.total)                   # its clock from the first run, not the warm-up
+            bar.set_postfix_str(f"{row.method} {row.setting}", refresh=False)
+            bar.update()
+
+        return work_precision(problem, quick, methods,
+                              log=lambda line: (log.warning if line.startswith("WARNING") else log.info)(line),
+                              limit=limit, done=done)
+
+
 def command(args: argparse.Namespace) -> int:
     run_scenes(args.scene or list(SCENES), args.output, args.quick, args.t_sim, limit=args.time_limit,
-               target=args.target, progress_bars=not args.quiet)
+               target=args.target, progress_bars=not args.quiet, measured=args.measured)
     return 0

@@ -236,3 +236,56 @@ def test_a_method_that_never_reached_the_target_says_why():
     lines = summary(Result(SimpleNamespace(name="p", t_sim=0.1), None, rows), 1e-6)
     radau = next(line for line in lines if "scipy Radau" in line)
     assert radau.endswith("no run reached 1e-06 (1 timeout, 1 skipped)")
+
+
+MEASURED = Path(__file__).resolve().parents[2] / "data" / "work_precision"
+
+
+@pytest.mark.parametrize("csv_path", sorted(MEASURED.glob("*.csv")), ids=lambda p: p.stem)
+def test_a_measured_csv_reads_back_to_the_same_file(tmp_path, csv_path):
+    """``read_csv`` inverts ``write_csv``: every committed sweep, read and written again, is byte for byte the same
+    file (rows, statuses, the reference's label, distances and failures)."""
+    from rig.bench.harness import read_csv, write_csv
+    from rig.bench.problems import load_problem
+    result = read_csv(csv_path, load_problem(SCENES / f"{csv_path.stem}.toml"))
+    write_csv(result, tmp_path / csv_path.name)
+    assert (tmp_path / csv_path.name).read_bytes() == csv_path.read_bytes()
+    assert result.reference.confirmed and len(result.rows) == sum(1 for _ in csv_path.open()) - 2
+
+
+def test_from_charts_an_earlier_run_at_another_target_without_measuring(level2_run, tmp_path, capsys, monkeypatch):
+    """``--from DIR``: the earlier run's CSV is charted and summarised at --target; nothing is run."""
+    import rig.bench.harness as harness
+    result, out = level2_run
+    monkeypatch.setattr(harness, "work_precision", lambda *a, **k: pytest.fail("--from must not measure"))
+    again = tmp_path / "again"
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(L2), "--t-sim", "0.08", "--from", str(out),
+                     "--target", "1e-4", "-o", str(again)]) == 0
+    text = capsys.readouterr().out
+    assert f"measured earlier ({out / 'pin_insertion_l2.csv'})" in text
+    assert "cheapest run with error <= 0.0001 per method" in text and "ours best (" in text
+    assert (again / "pin_insertion_l2.png").read_bytes()[:4] == b"\x89PNG" and not (again / "pin_insertion_l2.csv").exists()
+    best = harness.best_runs(result.rows, 1e-4)
+    assert all(f"{r.setting:16s} wall {r.wall_s * 1e3:9.2f} ms" in text for r in best.values())
+
+
+def test_from_refuses_what_it_cannot_chart(level2_run, tmp_path, capsys):
+    """A missing CSV, a file that is not a work-precision CSV, a span the file was not measured over, and
+    options that only apply to measuring: each a one-line error naming what is wrong."""
+    _, out = level2_run
+    base = ["-q", "bench", "work-precision", "--scene", str(L2), "-o", str(tmp_path / "o")]
+    assert cli.main(base + ["--from", str(tmp_path)]) == 2
+    assert f"--from {tmp_path}: no pin_insertion_l2.csv there" in capsys.readouterr().err
+    assert cli.main(base + ["--from", str(out)]) == 2            # measured over 0.08 s, the scene spans 0.4 s
+    assert "measured over 0.08 s, the problem pin_insertion_l2 spans 0.4 s" in capsys.readouterr().err
+    assert cli.main(base + ["--from", str(out), "--t-sim", "0.08", "--quick"]) == 2
+    assert "--from measures nothing" in capsys.readouterr().err
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "pin_insertion_l2.csv").write_text("a,b\n1,2\n")
+    assert cli.main(base + ["--from", str(foreign)]) == 2
+    assert "not a work-precision CSV" in capsys.readouterr().err
+    (foreign / "pin_insertion_l2.csv").write_text(",".join(COLUMNS) + "\nreference,x vs y: 1e-12,1e-12,0.1,,0.4,"
+                                                  "reference\ndp45,rtol=1e-6,not-a-number?,0.1,5,0.4,ok\n")
+    assert cli.main(base + ["--from", str(foreign)]) == 2
+    assert f"{foreign / 'pin_insertion_l2.csv'} line 3: could not convert" in capsys.readouterr().err
