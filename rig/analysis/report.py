@@ -35,7 +35,8 @@ from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
 from rig.outputs import MARK
 from rig.recorder import Recording, read_recording
-from rig.recorder.completeness import file_problem, interruption_text, losses
+from rig.recorder.completeness import file_problem, losses
+from rig.recorder.reader import interruption_text
 
 MANIFEST = ".mechrig-report"    # in a report directory: the files the last report wrote there
 NOK_ROWS = 60         # rows of the "what failed and why" table (all of them are in results.csv)

@@ -40,34 +40,11 @@ def file_problem(rec: Recording) -> str:
     return "file damaged" + ("" if rec.read_to_data_end or rec.data_whole else f" and {cut}")
 
 
-#: end-record reasons (:func:`rig.recorder.writer.interruption`: the exception's type) of a run the user stopped
-USER_STOPS = ("KeyboardInterrupt", "Interrupted")
-
-
-def interruption_text(reason: str) -> str:
-    """Why a run stopped early in plain words, from its end record's ``reason`` (the exception, e.g.
-    ``KeyboardInterrupt`` or ``RunError: …``): "interrupted by the user (Ctrl-C)", "stopped by an error — …"."""
-    kind = reason.split(":", 1)[0].strip()
-    if kind in USER_STOPS:
-        return "interrupted by the user (Ctrl-C)"
-    if reason == "unknown reason":                 # the reader's word for an end record without a reason
-        return "stopped early (the recording does not say why)"
-    return f"stopped by an error — {reason}"
-
-
-def _plain(problem: str, rec: Recording) -> str:
-    """The reader's "run interrupted at T s of simulation time: REASON" with the reason in plain words."""
-    head, reason = "run interrupted at ", f": {rec.interrupted}"
-    if rec.interrupted is None or not (problem.startswith(head) and problem.endswith(reason)):
-        return problem
-    return f"{interruption_text(rec.interrupted)} at {problem[len(head):-len(reason)]}"
-
-
 def losses(rec: Recording) -> list[str]:
     """Sentences naming why ``rec`` is incomplete and what it lacks; [] for a complete recording."""
     if rec.complete:
         return []
-    out = [_plain(p, rec) for p in rec.problems]
+    out = list(rec.problems)
     if rec.truncated and rec.data_whole:
         out.append("nothing of the run is lost: every message up to the file's data end was read"
                    + ("" if rec.end else "; the run's end record is not in it"))

@@ -145,6 +145,21 @@ class Recording:
         return f"{counts}; {len(self.programs)} program(s), scene {'present' if self.scene_text else 'absent'}"
 
 
+#: end-record reasons (:func:`rig.recorder.writer.interruption`: the exception's type) of a run the user stopped
+USER_STOPS = ("KeyboardInterrupt", "Interrupted")
+
+
+def interruption_text(reason: str) -> str:
+    """Why a run stopped early in plain words, from its end record's ``reason`` (the exception, e.g.
+    ``KeyboardInterrupt`` or ``RunError: …``): "interrupted by the user (Ctrl-C)", "stopped by an error — …"."""
+    kind = reason.split(":", 1)[0].strip()
+    if kind in USER_STOPS:
+        return "interrupted by the user (Ctrl-C)"
+    if reason == "unknown reason":                 # the reader's word for an end record without a reason
+        return "stopped early (the recording does not say why)"
+    return f"stopped by an error — {reason}"
+
+
 def _curve(msg: dict) -> CurveRecord:
     known = {"number", "program", "t", "x", "y", "angle", "theory"}
     return CurveRecord(
@@ -318,7 +333,7 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
         collector.finish()
         if rec.interrupted is not None:
             t = _metadata_number(rec, S.END_METADATA, "simulation_time", "nan", float)
-            rec.problems.append(f"run interrupted at {t:.3f} s of simulation time: {rec.interrupted}")
+            rec.problems.append(f"{interruption_text(rec.interrupted)} at {t:.3f} s of simulation time")
     except ValueError as exc:  # a damaged metadata value
         rec.truncated = rec.damaged = True
         rec.problems.append(f"damaged {exc}")

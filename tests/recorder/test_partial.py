@@ -243,7 +243,7 @@ def test_a_directory_given_as_the_recording_is_named_as_such(tmp_path, capsys):
 
 
 def test_why_a_run_stopped_in_plain_words():
-    from rig.recorder.completeness import interruption_text
+    from rig.recorder.reader import interruption_text
     assert interruption_text("KeyboardInterrupt") == "interrupted by the user (Ctrl-C)"
     assert interruption_text("RunError: no host connected") == "stopped by an error — RunError: no host connected"
     assert interruption_text("unknown reason") == "stopped early (the recording does not say why)"

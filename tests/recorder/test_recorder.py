@@ -131,7 +131,10 @@ def test_interrupted_recording_is_valid_and_marked(tmp_path, exc, reason):
     assert not rec.truncated and not rec.complete and rec.interrupted == reason
     assert rec.end == {"complete": "false", "reason": reason, "simulation_time": repr(float(rec.curves[-1].t[-1])),
                        "messages": str(sum(rec.message_counts.values()))}
-    assert any(reason in p for p in rec.problems)
+    from rig.recorder.reader import interruption_text
+    said = interruption_text(reason)                    # in plain words, the error's text kept
+    assert any(p.startswith(f"{said} at ") and p.endswith(" s of simulation time") for p in rec.problems)
+    assert ("Ctrl-C" in said) == (reason == "KeyboardInterrupt") and (reason in said) == (reason != "KeyboardInterrupt")
     assert [c.number for c in rec.curves] == [1, 2] and len(rec.results) == 2
     assert rec.truth["t"].size == 5003                  # buffered tail flushed on the way out
     assert rec.statistics == []
