@@ -9,10 +9,13 @@ import math
 
 import numpy as np
 
+SNAP = 8 * np.finfo(np.float64).eps   # relative distance of t * rate to a whole period taken as on it (rounding)
+
 
 class Decimator:
     """Picks the first sample in each period ``1/rate`` (grid anchored at t = 0); keeps its place across
-    calls, so a stream cut into any pieces gives the same picks."""
+    calls, so a stream cut into any pieces gives the same picks. A sample time that lies on a period's start
+    within the rounding of ``t * rate`` (0.29 s at 100 Hz gives 28.999999999999996) starts that period."""
 
     def __init__(self, rate: float):
         if not math.isfinite(rate) or rate <= 0:
@@ -22,7 +25,9 @@ class Decimator:
 
     def pick(self, t: np.ndarray) -> np.ndarray:
         """Indices of the samples of ``t`` (s, non-decreasing) to keep."""
-        period = np.floor(np.asarray(t, dtype=np.float64) * self.rate)
+        x = np.asarray(t, dtype=np.float64) * self.rate
+        whole = np.round(x)
+        period = np.floor(np.where(np.abs(x - whole) <= SNAP * np.abs(x), whole, x))
         keep = np.flatnonzero(np.diff(period, prepend=self._last) > 0)
         if keep.size:
             self._last = float(period[keep[-1]])

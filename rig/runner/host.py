@@ -315,7 +315,9 @@ class Host:
         if self.cfg.cycles is None:
             self._advance_theory(self.cfg.duration)
         stats: dict[str, Any] = {}
-        end = max(self.truth_t, self.rec.last_event_time)     # not before an event already recorded
+        # the counters are those of the latest frames: at the bus's device time (past the machine's end while the
+        # backlog drained), not before an event already recorded
+        end = max(self.truth_t, self.rec.last_event_time, self.can.device_time)
         if self.serial is not None:
             stats = self.serial.read_statistics(self.program)
             self.rec.write_statistics(stats, t=end)

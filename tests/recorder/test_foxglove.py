@@ -132,7 +132,9 @@ def test_views_are_per_sample_at_most_100_hz_and_equal_the_recorded_values(demo,
     rec = read_recording(demo)
     plant = [m for _, m in channels["/view/plant"]["messages"]]
     t = np.array([m["t"] for m in plant])
-    assert np.all(np.diff(np.floor(t * 100)) > 0)                     # at most one per 10 ms period
+    periods = np.floor(t * 100 + 1e-9)                                 # t * 100 may round below a whole period
+    assert np.all(np.diff(periods) == 1)                               # one per 10 ms period, none skipped
+    np.testing.assert_allclose(t[1:] * 100, periods[1:], rtol=0, atol=1e-9)   # the truth sample at its start
     assert len(plant) == pytest.approx(rec.truth["t"][-1] * 100, abs=2)
     idx = np.searchsorted(rec.truth["t"], t)
     for name in ("s", "F_rod", "cam_angle", "omega"):

@@ -267,13 +267,23 @@ def test_view_decimation_is_the_same_for_any_cut_of_the_stream():
     from rig.recorder.view import Decimator
     t = np.arange(20_000) * 1e-4                          # 2 s at 10 kHz
     whole = Decimator(100.0).pick(t)
-    assert whole.size == 200 and np.all(np.diff(np.floor(t[whole] * 100)) == 1)
+    np.testing.assert_array_equal(whole, np.arange(0, 20_000, 100))   # the sample at each period's start
     pieces, dec = [], Decimator(100.0)
     for a, b in ((0, 7), (7, 7), (7, 5003), (5003, 20_000)):
         pieces.append(dec.pick(t[a:b]) + a)
     np.testing.assert_array_equal(np.concatenate(pieces), whole)
     with pytest.raises(ValueError, match="view rate"):
         Decimator(0.0)
+
+
+@pytest.mark.parametrize("t", [np.arange(2000) / 1000, np.arange(2000) * 1e-3, np.linspace(0.0, 2.0, 2001)[:-1],
+                               1e4 + np.arange(2000) * 1e-3], ids=["i/1000", "i*1e-3", "linspace", "t0=1e4"])
+def test_a_sample_on_a_period_start_starts_it_whatever_the_rounding(t):
+    """At 1 kHz every tenth sample lies on a 100 Hz period's start; t * rate rounds some of them just below a
+    whole number (0.29 * 100 = 28.999999999999996): they still start their period, so the view is every tenth
+    sample, 10 ms apart (it had 9 and 11 ms gaps)."""
+    from rig.recorder.view import Decimator
+    np.testing.assert_array_equal(Decimator(100.0).pick(t), np.arange(0, 2000, 10))
 
 
 def test_views_can_be_turned_off_and_bad_settings_are_named(tmp_path):
