@@ -71,6 +71,8 @@ RECORDING_SCHEMA = {
     "truth_rate": Field("Hz", None, "rate of /plant/truth, every k-th model sample (default: every sample)"),
     "encoding": Field(None, "json", "'json' (viewer-plottable) or 'base64' (compact)"),
     "compression": Field(None, "zstd"),
+    "view_rate": Field("Hz", 100.0, "at most this many messages per second on each /view/* channel (the first sample "
+                       "of each period; docs/recording.md)", positive=True, maximum=1e5),
 }
 #: top-level sections the runner reads (the plant's own: rig.runner.plants.PLANT_SECTIONS) and [links.*]
 RUNNER_SECTIONS = ("scene", "transducers", "device", "links", "recording")

@@ -234,7 +234,8 @@ def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
         earlier.unlink(missing_ok=True)
     try:
         rec = Recorder(output, scene_text=cfg.scene.text, metadata=_metadata(cfg, mode),
-                       encoding=cfg.recording["encoding"], compression=cfg.recording["compression"])
+                       encoding=cfg.recording["encoding"], compression=cfg.recording["compression"],
+                       view_rate=cfg.recording["view_rate"])
     except BaseException:
         _restore(earlier, output)
         raise

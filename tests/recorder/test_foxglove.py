@@ -164,6 +164,55 @@ def test_every_recorded_topic_is_documented(channels):
     assert set(channels) <= documented, set(channels) - documented
 
 
+LAYOUT = ROOT / "data" / "foxglove" / "cam_bar_layout.json"
+
+
+def _schema_at(schema: dict, fields: list[str]) -> dict | None:
+    """The sub-schema a message path's fields name (``x[:]``: the array's items), None where the schema has none."""
+    for field in fields:
+        name, index = field.removesuffix("[:]"), field.endswith("[:]")
+        schema = schema.get("properties", {}).get(name)
+        if schema is None:
+            return None
+        if index:
+            if schema.get("type") != "array":
+                return None
+            schema = schema["items"]
+    return schema
+
+
+def test_the_shipped_layout_plots_paths_the_demo_recording_has(channels):
+    """data/foxglove/cam_bar_layout.json (checked in Lichtblick, docs/recording.md): every plot path names a recorded
+    topic and a numeric field of its schema (an X–Y plot's series and x-axis arrays of numbers of one message),
+    the Log panel the foxglove.Log topic, Raw Messages a recorded topic; every panel is placed in the layout tree."""
+    import json
+    layout = json.loads(LAYOUT.read_text())
+    placed, stack = set(), [layout["layout"]]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, str):
+            placed.add(node)
+        else:
+            stack += [node["first"], node["second"]]
+    assert placed == set(layout["configById"])
+    for panel, config in layout["configById"].items():
+        kind = panel.split("!")[0]
+        if kind == "Plot":
+            paths = [p["value"] for p in config["paths"]] + ([config["xAxisPath"]["value"]] if "xAxisPath" in config else [])
+            for path in paths:
+                topic, *fields = path.split(".")
+                assert topic in channels, (panel, path)
+                leaf = _schema_at(channels[topic]["schema"], fields)
+                assert leaf is not None and leaf.get("type") == "number", (panel, path, leaf)
+                assert ("[:]" in path) == (config["xAxisVal"] == "currentCustom"), (panel, path)
+        elif kind == "RosOut":
+            assert channels[config["topicToRender"]]["name"] == "foxglove.Log"
+        elif kind == "RawMessages":
+            assert config["topicPath"] in channels
+        else:
+            pytest.fail(f"{panel}: a panel type the layout was not checked with")
+
+
 def test_can_raw_holds_the_hosts_commands_with_direction_and_channel(demo):
     frames = read_recording(demo).can_frames
     db = cantools.database.load_file(str(ROOT / "data" / "can" / "rig.dbc"))

@@ -178,6 +178,26 @@ def test_truth_rate_is_a_whole_decimation_of_the_sample_rate(tmp_path: Path, rat
             read_config(load_scene(path))
 
 
+def test_view_rate_is_set_in_the_scene_and_checked(tmp_path: Path):
+    """``[recording] view_rate``: a view at 1 kHz keeps every truth sample (truth at 1 kHz) and ten times the 100 Hz
+    view's curve samples, so a curve's force peak between two 10 ms picks is in it; a rate that is no positive
+    frequency is named."""
+    old = 'truth_rate = "1 kHz"'
+    path = _scene_variant(tmp_path, "v.toml", **{old: old + '\nview_rate = "1 kHz"'})
+    assert read_config(load_scene(path)).recording["view_rate"] == 1000.0
+    assert read_config(load_scene(SCENE)).recording["view_rate"] == 100.0
+    rec = read_recording(run_scene(path, tmp_path / "v.mcap", cycles=1).output)
+    assert rec.metadata["rig"]["view_rate"] == "1000.0"
+    assert rec.message_counts["/view/plant"] == rec.truth["t"].size
+    (curve,) = rec.curves                                   # one view message per 1 ms the curve touches
+    assert rec.message_counts["/view/device"] == np.unique(np.floor(curve.t * 1000 + 1e-9)).size > curve.t.size / 11
+    for bad, says in (("0 Hz", "must be above 0 Hz"), ("-5 Hz", "must be above 0 Hz"), ("200 kHz", "at most 100000 Hz"),
+                      ("1 m", "wrong dimension; expected something convertible to Hz"), ("fast", "not a quantity")):
+        path = _scene_variant(tmp_path, "v.toml", **{old: old + f'\nview_rate = "{bad}"'})
+        with pytest.raises(SceneError, match=rf"\[recording\]: key 'view_rate'.*{says}"):
+            read_config(load_scene(path))
+
+
 def test_recorded_values_equal_the_raw_frames_decoded_with_cantools_and_the_dbc_alone(in_process: Path):
     """An independent reading of ``/can/raw``: cantools and the DBC give the same process values, curve
     numbers, start times and X/Y pairs as the recorded results and curves."""
