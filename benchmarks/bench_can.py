@@ -54,6 +54,10 @@ class Device:
     def status(self) -> dict:
         return {"state": "idle", "program": 1}
 
+    def state_at(self, t: float) -> tuple[str, object]:
+        """The node's heartbeat asks for the state at its own time (DigiForce.state_at): idle, the latest result."""
+        return "idle", self.last_result
+
 
 def produce(fd: bool, curves: int, rng: np.random.Generator) -> list[FrameBlock]:
     """The blocks the node sends (one per 0.1 s advance, then the final flush at ``close``)."""
