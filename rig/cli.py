@@ -43,7 +43,7 @@ def _analysed(recording: Path) -> tuple[Any, dict]:
     """Read a recording once and analyse it: (Recording, :func:`rig.analysis.analyse` result)."""
     from rig.analysis import analyse
     from rig.recorder import read_recording
-    rec = read_recording(recording)
+    rec = read_recording(recording, can_frames=False)      # the analysis counts the bus frames, needs none
     return rec, analyse(rec)
 
 
@@ -295,7 +295,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise UsageError(f"cannot write the report to {out}: that is the recording; give -o DIRECTORY")
     writable_dir(out, "report")
     try:
-        rec = read_recording(path, allow_partial=args.partial)
+        rec = read_recording(path, allow_partial=args.partial, can_frames=False)
     except RecordingError as exc:
         if exc.partial is None:
             raise

@@ -101,7 +101,7 @@ def summarise(path: Path) -> RecordingSummary:
     from rig.recorder import RecordingError, read_recording
     from rig.recorder.completeness import losses, nothing_recorded
     try:
-        rec = read_recording(path, allow_partial=True)
+        rec = read_recording(path, allow_partial=True, can_frames=False)
         empty = nothing_recorded(rec)
         if empty is not None:
             raise RecordingError(f"{path}: {empty}")

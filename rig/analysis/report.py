@@ -706,7 +706,8 @@ def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path,
         raise ValueError(f"report format must be 'html' or 'md', got {fmt!r}")
     if ok_plots < 0 or nok_plots < 0:
         raise ValueError(f"numbers of curve plots must be >= 0, got ok_plots={ok_plots}, nok_plots={nok_plots}")
-    rec = recording_or_path if isinstance(recording_or_path, Recording) else read_recording(recording_or_path)
+    rec = (recording_or_path if isinstance(recording_or_path, Recording)
+           else read_recording(recording_or_path, can_frames=False))          # the report counts the bus frames
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     before = _clear_previous(out)

@@ -1,6 +1,7 @@
 """Read a rig MCAP recording back into arrays; recover what is readable from truncated files."""
 from __future__ import annotations
 
+import math
 import os
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -45,8 +46,9 @@ class CurveRecord:
 class Recording:
     """Everything in a recording. ``series`` maps each bulk topic to concatenated arrays (incl. ``t``);
     ``can_frames`` the ``/can/raw`` columns (``t``, ``id``, ``data`` bytes, ``dir`` and ``channel`` str lists,
-    bool arrays ``is_fd``, ``brs``, ``esi``, ``is_extended``, ``error``). View channels and ``/log`` repeat
-    other topics and are only counted.
+    bool arrays ``is_fd``, ``brs``, ``esi``, ``is_extended``, ``error``; empty when read with ``can_frames=False``),
+    ``can_counts`` its ``frames`` and ``sent`` (the host's own) counted either way. View channels and ``/log``
+    repeat other topics and are only counted.
 
     ``complete``: the file is whole and the run ended normally. ``truncated``: the file is cut short or
     damaged (read with ``allow_partial``). ``end``: the run's end record (metadata ``rig.end``: ``complete``,
@@ -69,6 +71,7 @@ class Recording:
     events: list[dict] = field(default_factory=list)
     series: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     can_frames: dict[str, Any] = field(default_factory=dict)
+    can_counts: dict[str, int] = field(default_factory=lambda: {"frames": 0, "sent": 0})
     message_counts: dict[str, int] = field(default_factory=dict)
     complete: bool = True
     truncated: bool = False
@@ -133,10 +136,9 @@ class Recording:
         if topic != S.CAN_RAW:
             return f"{topic}: {count}"
         messages = f"{topic}: {count} message{'' if count == 1 else 's'}"
-        frames = len(self.can_frames.get("t", ()))
+        frames, sent = self.can_counts["frames"], self.can_counts["sent"]
         if not frames:
             return messages
-        sent = sum(d == "tx" for d in self.can_frames.get("dir", ()))
         return f"{messages} ({frames} frames{f': {frames - sent} received, {sent} sent' if sent else ' received'})"
 
     def summary(self) -> str:
@@ -170,13 +172,29 @@ def _curve(msg: dict) -> CurveRecord:
         extra={k: v for k, v in msg.items() if k not in known})
 
 
+_CAN_FLAGS = ("is_fd", "brs", "esi", "is_extended", "error")
+_WORDS: dict[str, str] = {}      # one str object per direction / channel name, whatever the number of frames
+
+
+def _can_tally(msg: dict) -> tuple[int, int, float]:
+    """A ``/can/raw`` message's frames, frames the host sent, and its last frame's time (s; -inf without frames)."""
+    return len(msg["t"]), msg["dir"].count("tx"), float(msg["t"][-1]) if msg["t"] else -math.inf
+
+
+def _can_columns(msg: dict) -> dict[str, Any]:
+    """One ``/can/raw`` message as compact columns, decoded as it is read: numbers in arrays, the data as bytes,
+    the directions and channel names shared (a long run's millions of frames held as parsed JSON took ≈ 400 bytes
+    each)."""
+    return {"t": np.asarray(msg["t"], dtype=np.float64), "id": np.asarray(msg["id"], dtype=np.int64),
+            **{key: [_WORDS.setdefault(v, v) for v in msg[key]] for key in ("dir", "channel")},
+            **{key: np.asarray(msg[key], dtype=bool) for key in _CAN_FLAGS},
+            "data": [bytes.fromhex(d) for d in msg["data"]]}
+
+
 def _can(blocks: list[dict]) -> dict[str, Any]:
-    def cat(key: str, dtype: Any) -> np.ndarray:
-        return np.array([v for b in blocks for v in b[key]], dtype=dtype)
-    return {"t": cat("t", np.float64), "id": cat("id", np.int64),
-            **{key: [v for b in blocks for v in b[key]] for key in ("dir", "channel")},
-            **{key: cat(key, bool) for key in ("is_fd", "brs", "esi", "is_extended", "error")},
-            "data": [bytes.fromhex(d) for b in blocks for d in b["data"]]}
+    """The columns of every ``/can/raw`` message, joined."""
+    return {**{key: np.concatenate([b[key] for b in blocks]) for key in ("t", "id", *_CAN_FLAGS)},
+            **{key: [v for b in blocks for v in b[key]] for key in ("dir", "channel", "data")}}
 
 
 _REPEATS = frozenset({*S.VIEWS, S.LOG})      # topics that repeat others' data in a viewer's form
@@ -185,8 +203,10 @@ _REPEATS = frozenset({*S.VIEWS, S.LOG})      # topics that repeat others' data i
 class _Collector:
     """Sorts decoded records into a :class:`Recording`."""
 
-    def __init__(self, rec: Recording):
+    def __init__(self, rec: Recording, can_frames: bool = True):
         self.rec = rec
+        self.keep_can = can_frames
+        self.can_end = -math.inf                            # the last /can/raw frame's time (s)
         self.channels: dict[int, str] = {}
         self.blocks: dict[str, list[dict[str, np.ndarray]]] = defaultdict(list)
         self.can: list[dict] = []
@@ -221,20 +241,28 @@ class _Collector:
             if topic is None:                   # its channel was defined in a part of the file that was lost
                 self.orphans[record.channel_id] += 1
                 continue
-            if value is not None:
-                lists = {S.CURVE: rec.curves, S.RESULT: rec.results, S.STATISTICS: rec.statistics,
-                         S.EVENTS: rec.events, S.CAN_RAW: self.can}
+            if topic == S.CAN_RAW and value is not None:
+                (frames, sent, end), columns = value
+                rec.can_counts["frames"] += frames
+                rec.can_counts["sent"] += sent
+                self.can_end = max(self.can_end, end)
+                if columns is not None:
+                    self.can.append(columns)
+            elif value is not None:
+                lists = {S.CURVE: rec.curves, S.RESULT: rec.results, S.STATISTICS: rec.statistics, S.EVENTS: rec.events}
                 (lists[topic] if topic in lists else self.blocks[topic]).append(value)
             rec.message_counts[topic] = rec.message_counts.get(topic, 0) + 1
             self.last_log_ns = max(self.last_log_ns, record.log_time)
 
-    @staticmethod
-    def _decode(topic: str, data: bytes) -> Any:
+    def _decode(self, topic: str, data: bytes) -> Any:
         if topic in _REPEATS:
             return None
         if topic == S.CURVE:
             return _curve(loads_message(data))
-        if topic in (S.RESULT, S.STATISTICS, S.EVENTS, S.CAN_RAW):
+        if topic == S.CAN_RAW:
+            msg = loads_message(data)
+            return _can_tally(msg), (_can_columns(msg) if self.keep_can else None)
+        if topic in (S.RESULT, S.STATISTICS, S.EVENTS):
             return loads_message(data)
         return decode_block(data)
 
@@ -246,9 +274,7 @@ class _Collector:
         start = _metadata_number(self.rec, S.RIG_METADATA, "wall_clock_start", "0", int)
         # a block's log time is its first sample's: its samples (and a CAN block's frames) reach further
         ends = [float(s["t"][-1]) for s in self.rec.series.values() if "t" in s and len(s["t"])]
-        if self.rec.can_frames is not None and len(self.rec.can_frames.get("t", ())):
-            ends.append(float(self.rec.can_frames["t"][-1]))
-        self.rec.last_time = max([max(self.last_log_ns - start, 0) / 1e9, *ends])
+        self.rec.last_time = max([max(self.last_log_ns - start, 0) / 1e9, *ends, self.can_end])
         return self.rec
 
 
@@ -303,7 +329,7 @@ def require_whole_file(path: str | Path, need: str) -> None:
                              "what it holds")
 
 
-def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
+def read_recording(path: str | Path, allow_partial: bool = False, can_frames: bool = True) -> Recording:
     """Read a recording made by :class:`rig.recorder.Recorder`.
 
     A truncated or damaged file raises :class:`RecordingError` naming the file, the problem and what
@@ -313,11 +339,12 @@ def read_recording(path: str | Path, allow_partial: bool = False) -> Recording:
     messages per topic where the index says so), as it does past damaged bytes (to where the summary's index,
     or without an intact summary the next whole chunk, says the next record starts); a cut file is read up to
     the cut. A whole file of a run that stopped early reads without error, with ``complete = False`` and the
-    reason in ``problems``.
+    reason in ``problems``. ``can_frames=False``: the ``/can/raw`` frames are counted, not kept (an analysis that
+    needs none of them reads a long run's millions of frames in a fraction of the memory and time).
     """
     path = Path(path)
     rec = Recording(path=path)
-    collector = _Collector(rec)
+    collector = _Collector(rec, can_frames)
     try:
         with open(path, "rb") as f:
             reader = DataSectionReader(f, _front(path, f), collector)

@@ -235,6 +235,12 @@ def test_frame_block_direction_channel_and_flags_become_columns(tmp_path):
     assert cf["error"].tolist() == [False, False, False, True, False, False]
     assert cf["is_extended"].tolist() == [False, False, False, False, True, False]
     assert cf["data"][1] == bytes(range(12)) and cf["data"][3] == b""
+    assert cf["dir"][0] is cf["dir"][3] and cf["channel"][0] is cf["channel"][3]   # one str per word, not per frame
+    counted = read_recording(tmp_path / "can.mcap", can_frames=False)              # what the analyses read
+    assert counted.can_frames == {} and counted.can_counts == {"frames": 6, "sent": 2}
+    whole = read_recording(tmp_path / "can.mcap")
+    assert whole.can_counts == counted.can_counts and whole.summary() == counted.summary()
+    assert counted.last_time == whole.last_time == 0.4 and "6 frames: 4 received, 2 sent" in counted.summary()
 
 
 def test_undefined_values_round_trip_without_json_nulls(tmp_path):
@@ -401,8 +407,8 @@ def test_summary_counts_can_messages_apart_from_the_frames_they_hold(tmp_path):
     frames; the summary says messages and gives the frames, received and sent as the console counts them."""
     from rig.recorder.reader import Recording
     rec = Recording(tmp_path / "r.mcap", message_counts={"/can/raw": 135, "/device/curve": 50},
-                    can_frames={"t": np.zeros(5), "dir": ["tx", "rx", "rx", "rx", "rx"]})
+                    can_counts={"frames": 5, "sent": 1})
     assert rec.summary().startswith("/can/raw: 135 messages (5 frames: 4 received, 1 sent), /device/curve: 50; ")
-    rec.can_frames["dir"] = ["rx"] * 5
+    rec.can_counts["sent"] = 0
     assert "/can/raw: 135 messages (5 frames received)" in rec.summary()
     assert Recording(tmp_path / "r.mcap", message_counts={"/can/raw": 1}).summary().startswith("/can/raw: 1 message;")
