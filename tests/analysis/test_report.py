@@ -216,3 +216,22 @@ def test_truth_caption_states_the_recorded_simulated_time(tmp_path, end, cycles,
     rec = Recording(tmp_path / "r.mcap", metadata={"rig.end": end} if end else {}, curves=curves)
     t = np.linspace(0.0, truth_end, 201)
     assert report._truth_window(rec, t)[1] == expected
+
+
+def test_an_overlay_of_thousands_of_curves_keeps_every_peak_in_a_bounded_number_of_points():
+    """A long recording's overlay (here 300 curves of 3000 samples, over the budget) is drawn as each curve's min
+    and max in runs of samples: at most OVERLAY_POINTS points in all (plus one tail and one gap per curve), every
+    curve's own extremes still drawn; a few curves are drawn sample for sample."""
+    from rig.analysis.plots import OVERLAY_POINTS, _joined
+    rng = np.random.default_rng(7)
+    t = np.linspace(0.0, 0.3, 3000)
+    curves = [(t, np.sin(40 * t) - 3.0 * np.exp(-((t - rng.uniform(0.05, 0.25)) / 2e-4) ** 2)) for _ in range(300)]
+    x, y = _joined(curves)
+    assert x.size == y.size <= OVERLAY_POINTS + 2 * len(curves)
+    pieces = np.split(y, np.flatnonzero(np.isnan(y)))
+    drawn = [p[~np.isnan(p)] for p in pieces if np.any(~np.isnan(p))]
+    assert len(drawn) == len(curves)
+    for (_, c), d in zip(curves, drawn):
+        assert d.min() == c.min() and d.max() == c.max()          # the narrow dip (a 0.2 ms peak) is kept
+    few_x, few_y = _joined(curves[:5])
+    assert few_y.size == 5 * (3000 + 1)
