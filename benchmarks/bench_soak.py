@@ -11,7 +11,7 @@ and the machine's simulated time. Reports:
   the wall time with serial set-up and the process CPU time (simulated time per CPU second does not depend
   on what else the shared cores run);
 * the unit's transmit queue over the run (backlog, curve transfers waiting: a bus that falls behind);
-* a consistency check of the recording, streamed (``mcap.reader.make_reader`` + orjson, never all in
+* a consistency check of the recording, streamed (``mcap.reader.NonSeekingReader`` + orjson, never all in
   memory): curve start times strictly increase in file order, every ``/device/result`` is complete with all
   9 process values, finite; curves with sampling gaps (a time step > 1.5x the median) are counted.
 
@@ -45,7 +45,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import orjson
-from mcap.reader import make_reader
+from mcap.reader import NonSeekingReader
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -129,7 +129,7 @@ def check_recording(path: Path) -> dict:
     results = incomplete = missing_pv = nonfinite = 0
     examples: list[str] = []
     with open(path, "rb") as f:
-        reader = make_reader(f)
+        reader = NonSeekingReader(f)      # make_reader's seeking reader holds every chunk before yielding in file order
         for _schema, channel, message in reader.iter_messages(topics=["/device/curve", "/device/result"],
                                                               log_time_order=False):
             body = orjson.loads(message.data)

@@ -48,7 +48,7 @@ from asammdf.blocks import v4_constants as v4c
 from can.util import CAN_FD_DLC, len2dlc
 from mcap.exceptions import McapError
 from zstandard import ZstdError
-from mcap.reader import make_reader
+from mcap.reader import NonSeekingReader, make_reader
 
 from rig.recorder import schemas as S
 from rig.recorder.reader import RecordingError, require_whole_file
@@ -183,7 +183,10 @@ def iter_frames(path: Path) -> Iterator[Frames]:
     last = -np.inf
     try:
         with open(path, "rb") as f:
-            for k, (_, _, msg) in enumerate(make_reader(f).iter_messages(topics=[S.CAN_RAW], log_time_order=False)):
+            # the stream reader yields each chunk's messages as it reads it; mcap's seeking reader in file order
+            # reads every chunk before it yields the first message (a long run's file twice over in memory)
+            for k, (_, _, msg) in enumerate(NonSeekingReader(f).iter_messages(topics=[S.CAN_RAW],
+                                                                               log_time_order=False)):
                 where = f"{path}: {S.CAN_RAW} message {k}"
                 try:
                     block = orjson.loads(msg.data)
