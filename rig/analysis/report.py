@@ -15,7 +15,6 @@ from their own modules); :func:`register_section` adds others (before the closin
 """
 from __future__ import annotations
 
-import gc
 import html
 from datetime import datetime, timezone
 from pathlib import Path
@@ -716,7 +715,6 @@ def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path,
     blocks: list[Block] = []
     for _, section in (SECTIONS if sections is None else sections):
         blocks += section(ctx)
-        gc.collect()            # a figure's arrays sit in reference cycles: free them before the next section draws
     scene = rec.metadata.get("rig", {}).get("scene")
     title = f"Rig report: {rec.path.name}" + (f" (scene {scene})" if scene else "")
     path = out / f"report.{fmt}"
