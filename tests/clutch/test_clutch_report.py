@@ -116,12 +116,16 @@ def test_report_table_states_references(runs, tmp_path):
 
 def test_truth_and_events_end_with_the_run(runs):
     """The plant truth (computed by the host in fixed blocks) stops at the scene's duration, not at the end of
-    the last block: nothing past the run is recorded."""
+    the last block: nothing of the plant past the run is recorded. The link's summary is stamped when its counters
+    hold: at the bus's device time after the run, among the unit's closing frames (a few ms after the run)."""
     for name, (_, rec) in runs.items():
         duration = load_scene(SCENES / f"{name}.toml").section("scene")["duration"]
         end = float(str(duration).split()[0])
         assert rec.truth["t"][-1] == pytest.approx(end, abs=1e-9), name
-        assert rec.events and max(ev["t"] for ev in rec.events) <= end + 1e-9, name
+        plant = [ev for ev in rec.events if ev["kind"] != "link_summary"]
+        assert plant and max(ev["t"] for ev in plant) <= end + 1e-9, name
+        (summary,) = [ev for ev in rec.events if ev["kind"] == "link_summary"]
+        assert end <= summary["t"] <= float(rec.can_frames["t"][-1]) < end + 0.05, name
 
 
 def test_stand_readings_are_exported_with_units(runs, tmp_path):
