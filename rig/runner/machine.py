@@ -8,6 +8,7 @@ from __future__ import annotations
 import difflib
 import logging
 
+from collections.abc import Callable
 from typing import Any
 
 import can
@@ -194,11 +195,13 @@ class Machine:
         self.t = float(t[-1])
         return truth
 
-    def flush(self, limit: float = 60.0) -> None:
+    def flush(self, limit: float = 60.0, pace: Callable[[float], object] = lambda t: None) -> None:
         """End the run: let the node send everything still queued (results of the last curve) in virtual
-        time, then close it (final status with ``RunEnded``; nothing follows it on the wire)."""
+        time, then close it (final status with ``RunEnded``; nothing follows it on the wire). ``pace(t)`` after
+        each chunk (real-time mode: the bus drains its backlog on the wall clock too)."""
         t_start, t_end = self.t, self.t + limit
         while self.node.has_pending_before(t_start) and self.t < t_end:   # later heartbeats need not wait
             self.t += self.cfg.chunk
             self.node.advance_to(self.t)
+            pace(self.t)
         self.node.close(self.t)

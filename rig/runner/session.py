@@ -186,11 +186,11 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
             after_step()
             _show(bar, cfg, machine.curves, machine.t)
             pace(machine.t)
+        with lock:
+            machine.flush(pace=pace)
     finally:
         _show(bar, cfg, machine.curves, machine.t, force=True)
         pace.finish()
-    with lock:
-        machine.flush()
 
 
 def _wait_for_go(machine: Machine, timeout: float, idle: Callable[[], None] = lambda: None,
