@@ -48,6 +48,8 @@ ATOL_SCALE = {"cam_bar": 1e-5, "clutch_dynamic": 1e-3}
 #: plant's own (the cam bar's level-2 default; the clutch's [plant] rtol/atol, given as no options here)
 DEFAULT_METHOD = {"cam_bar": ("DP45", {"rtol": 1e-7, "atol": 1e-12}), "clutch_dynamic": ("DP45", {})}
 NAMES = {"kinematic": 0, "kinetostatic": 1, "dynamic": 2}
+#: levels whose runs are the same for a plant (the cam bar: the force sensor needs the level-1 loads at level 0 too)
+SAME_RUN = {"cam_bar": (0, 1)}
 
 
 @dataclass(frozen=True)
@@ -61,6 +63,7 @@ class Fidelity:
     options: Mapping[str, float] = field(default_factory=dict)
     unanswered: tuple[str, ...] = ()
     short_of: str = ""      # why the scene's tolerance is not met (no setting in the data reaches it), else ""
+    caveat: str = ""        # what a forced level below the questions' need means for the run, else ""
 
     @property
     def method_text(self) -> str:
@@ -203,14 +206,30 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
         raise SceneError(f"{where}: a {plant} plant has levels {', '.join(map(str, levels))}; "
                          f"{'--fidelity' if forced is not None else 'fidelity'} {level} is not one of them")
     unanswered = tuple(q for q in asked if need[q] > level)
+    caveat = _caveat(plant, level, {q: need[q] for q in unanswered})
     if level < 2:
-        return Fidelity(level, reason, unanswered=unanswered)
+        return Fidelity(level, reason, unanswered=unanswered, caveat=caveat)
     short_of = ""
     if asked or "tolerance" in scene.section("scene"):
         method, options, why, short_of = _method(scene, plant, _tolerance(scene, where), data)
     else:
         (method, options), why = _default_method(scene, plant), "no questions or tolerance stated; the plant's own setting"
-    return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered, short_of)
+    return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered, short_of, caveat)
+
+
+def _caveat(plant: str, level: int, unanswered: Mapping[str, int]) -> str:
+    """What a level below the questions' need (``unanswered``: question -> level it needs) means for a run of the
+    plant: the cam bar's runs at levels 0 and 1 are the same (the force sensor needs the level-1 loads), so its
+    measurements stay level 1's; a question that needs level 2 is not simulated at all."""
+    if not unanswered:
+        return ""
+    need = ", ".join(f"{q} (needs L{n})" for q, n in unanswered.items())
+    if plant in SAME_RUN and level in SAME_RUN[plant] and max(unanswered.values()) in SAME_RUN[plant]:
+        return (f"fidelity L{level} is below what the scene asks: {need}; a {plant} run computes the level-1 loads "
+                f"anyway (levels {' and '.join(map(str, SAME_RUN[plant]))} simulate the same run), so its "
+                f"measurements are level {max(SAME_RUN[plant])}'s; level {level} only answers less in the summaries")
+    return (f"fidelity L{level} is below what the scene asks: {need}; this run does not simulate what they need: "
+            f"read nothing about them from it")
 
 
 def announce(fidelity: Fidelity) -> None:
@@ -218,6 +237,5 @@ def announce(fidelity: Fidelity) -> None:
     log.info("%s", fidelity.describe().split("; cannot answer")[0])
     if fidelity.short_of:
         log.warning("%s", fidelity.short_of)
-    if fidelity.unanswered:
-        need = ", ".join(f"{q} (needs L{max(t.get(q, 0) for t in QUESTIONS.values())})" for q in fidelity.unanswered)
-        log.warning("fidelity L%d cannot answer %s: its answers to them in this run mean nothing", fidelity.level, need)
+    if fidelity.caveat:
+        log.warning("%s", fidelity.caveat)

@@ -184,6 +184,9 @@ def verdict(ctx: ReportContext) -> list[Block]:
         blocks.append(Text(f"Warning: incomplete recording, {why}: the verdict covers the {n} curves it holds; "
                            "what was lost is under Recording.", "warning"))
     blocks.append(Banner(text, nok == 0))
+    caveat = rec.metadata.get("rig", {}).get("fidelity_caveat")
+    if caveat:                            # a forced model level below what the scene asks (rig.fidelity)
+        blocks.append(Text(f"Model level: {caveat}.", "warning"))
     for program, s in a["sets"].items():
         table = _capability_table(s["values"])
         label = f"program {program}" if len(a["sets"]) > 1 else "the process"
@@ -193,6 +196,10 @@ def verdict(ctx: ReportContext) -> list[Block]:
             caveat = _normality_caveat(s["values"])
             if caveat:
                 blocks.append(Text(caveat, "note"))
+        elif rec.programs.get(program, {}).get("limits"):
+            blocks.append(Text(f"No Cp/Cpk for program {program}: it has limits "
+                               f"({', '.join(rec.programs[program]['limits'])}), but the set has no statistics of "
+                               "those process values (too few values: see the warnings below)."))
         else:
             blocks.append(Text(f"No limits in program {program}: no Cp/Cpk (set [device.config.limits])."))
         by_element = ", ".join(f"{k} {v}×" for k, v in s["nok_by_element"].items())

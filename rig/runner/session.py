@@ -218,7 +218,8 @@ def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
     return {"scene": cfg.name, "scene_file": str(cfg.scene.path.resolve()), "seed": cfg.seed, "plant": cfg.plant,
             "run_mode": mode, "software_version": rig.__version__, "sample_rate": cfg.sample_rate,
             "cycles": cfg.cycles, "duration": cfg.duration, "fidelity_level": cfg.fidelity.level,
-            "fidelity_reason": cfg.fidelity.reason, "method": cfg.fidelity.method_text}
+            "fidelity_reason": cfg.fidelity.reason, "method": cfg.fidelity.method_text,
+            "fidelity_caveat": cfg.fidelity.caveat}
 
 
 @contextmanager

@@ -93,8 +93,12 @@ def test_a_forced_level_wins_and_says_what_it_cannot_answer(tmp_path, caplog):
     assert choice.level == 1 and choice.unanswered == ("dwell_vibration",) and "--fidelity 1" in choice.reason
     with caplog.at_level(logging.INFO, logger="rig.fidelity"):
         announce(choice)
-    assert any(r.levelno == logging.WARNING and "cannot answer dwell_vibration (needs L2)" in r.getMessage()
-               for r in caplog.records)
+    assert any(r.levelno == logging.WARNING and "below what the scene asks: dwell_vibration (needs L2); this run "
+               "does not simulate what they need" in r.getMessage() for r in caplog.records)
+    zero = choose(load_scene(scene_with(tmp_path, 'questions = ["stroke", "rod_force"]')), "cam_bar", forced=0)
+    assert zero.unanswered == ("rod_force",) and "rod_force (needs L1)" in zero.caveat
+    assert "levels 0 and 1 simulate the same run), so its measurements are level 1's" in zero.caveat   # as they are
+    assert choose(load_scene(scene_with(tmp_path, 'questions = ["stroke"]')), "cam_bar", forced=0).caveat == ""
     explicit = load_scene(scene_with(tmp_path, 'fidelity = "dynamic"'))
     assert choose(explicit, "cam_bar").level == 2 and choose(explicit, "cam_bar", forced=0).level == 0
 
@@ -110,3 +114,21 @@ def test_a_run_records_its_fidelity_and_the_forced_level_is_the_one_simulated(tm
     assert main(["-q", "run", str(DEMO), "--cycles", "1", "--no-report", "-o", str(out1)]) == 0
     meta = read_recording(out1).metadata["rig"]
     assert (meta["fidelity_level"], meta["method"]) == ("1", "none (no integration)")
+
+
+def test_a_forced_level_below_the_questions_is_said_in_the_report_verdict(tmp_path):
+    """`--fidelity 0` on the demo (it asks rod_force and flank_switches): the console's caveat is recorded and the
+    report's verdict carries it (the verdict said "capable" with only the metadata table naming level 0)."""
+    from rig.analysis.report import write_report
+    out = tmp_path / "l0.mcap"
+    assert main(["-q", "run", str(DEMO), "--cycles", "2", "--no-report", "--fidelity", "0", "-o", str(out)]) == 0
+    caveat = read_recording(out).metadata["rig"]["fidelity_caveat"]
+    assert caveat.startswith("fidelity L0 is below what the scene asks: rod_force (needs L1), flank_switches (needs L1)")
+    text = write_report(out, tmp_path / "r", fmt="md").read_text()
+    verdict = text[text.index("Verdict"):text.index("## Process values")]
+    assert f"Model level: {caveat}." in verdict
+    assert "No Cp/Cpk for program 1: it has limits (y_min, x_max), but the set has no statistics" in verdict  # 2 values
+    plain = tmp_path / "l1.mcap"
+    assert main(["-q", "run", str(DEMO), "--cycles", "2", "--no-report", "-o", str(plain)]) == 0
+    assert read_recording(plain).metadata["rig"]["fidelity_caveat"] == ""
+    assert "Model level:" not in write_report(plain, tmp_path / "r1", fmt="md").read_text()

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rig.fidelity import SAME_RUN
 from rig.motion.speed import RPM
 from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
@@ -24,8 +25,9 @@ def _angles(values: np.ndarray) -> str:
 
 
 def run_level_note(run_level: int | None) -> list[str]:
-    """The line saying the level-1 summary is not the run's own model (none for a level-1 run or no run)."""
-    if run_level is None or run_level == 1:
+    """The line saying the level-1 summary is not the run's own model (none for no run, nor for a run at a level
+    that simulates the same run as level 1: a forced level 0, :data:`rig.fidelity.SAME_RUN`)."""
+    if run_level is None or run_level in SAME_RUN["cam_bar"]:
         return []
     return [f"  (this run is level {run_level}: these level-1 numbers are not its own; its own are the set statistics "
             f"and events below)"]
