@@ -30,6 +30,7 @@ DEFAULTS = {"m": "mm", "N": "N", "rad": "deg", "N*m": "N*m", "s": "s", "rad/s": 
             "m/s^2": "mm/s^2", "m/m": "um/m", "1": ""}
 _LABELS = {"degree": ("°", "deg"), "meter * newton": ("N·m", "N*m"), "revolutions_per_minute": ("rpm", "rpm"),
            "micrometer / meter": ("µm/m", "um/m"), "millimeter / second ** 2": ("mm/s²", "mm/s^2"),
+           "micrometer": ("µm", "um"),
            "dimensionless": ("", "")}
 _ANGLES = ("radian", "degree", "turn", "revolution", "arcminute", "arcsecond", "grad")
 

@@ -128,6 +128,13 @@ class Metric:
     compute: Callable[[PlantRun], float]
     integer: bool = False
     level: int = 1
+    shown: str | None = None       # the unit the table and maps show it in (default: rig.analysis.units' for it)
+
+    @property
+    def display(self) -> Any:
+        """The :class:`rig.analysis.units.Unit` the table and the maps show this metric in."""
+        from rig.analysis.units import unit
+        return unit(self.unit, self.shown)
 
 
 METRICS: dict[str, Metric] = {
@@ -137,12 +144,12 @@ METRICS: dict[str, Metric] = {
                             "left: a jump without a switch) in the last revolution",
                             lambda r: float(len(r.events("flank_bounce"))), integer=True, level=2),
     "upper_dwell_vibration": Metric(("cam_bar",), "m", "gripper deviation from its law in the upper dwell, peak to "
-                                    "peak, last revolution", _upper_dwell_vibration, level=2),
+                                    "peak, last revolution", _upper_dwell_vibration, level=2, shown="um"),
     "gripper_deviation": Metric(("cam_bar",), "m", "gripper deviation from its law, peak to peak, last revolution "
                                 "(contact deflection, flight across the groove and pins)",
-                                _gripper_deviation, level=2),
+                                _gripper_deviation, level=2, shown="um"),
     "roller_gap": Metric(("cam_bar",), "m", "largest gap the roller opens off the working flank, last revolution",
-                         _roller_gap, level=2),
+                         _roller_gap, level=2, shown="um"),
     "rod_force_peak": Metric(("cam_bar",), "N", "largest |F_rod| of the last revolution",
                              lambda r: float(np.max(np.abs(r.signals["F_rod"])))),
     "ok_share": Metric(("cam_bar",), "1", f"share of cycles the DigiForce program judges OK, with the scene's "

@@ -62,12 +62,12 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
     params, written = result.params, []
     index = {point: i for i, point in enumerate(result.points)}
     for metric in result.metrics:
-        unit, integer = METRICS[metric].unit, METRICS[metric].integer
-        label = f"{metric}" + (f" ({unit})" if unit != "1" else "")
+        shown, integer = METRICS[metric].display, METRICS[metric].integer
+        label = f"{metric}" + (f" ({shown.label})" if shown.label else "")
         title = f"{label}, model level {levels_text(result.levels)}"
         if len(params) == 1:
             p = params[0]
-            y = [result.values[index[(v,)]][metric] for v in p.values]
+            y = [shown(result.values[index[(v,)]][metric]) for v in p.values]
             fig, ax = plt.subplots(figsize=(6, 4))
             ax.plot(range(len(y)), y, "o-")
             _no_value_note(ax, np.asarray(y, dtype=float))
@@ -86,7 +86,8 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
             continue
         px, py, rest = params[0], params[1], params[2:]
         for combo in itertools.islice(itertools.product(*(p.values for p in rest)), MAX_MAPS):
-            z = np.array([[result.values[index[(vx, vy) + combo]][metric] for vx in px.values] for vy in py.values])
+            z = shown(np.array([[result.values[index[(vx, vy) + combo]][metric] for vx in px.values]
+                                for vy in py.values]))
             fig, ax = plt.subplots(figsize=(max(5.0, 2.0 + 0.9 * len(px.values)), max(3.5, 1.8 + 0.45 * len(py.values))))
             norm, ticks = _integer_scale(z, "viridis") if integer else (None, None)
             image = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis", norm=norm)

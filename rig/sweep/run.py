@@ -130,19 +130,20 @@ def levels_text(levels: Sequence[int]) -> str:
 
 def cell(metric: str, value: float) -> str:
     """A metric's CSV cell: a count or flag (:attr:`Metric.integer`) as a whole number ("2", not "2.0"), other
-    values with every digit (``repr``); a failed point's NaN as ``nan``."""
+    values in the metric's display unit with every digit (``repr``); a failed point's NaN as ``nan``."""
     if METRICS[metric].integer and math.isfinite(value):
         return str(int(value))
-    return repr(float(value))
+    return repr(float(METRICS[metric].display(value)))
 
 
 def write_table(result: SweepResult, path: Path) -> Path:
     """CSV: one row per point, a column per parameter (values as given), ``level`` (the point's model level), per
-    metric (SI, unit in the header; counts as whole numbers, :func:`cell`) and ``error``."""
+    metric (in its display unit, :attr:`Metric.display`, named in the header; counts as whole numbers, :func:`cell`)
+    and ``error``."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         out = csv.writer(f)
-        out.writerow([p.key for p in result.params] + ["level"] + [f"{m} [{METRICS[m].unit}]" for m in result.metrics]
+        out.writerow([p.key for p in result.params] + ["level"] + [f"{m} [{METRICS[m].display.ascii or 1}]" for m in result.metrics]
                      + ["error"])
         for point, level, values, error in zip(result.points, result.levels, result.values, result.errors):
             out.writerow(list(point) + [level] + [cell(m, values[m]) for m in result.metrics] + [error])

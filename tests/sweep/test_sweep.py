@@ -75,7 +75,7 @@ def test_fidelity_runs_every_point_at_that_level_and_the_table_says_it(tmp_path,
     assert main(["-q", "sweep", str(DEFAULT_SCENE), "--fidelity", "2", "--param", "plant.k=1.89 N/mm", "--metric",
                  "roller_gap", "--revolutions", "1", "--executor", "serial", "-o", str(out)]) == 0
     rows = list(csv.DictReader((out / "sweep.csv").open()))
-    assert [(r["level"], r["error"]) for r in rows] == [("2", "")] and float(rows[0]["roller_gap [m]"]) >= 0.0
+    assert [(r["level"], r["error"]) for r in rows] == [("2", "")] and float(rows[0]["roller_gap [um]"]) >= 0.0
     assert "1 point at model level 2, 0 failed" in capsys.readouterr().out
 
 
@@ -251,3 +251,12 @@ def test_a_swept_value_without_the_keys_unit_is_blamed_on_the_param_not_the_scen
     with pytest.raises(UsageError, match=message):
         check_units(load_scene(DEFAULT_SCENE), [parse_param(f"plant.k={value}")])
     check_units(load_scene(DEFAULT_SCENE), [parse_param("plant.k=1.09 N/mm,1.2 N/m")])     # with units: no error
+
+
+def test_small_lengths_are_tabled_and_mapped_in_micrometres():
+    """A clearance-sized metric read 2.0997783428677863e-08 in metres; the table and the maps show µm."""
+    from rig.sweep.metrics import METRICS
+    from rig.sweep.run import cell
+    assert METRICS["upper_dwell_vibration"].display.label == "µm"
+    assert float(cell("upper_dwell_vibration", 2.0997783428677863e-08)) == pytest.approx(0.020997783428677863)
+    assert cell("flank_switches", 2.0) == "2" and float(cell("rod_force_peak", 54.6)) == 54.6
