@@ -26,7 +26,7 @@ import numpy as np
 from rig.units import ureg
 
 # display unit by SI unit (the fallback of rule 2)
-DEFAULTS = {"m": "mm", "N": "N", "rad": "deg", "N*m": "N*m", "s": "s", "rad/s": "rpm", "m/s": "mm/s",
+DEFAULTS = {"m": "mm", "N": "N", "rad": "deg", "N*m": "N*m", "J": "J", "s": "s", "rad/s": "rpm", "m/s": "mm/s",
             "m/s^2": "mm/s^2", "m/m": "um/m", "1": ""}
 _LABELS = {"degree": ("°", "deg"), "meter * newton": ("N·m", "N*m"), "revolutions_per_minute": ("rpm", "rpm"),
            "micrometer / meter": ("µm/m", "um/m"), "millimeter / second ** 2": ("mm/s²", "mm/s^2"),

@@ -54,3 +54,11 @@ def test_statistics_in_display_units_capability_unchanged():
     assert x["std"] == pytest.approx(1000 * x_si["std"], rel=1e-12)
     assert x["cp"] == pytest.approx(x_si["cp"], rel=1e-12) and x["cpk"] == pytest.approx(x_si["cpk"], rel=1e-12)
     assert shown["values"]["y_min"]["cp"] == si["y_min"]["cp"]
+
+
+def test_an_energy_is_shown_in_joules_not_as_a_torque():
+    """Work per turn ∮M dφ (J) read "N·m" in rig analyse's table (J and N·m share a dimension) while rig run printed J."""
+    from rig.analysis.lab_report import shown_value
+    from rig.analysis.units import unit
+    assert (unit("J").label, unit("N*m").label) == ("J", "N·m")
+    assert shown_value("work_per_turn", 0.0037) == (0.0037, "J")
