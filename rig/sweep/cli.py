@@ -19,9 +19,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     out = Path(args.output)
     writable_dir(out, "sweep")
     with executor_from_args(args, local="dask-processes") as executor:
-        if not args.quiet:
-            print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
-        result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity)
+        def starting() -> None:
+            if not args.quiet:
+                print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
+
+        result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity, starting)
     table = write_table(result, claim_dir(out) / "sweep.csv")
     failed = [(p, e) for p, e in zip(result.points, result.errors) if e]
     print(f"{plural(len(result.points), 'point')} at model level {levels_text(result.levels)}, {len(failed)} failed -> {table}")

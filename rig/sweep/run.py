@@ -8,7 +8,7 @@ import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from rig.executors import batches
 from rig.scene import Scene, SceneError
@@ -59,11 +59,13 @@ class SweepResult:
 
 
 def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], executor: "Executor",
-              revolutions: int = 2, fidelity: int | None = None) -> SweepResult:
+              revolutions: int = 2, fidelity: int | None = None,
+              starting: Callable[[], object] = lambda: None) -> SweepResult:
     """Every grid point of ``params`` on ``executor``, at the model level ``fidelity`` (``--fidelity``; default:
     each point's own, :func:`rig.fidelity.choose`); scene and metric errors, and metrics a point's level cannot
     answer (:func:`rig.sweep.metrics.check_levels`), are raised before anything runs (:func:`_check_buildable`); a
-    point whose run fails gets NaN metrics and its error."""
+    point whose run fails gets NaN metrics and its error. ``starting()`` runs when every check has passed, before the
+    points run (the command's line naming the executor: an error stays one line)."""
     from rig.runner.config import read_config
     from rig.runner.plants import make_plant
     if not params or not metrics:
@@ -81,6 +83,7 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
     check_levels(list(metrics), levels, str(scene.path) + (f" with --fidelity {fidelity}" if fidelity is not None
                                                            else ""))
     _check_buildable(tasks, make_plant, read_config)
+    starting()
     results = [r for part in executor.map(run_points, batches(tasks, executor.workers)) for r in part]
     return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results],
                        levels)

@@ -63,10 +63,11 @@ def test_cam_bar_metrics_equal_the_plant_computed_directly():
 def test_a_level_2_metric_on_a_level_1_scene_is_refused_naming_the_way_to_level_2(metric, tmp_path, capsys):
     """Level 1 would give 0 or NaN for these (no groove): refused before anything runs or is written."""
     out = tmp_path / "sweep"
-    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", RATES, "--metric", "rod_force_peak", "--metric", metric,
+    assert main(["sweep", str(DEFAULT_SCENE), "--param", RATES, "--metric", "rod_force_peak", "--metric", metric,
                  "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert f"runs at level 1 (kinetostatic); '{metric}' needs level 2 (dynamic)" in err
+    assert err.count("\n") == 1 and err.startswith("rig: error: ")           # one line: no "sweep of …" before it
     assert "--fidelity 2" in err and "rod_force_peak" not in err and not out.exists()
 
 
