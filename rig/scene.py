@@ -8,6 +8,7 @@ naming the key and the file, and the value as the scene wrote it (``got "-0.05 m
 """
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from dataclasses import dataclass
@@ -177,7 +178,9 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
         found = _match(key, schema)
         if found is None:
             known = ", ".join(sorted(schema)) or "(none)"
-            raise SceneError(f"{where}: unknown key {key!r} (known keys: {known})")
+            close = difflib.get_close_matches(key, list(schema), n=1, cutoff=0.8)
+            raise SceneError(f"{where}: unknown key {key!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+                             + f" (known keys: {known})")
         name, unit = found
         if name in out:
             raise SceneError(f"{where}: {name!r} is given twice (as {key!r} and another spelling)")

@@ -51,7 +51,8 @@ def test_read_table_suffix_and_string_forms_agree():
 
 
 @pytest.mark.parametrize("table, message", [
-    ({"L3_mm": 260, "L4": "1 m"}, r"unknown key 'L4'"),
+    ({"L3_mm": 260, "L4": "1 m"}, r"unknown key 'L4' \(known keys"),              # nothing close: no guess
+    ({"L3_mm": 260, "spede": "1 rpm"}, r"unknown key 'spede' \(did you mean 'speed'\?\) \(known keys"),
     ({"k": "1 N/mm"}, r"missing key 'L3'"),
     ({"L3": "260 N"}, r"key 'L3'.*wrong dimension"),
     ({"L3": "260 mm", "L3_mm": 260}, r"given twice"),
