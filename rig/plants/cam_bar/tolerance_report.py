@@ -75,15 +75,17 @@ def study_table(study: ToleranceStudy) -> str:
     lin, mc, mcc = study.linear, study.mc, study.mc_clearance
     um = 1e6
     head = f"  {'φ (°)':>6} " + " ".join(f"{k:>7}" for k in PARAMS) + f"  {'signed':>7} {'worst':>7} {'RSS':>7} " \
-        f"{'3σ MC':>7} {'MC mean':>7}" + (f" {'+clear. mean':>12} {'3σ':>6}" if mcc else "")
-    lines = ["linear tolerance analysis of the slider stroke (MODELS §3.5), contributions ∂s/∂q·T in µm:", head]
+        f"{'MC 3σ':>7} {'MC mean':>7}" + (f" {'clr mean':>9} {'clr 3σ':>7}" if mcc else "")
+    lines = ["linear tolerance analysis of the slider stroke (docs/tolerance.md), per angle φ: each tolerance's "
+             "contribution ∂s/∂q·T, their signed sum, worst case and RSS; MC: Monte Carlo, normal σ = T/3"
+             + ("; clr: Monte Carlo with the clearance law" if mcc else "") + "; all in µm:", head]
     idx = [_at(lin.phi, a) for a in TABLE_ANGLES]
     for i in idx:
         row = f"  {degrees(lin.phi[i]):6.1f} " + " ".join(f"{lin.contribution[k][i] * um:7.1f}" for k in PARAMS)
         row += (f"  {lin.signed[i] * um:7.1f} {lin.worst[i] * um:7.1f} {lin.rss[i] * um:7.1f} "
                 f"{3 * mc.std[i] * um:7.1f} {mc.mean[i] * um:7.2f}")
         if mcc:
-            row += f" {mcc.mean[i] * um:12.1f} {3 * mcc.std[i] * um:6.1f}"
+            row += f" {mcc.mean[i] * um:9.1f} {3 * mcc.std[i] * um:7.1f}"
         lines.append(row)
     i_w, i_r = int(np.argmax(lin.worst)), int(np.argmax(lin.rss))
     ratio = 3 * mc.std / lin.rss
