@@ -38,7 +38,7 @@ SCHEMAS: dict[str, dict[str, Field]] = {
             "follower_mass": Field("kg", 0.0), "spring_rate": Field("N/m", 0.0),
             "spring_preload": Field("N", 0.0, "spring force at s = 0"),
             "gravity": Field("m/s^2", 0.0, "gravity against the follower's rise (its weight m·g adds to the contact "
-                             "force G of MODELS §2): 9.81 m/s^2 for a follower rising vertically, 0 for a horizontal "
+                             "force G): 9.81 m/s^2 for a follower rising vertically, 0 for a horizontal "
                              "one", minimum=0.0),
             "cam_inertia": Field("kg*m^2", 0.0, "inertia of the cam shaft beyond the torque transducer")},
 }
