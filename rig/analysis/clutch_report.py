@@ -290,7 +290,7 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
                         [[m.name, m.value_text(), m.reference] for m in metrics]))
     blocks.append(_torque_figure(ctx, data, stim))
     if data.rel_angle is not None:
-        fig, ax = figure(size=(6, 4))
+        fig, ax = figure(size=(6, 4.5))
         ax.plot(np.degrees(np.interp(data.t, data.t_angle, data.rel_angle)), data.torque, lw=0.8,
                 label="measured (torque meter over the encoders' φ1 − φ3)")
         static = _static_characteristic(scene)
@@ -299,14 +299,15 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
             for direction, ls, what in ((1.0, "--", "loading"), (-1.0, ":", "unloading")):
                 ax.plot(np.degrees(phi), static.torque(phi, direction), ls, color="k", lw=1.0,
                         label=f"static characteristic, {what} (model, one lobe)")
-            ax.legend(fontsize=7, loc="best")
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), frameon=False)   # below: in
+            # the axes it hid the peaks of a run that slips lobe after lobe
         ax.set(xlabel="relative angle φ1 − φ3 (°)", ylabel="torque M_t (N·m)", title="Torque over relative angle")
         ax.grid(alpha=0.3)
         try:
             lobe, apex = coupling_period(scene) if scene is not None else (LOBE, APEX)
         except (SceneError, ValueError):
             lobe, apex = LOBE, APEX
-        blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_torque_angle")),
+        blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_torque_angle"), bottom=1.05 if static else None),
                                  "Torque over relative angle (encoders on both halves, angle at power-on from the "
                                  f"scene; apexes at {math.degrees(apex):.4g}° + k·{math.degrees(lobe):.4g}°)"))
     if data.speeds:
