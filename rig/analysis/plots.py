@@ -294,6 +294,10 @@ def curve_panels(curve: CurveRecord, elements: list, path: Path, nok: set[int] =
         _over(ax, [curve], axis, nok, units)
         ax.set_ylabel("")
     bad = curve.number in nok
+    if "y" in curve.theory:                # what the dashed line is (the overlays say it in their legend too)
+        axs[0, -1].legend(handles=[Line2D([], [], color=_style(bad, True)["color"], lw=1.2, label="measured"),
+                                   Line2D([], [], color="0.45", ls="--", lw=0.8, label="theory")],
+                          fontsize=7, loc="best", framealpha=0.85)
     axs[0, 0].set_title(f"curve {curve.number}: {'NOK' if bad else 'OK'}", loc="left", fontsize=10,
                         fontweight="bold", color=NOK_COLOR if bad else "tab:green")
     for i, line in enumerate(lines):

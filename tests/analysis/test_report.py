@@ -235,3 +235,20 @@ def test_an_overlay_of_thousands_of_curves_keeps_every_peak_in_a_bounded_number_
         assert d.min() == c.min() and d.max() == c.max()          # the narrow dip (a 0.2 ms peak) is kept
     few_x, few_y = _joined(curves[:5])
     assert few_y.size == 5 * (3000 + 1)
+
+
+def test_a_single_curve_figure_names_its_dashed_theory(tmp_path, monkeypatch):
+    """A curve's own figure (--ok-plots / NOK curves) drew its theory dashed with nothing saying what it is."""
+    import rig.analysis.plots as plots
+    from rig.recorder.reader import CurveRecord
+    figures = []
+    monkeypatch.setattr(plots, "save", lambda fig, path, **kw: figures.append(fig) or path)
+    t = np.linspace(0.0, 0.25, 200)
+    curve = CurveRecord(number=1, program=1, t=t, x=0.04 * t / 0.25, y=-30 + 5 * np.sin(20 * t), angle=None,
+                        theory={"y": -30 + 5 * np.sin(20 * t + 0.01)})
+    plots.curve_panels(curve, [], tmp_path / "c.png")
+    labels = [text.get_text() for ax in figures[0].axes if ax.get_legend() for text in ax.get_legend().get_texts()]
+    assert labels == ["measured", "theory"]
+    figures.clear()
+    plots.curve_panels(CurveRecord(number=2, program=1, t=t, x=t, y=t, angle=None, theory={}), [], tmp_path / "d.png")
+    assert not any(ax.get_legend() for ax in figures[0].axes)          # no theory: nothing to name
