@@ -312,7 +312,8 @@ def summary(result: Result, target: float = TARGET) -> list[str]:
     """One line per method (cheapest run with error ≤ target, its real-time factor), then ours against the best
     peer (any: scipy's solve_ivp and odeint, CVODE) and against the best of scipy's solve_ivp methods."""
     best = best_runs(result.rows, target)
-    lines = [f"{result.problem.name}: cheapest run with error <= {target:g} per method (t_sim {result.problem.t_sim:g} s):"]
+    lines = [f"{result.problem.name}: cheapest run with error <= {target:g} per method (error: the relative max error in "
+             f"{result.problem.quantity} against the reference; t_sim {result.problem.t_sim:g} s):"]
     for method in dict.fromkeys(r.method for r in result.rows):
         r = best.get(method)
         stopped = Counter(x.status.split(":")[0] for x in result.rows if x.method == method and x.status != "ok")

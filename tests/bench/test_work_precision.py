@@ -233,7 +233,9 @@ def test_a_method_that_never_reached_the_target_says_why():
             Row("scipy Radau", "rtol 1e-4", 1e-4, 0.02, 50, 0.1, "ok"),
             Row("scipy Radau", "rtol 1e-6", math.nan, 0.02, None, 0.1, "timeout: stopped after 0.02 s"),
             Row("scipy Radau", "rtol 1e-8", math.nan, 0.0, None, 0.1, "skipped: a looser setting timed out")]
-    lines = summary(Result(SimpleNamespace(name="p", t_sim=0.1), None, rows), 1e-6)
+    lines = summary(Result(SimpleNamespace(name="p", t_sim=0.1, quantity="φ_r"), None, rows), 1e-6)
+    assert lines[0] == ("p: cheapest run with error <= 1e-06 per method (error: the relative max error in φ_r against "
+                        "the reference; t_sim 0.1 s):")
     radau = next(line for line in lines if "scipy Radau" in line)
     assert radau.endswith("no run reached 1e-06 (1 timeout, 1 skipped)")
 
