@@ -548,7 +548,11 @@ def _interrupted(exc: KeyboardInterrupt) -> str:
         kept = getattr(exc, "kept", None)
         return ("rig: interrupted before anything was recorded; no recording was written"
                 + (f" (the earlier recording at {kept} is kept as it was)" if kept else ""))
-    return f"rig: interrupted; what was recorded so far is in {recording} (marked interrupted)"
+    from rig.analysis.numbers import plural
+    curves = getattr(exc, "curves", 0)
+    held = (f"{plural(curves, 'curve')}, " if curves else "") + f"{getattr(exc, 'simulation_time', 0.0):.2f} s of " \
+        "simulation time"
+    return f"rig: interrupted; what was recorded so far ({held}) is in {recording} (marked interrupted)"
 
 
 def _plain(exc: BaseException) -> str:

@@ -126,6 +126,7 @@ class Recorder:
         self.block_size = int(block_size)
         self.wall_clock_start = int(start)
         self.messages = 0                     # messages written so far
+        self.curves = 0                       # of them /device/curve messages: curves recorded
         self._file = open(self.path, "wb")
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSIONS[compression],
                               enable_data_crcs=True)
@@ -354,6 +355,7 @@ class Recorder:
         msg.update(extra)
         cid = self._channel(S.CURVE, S.curve_schema(self.encoding), "rig.Curve", {"encoding": self.encoding})
         self._put(cid, to_ns(t[0], f"{S.CURVE} curve {number}"), dumps_message(msg))
+        self.curves += 1
         self._data_end = max(self._data_end, float(t[-1]))
         self._view(S.VIEW_DEVICE, t, {"x": np.asarray(x, dtype=np.float64), "y": np.asarray(y, dtype=np.float64)},
                    "measured curves' X and Y, one sample per message (decimated /device/curve)")

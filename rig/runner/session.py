@@ -43,12 +43,15 @@ class RunError(RuntimeError):
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C during a recorded run. ``recording``: the file holding what was recorded (marked
     interrupted), or None when nothing had been recorded (no new file is left); ``kept``: then the earlier
-    recording at the output path, left as it was (None: there was none)."""
+    recording at the output path, left as it was (None: there was none); ``curves`` and ``simulation_time`` (s):
+    what the recording holds."""
 
-    def __init__(self, recording: Path | None, kept: Path | None = None) -> None:
+    def __init__(self, recording: Path | None, kept: Path | None = None, curves: int = 0,
+                 simulation_time: float = 0.0) -> None:
         super().__init__()
         self.recording = recording
         self.kept = kept
+        self.curves, self.simulation_time = curves, simulation_time     # what the recording holds (s)
 
 
 @dataclass
@@ -252,7 +255,7 @@ def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
             output.unlink(missing_ok=True)
             restored = _restore(earlier, output)
         if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Interrupted):
-            raise Interrupted(output if kept else None, restored) from exc
+            raise Interrupted(output if kept else None, restored, rec.curves, rec.simulation_time) from exc
         raise
     rec.close()
     earlier.unlink(missing_ok=True)

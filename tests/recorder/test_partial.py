@@ -87,9 +87,10 @@ def test_an_interrupted_run_is_marked_and_its_report_says_so(tmp_path, monkeypat
     monkeypatch.setattr(host_module.Host, "poll", poll)
     out = tmp_path / "stopped.mcap"
     assert main(["-q", "run", str(SCENE), "--cycles", "3", "-o", str(out), "--no-report"]) == 130
-    assert capsys.readouterr().err.splitlines()[-1] == (f"rig: interrupted; what was recorded so far is in {out} "
-                                                        "(marked interrupted)")
+    line = capsys.readouterr().err.splitlines()[-1]
     rec = read_recording(out)
+    assert line == (f"rig: interrupted; what was recorded so far (1 curve, {rec.last_time:.2f} s of simulation time) "
+                    f"is in {out} (marked interrupted)")
     assert not rec.truncated and not rec.complete and rec.interrupted == "KeyboardInterrupt"
     assert rec.events[-1]["kind"] == "interrupted" and len(rec.curves) == 1
     assert main(["report", str(out), "-o", str(tmp_path / "report"), "--format", "md"]) == 0
