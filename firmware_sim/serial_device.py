@@ -7,13 +7,16 @@ first could start. Received bytes are accounted the same way before a request is
 """
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from typing import Any, Callable
 
 from firmware_sim.serial_protocol.commands import Commands
 from firmware_sim.serial_protocol.framing import Bad, Reply, Request, Receiver, frame, handshake
-from firmware_sim.serial_protocol.transport import open_transport
+from firmware_sim.serial_protocol.transport import LinkLost, open_transport
+
+log = logging.getLogger(__name__)
 
 BITS_PER_BYTE = 10        # 8N1: start bit, 8 data bits, stop bit
 SLOT = 0.002              # s between paced writes
@@ -51,6 +54,7 @@ class SerialDevice:
         self._last_response: bytes | None = None
         self._tx_free = 0.0
         self.executed = 0          # requests executed (retransmitted duplicates are not re-executed)
+        self.link_lost: str | None = None      # why the line went away (LinkLost), if it did
         self.naks_sent = 0
 
     # -- life cycle -------------------------------------------------------------------------------
@@ -85,6 +89,14 @@ class SerialDevice:
 
     # -- the thread -------------------------------------------------------------------------------
     def _run(self) -> None:
+        try:
+            self._serve()
+        except LinkLost as exc:              # the line is gone: one line, not a thread's traceback
+            self.link_lost = str(exc)
+            if not self._stop.is_set():
+                log.warning("serial device: the line is gone (%s); the device no longer answers", exc)
+
+    def _serve(self) -> None:
         rx_done = last_rx = 0.0
         while not self._stop.is_set():
             data = self._transport.read(0.02)

@@ -102,8 +102,13 @@ class TcpServerTransport:
         self._listener.close()
 
 
+class LinkLost(Exception):
+    """The line is gone (a ``socket://`` peer that disconnected, an unplugged USB adapter): the device stops."""
+
+
 class UrlTransport:
-    """A real serial port (``/dev/ttyUSB0``) or any pyserial URL (``socket://``, ``rfc2217://``, ``loop://``)."""
+    """A real serial port (``/dev/ttyUSB0``) or any pyserial URL (``socket://``, ``rfc2217://``, ``loop://``); a
+    line that is gone raises :class:`LinkLost` naming it."""
 
     def __init__(self, url: str, baudrate: int) -> None:
         try:
@@ -113,12 +118,18 @@ class UrlTransport:
         self.url = url
 
     def read(self, timeout: float) -> bytes:
-        self._port.timeout = timeout
-        first = self._port.read(1)
-        return first + self._port.read(self._port.in_waiting) if first else b""
+        try:
+            self._port.timeout = timeout
+            first = self._port.read(1)
+            return first + self._port.read(self._port.in_waiting) if first else b""
+        except serial.SerialException as exc:
+            raise LinkLost(f"{self.url}: {exc}") from None
 
     def write(self, data: bytes, stop: threading.Event) -> None:
-        self._port.write(data)
+        try:
+            self._port.write(data)
+        except serial.SerialException as exc:
+            raise LinkLost(f"{self.url}: {exc}") from None
 
     def close(self) -> None:
         self._port.close()

@@ -220,8 +220,11 @@ def _null_modem() -> tuple[str, socket.socket]:
         b, _ = listener.accept()
 
         def pump(src: socket.socket, dst: socket.socket) -> None:
-            while data := src.recv(65536):
-                dst.sendall(data)
+            try:
+                while data := src.recv(65536):
+                    dst.sendall(data)
+            except OSError:                 # the other end closed first: the cable is unplugged
+                pass
             dst.close()
         threading.Thread(target=pump, args=(b, a), daemon=True).start()
         pump(a, b)
@@ -237,6 +240,23 @@ def test_device_on_a_pyserial_url(fake) -> None:
         assert client.identify() == fake.identify()
         client.select_program(2)
         assert client.get_program() == fake.programs[2]
+
+
+@pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")
+def test_a_line_that_goes_away_stops_the_device_with_one_warning(fake, caplog) -> None:
+    """The host's end of a socket:// line disconnects: the device's thread ends with one warning naming the line
+    (it died with pyserial's traceback, "socket disconnected")."""
+    import logging
+    url, listener = _null_modem()
+    with listener, caplog.at_level(logging.WARNING, logger="firmware_sim.serial_device"), \
+            SerialDevice(fake, url, baudrate=1_000_000) as device:
+        host = socket.create_connection(listener.getsockname())
+        host.close()                                            # the cable is pulled from the host's side
+        device._thread.join(timeout=10)
+        assert not device._thread.is_alive() and device.link_lost is not None
+    assert device.link_lost.startswith(f"{url}: ") and "disconnected" in device.link_lost
+    assert [r.getMessage() for r in caplog.records] == [
+        f"serial device: the line is gone ({device.link_lost}); the device no longer answers"]
 
 
 def test_start_and_stop_times_come_from_the_given_clock(fake) -> None:
