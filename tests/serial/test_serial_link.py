@@ -225,6 +225,10 @@ def _null_modem() -> tuple[str, socket.socket]:
                     dst.sendall(data)
             except OSError:                 # the other end closed first: the cable is unplugged
                 pass
+            try:                            # FIN to the other end now: close() alone waits for the other pump's
+                dst.shutdown(socket.SHUT_RDWR)    # recv on dst to let go of it (under load it never did in time)
+            except OSError:
+                pass
             dst.close()
         threading.Thread(target=pump, args=(b, a), daemon=True).start()
         pump(a, b)
