@@ -549,9 +549,8 @@ def _interrupted(exc: KeyboardInterrupt) -> str:
         return ("rig: interrupted before anything was recorded; no recording was written"
                 + (f" (the earlier recording at {kept} is kept as it was)" if kept else ""))
     from rig.analysis.numbers import plural
-    curves = getattr(exc, "curves", 0)
-    held = (f"{plural(curves, 'curve')}, " if curves else "") + f"{getattr(exc, 'simulation_time', 0.0):.2f} s of " \
-        "simulation time"
+    curves, until = getattr(exc, "curves", 0), getattr(exc, "simulation_time", 0.0)
+    held = (f"{plural(curves, 'curve')}, " if curves else "") + f"{until:.2f} s of simulation time"
     return f"rig: interrupted; what was recorded so far ({held}) is in {recording} (marked interrupted)"
 
 

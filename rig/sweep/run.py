@@ -146,8 +146,8 @@ def write_table(result: SweepResult, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         out = csv.writer(f)
-        out.writerow([p.key for p in result.params] + ["level"] + [f"{m} [{METRICS[m].display.ascii or 1}]" for m in result.metrics]
-                     + ["error"])
+        header = [f"{m} [{METRICS[m].display.ascii or 1}]" for m in result.metrics]
+        out.writerow([p.key for p in result.params] + ["level"] + header + ["error"])
         for point, level, values, error in zip(result.points, result.levels, result.values, result.errors):
             out.writerow(list(point) + [level] + [cell(m, values[m]) for m in result.metrics] + [error])
     return path
