@@ -1,15 +1,22 @@
 """Fidelity chosen by the question: the lowest model level that answers a scene's questions, and for a
 dynamic level the cheapest solver setting that reaches the scene's tolerance in the work–precision data.
 
-A scene states what it asks (``[scene] questions = ["stroke", "dwell_vibration"]``) and how exactly
-(``[scene] tolerance``, relative error, default 1e-6). ``[scene] fidelity`` or ``--fidelity N`` force a
-level instead; a forced level that cannot answer a stated question is reported (warning), not silently
-used. The work–precision data are ``data/work_precision/<scene-stem>.csv`` (``rig bench work-precision``;
+A scene states what it asks (``[scene] questions = ["stroke", "dwell_vibration"]``) and how exactly: the
+solver's relative error (``[scene] tolerance``, default 1e-6) and how far a lower model level may be from the
+dynamic one (``[scene] model_tolerance``, relative, default 5 %; a count must be equal). The question table gives
+the lowest level that can answer at all; where the plant has a check (:data:`CHECKS`, the cam bar's: one
+revolution of the nominal machine at the lower level and at level 2), a lower level whose answer is beyond the
+model tolerance of level 2's at the scene's operating point is not trusted: the scene runs at level 2, and the
+reason says which answer differed by how much. ``[scene] fidelity`` or ``--fidelity N`` force a level instead;
+a forced level that cannot answer a stated question, or whose answers the check contradicts, is reported
+(warning), not silently used. The work–precision data are ``data/work_precision/<scene-stem>.csv`` (``rig bench work-precision``;
 columns method, setting, error, wall_s, nfev, t_sim, status), else the plant's reference problem's file.
 """
 from __future__ import annotations
 
 import csv
+import importlib
+import json
 import logging
 import math
 from dataclasses import dataclass, field
@@ -48,6 +55,12 @@ ATOL_SCALE = {"cam_bar": 1e-5, "clutch_dynamic": 1e-3}
 #: plant's own (the cam bar's level-2 default; the clutch's [plant] rtol/atol, given as no options here)
 DEFAULT_METHOD = {"cam_bar": ("DP45", {"rtol": 1e-7, "atol": 1e-12}), "clutch_dynamic": ("DP45", {})}
 NAMES = {"kinematic": 0, "kinetostatic": 1, "dynamic": 2}
+#: plant kind → "module:function" comparing a lower level's answers with level 2's at the scene's operating point:
+#: ``function(scene, level, questions, method, options) -> [deviation]``, each with ``beyond(tolerance)``,
+#: ``describe()`` (:func:`rig.plants.cam_bar.level_answers.compare`)
+CHECKS = {"cam_bar": "rig.plants.cam_bar.level_answers:compare"}
+MODEL_TOLERANCE = 0.05
+_checked: dict[tuple, list] = {}       # compare()'s answers per scene content, level and method (choose runs often)
 #: levels whose runs are the same for a plant (the cam bar: the force sensor needs the level-1 loads at level 0 too)
 SAME_RUN = {"cam_bar": (0, 1)}
 
@@ -100,15 +113,15 @@ def _questions(scene: Scene, plant: str, where: str) -> list[str]:
     return asked
 
 
-def _tolerance(scene: Scene, where: str) -> float:
+def _tolerance(scene: Scene, where: str, key: str = "tolerance", default: float = 1e-6) -> float:
     from rig.units import UnitError, to_si
-    value = scene.section("scene").get("tolerance", 1e-6)
+    value = scene.section("scene").get(key, default)
     try:
-        tol = to_si(value, "", what=f"{where}: tolerance")
+        tol = to_si(value, "", what=f"{where}: {key}")
     except UnitError as exc:
         raise SceneError(str(exc)) from None
     if not 0.0 < tol < 1.0:
-        raise SceneError(f"{where}: 'tolerance' is a relative error in (0, 1), got {value!r}")
+        raise SceneError(f"{where}: '{key}' is a relative error in (0, 1), got {value!r}")
     return tol
 
 
@@ -207,6 +220,22 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
                          f"{'--fidelity' if forced is not None else 'fidelity'} {level} is not one of them")
     unanswered = tuple(q for q in asked if need[q] > level)
     caveat = _caveat(plant, level, {q: need[q] for q in unanswered})
+    if level < 2 and 2 in levels and plant in CHECKS and any(need[q] <= level for q in asked):
+        tolerance = _tolerance(scene, where, "model_tolerance", MODEL_TOLERANCE)
+        deviations = _check(scene, plant, level, [q for q in asked if need[q] <= level])
+        beyond = [d for d in deviations if d.beyond(tolerance)]
+        said = "; ".join(d.describe() for d in beyond)
+        if beyond and forced is None and explicit is None:
+            level, unanswered, caveat = 2, (), ""
+            reason += (f"; but at this operating point level 2 contradicts it, beyond the model tolerance "
+                       f"{tolerance:.3g}: {said}; so level 2")
+        elif beyond:
+            caveat = "; ".join(filter(None, [caveat, f"at this operating point level 2 contradicts L{level}'s answers, "
+                                                      f"beyond the model tolerance {tolerance:.3g}: {said}; read them "
+                                                      "as the lower model's, not the machine's"]))
+        else:
+            reason += (f"; level 2 agrees within the model tolerance {tolerance:.3g} at this operating point ("
+                       + ", ".join(f"{d.question} {d.text()}" for d in deviations) + ")")
     if level < 2:
         return Fidelity(level, reason, unanswered=unanswered, caveat=caveat)
     short_of = ""
@@ -215,6 +244,18 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     else:
         (method, options), why = _default_method(scene, plant), "no questions or tolerance stated; the plant's own setting"
     return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered, short_of, caveat)
+
+
+def _check(scene: Scene, plant: str, level: int, questions: list[str]) -> list:
+    """The plant's :data:`CHECKS` function's deviations of ``level``'s answers to ``questions`` from level 2's (level 2
+    with the setting the scene gets there), computed once per scene content."""
+    top = choose(scene, plant, forced=2)
+    key = (plant, str(scene.path), json.dumps(scene.data, sort_keys=True, default=str), level, tuple(questions),
+           top.method, tuple(sorted(top.options.items())))
+    if key not in _checked:
+        module, _, name = CHECKS[plant].partition(":")
+        _checked[key] = getattr(importlib.import_module(module), name)(scene, level, questions, top.method, top.options)
+    return _checked[key]
 
 
 def _caveat(plant: str, level: int, unanswered: Mapping[str, int]) -> str:

@@ -28,6 +28,7 @@ SCENE_SCHEMA = {
     "fidelity": Field(None, None, "model level (0/1/2 or kinematic/kinetostatic/dynamic); default: chosen by questions"),
     "questions": Field(None, None, "what the run must answer, e.g. [\"stroke\", \"dwell_vibration\"] (rig.fidelity)"),
     "tolerance": Field("1", None, "relative error the answers need (default 1e-6); picks the solver setting"),
+    "model_tolerance": Field("1", None, "how far a lower model level may be from level 2 (relative, default 0.05)"),
     "max_time": Field("s", None, "give up when the cycles are not complete by this simulated time"),
 }
 TRANSDUCER_SCHEMA = {

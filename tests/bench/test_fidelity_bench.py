@@ -36,6 +36,8 @@ def test_a_lower_level_answer_level_2_contradicts_is_flagged():
     assert len(said) == 1 and said[0].startswith("L1's rod_force") and "needs L2" in said[0]
     l1 = next(r for r in rows if r["level"] == 1 and r["question"] == "rod_force")
     assert l1["vs_L2"].endswith(" % in magnitude") and float(l1["vs_L2"].split()[0]) < -50   # L1's peak the smaller
-    from rig.bench.fidelity import _deviation
-    assert _deviation(-89.0, -248.0, "N") == "-64.1 % in magnitude" and _deviation(40.0, -248.0, "N").startswith(
-        "opposite sign")
+    from rig.plants.cam_bar.level_answers import Deviation
+    assert Deviation("rod_force", 1, -89.0, -248.0).text() == "-64.1 % in magnitude"
+    assert Deviation("rod_force", 1, 40.0, -248.0).text() == "opposite sign (+288 N)"
+    assert Deviation("flank_switches", 1, 2.0, 0.0).text() == "+2" and Deviation("flank_switches", 1, 2.0, 0.0).beyond(1)
+    assert not Deviation("rod_force", 1, -89.0, -90.0).beyond(0.05) and Deviation("rod_force", 1, -89.0, -95.0).beyond(0.05)

@@ -132,3 +132,34 @@ def test_a_forced_level_below_the_questions_is_said_in_the_report_verdict(tmp_pa
     assert main(["-q", "run", str(DEMO), "--cycles", "2", "--no-report", "-o", str(plain)]) == 0
     assert read_recording(plain).metadata["rig"]["fidelity_caveat"] == ""
     assert "Model level:" not in write_report(plain, tmp_path / "r1", fmt="md").read_text()
+
+
+AS_FOUND = ROOT / "data" / "scenes" / "pin_insertion_as_found.toml"
+
+
+def test_a_lower_level_level_2_contradicts_at_the_operating_point_is_not_trusted(tmp_path):
+    """The table says rod_force → L1; at 300 rpm with the found spring (1.68 N/mm) one revolution of L2 gives a rod
+    force 73 % larger and no flank switch where L1 counts two: the scene runs at L2 and says why. The demo (150 rpm)
+    stays at L1, its answers within the model tolerance of L2's."""
+    choice = choose(load_scene(AS_FOUND), "cam_bar")
+    assert choice.level == 2 and choice.method is not None
+    assert "level 2 contradicts it, beyond the model tolerance 0.05" in choice.reason
+    assert "L1's rod_force -88.98 N against L2's" in choice.reason and "L1's flank_switches 2 against L2's 0" in choice.reason
+    demo = choose(load_scene(DEMO), "cam_bar")
+    assert demo.level == 1 and "level 2 agrees within the model tolerance 0.05" in demo.reason
+    # a looser model tolerance accepts L1's rod force at 300 rpm, never its flank-switch count
+    loose = scene_with(tmp_path, "", "loose")
+    text = AS_FOUND.read_text(encoding="utf-8").replace("[scene]\n", "[scene]\nmodel_tolerance = 0.9\n", 1)
+    loose.write_text(text.replace('"flank_switches"]', ']', 1), encoding="utf-8")
+    assert "level 2 agrees" in choose(load_scene(loose), "cam_bar").reason
+    loose.write_text(text, encoding="utf-8")
+    assert choose(load_scene(loose), "cam_bar").level == 2
+    with pytest.raises(SceneError, match=r"'model_tolerance' is a relative error in \(0, 1\)"):
+        choose(load_scene(scene_with(tmp_path, 'questions = ["rod_force"]\nmodel_tolerance = 0')), "cam_bar")
+
+
+def test_a_forced_lower_level_that_level_2_contradicts_is_a_caveat():
+    choice = choose(load_scene(AS_FOUND), "cam_bar", forced=1)
+    assert choice.level == 1 and choice.unanswered == ()
+    assert "at this operating point level 2 contradicts L1's answers, beyond the model tolerance 0.05" in choice.caveat
+    assert "read them as the lower model's, not the machine's" in choice.caveat
