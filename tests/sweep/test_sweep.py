@@ -264,3 +264,13 @@ def test_small_lengths_are_tabled_and_mapped_in_micrometres():
     assert METRICS["upper_dwell_vibration"].display.label == "µm"
     assert float(cell("upper_dwell_vibration", 2.0997783428677863e-08)) == pytest.approx(0.020997783428677863)
     assert cell("flank_switches", 2.0) == "2" and float(cell("rod_force_peak", 54.6)) == 54.6
+
+
+def test_the_seed_moves_the_scatter_not_the_whole_set():
+    """The rod's load cell is zero-balanced at installation (residual ≤ 0.05 % FS): seeds 2 and 4 drew offsets of
+    +9.4 N and more with the unbalanced 1 % bound, and half or nearly all of their curves failed; now every seed's
+    demo set passes as the nominal seed's does."""
+    scene = load_scene(DEFAULT_SCENE)
+    with make_executor("serial") as ex:
+        result = run_sweep(scene, [parse_param("scene.seed=2,4"), parse_param("scene.cycles=12")], ["ok_share"], ex)
+    assert result.errors == ["", ""] and [v["ok_share"] for v in result.values] == [1.0, 1.0]
