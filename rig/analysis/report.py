@@ -15,7 +15,9 @@ from their own modules); :func:`register_section` adds others (before the closin
 """
 from __future__ import annotations
 
+import csv
 import html
+import math
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Sequence
@@ -33,6 +35,7 @@ from rig.analysis.report_blocks import (NOK_PLOTS, Banner, Block, Figure, Headin
 from rig.analysis.sets import by_program, cut_reason, memory_warning, process_values
 from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
+from rig.analysis.units import DisplayUnits
 from rig.outputs import MARK
 from rig.recorder import Recording, read_recording
 from rig.recorder.completeness import file_problem, losses
@@ -300,15 +303,15 @@ def nok_curves(ctx: ReportContext) -> list[Block]:
 
 
 # -- 3. details ------------------------------------------------------------------------------------
-def _device_table(agreement: dict, values: dict) -> list[Block]:
-    """Host vs device n, mean and σ per compared process value (when the comparison was made)."""
+def _device_table(agreement: dict, units: DisplayUnits) -> list[Block]:
+    """Host vs device n, mean and σ per compared process value (when the comparison was made), in display units
+    (those of the program's channels: also where the host has too few values for statistics of its own)."""
     if not agreement["comparable"]:
         return []
     rows = []
     for name, v in agreement["values"].items():
-        f, unit = values.get(name, {}).get("factor", 1.0), values.get(name, {}).get("unit", "")
-        scale = (lambda x: None if x is None else x * f)
-        rows.append([name, unit, v["host"]["n"], v["device"]["n"], scale(v["host"]["mean"]),
+        scale = units.value(name)
+        rows.append([name, scale.label, v["host"]["n"], v["device"]["n"], scale(v["host"]["mean"]),
                      scale(v["device"]["mean"]), scale(v["host"]["std"]), scale(v["device"]["std"]),
                      ", ".join(v["differs"]) or "equal"])
     blocks: list[Block] = [Table(["value", "unit", "n host", "n device", "mean host", "mean device", "σ host",
@@ -356,7 +359,7 @@ def set_statistics(ctx: ReportContext) -> list[Block]:
             blocks.append(ctx.figure(path, f"Program {program}: histogram of each process value with its limits "
                                            "(red), mean (black) and μ ± 3σ (dashed)"))
         agreement = s["device_agreement"]
-        blocks += [Text(f"Device statistics: {agreement_text(agreement)}")] + _device_table(agreement, s["values"])
+        blocks += [Text(f"Device statistics: {agreement_text(agreement)}")] + _device_table(agreement, ctx.units(program))
     return blocks
 
 
@@ -488,14 +491,48 @@ def live_pairs_dropped(recorded: list[dict]) -> int:
     return max(totals, default=0)
 
 
+#: SI unit of an event's numeric field (shown in the program's display units); other fields are shown as recorded
+EVENT_FIELD_SI = {"phi": "rad", "left_phi": "rad", "phi_r": "rad", "flight": "s", "backlog": "s"}
+EVENT_ROWS = 200      # rows of the event-by-event table (every event is in events.csv)
+
+
+def event_details(event: dict, units: DisplayUnits) -> str:
+    """``"phi 248.7°, left_phi 233.3°, flight 0.008566 s, to other"``: an event's fields in display units."""
+    parts = []
+    for key, value in event.items():
+        if key in ("t", "kind"):
+            continue
+        if key in EVENT_FIELD_SI and isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = units.of(EVENT_FIELD_SI[key]).text(value)
+        elif isinstance(value, float):
+            value = f"{value:.4g}"
+        parts.append(f"{key} {value}")
+    return ", ".join(parts)
+
+
 def events(ctx: ReportContext) -> list[Block]:
     counts = ctx.analysis["events"]
     if not counts:
         return []
-    dropped = live_pairs_dropped(ctx.recording.events)
+    rec = ctx.recording
+    dropped = live_pairs_dropped(rec.events)
     rows = [[k, v, EVENT_MEANING.get(k, "") + (f" ({dropped} pairs in all)" if k == "live_dropped" else "")]
             for k, v in sorted(counts.items())]
-    return [Heading("Events"), Table(["kind", "count", "what it means"], rows)]
+    blocks: list[Block] = [Heading("Events"), Table(["kind", "count", "what it means"], rows)]
+    if rec.events:
+        units = ctx.units(rec.curves[0].program if rec.curves else next(iter(rec.programs), 0))
+        path = ctx.out_dir / "events.csv"
+        with path.open("w", newline="", encoding="utf-8") as f:
+            writer = csv.writer(f)
+            writer.writerow(["t [s]", "kind", "details"])
+            writer.writerows([f"{e.get('t', math.nan):.9g}", e.get("kind", ""), event_details(e, units)]
+                             for e in rec.events)
+        shown = rec.events[:EVENT_ROWS]
+        more = f"the first {len(shown)} of {len(rec.events)}; all in " if len(shown) < len(rec.events) else "also in "
+        blocks.append(Table(["t (s)", "kind", "details"],
+                            [[f"{e.get('t', math.nan):.6g}", e.get("kind", ""), event_details(e, units)] for e in shown],
+                            collapsed=f"Event by event ({more}events.csv)"))
+    return blocks
 
 
 TRUTH_CYCLES = 3      # the plant truth chart shows this many machine cycles (the shapes stay visible)
@@ -604,6 +641,8 @@ def exports(ctx: ReportContext) -> list[Block]:
     if rec.results:
         files.append((export_results(rec.results, ctx.out_dir / "results.csv", units),
                       "one row per curve: OK/NOK, failed elements and why, completeness, process values"))
+    if (ctx.out_dir / "events.csv").exists():           # written by the events section
+        files.append((ctx.out_dir / "events.csv", "one row per event: simulation time, kind, its details"))
     units = ctx.units(rec.curves[0].program if rec.curves else next(iter(rec.programs), 0))
     for topic, data in rec.series.items():
         if topic.startswith("/stand/") and "t" in data and len(data["t"]):

@@ -163,7 +163,8 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
     few = {name: n for name, n in finite_n.items() if n < 3}
     if few:
         counts = sorted(set(few.values()))
-        warnings.append(f"no statistics of {'every process value' if len(few) == len(table) else ', '.join(few)}: "
+        warnings.append(f"no set statistics (±3σ, Cp/Cpk, normality, trend) for "
+                        f"{'any process value' if len(few) == len(table) else ', '.join(few)}: "
                         f"{' or '.join(map(str, counts))} finite value{'s' if counts != [1] else ''}, 3 are needed")
     for name, v in table.items():
         if name in few:

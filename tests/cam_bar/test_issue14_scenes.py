@@ -36,6 +36,14 @@ def test_as_drawn_records_flank_switches(tmp_path):
     first = switches[0]
     assert first["to"] == "other" and first["flight"] > 0.0
     assert abs(first["left_phi"] - level1[0]) < 0.01 and first["phi"] - first["left_phi"] > 0.2   # rad
+    # the report says where: each event with its angles in degrees (table and events.csv), not only counts
+    from rig.analysis.report import write_report
+    text = write_report(out, tmp_path / "report", fmt="md").read_text(encoding="utf-8")
+    where = f"phi {first['phi'] * 360 / tau:.4g}°, left_phi {first['left_phi'] * 360 / tau:.4g}°"
+    assert f"| flank_switch | {where}, flight {first['flight']:.4g} s, to other |" in text
+    lines = (tmp_path / "report" / "events.csv").read_text(encoding="utf-8").splitlines()
+    assert len(lines) == 1 + len(read_recording(out).events) and any(where in line for line in lines)
+    assert "[events.csv](events.csv)" in text
 
 
 def test_worn_pins_strike_where_the_rod_force_reverses(tmp_path):
