@@ -34,6 +34,8 @@ ROW_SCHEMA = {
     "input": Field(None, False, "true if the rig's value follows from what the scene sets (a load it applies, a "
                    "stimulus chosen for that outcome), not from the model: not a prediction"),
     "note": Field(None, "", "what else to know"),
+    "after": Field(None, None, "a stand result the thesis value follows (e.g. \"disengagements\"): a run where it is "
+                   "0 or missing shows another event, and the row is not judged"),
     "tolerance": Field(None, None, "how close agrees: \"15 %\", a value in the thesis's unit, \"at most\" or "
                        "\"at least\" (default: a count exactly, else not judged)"),
 }
@@ -167,13 +169,19 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
         spec, number, unit, si, scale, where = th.spec, th.number, th.unit, th.si, th.scale, th.where
         metric, value, why = next((by_name[n] for n in (spec["rig"], *ALIASES.get(spec["rig"], ())) if n in by_name),
                                   None), None, ""
+        after = by_name.get(spec["after"]) if spec["after"] else None
+        if spec["after"] and not (after is not None and after.number()):
+            metric, why = None, (f"the thesis value follows {spec['after']}, and this run has "
+                                 f"{'none' if after is None else after.value_text()}: another event, not judged")
         if metric is None:
-            why = f"no result {spec['rig']!r} in this run"
+            why = why or f"no result {spec['rig']!r} in this run"
         elif spec["part"] == "value":
             value = metric.number()                          # a count "3, at …": 3; shutdown "required": 1
             if value is not None and not isinstance(metric.value, str):
                 value = value * to_si(1.0, si, SI.get(metric.unit, metric.unit)) / scale
             why = "" if value is not None else metric.reference
+            if value is not None and metric.name != spec["rig"]:
+                why = f"the run's {metric.name!r}: it has no {spec['rig']!r} (no disengagement)"
         elif metric.at is None:
             why = f"{spec['rig']!r} has no time"
         else:

@@ -163,6 +163,14 @@ def test_agreement_is_judged_by_each_rows_tolerance(tmp_path):
     assert agreement_text(got).startswith("2 of 4 predictions agree with the thesis; DISAGREE: within (thesis 150 ms")
     assert [r.tolerance for r in got] == ["15 %", "40 ms", "at most", "exact", ""]
     assert (got[0].deviation, got[3].deviation) == ("+1.5 N·m (+9.09 %)", "+1")
+    # a value that follows a disengagement is not judged in a run without one (another event), and says so
+    follows = '[[comparison]]\nquantity = "p"\nthesis = "16.5 N*m"\nrig = "max torque"\ntolerance = "15 %"\n'
+    for count, verdict in (("0", "n/a"), ("2", "yes")):
+        scene_path.write_text(follows + 'after = "disengagements"\n')
+        row, = compare(load_scene(scene_path), stim, metrics[:2] + [Metric("disengagements", count, "", "")])
+        assert row.verdict == verdict
+    assert row.why == "" and "follows disengagements, and this run has none: another event, not judged" in compare(
+        load_scene(scene_path), stim, metrics[:2])[0].why
     scene_path.write_text('[[comparison]]\nquantity = "x"\nthesis = "16.5 N*m"\nrig = "max torque"\ntolerance = "3 N"\n')
     with pytest.raises(SceneError, match="tolerance '3 N'"):
         compare(load_scene(scene_path), stim, metrics)
