@@ -50,6 +50,23 @@ def _integer_scale(z: np.ndarray, cmap: str):
     return BoundaryNorm(np.arange(lo - 0.5, hi + 1.0), colormaps[cmap].N), ticks
 
 
+def _positions(values: tuple) -> tuple[list[float] | None, str]:
+    """A parameter's values as numbers on one axis and their common unit (``"1.09 N/mm"``, ``"1.89 N/mm"`` →
+    [1.09, 1.89], "N/mm"); (None, "") for words or values written in different units."""
+    numbers, units = [], set()
+    for v in values:
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            numbers.append(float(v))
+            units.add("")
+            continue
+        match = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*", str(v))
+        if match is None:
+            return None, ""
+        numbers.append(float(match[1]))
+        units.add(match[2])
+    return (numbers, units.pop()) if len(units) == 1 else (None, "")
+
+
 def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
     """PNG maps of every metric; returns the files written. A count (:attr:`Metric.integer`) is drawn and labelled in
     whole numbers."""
@@ -69,10 +86,12 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
             p = params[0]
             y = [shown(result.values[index[(v,)]][metric]) for v in p.values]
             fig, ax = plt.subplots(figsize=(6, 4))
-            ax.plot(range(len(y)), y, "o-")
+            x, unit = _positions(p.values)
+            ax.plot(range(len(y)) if x is None else x, y, "o-")
             _no_value_note(ax, np.asarray(y, dtype=float))
-            ax.set_xticks(range(len(y)), [_label(v) for v in p.values])
-            ax.set_xlabel(p.key)
+            if x is None:                     # words, or values in different units: in order, evenly spaced
+                ax.set_xticks(range(len(y)), [_label(v) for v in p.values])
+            ax.set_xlabel(p.key + (f" ({unit})" if unit else ""))
             ax.set_ylabel(label)
             ax.set_title(title, fontsize=9)
             if integer:

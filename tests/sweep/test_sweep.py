@@ -274,3 +274,21 @@ def test_the_seed_moves_the_scatter_not_the_whole_set():
     with make_executor("serial") as ex:
         result = run_sweep(scene, [parse_param("scene.seed=2,4"), parse_param("scene.cycles=12")], ["ok_share"], ex)
     assert result.errors == ["", ""] and [v["ok_share"] for v in result.values] == [1.0, 1.0]
+
+
+def test_a_one_parameter_chart_places_numeric_values_where_they_lie(tmp_path, monkeypatch):
+    """1.09, 1.68, 1.89 N/mm at their values (were evenly spaced, distorting the slopes); words stay in order."""
+    from matplotlib.figure import Figure
+
+    from rig.sweep.plots import plot_sweep
+    from rig.sweep.run import SweepResult
+    figures = []
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **kw: figures.append(self))
+    for values, xs, label in ((("1.09 N/mm", "1.68 N/mm", "1.89 N/mm"), [1.09, 1.68, 1.89], "plant.k (N/mm)"),
+                              (("stick", "smooth", "none"), [0, 1, 2], "plant.k")):
+        params = (Param("plant.k", values),)
+        result = SweepResult(params, ("rod_force_peak",), grid(list(params)), [{"rod_force_peak": 50.0}] * 3,
+                             [""] * 3, [1] * 3)
+        plot_sweep(result, tmp_path)
+        ax = figures[-1].axes[0]
+        assert list(ax.lines[0].get_xdata()) == xs and ax.get_xlabel() == label
