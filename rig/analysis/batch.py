@@ -66,14 +66,18 @@ class RecordingSummary:
 
 
 def expand(patterns: Sequence[str]) -> list[Path]:
-    """Paths named by ``patterns`` (globs, ``**`` recursive), sorted per pattern, each once; a pattern that
-    matches nothing is a ValueError naming it."""
+    """Paths named by ``patterns`` (globs, ``**`` recursive; a folder: the ``*.mcap`` files under it, at any
+    depth), sorted per pattern, each once; a pattern that matches nothing is a ValueError naming it."""
     out: dict[Path, None] = {}
     for pattern in patterns:
         hits = sorted(glob.glob(pattern, recursive=True))
         if not hits:
             raise ValueError(f"no recording matches {pattern!r}")
-        out.update((Path(h), None) for h in hits if Path(h).is_file())
+        for hit in map(Path, hits):
+            if hit.is_dir():
+                out.update((p, None) for p in sorted(hit.rglob("*.mcap")) if p.is_file())
+            elif hit.is_file():
+                out[hit] = None
     if not out:
         raise ValueError(f"no recording files in {', '.join(patterns)}")
     return list(out)
