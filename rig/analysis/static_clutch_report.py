@@ -112,8 +112,9 @@ def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarr
     ax.set(xlabel="relative angle (°)", ylabel="torque = F·L (N·m)", title="Static rig: torque over relative angle",
            ylim=(min(0.0, float(np.min(truth["torque"]))), 1.1 * float(np.max(truth["torque"]))))
     ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
-    return ctx.figure(save(fig, ctx.figure_path("static_torque_angle")),
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncols=2, frameon=False)  # below: inside
+    # it hid the slip plateau between the lobes
+    return ctx.figure(save(fig, ctx.figure_path("static_torque_angle"), bottom=1.05),
                       "Torque over relative angle: loading/unloading hysteresis loop, measured vs theory")
 
 
