@@ -581,9 +581,23 @@ def _run(argv: list[str] | None) -> int:
     except (UsageError, SceneError, RecordingError, ValueError) as exc:
         print(f"rig: error: {_plain(exc)}", file=sys.stderr)
         return 2
+    except BrokenPipeError:                 # `rig … | head`: the reader has what it wanted; no error to report
+        _stdout_to_devnull()
+        return 141
     except OSError as exc:
         print(f"rig: error: {_plain(exc)}", file=sys.stderr)
         return 1
+
+
+def _stdout_to_devnull() -> None:
+    """Point stdout at /dev/null, so that the interpreter's last flush into the closed pipe says nothing."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):      # not a file (a test's capture)
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -214,9 +214,10 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     else:
         level, reason = DEFAULT_LEVEL.get(plant, 1), "no questions stated; the plant's default level"
     if level not in levels:
+        has = f"only level {levels[0]}" if len(levels) == 1 else f"levels {', '.join(map(str, levels))}"
         if forced is None and explicit is None:
-            raise SceneError(f"{where}: a {plant} plant has levels {levels}, not {level}")
-        raise SceneError(f"{where}: a {plant} plant has levels {', '.join(map(str, levels))}; "
+            raise SceneError(f"{where}: a {plant} plant has {has}, not {level}")
+        raise SceneError(f"{where}: a {plant} plant has {has}; "
                          f"{'--fidelity' if forced is not None else 'fidelity'} {level} is not one of them")
     unanswered = tuple(q for q in asked if need[q] > level)
     caveat = _caveat(plant, level, {q: need[q] for q in unanswered})

@@ -106,8 +106,10 @@ def writable_dir(path: Path, what: str, shared: bool = False) -> None:
     if not os.access(path, os.W_OK | os.X_OK):
         fail("permission denied")
     if not shared and not _rig_made(path) and any(path.iterdir()):
-        fail(f"it holds files rig did not write (rig writes into a new or empty directory, or one it wrote before: "
-             f"it leaves {MARK} there); choose another directory")
+        held = sorted(p.name for p in path.iterdir())
+        fail(f"it already holds other files ({', '.join(held[:3])}{', …' if len(held) > 3 else ''}) and is not a "
+             f"directory rig filled before (it leaves {MARK} there); rig writes into a new or empty directory, or one "
+             "it filled before: choose another")
 
 
 def file_parent(path: Path) -> Path:

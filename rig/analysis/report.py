@@ -504,6 +504,8 @@ def event_details(event: dict, units: DisplayUnits) -> str:
             continue
         if key in EVENT_FIELD_SI and isinstance(value, (int, float)) and not isinstance(value, bool):
             value = units.of(EVENT_FIELD_SI[key]).text(value)
+        elif event.get("kind") == "interrupted" and key == "reason":
+            value = interruption_text(str(value))
         elif isinstance(value, float):
             value = f"{value:.4g}"
         parts.append(f"{key} {value}")

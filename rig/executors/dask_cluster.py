@@ -46,7 +46,7 @@ class DaskExecutor(Executor):
             try:
                 self.client = Client(scheduler, set_as_default=False, timeout=CONNECT_TIMEOUT)
             except OSError as exc:
-                raise ValueError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+                raise ConnectionError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None   # exit 1
         self.address = scheduler
         self.workers = max(1, sum(self.client.nthreads().values()))
 

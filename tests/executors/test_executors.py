@@ -148,3 +148,12 @@ def test_executors_from_installed_packages_are_found_by_entry_point(monkeypatch)
         assert type(ex).__name__ == "SerialExecutor"
     with pytest.raises(ValueError, match="executor 'broken': cannot load"):
         make_executor("broken")
+
+
+def test_an_unreachable_scheduler_is_a_failed_run_naming_it(monkeypatch, capsys):
+    """Exit status 1 (a run that failed: nothing listens there), not 2 (a usage error), with the address named."""
+    import rig.executors.dask_cluster as cluster
+    from rig.cli import main
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 1)
+    assert main(["-q", "tolerance", "--samples", "1000", "--scheduler", "tcp://127.0.0.1:1"]) == 1
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err

@@ -229,7 +229,7 @@ def test_output_directories_holding_other_files_are_refused(tmp_path, capsys):
     mine = tmp_path / "mine"
     mine.mkdir()
     (mine / "report.html").write_text("<html>mine</html>")
-    with pytest.raises(UsageError, match=f"{mine}: it holds files rig did not write"):
+    with pytest.raises(UsageError, match=f"{mine}: it already holds other files"):
         writable_dir(mine, "report")
     writable_dir(mine, "tolerance chart", shared=True)       # a directory of individually checked files
     empty = claim_dir(tmp_path / "rigs" / "report")
@@ -245,7 +245,7 @@ def test_output_directories_holding_other_files_are_refused(tmp_path, capsys):
     assert cli.main(["-q", "run", "--cycles", "1", "-o", str(rec), "--no-report"]) == 0
     capsys.readouterr()
     assert cli.main(["-q", "report", str(rec), "-o", str(mine)]) == 2
-    assert "holds files rig did not write" in one_error_line(capsys)
+    assert "already holds other files" in one_error_line(capsys)
     assert (mine / "report.html").read_text() == "<html>mine</html>" and not (mine / "curves.csv").exists()
     assert cli.main(["-q", "report", str(rec), "-o", str(tmp_path / "rep")]) == 0
     assert cli.main(["-q", "report", str(rec), "-o", str(tmp_path / "rep")]) == 0     # again: rig's own directory
@@ -439,3 +439,22 @@ def test_a_bitrate_is_a_number_of_bit_per_second_or_a_bit_rate_with_its_unit(tmp
     with pytest.raises(SceneError, match=r"\[links.can\]: key 'bitrate': '500 ms' has the wrong dimension; expected "
                                          r"something convertible to bit/s"):
         read_config(load_scene(edited(tmp_path, DEMO, "bitrate = 1000000", 'bitrate = "500 ms"')))
+
+
+def test_output_into_a_closed_pipe_ends_quietly(monkeypatch, capsys, tmp_path):
+    """`rig summary | head -1`: the reader stopped reading; no "rig: error: broken pipe", status 141 (128 + SIGPIPE)
+    as a shell's own tools end."""
+    import sys
+
+    from rig.cli import main
+
+    class Closed:
+        def write(self, text: str) -> int:
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self) -> None:
+            pass
+
+    monkeypatch.setattr(sys, "stdout", Closed())
+    assert main(["summary", "--png", str(tmp_path / "cycle.png")]) == 141
+    assert capsys.readouterr().err == ""
