@@ -16,7 +16,8 @@ if TYPE_CHECKING:
 class StandSummary:
     """``lines``: the console lines, each result with what it is relative to; ``values``: ``{key: (value, unit)}``,
     a dynamic stand's metrics as ``stand.<name>`` (:meth:`Metric.number`: counts, shutdown 1/0; e.g.
-    ``stand.start_up_peak_torque``), a lab sheet's result numbers as ``lab.<sheet>.<name>`` (units:
+    ``stand.start_up_peak_torque``), a static rig's per cycle as ``static.cycle_<i>.<name>`` (e.g.
+    ``static.cycle_1.loop_energy``), a lab sheet's result numbers as ``lab.<sheet>.<name>`` (units:
     :func:`~rig.analysis.lab_report.shown_value`, display units; e.g. ``lab.cardan_joint.ratio_max``); names in snake case."""
 
     lines: list[str]
@@ -42,8 +43,8 @@ def stand_summary(rec: "Recording") -> StandSummary | None:
         return StandSummary(clutch_report.summary_lines(rec, *res),
                             {"stand." + _snake(m.name): (number, m.unit) for m in res[1]
                              if (number := m.number()) is not None})
-    lines = static_clutch_report.summary_lines(rec)
-    return StandSummary(lines, {}) if lines else None
+    static = static_clutch_report.summary(rec)
+    return None if static is None else StandSummary(static[0], {f"static.{k}": v for k, v in static[1].items()})
 
 
 def _snake(name: str) -> str:

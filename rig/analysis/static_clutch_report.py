@@ -69,9 +69,10 @@ def span_format(rows: list[dict]) -> Callable[[dict], str]:
     return lambda r: f"{fixed(r['start'], places)}–{fixed(r['end'], places)}"
 
 
-def summary_lines(rec: Recording) -> list[str] | None:
-    """Console lines of a static-rig run: per loading/unloading cycle the torque range, the measured
-    angle range and the loop energy measured vs theory (None: not a static-rig recording)."""
+def summary(rec: Recording) -> tuple[list[str], dict[str, tuple[float, str]]] | None:
+    """Console lines of a static-rig run — per loading/unloading cycle the torque range, the measured angle range and
+    the loop energy measured vs theory — and the same as numbers, ``cycle_<i>.<name>``: ``torque_max`` (N·m),
+    ``loop_energy`` and ``loop_energy_theory`` (J), ``disengaged`` (1/0); None: not a static-rig recording."""
     readings = rec.series.get(TOPIC)
     if not readings or "angle" not in readings or readings["t"].size < 3 or "torque" not in rec.truth:
         return None
@@ -79,7 +80,18 @@ def summary_lines(rec: Recording) -> list[str] | None:
         rig = static_rig(rec)
         rows = cycle_table(rec, rig)
     except (SceneError, ValueError) as exc:
-        return [f"static clutch rig: no cycle analysis ({exc})"]
+        return [f"static clutch rig: no cycle analysis ({exc})"], {}
+    values: dict[str, tuple[float, str]] = {}
+    for i, r in enumerate(rows, start=1):
+        values.update({f"cycle_{i}.torque_max": (float(r["torque_max"]), "N·m"),
+                       f"cycle_{i}.loop_energy_theory": (float(r["theory"]), "J"),
+                       f"cycle_{i}.disengaged": (float(bool(r["disengaged"])), "")})
+        if r["measured"] is not None:
+            values[f"cycle_{i}.loop_energy"] = (float(r["measured"]), "J")
+    return _lines(rows, rig), values
+
+
+def _lines(rows: list[dict], rig: StaticClutchRig) -> list[str]:
     lines = [f"static clutch rig: {len(rows)} loading/unloading cycle(s); applied torque = lever force × arm (the "
              f"weights); loop energy ∮T dφ measured (multimeter angle) vs theory (characteristic); the model "
              f"{_limit(rig.clutch)}"]

@@ -202,6 +202,13 @@ def test_console_prints_the_cycles_not_curve_counts(recordings, capsys):
         assert "; loading peak" not in text and text.count("): applied torque ") == len(rows)
         assert "(0.00333" not in text and ("  cycle 1 (0–" in text or "  cycle 1 (0.0–" in text)   # not 0.003333 s
         assert ("disengaged (slipped a lobe)" in text) == any(r["disengaged"] for r in rows)
+        # the same results as numbers, for rig analyse's table (it had none for a static rig)
+        from rig.analysis.stand_summary import stand_summary
+        values = stand_summary(rec).values
+        for i, r in enumerate(rows, start=1):
+            assert values[f"static.cycle_{i}.loop_energy_theory"] == (r["theory"], "J")
+            assert values[f"static.cycle_{i}.disengaged"] == (float(r["disengaged"]), "")
+            assert (f"static.cycle_{i}.loop_energy" in values) == (r["measured"] is not None)
 
 
 def test_cycle_times_have_the_digits_of_the_run():
