@@ -22,6 +22,7 @@ from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Banner, Block, Heading, Link, ReportContext, Table, Text, fmt
 from rig.analysis.stand_comparison import agreement_text, compare, thesis_marks, write_csv
 from rig.recorder import Recording
+from rig.recorder.schemas import measuring
 from rig.scene import Scene, SceneError, read_table
 
 BAND = 0.05        # settling band: ±5 % of the step (or of the shock)
@@ -123,12 +124,27 @@ def _speeds(e: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return est.time, est.speed, e["t"], est.method
 
 
+#: what the dynamic stand's record is made of: plant signal measured → its default topic (a recording without its scene)
+STAND_SIGNALS = {"M_t": "/stand/torque", "phi1": "/stand/encoder1", "phi3": "/stand/encoder2"}
+
+
+def stand_topics(rec: Recording) -> dict[str, str]:
+    """The recording topic of each of :data:`STAND_SIGNALS`: that of the transducer the scene wires to the signal
+    (whichever CAN message it fills), else the default."""
+    scene = _scene(rec)
+    wired = scene.data.get("transducers", {}) if scene is not None else {}
+    return {signal: (found[1] if (found := measuring(wired, signal)) else default)
+            for signal, default in STAND_SIGNALS.items()}
+
+
 def stand_record(rec: Recording) -> StandRecord | None:
-    """The measured signals of a dynamic-stand recording (None: no torque readings, or another plant's)."""
-    torque = rec.series.get("/stand/torque")
+    """The measured signals of a dynamic-stand recording (None: no torque readings, or another plant's); the driving
+    half's encoder is the one measuring φ1, the driven half's φ3, as the scene wires them."""
+    topics = stand_topics(rec)
+    torque = rec.series.get(topics["M_t"])
     if not torque or torque["t"].size < 2 or rec.metadata.get("rig", {}).get("plant", "clutch_dynamic") != "clutch_dynamic":
         return None
-    encs = {i: rec.series.get(f"/stand/encoder{i}") for i in (1, 2)}
+    encs = {i: rec.series.get(topics[signal]) for i, signal in ((1, "phi1"), (2, "phi3"))}
     encs = {i: e for i, e in encs.items() if e and e["t"].size >= 2}
     t_angle = rel = None
     if len(encs) == 2:

@@ -1,7 +1,8 @@
 """Lab sheets of the course labs (docs/labs.md) from a lab-bench recording, as the student fills them in.
 
-Measured: what the host recorded from the CAN frames (``/stand/encoder1|2``: counts and edge times;
-``/stand/lab_speed``, ``/stand/lab_display``, ``/stand/lab_motion``, ``/stand/torque``). Theory: the host's
+Measured: what the host recorded from the CAN frames (the encoders' counts and edge times, the torque: the topics of
+the transducers the scene wires to the plant signals ``phi_in``, ``phi_out``, ``torque``, whichever messages they
+fill; ``/stand/lab_speed``, ``/stand/lab_display``, ``/stand/lab_motion``). Theory: the host's
 nominal model in ``/plant/truth`` and the mechanism rebuilt from the recorded scene (rig.plants.lab_bench).
 A scene lists its sheets in ``[lab] sheets``; each is a table, a figure and one summary line.
 """
@@ -21,6 +22,7 @@ from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
 from rig.plants.lab_bench import KINDS, LabBench
 from rig.recorder import Recording
+from rig.recorder.schemas import measuring
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.analysis.units import unit as display_unit
 from rig.units import UnitError, to_si, ureg
@@ -102,11 +104,20 @@ class Lab:
             raise SceneError(f"{self.rec.path}: no {name} readings ({topic}: is the transducer wired?)")
         return block
 
-    def angle(self, topic: str, signal: str = "phi_in") -> tuple[np.ndarray, np.ndarray]:
-        """Angle (rad) of the shaft whose plant ``signal`` the encoder on ``topic`` measures, at each edge that
-        changed its count: (edge times s, angles rad), strictly increasing in time. The count starts at the
-        shaft's angle at power-on (the zero marks aligned, as the lab sheet asks)."""
-        block = self.readings(topic, "edge_time")
+    def wired(self, signal: str) -> tuple[str, str]:
+        """(``to``, recording topic) of the scene's transducer measuring the plant ``signal`` into a CAN reading (the
+        sheets find their channels by what is measured, whichever message the scene routes it to)."""
+        found = measuring(self.scene.data.get("transducers", {}), signal)
+        if found is None:
+            raise SceneError(f"{self.scene.path}: no transducer measures {signal!r} into a CAN reading "
+                             "([transducers.*] signal and to)")
+        return found
+
+    def angle(self, signal: str = "phi_in") -> tuple[np.ndarray, np.ndarray]:
+        """Angle (rad) of the shaft whose plant ``signal`` an encoder measures, at each edge that changed its count:
+        (edge times s, angles rad), strictly increasing in time. The count starts at the shaft's angle at power-on
+        (the zero marks aligned, as the lab sheet asks)."""
+        block = self.readings(self.wired(signal)[1], "edge_time")
         edge, angle = block["edge_time"], block["angle"]
         ok = np.isfinite(edge)
         edge, angle = edge[ok], angle[ok]
@@ -266,7 +277,7 @@ def speed_sheet(lab: Lab) -> Sheet:
 def cam_follower_sheet(lab: Lab) -> Sheet:
     """Follower position every 10° of cam angle, differenced numerically against the law's s, s', s''."""
     program = lab.bench.mechanism
-    t_edge, phi = lab.angle("/stand/encoder1")
+    t_edge, phi = lab.angle("phi_in")
     motion = lab.readings("/stand/lab_motion", "displacement")
     grid = _last_turn(t_edge, phi)
     s = np.interp(np.interp(grid, phi, t_edge), motion["t"], motion["displacement"])
@@ -318,8 +329,8 @@ def cam_follower_sheet(lab: Lab) -> Sheet:
 def cam_torque_sheet(lab: Lab) -> Sheet:
     """Cam-shaft torque from the torque transducer, averaged per 10° of cam angle, against theory."""
     truth = lab.rec.truth
-    t_edge, phi = lab.angle("/stand/encoder1")
-    torque = lab.readings("/stand/torque", "torque")
+    t_edge, phi = lab.angle("phi_in")
+    torque = lab.readings(lab.wired("torque")[1], "torque")
     inside = (torque["t"] >= t_edge[0]) & (torque["t"] <= t_edge[-1])
     angle = np.interp(torque["t"][inside], t_edge, phi)
     whole = angle >= np.ceil(angle[0] / tau) * tau                  # from the first whole turn on
@@ -365,8 +376,8 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
 def cardan_sheet(lab: Lab) -> Sheet:
     """Output angle and speed ratio ω2/ω1 at 36 points of the input turn, against the closed forms."""
     cardan = lab.bench.mechanism
-    t1, phi1 = lab.angle("/stand/encoder1")
-    t2, phi2 = lab.angle("/stand/encoder2", "phi_out")
+    t1, phi1 = lab.angle("phi_in")
+    t2, phi2 = lab.angle("phi_out")
     grid = _last_turn(t1, phi1)
     out = np.interp(np.interp(grid, phi1, t1), t2, phi2)
     ratio = (out[2:] - out[:-2]) / (2 * STEP)
@@ -418,8 +429,8 @@ def _counted(t: np.ndarray, edge: np.ndarray, angle: np.ndarray) -> np.ndarray:
 def geneva_sheet(lab: Lab) -> Sheet:
     """Wheel angle every 10° of crank and the measured motion and dwell times against k_m = (z − 2)/(2z)."""
     geneva, truth = lab.bench.mechanism, lab.rec.truth
-    t1, phi1 = lab.angle("/stand/encoder1")
-    t2, phi2 = lab.angle("/stand/encoder2", "phi_out")
+    t1, phi1 = lab.angle("phi_in")
+    t2, phi2 = lab.angle("phi_out")
     grid = _last_turn(t1, phi1, start=np.pi)[1:-1]              # from the middle of a dwell
     wheel = _counted(np.interp(grid, phi1, t1), t2, phi2)
     theory = np.interp(grid, truth["phi_in"], truth["phi_out"])
@@ -428,7 +439,7 @@ def geneva_sheet(lab: Lab) -> Sheet:
     rows = [[fixed((np.degrees(p) + 180) % 360 - 180, 0), fixed(np.degrees(a), 2), fixed(np.degrees(b), 2),
              fixed(np.degrees(a - b), 3, sign=True)] for p, a, b in zip(grid, wheel_rel, theory_rel)]
     timing = geneva.timing(lab.bench.speed.nominal_omega)
-    count = tau / (lab.setting("can.Encoder2", "ppr", "1") * 4)          # rad per ×4 count of the wheel encoder
+    count = tau / (lab.setting(lab.wired("phi_out")[0], "ppr", "1") * 4)          # rad per ×4 count of the wheel encoder
     index = tau / geneva.slots
     gaps = np.flatnonzero(np.diff(t2) > 0.5 * timing.dwell_time)        # dwells between two indexings
     runs = [(a + 1, b) for a, b in zip(gaps[:-1], gaps[1:])]            # whole indexings: first to last count change,

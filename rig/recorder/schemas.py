@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import re
-from typing import Iterable
+from typing import Iterable, Mapping
 
 from drivers.can.host import PROCESS_VALUES
 from rig.recorder.encoding import NULLS
@@ -23,6 +23,17 @@ def stand_topic(message: str) -> str:
     """The recording topic of a CAN reading message: ``/stand/`` and its name in snake case; its columns are the
     message's signals in snake case."""
     return f"/stand/{snake(message)}"
+
+
+def measuring(transducers: Mapping[str, Mapping], signal: str) -> tuple[str, str] | None:
+    """(``to``, recording topic) of the scene's transducer that measures the plant ``signal`` into a CAN reading
+    (``[transducers.*]`` tables as written; ``phi_out`` → ``("can.Encoder2", "/stand/encoder2")`` when the scene
+    wires it so); None when none does. Reports find their channels by what is measured, not by a message name."""
+    for table in transducers.values():
+        to = str(table.get("to", ""))
+        if table.get("signal") == signal and to.startswith("can."):
+            return to, stand_topic(to.split(".")[1])
+    return None
 
 TRUTH = "/plant/truth"
 CAN_RAW = "/can/raw"

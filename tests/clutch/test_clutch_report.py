@@ -196,3 +196,20 @@ def test_a_comparison_row_in_error_is_refused_before_the_run(tmp_path, capsys, o
     assert main(["-q", "run", str(bad), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert re.search(rf"rig: error: {re.escape(str(bad))} \[\[comparison\]\] .*{said}", err) and not out.exists()
+
+
+def test_the_stand_finds_its_encoders_and_torque_by_what_they_measure(runs, tmp_path):
+    """The driving half's encoder (φ1) wired to Encoder2 and the driven half's (φ3) to Encoder1: the same key
+    results — the report took Encoder1 as the driving half whatever it measured."""
+    swap = {'to = "can.Encoder1"': 'to = "can.Encoder2"', 'to = "can.Encoder2"': 'to = "can.Encoder1"'}
+    text = (SCENES / "clutch_shock_short_985.toml").read_text(encoding="utf-8")
+    scene = tmp_path / "swapped.toml"
+    scene.write_text(re.sub("|".join(map(re.escape, swap)), lambda m: swap[m[0]], text), encoding="utf-8")
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["-q", "run", str(scene), "-o", str(tmp_path / "swapped.mcap"), "--no-report"]) == 0
+    rec = read_recording(tmp_path / "swapped.mcap")
+    assert "/stand/encoder2" in rec.series and rec.scene().data["transducers"]
+    got, want = metrics(rec), metrics(runs["clutch_shock_short_985"][1])
+    assert got.keys() == want.keys()
+    for name, m in want.items():
+        assert got[name].value == (pytest.approx(m.value, rel=1e-9) if isinstance(m.value, float) else m.value), name

@@ -141,6 +141,17 @@ def test_cardan_lab_against_the_closed_form(cardan):
     assert len(sheets["Cardan joint"].rows) == 36 and len(sheets["Cardan joint"].rows[0]) == 7
 
 
+def test_the_sheet_finds_its_encoders_by_what_they_measure(cardan, tmp_path_factory):
+    """The input shaft's encoder wired to Encoder2 and the output's to Encoder1: the same sheet (the sheet took
+    Encoder1 as the input whatever it measured, and showed a -24.6 % "measurement error" with its sign flipped)."""
+    swap = {'to = "can.Encoder1"': 'to = "can.Encoder2"', 'to = "can.Encoder2"': 'to = "can.Encoder1"'}
+    edit = (lambda text: re.sub("|".join(map(re.escape, swap)), lambda m: swap[m[0]], text))
+    rec, sheets = _run(tmp_path_factory, "lab_cardan", edit)
+    assert rec.scene().data["transducers"]["input_encoder"]["to"] == "can.Encoder2"
+    got, want = sheets["Cardan joint"].values, cardan[1]["Cardan joint"].values
+    assert got.keys() == want.keys() and all(got[k] == pytest.approx(want[k], rel=1e-9, abs=1e-12) for k in want)
+
+
 @pytest.mark.parametrize("slots, speed", [(5, "484.5 rpm"), (4, "484.5 rpm"), (5, "300 rpm")])
 def test_geneva_lab_motion_ratio(tmp_path_factory, slots, speed):
     """k_m = (z − 2)/(2z); a counting encoder sees the motion from its first to its last count change, so the
