@@ -198,14 +198,18 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())
 
 
+WARM_LIMIT = 30.0     # s a peer's warm-up run may take
+
+
 def warm_up(problem: WorkProblem, methods: tuple[str, ...]) -> None:
-    """Compile / load every method's code on a short span (numba caches, imports)."""
-    t_end = float(problem.grid[min(10, problem.grid.size - 1)])
+    """Compile / load every method's code (numba caches, imports) on the whole span at its coarsest setting of the
+    quick sweep: every path the measured runs take (events, restarts) — a short span missed some, and with a cold
+    cache a measured run over a second then timed its compilation (1.97 s for 0.04 s) and was not repeated."""
     for method in methods:
-        value = min(1e-5, t_end / 4) if method in FIXED else 1e-6
+        value = problem.quick.steps[method][0] if method in FIXED else max(problem.quick.tols)
         try:
-            runner(problem, method, value, t_end)()
-        except (SolverDivergence, RuntimeError, ValueError):
+            runner(problem, method, value, limit=WARM_LIMIT)()
+        except (SolverDivergence, TimeLimit, RuntimeError, ValueError, ArithmeticError):
             pass                            # reported by the measured runs
 
 

@@ -291,3 +291,17 @@ def test_from_refuses_what_it_cannot_chart(level2_run, tmp_path, capsys):
                                                   "reference\ndp45,rtol=1e-6,not-a-number?,0.1,5,0.4,ok\n")
     assert cli.main(base + ["--from", str(foreign)]) == 2
     assert f"{foreign / 'pin_insertion_l2.csv'} line 3: could not convert" in capsys.readouterr().err
+
+
+def test_the_warm_up_takes_every_path_the_measured_runs_take(monkeypatch):
+    """Each method once over the whole span at its coarsest quick setting (a short span missed the event and restart
+    paths: with a cold numba cache the first euler row timed its compilation, 1.97 s for 0.04 s)."""
+    from rig.bench import harness
+    from rig.bench.problems import load_problem
+    problem = load_problem(Path(__file__).resolve().parents[2] / "data" / "scenes" / "pin_insertion_l2.toml")
+    calls = []
+    monkeypatch.setattr(harness, "runner", lambda p, method, value, t_end=None, limit=None:
+                        (lambda: calls.append((method, value, t_end))))
+    harness.warm_up(problem, ("euler", "rk4", "dp45", "scipy Radau"))
+    assert calls == [("euler", problem.quick.steps["euler"][0], None), ("rk4", problem.quick.steps["rk4"][0], None),
+                     ("dp45", max(problem.quick.tols), None), ("scipy Radau", max(problem.quick.tols), None)]
