@@ -8,6 +8,7 @@ import argparse
 import atexit
 import importlib
 import json
+import logging
 import math
 import os
 import sys
@@ -321,10 +322,13 @@ def cmd_export_can(args: argparse.Namespace) -> int:
     require_recording(args.recording)
     output = Path(args.output)
     writable_file(output, "CAN trace", TRACE_MAGIC.get(output.suffix.lower()))
-    e = export_can(args.recording, file_parent(output))
+    e = export_can(args.recording, file_parent(output), partial=args.partial)
     start = datetime.fromtimestamp(e.start, timezone.utc).isoformat() if e.start else "unknown (1970-01-01)"
     print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
           f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}")
+    if e.lost:
+        logging.getLogger("rig").warning("the trace ends at %.6f s of simulation time: the recording could not be read past that (%s); "
+                    "frames after it are not in the trace", e.t_last, e.lost)
     return 0
 
 
@@ -513,6 +517,9 @@ def build_parser() -> argparse.ArgumentParser:
                          ".asc, .blf, .log (candump), .trc or .mf4 by extension")
     exp.add_argument("recording", help="recording (.mcap) whose CAN traffic is exported (required)")
     exp.add_argument("-o", "--output", required=True, help="trace file; its extension picks the format")
+    exp.add_argument("--partial", action="store_true",
+                     help="of a cut or damaged recording (a killed run): the frames up to where it can no longer be "
+                          "read, with a warning saying where the trace ends and why")
     exp.set_defaults(func=cmd_export_can)
     summ = sub.add_parser("summary", parents=[quiet], help="cam-bar kinematics/kinetostatics table and cycle chart")
     summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),

@@ -154,9 +154,14 @@ DAMAGED = (McapError, ZstdError, RuntimeError, struct.error)
 
 
 def _unreadable(path: Path, exc: Exception) -> RecordingError:
-    return RecordingError(f"{path}: cannot read the MCAP recording, it is damaged ({type(exc).__name__}: "
-                          f"{' '.join(str(exc).split())}); exporting CAN needs an undamaged file — `rig report "
-                          f"--partial {path}` reports what it holds")
+    return RecordingError(f"{path}: cannot read the MCAP recording, it is damaged ({_said(exc)}); exporting CAN "
+                          f"needs an undamaged file — `rig export-can --partial` exports the frames before the "
+                          f"damage, `rig report --partial {path}` reports what it holds")
+
+
+def _said(exc: Exception) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 def trace_start(path: Path) -> float:
@@ -177,8 +182,10 @@ def trace_start(path: Path) -> float:
                              f"(ns since 1970)") from None
 
 
-def iter_frames(path: Path) -> Iterator[Frames]:
-    """The ``/can/raw`` blocks of a recording in file order, decoded and checked one at a time."""
+def iter_frames(path: Path, stopped: list[str] | None = None) -> Iterator[Frames]:
+    """The ``/can/raw`` blocks of a recording in file order, decoded and checked one at a time. ``stopped``: a cut or
+    damaged file ends the blocks where it can no longer be read, and what stopped them is appended to this list
+    (without it, that is a :class:`RecordingError`)."""
     buses: dict[str, int] = {}
     last = -np.inf
     try:
@@ -197,7 +204,9 @@ def iter_frames(path: Path) -> Iterator[Frames]:
                     last = float(frames.t[-1])
                     yield frames
     except DAMAGED as exc:
-        raise _unreadable(path, exc) from None
+        if stopped is None:
+            raise _unreadable(path, exc) from None
+        stopped.append(_said(exc))
 
 
 class _Sink(Protocol):
@@ -327,20 +336,30 @@ class Export:
     start: float
     t_first: float
     t_last: float
+    lost: str = ""      # partial: why the export ends before the recording's end ("" = it does not)
 
 
-def export_can(recording: str | Path, out: str | Path) -> Export:
+def export_can(recording: str | Path, out: str | Path, partial: bool = False) -> Export:
     """Write the ``/can/raw`` frames of ``recording`` to ``out``, in the format of its extension (see
     :data:`FORMATS`). A recording without CAN frames, an unknown extension or frames the format cannot hold are
-    errors (no output is left behind)."""
+    errors (no output is left behind). ``partial``: a cut or damaged recording (a killed run) gives the frames up to
+    where it can no longer be read, and ``lost`` says why the trace ends there; otherwise it is an error."""
     recording, out = Path(recording), Path(out)
     sink_type = FORMATS.get(out.suffix.lower())
     if sink_type is None:
         raise ValueError(f"{out}: unknown CAN trace format {out.suffix or '(no extension)'!r}; "
                          f"use one of {', '.join(FORMATS)}")
-    require_whole_file(recording, "exporting CAN")
-    start = trace_start(recording)
-    blocks = iter_frames(recording)
+    stopped: list[str] = []
+    if partial:
+        try:
+            require_whole_file(recording, "")
+        except RecordingError:
+            stopped.append("the file is cut short (no closing magic: a killed run or a cut copy)")
+    else:
+        require_whole_file(recording, "exporting every CAN frame (`rig export-can --partial` exports those before the "
+                                      "cut)")
+    start = _partial_start(recording) if partial else trace_start(recording)
+    blocks = iter_frames(recording, stopped if partial else None)
     first = next(blocks, None)
     if first is None:
         raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
@@ -360,4 +379,23 @@ def export_can(recording: str | Path, out: str | Path) -> Export:
         out.unlink(missing_ok=True)
         raise
     sink.close()
-    return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last)
+    return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last, "; ".join(stopped))
+
+
+def _partial_start(path: Path) -> float:
+    """The trace start of a cut recording: the metadata record sits at the file's end, which a killed run does not
+    reach; then the first ``/can/raw`` block's log time (wall-clock start + simulation time) less its first frame's
+    simulation time; 0.0 (unknown) when neither reads."""
+    try:
+        start = trace_start(path)
+    except RecordingError:
+        start = 0.0
+    if start:
+        return start
+    try:
+        with open(path, "rb") as f:
+            for _, _, msg in NonSeekingReader(f).iter_messages(topics=[S.CAN_RAW], log_time_order=False):
+                return msg.log_time / 1e9 - float(orjson.loads(msg.data)["t"][0])
+    except (*DAMAGED, orjson.JSONDecodeError, KeyError, IndexError, TypeError, ValueError):
+        pass
+    return 0.0

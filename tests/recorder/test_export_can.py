@@ -234,9 +234,33 @@ def test_truncated_recording_is_an_error(recording, tmp_path):
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(recording.read_bytes()[:200_000])
     with pytest.raises(RecordingError, match=r"cut.mcap: truncated recording .*a killed run or a cut copy\); "
-                                             r"exporting CAN needs a whole file .*rig report --partial"):
+                                             r"exporting every CAN frame \(`rig export-can --partial` exports those "
+                                             r"before the cut\) needs a whole file .*rig report --partial"):
         export_can(cut, tmp_path / "bus.log")
     assert not (tmp_path / "bus.log").exists()
+
+
+def test_partial_exports_the_frames_before_the_cut_and_says_where_it_ends(tmp_path, capsys):
+    """A killed run's file (8 cycles, two MCAP chunks, cut inside the second): `--partial` writes the frames it can read — each equal to the whole file's
+    frame at its place, read back by python-can — with the run's wall-clock start (from the first block's log time: the
+    metadata record is at the end), and a warning naming the last time and why."""
+    recording, cut = tmp_path / "run.mcap", tmp_path / "cut.mcap"
+    run_scene(ROOT / "data" / "scenes" / "pin_insertion.toml", recording, cycles=8, progress=False)
+    from mcap.reader import make_reader
+    with recording.open("rb") as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    assert len(chunks) >= 2
+    cut.write_bytes(recording.read_bytes()[:chunks[1].chunk_start_offset + chunks[1].chunk_length // 2])
+    whole, part = tmp_path / "whole.log", tmp_path / "part.log"
+    export_can(recording, whole)
+    e = export_can(cut, part, partial=True)
+    assert e.lost.startswith("the file is cut short") and 0 < e.frames and e.start == export_can(recording, whole).start
+    a, b = read_back(whole), read_back(part)
+    assert 0 < len(b) < len(a) and all(x.equals(y) for x, y in zip(a, b))
+    assert main(["export-can", "--partial", str(cut), "-o", str(tmp_path / "cli.asc")]) == 0
+    err = capsys.readouterr().err
+    assert f"the trace ends at {e.t_last:.6f} s of simulation time" in err and "not in the trace" in err
+    assert len(read_back(tmp_path / "cli.asc")) == len(b)
 
 
 @pytest.mark.parametrize("damage", ["flipped", "zeroed"])
@@ -251,6 +275,7 @@ def test_a_damaged_chunk_is_one_line_naming_the_file_and_no_trace_is_left(record
     assert main(["-q", "export-can", str(bad), "-o", str(tmp_path / "bus.asc")]) == 2
     err = capsys.readouterr().err
     assert f"{bad}: cannot read the MCAP recording, it is damaged (" in err and "rig report --partial" in err
+    assert "rig export-can --partial" in err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "bus.asc").exists()
 
