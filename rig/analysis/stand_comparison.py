@@ -82,13 +82,18 @@ class Row:
         return "-" if self.agrees is None else "yes" if self.agrees else "NO"
 
     @property
+    def shown_unit(self) -> str:
+        """`` N·m`` (a leading space; the scene's ``N*m`` as the console and report write it), "" for a count."""
+        return f" {self.unit.replace('*', '·')}" if self.unit else ""
+
+    @property
     def deviation(self) -> str:
         """rig − thesis in the row's unit, and as a share of the thesis value (empty when n/a)."""
         if self.rig is None:
             return ""
         d = self.rig - self.thesis
         share = f" ({100 * d / abs(self.thesis):+.3g} %)" if self.thesis and self.unit else ""
-        return f"{d:+.3g}{' ' + self.unit.replace('*', '·') if self.unit else ''}{share}"
+        return f"{d:+.3g}{self.shown_unit}{share}"
 
 
 def read_rows(scene: Scene) -> list[dict[str, Any]]:
@@ -292,8 +297,8 @@ def agreement_text(rows: list[Row]) -> str:
         parts.append(_inputs_text(inputs, alone=not parts))
     text = "; ".join(parts) or "no row judged (no tolerances)"
     if off:
-        text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{' ' + r.unit if r.unit else ''}, "
-                                           f"rig {r.rig_text()}{' ' + r.unit if r.unit else ''})" for r in off)
+        text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{r.shown_unit}, "
+                                           f"rig {r.rig_text()}{r.shown_unit})" for r in off)
     if missing:
         text += f"; n/a in this run: {', '.join(r.quantity for r in missing)}"
     return text
