@@ -324,3 +324,70 @@ def rhs(t, y, p, out):
     out[3] = r[1]
     if y.size > 4:
         load_rates(t, y, p, out)
+
+
+# ---- the leaf-spring coupling (rig.plants.clutch.leaf_dynamics) -------------------------------------------------
+#: its constants in the same vector, in slots of flat-tappet constants it does not use; N = factor·n, J1, J3, R1
+#: (lobe arc radius) and INV_VS (1/ω_s of its tanh friction) keep their meaning; motor, loads and events as above
+LEAF_A1, LEAF_DR, LEAF_HALF, LEAF_K, LEAF_MU, LEAF_PERIOD = C1, R0, L1, KA, MUB, A2
+J1_SLOT, J3_SLOT = J1, J3         # pack_leaf's arguments J1, J3 shadow the slot names
+
+
+def pack_leaf(leaf, motor, load_program: list[float], J1: float, J3: float, omega_s: float) -> np.ndarray:
+    """Parameter vector of the leaf coupling's kernel (:func:`leaf_rhs`); no stick–slip brake (a smooth ODE)."""
+    head = [0.0] * LOADS
+    values = {N: leaf.factor * leaf.n, J1_SLOT: J1, J3_SLOT: J3, LEAF_A1: leaf.a1, LEAF_DR: leaf.r1 - leaf.r0,
+              LEAF_HALF: 0.5 * leaf.span, LEAF_K: 3.0 * leaf.E * leaf.second_moment * leaf.span, LEAF_MU: leaf.mu,
+              LEAF_PERIOD: leaf.period, R1: leaf.r1, INV_VS: 1.0 / omega_s, A0: motor.a0, B0: motor.b0,
+              RATIO: motor.ratio, T_OFF: motor.t_off, TRIPPED: float(motor.tripped), LOCKED_AT: math.nan,
+              BRAKE_AT: -1.0}
+    for slot, value in values.items():
+        head[slot] = value
+    p = np.array(head + list(load_program), dtype=float)
+    if _switched_brakes(p):
+        raise ValueError("the leaf-spring stand is integrated as a smooth ODE: its brake needs friction = \"tanh\", "
+                         "not \"stick_slip\"")
+    return p
+
+
+@njit(cache=True)
+def leaf_coupling(phi_r, wr, p):
+    """(T_c N·m, leaf force F_v N) at relative angle and speed: φ_r reduced into a leaf's period, contact x = a1 sinφ
+    from mid-span, deflection y = (r1 − r0) − a1 cosφ, F_v = 3EI·l·y/((l/2 − x)²(l/2 + x)²),
+    T_c = factor·n·F_v·[x + μ (r1 − a1 cosφ) tanh(ωr/ω_s)]."""
+    period = p[LEAF_PERIOD]
+    phi = phi_r - period * np.round(phi_r / period)
+    a1 = p[LEAF_A1]
+    x, c = a1 * math.sin(phi), a1 * math.cos(phi)
+    half = p[LEAF_HALF]
+    force = p[LEAF_K] * (p[LEAF_DR] - c) / ((half - x) ** 2 * (half + x) ** 2)
+    arm = x + p[LEAF_MU] * (p[R1] - c) * math.tanh(wr * p[INV_VS])
+    return p[N] * force * arm, force
+
+
+@njit(cache=True)
+def leaf_rhs(t, y, p, out):
+    """dy/dt of the leaf-spring stand into ``out``: J1 ω̇1 = M1 − T_c, J3 ω̇3 = T_c − M3 (state as :func:`rhs`)."""
+    tc = leaf_coupling(y[0], y[1], p)[0]
+    a1 = (motor_torque(t, y[1] + y[3], p) - tc) / p[J1]
+    a3 = (tc - load_torque(t, y[2], y[3], y, p)) / p[J3]
+    out[0] = y[1]
+    out[1] = a1 - a3
+    out[2] = y[3]
+    out[3] = a3
+    if y.size > 4:
+        load_rates(t, y, p, out)
+
+
+@njit(cache=True)
+def leaf_outputs(t, Y, p):
+    """Per sample (columns of ``Y``): M1, M3, T_c, F_v and ω̇3 (N·m, N, rad/s²)."""
+    n = t.size
+    out = np.empty((5, n))
+    for k in range(n):
+        y = Y[:, k].copy()
+        tc, force = leaf_coupling(y[0], y[1], p)
+        m1 = motor_torque(t[k], y[1] + y[3], p)
+        m3 = load_torque(t[k], y[2], y[3], y, p)
+        out[0, k], out[1, k], out[2, k], out[3, k], out[4, k] = m1, m3, tc, force, (tc - m3) / p[J3]
+    return out

@@ -17,18 +17,23 @@ which" — regularised here). State y = (φr, ωr, φ3, ω3, *load states) as :c
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import brentq
 
+from rig.plants.clutch import kernel
 from rig.plants.clutch.loads import LinearMotor, Load, LoadSum
 from rig.plants.clutch.variants import LeafSpringClutch
-from rig.solvers import Event, Problem
+from rig.solvers import Event, EventRecord, Problem
+from rig.solvers.compiled import JitRhs
 
 
 class LeafDynamics:
     """Leaf-spring coupling ``leaf`` between motor (inertia ``J1`` with the driving half) and load (``J3`` with
-    the driven half, ``J_down`` of it behind the torque meter), friction regularised with ``omega_s`` (rad/s)."""
+    the driven half, ``J_down`` of it behind the torque meter), friction regularised with ``omega_s`` (rad/s).
+    The equations are compiled (:func:`rig.plants.clutch.kernel.leaf_rhs`, the motor and loads of the flat-tappet
+    kernel), so the compiled solvers and the work–precision peers run them as they run the flat-tappet stand."""
 
     blocked = False
 
@@ -42,6 +47,15 @@ class LeafDynamics:
         self.leaf, self.motor = leaf, motor
         self.load = load if isinstance(load, LoadSum) else LoadSum([load])
         self.J1, self.J3, self.J_down, self.omega_s = J1, J3, J_down, omega_s
+        # the one event, the apex (disengagement), as row 0 of the compiled event table
+        self._p = kernel.with_events(kernel.pack_leaf(leaf, motor, self.load.program(), J1, J3, omega_s),
+                                     [(kernel.PERIODIC, 0, leaf.apex, leaf.period, 0)])
+        self.rhs = JitRhs(kernel.leaf_rhs, self._sync, event=kernel.event_value, act=kernel.event_action)
+
+    def _sync(self) -> np.ndarray:
+        """The kernel's parameter vector with the motor's trip state."""
+        self._p[kernel.TRIPPED] = float(self.motor.tripped)
+        return self._p
 
     # ---- coupling ------------------------------------------------------------------------------------
     def reduced(self, phi_r: float | np.ndarray) -> float | np.ndarray:
@@ -51,26 +65,7 @@ class LeafDynamics:
 
     def coupling(self, phi_r: float, omega_r: float) -> tuple[float, float]:
         """(T_c N·m, leaf force F_v N) at relative angle and speed."""
-        leaf, phi = self.leaf, float(self.reduced(phi_r))
-        x, y = leaf.a1 * math.sin(phi), leaf.r1 - leaf.r0 - leaf.a1 * math.cos(phi)
-        half = 0.5 * leaf.span
-        force = 3.0 * leaf.E * leaf.second_moment * leaf.span * y / ((half - x) ** 2 * (half + x) ** 2)
-        arm = x + leaf.mu * (leaf.r1 - leaf.a1 * math.cos(phi)) * math.tanh(omega_r / self.omega_s)
-        return leaf.factor * leaf.n * force * arm, force
-
-    def _accelerations(self, t: float, y) -> tuple[float, float, float, float, float, float]:
-        """(ω̇1, ω̇3, M1, M3, T_c, F_v)."""
-        omega1 = y[1] + y[3]
-        tc, force = self.coupling(y[0], y[1])
-        m1 = self.motor.torque(t, omega1)
-        z = tuple(y[4:])
-        m3 = self.load.torque(t, y[2], y[3], z)
-        return (m1 - tc) / self.J1, (tc - m3) / self.J3, m1, m3, tc, force
-
-    def rhs(self, t: float, y) -> tuple:
-        a1, a3, *_ = self._accelerations(t, y)
-        z = tuple(y[4:])
-        return (y[1], a1 - a3, y[3], a3, *self.load.rates(t, y[2], y[3], z))
+        return kernel.leaf_coupling(float(phi_r), float(omega_r), self._p)
 
     # ---- stand interface (as ClutchDynamics) -----------------------------------------------------------
     def initial_state(self, omega0: float, phi_r0: float) -> tuple:
@@ -86,22 +81,22 @@ class LeafDynamics:
                              f"disengagement angle (at most {elastic(top):.4g} N*m)")
         return 0.0 if need == 0.0 else brentq(lambda p: elastic(p) - need, 0.0, top, xtol=1e-13)
 
-    def problem(self, y0: tuple, on_apex) -> Problem:
+    def problem(self, y0: tuple, on_apex: Callable[[EventRecord], bool] | None = None) -> Problem:
         """The ODE with "apex" events (φ_r crossing ±φ_d + k·2φ_d: disengagement, restart at the torque jump;
         ``on_apex(record)`` returns True when it changed the problem) and the load/motor time breaks."""
-        leaf = self.leaf
+        value, p = kernel.event_value, self._p
 
         def apex(t, y):
-            return math.sin(math.pi * (y[0] - leaf.apex) / leaf.period)
+            return value(t, np.asarray(y, dtype=float), p, 0)
 
         breaks = sorted(set(self.load.time_breaks()) | set(self.motor.time_breaks()))
         return Problem(self.rhs, y0, [Event(apex, "apex", restart=True, action=on_apex)], breaks)
 
     def outputs(self, t: np.ndarray, Y: np.ndarray) -> dict[str, np.ndarray]:
         """Truth at samples, with the keys of :meth:`ClutchDynamics.outputs` (``F_a`` and ``N_B``: the leaf force)."""
-        vals = np.array([self._accelerations(ti, yi) for ti, yi in zip(t, Y.T)]).reshape(-1, 6)
+        Y = np.ascontiguousarray(Y, dtype=float)
+        m1, m3, tc, force, a3 = kernel.leaf_outputs(np.asarray(t, dtype=float), Y, self._sync())
         out = {"phi1": Y[0] + Y[2], "omega1": Y[1] + Y[3], "phi3": Y[2], "omega3": Y[3], "phi_r": Y[0],
-               "omega_r": Y[1], "M1": vals[:, 2], "M3": vals[:, 3], "T_c": vals[:, 4], "F_a": vals[:, 5],
-               "N_B": vals[:, 5]}
-        out["M_t"] = vals[:, 3] + self.J_down * vals[:, 1]
+               "omega_r": Y[1], "M1": m1, "M3": m3, "T_c": tc, "F_a": force, "N_B": force.copy()}
+        out["M_t"] = m3 + self.J_down * a3
         return out
