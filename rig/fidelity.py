@@ -48,7 +48,7 @@ REFERENCE_DATA = {"cam_bar": "pin_insertion_l2", "clutch_dynamic": "clutch_start
 #: work–precision method names → names of rig.solvers.METHODS the plant's integration can run
 RUNNABLE = {"cam_bar": {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45",
                         "dop853": "DOP853", "rodas4": "Rodas4"},
-            "clutch_dynamic": {"dp45": "DP45"}}
+            "clutch_dynamic": {"dp45": "DP45", "dop853": "DOP853", "rodas4": "Rodas4"}}   # the stand takes rtol/atol
 #: atol = rtol · scale of each plant's dynamic problem (its state's magnitude; the work–precision harness's)
 ATOL_SCALE = {"cam_bar": 1e-5, "clutch_dynamic": 1e-3}
 #: the integration setting of a scene that states no questions or tolerance, or that no data answer: the

@@ -167,3 +167,24 @@ def test_a_forced_lower_level_that_level_2_contradicts_is_a_caveat():
     assert choice.level == 1 and choice.unanswered == ()
     assert "at this operating point level 2 contradicts L1's answers, beyond the model tolerance 0.05" in choice.caveat
     assert "read them as the lower model's, not the machine's" in choice.caveat
+
+
+def test_a_clutch_scene_gets_the_cheapest_of_our_adaptive_methods(tmp_path):
+    """The stand runs any adaptive method of ours (it takes rtol/atol): where the work–precision data find Rodas4
+    cheapest at the tolerance (the held overload's case), the stand integrates with Rodas4."""
+    from rig.runner.plants import make_plant
+    data = tmp_path / "wp"
+    data.mkdir()
+    (data / "stand.csv").write_text("method,setting,error,wall_s,nfev,t_sim,status\n"
+                                    "dp45,rtol=1e-08,5e-07,0.004,9000,0.8,ok\n"
+                                    "rodas4,rtol=1e-07,8e-07,0.001,3000,0.8,ok\n"
+                                    "rk4,h=1e-05,1e-07,0.0005,320000,0.8,ok\n", encoding="utf-8")
+    text = (ROOT / "data" / "scenes" / "clutch_leaf_overload_hold.toml").read_text(encoding="utf-8")
+    scene = tmp_path / "stand.toml"
+    scene.write_text(text.replace("[scene]\n", '[scene]\nquestions = ["disengagements"]\n', 1), encoding="utf-8")
+    choice = choose(load_scene(scene), "clutch_dynamic", data=data)
+    assert (choice.level, choice.method, dict(choice.options)) == (2, "Rodas4", {"rtol": 1e-7, "atol": 1e-10})
+    stand = make_plant("clutch_dynamic", load_scene(scene), fidelity=choice)
+    assert (stand.method, stand.rtol) == ("Rodas4", 1e-7)
+    import numpy as np
+    assert np.isfinite(stand.advance(np.arange(1, 201) / 10_000)["M_t"]).all()
