@@ -114,6 +114,12 @@ def test_gear_pair_of_the_student_project_is_consistent():
     assert (g.tip_diameters[0] + g.root_diameters[1]) / 2 + 0.25 * 4.5e-3 == pytest.approx(g.centre_distance, rel=1e-12)
     assert 1.0 < g.contact_ratio < 2.0
     assert degrees(aw) == pytest.approx(25.70, abs=0.01)
+    # y·m = a − a0 and k·m = (x1 + x2 − y)·m; tooth thickness on the reference circle s = m(π/2 + 2x tan α0)
+    y = (g.centre_distance - g.reference_centre_distance) / 4.5e-3
+    assert g.centre_distance_modification == pytest.approx(y * 4.5e-3, rel=1e-12)
+    assert g.tip_reduction == pytest.approx((0.98 + 1.81 - y) * 4.5e-3, rel=1e-12) and 0 < g.tip_reduction
+    assert g.tooth_thickness == pytest.approx(tuple(4.5e-3 * (pi / 2 + 2 * x * tan(a0)) for x in (0.98, 1.81)),
+                                              rel=1e-12)
 
 
 def test_unshifted_gears_have_the_standard_geometry_and_contact_ratio():
