@@ -80,8 +80,8 @@ class Amplification:
         if J is None:
             return None
         lam = np.linalg.eigvals(J)
-        exact = float(np.max(np.exp(h * lam.real)))
-        with np.errstate(over="ignore", invalid="ignore"):
+        with np.errstate(over="ignore", invalid="ignore"):      # an exact growth beyond float range is inf: so said
+            exact = float(np.max(np.exp(h * lam.real)))
             rho = spectral_radius(step_matrix(self.method, h * J, self.nq))
         worst = lam[np.argmax(np.abs(POLYNOMIALS[self.method](h * lam)))] if self.method in POLYNOMIALS \
             else lam[np.argmax(np.abs(lam))]
