@@ -41,29 +41,62 @@ def longest_side_run(values: Sequence[float]) -> int:
     return best
 
 
-def trend(values: Sequence[float], alpha: float = 0.05) -> dict:
-    """Linear trend vs sample index (slope per sample, p of slope = 0), runs test, Nelson rule 2.
+def run_chance(n: int, k: int) -> float:
+    """Probability that a stationary set of ``n`` values (each independently above or below the median, even odds)
+    holds a run of ``k`` or more on one side: 1 − P(longest run < k), exact by counting the sequences by the length of
+    their last run."""
+    if k <= 1:
+        return 1.0 if n else 0.0
+    if n < k:
+        return 0.0
+    last = np.zeros(k - 1)              # last[j]: probability of no run ≥ k so far, the last run being j + 1 long
+    last[0] = 1.0
+    for _ in range(n - 1):
+        nxt = np.empty(k - 1)
+        nxt[0] = 0.5 * last.sum()       # the next value on the other side
+        nxt[1:] = 0.5 * last[:-1]       # on the same side: the run grows (a run reaching k is dropped)
+        last = nxt
+    return float(1.0 - last.sum())
 
-    ``drift`` is True when the slope is significant at ``alpha``, the runs test shows too few runs
-    (z < 0, p < alpha), or 9+ consecutive points lie on one side of the median; ``drift_why`` names the rules
-    that fired (empty without drift).
+
+def run_limit(n: int, alpha: float) -> int:
+    """The run length on one side of the median that flags a drift in a set of ``n``: Nelson's 9, or longer where a
+    stationary set of ``n`` would reach 9 with a chance above ``alpha`` (9 in a row is a per-point rule of a control
+    chart: in a set of 150 a stationary process shows it 4 times in 10)."""
+    k = 9
+    while run_chance(n, k) > alpha:
+        k += 1
+    return k
+
+
+def trend(values: Sequence[float], alpha: float = 0.05) -> dict:
+    """Linear trend vs sample index (slope per sample, p of slope = 0), runs test, a run on one side of the median.
+
+    ``drift`` is True when one of the three rules fires, each at ``alpha``/3 so that a stationary set is called
+    drifting with a chance of at most ``alpha`` (Bonferroni): the slope is significant, the runs test shows too few
+    runs (z < 0), or :func:`run_limit` consecutive points (9, Nelson's rule 2, in sets up to 15; 12 in a set of 50,
+    14 in one of 150) lie on one side of the median; ``drift_why`` names the rules that fired (empty without drift).
     """
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size < 3:
         raise ValueError(f"trend: need at least 3 finite values, got {v.size}")
+    each = alpha / 3
+    limit = run_limit(v.size, each)
     if np.ptp(v) == 0:
-        return {"slope": 0.0, "slope_p": 1.0, "runs": runs_test(v), "longest_side_run": 0, "drift": False,
-                "drift_why": []}
+        return {"slope": 0.0, "slope_p": 1.0, "runs": runs_test(v), "longest_side_run": 0, "run_limit": limit,
+                "drift": False, "drift_why": []}
     fit = stats.linregress(np.arange(v.size), v)
     runs = runs_test(v)
     side = longest_side_run(v)
     why = []
-    if fit.pvalue < alpha:
-        why.append(f"slope p {fit.pvalue:.2g} < {alpha:g}")
-    if runs["p"] is not None and runs["z"] < 0 and runs["p"] < alpha:
+    if fit.pvalue < each:
+        why.append(f"slope p {fit.pvalue:.2g} < {each:.2g}")
+    if runs["p"] is not None and runs["z"] < 0 and runs["p"] < each:
         why.append(f"too few runs (p {runs['p']:.2g})")
-    if side >= 9:
-        why.append(f"{side} in a row on one side of the median (Nelson rule 2: 9)")
-    return {"slope": float(fit.slope), "slope_p": float(fit.pvalue), "runs": runs,
-            "longest_side_run": side, "drift": bool(why), "drift_why": why}
+    if side >= limit:
+        rule = "Nelson rule 2" if limit == 9 else f"Nelson's 9 made {limit} for a set of {v.size}"
+        why.append(f"{side} in a row on one side of the median ({rule}; chance {run_chance(v.size, side):.2g} "
+                   f"without a drift)")
+    return {"slope": float(fit.slope), "slope_p": float(fit.pvalue), "runs": runs, "longest_side_run": side,
+            "run_limit": limit, "drift": bool(why), "drift_why": why}

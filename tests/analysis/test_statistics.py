@@ -87,10 +87,32 @@ def test_drift_names_the_rules_that_fired():
     steady = trend(rng.normal(0, 1, 200))
     assert steady["drift"] is False and steady["drift_why"] == []
     shifted = trend(np.r_[rng.normal(0, 0.1, 25), rng.normal(1, 0.1, 25)])
-    assert shifted["drift"] and any("Nelson rule 2" in w for w in shifted["drift_why"])
+    assert shifted["drift"] and any("25 in a row on one side of the median (Nelson's 9 made 12 for a set of 50"
+                                    in w for w in shifted["drift_why"])
     assert any(w.startswith("slope p") for w in shifted["drift_why"])
     skewed = trend(rng.lognormal(0.0, 1.5, 200))          # no drift, most values below the mean
-    assert not any("Nelson rule 2" in w for w in skewed["drift_why"]) and skewed["longest_side_run"] < 9
+    assert not any("in a row" in w for w in skewed["drift_why"]) and skewed["longest_side_run"] < 9
+
+
+def test_a_stationary_set_is_called_drifting_at_most_alpha_of_the_time():
+    """Nelson's 9-in-a-row is a control chart's per-point rule: a stationary set of 150 shows it with a chance of
+    0.25, and the three rules together called one in three stationary sets drifting. The run limit grows with the
+    set (exact chance: every sequence counted; against brute force on small sets) and each rule takes alpha/3."""
+    from itertools import product
+
+    from rig.analysis.trend import run_chance, run_limit
+    for n, k in ((8, 3), (10, 4), (12, 2)):
+        longest = [max(len(r) for r in "".join(map(str, bits)).replace("01", "0 1").replace("10", "1 0").split())
+                   for bits in product((0, 1), repeat=n)]
+        assert run_chance(n, k) == pytest.approx(np.mean(np.array(longest) >= k), abs=1e-12)
+    assert run_chance(150, 9) == pytest.approx(0.2472, abs=1e-4) and run_limit(15, 0.05 / 3) == 9
+    assert (run_limit(50, 0.05 / 3), run_limit(150, 0.05 / 3)) == (12, 14)
+    rng = np.random.default_rng(7)
+    called = np.mean([trend(rng.normal(0.0, 1.0, 150))["drift"] for _ in range(600)])
+    assert called <= 0.07                                   # alpha 0.05 and the Monte-Carlo scatter (±0.009)
+    drifting = np.mean([trend(rng.normal(0.0, 1.0, 150) + np.r_[np.zeros(75), np.full(75, 1.0)])["drift"]
+                        for _ in range(100)])
+    assert drifting > 0.97                                  # a 1 σ shift halfway is still found (≈ 0.95 at 0.8 σ)
 
 
 def test_no_spread_is_not_called_capable(tmp_path):
