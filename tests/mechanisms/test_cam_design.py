@@ -276,3 +276,20 @@ def test_cam_design_refuses_an_allowed_stress_that_is_not_positive(value, tmp_pa
     assert main(["-q", "cam-design", "--sigma-allow", value, "-o", str(tmp_path / "c.png")]) == 2
     assert "--sigma-allow must be a positive permissible Hertz stress in MPa" in capsys.readouterr().err
     assert not (tmp_path / "c.png").exists()
+
+
+def test_the_synthesis_linkages_close_their_loops():
+    """Each linkage's output by the geometry of its own drawing, not by its inversion: the four-bar's coupler keeps
+    its length l3 between crank pin and rocker pin, the slotted link's pin lies on the lever through its pivot."""
+    q = np.linspace(0.0, 2 * pi, 73)
+    for branch in (1.0, -1.0):
+        bar = FourBar(0.1, 0.03, 0.12, 0.07, branch=branch)
+        o = bar.forward(q)
+        b = np.c_[0.03 * np.cos(q), 0.03 * np.sin(q)]
+        c = np.c_[0.1 + 0.07 * np.cos(o), 0.07 * np.sin(o)]
+        assert np.allclose(np.hypot(*(c - b).T), 0.12, rtol=0, atol=1e-12)
+    slot = SlottedLink(0.03, 0.08)
+    o = slot.forward(q)
+    pin = np.c_[0.03 * np.cos(q) + 0.08, 0.03 * np.sin(q)]                  # from the lever's pivot (−d, 0)
+    assert np.allclose(pin[:, 0] * np.sin(o) - pin[:, 1] * np.cos(o), 0.0, atol=1e-15)   # on the lever's line
+    assert np.all(pin[:, 0] * np.cos(o) + pin[:, 1] * np.sin(o) > 0)                      # on its near side
