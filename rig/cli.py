@@ -327,8 +327,8 @@ def cmd_export_can(args: argparse.Namespace) -> int:
     print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
           f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}")
     if e.lost:
-        logging.getLogger("rig").warning("the trace ends at %.6f s of simulation time: the recording could not be read past that (%s); "
-                    "frames after it are not in the trace", e.t_last, e.lost)
+        logging.getLogger("rig").warning("the trace ends at %.6f s of simulation time: the recording could not be read "
+                                         "past that (%s); frames after it are not in the trace", e.t_last, e.lost)
     return 0
 
 

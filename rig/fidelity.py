@@ -9,8 +9,9 @@ revolution of the nominal machine at the lower level and at level 2), a lower le
 model tolerance of level 2's at the scene's operating point is not trusted: the scene runs at level 2, and the
 reason says which answer differed by how much. ``[scene] fidelity`` or ``--fidelity N`` force a level instead;
 a forced level that cannot answer a stated question, or whose answers the check contradicts, is reported
-(warning), not silently used. The work–precision data are ``data/work_precision/<scene-stem>.csv`` (``rig bench work-precision``;
-columns method, setting, error, wall_s, nfev, t_sim, status), else the plant's reference problem's file.
+(warning), not silently used. The work–precision data are ``data/work_precision/<scene-stem>.csv`` (``rig bench
+work-precision``; columns method, setting, error, wall_s, nfev, t_sim, status), else the plant's reference problem's
+file.
 """
 from __future__ import annotations
 

@@ -190,7 +190,8 @@ def _stats(m: Moments) -> tuple:
 
 def write_table(result: BatchResult, path: Path) -> Path:
     """CSV, one row per recording: path, scene, level, plant, complete, why incomplete, curves, OK, NOK, error, a
-    stand's or lab's summary lines (joined by " | ", the console's column padding collapsed), then n/mean/std/min/max of every process value (and stand
+    stand's or lab's summary lines (joined by " | ", the console's column padding collapsed), then
+    n/mean/std/min/max of every process value (and stand
     result) any recording has (display units, in the header; a value shown in two units gets a column group per
     unit)."""
     keys = sorted({(k, u) for r in result.recordings for k, (_, u) in r.values.items()})
@@ -202,7 +203,8 @@ def write_table(result: BatchResult, path: Path) -> Path:
                      + [f"{k} {s}" + (f" [{u}]" if u and s != "n" else "") for k, u in keys for s in STATS])
         for r in result.recordings:
             out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.incomplete, r.curves, r.ok, r.nok,
-                          r.error, r.copy_of, r.seed, " | ".join(" ".join(line.split()) for line in r.stand)]   # one space: no console padding
+                          r.error, r.copy_of, r.seed,
+                          " | ".join(" ".join(line.split()) for line in r.stand)]      # no console padding
                          + [x for k, u in keys
                             for x in (_stats(r.values[k][0]) if k in r.values and r.values[k][1] == u else [""] * 5)])
     return path

@@ -59,7 +59,8 @@ def figure(result: Result, target: float = TARGET) -> "plt.Figure":
     if not ref.confirmed:
         note = "REFERENCE NOT CONFIRMED: " + note
     if failed:
-        note += "; some settings diverged, failed or were inaccurate (those points not drawn, see the CSV): " + ", ".join(failed)
+        note += ("; some settings diverged, failed or were inaccurate (those points not drawn, see the CSV): "
+                 + ", ".join(failed))
     slow = sorted({r.method for r in result.rows if r.status.startswith("timeout")})
     if slow:
         note += "; stopped at the time limit from some setting on (not drawn): " + ", ".join(slow)

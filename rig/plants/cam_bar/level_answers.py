@@ -127,7 +127,8 @@ class Deviation:
                 f"({self.text()})")
 
 
-def compare(scene: Scene, level: int, questions: list[str], method: str, options: Mapping[str, float]) -> list[Deviation]:
+def compare(scene: Scene, level: int, questions: list[str], method: str,
+            options: Mapping[str, float]) -> list[Deviation]:
     """Each of ``questions`` that ``level`` (0 or 1) answers, its answer against level 2's on one revolution of the
     scene's nominal machine (level 2 with ``method`` and ``options``)."""
     runs = LevelRuns(scene, method, options)
