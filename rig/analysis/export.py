@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import functools
+import math
 from itertools import repeat
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -22,10 +23,10 @@ from rig.recorder import CurveRecord
 NO_REASON = "NOK: the device named no failing element"
 
 
-def _cells(values: np.ndarray, digits: int = 9) -> list[str]:
+def _cells(values: np.ndarray, digits: int = 9, decimals: int | None = None) -> list[str]:
     """Each value to ``digits`` significant digits (more than the float32 / 20-bit resolution the curves
-    cross the bus with), empty for NaN."""
-    form = f"%.{digits}g"
+    cross the bus with), or to ``decimals`` fixed decimals; empty for NaN."""
+    form = f"%.{digits}g" if decimals is None else f"%.{decimals}f"
     return [form % v if v == v else "" for v in values.tolist()]
 
 
@@ -133,17 +134,39 @@ def dbc_units() -> dict[str, str]:
     return {snake(s.name): s.unit or "1" for m in db.messages if "DEVICE" in m.senders for s in m.signals}
 
 
-def export_series(series: Mapping[str, np.ndarray], path: Path, units: DisplayUnits | None = None) -> Path:
+@functools.lru_cache(maxsize=1)
+def dbc_steps() -> dict[str, dict[str, float]]:
+    """The step (SI, the signal's scale) in which the DBC carries each device signal: by the ``/stand/`` topic name of
+    its message (``encoder1``), then by its column name (``edge_time``)."""
+    from rig.dbc import load_dbc
+    from rig.recorder.schemas import snake
+    return {snake(m.name): {snake(s.name): abs(float(s.scale)) for s in m.signals if s.scale}
+            for m in load_dbc().messages if "DEVICE" in m.senders}
+
+
+def export_series(series: Mapping[str, np.ndarray], path: Path, units: DisplayUnits | None = None,
+                  topic: str = "") -> Path:
     """One recorded stand topic (``t`` and its columns, SI) as CSV, one row per reading, each quantity in its
     display unit (``units``: the report's; default :data:`~rig.analysis.units.DEFAULTS`), named in brackets (units
-    from the stand columns, the DBC's signals, the plants' truth signals)."""
+    from the stand columns, the DBC's signals, the plants' truth signals). With its ``topic``, a reading its message
+    carries in a DBC step has the decimals that step resolves in its display unit (a tachometer's 0.01 rad/s:
+    0.0955 rpm, two decimals — 1180.01 rpm, not 1180.00658); the host's own columns (angles and speeds from the
+    counts and edge times) keep 9 significant digits."""
     from rig.analysis.units import SIGNAL_SI
     du = units or DisplayUnits()
     names = list(series)
     shown = [unit("s", "s") if n in ("t", "edge_time", "speed_time") else
              du.of(STAND_SI.get(n) or dbc_units().get(n) or SIGNAL_SI.get(n, "1")) for n in names]
+    steps = dbc_steps().get(topic.removeprefix("/stand/"), {}) if topic else {}     # the columns its message carries
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow([column(n, u) for n, u in zip(names, shown)])
-        w.writerows(zip(*(_cells(u(np.asarray(series[n], dtype=float))) for n, u in zip(names, shown))))
+        w.writerows(zip(*(_cells(u(np.asarray(series[n], dtype=float)),
+                                 decimals=_decimals(steps[n] * u(1.0)) if n in steps and n != "t" else None)
+                          for n, u in zip(names, shown))))
     return path
+
+
+def _decimals(step: float) -> int:
+    """Decimals that resolve ``step`` (0.0955 → 2, 1 → 0, 1e-6 → 6)."""
+    return max(0, math.ceil(-math.log10(step) - 1e-9))

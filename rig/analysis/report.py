@@ -653,7 +653,7 @@ def exports(ctx: ReportContext) -> list[Block]:
             if "speed_method" in data:
                 from drivers.encoder import METHOD_NAMES
                 codes = "; speed_method: " + ", ".join(f"{k} {v}" for k, v in sorted(METHOD_NAMES.items()))
-            files.append((export_series(data, ctx.out_dir / name, units),
+            files.append((export_series(data, ctx.out_dir / name, units, topic),
                           f"{topic}: one row per reading ({', '.join(k for k in data if k != 't')}){codes}"))
     return [Heading("Exports"), Table(["file", "contents"], [[Link(f.name, f.name), what] for f, what in files])
             ] if files else []

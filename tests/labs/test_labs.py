@@ -303,6 +303,14 @@ def test_reading_columns_name_their_units_from_the_dbc(speed, tmp_path):
                           ("/stand/lab_display", "t [s],tachometer [rpm],strobe [rpm]")):
         path = export_series(rec.series[topic], tmp_path / "x.csv")
         assert path.read_text(encoding="utf-8").splitlines()[0] == header
+    # with its topic, each reading has the decimals its DBC step resolves (0.01 rad/s = 0.0955 rpm: two; a pulse
+    # count none), not the 9 digits of 1180.00658, and the same value to that step; the host's times keep theirs
+    rows = [line.split(",") for line in export_series(rec.series["/stand/lab_display"], tmp_path / "d.csv",
+                                                      topic="/stand/lab_display").read_text().splitlines()[1:]]
+    rpm = rec.series["/stand/lab_display"]["tachometer"] * 60 / tau
+    assert all(len(r[1].split(".")[1]) == 2 for r in rows) and np.allclose([float(r[1]) for r in rows], rpm, atol=0.005)
+    pulses = export_series(rec.series["/stand/lab_speed"], tmp_path / "p.csv", topic="/stand/lab_speed").read_text()
+    assert all("." not in line.split(",")[1] for line in pulses.splitlines()[1:])
 
 
 def test_rig_analyse_merges_the_lab_sheets_numbers(speed, cardan, tmp_path):
