@@ -331,7 +331,8 @@ class Recorder:
     def write_curve(self, number: int, program: int, t: np.ndarray, x: np.ndarray, y: np.ndarray,
                     theory: Mapping[str, np.ndarray] | None = None, angle: np.ndarray | None = None,
                     **extra: Any) -> None:
-        """One measured curve (``/device/curve``, and decimated ``/view/device``), log time = its first sample.
+        """One measured curve (``/device/curve``, and decimated ``/view/device``), log time = its last sample: when the
+        unit has the whole curve (a viewer's X–Y panel then shows, as the instrument does, the last complete curve).
 
         theory: arrays of the theoretical curve (keys ``t``, ``x``, ``y``, ``angle``; without ``t`` it
         shares the curve's times). angle: measured cam angle per sample, rad. extra: JSON scalars/lists.
@@ -354,7 +355,7 @@ class Recorder:
             msg["theory"] = {str(k): encode_array(v, self.encoding) for k, v in theory.items()}
         msg.update(extra)
         cid = self._channel(S.CURVE, S.curve_schema(self.encoding), "rig.Curve", {"encoding": self.encoding})
-        self._put(cid, to_ns(t[0], f"{S.CURVE} curve {number}"), dumps_message(msg))
+        self._put(cid, to_ns(t[-1], f"{S.CURVE} curve {number}"), dumps_message(msg))
         self.curves += 1
         self._data_end = max(self._data_end, float(t[-1]))
         self._view(S.VIEW_DEVICE, t, {"x": np.asarray(x, dtype=np.float64), "y": np.asarray(y, dtype=np.float64)},
