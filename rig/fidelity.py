@@ -225,6 +225,10 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     if level < 2 and 2 in levels and plant in CHECKS and any(need[q] <= level for q in asked):
         tolerance = _tolerance(scene, where, "model_tolerance", MODEL_TOLERANCE)
         deviations = _check(scene, plant, level, [q for q in asked if need[q] <= level])
+        if isinstance(deviations, str):                 # level 2 failed at this operating point: unchecked, said
+            caveat = "; ".join(filter(None, [caveat, f"L{level}'s answers are not checked against level 2, which failed "
+                                                      f"at this operating point ({deviations})"]))
+            deviations = []
         beyond = [d for d in deviations if d.beyond(tolerance)]
         said = "; ".join(d.describe() for d in beyond)
         if beyond and forced is None and explicit is None:
@@ -235,7 +239,7 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
             caveat = "; ".join(filter(None, [caveat, f"at this operating point level 2 contradicts L{level}'s answers, "
                                                       f"beyond the model tolerance {tolerance:.3g}: {said}; read them "
                                                       "as the lower model's, not the machine's"]))
-        else:
+        elif deviations:
             reason += (f"; level 2 agrees within the model tolerance {tolerance:.3g} at this operating point ("
                        + ", ".join(f"{d.question} {d.text()}" for d in deviations) + ")")
     if level < 2:
@@ -248,15 +252,23 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered, short_of, caveat)
 
 
-def _check(scene: Scene, plant: str, level: int, questions: list[str]) -> list:
+def _check(scene: Scene, plant: str, level: int, questions: list[str]) -> list | str:
     """The plant's :data:`CHECKS` function's deviations of ``level``'s answers to ``questions`` from level 2's (level 2
-    with the setting the scene gets there), computed once per scene content."""
+    with the setting the scene gets there), computed once per scene content; where level 2 cannot be run there (a
+    divergence, an impossible position), why, in one line — the lower level is then used unchecked, and said so."""
+    from rig.solvers import SolverDivergence
     top = choose(scene, plant, forced=2)
     key = (plant, str(scene.path), json.dumps(scene.data, sort_keys=True, default=str), level, tuple(questions),
            top.method, tuple(sorted(top.options.items())))
     if key not in _checked:
         module, _, name = CHECKS[plant].partition(":")
-        _checked[key] = getattr(importlib.import_module(module), name)(scene, level, questions, top.method, top.options)
+        try:
+            _checked[key] = getattr(importlib.import_module(module), name)(scene, level, questions, top.method,
+                                                                          top.options)
+        except (SolverDivergence, ArithmeticError, ValueError) as exc:
+            if isinstance(exc, SceneError):
+                raise
+            _checked[key] = " ".join(str(exc).split())
     return _checked[key]
 
 

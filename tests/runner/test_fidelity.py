@@ -188,3 +188,22 @@ def test_a_clutch_scene_gets_the_cheapest_of_our_adaptive_methods(tmp_path):
     assert (stand.method, stand.rtol) == ("Rodas4", 1e-7)
     import numpy as np
     assert np.isfinite(stand.advance(np.arange(1, 201) / 10_000)["M_t"]).all()
+
+
+def test_a_level_2_that_fails_at_the_operating_point_leaves_the_lower_level_unchecked_and_says_so(monkeypatch):
+    """The check's level-2 revolution diverging (or any run of it failing) must not stop a level-1 run: the level
+    stays, and the caveat (a warning, recorded) says its answers are unchecked and why."""
+    import rig.fidelity as fidelity
+    from rig.solvers import SolverDivergence
+
+    def diverging(*args):
+        raise SolverDivergence("non-finite derivatives", 0.01, (1.0, 2.0))
+
+    import types
+    monkeypatch.setitem(fidelity.CHECKS, "cam_bar", "fake_check:compare")
+    monkeypatch.setitem(__import__("sys").modules, "fake_check", types.SimpleNamespace(compare=diverging))
+    monkeypatch.setattr(fidelity, "_checked", {})
+    choice = choose(load_scene(DEMO), "cam_bar")
+    assert choice.level == 1 and "level 2 agrees" not in choice.reason
+    assert choice.caveat.startswith("L1's answers are not checked against level 2, which failed at this operating point "
+                                    "(solver diverged: non-finite derivatives; state at t = 0.01 s")
