@@ -222,11 +222,13 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
                          f"{'--fidelity' if forced is not None else 'fidelity'} {level} is not one of them")
     unanswered = tuple(q for q in asked if need[q] > level)
     caveat = _caveat(plant, level, {q: need[q] for q in unanswered})
-    if level < 2 and 2 in levels and plant in CHECKS and any(need[q] <= level for q in asked):
+    # the level whose answers the run gives: the cam bar's level 0 runs level 1's loads (SAME_RUN), so check those
+    ran = max(SAME_RUN[plant]) if level in SAME_RUN.get(plant, ()) else level
+    if ran < 2 and 2 in levels and plant in CHECKS and any(need[q] <= ran for q in asked):
         tolerance = _tolerance(scene, where, "model_tolerance", MODEL_TOLERANCE)
-        deviations = _check(scene, plant, level, [q for q in asked if need[q] <= level])
+        deviations = _check(scene, plant, ran, [q for q in asked if need[q] <= ran])
         if isinstance(deviations, str):                 # level 2 failed at this operating point: unchecked, said
-            caveat = "; ".join(filter(None, [caveat, f"L{level}'s answers are not checked against level 2, which failed "
+            caveat = "; ".join(filter(None, [caveat, f"L{ran}'s answers are not checked against level 2, which failed "
                                                       f"at this operating point ({deviations})"]))
             deviations = []
         beyond = [d for d in deviations if d.beyond(tolerance)]
@@ -234,13 +236,13 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
         if beyond and forced is None and explicit is None:
             level, unanswered, caveat = 2, (), ""
             reason += (f"; but at this operating point level 2 contradicts it, beyond the model tolerance "
-                       f"{tolerance:.3g}: {said}; so level 2")
+                       f"{_percent(tolerance)}: {said}; so level 2")
         elif beyond:
-            caveat = "; ".join(filter(None, [caveat, f"at this operating point level 2 contradicts L{level}'s answers, "
-                                                      f"beyond the model tolerance {tolerance:.3g}: {said}; read them "
+            caveat = "; ".join(filter(None, [caveat, f"at this operating point level 2 contradicts L{ran}'s answers, "
+                                                      f"beyond the model tolerance {_percent(tolerance)}: {said}; read them "
                                                       "as the lower model's, not the machine's"]))
         elif deviations:
-            reason += (f"; level 2 agrees within the model tolerance {tolerance:.3g} at this operating point ("
+            reason += (f"; level 2 agrees within the model tolerance {_percent(tolerance)} at this operating point ("
                        + ", ".join(f"{d.question} {d.text()}" for d in deviations) + ")")
     if level < 2:
         return Fidelity(level, reason, unanswered=unanswered, caveat=caveat)
@@ -250,6 +252,11 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     else:
         (method, options), why = _default_method(scene, plant), "no questions or tolerance stated; the plant's own setting"
     return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered, short_of, caveat)
+
+
+def _percent(fraction: float) -> str:
+    """``0.05`` as ``"5 %"``."""
+    return f"{fraction * 100:.3g} %"
 
 
 def _check(scene: Scene, plant: str, level: int, questions: list[str]) -> list | str:

@@ -83,7 +83,10 @@ class Row:
 
     @property
     def shown_unit(self) -> str:
-        """`` N·m`` (a leading space; the scene's ``N*m`` as the console and report write it), "" for a count."""
+        """`` N·m`` (a leading space; the scene's ``N*m`` as the console and report write it), ``°`` for ``deg``, ""
+        for a count."""
+        if self.unit in ("deg", "°"):
+            return "°"
         return f" {self.unit.replace('*', '·')}" if self.unit else ""
 
     @property

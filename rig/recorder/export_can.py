@@ -361,6 +361,11 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
     start = _partial_start(recording) if partial else trace_start(recording)
     blocks = iter_frames(recording, stopped if partial else None)
     first = next(blocks, None)
+    if first is None and stopped:
+        raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read before the file ends or is damaged "
+                             f"({'; '.join(stopped)}): the recorder writes its messages in chunks of several seconds, "
+                             f"and the first chunk is the one cut — `rig report --partial {recording}` says what the "
+                             "file holds")
     if first is None:
         raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
     sink: _Sink = sink_type(out, start)

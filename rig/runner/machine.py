@@ -69,6 +69,9 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
     return transducers, device
 
 
+_SAID: set[tuple] = set()     # the truth_signals warnings given in this process (each once, as Python's warnings)
+
+
 def check_signals(cfg: RunConfig, truth: dict[str, Any]) -> None:
     """A :class:`SceneError` naming the transducer whose ``signal`` the plant's truth does not have, or a
     ``[recording] truth_signals`` entry that misspells one of its signals (another name it does not have at this
@@ -84,7 +87,9 @@ def check_signals(cfg: RunConfig, truth: dict[str, Any]) -> None:
         if close:                           # a misspelling: an error, not a signal silently not recorded
             raise SceneError(f"{cfg.scene.path} [recording]: 'truth_signals' names {name!r}, which the plant does "
                              f"not have (did you mean {close[0]!r}?); it has {', '.join(known)}")
-    if absent:
+    said = (str(cfg.scene.path), cfg.scene.text, tuple(absent), cfg.fidelity.level)
+    if absent and said not in _SAID:     # a command's check before the run and its machine both probe: said once
+        _SAID.add(said)
         log.warning("%s [recording]: 'truth_signals' names %s, which the plant does not have at this model level "
                     "(L%d): not recorded", cfg.scene.path, ", ".join(map(repr, absent)), cfg.fidelity.level)
 

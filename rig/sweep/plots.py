@@ -87,7 +87,13 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
             y = [shown(result.values[index[(v,)]][metric]) for v in p.values]
             fig, ax = plt.subplots(figsize=(6, 4))
             x, unit = _positions(p.values)
-            ax.plot(range(len(y)) if x is None else x, y, "o-")
+            xs = list(range(len(y))) if x is None else x
+            ax.plot(xs, y, "o-")
+            levels = [result.levels[index[(v,)]] for v in p.values]
+            if len(set(levels)) > 1:          # points of different model levels on one line: each says its own
+                for xi, yi, level in zip(xs, y, levels):
+                    ax.annotate(f"L{level}", (xi, yi), textcoords="offset points", xytext=(0, 6), ha="center",
+                                fontsize=8)
             _no_value_note(ax, np.asarray(y, dtype=float))
             if x is None:                     # words, or values in different units: in order, evenly spaced
                 ax.set_xticks(range(len(y)), [_label(v) for v in p.values])
@@ -110,9 +116,11 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
             fig, ax = plt.subplots(figsize=(max(5.0, 2.0 + 0.9 * len(px.values)), max(3.5, 1.8 + 0.45 * len(py.values))))
             norm, ticks = _integer_scale(z, "viridis") if integer else (None, None)
             image = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis", norm=norm)
+            level = np.array([[result.levels[index[(vx, vy) + combo]] for vx in px.values] for vy in py.values])
+            mixed = len(set(result.levels)) > 1         # cells of different model levels: each says its own
             for (j, i), v in np.ndenumerate(z):
-                ax.text(i, j, _value_text(v, integer), ha="center", va="center", fontsize=8,
-                        color="w" if np.isnan(v) or v < np.nanmean(z) else "k")
+                ax.text(i, j, _value_text(v, integer) + (f"\nL{level[j, i]}" if mixed else ""), ha="center",
+                        va="center", fontsize=8, color="w" if np.isnan(v) or v < np.nanmean(z) else "k")
             ax.set_xticks(range(len(px.values)), [_label(v) for v in px.values])
             ax.set_yticks(range(len(py.values)), [_label(v) for v in py.values])
             ax.set_xlabel(px.key)

@@ -228,7 +228,7 @@ def test_a_result_the_run_ended_before_and_a_slip_without_disengagement_are_judg
     assert stopped.rig_text() == "> 400"
     assert (slip.rig, slip.agrees) == (pytest.approx(-7.0), False)
     assert agreement_text([stopped, slip]) == ("0 of 2 predictions agree with the thesis; DISAGREE: stopped (thesis "
-                                               "150 ms, rig > 400 ms); slip (thesis 360 deg, rig -7 deg)")
+                                               "150 ms, rig > 400 ms); slip (thesis 360°, rig -7°)")
     from rig.analysis.stand_comparison import write_csv
 
     written = list(csv.DictReader(write_csv([stopped, slip], tmp_path / "c.csv").open()))
@@ -266,3 +266,11 @@ def test_a_comparison_of_inputs_only_says_first_that_it_checks_nothing_of_the_mo
     assert agreement_text([other]).startswith("no check of the model here — its 1 row is set by the scene's inputs, "
                                               "not shown as set")
     assert agreement_text([replace(one, agrees=None)]) == "no row judged (no tolerances)"
+
+
+def test_comparison_units_are_written_as_the_console_writes_them():
+    from rig.analysis.stand_comparison import Row, agreement_text
+    slip = Row("relative slip", "deg", 360.0, -7.119, False, "", agrees=False, tolerance="at least")
+    shock = Row("peak", "N*m", 16.5, 30.7, False, "", agrees=False, tolerance="15 %")
+    assert slip.deviation == "-367° (-102 %)" and shock.deviation == "+14.2 N·m (+86.1 %)"
+    assert "relative slip (thesis 360°, rig -7.119°); peak (thesis 16.5 N·m, rig 30.7 N·m)" in agreement_text([slip, shock])

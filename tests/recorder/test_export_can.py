@@ -261,6 +261,13 @@ def test_partial_exports_the_frames_before_the_cut_and_says_where_it_ends(tmp_pa
     err = capsys.readouterr().err
     assert f"the trace ends at {e.t_last:.6f} s of simulation time" in err and "not in the trace" in err
     assert len(read_back(tmp_path / "cli.asc")) == len(b)
+    # cut inside the first chunk: nothing before the cut reads, and the error says so (not "no frames in the recording")
+    first = tmp_path / "first.mcap"
+    first.write_bytes(recording.read_bytes()[:chunks[0].chunk_start_offset + chunks[0].chunk_length // 2])
+    with pytest.raises(RecordingError, match=r"first.mcap: no /can/raw frames can be read before the file ends or is "
+                                             r"damaged \(the file is cut short .*the first chunk is the one cut"):
+        export_can(first, tmp_path / "none.log", partial=True)
+    assert not (tmp_path / "none.log").exists()
 
 
 @pytest.mark.parametrize("damage", ["flipped", "zeroed"])

@@ -147,10 +147,10 @@ def test_a_lower_level_level_2_contradicts_at_the_operating_point_is_not_trusted
     stays at L1, its answers within the model tolerance of L2's."""
     choice = choose(load_scene(AS_FOUND), "cam_bar")
     assert choice.level == 2 and choice.method is not None
-    assert "level 2 contradicts it, beyond the model tolerance 0.05" in choice.reason
+    assert "level 2 contradicts it, beyond the model tolerance 5 %" in choice.reason
     assert "L1's rod_force -88.98 N against L2's" in choice.reason and "L1's flank_switches 2 against L2's 0" in choice.reason
     demo = choose(load_scene(DEMO), "cam_bar")
-    assert demo.level == 1 and "level 2 agrees within the model tolerance 0.05" in demo.reason
+    assert demo.level == 1 and "level 2 agrees within the model tolerance 5 %" in demo.reason
     # a looser model tolerance accepts L1's rod force at 300 rpm, never its flank-switch count
     loose = scene_with(tmp_path, "", "loose")
     text = AS_FOUND.read_text(encoding="utf-8").replace("[scene]\n", "[scene]\nmodel_tolerance = 0.9\n", 1)
@@ -165,8 +165,12 @@ def test_a_lower_level_level_2_contradicts_at_the_operating_point_is_not_trusted
 def test_a_forced_lower_level_that_level_2_contradicts_is_a_caveat():
     choice = choose(load_scene(AS_FOUND), "cam_bar", forced=1)
     assert choice.level == 1 and choice.unanswered == ()
-    assert "at this operating point level 2 contradicts L1's answers, beyond the model tolerance 0.05" in choice.caveat
+    assert "at this operating point level 2 contradicts L1's answers, beyond the model tolerance 5 %" in choice.caveat
     assert "read them as the lower model's, not the machine's" in choice.caveat
+    # level 0 runs level 1's loads (its measurements are level 1's): those are checked, not only level 0's stroke
+    zero = choose(load_scene(AS_FOUND), "cam_bar", forced=0)
+    assert "so its measurements are level 1's" in zero.caveat and "level 2 agrees" not in zero.reason
+    assert "level 2 contradicts L1's answers, beyond the model tolerance 5 %: L1's rod_force -88.98 N" in zero.caveat
 
 
 def test_a_clutch_scene_gets_the_cheapest_of_our_adaptive_methods(tmp_path):

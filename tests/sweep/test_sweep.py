@@ -292,3 +292,8 @@ def test_a_one_parameter_chart_places_numeric_values_where_they_lie(tmp_path, mo
         plot_sweep(result, tmp_path)
         ax = figures[-1].axes[0]
         assert list(ax.lines[0].get_xdata()) == xs and ax.get_xlabel() == label
+        assert not ax.texts                                       # one model level: no per-point labels
+    mixed = SweepResult(params, ("rod_force_peak",), grid(list(params)), [{"rod_force_peak": 50.0}] * 3, [""] * 3,
+                        [1, 1, 2])
+    plot_sweep(mixed, tmp_path)
+    assert [t.get_text() for t in figures[-1].axes[0].texts] == ["L1", "L1", "L2"]   # levels on one line: each said

@@ -103,10 +103,10 @@ class Deviation:
             return self.value != self.reference
         return abs(self.value - self.reference) > tolerance * abs(self.reference)
 
-    def shown(self, value: float) -> str:
-        """An answer in display units, 4 digits."""
+    def shown(self, value: float, digits: int = 4) -> str:
+        """An answer in display units, ``digits`` significant digits."""
         unit, scale = UNITS[self.question]
-        return f"{value * scale:.4g}" + ("" if unit == "count" else f" {unit}")
+        return f"{value * scale:.{digits}g}" + ("" if unit == "count" else f" {unit}")
 
     def text(self) -> str:
         """How it differs: "+2" for a count; "-64 % in magnitude" (a signed peak of −89 N against −248 N is 64 %
@@ -122,9 +122,13 @@ class Deviation:
         return f"{100 * (abs(value) - abs(reference)) / abs(reference):+.3g} % in magnitude"
 
     def describe(self) -> str:
-        """``"L1's rod_force -88.98 N against L2's -327.5 N (-72.8 % in magnitude)"``."""
-        return (f"L{self.level}'s {self.question} {self.shown(self.value)} against L2's {self.shown(self.reference)} "
-                f"({self.text()})")
+        """``"L1's rod_force -88.98 N against L2's -327.5 N (-72.8 % in magnitude)"`` (more digits where 4 show the
+        two answers alike)."""
+        for digits in (4, 6, 9):
+            mine, theirs = self.shown(self.value, digits), self.shown(self.reference, digits)
+            if mine != theirs:
+                break
+        return f"L{self.level}'s {self.question} {mine} against L2's {theirs} ({self.text()})"
 
 
 def compare(scene: Scene, level: int, questions: list[str], method: str,
