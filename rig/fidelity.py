@@ -228,8 +228,8 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
         tolerance = _tolerance(scene, where, "model_tolerance", MODEL_TOLERANCE)
         deviations = _check(scene, plant, ran, [q for q in asked if need[q] <= ran])
         if isinstance(deviations, str):                 # level 2 failed at this operating point: unchecked, said
-            caveat = "; ".join(filter(None, [caveat, f"L{ran}'s answers are not checked against level 2, which failed "
-                                                      f"at this operating point ({deviations})"]))
+            caveat = _and(caveat, f"L{ran}'s answers are not checked against level 2, which failed at this operating "
+                                  f"point ({deviations})")
             deviations = []
         beyond = [d for d in deviations if d.beyond(tolerance)]
         said = "; ".join(d.describe() for d in beyond)
@@ -238,9 +238,9 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
             reason += (f"; but at this operating point level 2 contradicts it, beyond the model tolerance "
                        f"{_percent(tolerance)}: {said}; so level 2")
         elif beyond:
-            caveat = "; ".join(filter(None, [caveat, f"at this operating point level 2 contradicts L{ran}'s answers, "
-                                                      f"beyond the model tolerance {_percent(tolerance)}: {said}; read them "
-                                                      "as the lower model's, not the machine's"]))
+            caveat = _and(caveat, f"at this operating point level 2 contradicts L{ran}'s answers, beyond the model "
+                                  f"tolerance {_percent(tolerance)}: {said}; read them as the lower model's, not the "
+                                  "machine's")
         elif deviations:
             reason += (f"; level 2 agrees within the model tolerance {_percent(tolerance)} at this operating point ("
                        + ", ".join(f"{d.question} {d.text()}" for d in deviations) + ")")
@@ -252,6 +252,11 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     else:
         (method, options), why = _default_method(scene, plant), "no questions or tolerance stated; the plant's own setting"
     return Fidelity(level, f"{reason}; {method}: {why}", method, dict(options), unanswered, short_of, caveat)
+
+
+def _and(*parts: str) -> str:
+    """The non-empty ``parts`` joined by "; " (caveats added to one another)."""
+    return "; ".join(p for p in parts if p)
 
 
 def _percent(fraction: float) -> str:

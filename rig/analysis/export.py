@@ -134,6 +134,16 @@ def dbc_units() -> dict[str, str]:
     return {snake(s.name): s.unit or "1" for m in db.messages if "DEVICE" in m.senders for s in m.signals}
 
 
+def export_events(events: Sequence[Mapping], details: Sequence[str], path: Path) -> Path:
+    """The recording's events as CSV, one row each: simulation time (s), kind, its ``details`` as the report words
+    them (:func:`rig.analysis.report.event_details`)."""
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["t [s]", "kind", "details"])
+        w.writerows([f"{e.get('t', math.nan):.9g}", e.get("kind", ""), d] for e, d in zip(events, details))
+    return path
+
+
 @functools.lru_cache(maxsize=1)
 def dbc_steps() -> dict[str, dict[str, float]]:
     """The step (SI, the signal's scale) in which the DBC carries each device signal: by the ``/stand/`` topic name of

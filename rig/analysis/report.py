@@ -15,7 +15,6 @@ from their own modules); :func:`register_section` adds others (before the closin
 """
 from __future__ import annotations
 
-import csv
 import html
 import math
 from datetime import datetime, timezone
@@ -27,7 +26,7 @@ import numpy as np
 from rig.analysis import plots
 from rig.analysis.clutch_report import clutch_section, comparison_section
 from rig.analysis.device import agreement_text
-from rig.analysis.export import export_curves, export_results, export_series
+from rig.analysis.export import export_curves, export_events, export_results, export_series
 from rig.analysis.lab_report import lab_section
 from rig.analysis.normality import ANDERSON_P
 from rig.analysis.report_blocks import (NOK_PLOTS, Banner, Block, Figure, Heading, Link, ReportContext, Section, Table,
@@ -418,8 +417,7 @@ def theory(ctx: ReportContext) -> list[Block]:
     ok = [r for r in rows if r.get("lag_time") is not None]
     if not rows:
         return []
-    program = ctx.recording.curves[0].program if ctx.recording.curves else 0
-    units = ctx.units(program)
+    program, units = ctx.main_program, ctx.main_units
     table = []
     for signal in sorted({r["signal"] for r in ok}):
         rs = [r for r in ok if r["signal"] == signal]
@@ -522,17 +520,13 @@ def events(ctx: ReportContext) -> list[Block]:
             for k, v in sorted(counts.items())]
     blocks: list[Block] = [Heading("Events"), Table(["kind", "count", "what it means"], rows)]
     if rec.events:
-        units = ctx.units(rec.curves[0].program if rec.curves else next(iter(rec.programs), 0))
-        path = ctx.out_dir / "events.csv"
-        with path.open("w", newline="", encoding="utf-8") as f:
-            writer = csv.writer(f)
-            writer.writerow(["t [s]", "kind", "details"])
-            writer.writerows([f"{e.get('t', math.nan):.9g}", e.get("kind", ""), event_details(e, units)]
-                             for e in rec.events)
-        shown = rec.events[:EVENT_ROWS]
-        more = f"the first {len(shown)} of {len(rec.events)}; all in " if len(shown) < len(rec.events) else "also in "
+        details = [event_details(e, ctx.main_units) for e in rec.events]
+        export_events(rec.events, details, ctx.out_dir / "events.csv")
+        shown = min(len(rec.events), EVENT_ROWS)
+        more = f"the first {shown} of {len(rec.events)}; all in " if shown < len(rec.events) else "also in "
         blocks.append(Table(["t (s)", "kind", "details"],
-                            [[f"{e.get('t', math.nan):.6g}", e.get("kind", ""), event_details(e, units)] for e in shown],
+                            [[f"{e.get('t', math.nan):.6g}", e.get("kind", ""), d]
+                             for e, d in zip(rec.events[:shown], details)],
                             collapsed=f"Event by event ({more}events.csv)"))
     return blocks
 
@@ -568,8 +562,7 @@ def truth(ctx: ReportContext) -> list[Block]:
     names = [n for n in data if n != "t"]
     if not names or not data["t"].size:
         return []
-    program = ctx.recording.curves[0].program if ctx.recording.curves else next(iter(ctx.recording.programs), 0)
-    units = ctx.units(program)
+    units = ctx.main_units
     if "cam_angle" in names and "phi" in names:
         names.remove("phi")            # the unwrapped angle: a ramp that squeezes the wrapped one flat
     window, span = _truth_window(ctx.recording, data["t"])
@@ -645,7 +638,7 @@ def exports(ctx: ReportContext) -> list[Block]:
                       "one row per curve: OK/NOK, failed elements and why, completeness, process values"))
     if (ctx.out_dir / "events.csv").exists():           # written by the events section
         files.append((ctx.out_dir / "events.csv", "one row per event: simulation time, kind, its details"))
-    units = ctx.units(rec.curves[0].program if rec.curves else next(iter(rec.programs), 0))
+    units = ctx.main_units
     for topic, data in rec.series.items():
         if topic.startswith("/stand/") and "t" in data and len(data["t"]):
             name = "stand_" + topic.removeprefix("/stand/") + ".csv"

@@ -80,6 +80,17 @@ class ReportContext:
         return known[program] if program in known else recording_units(self.recording, program)
 
     @property
+    def main_program(self) -> int:
+        """The recording's program: its first curve's, else its first program's (a stand), else 0."""
+        rec = self.recording
+        return rec.curves[0].program if rec.curves else next(iter(rec.programs), 0)
+
+    @property
+    def main_units(self) -> DisplayUnits:
+        """Display units of :attr:`main_program`."""
+        return self.units(self.main_program)
+
+    @property
     def nok(self) -> set[int]:
         return {v["number"] for v in self.analysis["verdicts"] if not v["ok"]}
 

@@ -61,14 +61,11 @@ def measure(scene_path: str | Path) -> list[dict[str, Any]]:
     return rows
 
 
-#: a lower level's answer further than this from level 2's (relative; a count: any difference) is flagged, as
-#: rig.fidelity's default model tolerance flags it
-AGREE = 0.05
-
-
 def disagreements(rows: list[dict[str, Any]]) -> list[str]:
-    """One line per lower-level answer that level 2 contradicts (beyond :data:`AGREE`, a count at all): at this
+    """One line per lower-level answer that level 2 contradicts (beyond rig.fidelity's default model tolerance, a count
+    at all): at this
     operating point that question needs level 2."""
+    from rig.fidelity import MODEL_TOLERANCE
     from rig.plants.cam_bar.level_answers import UNITS, Deviation
     out = []
     level2 = {r["question"]: r for r in rows if int(r["level"]) == 2}
@@ -78,7 +75,7 @@ def disagreements(rows: list[dict[str, Any]]) -> list[str]:
         scale = UNITS[r["question"]][1]
         deviation = Deviation(r["question"], int(r["level"]), float(r["answer"]) / scale,
                               float(level2[r["question"]]["answer"]) / scale)
-        if deviation.beyond(AGREE):
+        if deviation.beyond(MODEL_TOLERANCE):
             out.append(f"{deviation.describe()}: at this operating point the groove dynamics matter (clearance, flank "
                        f"changes) and this question needs L2")
     return out
