@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import textwrap
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import matplotlib
 import numpy as np
@@ -52,6 +52,7 @@ def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3, bot
                         wspace=wspace, hspace=hspace)
     separate_labels(fig)
     fig.savefig(path, dpi=DPI)
+    fig.clear()         # its lines (and their data) go now, not when the garbage collector next meets the figure's cycles
     return path
 
 
@@ -138,28 +139,36 @@ def _legend(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], theory: bool
     ax.legend(handles=handles, fontsize=7, loc="best", framealpha=0.85)
 
 
-def _joined(parts: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """Several polylines as one, NaN between them: one artist instead of one per curve (fast to draw). Beyond
-    :data:`OVERLAY_POINTS` points in all, each polyline is drawn as the min and max of its y in equal runs of
-    samples (:func:`envelope`: every peak kept; a long recording's thousands of curves drew tens of millions of
-    points, ≈ 0.7 GB and 4 s per figure for 2000 curves)."""
-    total = sum(np.size(y) for _, y in parts)
-    if total > OVERLAY_POINTS:
-        buckets = max(OVERLAY_POINTS // (2 * len(parts)), 1)
-        parts = [envelope(np.asarray(x, float), np.asarray(y, float), buckets) for x, y in parts]
+def _joined(items: Sequence[Any], xy: Callable[[Any], tuple[np.ndarray, np.ndarray]] = lambda p: p,
+            size: Callable[[Any], int] = lambda p: np.size(p[1])) -> tuple[np.ndarray, np.ndarray]:
+    """The polylines ``xy(item)`` as one, NaN between them: one artist instead of one per curve (fast to draw).
+    Beyond :data:`OVERLAY_POINTS` points in all (``size(item)`` each), each polyline is drawn as the min and max
+    of its y in equal runs of samples (:func:`envelope`: every peak kept; a long recording's thousands of curves
+    drew tens of millions of points, ≈ 0.7 GB and 4 s per figure for 2000 curves), reduced as soon as it is made:
+    only one full polyline is held at a time."""
+    if not len(items):
+        return np.array([]), np.array([])
+    total = sum(size(item) for item in items)
+    buckets = max(OVERLAY_POINTS // (2 * len(items)), 1) if total > OVERLAY_POINTS else 0
     gap = np.array([np.nan])
-    xs = [a for x, _ in parts for a in (np.asarray(x, float), gap)]
-    ys = [a for _, y in parts for a in (np.asarray(y, float), gap)]
-    return (np.concatenate(xs), np.concatenate(ys)) if parts else (np.array([]), np.array([]))
+    xs, ys = [], []
+    for item in items:
+        x, y = (np.asarray(a, float) for a in xy(item))
+        if buckets:
+            x, y = envelope(x, y, buckets)
+        xs += [x, gap]
+        ys += [y, gap]
+    return np.concatenate(xs), np.concatenate(ys)
 
 
 def _plot_groups(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], xy: Any) -> None:
-    """Draw ``xy(curve) -> (x, y)`` of the OK curves, then of the NOK ones on top, one artist each."""
+    """Draw ``xy(curve) -> (x, y)`` (as many points as ``curve.t``) of the OK curves, then of the NOK ones on top,
+    one artist each; ``xy`` is called once per curve."""
     single = len(curves) == 1
     for bad in (False, True):
-        group = [xy(c) for c in curves if (c.number in nok) == bad]
+        group = [c for c in curves if (c.number in nok) == bad]
         if group:
-            ax.plot(*_joined(group), **_style(bad, single))
+            ax.plot(*_joined(group, xy, lambda c: c.t.size), **_style(bad, single))
 
 
 def _xy(ax: Axes, curves: Sequence[CurveRecord], elements: list, nok: set[int], units: DisplayUnits,
@@ -191,9 +200,10 @@ def _over(ax: Axes, curves: Sequence[CurveRecord], axis: str, nok: set[int], uni
     uy, ut, ua = units.channel("y"), units.of("s"), units.of("rad")
     u = ut if axis == "t" else ua
     _plot_groups(ax, curves, nok, lambda c: (u(c.t - c.t[0] if axis == "t" else c.angle), uy(c.y)))
-    theory = [(u(th), uy(c.theory["y"])) for c in curves if (th := _theory_abscissa(c, axis)) is not None]
+    theory = [c for c in curves if _theory_abscissa(c, axis) is not None]
     if theory:
-        ax.plot(*_joined(theory), "--", lw=0.8, color="0.45" if len(curves) == 1 else "k",
+        ax.plot(*_joined(theory, lambda c: (u(_theory_abscissa(c, axis)), uy(c.theory["y"])),
+                         lambda c: np.size(c.theory["y"])), "--", lw=0.8, color="0.45" if len(curves) == 1 else "k",
                 alpha=0.9 if len(curves) == 1 else 0.25, zorder=5)
     ax.set(xlabel=u.axis("time since curve start") if axis == "t" else u.axis("cam angle"),
            ylabel=channel_label(units, "y"))
@@ -250,21 +260,25 @@ def theory_residuals(curves: Sequence[CurveRecord], path: Path, title: str, nok:
     for ax, ch in zip(axs[:, 0], channels):
         u = units.channel(ch)
         with_theory = [c for c in curves if ch in c.theory]
-        lines = {}
-        for c in with_theory:
+        n = min(c.t.size for c in with_theory)             # the mean over the samples every curve has
+        total, counts = np.zeros(n), np.zeros(n, dtype=np.int64)
+
+        def residual(c: CurveRecord) -> tuple[np.ndarray, np.ndarray]:
+            """The curve's residual over its time, added to the running mean's sums as it is made."""
             th_t = np.asarray(c.theory.get("t", c.t), dtype=float)
-            shift = lags.get((c.number, ch), 0.0)
-            at = c.t - shift                     # no theory before its first or after its last sample: no residual
+            at = c.t - lags.get((c.number, ch), 0.0)      # no theory before its first or after its last sample
             res = u(np.where((at >= th_t[0]) & (at <= th_t[-1]),
                              np.asarray(getattr(c, ch), float) - np.interp(at, th_t, np.asarray(c.theory[ch], float)),
                              np.nan))
-            lines[c.number] = (ut(c.t - c.t[0]), res)
-        _plot_groups(ax, with_theory, nok, lambda c: lines[c.number])
-        n = min(x.size for x, _ in lines.values())          # the mean over the samples every curve has
-        stack = np.array([r[:n] for _, r in lines.values()])
-        counts = np.sum(np.isfinite(stack), axis=0)
-        mean = np.where(counts > 0, np.nansum(stack, axis=0) / np.maximum(counts, 1), np.nan)
-        ax.plot(next(iter(lines.values()))[0][:n], mean, color="k", lw=1.0, label="mean over the curves")
+            finite = np.isfinite(res[:n])
+            total[finite] += res[:n][finite]
+            counts[finite] += 1
+            return ut(c.t - c.t[0]), res
+
+        _plot_groups(ax, with_theory, nok, residual)
+        mean = np.where(counts > 0, total / np.maximum(counts, 1), np.nan)
+        first = with_theory[0]
+        ax.plot(ut(first.t[:n] - first.t[0]), mean, color="k", lw=1.0, label="mean over the curves")
         ax.axhline(0.0, color="0.5", lw=0.6)
         ax.set_ylabel(u.axis(f"{ch.upper()} − theory"), fontsize=9)
         _ticks(ax, 8, 5)
@@ -375,7 +389,8 @@ def histograms(table: Mapping[str, np.ndarray], stats: Mapping[str, Mapping], pa
 
 
 def envelope(t: np.ndarray, y: np.ndarray, buckets: int = ENVELOPE_BUCKETS) -> tuple[np.ndarray, np.ndarray]:
-    """Min and max of ``y`` in each of ``buckets`` equal runs of samples, in time order (plus the tail).
+    """Min and max of ``y`` in each of ``buckets`` equal runs of samples and in the shorter run left over, in time
+    order: at most ``2 (buckets + 1)`` points.
 
     Drawn at a width of fewer than ``buckets`` pixels this is the same picture as all samples.
     """
@@ -387,7 +402,8 @@ def envelope(t: np.ndarray, y: np.ndarray, buckets: int = ENVELOPE_BUCKETS) -> t
     lo, hi = np.argmin(yb, axis=1), np.argmax(yb, axis=1)
     idx = np.sort(np.column_stack([lo, hi]), axis=1)
     rows = np.arange(buckets)[:, None]
-    return np.concatenate([tb[rows, idx].ravel(), t[m:]]), np.concatenate([yb[rows, idx].ravel(), y[m:]])
+    tail = np.unique([m + np.argmin(y[m:]), m + np.argmax(y[m:])]) if m < t.size else np.array([], dtype=int)
+    return np.concatenate([tb[rows, idx].ravel(), t[tail]]), np.concatenate([yb[rows, idx].ravel(), y[tail]])
 
 
 def series(data: Mapping[str, np.ndarray], names: Sequence[str], path: Path, title: str, ylabel: str) -> Path:

@@ -219,22 +219,24 @@ def test_truth_caption_states_the_recorded_simulated_time(tmp_path, end, cycles,
 
 
 def test_an_overlay_of_thousands_of_curves_keeps_every_peak_in_a_bounded_number_of_points():
-    """A long recording's overlay (here 300 curves of 3000 samples, over the budget) is drawn as each curve's min
-    and max in runs of samples: at most OVERLAY_POINTS points in all (plus one tail and one gap per curve), every
-    curve's own extremes still drawn; a few curves are drawn sample for sample."""
+    """A long recording's overlay (here 300 curves of 3100 samples, over the budget) is drawn as each curve's min
+    and max in runs of samples: at most OVERLAY_POINTS points in all (plus, per curve, the min and max of the
+    shorter run left over and one gap), every curve's own extremes still drawn, even in the last samples; a few
+    curves are drawn sample for sample."""
     from rig.analysis.plots import OVERLAY_POINTS, _joined
     rng = np.random.default_rng(7)
-    t = np.linspace(0.0, 0.3, 3000)
-    curves = [(t, np.sin(40 * t) - 3.0 * np.exp(-((t - rng.uniform(0.05, 0.25)) / 2e-4) ** 2)) for _ in range(300)]
+    t = np.linspace(0.0, 0.31, 3100)
+    curves = [(t, np.sin(40 * t) - 3.0 * np.exp(-((t - rng.uniform(0.05, 0.309)) / 2e-4) ** 2)) for _ in range(300)]
     x, y = _joined(curves)
-    assert x.size == y.size <= OVERLAY_POINTS + 2 * len(curves)
+    assert x.size == y.size <= OVERLAY_POINTS + 3 * len(curves)
+    assert np.all(np.diff(x[~np.isnan(x)][:100]) > 0)         # in time order
     pieces = np.split(y, np.flatnonzero(np.isnan(y)))
     drawn = [p[~np.isnan(p)] for p in pieces if np.any(~np.isnan(p))]
     assert len(drawn) == len(curves)
     for (_, c), d in zip(curves, drawn):
         assert d.min() == c.min() and d.max() == c.max()          # the narrow dip (a 0.2 ms peak) is kept
     few_x, few_y = _joined(curves[:5])
-    assert few_y.size == 5 * (3000 + 1)
+    assert few_y.size == 5 * (3100 + 1)
 
 
 def test_a_single_curve_figure_names_its_dashed_theory(tmp_path, monkeypatch):
