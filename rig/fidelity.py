@@ -117,12 +117,13 @@ def _questions(scene: Scene, plant: str, where: str) -> list[str]:
 def _tolerance(scene: Scene, where: str, key: str = "tolerance", default: float = 1e-6) -> float:
     from rig.units import UnitError, to_si
     value = scene.section("scene").get(key, default)
+    wanted = f"{where}: '{key}' is a relative error in (0, 1) such as 0.05 or \"5 %\", got {value!r}"
     try:
         tol = to_si(value, "", what=f"{where}: {key}")
-    except UnitError as exc:
-        raise SceneError(str(exc)) from None
+    except UnitError:
+        raise SceneError(wanted) from None
     if not 0.0 < tol < 1.0:
-        raise SceneError(f"{where}: '{key}' is a relative error in (0, 1), got {value!r}")
+        raise SceneError(wanted)
     return tol
 
 

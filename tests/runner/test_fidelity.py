@@ -160,6 +160,9 @@ def test_a_lower_level_level_2_contradicts_at_the_operating_point_is_not_trusted
     assert choose(load_scene(loose), "cam_bar").level == 2
     with pytest.raises(SceneError, match=r"'model_tolerance' is a relative error in \(0, 1\)"):
         choose(load_scene(scene_with(tmp_path, 'questions = ["rod_force"]\nmodel_tolerance = 0')), "cam_bar")
+    for bad in ("true", '"abc"', '"5 mm"'):          # not a quantity, or one with a unit: the same words
+        with pytest.raises(SceneError, match=r"'model_tolerance' is a relative error in \(0, 1\) such as 0.05"):
+            choose(load_scene(scene_with(tmp_path, f'questions = ["rod_force"]\nmodel_tolerance = {bad}')), "cam_bar")
 
 
 def test_a_forced_lower_level_that_level_2_contradicts_is_a_caveat():
