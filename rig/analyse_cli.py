@@ -29,11 +29,13 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     for line in lines:                           # the notes under the totals (runs that share a seed)
         if line.startswith("Note: "):
             print(line)
-    print(f"{plural(len(paths), 'recording')} analysed in {wall:.1f} s -> {table}, {report}")
-    if not any(not r.error for r in result.recordings):
-        print(f"rig: error: none of the {len(paths)} files could be read as a recording (the reasons are in {report})",
-              file=sys.stderr)
+    read = sum(not r.error for r in result.recordings)
+    if not read:
+        which = "the file could not" if len(paths) == 1 else f"none of the {len(paths)} files could"
+        print(f"rig: error: {which} be read as a recording (the reasons: {table}, {report})", file=sys.stderr)
         return 2
+    unread = f" ({len(paths) - read} unreadable, their reasons in the table)" if read < len(paths) else ""
+    print(f"{plural(read, 'recording')} analysed{unread} in {wall:.1f} s -> {table}, {report}")
     return 0
 
 

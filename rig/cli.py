@@ -327,8 +327,8 @@ def cmd_export_can(args: argparse.Namespace) -> int:
     print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
           f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}")
     if e.lost:
-        logging.getLogger("rig").warning("the trace ends at %.6f s of simulation time: the recording could not be read "
-                                         "past that (%s); frames after it are not in the trace", e.t_last, e.lost)
+        logging.getLogger("rig").warning("the recording is cut or damaged, the trace holds the frames that read "
+                                         "(damaged parts skipped, as `rig report --partial` skips them): %s", e.lost)
     return 0
 
 
@@ -518,8 +518,8 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("recording", help="recording (.mcap) whose CAN traffic is exported (required)")
     exp.add_argument("-o", "--output", required=True, help="trace file; its extension picks the format")
     exp.add_argument("--partial", action="store_true",
-                     help="of a cut or damaged recording (a killed run): the frames up to where it can no longer be "
-                          "read, with a warning saying where the trace ends and why")
+                     help="of a cut or damaged recording (a killed run): every frame that reads, damaged chunks "
+                          "skipped as `rig report --partial` skips them, with a warning naming what is lost")
     exp.set_defaults(func=cmd_export_can)
     summ = sub.add_parser("summary", parents=[quiet], help="cam-bar kinematics/kinetostatics table and cycle chart")
     summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),

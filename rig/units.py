@@ -22,6 +22,7 @@ def _registry() -> pint.UnitRegistry:
 
 
 ureg = _registry()
+ureg.define("rev = revolution")          # "2.5 rev/s": the abbreviation engineers write
 _INTEGER = re.compile(r"(?<![\w.])(?<![eE][+-])(\d+)(?![\w.])")   # an integer literal, not in a name or float
 
 
@@ -79,6 +80,27 @@ def is_dimensionless(si_unit: str) -> bool:
     return si_unit in ("", "1")
 
 
+@lru_cache(maxsize=None)
+def _angle_power(unit: str) -> float:
+    """The power of the angle in ``unit`` (1 for rad/s and rpm, 0 for Hz and N·m, −1 for N·m/rad). pint counts the
+    radian as dimensionless, so "2.5 Hz" would convert to 2.5 rad/s without this."""
+    return dict(ureg.get_root_units(unit or "dimensionless")[1]._units).get("radian", 0)
+
+
+def _same_angle(unit: str, si_unit: str, value: object, what: str) -> None:
+    """Refuse a unit whose angle content differs from the expected one: a frequency (Hz, 1/min) for an angular
+    speed is revolutions to some and radians to others; an angle unit for a plain frequency or number is a slip."""
+    have, want = _angle_power(unit), _angle_power(si_unit)
+    if have == want:
+        return
+    if want == 1 and have == 0 and si_unit == "rad/s":
+        raise UnitError(f"{what}: {value!r} is a frequency, not an angular speed: write revolutions (\"150 rpm\", "
+                        f"\"2.5 rev/s\") or radians (\"15.7 rad/s\")")
+    angle = {1: "an angle", -1: "a per-angle quantity", 0: "no angle"}
+    raise UnitError(f"{what}: {value!r} has {angle.get(have, 'an angle power')} in its unit, expected something "
+                    f"convertible to {si_unit or 'a plain number'} ({angle.get(want, 'another angle power')})")
+
+
 def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "value") -> float:
     """Convert ``value`` to a float in ``si_unit``.
 
@@ -100,7 +122,9 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
             magnitude, unit_text = float(q.magnitude), str(q.units)
             if unit_text in ("", "dimensionless") and not is_dimensionless(si_unit):
                 raise UnitError(f"{what}: {value!r} has no unit; expected something convertible to {si_unit}")
-            return magnitude * _factor(unit_text or "dimensionless", si_unit or "dimensionless")
+            factor = _factor(unit_text or "dimensionless", si_unit or "dimensionless")
+            _same_angle(unit_text, si_unit, value, what)
+            return magnitude * factor
         if not isinstance(value, (int, float)):
             raise UnitError(f"{what}: expected a number or a quantity string, got {type(value).__name__} {value!r}")
         if unit is None:
@@ -109,7 +133,9 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
                     f"{what}: {value!r} has no unit; write e.g. \"{value} <unit>\" or suffix the key with a unit "
                     f"(expected something convertible to {si_unit})")
             return float(value)
-        return float(value) * _factor(_unit_text(unit), si_unit or "dimensionless")
+        factor = _factor(_unit_text(unit), si_unit or "dimensionless")
+        _same_angle(_unit_text(unit), si_unit, f"{value} {unit}", what)
+        return float(value) * factor
     except UnitError:
         raise
     except pint.UndefinedUnitError as exc:

@@ -293,9 +293,8 @@ def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: floa
     final_text = f"mean of the last {dwell * 1e3:.0f} ms {until}"
     nominal = "" if s.after is None else f"; scene load {s.after:.4g} N·m"
     direction = 1.0 if step >= 0 else -1.0
-    k = int(np.argmax(direction * y))
-    out = [Metric(f"{label}: peak torque", float(y[k]), "N·m",
-                  f"extreme reading in the direction of the step {from_to}, {until}", float(t[k]))]
+    out = [_peak(t, y, direction, label, f"extreme reading in the direction of the step {from_to}, {until}", dwell,
+                 band * abs(step))]
     k = int(np.argmax(-direction * y))
     if s.kind == "stop" and -direction * (y[k] - y0) > band * abs(step):
         out.append(Metric(f"{label}: torque rise", float(y[k]), "N·m",
@@ -330,6 +329,22 @@ def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: floa
     return out + [Metric(f"{label}: final torque", yf, "N·m", final_text + nominal)]
 
 
+def _peak(t: np.ndarray, y: np.ndarray, direction: float, label: str, what: str, dwell: float,
+          tol: float) -> Metric:
+    """The extreme reading in ``direction`` (+1 highest, −1 lowest) as the peak torque; none when it is the window's
+    last reading and the torque's trend over the last ``dwell`` s (least squares) moved more than ``tol`` (N·m) that
+    way: it is still moving when the record (or the segment) ends, and its last reading is no peak (at the end of a
+    settled record it is only the noise's last extreme)."""
+    k = int(np.argmax(direction * y))
+    tail = t >= t[-1] - dwell
+    if k == y.size - 1 and np.count_nonzero(tail) >= 3 and \
+            direction * np.polyfit(t[tail] - t[-1], y[tail], 1)[0] * dwell > tol:
+        return Metric(f"{label}: peak torque", None, "N·m",
+                      f"still {'rising' if direction > 0 else 'falling'} at the end ({y[k]:.4g} N·m at {t[k]:.4g} s, "
+                      "its extreme so far): no peak within the readings")
+    return Metric(f"{label}: peak torque", float(y[k]), "N·m", what, float(t[k]))
+
+
 def _shock_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: float, label: str, band: float,
                    dwell: float, until: str) -> list[Metric]:
     """Peak over the pre-shock level and the time until the torque is back at it; no overshoot."""
@@ -344,9 +359,9 @@ def _shock_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: flo
     amp = float(s.after) if s.after else float(np.max(np.abs(y - y0)))
     sign = 1.0 if amp >= 0 else -1.0
     k = int(np.argmax(sign * y))
-    out.append(Metric(f"{label}: peak torque", float(y[k]), "N·m",
-                      f"{y[k] - y0:+.4g} N·m over the pre-shock {y0:.4g} N·m (mean of the {dwell * 1e3:.0f} ms "
-                      f"before) = {100 * (y[k] - y0) / amp:.3g} % of the {amp:+.4g} N·m shock", float(t[k])))
+    out.append(_peak(t, y, sign, label, f"{y[k] - y0:+.4g} N·m over the pre-shock {y0:.4g} N·m (mean of the "
+                                        f"{dwell * 1e3:.0f} ms before) = {100 * (y[k] - y0) / amp:.3g} % of the "
+                                        f"{amp:+.4g} N·m shock", dwell, band * abs(amp)))
     half = band * abs(amp)
     if t[-1] - t[0] <= dwell:
         return out + [Metric(f"{label}: recovery time", None, "s", f"fewer than {dwell * 1e3:.0f} ms of readings")]

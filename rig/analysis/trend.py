@@ -69,11 +69,29 @@ def run_limit(n: int, alpha: float) -> int:
     return k
 
 
+def slope_test(v: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of ``v`` against its index and the two-sided p of slope = 0, the residual variance held at
+    least at the readings' quantisation noise q²/12 (q: the smallest step between distinct values, an ADC step for a
+    digitised signal): three readings one step apart lie exactly on a line, and an exact fit is no evidence of a
+    trend when the readings cannot tell finer values apart."""
+    fit = stats.linregress(np.arange(v.size), v)
+    steps = np.diff(np.unique(v))
+    floor = float(steps.min()) ** 2 / 12.0 if steps.size else 0.0
+    x = np.arange(v.size) - (v.size - 1) / 2.0
+    residual = v - (fit.intercept + fit.slope * np.arange(v.size))
+    variance = max(float(residual @ residual) / (v.size - 2), floor)
+    if variance == 0.0:
+        return float(fit.slope), float(fit.pvalue)
+    t = fit.slope / math.sqrt(variance / float(x @ x))
+    return float(fit.slope), float(2.0 * stats.t.sf(abs(t), v.size - 2))
+
+
 def trend(values: Sequence[float], alpha: float = 0.05) -> dict:
     """Linear trend vs sample index (slope per sample, p of slope = 0), runs test, a run on one side of the median.
 
     ``drift`` is True when one of the three rules fires, each at ``alpha``/3 so that a stationary set is called
-    drifting with a chance of at most ``alpha`` (Bonferroni): the slope is significant, the runs test shows too few
+    drifting with a chance of at most ``alpha`` (Bonferroni): the slope is significant (:func:`slope_test`, quantised
+    readings allowed for), the runs test shows too few
     runs (z < 0), or :func:`run_limit` consecutive points (9, Nelson's rule 2, in sets up to 15; 12 in a set of 50,
     14 in one of 150) lie on one side of the median; ``drift_why`` names the rules that fired (empty without drift).
     """
@@ -86,17 +104,17 @@ def trend(values: Sequence[float], alpha: float = 0.05) -> dict:
     if np.ptp(v) == 0:
         return {"slope": 0.0, "slope_p": 1.0, "runs": runs_test(v), "longest_side_run": 0, "run_limit": limit,
                 "drift": False, "drift_why": []}
-    fit = stats.linregress(np.arange(v.size), v)
+    slope, slope_p = slope_test(v)
     runs = runs_test(v)
     side = longest_side_run(v)
     why = []
-    if fit.pvalue < each:
-        why.append(f"slope p {fit.pvalue:.2g} < {each:.2g}")
+    if slope_p < each:
+        why.append(f"slope p {slope_p:.2g} < {each:.2g}")
     if runs["p"] is not None and runs["z"] < 0 and runs["p"] < each:
         why.append(f"too few runs (p {runs['p']:.2g})")
     if side >= limit:
         rule = "Nelson rule 2" if limit == 9 else f"Nelson's 9 made {limit} for a set of {v.size}"
         why.append(f"{side} in a row on one side of the median ({rule}; chance {run_chance(v.size, side):.2g} "
                    f"without a drift)")
-    return {"slope": float(fit.slope), "slope_p": float(fit.pvalue), "runs": runs, "longest_side_run": side,
+    return {"slope": slope, "slope_p": slope_p, "runs": runs, "longest_side_run": side,
             "run_limit": limit, "drift": bool(why), "drift_why": why}

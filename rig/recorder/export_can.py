@@ -34,11 +34,16 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import math
+import os
+import queue
 import struct
+import threading
+from collections import Counter
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Iterator, Protocol
+from typing import Any, Callable, Iterator, Protocol
 
 import can
 import numpy as np
@@ -49,9 +54,11 @@ from can.util import CAN_FD_DLC, len2dlc
 from mcap.exceptions import McapError
 from zstandard import ZstdError
 from mcap.reader import NonSeekingReader, make_reader
+from mcap.records import Channel, Message, Metadata
 
 from rig.recorder import schemas as S
-from rig.recorder.reader import RecordingError, require_whole_file
+from rig.recorder.reader import Recording, RecordingError, require_whole_file
+from rig.recorder.salvage import DataSectionReader
 
 REQUIRED = ("t", "id", "is_fd", "is_extended", "data")
 OPTIONAL = ("dir", "channel", "brs", "esi", "error")
@@ -182,10 +189,9 @@ def trace_start(path: Path) -> float:
                              f"(ns since 1970)") from None
 
 
-def iter_frames(path: Path, stopped: list[str] | None = None) -> Iterator[Frames]:
-    """The ``/can/raw`` blocks of a recording in file order, decoded and checked one at a time. ``stopped``: a cut or
-    damaged file ends the blocks where it can no longer be read, and what stopped them is appended to this list
-    (without it, that is a :class:`RecordingError`)."""
+def iter_frames(path: Path) -> Iterator[Frames]:
+    """The ``/can/raw`` blocks of a whole recording in file order, decoded and checked one at a time (damage is a
+    :class:`RecordingError`; :class:`Salvage` reads a cut or damaged file)."""
     buses: dict[str, int] = {}
     last = -np.inf
     try:
@@ -194,19 +200,129 @@ def iter_frames(path: Path, stopped: list[str] | None = None) -> Iterator[Frames
             # reads every chunk before it yields the first message (a long run's file twice over in memory)
             for k, (_, _, msg) in enumerate(NonSeekingReader(f).iter_messages(topics=[S.CAN_RAW],
                                                                                log_time_order=False)):
-                where = f"{path}: {S.CAN_RAW} message {k}"
-                try:
-                    block = orjson.loads(msg.data)
-                except orjson.JSONDecodeError as exc:
-                    raise RecordingError(f"{where}: not JSON ({exc})") from None
-                frames = _decode(block, where, buses, last)
+                frames = _decode_message(msg.data, f"{path}: {S.CAN_RAW} message {k}", buses, last)
                 if len(frames):
                     last = float(frames.t[-1])
                     yield frames
     except DAMAGED as exc:
-        if stopped is None:
-            raise _unreadable(path, exc) from None
-        stopped.append(_said(exc))
+        raise _unreadable(path, exc) from None
+
+
+def _decode_message(data: bytes, where: str, buses: dict[str, int], last: float) -> Frames:
+    try:
+        block = orjson.loads(data)
+    except orjson.JSONDecodeError as exc:
+        raise RecordingError(f"{where}: not JSON ({exc})") from None
+    return _decode(block, where, buses, last)
+
+
+class _Cancelled(BaseException):
+    """The export took no more blocks (writing the trace failed): the reading thread ends (a BaseException: the
+    salvage reader, which skips a chunk on any Exception, lets it through)."""
+
+
+class _FrameCollector:
+    """The salvage reader's collector for an export: the ``/can/raw`` blocks of each chunk decoded and checked, all or
+    none (a chunk with a malformed block is a lost part, named), handed on one block at a time; nothing else is kept.
+    ``start``: the run's wall-clock start (s since 1970) from the first block's log time less its first frame's
+    simulation time."""
+
+    def __init__(self, path: Path, hand_on: Callable[[Frames], None]):
+        self.rec = Recording(path=path)
+        self.channels: dict[int, str] = {}
+        self.orphans: Counter[int] = Counter()
+        self.start = 0.0
+        self._hand_on, self._buses, self._last, self._k = hand_on, {}, -math.inf, 0
+
+    def add(self, record: Any) -> None:
+        """A record outside the chunks: metadata kept (the run's start puts the lost parts' times in simulation
+        time), attachments are no part of a trace."""
+        if isinstance(record, Metadata):
+            self.rec.metadata[record.name] = dict(record.metadata)
+
+    def add_chunk(self, records: list[Any]) -> None:
+        channels, buses, last, k = dict(self.channels), dict(self._buses), self._last, self._k
+        staged, orphans = [], Counter()
+        for record in records:
+            if isinstance(record, Channel):
+                channels[record.id] = record.topic
+            elif isinstance(record, Message):
+                topic = channels.get(record.channel_id)
+                if topic is None:               # its channel was defined in a part of the file that was lost
+                    orphans[record.channel_id] += 1
+                elif topic == S.CAN_RAW:
+                    frames = _decode_message(record.data, f"{self.rec.path}: {S.CAN_RAW} message {k}", buses, last)
+                    k += 1
+                    if len(frames):
+                        last = float(frames.t[-1])
+                        staged.append((record.log_time, frames))
+        self.channels, self._buses, self._last, self._k = channels, buses, last, k
+        self.orphans.update(orphans)
+        for log_time, frames in staged:
+            if not self.start:
+                self.start = log_time / 1e9 - float(frames.t[0])
+            self._hand_on(frames)
+
+
+class Salvage:
+    """The ``/can/raw`` blocks of a cut or damaged recording, read past damage as :func:`read_recording` reads it
+    (:class:`~rig.recorder.salvage.DataSectionReader`: a chunk that fails its CRC or does not decode is skipped and
+    named, a cut file is read up to the cut), streamed: a reading thread hands the blocks over a queue of a few, so
+    memory stays bounded. After :meth:`blocks` is exhausted, ``problems`` says what the file lacks (the lost parts
+    with their time ranges first) and ``start`` is the run's wall-clock start (s since 1970, 0.0 unknown)."""
+
+    QUEUE = 4        # blocks read ahead
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.problems: list[str] = []
+        self._queue: queue.Queue = queue.Queue(self.QUEUE)
+        self._cancel = threading.Event()
+        self._collector = _FrameCollector(path, lambda frames: self._put(("frames", frames)))
+
+    @property
+    def start(self) -> float:
+        return self._collector.start
+
+    def _put(self, item: tuple) -> None:
+        while not self._cancel.is_set():
+            with contextlib.suppress(queue.Full):
+                self._queue.put(item, timeout=0.05)
+                return
+        raise _Cancelled
+
+    def _read(self) -> None:
+        try:
+            with open(self.path, "rb") as f:
+                reader = DataSectionReader(f, os.fstat(f.fileno()).st_size, self._collector)
+                reader.read()
+                reader.check()
+            reader.finish()
+            rec = self._collector.rec
+            self.problems = list(rec.problems) + ([] if reader.footer or rec.truncated else
+                                                  ["file ends without a footer (recording was not closed)"])
+            self._put(("end", None))
+        except _Cancelled:
+            pass
+        except BaseException as exc:  # noqa: BLE001  (handed to the exporting thread, which raises it)
+            with contextlib.suppress(_Cancelled):
+                self._put(("error", exc))
+
+    def blocks(self) -> Iterator[Frames]:
+        """The blocks in file order (each decoded and checked)."""
+        thread = threading.Thread(target=self._read, name="export-can reader", daemon=True)
+        thread.start()
+        try:
+            while True:
+                kind, item = self._queue.get()
+                if kind == "error":
+                    raise item
+                if kind == "end":
+                    return
+                yield item
+        finally:
+            self._cancel.set()
+            thread.join()
 
 
 class _Sink(Protocol):
@@ -336,7 +452,7 @@ class Export:
     start: float
     t_first: float
     t_last: float
-    lost: str = ""      # partial: why the export ends before the recording's end ("" = it does not)
+    lost: str = ""      # partial: what the recording lacks, its lost parts first ("" = nothing)
 
 
 def export_can(recording: str | Path, out: str | Path, partial: bool = False) -> Export:
@@ -349,25 +465,23 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
     if sink_type is None:
         raise ValueError(f"{out}: unknown CAN trace format {out.suffix or '(no extension)'!r}; "
                          f"use one of {', '.join(FORMATS)}")
-    stopped: list[str] = []
     if partial:
-        try:
-            require_whole_file(recording, "")
-        except RecordingError:
-            stopped.append("the file is cut short (no closing magic: a killed run or a cut copy)")
+        salvage = Salvage(recording)
+        blocks = salvage.blocks()
     else:
         require_whole_file(recording, "exporting every CAN frame (`rig export-can --partial` exports those before the "
                                       "cut)")
-    start = _partial_start(recording) if partial else trace_start(recording)
-    blocks = iter_frames(recording, stopped if partial else None)
+        blocks = iter_frames(recording)
     first = next(blocks, None)
-    if first is None and stopped:
-        raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read before the file ends or is damaged "
-                             f"({'; '.join(stopped)}): the recorder writes its messages in chunks of several seconds, "
-                             f"and the first chunk is the one cut — `rig report --partial {recording}` says what the "
-                             "file holds")
     if first is None:
+        blocks.close()
+        if partial and salvage.problems:
+            raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read ({'; '.join(salvage.problems)}): the "
+                                 f"recorder writes its messages in chunks of several seconds, and a killed run's file "
+                                 f"can end inside its first — `rig report --partial {recording}` says what the file "
+                                 "holds")
         raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
+    start = _known_start(recording) or salvage.start if partial else trace_start(recording)
     sink: _Sink = sink_type(out, start)
     frames = errors = 0
     names: dict[str, None] = {}
@@ -379,28 +493,20 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
             names.update(dict.fromkeys(block.channel or ()))
             t_last = float(block.t[-1])
     except BaseException:
+        blocks.close()                       # a salvage's reading thread ends
         with contextlib.suppress(Exception):
             sink.close()
         out.unlink(missing_ok=True)
         raise
     sink.close()
-    return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last, "; ".join(stopped))
+    return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last,
+                  "; ".join(salvage.problems) if partial else "")
 
 
-def _partial_start(path: Path) -> float:
-    """The trace start of a cut recording: the metadata record sits at the file's end, which a killed run does not
-    reach; then the first ``/can/raw`` block's log time (wall-clock start + simulation time) less its first frame's
-    simulation time; 0.0 (unknown) when neither reads."""
+def _known_start(path: Path) -> float:
+    """The wall-clock start in a cut or damaged recording's metadata, if its summary still reads (the metadata record
+    sits at the file's end, which a killed run does not reach); 0.0 otherwise."""
     try:
-        start = trace_start(path)
+        return trace_start(path)
     except RecordingError:
-        start = 0.0
-    if start:
-        return start
-    try:
-        with open(path, "rb") as f:
-            for _, _, msg in NonSeekingReader(f).iter_messages(topics=[S.CAN_RAW], log_time_order=False):
-                return msg.log_time / 1e9 - float(orjson.loads(msg.data)["t"][0])
-    except (*DAMAGED, orjson.JSONDecodeError, KeyError, IndexError, TypeError, ValueError):
-        pass
-    return 0.0
+        return 0.0

@@ -88,8 +88,13 @@ def test_rig_analyse_of_no_readable_recording_is_an_input_error(recordings, tmp_
     """Nothing could be read (only a file that holds no message): exit status 2, an input error (README), one line."""
     capsys.readouterr()
     assert main(["-q", "analyse", str(recordings / "cut.mcap"), "-o", str(tmp_path / "an")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("rig: error: none of the 1 files could be read as a recording")
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1 and err.startswith("rig: error: the file could not be read as a recording")
+    assert "analysed" not in out               # no success line beside the error
+    (tmp_path / "cut2.mcap").write_bytes((recordings / "cut.mcap").read_bytes())
+    assert main(["-q", "analyse", str(recordings / "cut.mcap"), str(tmp_path / "cut2.mcap"), "-o",
+                 str(tmp_path / "an2")]) == 2
+    assert capsys.readouterr().err.startswith("rig: error: none of the 2 files could be read")
 
 
 def test_recordings_of_different_scenes_or_levels_are_not_one_population(recordings, tmp_path, capsys):

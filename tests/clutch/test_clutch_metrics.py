@@ -227,3 +227,20 @@ def test_without_a_scene_there_is_no_shutdown_rule_and_no_step_figures():
     assert m["relative slip"].value == pytest.approx(np.degrees(8.0), abs=0.01)
     still = by_name(stand_metrics(stand(t, np.full_like(t, 10.0), np.full_like(t, 0.3)), [], 4, 0.1))
     assert "relative angle change" in still and "slip ended" not in still and still["disengagements"].value == "0"
+
+
+def test_a_torque_still_falling_when_the_record_ends_has_no_peak_but_a_settled_one_keeps_its_extreme():
+    """After a stop the torque still fell at the run's end: the "peak torque" was the last reading (0.928 N·m at
+    0.9 s in clutch_leaf_shock_short). The last reading is no peak when it lies beyond the level the record ends at;
+    in a settled record whose noise happens to end on its lowest reading it is the extreme as before."""
+    t = np.arange(1, 901) * 1e-3
+    falling = np.where(t < 0.5, 5.0, 5.0 * np.exp(-(t - 0.5) / 0.4))
+    stop = Stimulus(0.5, "stop", "motor off", 5.0, None)
+    m = by_name(stand_metrics(stand(t, falling), [stop], 4, 0.1))
+    peak = m["stop at 0.5 s: peak torque"]
+    assert peak.value is None and "still falling at the end" in peak.reference and "no peak" in peak.reference
+    settled = np.where(t < 0.5, 5.0, 2.0 + 3.0 * np.exp(-(t - 0.5) / 0.02))
+    settled = settled + 0.002 * np.sin(2 * np.pi * 37 * t)
+    settled[-1] = settled.min() - 1e-4                # the noise's lowest reading is the last one
+    m = by_name(stand_metrics(stand(t, settled), [stop], 4, 0.1))
+    assert m["stop at 0.5 s: peak torque"].value == pytest.approx(settled[-1])

@@ -76,3 +76,23 @@ def test_load_scene_reports_syntax_errors_and_missing_sections(tmp_path: Path):
         scene.section("speed")
     with pytest.raises(SceneError, match="cannot read scene file"):
         load_scene(tmp_path / "absent.toml")
+
+
+@pytest.mark.parametrize("value, unit, si, message", [
+    ("2.5 Hz", None, "rad/s", r"'2.5 Hz' is a frequency, not an angular speed: write revolutions \("),
+    ("150 1/min", None, "rad/s", r"'150 1/min' is a frequency, not an angular speed"),
+    (2.5, "Hz", "rad/s", r"'2.5 Hz' is a frequency, not an angular speed"),         # speed_Hz = 2.5
+    ("150 rpm", None, "Hz", r"'150 rpm' has an angle in its unit, expected something convertible to Hz \(no angle\)"),
+    ("100 N*m", None, "N*m/rad", r"has no angle in its unit, expected something convertible to N\*m/rad"),
+])
+def test_an_angle_pint_counts_as_no_dimension_is_still_checked(value, unit, si, message):
+    """pint counts the radian as dimensionless: "2.5 Hz" (150 rpm to an engineer) became 2.5 rad/s, a speed 2π too slow,
+    without a word. A frequency for an angular speed is ambiguous (revolutions or radians per second): refused, naming
+    both ways to write it; an angle where none belongs is refused too."""
+    with pytest.raises(UnitError, match=message):
+        to_si(value, si, unit, what="[speed] speed")
+
+
+@pytest.mark.parametrize("value", ["150 rpm", "2.5 rev/s", "2.5 revolution/s", "900 deg/s", "15.707963267948966 rad/s"])
+def test_an_angular_speed_in_revolutions_or_angles_per_time(value):
+    assert to_si(value, "rad/s") == pytest.approx(5 * 3.141592653589793, rel=1e-12)

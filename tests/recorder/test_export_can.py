@@ -2,6 +2,7 @@
 with asammdf's bus logging and the DBC like cantools does; what each format keeps; errors."""
 from __future__ import annotations
 
+import io
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -11,6 +12,9 @@ import numpy as np
 import orjson
 import pytest
 from asammdf import MDF
+from mcap.reader import make_reader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import Writer
 
 from rig.cli import main
@@ -246,7 +250,6 @@ def test_partial_exports_the_frames_before_the_cut_and_says_where_it_ends(tmp_pa
     metadata record is at the end), and a warning naming the last time and why."""
     recording, cut = tmp_path / "run.mcap", tmp_path / "cut.mcap"
     run_scene(ROOT / "data" / "scenes" / "pin_insertion.toml", recording, cycles=8, progress=False)
-    from mcap.reader import make_reader
     with recording.open("rb") as f:
         chunks = make_reader(f).get_summary().chunk_indexes
     assert len(chunks) >= 2
@@ -254,20 +257,57 @@ def test_partial_exports_the_frames_before_the_cut_and_says_where_it_ends(tmp_pa
     whole, part = tmp_path / "whole.log", tmp_path / "part.log"
     export_can(recording, whole)
     e = export_can(cut, part, partial=True)
-    assert e.lost.startswith("the file is cut short") and 0 < e.frames and e.start == export_can(recording, whole).start
+    assert e.lost.startswith("chunk 2 (bytes ") and "is cut by the end of the file: lost" in e.lost
+    assert "recording was not closed" in e.lost and 0 < e.frames and e.start == export_can(recording, whole).start
     a, b = read_back(whole), read_back(part)
     assert 0 < len(b) < len(a) and all(x.equals(y) for x, y in zip(a, b))
     assert main(["export-can", "--partial", str(cut), "-o", str(tmp_path / "cli.asc")]) == 0
     err = capsys.readouterr().err
-    assert f"the trace ends at {e.t_last:.6f} s of simulation time" in err and "not in the trace" in err
+    assert "the recording is cut or damaged, the trace holds the frames that read" in err and e.lost in err
     assert len(read_back(tmp_path / "cli.asc")) == len(b)
     # cut inside the first chunk: nothing before the cut reads, and the error says so (not "no frames in the recording")
     first = tmp_path / "first.mcap"
     first.write_bytes(recording.read_bytes()[:chunks[0].chunk_start_offset + chunks[0].chunk_length // 2])
-    with pytest.raises(RecordingError, match=r"first.mcap: no /can/raw frames can be read before the file ends or is "
-                                             r"damaged \(the file is cut short .*the first chunk is the one cut"):
+    with pytest.raises(RecordingError, match=r"first.mcap: no /can/raw frames can be read \(chunk 1 .*is cut by the "
+                                             r"end of the file.*a killed run's file can end inside its first"):
         export_can(first, tmp_path / "none.log", partial=True)
     assert not (tmp_path / "none.log").exists()
+
+
+def test_partial_reads_past_a_damaged_chunk_as_the_report_does(tmp_path, capsys):
+    """A chunk zeroed in a whole file: `--partial` stopped there (44 000 of 134 106 frames) while
+    `rig report --partial` read past it. Now the trace holds every frame of the other chunks — exactly the whole
+    file's frames less those of the damaged chunk's /can/raw messages, in order — and the warning names that chunk
+    with its messages."""
+    recording = tmp_path / "run.mcap"
+    run_scene(ROOT / "data" / "scenes" / "pin_insertion.toml", recording, cycles=8, progress=False)
+    with recording.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert len(chunks) >= 2
+    can_id = next(i for i, c in summary.channels.items() if c.topic == "/can/raw")
+    data = recording.read_bytes()
+    victim = chunks[0]                # it defines the channels too: the summary's channel records serve
+    record = next(StreamReader(io.BytesIO(data[victim.chunk_start_offset:victim.chunk_start_offset
+                                               + victim.chunk_length]), skip_magic=True, emit_chunks=True).records)
+    assert isinstance(record, Chunk)
+    lost_frames = sum(len(orjson.loads(m.data)["t"]) for m in breakup_chunk(record)
+                      if isinstance(m, Message) and m.channel_id == can_id)
+    assert lost_frames > 0
+    bad = bytearray(data)
+    middle = victim.chunk_start_offset + victim.chunk_length // 2
+    bad[middle:middle + 2000] = bytes(2000)
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(bad))
+    whole, part = tmp_path / "whole.log", tmp_path / "part.log"
+    export_can(recording, whole)
+    e = export_can(damaged, part, partial=True)
+    a, b = read_back(whole), read_back(part)
+    assert len(b) == e.frames == len(a) - lost_frames
+    it = iter(a)                                        # b is a in order, less a run of frames
+    assert all(any(x.equals(y) for y in it) for x in b)
+    assert e.lost.startswith("chunk 1 of ") and "skipped" in e.lost and "/can/raw" in e.lost
+    assert e.t_last == pytest.approx(a[-1].timestamp)   # read to the end, past the damage
 
 
 @pytest.mark.parametrize("damage", ["flipped", "zeroed"])
