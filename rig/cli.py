@@ -31,10 +31,11 @@ COMMAND_MODULES: tuple[str, ...] = ("rig.bench.cli", "rig.sweep.cli", "rig.analy
 def _print_cam_bar_summary(scene_path: Path, png: Path, run_level: int | None = None) -> None:
     """Print the level-1 summary of a cam-bar scene and write its cycle chart ``png``; ``run_level``: the level of
     the run it precedes (None: no run)."""
-    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene, read_spring_rates
     from rig.plants.cam_bar.summary import plot_cycle, summary_table
+    from rig.scene import load_scene
     mech, omega = cam_bar_from_scene(scene_path)
-    print(summary_table(mech, omega, run_level))
+    print(summary_table(mech, omega, run_level, read_spring_rates(load_scene(scene_path))))
     png.parent.mkdir(parents=True, exist_ok=True)
     plot_cycle(mech, omega, png)
     print(f"cycle chart: {png}")

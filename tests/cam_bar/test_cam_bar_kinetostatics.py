@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from rig.plants.cam_bar import PinInsertionMechanism
+from rig.plants.cam_bar.summary import STUDY_RATES, flank_switch_table
 
 RPM = pi / 30
 OMEGA = 150 * RPM   # the demo machine's cam speed (rad/s)
@@ -102,10 +103,10 @@ def test_flank_switches_are_zeros_of_contact_moment():
 
 def test_flank_switches_depend_on_speed_and_spring_rate():
     mech = PinInsertionMechanism()
-    table = mech.flank_switch_table(OMEGA)
+    table = flank_switch_table(mech, OMEGA)
     assert len(table["no spring"]) > 0  # without the spring the contact force reverses at 150 rpm
     assert all(len(v) == 0 for k, v in table.items() if k != "no spring")  # springs keep it on the flank
-    counts = [len(mech.flank_switch_angles(285 * RPM, k=k)) for k in mech.spring_rates]
+    counts = [len(mech.flank_switch_angles(285 * RPM, k=k)) for k in STUDY_RATES]
     assert counts == sorted(counts, reverse=True) and counts[0] > 0 and counts[-1] == 0  # stiffer → fewer
     slow = mech.flank_switch_angles(290 * RPM, k=1090.0)
     fast = mech.flank_switch_angles(400 * RPM, k=1090.0)

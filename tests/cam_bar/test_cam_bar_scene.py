@@ -8,7 +8,8 @@ import pytest
 from rig.motion import RampSpeed, SinusoidalSpeed
 from rig.plants.cam_bar import PinInsertionMechanism
 from rig.plants.cam_bar.plant import CamBarPlant, Setting
-from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_speed_profile
+from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_speed_profile, read_spring_rates
+from rig.plants.cam_bar.summary import STUDY_RATES
 from rig.scene import SceneError, load_scene
 
 SCENE = Path(__file__).resolve().parents[2] / "data" / "scenes" / "pin_insertion.toml"
@@ -29,7 +30,7 @@ def test_shipped_scene_equals_defaults():
     d = PinInsertionMechanism()
     for name in ("L3", "l3", "x_A0", "e_sk", "s0", "k", "J3", "J4", "mu", "sensor_preload", "alpha_sk"):
         assert getattr(m, name) == pytest.approx(getattr(d, name)), name
-    assert m.spring_rates == pytest.approx(d.spring_rates)
+    assert read_spring_rates(load_scene(SCENE)) == pytest.approx(STUDY_RATES)
     phi = np.linspace(0, 6.28, 100)
     speed = read_speed_profile(load_scene(SCENE))
     assert speed.nominal_omega == pytest.approx(Setting().speed.nominal_omega)

@@ -154,7 +154,6 @@ class PinInsertionMechanism:
     s_S: float = 0.042
     s_Srest: float = 0.0
     k: float = 1890.0
-    spring_rates: tuple[float, ...] = (1090.0, 1190.0, 1680.0, 1890.0)
     sensor_preload: float = -25.0
     sensor_position: float = 0.5
     clearance: float = 0.05e-3
@@ -197,7 +196,6 @@ class PinInsertionMechanism:
             self.J4 = self.m4 * self.l4 ** 2 / 12.0
         if self.a3 is None:
             self.a3 = self.L3 / 2.0
-        self.spring_rates = tuple(float(k) for k in self.spring_rates)
         self.chain = self._assemble()
         self.psi0 = float(self.chain.angles(np.array([self.s_Srest])).psi[0])
 
@@ -276,13 +274,6 @@ class PinInsertionMechanism:
         """Cam angles (rad, in [0, 2π)) where the cam contact force changes sign over one revolution at the
         constant speed ``omega`` (rad/s)."""
         return flank_switch_angles(self, self.k if k is None else k, spring, omega, n)
-
-    def flank_switch_table(self, omega: float) -> dict[str, np.ndarray]:
-        """Flank-switch angles at ``omega`` (rad/s) without the spring and with each of ``spring_rates``."""
-        table = {"no spring": self.flank_switch_angles(omega, spring=False)}
-        for k in self.spring_rates:
-            table[f"k = {k / 1e3:.2f} N/mm"] = self.flank_switch_angles(omega, k=k)
-        return table
 
     def spring_rate_design(self) -> SpringDesign:
         """Thesis rate k = (F_eS − F_e0)/(s_S − s_0); also the rate that the follower's real spring-point

@@ -137,19 +137,27 @@ def read_fidelity(scene: Scene) -> int:
     return choose(scene, "cam_bar").level
 
 
+def read_spring_rates(scene: Scene) -> tuple[float, ...]:
+    """The spring rates (N/m) whose flank switches the summary compares ([plant] spring_rates: a study, not the
+    machine, whose spring is ``k``)."""
+    where = f"{scene.path} [plant]"
+    rates = scene.read("plant", PLANT_SCHEMA)["spring_rates"]
+    if not isinstance(rates, list) or not rates:
+        raise SceneError(f"{where}: 'spring_rates' must be a non-empty list of quantities like \"1.19 N/mm\"")
+    try:
+        return tuple(to_si(r, "N/m", what=f"{where}: spring_rates[{i}]") for i, r in enumerate(rates))
+    except UnitError as exc:
+        raise SceneError(str(exc)) from None
+
+
 def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     """Keyword arguments of :class:`PinInsertionMechanism` from the scene (SI)."""
     where = f"{scene.path} [plant]"
     kw = scene.read("plant", PLANT_SCHEMA)
     for name in ("variation", "contact_damping", "guide"):     # the run's setting (read_setting)
         kw.pop(name)
-    rates = kw.pop("spring_rates")
-    if not isinstance(rates, list) or not rates:
-        raise SceneError(f"{where}: 'spring_rates' must be a non-empty list of quantities like \"1.19 N/mm\"")
-    try:
-        kw["spring_rates"] = tuple(to_si(r, "N/m", what=f"{where}: spring_rates[{i}]") for i, r in enumerate(rates))
-    except UnitError as exc:
-        raise SceneError(str(exc)) from None
+    kw.pop("spring_rates")                                      # a study of the summary (read_spring_rates)
+    read_spring_rates(scene)
     kw["program"] = read_program(kw.pop("cam_program"), kw["s_H"], where)
     kw["insertion"] = read_insertion(kw.pop("insertion"), f"{scene.path} [plant.insertion]")
     kw["cam_drive"] = read_drive(kw.pop("drive"), f"{scene.path} [plant.drive]")

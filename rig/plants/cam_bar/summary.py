@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from math import degrees, tau
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -33,16 +34,30 @@ def run_level_note(run_level: int | None) -> list[str]:
             f"and events below)"]
 
 
+#: the spring rates of the thesis machine (N/m): as drawn, the design's, as found, as mounted (MODELS §3.1)
+STUDY_RATES = (1090.0, 1190.0, 1680.0, 1890.0)
+
+
+def flank_switch_table(mech: PinInsertionMechanism, omega: float,
+                       rates: Sequence[float] = STUDY_RATES) -> dict[str, np.ndarray]:
+    """Flank-switch angles (rad) at ``omega`` (rad/s) without the spring and with each of ``rates`` (N/m)."""
+    table = {"no spring": mech.flank_switch_angles(omega, spring=False)}
+    for k in rates:
+        table[f"k = {k / 1e3:.2f} N/mm"] = mech.flank_switch_angles(omega, k=k)
+    return table
+
+
 def _rate_label(mech: PinInsertionMechanism, label: str) -> str:
-    """A flank-switch row's label (:meth:`PinInsertionMechanism.flank_switch_table`), '… (mounted)' on the row of
-    the mounted spring rate."""
+    """A flank-switch row's label (:func:`flank_switch_table`), '… (mounted)' on the row of the mounted spring
+    rate."""
     return f"{label} (mounted)" if label == f"k = {mech.k / 1e3:.2f} N/mm" else label
 
 
-def summary_table(mech: PinInsertionMechanism, omega: float, run_level: int | None = None) -> str:
-    """Level-1 stroke, follower swing, max |R23|, rod force, flank switches per spring rate, b_min, spring design
-    (text) at the constant cam speed ``omega`` (rad/s); ``run_level``: the level of the run it is printed for (a
-    note when that is not 1)."""
+def summary_table(mech: PinInsertionMechanism, omega: float, run_level: int | None = None,
+                  rates: Sequence[float] = STUDY_RATES) -> str:
+    """Level-1 stroke, follower swing, max |R23|, rod force, flank switches per spring rate (``rates``, N/m), b_min,
+    spring design (text) at the constant cam speed ``omega`` (rad/s); ``run_level``: the level of the run it is
+    printed for (a note when that is not 1)."""
     phi = np.linspace(0.0, tau, 3600, endpoint=False)
     st = mech.state(phi, omega)
     ks = mech.kinetostatics(phi, omega)
@@ -65,7 +80,7 @@ def summary_table(mech: PinInsertionMechanism, omega: float, run_level: int | No
         "  level-1 flank switches: cam angles φ where the contact force R23 changes sign (there the roller would",
         "  leave its flank; level 2 simulates the crossing itself), without the spring and per spring rate k:",
     ]
-    for label, angles in mech.flank_switch_table(omega).items():
+    for label, angles in flank_switch_table(mech, omega, rates).items():
         lines.append(f"    {_rate_label(mech, label):<24} {_angles(angles)}")
     return "\n".join(lines)
 
