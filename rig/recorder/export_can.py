@@ -481,8 +481,12 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
                                  f"can end inside its first — `rig report --partial {recording}` says what the file "
                                  "holds")
         raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
-    start = _known_start(recording) or salvage.start if partial else trace_start(recording)
-    sink: _Sink = sink_type(out, start)
+    start = (_known_start(recording) or salvage.start) if partial else trace_start(recording)
+    try:
+        sink: _Sink = sink_type(out, start)
+    except BaseException:
+        blocks.close()                       # a salvage's reading thread ends
+        raise
     frames = errors = 0
     names: dict[str, None] = {}
     try:
