@@ -293,3 +293,73 @@ def test_the_synthesis_linkages_close_their_loops():
     pin = np.c_[0.03 * np.cos(q) + 0.08, 0.03 * np.sin(q)]                  # from the lever's pivot (−d, 0)
     assert np.allclose(pin[:, 0] * np.sin(o) - pin[:, 1] * np.cos(o), 0.0, atol=1e-15)   # on the lever's line
     assert np.all(pin[:, 0] * np.cos(o) + pin[:, 1] * np.sin(o) > 0)                      # on its near side
+
+
+def _menger_radius(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Radius of the circle through each point and its two neighbours (closed curve) and that circle's centre."""
+    ax, ay, bx, by, cx, cy = np.roll(x, 1), np.roll(y, 1), x, y, np.roll(x, -1), np.roll(y, -1)
+    d = 2 * (ax * (by - cy) + bx * (cy - ay) + cx * (ay - by))
+    ux = ((ax ** 2 + ay ** 2) * (by - cy) + (bx ** 2 + by ** 2) * (cy - ay) + (cx ** 2 + cy ** 2) * (ay - by)) / d
+    uy = ((ax ** 2 + ay ** 2) * (cx - bx) + (bx ** 2 + by ** 2) * (ax - cx) + (cx ** 2 + cy ** 2) * (bx - ax)) / d
+    return np.hypot(bx - ux, by - uy), ux, uy
+
+
+def test_hertz_stress_on_the_groove_wall_the_force_presses():
+    """R23 > 0 turns the follower towards larger ψ; in the §3.1 coordinates that moves the roller towards the cam
+    centre, so the outer wall (at r + r_R, concave to the roller) carries it — the check took the inner, convex wall
+    (523 MPa at 295.6° instead of 428 MPa at 155.7°). Reference: the walls built as offset curves of the pitch curve,
+    their radii from circles through neighbouring points, the loaded one picked by moving the roller."""
+    from rig.mechanisms.cam.design import STEEL_E, STEEL_NU, design_checks, effective_modulus
+    from rig.mechanisms.cam.pitch import pitch_curve
+    mech = PinInsertionMechanism()
+    omega = 150 * pi / 30
+    phi = np.linspace(0.0, 2 * pi, 7200, endpoint=False)
+    design = design_checks(mech, omega, n=7200)
+    ks = mech.kinetostatics(phi, omega)
+    pc = pitch_curve(mech, phi)
+    # which way a growing ψ moves the roller centre, from two positions (not the project's derivative)
+    psi = mech.state(phi).psi
+    gap = [np.hypot(mech.l3 * np.cos(p) - mech.x_A0, mech.l3 * np.sin(p) - mech.y_A0) for p in (psi, psi + 1e-7)]
+    assert np.all(gap[1] < gap[0])                     # towards the cam centre all round
+    tx, ty = np.roll(pc.x, -1) - np.roll(pc.x, 1), np.roll(pc.y, -1) - np.roll(pc.y, 1)     # closed curve
+    nx, ny = ty, -tx                                    # a normal, turned to point away from the cam centre
+    flip = np.sign(nx * pc.x + ny * pc.y)
+    norm = np.hypot(nx, ny) * flip
+    wall = np.where(ks.R23n >= 0.0, 1.0, -1.0) * mech.r_R          # outer wall where R23 > 0, else inner
+    wx, wy = pc.x + wall * nx / norm, pc.y + wall * ny / norm
+    radius, ux, uy = _menger_radius(wx, wy)
+    roller_side = (ux - wx) * (pc.x - wx) + (uy - wy) * (pc.y - wy) > 0.0     # centre on the roller's side: concave
+    rho_c = np.where(roller_side, -radius, radius)
+    ref = hertz_line_stress(ks.R23n, mech.roller_width, mech.r_R, rho_c,
+                            effective_modulus(STEEL_E, STEEL_NU, STEEL_E, STEEL_NU))
+    jumps = (np.abs(np.diff(ks.R23n, append=ks.R23n[0])) > 1.0) | \
+        (np.abs(np.diff(pc.rho, append=pc.rho[0])) > 1e-3)           # the program's boundaries (ψ'' jumps)
+    smooth = ~(jumps | np.roll(jumps, 1) | np.roll(jumps, -1) | np.roll(jumps, 2) | np.roll(jumps, -2))
+    assert smooth.mean() > 0.95
+    assert np.allclose(design.sigma_h[smooth], ref[smooth], rtol=2e-3)
+    i = int(np.argmax(ref))
+    assert int(np.argmax(design.sigma_h)) == pytest.approx(i, abs=2)
+    assert design.sigma_h.max() == pytest.approx(ref.max(), rel=2e-3)
+
+
+def test_flat_follower_limit_is_the_base_radius_of_its_own_cusp_free_profile():
+    """The flat-faced follower's lift must be 0 on the base circle and ≥ 0 all round: taken from the least stroke while
+    the swing runs the other way, the 'base radius' was the face distance at the farthest position (20.47 mm) while
+    the profile built with it reaches 8.86 mm from the cam centre. Now the limit is the nearest distance of its own
+    cusp-free profile, and a profile slightly inside it has a cusp."""
+    from rig.mechanisms.cam.design import design_checks
+    mech = PinInsertionMechanism()
+    check = next(c for c in design_checks(mech, 150 * pi / 30).checks if c.name.startswith("flat-faced follower"))
+    st = mech.state(np.linspace(0.0, 2 * pi, 3600, endpoint=False))
+    sign = 1.0 if st.r[np.argmax(st.s)] >= st.r[np.argmin(st.s)] else -1.0
+    psi0 = float(np.min(sign * st.psi))
+
+    def law(f):
+        s = mech.state(f)
+        return sign * s.psi - psi0, sign * s.psi_p, sign * s.psi_pp
+
+    follower = FlatFollower(float(np.hypot(mech.x_A0, mech.y_A0)), 0.0, law)
+    rb = check.limit / 1e3
+    profile = follower.profile(rb * 1.001)
+    assert np.min(np.hypot(profile.x, profile.y)) == pytest.approx(rb * 1.001, rel=1e-4) and not profile.has_cusp
+    assert follower.profile(rb * 0.99).has_cusp

@@ -81,8 +81,10 @@ def design_checks(mech: "PinInsertionMechanism", omega: float, high_speed: bool 
     pc = pitch_curve(mech, phi)
     a_lim = pressure_angle_limit("oscillating", high_speed)
     cut = undercut_radius(mech.r_R)
-    working = ks.R23n >= 0.0
-    sigma = hertz_line_stress(ks.R23n, mech.roller_width, mech.r_R, flank_radius(pc.rho, mech.r_R, working),
+    # R23n > 0 turns the follower towards larger ψ, which moves the roller towards the cam centre (§3.1 coordinates,
+    # docs/cam-bar.md): the wall that pushes it so is the outer one, at r + r_R, concave to the roller
+    outer = (ks.R23n >= 0.0) == (_towards_centre(mech, phi) > 0.0)
+    sigma = hertz_line_stress(ks.R23n, mech.roller_width, mech.r_R, flank_radius(pc.rho, mech.r_R, outer),
                               effective_modulus(E, nu, E, nu))
     out = CamDesign(phi, ks.pressure_angle, a_lim, pc.rho, cut, sigma, sigma_allow)
     c = out.checks
@@ -100,12 +102,22 @@ def design_checks(mech: "PinInsertionMechanism", omega: float, high_speed: bool 
     i = int(np.argmax(sigma))
     c.append(Check("max Hertz stress", sigma[i] / 1e6, sigma_allow / 1e6, "MPa", "≤",
                    f"at φ = {degrees(phi[i]):.1f}°, |R23| = {abs(ks.R23n[i]):.1f} N on the "
-                   f"{'working' if working[i] else 'outer'} flank, width {mech.roller_width * 1e3:g} mm, steel "
+                   f"{'outer (concave) wall, r + r_R' if outer[i] else 'inner (convex) wall, r − r_R'}"
+                   f"{'' if ks.R23n[i] >= 0.0 else ' (the other flank: R23 < 0)'}, width {mech.roller_width * 1e3:g} mm, steel "
                    f"E = {E / 1e9:g} GPa, ν = {nu:g} (assumptions)"))
     c.extend(_sizing_checks(mech, load_coefficient))
     c.append(_flat_follower_check(mech, phi, pc))
     c.append(_synthesis_check(mech, phi))
     return out
+
+
+def _towards_centre(mech: "PinInsertionMechanism", phi: np.ndarray) -> np.ndarray:
+    """+1 where a growing ψ moves the roller towards the cam centre, −1 where away: the sign of dr/dψ reversed,
+    r = |B_R − A0| the roller centre's distance from the cam centre."""
+    st = mech.state(phi)
+    wx, wy = mech.l3 * st.trig.cp - mech.x_A0, mech.l3 * st.trig.sp - mech.y_A0
+    dr_dpsi = (wx * -mech.l3 * st.trig.sp + wy * mech.l3 * st.trig.cp) / np.hypot(wx, wy)
+    return -np.sign(dr_dpsi)
 
 
 def _sizing_checks(mech: "PinInsertionMechanism", load: float) -> list[Check]:
@@ -135,7 +147,7 @@ def _flat_follower_check(mech: "PinInsertionMechanism", phi: np.ndarray, pc: Pit
     st = mech.state(phi)
     r_top = float(st.r[np.argmax(st.s)])
     sign = 1.0 if r_top >= st.r[np.argmin(st.s)] else -1.0  # lift = swing that moves the follower outwards
-    psi_low = float(st.psi[np.argmin(st.s)])
+    psi_low = float(st.psi[np.argmin(sign * st.psi)])        # lift 0 on the base circle: the least lift, ≥ 0 all round
 
     def law(f: np.ndarray):
         s = mech.state(f)

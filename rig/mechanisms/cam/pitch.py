@@ -44,7 +44,8 @@ def pitch_curve(mech: "PinInsertionMechanism", phi: np.ndarray) -> PitchCurve:
     return PitchCurve(phi, c * wx + s * wy, -s * wx + c * wy, rho)
 
 
-def flank_radius(rho: np.ndarray, roller_radius: float, working: np.ndarray) -> np.ndarray:
-    """Signed profile radius (m, + convex) the roller touches: ρ − r_R on the working (inner) flank,
-    −(ρ + r_R) on the outer flank of the groove (``working`` False)."""
-    return np.where(working, rho - roller_radius, -(rho + roller_radius))
+def flank_radius(rho: np.ndarray, roller_radius: float, outer: np.ndarray) -> np.ndarray:
+    """Signed profile radius (m, + convex as the roller sees it) of the groove wall the roller touches: the inner
+    wall (at r − r_R from the cam centre) ρ − r_R, the outer wall (at r + r_R, ``outer`` True) −(ρ + r_R), for the
+    pitch curve's signed radius ρ (+ curving round the cam centre)."""
+    return np.where(outer, -(rho + roller_radius), rho - roller_radius)
