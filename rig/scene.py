@@ -24,6 +24,11 @@ class SceneError(ValueError):
     """A scene file is unreadable, incomplete or inconsistent; the message names file and key."""
 
 
+class ImpossibleGeometry(SceneError):
+    """Every value of the scene is valid, but together they describe a mechanism that cannot be assembled (a sweep
+    over geometry records such a point as failed instead of refusing the sweep)."""
+
+
 @dataclass(frozen=True)
 class Field:
     """One scene parameter: its SI unit (``"1"`` = pure number, ``None`` = not a quantity) and default; the range

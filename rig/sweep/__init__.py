@@ -83,6 +83,10 @@ def with_overrides(scene: Scene, overrides: dict[str, Any]) -> Scene:
         *tables, name = key.split(".")
         node: Any = data
         for i, part in enumerate(tables):
+            if isinstance(node, dict) and isinstance(node.get(part), list):
+                raise SceneError(f"{scene.path}: cannot set {key!r}: [[{'.'.join(tables[:i + 1])}]] is an array of "
+                                 "tables, whose entries a sweep cannot address (sweep a copy of the scene per entry "
+                                 "value, or a key of a plain table)")
             if not isinstance(node, dict) or not isinstance(node.get(part), dict):
                 raise SceneError(f"{scene.path}: cannot set {key!r}: the scene has no table "
                                  f"[{'.'.join(tables[:i + 1])}]")

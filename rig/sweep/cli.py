@@ -50,8 +50,8 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
                        help="model level of every point (default as rig run: [scene] fidelity, else the lowest "
                             "answering [scene] questions, else the plant's default); a metric below its level is "
                             "refused (exit 2), not written as 0 or NaN")
-    sweep.add_argument("--revolutions", type=int, default=2,
-                       help="cam revolutions per point, metrics over the last one (cam bar; default 2)")
+    sweep.add_argument("--revolutions", type=int,
+                       help="cam revolutions per point, metrics over the last one (cam-bar scenes only; default 2)")
     sweep.add_argument("-o", "--output", default="out/sweep", help="directory of table and maps (default out/sweep)")
     add_executor_arguments(sweep, local="dask-processes")
     sweep.set_defaults(func=cmd_sweep)

@@ -11,12 +11,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from rig.executors import batches
-from rig.scene import Scene, SceneError
+from rig.scene import ImpossibleGeometry, Scene, SceneError
 from rig.sweep import Param, check_units, grid, with_overrides
 from rig.sweep.metrics import METRICS, check_levels, check_metrics, run_plant
 
 if TYPE_CHECKING:
     from rig.executors import Executor
+
+
+REVOLUTIONS = 2          # cam revolutions per cam-bar point by default (metrics over the last)
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,7 @@ class SweepResult:
 
 
 def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], executor: "Executor",
-              revolutions: int = 2, fidelity: int | None = None,
+              revolutions: int | None = None, fidelity: int | None = None,
               starting: Callable[[], object] = lambda: None) -> SweepResult:
     """Every grid point of ``params`` on ``executor``, at the model level ``fidelity`` (``--fidelity``; default:
     each point's own, :func:`rig.fidelity.choose`); scene and metric errors, and metrics a point's level cannot
@@ -70,9 +73,13 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
     from rig.runner.plants import make_plant
     if not params or not metrics:
         raise ValueError("a sweep needs at least one --param and one --metric")
+    plant = read_config(scene).plant
+    if revolutions is not None and plant != "cam_bar":
+        raise ValueError(f"--revolutions counts cam revolutions of a cam-bar scene; {scene.path} is a {plant} scene "
+                         "(its run lasts its [scene] duration)")
+    revolutions = REVOLUTIONS if revolutions is None else revolutions
     if revolutions < 1:
         raise ValueError(f"a sweep needs at least 1 revolution, got {revolutions}")
-    plant = read_config(scene).plant
     check_metrics(list(metrics), plant)
     check_units(scene, params)
     scene = _forced(scene, params, fidelity)
@@ -109,20 +116,30 @@ def point_level(task: PointTask, plant: str) -> int:
 
 
 def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) -> None:
-    """Build points' plants in grid order until one builds: a key the scene cannot take fails every point, and its
-    error (naming the key) is raised before anything runs; a point that cannot be built for its own values (an
-    impossible geometry, a negative rate) is left to :func:`run_point`, wherever it lies in the grid."""
+    """Build every point's plant before anything runs: a value the scene refuses (a negative rate, a NaN, a key the
+    scene cannot take) is an input error raised here, naming the point, wherever it lies in the grid; a point that
+    cannot be built for its physics (an impossible geometry) is left to :func:`run_point`, which records it as a
+    failed point — unless no point builds at all, then the first point's error is raised."""
     from rig.plants.cam_bar.chain import SingularPositionError
     first: Exception | None = None
+    built = False
     for task in tasks:
         try:
             point = with_overrides(task.scene, task.overrides)
             make_plant(read_config(point).plant, point, nominal=True)
-            return
-        except (SceneError, SingularPositionError, ValueError) as exc:
+            built = True
+        except ImpossibleGeometry as exc:
             first = first or exc
-    assert first is not None
-    raise first
+        except SceneError as exc:
+            if len(tasks) == 1:
+                raise
+            where = ", ".join(f"{k} = {v}" for k, v in task.overrides.items())
+            raise SceneError(f"sweep point {where}: {exc}") from None
+        except (SingularPositionError, ValueError) as exc:
+            first = first or exc
+    if not built:
+        assert first is not None
+        raise first
 
 
 def levels_text(levels: Sequence[int]) -> str:

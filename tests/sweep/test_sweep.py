@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import csv
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,6 +40,9 @@ def test_overrides_change_a_copy_and_name_missing_tables():
     assert make_plant("cam_bar", changed).mech.k == pytest.approx(1090.0)
     with pytest.raises(SceneError, match=r"no table \[motor\]"):
         with_overrides(scene, {"motor.a0": "1 N*m"})
+    with pytest.raises(SceneError, match=r"\[\[plant.cam_program\]\] is an array of tables, whose entries a sweep "
+                                         r"cannot address"):           # said "no table" of a table it has
+        with_overrides(scene, {"plant.cam_program.1.angle": "100 deg"})
 
 
 def test_cam_bar_metrics_equal_the_plant_computed_directly():
@@ -194,6 +199,28 @@ def test_a_point_that_cannot_be_built_gets_its_error_wherever_it_lies(values, tm
     assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.l4=20 mm,21 mm", "--metric", "rod_force_peak",
                  "-o", str(tmp_path / "none")]) == 2
     assert "impossible cam-bar geometry" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("param, message", [
+    ("plant.k=1.89 N/mm,-1 N/mm", r"sweep point plant.k = -1 N/mm: .*key 'k' must not be negative"),
+    ("plant.k=-1 N/mm,1.89 N/mm", r"sweep point plant.k = -1 N/mm: .*key 'k' must not be negative"),
+    ("speed.speed=150 rpm,-150 rpm", r"sweep point speed.speed = -150 rpm: .*key 'speed' must be positive"),
+    ("plant.k=1.09 N/mm,nan N/mm", r"sweep point plant.k = nan N/mm: .*must be a finite quantity"),
+])
+def test_a_value_the_scene_refuses_is_an_input_error_wherever_it_lies(param, message, tmp_path, capsys):
+    """A negative rate or a NaN was a failed point (exit 0, a NaN row) when another value built, an input error only
+    when none did; an impossible geometry stays a failed point (above)."""
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", param, "--metric", "rod_force_peak",
+                 "--executor", "serial", "-o", str(tmp_path / "s")]) == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert not (tmp_path / "s" / "sweep.csv").exists()
+
+
+def test_revolutions_on_a_scene_without_a_cam_is_refused(tmp_path, capsys):
+    assert main(["-q", "sweep", str(Path(DEFAULT_SCENE).with_name("clutch_shock_short.toml")), "--param",
+                 "plant.F_a1=985 N", "--metric", "disengagements", "--revolutions", "5", "--executor", "serial",
+                 "-o", str(tmp_path / "s")]) == 2
+    assert "--revolutions counts cam revolutions of a cam-bar scene" in capsys.readouterr().err
 
 
 def test_clutch_sweep_counts_disengagements_and_the_shutdown_rule():

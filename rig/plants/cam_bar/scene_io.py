@@ -11,7 +11,7 @@ from typing import Any
 
 from rig.motion.program import CamProgram, ProgramError, Segment
 from rig.motion.speed import ConstantSpeed, RampSpeed, SinusoidalSpeed, SpeedProfile
-from rig.scene import Field, Scene, SceneError, read_table
+from rig.scene import Field, ImpossibleGeometry, Scene, SceneError, read_table
 from rig.plants.cam_bar.drive import read_drive
 from rig.plants.cam_bar.guide_friction import read_guide
 from rig.plants.cam_bar.insertion import read_insertion
@@ -201,9 +201,11 @@ def mechanism_from_scene(scene: Scene, **overrides: Any) -> PinInsertionMechanis
     """The mechanism a scene's [plant] section describes (with [[plant.cam_program]]; the description only, the
     run's setting with its [speed]: :func:`read_setting`); ``overrides`` replace keyword arguments of
     :class:`PinInsertionMechanism`. An impossible geometry is a :class:`SceneError` naming the file."""
+    from rig.plants.cam_bar.chain import SingularPositionError
     try:
         return PinInsertionMechanism(**{**read_mechanism_kwargs(scene), **overrides})
     except (ValueError, TypeError) as exc:
         if isinstance(exc, SceneError):
             raise
-        raise SceneError(f"{scene.path} [plant]: {exc}") from None
+        kind = ImpossibleGeometry if isinstance(exc, SingularPositionError) else SceneError
+        raise kind(f"{scene.path} [plant]: {exc}") from None
