@@ -381,7 +381,8 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     print(study_table(study))
     print(f"chart: {plot_study(study, chart)}")
     if args.json:
-        file_parent(Path(args.json)).write_text(json.dumps(study_json(study), indent=1) + "\n")
+        run = {"scene": str(scene_path), "seed": cfg.seed, "machines": args.samples, "task_samples": args.task_samples}
+        file_parent(Path(args.json)).write_text(json.dumps(study_json(study, run), indent=1) + "\n")
         print(f"JSON: {args.json}")
     return 0
 

@@ -58,11 +58,45 @@ class RecordingSummary:
     seed: str = ""
     started: str = ""          # the run's wall-clock start (ns, from its metadata): with scene and seed, which run
     copy_of: str = ""          # the path of another copy of the same run, counted instead of this one
+    machine: dict[str, str] = field(default_factory=dict)     # the scene's values but the run's setting (MACHINE)
+    variant: str = ""          # set by analyse_batch where recordings of one scene name describe different machines
 
     @property
     def group(self) -> str:
-        """The population its values belong to: scene and model level (``pin_insertion L1``)."""
-        return f"{self.scene or 'unknown scene'}" + (f" L{self.level}" if self.level not in ("", "null") else "")
+        """The population its values belong to: scene and model level (``pin_insertion L1``), and the machine's own
+        values where recordings of that scene name describe different machines (``… (plant.F_c = 62 N)``)."""
+        return (f"{self.scene or 'unknown scene'}" + (f" L{self.level}" if self.level not in ("", "null") else "")
+                + (f" ({self.variant})" if self.variant else ""))
+
+
+#: scene keys that set the run, not the machine: recordings that differ only in these are one population
+RUN_SETTING = {"scene": ("seed", "cycles", "duration", "name", "description", "mode", "chunk"), "recording": None}
+
+
+def machine_of(scene_text: str) -> dict[str, str]:
+    """The recorded scene's values that describe the machine (dotted key → value as written), without
+    :data:`RUN_SETTING`; {} for a recording without its scene or with one that does not parse."""
+    import tomllib
+    try:
+        data = tomllib.loads(scene_text)
+    except (tomllib.TOMLDecodeError, TypeError):
+        return {}
+    out: dict[str, str] = {}
+
+    def walk(node: object, key: str) -> None:
+        if isinstance(node, dict):
+            for k, v in node.items():
+                walk(v, f"{key}.{k}" if key else k)
+        else:
+            out[key] = repr(node)
+
+    for section, value in data.items():
+        if section in RUN_SETTING and RUN_SETTING[section] is None:
+            continue
+        if isinstance(value, dict) and section in RUN_SETTING:
+            value = {k: v for k, v in value.items() if k not in RUN_SETTING[section]}
+        walk(value, section)
+    return out
 
 
 def expand(patterns: Sequence[str]) -> list[Path]:
@@ -115,7 +149,8 @@ def summarise(path: Path) -> RecordingSummary:
         if summary is not None:
             values.update({k: (Moments.of_block(np.array([[v]])), unit) for k, (v, unit) in summary.values.items()})
     except (RecordingError, OSError, ValueError) as exc:
-        return RecordingSummary(str(path), error=" ".join(str(exc).split()))
+        text = " ".join(str(exc).split())
+        return RecordingSummary(str(path), error=text.removeprefix(f"{path}: "))     # the row names the file
     verdicts = result["verdicts"]
     ok = sum(1 for v in verdicts if v["ok"])
     meta = rec.metadata.get("rig", {})
@@ -123,7 +158,7 @@ def summarise(path: Path) -> RecordingSummary:
                             len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]),
                             summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")),
                             incomplete=" ".join("; ".join(losses(rec)).split()), seed=str(meta.get("seed", "")),
-                            started=str(meta.get("wall_clock_start", "")))
+                            started=str(meta.get("wall_clock_start", "")), machine=machine_of(rec.scene_text))
 
 
 def summarise_all(paths: list[Path]) -> list[RecordingSummary]:
@@ -145,6 +180,7 @@ def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
     order (units must agree within one)."""
     rows = [row for part in executor.map(summarise_all, batches(list(paths), executor.workers)) for row in part]
     _mark_copies(rows)
+    _name_variants(rows)
     combined: dict[tuple[str, str], tuple[Moments, str]] = {}
     for row in rows:
         if row.copy_of:
@@ -159,6 +195,30 @@ def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
             else:
                 combined[key] = (combined[key][0].merge(m), unit)
     return BatchResult(rows, combined)
+
+
+def _name_variants(rows: list[RecordingSummary]) -> None:
+    """Where recordings of one scene name and level describe different machines (their scenes differ beyond the
+    run's setting), name each machine by the values that tell them apart: each is its own population."""
+    machines: dict[str, list[dict[str, str]]] = {}
+    for row in rows:
+        if not row.error:
+            seen = machines.setdefault(row.group, [])
+            if row.machine not in seen:
+                seen.append(row.machine)
+    for group, seen in machines.items():
+        if len(seen) < 2:
+            continue
+        keys = sorted({k for m in seen for k in m if len({m.get(k) for m in seen}) > 1})
+        for row in rows:
+            if not row.error and row.group == group:
+                shown = [f"{k} = {_plain(row.machine.get(k, 'unset'))}" for k in keys[:3]]
+                row.variant = ", ".join(shown) + (f", … ({len(keys) - 3} more)" if len(keys) > 3 else "")
+
+
+def _plain(value: str) -> str:
+    """A scene value as written (the quotes of a TOML string dropped)."""
+    return value[1:-1] if len(value) > 1 and value[0] == value[-1] and value[0] in "'\"" else value
 
 
 def _mark_copies(rows: list[RecordingSummary]) -> None:
@@ -189,8 +249,8 @@ def _stats(m: Moments) -> tuple:
 
 
 def write_table(result: BatchResult, path: Path) -> Path:
-    """CSV, one row per recording: path, scene, level, plant, complete, why incomplete, curves, OK, NOK, error, a
-    stand's or lab's summary lines (joined by " | ", the console's column padding collapsed), then
+    """CSV, one row per recording: path, scene, level, plant, complete, why incomplete, curves, OK, NOK, error, the run
+    it copies, seed, population (:attr:`RecordingSummary.group`), a stand's or lab's summary lines (joined by " | ", the console's column padding collapsed), then
     n/mean/std/min/max of every process value (and stand
     result) any recording has (display units, in the header; a value shown in two units gets a column group per
     unit)."""
@@ -199,11 +259,11 @@ def write_table(result: BatchResult, path: Path) -> Path:
     with path.open("w", newline="") as f:
         out = csv.writer(f)
         out.writerow(["recording", "scene", "level", "plant", "complete", "why incomplete", "curves", "ok", "nok",
-                      "error", "copy of (not counted)", "seed", "stand"]
+                      "error", "copy of (not counted)", "seed", "population", "stand"]
                      + [f"{k} {s}" + (f" [{u}]" if u and s != "n" else "") for k, u in keys for s in STATS])
         for r in result.recordings:
             out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.incomplete, r.curves, r.ok, r.nok,
-                          r.error, r.copy_of, r.seed,
+                          r.error, r.copy_of, r.seed, "" if r.error else r.group,
                           " | ".join(" ".join(line.split()) for line in r.stand)]      # no console padding
                          + [x for k, u in keys
                             for x in (_stats(r.values[k][0]) if k in r.values and r.values[k][1] == u else [""] * 5)])
@@ -226,8 +286,14 @@ def report_lines(result: BatchResult) -> list[str]:
                 if copies else "")
              + f", {len(recs) - len(read) - len(copies)} unreadable; {curves} curves, {curves - nok} OK, {nok} NOK"
              + (f" ({100 * nok / curves:.2f} %)" if curves else "")
-             + (f"; {len(groups)} scenes (scene and model level), each its own population" if len(groups) > 1 else ""),
+             + (f"; {len(groups)} populations (scene, model level and, where one scene name holds several "
+                f"machines, the values that tell them apart), each analysed on its own" if len(groups) > 1 else ""),
              ""]
+    for scene in sorted({r.group.split(" (")[0] for r in read if r.variant}):
+        variants = sorted({r.variant for r in read if r.variant and r.group.startswith(scene + " (")})
+        lines += [f"Note: the recordings of {scene} describe {len(variants)} different machines (their scenes differ "
+                  f"beyond seed and run length: {'; '.join(variants)}); pooled, their values would read as one "
+                  "machine's scatter, so each is its own population.", ""]
     for (group, seed), runs in sorted(shared_seeds(recs).items()):
         lines += [f"Note: {len(runs)} runs of {group} were made with seed {seed}: the same machines and draws, so "
                   f"their values repeat one another rather than add independent samples (give each run its own seed)."

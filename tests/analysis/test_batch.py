@@ -7,7 +7,7 @@ import shutil
 
 import pytest
 
-from rig.analysis.batch import analyse_batch, expand
+from rig.analysis.batch import analyse_batch, expand, report_lines
 from rig.analysis.sets import process_values
 from rig.cli import main
 from rig.executors import make_executor
@@ -79,7 +79,7 @@ def test_rig_analyse_writes_table_and_report_and_names_unreadable_files(recordin
     assert f"* {recordings / 'short.mcap'}: 3 curves; counted: {recordings / 'run3.mcap'}" in report
     incomplete = report[report.index("## Incomplete recordings"):report.index("## Copies of another run")]
     assert f"* {recordings / 'short.mcap'}: file ends" in incomplete and "cut.mcap" not in incomplete
-    assert f"* {recordings / 'cut.mcap'}: {recordings / 'cut.mcap'}: the recording holds no message" in report
+    assert f"* {recordings / 'cut.mcap'}: the recording holds no message" in report      # the path once
     assert main(["analyse", str(tmp_path / "nothing*.mcap")]) == 2
     assert "no recording matches" in capsys.readouterr().err
 
@@ -114,11 +114,37 @@ def test_recordings_of_different_scenes_or_levels_are_not_one_population(recordi
     capsys.readouterr()
     assert main(["-q", "analyse", *map(str, paths), "-o", str(out)]) == 0
     report = (out / "report.md").read_text()
-    assert "2 scenes (scene and model level), each its own population" in report
+    assert "2 populations (scene, model level and, where one scene name holds several machines, the values that " \
+           "tell them apart), each analysed on its own" in report
     assert "| pin_insertion L0 | 1 | 2 | 2 | 0 |" in report and "| pin_insertion L1 | 1 | 3 | 3 | 0 |" in report
     assert "| pin_insertion L0 | p1.x_max | mm | 2 |" in report and "| pin_insertion L1 | p1.x_max | mm | 3 |" in report
     rows = list(csv.DictReader((out / "recordings.csv").open()))
     assert [r["level"] for r in rows] == ["1", "0"]
+
+
+def test_recordings_of_one_scene_name_but_different_machines_are_not_one_population(recordings, tmp_path):
+    """A copy of the demo scene with the insertion force raised to 62 N keeps the name pin_insertion: pooled with the
+    40 N runs its y_min read as one machine's σ of 6.6 N. The scenes differ beyond the run's setting (here also the
+    seed and cycles, which do not count), so each machine is its own population, named by the value that differs."""
+    from rig.cli import DEFAULT_SCENE
+    text = DEFAULT_SCENE.read_text(encoding="utf-8")
+    assert 'F_c = "40 N"' in text and "seed = 20240611" in text
+    scene = tmp_path / "pin_insertion.toml"
+    scene.write_text(text.replace('F_c = "40 N"', 'F_c = "62 N"').replace("seed = 20240611", "seed = 7"),
+                     encoding="utf-8")
+    other = tmp_path / "f62.mcap"
+    assert main(["-q", "run", str(scene), "--no-report", "--cycles", "2", "-o", str(other)]) == 0
+    paths = [recordings / "run3.mcap", recordings / "run2.mcap", other]
+    with make_executor("serial") as ex:
+        result = analyse_batch(paths, ex)
+    assert [r.group for r in result.recordings] == ["pin_insertion L1 (plant.F_c = 40 N)"] * 2 + \
+        ["pin_insertion L1 (plant.F_c = 62 N)"]
+    assert result.combined[("pin_insertion L1 (plant.F_c = 40 N)", "p1.y_min")][0].n == 5
+    assert result.combined[("pin_insertion L1 (plant.F_c = 62 N)", "p1.y_min")][0].n == 2
+    report = "\n".join(report_lines(result))
+    assert "Note: the recordings of pin_insertion L1 describe 2 different machines" in report
+    with make_executor("serial") as ex:                     # the same machine with other seeds and lengths: one
+        assert {r.group for r in analyse_batch(paths[:2], ex).recordings} == {"pin_insertion L1"}
 
 
 def test_copies_of_a_run_count_once_and_runs_sharing_a_seed_are_said(recordings):

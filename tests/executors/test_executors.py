@@ -81,8 +81,11 @@ def test_rig_tolerance_json_is_the_same_on_serial_and_dask(tmp_path, dask_schedu
     data = json.loads(a)
     n = len(data["phi_deg"])
     assert n == 360 and data["monte_carlo"]["machines"] == 3000 and len(data["linear"]["rss"]) == n
-    assert {"mean", "std", "p0.135", "p99.865"} <= set(data["monte_carlo_clearance"])
-    assert all(lo <= hi for lo, hi in zip(data["monte_carlo"]["p0.135"], data["monte_carlo"]["p99.865"]))
+    assert {"mean", "std", "min", "max", "p0.135", "p99.865"} <= set(data["monte_carlo_clearance"])
+    mc = data["monte_carlo"]
+    assert all(a <= lo <= hi <= b for a, lo, hi, b in zip(mc["min"], mc["p0.135"], mc["p99.865"], mc["max"]))
+    from rig.cli import DEFAULT_SCENE
+    assert data["run"] == {"scene": str(DEFAULT_SCENE), "seed": 20240611, "machines": 3000, "task_samples": 700}
 
 
 def test_commands_choose_their_local_dask_kind(monkeypatch):

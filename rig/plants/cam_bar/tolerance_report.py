@@ -50,16 +50,18 @@ def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed
     return ToleranceStudy(linear_analysis(chain, tol), mc, mc_c)
 
 
-def study_json(study: ToleranceStudy) -> dict:
-    """The study as JSON-ready data (m, per cam angle): each Monte-Carlo run's mean, σ and 0.135/99.865 %
-    points beside the linear RSS, worst case and signed sum."""
+def study_json(study: ToleranceStudy, run: dict | None = None) -> dict:
+    """The study as JSON-ready data (m, per cam angle): each Monte-Carlo run's mean, σ, min, max and 0.135/99.865 %
+    points beside the linear RSS, worst case and signed sum; ``run``: what the result depends on (scene, seed,
+    machines, task size), written first."""
     lin = study.linear
 
     def mc_data(mc: MonteCarloResult) -> dict:
-        return {"machines": mc.n, "mean": mc.mean.tolist(), "std": mc.std.tolist(),
-                **{f"p{p:g}": mc.percentiles[p].tolist() for p in PERCENTILES}}
+        return {"machines": mc.n, "mean": mc.mean.tolist(), "std": mc.std.tolist(), "min": mc.minimum.tolist(),
+                "max": mc.maximum.tolist(), **{f"p{p:g}": mc.percentiles[p].tolist() for p in PERCENTILES}}
 
-    out = {"unit": "m", "phi_deg": np.round(np.degrees(lin.phi), 9).tolist(), "linear": {"rss": lin.rss.tolist(),
+    out = {"run": run or {}, "unit": "m", "phi_deg": np.round(np.degrees(lin.phi), 9).tolist(),
+           "linear": {"rss": lin.rss.tolist(),
            "worst": lin.worst.tolist(), "signed": lin.signed.tolist()}, "monte_carlo": mc_data(study.mc)}
     if study.mc_clearance is not None:
         out["monte_carlo_clearance"] = mc_data(study.mc_clearance)
