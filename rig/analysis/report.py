@@ -465,6 +465,8 @@ EVENT_MEANING = {
     "lobe_wrap": "the relative angle crossed a lobe boundary (the tappets at the base of the next lobe)",
     "load_zone": "the load's angle-dependent torque changed zone",
     "shutdown": "repeated disengagements: the stand switched the motor off",
+    "method_switch": "the explicit integration method met stiffness (its steps limited by stability, not accuracy: "
+                     "why); the run went on with the implicit method (to), as LSODA switches",
     "live_dropped": "live X/Y pairs the unit did not send because the CAN bus was full; live data only feeds "
                     "displays, curves and results wait in the queue and are never dropped",
     "device_identified": "the host identified the acquisition unit on the serial link",

@@ -274,3 +274,32 @@ def test_comparison_units_are_written_as_the_console_writes_them():
     shock = Row("peak", "N*m", 16.5, 30.7, False, "", agrees=False, tolerance="15 %")
     assert slip.deviation == "-367° (-102 %)" and shock.deviation == "+14.2 N·m (+86.1 %)"
     assert "relative slip (thesis 360°, rig -7.119°); peak (thesis 16.5 N·m, rig 30.7 N·m)" in agreement_text([slip, shock])
+
+
+def test_a_stand_that_settles_into_stiffness_switches_to_the_implicit_method_and_says_so(tmp_path):
+    """The start-up's DP45 (its method on the 0.8 s span) meets stiffness once the stand settles (≈ 1.9 s into a
+    2.5 s run): the run printed a StiffnessWarning and went on stability-limited. Now it switches to Rodas4 after that
+    chunk, records a method_switch event with the reason, warns nothing, and its torque agrees with a run on Rodas4
+    from the start."""
+    import warnings
+
+    from rig.recorder import read_recording
+    from rig.solvers import StiffnessWarning
+    text = (SCENES / "clutch_leaf_startup.toml").read_text(encoding="utf-8").replace('duration = "0.8 s"',
+                                                                                    'duration = "2.5 s"')
+    assert "[plant]\n" in text and "method =" not in text
+    torque = {}
+    for method in ("DP45", "Rodas4"):
+        path = tmp_path / f"{method}.toml"
+        path.write_text(text.replace("[plant]\n", f'[plant]\nmethod = "{method}"\n', 1), encoding="utf-8")
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", StiffnessWarning)
+            run_scene(path, tmp_path / f"{method}.mcap")
+        rec = read_recording(tmp_path / f"{method}.mcap", can_frames=False)
+        switches = [e for e in rec.events if e.get("kind") == "method_switch"]
+        assert len(switches) == (1 if method == "DP45" else 0)
+        if switches:
+            assert 1.0 < switches[0]["t"] < 2.5 and switches[0]["from"] == "DP45" and switches[0]["to"] == "Rodas4"
+            assert "stiff" in switches[0]["why"]
+        torque[method] = rec.series["/plant/truth"]["T_c"]
+    assert np.allclose(torque["DP45"], torque["Rodas4"], rtol=1e-4, atol=1e-4 * np.abs(torque["Rodas4"]).max())

@@ -10,6 +10,7 @@ with ``trip_on_shutdown``, switch the motor off).
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -22,7 +23,9 @@ from rig.plants.clutch.loads import (LinearInSpeed, LinearMotor, Load, LoadSum, 
 from rig.plants.events import Event
 from rig.plants.clutch.variants import LeafSpringClutch
 from rig.scene import Field, Scene, SceneError, read_table
-from rig.solvers import METHODS, EventRecord, integrate
+from rig.solvers import METHODS, EventRecord, StiffnessWarning, integrate
+
+STIFF = "Rodas4"      # the implicit method a run switches to when an explicit one meets stiffness
 
 _COMMON = {
     "variant": Field(None, "flat_tappet", "coupling: flat_tappet (MODELS §4.1-4.3) or leaf_spring (§4.5)"),
@@ -195,6 +198,20 @@ class ClutchStand:
                 return True
         return False
 
+    def _switch_if_stiff(self, stiff_at: float | None, caught: list[warnings.WarningMessage]) -> None:
+        """An explicit method's stiffness test fired (the stand settled into a stiff state the method was not chosen
+        for — :mod:`rig.fidelity` picks the method from the scene's work–precision span): the chunk it finished is
+        accurate (its steps were cut by stability, not accuracy), the next ones run on the implicit :data:`STIFF`
+        method, as LSODA switches; a ``method_switch`` event records when and why instead of a warning. Other
+        warnings pass on."""
+        for w in caught:
+            if not (issubclass(w.category, StiffnessWarning) and self.method != STIFF):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if stiff_at is not None and self.method != STIFF:
+            why = next((str(w.message) for w in caught if issubclass(w.category, StiffnessWarning)), "stiff")
+            self.events.append(Event(stiff_at, "method_switch", {"from": self.method, "to": STIFF, "why": why}))
+            self.method = STIFF
+
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """Integrate on to the increasing sample times ``t`` (s, ≥ current time); return truth (SI)."""
         t = np.asarray(t, dtype=float)
@@ -203,8 +220,11 @@ class ClutchStand:
         if t[0] < self.t or np.any(np.diff(t) <= 0):
             raise ValueError(f"ClutchStand.advance: times must increase from the current time {self.t} s")
         if t[-1] > self.t:
-            sol = integrate(self.dynamics.problem(self.y, self._on_apex), (self.t, float(t[-1])), self.method,
-                            t_eval=t, rtol=self.rtol, atol=self.atol, first_step=self._h)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", StiffnessWarning)
+                sol = integrate(self.dynamics.problem(self.y, self._on_apex), (self.t, float(t[-1])), self.method,
+                                t_eval=t, rtol=self.rtol, atol=self.atol, first_step=self._h)
+            self._switch_if_stiff(sol.stiff_at, caught)
             for r in sol.events:
                 if r.name in ("phase_boundary", "lobe_wrap", "load_zone"):
                     self.events.append(Event(r.t, r.name, {"phi_r": r.y[0]}))
