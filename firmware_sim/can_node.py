@@ -224,7 +224,7 @@ class CanNode:
         self._send_block = getattr(bus, "send_block", None)
         self.live_dropped = 0            # live pairs not sent (decimated, throttled or stale)
         self.live_stale = 0              # of which: dropped because stale
-        self.live_factor = 1             # decimation of the last live chunk (0: none sent)
+        self.live_factor = 0             # decimation of the last live chunk (0: none sent, as before the first)
         self.live_sent = 0
         self.clipped = 0                 # values saturated to the signal range
         self.frames_sent = 0
@@ -469,8 +469,8 @@ class CanNode:
         counts (it starts the run)."""
         done = 0
         while (msg := self.bus.recv(timeout=0.0)) is not None:
-            if msg.arbitration_id != self._msg["HostCommand"].frame_id or msg.is_error_frame:
-                continue                     # other nodes' traffic is not for us
+            if msg.arbitration_id != self._msg["HostCommand"].frame_id or msg.is_extended_id or msg.is_error_frame:
+                continue                     # other nodes' traffic is not for us (0x00000050 is not 0x050)
             if len(msg.data) == 8:
                 cmd = self._msg["HostCommand"].decode(bytes(msg.data), decode_choices=False)
                 status = self._apply(int(cmd["Cmd"]), int(cmd["Arg"]))

@@ -69,7 +69,9 @@ def split_commands(buffer: str) -> tuple[list[str | None], str]:
 
 
 def parse_send(body: str) -> can.Message:
-    """The frame of a ``send ID LEN B0 ...`` command (body without the angle brackets)."""
+    """The frame of a ``send ID LEN B0 ...`` command (body without the angle brackets). As socketcand reads it, an
+    id of 8 hex digits is a 29-bit (extended) identifier and any other length an 11-bit one (``50``, ``050`` and
+    ``0050`` are all 0x050)."""
     parts = body.split()
     if len(parts) < 3 or parts[0] != "send":
         raise ValueError(f"not a send command: {body!r}")
@@ -79,9 +81,10 @@ def parse_send(body: str) -> can.Message:
         fid, length, data = int(parts[1], 16), int(parts[2], 16), bytes(int(b, 16) for b in parts[3:])
     except ValueError:
         raise ValueError(f"send command with non-hex fields: {body!r}") from None
-    if length != len(data) or length > 8 or len(parts[1]) not in (3, 8) or fid > (0x7FF if len(parts[1]) == 3 else 0x1FFFFFFF):
+    extended = len(parts[1]) == 8
+    if length != len(data) or length > 8 or fid > (0x1FFFFFFF if extended else 0x7FF):
         raise ValueError(f"send command with inconsistent id/length/data: {body!r}")
-    return can.Message(arbitration_id=fid, is_extended_id=len(parts[1]) == 8, data=data)
+    return can.Message(arbitration_id=fid, is_extended_id=extended, data=data)
 
 
 class SocketcandServer:

@@ -221,7 +221,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     machine = serve_scene(args.scene, mode="realtime" if args.realtime else None, port=args.port, wait=args.wait,
                           cycles=args.cycles, release_timeout=args.release_timeout, announce=announce,
                           progress=not args.quiet, fidelity=args.fidelity)
-    print(f"{_done('served', machine.curves)}, {machine.t:.2f} s simulated", file=sys.stderr)
+    if machine.node.before_run is None:          # else released before a run started: its warning said so
+        print(f"{_done('served', machine.curves)}, {machine.t:.2f} s simulated", file=sys.stderr)
     return 0
 
 

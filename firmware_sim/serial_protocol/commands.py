@@ -10,6 +10,7 @@ from __future__ import annotations
 import base64
 import json
 import math
+import re
 import threading
 from typing import Any, Callable
 
@@ -60,10 +61,24 @@ def _json(obj: dict[str, Any]) -> str:
 
 
 def _int(text: str, what: str) -> int:
-    try:
-        return int(text, 10)
-    except ValueError:
-        raise CommandError(SYNTAX, f"{what} must be a decimal integer, got {text!r}") from None
+    """A decimal integer as the protocol writes it: digits, an optional minus, nothing else (Python's int() also
+    takes spaces, '+' and '_')."""
+    if not re.fullmatch(r"-?[0-9]+", text):
+        raise CommandError(SYNTAX, f"{what} must be a decimal integer, got {text!r}")
+    return int(text, 10)
+
+
+def _bare(command: str, run: Callable[[], Any]) -> Callable[[str], Any]:
+    """The handler of a command that takes no request data: some is refused (``02``), not ignored."""
+    def handler(data: str) -> Any:
+        if data:
+            raise CommandError(SYNTAX, f"{command} takes no request data, got {_printable(data[:40])!r}")
+        return run()
+    return handler
+
+
+def _not_json(token: str) -> Any:
+    raise ValueError(f"{token} is not a JSON number (strict RFC 8259: no NaN or Infinity)")
 
 
 def _printable(text: str) -> str:
@@ -85,17 +100,17 @@ class Commands:
         self._latched: dict[str, np.ndarray] = {}
         # handlers return the payload; commands without one return whatever the device method returns
         self._table: dict[str, Callable[[str], Any]] = {
-            "ID": lambda d: _printable(str(self._device.identify())),
+            "ID": _bare("ID", lambda: _printable(str(self._device.identify()))),
             "PS": self._select, "PG": self._get_program, "PW": self._set_program,
-            "ST": lambda d: self._device.start(self._clock()),
-            "SP": lambda d: self._device.stop(self._clock()),
-            "TA": self._tare, "CH": self._latch,
+            "ST": _bare("ST", lambda: self._device.start(self._clock())),
+            "SP": _bare("SP", lambda: self._device.stop(self._clock())),
+            "TA": self._tare, "CH": _bare("CH", self._latch),
             "CB": lambda d: self._block(d, "xy"), "CT": lambda d: self._block(d, "t"),
             "CY": lambda d: self._block(d, "y2"),
-            "RR": self._result,
+            "RR": _bare("RR", self._result),
             "RS": lambda d: _json(self._device.statistics(self._program(d))),
             "RZ": lambda d: self._device.reset_statistics(self._program(d)),
-            "SS": lambda d: _json(self._device.status()),
+            "SS": _bare("SS", lambda: _json(self._device.status())),
         }
 
     def execute(self, command: str, data: str) -> str:
@@ -136,8 +151,8 @@ class Commands:
         if not sep:
             raise CommandError(SYNTAX, "PW data must be '<program>,<JSON object>'")
         try:
-            config = json.loads(text)
-        except json.JSONDecodeError as e:
+            config = json.loads(text, parse_constant=_not_json)
+        except ValueError as e:                  # JSONDecodeError, or a NaN/Infinity token
             raise CommandError(SYNTAX, f"PW configuration is not valid JSON: {e}") from None
         if not isinstance(config, dict):
             raise CommandError(SYNTAX, f"PW configuration must be a JSON object, got {type(config).__name__}")
@@ -146,7 +161,7 @@ class Commands:
     def _tare(self, data: str) -> None:
         self._device.tare(data or None)
 
-    def _latch(self, data: str) -> str:
+    def _latch(self) -> str:
         curve = self._device.last_curve
         if curve is None:
             raise CommandError(NO_DATA, "no curve recorded yet")
@@ -172,7 +187,7 @@ class Commands:
         block = values[i * BLOCK_PAIRS:(i + 1) * BLOCK_PAIRS]
         return f"{i},{n_blocks},{len(block)},{_b64(block)}"
 
-    def _result(self, data: str) -> str:
+    def _result(self) -> str:
         result = self._device.last_result
         if result is None:
             raise CommandError(NO_DATA, "no result yet")

@@ -396,7 +396,8 @@ def _endpoints(cfg: RunConfig, server: SocketcandServer, serial_dev: SerialDevic
                                             "address": serial_dev.address}
     return {"can": {"interface": "socketcand", "host": server.host, "port": server.port, "channel": cfg.can["channel"]},
             "serial": None if serial_dev is None else serial_dev.port, "serial_link": link,
-            "scene": str(cfg.scene.path), "scene_sha256": scene_digest(cfg.scene.path), "fidelity": cfg.fidelity.level}
+            "scene": str(cfg.scene.path.resolve()), "scene_sha256": scene_digest(cfg.scene.path),
+            "fidelity": cfg.fidelity.level}
 
 
 def scene_digest(path: str | Path) -> str:

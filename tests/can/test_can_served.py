@@ -164,3 +164,30 @@ def test_a_host_that_disconnects_without_releasing_stops_the_server_at_once() ->
     assert not thread.is_alive()
     assert isinstance(outcome[0], Exception) and "the host disconnected" in str(outcome[0])
     assert "without releasing the device" in str(outcome[0])
+
+
+def test_a_release_before_any_run_says_no_run_was_served_and_the_endpoints_name_the_scene_absolutely(tmp_path):
+    """`rig serve` given a relative scene path published it as such (a host elsewhere could not open it), and a
+    Release before any start printed "no run served" and then "served the run, 0.00 s simulated"."""
+    import subprocess
+    import sys
+    endpoints = tmp_path / "ep.json"
+    serve = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "serve", "data/scenes/pin_insertion.toml",
+                              "--endpoints", str(endpoints), "--wait", "120"], cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not endpoints.exists() or not endpoints.read_text():
+            assert serve.poll() is None, serve.stderr.read()
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        ep = json.loads(endpoints.read_text())
+        assert ep["scene"] == str(SCENE)
+        with can.Bus(**ep["can"]) as bus:
+            _command(bus, "Release", 0, 1)
+            assert serve.wait(timeout=120) == 0
+        err = serve.stderr.read()
+        assert "released the device before starting a run: no run served" in err and "simulated" not in err
+    finally:
+        serve.kill()
+        serve.wait()

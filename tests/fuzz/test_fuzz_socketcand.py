@@ -84,8 +84,9 @@ HEX = re.compile(r"[0-9A-Fa-f]+")
 @settings(max_examples=400, **FUZZ)
 @given(st.one_of(good_sends, twisted_sends(), odd_sends, bodies))
 def test_parse_send_accepts_exactly_the_frames_written(fuzz_cases, body) -> None:
-    """A send is accepted only with hex fields, an id of 3 (≤ 0x7FF) or 8 (≤ 0x1FFFFFFF) digits and as many
-    bytes as its length (at most 8), and gives exactly that frame; anything else is a ValueError naming it."""
+    """A send is accepted only with hex fields, an id of 8 digits (extended, ≤ 0x1FFFFFFF) or of any other number
+    (standard, ≤ 0x7FF: socketcand reads ``50`` as 0x050) and as many bytes as its length (at most 8), and gives
+    exactly that frame; anything else is a ValueError naming it."""
     with fuzz_cases.example("socketcand: send parser", limit=60.0) as case:
         parts = body.split()
         try:
@@ -95,7 +96,7 @@ def test_parse_send_accepts_exactly_the_frames_written(fuzz_cases, body) -> None
             case.outcome(f"refused: {str(exc).split(':')[0]}")
             return
         assert parts[0] == "send" and all(HEX.fullmatch(p) for p in parts[1:]), body
-        assert len(parts[1]) in (3, 8) and msg.is_extended_id == (len(parts[1]) == 8)
+        assert msg.is_extended_id == (len(parts[1]) == 8)
         assert msg.arbitration_id == int(parts[1], 16) <= (0x1FFFFFFF if msg.is_extended_id else 0x7FF)
         assert bytes(msg.data) == bytes(int(b, 16) for b in parts[3:]) and int(parts[2], 16) == len(msg.data) <= 8
         case.outcome("accepted")

@@ -77,3 +77,30 @@ def test_tare_preconditions_over_serial() -> None:
         client.select_program(1)
         with pytest.raises(DigiForceError, match="status 03: .*tare x: no input sample yet"):
             client.tare("x")
+
+
+@pytest.mark.parametrize("command, data", [("ID", "junk"), ("ST", "1"), ("SP", "x"), ("SS", " "), ("CH", "0"),
+                                           ("RR", "1")])
+def test_a_command_without_request_data_refuses_some(command, data) -> None:
+    """§4 lists these with no request data; "ST1" started a measurement and "IDjunk" identified (a clean-room client's
+    finding). Malformed request data is status 02, and nothing is done."""
+    from firmware_sim.serial_protocol.commands import Commands
+    unit = DigiForce()
+    answer = Commands(unit, None, threading.Lock()).execute(command, data)
+    assert answer.startswith("02") and f"{command} takes no request data" in answer
+    assert unit.status()["state"] != "measuring"
+
+
+@pytest.mark.parametrize("data", [" 1", "+1", "1_0", "1 "])
+def test_program_numbers_are_decimal_digits_only(data) -> None:
+    from firmware_sim.serial_protocol.commands import Commands
+    answer = Commands(DigiForce(), None, threading.Lock()).execute("PS", data)
+    assert answer.startswith("02") and "program number must be a decimal integer" in answer
+
+
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity"])
+def test_a_non_finite_token_in_pw_json_is_not_json(token) -> None:
+    """Strict RFC 8259: the device parsed NaN and refused the value (03); the payload is not JSON (02)."""
+    from firmware_sim.serial_protocol.commands import Commands
+    answer = Commands(DigiForce(), None, threading.Lock()).execute("PW", f'3,{{"channels":{{"x":{{"cutoff":{token}}}}}}}')
+    assert answer.startswith("02PW configuration is not valid JSON") and "no NaN or Infinity" in answer
