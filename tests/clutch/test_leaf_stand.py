@@ -102,22 +102,30 @@ def test_leaf_startup_scene_writes_the_comparison(tmp_path):
 
 def test_the_settling_time_does_not_depend_on_how_long_the_run_goes_on(tmp_path):
     """The 0.8 s start-up ends while the stand still creeps to its speed (time constant J/b ≈ 0.19 s): the band
-    around the record's last 50 ms (5.044 N·m) once gave 376 ms, 434 ms at 2 s. The band is the scene's load where the
-    record's end lies within it: the same settling time at any length."""
+    around the record's last 50 ms once gave another time than at 2 s. The band is the scene's load where the record's
+    end lies within it: the same settling time at any length, and for any seed the plant's own within a few ms."""
+    from rig.analysis.clutch_metrics import step_metrics
     from rig.analysis.clutch_report import stand_results
     from rig.recorder import read_recording
     times = {}
-    for duration in ("0.8 s", "2 s"):
-        scene = tmp_path / f"leaf_{duration[0]}.toml"
+    for duration, seed in (("0.8 s", 1), ("2 s", 1), ("0.8 s", 2), ("0.8 s", 4)):
+        scene = tmp_path / f"leaf_{duration[0]}_{seed}.toml"
         text = (SCENES / "clutch_leaf_startup.toml").read_text(encoding="utf-8")
-        assert 'duration = "0.8 s"' in text
-        scene.write_text(text.replace('duration = "0.8 s"', f'duration = "{duration}"'), encoding="utf-8")
-        out = tmp_path / f"leaf_{duration[0]}.mcap"
+        assert 'duration = "0.8 s"' in text and "\nseed = 1\n" in text
+        scene.write_text(text.replace('duration = "0.8 s"', f'duration = "{duration}"')
+                         .replace("\nseed = 1\n", f"\nseed = {seed}\n"), encoding="utf-8")
+        out = tmp_path / f"leaf_{duration[0]}_{seed}.mcap"
         run_scene(scene, out)
-        metric = next(m for m in stand_results(read_recording(out))[1] if m.name == "start-up: settling time")
+        rec = read_recording(out, can_frames=False)
+        metric = next(m for m in stand_results(rec)[1] if m.name == "start-up: settling time")
         assert "of the scene's load 5 N·m (the record ends at " in metric.reference
-        times[duration] = metric.value
-    assert times["0.8 s"] == pytest.approx(times["2 s"], abs=1e-4) and 0.40 < times["2 s"] < 0.45
+        times[duration, seed] = metric.value
+        truth = rec.series["/plant/truth"]
+        plant = step_metrics(truth["t"], truth["M_t"], band=0.05, initial=0.0, final=5.0, t_step=0.0, dwell=0.05)
+        # the torque meter fits the stand (50 N·m range): its offset and noise move the time a few ms, not the
+        # 100-380 ms the 500 N·m meter's did (434 ms for seed 1, 708 ms or "not settled" for others; truth 328 ms)
+        assert metric.value == pytest.approx(float(plant.settling_time), abs=0.015)
+    assert times["0.8 s", 1] == pytest.approx(times["2 s", 1], abs=1e-4) and times["2 s", 1] < 0.45
 
 
 def test_comparison_rows_name_what_is_missing_and_refuse_bad_rows(tmp_path):
