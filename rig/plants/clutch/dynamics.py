@@ -349,17 +349,16 @@ class ClutchDynamics:
         Stuck samples report the transmitted T_c and N_B interpolated in the static band (the split of
         static friction between cam face and guide is indeterminate)."""
         modes, brakes, current = self.modes_at(t), self.modes_at(t, brake=True), self.brake_mode
-        vals = np.empty((len(t), 7))
+        t = np.asarray(t, dtype=float)
         try:
-            for k, (ti, yi, mode, b) in enumerate(zip(t, Y.T, modes, brakes)):
-                yt = tuple(yi)
+            vals = kernel.samples(t, np.ascontiguousarray(Y, dtype=float), np.asarray(modes, dtype=np.int64),
+                                  np.asarray(brakes, dtype=float), self._sync(), self._brake)
+            bad = np.flatnonzero((np.asarray(modes) == 0) & np.isnan(vals[:, 5]))
+            if bad.size:                         # the band is undefined there: the Python path names it
+                k = int(bad[0])
                 if self._brake >= 0:
-                    self.brake_mode = int(b)
-                vals[k] = self.core(ti, yt, int(mode))
-                if mode == 0:
-                    tc, tp, tm, nbp, nbm, fa = self.band(ti, yt)[:6]
-                    w = 0.5 if tp == tm else (tc - tm) / (tp - tm)
-                    vals[k, 5], vals[k, 6] = fa, nbm + w * (nbp - nbm)
+                    self.brake_mode = int(brakes[k])
+                self.band(float(t[k]), tuple(Y[:, k]))
         finally:
             if self._brake >= 0:
                 self.brake_mode = current

@@ -366,6 +366,32 @@ def leaf_coupling(phi_r, wr, p):
 
 
 @njit(cache=True)
+def samples(t, Y, modes, brakes, p, brake_at):
+    """Per sample (columns of ``Y``, friction mode ``modes``, stick–slip brake mode ``brakes`` written into
+    p[brake_at] when ≥ 0): (ω̇1, ω̇3, M1, M3, T_c, F_a, N_B) rows; a stuck sample's F_a and N_B from the static band,
+    N_B interpolated where the required T_c lies in it (the split of static friction is indeterminate). A row whose
+    band is undefined is NaN in F_a (the caller reports it)."""
+    n = t.size
+    vals = np.empty((n, 7))
+    y = np.empty(Y.shape[0])
+    for k in range(n):
+        y[:] = Y[:, k]
+        if brake_at >= 0:
+            p[brake_at] = brakes[k]
+        c = core(t[k], y, modes[k], p, False)
+        for j in range(7):
+            vals[k, j] = c[j]
+        if modes[k] == 0:
+            tc, tp, tm, nbp, nbm, fa = band(t[k], y, p, False)[:6]
+            if math.isnan(tp) or math.isnan(tm):
+                vals[k, 5] = math.nan
+                continue
+            w = 0.5 if tp == tm else (tc - tm) / (tp - tm)
+            vals[k, 5], vals[k, 6] = fa, nbm + w * (nbp - nbm)
+    return vals
+
+
+@njit(cache=True)
 def leaf_rhs(t, y, p, out):
     """dy/dt of the leaf-spring stand into ``out``: J1 ω̇1 = M1 − T_c, J3 ω̇3 = T_c − M3 (state as :func:`rhs`)."""
     tc = leaf_coupling(y[0], y[1], p)[0]
