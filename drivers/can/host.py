@@ -100,6 +100,7 @@ class CanHost:
         self._by_id = {m.frame_id: m for m in self.db.messages if "DEVICE" in m.senders}
         self._layouts = {fid: FrameLayout(m) for fid, m in self._by_id.items() if supports(m)}
         self._command = self.db.get_message_by_name("HostCommand")
+        self._result_id = self.db.get_message_by_name("Result").frame_id     # the frame a cut result event names
         live = self.db.get_message_by_name("LiveXY")
         self.x_lsb, self.y_lsb = live.get_signal_by_name("X").scale, live.get_signal_by_name("Y").scale
         self._fd_pairs = sum(s.name.startswith("X") for s in self.db.get_message_by_name("CurveBlockFD").signals)
@@ -496,20 +497,21 @@ class CanHost:
             return
         res.missing = [name for name in PROCESS_VALUES.values() if name not in res.process_values]
         self._event(msg, "result", len(res.missing), f"result of curve {res.number}: no end marker before {why}; "
-                    f"values received: {', '.join(res.process_values) or 'none'}")
+                    f"{len(res.missing)} of {len(PROCESS_VALUES)} process values missing "
+                    f"({', '.join(res.missing) or 'none'}); values received: {', '.join(res.process_values) or 'none'}")
         self._release(res)
 
     def _check_result_timeout(self) -> None:
         res = self._pending
         if res is not None and self._bus_time - res.received > self.result_timeout:
-            self._release_pending(_Rx(self._bus_time, self._command.frame_id, b"", False),
+            self._release_pending(_Rx(self._bus_time, self._result_id, b"", False),
                                   f"{self.result_timeout:g} s of bus time passed")
 
     def flush(self, why: str = "the end of the recording") -> None:
         """End of reception (``why``): a result still waiting for its end marker is released as incomplete, a curve
         still being transferred becomes an incomplete curve (:meth:`take_curves`) and live pairs not yet reported a
         last ``live_dropped`` report."""
-        self._release_pending(_Rx(self._bus_time, self._command.frame_id, b"", False), why)
+        self._release_pending(_Rx(self._bus_time, self._result_id, b"", False), why)
         self.assembler.abandon(f"its transfer was cut by {why}")
         if self.counters.get("live_dropped", self._drops_reported) != self._drops_reported:
             self._report_drops()

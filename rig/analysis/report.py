@@ -472,6 +472,8 @@ EVENT_MEANING = {
     "device_identified": "the host identified the acquisition unit on the serial link",
     "link_summary": "frame and byte counts of the links at the end of the run",
     "sequence_gap": "CAN frames missing between two sequence numbers",
+    "result": "a result whose end marker did not come (the next curve came first, the bus time passed, or the "
+              "reception ended): recorded incomplete; count = process values missing (frame_id: the Result frame)",
     "incomplete_curve": "a curve whose frames did not all arrive: its samples are not recorded, its result is",
     "result_missing": "a curve whose result did not arrive",
     "verdict_mismatch": "the host's re-evaluation of a curve differs from the device's verdict",

@@ -137,7 +137,8 @@ class Recorder:
         self._can_frames = 0                       # frames buffered
         self._can_last = -math.inf
         self._last_ns = self.wall_clock_start      # latest log time written
-        self.last_event_time = 0.0                  # s: the latest event's simulation time (events come in order)
+        self.last_event_time = 0.0                  # s: the latest event's simulation time
+        self._event_ns = 0                          # ns: the latest event's log time (less the wall-clock start)
         self._data_end = 0.0                       # latest sample time written in any block, curve or frame (s)
         self._closed = False
         meta = {"software_version": rig.__version__, "mcap_version": mcap.__version__,
@@ -385,10 +386,14 @@ class Recorder:
         if {"t", "kind"} & set(data):
             raise ValueError(f"{S.EVENTS}: event data may not use the keys 't' or 'kind'")
         t_ns = to_ns(t, f"{S.EVENTS} {kind}")
+        # events come from several clocks (plant, bus, device) and are found in the order the host polls them: one
+        # found after a later one is logged at that one's log time (the channel stays in order), its t exact
+        log_ns = max(t_ns, self._event_ns)
+        self._event_ns = log_ns
         self.last_event_time = max(self.last_event_time, float(t))
-        self._put(self._channel(S.EVENTS, S.EVENT_SCHEMA, "rig.Event"), t_ns,
+        self._put(self._channel(S.EVENTS, S.EVENT_SCHEMA, "rig.Event"), log_ns,
                   dumps_message({"t": float(t), "kind": str(kind), **data}))
-        self._put(self._channel(S.LOG, S.LOG_SCHEMA, "foxglove.Log"), t_ns,
+        self._put(self._channel(S.LOG, S.LOG_SCHEMA, "foxglove.Log"), log_ns,
                   dumps_message(log_message(self.wall_clock_start + t_ns, float(t), str(kind), data)))
 
     def write_program(self, number: int, config: Mapping[str, Any]) -> None:

@@ -410,6 +410,9 @@ def test_result_without_end_marker_is_released_incomplete_never_silently(buses, 
     host.flush()
     (last,) = host.take_results()
     assert last.number == 1 and not last.complete
+    (event,) = host.events_of("result")                 # named by the Result frame (it said HostCommand, 0x050)
+    assert event.frame_id == 0x310 and event.count == len(last.missing)
+    assert f"{len(last.missing)} of {len(PROCESS_VALUES)} process values missing" in event.detail
 
 
 def test_curve_start_is_exact_for_a_backlog_longer_than_a_counter_wrap(buses, device, rng, elements, make_curve):

@@ -412,3 +412,24 @@ def test_summary_counts_can_messages_apart_from_the_frames_they_hold(tmp_path):
     rec.can_counts["sent"] = 0
     assert "/can/raw: 135 messages (5 frames received)" in rec.summary()
     assert Recording(tmp_path / "r.mcap", message_counts={"/can/raw": 1}).summary().startswith("/can/raw: 1 message;")
+
+
+def test_an_event_found_after_a_later_one_keeps_its_time_and_the_channel_its_order(tmp_path):
+    """A result cut by Ctrl-C (bus time 14.699945 s) was written before the last drop report (device time
+    14.6988 s): /events and /log went back in log time, which MCAP readers flag. The later-found event is logged at
+    the earlier-found one's log time; its message keeps its exact t."""
+    path = tmp_path / "ev.mcap"
+    with Recorder(path) as rec:
+        rec.write_event(14.699945, "result", count=7)
+        rec.write_event(14.6988, "live_dropped", count=3)
+        rec.write_event(15.0, "later")
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        by_topic: dict[str, list[int]] = {}
+        for _, channel, message in reader.iter_messages(log_time_order=False):
+            by_topic.setdefault(channel.topic, []).append(message.log_time)
+    for topic in ("/events", "/log"):
+        assert by_topic[topic] == sorted(by_topic[topic]), topic
+    assert by_topic["/events"][0] == by_topic["/events"][1] < by_topic["/events"][2]
+    assert [(e["t"], e["kind"]) for e in read_recording(path).events] == \
+        [(14.699945, "result"), (14.6988, "live_dropped"), (15.0, "later")]
