@@ -201,8 +201,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
     if not args.no_report:
-        report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet, ok_plots=args.ok_plots,
-                         nok_plots=args.nok_plots)
+        try:
+            report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet, ok_plots=args.ok_plots,
+                             nok_plots=args.nok_plots)
+        except KeyboardInterrupt as exc:        # the recording is whole: say so, and how to get the report
+            exc.report_of = (summary.output, report_dir)        # type: ignore[attr-defined]
+            raise
         print(f"report: {report}")
     return 0
 
@@ -550,7 +554,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _interrupted(exc: KeyboardInterrupt) -> str:
-    """One line on Ctrl-C: what a recorded run left (rig.runner.session.Interrupted), else nothing claimed."""
+    """One line on Ctrl-C: what a recorded run left (rig.runner.session.Interrupted), or that the report of a whole
+    recording was cut, else nothing claimed."""
+    if hasattr(exc, "report_of"):
+        recording, folder = getattr(exc, "report_of")
+        return (f"rig: interrupted while writing the report; the recording {recording} is complete: `rig report "
+                f"{recording} -o {folder}` writes the report")
     if not hasattr(exc, "recording"):
         return "rig: interrupted"
     recording = getattr(exc, "recording")

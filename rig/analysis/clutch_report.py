@@ -314,7 +314,7 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
             phi = np.linspace(static.phi_min, static.apex, 241)
             for direction, ls, what in ((1.0, "--", "loading"), (-1.0, ":", "unloading")):
                 ax.plot(np.degrees(phi), static.torque(phi, direction), ls, color="k", lw=1.0,
-                        label=f"static characteristic, {what} (model, one lobe)")
+                        label=f"static characteristic at standstill, {what} (model, one lobe)")
             ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), frameon=False)   # below: in
             # the axes it hid the peaks of a run that slips lobe after lobe
         ax.set(xlabel="relative angle φ1 − φ3 (°)", ylabel="torque M_t (N·m)", title="Torque over relative angle")
@@ -325,7 +325,10 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
             lobe, apex = LOBE, APEX
         blocks.append(ctx.figure(save(fig, ctx.figure_path("clutch_torque_angle"), bottom=1.05 if static else None),
                                  "Torque over relative angle (encoders on both halves, angle at power-on from the "
-                                 f"scene; apexes at {math.degrees(apex):.4g}° + k·{math.degrees(lobe):.4g}°)"))
+                                 f"scene; apexes at {math.degrees(apex):.4g}° + k·{math.degrees(lobe):.4g}°)"
+                                 + ("; the model's branches are those of the coupling at standstill: while the stand "
+                                    "turns, inertia and the tappets' centrifugal load move them, so a point off the "
+                                    "drawn band at speed is no disagreement" if static is not None else "")))
     if data.speeds:
         blocks.append(_speed_figure(ctx, data))
     events = [e for e in ctx.recording.events if e.get("kind") in ("disengagement", "shutdown")]

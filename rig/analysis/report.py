@@ -494,7 +494,8 @@ def live_pairs_dropped(recorded: list[dict]) -> int:
 
 
 #: SI unit of an event's numeric field (shown in the program's display units); other fields are shown as recorded
-EVENT_FIELD_SI = {"phi": "rad", "left_phi": "rad", "phi_r": "rad", "flight": "s", "backlog": "s"}
+EVENT_FIELD_SI = {"phi": "rad", "left_phi": "rad", "phi_r": "rad", "flight": "s", "backlog": "s", "torque": "N*m",
+                  "peak_torque": "N*m"}
 EVENT_ROWS = 200      # rows of the event-by-event table (every event is in events.csv)
 
 

@@ -248,3 +248,21 @@ def test_why_a_run_stopped_in_plain_words():
     assert interruption_text("KeyboardInterrupt") == "interrupted by the user (Ctrl-C)"
     assert interruption_text("RunError: no host connected") == "stopped by an error — RunError: no host connected"
     assert interruption_text("unknown reason") == "stopped early (the recording does not say why)"
+
+
+def test_ctrl_c_while_writing_the_report_says_the_recording_is_whole(tmp_path, monkeypatch, capsys):
+    """Ctrl-C in the report phase printed only "rig: interrupted": the recording is complete, and the line says so
+    and how to write the report."""
+    import rig.analysis.report as report_module
+    from rig.recorder.completeness import losses
+
+    def cut(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(report_module, "write_report", cut)
+    out = tmp_path / "whole.mcap"
+    assert main(["-q", "run", str(SCENE), "--cycles", "2", "-o", str(out)]) == 130
+    line = capsys.readouterr().err.splitlines()[-1]
+    assert line == (f"rig: interrupted while writing the report; the recording {out} is complete: `rig report {out} "
+                    f"-o {out.with_suffix('')}` writes the report")
+    rec = read_recording(out)
+    assert rec.complete and losses(rec) == []
