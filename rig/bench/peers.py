@@ -26,6 +26,7 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 from scipy.integrate import odeint, solve_ivp
 from scipy.optimize import brentq
 
@@ -68,7 +69,7 @@ def _span(t0: float, times: np.ndarray, t1: float) -> np.ndarray:
 
 
 def _ivp_backend(method: str) -> Backend:
-    def run(kernel, p, t0, y0, t1, events, times, rtol, atol) -> Segment:
+    def run(kernel, p, t0, y0, t1, events, times, rtol, atol, sampled=None) -> Segment:
         gs = []
         for e in events:
             g = (lambda t, y, fun=e.fun: fun(t, y))
@@ -115,7 +116,18 @@ def _leaving(events: list, f: Callable, t0: float, y0: np.ndarray) -> int | None
 ODEINT_CHUNK = 1000
 
 
-def _odeint_backend(kernel, p, t0, y0, t1, events, times, rtol, atol) -> Segment:
+@njit
+def _event_values(event, ts, Y, p, k):
+    """Event ``k`` of a compiled event kernel at the rows of ``Y`` (states at times ``ts``)."""
+    out = np.empty(ts.size)
+    for i in range(ts.size):
+        out[i] = event(ts[i], Y[i], p, k)
+    return out
+
+
+def _odeint_backend(kernel, p, t0, y0, t1, events, times, rtol, atol, sampled=None) -> Segment:
+    """``sampled(k, ts, Y)``: event k of ``events`` at the output rows (compiled, as our solvers evaluate events);
+    without it each event's Python function at each output time."""
     f = _rhs(kernel, p)
     nfev, done = 0, []
 
@@ -133,7 +145,8 @@ def _odeint_backend(kernel, p, t0, y0, t1, events, times, rtol, atol) -> Segment
         Y = solve(y, ts)
         first = None
         for k, e in enumerate(events):
-            hit = _crossings(np.array([e.fun(t, v) for t, v in zip(ts, Y)]), e.direction)
+            g = sampled(k, ts, Y) if sampled is not None else np.array([e.fun(t, v) for t, v in zip(ts, Y)])
+            hit = _crossings(g, e.direction)
             if hit.size and (first is None or hit[0] < first[0]):
                 first = (int(hit[0]), k)
         if first is None:
@@ -153,7 +166,7 @@ def _odeint_backend(kernel, p, t0, y0, t1, events, times, rtol, atol) -> Segment
         return Segment(t_root, state(t_root), k, samples, nfev)
 
 
-def _cvode_backend(kernel, p, t0, y0, t1, events, times, rtol, atol) -> Segment:
+def _cvode_backend(kernel, p, t0, y0, t1, events, times, rtol, atol, sampled=None) -> Segment:
     import sksundae
 
     def rhs(t, y, yp):
@@ -218,7 +231,12 @@ def run_peer(name: str, problem: Problem, t_span: tuple[float, float], grid: np.
     if limit is not None:
         kernel = _limited(kernel, name, limit)
     smooth_only = not name.endswith(NO_RESTARTS)       # restarts that only mark a jump in a derivative
+    if not smooth_only and problem.reset is not None and any(e.restart for e in problem.events):
+        raise RuntimeError(f"{name} does not apply: this problem's restarts re-select its mode (its reset: e.g. the "
+                           f"cam segment a tappet holds), so no method may step across them; "
+                           f"'{name.removesuffix(NO_RESTARTS)}' keeps them")
     acting = [e for e in problem.events if (e.restart and smooth_only) or e.action or e.terminal or e.mode_dependent]
+    position = {id(e): k for k, e in enumerate(problem.events)}   # a compiled event kernel's index of each event
     t_end = float(t_span[1])
     edges = breaks_in(problem, float(t_span[0]), t_end) + [t_end]
     y = np.array(problem.y0, dtype=float)
@@ -234,7 +252,10 @@ def run_peer(name: str, problem: Problem, t_span: tuple[float, float], grid: np.
             live = [e for e in acting if e.mode_dependent or e.fun(tc, tuple(y)) != 0.0]  # not the one just acted on
             j = int(np.searchsorted(grid, b, side="right"))
             now = _leaving(live, _rhs(kernel, p), tc, y)
-            seg = (run(kernel, p, tc, y, b, live, grid[i:j], rtol, atol) if now is None
+            sampled = None if problem.fun.event is None else (
+                lambda k, ts, Y, p=p, live=live: _event_values(problem.fun.event, np.asarray(ts, dtype=float),
+                                                               np.ascontiguousarray(Y), p, position[id(live[k])]))
+            seg = (run(kernel, p, tc, y, b, live, grid[i:j], rtol, atol, sampled=sampled) if now is None
                    else Segment(tc, y, now, np.empty((y.size, 0)), 1))
             nfev += seg.nfev
             n = seg.samples.shape[1]
