@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from rig.fidelity import ATOL_SCALE
-from rig.scene import SceneError, load_scene
+from rig.scene import Scene, SceneError, load_scene
 from rig.solvers import Problem
 from rig.units import to_si
 
@@ -68,10 +68,11 @@ def _halving(h0: float, n: int) -> list[float]:
     return [h0 / 2 ** k for k in range(n)]
 
 
-def _level2(scene, path: Path) -> WorkProblem:
+def _level2(scene, path: Path, checked: bool = True) -> WorkProblem:
     from rig.plants.cam_bar.level2 import Level2
     from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_level2_model, read_speed_profile, require_level2
-    require_level2(scene, "rig bench work-precision")
+    if checked:
+        require_level2(scene, "rig bench work-precision")
     mech = mechanism_from_scene(scene)
     speed = read_speed_profile(scene)
     model = Level2(mech, speed, model=read_level2_model(scene))
@@ -105,11 +106,16 @@ def _clutch(scene, path: Path) -> WorkProblem:
 
 def load_problem(path: str | Path, t_sim: float | None = None) -> WorkProblem:
     """The work–precision problem of a scene file (``t_sim`` (s) shortens its span, e.g. for tests)."""
-    path = Path(path)
-    scene = load_scene(path)
+    return problem_of(load_scene(Path(path)), t_sim)
+
+
+def problem_of(scene: Scene, t_sim: float | None = None, checked: bool = True) -> WorkProblem:
+    """The work–precision problem of a scene (``checked`` False: a cam-bar scene is taken at level 2 without asking
+    which level it runs at — for :mod:`rig.fidelity`, which is deciding that)."""
+    path = Path(scene.path)
     plant = scene.section("scene").get("plant")
     if plant == "cam_bar":
-        problem = _level2(scene, path)
+        problem = _level2(scene, path, checked)
     elif plant == "clutch_dynamic":
         problem = _clutch(scene, path)
     else:
