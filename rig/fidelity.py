@@ -60,6 +60,9 @@ NAMES = {"kinematic": 0, "kinetostatic": 1, "dynamic": 2}
 #: ``function(scene, level, questions, method, options) -> [deviation]``, each with ``beyond(tolerance)``,
 #: ``describe()`` (:func:`rig.plants.cam_bar.level_answers.compare`)
 CHECKS = {"cam_bar": "rig.plants.cam_bar.level_answers:compare"}
+#: checks a setting taken from another scene's work–precision data on this scene's own problem (by name: the
+#: benchmark code builds on this module)
+SETTING_CHECK = "rig.bench.setting_check:at_this_point"
 MODEL_TOLERANCE = 0.05
 _checked: dict[tuple, list] = {}       # compare()'s answers per scene content, level and method (choose runs often)
 #: levels whose runs are the same for a plant (the cam bar: the force sensor needs the level-1 loads at level 0 too)
@@ -180,7 +183,9 @@ def _method(scene: Scene, plant: str, tolerance: float,
                 why = (f"the cheapest setting with error <= {tolerance:g} in {path.name} (error "
                        f"{float(row['error']):.1e}, {per_second * 1e3:.1f} ms per simulated s)")
                 if path != own:              # measured at another operating point: check it at this one
-                    options, here = _at_this_point(scene, row["method"], options, tolerance, plant)
+                    module, _, name = SETTING_CHECK.partition(":")
+                    options, here = getattr(importlib.import_module(module), name)(scene, row["method"], options,
+                                                                                  tolerance)
                     why += f"; {here}"
                 return method, options, why, ""
             found = most_accurate(path, runnable, ATOL_SCALE[plant])
@@ -193,43 +198,6 @@ def _method(scene: Scene, plant: str, tolerance: float,
             return method, options, f"no runnable setting in {path.name}; the plant's default", ""
     method, options = _default_method(scene, plant)
     return method, options, "no work-precision data for this scene; the plant's default", ""
-
-
-TIGHTER = 10 ** -0.5       # factor on rtol (and atol) per step when a setting misses the tolerance at this point
-CHECK_STEPS = 6           # at most this many tighter settings (3 decades)
-CHECK_RTOL = 1e-10        # the check's reference: dp45 at this tolerance
-
-
-def _at_this_point(scene: Scene, method: str, options: dict[str, float], tolerance: float,
-                   plant: str) -> tuple[dict[str, float], str]:
-    """A setting taken from another scene's work–precision data, checked on this scene's own problem (one revolution
-    of level 2, the clutch stand's span) against dp45 at :data:`CHECK_RTOL`: its error here, and the tolerance
-    tightened by :data:`TIGHTER` until the error is within ``tolerance`` (at most :data:`CHECK_STEPS` times) — the
-    data's error is not this scene's (the as-tested machine at 300 rpm: 1.5e-5 with the nominal machine's setting).
-    Fixed-step settings are checked, not changed. (options, what the check found, in words)."""
-    from rig.bench.harness import FIXED, _ours
-    from rig.bench.problems import problem_of
-    from rig.solvers import SolverDivergence
-    try:
-        problem = problem_of(scene, checked=False)
-        reference = _ours(problem, "dp45", rtol=CHECK_RTOL, atol=CHECK_RTOL * problem.atol_scale)[0]
-        tried = dict(options)
-        for step in range(CHECK_STEPS + 1):
-            error = problem.error(_ours(problem, method, **tried)[0], reference)
-            if error <= tolerance or method in FIXED or "rtol" not in tried:
-                break
-            if step < CHECK_STEPS:
-                tried = {k: v * TIGHTER if k in ("rtol", "atol") else v for k, v in tried.items()}
-    except (SceneError, SolverDivergence, ValueError) as exc:
-        return options, f"not checked at this operating point ({' '.join(str(exc).split())[:160]})"
-    setting = " ".join(f"{k}={v:.3g}" for k, v in tried.items() if k != "atol")
-    if error <= tolerance:
-        if tried == options:
-            return options, f"checked at this operating point: error {error:.1e}"
-        return tried, (f"at this operating point that setting misses {tolerance:g}: tightened to {setting}, "
-                       f"error {error:.1e}")
-    return tried, (f"at this operating point no setting down to {setting} reaches {tolerance:g} (error {error:.1e}): "
-                   "the run is less accurate than the scene asks")
 
 
 def _default_method(scene: Scene, plant: str) -> tuple[str, dict[str, float]]:

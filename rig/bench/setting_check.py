@@ -1,0 +1,41 @@
+"""A solver setting taken from another scene's work–precision data, checked on this scene's own problem
+(:data:`rig.fidelity.SETTING_CHECK`)."""
+from __future__ import annotations
+
+from rig.bench.harness import FIXED, _ours
+from rig.bench.problems import problem_of
+from rig.scene import Scene, SceneError
+from rig.solvers import SolverDivergence
+
+TIGHTER = 10 ** -0.5       # factor on rtol (and atol) per step when a setting misses the tolerance at this point
+CHECK_STEPS = 6           # at most this many tighter settings (3 decades)
+CHECK_RTOL = 1e-10        # the check's reference: dp45 at this tolerance
+
+
+def at_this_point(scene: Scene, method: str, options: dict[str, float],
+                  tolerance: float) -> tuple[dict[str, float], str]:
+    """A setting taken from another scene's work–precision data, checked on this scene's own problem (one revolution
+    of level 2, the clutch stand's span) against dp45 at :data:`CHECK_RTOL`: its error here, and the tolerance
+    tightened by :data:`TIGHTER` until the error is within ``tolerance`` (at most :data:`CHECK_STEPS` times) — the
+    data's error is not this scene's (the as-tested machine at 300 rpm: 1.5e-5 with the nominal machine's setting).
+    Fixed-step settings are checked, not changed. (options, what the check found, in words)."""
+    try:
+        problem = problem_of(scene, checked=False)
+        reference = _ours(problem, "dp45", rtol=CHECK_RTOL, atol=CHECK_RTOL * problem.atol_scale)[0]
+        tried = dict(options)
+        for step in range(CHECK_STEPS + 1):
+            error = problem.error(_ours(problem, method, **tried)[0], reference)
+            if error <= tolerance or method in FIXED or "rtol" not in tried:
+                break
+            if step < CHECK_STEPS:
+                tried = {k: v * TIGHTER if k in ("rtol", "atol") else v for k, v in tried.items()}
+    except (SceneError, SolverDivergence, ValueError) as exc:
+        return options, f"not checked at this operating point ({' '.join(str(exc).split())[:160]})"
+    setting = " ".join(f"{k}={v:.3g}" for k, v in tried.items() if k != "atol")
+    if error <= tolerance:
+        if tried == options:
+            return options, f"checked at this operating point: error {error:.1e}"
+        return tried, (f"at this operating point that setting misses {tolerance:g}: tightened to {setting}, "
+                       f"error {error:.1e}")
+    return tried, (f"at this operating point no setting down to {setting} reaches {tolerance:g} (error {error:.1e}): "
+                   "the run is less accurate than the scene asks")
