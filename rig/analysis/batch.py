@@ -58,7 +58,7 @@ class RecordingSummary:
     seed: str = ""
     started: str = ""          # the run's wall-clock start (ns, from its metadata): with scene and seed, which run
     copy_of: str = ""          # the path of another copy of the same run, counted instead of this one
-    machine: dict[str, str] = field(default_factory=dict)     # the scene's values but the run's setting (MACHINE)
+    machine: dict[str, str] = field(default_factory=dict)     # the scene's values but the run's (RUN_SETTING)
     variant: str = ""          # set by analyse_batch where recordings of one scene name describe different machines
 
     @property
@@ -250,10 +250,9 @@ def _stats(m: Moments) -> tuple:
 
 def write_table(result: BatchResult, path: Path) -> Path:
     """CSV, one row per recording: path, scene, level, plant, complete, why incomplete, curves, OK, NOK, error, the run
-    it copies, seed, population (:attr:`RecordingSummary.group`), a stand's or lab's summary lines (joined by " | ", the console's column padding collapsed), then
-    n/mean/std/min/max of every process value (and stand
-    result) any recording has (display units, in the header; a value shown in two units gets a column group per
-    unit)."""
+    it copies, seed, population (:attr:`RecordingSummary.group`), a stand's or lab's summary lines (joined by " | ",
+    the console's column padding collapsed), then n/mean/std/min/max of every process value (and stand result) any
+    recording has (display units, in the header; a value shown in two units gets a column group per unit)."""
     keys = sorted({(k, u) for r in result.recordings for k, (_, u) in r.values.items()})
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
