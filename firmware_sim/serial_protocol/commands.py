@@ -81,6 +81,14 @@ def _not_json(token: str) -> Any:
     raise ValueError(f"{token} is not a JSON number (strict RFC 8259: no NaN or Infinity)")
 
 
+def _finite_float(text: str) -> float:
+    """A JSON number as a float; one beyond the float range (1e999) would be infinity: refused as NaN/Infinity are."""
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text} is beyond the float range (it would be read as infinity: no NaN or Infinity)")
+    return value
+
+
 def _printable(text: str) -> str:
     clean = "".join(c if c.isascii() and c.isprintable() else "?" for c in text)
     return clean[:MAX_MESSAGE]
@@ -151,7 +159,7 @@ class Commands:
         if not sep:
             raise CommandError(SYNTAX, "PW data must be '<program>,<JSON object>'")
         try:
-            config = json.loads(text, parse_constant=_not_json)
+            config = json.loads(text, parse_constant=_not_json, parse_float=_finite_float)
         except ValueError as e:                  # JSONDecodeError, or a NaN/Infinity token
             raise CommandError(SYNTAX, f"PW configuration is not valid JSON: {e}") from None
         if not isinstance(config, dict):

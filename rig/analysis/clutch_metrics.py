@@ -331,13 +331,14 @@ def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: floa
 
 def _peak(t: np.ndarray, y: np.ndarray, direction: float, label: str, what: str, dwell: float,
           tol: float) -> Metric:
-    """The extreme reading in ``direction`` (+1 highest, −1 lowest) as the peak torque; none when it is the window's
-    last reading and the torque's trend over the last ``dwell`` s (least squares) moved more than ``tol`` (N·m) that
-    way: it is still moving when the record (or the segment) ends, and its last reading is no peak (at the end of a
-    settled record it is only the noise's last extreme)."""
+    """The extreme reading in ``direction`` (+1 highest, −1 lowest) as the peak torque; none when it lies within the
+    window's last ``dwell`` s and the torque's trend over them (least squares) moved more than ``tol`` (N·m) that way:
+    it is still moving when the record (or the segment) ends, and its highest reading so far (the last, or with a noisy
+    meter one a few samples before) is no peak — a real peak within the last ``dwell`` has the torque turn back, and
+    at the end of a settled record the extreme is only the noise's."""
     k = int(np.argmax(direction * y))
     tail = t >= t[-1] - dwell
-    if k == y.size - 1 and np.count_nonzero(tail) >= 3 and \
+    if tail[k] and np.count_nonzero(tail) >= 3 and \
             direction * np.polyfit(t[tail] - t[-1], y[tail], 1)[0] * dwell > tol:
         return Metric(f"{label}: peak torque", None, "N·m",
                       f"still {'rising' if direction > 0 else 'falling'} at the end ({y[k]:.4g} N·m at {t[k]:.4g} s, "

@@ -340,7 +340,9 @@ def _anderson_cell(p: float | None) -> Any:
 
 
 def _drift_cell(trend: dict) -> str:
-    """``no``, or ``yes:`` and the rules that fired."""
+    """``no``, or ``yes:`` and the rules that fired; ``n/a`` for a set too small for a verdict."""
+    if trend["drift"] is None:
+        return "n/a (too few values)"
     return f"yes: {'; '.join(trend.get('drift_why') or [])}".rstrip(": ") if trend["drift"] else "no"
 
 

@@ -69,31 +69,19 @@ def run_limit(n: int, alpha: float) -> int:
     return k
 
 
-def slope_test(v: np.ndarray) -> tuple[float, float]:
-    """Least-squares slope of ``v`` against its index and the two-sided p of slope = 0, the residual variance held at
-    least at the readings' quantisation noise q²/12 (q: the smallest step between distinct values, an ADC step for a
-    digitised signal): three readings one step apart lie exactly on a line, and an exact fit is no evidence of a
-    trend when the readings cannot tell finer values apart."""
-    fit = stats.linregress(np.arange(v.size), v)
-    steps = np.diff(np.unique(v))
-    floor = float(steps.min()) ** 2 / 12.0 if steps.size else 0.0
-    x = np.arange(v.size) - (v.size - 1) / 2.0
-    residual = v - (fit.intercept + fit.slope * np.arange(v.size))
-    variance = max(float(residual @ residual) / (v.size - 2), floor)
-    if variance == 0.0:
-        return float(fit.slope), float(fit.pvalue)
-    t = fit.slope / math.sqrt(variance / float(x @ x))
-    return float(fit.slope), float(2.0 * stats.t.sf(abs(t), v.size - 2))
+#: fewer values than this get no drift verdict: with 1–5 degrees of freedom an exact fit of quantised readings (three
+#: y_max values one ADC step apart lie on a line: slope p 9e-11) reads as a trend, and the run rules need 9 in a row
+MIN_TREND = 8
 
 
 def trend(values: Sequence[float], alpha: float = 0.05) -> dict:
     """Linear trend vs sample index (slope per sample, p of slope = 0), runs test, a run on one side of the median.
 
     ``drift`` is True when one of the three rules fires, each at ``alpha``/3 so that a stationary set is called
-    drifting with a chance of at most ``alpha`` (Bonferroni): the slope is significant (:func:`slope_test`, quantised
-    readings allowed for), the runs test shows too few
+    drifting with a chance of at most ``alpha`` (Bonferroni): the slope is significant, the runs test shows too few
     runs (z < 0), or :func:`run_limit` consecutive points (9, Nelson's rule 2, in sets up to 15; 12 in a set of 50,
-    14 in one of 150) lie on one side of the median; ``drift_why`` names the rules that fired (empty without drift).
+    14 in one of 150) lie on one side of the median; ``drift_why`` names the rules that fired (empty without drift);
+    ``drift`` None (no verdict) below :data:`MIN_TREND` values.
     """
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
@@ -103,8 +91,12 @@ def trend(values: Sequence[float], alpha: float = 0.05) -> dict:
     limit = run_limit(v.size, each)
     if np.ptp(v) == 0:
         return {"slope": 0.0, "slope_p": 1.0, "runs": runs_test(v), "longest_side_run": 0, "run_limit": limit,
-                "drift": False, "drift_why": []}
-    slope, slope_p = slope_test(v)
+                "drift": False if v.size >= MIN_TREND else None, "drift_why": []}
+    fit = stats.linregress(np.arange(v.size), v)
+    slope, slope_p = float(fit.slope), float(fit.pvalue)
+    if v.size < MIN_TREND:                   # no verdict: see MIN_TREND
+        return {"slope": slope, "slope_p": slope_p, "runs": runs_test(v), "longest_side_run": longest_side_run(v),
+                "run_limit": limit, "drift": None, "drift_why": []}
     runs = runs_test(v)
     side = longest_side_run(v)
     why = []

@@ -2,6 +2,8 @@
 (:data:`rig.fidelity.SETTING_CHECK`)."""
 from __future__ import annotations
 
+import json
+
 from rig.bench.harness import FIXED, _ours
 from rig.bench.problems import problem_of
 from rig.scene import Scene, SceneError
@@ -12,8 +14,23 @@ CHECK_STEPS = 6           # at most this many tighter settings (3 decades)
 CHECK_RTOL = 1e-10        # the check's reference: dp45 at this tolerance
 
 
+_found: dict[tuple, tuple[dict[str, float], str]] = {}     # per scene content and setting: a sweep asks per point
+
+
 def at_this_point(scene: Scene, method: str, options: dict[str, float],
                   tolerance: float) -> tuple[dict[str, float], str]:
+    """:func:`_check`, once per scene content, method, options and tolerance (a process runs it again for every
+    ``rig.fidelity.choose`` of the same scene: a sweep three times per point)."""
+    key = (str(scene.path), json.dumps(scene.data, sort_keys=True, default=str), method,
+           tuple(sorted(options.items())), tolerance)
+    if key not in _found:
+        _found[key] = _check(scene, method, options, tolerance)
+    options, said = _found[key]
+    return dict(options), said
+
+
+def _check(scene: Scene, method: str, options: dict[str, float],
+           tolerance: float) -> tuple[dict[str, float], str]:
     """A setting taken from another scene's work–precision data, checked on this scene's own problem (one revolution
     of level 2, the clutch stand's span) against dp45 at :data:`CHECK_RTOL`: its error here, and the tolerance
     tightened by :data:`TIGHTER` until the error is within ``tolerance`` (at most :data:`CHECK_STEPS` times) — the

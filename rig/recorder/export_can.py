@@ -284,6 +284,11 @@ class Salvage:
     def start(self) -> float:
         return self._collector.start
 
+    @property
+    def orphans(self) -> int:
+        """Messages on channels whose definition was in a lost part (their topic unknown)."""
+        return sum(self._collector.orphans.values())
+
     def _put(self, item: tuple) -> None:
         while not self._cancel.is_set():
             with contextlib.suppress(queue.Full):
@@ -476,10 +481,11 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
     if first is None:
         blocks.close()
         if partial and salvage.problems:
-            raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read ({'; '.join(salvage.problems)}): the "
-                                 f"recorder writes its messages in chunks of several seconds, and a killed run's file "
-                                 f"can end inside its first — `rig report --partial {recording}` says what the file "
-                                 "holds")
+            why = ("the channels were defined in a damaged part, so the messages after it cannot be told apart by topic"
+                   if salvage.orphans else "the recorder writes its messages in chunks of several seconds, and a killed "
+                   "run's file can end inside its first")
+            raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read ({'; '.join(salvage.problems)}): "
+                                 f"{why} — `rig report --partial {recording}` says what the file holds")
         raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
     start = (_known_start(recording) or salvage.start) if partial else trace_start(recording)
     try:

@@ -129,16 +129,17 @@ def test_no_spread_is_not_called_capable(tmp_path):
     assert path.stat().st_size > 0
 
 
-def test_readings_one_adc_step_apart_are_no_drift_but_a_long_staircase_is():
-    """Three y_max readings one ADC step apart (a 3-curve run) lie exactly on a line: ordinary least squares gave
-    slope p 9e-11 and "drift: yes". The readings cannot tell finer values apart, so the residual variance is held at
-    their quantisation noise q²/12; a staircase one step per reading over 12 readings is still a drift."""
+def test_too_few_readings_get_no_drift_verdict_but_a_long_staircase_is_a_drift():
+    """Three y_max readings one ADC step apart (a 3-curve run) lie exactly on a line: least squares gave slope p 9e-11
+    and "drift: yes". Below MIN_TREND values there is no verdict (None, shown n/a); a staircase one step per reading over
+    12 readings is a drift; otherwise the slope is ordinary least squares."""
+    from scipy import stats
+    from rig.analysis.trend import MIN_TREND
     q = 0.0406901
     three = trend(-6.4290366 - q * np.arange(3))
-    assert three["drift"] is False and three["slope_p"] > 0.1
+    assert three["drift"] is None and three["drift_why"] == [] and MIN_TREND == 8
+    assert trend(-6.4290366 - q * np.arange(MIN_TREND))["drift"] is True
     stairs = trend(-6.4290366 - q * np.arange(12))
     assert stairs["drift"] is True and stairs["slope_p"] < 1e-6
-    # continuous (unquantised) readings: the same p as ordinary least squares
-    from scipy import stats
     v = np.random.default_rng(3).normal(0.0, 1.0, 40) + 0.02 * np.arange(40)
-    assert trend(v)["slope_p"] == pytest.approx(stats.linregress(np.arange(40), v).pvalue, rel=1e-9)
+    assert trend(v)["slope_p"] == pytest.approx(stats.linregress(np.arange(40), v).pvalue, rel=1e-12)

@@ -332,3 +332,21 @@ def test_a_missing_recording_is_a_usage_error_as_in_report(tmp_path, capsys):
                  ["report", str(tmp_path / "none.mcap"), "-o", str(tmp_path / "rep")]):
         assert main(["-q", *argv]) == 2
         assert f"cannot read recording {tmp_path / 'none.mcap'}: no such file or directory" in capsys.readouterr().err
+
+
+def test_partial_export_of_a_cut_file_whose_first_chunk_is_damaged_says_the_channels_were_lost(tmp_path):
+    """The first chunk defines the channels: damaged, and without a summary (the file is cut), the later chunks'
+    messages have no topic. The error said a killed run's file "can end inside its first" chunk; it says this."""
+    recording = tmp_path / "run.mcap"
+    run_scene(ROOT / "data" / "scenes" / "pin_insertion.toml", recording, cycles=8, progress=False)
+    with recording.open("rb") as f:
+        chunks = sorted(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    data = bytearray(recording.read_bytes())
+    middle = chunks[0].chunk_start_offset + chunks[0].chunk_length // 2
+    data[middle:middle + 2000] = bytes(2000)
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data[:chunks[-1].chunk_start_offset + chunks[-1].chunk_length]))    # whole chunks, no summary
+    with pytest.raises(RecordingError, match=r"not read: the record defining their channel was in a damaged part\): "
+                                             r"the channels were defined in a damaged part"):
+        export_can(bad, tmp_path / "none.log", partial=True)
+    assert not (tmp_path / "none.log").exists()

@@ -98,7 +98,7 @@ def test_program_numbers_are_decimal_digits_only(data) -> None:
     assert answer.startswith("02") and "program number must be a decimal integer" in answer
 
 
-@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity"])
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity", "1e999"])
 def test_a_non_finite_token_in_pw_json_is_not_json(token) -> None:
     """Strict RFC 8259: the device parsed NaN and refused the value (03); the payload is not JSON (02)."""
     from firmware_sim.serial_protocol.commands import Commands
