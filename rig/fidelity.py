@@ -252,8 +252,9 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
                                   f"tolerance {_percent(tolerance)}: {said}; read them as the lower model's, not the "
                                   "machine's")
         elif deviations:
-            reason += (f"; level 2 agrees within the model tolerance {_percent(tolerance)} at this operating point ("
-                       + ", ".join(f"{d.question} {d.text()}" for d in deviations) + ")")
+            whose = "" if ran == level else f" with the level-{ran} answers this run computes"
+            reason += (f"; level 2 agrees{whose} within the model tolerance {_percent(tolerance)} at this operating "
+                       "point (" + ", ".join(f"{d.question} {d.text()}" for d in deviations) + ")")
     if level < 2:
         return Fidelity(level, reason, unanswered=unanswered, caveat=caveat)
     short_of = ""

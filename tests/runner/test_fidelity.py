@@ -98,6 +98,8 @@ def test_a_forced_level_wins_and_says_what_it_cannot_answer(tmp_path, caplog):
     zero = choose(load_scene(scene_with(tmp_path, 'questions = ["stroke", "rod_force"]')), "cam_bar", forced=0)
     assert zero.unanswered == ("rod_force",) and "rod_force (needs L1)" in zero.caveat
     assert "levels 0 and 1 simulate the same run), so its measurements are level 1's" in zero.caveat   # as they are
+    # level 0 does not answer the rod force: level 2 is said to agree with the level-1 answers the run computes
+    assert "level 2 agrees with the level-1 answers this run computes within the model tolerance" in zero.reason
     assert choose(load_scene(scene_with(tmp_path, 'questions = ["stroke"]')), "cam_bar", forced=0).caveat == ""
     explicit = load_scene(scene_with(tmp_path, 'fidelity = "dynamic"'))
     assert choose(explicit, "cam_bar").level == 2 and choose(explicit, "cam_bar", forced=0).level == 0
