@@ -56,6 +56,7 @@ def _print_values(st: dict) -> None:
     if not st.get("values"):
         return
     from rig.analysis.numbers import decimals, fixed
+    from rig.analysis.trend import drift_text
     print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean μ':>10} {'σ':>9} {'min':>10} {'max':>10}  "
           f"{'μ−3σ..μ+3σ':>21}  {'Cp':>7} {'Cpk':>7}  normal drift")
     outside = []
@@ -67,8 +68,7 @@ def _print_values(st: dict) -> None:
             outside.append(name)
         else:                                                                          # σ = 0: say nothing
             cap = f"{pv['cp']:7.4g} {pv['cpk']:7.4g}" if pv["spread"] else f"{'n/a':>7} {'n/a':>7}"
-        drift = pv["trend"].get("drift")
-        drift = f"yes: {'; '.join(pv['trend'].get('drift_why') or [])}" if drift else "no" if drift is False else "-"
+        drift = drift_text(pv["trend"], "-")
         # the band at one precision: three digits of its width (four of the mean when σ = 0)
         places = decimals(6 * pv["std"], 3) if pv["std"] > 0 else decimals(pv["mean"], 4)
         band = f"{fixed(pv['minus_3sigma'], places)}..{fixed(pv['plus_3sigma'], places)}"

@@ -34,6 +34,7 @@ from rig.analysis.report_blocks import (NOK_PLOTS, Banner, Block, Figure, Headin
 from rig.analysis.sets import by_program, cut_reason, memory_warning, process_values
 from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
+from rig.analysis.trend import drift_text
 from rig.analysis.units import DisplayUnits
 from rig.outputs import MARK
 from rig.recorder import Recording, read_recording
@@ -326,7 +327,7 @@ def _values_table(values: dict) -> Table:
     rows = [[name, v["n"], v["unit"], v["mean"], v["std"], v["min"], v["max"], v["minus_3sigma"], v["plus_3sigma"],
              v["lsl"], v["usl"], *_indices(v), v["band_within_limits"], v["normality"]["shapiro_p"],
              _anderson_cell(v["normality"]["anderson_p"]), v["normality"]["normal"], v["trend"]["slope_p"],
-             v["trend"]["runs"]["p"], _drift_cell(v["trend"])] for name, v in values.items()]
+             v["trend"]["runs"]["p"], drift_text(v["trend"])] for name, v in values.items()]
     return Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
                   "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
                  rows)
@@ -337,13 +338,6 @@ def _anderson_cell(p: float | None) -> Any:
     if p is None:
         return None
     return f"≤ {ANDERSON_P[0]}" if p <= ANDERSON_P[0] else f"≥ {ANDERSON_P[1]}" if p >= ANDERSON_P[1] else p
-
-
-def _drift_cell(trend: dict) -> str:
-    """``no``, or ``yes:`` and the rules that fired; ``n/a`` for a set too small for a verdict."""
-    if trend["drift"] is None:
-        return "n/a (too few values)"
-    return f"yes: {'; '.join(trend.get('drift_why') or [])}".rstrip(": ") if trend["drift"] else "no"
 
 
 def set_statistics(ctx: ReportContext) -> list[Block]:

@@ -110,3 +110,11 @@ def trend(values: Sequence[float], alpha: float = 0.05) -> dict:
                    f"without a drift)")
     return {"slope": slope, "slope_p": slope_p, "runs": runs, "longest_side_run": side,
             "run_limit": limit, "drift": bool(why), "drift_why": why}
+
+
+def drift_text(result: dict, undecided: str = "n/a (too few values)") -> str:
+    """A :func:`trend` result's verdict in words: ``no``, ``yes: <the rules that fired>``, or ``undecided`` where
+    the set is too small for one (the report's and the console's column)."""
+    if result["drift"] is None:
+        return undecided
+    return f"yes: {'; '.join(result.get('drift_why') or [])}".rstrip(": ") if result["drift"] else "no"

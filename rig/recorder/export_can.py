@@ -54,10 +54,10 @@ from can.util import CAN_FD_DLC, len2dlc
 from mcap.exceptions import McapError
 from zstandard import ZstdError
 from mcap.reader import NonSeekingReader, make_reader
-from mcap.records import Channel, Message, Metadata
+from mcap.records import Metadata
 
 from rig.recorder import schemas as S
-from rig.recorder.reader import Recording, RecordingError, require_whole_file
+from rig.recorder.reader import Recording, RecordingError, require_whole_file, stage_chunk
 from rig.recorder.salvage import DataSectionReader
 
 REQUIRED = ("t", "id", "is_fd", "is_extended", "data")
@@ -241,27 +241,26 @@ class _FrameCollector:
             self.rec.metadata[record.name] = dict(record.metadata)
 
     def add_chunk(self, records: list[Any]) -> None:
-        channels, buses, last, k = dict(self.channels), dict(self._buses), self._last, self._k
-        staged, orphans = [], Counter()
-        for record in records:
-            if isinstance(record, Channel):
-                channels[record.id] = record.topic
-            elif isinstance(record, Message):
-                topic = channels.get(record.channel_id)
-                if topic is None:               # its channel was defined in a part of the file that was lost
-                    orphans[record.channel_id] += 1
-                elif topic == S.CAN_RAW:
-                    frames = _decode_message(record.data, f"{self.rec.path}: {S.CAN_RAW} message {k}", buses, last)
-                    k += 1
-                    if len(frames):
-                        last = float(frames.t[-1])
-                        staged.append((record.log_time, frames))
-        self.channels, self._buses, self._last, self._k = channels, buses, last, k
-        self.orphans.update(orphans)
-        for log_time, frames in staged:
-            if not self.start:
-                self.start = log_time / 1e9 - float(frames.t[0])
-            self._hand_on(frames)
+        buses, state = dict(self._buses), {"last": self._last, "k": self._k}
+
+        def decode(topic: str, data: bytes) -> Frames | None:
+            if topic != S.CAN_RAW:
+                return None
+            frames = _decode_message(data, f"{self.rec.path}: {S.CAN_RAW} message {state['k']}", buses, state["last"])
+            state["k"] += 1
+            if len(frames):
+                state["last"] = float(frames.t[-1])
+            return frames
+
+        self.channels, staged = stage_chunk(self.channels, records, decode)
+        self._buses, self._last, self._k = buses, state["last"], state["k"]
+        for record, topic, frames in staged:
+            if topic is None:                   # its channel was defined in a part of the file that was lost
+                self.orphans[record.channel_id] += 1
+            elif frames is not None and len(frames):
+                if not self.start:
+                    self.start = record.log_time / 1e9 - float(frames.t[0])
+                self._hand_on(frames)
 
 
 class Salvage:

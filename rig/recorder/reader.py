@@ -6,7 +6,7 @@ import os
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 import orjson
@@ -200,6 +200,22 @@ def _can(blocks: list[dict]) -> dict[str, Any]:
 _REPEATS = frozenset({*S.VIEWS, S.LOG})      # topics that repeat others' data in a viewer's form
 
 
+def stage_chunk(channels: dict[int, str], records: list[Any],
+                decode: Callable[[str, bytes], Any]) -> tuple[dict[int, str], list[tuple[Any, str | None, Any]]]:
+    """A chunk's records staged, before any is kept: ``channels`` with the chunk's channel definitions added (a
+    copy), and each message as (record, its topic — None where its channel was defined in a lost part —,
+    ``decode(topic, data)``); a message that does not decode raises with nothing of the chunk kept."""
+    channels = dict(channels)
+    staged = []
+    for record in records:
+        if isinstance(record, Channel):
+            channels[record.id] = record.topic
+        elif isinstance(record, Message):
+            topic = channels.get(record.channel_id)
+            staged.append((record, topic, None if topic is None else decode(topic, record.data)))
+    return channels, staged
+
+
 class _Collector:
     """Sorts decoded records into a :class:`Recording`."""
 
@@ -227,15 +243,7 @@ class _Collector:
     def add_chunk(self, records: list[Any]) -> None:
         """The records of one chunk, all or none: every message is decoded before any is kept (a message that
         does not decode raises with nothing of its chunk collected)."""
-        channels = dict(self.channels)
-        staged = []
-        for record in records:
-            if isinstance(record, Channel):
-                channels[record.id] = record.topic
-            elif isinstance(record, Message):
-                topic = channels.get(record.channel_id)
-                staged.append((record, topic, None if topic is None else self._decode(topic, record.data)))
-        self.channels = channels
+        self.channels, staged = stage_chunk(self.channels, records, self._decode)
         rec = self.rec
         for record, topic, value in staged:
             if topic is None:                   # its channel was defined in a part of the file that was lost
