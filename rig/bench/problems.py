@@ -14,6 +14,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -60,6 +61,14 @@ TOLS = [10.0 ** (-k / 2) for k in range(8, 21)]            # 1e-4 ... 1e-10 in h
 QUICK_TOLS = [1e-5, 1e-6, 10.0 ** -6.5, 1e-7, 1e-8]
 
 
+def _key(scene: Scene, key: str, path: Path) -> Any:
+    """``[scene] key``; a :class:`SceneError` naming it when the scene lacks it."""
+    value = scene.section("scene").get(key)
+    if value is None:
+        raise SceneError(f"{path} [scene]: missing key {key!r} (the work-precision problem needs it)")
+    return value
+
+
 def _grid(t_sim: float, rate: float) -> np.ndarray:
     return np.linspace(0.0, t_sim, int(round(t_sim * rate)) + 1)
 
@@ -78,7 +87,7 @@ def _level2(scene, path: Path, checked: bool = True) -> WorkProblem:
     model = Level2(mech, speed, model=read_level2_model(scene))
     t_sim = 2 * math.pi / speed.nominal_omega
     y0 = model.initial_state(0.0)
-    rate = to_si(scene.section("scene")["sample_rate"], "Hz", what=f"{path} [scene] sample_rate")
+    rate = to_si(_key(scene, "sample_rate", path), "Hz", what=f"{path} [scene] sample_rate")
     # explicit Euler is stable on the contact only below h ~ 60 us (h*omega_n < 2*zeta), RK4 below ~ 0.2 ms
     full = Sweeps({"euler": _halving(4e-5, 6), "semi-implicit euler": _halving(4e-5, 6), "rk4": _halving(2e-4, 6)},
                   TOLS)
@@ -92,8 +101,8 @@ def _level2(scene, path: Path, checked: bool = True) -> WorkProblem:
 
 def _clutch(scene, path: Path) -> WorkProblem:
     from rig.plants.clutch.stand import ClutchStand
-    t_sim = to_si(scene.section("scene")["duration"], "s", what=f"{path} [scene] duration")
-    rate = to_si(scene.section("scene")["sample_rate"], "Hz", what=f"{path} [scene] sample_rate")
+    t_sim = to_si(_key(scene, "duration", path), "s", what=f"{path} [scene] duration")
+    rate = to_si(_key(scene, "sample_rate", path), "Hz", what=f"{path} [scene] sample_rate")
     stand = ClutchStand.from_scene(scene)
     dyn, y0 = stand.dynamics, stand.y
     full = Sweeps({"euler": _halving(1e-4, 6), "semi-implicit euler": _halving(1e-4, 6), "rk4": _halving(1e-3, 6)},
