@@ -58,7 +58,7 @@ from mcap.records import Metadata
 
 from rig.recorder import schemas as S
 from rig.recorder.reader import Recording, RecordingError, require_whole_file, stage_chunk
-from rig.recorder.salvage import DataSectionReader
+from rig.recorder.salvage import DataSectionReader, plain
 
 REQUIRED = ("t", "id", "is_fd", "is_extended", "data")
 OPTIONAL = ("dir", "channel", "brs", "esi", "error")
@@ -161,14 +161,9 @@ DAMAGED = (McapError, ZstdError, RuntimeError, struct.error)
 
 
 def _unreadable(path: Path, exc: Exception) -> RecordingError:
-    return RecordingError(f"{path}: cannot read the MCAP recording, it is damaged ({_said(exc)}); exporting CAN "
+    return RecordingError(f"{path}: cannot read the MCAP recording, it is damaged ({plain(exc)}); exporting CAN "
                           f"needs an undamaged file — `rig export-can --partial` exports the frames before the "
                           f"damage, `rig report --partial {path}` reports what it holds")
-
-
-def _said(exc: Exception) -> str:
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 def trace_start(path: Path) -> float:
@@ -224,8 +219,8 @@ class _Cancelled(BaseException):
 class _FrameCollector:
     """The salvage reader's collector for an export: the ``/can/raw`` blocks of each chunk decoded and checked, all or
     none (a chunk with a malformed block is a lost part, named), handed on one block at a time; nothing else is kept.
-    ``start``: the run's wall-clock start (s since 1970) from the first block's log time less its first frame's
-    simulation time."""
+    ``start``: the run's wall-clock start (s since 1970): the ``rig`` metadata's, else the first block's log time
+    less its first frame's simulation time."""
 
     def __init__(self, path: Path, hand_on: Callable[[Frames], None]):
         self.rec = Recording(path=path)
@@ -235,10 +230,13 @@ class _FrameCollector:
         self._hand_on, self._buses, self._last, self._k = hand_on, {}, -math.inf, 0
 
     def add(self, record: Any) -> None:
-        """A record outside the chunks: metadata kept (the run's start puts the lost parts' times in simulation
-        time), attachments are no part of a trace."""
+        """A record outside the chunks: metadata kept (the run's start, written when the recording opens, is the
+        trace's start and puts the lost parts' times in simulation time), attachments are no part of a trace."""
         if isinstance(record, Metadata):
             self.rec.metadata[record.name] = dict(record.metadata)
+            if record.name == S.RIG_METADATA and not self.start:
+                with contextlib.suppress(KeyError, ValueError):
+                    self.start = int(record.metadata["wall_clock_start"]) / 1e9
 
     def add_chunk(self, records: list[Any]) -> None:
         buses, state = dict(self._buses), {"last": self._last, "k": self._k}
@@ -486,7 +484,7 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
             raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read ({'; '.join(salvage.problems)}): "
                                  f"{why} — `rig report --partial {recording}` says what the file holds")
         raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
-    start = (_known_start(recording) or salvage.start) if partial else trace_start(recording)
+    start = salvage.start if partial else trace_start(recording)
     try:
         sink: _Sink = sink_type(out, start)
     except BaseException:
@@ -510,12 +508,3 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
     sink.close()
     return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last,
                   "; ".join(salvage.problems) if partial else "")
-
-
-def _known_start(path: Path) -> float:
-    """The wall-clock start in a cut or damaged recording's metadata, if its summary still reads (the metadata record
-    sits at the file's end, which a killed run does not reach); 0.0 otherwise."""
-    try:
-        return trace_start(path)
-    except RecordingError:
-        return 0.0

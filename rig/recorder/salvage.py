@@ -108,7 +108,8 @@ class _Cut(Exception):
     """The record at an offset reaches past the end of the file."""
 
 
-def _plain(exc: BaseException) -> str:
+def plain(exc: BaseException) -> str:
+    """An exception in one line: its type and message (``ZstdError: decompression error: …``)."""
     return f"{type(exc).__name__}: {' '.join(str(exc).split())}" if str(exc) else type(exc).__name__
 
 
@@ -223,7 +224,7 @@ class DataSectionReader:
 
     def _lose_chunk(self, pos: int, end: int, chunk: Chunk | None, exc: Exception) -> LostPart:
         why = "fails its CRC (its data was altered)" if isinstance(exc, CRCValidationError) else \
-            f"does not decode ({_plain(exc)})"
+            f"does not decode ({plain(exc)})"
         part = LostPart(pos, end, self._chunk_name(pos), why)
         if pos in self.chunks:
             index = self.chunks[pos][1]
@@ -285,7 +286,7 @@ class DataSectionReader:
                     whole = RecordBuilder()
                     chunk.write(whole)
                     resume = pos + whole.count
-                self._problem(f"{self._chunk_name(pos)} (byte {pos}): its record header is damaged ({_plain(exc)}); "
+                self._problem(f"{self._chunk_name(pos)} (byte {pos}): its record header is damaged ({plain(exc)}); "
                               "its data passed its CRC and was read"
                               + (" where the summary's chunk index places it" if self.summary is not None else ""))
                 return resume, None
@@ -294,13 +295,13 @@ class DataSectionReader:
         if self.summary is None:
             resume = _next_chunk(f, pos + 1, self.size)
             self.rec.lost.append(LostPart(pos, self.size if resume is None else resume, what,
-                                          f"does not read ({_plain(exc)})" + (
+                                          f"does not read ({plain(exc)})" + (
                                               "; nor do the bytes after it up to the next whole chunk (what they "
                                               "held is not known)" if resume is not None else
                                               "; nor does any chunk after it")))
             return resume, None
         self.rec.lost.append(LostPart(pos, self.size if resume is None else resume,
-                                      self.names.get(pos, "an unindexed record"), f"is damaged ({_plain(exc)})",
+                                      self.names.get(pos, "an unindexed record"), f"is damaged ({plain(exc)})",
                                       held_data=pos not in self.index_only))
         return resume, None
 
@@ -369,7 +370,7 @@ class DataSectionReader:
                 self._problem(_cut(self.size, whole, True, self.footer), damage=False)
             else:
                 self._problem(f"stopped reading at a damaged record of the summary, after the data end "
-                              f"({_plain(exc)})")
+                              f"({plain(exc)})")
 
     def check(self) -> None:
         """Name what no other check named: messages on a channel never defined (its channel record was in a lost

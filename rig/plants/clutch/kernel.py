@@ -411,7 +411,7 @@ def leaf_outputs(t, Y, p):
     n = t.size
     out = np.empty((5, n))
     for k in range(n):
-        y = Y[:, k].copy()
+        y = Y[:, k]                   # read only: no per-sample copy
         tc, force = leaf_coupling(y[0], y[1], p)
         m1 = motor_torque(t[k], y[1] + y[3], p)
         m3 = load_torque(t[k], y[2], y[3], y, p)
