@@ -64,7 +64,7 @@ CHECKS = {"cam_bar": "rig.plants.cam_bar.level_answers:compare"}
 #: benchmark code builds on this module)
 SETTING_CHECK = "rig.bench.setting_check:at_this_point"
 MODEL_TOLERANCE = 0.05
-_checked: dict[tuple, list] = {}       # compare()'s answers per scene content, level and method (choose runs often)
+_checked: dict[tuple, list] = {}       # compare()'s answers per scene content, level and questions (choose runs often)
 #: levels whose runs are the same for a plant (the cam bar: the force sensor needs the level-1 loads at level 0 too)
 SAME_RUN = {"cam_bar": (0, 1)}
 
@@ -280,10 +280,9 @@ def _check(scene: Scene, plant: str, level: int, questions: list[str]) -> list |
     with the setting the scene gets there), computed once per scene content; where level 2 cannot be run there (a
     divergence, an impossible position), why, in one line — the lower level is then used unchecked, and said so."""
     from rig.solvers import SolverDivergence
-    top = choose(scene, plant, forced=2)
-    key = (plant, str(scene.path), json.dumps(scene.data, sort_keys=True, default=str), level, tuple(questions),
-           top.method, tuple(sorted(top.options.items())))
-    if key not in _checked:
+    key = (plant, str(scene.path), json.dumps(scene.data, sort_keys=True, default=str), level, tuple(questions))
+    if key not in _checked:                  # level 2's setting follows from the scene's content too
+        top = choose(scene, plant, forced=2)
         module, _, name = CHECKS[plant].partition(":")
         try:
             _checked[key] = getattr(importlib.import_module(module), name)(scene, level, questions, top.method,
