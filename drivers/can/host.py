@@ -16,6 +16,7 @@ received before it is lost and reception continues.
 """
 from __future__ import annotations
 
+import functools
 import itertools
 from collections import deque
 from dataclasses import dataclass, field
@@ -130,7 +131,7 @@ class CanHost:
         self._drops_reported, self._drops_at = 0, -float("inf")
         self.results: dict[int, CurveResult] = {}                # released results not yet taken
         self.counters_log: list[tuple[str, float, int, float]] = []   # (message, received s, count, edge time s)
-        self.readings: list[tuple[str, float, dict[str, float]]] = []   # (message, t s, {signal: DBC units})
+        self.readings: list[tuple[str, np.ndarray, dict[str, np.ndarray]]] = []   # blocks: (message, t s, {signal: DBC units})
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per run
         # live frames received one by one, not yet put in _live: LiveXY as three flat lists (t s, raw x, raw y),
@@ -140,12 +141,16 @@ class CanHost:
         self._runs = {self.db.get_message_by_name(name).frame_id: handler for name, handler in (
             ("LiveXY", self._live_run), ("LiveXYFD", self._live_run), ("CurveBlock", self._curve_block_run),
             ("CurveBlockFD", self._curve_block_run))}
+        self._runs.update({fid: functools.partial(self._reading_run, spec) for fid, spec in self._by_id.items()
+                           if self._handlers[spec.name] == self._reading and fid in self._layouts})
+        # frames stamped with the device's 16-bit Tick: their times unwrap in frame order, each moving the device time
+        self._ticked = {fid for fid in self._runs if "Tick" in {sg.name for sg in self._by_id[fid].signals}}
         self._counter_ids = {fid for fid, spec in self._by_id.items()
                              if self._handlers[spec.name] == self._counter and fid in self._layouts}
         self._run_lengths = {fid: self._layouts[fid].length for fid in (*self._runs, *self._counter_ids)}
         self._device_time = 0.0       # latest device time known (s): heartbeat or live stamp
         self._run_device_time = 0.0   # the device time before the bulk run being decoded (s)
-        self._run_clock: list[tuple[np.ndarray, np.ndarray]] = []   # its live frames: index, device time after
+        self._run_clock: tuple[np.ndarray, np.ndarray] | None = None   # its Tick-stamped frames: index, time after
         self._bus_time = 0.0          # latest frame time stamp (s)
         self._host_seq = 0
         self._sent: list[can.Message] = []   # commands sent, not yet taken (see take_sent)
@@ -255,25 +260,53 @@ class CanHost:
         """Decode the bulk frames ``start:stop`` of ``block`` together, per frame id."""
         events = []
         run_ids = ids[start:stop]
-        self._run_clock, self._run_device_time = [], self._device_time
-        counters = []
-        for fid in sorted(np.unique(run_ids).tolist(), key=self._counter_ids.__contains__):   # counters last
+        self._run_device_time = self._device_time
+        decoded = {}
+        for fid in np.unique(run_ids).tolist():
             index = start + np.flatnonzero(run_ids == fid)
             layout, spec = self._layouts[fid], self._by_id[fid]
             self.frames_received += index.size
-            raw = layout.decode(block.data[index, :layout.length])
+            raw = decoded[fid] = layout.decode(block.data[index, :layout.length])
             gaps = self.sequence.check_many(fid, raw["Seq"])
             for k in np.flatnonzero(gaps).tolist():
                 events.append((int(index[k]), 0, "sequence_gap", int(gaps[k]),
                                f"{spec.name} (0x{fid:03X}): {gaps[k]} frame(s) missing before Seq {raw['Seq'][k]}"))
+        clock = self._clock_run(decoded, run_ids, start)
+        counters = []
+        for fid, raw in decoded.items():
+            index = start + np.flatnonzero(run_ids == fid)
             if fid in self._runs:
-                events.extend((int(index[k]), 1, "curve", 1, p) for k, p in self._runs[fid](raw, index))
+                t = clock[fid] if fid in clock else block.timestamp[index]
+                events.extend((int(index[k]), 1, "curve", 1, p) for k, p in self._runs[fid](raw, index, t))
             if fid in self._counter_ids:
-                counters.extend(zip(index.tolist(), self._counter_rows(spec.name, raw, index, block.timestamp)))
+                counters.extend(zip(index.tolist(), self._counter_rows(self._by_id[fid].name, raw, index,
+                                                                       block.timestamp)))
         self.counters_log.extend(row for _, row in sorted(counters, key=lambda r: r[0]))
         for k, _, kind, count, detail in sorted(events, key=lambda e: e[:2]):
             self._event(_Rx(float(block.timestamp[k]), int(ids[k]), b"", False), kind, count, detail)
 
+    def _clock_run(self, decoded: dict[int, dict[str, np.ndarray]], run_ids: np.ndarray,
+                   start: int) -> dict[int, np.ndarray]:
+        """The device times (s) of a run's Tick-stamped frames (live, readings), per frame id: each Tick unwrapped
+        against the device time the frames before it left, in frame order, as :meth:`receive` does frame by frame
+        (a LiveXYFD frame moves the device time to its last pair). Sets ``_run_clock`` (run index, device time after
+        each such frame) for the counters' edge times."""
+        ticked = [fid for fid in decoded if fid in self._ticked]
+        self._run_clock = None
+        if not ticked:
+            return {}
+        where = [np.flatnonzero(run_ids == fid) for fid in ticked]
+        tick = np.concatenate([decoded[fid]["Tick"] for fid in ticked]).tolist()
+        span = np.concatenate([(decoded[fid]["NPairs"] - 1) * (decoded[fid]["Dt"] * 1e-6) if "NPairs" in decoded[fid]
+                               else np.zeros(len(decoded[fid]["Tick"])) for fid in ticked]).tolist()
+        index = np.concatenate(where)
+        t, after = np.empty(index.size), np.empty(index.size)
+        for k in np.argsort(index, kind="stable").tolist():
+            t[k] = self._live_time(tick[k])
+            self._device_time = after[k] = max(self._device_time, t[k] + span[k])
+        self._run_clock = (start + index, after)
+        bounds = np.cumsum([0] + [w.size for w in where])
+        return {fid: t[a:b] for fid, a, b in zip(ticked, bounds, bounds[1:])}
     def _event(self, msg: can.Message, kind: str, count: int, detail: str) -> None:
         self.events.append(LinkEvent(msg.timestamp, kind, msg.arbitration_id, count, detail))
 
@@ -349,21 +382,14 @@ class CanHost:
             self._live.append((t, flat(xs), flat(ys)))
             self._live_rows = []
 
-    def _live_run(self, raw: dict[str, np.ndarray], index: np.ndarray) -> list[tuple[int, str]]:
-        """Live frames (LiveXY: one pair at Tick; LiveXYFD: NPairs pairs at Tick + i*Dt), in order."""
+    def _live_run(self, raw: dict[str, np.ndarray], index: np.ndarray, t0: np.ndarray) -> list[tuple[int, str]]:
+        """Live frames (LiveXY: one pair at Tick; LiveXYFD: NPairs pairs at Tick + i*Dt), in order; ``t0``: their
+        Ticks as device times (s)."""
         self._flush_live_rows()
-        before = self._device_time
         if "NPairs" not in raw:
-            t = np.array([self._live_time(tick) for tick in raw["Tick"].tolist()])
-            self._run_clock.append((index, np.maximum.accumulate(np.maximum(t, before))))
-            self._live.append((t, raw["X"], raw["Y"]))
+            self._live.append((t0, raw["X"], raw["Y"]))
             return []
         dt = raw["Dt"] * 1e-6
-        t0, after = np.zeros(len(dt)), np.zeros(len(dt))
-        for k, (tick, step, n) in enumerate(zip(raw["Tick"].tolist(), dt.tolist(), raw["NPairs"].tolist())):
-            t0[k] = self._live_time(tick)
-            self._device_time = after[k] = max(self._device_time, t0[k] + (n - 1) * step)
-        self._run_clock.append((index, after))
         counts = np.minimum(raw["NPairs"], self._fd_pairs)
         first = np.repeat(np.cumsum(counts) - counts, counts)
         slot = np.arange(int(counts.sum())) - first
@@ -424,7 +450,8 @@ class CanHost:
 
     _curve_block_fd = _curve_block
 
-    def _curve_block_run(self, raw: dict[str, np.ndarray], index: np.ndarray) -> list[tuple[int, str]]:
+    def _curve_block_run(self, raw: dict[str, np.ndarray], index: np.ndarray,
+                         t: np.ndarray) -> list[tuple[int, str]]:
         """Curve blocks (CurveBlock: one pair numbered Block of curve CurveNo mod 16; CurveBlockFD: NPairs
         pairs from Block*11 of curve CurveNo mod 256); returns (frame index, problem)."""
         if "NPairs" not in raw:
@@ -532,14 +559,14 @@ class CanHost:
     def _counter_rows(self, name: str, raw: dict[str, np.ndarray], index: np.ndarray,
                       times: np.ndarray) -> list[tuple[str, float, int, float]]:
         """The rows :meth:`_counter` adds for the bulk counter frames ``index`` of message ``name`` (``times``: the
-        block's time stamps, s), each edge time unwrapped against the device time as the run's live frames before
-        it left it (``_run_clock``)."""
+        block's time stamps, s), each edge time unwrapped against the device time as the run's Tick-stamped frames
+        before it left it (``_run_clock``)."""
         reference: float | np.ndarray = self._run_device_time
-        if self._run_clock:
-            live, after = (np.concatenate(c) for c in zip(*self._run_clock))
-            order = np.argsort(live, kind="stable")
-            live, after = live[order], np.maximum.accumulate(after[order])
-            k = np.searchsorted(live, index)            # live frames of the run before each counter frame
+        if self._run_clock is not None:
+            ticked, after = self._run_clock
+            order = np.argsort(ticked, kind="stable")
+            ticked, after = ticked[order], np.maximum.accumulate(after[order])
+            k = np.searchsorted(ticked, index)          # Tick-stamped frames of the run before each counter frame
             reference = np.where(k > 0, after[np.maximum(k - 1, 0)], self._run_device_time)
         edge = unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, reference)
         return list(zip(itertools.repeat(name), times[index].tolist(), raw["Count"].tolist(), edge.tolist()))
@@ -547,13 +574,28 @@ class CanHost:
     def _reading(self, msg, spec, raw) -> None:
         """Readings in the DBC's units at their Tick (device time; the frame's time without one)."""
         t = self._live_time(raw["Tick"]) if "Tick" in raw else msg.timestamp
+        self.readings.append((spec.name, np.array([t]), {
+            sg.name: np.array([raw[sg.name] * sg.scale + sg.offset]) for sg in spec.signals
+            if sg.name not in ("Seq", "Tick")}))
+
+    def _reading_run(self, spec, raw: dict[str, np.ndarray], index: np.ndarray,
+                     t: np.ndarray) -> list[tuple[int, str]]:
+        """Reading frames of ``spec`` decoded together, at ``t`` (their Ticks as device times, or the frames'
+        time stamps without one), s."""
         self.readings.append((spec.name, t, {sg.name: raw[sg.name] * sg.scale + sg.offset for sg in spec.signals
                                              if sg.name not in ("Seq", "Tick")}))
+        return []
 
-    def take_readings(self) -> dict[str, list]:
-        """Readings received since the last call, and forgets them: ``counters`` (message, received s, count,
-        edge time s) and ``readings`` (message, t s, {signal: value in the DBC's unit})."""
-        out = {"counters": self.counters_log, "readings": self.readings}
+    def take_readings(self) -> dict[str, Any]:
+        """Readings received since the last call, and forgets them: ``counters`` (rows: message, received s, count,
+        edge time s) and ``readings`` ({message: (t s, {signal: values in the DBC's unit})}, in arrival order)."""
+        blocks: dict[str, list] = {}
+        for name, t, values in self.readings:
+            blocks.setdefault(name, []).append((t, values))
+        readings = {name: (np.concatenate([b[0] for b in got]),
+                           {sg: np.concatenate([b[1][sg] for b in got]) for sg in got[0][1]})
+                    for name, got in blocks.items()}
+        out = {"counters": self.counters_log, "readings": readings}
         self.counters_log, self.readings = [], []
         return out
 

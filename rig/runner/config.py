@@ -210,6 +210,11 @@ class RunConfig:
         return 1.0 / self.sample_rate
 
     @property
+    def chunk_samples(self) -> int:
+        """Samples the machine advances per step (``chunk`` at ``sample_rate``; at least 2)."""
+        return max(2, round(self.chunk * self.sample_rate))
+
+    @property
     def truth_every(self) -> int:
         """/plant/truth keeps the model samples whose index is a multiple of this (1: every sample)."""
         return _truth_every(self.recording["truth_rate"], self.sample_rate, "")

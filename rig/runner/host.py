@@ -134,7 +134,7 @@ class Host:
         transducers fill (fields in snake case: BrakeForce → brake_force), in the DBC's units."""
         new = self.can.take_readings()
         by_message: dict[str, list] = {}
-        for row in new["counters"] + new["readings"]:           # one pass: the rows of each message, in order
+        for row in new["counters"]:           # one pass: the rows of each counter message, in order
             by_message.setdefault(row[0], []).append(row)
         for message, rad_per_count in self._rad_per_count.items():
             rows = by_message.get(message)
@@ -145,11 +145,9 @@ class Host:
                     "count": count, "edge_time": edge, "angle": count * rad_per_count, "speed": speed.speed,
                     "speed_time": speed.time, "speed_method": speed.method.astype(float)})
         for message, signals in self._readings.items():
-            rows = by_message.get(message)
-            if rows:
-                t = np.array([r[1] for r in rows])
-                self.rec.write_block(stand_topic(message), t, {
-                    snake(name): np.array([r[2][name] for r in rows]) for name in signals})
+            if message in new["readings"]:
+                t, values = new["readings"][message]
+                self.rec.write_block(stand_topic(message), t, {snake(name): values[name] for name in signals})
 
     def _advance_theory(self, until: float) -> None:
         """Run the theory model on the machine's sample grid, in fixed blocks, until it covers ``until`` (s);

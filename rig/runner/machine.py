@@ -116,10 +116,11 @@ def bus_plan(cfg: RunConfig, node: CanNode) -> dict[str, float]:
 
 
 def probe_signals(cfg: RunConfig) -> None:
-    """:func:`check_signals` on a probe: the nominal plant advanced by one sample (the varied plant has the same
-    signals)."""
+    """:func:`check_signals` on a probe: the nominal plant advanced by one chunk (the varied plant has the same
+    signals). The chunk also takes the plant's first-call costs (its compiled kernels loaded from numba's cache:
+    30–80 ms for a clutch stand) before any run phase, whose real-time factor they would otherwise spoil."""
     probe = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)
-    check_signals(cfg, probe.advance(cfg.sample_times(0, 1)))
+    check_signals(cfg, probe.advance(cfg.sample_times(0, cfg.chunk_samples)))
 
 
 def check_wiring(cfg: RunConfig) -> None:
@@ -152,7 +153,7 @@ class Machine:
         self.bus_plan = bus_plan(cfg, self.node)
         self.t = 0.0
         self._step_index = 0
-        self._n = max(2, round(cfg.chunk * cfg.sample_rate))
+        self._n = cfg.chunk_samples
         self.curves = 0
 
     def _publish_indices(self, rate: float | None, first_sample: int, n: int) -> np.ndarray:

@@ -82,6 +82,13 @@ def _array(a: np.ndarray | None) -> Any:
     return None if a is None else (a.dtype.str, a.shape, a.tobytes())
 
 
+def _readings(taken: dict[str, Any]) -> dict[str, Any]:
+    """``take_readings``' counters and readings, arrays compared bit for bit."""
+    return {"counters": taken["counters"],
+            "readings": {name: (_array(t), {k: _array(v) for k, v in values.items()})
+                         for name, (t, values) in taken["readings"].items()}}
+
+
 def state(host: CanHost) -> dict[str, Any]:
     """Everything the host holds after reception (flushed), arrays compared bit for bit."""
     host.flush()
@@ -89,7 +96,7 @@ def state(host: CanHost) -> dict[str, Any]:
     return {"events": host.take_events(), "results": [vars(r) for r in host.take_results()],
             "curves": [{**vars(c), **{k: _array(getattr(c, k)) for k in ("t", "x", "y", "received")}}
                        for c in host.take_curves()],
-            "live": [_array(a) for a in (t, x, y)], "readings": host.take_readings(), "acks": host.acks,
+            "live": [_array(a) for a in (t, x, y)], "readings": _readings(host.take_readings()), "acks": host.acks,
             "drops": host.take_drop_reports(), "status": host.status, "counters": host.counters,
             "missed": host.sequence.missed, "frames": host.frames_received,
             "device_time": host.device_time, "run_ended": host.run_ended}
