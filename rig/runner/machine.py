@@ -69,6 +69,7 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
     return transducers, device
 
 
+FLUSH_STEP = 0.005       # s: the end of a run drains the unit's transmit queue in steps this fine (not whole chunks)
 _SAID: set[tuple] = set()     # the truth_signals warnings given in this process (each once, as Python's warnings)
 
 
@@ -121,6 +122,8 @@ def probe_signals(cfg: RunConfig) -> None:
     30–80 ms for a clutch stand) before any run phase, whose real-time factor they would otherwise spoil."""
     probe = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)
     check_signals(cfg, probe.advance(cfg.sample_times(0, cfg.chunk_samples)))
+    if hasattr(probe, "prepare"):       # a plant whose first chunks may not reach its compiled kernels loads them here
+        probe.prepare()
 
 
 def check_wiring(cfg: RunConfig) -> None:
@@ -206,8 +209,9 @@ class Machine:
         time, then close it (final status with ``RunEnded``; nothing follows it on the wire). ``pace(t)`` after
         each chunk (real-time mode: the bus drains its backlog on the wall clock too)."""
         t_start, t_end = self.t, self.t + limit
+        step = min(self.cfg.chunk, FLUSH_STEP)
         while self.node.has_pending_before(t_start) and self.t < t_end:   # later heartbeats need not wait
-            self.t += self.cfg.chunk
+            self.t += step
             self.node.advance_to(self.t)
             pace(self.t)
         self.node.close(self.t)

@@ -9,9 +9,12 @@ SCENES = Path(__file__).resolve().parents[2] / "data" / "scenes"
 
 
 def test_flush_ends_when_chunk_is_a_multiple_of_the_heartbeat(tmp_path):
-    # 0.1 s chunks: every advance_to() lands on a heartbeat that cannot be on the wire yet
-    text = (SCENES / "clutch_startup.toml").read_text().replace('duration = "0.8 s"', 'duration = "0.3 s"\nchunk = "0.1 s"')
+    # 0.1 s chunks (the scene's): every advance_to() of the run lands on a heartbeat that cannot be on the wire yet
+    text = (SCENES / "clutch_startup.toml").read_text()
+    assert 'chunk = "100 ms"' in text
+    text = text.replace('duration = "0.8 s"', 'duration = "0.3 s"')
     scene = tmp_path / "chunky.toml"
     scene.write_text(text)
     summary = run_scene(scene, tmp_path / "chunky.mcap")
-    assert 0.3 <= summary.simulated_time < 0.6          # before the fix: ran on for the 60 s flush limit
+    assert 0.3 <= summary.simulated_time < 0.35         # before the fix: ran on for the 60 s flush limit; the flush
+                                                        # drains in 5 ms steps, not whole chunks
