@@ -41,17 +41,24 @@ def example(si_unit: str) -> str:
     return EXAMPLES.get(si_unit or "1", f"1 {si_unit}")
 
 
+def split_quantity(text: str) -> tuple[float, str] | None:
+    """(number, unit as written) of a text that starts with a number (``"1.68 N/mm"`` → (1.68, "N/mm"); the unit ""
+    for a plain number); None otherwise. The unit is not checked (:func:`unit_of` does)."""
+    m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*", text)
+    return None if m is None else (float(m.group(1)), m.group(2))
+
+
 def unit_of(text: str) -> str | None:
     """The unit of a quantity string as written (``"N/mm"`` of ``"1.68 N/mm"``); None for a plain number or a text
     that is no quantity."""
-    m = re.fullmatch(r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(.*?)\s*", text)
-    if m is None or not m.group(1):
+    split = split_quantity(text)
+    if split is None or not split[1]:
         return None
     try:
-        ureg.Unit(m.group(1))
+        ureg.Unit(split[1])
     except Exception:                  # noqa: BLE001  (pint's parser raises many kinds)
         return None
-    return m.group(1)
+    return split[1]
 
 
 def _unknown(value: object, unit: str | None, si_unit: str, names: tuple[str, ...], what: str) -> UnitError:

@@ -15,6 +15,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from rig.analysis.numbers import decimals
 from rig.analysis.sets import cut_reason, memory_note, missing_values, process_values
 from rig.analysis.units import DisplayUnits, Unit, unit
 from rig.recorder import CurveRecord
@@ -125,13 +126,19 @@ STAND_SI = {"t": "s", "edge_time": "s", "speed_time": "s", "speed": "rad/s", "di
 
 
 @functools.lru_cache(maxsize=1)
+def _device_signals() -> dict[str, dict[str, tuple[str, float]]]:
+    """The DBC's device signals by message and signal, both in snake case (the ``/stand/`` topic name and its column:
+    ``encoder1``, ``edge_time``): (SI unit, "1" for a count; the step the signal is carried in, its scale)."""
+    from rig.dbc import load_dbc
+    from rig.recorder.schemas import snake
+    return {snake(m.name): {snake(s.name): (s.unit or "1", abs(float(s.scale or 0.0))) for s in m.signals}
+            for m in load_dbc().messages if "DEVICE" in m.senders}
+
+
 def dbc_units() -> dict[str, str]:
     """SI unit of every device signal of the DBC by its column name (snake case; "1" for a count): the unit of a
     reading message's column on its ``/stand/`` topic."""
-    from rig.dbc import load_dbc
-    from rig.recorder.schemas import snake
-    db = load_dbc()
-    return {snake(s.name): s.unit or "1" for m in db.messages if "DEVICE" in m.senders for s in m.signals}
+    return {name: unit for signals in _device_signals().values() for name, (unit, _) in signals.items()}
 
 
 def export_events(events: Sequence[Mapping], details: Sequence[str], path: Path) -> Path:
@@ -144,14 +151,11 @@ def export_events(events: Sequence[Mapping], details: Sequence[str], path: Path)
     return path
 
 
-@functools.lru_cache(maxsize=1)
 def dbc_steps() -> dict[str, dict[str, float]]:
     """The step (SI, the signal's scale) in which the DBC carries each device signal: by the ``/stand/`` topic name of
     its message (``encoder1``), then by its column name (``edge_time``)."""
-    from rig.dbc import load_dbc
-    from rig.recorder.schemas import snake
-    return {snake(m.name): {snake(s.name): abs(float(s.scale)) for s in m.signals if s.scale}
-            for m in load_dbc().messages if "DEVICE" in m.senders}
+    return {message: {name: step for name, (_, step) in signals.items() if step}
+            for message, signals in _device_signals().items()}
 
 
 def export_series(series: Mapping[str, np.ndarray], path: Path, units: DisplayUnits | None = None,
@@ -172,11 +176,6 @@ def export_series(series: Mapping[str, np.ndarray], path: Path, units: DisplayUn
         w = csv.writer(f)
         w.writerow([column(n, u) for n, u in zip(names, shown)])
         w.writerows(zip(*(_cells(u(np.asarray(series[n], dtype=float)),
-                                 decimals=_decimals(steps[n] * u(1.0)) if n in steps and n != "t" else None)
+                                 decimals=decimals(steps[n] * u(1.0), 1) if n in steps and n != "t" else None)
                           for n, u in zip(names, shown))))
     return path
-
-
-def _decimals(step: float) -> int:
-    """Decimals that resolve ``step`` (0.0955 → 2, 1 → 0, 1e-6 → 6)."""
-    return max(0, math.ceil(-math.log10(step) - 1e-9))

@@ -11,6 +11,7 @@ import numpy as np
 
 from rig.sweep.metrics import METRICS
 from rig.sweep.run import SweepResult, levels_text
+from rig.units import split_quantity
 
 MAX_MAPS = 24  # per metric: combinations of the third and later parameters drawn
 
@@ -59,11 +60,11 @@ def _positions(values: tuple) -> tuple[list[float] | None, str]:
             numbers.append(float(v))
             units.add("")
             continue
-        match = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*", str(v))
-        if match is None:
+        split = split_quantity(str(v))
+        if split is None:
             return None, ""
-        numbers.append(float(match[1]))
-        units.add(match[2])
+        numbers.append(split[0])
+        units.add(split[1])
     return (numbers, units.pop()) if len(units) == 1 else (None, "")
 
 

@@ -321,11 +321,6 @@ class ClutchDynamics:
                           {"direction": -1.0, "action": self._on_brake, "mode_dependent": True}))
         return specs
 
-    def _g(self, k: int) -> Callable[[float, tuple], float]:
-        """Event function k of the compiled event table (positive while the mode it guards is valid)."""
-        value, p = kernel.event_value, self._p
-        return lambda t, y: value(t, np.asarray(y, dtype=float), p, k)
-
     def events(self, on_apex: Callable[[EventRecord], bool] | None = None) -> list[Event]:
         """Phase boundaries (restart), lobe wrap and apex (recorded; ``on_apex`` is the apex event's
         action), load angle switches (restart) and, for stick–slip, the mode switches of clutch and brake
@@ -334,7 +329,7 @@ class ClutchDynamics:
         for k, (name, _, opts) in enumerate(self._event_specs()):
             if name == "apex":
                 opts = dict(opts, action=on_apex)
-            out.append(Event(self._g(k), name, **opts))
+            out.append(Event(kernel.event_function(self._p, k), name, **opts))
         return out
 
     def problem(self, y0: tuple, on_apex: Callable[[EventRecord], bool] | None = None) -> Problem:

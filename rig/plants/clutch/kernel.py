@@ -290,6 +290,11 @@ def event_value(t, y, p, k):
     return cap - abs(need)
 
 
+def event_function(p: np.ndarray, k: int):
+    """Event k of the table in ``p`` as a Python ``g(t, y)`` (for :class:`rig.solvers.Event`)."""
+    return lambda t, y: event_value(t, np.asarray(y, dtype=float), p, k)
+
+
 @njit(cache=True)
 def event_action(t, y, p, k, apply):
     """Whether event k at (t, y) can be acted on in compiled code — a cam-segment boundary (phase

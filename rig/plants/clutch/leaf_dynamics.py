@@ -58,11 +58,6 @@ class LeafDynamics:
         return self._p
 
     # ---- coupling ------------------------------------------------------------------------------------
-    def reduced(self, phi_r: float | np.ndarray) -> float | np.ndarray:
-        """φ_r reduced into (−φ_d, φ_d] (rad)."""
-        period = self.leaf.period
-        return phi_r - period * np.round(phi_r / period)
-
     def coupling(self, phi_r: float, omega_r: float) -> tuple[float, float]:
         """(T_c N·m, leaf force F_v N) at relative angle and speed."""
         return kernel.leaf_coupling(float(phi_r), float(omega_r), self._p)
@@ -84,13 +79,9 @@ class LeafDynamics:
     def problem(self, y0: tuple, on_apex: Callable[[EventRecord], bool] | None = None) -> Problem:
         """The ODE with "apex" events (φ_r crossing ±φ_d + k·2φ_d: disengagement, restart at the torque jump;
         ``on_apex(record)`` returns True when it changed the problem) and the load/motor time breaks."""
-        value, p = kernel.event_value, self._p
-
-        def apex(t, y):
-            return value(t, np.asarray(y, dtype=float), p, 0)
-
         breaks = sorted(set(self.load.time_breaks()) | set(self.motor.time_breaks()))
-        return Problem(self.rhs, y0, [Event(apex, "apex", restart=True, action=on_apex)], breaks)
+        return Problem(self.rhs, y0, [Event(kernel.event_function(self._p, 0), "apex", restart=True, action=on_apex)],
+                       breaks)
 
     def outputs(self, t: np.ndarray, Y: np.ndarray) -> dict[str, np.ndarray]:
         """Truth at samples, with the keys of :meth:`ClutchDynamics.outputs` (``F_a`` and ``N_B``: the leaf force)."""
