@@ -8,7 +8,7 @@ from __future__ import annotations
 import difflib
 import logging
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import can
@@ -70,13 +70,15 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
 
 
 FLUSH_STEP = 0.005       # s: the end of a run drains the unit's transmit queue in steps this fine (not whole chunks)
-_SAID: set[tuple] = set()     # the truth_signals warnings given in this process (each once, as Python's warnings)
+_PROBED: dict[tuple, list[str]] = {}   # the truth signals a probe found, by scene text and fidelity (one probe
+                                       # per process: a command's check before the run and its machine both ask)
 
 
-def check_signals(cfg: RunConfig, truth: dict[str, Any]) -> None:
-    """A :class:`SceneError` naming the transducer whose ``signal`` the plant's truth does not have, or a
-    ``[recording] truth_signals`` entry that misspells one of its signals (another name it does not have at this
-    model level, e.g. a level-2 signal in a forced level-1 run: a warning, it is not recorded)."""
+def check_signals(cfg: RunConfig, truth: Iterable[str], warn: bool = True) -> None:
+    """A :class:`SceneError` naming the transducer whose ``signal`` the plant's ``truth`` (its signal names) does
+    not have, or a ``[recording] truth_signals`` entry that misspells one of its signals (another name it does not
+    have at this model level, e.g. a level-2 signal in a forced level-1 run: a warning if ``warn``, it is not
+    recorded)."""
     known = sorted(k for k in truth if k != "t")
     for spec in cfg.transducers:
         if spec.signal not in truth:
@@ -88,9 +90,7 @@ def check_signals(cfg: RunConfig, truth: dict[str, Any]) -> None:
         if close:                           # a misspelling: an error, not a signal silently not recorded
             raise SceneError(f"{cfg.scene.path} [recording]: 'truth_signals' names {name!r}, which the plant does "
                              f"not have (did you mean {close[0]!r}?); it has {', '.join(known)}")
-    said = (str(cfg.scene.path), cfg.scene.text, tuple(absent), cfg.fidelity.level)
-    if absent and said not in _SAID:     # a command's check before the run and its machine both probe: said once
-        _SAID.add(said)
+    if absent and warn:
         log.warning("%s [recording]: 'truth_signals' names %s, which the plant does not have at this model level "
                     "(L%d): not recorded", cfg.scene.path, ", ".join(map(repr, absent)), cfg.fidelity.level)
 
@@ -120,10 +120,17 @@ def probe_signals(cfg: RunConfig) -> None:
     """:func:`check_signals` on a probe: the nominal plant advanced by one chunk (the varied plant has the same
     signals). The chunk also takes the plant's first-call costs (its compiled kernels loaded from numba's cache:
     30–80 ms for a clutch stand) before any run phase, whose real-time factor they would otherwise spoil."""
-    probe = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)
-    check_signals(cfg, probe.advance(cfg.sample_times(0, cfg.chunk_samples)))
-    if hasattr(probe, "prepare"):       # a plant whose first chunks may not reach its compiled kernels loads them here
-        probe.prepare()
+    key = (str(cfg.scene.path), cfg.scene.text, repr(cfg.fidelity), cfg.sample_rate, cfg.chunk)
+    known = _PROBED.get(key)
+    if known is None:
+        probe = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)
+        truth = probe.advance(cfg.sample_times(0, cfg.chunk_samples))
+        if hasattr(probe, "prepare"):   # a plant whose first chunks may not reach its compiled kernels loads them here
+            probe.prepare()
+        check_signals(cfg, truth)
+        _PROBED[key] = list(truth)
+    else:
+        check_signals(cfg, known, warn=False)      # said at the first probe
 
 
 def check_wiring(cfg: RunConfig) -> None:
