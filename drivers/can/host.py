@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -131,6 +132,7 @@ class CanHost:
         self._drops_reported, self._drops_at = 0, -float("inf")
         self.results: dict[int, CurveResult] = {}                # released results not yet taken
         self.counters_log: list[tuple[str, float, int, float]] = []   # (message, received s, count, edge time s)
+        self._edges: dict[str, tuple[int, float]] = {}    # per counter: its last raw EdgeTime and that edge's time (s)
         self.readings: list[tuple[str, np.ndarray, dict[str, np.ndarray]]] = []   # blocks: (message, t s, {signal: DBC units})
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per run
@@ -553,8 +555,22 @@ class CanHost:
 
     def _counter(self, msg, spec, raw) -> None:
         """A counter's latched count and last edge time (device time, unwrapped)."""
-        self.counters_log.append((spec.name, msg.timestamp, raw["Count"],
-                                  unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, self._device_time)))
+        edge = self._edge_times(spec.name, np.array([raw["EdgeTime"]]), self._device_time)
+        self.counters_log.append((spec.name, msg.timestamp, raw["Count"], float(edge[0])))
+
+    def _edge_times(self, name: str, raw: np.ndarray, reference: float | np.ndarray) -> np.ndarray:
+        """The device times (s) of counter ``name``'s raw 24-bit ``EdgeTime`` values (µs; in arrival order), against
+        the device time ``reference`` at each. A value that differs from the one before it is a new edge, recent
+        (latched since the last reading): the time congruent to it nearest ``reference``. An unchanged value is the
+        same edge as before, however old (a shaft at rest): its time stays what it was — unwrapping it again would
+        move it by a whole wrap into the future once it is more than 8.4 s old."""
+        nearest = unwrap(raw * 1e-6, EDGE_WRAP, reference)
+        last_raw, last_time = self._edges.get(name, (-1, math.nan))
+        new = raw != np.concatenate(([last_raw], raw[:-1]))
+        source = np.maximum.accumulate(np.where(new, np.arange(raw.size), -1))   # the reading its edge is from
+        out = np.where(source >= 0, nearest[np.maximum(source, 0)], last_time)
+        self._edges[name] = (int(raw[-1]), float(out[-1]))
+        return out
 
     def _counter_rows(self, name: str, raw: dict[str, np.ndarray], index: np.ndarray,
                       times: np.ndarray) -> list[tuple[str, float, int, float]]:
@@ -568,7 +584,7 @@ class CanHost:
             ticked, after = ticked[order], np.maximum.accumulate(after[order])
             k = np.searchsorted(ticked, index)          # Tick-stamped frames of the run before each counter frame
             reference = np.where(k > 0, after[np.maximum(k - 1, 0)], self._run_device_time)
-        edge = unwrap(raw["EdgeTime"] * 1e-6, EDGE_WRAP, reference)
+        edge = self._edge_times(name, raw["EdgeTime"], reference)
         return list(zip(itertools.repeat(name), times[index].tolist(), raw["Count"].tolist(), edge.tolist()))
 
     def _reading(self, msg, spec, raw) -> None:

@@ -63,7 +63,9 @@ class Host:
         self.program_config: dict[str, Any] | None = None
         self._explain: ResultExplainer | None = None     # why a curve is NOK (rig.runner.reasons)
         self.truth_t = 0.0
-        self._truth: list[dict[str, np.ndarray]] = []
+        self._truth: list[dict[str, np.ndarray]] = []   # theory blocks the curves still to come may need
+        # the unit measures curves only with both of its channels wired (a stand scene has none): else no block is kept
+        self._curves_come = cfg.wired("device.x") is not None and cfg.wired("device.y") is not None
         self._block_n = max(2, round(max(cfg.chunk, THEORY_BLOCK) * cfg.sample_rate))
         self._blocks = 0
         self._curves: list[Any] = []                    # complete curves waiting for their result or theory
@@ -167,7 +169,8 @@ class Host:
             k = self.cfg.truth_every              # the samples first + 1, … whose index k divides
             kept = slice(-(first + 1) % k, None, k)
             self.rec.write_truth(t[kept], {name: v[kept] for name, v in signals.items()})
-            self._truth.append({"t": t, **signals})
+            if self._curves_come:
+                self._truth.append({"t": t, **signals})
             self.truth_t = float(t[-1])
         for ev in self.theory.events[self._plant_events:]:
             self.rec.write_event(ev.time, ev.kind, **ev.data)

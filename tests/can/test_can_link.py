@@ -284,6 +284,27 @@ def test_encoders_and_torque(buses, device):
     assert host.events == []
 
 
+def test_edge_time_of_a_shaft_at_rest_stays_past_half_a_wrap(buses, device):
+    """An encoder whose shaft stands still keeps sending the time of its last edge, however old: past half of the
+    16.78 s EdgeTime wrap the host must not move it a wrap into the future (it keeps the edge's time while the raw
+    stamp is unchanged); a new edge after the long rest is unwrapped against the device time as before."""
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, heartbeat_period=0.1)
+    host = CanHost(host_bus)
+    for t in np.arange(0.5, 30.0, 0.5):               # at rest since 0.2 s: 29.8 s, beyond one whole wrap
+        node.advance_to(t)
+        node.publish_reading("Encoder1", t, {"Count": 7, "EdgeTime": 0.2})
+        host.poll()
+    node.advance_to(30.5)
+    node.publish_reading("Encoder1", 30.5, {"Count": 8, "EdgeTime": 30.4})          # moves again
+    node.advance_to(31.0)
+    host.poll()
+    edges = np.array([row[3] for row in host.take_readings()["counters"]])
+    assert edges.size == 60
+    assert np.all(edges[:-1] == pytest.approx(0.2, abs=1e-6)) and edges[-1] == pytest.approx(30.4, abs=1e-6)
+    assert host.events == []
+
+
 def test_bad_calls_are_named(buses, device):
     node = CanNode(buses[0], device)
     with pytest.raises(ValueError, match="uniformly spaced"):
