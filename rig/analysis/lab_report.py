@@ -11,10 +11,11 @@ from __future__ import annotations
 import logging
 import textwrap
 from dataclasses import dataclass, field
-from math import cos, radians, tau
+from math import cos, inf, radians, tau
 from typing import Any, Callable
 
 import numpy as np
+from scipy.optimize import brentq
 
 from firmware_sim.transducers.description import described, read_description, resolve_path
 from rig.analysis.numbers import fixed
@@ -81,21 +82,13 @@ class Lab:
     bench: LabBench
     lab: dict[str, Any]
 
-    def transducer(self, to: str) -> dict[str, Any] | None:
-        """The scene's transducer table wired to ``to`` (e.g. 'can.LabSpeed.Pulses')."""
-        return next((t for t in self.scene.data.get("transducers", {}).values() if t.get("to") == to), None)
-
     def description(self, to: str) -> dict[str, Any]:
         """The description of the transducer wired to ``to`` with the scene's overrides on top (as written)."""
-        table = self.transducer(to)
-        if table is None:
-            raise SceneError(f"{self.scene.path}: no transducer wired to {to!r}")
-        return {**read_description(resolve_path(described(self.scene, table["description"]))),
-                **table.get("overrides", {})}
+        return _description(self.scene, to)
 
     def setting(self, to: str, key: str, unit: str) -> float:
         """A description value (SI) of the transducer wired to ``to``, its scene override first."""
-        return to_si(self.description(to).get(key), unit, what=f"{self.scene.path} [transducers] {key}")
+        return _setting(self.scene, to, key, unit)
 
     def readings(self, topic: str, name: str) -> dict[str, np.ndarray]:
         """The recorded block ``topic`` that has field ``name``; SceneError naming what is missing."""
@@ -125,6 +118,32 @@ class Lab:
         return edge[keep], angle[keep] + float(self.bench.truth(np.zeros(1))[signal][0])
 
 
+def _description(scene: Scene, to: str) -> dict[str, Any]:
+    """The description of the scene's transducer wired to ``to`` (e.g. 'can.LabSpeed.Pulses') with the scene's
+    overrides on top (as written)."""
+    table = next((t for t in scene.data.get("transducers", {}).values() if t.get("to") == to), None)
+    if table is None:
+        raise SceneError(f"{scene.path}: no transducer wired to {to!r}")
+    return {**read_description(resolve_path(described(scene, table["description"]))), **table.get("overrides", {})}
+
+
+def _setting(scene: Scene, to: str, key: str, unit: str) -> float:
+    """A description value (SI) of the scene's transducer wired to ``to``, its scene override first."""
+    return to_si(_description(scene, to).get(key), unit, what=f"{scene.path} [transducers] {key}")
+
+
+def _check_reading_times(scene: Scene, times: list[float], where: str) -> None:
+    """The speed sheet's reading times lie where every instrument has a reading: from the end of the pulse counter's
+    first gate (its count is 0 before it) to the end of the run; SceneError naming the reading otherwise."""
+    gate = _setting(scene, "can.LabSpeed.Pulses", "gate_time", "s")
+    duration = scene.section("scene").get("duration")
+    end = inf if duration is None else to_si(duration, "s", what=f"{scene.path} [scene] duration")
+    for i, at in enumerate(times):
+        if not gate <= at <= end:
+            raise SceneError(f"{where}: readings[{i}] = {at:g} s is outside the run's readings: the pulse counter's "
+                             f"first gate ends at {gate:g} s (it shows 0 before) and the run at {end:g} s")
+
+
 def read_lab_section(scene: Scene) -> dict[str, Any]:
     """The scene's [lab] table, checked: known sheets, reading times with a time unit (the speed sheet needs at
     least one). ``rig run`` checks it before anything is recorded; SceneError naming the key otherwise."""
@@ -146,8 +165,10 @@ def read_lab_section(scene: Scene) -> dict[str, Any]:
         lab["readings"] = [to_si(v, "s", what=f"{where} readings[{i}]") for i, v in enumerate(readings)]
     except UnitError as exc:
         raise SceneError(str(exc)) from None
-    if "speed" in lab["sheets"] and not lab["readings"]:
-        raise SceneError(f"{where}: the speed sheet needs 'readings' (times, e.g. [\"2.5 s\"])")
+    if "speed" in lab["sheets"]:
+        if not lab["readings"]:
+            raise SceneError(f"{where}: the speed sheet needs 'readings' (times, e.g. [\"2.5 s\"])")
+        _check_reading_times(scene, lab["readings"], where)
     return lab
 
 
@@ -426,6 +447,16 @@ def _counted(t: np.ndarray, edge: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.where(moving & (t >= edge[i]), np.interp(t, edge, angle), angle[i])
 
 
+def _counted_motion_ratio(geneva: Any, count: float) -> float:
+    """The share of a crank turn (at constant crank speed) in which the wheel moves from ``count`` (rad) past one dwell
+    to ``count`` before the next: the motion a counting encoder sees when both of its ends fall on a count boundary,
+    the shortest it can see."""
+    end = np.pi / geneva.slots
+    phi = brentq(lambda p: float(geneva.kinematics(p).angle) + end - count, -geneva.engagement_half_angle, 0.0,
+                 xtol=1e-14)
+    return -2.0 * phi / tau
+
+
 def geneva_sheet(lab: Lab) -> Sheet:
     """Wheel angle every 10° of crank and the measured motion and dwell times against k_m = (z − 2)/(2z)."""
     geneva, truth = lab.bench.mechanism, lab.rec.truth
@@ -441,13 +472,15 @@ def geneva_sheet(lab: Lab) -> Sheet:
     timing = geneva.timing(lab.bench.speed.nominal_omega)
     count = tau / (lab.setting(lab.wired("phi_out")[0], "ppr", "1") * 4)          # rad per ×4 count of the wheel encoder
     index = tau / geneva.slots
-    gaps = np.flatnonzero(np.diff(t2) > 0.5 * timing.dwell_time)        # dwells between two indexings
+    read = lab.readings(lab.wired("phi_out")[1], "edge_time")["t"]      # the wheel encoder's reading times
+    rest = 0.5 * timing.dwell_time
+    gaps = np.r_[[-1] if t2[0] - read[0] > rest else [],                # dwells between two indexings (the readings
+                 np.flatnonzero(np.diff(t2) > rest),                      # before the first count change and after the
+                 [t2.size - 1] if read[-1] - t2[-1] > rest else []].astype(int)    # last one too, when as long)
     runs = [(a + 1, b) for a, b in zip(gaps[:-1], gaps[1:])]            # whole indexings: first to last count change,
     motion = [t2[b] - t2[a] for a, b in runs if abs(phi2[b] - phi2[a]) >= 0.5 * index]   # not a count flickering at rest
-    first = truth["phi_out"] - truth["phi_out"][0] <= index              # theory: the first indexing, same detection
-    seen = np.interp([count, index - count], truth["phi_out"][first] - truth["phi_out"][0], truth["t"][first])
     measured = float(np.mean(motion)) if motion else float("nan")
-    one_count = (seen[1] - seen[0]) / timing.period
+    one_count = _counted_motion_ratio(geneva, count)
     result = (f"motion {1e3 * measured:.2f} ms, dwell {1e3 * (timing.period - measured):.2f} ms of "
               f"{1e3 * timing.period:.2f} ms: k_m = {measured / timing.period:.4f} (theory (z − 2)/(2z) = "
               f"{timing.motion_ratio:.4f}; seen by a counting encoder, from the first to the last count change, "

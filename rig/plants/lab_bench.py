@@ -78,7 +78,8 @@ class LabBench:
             out["alpha_out"] = self.mechanism.acceleration(d.phi, d.omega) + ratio * d.alpha   # ω1²·dr/dφ1 + r·α1
         elif self.kind == "geneva":
             motion = self.mechanism.kinematics(d.phi, 1.0)
-            out["phi_out"] = self.mechanism.wheel_angle(d.phi)                            # 0 at the first dwell
+            out["phi_out"] = self.mechanism.wheel_angle(d.phi)      # 0 in the dwell before the engagement about
+                                                                    # φ1 = 0 (a start at φ1 = 180° is one index on)
             out["omega_out"] = motion.velocity * d.omega
             out["alpha_out"] = motion.acceleration * d.omega ** 2 + motion.velocity * d.alpha
         elif self.kind == "cam":

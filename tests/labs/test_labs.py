@@ -170,6 +170,23 @@ def test_geneva_lab_motion_ratio(tmp_path_factory, slots, speed):
     assert all(float(r[3]) == pytest.approx(float(r[1]) - float(r[2]), abs=0.011) for r in sheets["Geneva drive"].rows)  # 2-decimal columns
 
 
+def test_geneva_sheet_counts_every_whole_indexing_from_any_start(tmp_path_factory):
+    """Started mid-indexing (crank on the centre line) or mid-dwell, the sheet averages every indexing the recording
+    holds whole (the last one too, when a dwell follows it before the end), the same count as the plant truth shows;
+    its lower bound (a whole count at both ends) does not depend on where the run starts."""
+    found = {}
+    for phi0 in ("0 deg", "180 deg"):
+        rec, sheets = _run(tmp_path_factory, "lab_geneva", lambda s: s.replace('phi0 = "180 deg"', f'phi0 = "{phi0}"'))
+        moving = np.diff(rec.truth["phi_out"]) > 0                            # the plant's wheel turning
+        starts, ends = np.flatnonzero(np.diff(moving.astype(int)) == 1), np.flatnonzero(np.diff(moving.astype(int)) == -1)
+        whole = sum(1 for a in starts if np.any(ends > a))                   # began after the start, ended before the end
+        v = found[phi0] = sheets["Geneva drive"].values
+        assert v["indexings"] == whole, phi0
+        assert v["k_m_one_count"] <= v["k_m"] <= v["k_m_theory"], phi0
+    assert found["0 deg"]["k_m_one_count"] == found["180 deg"]["k_m_one_count"]
+    assert found["180 deg"]["indexings"] == 8                                 # 1 s at 484.5 rpm from mid-dwell
+
+
 @pytest.fixture(scope="module")
 def cam(tmp_path_factory):
     return _run(tmp_path_factory, "lab_cam")
@@ -262,6 +279,13 @@ def test_a_lab_scene_names_its_errors(tmp_path):
     bad.write_text(re.sub(r"readings = \[.*\n", "", text))
     with pytest.raises(SceneError, match=r"\[lab\]: the speed sheet needs 'readings'"):
         run_scene(bad, tmp_path / "bad.mcap")
+    # a reading before the counter's first gate ends (it shows 0: the errors divided by it) or after the run
+    for readings, index, at in (('["0.5 s", "2.5 s"]', 0, "0.5"), ('["2.5 s", "9 s"]', 1, "9")):
+        bad.write_text(re.sub(r"readings = \[.*\]", f"readings = {readings}", text))
+        with pytest.raises(SceneError, match=rf"\[lab\]: readings\[{index}\] = {at} s is outside the run's readings: "
+                                             r"the pulse counter's first gate ends at 1 s .* and the run at 6 s"):
+            run_scene(bad, tmp_path / "bad.mcap")
+        assert not (tmp_path / "bad.mcap").exists()
 
 
 def test_a_lab_served_in_its_own_process_records_the_same_readings(cardan, tmp_path, serve_scene):
