@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 from scipy.optimize import brentq
 
-from rig.mechanisms.checks import finite, whole
+from rig.mechanisms.checks import degrees_hint, finite, whole
 
 MODULE_MAX = 0.1      # m: the largest gear module taken for one (larger ones are mm given as m)
 
@@ -71,7 +71,8 @@ class SpurGearPair:
                              + (f": did you mean {self.module:g} mm = {self.module * 1e-3:g} m?"
                                 if self.module > MODULE_MAX else ""))
         if not 0 < self.pressure_angle < radians(45):
-            raise ValueError(f"SpurGearPair pressure_angle must lie in (0, 45°), got {self.pressure_angle!r} rad")
+            raise ValueError(f"SpurGearPair pressure_angle must lie in (0, 45°), got {self.pressure_angle!r} rad"
+                             + degrees_hint(self.pressure_angle))
         for z, x, name in ((self.z1, self.x1, "x1"), (self.z2, self.x2, "x2")):
             x_min = 1.0 - z * sin(self.pressure_angle) ** 2 / 2     # no undercut: x ≥ 1 − z sin²α0 / 2
             if x < x_min - 1e-12:

@@ -363,3 +363,17 @@ def test_flat_follower_limit_is_the_base_radius_of_its_own_cusp_free_profile():
     profile = follower.profile(rb * 1.001)
     assert np.min(np.hypot(profile.x, profile.y)) == pytest.approx(rb * 1.001, rel=1e-4) and not profile.has_cusp
     assert follower.profile(rb * 0.99).has_cusp
+
+
+def test_a_radius_sized_to_the_limit_passes_its_check():
+    """The exact base radius puts the pressure angle on its limit; checked back it lands a few ulp above it
+    (20.000000000000004° for a parabolic rise): on the limit, within rounding, is within it — and a value a
+    millionth beyond is not."""
+    from rig.mechanisms.cam.design import Check
+    from rig.mechanisms.cam.sizing import exact_base_radius, pressure_angles
+    r_b = exact_base_radius(get_law("parabolic"), 0.042, radians(200), radians(20))
+    worst = float(np.degrees(np.max(np.abs(pressure_angles(get_law("parabolic"), 0.042, radians(200), r_b)))))
+    assert worst == pytest.approx(20.0, rel=1e-12)
+    assert Check("max pressure angle", worst, 20.0, "°", "≤").ok
+    assert not Check("max pressure angle", 20.00002, 20.0, "°", "≤").ok
+    assert Check("r", 25.0 * (1 - 1e-15), 25.0, "mm", "≥").ok and not Check("r", 24.99, 25.0, "mm", "≥").ok

@@ -210,6 +210,7 @@ def test_belt_ratchet_and_friction_wheels():
     (lambda: SpurGearPair(34, 80, "0.0045"), "SpurGearPair module must be a finite number, got '0.0045'"),
     (lambda: Cardan("0.5"), "Cardan shaft_angle (rad) must be a finite number, got '0.5'"),
     (lambda: Cardan(30), "did you mean 30° = 0.5236 rad"),
+    (lambda: SpurGearPair(20, 40, 0.002, pressure_angle=20), "got 20 rad: the angle is in radians: did you mean 20° ="),
     (lambda: DoubleCardan(0.1, 0.1, "Z", float("nan")), "DoubleCardan yoke_offset (rad) must be a finite number"),
     (lambda: Ratchet(0.3, float("nan")), "Ratchet mu must be a finite number, got nan"),
     (lambda: Ratchet(30, 0.2), "did you mean 30° = 0.5236 rad"),

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
 SIGMA_ALLOW = 1200e6        # Pa, assumption: permissible contact stress of a hardened steel cam (no source value)
 LOAD_COEFFICIENT = 0.5      # Φ_L = Q/F for the H/h optimum, assumption (no source value)
 ROUND_TRIP_TOL = 1e-10
+ROUNDING = 1e-12          # relative: a check's value this close to its limit is on it
 
 
 @dataclass(frozen=True)
@@ -45,9 +46,12 @@ class Check:
 
     @property
     def ok(self) -> bool:
+        """The relation holds, a value on its limit within rounding included (a radius sized to the limit exactly,
+        :func:`rig.mechanisms.cam.sizing.exact_base_radius`, checks back a few ulp above it)."""
         if self.relation == "info":
             return True
-        return bool(self.value <= self.limit if self.relation == "≤" else self.value >= self.limit)
+        slack = ROUNDING * max(abs(self.value), abs(self.limit))
+        return bool(self.value <= self.limit + slack if self.relation == "≤" else self.value >= self.limit - slack)
 
 
 @dataclass
