@@ -95,11 +95,9 @@ class StiffnessMonitor:
         if self.count == 0 and (known.size == 0 or known.max() <= self.limit):
             self.calm += len(hl)
             return
-        hl = hl.tolist()
-        for args in zip(t, y, h, hl):
-            self._stiffness(*args)
-            if self.detected_at is not None:      # reported: once per run, not once per STEPS steps of the batch
-                return
+        k = self._stiffness_many(hl)
+        if k is not None:                         # the step that reports (once per run)
+            self._stiffness(float(t[k]), tuple(y[k]), float(h[k]), float(hl[k]))
 
     def update(self, t: float, y: tuple, h: float, hl: float) -> None:
         """Update with an estimate ``hl`` of h·|λ| for a step of size h ending at (t, y); a non-finite estimate
@@ -113,6 +111,37 @@ class StiffnessMonitor:
             self._amplification([t], [y], [h])
             return
         self._stiffness(t, y, h, hl)
+
+    def _stiffness_many(self, hl: np.ndarray) -> int | None:
+        """:meth:`_stiffness` over a batch of estimates at once: the state it leaves after the batch, or, when a step
+        of the batch reports, the state before that step and its index (the caller then takes it by
+        :meth:`_stiffness`). Non-finite estimates are skipped, as there; an estimate above the limit counts, six
+        calm ones in a row reset the count."""
+        where = np.flatnonzero(np.isfinite(hl))
+        v = hl[where]
+        if not v.size:
+            return None
+        pos = np.arange(v.size)
+        above = v > self.limit
+        last_above = np.maximum.accumulate(np.where(above, pos, -1))
+        calm = np.where(last_above >= 0, pos - last_above, self.calm + pos + 1)      # calm estimates in a row
+        reset = ~above & (calm >= 6)
+        last_reset = np.maximum.accumulate(np.where(reset, pos, -1))
+        counted = np.cumsum(above)
+        count = np.where(last_reset >= 0, counted - counted[np.maximum(last_reset, 0)], self.count + counted)
+        hits = np.flatnonzero(above & (count >= self.STEPS))
+        end = int(hits[0]) if hits.size else v.size       # the state is taken before this estimate
+        if end == 0:
+            return int(where[0])
+        i = end - 1
+        start = int(last_reset[i]) + 1                     # the estimates counted since the last reset
+        carried = self._recent if last_reset[i] < 0 else []
+        self._recent = (carried + v[start:end][above[start:end]].tolist())[-self.STEPS:]
+        self.count = int(count[i])
+        self.calm = 0 if above[i] else int(calm[i])
+        if reset[i]:
+            self.count, self._recent = 0, []
+        return int(where[end]) if hits.size else None
 
     def _stiffness(self, t: float, y: tuple, h: float, hl: float) -> None:
         if not math.isfinite(hl):

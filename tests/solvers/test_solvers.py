@@ -208,3 +208,36 @@ def test_restart_event_exactly_at_the_end_of_the_span():
     ev2 = Event(lambda t, y: t - 0.5, "at_break", restart=True)
     sol2 = integrate(Problem(lambda t, y: (1.0,), (0.0,), [ev2], time_breaks=[0.5]), (0.0, 1.0), rtol=1e-8, atol=1e-10)
     assert sol2.y_final[0] == pytest.approx(1.0, rel=1e-12)
+
+
+def test_stiffness_monitor_in_batches_is_the_monitor_step_by_step():
+    """The compiled runs hand the stiffness test whole batches of h·|λ| estimates (vectorised); it must end in the
+    state — count, calm run, recent estimates, the step and words of a report — of feeding them one by one, for any
+    cut into batches, with non-finite estimates skipped."""
+    import warnings
+    from rig.solvers.base import StiffnessMonitor
+    rng = np.random.default_rng(7)
+    reports = 0
+    for trial in range(300):
+        n = int(rng.integers(1, 120))
+        hl = np.where(rng.random(n) < 0.55 + 0.4 * rng.random(), 3.25 + rng.random(n), 3.25 * rng.random(n))
+        hl[rng.random(n) < 0.05] = np.nan
+        t = np.cumsum(rng.random(n)) * 1e-3
+        y = rng.random((n, 2))
+        h = np.full(n, 1e-4)
+        one, many = StiffnessMonitor("DP45", 3.25), StiffnessMonitor("DP45", 3.25)
+        with warnings.catch_warnings(record=True) as said_one:
+            warnings.simplefilter("always")
+            for k in range(n):
+                one.update(float(t[k]), tuple(y[k]), float(h[k]), float(hl[k]))
+        cuts = np.sort(rng.choice(np.arange(1, n), size=min(n - 1, int(rng.integers(0, 6))), replace=False)) \
+            if n > 1 else []
+        with warnings.catch_warnings(record=True) as said_many:
+            warnings.simplefilter("always")
+            for a, b in zip([0, *cuts], [*cuts, n]):
+                many.update_many(t[a:b], y[a:b], h[a:b], hl[a:b])
+        state = lambda m: (m.count, m.calm, m._recent, m.detected_at, m.last)  # noqa: E731
+        assert state(many) == state(one), trial
+        assert [str(w.message) for w in said_many] == [str(w.message) for w in said_one], trial
+        reports += len(said_one)
+    assert 20 < reports < 290            # both outcomes are exercised
