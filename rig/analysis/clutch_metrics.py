@@ -256,6 +256,8 @@ class StandRecord:
 LOBE = 2 * np.pi / 3
 APEX = np.pi / 3
 SLIP_TOLERANCE = np.radians(2.0)   # relative angle within this of its end value: slip over
+SPEED_SETTLED = 0.02   # a speed whose trend moves more than this share of it (or of 1 rad/s) over the last readings
+                       # is still changing: no final speed
 
 
 def _window(t: np.ndarray, y: np.ndarray, a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
@@ -455,8 +457,16 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
                               "at rest: no encoder count in the last readings, so less than one count per time "
                               "since the last one"))
         else:
-            out.append(Metric(f"final speed {name}", float(np.mean(w[ok])), "rad/s",
-                              f"mean of the encoder speeds read in the last {dwell * 1e3:.0f} ms of the run"))
+            mean = float(np.mean(w[ok]))
+            change = np.polyfit(tr[ok] - rec.end, w[ok], 1)[0] * dwell if np.count_nonzero(ok) >= 3 else 0.0
+            if abs(change) > SPEED_SETTLED * max(abs(mean), 1.0):
+                out.append(Metric(f"final speed {name}", None, "rad/s",
+                                  f"still {'speeding up' if change * mean >= 0 else 'slowing down'} at the end of the "
+                                  f"run: {change:+.3g} rad/s over its last {dwell * 1e3:.0f} ms (trend), mean "
+                                  f"{mean:.4g} rad/s — no final speed within the run"))
+            else:
+                out.append(Metric(f"final speed {name}", mean, "rad/s",
+                                  f"mean of the encoder speeds read in the last {dwell * 1e3:.0f} ms of the run"))
     return out
 
 

@@ -294,8 +294,10 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     banner = _verdict(metrics)
     scene = _scene(ctx.recording)
     if banner is not None and scene is not None and scene.data.get("comparison"):
-        try:                                   # the thesis comparison's outcome up front (its table is below)
-            banner.text += f"; thesis against rig: {agreement_text(compare(scene, stim, metrics)).split('; DISAGREE')[0]}"
+        try:                                   # the thesis comparison's outcome up front (its table is below):
+            rows = compare(scene, stim, metrics)       # a row that disagrees turns the banner red and is named
+            banner.text += f"; thesis against rig: {agreement_text(rows)}"
+            banner.ok = banner.ok and not any(r.agrees is False for r in rows)
         except SceneError:
             pass
     if banner is not None:

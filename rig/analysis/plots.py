@@ -389,19 +389,21 @@ def histograms(table: Mapping[str, np.ndarray], stats: Mapping[str, Mapping], pa
 
 
 def envelope(t: np.ndarray, y: np.ndarray, buckets: int = ENVELOPE_BUCKETS) -> tuple[np.ndarray, np.ndarray]:
-    """Min and max of ``y`` in each of ``buckets`` equal runs of samples and in the shorter run left over, in time
-    order: at most ``2 (buckets + 1)`` points.
+    """Min and max of ``y`` in each of at most ``buckets`` equal runs of samples and in the shorter run left over
+    (fewer samples than a run: the picture keeps its resolution to the end), in time order: at most
+    ``2 (buckets + 1)`` points.
 
     Drawn at a width of fewer than ``buckets`` pixels this is the same picture as all samples.
     """
-    k = t.size // buckets
+    k = -(-t.size // buckets)                       # samples per run, rounded up
     if k < 3:
         return t, y
-    m = k * buckets
-    tb, yb = t[:m].reshape(buckets, k), y[:m].reshape(buckets, k)
+    runs = t.size // k
+    m = k * runs
+    tb, yb = t[:m].reshape(runs, k), y[:m].reshape(runs, k)
     lo, hi = np.argmin(yb, axis=1), np.argmax(yb, axis=1)
     idx = np.sort(np.column_stack([lo, hi]), axis=1)
-    rows = np.arange(buckets)[:, None]
+    rows = np.arange(runs)[:, None]
     tail = np.unique([m + np.argmin(y[m:]), m + np.argmax(y[m:])]) if m < t.size else np.array([], dtype=int)
     return np.concatenate([tb[rows, idx].ravel(), t[tail]]), np.concatenate([yb[rows, idx].ravel(), y[tail]])
 

@@ -254,3 +254,17 @@ def test_a_single_curve_figure_names_its_dashed_theory(tmp_path, monkeypatch):
     figures.clear()
     plots.curve_panels(CurveRecord(number=2, program=1, t=t, x=t, y=t, angle=None, theory={}), [], tmp_path / "d.png")
     assert not any(ax.get_legend() for ax in figures[0].axes)          # no theory: nothing to name
+
+
+def test_the_envelope_keeps_every_stretch_of_the_signal_to_its_end():
+    """The reduced trace of a long signal spans it to the end at the same resolution (5000 samples in 1500 runs of 3
+    left 500 samples, the last tenth of a run, to two points before; 5999 a quarter), and holds each run's min and max."""
+    from rig.analysis.plots import envelope
+    for n in (4500, 5000, 5999, 100_003):
+        t = np.linspace(0.0, 1.0, n)
+        y = np.sin(40 * t) + (t > 0.9) * np.sin(900 * t)        # a burst in the last tenth
+        te, ye = envelope(t, y)
+        assert te.size <= 2 * (1500 + 1) and te[0] == t[0] and np.all(np.diff(te) >= 0)
+        burst = t > 0.9
+        assert np.max(np.diff(te[te > 0.9])) <= 2 * np.ceil(n / 1500) / (n - 1) + 1e-12, n    # no gap in the tail
+        assert ye[te > 0.9].max() == y[burst].max() and ye[te > 0.9].min() == y[burst].min(), n

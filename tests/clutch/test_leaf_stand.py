@@ -2,6 +2,7 @@
 printed units and the thesis-against-rig comparison (comparison.csv)."""
 import csv
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -167,6 +168,17 @@ def test_held_overload_as_the_source_applies_it_does_not_disengage_a_step_does(t
         rows = {r["quantity"]: r for r in csv.DictReader(f)}
     assert rows["disengagements"]["rig"] == "0" and rows["disengagements"]["agrees"] == "NO"
     assert rows["shutdown"]["rig"] == "0" and rows["shutdown"]["agrees"] == "NO"
+    html = (tmp_path / "report" / "report.html").read_text()      # the banner: red, naming what disagrees
+    (banner,) = re.findall(r"<div class='banner (\w+)'>Clutch stand: ([^<]*)</div>", html)
+    assert banner[0] == "nok" and "thesis against rig: 0 of 2 predictions agree" in banner[1]
+    assert "DISAGREE: disengagements (thesis" in banner[1] and "shutdown (thesis" in banner[1]
+    # the stand is still running up to speed when the record ends (ω1 44.9 → 52.7 rad/s in its last 50 ms): no final
+    # speed, and the words say why (a mean over the ramp was reported as the final speed before)
+    from rig.analysis.clutch_report import stand_results
+    from rig.recorder import read_recording
+    final = {m.name: m for m in stand_results(read_recording(out))[1] if m.name.startswith("final speed")}
+    assert set(final) == {"final speed ω1", "final speed ω3"}
+    assert all(m.value is None and "still speeding up at the end of the run" in m.reference for m in final.values())
     text = (SCENES / "clutch_leaf_overload_hold.toml").read_text()
     step = tmp_path / "step.toml"
     step.write_text(text.replace('tau = "42 ms"', 'tau = "5 ms"', 1).replace('pulse_duration = "220 ms"',
