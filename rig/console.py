@@ -121,8 +121,15 @@ def configure(quiet: bool = False) -> None:
     announce_compilation()
 
 
+LOGGED_INTERVAL = 10.0     # s between two progress lines when stderr is a file or a pipe (not a terminal)
+
+
 def progress(total: float | None, desc: str, unit: str, enabled: bool = True, **kwargs: Any) -> tqdm:
-    """A progress bar on stderr that stays as a final line (``leave``); ``enabled=False``: nothing shown."""
+    """A progress bar on stderr that stays as a final line (``leave``); ``enabled=False``: nothing shown. Into a file
+    or a pipe (a CI log) each redraw is a line of its own: it redraws every :data:`LOGGED_INTERVAL` s there, not ten
+    times a second."""
+    if not getattr(sys.stderr, "isatty", lambda: False)():
+        kwargs.setdefault("mininterval", LOGGED_INTERVAL)
     return tqdm(total=total, desc=desc, unit=unit, disable=not enabled, leave=True, file=sys.stderr,
                 dynamic_ncols=True, **kwargs)
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from drivers.encoder import EDGE_TOLERANCE, SpeedEstimator
 from rig.analysis.clutch_metrics import APEX, LOBE, Metric, StandRecord, Stimulus, stand_metrics
+from rig.analysis.event_text import event_details
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Banner, Block, Heading, Link, ReportContext, Table, Text, fmt
 from rig.analysis.stand_comparison import agreement_text, compare, thesis_marks, write_csv
@@ -337,8 +338,7 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     if events:
         blocks.append(Text("Model events (the host's plant model of the scene):"))
         blocks.append(Table(["t (s)", "event", "details"],
-                            [[fmt(e["t"]), e["kind"], ", ".join(f"{k}={fmt(v)}" for k, v in e.items()
-                                                                  if k not in ("t", "kind"))] for e in events]))
+                            [[f"{e['t']:.6g}", e["kind"], event_details(e, ctx.main_units)] for e in events]))
     return blocks
 
 

@@ -143,7 +143,7 @@ def dbc_units() -> dict[str, str]:
 
 def export_events(events: Sequence[Mapping], details: Sequence[str], path: Path) -> Path:
     """The recording's events as CSV, one row each: simulation time (s), kind, its ``details`` as the report words
-    them (:func:`rig.analysis.report.event_details`)."""
+    them (:func:`rig.analysis.event_text.event_details`)."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(["t [s]", "kind", "details"])

@@ -26,6 +26,7 @@ import numpy as np
 from rig.analysis import plots
 from rig.analysis.clutch_report import clutch_section, comparison_section
 from rig.analysis.device import agreement_text
+from rig.analysis.event_text import event_details
 from rig.analysis.export import export_curves, export_events, export_results, export_series
 from rig.analysis.lab_report import lab_section
 from rig.analysis.normality import ANDERSON_P
@@ -489,26 +490,7 @@ def live_pairs_dropped(recorded: list[dict]) -> int:
     return max(totals, default=0)
 
 
-#: SI unit of an event's numeric field (shown in the program's display units); other fields are shown as recorded
-EVENT_FIELD_SI = {"phi": "rad", "left_phi": "rad", "phi_r": "rad", "flight": "s", "backlog": "s", "torque": "N*m",
-                  "peak_torque": "N*m"}
 EVENT_ROWS = 200      # rows of the event-by-event table (every event is in events.csv)
-
-
-def event_details(event: dict, units: DisplayUnits) -> str:
-    """``"phi 248.7°, left_phi 233.3°, flight 0.008566 s, to other"``: an event's fields in display units."""
-    parts = []
-    for key, value in event.items():
-        if key in ("t", "kind"):
-            continue
-        if key in EVENT_FIELD_SI and isinstance(value, (int, float)) and not isinstance(value, bool):
-            value = units.of(EVENT_FIELD_SI[key]).text(value)
-        elif event.get("kind") == "interrupted" and key == "reason":
-            value = interruption_text(str(value))
-        elif isinstance(value, float):
-            value = f"{value:.4g}"
-        parts.append(f"{key} {value}")
-    return ", ".join(parts)
 
 
 def events(ctx: ReportContext) -> list[Block]:

@@ -11,6 +11,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from rig.analysis.event_text import event_details
 from rig.analysis.plots import figure, save
 from rig.analysis.numbers import decimals, fixed, fixed_range
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
@@ -174,8 +175,7 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
     events = [e for e in rec.events if e.get("kind") in ("disengagement", "reengaged")]
     if events:
         blocks.append(Table(["t (s)", "event", "details"],
-                            [[fmt(e["t"]), e["kind"], ", ".join(f"{k}={fmt(v)}" for k, v in e.items()
-                                                                  if k not in ("t", "kind"))] for e in events]))
+                            [[f"{e['t']:.6g}", e["kind"], event_details(e, ctx.main_units)] for e in events]))
     else:
         blocks.append(Text(f"No disengagement: the load stayed below {_limit(rig.clutch, short=True)}."))
     t_m, phi_m = reading_points(readings["t"], readings["angle"])

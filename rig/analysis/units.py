@@ -96,6 +96,9 @@ def same_kind(a: str, b: str) -> bool:
         return False
 
 
+NOISE_FLOOR = 1e-9    # display units: smaller values are rounding noise (no instrument or model resolves them)
+
+
 @dataclass(frozen=True)
 class Unit:
     """A display unit: ``label`` (``"mm"``, ``"°"``, ``"N·m"``), ``ascii`` (``"deg"``, ``"N*m"``) and
@@ -115,10 +118,12 @@ class Unit:
         return np.asarray(value, dtype=float) * self.factor
 
     def text(self, value: float | None, digits: int = 4) -> str:
-        """``"41.2 mm"`` (``digits`` significant digits) of an SI value; a dash for None."""
+        """``"41.2 mm"`` (``digits`` significant digits) of an SI value; a dash for None; a value below
+        :data:`NOISE_FLOOR` in this unit is 0 (a root found at 0° reads "0°", not "-2.172e-14°")."""
         if value is None or not np.isfinite(value):
             return "—"
-        number = f"{self(value):.{digits}g}"
+        shown = self(value)
+        number = f"{shown if abs(shown) >= NOISE_FLOOR else 0.0:.{digits}g}"
         return f"{number} {self.label}".rstrip() if self.label not in ("°",) else f"{number}°"
 
     def axis(self, quantity: str) -> str:

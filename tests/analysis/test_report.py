@@ -268,3 +268,14 @@ def test_the_envelope_keeps_every_stretch_of_the_signal_to_its_end():
         burst = t > 0.9
         assert np.max(np.diff(te[te > 0.9])) <= 2 * np.ceil(n / 1500) / (n - 1) + 1e-12, n    # no gap in the tail
         assert ye[te > 0.9].max() == y[burst].max() and ye[te > 0.9].min() == y[burst].min(), n
+
+
+def test_event_fields_read_in_display_units_without_rounding_noise():
+    """A lobe-wrap root found at φ_r = 0 within rounding reads "0°" (not "-2.172e-14°"); a real angle keeps its digits."""
+    from rig.analysis.event_text import event_details
+    from rig.analysis.units import DisplayUnits
+    units = DisplayUnits()
+    assert event_details({"t": 0.1, "kind": "lobe_wrap", "phi_r": -3.79e-16}, units) == "phi_r 0°"
+    assert event_details({"t": 0.1, "kind": "disengagement", "phi_r": 1.0471975511965976, "direction": 1},
+                         units) == "phi_r 60°, direction 1"
+    assert event_details({"t": 0.1, "kind": "x", "phi_r": 1e-6}, units) == "phi_r 5.73e-05°"

@@ -109,6 +109,8 @@ def test_report_table_states_references(runs, tmp_path):
     text = out.read_text()
     assert "| shock at 0.1 s: overshoot | n/a | a shock is a pulse" in text
     assert "relative to / definition" in text and not re.search(r"\b774\.2\b", text)    # the old shock "overshoot"
+    model = text[text.index("Model events"):].split("\n\n")[1]          # the section's own event table: display units
+    assert "phi_r=" not in model and re.search(r"\| disengagement \| phi_r -?\d+(\.\d+)?°, direction", model), model
     first = next(line for line in text.splitlines() if line.startswith("**"))     # the verdict leads the report
     assert re.fullmatch(r"\*\*Clutch stand: disengagements 1, at .*; shutdown not required; max torque .* N·m at .* s\*\*",
                         first), first

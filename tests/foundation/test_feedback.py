@@ -87,7 +87,8 @@ def bar_lines(err: str) -> list[str]:
     return [line.strip() for line in err.replace("\r", "\n").splitlines() if line.strip()]
 
 
-def test_the_run_bar_counts_machine_cycles_and_stays(tmp_path, capsys):
+def test_the_run_bar_counts_machine_cycles_and_stays(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)        # as on a terminal: redrawn as the cycles pass
     session.run_scene(DEMO, tmp_path / "x.mcap", cycles=3, progress=True)
     lines = bar_lines(capsys.readouterr().err)
     assert lines[0].startswith("pin_insertion:   0%") and "0/3" in lines[0] and "t = 0.00 s" in lines[0]
@@ -95,6 +96,15 @@ def test_the_run_bar_counts_machine_cycles_and_stays(tmp_path, capsys):
     last = lines[-1]
     assert last.startswith("pin_insertion: 100%") and "3/3" in last and "3 curves recorded" in last
     assert any("reading the device statistics" in line for line in lines)
+
+
+def test_into_a_log_the_run_bar_writes_few_lines(tmp_path, capsys):
+    """stderr a file or a pipe (capsys here, a CI log): each redraw is a line there, so the bar redraws every 10 s, not
+    ten times a second — a short run writes its first and last lines and the phases it names, no per-cycle lines."""
+    session.run_scene(DEMO, tmp_path / "x.mcap", cycles=3, progress=True)
+    lines = bar_lines(capsys.readouterr().err)
+    assert lines[0].startswith("pin_insertion:   0%") and lines[-1].startswith("pin_insertion: 100%")
+    assert not any("1/3" in line or "2/3" in line for line in lines) and len(lines) <= 6, lines
 
 
 def test_a_duration_scene_bar_counts_simulated_seconds(tmp_path, capsys):
