@@ -631,6 +631,10 @@ def exports(ctx: ReportContext) -> list[Block]:
                 codes = "; speed_method: " + ", ".join(f"{k} {v}" for k, v in sorted(METHOD_NAMES.items()))
             files.append((export_series(data, ctx.out_dir / name, units, topic),
                           f"{topic}: one row per reading ({', '.join(k for k in data if k != 't')}){codes}"))
+    truth = rec.truth
+    if not rec.curves and truth and "t" in truth and len(truth["t"]):   # a stand or lab run: what the plant did (the
+        files.append((export_series(truth, ctx.out_dir / "plant_truth.csv", units),     # applied loads among it)
+                      f"/plant/truth: one row per model sample ({', '.join(k for k in truth if k != 't')})"))
     return [Heading("Exports"), Table(["file", "contents"], [[Link(f.name, f.name), what] for f, what in files])
             ] if files else []
 

@@ -143,6 +143,11 @@ def test_report_shows_loop_figure_and_table(recordings, tmp_path, name):
     assert len(figures) == 1 and (tmp_path / figures[0]).stat().st_size > 5000
     assert (len(list(tmp_path.glob("*static_leaf_strain.png"))) == 1) == (name == "clutch_static_leaf")
     assert ("| disengagement |" in text) == (name == "clutch_static_flat_tappet")
+    # the applied torque the table and the loops are built on is exported with the plant truth (the readings hold
+    # only the measured angle): the loop energies can be redone from the report's files
+    with open(tmp_path / "plant_truth.csv", encoding="utf-8") as f:
+        header = f.readline().strip().split(",")
+    assert header[:3] == ["t [s]", "lever_force [N]", "torque [N*m]"] and "[plant_truth.csv](plant_truth.csv)" in text
 
 
 def test_cycles_split_at_load_valleys():
