@@ -140,12 +140,17 @@ def _strain_figure(ctx: ReportContext, rig: StaticClutchRig) -> Block:
     if "leaf_strain" in truth:
         ax.plot(np.degrees(np.mod(truth["relative_angle"] - c.phi_min, c.period) + c.phi_min),
                 1e6 * truth["leaf_strain"], "--", color="0.5", lw=0.8, label="plant truth")
-    ax.plot(np.degrees(np.mod(readings["angle"] - c.phi_min, c.period) + c.phi_min), 1e6 * readings["strain"],
-            ".", ms=2, color="k", label="measured (bridge amplifier vs multimeter angle)")
+    angle, strain = readings["angle"], readings["strain"]
+    new = np.concatenate(([True], angle[1:] != angle[:-1]))     # the multimeter shows a new angle (as reading_points)
+    ax.plot(np.degrees(np.mod(angle[new] - c.phi_min, c.period) + c.phi_min), 1e6 * strain[new],
+            ".", ms=3, color="k", label="measured (bridge amplifier when the multimeter shows a new angle)")
     ax.set(xlabel="relative angle in the lobe (°)", ylabel="leaf strain (µm/m)", title="Leaf strain over angle")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
-    return ctx.figure(save(fig, ctx.figure_path("static_leaf_strain")), "Leaf strain over relative angle")
+    return ctx.figure(save(fig, ctx.figure_path("static_leaf_strain")),
+                      "Leaf strain over relative angle: each strain reading paired with the multimeter's angle when it "
+                      "shows a new value (the multimeter holds each angle for several strain readings, whose strain "
+                      "moves on meanwhile)")
 
 
 def static_clutch_section(ctx: ReportContext) -> list[Block]:
