@@ -459,7 +459,8 @@ EVENT_MEANING = {
     "reengaged": "the clutch engaged again after a disengagement",
     "phase_boundary": "the tappets passed from the cam's phase-I arc to its fillet (or back): the clutch's "
                       "stiffness changes there (relative angle phi_r in the event)",
-    "lobe_wrap": "the relative angle crossed a lobe boundary (the tappets at the base of the next lobe)",
+    "lobe_wrap": "the relative angle crossed a lobe boundary k·120° (the tappets at a lobe's base): at 0° that is "
+                 "elastic deflection the other way (reverse torque), not a slip — a disengagement is an apex pass",
     "load_zone": "the load's angle-dependent torque changed zone",
     "shutdown": "repeated disengagements: the stand switched the motor off",
     "method_switch": "the explicit integration method met stiffness (its steps limited by stability, not accuracy: "
