@@ -101,13 +101,14 @@ def machine_of(scene_text: str) -> dict[str, str]:
 
 def expand(patterns: Sequence[str]) -> list[Path]:
     """Paths named by ``patterns`` (globs, ``**`` recursive; a folder: the ``*.mcap`` files under it, at any
-    depth), sorted per pattern, each once; a pattern that matches nothing is a ValueError naming it."""
+    depth), sorted per pattern, each once, absolute (a worker of a cluster opens them from its own folder); a
+    pattern that matches nothing is a ValueError naming it."""
     out: dict[Path, None] = {}
     for pattern in patterns:
         hits = sorted(glob.glob(pattern, recursive=True))
         if not hits:
             raise ValueError(f"no recording matches {pattern!r}")
-        for hit in map(Path, hits):
+        for hit in (Path(h).absolute() for h in hits):
             if hit.is_dir():
                 out.update((p, None) for p in sorted(hit.rglob("*.mcap")) if p.is_file())
             elif hit.is_file():

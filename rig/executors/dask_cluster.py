@@ -19,6 +19,7 @@ from rig.executors import Executor
 
 LOOPBACK_HTTP = "127.0.0.1:0"   # scheduler's and workers' HTTP status servers (else on every interface)
 CONNECT_TIMEOUT = 10  # s to reach a scheduler given by address
+WORKER_TIMEOUT = 10   # s a scheduler given by address has for its first worker to join
 IN_FLIGHT = 2  # tasks per worker submitted ahead of the one whose result is awaited
 
 
@@ -47,8 +48,14 @@ class DaskExecutor(Executor):
                 self.client = Client(scheduler, set_as_default=False, timeout=CONNECT_TIMEOUT)
             except OSError as exc:
                 raise ConnectionError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None   # exit 1
+            try:                               # a scheduler without workers would take the tasks and never run them
+                self.client.wait_for_workers(1, timeout=WORKER_TIMEOUT)
+            except (TimeoutError, OSError):
+                self.client.close()
+                raise ConnectionError(f"the Dask scheduler at {scheduler} has no workers (none joined within "
+                                      f"{WORKER_TIMEOUT:g} s): start some with 'dask worker {scheduler}'") from None
         self.address = scheduler
-        self.workers = max(1, sum(self.client.nthreads().values()))
+        self.workers = sum(self.client.nthreads().values())
 
     def map(self, fn: Callable[[Any], Any], tasks: Iterable[Any]) -> Iterator[Any]:
         tasks = iter(tasks)

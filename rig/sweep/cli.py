@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -11,7 +12,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.outputs import claim_dir, writable_dir
     from rig.scene import load_scene
     from rig.sweep import parse_param
-    from rig.sweep.plots import plot_sweep
+    from rig.sweep.plots import MAX_MAPS, plot_sweep
     from rig.analysis.numbers import plural
     from rig.sweep.run import levels_text, run_sweep, write_table
     params = [parse_param(p) for p in args.param]
@@ -31,6 +32,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"  failed at {', '.join(f'{p.key} = {v}' for p, v in zip(params, point))}: {error}")
     for path in plot_sweep(result, out):
         print(f"map: {path}")
+    combos = math.prod(len(p.values) for p in params[2:])
+    if combos > MAX_MAPS:
+        print(f"maps: the first {MAX_MAPS} of {combos} combinations of {', '.join(p.key for p in params[2:])} per "
+              f"metric (the table holds every point; sweep fewer values of those for a map of each)")
     return 0
 
 

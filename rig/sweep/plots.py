@@ -89,7 +89,8 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
             fig, ax = plt.subplots(figsize=(6, 4))
             x, unit = _positions(p.values)
             xs = list(range(len(y))) if x is None else x
-            ax.plot(xs, y, "o-")
+            order = np.argsort(xs, kind="stable")       # the line joins the points from left to right (values may
+            ax.plot(np.asarray(xs)[order], np.asarray(y, dtype=float)[order], "o-")     # be typed in any order)
             levels = [result.levels[index[(v,)]] for v in p.values]
             if len(set(levels)) > 1:          # points of different model levels on one line: each says its own
                 for xi, yi, level in zip(xs, y, levels):

@@ -29,12 +29,15 @@ def recordings(tmp_path_factory):
     return root
 
 
-def test_combined_statistics_are_those_of_all_curves(recordings, dask_scheduler):
+def test_combined_statistics_are_those_of_all_curves(recordings, dask_scheduler, monkeypatch):
     paths = expand([str(recordings / "run*.mcap"), str(recordings / "**" / "copy.mcap")])
     assert [p.name for p in paths] == ["run2.mcap", "run3.mcap", "copy.mcap"]
     # a folder stands for the recordings under it, at any depth (was "no recording files in DIR")
     assert expand([str(recordings / "sub")]) == [recordings / "sub" / "copy.mcap"]
     assert {p.name for p in expand([str(recordings)])} == {"run2.mcap", "run3.mcap", "copy.mcap", "cut.mcap", "short.mcap"}
+    # relative patterns give absolute paths: a worker of a cluster opens them from its own folder
+    monkeypatch.chdir(recordings.parent)
+    assert expand([f"{recordings.name}/run2.mcap"]) == [recordings / "run2.mcap"] and paths[0].is_absolute()
     with make_executor("serial") as ex:
         serial = analyse_batch(paths, ex)
     with make_executor("dask", scheduler=dask_scheduler) as ex:

@@ -39,6 +39,18 @@ def test_bad_executor_requests_say_what_is_wrong(name, workers, scheduler, match
         make_executor(name, workers, scheduler)
 
 
+def test_a_scheduler_without_workers_is_an_error_not_a_silent_wait(monkeypatch):
+    """A cluster whose scheduler has no worker would take the tasks and never run them: the executor says so (was
+    "1 worker" and a run that waited forever)."""
+    from distributed import LocalCluster
+    from rig.executors import dask_cluster
+    monkeypatch.setattr(dask_cluster, "WORKER_TIMEOUT", 0.5)
+    with LocalCluster(n_workers=0, processes=False, dashboard_address="127.0.0.1:0") as cluster:
+        with pytest.raises(ConnectionError, match=r"the Dask scheduler at .* has no workers \(none joined within "
+                                                  r"0.5 s\): start some with 'dask worker "):
+            make_executor("dask", scheduler=cluster.scheduler_address)
+
+
 def test_dask_returns_results_in_task_order(dask_scheduler):
     with make_executor("dask", scheduler=dask_scheduler) as ex:
         assert ex.workers == 2 and "scheduler" in ex.describe()

@@ -324,3 +324,35 @@ def test_a_one_parameter_chart_places_numeric_values_where_they_lie(tmp_path, mo
                         [1, 1, 2])
     plot_sweep(mixed, tmp_path)
     assert [t.get_text() for t in figures[-1].axes[0].texts] == ["L1", "L1", "L2"]   # levels on one line: each said
+
+
+def test_a_line_joins_its_points_from_left_to_right(tmp_path, monkeypatch):
+    """Values typed out of order ("62 N,40 N,58 N") are drawn as one line from the smallest to the largest (it ran
+    62 → 40 → 58 and doubled back)."""
+    from matplotlib.figure import Figure
+
+    from rig.sweep.plots import plot_sweep
+    from rig.sweep.run import SweepResult
+    params = (parse_param("plant.F_c=62 N,40 N,58 N"),)
+    points = grid(list(params))
+    result = SweepResult(params, ("rod_force_peak",), points, [{"rod_force_peak": v} for v in (70.0, 50.0, 66.0)],
+                         [""] * 3, [1] * 3)
+    figures = []
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **kw: figures.append(self))
+    plot_sweep(result, tmp_path)
+    (line,) = figures[0].axes[0].get_lines()
+    assert list(line.get_xdata()) == [40.0, 58.0, 62.0] and list(line.get_ydata()) == [50.0, 66.0, 70.0]
+
+
+def test_maps_beyond_the_cap_are_said_not_silently_dropped(tmp_path, capsys, monkeypatch):
+    """A third parameter gives a map per value of it, up to MAX_MAPS per metric; beyond that the command says how
+    many it drew of how many (they went missing without a word)."""
+    from rig.sweep import plots
+    monkeypatch.setattr(plots, "MAX_MAPS", 2)
+    out = tmp_path / "sweep"
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", RATES, "--param", "plant.F_c=40 N,50 N", "--param",
+                 "plant.Me_0=19 N*m,20 N*m,21 N*m", "--metric", "rod_force_peak", "--revolutions", "1",
+                 "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("map: ") == 2 and len(list(out.glob("rod_force_peak__*.png"))) == 2
+    assert "maps: the first 2 of 3 combinations of plant.Me_0 per metric (the table holds every point" in printed
