@@ -309,6 +309,7 @@ class CanHost:
         self._run_clock = (start + index, after)
         bounds = np.cumsum([0] + [w.size for w in where])
         return {fid: t[a:b] for fid, a, b in zip(ticked, bounds, bounds[1:])}
+
     def _event(self, msg: can.Message, kind: str, count: int, detail: str) -> None:
         self.events.append(LinkEvent(msg.timestamp, kind, msg.arbitration_id, count, detail))
 
