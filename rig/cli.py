@@ -185,7 +185,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         if report_dir.resolve() == out.resolve():
             raise UsageError(f"cannot write the report to {report_dir}: that is the recording's path; give another "
                              f"--report-dir")
-        writable_dir(report_dir, "report")
+        writable_dir(report_dir, "report", hint="--report-dir DIR, or --no-report")
     cfg = _scene_config(scene, args.cycles)
     if cfg.plant == "cam_bar":
         writable_file(out.with_suffix(".cycle.png"), "cycle chart", PNG_MAGIC)

@@ -90,10 +90,10 @@ def recording_file(path: Path) -> Path | None:
     return None if folder.exists() else folder
 
 
-def writable_dir(path: Path, what: str, shared: bool = False) -> None:
+def writable_dir(path: Path, what: str, shared: bool = False, hint: str = "") -> None:
     """A :class:`UsageError` naming ``path`` unless it is, or can become, a writable directory rig may fill: new,
     empty, or marked as rig's (:data:`MARK`); ``shared``: a directory rig puts only individually checked files
-    into (:func:`writable_file`), which may hold anything else."""
+    into (:func:`writable_file`), which may hold anything else. ``hint``: how the command chooses another."""
     path = Path(path)
 
     def fail(why: str) -> None:
@@ -109,7 +109,7 @@ def writable_dir(path: Path, what: str, shared: bool = False) -> None:
         held = sorted(p.name for p in path.iterdir())
         fail(f"it already holds other files ({', '.join(held[:3])}{', …' if len(held) > 3 else ''}) and is not a "
              f"directory rig filled before (it leaves {MARK} there); rig writes into a new or empty directory, or one "
-             "it filled before: choose another")
+             "it filled before: choose another" + (f" ({hint})" if hint else ""))
 
 
 def file_parent(path: Path) -> Path:

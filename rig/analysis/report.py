@@ -547,16 +547,18 @@ def truth(ctx: ReportContext) -> list[Block]:
     if not names or not data["t"].size:
         return []
     units = ctx.main_units
-    if "cam_angle" in names and "phi" in names:
+    unwrapped = "cam_angle" in names and "phi" in names
+    if unwrapped:
         names.remove("phi")            # the unwrapped angle: a ramp that squeezes the wrapped one flat
     window, span = _truth_window(ctx.recording, data["t"])
     plant = ctx.recording.metadata.get("rig", {}).get("plant")
     path, panels, undrawn = plots.truth_panels(data, names, ctx.figure_path("truth"), units, window, plant=plant)
     axes = " | ".join(", ".join(members) for members in panels)
     constant = f"; not drawn (constant over it, or equal to a drawn signal): {', '.join(undrawn)}" if undrawn else ""
+    ramp = "; not drawn: phi (the cam angle unwrapped, a ramp; cam_angle is drawn)" if unwrapped else ""
     return [Heading("Plant truth"),
             ctx.figure(path, f"Plant truth over {span}, one axis per unit (split where ranges differ more than "
-                             f"{plots.SCALE_SPLIT:g}×), top to bottom: {axes}{constant}")]
+                             f"{plots.SCALE_SPLIT:g}×), top to bottom: {axes}{constant}{ramp}")]
 
 
 #: units of the numeric ``rig`` metadata values (the recording keeps them as text, SI)

@@ -282,6 +282,11 @@ class Salvage:
         return self._collector.start
 
     @property
+    def empty(self) -> bool:
+        """No message of any topic was read (after :meth:`blocks` is exhausted)."""
+        return not self._collector.rec.message_counts and not self.orphans
+
+    @property
     def orphans(self) -> int:
         """Messages on channels whose definition was in a lost part (their topic unknown)."""
         return sum(self._collector.orphans.values())
@@ -481,8 +486,10 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
             why = ("the channels were defined in a damaged part, so the messages after it cannot be told apart by topic"
                    if salvage.orphans else "the recorder writes its messages in chunks of several seconds, and a killed "
                    "run's file can end inside its first")
+            held = ("no message of any topic can be read from it either" if salvage.empty else
+                    f"`rig report --partial {recording}` says what the file holds")
             raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read ({'; '.join(salvage.problems)}): "
-                                 f"{why} — `rig report --partial {recording}` says what the file holds")
+                                 f"{why} — {held}")
         raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
     start = salvage.start if partial else trace_start(recording)
     try:

@@ -297,8 +297,12 @@ def read_config(scene: Scene) -> RunConfig:
     cycles = s["cycles"]
     if s["duration"] is not None and not s["duration"] > 0:
         raise SceneError(f"{where}: key 'duration' must be positive")
-    if not s["sample_rate"] > 0 or not s["chunk"] > 0 or s["chunk"] * s["sample_rate"] < 2:
-        raise SceneError(f"{where}: 'sample_rate' and 'chunk' must be positive, with >= 2 samples per chunk")
+    for key, unit in (("sample_rate", "Hz"), ("chunk", "s")):
+        if not s[key] > 0:
+            raise SceneError(f"{where}: key {key!r} must be positive, got {s[key]:g} {unit}")
+    if s["chunk"] * s["sample_rate"] < 2:
+        raise SceneError(f"{where}: 'chunk' = {s['chunk']:g} s holds {s['chunk'] * s['sample_rate']:g} samples at "
+                         f"'sample_rate' = {s['sample_rate']:g} Hz: a chunk needs at least 2")
     _check_live_grid(s["sample_rate"], where)
     transducers = []
     for name, table in scene.section("transducers", required=False).items():

@@ -279,3 +279,17 @@ def test_event_fields_read_in_display_units_without_rounding_noise():
     assert event_details({"t": 0.1, "kind": "disengagement", "phi_r": 1.0471975511965976, "direction": 1},
                          units) == "phi_r 60°, direction 1"
     assert event_details({"t": 0.1, "kind": "x", "phi_r": 1e-6}, units) == "phi_r 5.73e-05°"
+
+
+def test_the_truth_caption_accounts_for_every_signal(tmp_path):
+    """The unwrapped cam angle phi is left out of the truth chart (a ramp that would squeeze the wrapped cam_angle
+    flat): the caption says so — it was neither drawn nor listed."""
+    from rig.analysis.report_blocks import ReportContext
+    from rig.recorder.reader import Recording
+    t = np.linspace(0.0, 0.8, 801)
+    phi = 15.7 * t
+    rec = Recording(tmp_path / "r.mcap", series={"/plant/truth": {"t": t, "phi": phi, "cam_angle": np.mod(phi, 2 * np.pi),
+                                                                  "F": 40 * np.sin(phi)}})
+    (heading, figure) = report.truth(ReportContext(rec, {}, tmp_path))
+    assert "cam_angle" in figure.caption and "F" in figure.caption
+    assert "not drawn: phi (the cam angle unwrapped, a ramp; cam_angle is drawn)" in figure.caption

@@ -416,6 +416,19 @@ def test_a_negative_speed_is_named_by_its_key_in_the_unit_written(tmp_path, old,
         read_speed_profile(load_scene(edited(tmp_path, DEMO, old, new)))
 
 
+@pytest.mark.parametrize("old, new, message", [
+    ('sample_rate = "10 kHz"', 'sample_rate = "0 Hz"', r"\[scene\]: key 'sample_rate' must be positive, got 0 Hz$"),
+    ('chunk = "100 ms"', 'chunk = "-1 s"', r"\[scene\]: key 'chunk' must be positive, got -1 s$"),
+    ('chunk = "100 ms"', 'chunk = "0.1 ms"', r"\[scene\]: 'chunk' = 0.0001 s holds 1 samples at 'sample_rate' = "
+                                             r"10000 Hz: a chunk needs at least 2$"),
+])
+def test_the_run_grid_names_the_key_that_is_wrong(tmp_path, old, new, message):
+    """(was one message for all three: "'sample_rate' and 'chunk' must be positive, with >= 2 samples per chunk")"""
+    from rig.runner.config import read_config
+    with pytest.raises(SceneError, match=message):
+        read_config(load_scene(edited(tmp_path, DEMO, old, new)))
+
+
 @pytest.mark.parametrize("angle", ['"90 deg"', '"-30 deg"'])
 def test_a_cardan_shaft_angle_out_of_range_says_the_range_and_the_value_as_written(tmp_path, angle):
     from rig.plants.lab_bench import LabBench
