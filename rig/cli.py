@@ -130,7 +130,8 @@ def _print_set_summary(result: dict) -> None:
 
 def _compiled(summary: Any) -> str:
     """The note on a run phase that held numba's one-time compilations (left out of its real-time factor)."""
-    return f" without {summary.compile_time:.1f} s of one-time numba compilation" if summary.compile_time >= 0.05 else ""
+    return (f" without the {summary.compile_time:.1f} s of one-time numba compilation that fell in the run phase"
+            if summary.compile_time >= 0.05 else "")
 
 
 def _done(verb: str, curves: int) -> str:
