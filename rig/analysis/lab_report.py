@@ -343,7 +343,11 @@ def cam_follower_sheet(lab: Lab) -> Sheet:
                                   "ds/dφ numerical (mm/rad)", "ds/dφ law (mm/rad)", "d²s/dφ² numerical (mm/rad²)",
                                   "d²s/dφ² law (mm/rad²)"], rows, result,
                  ["Central differences at h = 10°: the truncation error of s'' is h²/12·s'''' — see the law "
-                  "differenced the same way in the result line; the rest is the LVDT and the encoder."], draw, values,
+                  "differenced the same way in the result line; the rest is the LVDT and the encoder.",
+                  f"Positions read on the last whole turn the encoder saw (with 10° to spare on each side, for the "
+                  f"differences): from {float(np.interp(grid[0], phi, t_edge)):.3g} s to "
+                  f"{float(np.interp(grid[-1], phi, t_edge)):.3g} s (the cam-shaft torque sheet averages over every "
+                  f"turn from the first whole one on)."], draw, values,
                  panels=3)
 
 
@@ -390,7 +394,11 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
     return Sheet("Cam-shaft torque", ["cam angle (°)", "measured mean (N·m)", "theory (N·m)",
                                       "difference (N·m)", "readings"], rows, result,
                  ["The torque shaft is elastic: its 1 kHz bandwidth and the reading rate set how fast a torque "
-                  "change is seen."], draw,
+                  "change is seen.",
+                  f"Readings from the first whole turn on ({np.degrees(angle[0]):.0f}° of cam angle, "
+                  f"{float(np.interp(angle[0], phi, t_edge)):.3g} s: the start before it is left out), over "
+                  f"{(angle[-1] - angle[0]) / tau:.2f} turns: a bin the turns pass more often holds more readings "
+                  f"(the last column); the work per turn over the {turns:.0f} whole one(s)."], draw,
                  {"deviation_max": float(np.max(np.abs(dev))), "peak": peak, "work_per_turn": work / max(turns, 1.0)})
 
 

@@ -220,6 +220,11 @@ def test_cam_shaft_torque_lab(cam):
     v = sheets["Cam-shaft torque"].values
     assert v["deviation_max"] < 0.01 * v["peak"]
     assert abs(v["work_per_turn"]) < 0.01 * v["peak"] * tau       # spring and mass: no net work per turn
+    # the two cam sheets read different stretches of the run, and say which (the torque sheet left out the first
+    # turn, the follower sheet read only the last one, without a word)
+    torque_note, follower_note = sheets["Cam-shaft torque"].notes[-1], sheets["Cam follower"].notes[-1]
+    assert torque_note.startswith("Readings from the first whole turn on (") and "over 1.25 turns" in torque_note
+    assert follower_note.startswith("Positions read on the last whole turn the encoder saw")
 
 
 def _no_negative_zero_and_one_precision_per_column(rows):
