@@ -160,7 +160,7 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
     with progress_bar(len(SECTIONS), "report", " sections", progress) as bar:
         def counted(name: str, section: Callable) -> Callable:
             def run(ctx: Any) -> list:
-                bar.set_postfix_str(name)
+                bar.set_postfix_str(name, refresh=False)       # redrawn at the bar's pace (a log: every 10 s)
                 try:
                     return section(ctx)
                 finally:

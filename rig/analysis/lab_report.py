@@ -17,7 +17,8 @@ from typing import Any, Callable
 import numpy as np
 from scipy.optimize import brentq
 
-from firmware_sim.transducers.description import described, read_description, resolve_path
+from firmware_sim.transducers import REGISTRY
+from firmware_sim.transducers.description import described, read_description, resolve_path, validate
 from rig.analysis.numbers import fixed
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
@@ -118,26 +119,41 @@ class Lab:
         return edge[keep], angle[keep] + float(self.bench.truth(np.zeros(1))[signal][0])
 
 
-def _description(scene: Scene, to: str) -> dict[str, Any]:
-    """The description of the scene's transducer wired to ``to`` (e.g. 'can.LabSpeed.Pulses') with the scene's
-    overrides on top (as written)."""
+def _wired(scene: Scene, to: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(description as written, the scene's overrides) of the transducer wired to ``to`` (e.g. 'can.LabSpeed.Pulses')."""
     table = next((t for t in scene.data.get("transducers", {}).values() if t.get("to") == to), None)
     if table is None:
         raise SceneError(f"{scene.path}: no transducer wired to {to!r}")
-    return {**read_description(resolve_path(described(scene, table["description"]))), **table.get("overrides", {})}
+    return read_description(resolve_path(described(scene, table["description"]))), dict(table.get("overrides", {}))
+
+
+def _description(scene: Scene, to: str) -> dict[str, Any]:
+    """The description of the scene's transducer wired to ``to`` with the scene's overrides on top (as written)."""
+    description, overrides = _wired(scene, to)
+    return {**description, **overrides}
 
 
 def _setting(scene: Scene, to: str, key: str, unit: str) -> float:
-    """A description value (SI) of the scene's transducer wired to ``to``, its scene override first."""
-    return to_si(_description(scene, to).get(key), unit, what=f"{scene.path} [transducers] {key}")
+    """A description value (SI) of the scene's transducer wired to ``to`` as the transducer itself reads it: its
+    scene override first, in any spelling the transducer's schema takes (``gate_time = "0.5 s"`` or
+    ``gate_time_ms = 500``)."""
+    description, overrides = _wired(scene, to)
+    table = dict(description)
+    cls = REGISTRY.get(table.pop("type", None))
+    for flag in ("errors_enabled", "dynamics_enabled"):
+        overrides.pop(flag, None)
+    if cls is not None and key in cls.SCHEMA:
+        return float(validate(table, overrides, cls.SCHEMA, f"{scene.path} [transducers] wired to {to}")[key])
+    return to_si({**description, **overrides}.get(key), unit, what=f"{scene.path} [transducers] {key}")
 
 
 def _check_reading_times(scene: Scene, times: list[float], where: str) -> None:
     """The speed sheet's reading times lie where every instrument has a reading: from the end of the pulse counter's
     first gate (its count is 0 before it) to the end of the run; SceneError naming the reading otherwise."""
     gate = _setting(scene, "can.LabSpeed.Pulses", "gate_time", "s")
-    duration = scene.section("scene").get("duration")
-    end = inf if duration is None else to_si(duration, "s", what=f"{scene.path} [scene] duration")
+    spelled = {k: v for k, v in scene.section("scene").items() if k == "duration" or k.startswith("duration_")}
+    duration = read_table(spelled, {"duration": Field("s", None, "the run's length")}, f"{scene.path} [scene]")["duration"]
+    end = inf if duration is None else duration                     # (duration = "6 s" or duration_s = 6, as the runner)
     for i, at in enumerate(times):
         if not gate <= at <= end:
             raise SceneError(f"{where}: readings[{i}] = {at:g} s is outside the run's readings: the pulse counter's "

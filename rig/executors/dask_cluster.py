@@ -56,6 +56,9 @@ class DaskExecutor(Executor):
                                       f"{WORKER_TIMEOUT:g} s): start some with 'dask worker {scheduler}'") from None
         self.address = scheduler
         self.workers = sum(self.client.nthreads().values())
+        if not self.workers:               # every worker left since: map() would submit nothing and yield nothing
+            self.close()
+            raise ConnectionError(f"the Dask scheduler at {scheduler} has no workers left")
 
     def map(self, fn: Callable[[Any], Any], tasks: Iterable[Any]) -> Iterator[Any]:
         tasks = iter(tasks)

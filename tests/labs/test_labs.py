@@ -291,6 +291,10 @@ def test_a_lab_scene_names_its_errors(tmp_path):
                                              r"the pulse counter's first gate ends at 1 s .* and the run at 6 s"):
             run_scene(bad, tmp_path / "bad.mcap")
         assert not (tmp_path / "bad.mcap").exists()
+    # the run's end in any spelling the runner takes (duration_s = 3: the check saw no duration and let 3.7 s pass)
+    bad.write_text(text.replace('duration = "6 s"', "duration_s = 3"))
+    with pytest.raises(SceneError, match=r"readings\[1\] = 3.7 s is outside the run's readings: .* and the run at 3 s"):
+        run_scene(bad, tmp_path / "bad.mcap")
 
 
 def test_a_lab_served_in_its_own_process_records_the_same_readings(cardan, tmp_path, serve_scene):
@@ -384,3 +388,13 @@ def test_the_lab_report_opens_with_every_sheets_result(cardan, tmp_path):
     text = write_report(cardan[0], tmp_path, fmt="md").read_text()
     summary = text.index("| sheet | result |")
     assert summary < text.index(".png") and f"| Cardan joint | {cardan[1]['Cardan joint'].result}" in text
+
+
+def test_the_speed_sheet_reads_the_counters_gate_as_the_counter_does(tmp_path_factory):
+    """A gate of 0.5 s given as the override gate_time_ms = 500: the counter counted 0.5 s gates while the sheet
+    divided by the description's 1 s (every instrument "+100 % OUTSIDE") and refused a reading at 0.7 s."""
+    _, sheets = _run(tmp_path_factory, "lab_speed", lambda s: s.replace(
+        'to = "can.LabSpeed.Pulses"\nrate = "50 Hz"\n', 'to = "can.LabSpeed.Pulses"\nrate = "50 Hz"\n'
+        'overrides = { gate_time_ms = 500 }\n', 1).replace('readings = ["2.5 s"', 'readings = ["0.7 s"', 1))
+    sheet = sheets["Speed measurement"]
+    assert "OUTSIDE" not in sheet.result and sheet.result.count("within") == 3

@@ -377,3 +377,5 @@ def test_a_radius_sized_to_the_limit_passes_its_check():
     assert Check("max pressure angle", worst, 20.0, "°", "≤").ok
     assert not Check("max pressure angle", 20.00002, 20.0, "°", "≤").ok
     assert Check("r", 25.0 * (1 - 1e-15), 25.0, "mm", "≥").ok and not Check("r", 24.99, 25.0, "mm", "≥").ok
+    assert not Check("max Hertz stress", float("inf"), 1200.0, "MPa", "≤").ok            # a zero flank radius
+    assert not Check("r", float("-inf"), 5.0, "mm", "≥").ok and not Check("r", float("nan"), 5.0, "mm", "≥").ok

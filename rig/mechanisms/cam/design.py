@@ -9,7 +9,7 @@ inverts the follower–rod–slider chain (an offset slider-crank) for the progr
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import degrees, tau
+from math import degrees, isclose, isfinite, tau
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -50,8 +50,9 @@ class Check:
         :func:`rig.mechanisms.cam.sizing.exact_base_radius`, checks back a few ulp above it)."""
         if self.relation == "info":
             return True
-        slack = ROUNDING * max(abs(self.value), abs(self.limit))
-        return bool(self.value <= self.limit + slack if self.relation == "≤" else self.value >= self.limit - slack)
+        if self.value <= self.limit if self.relation == "≤" else self.value >= self.limit:
+            return True
+        return isfinite(self.value) and isclose(self.value, self.limit, rel_tol=ROUNDING, abs_tol=0.0)
 
 
 @dataclass

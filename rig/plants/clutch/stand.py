@@ -26,6 +26,7 @@ from rig.plants.events import Event
 from rig.plants.clutch.variants import LeafSpringClutch
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.solvers import METHODS, EventRecord, StiffnessWarning, integrate
+from rig.solvers.stepper import FixedStepper
 
 STIFF = "Rodas4"      # the implicit method a run switches to when an explicit one meets stiffness
 
@@ -137,14 +138,25 @@ def _leaf(p: dict[str, Any], motor: LinearMotor, load: LoadSum, where: str) -> L
     return LeafDynamics(leaf, motor, load, p["J1"], p["J3"], p["J_down"], p["omega_s"])
 
 
+def _method_problem(method: str) -> str | None:
+    """Why ``method`` cannot run a stand (which integrates at rtol/atol: an adaptive method of rig.solvers), or None."""
+    adaptive = [name for name, cls in METHODS.items() if not issubclass(cls, FixedStepper)]
+    if method in adaptive:
+        return None
+    return (f"method {method!r} is not one of the adaptive methods {', '.join(adaptive)}"
+            + (" (a fixed-step method has no rtol/atol; rig bench work-precision charts them on the stand)"
+               if method in METHODS else ""))
+
+
 class ClutchStand:
     """Runner-facing plant: ``advance(t)`` returns truth signals, ``events`` lists what happened."""
 
     def __init__(self, dynamics: "ClutchDynamics | LeafDynamics", omega0: float = 0.0, shutdown_count: int = 2,
                  shutdown_window: float = 0.5, trip_on_shutdown: bool = False, rtol: float = 1e-7,
                  atol: float = 1e-9, phi_r0: float | None = None, method: str = "DP45"):
-        if method not in METHODS:
-            raise ValueError(f"method {method!r} is not one of {', '.join(METHODS)}")
+        why = _method_problem(method)
+        if why:
+            raise ValueError(why)
         self.method = method
         self.dynamics = dynamics
         if phi_r0 is None:
@@ -178,6 +190,9 @@ class ClutchStand:
                                      J_down=p["J_down"], friction=p["friction"])
         except ValueError as exc:
             raise SceneError(f"{scene.path} [plant]: {exc}") from None
+        why = _method_problem(p["method"])
+        if why:
+            raise SceneError(f"{scene.path} [plant]: key 'method': {why}")
         try:
             return cls(dyn, p["omega0"], p["shutdown_count"], p["shutdown_window"], bool(p["trip_on_shutdown"]),
                        p["rtol"], p["atol"], p["phi_r0"], p["method"])
