@@ -277,7 +277,7 @@ def test_encoders_and_torque(buses, device):
     assert e1[3] == pytest.approx(19.987123, abs=1e-6) and e2[3] == pytest.approx(18.5, abs=1e-6)
     assert list(readings["readings"]) == ["Torque", "StaticRig"]
     (tq_t, tq), (st_t, st) = readings["readings"]["Torque"], readings["readings"]["StaticRig"]
-    assert tq_t == pytest.approx([20.0005], abs=1e-4)
+    assert tq_t == pytest.approx([20.0005], abs=1e-4) and st_t == pytest.approx([20.0005], abs=1e-4)
     assert {k: v.item() for k, v in tq.items()} == pytest.approx({"Torque": 212.3456, "BrakeForce": 1503.2}, abs=5e-3)
     assert {k: v.item() for k, v in st.items()} == pytest.approx({"Angle": 10.48574, "Strain": 0.0})
     assert node.clipped == 1
