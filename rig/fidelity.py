@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import csv
 import importlib
-import json
 import logging
 import math
 from dataclasses import dataclass, field
@@ -280,7 +279,7 @@ def _check(scene: Scene, plant: str, level: int, questions: list[str]) -> list |
     with the setting the scene gets there), computed once per scene content; where level 2 cannot be run there (a
     divergence, an impossible position), why, in one line — the lower level is then used unchecked, and said so."""
     from rig.solvers import SolverDivergence
-    key = (plant, str(scene.path), json.dumps(scene.data, sort_keys=True, default=str), level, tuple(questions))
+    key = (plant, scene.content, level, tuple(questions))
     if key not in _checked:                  # level 2's setting follows from the scene's content too
         top = choose(scene, plant, forced=2)
         module, _, name = CHECKS[plant].partition(":")

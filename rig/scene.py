@@ -9,6 +9,7 @@ naming the key and the file, and the value as the scene wrote it (``got "-0.05 m
 from __future__ import annotations
 
 import difflib
+import json
 import math
 import tomllib
 from dataclasses import dataclass
@@ -96,6 +97,12 @@ class Scene:
     data: dict[str, Any]
     text: str
     folder: Path | None = None
+
+    @property
+    def content(self) -> str:
+        """The scene's file and values as one string, a cache key: equal for equal values whatever the text (a sweep's
+        variants share their text, not their values) or the keys' order."""
+        return f"{self.path}\n{json.dumps(self.data, sort_keys=True, default=str)}"
 
     def file(self, written: str | Path) -> Path:
         """A file the scene names, as written: a relative path is relative to the scene file's folder (not to the

@@ -591,14 +591,12 @@ class CanHost:
     def _reading(self, msg, spec, raw) -> None:
         """Readings in the DBC's units at their Tick (device time; the frame's time without one)."""
         t = self._live_time(raw["Tick"]) if "Tick" in raw else msg.timestamp
-        self.readings.append((spec.name, np.array([t]), {
-            sg.name: np.array([raw[sg.name] * sg.scale + sg.offset]) for sg in spec.signals
-            if sg.name not in ("Seq", "Tick")}))
+        self._reading_run(spec, {name: np.array([value]) for name, value in raw.items()}, None, np.array([t]))
 
-    def _reading_run(self, spec, raw: dict[str, np.ndarray], index: np.ndarray,
+    def _reading_run(self, spec, raw: dict[str, np.ndarray], index: np.ndarray | None,
                      t: np.ndarray) -> list[tuple[int, str]]:
-        """Reading frames of ``spec`` decoded together, at ``t`` (their Ticks as device times, or the frames'
-        time stamps without one), s."""
+        """Reading frames of ``spec`` decoded together (or one: :meth:`_reading`), at ``t`` (their Ticks as device
+        times, or the frames' time stamps without one), s."""
         self.readings.append((spec.name, t, {sg.name: raw[sg.name] * sg.scale + sg.offset for sg in spec.signals
                                              if sg.name not in ("Seq", "Tick")}))
         return []

@@ -505,7 +505,8 @@ def events(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = [Heading("Events"), Table(["kind", "count", "what it means"], rows)]
     if rec.events:
         details = [event_details(e, ctx.main_units) for e in rec.events]
-        export_events(rec.events, details, ctx.out_dir / "events.csv")
+        ctx.exported.append((export_events(rec.events, details, ctx.out_dir / "events.csv"),
+                             "one row per event: simulation time, kind, its details"))
         shown = min(len(rec.events), EVENT_ROWS)
         more = f"the first {shown} of {len(rec.events)}; all in " if shown < len(rec.events) else "also in "
         blocks.append(Table(["t (s)", "kind", "details"],
@@ -622,8 +623,7 @@ def exports(ctx: ReportContext) -> list[Block]:
     if rec.results:
         files.append((export_results(rec.results, ctx.out_dir / "results.csv", units),
                       "one row per curve: OK/NOK, failed elements and why, completeness, process values"))
-    if (ctx.out_dir / "events.csv").exists():           # written by the events section
-        files.append((ctx.out_dir / "events.csv", "one row per event: simulation time, kind, its details"))
+    files += ctx.exported                               # written by the sections (events.csv), not a stale copy
     units = ctx.main_units
     for topic, data in rec.series.items():
         if topic.startswith("/stand/") and "t" in data and len(data["t"]):

@@ -58,7 +58,7 @@ Block = Heading | Text | Banner | Table | Figure
 @dataclass
 class ReportContext:
     """What sections see: the recording, its analysis, the output directory, how many OK and NOK curves get
-    their own figure, and a figure counter."""
+    their own figure, a figure counter, and the files sections exported for the exports table (path, contents)."""
 
     recording: Recording
     analysis: dict
@@ -66,6 +66,7 @@ class ReportContext:
     ok_plots: int = 0
     nok_plots: int = NOK_PLOTS
     _count: list[int] = field(default_factory=lambda: [0])
+    exported: list[tuple[Path, str]] = field(default_factory=list)
 
     def figure_path(self, stem: str) -> Path:
         self._count[0] += 1

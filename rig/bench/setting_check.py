@@ -2,8 +2,6 @@
 (:data:`rig.fidelity.SETTING_CHECK`)."""
 from __future__ import annotations
 
-import json
-
 from rig.bench.harness import FIXED, _ours
 from rig.bench.problems import problem_of
 from rig.scene import Scene, SceneError
@@ -21,7 +19,7 @@ def at_this_point(scene: Scene, method: str, options: dict[str, float],
                   tolerance: float) -> tuple[dict[str, float], str]:
     """:func:`_check`, once per scene content, method, options and tolerance (a process runs it again for every
     ``rig.fidelity.choose`` of the same scene: a sweep three times per point)."""
-    key = (str(scene.path), json.dumps(scene.data, sort_keys=True, default=str), method,
+    key = (scene.content, method,
            tuple(sorted(options.items())), tolerance)
     if key not in _found:
         _found[key] = _check(scene, method, options, tolerance)

@@ -479,39 +479,34 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
         require_whole_file(recording, "exporting every CAN frame (`rig export-can --partial` exports those before the "
                                       "cut)")
         blocks = iter_frames(recording)
-    first = next(blocks, None)
-    if first is None:
-        blocks.close()
-        if partial and salvage.problems:
-            why = ("the channels were defined in a damaged part, so the messages after it cannot be told apart by topic"
-                   if salvage.orphans else "the recorder writes its messages in chunks of several seconds, and a killed "
-                   "run's file can end inside its first")
-            held = ("no message of any topic can be read from it either" if salvage.empty else
-                    f"`rig report --partial {recording}` says what the file holds")
-            raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read ({'; '.join(salvage.problems)}): "
-                                 f"{why} — {held}")
-        raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
-    start = salvage.start if partial else trace_start(recording)
-    try:
+    with contextlib.closing(blocks):          # however the export ends, a salvage's reading thread ends with it
+        first = next(blocks, None)
+        if first is None:
+            if partial and salvage.problems:
+                why = ("the channels were defined in a damaged part, so the messages after it cannot be told apart by "
+                       "topic" if salvage.orphans else "the recorder writes its messages in chunks of several seconds, "
+                       "and a killed run's file can end inside its first")
+                held = ("no message of any topic can be read from it either" if salvage.empty else
+                        f"`rig report --partial {recording}` says what the file holds")
+                raise RecordingError(f"{recording}: no {S.CAN_RAW} frames can be read "
+                                     f"({'; '.join(salvage.problems)}): {why} — {held}")
+            raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
+        start = salvage.start if partial else trace_start(recording)
         sink: _Sink = sink_type(out, start)
-    except BaseException:
-        blocks.close()                       # a salvage's reading thread ends
-        raise
-    frames = errors = 0
-    names: dict[str, None] = {}
-    try:
-        for block in itertools.chain([first], blocks):
-            sink.write(block)
-            frames += len(block)
-            errors += int(block.error.sum())
-            names.update(dict.fromkeys(block.channel or ()))
-            t_last = float(block.t[-1])
-    except BaseException:
-        blocks.close()                       # a salvage's reading thread ends
-        with contextlib.suppress(Exception):
-            sink.close()
-        out.unlink(missing_ok=True)
-        raise
+        frames = errors = 0
+        names: dict[str, None] = {}
+        try:
+            for block in itertools.chain([first], blocks):
+                sink.write(block)
+                frames += len(block)
+                errors += int(block.error.sum())
+                names.update(dict.fromkeys(block.channel or ()))
+                t_last = float(block.t[-1])
+        except BaseException:
+            with contextlib.suppress(Exception):
+                sink.close()
+            out.unlink(missing_ok=True)
+            raise
     sink.close()
     return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last,
                   "; ".join(salvage.problems) if partial else "")

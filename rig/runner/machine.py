@@ -6,7 +6,6 @@ simulated time; everything random comes from the scene's seed.
 from __future__ import annotations
 
 import difflib
-import json
 import logging
 
 from collections.abc import Callable, Iterable
@@ -121,8 +120,7 @@ def probe_signals(cfg: RunConfig) -> None:
     """:func:`check_signals` on a probe: the nominal plant advanced by one chunk (the varied plant has the same
     signals). The chunk also takes the plant's first-call costs (its compiled kernels loaded from numba's cache:
     30–80 ms for a clutch stand) before any run phase, whose real-time factor they would otherwise spoil."""
-    key = (str(cfg.scene.path), json.dumps(cfg.scene.data, sort_keys=True, default=str), repr(cfg.fidelity),
-           cfg.sample_rate, cfg.chunk)     # the scene's content (a sweep's variants share their text, not their data)
+    key = (cfg.scene.content, repr(cfg.fidelity), cfg.sample_rate, cfg.chunk)
     known = _PROBED.get(key)
     if known is None:
         probe = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)

@@ -140,8 +140,10 @@ def read_fidelity(scene: Scene) -> int:
 def read_spring_rates(scene: Scene) -> tuple[float, ...]:
     """The spring rates (N/m) whose flank switches the summary compares ([plant] spring_rates: a study, not the
     machine, whose spring is ``k``)."""
-    where = f"{scene.path} [plant]"
-    rates = scene.read("plant", PLANT_SCHEMA)["spring_rates"]
+    return _spring_rates(scene.read("plant", PLANT_SCHEMA)["spring_rates"], f"{scene.path} [plant]")
+
+
+def _spring_rates(rates: Any, where: str) -> tuple[float, ...]:
     if not isinstance(rates, list) or not rates:
         raise SceneError(f"{where}: 'spring_rates' must be a non-empty list of quantities like \"1.19 N/mm\"")
     try:
@@ -156,8 +158,7 @@ def read_mechanism_kwargs(scene: Scene) -> dict[str, Any]:
     kw = scene.read("plant", PLANT_SCHEMA)
     for name in ("variation", "contact_damping", "guide"):     # the run's setting (read_setting)
         kw.pop(name)
-    kw.pop("spring_rates")                                      # a study of the summary (read_spring_rates)
-    read_spring_rates(scene)
+    _spring_rates(kw.pop("spring_rates"), where)                # checked: a study of the summary (read_spring_rates)
     kw["program"] = read_program(kw.pop("cam_program"), kw["s_H"], where)
     kw["insertion"] = read_insertion(kw.pop("insertion"), f"{scene.path} [plant.insertion]")
     kw["cam_drive"] = read_drive(kw.pop("drive"), f"{scene.path} [plant.drive]")
