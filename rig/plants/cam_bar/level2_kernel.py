@@ -54,7 +54,8 @@ DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinea
  GUIDE_MODEL, MU_S, V_STICK, T_STICK,
  DRIVE_ON, W_SYNC, B_MOTOR, M_MAX, J_MOTOR, J_CAM, K_SHAFT, C_SHAFT,
  JOINTS_ON, J_PLAY, J_K, J_ALPHA,
- NSEG) = range(71)
+ COS_PSI0, SIN_PSI0,
+ NSEG) = range(73)
 PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
 SEG_ROW = 5
 #: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
@@ -103,6 +104,7 @@ def pack(mech: "PinInsertionMechanism", speed: "SpeedProfile | None" = None, sti
                                          [d.synchronous(speed.nominal_omega), d.slope, d.max_torque,
                                           d.motor_inertia, d.cam_inertia, d.shaft_stiffness, d.shaft_damping]),
             *_joints(mech.joints),
+            math.cos(mech.psi0), math.sin(mech.psi0),
             float(len(mech.program.segments))]
     assert len(head) == PROGRAM
     table, laws = [], []
@@ -250,9 +252,10 @@ def chain_angles(s, p):
     cos_g = (p[L3] ** 2 - p[L4] ** 2 + rho2) / (2.0 * p[L3] * rho)
     if abs(cos_g) > 1.0:
         return math.nan, 0.0, 0.0, 0.0, 0.0, 0.0
-    psi = math.atan2(p[E_SK], u) - p[BRANCH] * math.acos(cos_g)
     sin_g = p[BRANCH] * math.sqrt((1.0 - cos_g) * (1.0 + cos_g))     # ψ = atan2(e, u) − branch·γ, by identities
     cp, sp = (u * cos_g + p[E_SK] * sin_g) / rho, (p[E_SK] * cos_g - u * sin_g) / rho
+    c0, s0 = p[COS_PSI0], p[SIN_PSI0]                                 # ψ on its branch: ψ0 + (ψ − ψ0), |ψ − ψ0| < π
+    psi = p[PSI0] + math.atan2(sp * c0 - cp * s0, cp * c0 + sp * s0)    # (one atan2 instead of atan2 and acos)
     ct, st = (u - p[L3] * cp) / p[L4], (p[E_SK] - p[L3] * sp) / p[L4]
     sin_rel = st * cp - ct * sp
     if abs(sin_rel) < DEAD_CENTRE_TOL:
