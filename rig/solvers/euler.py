@@ -49,6 +49,8 @@ class SymplecticEuler(FixedStepper):
                  nq: int | None = None):
         n = len(y0)
         nq = n // 2 if nq is None else nq
+        if n < 2:
+            raise ValueError(f"symplectic Euler needs positions and velocities (at least 2 states), got {n}")
         if not 1 <= nq < n:
             raise ValueError(f"symplectic Euler: nq = {nq!r} positions must be in 1..{n - 1} for {n} states")
         self.nq = nq

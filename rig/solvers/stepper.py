@@ -63,6 +63,10 @@ class Stepper(OdeSolver):
         if not math.isfinite(self.limit):             # implicit: stable on any stiff decay, nothing to report
             self.monitor.policy = "ignore"
         self.f = tuple(fun(self.t, self.y))
+        if not all_finite(self.f):
+            if isinstance(fun, JitRhs):
+                fun.fail(self.t, self.y, "non-finite derivatives at the start")
+            raise SolverDivergence("non-finite derivatives at the start", self.t, self.y)
         self.nfev = 1
         self.h_abs = math.nan
         self._K = None

@@ -48,6 +48,27 @@ def test_compiled_step_takes_the_pure_python_steps(rtol):
     assert len(a.t_events["zero"]) >= 2
 
 
+@njit(cache=True)
+def _bounded(t, y, p, out):
+    out[0] = 3.0 * (1.5 - y[0]) if abs(y[0]) < 2.0 else math.nan    # defined only on |y| < 2 (as a chain's range)
+
+
+def test_jit_rhs_gives_nan_outside_its_range_so_a_foreign_solver_can_reject_the_step():
+    """As a plain callable the RHS answers NaN where the kernel does (no exception): scipy's solver rejects such a
+    trial step and shrinks it, and our solvers do the same; a start outside the range is an error naming it."""
+    from scipy.integrate import solve_ivp
+    f = JitRhs(_bounded, lambda: np.zeros(1), lambda: "outside |y| < 2")
+    assert math.isnan(f(0.0, (3.0,))[0])
+    exact = 1.5 * (1.0 - math.exp(-3.0))
+    sol = solve_ivp(f, (0.0, 1.0), (0.0,), method="DOP853", rtol=1e-10, atol=1e-12, first_step=0.9)
+    assert sol.success and sol.y[0, -1] == pytest.approx(exact, rel=1e-8)
+    for compiled in (True, False):
+        ours = integrate(Problem(f, (0.0,)), (0.0, 1.0), rtol=1e-10, atol=1e-12, first_step=0.9, compiled=compiled)
+        assert ours.y[0, -1] == pytest.approx(exact, rel=1e-8)
+    with pytest.raises(SolverDivergence, match="non-finite derivatives at the start.*outside"):
+        integrate(Problem(f, (3.0,)), (0.0, 1.0))
+
+
 def test_compiled_step_reports_underflow_with_the_kernel_diagnosis():
     f = JitRhs(_blow_up, lambda: np.zeros(1), lambda: "the test kernel returned NaN past t = 0.5 s")
     with pytest.raises(SolverDivergence, match="step size underflow.*NaN past t = 0.5 s"):
