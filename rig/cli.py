@@ -182,6 +182,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else Path("out") / f"{scene.stem}.mcap"
     new_folder = recording_file(out)
     report_dir = Path(args.report_dir) if args.report_dir else out.with_suffix("")
+    unused = [opt for opt, given in (("--format", args.format != "html"), ("--ok-plots", args.ok_plots),
+                                     ("--nok-plots", args.nok_plots is not None)) if given]
+    if args.no_report and unused:
+        raise UsageError(f"{', '.join(unused)} {'shapes' if len(unused) == 1 else 'shape'} the report, and --no-report writes none")
     if not args.no_report:
         if report_dir.resolve() == out.resolve():
             raise UsageError(f"cannot write the report to {report_dir}: that is the recording's path; give another "
@@ -195,7 +199,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet, fidelity=args.fidelity)
     what = _done("recorded", summary.curves)
-    print(f"{what}, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
+    carried = (f" (its last {summary.flush_time * 1e3:.0f} ms: the bus sending what was queued at the end)"
+               if summary.flush_time >= 0.5e-3 else "")
+    print(f"{what}, {summary.simulated_time:.2f} s simulated{carried} in {summary.run_time:.2f} s "
           f"({summary.realtime_factor:.1f}x real time{_compiled(summary)}; {summary.wall_time:.2f} s with serial "
           f"set-up and read-back), {summary.frames} CAN frames received -> {summary.output}{_created(new_folder)}")
     rec, analysis = _analysed(summary.output)
@@ -462,9 +468,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "[scene] questions)")
     run.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
     run.add_argument("--realtime", action="store_true", help="pace to the wall clock (warns when it falls behind)")
-    run.add_argument("--report-dir", help="report directory (default: next to the recording)")
+    where = run.add_mutually_exclusive_group()
+    where.add_argument("--report-dir", help="report directory (default: next to the recording)")
     run.add_argument("--format", choices=("html", "md"), default="html", help="report format (default html)")
-    run.add_argument("--no-report", action="store_true", help="record and print the summary, write no report")
+    where.add_argument("--no-report", action="store_true", help="record and print the summary, write no report")
     run.add_argument("--ok-plots", type=_count(0), default=0, metavar="N",
                      help="also plot the first N OK curves one by one (default 0)")
     run.add_argument("--nok-plots", type=_count(0), default=None, metavar="N",

@@ -67,7 +67,8 @@ def _unknown(value: object, unit: str | None, si_unit: str, names: tuple[str, ..
     if unit is not None:
         return UnitError(f"{what}: the key's unit {unit!r} is not a unit rig knows {hint}")
     if isinstance(value, str) and not re.search(r"\d", value):
-        return UnitError(f"{what}: {value!r} is not a quantity with a unit {hint}")
+        kind = "a number" if si_unit in (None, "", "1") else "a quantity with a unit"
+        return UnitError(f"{what}: {value!r} is not {kind} {hint}")
     unknown = ", ".join(repr(n) for n in names) or "its unit"
     return UnitError(f"{what}: {value!r}: {unknown} is not a unit rig knows {hint}")
 

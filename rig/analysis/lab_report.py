@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 import textwrap
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from math import cos, inf, radians, tau
 from typing import Any, Callable
 
@@ -51,6 +51,7 @@ class Sheet:
     draw: Callable[[Any], None] | None = None
     values: dict[str, float] = field(default_factory=dict)     # the result line's numbers (unit: value_unit)
     panels: int = 1                      # stacked axes of the figure (draw gets a list of them when more than one)
+    key: str = ""                        # its name in [lab] sheets (:data:`SHEETS`), set by :func:`lab_sheets`
 
 
 #: SI units of the sheets' result numbers (Sheet.values); names starting "error" or "class" are ratios
@@ -538,12 +539,12 @@ SHEET_PLANTS = {"cam_follower": "cam", "cam_torque": "cam", "cardan": "cardan", 
 def lab_sheets(rec: Recording) -> list[Sheet] | None:
     """The filled-in sheets of a lab recording (None: not a lab-bench recording)."""
     lab = read_lab(rec)
-    return None if lab is None else [SHEETS[name](lab) for name in lab.lab["sheets"]]
+    return None if lab is None else [replace(SHEETS[name](lab), key=name) for name in lab.lab["sheets"]]
 
 
 def summary_lines(sheets: list[Sheet]) -> list[str]:
     """Console lines of a lab run: each sheet's result (its :func:`lab_sheets`)."""
-    return [f"lab sheet {s.title.lower()}: {s.result}" for s in sheets]
+    return [f"lab sheet {s.key} ({s.title.lower()}): {s.result}" for s in sheets]
 
 
 def lab_section(ctx: ReportContext) -> list[Block]:
@@ -568,8 +569,7 @@ def lab_section(ctx: ReportContext) -> list[Block]:
                 handles, labels = ax.get_legend_handles_labels()      # wrapped to fit the margin beside the axes
                 ax.legend(handles, [textwrap.fill(text, LEGEND_WIDTH) for text in labels], fontsize="small",
                           loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
-            stem = sheet.title.lower().replace(" ", "_").replace("-", "_")
-            path = save(fig, ctx.figure_path(f"lab_{stem}"), right=2.3)        # legend beside the axes: no data hidden
+            path = save(fig, ctx.figure_path(f"lab_{sheet.key}"), right=2.3)        # legend beside the axes: no data hidden
             blocks.append(ctx.figure(path, sheet.title))
         blocks.append(Table(sheet.headers, sheet.rows))
         blocks += [Text(note, "note") for note in sheet.notes]

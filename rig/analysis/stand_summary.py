@@ -36,7 +36,7 @@ def stand_summary(rec: "Recording") -> StandSummary | None:
         return StandSummary([f"lab: no sheet ({exc})"], {})
     if sheets is not None:
         return StandSummary(lab_report.summary_lines(sheets),
-                            {f"lab.{_snake(sheet.title)}.{_snake(name)}": lab_report.shown_value(name, float(v))
+                            {f"lab.{sheet.key}.{_snake(name)}": lab_report.shown_value(name, float(v))
                              for sheet in sheets for name, v in sheet.values.items()})
     res = clutch_report.stand_results(rec)
     if res is not None:

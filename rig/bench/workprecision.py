@@ -74,6 +74,8 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
     from rig.bench.problems import load_problem
     from rig.bench.wpchart import plot
     from rig.outputs import claim_dir, writable_dir
+    if measured is not None and not measured.is_dir():
+        raise ValueError(f"--from {measured}: no such directory (it names the folder of an earlier run's CSVs)")
     writable_dir(out, "work-precision charts")
     for scene in scenes:                     # check every input and output before the long runs
         if not scene.is_file():

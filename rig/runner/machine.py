@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import difflib
 import logging
-
+import re
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -20,9 +20,9 @@ from firmware_sim.transducers import load_transducer
 from rig.runner.config import RunConfig, TransducerSpec
 from rig.runner.plants import make_plant
 from rig.scene import SceneError
+from rig.units import to_si
 
 log = logging.getLogger(__name__)
-from rig.units import to_si
 
 
 def seeded_generators(seed: int, names: list[str]) -> dict[str, np.random.Generator]:
@@ -59,7 +59,7 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
         device.set_program(program, cfg.device["config"], units_required=True)   # a scene: units everywhere
         device.select_program(program)
     except ValueError as exc:
-        raise SceneError(f"{cfg.scene.path} [device]: {exc}") from None
+        raise SceneError(f"{cfg.scene.path} {_in_scene_words(str(exc), program)}") from None
     sampling = device.get_program(program)["sampling"]      # a delta the scene gives must be one the stream has
     given = "delta" in (cfg.device["config"].get("sampling") or {})
     if given and sampling["mode"] == "time" and sampling["delta"] < cfg.dt * (1 - 1e-9):
@@ -72,6 +72,21 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
 FLUSH_STEP = 0.005       # s: the end of a run drains the unit's transmit queue in steps this fine (not whole chunks)
 _PROBED: dict[tuple, list[str]] = {}   # the truth signals a probe found, by scene content and fidelity (one probe
                                        # per process: a command's check before the run and its machine both ask)
+
+
+def _in_scene_words(message: str, program: int) -> str:
+    """The unit's error about ``program`` ("program 1.limits.y_min: …") where the scene wrote it: "[device.config.limits]
+    key 'y_min': …" (a deeper or indexed path under "[device.config]"; another message under "[device]")."""
+    m = re.match(rf"program {program}(?:\.([\w.\[\]]+))?((?: \([^)]*\))?): (.*)", message, re.DOTALL)
+    if m is None:
+        return f"[device]: {message}"
+    path, which, text = m.groups()                   # which: " (lower)" of a limit pair, or ""
+    if path is None:
+        return f"[device.config]: {text}"
+    section, _, key = path.rpartition(".")
+    if section and "[" not in path and "." not in section:
+        return f"[device.config.{section}] key {key!r}{which}: {text}"
+    return f"[device.config] {path}{which}: {text}"
 
 
 def check_signals(cfg: RunConfig, truth: Iterable[str], warn: bool = True) -> None:

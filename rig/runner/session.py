@@ -59,7 +59,7 @@ class RunSummary:
     """What a run produced: ``wall_time`` (s) of the whole run, set-up (serial configuration, statistics
     read-back) included; ``run_time`` (s): its run phase, from the go signal to the last curve recorded;
     ``simulated_time`` (s): the simulated time the run phase covered (not the time the machine runs on while the
-    statistics are read back); ``compile_time`` (s): numba's one-time compilations inside the run phase (a first run
+    statistics are read back), ``flush_time`` (s) of it after the scene's end while the bus carried the last frames; ``compile_time`` (s): numba's one-time compilations inside the run phase (a first run
     in a fresh cache), not counted in :attr:`realtime_factor`."""
 
     output: Path
@@ -70,6 +70,7 @@ class RunSummary:
     statistics: dict[str, Any] = field(default_factory=dict)
     run_time: float = 0.0
     compile_time: float = 0.0
+    flush_time: float = 0.0
 
     @property
     def realtime_factor(self) -> float:
@@ -171,10 +172,11 @@ def _finished(bar: tqdm, cfg: RunConfig, t: float, curves: int) -> None:
 
 
 def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
-           after_step: Callable[[], object], host_gone: Callable[[], bool] = lambda: False) -> None:
+           after_step: Callable[[], object], host_gone: Callable[[], bool] = lambda: False) -> float:
     """Step the machine until the scene is done or the host released it (paced in real-time mode), then
-    flush its transmit queue. ``after_step`` runs after each step (e.g. the in-process host's poll);
-    ``host_gone()`` true (the served host disconnected) stops the run with a :class:`RunError`."""
+    flush its transmit queue; the simulated time (s) that flush took (the bus carrying the last frames).
+    ``after_step`` runs after each step (e.g. the in-process host's poll); ``host_gone()`` true (the served host
+    disconnected) stops the run with a :class:`RunError`."""
     pace = _Pacer(cfg.mode == "realtime")
     try:
         while not _machine_done(cfg, machine) and not machine.node.released:
@@ -190,7 +192,9 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
             _show(bar, cfg, machine.curves, machine.t)
             pace(machine.t)
         with lock:
+            ended = machine.t
             machine.flush(pace=pace)
+            return machine.t - ended
     finally:
         _show(bar, cfg, machine.curves, machine.t, force=True)
         pace.finish()
@@ -307,7 +311,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 _wait_for_go(machine, 5.0)
                 go, compiled = time.perf_counter(), compile_seconds()
                 try:
-                    _drive(cfg, machine, lock, bar, host.poll)
+                    flushed = _drive(cfg, machine, lock, bar, host.poll)
                 except RunError:
                     while host.poll():         # record what is already on the wire before stopping
                         pass
@@ -329,7 +333,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
             if serial_dev is not None:
                 serial_dev.close()
     return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats, run_time,
-                      compiled)
+                      compiled, flushed)
 
 
 def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | None = None,

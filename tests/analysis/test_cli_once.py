@@ -47,7 +47,7 @@ def counted(monkeypatch):
 def test_run_reads_and_analyses_once(tmp_path, monkeypatch, counted, capsys):
     path = small_recording(tmp_path / "run.mcap")
     summary = SimpleNamespace(output=path, curves=5, simulated_time=5.1, run_time=1.0, wall_time=1.2,
-                              realtime_factor=5.1, frames=0, compile_time=0.0)
+                              realtime_factor=5.1, frames=0, compile_time=0.0, flush_time=0.0)
     monkeypatch.setattr(rig.runner, "run_scene", lambda *args, **kwargs: summary)
     monkeypatch.setattr(cli, "_print_cam_bar_summary", lambda *args: None)
     assert cli.main(["-q", "run", "-o", str(path), "--report-dir", str(tmp_path / "report")]) == 0

@@ -67,15 +67,22 @@ def test_a_bare_number_in_the_limits_is_an_error_naming_key_and_file(tmp_path):
     with pytest.raises(SceneError) as err:
         run_scene(scene, tmp_path / "bare.mcap", cycles=1)
     message = str(err.value)
-    assert str(scene) in message and "limits.x_max" in message and "has no unit" in message
+    assert str(scene) in message and "[device.config.limits] key 'x_max' (lower)" in message   # where the scene has it
+    assert "has no unit" in message
     assert '"0.0415 m" or "0.0415 mm"' in message                      # SI (what a bare number is), then the usual unit
+
+
+def test_reversed_limits_are_named_where_the_scene_writes_them(tmp_path):
+    scene = variant(tmp_path, "reversed", 'y_min = ["-45 N", "-65 N"]')
+    with pytest.raises(SceneError, match=r"\[device.config.limits\] key 'y_min': lower limit \"-45 N\" must be below"):
+        run_scene(scene, tmp_path / "reversed.mcap", cycles=1)
 
 
 def test_rig_run_checks_the_scene_before_writing_anything(tmp_path, capsys):
     from rig.cli import main
     scene = variant(tmp_path, "bare2", 'y_min = ["-65 N", "-45 N"]\nx_max = [41.5, 42.5]')
     assert main(["run", str(scene), "-o", str(tmp_path / "bare2.mcap")]) == 2
-    assert "limits.x_max" in capsys.readouterr().err
+    assert "[device.config.limits] key 'x_max'" in capsys.readouterr().err
     assert not list(tmp_path.glob("bare2*.png")) and not (tmp_path / "bare2.mcap").exists()
 
 

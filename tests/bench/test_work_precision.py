@@ -278,6 +278,8 @@ def test_from_refuses_what_it_cannot_chart(level2_run, tmp_path, capsys):
     base = ["-q", "bench", "work-precision", "--scene", str(L2), "-o", str(tmp_path / "o")]
     assert cli.main(base + ["--from", str(tmp_path)]) == 2
     assert f"--from {tmp_path}: no pin_insertion_l2.csv there" in capsys.readouterr().err
+    assert cli.main(base + ["--from", str(tmp_path / "nowhere")]) == 2
+    assert f"--from {tmp_path / 'nowhere'}: no such directory" in capsys.readouterr().err
     assert cli.main(base + ["--from", str(out)]) == 2            # measured over 0.08 s, the scene spans 0.4 s
     assert "measured over 0.08 s, the problem pin_insertion_l2 spans 0.4 s" in capsys.readouterr().err
     assert cli.main(base + ["--from", str(out), "--t-sim", "0.08", "--quick"]) == 2

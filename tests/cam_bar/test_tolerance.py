@@ -166,3 +166,12 @@ def test_cli_prints_the_tables_and_writes_the_chart(tmp_path, capsys):
     clutch = Path(__file__).resolve().parents[2] / "data" / "scenes" / "clutch_startup.toml"
     assert main(["tolerance", str(clutch), "--samples", "10", "-o", str(tmp_path)]) == 2
     assert "needs plant \"cam_bar\"" in capsys.readouterr().err
+
+
+def test_a_band_from_too_few_machines_says_what_it_is():
+    """The 0.135–99.865 % band of a small Monte Carlo is flagged: below ~741 machines it is the sample's range,
+    below ~7400 (fewer than 10 machines expected in each tail) a rough estimate; from there no note."""
+    from rig.plants.cam_bar.tolerance_report import tail_note
+    assert "the sample's range" in tail_note(10)
+    assert "rough estimate" in tail_note(2000) and "7408 samples" in tail_note(2000)
+    assert tail_note(7408) == "" and tail_note(10**6) == ""

@@ -103,6 +103,38 @@ def test_wiring_errors_are_found_before_anything_is_written(tmp_path, capsys, ol
     assert not (tmp_path / "out").exists()
 
 
+HOLD = SCENES / "clutch_overload_hold.toml"
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("shutdown_count = 4", "shutdown_count = 0", r"\[plant\]: key 'shutdown_count' must be an integer >= 1"),
+    ('shutdown_window = "100 ms"', 'shutdown_window = "0 ms"', r"\[plant\]: key 'shutdown_window' must be positive"),
+    ("n = 3", "n = 2.5", r"\[plant\]: key 'n' must be an integer >= 1"),
+    ('a0 = "437.708 N*m"', 'a0 = "-437 N*m"', r"\[motor\]: key 'a0' must not be negative .*got \"-437 N\*m\""),
+    ("mu_B = 0.10", 'mu_B = "abc"', r"\[plant\]: key 'mu_B': 'abc' is not a number"),
+])
+def test_clutch_stand_keys_are_checked_where_the_scene_writes_them(tmp_path, old, new, message):
+    """Counts, windows and the motor line are checked with the scene's key (they reached the stand's own checks,
+    which name no key, or ran a motor turning backwards)."""
+    from rig.plants.clutch.stand import ClutchStand
+    with pytest.raises(SceneError, match=message):
+        ClutchStand.from_scene(load_scene(edited(tmp_path, HOLD, old, new)))
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--no-report", "--report-dir", "r"], "argument --report-dir: not allowed with argument --no-report"),
+    (["--no-report", "--ok-plots", "2", "--format", "md"], "--format, --ok-plots shape the report, and --no-report "
+                                                          "writes none"),
+])
+def test_report_options_with_no_report_are_refused(tmp_path, capsys, extra, message):
+    argv = ["run", str(DEMO), "-o", str(tmp_path / "x.mcap"), *extra]
+    try:
+        assert cli.main(argv) == 2
+    except SystemExit as exc:                     # argparse's own usage error
+        assert exc.code == 2
+    assert message in one_error_line(capsys) and not (tmp_path / "x.mcap").exists()
+
+
 # -- counts -----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv", [
     ["run", "--cycles", "0"], ["run", "--cycles", "-3"], ["run", "--cycles", "two"],

@@ -356,21 +356,21 @@ def test_rig_analyse_merges_the_lab_sheets_numbers(speed, cardan, tmp_path):
     rows = {r["scene"]: r for r in csv.DictReader((out / "recordings.csv").open())}
     assert set(rows) == {"lab_speed", "lab_cardan"}
     v = cardan[1]["Cardan joint"].values
-    assert float(rows["lab_cardan"]["lab.cardan_joint.ratio_max mean"]) == pytest.approx(v["ratio_max"], rel=1e-12)
-    assert float(rows["lab_cardan"]["lab.cardan_joint.lag_error_max max [°]"]) == pytest.approx(
+    assert float(rows["lab_cardan"]["lab.cardan.ratio_max mean"]) == pytest.approx(v["ratio_max"], rel=1e-12)
+    assert float(rows["lab_cardan"]["lab.cardan.lag_error_max max [°]"]) == pytest.approx(
         np.degrees(v["lag_error_max"]))                          # display units, as the sheets show them
     counter = speed[1]["Speed measurement"].values["counter_rpm"]
-    assert float(rows["lab_speed"]["lab.speed_measurement.counter_rpm mean [rpm]"]) == pytest.approx(counter, rel=1e-12)
-    assert rows["lab_speed"]["lab.cardan_joint.ratio_max n"] == ""                  # the speed lab has no Cardan
+    assert float(rows["lab_speed"]["lab.speed.counter_rpm mean [rpm]"]) == pytest.approx(counter, rel=1e-12)
+    assert rows["lab_speed"]["lab.cardan.ratio_max n"] == ""                  # the speed lab has no Cardan
     errors = {k: x for k, x in speed[1]["Speed measurement"].values.items() if k.startswith("error ")}
     assert len(errors) == 3                                        # tachogenerator, tachometer, stroboscope
     for k, x in errors.items():                                    # names in snake case, as documented
-        key = "lab.speed_measurement." + re.sub(r"\W+", "_", k.lower()).strip("_")
+        key = "lab.speed." + re.sub(r"\W+", "_", k.lower()).strip("_")
         assert float(rows["lab_speed"][f"{key} mean [%]"]) == pytest.approx(100 * x, rel=1e-12)
     report = (out / "report.md").read_text()
     assert "## Process values and lab results per scene (over all its recordings)" in report
-    assert re.search(r"\| lab_cardan( L\d)? \| lab.cardan_joint.ratio_max \|", report)
-    assert "lab sheet cardan joint:" in report and "## Stand and lab recordings (2)" in report
+    assert re.search(r"\| lab_cardan( L\d)? \| lab.cardan.ratio_max \|", report)
+    assert "lab sheet cardan (cardan joint):" in report and "## Stand and lab recordings (2)" in report
 
 
 def test_a_recording_without_a_scene_has_no_lab_section(tmp_path):

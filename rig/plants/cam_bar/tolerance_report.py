@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from math import degrees
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -96,7 +97,7 @@ def study_table(study: ToleranceStudy) -> str:
               f"max |signed| {np.max(np.abs(lin.signed)) * um:.1f} µm",
               f"Monte Carlo ({mc.n} machines, normal σ = T/3): 3σ/RSS = {ratio.min():.3f} … {ratio.max():.3f}, "
               f"0.135–99.865 % band up to {np.max(mc.percentiles[99.865] - mc.percentiles[0.135]) * um:.1f} µm "
-              f"(linear ±RSS: {2 * lin.rss.max() * um:.1f} µm)"]
+              f"(linear ±RSS: {2 * lin.rss.max() * um:.1f} µm)" + tail_note(mc.n)]
     if mcc:
         lines.append(f"  with the exponential clearance law: mean Δs {mcc.mean.min() * um:.1f} … {mcc.mean.max() * um:.1f} µm, "
                      f"99.865 % point up to {mcc.percentiles[99.865].max() * um:.1f} µm")
@@ -105,6 +106,21 @@ def study_table(study: ToleranceStudy) -> str:
                  + ", ".join(f"{np.max(np.abs(f)) * 1e-3:.4f}" for f in fb.factors)
                  + f" rad/mm; Δψ worst {degrees(fb.worst.max()):.3f}°, RSS {degrees(fb.rss.max()):.3f}°")
     return "\n".join(lines)
+
+
+TAIL = 0.00135          # share of the machines beyond each of the 0.135 / 99.865 % points
+TAIL_MACHINES = 10      # machines beyond each point for an estimate of it (fewer: a warning beside the band)
+
+
+def tail_note(n: int) -> str:
+    """The warning beside the 0.135–99.865 % band of ``n`` machines when too few lie beyond its points ("" if
+    enough): below 1/0.00135 ≈ 741 machines the band is the sample's range."""
+    beyond = n * TAIL
+    if beyond >= TAIL_MACHINES:
+        return ""
+    what = "the sample's range" if beyond < 1.0 else "a rough estimate"
+    return (f"\n  ** of {n} machines {beyond:.2g} are expected beyond each 0.135 % point: the band is {what}, not "
+            f"those points (≥ {math.ceil(TAIL_MACHINES / TAIL)} samples for {TAIL_MACHINES} in each tail) **")
 
 
 def plot_study(study: ToleranceStudy, path: str | Path) -> Path:
@@ -122,7 +138,8 @@ def plot_study(study: ToleranceStudy, path: str | Path) -> Path:
     ax.plot(deg, lin.rss * um, "b-", lw=1.2, label="linear ± RSS")
     ax.plot(deg, -lin.rss * um, "b-", lw=1.2)
     ax.plot(deg, lin.signed * um, "k--", lw=1, label="linear signed (all +T)")
-    ax.plot(deg, mc.percentiles[99.865] * um, "r:", lw=1.8, label=f"MC 0.135 / 99.865 % ({mc.n} machines)")
+    few = "" if mc.n * TAIL >= TAIL_MACHINES else ": sample range" if mc.n * TAIL < 1.0 else ": rough, few in the tails"
+    ax.plot(deg, mc.percentiles[99.865] * um, "r:", lw=1.8, label=f"MC 0.135 / 99.865 % ({mc.n} machines{few})")
     ax.plot(deg, mc.percentiles[0.135] * um, "r:", lw=1.8)
     ax.plot(deg, mc.mean * um, "r-", lw=0.8, label="MC mean")
     if mcc:

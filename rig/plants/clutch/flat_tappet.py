@@ -20,7 +20,7 @@ CLUTCH_SCHEMA = {
     "delta": Field("m", None, "initial spring deflection (give F_a1 or delta)"),
     "mu_B": Field("1", 0.10, "friction coefficient cam face / tappet"),
     "mu_C": Field("1", 0.12, "friction coefficient tappet / guide"),
-    "n": Field("1", 3, "number of tappets (= lobes)"),
+    "n": Field("1", 3, "number of tappets (= lobes)", minimum=1, integer=True),
     "m_t": Field("kg", 0.2, "tappet mass (assumption)"),
     "J1": Field("kg*m^2", 0.08, "driving-side inertia (assumption)"),
     "J3": Field("kg*m^2", 0.05, "driven-side inertia (assumption)"),

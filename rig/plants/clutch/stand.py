@@ -36,8 +36,8 @@ _COMMON = {
     "omega0": Field("rad/s", 0.0, "initial speed of both halves"),
     "phi_r0": Field("rad", None, "initial relative angle (default: the frictionless static deflection "
                                  "that carries the load torque at t = 0 and omega0)"),
-    "shutdown_count": Field("1", 2, "disengagements within the window that flag a shutdown"),
-    "shutdown_window": Field("s", 0.5, "window for counting disengagements"),
+    "shutdown_count": Field("1", 2, "disengagements within the window that flag a shutdown", minimum=1, integer=True),
+    "shutdown_window": Field("s", 0.5, "window for counting disengagements", positive=True),
     "trip_on_shutdown": Field(None, False, "switch the motor off when the shutdown flag rises"),
     "method": Field(None, "DP45", "integration method, a name of rig.solvers.METHODS (Rodas4 for a stiff stand, e.g. "
                                   "a steep geared motor line: b0/J1 of thousands per second)"),
@@ -66,9 +66,9 @@ def plant_schema(scene: Scene) -> dict[str, Field]:
         raise SceneError(f"{scene.path} [plant]: variant {variant!r} is not flat_tappet or leaf_spring")
     return LEAF_STAND_SCHEMA if variant == "leaf_spring" else STAND_SCHEMA
 MOTOR_SCHEMA = {
-    "a0": Field("N*m", 437.708, "motor line M = a0 - b0*omega"),
-    "b0": Field("N*m*s/rad", 3.870, "motor line slope"),
-    "ratio": Field("1", 1.0, "belt ratio omega_motor/omega1"),
+    "a0": Field("N*m", 437.708, "motor line M = a0 - b0*omega (stall torque, + = driving direction)", minimum=0.0),
+    "b0": Field("N*m*s/rad", 3.870, "motor line slope", minimum=0.0),
+    "ratio": Field("1", 1.0, "belt ratio omega_motor/omega1", positive=True),
     "t_off": Field("s", math.inf, "motor switched off at this time"),
 }
 _LOAD_SCHEMAS = {
