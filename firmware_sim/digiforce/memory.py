@@ -121,8 +121,7 @@ class CurveMemory:
     def _decimate(self) -> None:
         """Halve the stored resolution: double the step and keep the pairs it would have stored."""
         self.delta *= 2.0
-        self.decimations += 1
-        self.overflow = True
+        self.decimations += 1                        # thinned, not cut: ``overflow`` stays for the policy "stop"
         stored = self.rows[:self.count]
         keep = self._first_in_cell(stored[:, 0], -np.inf) if self.mode == "time" else \
             np.arange(self.count) % 2 == 0

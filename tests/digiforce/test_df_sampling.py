@@ -65,8 +65,13 @@ def test_overflow_decimate_equals_coarser_sampling(unit):
     unit.set_program(0, {"sampling": {"mode": "time", "delta": 1e-4, "overflow": "decimate"}})
     t = np.arange(10000) * 1e-4
     x = np.sin(7 * t)
-    dec = record(unit, t, x, 0 * t).curve
-    assert dec.decimations == 2 and dec.overflow and dec.sampling["delta"] == pytest.approx(4e-4)
+    res = record(unit, t, x, 0 * t)
+    dec = res.curve
+    assert dec.decimations == 2 and dec.sampling["delta"] == pytest.approx(4e-4)
+    assert not dec.overflow and dec.dropped == 0            # thinned, not cut (MemoryFull means cut, policy stop)
+    flags = res.to_dict(include_curve=False)
+    assert flags["overflow"] is False and flags["decimated"] is True
+    assert not any("memory overflow" in e for e in unit.status()["errors"])
     assert dec.t.size <= 4000
     unit.set_program(0, {"sampling": {"delta": 4e-4, "overflow": "stop"}})
     ref = record(unit, t + 1.0, x, 0 * t).curve
