@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from typing import Any
 
 import can
@@ -39,6 +40,7 @@ def encoder_resolution(spec: Any) -> float:
     return counts_to_angle(1, int(ppr), int(float(spec.overrides.get("multiplier", table.get("multiplier", 4)))))
 
 
+PLANT, LINK, HOST = range(3)   # sources of events, their order at equal times (Host._write_events)
 THEORY_BLOCK = 0.5        # s of theory computed per plant call (on a fixed grid: the same calls in every run)
 SLOW_SETUP = 5.0          # s of serial set-up beyond which the host says how long it takes
 RUN_END_WAIT = 2.0        # s of device time a host that has all its curves waits for the machine's run to end
@@ -73,6 +75,8 @@ class Host:
         self._curves_done = 0
         self._beyond = 0                                # curves received after the requested ones (not recorded)
         self._plant_events = 0
+        self._pending: list[tuple[float, int, int, str, dict[str, Any]]] = []   # events not yet written (_event)
+        self._found = 0                                 # events found so far (their order within a source)
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
         self.frames = 0
@@ -128,6 +132,7 @@ class Host:
             self._advance_theory(min(self.can.device_time, self.cfg.duration))
         self._record_curves()
         self._record_link_events()
+        self._write_events(min(self.can.device_time, self.truth_t))
 
     def _record_stand(self) -> None:
         """The reading messages the scene wires, as bulk blocks on ``/stand/<message>`` (:func:`stand_topic`):
@@ -173,7 +178,7 @@ class Host:
                 self._truth.append({"t": t, **signals})
             self.truth_t = float(t[-1])
         for ev in self.theory.events[self._plant_events:]:
-            self.rec.write_event(ev.time, ev.kind, **ev.data)
+            self.add_event(ev.time, ev.kind, PLANT, **ev.data)
         self._plant_events = len(self.theory.events)
 
     def _truth_at(self, t: np.ndarray, signal: str) -> np.ndarray | None:
@@ -191,8 +196,8 @@ class Host:
             elif curve.complete and curve.t is not None:
                 self._curves.append(curve)
             else:
-                self.rec.write_event(max(self.can.device_time, 0.0), "incomplete_curve", number=curve.number,
-                                     problems=list(curve.problems))
+                self.add_event(max(self.can.device_time, 0.0), "incomplete_curve", HOST, number=curve.number,
+                            problems=list(curve.problems))
                 self._orphans.add(curve.number)
         for res in self.can.take_results():
             self._results[res.number] = res
@@ -211,9 +216,9 @@ class Host:
             if result is None:
                 if why_no_result is None and not any(n > curve.number for n in self._results):
                     break              # its result is still on the way
-                self.rec.write_event(float(curve.t[-1]), "result_missing", number=curve.number,
-                                     detail=why_no_result or "a later curve's result arrived first: this curve's "
-                                                             "Result frame was lost")
+                self.add_event(float(curve.t[-1]), "result_missing", HOST, number=curve.number,
+                            detail=why_no_result or "a later curve's result arrived first: this curve's "
+                                                    "Result frame was lost")
             self._advance_theory(float(curve.t[-1]))
             theory = {}
             for role in ("x", "y"):
@@ -242,7 +247,7 @@ class Host:
         out, mismatch = self._explainer().explain(result, curve)
         if mismatch is not None:
             when = float(curve.t[-1]) if curve is not None else self.truth_t
-            self.rec.write_event(when, "verdict_mismatch", **mismatch)
+            self.add_event(when, "verdict_mismatch", HOST, **mismatch)
         msg = {"number": result.number, "program": program, "ok": bool(result.ok), "elements": out,
                "process_values": dict(result.process_values), "complete": bool(result.complete)}
         if result.missing:
@@ -274,20 +279,39 @@ class Host:
         self._record_curves(f"the curve arrived but its Result frame did not before {why}")
         self._record_link_events()
         if self._beyond:
-            self.rec.write_event(max(self.can.device_time, 0.0), "not_recorded", curves=self._beyond,
-                                 detail=f"the served machine sent {self._beyond} more curve(s) after the {self.cfg.cycles} "
-                                        f"this host was asked to record (--cycles); they are in /can/raw only")
+            self.add_event(max(self.can.device_time, 0.0), "not_recorded", HOST, curves=self._beyond,
+                        detail=f"the served machine sent {self._beyond} more curve(s) after the {self.cfg.cycles} "
+                               f"this host was asked to record (--cycles); they are in /can/raw only")
             self._beyond = 0
+        self._write_events()
 
-    def interrupted(self) -> None:
-        """The run was interrupted (Ctrl-C): what was received is recorded and what was cut is said (events)."""
-        self._close_reception("the interruption of the run")
+    def interrupted(self, why: str = "the interruption of the run") -> None:
+        """The run was interrupted (Ctrl-C, or stopped by an error: ``why``): what was received is recorded and what
+        was cut is said (events)."""
+        self._close_reception(why)
 
     def _record_link_events(self) -> None:
         for ev in self.can.take_events():
-            self.rec.write_event(max(ev.time, 0.0), ev.kind, frame_id=ev.frame_id, count=ev.count, detail=ev.detail)
+            self.add_event(max(ev.time, 0.0), ev.kind, LINK, frame_id=ev.frame_id, count=ev.count, detail=ev.detail)
         for report in self.can.take_drop_reports():
-            self.rec.write_event(report.pop("t"), "live_dropped", **report)
+            self.add_event(report.pop("t"), "live_dropped", LINK, **report)
+
+    def add_event(self, t: float, kind: str, source: int = HOST, /, **data: Any) -> None:
+        """An event found at time ``t`` (s) by ``source`` (:data:`PLANT`, :data:`LINK`, :data:`HOST`, the default),
+        written in time order by :meth:`_write_events`."""
+        self._pending.append((float(t), source, self._found, kind, data))
+        self._found += 1
+
+    def _write_events(self, upto: float = math.inf) -> None:
+        """Write the events found with t ≤ ``upto`` (s) in time order (at equal times: plant, link, host, each in the
+        order found). The theory and the frames have both passed ``upto``, so no earlier event can be found later,
+        and the order does not depend on how the frames were split into receive blocks (in one process or across
+        processes: the same recording)."""
+        ready = sorted(e for e in self._pending if e[0] <= upto)
+        if ready:
+            self._pending = [e for e in self._pending if e[0] > upto]
+            for t, _, _, kind, data in ready:
+                self.rec.write_event(t, kind, **data)
 
     # ---------------------------------------------------------------- completion
     @property
@@ -315,6 +339,7 @@ class Host:
         self._close_reception("the end of the recording")
         if self.cfg.cycles is None:
             self._advance_theory(self.cfg.duration)
+        self._write_events()
         stats: dict[str, Any] = {}
         # the counters are those of the latest frames: at the bus's device time (past the machine's end while the
         # backlog drained), not before an event already recorded

@@ -265,14 +265,14 @@ def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
     earlier.unlink(missing_ok=True)
 
 
-def _keep_received(host: Host, drain: bool) -> None:
-    """On Ctrl-C: what is already on the wire (``drain``: the in-process bus, whose machine has stopped) and
-    received goes into the recording, and what the interruption cut is said in events (a curve in transfer, the
-    last live drops); a failure doing so is a warning, the interruption goes on."""
+def _keep_received(host: Host, drain: bool, why: str = "the interruption of the run") -> None:
+    """On Ctrl-C or a run stopped by an error (``why``): what is already on the wire (``drain``: the in-process bus,
+    whose machine has stopped) and received goes into the recording, and what the stop cut is said in events (a
+    curve in transfer, the last live drops); a failure doing so is a warning, the stop goes on."""
     try:
         while drain and host.poll():
             pass
-        host.interrupted()
+        host.interrupted(why)
     except Exception as exc:  # noqa: BLE001 - the recording is closed as interrupted either way
         log.warning("could not record what was received before the interruption (%s: %s)", type(exc).__name__, exc)
 
@@ -312,9 +312,8 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 go, compiled = time.perf_counter(), compile_seconds()
                 try:
                     flushed = _drive(cfg, machine, lock, bar, host.poll)
-                except RunError:
-                    while host.poll():         # record what is already on the wire before stopping
-                        pass
+                except RunError:               # record what is already on the wire and what the stop cut
+                    _keep_received(host, drain=True, why="the run's stop on an error")
                     raise
                 except KeyboardInterrupt:
                     _keep_received(host, drain=True)
@@ -454,16 +453,16 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                         log.warning("the served machine ended its run after %d curves (its --cycles); this host "
                                     "was to record %s: recorded what it sent", host.curves_recorded,
                                     f"{cfg.cycles} curves" if cfg.cycles is not None else f"{cfg.duration:g} s")
-                        rec.write_event(host.can.device_time, "run_short", curves=host.curves_recorded,
-                                        expected=cfg.cycles if cfg.cycles is not None else cfg.duration)
+                        host.add_event(host.can.device_time, "run_short", curves=host.curves_recorded,
+                                       expected=cfg.cycles if cfg.cycles is not None else cfg.duration)
                         break
                     elif time.monotonic() - last > idle_timeout:
                         raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
                                        f"recorded {host.curves_recorded} curves (kept in {output})")
                     _show(bar, cfg, host.curves_recorded, host.truth_t)
             except (RunError, KeyboardInterrupt) as exc:
-                if isinstance(exc, KeyboardInterrupt):
-                    _keep_received(host, drain=False)
+                _keep_received(host, drain=False, why="the interruption of the run" if isinstance(exc, KeyboardInterrupt)
+                               else "the recording's stop on an error")
                 try:                               # the served machine need not wait for its release timeout
                     host.can.send_command("release")
                 except (can.CanError, OSError):

@@ -59,6 +59,8 @@ def test_a_bus_that_cannot_carry_the_curves_stops_the_run_with_a_clear_error(tmp
         run_scene(slow, out, cycles=20)
     rec = read_recording(out)                    # what was recorded before stays readable, marked as stopped
     assert not rec.truncated and rec.interrupted.startswith("RunError") and 1 <= len(rec.curves) < 20
+    cut = [e for e in rec.events if e["kind"] == "incomplete_curve"]   # the curve in transfer is said, as on Ctrl-C
+    assert len(cut) == 1 and cut[0]["number"] == len(rec.curves) + 1 and "stop on an error" in str(cut[0]["problems"])
 
 
 def test_cycles_from_the_command_line_raise_the_time_limit():
