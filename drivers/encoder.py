@@ -116,7 +116,8 @@ class SpeedEstimate:
     """Speed estimates, one per reading."""
 
     speed: np.ndarray   # rad/s: mean speed over the estimate's window (BOUND: an upper bound of it; NaN: none)
-    time: np.ndarray    # s: midpoint of that window, the instant the mean belongs to (device time)
+    time: np.ndarray    # s: midpoint of that window, the instant the mean belongs to (device time; NO_ESTIMATE: the
+    #                     one edge seen, so that the times never go back to the next estimate's window)
     method: np.ndarray  # int8: NO_ESTIMATE, FREQUENCY, PERIOD or BOUND (METHOD_NAMES)
 
 
@@ -232,8 +233,8 @@ class SpeedEstimator:
             per = two & ~freq & ~bounded
             w = np.where(bounded, np.sign(w) * np.where(bounded, bound, 0.0), w)
             speed = np.where(two, w * self.rad_per_count, np.where(k >= 0, np.nan, 0.0))
-            stamp = np.select([freq, per, bounded], [0.5 * (rec_e[j] + e_k), 0.5 * (rec_e[p] + e_k),
-                                                      0.5 * (e_k + t)], t)
+            stamp = np.select([freq, per, bounded, k >= 0], [0.5 * (rec_e[j] + e_k), 0.5 * (rec_e[p] + e_k),
+                                                              0.5 * (e_k + t), e_k], t)     # one edge: its time
             method = np.select([freq, per, bounded, k < 0], [FREQUENCY, PERIOD, BOUND, BOUND],
                                NO_ESTIMATE).astype(np.int8)
             keep = max(0, min(rec_e.size - 2,

@@ -303,3 +303,17 @@ def test_the_counter_starts_at_power_on_for_a_shaft_already_turning():
         edge_angle = omega * out.edge_time[changed] + start
         origin = round(start / COUNT) if abs(start / COUNT - round(start / COUNT)) < 1e-9 else math.floor(start / COUNT)
         np.testing.assert_allclose(edge_angle / COUNT - origin - out.count[changed], 0.0, atol=0.05)
+
+
+def test_speed_times_step_back_only_where_the_method_switches_to_the_longer_gate():
+    """Each estimate is stamped at the middle of its window; with one edge seen (no estimate yet) at that edge, not at
+    the reading's reception time, which lay after the next estimate's window. A step back is left only where the
+    period method hands over to the frequency method, whose gate window is the longer (by at most half a gate)."""
+    from drivers.encoder import NO_ESTIMATE
+    t_read, count, edge, t, omega = card_readings("ramp")
+    _, s = estimate(t_read, count, edge)
+    assert (s.method == NO_ESTIMATE).any()
+    back = np.flatnonzero(np.diff(s.time) < 0)
+    assert all(s.method[i] == PERIOD and s.method[i + 1] == FREQUENCY for i in back), [(s.method[i], s.method[i + 1])
+                                                                                     for i in back]
+    assert np.all(np.diff(s.time)[back] >= -0.5 * GATE_TIME - 1e-12)
