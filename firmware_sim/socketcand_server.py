@@ -30,6 +30,7 @@ import logging
 import re
 import socket
 import sys
+import select
 import threading
 import time
 from typing import Callable
@@ -100,6 +101,7 @@ class SocketcandServer:
         self.host, self.port = self._listener.getsockname()[:2]
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
+        self._conns: set[socket.socket] = set()     # open client connections (stop() unblocks their threads)
         self._lock = threading.Lock()
         self.fd_dropped = 0
         self.open_buses = 0                # clients that opened the bus and are still connected
@@ -122,6 +124,13 @@ class SocketcandServer:
         """Close the listener and all connections; joins the server threads."""
         self._stop.set()
         self._listener.close()
+        with self._lock:
+            conns = list(self._conns)
+        for conn in conns:                  # a forwarder blocked on a client that stopped reading returns
+            try:
+                conn.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
         for th in self._threads:
             th.join(timeout=2.0)
 
@@ -150,8 +159,11 @@ class SocketcandServer:
 
     def _serve(self, conn: socket.socket) -> None:
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        conn.settimeout(0.1)
+        conn.settimeout(None)               # writes block while the client's buffer is full (TCP's back-pressure):
+        # a socket timeout would also time out the forwarder's sendall, which then gave up the stream for good
         sending = threading.Lock()          # the reader (replies) and the forwarder (frames) both write
+        with self._lock:
+            self._conns.add(conn)
 
         def reply(text: str) -> None:
             with sending:
@@ -162,10 +174,9 @@ class SocketcandServer:
         try:
             reply("< hi >")
             while not self._stop.is_set():
-                try:
-                    chunk = conn.recv(4096)
-                except (TimeoutError, socket.timeout):
+                if not select.select([conn], [], [], 0.1)[0]:      # wait for a command, seeing stop() meanwhile
                     continue
+                chunk = conn.recv(4096)
                 if not chunk:
                     return
                 bodies, buffer = split_commands(buffer + chunk.decode("ascii", errors="replace"))
@@ -207,6 +218,12 @@ class SocketcandServer:
         except OSError as exc:
             log.info("socketcand client connection closed: %s", exc)
         finally:
+            with self._lock:
+                self._conns.discard(conn)
+            try:
+                conn.shutdown(socket.SHUT_RDWR)     # the forwarder, perhaps blocked in a send, returns
+            except OSError:
+                pass
             conn.close()
             if bus is not None:
                 bus.shutdown()

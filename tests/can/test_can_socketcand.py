@@ -180,3 +180,34 @@ def test_echo_unsupported_commands_and_client_frames_as_socketcand(served):
         _line(sock, "< frame 123 1712345678.000123 AB >")        # the frame's own stamp, forwarded unchanged
     assert sum("unsupported command" in e for e in server.errors) == 3
     assert any("inconsistent" in e for e in server.errors)
+
+
+def test_a_client_that_stops_reading_for_a_while_gets_every_frame_after_it():
+    """A client that stops reading (a host busy for seconds) fills the TCP buffers: the server waits for it, then goes
+    on. With a socket timeout the forwarder's send timed out and it gave up the stream for good (a served
+    1000-cycle run stalled: "no CAN traffic for 10 s")."""
+    import socket
+    channel = f"sc-{next(_channels)}"
+    with SocketcandServer(channel, grace=0.0) as server:
+        dev_bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+        client = socket.socket()
+        client.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)       # small: the server's sends block soon
+        client.connect(("127.0.0.1", server.port))
+        client.settimeout(5.0)
+        client.sendall(f"< open {channel} >< rawmode >".encode())
+        data = b""
+        while data.count(b"< ok >") < 2:                                 # the server's bus is open
+            data += client.recv(1024)
+        n = 120_000                                                      # 4 MB: beyond the server's send buffer
+        for k in range(n):
+            dev_bus.send(can.Message(arbitration_id=0x100, data=k.to_bytes(4, "big"), is_extended_id=False))
+        time.sleep(0.5)                                                  # not reading: the server's send blocks
+        received, data, deadline = 0, b"", time.monotonic() + 60.0
+        while received < n and time.monotonic() < deadline:
+            data += client.recv(65536)
+            received = data.count(b"< frame 100 ")
+        client.close()
+        dev_bus.shutdown()
+    assert received == n
+    last = data[data.rindex(b"< frame 100 "):].split(b">")[0].split()
+    assert int(last[-1], 16) == n - 1                                   # in order, none lost
