@@ -99,11 +99,6 @@ class Recording:
     def live(self) -> dict[str, np.ndarray]:
         return self.series.get(S.LIVE, {})
 
-    @property
-    def transducers(self) -> dict[str, dict[str, np.ndarray]]:
-        n = len(S.TRANSDUCERS)
-        return {k[n:]: v for k, v in self.series.items() if k.startswith(S.TRANSDUCERS)}
-
     def scene(self) -> "Scene":
         """The recorded scene, named ``<recording>:scene.toml`` in its errors; SceneError if there is none or
         it is not valid TOML."""

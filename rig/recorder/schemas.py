@@ -43,7 +43,6 @@ RESULT = "/device/result"
 STATISTICS = "/device/statistics"
 EVENTS = "/events"
 LOG = "/log"
-TRANSDUCERS = "/transducers/"
 VIEW_DEVICE = "/view/device"
 VIEW_PLANT = "/view/plant"
 VIEWS = (VIEW_DEVICE, VIEW_PLANT)

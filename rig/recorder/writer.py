@@ -269,10 +269,6 @@ class Recorder:
                    {str(k): np.asarray(v, dtype=np.float64) for k, v in signals.items()},
                    "plant truth, one sample per message (decimated /plant/truth)")
 
-    def write_transducer(self, name: str, t: np.ndarray, signals: Mapping[str, np.ndarray]) -> None:
-        """Output of one transducer (``/transducers/<name>``), e.g. ``{"V": volts}``."""
-        self.write_block(S.TRANSDUCERS + name, t, signals)
-
     def write_live(self, t: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
         """Live X/Y values streamed by the device (``/device/live``)."""
         self.write_block(S.LIVE, t, {"x": x, "y": y})

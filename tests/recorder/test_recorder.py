@@ -39,7 +39,6 @@ def record(path, rng, encoding="json", block_size=700, chunk_size=1 << 20, fail=
                   block_size=block_size, encoding=encoding, chunk_size=chunk_size, wall_clock_start=START) as rec:
         for a, b in ((0, 10), (10, 1500), (1500, 1501), (1501, t.size)):   # uneven writes, buffered into blocks
             rec.write_truth(t[a:b], {k: v[a:b] for k, v in truth.items()})
-        rec.write_transducer("force", t[:100], {"V": truth["F"][:100] * 1e-3})
         rec.write_live(t[:2000], truth["x"][:2000], truth["F"][:2000])
         rec.write_can_frames(frames)
         for c in curves:
@@ -72,7 +71,6 @@ def test_round_trip_every_channel(tmp_path, encoding):
     for k, v in truth.items():
         np.testing.assert_array_equal(rec.truth[k], v)
     assert rec.message_counts["/plant/truth"] == 8          # ceil(5003 / 700)
-    np.testing.assert_array_equal(rec.transducers["force"]["V"], truth["F"][:100] * 1e-3)
     np.testing.assert_array_equal(rec.live["y"], truth["F"][:2000])
     assert rec.can_frames["id"].tolist() == [0x101, 0x18FF0001]
     assert rec.can_frames["data"] == [b"\x01\x02\x03", bytes(range(64))]
@@ -104,7 +102,7 @@ def test_raw_mcap_library_recovers_curves_and_schemas(tmp_path):
             assert json.loads(schema.data)["type"] == "object"
         assert all(ch.message_encoding == "json" for ch in summary.channels.values())
         topics = {ch.topic for ch in summary.channels.values()}
-        assert topics == {"/plant/truth", "/transducers/force", "/device/live", "/can/raw", "/device/curve",
+        assert topics == {"/plant/truth", "/device/live", "/can/raw", "/device/curve",
                           "/device/result", "/device/statistics", "/events", "/log", "/view/plant", "/view/device"}
         assert reader.get_summary().statistics.message_start_time == START      # simulation time 0
         for _, channel, msg in reader.iter_messages(topics=["/device/curve"]):
