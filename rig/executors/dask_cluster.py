@@ -12,6 +12,7 @@ installed (tasks are functions of rig's modules).
 from __future__ import annotations
 
 import logging
+import threading
 from collections import deque
 from typing import Any, Callable, Iterable, Iterator
 
@@ -21,6 +22,43 @@ LOOPBACK_HTTP = "127.0.0.1:0"   # scheduler's and workers' HTTP status servers (
 CONNECT_TIMEOUT = 10  # s to reach a scheduler given by address
 WORKER_TIMEOUT = 10   # s a scheduler given by address has for its first worker to join
 IN_FLIGHT = 2  # tasks per worker submitted ahead of the one whose result is awaited
+
+
+HANDSHAKE_GRACE = 5   # s beyond CONNECT_TIMEOUT for the Dask handshake (a port that takes connections but is silent)
+_abandoned: list[Any] = []   # connection attempts given up: kept, so that no half-made Client is collected (its
+#                              __del__ would wait 20 s for a close that cannot come, and print a traceback)
+
+
+def _connect(client: Callable[..., Any], scheduler: str) -> Any:
+    """``client(scheduler)`` (distributed.Client) within CONNECT_TIMEOUT + HANDSHAKE_GRACE s, else ConnectionError in one
+    line: Client's own timeout covers reaching the address, not a peer that accepts the connection and never answers
+    (it waited forever) or answers with something else (a traceback ending in a 3 EiB allocation)."""
+    attempt: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            attempt["client"] = client(scheduler, set_as_default=False, timeout=CONNECT_TIMEOUT)
+        except BaseException as exc:  # noqa: BLE001 - whatever the peer made of it is reported in one line below
+            attempt["error"] = exc
+
+    thread = threading.Thread(target=connect, name="rig-dask-connect", daemon=True)
+    thread.start()
+    thread.join(CONNECT_TIMEOUT + HANDSHAKE_GRACE)
+    if "client" in attempt:
+        return attempt["client"]
+    _abandoned.append(attempt)
+    if thread.is_alive():
+        raise ConnectionError(f"no Dask scheduler answered at {scheduler} within {CONNECT_TIMEOUT + HANDSHAKE_GRACE:g} s: "
+                              f"something takes connections there but does not speak Dask's protocol (the scheduler's "
+                              f"port, e.g. tcp://host:8786, not its dashboard's?)")
+    exc = attempt["error"]
+    if isinstance(exc, KeyboardInterrupt):
+        raise exc
+    what = " ".join(str(exc).split())[:200] or type(exc).__name__
+    if isinstance(exc, OSError):
+        raise ConnectionError(f"cannot reach the Dask scheduler at {scheduler}: {what}") from None   # exit 1
+    raise ConnectionError(f"no Dask scheduler at {scheduler}: the peer did not answer as one ({type(exc).__name__}: "
+                          f"{what})") from None
 
 
 class DaskExecutor(Executor):
@@ -44,10 +82,7 @@ class DaskExecutor(Executor):
                                         **where)
             self.client = Client(self.cluster, set_as_default=False)
         else:
-            try:
-                self.client = Client(scheduler, set_as_default=False, timeout=CONNECT_TIMEOUT)
-            except OSError as exc:
-                raise ConnectionError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None   # exit 1
+            self.client = _connect(Client, scheduler)
             try:                               # a scheduler without workers would take the tasks and never run them
                 self.client.wait_for_workers(1, timeout=WORKER_TIMEOUT)
             except (TimeoutError, OSError):

@@ -172,3 +172,53 @@ def test_an_unreachable_scheduler_is_a_failed_run_naming_it(monkeypatch, capsys)
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 1)
     assert main(["-q", "tolerance", "--samples", "1000", "--scheduler", "tcp://127.0.0.1:1"]) == 1
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err
+
+
+def _peer(answer: bytes | None):
+    """A loopback server that takes connections and either never says a word (``answer`` None) or answers with
+    ``answer`` and hangs up; (port, stop)."""
+    import socket
+    import threading
+    server = socket.create_server(("127.0.0.1", 0))
+    server.settimeout(0.1)
+    held, stop = [], threading.Event()
+
+    def serve() -> None:
+        while not stop.is_set():
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                continue
+            if answer is None:
+                held.append(conn)
+            else:
+                conn.sendall(answer)
+                conn.close()
+        for conn in held:
+            conn.close()
+        server.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    return server.getsockname()[1], stop.set
+
+
+@pytest.mark.parametrize("answer, match", [
+    (None, r"no Dask scheduler answered at tcp://127\.0\.0\.1:\d+ within 1 s: something takes connections there"),
+    (b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n", r"no Dask scheduler at tcp://127\.0\.0\.1:\d+: the peer "
+                                                               r"did not answer as one"),
+])
+def test_an_address_that_is_not_a_dask_scheduler_is_one_error_in_bounded_time(monkeypatch, answer, match):
+    """A port that takes connections and stays silent waited forever; one that answers in another protocol ended in a
+    63-line traceback (a 3 EiB allocation): both are one ConnectionError, within the connect timeout and its grace."""
+    import time
+    from rig.executors import dask_cluster
+    monkeypatch.setattr(dask_cluster, "CONNECT_TIMEOUT", 0.5)
+    monkeypatch.setattr(dask_cluster, "HANDSHAKE_GRACE", 0.5)
+    port, stop = _peer(answer)
+    began = time.monotonic()
+    try:
+        with pytest.raises(ConnectionError, match=match):
+            make_executor("dask", scheduler=f"tcp://127.0.0.1:{port}")
+    finally:
+        stop()
+    assert time.monotonic() - began < 30.0
