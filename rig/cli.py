@@ -417,8 +417,11 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} ({self.prog} -h: usage)\n")
 
 
-def _count(minimum: int) -> Callable[[str], int]:
-    """argparse type: a whole number >= ``minimum``."""
+MAX_SAMPLES = 10**10   # Monte-Carlo machines rig tolerance takes (10^6 take ~15 s on two workers: this, ~2 days)
+
+
+def _count(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
+    """argparse type: a whole number >= ``minimum`` (and <= ``maximum``)."""
     def count(text: str) -> int:
         try:
             value = int(text)
@@ -426,6 +429,8 @@ def _count(minimum: int) -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(f"expected a whole number >= {minimum}, got {text!r}") from None
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        if maximum is not None and value > maximum:
+            raise argparse.ArgumentTypeError(f"must be at most {maximum:.0e}, got {value:.3g}")
         return value
     return count
 
@@ -545,7 +550,8 @@ def build_parser() -> argparse.ArgumentParser:
                          help="cam-bar linear and Monte-Carlo tolerance analysis (table + PNG)")
     tol.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),
                      help=f"cam-bar scene (default {DEFAULT_SCENE_TEXT})")
-    tol.add_argument("--samples", type=_count(2), default=20000, help="Monte-Carlo machines (default 20000)")
+    tol.add_argument("--samples", type=_count(2, MAX_SAMPLES), default=20000,
+                     help=f"Monte-Carlo machines (default 20000, at most {MAX_SAMPLES:.0e}: days on two workers)")
     add_executor_arguments(tol)
     tol.add_argument("--task-samples", type=_count(1), default=50_000, metavar="N",
                      help="machines per task (default 50000); with the seed it fixes the result bit for bit")

@@ -201,20 +201,41 @@ def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
 def _name_variants(rows: list[RecordingSummary]) -> None:
     """Where recordings of one scene name and level describe different machines (their scenes differ beyond the
     run's setting), name each machine by the values that tell them apart: each is its own population."""
-    machines: dict[str, list[dict[str, str]]] = {}
+    machines: dict[str, dict[tuple, dict[str, str]]] = {}     # group → canonical machine → the first as written
     for row in rows:
         if not row.error:
-            seen = machines.setdefault(row.group, [])
-            if row.machine not in seen:
-                seen.append(row.machine)
+            machines.setdefault(row.group, {}).setdefault(_canonical(row.machine), row.machine)
     for group, seen in machines.items():
         if len(seen) < 2:
             continue
-        keys = sorted({k for m in seen for k in m if len({m.get(k) for m in seen}) > 1})
+        canon = [dict(c) for c in seen]
+        keys = sorted({k for m in canon for k in m if len({m.get(k) for m in canon}) > 1})
         for row in rows:
             if not row.error and row.group == group:
-                shown = [f"{k} = {_plain(row.machine.get(k, 'unset'))}" for k in keys[:3]]
+                written = seen[_canonical(row.machine)]       # one label per machine, whatever the units written
+                shown = [f"{k} = {_plain(written.get(k, 'unset'))}" for k in keys[:3]]
                 row.variant = ", ".join(shown) + (f", … ({len(keys) - 3} more)" if len(keys) > 3 else "")
+
+
+def _canonical(machine: dict[str, str]) -> tuple:
+    """The machine's values compared by value: a quantity in SI base units to 12 significant digits ("1.89 N/mm" and
+    "1890 N/m" are one spring), a number to 12 digits, anything else as written."""
+    from rig.units import split_quantity, ureg
+    out = []
+    for key, value in sorted(machine.items()):
+        split = split_quantity(_plain(value))
+        if split is not None:
+            number, unit = split
+            try:
+                q = ureg.Quantity(number, unit).to_base_units() if unit else None
+            except Exception:  # noqa: BLE001 - pint's parser raises many kinds: compare the text then
+                q = False
+            if q is None:
+                value = f"{number:.12g}"
+            elif q is not False:
+                value = f"{q.magnitude:.12g} {q.units}"
+        out.append((key, value))
+    return tuple(out)
 
 
 def _plain(value: str) -> str:

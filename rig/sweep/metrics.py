@@ -150,8 +150,12 @@ METRICS: dict[str, Metric] = {
                                 _gripper_deviation, level=2, shown="um"),
     "roller_gap": Metric(("cam_bar",), "m", "largest gap the roller opens off the working flank, last revolution",
                          _roller_gap, level=2, shown="um"),
-    "rod_force_peak": Metric(("cam_bar",), "N", "largest |F_rod| of the last revolution",
+    "rod_force_peak": Metric(("cam_bar",), "N", "largest |F_rod| of the last revolution: the rod's load cell reading "
+                             "(rod tension + the sensor's mounting preload)",
                              lambda r: float(np.max(np.abs(r.signals["F_rod"])))),
+    "rod_tension_peak": Metric(("cam_bar",), "N", "largest |rod tension| of the last revolution: the force in the rod "
+                               "itself, the load cell's preload left out (a preload sweep does not move it)",
+                               lambda r: float(np.max(np.abs(r.signals["rod_tension"])))),
     "ok_share": Metric(("cam_bar",), "1", f"share of cycles the DigiForce program judges OK, with the scene's "
                        f"per-cycle variation ([scene] cycles, else {OK_CYCLES})",
                        lambda r: ok_share(r.scene)),

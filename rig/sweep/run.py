@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from rig.executors import batches
+from rig.outputs import UsageError
 from rig.scene import ImpossibleGeometry, Scene, SceneError
 from rig.sweep import Param, check_units, grid, with_overrides
 from rig.sweep.metrics import METRICS, check_levels, check_metrics, run_plant
@@ -131,6 +132,9 @@ def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) 
         except ImpossibleGeometry as exc:
             first = first or exc
         except SceneError as exc:
+            given = _given(str(exc), task.overrides)
+            if given:
+                raise UsageError(given) from None
             if len(tasks) == 1:
                 raise
             where = ", ".join(f"{k} = {v}" for k, v in task.overrides.items())
@@ -140,6 +144,18 @@ def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) 
     if not built:
         assert first is not None
         raise first
+
+
+def _given(message: str, overrides: dict[str, Any]) -> str:
+    """The scene reader's ``message`` about a key a ``--param`` set ("… [plant]: key 'J3': 0.02 has no unit …") as
+    that option's error ("--param plant.J3=0.02: 0.02 has no unit …": the value given is wrong, not the scene file);
+    "" when it is about another key."""
+    for key, value in overrides.items():
+        section, _, name = key.rpartition(".")
+        head = f"[{section}]: key '{name}'"
+        if head in message:
+            return f"--param {key}={value}: {message.split(head, 1)[1].lstrip(': ')}"
+    return ""
 
 
 def levels_text(levels: Sequence[int]) -> str:

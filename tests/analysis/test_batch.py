@@ -148,6 +148,14 @@ def test_recordings_of_one_scene_name_but_different_machines_are_not_one_populat
     assert "Note: the recordings of pin_insertion L1 describe 2 different machines" in report
     with make_executor("serial") as ex:                     # the same machine with other seeds and lengths: one
         assert {r.group for r in analyse_batch(paths[:2], ex).recordings} == {"pin_insertion L1"}
+    same = tmp_path / "same" / "pin_insertion.toml"        # the same machine with a value written in other units: one
+    same.parent.mkdir()
+    assert 'k = "1.89 N/mm"' in text
+    same.write_text(text.replace('k = "1.89 N/mm"', 'k = "1890 N/m"'), encoding="utf-8")
+    assert main(["-q", "run", str(same), "--no-report", "--cycles", "1", "-o", str(tmp_path / "si.mcap")]) == 0
+    with make_executor("serial") as ex:
+        groups = [r.group for r in analyse_batch([paths[0], tmp_path / "si.mcap", other], ex).recordings]
+    assert groups == ["pin_insertion L1 (plant.F_c = 40 N)"] * 2 + ["pin_insertion L1 (plant.F_c = 62 N)"]
 
 
 def test_copies_of_a_run_count_once_and_runs_sharing_a_seed_are_said(recordings):

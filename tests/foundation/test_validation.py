@@ -150,6 +150,7 @@ def test_cycles_below_one_exit_2_naming_the_option(argv, capsys):
 
 @pytest.mark.parametrize("argv, option", [
     (["tolerance", "--samples", "1"], "--samples"), (["tolerance", "--workers", "0"], "--workers"),
+    (["tolerance", "--samples", "99999999999999999999"], "--samples"),
     (["serve", str(DEMO), "--wait", "-1"], "--wait"), (["serve", str(DEMO), "--port", "70000"], "--port"),
     (["record", str(DEMO), "-o", "x.mcap", "--can-port", "0"], "--can-port"),
 ])

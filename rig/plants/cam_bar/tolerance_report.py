@@ -118,8 +118,9 @@ def tail_note(n: int) -> str:
     beyond = n * TAIL
     if beyond >= TAIL_MACHINES:
         return ""
-    what = "the sample's range" if beyond < 1.0 else "a rough estimate"
-    return (f"\n  ** of {n} machines {beyond:.2g} are expected beyond each 0.135 % point: the band is {what}, not "
+    what = ("about the sample's range (each point between the two most extreme machines of its side)" if beyond < 1.0
+            else "a rough estimate")
+    return (f"\n  ** of {n} machines {beyond:.3g} are expected beyond each 0.135 % point: the band is {what}, not "
             f"those points (≥ {math.ceil(TAIL_MACHINES / TAIL)} samples for {TAIL_MACHINES} in each tail) **")
 
 
