@@ -83,8 +83,11 @@ def _in_scene_words(message: str, program: int) -> str:
     path, which, text = m.groups()                   # which: " (lower)" of a limit pair, or ""
     if path is None:
         return f"[device.config]: {text}"
+    listed = re.match(r"(\w+)\[(\d+)\](.*)", path)          # elements[0]: the scene's first [[device.config.elements]]
+    if listed:
+        return f"[[device.config.{listed[1]}]] no. {int(listed[2]) + 1}{listed[3]}{which}: {text}"
     section, _, key = path.rpartition(".")
-    if section and "[" not in path and "." not in section:
+    if section and "." not in section:
         return f"[device.config.{section}] key {key!r}{which}: {text}"
     return f"[device.config] {path}{which}: {text}"
 

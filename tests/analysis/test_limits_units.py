@@ -118,3 +118,15 @@ def test_limits_in_the_wrong_unit_are_named():
                in w and "wrong unit" in w for w in slip)
     plausible = set_statistics(results, {"x_max": (0.0430, 0.0440)}, {"x": "m", "y": "N"})["warnings"]
     assert not any("wrong unit" in w for w in plausible)
+
+
+def test_an_element_error_is_named_as_the_scene_counts_its_elements(tmp_path):
+    """The unit numbers its elements from 0 (elements[0]); the scene's reader counts [[device.config.elements]] tables
+    from 1, as the cam program's segments are counted."""
+    text = SCENE.read_text(encoding="utf-8")
+    assert 'y_min = "-75 N"' in text
+    scene = tmp_path / "element.toml"
+    scene.write_text(text.replace('y_min = "-75 N"', 'y_min = "-35 N"', 1), encoding="utf-8")
+    with pytest.raises(SceneError, match=r"\[\[device.config.elements\]\] no. 1 \(window 'insertion'\): y_min \"-35 N\" "
+                                         r"must be below y_max \"-40 N\""):
+        run_scene(scene, tmp_path / "element.mcap", cycles=1)
