@@ -125,13 +125,15 @@ class IncrementalEncoder(Transducer):
                 keep[idx[0]] = False
                 idx = idx[1:]
                 self._drop_next[c] = False
+            drawn = np.zeros(idx.size, dtype=bool)
             for mask, par in windows:
-                hit = np.flatnonzero(mask[idx] & (self.rng.uniform(size=idx.size) < par["probability"]))
-                keep[idx[hit]] = False
-                second = hit + 1
-                keep[idx[second[second < idx.size]]] = False
-                if hit.size and hit[-1] == idx.size - 1:
-                    self._drop_next[c] = True
+                drawn |= mask[idx] & (self.rng.uniform(size=idx.size) < par["probability"])
+            hit = _pulse_starts(np.flatnonzero(drawn))
+            keep[idx[hit]] = False
+            second = hit + 1
+            keep[idx[second[second < idx.size]]] = False
+            if hit.size and hit[-1] == idx.size - 1:
+                self._drop_next[c] = True
         return keep
 
     def _glitches(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -248,3 +250,15 @@ class IncrementalEncoder(Transducer):
         if change_t.size:
             self._count_edge_t = float(change_t[-1])
         return count.astype(np.int64), edge_time, illegal.astype(np.int64)
+
+
+def _pulse_starts(drawn: np.ndarray) -> np.ndarray:
+    """The edges (indices on one channel, sorted) that start a missed pulse: a drawn edge that is not the second edge
+    of the pulse before. A pulse is two edges: dropping them in pairs keeps the channel's level and the phase of A
+    and B; a third edge dropped (two draws side by side) inverted the channel and reversed the counting for good."""
+    starts, last = [], -2
+    for i in drawn.tolist():
+        if i > last + 1:
+            starts.append(i)
+            last = i
+    return np.asarray(starts, dtype=np.int64)
