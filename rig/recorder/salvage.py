@@ -5,6 +5,7 @@ else at the next whole chunk); a cut file is read up to the cut. :func:`rig.reco
 what it reads."""
 from __future__ import annotations
 
+import hashlib
 import io
 import mmap
 import struct
@@ -189,6 +190,7 @@ class DataSectionReader:
         self.footer = self.data_end = False
         self.chunks_read = 0
         self.seen: set[int] = set()              # chunk offsets read or lost
+        self.contents: dict[bytes, str] = {}     # digest of each chunk read -> its name (a repeated chunk is skipped)
         self.skipped = False                    # bytes were skipped: chunks can no longer be counted from the start
         self.names: dict[int, str] = {}          # offsets the summary indexes: what starts there
         self.index_only: set[int] = set()        # ... of those, records that hold no data of the run
@@ -248,6 +250,13 @@ class DataSectionReader:
         """Collect a chunk's records; a LostPart if it fails its CRC or does not decode."""
         self.chunks_read += 1
         self.seen.add(pos)
+        digest = hashlib.blake2b(chunk.data, digest_size=16,
+                                 salt=struct.pack("<QQ", chunk.message_start_time, chunk.message_end_time)).digest()
+        if digest in self.contents:          # a broken copy repeated a chunk: its messages would count twice
+            self._problem(f"{self._chunk_name(pos)} (bytes {pos}-{end}) repeats {self.contents[digest]} byte for byte "
+                          f"(a damaged copy): skipped, its messages counted once")
+            return None
+        self.contents[digest] = self._chunk_name(pos)
         try:
             self.collector.add_chunk(breakup_chunk(chunk, validate_crc=True))
         except Exception as exc:  # any decoding failure of its data: the chunk is lost, the reading goes on

@@ -257,3 +257,20 @@ def test_every_message_is_read_or_counted_as_lost(whole, tmp_path, data):
         for topic, n in (part.messages or {}).items():
             counted[topic] = counted.get(topic, 0) + n
     assert counted == original.message_counts, rec.problems
+
+
+def test_a_chunk_a_broken_copy_repeats_is_read_once_and_named(whole, tmp_path, capsys):
+    """A copy that wrote a chunk (and its message index) twice: every message of it would count twice (58 curves of
+    50, n = 58 in every statistic, "nothing lost"); the repeat is skipped and named, the curves counted once."""
+    chunks = _chunks(whole)
+    second = chunks[1]
+    end = second.chunk_start_offset + second.chunk_length + second.message_index_length
+    raw = whole.read_bytes()
+    twice = tmp_path / "twice.mcap"
+    twice.write_bytes(raw[:end] + raw[second.chunk_start_offset:end] + raw[end:])
+    rec = read_recording(twice, allow_partial=True)
+    assert _numbers(rec) == list(range(1, CURVES + 1)) and len(rec.results) == CURVES
+    assert [e["number"] for e in rec.events if e["kind"] == "curve"] == list(range(1, CURVES + 1))
+    assert any("repeats chunk 2 " in p and "counted once" in p for p in rec.problems), rec.problems
+    assert main(["-q", "report", str(twice), "-o", str(tmp_path / "r")]) == 2          # not a whole file: said
+    assert "repeats chunk 2" in capsys.readouterr().err
