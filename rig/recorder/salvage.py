@@ -138,25 +138,31 @@ def _record(f: Any, pos: int, size: int, kinds: frozenset[int] = _DATA_RECORDS) 
     return record, data
 
 
-def _summary(f: Any, size: int) -> tuple[Summary, Footer] | None:
+def _summary(f: Any, size: int) -> tuple[tuple[Summary, Footer] | None, str | None]:
     """The file's summary (channels, chunk, metadata and attachment indexes) and footer, when the footer, the
-    closing magic and the summary's CRC are intact; None for a cut file or a damaged footer or summary, whose
-    offsets are not to be trusted."""
+    closing magic and the summary's CRC are intact, else None (a cut file, a damaged footer or summary: offsets not
+    to be trusted); and what is damaged when the footer reads but the summary it points to does not (None else: a
+    cut file has no footer to check it by)."""
     footer_at = size - len(MCAP_MAGIC) - FOOTER_SIZE
     if footer_at < 2 * len(MCAP_MAGIC):
-        return None
+        return None, None
     try:
         footer, data = _record(f, footer_at, size, frozenset({Opcode.FOOTER}))
         if f.read() != MCAP_MAGIC or not footer.summary_crc or not 0 < footer.summary_start < footer_at:
-            return None
-        f.seek(footer.summary_start)
-        if zlib.crc32(f.read(footer_at + len(data) - 4 - footer.summary_start)) != footer.summary_crc:
-            return None
+            return None, None
+    except Exception:  # whatever a damaged footer raises: there is no index to use
+        return None, None
+    damaged = (f"the summary section (bytes {footer.summary_start}-{footer_at}: channels, schemas, indexes, statistics) "
+               f"is damaged")
+    f.seek(footer.summary_start)
+    if zlib.crc32(f.read(footer_at + len(data) - 4 - footer.summary_start)) != footer.summary_crc:
+        return None, f"{damaged}: its CRC does not match; other MCAP readers may not open the file"
+    try:
         f.seek(0)
         summary = make_reader(f).get_summary()
-        return None if summary is None else (summary, footer)
-    except Exception:  # whatever a damaged footer or summary raises: there is no index to use
-        return None
+    except Exception as exc:  # noqa: BLE001 - whatever the library makes of it
+        return None, f"{damaged}: {plain(exc)}"
+    return (None, None) if summary is None else ((summary, footer), None)
 
 
 def _next_chunk(f: Any, start: int, size: int) -> int | None:
@@ -185,7 +191,7 @@ class DataSectionReader:
 
     def __init__(self, f: Any, size: int, collector: "_Collector"):
         self.f, self.size, self.collector, self.rec = f, size, collector, collector.rec
-        found = _summary(f, size)
+        found, summary_damage = _summary(f, size)
         self.summary = None if found is None else found[0]
         self.footer = self.data_end = False
         self.chunks_read = 0
@@ -212,6 +218,8 @@ class DataSectionReader:
             self.index_only.update((found[1].summary_start - data_end.count, len(MCAP_MAGIC)))
             self.offsets = sorted(self.names)
             collector.channels.update((i, c.topic) for i, c in self.summary.channels.items())
+        if summary_damage is not None:
+            self._problem(summary_damage)
 
     def _problem(self, text: str, damage: bool = True) -> None:
         """A problem of the file: damage, or (``damage`` False) a cut."""

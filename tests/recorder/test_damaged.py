@@ -274,3 +274,20 @@ def test_a_chunk_a_broken_copy_repeats_is_read_once_and_named(whole, tmp_path, c
     assert any("repeats chunk 2 " in p and "counted once" in p for p in rec.problems), rec.problems
     assert main(["-q", "report", str(twice), "-o", str(tmp_path / "r")]) == 2          # not a whole file: said
     assert "repeats chunk 2" in capsys.readouterr().err
+
+
+def test_a_damaged_summary_is_named_not_read_as_a_whole_file(whole, tmp_path):
+    """A byte flipped in the summary section (after the data end): the footer still reads, its summary CRC does not
+    match. Every message is still read from the data section, but the file is not whole — other MCAP readers may not
+    open it — and it read as complete, with no problem at all."""
+    raw = whole.read_bytes()
+    footer = raw[-8 - 29:-8]                        # opcode, length, summary start, summary offset start, CRC
+    assert footer[0] == 0x02
+    start = int.from_bytes(footer[9:17], "little")
+    damaged = tmp_path / "summary.mcap"
+    damaged.write_bytes(_flip(raw, start + 40))
+    with pytest.raises(RecordingError, match=r"the summary section \(bytes \d+-\d+: .*\) is damaged: its CRC does not "
+                                             r"match"):
+        read_recording(damaged)
+    rec = read_recording(damaged, allow_partial=True)
+    assert _numbers(rec) == list(range(1, CURVES + 1)) and not rec.complete and rec.data_whole
