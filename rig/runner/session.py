@@ -182,9 +182,16 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
         while not _machine_done(cfg, machine) and not machine.node.released:
             gone = host_gone()                 # before the step: a Release sent just before leaving counts
             with lock:
+                before = machine.curves
                 try:
                     machine.step()
                 except BusOverload as exc:
+                    burst, held = machine.curves - before, cfg.can["tx_curves"]
+                    if burst >= held:          # the step, not the bus: its curves all ended before any could leave
+                        raise RunError(f"{cfg.scene.path} [scene]: chunk = {cfg.chunk:g} s is too long for the bus: one "
+                                       f"runner step measured {burst} curves at once, as many as the unit holds for "
+                                       f"sending ([links.can] tx_curves = {held}); shorten the chunk (e.g. \"100 ms\") "
+                                       f"so that each curve is sent as it ends") from None
                     raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
             if gone and not machine.node.released:
                 raise _host_left(machine, "during the run")
