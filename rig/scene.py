@@ -36,7 +36,8 @@ class Field:
     of a quantity (SI): ``minimum``/``maximum`` inclusive, ``below`` exclusive, ``positive`` excludes 0
     (:func:`read_table` checks it and names the value as the scene wrote it); ``says``: the range in the scene's
     words ("must be at least 0° and below 90°") instead of one in SI. ``integer``: a whole number (returned as an
-    int); ``plain``: a plain number is in ``unit`` (``bitrate = 500000`` bit/s, or ``"500 kbit/s"``)."""
+    int); ``plain``: a plain number is in ``unit`` (``bitrate = 500000`` bit/s, or ``"500 kbit/s"``); ``one_of``: the
+    values it may take (SI; ``says`` words them)."""
 
     unit: str | None = "1"
     default: Any = REQUIRED
@@ -48,6 +49,7 @@ class Field:
     says: str = ""
     integer: bool = False
     plain: bool = False
+    one_of: tuple[float, ...] = ()
 
     @property
     def required(self) -> bool:
@@ -57,7 +59,7 @@ class Field:
         """What ``value`` (SI) must be when it is outside the range ("must not be negative"), else None."""
         if not ((self.minimum is not None and value < self.minimum) or (self.maximum is not None and value > self.maximum)
                 or (self.positive and not value > 0.0) or (self.below is not None and not value < self.below)
-                or (self.integer and not float(value).is_integer())):
+                or (self.integer and not float(value).is_integer()) or (self.one_of and value not in self.one_of)):
             return None
         if self.says:
             return self.says

@@ -81,6 +81,7 @@ class AnalogTransducer(Transducer):
                 raise ValueError(f"{self.name}: filter_order must be 1 or 2, got {order}")
             self.filter = LowPass(params["bandwidth"], int(order), params["damping"])
         self.last_output = self.zero_output
+        self._measured = False              # no output yet: a fault "stuck" from the start holds the first one
 
     # --- nominal scaling -------------------------------------------------------------------------
     def nominal(self, q: np.ndarray | float) -> np.ndarray:
@@ -113,6 +114,7 @@ class AnalogTransducer(Transducer):
         s = self._faults(t, s)
         if s.size:
             self.last_output = float(s[-1])
+            self._measured = True
         return s
 
     def _element(self, t: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -129,7 +131,7 @@ class AnalogTransducer(Transducer):
             s = np.where(mask, 0.0, s)
         for mask, _ in self.faults.windows("stuck", t):
             first = int(np.argmax(mask))
-            held = self.last_output if first == 0 else s[first - 1]
+            held = s[first - 1] if first else self.last_output if self._measured else s[0]
             s = np.where(mask, held, s)
         return s
 

@@ -38,9 +38,10 @@ class Transducer:
         self.dynamics_enabled = bool(dynamics_enabled)
         self.faults = FaultSchedule(self.name, self.FAULTS)
 
-    def inject(self, fault: str, at: float = 0.0, until: float = math.inf, **params: Any) -> Fault:
-        """Schedule a fault (one of ``FAULTS``) active for ``at <= t < until`` [s]."""
-        return self.faults.inject(fault, at, until, **params)
+    def inject(self, fault: str, at: float = 0.0, until: float = math.inf, *, units_required: bool = False,
+               **params: Any) -> Fault:
+        """Schedule a fault (one of ``FAULTS``) active for ``at <= t < until`` [s] (:meth:`FaultSchedule.inject`)."""
+        return self.faults.inject(fault, at, until, units_required=units_required, **params)
 
     def _positive(self, key: str, unit: str) -> float:
         """The description value ``key`` (SI, ``unit`` for the message); ``ValueError`` unless it is > 0."""

@@ -48,8 +48,10 @@ class StrainGaugeBridge(AnalogTransducer):
         "open_bridge_output": Field("1", 0.5, "output with a broken bridge arm or cable (rails), V/V"),
     }
     FAULTS: ClassVar[dict[str, dict[str, Field]]] = {
-        "open_bridge": {"polarity": Field("1", 1.0, "sign of the rail (+1 or −1)")},
-        "excitation_loss": {"level": Field("1", 0.0, "remaining fraction of the excitation")},
+        "open_bridge": {"polarity": Field("1", 1.0, "sign of the rail (+1 or −1)", one_of=(1.0, -1.0),
+                                          says="must be +1 or -1")},
+        "excitation_loss": {"level": Field("1", 0.0, "remaining fraction of the excitation", minimum=0.0,
+                                           maximum=1.0)},
     }
 
     def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:

@@ -59,9 +59,10 @@ class IncrementalEncoder(Transducer):
                              "flicker, as a real encoder would"),
     }
     FAULTS: ClassVar[dict[str, dict[str, Field]]] = {
-        "missed_pulses": {"probability": Field("1", 0.01, "chance that a pulse of A or B is lost")},
-        "glitches": {"rate": Field("1/s", 100.0, "spurious pulses per second"),
-                     "width": Field("s", 1e-6, "duration of a spurious pulse")},
+        "missed_pulses": {"probability": Field("1", 0.01, "chance that a pulse of A or B is lost", minimum=0.0,
+                                               maximum=1.0)},
+        "glitches": {"rate": Field("1/s", 100.0, "spurious pulses per second", minimum=0.0),
+                     "width": Field("s", 1e-6, "duration of a spurious pulse", positive=True)},
     }
 
     def __init__(self, params: dict[str, Any], rng: np.random.Generator, **kw: Any) -> None:

@@ -29,10 +29,13 @@ class FaultSchedule:
         self.known = known
         self.faults: list[Fault] = []
 
-    def inject(self, kind: str, at: float = 0.0, until: float = math.inf, **params: Any) -> Fault:
-        """Schedule ``kind``; parameters are SI numbers or quantity strings (``width="3 us"``).
+    def inject(self, kind: str, at: float = 0.0, until: float = math.inf, *, units_required: bool = False,
+               **params: Any) -> Fault:
+        """Schedule ``kind``; parameters are SI numbers or quantity strings (``width="3 us"``; ``units_required``: a
+        bare number for a parameter with a unit is refused, as in a scene).
 
-        Unknown kinds or parameters and wrong units raise ``ValueError`` naming them.
+        Unknown kinds or parameters, wrong units and values outside a parameter's range (a probability of 2, a
+        negative rate, NaN) raise ``ValueError`` naming them.
         """
         if kind not in self.known:
             raise ValueError(f"{self.owner}: unknown fault {kind!r}; this transducer knows {sorted(self.known)}")
@@ -46,8 +49,19 @@ class FaultSchedule:
                              f"got at={at!r} s, until={until!r} s")
         values = {name: f.default for name, f in fields.items()}
         for name, v in params.items():
-            what = f"{self.owner}: fault {kind!r} parameter {name!r}"
-            values[name] = to_si(v, fields[name].unit, what=what) if isinstance(v, str) else float(v)
+            f, what = fields[name], f"{self.owner}: fault {kind!r} parameter {name!r}"
+            if isinstance(v, str):
+                value = to_si(v, f.unit, what=what)
+            elif isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ValueError(f"{what}: expected a number or a quantity, got {v!r}")
+            elif units_required and f.unit not in (None, "1"):
+                raise ValueError(f'{what}: {v!r} has no unit; write it with its unit, e.g. "{v} {f.unit}"')
+            else:
+                value = float(v)
+            problem = "must be a finite number" if not math.isfinite(value) else f.out_of_range(value)
+            if problem:
+                raise ValueError(f"{what} {problem}, got {v!r}")
+            values[name] = value
         fault = Fault(kind, float(at), float(until), values)
         self.faults.append(fault)
         return fault

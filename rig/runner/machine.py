@@ -43,15 +43,16 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
             sensor = load_transducer(spec.description, rngs[spec.name], **spec.overrides)
             for fault in spec.faults:
                 fault = dict(fault)
+                if "fault" not in fault:
+                    raise SceneError(f"{where}: a fault table needs 'fault', its kind (docs/transducers.md), got "
+                                     f"{sorted(fault)}")
                 kind = fault.pop("fault")
                 at = to_si(fault.pop("at", "0 s"), "s", what=f"{where} fault 'at'")
                 until = to_si(fault.pop("until", "inf s"), "s", what=f"{where} fault 'until'")
-                sensor.inject(kind, at=at, until=until, **fault)
-        except SceneError as exc:      # the description's own errors name its file; say which transducer
-            message = str(exc)
+                sensor.inject(kind, at=at, until=until, units_required=True, **fault)
+        except (SceneError, ValueError, KeyError, TypeError) as exc:   # the description's own errors name its file
+            message = str(exc)                                          # (and to_si's, this one): say it once
             raise SceneError(message if message.startswith(where) else f"{where}: {message}") from None
-        except (ValueError, KeyError, TypeError) as exc:
-            raise SceneError(f"{where}: {exc}") from None
         transducers[spec.name] = sensor
     device = DigiForce(cfg.device["description"], rng=rngs["device"])
     program = cfg.device["program"]

@@ -103,6 +103,25 @@ def test_wiring_errors_are_found_before_anything_is_written(tmp_path, capsys, ol
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("after, fault, message", [
+    ('to = "device.y"', '{ fault = "open_bridge", at = "1 s", polarity = 0 }', r"'polarity' must be \+1 or -1, got 0"),
+    ('to = "device.y"', '{ fault = "excitation_loss", at = "1 s", level = 2.0 }', r"'level' must be between 0 and 1"),
+    ('to = "device.y"', '{ fault = "excitation_loss", at = "1 s", level = inf }', r"'level' must be a finite number"),
+    ('to = "device.y"', '{ at = "1 s" }', r"a fault table needs 'fault', its kind"),
+    ('to = "can.Encoder1"', '{ fault = "glitches", at = "1 s", width = 3 }', r"'width': 3 has no unit"),
+    ('to = "can.Encoder1"', '{ fault = "glitches", at = "1 s", rate = "-5 1/s" }', r"'rate' must not be negative"),
+    ('to = "can.Encoder1"', '{ fault = "missed_pulses", at = "1 s", probability = 2.0 }', r"'probability' must be between"),
+    ('to = "can.Encoder1"', '{ fault = "missed_pulses", at = "1 s", probability = nan }', r"must be a finite number"),
+])
+def test_fault_parameters_are_checked_when_the_scene_is_read(tmp_path, after, fault, message):
+    """A probability of 2, NaN, a negative rate, a unit-less width (taken as 3 s), a polarity 0 (taken as +1): each
+    refused with the transducer's section before anything runs (they ran, or stopped mid-run naming no key)."""
+    path = edited(tmp_path, DEMO, after, f"{after}\nfaults = [{fault}]")
+    with pytest.raises(SceneError, match=r"\[transducers\.\w+\]: .*" + message):
+        from rig.runner.machine import instruments
+        instruments(read_config(load_scene(path)))
+
+
 HOLD = SCENES / "clutch_overload_hold.toml"
 
 

@@ -75,3 +75,14 @@ def test_stuck_output_fault_holds_the_value_at_onset_across_calls():
     held = s.nominal(10.0 * 0.2)
     np.testing.assert_allclose(y[3:], held)
     np.testing.assert_allclose(s.measure(np.array([1.0]), np.array([40.0])), held)
+
+
+def test_stuck_from_the_start_holds_the_first_reading_not_zero():
+    """A fault "stuck" with no onset time holds the output at its first sample (it held the zero output, so a stuck
+    torque meter read 0 N·m as on a lost supply)."""
+    s = load_transducer("torque_meter_50Nm", np.random.default_rng(0), errors_enabled=False, dynamics_enabled=False)
+    s.inject("stuck")
+    t = np.linspace(0.0, 0.5, 6)
+    y = s.measure(t, 10.0 + 10.0 * t)
+    np.testing.assert_allclose(y, s.nominal(10.0))
+    assert s.nominal(10.0) != s.nominal(0.0)
