@@ -154,12 +154,24 @@ def summarise(path: Path) -> RecordingSummary:
         return RecordingSummary(str(path), error=text.removeprefix(f"{path}: "))     # the row names the file
     verdicts = result["verdicts"]
     ok = sum(1 for v in verdicts if v["ok"])
-    meta = rec.metadata.get("rig", {})
+    meta = {**_scene_table(rec.scene_text), **rec.metadata.get("rig", {})}   # the metadata, else the scene's words
     return RecordingSummary(str(path), str(meta.get("scene", "")), str(meta.get("plant", "")), rec.complete,
                             len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]),
                             summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")),
                             incomplete=" ".join("; ".join(losses(rec)).split()), seed=str(meta.get("seed", "")),
                             started=str(meta.get("wall_clock_start", "")), machine=machine_of(rec.scene_text))
+
+
+def _scene_table(scene_text: str) -> dict[str, object]:
+    """The recorded scene's name, plant and seed ([scene]): what the run's metadata says, for a recording whose
+    metadata record was lost ({} without a scene that parses)."""
+    import tomllib
+    try:
+        table = tomllib.loads(scene_text).get("scene", {})
+    except (tomllib.TOMLDecodeError, TypeError, AttributeError):
+        return {}
+    return {("scene" if k == "name" else k): table[k] for k in ("name", "plant", "seed") if k in table} \
+        if isinstance(table, dict) else {}
 
 
 def summarise_all(paths: list[Path]) -> list[RecordingSummary]:

@@ -274,10 +274,14 @@ class _Collector:
             self.rec.series[topic] = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
         if self.can:
             self.rec.can_frames = _can(self.can)
-        start = _metadata_number(self.rec, S.RIG_METADATA, "wall_clock_start", "0", int)
         # a block's log time is its first sample's: its samples (and a CAN block's frames) reach further
         ends = [float(s["t"][-1]) for s in self.rec.series.values() if "t" in s and len(s["t"])]
-        self.rec.last_time = max([max(self.last_log_ns - start, 0) / 1e9, *ends, self.can_end])
+        ends += [float(c.t[-1]) for c in self.rec.curves if c.t is not None and len(c.t)]
+        ends += [float(e["t"]) for e in self.rec.events if isinstance(e.get("t"), (int, float))]
+        if "wall_clock_start" in self.rec.metadata.get(S.RIG_METADATA, {}):   # log times as simulation times
+            start = _metadata_number(self.rec, S.RIG_METADATA, "wall_clock_start", "0", int)
+            ends.append(max(self.last_log_ns - start, 0) / 1e9)
+        self.rec.last_time = max([*ends, self.can_end])
         return self.rec
 
 

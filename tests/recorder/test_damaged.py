@@ -291,3 +291,17 @@ def test_a_damaged_summary_is_named_not_read_as_a_whole_file(whole, tmp_path):
         read_recording(damaged)
     rec = read_recording(damaged, allow_partial=True)
     assert _numbers(rec) == list(range(1, CURVES + 1)) and not rec.complete and rec.data_whole
+
+
+def test_without_the_run_metadata_the_end_is_told_from_the_data_not_the_wall_clock(whole, tmp_path):
+    """The 'rig' metadata record (wall-clock start) damaged: log times cannot be told as simulation times, and the
+    data's end read as 1.7e9 s (the wall clock); it is the latest time the data itself carries."""
+    with open(whole, "rb") as f:
+        index = next(m for m in make_reader(f).get_summary().metadata_indexes if m.name == "rig")
+    raw = bytearray(whole.read_bytes())
+    raw[index.offset:index.offset + index.length] = bytes(index.length)
+    damaged = tmp_path / "no_rig.mcap"
+    damaged.write_bytes(bytes(raw))
+    rec = read_recording(damaged, allow_partial=True)
+    assert "wall_clock_start" not in rec.metadata.get("rig", {})
+    assert rec.last_time == pytest.approx(CURVES - 1 + 0.5)              # the last curve's last sample (s)
