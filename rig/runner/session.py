@@ -40,6 +40,10 @@ class RunError(RuntimeError):
     """A run could not complete (the machine did not produce what the scene asks for in time)."""
 
 
+class OutOfTime(RunError):
+    """The scene's cycles were not complete by its ``max_time`` of simulated time."""
+
+
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C during a recorded run. ``recording``: the file holding what was recorded (marked
     interrupted), or None when nothing had been recorded (no new file is left); ``kept``: then the earlier
@@ -103,7 +107,7 @@ def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fideli
 def _machine_done(cfg: RunConfig, machine: Machine) -> bool:
     if cfg.cycles is not None:
         if machine.t > cfg.max_time:
-            raise RunError(f"{cfg.scene.path}: only {machine.curves} of {cfg.cycles} curves by {machine.t:.3f} s "
+            raise OutOfTime(f"{cfg.scene.path}: only {machine.curves} of {cfg.cycles} curves by {machine.t:.3f} s "
                            f"of simulated time (max_time {cfg.max_time:g} s): check the device's start/stop settings")
         return machine.curves >= cfg.cycles
     return machine.t >= cfg.duration - 1e-9
@@ -386,7 +390,13 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             def gone() -> bool:                        # the host that started the run has left
                 return server.open_buses == 0
             with _progress(cfg, progress) as bar:
-                _drive(cfg, machine, lock, bar, lambda: None, gone)
+                try:
+                    _drive(cfg, machine, lock, bar, lambda: None, gone)
+                except OutOfTime as exc:    # e.g. a host driving a program started by command: end the run as usual
+                    log.warning("%s; the served run ends here: RunEnded sent, the links stay up until the host "
+                                "releases the device", exc)
+                    with lock:
+                        machine.flush()
             if machine.node.released and not _machine_done(cfg, machine):
                 log.warning("the host released the device after %d curves (%.3f s of device time), before the end "
                             "of the scene's run (%s): the run was cut short there", machine.curves, machine.t,

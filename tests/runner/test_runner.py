@@ -358,3 +358,18 @@ def test_events_are_recorded_in_time_order_the_same_in_one_process_and_across(tm
     kinds = {e["kind"] for e in events[0]}
     assert {"flank_bounce", "live_dropped"} <= kinds
     assert events[0] == events[1]
+
+
+def test_a_served_run_out_of_time_ends_with_run_ended_not_a_dropped_link(tmp_path: Path, serve_scene):
+    """A served scene whose cycles are not in by its max_time (a host driving a program started by command, or here
+    a max_time shorter than the cycles) ended the process and closed the links without RunEnded; it ends the run as
+    usual: RunEnded, the host records what came (run_short), Release ends `rig serve`."""
+    from rig.runner import record_scene
+    scene = _scene_variant(tmp_path, "short.toml", **{"cycles = 50": 'cycles = 5\nmax_time = "1 s"'})
+    with serve_scene(scene, tmp_path / "endpoints.json") as ep:
+        out = tmp_path / "short.mcap"
+        summary = record_scene(scene, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"],
+                               serial_port=ep["serial"], idle_timeout=60.0)
+    rec = read_recording(out)
+    assert 1 <= summary.curves < 5 and len(rec.curves) == summary.curves
+    assert [e["kind"] for e in rec.events].count("run_short") == 1
