@@ -372,7 +372,7 @@ class CanNode:
         start = int(round(ct[0] / T_START_LSB))
         self._enqueue("CurveHeader", {"CurveNo": number, "Count": cx.size, "Program": int(result.program) % 256,
                                       "TStartHigh": (start >> 24) & 0xFFFF}, t)
-        self._enqueue_curve_times(number, ct, start, t)
+        kt = self._enqueue_curve_times(number, ct, start, t)
         if self.timing.fd:
             blocks = -(-cx.size // FD_PAIRS)
             self._enqueue_rows("CurveBlockFD", {"CurveNo": np.full(blocks, number % 256), "Block": np.arange(blocks),
@@ -382,7 +382,7 @@ class CanNode:
             self._enqueue_rows("CurveBlock", {"CurveNo": np.full(cx.size, number % 16), "Block": np.arange(cx.size),
                                               "X": rx, "Y": ry}, np.full(cx.size, float(t)))
         self._enqueue("CurveEnd", {"CurveNo": number, "Count": cx.size, "Crc": curve_crc(rx, ry),
-                                   "Clipped": min(kx + ky, 255)}, t)
+                                   "Clipped": min(kx + ky + kt, 255)}, t)
         failed = [i for i, e in enumerate(result.elements) if not e.ok]
         self._enqueue("Result", {"CurveNo": number, "Ok": int(bool(result.ok)),
                                  "FirstFail": failed[0] if failed and failed[0] < NO_FAIL else NO_FAIL,
@@ -405,21 +405,24 @@ class CanNode:
                               f"wait at {t:.3f} s (the unit holds {self.tx_curves}), {self.backlog_time:.2f} s of frames "
                               "queued. Raise [links.can] bitrate, use CAN FD, lower the sample rate or sample by ΔX.")
 
-    def _enqueue_curve_times(self, number: int, ct: np.ndarray, start: int, t: float) -> None:
-        """CurveTiming (start in µs and uniform step), plus CurveTimes offsets if the sampling is not uniform."""
+    def _enqueue_curve_times(self, number: int, ct: np.ndarray, start: int, t: float) -> int:
+        """CurveTiming (start in µs and uniform step), plus CurveTimes offsets if the sampling is not uniform; the
+        number of offsets saturated (a non-uniform curve longer than the 20-bit field's 10.49 s)."""
         step = int(round((ct[-1] - ct[0]) / max(ct.size - 1, 1) / DT_LSB))
         grid = start * T_START_LSB + np.arange(ct.size) * step * DT_LSB
         uniform = ct.size > 1 and 0 < step < (1 << 24) and np.max(np.abs(ct - grid)) <= CURVE_TIME_TOL
         self._enqueue("CurveTiming", {"CurveNo": number % 256, "Dt": step if uniform else 0,
                                       "TStart": start % (1 << 24)}, t)
         if uniform:
-            return
+            return 0
         raw = np.rint((ct - start * T_START_LSB) / T_OFFSET_LSB)
-        self.clipped += int(np.count_nonzero((raw < 0) | (raw >= 1 << 20)))
+        saturated = int(np.count_nonzero((raw < 0) | (raw >= 1 << 20)))
+        self.clipped += saturated
         raw = np.clip(raw, 0, (1 << 20) - 1).astype(np.int64)
         pairs = np.append(raw, 0)[:2 * (-(-ct.size // 2))].reshape(-1, 2)
         self._enqueue_rows("CurveTimes", {"CurveNo": np.full(len(pairs), number % 16), "Block": np.arange(len(pairs)),
                                           "T0": pairs[:, 0], "T1": pairs[:, 1]}, np.full(len(pairs), float(t)))
+        return saturated
 
     def publish_reading(self, name: str, t: float | np.ndarray, values: dict[str, Any]) -> None:
         """Queue readings taken at times ``t`` (s) in frames of DBC message ``name``: ``values`` maps its signal

@@ -465,6 +465,8 @@ EVENT_MEANING = {
     "shutdown": "repeated disengagements: the stand switched the motor off",
     "method_switch": "the explicit integration method met stiffness (its steps limited by stability, not accuracy: "
                      "why); the run went on with the implicit method (to), as LSODA switches",
+    "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "
+                     "saturated: the recorded curve holds the limit there, not the measurement",
     "live_dropped": "live X/Y pairs the unit did not send because the CAN bus was full; live data only feeds "
                     "displays, curves and results wait in the queue and are never dropped",
     "device_identified": "the host identified the acquisition unit on the serial link",

@@ -231,6 +231,10 @@ class Host:
                 theory["angle"] = angle
             self.rec.write_curve(curve.number, curve.program, curve.t, curve.x, curve.y, theory=theory or None,
                                  angle=angle, complete=curve.complete, problems=list(curve.problems))
+            if curve.clipped:
+                self.add_event(float(curve.t[-1]), "curve_clipped", number=curve.number, pairs=int(curve.clipped),
+                               detail="values saturated to the CAN frame's range (or, sampled non-uniformly, times "
+                                      "past its 10.49 s): the unit's CurveEnd.Clipped (at most 255)")
             if result is not None:
                 self.rec.write_result(self._result_dict(result, curve.program, curve), t=float(curve.t[-1]))
             self._curves.pop(0)

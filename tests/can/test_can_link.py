@@ -492,3 +492,21 @@ def test_curve_numbers_count_on_past_the_16_bit_wrap(buses, device, rng, element
     assert [c.number for c in host.curves()] == [65535, 65536, 65537]
     assert [r.number for r in host.take_results()] == [65535, 65536, 65537]
     assert host.events == []
+
+
+def test_a_curve_longer_than_the_time_field_is_counted_as_clipped(buses, device, rng, elements):
+    """A non-uniformly sampled curve of 11 s: its CurveTimes offsets past 10.48575 s go out saturated; CurveEnd's
+    Clipped counts them (it counted only values: the host took the curve as whole, times up to 0.5 s off)."""
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)
+    host = CanHost(host_bus)
+    t = np.sort(rng.uniform(0.2, 11.2, 300))                  # non-uniform: the times go in CurveTimes
+    x, y = np.linspace(0.0, 0.04, t.size), np.zeros(t.size)
+    node.advance_to(11.3)
+    device.finish(t, x, y, elements[:1], {})
+    node.advance_to(11.3)
+    run(node, host, 12.0)
+    (curve,) = host.curves()
+    late = int(np.count_nonzero(t - t[0] > 10.48575 + 5e-6))
+    assert late > 0 and curve.clipped == late
+    np.testing.assert_allclose(curve.t[t - t[0] <= 10.48], t[t - t[0] <= 10.48], atol=6e-6)
