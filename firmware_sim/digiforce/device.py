@@ -6,7 +6,7 @@ import copy
 import math
 import time
 from collections import deque
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -85,17 +85,22 @@ class DigiForce:
         """Full, normalised configuration of program ``n`` (JSON-serialisable, SI numbers)."""
         return copy.deepcopy(self._programs[self._check_program(n)])
 
-    def set_program(self, n: int, config: dict[str, Any], units_required: bool = False) -> None:
+    def set_program(self, n: int, config: dict[str, Any], units_required: bool = False,
+                    fits: Callable[[dict[str, Any]], str | None] | None = None) -> None:
         """Change program ``n``: ``config`` is merged over its current settings (dicts key by key, lists
         replace) and validated as a whole; nothing changes if it is invalid. ``units_required``: ``config``
         was written by a person (a scene) and must give every quantity with its unit (a bare number is an
-        error naming its key); otherwise bare numbers are SI, as on the unit's interfaces."""
+        error naming its key); otherwise bare numbers are SI, as on the unit's interfaces. ``fits(program)``: why
+        the interface it came over could not give the validated program back (None: it can), refused then."""
         n = self._check_program(n)
         if not isinstance(config, dict):
             raise DigiForceError(f"set_program: config must be a dict, got {type(config).__name__}")
         if units_required:
             check_units(self._programs[n], config, self.desc, f"program {n}")
         new = validate_program(merge(self._programs[n], config), self.desc, f"program {n}")
+        why = fits(new) if fits is not None else None
+        if why:
+            raise DigiForceError(f"program {n}: {why}")
         elements = build_elements(new["elements"], _reason_format(new))
         if n == self.active_program:
             self._check_idle("set_program on the active program")

@@ -145,10 +145,15 @@ SWITCH_KEYS = ("input", "mode")
 
 
 def merge(base: Mapping[str, Any], update: Mapping[str, Any]) -> dict[str, Any]:
-    """``update`` over ``base``: dicts merge key by key, anything else (lists too) replaces. A dict that
-    switches ``input`` or ``mode`` to another value replaces the old one (its settings do not carry over)."""
+    """``update`` over ``base``: dicts merge key by key, anything else (lists too) replaces, null removes the key (as
+    a JSON merge patch, RFC 7386: ``"limits": {"x_max": null}`` removes that limit; a removed setting takes its
+    default). A dict that switches ``input`` or ``mode`` to another value replaces the old one (its settings do not
+    carry over)."""
     out = copy.deepcopy(dict(base))
     for key, value in update.items():
+        if value is None:
+            out.pop(key, None)
+            continue
         old = out.get(key)
         switched = isinstance(value, Mapping) and isinstance(old, Mapping) and any(
             k in value and value[k] != old.get(k) for k in SWITCH_KEYS)

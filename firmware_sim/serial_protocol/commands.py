@@ -164,7 +164,7 @@ class Commands:
             raise CommandError(SYNTAX, f"PW configuration is not valid JSON: {e}") from None
         if not isinstance(config, dict):
             raise CommandError(SYNTAX, f"PW configuration must be a JSON object, got {type(config).__name__}")
-        self._device.set_program(_int(number, "program number"), config)
+        self._device.set_program(_int(number, "program number"), config, fits=_readable)
 
     def _tare(self, data: str) -> None:
         self._device.tare(data or None)
@@ -200,3 +200,10 @@ class Commands:
         if result is None:
             raise CommandError(NO_DATA, "no result yet")
         return _json(result.to_dict(include_curve=False))     # the curve itself: CH/CB/CT
+
+
+def _readable(program: dict[str, Any]) -> str | None:
+    """Why ``PG`` could not return ``program`` (its JSON beyond a response's data field), else None: ``PW`` refuses it."""
+    size = len(_json(program))
+    return (f"the program's JSON would be {size} bytes, more than a PG response carries ({MAX_DATA - 2}): PG could "
+            f"not read it back") if size > MAX_DATA - 2 else None

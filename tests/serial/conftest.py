@@ -56,11 +56,14 @@ class FakeDigiForce:
         self._check(n)
         return copy.deepcopy(self.programs[n])
 
-    def set_program(self, n: int, cfg: dict[str, Any]) -> None:
+    def set_program(self, n: int, cfg: dict[str, Any], fits: Any = None) -> None:
         self._check(n)
         bad = sorted(set(cfg) - self.PROGRAM_KEYS)
         if bad:
             raise ValueError(f"program {n}: unknown keys {bad}")
+        why = fits(cfg) if fits is not None else None
+        if why:
+            raise ValueError(f"program {n}: {why}")
         self.programs[n] = copy.deepcopy(cfg)
 
     def tare(self, channel: str | None) -> None:

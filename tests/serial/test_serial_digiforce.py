@@ -104,3 +104,27 @@ def test_a_non_finite_token_in_pw_json_is_not_json(token) -> None:
     from firmware_sim.serial_protocol.commands import Commands
     answer = Commands(DigiForce(), None, threading.Lock()).execute("PW", f'3,{{"channels":{{"x":{{"cutoff":{token}}}}}}}')
     assert answer.startswith("02PW configuration is not valid JSON") and "no NaN or Infinity" in answer
+
+
+def test_pw_refuses_a_program_pg_could_not_read_back() -> None:
+    """A 65 kB program name fits a PW request but makes the program's JSON longer than a PG response carries: PW
+    accepted it and PG answered 09 until it was rewritten; PW refuses it (03) and the program stays as it was."""
+    from firmware_sim.serial_protocol.commands import MAX_DATA, Commands
+    unit = DigiForce()
+    commands = Commands(unit, None, threading.Lock())
+    before = commands.execute("PG", "3")
+    name = "a" * (MAX_DATA - 20)
+    answer = commands.execute("PW", f'3,{{"name":"{name}"}}')
+    assert answer.startswith("03") and "more than a PG response carries" in answer
+    assert commands.execute("PG", "3") == before
+    assert commands.execute("PW", '3,{"name":"short"}') == "00"
+
+
+def test_pw_null_removes_a_limit() -> None:
+    """PW merges as a JSON merge patch: a limit, once set, could not be removed (null and [null, null] refused, {}
+    changed nothing); null removes it."""
+    from firmware_sim.serial_protocol.commands import Commands
+    commands = Commands(DigiForce(), None, threading.Lock())
+    assert commands.execute("PW", '3,{"limits":{"x_max":[0.01,0.02],"y_min":[-1,1]}}') == "00"
+    assert commands.execute("PW", '3,{"limits":{"x_max":null}}') == "00"
+    assert json.loads(commands.execute("PG", "3")[2:])["limits"] == {"y_min": [-1.0, 1.0]}
