@@ -465,6 +465,8 @@ EVENT_MEANING = {
     "shutdown": "repeated disengagements: the stand switched the motor off",
     "method_switch": "the explicit integration method met stiffness (its steps limited by stability, not accuracy: "
                      "why); the run went on with the implicit method (to), as LSODA switches",
+    "input_overrange": "the acquisition unit's inputs saw samples beyond their measuring range and clipped them (the "
+                      "unit's own count, read over serial at the end): curves measured then hold the range's limit",
     "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "
                      "saturated: the recorded curve holds the limit there, not the measurement",
     "live_dropped": "live X/Y pairs the unit did not send because the CAN bus was full; live data only feeds "

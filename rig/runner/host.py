@@ -351,6 +351,12 @@ class Host:
         if self.serial is not None:
             stats = self.serial.read_statistics(self.program)
             self.rec.write_statistics(stats, t=end)
+            over = {ch: int(n) for ch, n in self.serial.status().get("adc_overflows", {}).items() if n}
+            if over:                           # the unit's inputs clipped: the curves hold its range's limit there
+                self.rec.write_event(end, "input_overrange", samples=over,
+                                     detail="input samples beyond the unit's measuring range, clipped to it (a "
+                                            "broken bridge, a sensor beyond its range): curves measured then hold the "
+                                            "limit, not the measurement")
             self.serial.close()
         self.rec.write_event(end, "link_summary", frames=self.frames, **{
             k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))})

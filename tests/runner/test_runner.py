@@ -373,3 +373,13 @@ def test_a_served_run_out_of_time_ends_with_run_ended_not_a_dropped_link(tmp_pat
     rec = read_recording(out)
     assert 1 <= summary.curves < 5 and len(rec.curves) == summary.curves
     assert [e["kind"] for e in rec.events].count("run_short") == 1
+
+
+def test_inputs_beyond_their_range_are_an_event(tmp_path: Path):
+    """A broken bridge rails the force input: the unit clips those samples to its range and counts them; the run
+    says so (an input_overrange event with the count per channel), and a sound run does not."""
+    scene = _scene_variant(tmp_path, "open.toml", **{'to = "device.y"': 'to = "device.y"\n'
+                                                                       'faults = [{ fault = "open_bridge", at = "0.5 s" }]'})
+    run_scene(scene, tmp_path / "open.mcap", cycles=2)
+    (over,) = [e for e in read_recording(tmp_path / "open.mcap").events if e["kind"] == "input_overrange"]
+    assert set(over["samples"]) == {"y"} and over["samples"]["y"] > 100
