@@ -465,6 +465,9 @@ EVENT_MEANING = {
     "shutdown": "repeated disengagements: the stand switched the motor off",
     "method_switch": "the explicit integration method met stiffness (its steps limited by stability, not accuracy: "
                      "why); the run went on with the implicit method (to), as LSODA switches",
+    "curves_in_one_cycle": "two curves began in one machine cycle (less than half a cam revolution apart): the unit's "
+                           "start/stop trigger fired twice (an X dropout, or chatter at a crawl); the run counts curves, "
+                           "so it then has fewer machine cycles than curves",
     "input_overrange": "the acquisition unit's inputs saw samples beyond their measuring range and clipped them (the "
                       "unit's own count, read over serial at the end): curves measured then hold the range's limit",
     "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "

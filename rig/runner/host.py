@@ -75,6 +75,7 @@ class Host:
         self._curves_done = 0
         self._beyond = 0                                # curves received after the requested ones (not recorded)
         self._plant_events = 0
+        self._last_start: tuple[int, float] | None = None   # (number, theory cam angle phi) of the last curve's start
         self._pending: list[tuple[float, int, int, str, dict[str, Any]]] = []   # events not yet written (_event)
         self._found = 0                                 # events found so far (their order within a source)
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
@@ -229,6 +230,7 @@ class Host:
             angle = self._truth_at(curve.t, "cam_angle")
             if angle is not None:
                 theory["angle"] = angle
+            self._one_per_cycle(curve)
             self.rec.write_curve(curve.number, curve.program, curve.t, curve.x, curve.y, theory=theory or None,
                                  angle=angle, complete=curve.complete, problems=list(curve.problems))
             if curve.clipped:
@@ -243,6 +245,21 @@ class Host:
         for number in sorted(self._orphans & set(self._results)):
             self.rec.write_result(self._result_dict(self._results.pop(number), self.program), t=self.truth_t)
             self._orphans.discard(number)
+
+    def _one_per_cycle(self, curve: Any) -> None:
+        """A curve that starts less than half a cam revolution after the one before (the theory's cam angle ``phi``,
+        when the scene keeps it) is a ``curves_in_one_cycle`` event: the unit's start/stop trigger fired twice in one
+        machine cycle (a dropout of the X input, or a trigger chattering on noise at a crawl), so the run's curves
+        are no longer its machine cycles."""
+        phi = self._truth_at(curve.t[:1], "phi")
+        if phi is None:
+            return
+        if self._last_start is not None and phi[0] - self._last_start[1] < math.pi:
+            self.add_event(float(curve.t[0]), "curves_in_one_cycle", numbers=[self._last_start[0], curve.number],
+                           cam_angle=float(phi[0] - self._last_start[1]),
+                           detail="this curve began less than half a cam revolution after the one before: the "
+                                  "unit's start/stop trigger fired twice in one machine cycle")
+        self._last_start = (curve.number, float(phi[0]))
 
     def _result_dict(self, result: Any, program: int, curve: Any | None = None) -> dict[str, Any]:
         """The ``/device/result`` message: the device's verdict (FailMask per element) with each failed

@@ -1,6 +1,7 @@
 """The rig runner end to end: scene → machine → links → host → MCAP, in one process and across processes."""
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -383,3 +384,14 @@ def test_inputs_beyond_their_range_are_an_event(tmp_path: Path):
     run_scene(scene, tmp_path / "open.mcap", cycles=2)
     (over,) = [e for e in read_recording(tmp_path / "open.mcap").events if e["kind"] == "input_overrange"]
     assert set(over["samples"]) == {"y"} and over["samples"]["y"] > 100
+
+
+def test_two_curves_in_one_machine_cycle_are_an_event(tmp_path: Path):
+    """A 10 ms supply loss of the LVDT in mid-stroke ends the curve and starts another in the same machine cycle: the
+    run counted it as a cycle without a word; a curves_in_one_cycle event names the two."""
+    scene = _scene_variant(tmp_path, "dropout.toml", **{
+        'signal = "s"': 'signal = "s"\nfaults = [{ fault = "supply_loss", at = "0.15 s", until = "0.16 s" }]'})
+    run_scene(scene, tmp_path / "dropout.mcap", cycles=3)
+    events = read_recording(tmp_path / "dropout.mcap").events
+    (split,) = [e for e in events if e["kind"] == "curves_in_one_cycle"]
+    assert split["numbers"] == [1, 2] and 0.0 < split["cam_angle"] < math.pi
