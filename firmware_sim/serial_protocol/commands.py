@@ -203,7 +203,8 @@ class Commands:
 
 
 def _readable(program: dict[str, Any]) -> str | None:
-    """Why ``PG`` could not return ``program`` (its JSON beyond a response's data field), else None: ``PW`` refuses it."""
+    """Why ``PG`` could not return ``program`` (its JSON beyond a response's data field), else None: ``PW`` refuses
+    it then."""
     size = len(_json(program))
     return (f"the program's JSON would be {size} bytes, more than a PG response carries ({MAX_DATA - 2}): PG could "
             f"not read it back") if size > MAX_DATA - 2 else None

@@ -76,7 +76,7 @@ class Host:
         self._beyond = 0                                # curves received after the requested ones (not recorded)
         self._plant_events = 0
         self._last_start: tuple[int, float] | None = None   # (number, theory cam angle phi) of the last curve's start
-        self._pending: list[tuple[float, int, int, str, dict[str, Any]]] = []   # events not yet written (_event)
+        self._pending: list[tuple[float, int, int, str, dict[str, Any]]] = []   # events not yet written (add_event)
         self._found = 0                                 # events found so far (their order within a source)
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
@@ -197,8 +197,8 @@ class Host:
             elif curve.complete and curve.t is not None:
                 self._curves.append(curve)
             else:
-                self.add_event(max(self.can.device_time, 0.0), "incomplete_curve", HOST, number=curve.number,
-                            problems=list(curve.problems))
+                self.add_event(max(self.can.device_time, 0.0), "incomplete_curve", number=curve.number,
+                               problems=list(curve.problems))
                 self._orphans.add(curve.number)
         for res in self.can.take_results():
             self._results[res.number] = res
@@ -217,9 +217,9 @@ class Host:
             if result is None:
                 if why_no_result is None and not any(n > curve.number for n in self._results):
                     break              # its result is still on the way
-                self.add_event(float(curve.t[-1]), "result_missing", HOST, number=curve.number,
-                            detail=why_no_result or "a later curve's result arrived first: this curve's "
-                                                    "Result frame was lost")
+                self.add_event(float(curve.t[-1]), "result_missing", number=curve.number,
+                               detail=why_no_result or "a later curve's result arrived first: this curve's "
+                                                       "Result frame was lost")
             self._advance_theory(float(curve.t[-1]))
             theory = {}
             for role in ("x", "y"):
@@ -268,7 +268,7 @@ class Host:
         out, mismatch = self._explainer().explain(result, curve)
         if mismatch is not None:
             when = float(curve.t[-1]) if curve is not None else self.truth_t
-            self.add_event(when, "verdict_mismatch", HOST, **mismatch)
+            self.add_event(when, "verdict_mismatch", **mismatch)
         msg = {"number": result.number, "program": program, "ok": bool(result.ok), "elements": out,
                "process_values": dict(result.process_values), "complete": bool(result.complete)}
         if result.missing:
@@ -300,9 +300,9 @@ class Host:
         self._record_curves(f"the curve arrived but its Result frame did not before {why}")
         self._record_link_events()
         if self._beyond:
-            self.add_event(max(self.can.device_time, 0.0), "not_recorded", HOST, curves=self._beyond,
-                        detail=f"the served machine sent {self._beyond} more curve(s) after the {self.cfg.cycles} "
-                               f"this host was asked to record (--cycles); they are in /can/raw only")
+            self.add_event(max(self.can.device_time, 0.0), "not_recorded", curves=self._beyond,
+                           detail=f"the served machine sent {self._beyond} more curve(s) after the {self.cfg.cycles} "
+                                  f"this host was asked to record (--cycles); they are in /can/raw only")
             self._beyond = 0
         self._write_events()
 

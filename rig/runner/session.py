@@ -63,8 +63,9 @@ class RunSummary:
     """What a run produced: ``wall_time`` (s) of the whole run, set-up (serial configuration, statistics
     read-back) included; ``run_time`` (s): its run phase, from the go signal to the last curve recorded;
     ``simulated_time`` (s): the simulated time the run phase covered (not the time the machine runs on while the
-    statistics are read back), ``flush_time`` (s) of it after the scene's end while the bus carried the last frames; ``compile_time`` (s): numba's one-time compilations inside the run phase (a first run
-    in a fresh cache), not counted in :attr:`realtime_factor`."""
+    statistics are read back), ``flush_time`` (s) of it after the scene's end while the bus carried the last frames;
+    ``compile_time`` (s): numba's one-time compilations inside the run phase (a first run in a fresh cache), not
+    counted in :attr:`realtime_factor`."""
 
     output: Path
     curves: int
