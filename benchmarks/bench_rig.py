@@ -103,7 +103,7 @@ def main() -> None:
         for k in (1, 2):
             wall, out = demo(tmp, k)
             walls.append(wall)
-            m = re.search(r"recorded (\d+) curves, ([\d.]+) s simulated in ([\d.]+) s \(([\d.]+)x real time; ([\d.]+) s",
+            m = re.search(r"recorded (\d+) curves, ([\d.]+) s simulated(?: \([^)]*\))? in ([\d.]+) s \(([\d.]+)x real time; ([\d.]+) s",
                           out)
             inner = (f"run phase {m[3]} s ({m[4]}x real time), run_scene with set-up {m[5]} s, "
                      f"the rest (start-up, cam-bar summary, analysis, report) {wall - float(m[5]):.2f} s"

@@ -18,7 +18,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RIG = Path(sys.executable).with_name("rig")
-LINE = re.compile(r"([\d.]+) s simulated in ([\d.]+) s \(([\d.]+)x real time")
+LINE = re.compile(r"([\d.]+) s simulated(?: \([^)]*\))? in ([\d.]+) s \(([\d.]+)x real time")
 TARGET = 10.0
 
 
