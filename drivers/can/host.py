@@ -131,8 +131,10 @@ class CanHost:
         self.drop_reports: list[dict[str, float]] = []   # not yet taken (see take_drop_reports)
         self._drops_reported, self._drops_at = 0, -float("inf")
         self.results: dict[int, CurveResult] = {}                # released results not yet taken
-        self.counters_log: list[tuple[str, float, int, float]] = []   # (message, received s, count, edge time s)
+        self.counters_log: list[tuple[str, float, int, float, int]] = []   # (message, received s, count, edge time s,
+        #                                                                        the card's illegal transitions)
         self._edges: dict[str, tuple[int, float]] = {}    # per counter: its last raw EdgeTime and that edge's time (s)
+        self._wraps: dict[tuple[str, str], tuple[int, int]] = {}   # per counter and field: last raw value, unwrapped
         self.readings: list[tuple[str, np.ndarray, dict[str, np.ndarray]]] = []   # blocks: (message, t s, {signal: DBC units})
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per run
@@ -555,9 +557,35 @@ class CanHost:
         return out
 
     def _counter(self, msg, spec, raw) -> None:
-        """A counter's latched count and last edge time (device time, unwrapped)."""
+        """A counter's latched count, last edge time (device time) and illegal transitions, unwrapped."""
         edge = self._edge_times(spec.name, np.array([raw["EdgeTime"]]), self._device_time)
-        self.counters_log.append((spec.name, msg.timestamp, raw["Count"], float(edge[0])))
+        count, illegal = self._counts(spec, {k: np.array([v]) for k, v in raw.items()})
+        self.counters_log.append((spec.name, msg.timestamp, int(count[0]), float(edge[0]), int(illegal[0])))
+
+    def _counts(self, spec, raw: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Counter ``spec``'s counts and illegal transitions (0 without that signal) of frames in arrival order,
+        each unwrapped where the DBC sends it unsigned, modulo its range: a count by a change between two readings
+        of less than half the range (24 bits: ±8.4 M counts), the first read as two's complement (a shaft turned
+        backwards from power-on); the card's error count, which only grows, by up to its whole range (255)."""
+        out = []
+        for key in ("Count", "Illegal"):
+            sig = next((s for s in spec.signals if s.name == key), None)
+            if sig is None:
+                out.append(np.zeros(len(raw["Count"]), dtype=np.int64))
+                continue
+            values = np.asarray(raw[key], dtype=np.int64)
+            if sig.is_signed:
+                out.append(values)
+                continue
+            m = 1 << sig.length
+            last_raw, last = self._wraps.get((spec.name, key), (int(values[0]), int(values[0]) - (
+                m if key == "Count" and values[0] >= m // 2 else 0)))
+            steps = np.diff(np.concatenate(([last_raw], values)))
+            steps = (steps + m // 2) % m - m // 2 if key == "Count" else steps % m
+            unwrapped = last + np.cumsum(steps)
+            self._wraps[(spec.name, key)] = (int(values[-1]), int(unwrapped[-1]))
+            out.append(unwrapped)
+        return out[0], out[1]
 
     def _edge_times(self, name: str, raw: np.ndarray, reference: float | np.ndarray) -> np.ndarray:
         """The device times (s) of counter ``name``'s raw 24-bit ``EdgeTime`` values (µs; in arrival order), against
@@ -574,7 +602,7 @@ class CanHost:
         return out
 
     def _counter_rows(self, name: str, raw: dict[str, np.ndarray], index: np.ndarray,
-                      times: np.ndarray) -> list[tuple[str, float, int, float]]:
+                      times: np.ndarray) -> list[tuple[str, float, int, float, int]]:
         """The rows :meth:`_counter` adds for the bulk counter frames ``index`` of message ``name`` (``times``: the
         block's time stamps, s), each edge time unwrapped against the device time as the run's Tick-stamped frames
         before it left it (``_run_clock``)."""
@@ -586,7 +614,8 @@ class CanHost:
             k = np.searchsorted(ticked, index)          # Tick-stamped frames of the run before each counter frame
             reference = np.where(k > 0, after[np.maximum(k - 1, 0)], self._run_device_time)
         edge = self._edge_times(name, raw["EdgeTime"], reference)
-        return list(zip(itertools.repeat(name), times[index].tolist(), raw["Count"].tolist(), edge.tolist()))
+        count, illegal = self._counts(self.db.get_message_by_name(name), raw)
+        return list(zip(itertools.repeat(name), times[index].tolist(), count.tolist(), edge.tolist(), illegal.tolist()))
 
     def _reading(self, msg, spec, raw) -> None:
         """Readings in the DBC's units at their Tick (device time; the frame's time without one)."""
@@ -603,7 +632,7 @@ class CanHost:
 
     def take_readings(self) -> dict[str, Any]:
         """Readings received since the last call, and forgets them: ``counters`` (rows: message, received s, count,
-        edge time s) and ``readings`` ({message: (t s, {signal: values in the DBC's unit})}, in arrival order)."""
+        edge time s, the card's illegal transitions since power-on; counts unwrapped) and ``readings`` ({message: (t s, {signal: values in the DBC's unit})}, in arrival order)."""
         blocks: dict[str, list] = {}
         for name, t, values in self.readings:
             blocks.setdefault(name, []).append((t, values))

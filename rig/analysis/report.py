@@ -468,6 +468,9 @@ EVENT_MEANING = {
     "curves_in_one_cycle": "two curves began in one machine cycle (less than half a cam revolution apart): the unit's "
                            "start/stop trigger fired twice (an X dropout, or chatter at a crawl); the run counts curves, "
                            "so it then has fewer machine cycles than curves",
+    "encoder_illegal": "a counter card first counted illegal transitions (both encoder channels changed at once: a "
+                       "glitch, or edges faster than it follows); it kept its count, which from there may be off the "
+                       "shaft (the run's totals are in link_summary)",
     "input_overrange": "the acquisition unit's inputs saw samples beyond their measuring range and clipped them (the "
                       "unit's own count, read over serial at the end): curves measured then hold the range's limit",
     "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "

@@ -76,6 +76,7 @@ class Host:
         self._beyond = 0                                # curves received after the requested ones (not recorded)
         self._plant_events = 0
         self._last_start: tuple[int, float] | None = None   # (number, theory cam angle phi) of the last curve's start
+        self._illegal: dict[str, int] = {}              # counter message -> its card's illegal transitions (> 0)
         self._pending: list[tuple[float, int, int, str, dict[str, Any]]] = []   # events not yet written (add_event)
         self._found = 0                                 # events found so far (their order within a source)
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
@@ -147,15 +148,31 @@ class Host:
         for message, rad_per_count in self._rad_per_count.items():
             rows = by_message.get(message)
             if rows:
-                t, count, edge = (np.array(c, dtype=float) for c in list(zip(*rows))[1:])
+                t, count, edge, illegal = (np.array(c, dtype=float) for c in list(zip(*rows))[1:])
                 speed = self._speed[message].update(t, count.astype(np.int64), edge)
                 self.rec.write_block(stand_topic(message), t, {
                     "count": count, "edge_time": edge, "angle": count * rad_per_count, "speed": speed.speed,
-                    "speed_time": speed.time, "speed_method": speed.method.astype(float)})
+                    "speed_time": speed.time, "speed_method": speed.method.astype(float), "illegal": illegal})
+                self._illegal_transitions(message, t, illegal)
         for message, signals in self._readings.items():
             if message in new["readings"]:
                 t, values = new["readings"][message]
                 self.rec.write_block(stand_topic(message), t, {snake(name): values[name] for name in signals})
+
+    def _illegal_transitions(self, message: str, t: np.ndarray, illegal: np.ndarray) -> None:
+        """The first reading of ``message`` whose counter card counted illegal transitions (glitches, edges faster
+        than the card follows) is an ``encoder_illegal`` event: from there its count may be off the shaft."""
+        if not illegal.size or illegal[-1] <= 0:
+            return
+        said = message in self._illegal
+        self._illegal[message] = int(illegal[-1])
+        if said:
+            return
+        k = int(np.argmax(illegal > 0))
+        self.add_event(float(t[k]), "encoder_illegal", LINK, message=message, transitions=int(illegal[k]),
+                       detail="the counter card saw illegal transitions (both channels changed at once: a glitch, "
+                              "or edges faster than it follows) and kept its count: from here the count may be off "
+                              "the shaft (the run's total in link_summary)")
 
     def _advance_theory(self, until: float) -> None:
         """Run the theory model on the machine's sample grid, in fixed blocks, until it covers ``until`` (s);
@@ -376,7 +393,8 @@ class Host:
                                             "limit, not the measurement")
             self.serial.close()
         self.rec.write_event(end, "link_summary", frames=self.frames, **{
-            k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))})
+            k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))},
+            **({"illegal_transitions": dict(self._illegal)} if self._illegal else {}))
         self.can.send_command("release")
         self._record_sent()
         return stats

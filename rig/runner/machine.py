@@ -197,7 +197,9 @@ class Machine:
         EdgeTime, any other its reading scaled back to its quantity (SI) with the nominal sensitivity, as the
         instrument's display does."""
         if spec.frame_signal is None:
-            return {"Count": output.count[idx], "EdgeTime": np.nan_to_num(output.edge_time[idx])}
+            illegal = getattr(output, "illegal", None)
+            return {"Count": output.count[idx], "EdgeTime": np.nan_to_num(output.edge_time[idx]),
+                    "Illegal": np.zeros(len(idx)) if illegal is None else illegal[idx]}
         reading = self.transducers[spec.name].to_physical(output[idx])
         return {spec.frame_signal: np.ravel(reading)}
 

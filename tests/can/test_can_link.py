@@ -510,3 +510,21 @@ def test_a_curve_longer_than_the_time_field_is_counted_as_clipped(buses, device,
     late = int(np.count_nonzero(t - t[0] > 10.48575 + 5e-6))
     assert late > 0 and curve.clipped == late
     np.testing.assert_allclose(curve.t[t - t[0] <= 10.48], t[t - t[0] <= 10.48], atol=6e-6)
+
+
+def test_encoder_counts_unwrap_past_24_bits_and_carry_the_cards_illegal_transitions(buses, device):
+    """Count is 24 bits on the wire (room for the card's 8-bit illegal-transition count): the host unwraps it by the
+    change from the reading before — through 2^24 and through negative counts — and the illegal count likewise."""
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=500_000, heartbeat_period=0.1)
+    host = CanHost(host_bus)
+    counts = [-5, 1_000, 8_000_000, 16_000_000, 16_777_300, 17_000_000, 25_000_000]   # 2^24 = 16 777 216
+    illegal = [0, 0, 3, 200, 255, 256, 300]
+    for k, (c, n) in enumerate(zip(counts, illegal)):
+        t = 0.1 * (k + 1)
+        node.advance_to(t)
+        node.publish_reading("Encoder1", t, {"Count": c, "Illegal": n, "EdgeTime": t})
+        node.advance_to(t + 0.01)
+        host.poll()
+    rows = host.take_readings()["counters"]
+    assert [r[2] for r in rows] == counts and [r[4] for r in rows] == illegal

@@ -201,7 +201,8 @@ def test_counter_frames_in_a_live_run_unwrap_as_frame_by_frame(make_host, fd) ->
     for k in range(12):
         t += 0.01
         if k % 3 == 2:
-            data = layout["Encoder1"].encode({"Seq": k, "Count": 100 * k, "EdgeTime": round(k * 3.19e6) % 2 ** 24},
+            data = layout["Encoder1"].encode({"Seq": k, "Count": 100 * k, "Illegal": 0,
+                                              "EdgeTime": round(k * 3.19e6) % 2 ** 24},
                                              scaling=False)
             msgs.append(can.Message(timestamp=t, arbitration_id=layout["Encoder1"].frame_id, data=data,
                                     is_extended_id=False))

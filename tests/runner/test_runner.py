@@ -395,3 +395,21 @@ def test_two_curves_in_one_machine_cycle_are_an_event(tmp_path: Path):
     events = read_recording(tmp_path / "dropout.mcap").events
     (split,) = [e for e in events if e["kind"] == "curves_in_one_cycle"]
     assert split["numbers"] == [1, 2] and 0.0 < split["cam_angle"] < math.pi
+
+
+def test_an_encoders_illegal_transitions_reach_the_recording(tmp_path: Path):
+    """Glitches on the cam encoder: the counter card counts illegal transitions; they come over CAN with the count,
+    are recorded in /stand/encoder1, the first is an encoder_illegal event and the total is in link_summary (the
+    frames had no room for them: nothing said the count had gone off)."""
+    scene = _scene_variant(tmp_path, "glitch.toml", **{'rate = "100 Hz"': 'rate = "100 Hz"\nfaults = [{ fault = '
+                                                       '"glitches", at = "0.5 s", until = "0.8 s", rate = "2 kHz", '
+                                                       'width = "2 us" }]'})
+    run_scene(scene, tmp_path / "glitch.mcap", cycles=3)
+    rec = read_recording(tmp_path / "glitch.mcap")
+    illegal = rec.series["/stand/encoder1"]["illegal"]
+    t = rec.series["/stand/encoder1"]["t"]
+    (first,) = [e for e in rec.events if e["kind"] == "encoder_illegal"]
+    (summary,) = [e for e in rec.events if e["kind"] == "link_summary"]
+    assert np.all(illegal[t < 0.5] == 0) and illegal[-1] > 0 and np.all(np.diff(illegal) >= 0)
+    assert 0.5 <= first["t"] <= 0.82 and first["message"] == "Encoder1"
+    assert summary["illegal_transitions"] == {"Encoder1": int(illegal[-1])}
