@@ -8,7 +8,8 @@ INFO, WARNING, ERROR = 2, 3, 4          # foxglove.LogLevel values
 #: event kinds that say something went wrong on the link, in the data or the machine (else INFO)
 WARNING_KINDS = frozenset({"sequence_gap", "unknown_frame", "bad_length", "decode_error", "error_frame", "curve",
                            "result", "incomplete_curve", "result_missing", "live_dropped", "shutdown",
-                           "run_short"})
+                           "run_short", "curve_clipped", "input_overrange", "encoder_illegal", "curves_in_one_cycle",
+                           "not_recorded", "verdict_mismatch"})
 ERROR_KINDS = frozenset({"interrupted"})
 
 

@@ -218,6 +218,7 @@ class DataSectionReader:
             self.index_only.update((found[1].summary_start - data_end.count, len(MCAP_MAGIC)))
             self.offsets = sorted(self.names)
             collector.channels.update((i, c.topic) for i, c in self.summary.channels.items())
+        self.summary_damaged = summary_damage is not None   # named: the summary's records are not read as a cut
         if summary_damage is not None:
             self._problem(summary_damage)
 
@@ -381,6 +382,9 @@ class DataSectionReader:
                 self.footer = self.footer or isinstance(record, Footer)
                 whole = f.tell()
         except Exception as exc:  # any failure after the data end: nothing of the run is lost
+            if self.summary_damaged:                  # the footer read and pointed at a summary that does not
+                self.footer = True
+                return
             if self.footer and isinstance(exc, InvalidMagic):
                 self._problem("the closing magic after the footer is damaged: every record was read")
             elif isinstance(exc, EndOfFile) or f.tell() >= self.size > whole:

@@ -16,7 +16,7 @@ import math
 import platform
 import time
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
 import can
 import mcap
@@ -141,6 +141,7 @@ class Recorder:
         self._event_ns = 0                          # ns: the latest event's log time (less the wall-clock start)
         self._data_end = 0.0                       # latest sample time written in any block, curve or frame (s)
         self._closed = False
+        self.held: list[Callable[[], None]] = []    # called first on close: producers write what they still hold
         meta = {"software_version": rig.__version__, "mcap_version": mcap.__version__,
                 "python": platform.python_version(), "encoding": encoding,
                 "time": "log time = wall_clock_start + simulation time, ns; messages carry simulation time t, s",
@@ -173,6 +174,8 @@ class Recorder:
         if self._closed:
             return
         try:
+            for hold in self.held:           # what a producer holds back (a host's events not yet in time order)
+                hold()
             for topic in list(self._blocks):
                 self._flush(topic, final=True)
             self._flush_can(final=True)

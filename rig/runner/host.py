@@ -79,6 +79,9 @@ class Host:
         self._illegal: dict[str, int] = {}              # counter message -> its card's illegal transitions (> 0)
         self._pending: list[tuple[float, int, int, str, dict[str, Any]]] = []   # events not yet written (add_event)
         self._found = 0                                 # events found so far (their order within a source)
+        self._seen_start = 0.0                          # start (s) of the last curve received (curves come in order)
+        self._closed = False                            # the reception was closed (_close_reception)
+        recorder.held.append(self._write_events)       # a run that stops on any error still writes what was found
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
         self.frames = 0
@@ -134,7 +137,18 @@ class Host:
             self._advance_theory(min(self.can.device_time, self.cfg.duration))
         self._record_curves()
         self._record_link_events()
-        self._write_events(min(self.can.device_time, self.truth_t))
+        self._write_events(self._settled())
+
+    def _settled(self) -> float:
+        """Device time (s) up to which every event is found: the frames and the theory have passed it, and, where
+        curves come, no curve still to be recorded began before it (the host's events of a curve — a result missing,
+        values clipped, two curves in one cycle — are found when the curve is recorded, at its times): the first
+        curve waiting for its result, else the last curve received (the next one, in transfer or queued on the unit,
+        began after it)."""
+        upto = min(self.can.device_time, self.truth_t)
+        if self._curves_come:
+            upto = min(upto, float(self._curves[0].t[0]) if self._curves else self._seen_start)
+        return upto
 
     def _record_stand(self) -> None:
         """The reading messages the scene wires, as bulk blocks on ``/stand/<message>`` (:func:`stand_topic`):
@@ -209,6 +223,8 @@ class Host:
         """Take the finished curves and released results from the driver: complete curves wait for their
         result; an incomplete curve becomes an event (its result is still recorded)."""
         for curve in self.can.take_curves():
+            if curve.t is not None and len(curve.t):
+                self._seen_start = float(curve.t[0])
             if not self._wanted(len(self._curves)):
                 self._beyond += 1              # a served run longer than this host's --cycles: not recorded
             elif curve.complete and curve.t is not None:
@@ -311,7 +327,10 @@ class Host:
         """Everything received so far into the recording (``why``: what ends the reception): a curve cut in
         transfer as an ``incomplete_curve`` event, curves whose result did not come without it, the last live-drop
         report, and the curves of a longer served run beyond this host's ``--cycles`` as one ``not_recorded``
-        event."""
+        event; every event found. Once: later calls do nothing."""
+        if self._closed:
+            return
+        self._closed = True
         self.can.flush(why)
         self._collect()
         self._record_curves(f"the curve arrived but its Result frame did not before {why}")

@@ -78,10 +78,11 @@ _PROBED: dict[tuple, list[str]] = {}   # the truth signals a probe found, by sce
 def _in_scene_words(message: str, program: int) -> str:
     """The unit's error about ``program`` ("program 1.limits.y_min: …") where the scene wrote it: "[device.config.limits]
     key 'y_min': …" (a deeper or indexed path under "[device.config]"; another message under "[device]")."""
-    m = re.match(rf"program {program}(?:\.([\w.\[\]]+))?((?: \([^)]*\))?): (.*)", message, re.DOTALL)
+    m = re.match(rf"program {program}(?:\.([\w.\[\]]+))?((?: \([^)]*\))?(?:\.[\w.\[\]]+)?): (.*)", message,
+                 re.DOTALL)
     if m is None:
         return f"[device]: {message}"
-    path, which, text = m.groups()                   # which: " (lower)" of a limit pair, or ""
+    path, which, text = m.groups()                   # which: " (lower)" of a limit pair, " (window 'W1').x_min", ""
     if path is None:
         return f"[device.config]: {text}"
     listed = re.match(r"(\w+)\[(\d+)\](.*)", path)          # elements[0]: the scene's first [[device.config.elements]]

@@ -335,6 +335,7 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 run_time, simulated = time.perf_counter() - go, machine.t     # the run phase (no read-back)
                 compiled = compile_seconds() - compiled
                 if not host.done():
+                    _keep_received(host, drain=False, why="the run's stop on an error")     # the events it names
                     raise RunError(f"the host received only {host.curves_recorded} complete curves of "
                                    f"{machine.curves} measured (see /events in {output})")
                 _finishing(bar, cfg, machine.t)

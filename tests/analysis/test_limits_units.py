@@ -130,3 +130,7 @@ def test_an_element_error_is_named_as_the_scene_counts_its_elements(tmp_path):
     with pytest.raises(SceneError, match=r"\[\[device.config.elements\]\] no. 1 \(window 'insertion'\): y_min \"-35 N\" "
                                          r"must be below y_max \"-40 N\""):
         run_scene(scene, tmp_path / "element.mcap", cycles=1)
+    scene.write_text(text.replace('x_min = "36 mm"', 'x_min = "36 N"', 1), encoding="utf-8")
+    with pytest.raises(SceneError, match=r"\[\[device.config.elements\]\] no. 1 \(window 'insertion'\).x_min: '36 N' has "
+                                         r"the wrong dimension"):
+        run_scene(scene, tmp_path / "element.mcap", cycles=1)

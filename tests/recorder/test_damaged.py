@@ -291,6 +291,12 @@ def test_a_damaged_summary_is_named_not_read_as_a_whole_file(whole, tmp_path):
         read_recording(damaged)
     rec = read_recording(damaged, allow_partial=True)
     assert _numbers(rec) == list(range(1, CURVES + 1)) and not rec.complete and rec.data_whole
+    for at in range(start + 1, len(raw) - 8 - 29, 97):     # wherever in the summary: damaged, never "cut"
+        rec = read_recording(tmp_path / "summary.mcap" if damaged.write_bytes(_flip(raw, at)) else damaged,
+                             allow_partial=True)
+        assert _numbers(rec) == list(range(1, CURVES + 1))
+        assert any("summary section" in p for p in rec.problems), (at, rec.problems)
+        assert not any("not closed" in p for p in rec.problems), (at, rec.problems)
 
 
 def test_without_the_run_metadata_the_end_is_told_from_the_data_not_the_wall_clock(whole, tmp_path):

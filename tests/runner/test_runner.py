@@ -389,12 +389,22 @@ def test_inputs_beyond_their_range_are_an_event(tmp_path: Path):
 def test_two_curves_in_one_machine_cycle_are_an_event(tmp_path: Path):
     """A 10 ms supply loss of the LVDT in mid-stroke ends the curve and starts another in the same machine cycle: the
     run counted it as a cycle without a word; a curves_in_one_cycle event names the two."""
+    import json
+
+    from mcap.reader import make_reader
     scene = _scene_variant(tmp_path, "dropout.toml", **{
-        'signal = "s"': 'signal = "s"\nfaults = [{ fault = "supply_loss", at = "0.15 s", until = "0.16 s" }]'})
-    run_scene(scene, tmp_path / "dropout.mcap", cycles=3)
+        'signal = "s"': 'signal = "s"\nfaults = [{ fault = "supply_loss", at = "0.15 s", until = "0.16 s" }, '
+                        '{ fault = "supply_loss", at = "0.95 s", until = "0.96 s" }]'})
+    run_scene(scene, tmp_path / "dropout.mcap", cycles=5)
     events = read_recording(tmp_path / "dropout.mcap").events
-    (split,) = [e for e in events if e["kind"] == "curves_in_one_cycle"]
-    assert split["numbers"] == [1, 2] and 0.0 < split["cam_angle"] < math.pi
+    first, second = [e for e in events if e["kind"] == "curves_in_one_cycle"]
+    assert first["numbers"] == [1, 2] and 0.0 < first["cam_angle"] < math.pi and second["numbers"] == [4, 5]
+    # found when its curve is recorded, after a later live drop was: still written in time order, at its own time
+    with open(tmp_path / "dropout.mcap", "rb") as f:
+        rows = [(m.log_time, json.loads(m.data)) for _, _, m in make_reader(f).iter_messages(topics=["/events"])]
+    start = rows[0][0] - round(rows[0][1]["t"] * 1e9)
+    assert [e["t"] for _, e in rows] == sorted(e["t"] for _, e in rows)
+    assert all(abs(log - start - e["t"] * 1e9) < 2 for log, e in rows)
 
 
 def test_an_encoders_illegal_transitions_reach_the_recording(tmp_path: Path):
@@ -413,3 +423,31 @@ def test_an_encoders_illegal_transitions_reach_the_recording(tmp_path: Path):
     assert np.all(illegal[t < 0.5] == 0) and illegal[-1] > 0 and np.all(np.diff(illegal) >= 0)
     assert 0.5 <= first["t"] <= 0.82 and first["message"] == "Encoder1"
     assert summary["illegal_transitions"] == {"Encoder1": int(illegal[-1])}
+
+
+def test_a_run_stopped_for_a_lost_curve_keeps_the_events_that_say_why(tmp_path: Path, monkeypatch):
+    """A curve frame lost on the wire: the run stops with "the host received only 2 complete curves of 3 (see
+    /events)"; the events it points to (the sequence gap, the incomplete curve) are in the file, in time order —
+    not held back by the host's ordering of events when the run stopped."""
+    import rig.runner.host as host_module
+    from rig.blockbus import FrameBlock
+    from rig.runner.session import RunError
+    drain, seen = host_module.drain_block, {"headers": 0, "dropped": False}
+
+    def lossy(bus, timeout=0.0):
+        block = drain(bus, timeout)
+        keep = np.ones(len(block), bool)
+        for i, frame_id in enumerate(block.arbitration_id):
+            seen["headers"] += frame_id == 0x300
+            if seen["headers"] == 3 and frame_id == 0x302 and not seen["dropped"]:
+                keep[i], seen["dropped"] = False, True
+        return FrameBlock(block.timestamp[keep], block.arbitration_id[keep], block.dlc[keep], block.data[keep],
+                          block.flags[keep])
+
+    monkeypatch.setattr(host_module, "drain_block", lossy)
+    with pytest.raises(RunError, match="received only 2 complete curves of 3"):
+        run_scene(SCENE, tmp_path / "lossy.mcap", cycles=3)
+    events = read_recording(tmp_path / "lossy.mcap").events
+    kinds = [e["kind"] for e in events]
+    assert {"sequence_gap", "incomplete_curve"} <= set(kinds) and kinds[-1] == "interrupted"
+    assert [e["t"] for e in events] == sorted(e["t"] for e in events)
