@@ -563,10 +563,10 @@ class CanHost:
         self.counters_log.append((spec.name, msg.timestamp, int(count[0]), float(edge[0]), int(illegal[0])))
 
     def _counts(self, spec, raw: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Counter ``spec``'s counts and illegal transitions (0 without that signal) of frames in arrival order,
-        each unwrapped where the DBC sends it unsigned, modulo its range: a count by a change between two readings
-        of less than half the range (24 bits: ±8.4 M counts), the first read as two's complement (a shaft turned
-        backwards from power-on); the card's error count, which only grows, by up to its whole range (255)."""
+        """Counter ``spec``'s counts and illegal transitions (0 without that signal; the card's count as sent: it
+        saturates at the field's maximum) of frames in arrival order; a count the DBC sends unsigned is unwrapped,
+        modulo its range, by a change between two readings of less than half the range (24 bits: ±8.4 M counts), the
+        first read as two's complement (the count is 0 at power-on; a shaft turned backwards reads below it)."""
         out = []
         for key in ("Count", "Illegal"):
             sig = next((s for s in spec.signals if s.name == key), None)
@@ -574,14 +574,13 @@ class CanHost:
                 out.append(np.zeros(len(raw["Count"]), dtype=np.int64))
                 continue
             values = np.asarray(raw[key], dtype=np.int64)
-            if sig.is_signed:
+            if sig.is_signed or key == "Illegal":
                 out.append(values)
                 continue
             m = 1 << sig.length
             last_raw, last = self._wraps.get((spec.name, key), (int(values[0]), int(values[0]) - (
-                m if key == "Count" and values[0] >= m // 2 else 0)))
-            steps = np.diff(np.concatenate(([last_raw], values)))
-            steps = (steps + m // 2) % m - m // 2 if key == "Count" else steps % m
+                m if values[0] >= m // 2 else 0)))
+            steps = (np.diff(np.concatenate(([last_raw], values))) + m // 2) % m - m // 2
             unwrapped = last + np.cumsum(steps)
             self._wraps[(spec.name, key)] = (int(values[-1]), int(unwrapped[-1]))
             out.append(unwrapped)

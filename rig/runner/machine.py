@@ -23,6 +23,7 @@ from rig.scene import SceneError
 from rig.units import to_si
 
 log = logging.getLogger(__name__)
+ILLEGAL_MAX = 255   # the Encoder frames' 8-bit Illegal field saturates there (a wrap could hide any number of them)
 
 
 def seeded_generators(seed: int, names: list[str]) -> dict[str, np.random.Generator]:
@@ -199,8 +200,8 @@ class Machine:
         instrument's display does."""
         if spec.frame_signal is None:
             illegal = getattr(output, "illegal", None)
-            return {"Count": output.count[idx], "EdgeTime": np.nan_to_num(output.edge_time[idx]),
-                    "Illegal": np.zeros(len(idx)) if illegal is None else illegal[idx]}
+            return {"Count": output.count[idx], "EdgeTime": np.nan_to_num(output.edge_time[idx]),   # Illegal saturates
+                    "Illegal": np.zeros(len(idx)) if illegal is None else np.minimum(illegal[idx], ILLEGAL_MAX)}
         reading = self.transducers[spec.name].to_physical(output[idx])
         return {spec.frame_signal: np.ravel(reading)}
 

@@ -422,7 +422,13 @@ def test_an_encoders_illegal_transitions_reach_the_recording(tmp_path: Path):
     (summary,) = [e for e in rec.events if e["kind"] == "link_summary"]
     assert np.all(illegal[t < 0.5] == 0) and illegal[-1] > 0 and np.all(np.diff(illegal) >= 0)
     assert 0.5 <= first["t"] <= 0.82 and first["message"] == "Encoder1"
-    assert summary["illegal_transitions"] == {"Encoder1": int(illegal[-1])}
+    assert summary["illegal_transitions"] == {"Encoder1": int(illegal[-1])} and "illegal_saturated" not in summary
+    storm = _scene_variant(tmp_path, "storm.toml", **{'rate = "100 Hz"': 'rate = "10 Hz"\nfaults = [{ fault = '
+                                                      '"glitches", at = "0.5 s", until = "1.5 s", rate = "200 kHz", '
+                                                      'width = "0.1 us" }]'})
+    run_scene(storm, tmp_path / "storm.mcap", cycles=3)          # thousands between readings: the field saturates
+    (summary,) = [e for e in read_recording(tmp_path / "storm.mcap").events if e["kind"] == "link_summary"]
+    assert summary["illegal_transitions"] == {"Encoder1": 255} and summary["illegal_saturated"] == ["Encoder1"]
 
 
 def test_a_run_stopped_for_a_lost_curve_keeps_the_events_that_say_why(tmp_path: Path, monkeypatch):
