@@ -134,7 +134,7 @@ class CanHost:
         self.counters_log: list[tuple[str, float, int, float, int]] = []   # (message, received s, count, edge time s,
         #                                                                        the card's illegal transitions)
         self._edges: dict[str, tuple[int, float]] = {}    # per counter: its last raw EdgeTime and that edge's time (s)
-        self._wraps: dict[tuple[str, str], tuple[int, int]] = {}   # per counter and field: last raw value, unwrapped
+        self._wraps: dict[str, tuple[int, int]] = {}      # per counter: its last raw Count and that count unwrapped
         self.readings: list[tuple[str, np.ndarray, dict[str, np.ndarray]]] = []   # blocks: (message, t s, {signal: DBC units})
         self.acks: list[dict[str, Any]] = []
         self._live: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (t s, raw xs, raw ys) per run
@@ -564,27 +564,19 @@ class CanHost:
 
     def _counts(self, spec, raw: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """Counter ``spec``'s counts and illegal transitions (0 without that signal; the card's count as sent: it
-        saturates at the field's maximum) of frames in arrival order; a count the DBC sends unsigned is unwrapped,
+        saturates at the field's maximum) of frames in arrival order. A count the DBC sends unsigned is unwrapped,
         modulo its range, by a change between two readings of less than half the range (24 bits: ±8.4 M counts), the
         first read as two's complement (the count is 0 at power-on; a shaft turned backwards reads below it)."""
-        out = []
-        for key in ("Count", "Illegal"):
-            sig = next((s for s in spec.signals if s.name == key), None)
-            if sig is None:
-                out.append(np.zeros(len(raw["Count"]), dtype=np.int64))
-                continue
-            values = np.asarray(raw[key], dtype=np.int64)
-            if sig.is_signed or key == "Illegal":
-                out.append(values)
-                continue
-            m = 1 << sig.length
-            last_raw, last = self._wraps.get((spec.name, key), (int(values[0]), int(values[0]) - (
-                m if values[0] >= m // 2 else 0)))
-            steps = (np.diff(np.concatenate(([last_raw], values))) + m // 2) % m - m // 2
-            unwrapped = last + np.cumsum(steps)
-            self._wraps[(spec.name, key)] = (int(values[-1]), int(unwrapped[-1]))
-            out.append(unwrapped)
-        return out[0], out[1]
+        count = np.asarray(raw["Count"], dtype=np.int64)
+        illegal = np.asarray(raw["Illegal"], dtype=np.int64) if "Illegal" in raw else np.zeros(count.size, np.int64)
+        sig = spec.get_signal_by_name("Count")
+        if sig.is_signed:
+            return count, illegal
+        m = 1 << sig.length
+        last_raw, last = self._wraps.get(spec.name, (int(count[0]), int(count[0]) - (m if count[0] >= m // 2 else 0)))
+        unwrapped = last + np.cumsum((np.diff(np.concatenate(([last_raw], count))) + m // 2) % m - m // 2)
+        self._wraps[spec.name] = (int(count[-1]), int(unwrapped[-1]))
+        return unwrapped, illegal
 
     def _edge_times(self, name: str, raw: np.ndarray, reference: float | np.ndarray) -> np.ndarray:
         """The device times (s) of counter ``name``'s raw 24-bit ``EdgeTime`` values (µs; in arrival order), against
