@@ -77,7 +77,6 @@ class Host:
         self._plant_events = 0
         self._last_start: tuple[int, float] | None = None   # (number, theory cam angle phi) of the last curve's start
         self._illegal: dict[str, int] = {}              # counter message -> its card's illegal transitions (> 0)
-        self._illegal_full: set[str] = set()            # ... of those, whose 8-bit field saturated (255: or more)
         self._pending: list[tuple[float, int, int, str, dict[str, Any]]] = []   # events not yet written (add_event)
         self._found = 0                                 # events found so far (their order within a source)
         self._seen_start = 0.0                          # start (s) of the last curve received (curves come in order)
@@ -181,8 +180,6 @@ class Host:
             return
         said = message in self._illegal
         self._illegal[message] = int(illegal[-1])
-        if illegal[-1] >= self.can.db.get_message_by_name(message).get_signal_by_name("Illegal").maximum:
-            self._illegal_full.add(message)          # the field saturated: the card counted at least that many
         if said:
             return
         k = int(np.argmax(illegal > 0))
@@ -190,6 +187,11 @@ class Host:
                        detail="the counter card saw illegal transitions (both channels changed at once: a glitch, "
                               "or edges faster than it follows) and kept its count: from here the count may be off "
                               "the shaft (the run's total in link_summary)")
+
+    def _illegal_saturated(self) -> list[str]:
+        """The counter messages whose ``Illegal`` field reached its maximum: their card counted at least that many."""
+        return sorted(m for m, n in self._illegal.items()
+                      if n >= self.can.db.get_message_by_name(m).get_signal_by_name("Illegal").maximum)
 
     def _advance_theory(self, until: float) -> None:
         """Run the theory model on the machine's sample grid, in fixed blocks, until it covers ``until`` (s);
@@ -417,7 +419,7 @@ class Host:
         self.rec.write_event(end, "link_summary", frames=self.frames, **{
             k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))},
             **({"illegal_transitions": dict(self._illegal)} if self._illegal else {}),
-            **({"illegal_saturated": sorted(self._illegal_full)} if self._illegal_full else {}))
+            **({"illegal_saturated": full} if (full := self._illegal_saturated()) else {}))
         self.can.send_command("release")
         self._record_sent()
         return stats

@@ -23,7 +23,6 @@ from rig.scene import SceneError
 from rig.units import to_si
 
 log = logging.getLogger(__name__)
-ILLEGAL_MAX = 255   # the Encoder frames' 8-bit Illegal field saturates there (a wrap could hide any number of them)
 
 
 def seeded_generators(seed: int, names: list[str]) -> dict[str, np.random.Generator]:
@@ -194,14 +193,18 @@ class Machine:
         every = n if rate is None else max(1, round(self.cfg.sample_rate / rate))
         return np.arange((-first_sample) % every, n, every)
 
-    def _frame_values(self, spec: TransducerSpec, output: Any, idx: np.ndarray) -> dict[str, np.ndarray]:
-        """What transducer ``spec`` puts in its CAN message at ``idx``: a counter its latched Count and last
-        EdgeTime, any other its reading scaled back to its quantity (SI) with the nominal sensitivity, as the
-        instrument's display does."""
+    def _frame_values(self, spec: TransducerSpec, output: Any, idx: np.ndarray, message: str) -> dict[str, np.ndarray]:
+        """What transducer ``spec`` puts in its CAN ``message`` at ``idx``: a counter its latched Count and last
+        EdgeTime, and the card's illegal transitions where the message has an ``Illegal`` field (held at the field's
+        maximum: a wrap could hide any number of them), any other its reading scaled back to its quantity (SI) with the
+        nominal sensitivity, as the instrument's display does."""
         if spec.frame_signal is None:
-            illegal = getattr(output, "illegal", None)
-            return {"Count": output.count[idx], "EdgeTime": np.nan_to_num(output.edge_time[idx]),   # Illegal saturates
-                    "Illegal": np.zeros(len(idx)) if illegal is None else np.minimum(illegal[idx], ILLEGAL_MAX)}
+            values = {"Count": output.count[idx], "EdgeTime": np.nan_to_num(output.edge_time[idx])}
+            field = next((s for s in self.node.db.get_message_by_name(message).signals if s.name == "Illegal"), None)
+            if field is not None:
+                illegal = getattr(output, "illegal", None)
+                values["Illegal"] = np.zeros(len(idx)) if illegal is None else np.minimum(illegal[idx], field.maximum)
+            return values
         reading = self.transducers[spec.name].to_physical(output[idx])
         return {spec.frame_signal: np.ravel(reading)}
 
@@ -228,7 +231,7 @@ class Machine:
             idx = self._publish_indices(specs[0].rate, i0 + 1, t.size)
             values: dict[str, np.ndarray] = {}
             for spec in specs:
-                values.update(self._frame_values(spec, output[spec.name], idx))
+                values.update(self._frame_values(spec, output[spec.name], idx, message))
             self.node.publish_reading(message, t[idx], values)
         self.node.advance_to(float(t[-1]))
         self.t = float(t[-1])
