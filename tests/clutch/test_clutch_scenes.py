@@ -63,6 +63,11 @@ def test_held_overload_gives_repeated_disengagements_and_a_shutdown_flag():
     assert dis[st.shutdown_count - 1] - dis[0] <= window      # ... within the window
     assert st.dynamics.motor.tripped                          # trip_on_shutdown switched the motor off
     assert o["omega1"][-1] < (A0 - 10.0) / B0 - 10.0          # the stand runs down after the trip
+    # the samples of this one call before the trip keep the motor's torque (it was once 0 for the whole block)
+    before, after = t < shut[0], t >= shut[0]
+    m = st.dynamics.motor
+    assert np.allclose(o["M1"][before], m.ratio * (m.a0 - m.b0 * m.ratio * o["omega1"][before]), rtol=1e-12)
+    assert o["M1"][before][-1] > 20.0 and np.all(o["M1"][after] == 0.0)
 
 
 def test_stop_rises_above_the_running_torque_then_reaches_zero():

@@ -95,7 +95,7 @@ class ClutchDynamics:
     def _sync(self) -> np.ndarray:
         """The kernel's parameter vector with the motor's trip state; clears the self-lock record."""
         p = self._p
-        p[kernel.TRIPPED], p[kernel.LOCKED_AT] = float(self.motor.tripped), math.nan
+        p[kernel.TRIP_AT], p[kernel.LOCKED_AT] = self.motor.trip_at, math.nan
         return p
 
     def _diagnose(self) -> str | None:

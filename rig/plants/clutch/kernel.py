@@ -23,7 +23,7 @@ from rig.plants.clutch.geometry import APEX, LOBE
 
 # p layout: clutch constants, friction model, discrete state, motor line, self-lock flag, load program
 (N, M, MT, J1, J3, FA1, KA, R0, MUB, MUC, L1, L2, C1, A2, R1, R2, PM, INV_VS, SMOOTH, BLOCKED,
- MODE, BASE, SEG, HELD, A0, B0, RATIO, T_OFF, TRIPPED, LOCKED_AT, BRAKE_AT, EVENTS, LOADS) = range(33)
+ MODE, BASE, SEG, HELD, A0, B0, RATIO, T_OFF, TRIP_AT, LOCKED_AT, BRAKE_AT, EVENTS, LOADS) = range(33)
 #: event kinds of the event table at p[EVENTS] (count, then per event: kind, state index, angle, period,
 #: compiled flag — 1 for cam-segment boundaries that :func:`event_action` may handle in compiled code)
 PERIODIC, CLUTCH_SWITCH, BRAKE_SWITCH = 0, 1, 2
@@ -75,7 +75,7 @@ def pack(clutch, motor, load_program: list[float], v_s: float, blocked: bool, sm
     c = clutch
     head = [c.n, c.n * c.m_t, c.m_t, c.J1, c.J3, c.F_a1, c.k_a, c.r0, c.mu_B, c.mu_C, c.L1, c.L2, c.r1 - c.r0,
             c.limits.a2, c.r1, c.r2, c.limits.phi_maxI, 1.0 / v_s, float(smooth), float(blocked),
-            1.0, 0.0, 0, 0.0, motor.a0, motor.b0, motor.ratio, motor.t_off, float(motor.tripped), math.nan, -1.0,
+            1.0, 0.0, 0, 0.0, motor.a0, motor.b0, motor.ratio, motor.t_off, motor.trip_at, math.nan, -1.0,
             0.0]
     assert len(head) == LOADS
     p = np.array(head + list(load_program), dtype=float)
@@ -174,8 +174,8 @@ def driven_held(p):
 
 @njit(cache=True)
 def motor_torque(t, w1, p):
-    """M1 = i·(a0 − b0·i·ω1) (N·m), 0 when tripped or after t_off."""
-    if p[TRIPPED] != 0.0 or t > p[T_OFF]:
+    """M1 = i·(a0 − b0·i·ω1) (N·m), 0 from the trip time on or after t_off (as LinearMotor.off)."""
+    if t >= p[TRIP_AT] or t > p[T_OFF]:
         return 0.0
     return p[RATIO] * (p[A0] - p[B0] * p[RATIO] * w1)
 
@@ -344,7 +344,7 @@ def pack_leaf(leaf, motor, load_program: list[float], J1: float, J3: float, omeg
     values = {N: leaf.factor * leaf.n, J1_SLOT: J1, J3_SLOT: J3, LEAF_A1: leaf.a1, LEAF_DR: leaf.r1 - leaf.r0,
               LEAF_HALF: 0.5 * leaf.span, LEAF_K: 3.0 * leaf.E * leaf.second_moment * leaf.span, LEAF_MU: leaf.mu,
               LEAF_PERIOD: leaf.period, R1: leaf.r1, INV_VS: 1.0 / omega_s, A0: motor.a0, B0: motor.b0,
-              RATIO: motor.ratio, T_OFF: motor.t_off, TRIPPED: float(motor.tripped), LOCKED_AT: math.nan,
+              RATIO: motor.ratio, T_OFF: motor.t_off, TRIP_AT: motor.trip_at, LOCKED_AT: math.nan,
               BRAKE_AT: -1.0}
     for slot, value in values.items():
         head[slot] = value

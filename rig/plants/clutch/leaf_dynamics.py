@@ -54,7 +54,7 @@ class LeafDynamics:
 
     def _sync(self) -> np.ndarray:
         """The kernel's parameter vector with the motor's trip state."""
-        self._p[kernel.TRIPPED] = float(self.motor.tripped)
+        self._p[kernel.TRIP_AT] = self.motor.trip_at
         return self._p
 
     # ---- coupling ------------------------------------------------------------------------------------

@@ -260,16 +260,27 @@ class LoadSum(Load):
 @dataclass
 class LinearMotor:
     """Linear working part of an asynchronous motor behind a belt of ratio i = ω_motor/ω1:
-    M1 = i·(a0 − b0·i·ω1) (N·m at the coupling), switched off (M1 = 0) after ``t_off`` (s)."""
+    M1 = i·(a0 − b0·i·ω1) (N·m at the coupling), switched off (M1 = 0) after ``t_off`` (s) and from ``trip_at``
+    (s; a trip by the stand's shutdown — a time, not a flag: samples before it, recorded afterwards, keep the torque
+    the motor gave)."""
 
     a0: float
     b0: float
     ratio: float = 1.0
     t_off: float = math.inf
-    tripped: bool = False
+    trip_at: float = math.inf
+
+    @property
+    def tripped(self) -> bool:
+        """True once a trip time is set."""
+        return self.trip_at < math.inf
+
+    def off(self, t: float) -> bool:
+        """True when the motor gives no torque at time t (s)."""
+        return t >= self.trip_at or t > self.t_off
 
     def torque(self, t: float, omega1: float) -> float:
-        if self.tripped or t > self.t_off:
+        if self.off(t):
             return 0.0
         return self.ratio * (self.a0 - self.b0 * self.ratio * omega1)
 
@@ -278,6 +289,6 @@ class LinearMotor:
 
     def affine(self, t: float) -> tuple[float, float]:
         """(A N·m, B N·m·s/rad) with M1 = A − B·ω1 at time t."""
-        if self.tripped or t > self.t_off:
+        if self.off(t):
             return 0.0, 0.0
         return self.ratio * self.a0, self.ratio * self.ratio * self.b0

@@ -211,7 +211,7 @@ class ClutchStand:
             self.shutdown = True
             self.events.append(Event(rec.t, "shutdown", {"disengagements_in_window": len(recent)}))
             if self.trip_on_shutdown:
-                self.dynamics.motor.tripped = True
+                self.dynamics.motor.trip_at = rec.t
                 return True
         return False
 
