@@ -200,6 +200,23 @@ class StiffnessMonitor:
                     self._hits = [0, 0, 0.0]
             self._next_check += self.DENSE if self._hits[0] else self.SPARSE
 
+    def finish(self, t: float, y: Sequence[float], h: float) -> None:
+        """End of a run at (t, y) with step h: the amplification test of a fixed-step method once more over the
+        steps since its last check. A run shorter than the first check (10 steps) or than the next one was
+        otherwise never tested: RK4 at h·|λ| = 5 returned 2e11 for a decay to 2e-22 after 10 steps, silently."""
+        if not self.fixed or self.watch is None or self.detected_at is not None or self.policy == "ignore":
+            return
+        since = self._steps - self._last_check
+        if since <= 0:
+            return
+        got = self.watch.check(float(t), tuple(y), float(h))
+        self.calls += len(y) + 1
+        self._last_check = self._steps
+        if got is not None and got[0] > 1.0 + 1e-12 and got[0] > got[1]:
+            grown = self._slow + since * math.log(got[0] / got[1])
+            if grown >= math.log(self.SPURIOUS):
+                self._report_amplification(float(t), tuple(y), float(h), got, grown)
+
     def _report_amplification(self, t: float, y: tuple, h: float, got, accumulated: float | None = None) -> None:
         rho, exact, lam = got if got is not None else (math.nan, math.nan, complex(math.nan))
         zeta = -lam.real / abs(lam) + 0.0 if abs(lam) > 0 else math.nan       # + 0.0: no "-0"

@@ -368,6 +368,11 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
             if bi == len(breaks):
                 break
         restarts += 1
+    if monitor is not None and isinstance(solver, FixedStepper):     # the steps since the growth test's last check
+        calls = monitor.calls
+        monitor.finish(t, y, solver.h)
+        nfev += monitor.calls - calls
+        stiff_at = monitor.detected_at if stiff_at is None else stiff_at
     if t_eval is not None:
         fill_dense(out_y, t_eval, pending)
         t_out, y_out = t_eval[:i_eval], out_y[:, :i_eval]

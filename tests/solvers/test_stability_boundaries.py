@@ -112,3 +112,17 @@ def test_a_fixed_step_solvers_nfev_counts_every_call_its_tests_make(method):
     assert solver.nfev == calls[0] > 2000
     calls[0] = 0
     assert integrate(Problem(f, (1.0, 0.0)), (0.0, 2.0), method=method, h=1e-3).nfev == calls[0]
+
+
+@pytest.mark.parametrize("method, hl, steps", [("RK4", 5.0, 10), ("RK4", 2.9, 7), ("RK4", 2.9, 1), ("Euler", 20.0, 10),
+                                               ("Euler", 2.9, 7)])
+def test_a_run_too_short_for_the_periodic_checks_is_still_tested_at_its_end(method, hl, steps):
+    """x' = −1000·x beyond the method's real-axis limit (RK4 2.785, explicit Euler 2) for fewer steps than the first
+    periodic check: the run's end is checked (it once returned 2e11 for RK4 at h·|λ| = 5 where the exact value is
+    2e-22, silently); inside the limit a short run passes."""
+    problem = Problem(lambda t, y: (-1000.0 * y[0],), (1.0,))
+    with pytest.raises(SolverDivergence, match=r"unstable at t = .* by .* per step"):
+        integrate(problem, (0.0, steps * hl / 1000.0), method=method, h=hl / 1000.0)
+    inside = 2.5 if method == "RK4" else 1.5
+    sol = integrate(problem, (0.0, steps * inside / 1000.0), method=method, h=inside / 1000.0)
+    assert abs(sol.y[0, -1]) < 1.0
