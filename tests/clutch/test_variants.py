@@ -117,17 +117,28 @@ def test_leaf_force_and_strain_from_an_independent_beam_solution():
 
 def test_leaf_properties_and_shoes_twice_the_leaf():
     leaf = LeafSpringClutch(**LEAF)
-    shoes = RubberShoeClutch(**LEAF)
+    shoes = RubberShoeClutch(**{**LEAF, "apex": 45 * DEG})
     phi = np.linspace(0, 45 * DEG, 200)
     assert float(leaf.torque(0.0)) == 0.0
     assert np.all(np.diff(leaf.torque(phi)) > 0)
     for d in (-1, 0, 1):
         np.testing.assert_allclose(shoes.torque(phi, d), 2 * leaf.torque(phi, d), rtol=1e-14)
     assert leaf.disengagement_angle == pytest.approx(45 * DEG)
-    assert shoes.disengagement_angle == pytest.approx(55 * DEG)
+    default_shoes = RubberShoeClutch(**{k: v for k, v in LEAF.items() if k != "n"})
+    assert default_shoes.disengagement_angle == pytest.approx(60 * DEG) and default_shoes.n == 3
     with pytest.raises(ValueError, match="outside the engaged range"):
         leaf.torque(50 * DEG)
-    float(shoes.torque(50 * DEG))
+    float(default_shoes.torque(50 * DEG))
+
+
+@pytest.mark.parametrize("cls, apex, n", [(RubberShoeClutch, 55.0, 3), (LeafSpringClutch, 45.0, 3),
+                                          (RollerTappetClutch, 50.0, 3)])
+def test_a_lobe_period_that_does_not_fill_the_turn_in_phase_is_refused(cls, apex, n):
+    """2·55° = 110°: 3.27 lobes per turn; 3 leaves on the 4 lobes of a 45° cam sit at 0°, 30°, 60° of their lobes,
+    not in phase, so T = n·(one leaf) would not hold."""
+    args = ROLLER if cls is RollerTappetClutch else LEAF
+    with pytest.raises(GeometryError, match=r"lobes per turn: a cam has a whole number of lobes.*apex = 180 deg"):
+        cls(**{**args, "apex": apex * DEG, "n": n})
 
 
 def test_leaf_geometry_errors():
@@ -235,7 +246,7 @@ def test_shear_pin_breaks_irreversibly():
 
 @pytest.mark.parametrize("make", [
     lambda: flat_tappet(), lambda: RollerTappetClutch(**ROLLER), lambda: LeafSpringClutch(**LEAF),
-    lambda: RubberShoeClutch(**LEAF), lambda: RubberRollerClutch(**RUBBER),
+    lambda: RubberShoeClutch(**{**LEAF, "n": 3}), lambda: RubberRollerClutch(**RUBBER),
     lambda: measured_table("rubber_d25_pu_d20")])
 def test_inverse_round_trip_on_the_rising_branch(make):
     c = make()

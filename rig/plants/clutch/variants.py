@@ -144,6 +144,20 @@ def _check_apex(owner: str, apex: float, limit: float) -> None:
         raise GeometryError(f"{owner}: apex {math.degrees(apex):.6g} deg must lie in (0, {math.degrees(limit):.6g}] deg")
 
 
+def _check_lobes(owner: str, apex: float, n: int, what: str) -> None:
+    """GeometryError unless the lobe period 2·apex divides the turn into a whole number of lobes, a multiple of the
+    ``n`` equally spaced tappets (``what``), which then all sit at the same phase of their lobes (T = n·one)."""
+    lobes = math.pi / apex
+    k = round(lobes)
+    if abs(lobes - k) > 1e-9 * k or k % n:
+        fits = [180 / m for m in range(n, 4 * n + 1, n)]
+        raise GeometryError(f"{owner}: apex {math.degrees(apex):.6g} deg gives a lobe period of "
+                            f"{2 * math.degrees(apex):.6g} deg, {lobes:.6g} lobes per turn: a cam has a whole number "
+                            f"of lobes, and its n = {n} {what} sit in phase (torque n times one) only on a multiple of "
+                            f"{n} lobes - use apex = 180 deg / lobes, e.g. "
+                            f"{', '.join(f'{a:.6g} deg' for a in fits)}")
+
+
 @dataclass
 class FlatTappetCharacteristic(StaticCharacteristic):
     """The primary flat-tappet clutch (§4.2): T = n F_a (k1 ± μ_B k2) on [0, 60°], period 120°."""
@@ -200,6 +214,7 @@ class RollerTappetClutch(StaticCharacteristic):
             raise ValueError(f"{self.name}: form must be 'source' or 'textbook', got {self.form!r}")
         _check_apex(self.name, self.apex, math.pi / 2)
         self.n = int(self.n)
+        _check_lobes(self.name, self.apex, self.n, "tappets")
         self.period = 2.0 * self.apex
 
     def radius(self, phi: np.ndarray | float) -> np.ndarray:
@@ -237,10 +252,11 @@ class LeafSpringClutch(StaticCharacteristic):
     a1: float
     E: float = 206e9
     mu: float = 0.1
-    n: int = 3
+    n: int = 4
     apex: float = math.radians(45.0)
     factor: float = 1.0
     has_friction: ClassVar[bool] = True
+    PARTS: ClassVar[str] = "leaves"
     SCHEMA: ClassVar[dict[str, Field]] = {
         "E": Field("Pa", 206e9, "Young's modulus of the leaf"),
         "width": Field("m", doc="leaf width"),
@@ -250,8 +266,9 @@ class LeafSpringClutch(StaticCharacteristic):
         "r1": Field("m", doc="lobe arc radius"),
         "a1": Field("m", doc="eccentricity of the lobe arc centre"),
         "mu": Field("1", 0.1, "friction coefficient lobe / leaf"),
-        "n": Field("1", 3, "number of leaves"),
-        "apex": Field("rad", math.radians(45.0), "disengagement angle from the source (45 deg leaf, 55 deg shoes)"),
+        "n": Field("1", 4, "number of leaves (a multiple of them fills the turn's lobes: 4 on the 45 deg cam)"),
+        "apex": Field("rad", math.radians(45.0), "disengagement angle, the lobe apex (source: about 45 deg; a lobe "
+                      "period 2*apex dividing the turn)"),
     }
 
     def __post_init__(self) -> None:
@@ -267,6 +284,7 @@ class LeafSpringClutch(StaticCharacteristic):
             raise GeometryError(f"{self.name}: contact x = a1 sin(apex) = {self.a1 * math.sin(self.apex):.6g} m "
                                 f"reaches the leaf support at span/2 = {0.5 * self.span:.6g} m")
         self.n = int(self.n)
+        _check_lobes(self.name, self.apex, self.n, self.PARTS)
         self.period = 2.0 * self.apex
 
     @property
@@ -308,12 +326,18 @@ class LeafSpringClutch(StaticCharacteristic):
 
 @dataclass
 class RubberShoeClutch(LeafSpringClutch):
-    """Rubber shoes pressed by leaves: twice the leaf-spring torque, disengagement ≈ 55° (§4.5)."""
+    """Rubber shoes pressed by leaves: twice the leaf-spring torque (§4.5). The source's disengagement at ≈ 55°
+    lies between the apexes of whole-lobe cams, 45° (4 lobes) and 60° (3 lobes): the default is 3 shoes on 3 lobes,
+    apex 60° (a 110° lobe period would give 3.27 lobes per turn)."""
 
-    apex: float = math.radians(55.0)
+    n: int = 3
+    apex: float = math.radians(60.0)
     factor: float = 2.0
+    PARTS: ClassVar[str] = "shoes"
     SCHEMA: ClassVar[dict[str, Field]] = {**LeafSpringClutch.SCHEMA,
-                                          "apex": Field("rad", math.radians(55.0), "disengagement angle")}
+                                          "n": Field("1", 3, "number of shoes (a multiple of them fills the lobes)"),
+                                          "apex": Field("rad", math.radians(60.0), "disengagement angle, the lobe "
+                                                        "apex (source: about 55 deg; 60 deg: 3 lobes per turn)")}
 
 
 @dataclass
