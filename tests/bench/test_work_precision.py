@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from rig import cli
-from rig.bench.harness import COLUMNS, METHODS, REF_CONFIRM
+from rig.bench.harness import COLUMNS, METHODS, REF_CONFIRM, Row, wall_at
 from rig.bench.workprecision import run_scenes
 
 SCENES = Path(__file__).resolve().parents[2] / "data" / "scenes"
@@ -344,3 +344,19 @@ def test_odeint_sees_the_events_through_the_compiled_event_kernel_as_through_pyt
     finally:
         peers._odeint_backend = python
     assert compiled[1] == plain[1] and np.array_equal(compiled[0], plain[0])
+
+
+def test_the_wall_time_at_equal_error_is_interpolated_on_the_pareto_front():
+    """odeint-like rows (error, wall): the run at 2.4e-6 costs more than the more accurate one at 1.03e-6 (off the front),
+    the target 1e-6 lies between 1.43e-7 and 1.03e-6: log–log interpolation there; a method with every run more
+    accurate than the target gets its cheapest; one that never reaches it none."""
+    def rows(points, method="m"):
+        return [Row(method, f"rtol={i}", e, w, None, 0.4, "ok") for i, (e, w) in enumerate(points)]
+    odeint = rows([(4.05e-5, 10.06e-3), (6.78e-6, 13.34e-3), (2.43e-6, 17.16e-3), (1.027e-6, 15.0e-3),
+                   (1.43e-7, 17.57e-3)])
+    f = math.log(1e-6 / 1.43e-7) / math.log(1.027e-6 / 1.43e-7)
+    assert wall_at(odeint, "m", 1e-6) == pytest.approx(17.57e-3 * (15.0e-3 / 17.57e-3) ** f, rel=1e-12)
+    assert 15.0e-3 < wall_at(odeint, "m", 1e-6) < 15.1e-3
+    assert wall_at(rows([(1e-8, 3e-3), (1e-7, 2e-3)]), "m", 1e-6) == 2e-3
+    assert wall_at(rows([(1e-5, 3e-3)]), "m", 1e-6) is None
+    assert wall_at(odeint + [Row("m", "x", 1e-9, 1e-3, None, 0.4, "diverged: ...")], "m", 1e-6) == wall_at(odeint, "m")
