@@ -204,17 +204,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"{what}, {summary.simulated_time:.2f} s simulated{carried} in {summary.run_time:.2f} s "
           f"({summary.realtime_factor:.1f}x real time{_compiled(summary)}; {summary.wall_time:.2f} s with serial "
           f"set-up and read-back), {summary.frames} CAN frames received -> {summary.output}{_created(new_folder)}")
-    rec, analysis = _analysed(summary.output)
-    if not _print_stand_summary(rec):
-        _print_set_summary(analysis)
-    if not args.no_report:
-        try:
+    try:
+        rec, analysis = _analysed(summary.output)
+        if not _print_stand_summary(rec):
+            _print_set_summary(analysis)
+        if not args.no_report:
             report = _report(rec, report_dir, args.format, analysis, progress=not args.quiet, ok_plots=args.ok_plots,
                              nok_plots=args.nok_plots)
-        except KeyboardInterrupt as exc:        # the recording is whole: say so, and how to get the report
-            exc.report_of = (summary.output, report_dir)        # type: ignore[attr-defined]
-            raise
-        print(f"report: {report}")
+            print(f"report: {report}")
+    except KeyboardInterrupt as exc:        # the recording is whole: say so, and how to get the summary or report
+        exc.report_of = (summary.output, report_dir, args.no_report)        # type: ignore[attr-defined]
+        raise
     return 0
 
 
@@ -416,6 +416,21 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:
         self.exit(2, f"{self.prog}: error: {message} ({self.prog} -h: usage)\n")
 
+    def parse_known_args(self, args=None, namespace=None):
+        """As argparse's, noting in the namespace the innermost (sub)command parser that parsed (``_rig_parser``)."""
+        ns, extra = super().parse_known_args(args, namespace)
+        if not hasattr(ns, "_rig_parser"):      # the subcommand's own parser ran first and set it
+            ns._rig_parser = self
+        return ns, extra
+
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but an unknown option is the subcommand's error (``rig run: error: unrecognized arguments:
+        --cyles (rig run -h: usage)``), pointing at the usage that has the options it meant."""
+        ns, extra = self.parse_known_args(args, namespace)
+        if extra:
+            ns._rig_parser.error(f"unrecognized arguments: {' '.join(extra)}")
+        return ns
+
 
 MAX_SAMPLES = 10**10   # Monte-Carlo machines rig tolerance takes (10^6 take ~15 s on two workers: this, ~2 days)
 
@@ -571,9 +586,12 @@ def _interrupted(exc: KeyboardInterrupt) -> str:
     """One line on Ctrl-C: what a recorded run left (rig.runner.session.Interrupted), or that the report of a whole
     recording was cut, else nothing claimed."""
     if hasattr(exc, "report_of"):
-        recording, folder = getattr(exc, "report_of")
-        return (f"rig: interrupted while writing the report; the recording {recording} is complete: `rig report "
-                f"{recording} -o {folder}` writes the report")
+        recording, folder, no_report = getattr(exc, "report_of")
+        if no_report:
+            return (f"rig: interrupted while summarising the run; the recording {recording} is complete: `rig report "
+                    f"{recording}` writes its report")
+        return (f"rig: interrupted while summarising the run or writing its report; the recording {recording} is "
+                f"complete: `rig report {recording} -o {folder}` writes the report")
     if not hasattr(exc, "recording"):
         return "rig: interrupted"
     recording = getattr(exc, "recording")

@@ -182,6 +182,10 @@ def verdict(ctx: ReportContext) -> list[Block]:
         (f" ({what})" if what else "") + \
         (f"; {len(unjudged)} recorded curve{'s' if len(unjudged) > 1 else ''} without a result, not judged "
          f"(curve {', '.join(map(str, unjudged[:10]))}{' …' if len(unjudged) > 10 else ''})" if unjudged else "")
+    cut = [r["number"] for r in a["incomplete"]]
+    if cut:                               # the unit's verdict arrived, not all of the result's process values
+        text += (f"; {len(cut)} of them judged by the unit with an incomplete result (curve "
+                 f"{', '.join(map(str, cut[:10]))}{' …' if len(cut) > 10 else ''}: process values missing)")
     blocks: list[Block] = [Heading("Verdict")]
     if not rec.complete:                  # a cut or interrupted recording: said before the verdict it qualifies
         why = _complete(rec).removeprefix("no: ")

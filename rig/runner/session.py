@@ -29,6 +29,7 @@ from rig.recorder.writer import interruption
 from firmware_sim.can_node import BusOverload
 from rig.runner.config import RunConfig, default_max_time, read_config
 from rig.runner.host import Host
+from rig.runner.interrupt import deferred_interrupt
 from rig.runner.machine import Machine
 from rig.runner.served import Anchored, IdleStatus, RunClock
 from rig.scene import load_scene
@@ -181,35 +182,44 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
     """Step the machine until the scene is done or the host released it (paced in real-time mode), then
     flush its transmit queue; the simulated time (s) that flush took (the bus carrying the last frames).
     ``after_step`` runs after each step (e.g. the in-process host's poll); ``host_gone()`` true (the served host
-    disconnected) stops the run with a :class:`RunError`."""
+    disconnected) stops the run with a :class:`RunError`. Ctrl-C is taken between steps (:mod:`.interrupt`)."""
     pace = _Pacer(cfg.mode == "realtime")
     try:
-        while not _machine_done(cfg, machine) and not machine.node.released:
-            gone = host_gone()                 # before the step: a Release sent just before leaving counts
-            with lock:
-                before = machine.curves
-                try:
-                    machine.step()
-                except BusOverload as exc:
-                    burst, held = machine.curves - before, cfg.can["tx_curves"]
-                    if burst >= held:          # the step, not the bus: its curves all ended before any could leave
-                        raise RunError(f"{cfg.scene.path} [scene]: chunk = {cfg.chunk:g} s is too long for the bus: one "
-                                       f"runner step measured {burst} curves at once, as many as the unit holds for "
-                                       f"sending ([links.can] tx_curves = {held}); shorten the chunk (e.g. \"100 ms\") "
-                                       f"so that each curve is sent as it ends") from None
-                    raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
-            if gone and not machine.node.released:
-                raise _host_left(machine, "during the run")
-            after_step()
-            _show(bar, cfg, machine.curves, machine.t)
-            pace(machine.t)
-        with lock:
-            ended = machine.t
-            machine.flush(pace=pace)
-            return machine.t - ended
+        with deferred_interrupt() as check:
+            return _steps(cfg, machine, lock, bar, after_step, host_gone, pace, check)
     finally:
         _show(bar, cfg, machine.curves, machine.t, force=True)
         pace.finish()
+
+
+def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, after_step: Callable[[], object],
+           host_gone: Callable[[], bool], pace: "_Pacer", check: Callable[[], None]) -> float:
+    """:func:`_drive`'s loop, ``check()`` for Ctrl-C before each step and before the flush."""
+    while not _machine_done(cfg, machine) and not machine.node.released:
+        check()
+        gone = host_gone()                 # before the step: a Release sent just before leaving counts
+        with lock:
+            before = machine.curves
+            try:
+                machine.step()
+            except BusOverload as exc:
+                burst, held = machine.curves - before, cfg.can["tx_curves"]
+                if burst >= held:          # the step, not the bus: its curves all ended before any could leave
+                    raise RunError(f"{cfg.scene.path} [scene]: chunk = {cfg.chunk:g} s is too long for the bus: one "
+                                   f"runner step measured {burst} curves at once, as many as the unit holds for "
+                                   f"sending ([links.can] tx_curves = {held}); shorten the chunk (e.g. \"100 ms\") "
+                                   f"so that each curve is sent as it ends") from None
+                raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
+        if gone and not machine.node.released:
+            raise _host_left(machine, "during the run")
+        after_step()
+        _show(bar, cfg, machine.curves, machine.t)
+        pace(machine.t)
+    check()
+    with lock:
+        ended = machine.t
+        machine.flush(pace=pace)
+        return machine.t - ended
 
 
 def _wait_for_go(machine: Machine, timeout: float, idle: Callable[[], None] = lambda: None,
@@ -324,14 +334,15 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 go, compiled = time.perf_counter(), compile_seconds()
                 try:
                     flushed = _drive(cfg, machine, lock, bar, host.poll)
+                    with deferred_interrupt() as check:
+                        while host.poll():
+                            check()
                 except RunError:               # record what is already on the wire and what the stop cut
                     _keep_received(host, drain=True, why="the run's stop on an error")
                     raise
                 except KeyboardInterrupt:
                     _keep_received(host, drain=True)
                     raise
-                while host.poll():
-                    pass
                 run_time, simulated = time.perf_counter() - go, machine.t     # the run phase (no read-back)
                 compiled = compile_seconds() - compiled
                 if not host.done():
@@ -462,23 +473,9 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
             host = Host(cfg, bus, serial_port, rec)
             host.arm()
             go, compiled = time.perf_counter(), compile_seconds()
-            last = time.monotonic()
             try:
-                while not host.done() or not host.run_over():
-                    if host.poll(0.05):
-                        last = time.monotonic()
-                    elif host.can.run_ended:       # the served run is shorter than this scene's: keep what it sent
-                        host.poll(0.05)
-                        log.warning("the served machine ended its run after %d curves (its --cycles); this host "
-                                    "was to record %s: recorded what it sent", host.curves_recorded,
-                                    f"{cfg.cycles} curves" if cfg.cycles is not None else f"{cfg.duration:g} s")
-                        host.add_event(host.can.device_time, "run_short", curves=host.curves_recorded,
-                                       expected=cfg.cycles if cfg.cycles is not None else cfg.duration)
-                        break
-                    elif time.monotonic() - last > idle_timeout:
-                        raise RunError(f"no CAN traffic from {can_host}:{can_port} for {idle_timeout:g} s; "
-                                       f"recorded {host.curves_recorded} curves (kept in {output})")
-                    _show(bar, cfg, host.curves_recorded, host.truth_t)
+                with deferred_interrupt() as check:
+                    _receive(cfg, host, bar, check, idle_timeout, f"{can_host}:{can_port}", output)
             except (RunError, KeyboardInterrupt) as exc:
                 _keep_received(host, drain=False, why="the interruption of the run" if isinstance(exc, KeyboardInterrupt)
                                else "the recording's stop on an error")
@@ -497,6 +494,29 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
             _finished(bar, cfg, host.truth_t, host.curves_recorded)
     return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats,
                       run_time, compiled)
+
+
+def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], idle_timeout: float, where: str,
+             output: Path) -> None:
+    """:func:`record_scene`'s reception loop, until the host has everything (or the served run ended short);
+    ``check()`` for Ctrl-C between polls. No CAN traffic for ``idle_timeout`` s is a :class:`RunError`."""
+    last = time.monotonic()
+    while not host.done() or not host.run_over():
+        check()
+        if host.poll(0.05):
+            last = time.monotonic()
+        elif host.can.run_ended:       # the served run is shorter than this scene's: keep what it sent
+            host.poll(0.05)
+            log.warning("the served machine ended its run after %d curves (its --cycles); this host "
+                        "was to record %s: recorded what it sent", host.curves_recorded,
+                        f"{cfg.cycles} curves" if cfg.cycles is not None else f"{cfg.duration:g} s")
+            host.add_event(host.can.device_time, "run_short", curves=host.curves_recorded,
+                           expected=cfg.cycles if cfg.cycles is not None else cfg.duration)
+            break
+        elif time.monotonic() - last > idle_timeout:
+            raise RunError(f"no CAN traffic from {where} for {idle_timeout:g} s; "
+                           f"recorded {host.curves_recorded} curves (kept in {output})")
+        _show(bar, cfg, host.curves_recorded, host.truth_t)
 
 
 def _socketcand(host: str, port: int, channel: str, timeout: float) -> can.BusABC:

@@ -75,6 +75,9 @@ def test_report_verdict_table_shows_incomplete_results(recording, tmp_path):
     assert "| 3 | 1 | OK |  | no, missing y_min |" in text and "| 8 | 1 | OK |  | no, missing x_end |" in text
     assert "| 4 | 1 | OK |  | yes |" in text
     assert "Warning: 2 incomplete result(s)" in text and "20 curves, 20 OK, 0 NOK, 2 incomplete" in text
+    # the verdict's banner says it too (it read "OK: all 20 curves passed" above a table of incomplete results)
+    assert "OK: all 20 curves passed (program 1); 2 of them judged by the unit with an incomplete result (curve 3, 8: process " \
+           "values missing)" in text
 
 
 def test_console_summary_warns_and_shows_n(recording, capsys):

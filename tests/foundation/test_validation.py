@@ -154,6 +154,19 @@ def test_report_options_with_no_report_are_refused(tmp_path, capsys, extra, mess
     assert message in one_error_line(capsys) and not (tmp_path / "x.mcap").exists()
 
 
+@pytest.mark.parametrize("argv, usage", [(["run", "--cyles"], "rig run"),
+                                         (["bench", "work-precision", "--quik", "-o", "x"], "rig bench work-precision"),
+                                         (["--bogus"], "rig")])
+def test_an_unknown_option_points_at_the_usage_of_its_subcommand(argv, usage, capsys):
+    """It pointed at ``rig -h`` for a subcommand's misspelt option, whose usage lists none of the subcommand's."""
+    with pytest.raises(SystemExit) as info:
+        cli.main(argv)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err == f"{usage}: error: unrecognized arguments: {argv[-1] if argv[0] != 'bench' else '--quik'} " \
+                  f"({usage} -h: usage)\n"
+
+
 # -- counts -----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv", [
     ["run", "--cycles", "0"], ["run", "--cycles", "-3"], ["run", "--cycles", "two"],

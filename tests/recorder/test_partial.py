@@ -199,6 +199,30 @@ def test_a_missing_recording_is_named_before_an_output_in_the_way(tmp_path, caps
     assert capsys.readouterr().err == "rig: error: cannot read recording missing.mcap: no such file or directory\n"
 
 
+def test_sigterm_stops_the_console_script_as_ctrl_c_does(tmp_path):
+    """``timeout``, ``docker stop``, systemd send SIGTERM: the run stops between steps and the recording is closed,
+    marked interrupted, every curve once (it was cut like a SIGKILL, exit 143 and no word)."""
+    out = tmp_path / "terminated.mcap"
+    run = subprocess.Popen([sys.executable, "-c", "from rig.launch import entry; entry()", "-q", "run", str(SCENE),
+                            "--cycles", "400", "-o", str(out), "--no-report"], stdout=subprocess.DEVNULL,
+                           stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + 120
+        while not out.exists() or out.stat().st_size < 4_000_000:
+            assert run.poll() is None, run.stderr.read()
+            assert time.monotonic() < deadline, "the run did not write 4 MB in 120 s"
+            time.sleep(0.05)
+        run.send_signal(signal.SIGTERM)
+        err = run.communicate(timeout=120)[1]
+    finally:
+        run.kill()
+        run.wait()
+    assert run.returncode == 130 and "Traceback" not in err
+    rec = read_recording(out)
+    numbers = [c.number for c in rec.curves]
+    assert rec.interrupted == "KeyboardInterrupt" and not rec.truncated and numbers == list(range(1, len(numbers) + 1))
+    assert f"rig: interrupted; what was recorded so far ({len(numbers)} curves," in err
+
 def test_the_console_script_takes_ctrl_c_before_it_imports_the_command_line():
     """The console script's module sets its Ctrl-C handler before rig.cli and its imports load: an interrupt while
     they load is one line and status 130 (checked in a child interpreter, the interrupt raised from the import of
@@ -262,7 +286,22 @@ def test_ctrl_c_while_writing_the_report_says_the_recording_is_whole(tmp_path, m
     out = tmp_path / "whole.mcap"
     assert main(["-q", "run", str(SCENE), "--cycles", "2", "-o", str(out)]) == 130
     line = capsys.readouterr().err.splitlines()[-1]
-    assert line == (f"rig: interrupted while writing the report; the recording {out} is complete: `rig report {out} "
-                    f"-o {out.with_suffix('')}` writes the report")
+    assert line == (f"rig: interrupted while summarising the run or writing its report; the recording {out} is "
+                    f"complete: `rig report {out} -o {out.with_suffix('')}` writes the report")
     rec = read_recording(out)
     assert rec.complete and losses(rec) == []
+
+
+def test_ctrl_c_while_summarising_a_run_without_report_says_the_recording_is_whole(tmp_path, monkeypatch, capsys):
+    """Ctrl-C after the run, during the console summary of `--no-report`: it printed a bare "rig: interrupted"."""
+    import rig.cli as cli_module
+
+    def cut(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cli_module, "_print_set_summary", cut)
+    out = tmp_path / "whole.mcap"
+    assert main(["-q", "run", str(SCENE), "--cycles", "2", "-o", str(out), "--no-report"]) == 130
+    line = capsys.readouterr().err.splitlines()[-1]
+    assert line == (f"rig: interrupted while summarising the run; the recording {out} is complete: `rig report {out}` "
+                    f"writes its report")
+    assert read_recording(out).complete

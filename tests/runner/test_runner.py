@@ -137,6 +137,58 @@ def test_interrupted_run_leaves_a_valid_recording(tmp_path: Path, monkeypatch):
     assert rec.truth["t"].size > 0 and len(rec.curves) == 1 and len(rec.results) == 1
 
 
+@pytest.mark.parametrize("where", ["write_curve", "write_block"])
+def test_a_real_ctrl_c_inside_the_recording_of_a_curve_or_a_block_is_taken_between_steps(tmp_path, monkeypatch, where):
+    """SIGINT delivered inside the host's work (after the recorder wrote the second curve, before the host marked it
+    recorded; or in the middle of a block of frames): Python once raised there, and the curve was written again on
+    the way out (two copies, a false curves_in_one_cycle event [n, n]) or the frames already taken off the bus were
+    lost. The run now stops at its next step boundary: every curve once, consecutive, as many as the stop says."""
+    import os
+    import signal
+    from rig.recorder.writer import Recorder
+    from rig.runner.session import Interrupted
+    original = getattr(Recorder, where)
+    calls = []
+
+    def write(self, *args, **kwargs):
+        out = original(self, *args, **kwargs)
+        calls.append(1)
+        if len(calls) == 2 if where == "write_curve" else len(calls) == 40:
+            os.kill(os.getpid(), signal.SIGINT)
+        return out
+
+    monkeypatch.setattr(Recorder, where, write)
+    out = tmp_path / "stopped.mcap"
+    with pytest.raises(Interrupted) as stop:
+        run_scene(SCENE, out, cycles=20)
+    rec = read_recording(out)
+    numbers = [c.number for c in rec.curves]
+    assert numbers == list(range(1, len(numbers) + 1)) and len(numbers) == stop.value.curves >= 2
+    assert not [e for e in rec.events if e["kind"] == "curves_in_one_cycle"]
+    assert rec.interrupted == "KeyboardInterrupt" and not rec.truncated
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler     # Python's own handler is back
+
+
+def test_ctrl_c_inside_a_deferred_block_waits_for_its_check_and_a_second_one_does_not():
+    import os
+    import signal
+    from rig.runner.interrupt import deferred_interrupt
+    with pytest.raises(KeyboardInterrupt):
+        with deferred_interrupt() as check:
+            os.kill(os.getpid(), signal.SIGINT)
+            reached = True                       # not raised at once
+            check()
+    assert reached
+    with pytest.raises(KeyboardInterrupt):
+        with deferred_interrupt():
+            os.kill(os.getpid(), signal.SIGINT)
+            os.kill(os.getpid(), signal.SIGINT)    # the user insists: raised from the handler
+            raise AssertionError("not reached")
+    with pytest.raises(KeyboardInterrupt):       # a Ctrl-C after the last check is raised at the block's end
+        with deferred_interrupt():
+            os.kill(os.getpid(), signal.SIGINT)
+
+
 @pytest.mark.parametrize("old, new, message", [
     ('to = "device.y"', 'to = "device.z"', r"\[transducers.rod_force\].*'device.x' and 'device.y'"),
     ('to = "device.y"', 'to = "can.Torque.Torq"', r"\[transducers.rod_force\].*Torque has no signal 'Torq'.*Torque, BrakeForce"),

@@ -1,0 +1,47 @@
+"""Ctrl-C taken between the steps of a run loop, not inside one.
+
+Python raises KeyboardInterrupt wherever the main thread happens to be: inside the MCAP writer compressing a chunk
+(its buffer already emptied: seconds of every topic lost from the middle of a file marked valid, its index pointing at
+them), between recording a curve and marking it recorded (written twice, and a false ``curves_in_one_cycle``), or
+inside a compiled numba function (``SystemError: … returned a result with an exception set`` and a traceback instead
+of the one-line stop). Inside :func:`deferred_interrupt` the first Ctrl-C (or SIGTERM, where the console script made
+it one: :func:`rig.launch.entry`) is only noted and raised at the loop's next ``check()``, where the host's and the
+writer's state is whole; a second one raises at once (a loop that no longer checks still stops).
+"""
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+
+@contextmanager
+def deferred_interrupt() -> Iterator[Callable[[], None]]:
+    """The loop's ``check()``: raises KeyboardInterrupt if Ctrl-C came since the block began (and so does the block's
+    end, for one after the last check). Outside the main thread
+    (no signal handlers there) ``check()`` does nothing and Ctrl-C keeps Python's own behaviour."""
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    pending: list[int] = []
+
+    def note(signum: int, frame: object) -> None:
+        if pending:
+            raise KeyboardInterrupt
+        pending.append(signum)
+
+    def check() -> None:
+        if pending:
+            pending.clear()
+            raise KeyboardInterrupt
+
+    # SIGTERM too where a Python handler takes it (the console script's: it stops a run as Ctrl-C does)
+    signals = [signal.SIGINT] + ([signal.SIGTERM] if callable(signal.getsignal(signal.SIGTERM)) else [])
+    previous = {s: signal.signal(s, note) for s in signals}
+    try:
+        yield check
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, signal.default_int_handler if handler is None else handler)
+    check()                          # a Ctrl-C after the loop's last check is not lost
