@@ -333,6 +333,8 @@ class Salvage:
 
 
 class _Sink(Protocol):
+    shown: Path             # the trace's name in messages (written under a hidden part name first)
+
     def write(self, frames: Frames) -> None: ...
 
     def close(self) -> None: ...
@@ -397,13 +399,13 @@ class _Trc(_PythonCan):
         super().__init__(can.TRCWriter(out))
         self.writer.first_timestamp = 0.0    # offsets (ms) = simulation time
         self.writer.write_header(start)
-        self.out = out
+        self.shown = out                     # the name its messages give (export_can: the trace's, not the part's)
 
     def write(self, frames: Frames) -> None:
         bad = np.flatnonzero(frames.fd | frames.error)
         if bad.size:
             k = int(bad[0])
-            raise ValueError(f"{self.out}: python-can's TRC writer cannot hold CAN FD or error frames, and the "
+            raise ValueError(f"{self.shown}: python-can's TRC writer cannot hold CAN FD or error frames, and the "
                              f"recording has {'an FD' if frames.fd[k] else 'an error'} frame at t = "
                              f"{frames.t[k]:.6f} s (id 0x{int(frames.id[k]):X}); export to .asc, .blf, .log or .mf4")
         super().write(frames)
@@ -466,7 +468,9 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
     """Write the ``/can/raw`` frames of ``recording`` to ``out``, in the format of its extension (see
     :data:`FORMATS`). A recording without CAN frames, an unknown extension or frames the format cannot hold are
     errors (no output is left behind). ``partial``: a cut or damaged recording (a killed run) gives the frames up to
-    where it can no longer be read, and ``lost`` says why the trace ends there; otherwise it is an error."""
+    where it can no longer be read, and ``lost`` says why the trace ends there; otherwise it is an error. The trace is
+    written under a hidden name beside ``out`` and renamed when whole: a killed export leaves no short trace that
+    reads as complete under the name asked for."""
     recording, out = Path(recording), Path(out)
     sink_type = FORMATS.get(out.suffix.lower())
     if sink_type is None:
@@ -492,7 +496,9 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
                                      f"({'; '.join(salvage.problems)}): {why} — {held}")
             raise RecordingError(f"{recording}: no {S.CAN_RAW} frames in the recording, nothing to export")
         start = salvage.start if partial else trace_start(recording)
-        sink: _Sink = sink_type(out, start)
+        part = out.with_name(f".{out.stem}.{os.getpid()}.part{out.suffix}")     # the extension: asammdf keeps .mf4
+        sink: _Sink = sink_type(part, start)
+        sink.shown = out
         frames = errors = 0
         names: dict[str, None] = {}
         try:
@@ -502,11 +508,12 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
                 errors += int(block.error.sum())
                 names.update(dict.fromkeys(block.channel or ()))
                 t_last = float(block.t[-1])
+            sink.close()
+            os.replace(part, out)
         except BaseException:
             with contextlib.suppress(Exception):
                 sink.close()
-            out.unlink(missing_ok=True)
+            part.unlink(missing_ok=True)
             raise
-    sink.close()
     return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last,
                   "; ".join(salvage.problems) if partial else "")

@@ -352,3 +352,30 @@ def test_partial_export_of_a_cut_file_whose_first_chunk_is_damaged_says_the_chan
                                              r".*bad.mcap` says what the file holds"):
         export_can(bad, tmp_path / "none.log", partial=True)
     assert not (tmp_path / "none.log").exists()
+
+
+@pytest.mark.parametrize("ext", [".blf", ".mf4"])
+def test_the_trace_appears_under_its_name_only_when_whole(recording, tmp_path, monkeypatch, ext):
+    """A killed export left a short trace under the name asked for that python-can read without complaint: the trace is
+    written under a hidden part name and renamed at the end; a failure leaves neither."""
+    from rig.recorder import export_can as module
+    out = tmp_path / f"trace{ext}"
+    sink = module.FORMATS[ext]
+    seen = []
+
+    def close(self):
+        seen.append((out.exists(), sorted(p.name for p in tmp_path.iterdir())))
+        original(self)
+    original = sink.close
+    monkeypatch.setattr(sink, "close", close)
+    module.export_can(recording, out)
+    assert seen[0][0] is False and all(n.startswith(".trace.") and n.endswith(ext) for n in seen[0][1])
+    assert seen[0][1] or ext == ".mf4"          # asammdf writes its file in close() only
+    assert [p.name for p in tmp_path.iterdir()] == [out.name] and len(read_back(out)) > 0
+
+    def fail(self, frames):
+        raise OSError("disk full")
+    monkeypatch.setattr(sink, "write", fail)
+    with pytest.raises(OSError):
+        module.export_can(recording, tmp_path / f"other{ext}")
+    assert [p.name for p in tmp_path.iterdir()] == [out.name]
