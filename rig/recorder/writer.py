@@ -132,6 +132,7 @@ class Recorder:
                               enable_data_crcs=True)
         self._writer.start(profile="", library=f"mechrig/{rig.__version__}")
         self._channels: dict[str, int] = {}
+        self._sequence: dict[int, int] = {}     # per channel: the last message's sequence number (1, 2, …)
         self._blocks: dict[str, _Block] = {}
         self._can: dict[str, list[np.ndarray]] = {c: [] for c in CAN_COLUMNS}   # buffered frames: column chunks
         self._can_frames = 0                       # frames buffered
@@ -204,7 +205,9 @@ class Recorder:
         if self._closed:
             raise RuntimeError(f"Recorder {self.path}: write after close")
         log_ns = self.wall_clock_start + t_ns
-        self._writer.add_message(channel_id=channel_id, log_time=log_ns, data=data, publish_time=log_ns)
+        sequence = self._sequence[channel_id] = self._sequence.get(channel_id, 0) + 1   # gaps visible to any reader
+        self._writer.add_message(channel_id=channel_id, log_time=log_ns, data=data, publish_time=log_ns,
+                                 sequence=sequence)
         self._last_ns = max(self._last_ns, log_ns)
         self.messages += 1
 

@@ -110,6 +110,10 @@ def test_raw_mcap_library_recovers_curves_and_schemas(tmp_path):
             assert msg.log_time == START + round(body["t"][-1] * 1e9)   # wall-clock start + its last sample
             got[body["number"]] = body
         truth_times = [(m.log_time, json.loads(m.data)["t"][0]) for _, _, m in reader.iter_messages(["/plant/truth"])]
+        sequences: dict[int, list[int]] = {}                    # per channel 1, 2, … (were all 0: gaps invisible)
+        for _, channel, m in reader.iter_messages(log_time_order=False):
+            sequences.setdefault(channel.id, []).append(m.sequence)
+        assert sequences and all(seq == list(range(1, len(seq) + 1)) for seq in sequences.values())
         meta = next(m for m in reader.iter_metadata() if m.name == "rig").metadata
     assert meta["wall_clock_start"] == str(START)
     assert all(ns == START + round(t0 * 1e9) for ns, t0 in truth_times)
