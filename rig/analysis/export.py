@@ -141,6 +141,13 @@ def dbc_units() -> dict[str, str]:
     return {name: unit for signals in _device_signals().values() for name, (unit, _) in signals.items()}
 
 
+def stand_units() -> dict[str, dict[str, str]]:
+    """SI units of the ``/stand/`` topics' columns by topic and column ("1" for a count or code): the DBC's units of
+    each reading message's signals, and the host's derived columns (:data:`STAND_SI`)."""
+    return {f"/stand/{message}": {**STAND_SI, **{name: unit for name, (unit, _) in signals.items()}}
+            for message, signals in _device_signals().items()}
+
+
 def export_events(events: Sequence[Mapping], details: Sequence[str], path: Path) -> Path:
     """The recording's events as CSV, one row each: simulation time (s), kind, its ``details`` as the report words
     them (:func:`rig.analysis.event_text.event_details`)."""

@@ -81,18 +81,29 @@ def _array(encoding: str, description: str) -> dict:
     return array_of(NUMBER, description)
 
 
-def block_schema(title: str, fields: Iterable[str], encoding: str) -> dict:
-    """Schema of a bulk block: ``t`` (s) plus one array per signal (SI), same length."""
+def described(name: str, unit: str | None) -> str:
+    """A signal's description with its unit: "phi, rad"; "count (a count or code, no unit)" for "1"; "(SI units)"
+    where the unit is not known."""
+    if unit is None:
+        return f"{name} (SI units)"
+    return f"{name} (a count or code, no unit)" if unit in ("1", "") else f"{name}, {unit}"
+
+
+def block_schema(title: str, fields: Iterable[str], encoding: str, units: Mapping[str, str] | None = None) -> dict:
+    """Schema of a bulk block: ``t`` (s) plus one array per signal (SI, ``units`` by name where known), same
+    length."""
     props = {"t": _array(encoding, "simulation time, s")}
     for name in fields:
-        props[name] = _array(encoding, f"{name} (SI units)")
+        props[name] = _array(encoding, described(name, (units or {}).get(name)))
     return message_schema(title, props, required=props, extra=False)
 
 
-def view_schema(title: str, fields: Iterable[str], description: str) -> dict:
-    """Schema of a view channel: one sample per message, ``t`` (s) and one number per signal (SI)."""
+def view_schema(title: str, fields: Iterable[str], description: str, units: Mapping[str, str] | None = None) -> dict:
+    """Schema of a view channel: one sample per message, ``t`` (s) and one number per signal (SI, ``units`` by name
+    where known)."""
     props = {"t": {"type": "number", "description": "simulation time, s"}}
-    props.update({name: {"type": "number", "description": f"{name} (SI units)"} for name in fields})
+    props.update({name: {"type": "number", "description": described(name, (units or {}).get(name))}
+                  for name in fields})
     return message_schema(title, props, required=["t"], description=description, extra=False)
 
 
@@ -111,12 +122,13 @@ CAN_SCHEMA = message_schema("rig.CanFrames", {
     description="block of raw CAN frames on the bus, the host's own included", extra=False)
 
 
-def curve_schema(encoding: str) -> dict:
-    """One measured curve of the device (all arrays of equal length)."""
+def curve_schema(encoding: str, units: Mapping[str, str] | None = None) -> dict:
+    """One measured curve of the device (all arrays of equal length); ``units`` of x and y where known."""
+    units = units or {}
     return message_schema("rig.Curve", {
         "number": INTEGER, "program": INTEGER,
-        "t": _array(encoding, "sample time, s"), "x": _array(encoding, "X channel, SI"),
-        "y": _array(encoding, "Y channel, SI"), "angle": _array(encoding, "cam angle, rad"),
+        "t": _array(encoding, "sample time, s"), "x": _array(encoding, f"X channel, {units.get('x', 'SI')}"),
+        "y": _array(encoding, f"Y channel, {units.get('y', 'SI')}"), "angle": _array(encoding, "cam angle, rad"),
         "theory": {"type": "object", "description": "theoretical curve (arrays, SI); without t it shares the "
                                                     "curve's times",
                    "properties": {k: _array(encoding, f"theory {k}") for k in ("t", "x", "y", "angle")},

@@ -105,12 +105,16 @@ class Recorder:
     (4 MiB: the writer holds one index record per chunk until it closes, ~0.15 MB per 1000 demo cycles).
     wall_clock_start: ns since 1970 that simulation time 0 maps to in log times (default: now).
     view_rate: Hz of the view channels ``/view/plant`` (truth) and ``/view/device`` (curves); None: none.
+    units: the signals' SI units for the channels' schema descriptions ("phi, rad"), by topic and signal name; the
+    topic ``""`` holds those of any topic (a view channel takes its source's: ``/view/plant`` those of
+    ``/plant/truth``, ``/view/device`` those of ``/device/curve``).
     """
 
     def __init__(self, path: str | Path, scene_text: str | None = None,
                  metadata: Mapping[str, Any] | None = None, programs: Mapping[int, Mapping] | None = None,
                  block_size: int = 1000, encoding: str = "json", compression: str = "zstd",
-                 chunk_size: int = 4 << 20, wall_clock_start: int | None = None, view_rate: float | None = 100.0):
+                 chunk_size: int = 4 << 20, wall_clock_start: int | None = None, view_rate: float | None = 100.0,
+                 units: Mapping[str, Mapping[str, str]] | None = None):
         if encoding not in ENCODINGS:
             raise ValueError(f"Recorder: unknown encoding {encoding!r} (use one of {ENCODINGS})")
         if compression not in COMPRESSIONS:
@@ -131,6 +135,7 @@ class Recorder:
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSIONS[compression],
                               enable_data_crcs=True)
         self._writer.start(profile="", library=f"mechrig/{rig.__version__}")
+        self._units = {topic: dict(u) for topic, u in (units or {}).items()}
         self._channels: dict[str, int] = {}
         self._sequence: dict[int, int] = {}     # per channel: the last message's sequence number (1, 2, …)
         self._blocks: dict[str, _Block] = {}
@@ -200,6 +205,11 @@ class Recorder:
                 topic=topic, message_encoding="json", schema_id=sid, metadata=dict(meta or {}))
         return self._channels[topic]
 
+    def _units_of(self, topic: str) -> dict[str, str]:
+        """The SI units of ``topic``'s signals by name (those of any topic, then its own; a view its source's)."""
+        source = {S.VIEW_PLANT: S.TRUTH, S.VIEW_DEVICE: S.CURVE}.get(topic, topic)
+        return {**self._units.get("", {}), **self._units.get(source, {})}
+
     def _put(self, channel_id: int, t_ns: int, data: bytes) -> None:
         """Write one message at simulation time ``t_ns`` (ns)."""
         if self._closed:
@@ -235,7 +245,7 @@ class Recorder:
                 raise ValueError(f"{topic}: signal {name!r} has shape {v.shape}, time has {t.shape}")
         block = self._blocks.get(topic)
         if block is None:
-            cid = self._channel(topic, S.block_schema(f"rig.Block{topic}", sig, self.encoding), f"rig.Block{topic}",
+            cid = self._channel(topic, S.block_schema(f"rig.Block{topic}", sig, self.encoding, self._units_of(topic)), f"rig.Block{topic}",
                                 {"encoding": self.encoding, "time_unit": "s"})
             block = self._blocks[topic] = _Block(cid, tuple(sig))
         elif set(sig) != set(block.fields):
@@ -258,7 +268,7 @@ class Recorder:
         decimator = self._views.get(topic)
         if decimator is None:
             return
-        cid = self._channel(topic, S.view_schema(f"rig.View{topic}", signals, description), f"rig.View{topic}",
+        cid = self._channel(topic, S.view_schema(f"rig.View{topic}", signals, description, self._units_of(topic)), f"rig.View{topic}",
                             {"rate_hz": repr(decimator.rate), "time_unit": "s"})
         keep = decimator.pick(t)
         if not keep.size:
@@ -357,7 +367,7 @@ class Recorder:
         if theory is not None:
             msg["theory"] = {str(k): encode_array(v, self.encoding) for k, v in theory.items()}
         msg.update(extra)
-        cid = self._channel(S.CURVE, S.curve_schema(self.encoding), "rig.Curve", {"encoding": self.encoding})
+        cid = self._channel(S.CURVE, S.curve_schema(self.encoding, self._units_of(S.CURVE)), "rig.Curve", {"encoding": self.encoding})
         self._put(cid, to_ns(t[-1], f"{S.CURVE} curve {number}"), dumps_message(msg))
         self.curves += 1
         self._data_end = max(self._data_end, float(t[-1]))

@@ -251,6 +251,17 @@ def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
             "fidelity_caveat": cfg.fidelity.caveat}
 
 
+def _units(cfg: RunConfig) -> dict[str, dict[str, str]]:
+    """The SI units the recording's schemas state (:class:`Recorder` ``units``): the plants' truth signals, the
+    ``/stand/`` topics' DBC units, the unit's X and Y (those of the plant signals the scene wires to them)."""
+    from rig.analysis.export import stand_units
+    from rig.analysis.units import SIGNAL_SI
+    from rig.recorder import schemas as S
+    device = {role: SIGNAL_SI[spec.signal] for role in ("x", "y")
+              if (spec := cfg.wired(f"device.{role}")) is not None and spec.signal in SIGNAL_SI}
+    return {"": SIGNAL_SI, S.LIVE: device, S.CURVE: device, **stand_units()}
+
+
 @contextmanager
 def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
     """The run's recorder. On an exception the file is finished marked interrupted, or removed when it
@@ -265,7 +276,7 @@ def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
     try:
         rec = Recorder(output, scene_text=cfg.scene.text, metadata=_metadata(cfg, mode),
                        encoding=cfg.recording["encoding"], compression=cfg.recording["compression"],
-                       view_rate=cfg.recording["view_rate"])
+                       view_rate=cfg.recording["view_rate"], units=_units(cfg))
     except BaseException:
         _restore(earlier, output)
         raise

@@ -251,3 +251,18 @@ def test_a_lab_recording_keeps_to_the_same_rules(tmp_path):
             assert _nulls(data) == [], channel.topic
             assert [e.message for e in jsonschema.Draft202012Validator(parsed).iter_errors(data)] == [], channel.topic
     assert {"/stand/encoder1", "/stand/lab_motion", "/stand/torque", "/plant/truth"} <= seen
+
+
+def test_schemas_state_each_signals_unit(channels):
+    """The fields said "(SI units)" whatever they held (a count and a code too): now the unit of each (the plants'
+    truth, the unit's X/Y as wired in the scene: stroke in m, rod force in N; the encoder topic's DBC units)."""
+    def described(topic: str) -> dict[str, str]:
+        return {k: v.get("description", "") for k, v in channels[topic]["schema"]["properties"].items()}
+    truth = described("/plant/truth")
+    assert truth["phi"] == "phi, rad" and truth["F_rod"] == "F_rod, N" and truth["s"] == "s, m"
+    assert described("/view/plant")["R23"] == "R23, N"
+    assert described("/device/live")["x"] == "x, m" and described("/device/live")["y"] == "y, N"
+    assert described("/device/curve")["x"] == "X channel, m" and described("/device/curve")["y"] == "Y channel, N"
+    encoder = described("/stand/encoder1")
+    assert encoder["speed"] == "speed, rad/s" and encoder["count"] == "count (a count or code, no unit)"
+    assert not [(t, k) for t in channels for k, v in described(t).items() if "(SI units)" in v]
