@@ -55,7 +55,7 @@ def _print_values(st: dict) -> None:
     without statistics)."""
     if not st.get("values"):
         return
-    from rig.analysis.numbers import decimals, fixed
+    from rig.analysis.numbers import fixed, row_places
     from rig.analysis.trend import drift_text
     print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean μ':>10} {'σ':>9} {'min':>10} {'max':>10}  "
           f"{'μ−3σ..μ+3σ':>21}  {'Cp':>7} {'Cpk':>7}  normal drift")
@@ -69,11 +69,10 @@ def _print_values(st: dict) -> None:
         else:                                                                          # σ = 0: say nothing
             cap = f"{pv['cp']:7.4g} {pv['cpk']:7.4g}" if pv["spread"] else f"{'n/a':>7} {'n/a':>7}"
         drift = drift_text(pv["trend"], "-")
-        # the band at one precision: three digits of its width (four of the mean when σ = 0)
-        places = decimals(6 * pv["std"], 3) if pv["std"] > 0 else decimals(pv["mean"], 4)
+        places = row_places(pv["mean"], pv["std"])                 # mean, min, max and the band at one precision
         band = f"{fixed(pv['minus_3sigma'], places)}..{fixed(pv['plus_3sigma'], places)}"
-        print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>5}  {pv['mean']:10.4g} {pv['std']:9.3g} "
-              f"{pv['min']:10.4g} {pv['max']:10.4g}  {band:>21}  {cap}  "
+        print(f"  {name:>16} {pv['n']:4d} {pv.get('unit', ''):>5}  {fixed(pv['mean'], places):>10} {pv['std']:9.3g} "
+              f"{fixed(pv['min'], places):>10} {fixed(pv['max'], places):>10}  {band:>21}  {cap}  "
               f"{_yes_no(pv['normality'].get('normal')):6} {drift}")
     for name in outside:
         print(f"  {name}: NOT capable, every value outside its limits (Cpk -inf)")

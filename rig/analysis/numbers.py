@@ -24,6 +24,13 @@ def fixed(v: float | None, places: int, sign: bool = False) -> str:
     return text[1:] if float(text) == 0.0 and text[0] in "+-" else text
 
 
+def row_places(mean: float, std: float) -> int:
+    """Decimals of a process value's row (mean, min, max, μ ± 3σ, limits at one precision): three digits of the
+    ±3σ band's width, four of the mean when σ = 0 or at rounding level, below 1e-9 of the mean (a row read "-19" for
+    a minimum of -19.0023 beside a band in hundredths)."""
+    return decimals(6 * std, 3) if std > 1e-9 * abs(mean) else decimals(mean, 4)
+
+
 def fixed_range(lo: float, hi: float, significant: int = 3, sep: str = "…") -> str:
     """``"1.0…42.3"``: both ends with the decimals that give the larger one ``significant`` digits."""
     places = decimals(max(abs(lo), abs(hi)), significant)

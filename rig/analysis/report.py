@@ -30,6 +30,7 @@ from rig.analysis.event_text import event_details
 from rig.analysis.export import export_curves, export_events, export_results, export_series
 from rig.analysis.lab_report import lab_section
 from rig.analysis.normality import ANDERSON_P
+from rig.analysis.numbers import fixed, row_places
 from rig.analysis.report_blocks import (NOK_PLOTS, Banner, Block, Figure, Heading, Link, ReportContext, Section, Table,
                                         Text, fmt)
 from rig.analysis.sets import by_program, cut_reason, memory_warning, process_values
@@ -329,13 +330,19 @@ def _device_table(agreement: dict, units: DisplayUnits) -> list[Block]:
 
 def _values_table(values: dict) -> Table:
     """One row per process value: n, unit, descriptive statistics, capability, normality and trend checks."""
-    rows = [[name, v["n"], v["unit"], v["mean"], v["std"], v["min"], v["max"], v["minus_3sigma"], v["plus_3sigma"],
-             v["lsl"], v["usl"], *_indices(v), v["band_within_limits"], v["normality"]["shapiro_p"],
+    rows = [[name, v["n"], v["unit"], *_at_row_places(v, "mean"), v["std"],
+             *_at_row_places(v, "min", "max", "minus_3sigma", "plus_3sigma", "lsl", "usl"), *_indices(v), v["band_within_limits"], v["normality"]["shapiro_p"],
              _anderson_cell(v["normality"]["anderson_p"]), v["normality"]["normal"], v["trend"]["slope_p"],
              v["trend"]["runs"]["p"], drift_text(v["trend"])] for name, v in values.items()]
     return Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
                   "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
                  rows)
+
+
+def _at_row_places(v: dict, *keys: str) -> list[str | None]:
+    """The row's values ``keys`` at its one precision (:func:`rig.analysis.numbers.row_places`; None stays empty)."""
+    places = row_places(v["mean"], v["std"])
+    return [None if v[k] is None else fixed(v[k], places) for k in keys]
 
 
 def _anderson_cell(p: float | None) -> Any:

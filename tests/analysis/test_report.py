@@ -293,3 +293,12 @@ def test_the_truth_caption_accounts_for_every_signal(tmp_path):
     (heading, figure) = report.truth(ReportContext(rec, {}, tmp_path))
     assert "cam_angle" in figure.caption and "F" in figure.caption
     assert "not drawn: phi (the cam angle unwrapped, a ramp; cam_angle is drawn)" in figure.caption
+
+
+def test_a_process_value_row_is_at_one_precision():
+    """mean, min, max and the band with the decimals of three digits of 6σ (a minimum of -19.0023 read "-19" beside a
+    band in hundredths); σ at rounding level counts as none (four digits of the mean, not 15 decimals)."""
+    from rig.analysis.numbers import fixed, row_places
+    places = row_places(-20.1, 0.77)
+    assert places == 2 and fixed(-19.0023, places) == "-19.00"
+    assert row_places(41.72, 1e-14) == 2 and row_places(0.25503, 0.000751) == 5 and row_places(5.0, 0.0) == 3
