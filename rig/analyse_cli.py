@@ -44,7 +44,8 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
     from rig.executors.options import add_executor_arguments
     p = sub.add_parser("analyse", parents=parents,
                        help="analyse many recordings (globs) -> one table (a row per recording) and a report")
-    p.add_argument("recordings", nargs="+", help="recording files or glob patterns (quote them; ** recurses)")
+    p.add_argument("recordings", nargs="+",
+                   help="recording files, folders (every *.mcap under them) or glob patterns (quote them; ** recurses)")
     p.add_argument("-o", "--output", default="out/analyse", help="directory of table and report (default out/analyse)")
     add_executor_arguments(p, local="dask-processes")
     p.set_defaults(func=cmd_analyse)

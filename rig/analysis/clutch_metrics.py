@@ -461,7 +461,8 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
             change = np.polyfit(tr[ok] - rec.end, w[ok], 1)[0] * dwell if np.count_nonzero(ok) >= 3 else 0.0
             if abs(change) > SPEED_SETTLED * max(abs(mean), 1.0):
                 out.append(Metric(f"final speed {name}", None, "rad/s",
-                                  f"still {'speeding up' if change * mean >= 0 else 'slowing down'} at the end of the "
+                                  f"still {'speeding up' if change * mean >= 0 else 'slowing down'}"
+                                  f"{' turning backwards (reversed)' if mean < 0 else ''} at the end of the "
                                   f"run: {change:+.3g} rad/s over its last {dwell * 1e3:.0f} ms (trend), mean "
                                   f"{mean:.4g} rad/s — no final speed within the run"))
             else:

@@ -404,6 +404,9 @@ def curves(ctx: ReportContext) -> list[Block]:
     if ok:
         blocks.append(Text(f"Individual plots of OK curves: {len(shown)} of {len(ok)}" +
                            (" (more with --ok-plots N)." if len(shown) < len(ok) else "."), "note"))
+    elif ctx.ok_plots:
+        blocks.append(Text(f"Individual plots of OK curves: none asked for ({ctx.ok_plots}) could be drawn, no curve "
+                           "is OK.", "note"))
     return blocks + [curve_figure(ctx, c, rows.get(c.number)) for c in shown]
 
 
