@@ -31,8 +31,8 @@ FAMILIES: dict[str, tuple[float, ...]] = {
 }
 
 #: how each parameter is shown (label, SI → display factor)
-_DISPLAY = {"r0": ("r0 [mm]", 1e3), "r1": ("r1 [mm]", 1e3), "r2": ("r2 [mm]", 1e3),
-            "k_a": ("k_a [N/mm]", 1e-3), "delta": ("δ [mm]", 1e3)}
+_DISPLAY = {"r0": ("r0 (mm)", 1e3), "r1": ("r1 (mm)", 1e3), "r2": ("r2 (mm)", 1e3),
+            "k_a": ("k_a (N/mm)", 1e-3), "delta": ("δ (mm)", 1e3)}
 
 
 @dataclass(frozen=True)
@@ -91,8 +91,8 @@ def plot_parameter_studies(out_dir: str | Path, mu_B: float = 0.0) -> list[Path]
         for v, curve, pa, pt in zip(fam.values, fam.torque, fam.peak_angle, fam.peak_torque):
             line, = ax.plot(np.degrees(fam.phi), curve, label=f"{label.split(' ')[0]} = {v * scale:g}")
             ax.plot(math.degrees(pa), pt, "o", color=line.get_color(), ms=4)
-        ax.set_xlabel("relative angle φ [deg]")
-        ax.set_ylabel("torque T [N·m]")
+        ax.set_xlabel("relative angle φ (°)")
+        ax.set_ylabel("torque T (N·m)")
         ax.set_title(f"Flat-tappet static characteristic, varying {label}" + (f", μ_B = {mu_B:g}" if mu_B else ""))
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
