@@ -344,6 +344,25 @@ def cmd_export_can(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_repair(args: argparse.Namespace) -> int:
+    from rig.recorder.reader import require_recording
+    from rig.recorder.repair import repair
+    source = Path(args.recording)
+    output = Path(args.output) if args.output else source.with_name(f"{source.stem}.repaired.mcap")
+    if output.resolve() == source.resolve():
+        raise UsageError(f"cannot write the repaired recording to {output}: that is the damaged one (name another)")
+    require_recording(source)
+    recording_file(output)
+    done = repair(source, file_parent(output))
+    topics = ", ".join(f"{topic} {n}" for topic, n in sorted(done.messages.items()))
+    print(f"wrote {sum(done.messages.values())} messages ({topics}) -> {done.path}")
+    if done.problems:
+        print(f"the source lacks what is lost for good: {'; '.join(done.problems)}")
+    else:
+        print("the source was whole: nothing was lost")
+    return 0
+
+
 def cmd_summary(args: argparse.Namespace) -> int:
     from rig.plants.cam_bar.scene_io import require_cam_bar
     from rig.scene import load_scene
@@ -555,6 +574,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="of a cut or damaged recording (a killed run): every frame that reads, damaged chunks "
                           "skipped as `rig report --partial` skips them, with a warning naming what is lost")
     exp.set_defaults(func=cmd_export_can)
+    fix = sub.add_parser("repair", parents=[quiet],
+                         help="rewrite a cut or damaged recording (a killed run) as a whole MCAP file that Foxglove and "
+                              "other indexed readers open; what was lost is named in it")
+    fix.add_argument("recording", help="the cut or damaged recording (.mcap)")
+    fix.add_argument("-o", "--output", help="the repaired recording (default: <recording>.repaired.mcap beside it)")
+    fix.set_defaults(func=cmd_repair)
     summ = sub.add_parser("summary", parents=[quiet], help="cam-bar kinematics/kinetostatics table and cycle chart")
     summ.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE),
                       help=f"cam-bar scene (default {DEFAULT_SCENE_TEXT})")

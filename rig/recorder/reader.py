@@ -154,6 +154,8 @@ def interruption_text(reason: str) -> str:
         return "interrupted by the user (Ctrl-C)"
     if reason == "unknown reason":                 # the reader's word for an end record without a reason
         return "stopped early (the recording does not say why)"
+    if reason.startswith("repaired by rig repair"):    # rig.recorder.repair: a cut file rewritten whole
+        return f"cut short, then {reason}"
     return f"stopped by an error — {reason}"
 
 
@@ -367,7 +369,8 @@ def read_recording(path: str | Path, allow_partial: bool = False, can_frames: bo
         collector.finish()
         if rec.interrupted is not None:
             t = _metadata_number(rec, S.END_METADATA, "simulation_time", "nan", float)
-            rec.problems.append(f"{interruption_text(rec.interrupted)} at {t:.3f} s of simulation time")
+            rec.problems.append(interruption_text(rec.interrupted) + (f" at {t:.3f} s of simulation time"
+                                                                      if math.isfinite(t) else ""))
     except ValueError as exc:  # a damaged metadata value
         rec.truncated = rec.damaged = True
         rec.problems.append(f"damaged {exc}")

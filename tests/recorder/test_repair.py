@@ -1,0 +1,84 @@
+"""`rig repair`: a cut or damaged recording rewritten as a whole MCAP file that indexed readers open (the mcap
+library's seeking reader here; `@mcap/core` and Foxglove's rules by hand on a killed demo run), holding exactly what the
+salvage reader reads, and saying in its end record what was lost."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from rig.cli import main
+from rig.recorder import RecordingError, read_recording
+from rig.recorder.repair import repair
+
+from tests.recorder.test_damaged import _chunks, _flip, _record
+
+
+def _messages(path: Path) -> list[tuple[str, int, int, bytes]]:
+    """(topic, log time, sequence, data) of every message, in file order, by the indexed reader."""
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        reader.get_summary()                        # an indexed reader: needs the summary and footer
+        return [(c.topic, m.log_time, m.sequence, m.data) for _, c, m in reader.iter_messages(log_time_order=False)]
+
+
+def test_a_cut_recording_is_rewritten_whole_with_what_the_salvage_reads(tmp_path):
+    whole = _record(tmp_path / "whole.mcap")
+    raw = whole.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(raw[:_chunks(whole)[7].chunk_start_offset + 40])      # killed inside chunk 8
+    with pytest.raises(Exception):
+        _messages(cut)                                                     # what Foxglove's reader refuses
+    done = repair(cut, tmp_path / "fixed.mcap")
+    salvaged = read_recording(cut, allow_partial=True)
+    fixed = read_recording(done.path)                                      # no allow_partial needed
+    assert not fixed.truncated and not fixed.complete and fixed.interrupted.startswith("repaired by rig repair from")
+    assert "cut short, then repaired by rig repair from cut.mcap: " in "; ".join(fixed.problems)
+    assert [c.number for c in fixed.curves] == [c.number for c in salvaged.curves] == list(range(1, 8))
+    assert fixed.message_counts == salvaged.message_counts and done.messages == dict(salvaged.message_counts)
+    assert fixed.scene_text == salvaged.scene_text and fixed.metadata["rig"] == salvaged.metadata["rig"]
+    original = _messages(whole)
+    assert _messages(done.path) == original[:len(_messages(done.path))]    # the same records, times and sequences
+    assert done.problems and "chunk 8" in done.problems[0]
+
+
+def test_a_damaged_middle_chunk_is_named_and_the_rest_rewritten(tmp_path):
+    whole = _record(tmp_path / "whole.mcap")
+    index = _chunks(whole)[4]
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(_flip(whole.read_bytes(), index.chunk_start_offset + index.chunk_length // 2))
+    done = repair(damaged, tmp_path / "fixed.mcap")
+    fixed = read_recording(done.path)
+    assert "fails its CRC" in done.problems[0] and "fails its CRC" in fixed.interrupted
+    assert len(fixed.curves) == len(read_recording(damaged, allow_partial=True).curves) < 12
+
+
+def test_a_whole_recording_repairs_to_itself(tmp_path):
+    whole = _record(tmp_path / "whole.mcap")
+    done = repair(whole, tmp_path / "copy.mcap")
+    assert done.problems == [] and read_recording(done.path).complete
+    assert _messages(done.path) == _messages(whole)
+
+
+def test_nothing_to_repair_and_no_overwriting_of_the_source(tmp_path):
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 20)
+    with pytest.raises(RecordingError, match="no message can be read from it"):
+        repair(junk, tmp_path / "out.mcap")
+    assert not (tmp_path / "out.mcap").exists() and [p.name for p in tmp_path.iterdir()] == ["junk.mcap"]
+    with pytest.raises(ValueError, match="must not replace its source"):
+        repair(junk, junk)
+
+
+def test_cli_repair_names_its_output_and_what_was_lost(tmp_path, capsys):
+    whole = _record(tmp_path / "whole.mcap")
+    cut = tmp_path / "run.mcap"
+    cut.write_bytes(whole.read_bytes()[:_chunks(whole)[5].chunk_start_offset + 40])
+    assert main(["repair", str(cut)]) == 0
+    out = capsys.readouterr().out
+    fixed = tmp_path / "run.repaired.mcap"
+    assert f"-> {fixed}" in out and "the source lacks what is lost for good: chunk 6" in out
+    assert main(["report", str(fixed), "-o", str(tmp_path / "report"), "--format", "md"]) == 0
+    assert "cut short, then repaired by rig repair from run.mcap" in (tmp_path / "report" / "report.md").read_text()
+    assert main(["repair", str(cut), "-o", str(cut)]) == 2
