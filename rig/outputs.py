@@ -133,6 +133,31 @@ def _rig_made(path: Path) -> bool:
     return False
 
 
+def clear_previous(out: Path, manifest: str, unlisted: Callable[[Path], set[str]] = lambda out: set()) -> dict[str, int]:
+    """Remove what an earlier run of a command wrote into ``out`` (the names in its ``manifest`` file; without one, in a
+    directory marked as rig's, ``unlisted(out)``: what an older rig wrote there), so that no figure or table of
+    another run is left beside this one's; return the files that stay, with their modification times (ns), for
+    :func:`list_written`."""
+    listed = out / manifest
+    if listed.exists():
+        names = set(listed.read_text(encoding="utf-8").split())
+    elif (out / MARK).exists():
+        names = unlisted(out)
+    else:
+        names = set()
+    for name in names:
+        if "/" not in name and name not in (MARK, manifest):
+            (out / name).unlink(missing_ok=True)
+    return {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.is_file()}
+
+
+def list_written(out: Path, manifest: str, before: dict[str, int]) -> None:
+    """Write the ``manifest`` of ``out``: the files written since :func:`clear_previous` returned ``before``."""
+    written = sorted(p.name for p in out.iterdir()
+                     if p.is_file() and not p.name.startswith(".") and before.get(p.name) != p.stat().st_mtime_ns)
+    (out / manifest).write_text("".join(f"{name}\n" for name in written), encoding="utf-8")
+
+
 def claim_dir(path: Path) -> Path:
     """Make the output directory ``path`` (checked by :func:`writable_dir`) and mark it as rig's."""
     path = Path(path)

@@ -38,7 +38,7 @@ from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
 from rig.analysis.trend import drift_text
 from rig.analysis.units import DisplayUnits
-from rig.outputs import MARK
+from rig.outputs import clear_previous, list_written
 from rig.recorder import Recording, read_recording
 from rig.recorder.completeness import file_problem, losses
 from rig.recorder.reader import interruption_text
@@ -765,7 +765,7 @@ def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path,
            else read_recording(recording_or_path, can_frames=False))          # the report counts the bus frames
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    before = _clear_previous(out)
+    before = clear_previous(out, MANIFEST, lambda out: {p.name for p in out.glob("[0-9][0-9][0-9]_*.png")})
     ctx = ReportContext(rec, analyse(rec) if analysis is None else analysis, out, ok_plots, nok_plots)
     blocks: list[Block] = []
     for _, section in (SECTIONS if sections is None else sections):
@@ -774,24 +774,5 @@ def write_report(recording_or_path: Recording | str | Path, out_dir: str | Path,
     title = f"Rig report: {rec.path.name}" + (f" (scene {scene})" if scene else "")
     path = out / f"report.{fmt}"
     path.write_text(_markdown(title, blocks) if fmt == "md" else _html(title, blocks), encoding="utf-8")
-    written = sorted(p.name for p in out.iterdir()
-                     if p.is_file() and not p.name.startswith(".") and before.get(p.name) != p.stat().st_mtime_ns)
-    (out / MANIFEST).write_text("".join(f"{name}\n" for name in written), encoding="utf-8")
+    list_written(out, MANIFEST, before)
     return path
-
-
-def _clear_previous(out: Path) -> dict[str, int]:
-    """Remove what an earlier report wrote into ``out`` (the names in its :data:`MANIFEST`; without one, in a
-    directory marked as rig's, its numbered figures), so that no figure or CSV of another run is left beside this
-    report; return the files that stay, with their modification times (ns), to tell what this report writes."""
-    listed = out / MANIFEST
-    if listed.exists():
-        names = set(listed.read_text(encoding="utf-8").split())
-    elif (out / MARK).exists():
-        names = {p.name for p in out.glob("[0-9][0-9][0-9]_*.png")}
-    else:
-        names = set()
-    for name in names:
-        if "/" not in name and name not in (MARK, MANIFEST):
-            (out / name).unlink(missing_ok=True)
-    return {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.is_file()}

@@ -6,10 +6,13 @@ import math
 import sys
 from pathlib import Path
 
+MANIFEST = ".mechrig-sweep"      # in a sweep directory: the files the last sweep wrote there (removed by the next)
+
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.executors.options import executor_from_args
-    from rig.outputs import claim_dir, writable_dir
+    from rig.outputs import claim_dir, clear_previous, list_written, writable_dir
+    from rig.sweep.metrics import METRICS
     from rig.scene import load_scene
     from rig.sweep import parse_param
     from rig.sweep.plots import MAX_MAPS, plot_sweep
@@ -25,13 +28,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                 print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
 
         result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity, starting)
-    table = write_table(result, claim_dir(out) / "sweep.csv")
+    before = clear_previous(claim_dir(out), MANIFEST, lambda out: {"sweep.csv"} | {
+        p.name for p in out.glob("*.png") if any(p.stem == m or p.stem.startswith(f"{m}_") for m in METRICS)})
+    table = write_table(result, out / "sweep.csv")
     failed = [(p, e) for p, e in zip(result.points, result.errors) if e]
     print(f"{plural(len(result.points), 'point')} at model level {levels_text(result.levels)}, {len(failed)} failed -> {table}")
     for point, error in failed[:5]:
         print(f"  failed at {', '.join(f'{p.key} = {v}' for p, v in zip(params, point))}: {error}")
     for path in plot_sweep(result, out):
         print(f"map: {path}")
+    list_written(out, MANIFEST, before)
     combos = math.prod(len(p.values) for p in params[2:])
     if combos > MAX_MAPS:
         print(f"maps: the first {MAX_MAPS} of {combos} combinations of {', '.join(p.key for p in params[2:])} per "

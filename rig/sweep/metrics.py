@@ -157,7 +157,8 @@ METRICS: dict[str, Metric] = {
                                "itself, the load cell's preload left out (a preload sweep does not move it)",
                                lambda r: float(np.max(np.abs(r.signals["rod_tension"])))),
     "ok_share": Metric(("cam_bar",), "1", f"share of cycles the DigiForce program judges OK, with the scene's "
-                       f"per-cycle variation ([scene] cycles, else {OK_CYCLES})",
+                       f"per-cycle variation ([scene] cycles, else {OK_CYCLES}); the seed also draws the transducers' "
+                       f"static errors once: one seed is one set of sensors (sweep scene.seed for their spread)",
                        lambda r: ok_share(r.scene)),
     "disengagements": Metric(("clutch_dynamic",), "1", "disengagements (apex passes) over the scene's duration",
                              lambda r: float(len(r.plant.disengagement_times)), integer=True, level=2),
@@ -167,7 +168,10 @@ METRICS: dict[str, Metric] = {
 
 
 def check_metrics(names: list[str], plant: str) -> None:
-    """A ValueError naming what is wrong unless every metric exists and applies to ``plant``."""
+    """A ValueError naming what is wrong unless every metric exists, is asked for once and applies to ``plant``."""
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"--metric {', '.join(twice)} is given twice: each metric is one column and one map")
     for name in names:
         if name not in METRICS:
             raise ValueError(f"unknown metric {name!r} (known: {', '.join(METRICS)})")
@@ -187,6 +191,12 @@ def check_levels(names: list[str], levels: list[int], where: str) -> None:
     runs = (f"runs at level {low[0]} ({LEVEL_NAMES[low[0]]})" if len(set(levels)) == 1 else
             f"runs {sum(lv < need for lv in levels)} of its {len(levels)} points at level {', '.join(map(str, low))}")
     what = "; ".join(f"{m!r} needs level {lv} ({LEVEL_NAMES[lv]})" for m, lv in short.items())
+    example = CAM_BAR_EXAMPLES.get(need) if all(METRICS[m].plants == ("cam_bar",) for m in short) else None
     raise ValueError(f"{where} {runs}; {what}: below that the sweep would write 0 or NaN. Give --fidelity {need} "
-                     f"(or a scene with [scene] fidelity = {need}, e.g. data/scenes/pin_insertion_l2.toml), or leave "
-                     f"the metric out")
+                     f"(or a scene at level {need}: [scene] fidelity = {need}, or questions that need it"
+                     + (f", e.g. {example}" if example else "") +
+                     "), or leave the metric out")
+
+
+#: a shipped cam-bar scene at each model level (the example of check_levels' message)
+CAM_BAR_EXAMPLES = {1: "data/scenes/pin_insertion.toml", 2: "data/scenes/pin_insertion_l2.toml"}

@@ -39,14 +39,23 @@ def run_points(tasks: list[PointTask]) -> list[tuple[dict[str, float], str]]:
 
 
 def run_point(task: PointTask) -> tuple[dict[str, float], str]:
-    """The point's metrics, and '' or why the run failed (then the metrics are NaN)."""
+    """The point's metrics, and '' or why its run failed (then every metric is NaN) or why a metric failed (that one
+    NaN, named: ``"ok_share: …"``; the others keep their values)."""
     from rig.plants.cam_bar.chain import SingularPositionError
     from rig.solvers import SolverDivergence
+    failures = (SceneError, SolverDivergence, SingularPositionError, ValueError)
     try:
         run = run_plant(with_overrides(task.scene, task.overrides), task.revolutions)
-        return {m: METRICS[m].compute(run) for m in task.metrics}, ""
-    except (SceneError, SolverDivergence, SingularPositionError, ValueError) as exc:
+    except failures as exc:
         return {m: math.nan for m in task.metrics}, " ".join(str(exc).split())
+    values, errors = {}, []
+    for m in task.metrics:
+        try:
+            values[m] = METRICS[m].compute(run)
+        except failures as exc:
+            values[m] = math.nan
+            errors.append(f"{m}: {' '.join(str(exc).split())}")
+    return values, "; ".join(errors)
 
 
 @dataclass(frozen=True)
@@ -90,7 +99,7 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
     levels = [point_level(task, plant) for task in tasks]
     check_levels(list(metrics), levels, str(scene.path) + (f" with --fidelity {fidelity}" if fidelity is not None
                                                            else ""))
-    _check_buildable(tasks, make_plant, read_config)
+    _check_buildable(tasks, make_plant, read_config, "ok_share" in metrics)
     starting()
     results = [r for part in executor.map(run_points, batches(tasks, executor.workers)) for r in part]
     return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results],
@@ -116,9 +125,10 @@ def point_level(task: PointTask, plant: str) -> int:
         return choose(task.scene, plant).level      # the override's own error is raised by _check_buildable
 
 
-def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) -> None:
-    """Build every point's plant before anything runs: a value the scene refuses (a negative rate, a NaN, a key the
-    scene cannot take) is an input error raised here, naming the point, wherever it lies in the grid; a point that
+def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any, device: bool = False) -> None:
+    """Build every point's plant (``device``: and its acquisition unit's program, for ``ok_share``) before anything
+    runs: a value the scene refuses (a negative rate, a NaN, a key the scene cannot take, a sample rate the unit's
+    program cannot take) is an input error raised here, naming the point, wherever it lies in the grid; a point that
     cannot be built for its physics (an impossible geometry) is left to :func:`run_point`, which records it as a
     failed point — unless no point builds at all, then the first point's error is raised."""
     from rig.plants.cam_bar.chain import SingularPositionError
@@ -127,7 +137,11 @@ def _check_buildable(tasks: list[PointTask], make_plant: Any, read_config: Any) 
     for task in tasks:
         try:
             point = with_overrides(task.scene, task.overrides)
-            make_plant(read_config(point).plant, point, nominal=True)
+            cfg = read_config(point)
+            make_plant(cfg.plant, point, nominal=True)
+            if device:
+                from rig.runner.machine import instruments
+                instruments(cfg)
             built = True
         except ImpossibleGeometry as exc:
             first = first or exc

@@ -1,6 +1,7 @@
 """rig sweep: parameters, scene overrides, metrics against the plant computed directly, executors agree."""
 from __future__ import annotations
 
+import math
 import csv
 import re
 from pathlib import Path
@@ -378,3 +379,52 @@ def test_a_preload_sweep_moves_the_reading_by_its_offset_not_the_force_in_the_ro
     tension = [float(r["rod_tension_peak [N]"]) for r in rows]
     assert tension[0] == tension[1] == pytest.approx(reading[0])
     assert reading[1] == pytest.approx(reading[0] + 25.0, abs=1e-9)
+
+
+def test_a_new_sweep_removes_the_maps_of_the_one_before(tmp_path):
+    """A 2-metric sweep, then a 1-metric one into the same directory: the first's other map was left beside the new
+    table, as if it belonged to it."""
+    out = tmp_path / "sweep"
+    base = ["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.k=1.09 N/mm,1.89 N/mm", "--revolutions", "1",
+            "--executor", "serial", "-o", str(out)]
+    assert main(base + ["--metric", "flank_switches", "--metric", "rod_force_peak"]) == 0
+    assert {"flank_switches.png", "rod_force_peak.png", "sweep.csv"} <= {p.name for p in out.iterdir()}
+    (out / "notes.txt").write_text("mine")
+    assert main(base + ["--metric", "rod_force_peak"]) == 0
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["notes.txt", "rod_force_peak.png",
+                                                                                   "sweep.csv"]
+
+
+def test_a_metric_given_twice_and_a_level_1_metric_below_its_level_are_refused_with_a_fitting_example(tmp_path, capsys):
+    base = ["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.k=1.09 N/mm", "--executor", "serial", "-o",
+            str(tmp_path / "sweep")]
+    assert main(base + ["--metric", "rod_force_peak", "--metric", "rod_force_peak"]) == 2
+    assert "--metric rod_force_peak is given twice" in capsys.readouterr().err
+    assert main(base + ["--metric", "rod_force_peak", "--fidelity", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "'rod_force_peak' needs level 1" in err and "e.g. data/scenes/pin_insertion.toml)" in err
+    assert not (tmp_path / "sweep").exists()
+
+
+def test_one_failing_metric_leaves_the_others_of_its_point(monkeypatch):
+    """ok_share's device program failing once took rod_force_peak of the same point with it (NaN for every metric)."""
+    from dataclasses import replace
+    import rig.sweep.metrics as metrics_module
+
+    def refuse(run):
+        raise ValueError("the unit refuses")
+    monkeypatch.setitem(metrics_module.METRICS, "ok_share", replace(metrics_module.METRICS["ok_share"],
+                                                                    compute=refuse))
+    with make_executor("serial") as ex:
+        result = run_sweep(load_scene(DEFAULT_SCENE), [parse_param("plant.k=1.89 N/mm")],
+                           ["rod_force_peak", "ok_share"], ex, revolutions=1)
+    assert result.values[0]["rod_force_peak"] > 40.0 and math.isnan(result.values[0]["ok_share"])
+    assert result.errors == ["ok_share: the unit refuses"]
+
+
+def test_a_sample_rate_the_units_program_refuses_is_an_input_error_before_anything_runs(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "scene.sample_rate=1 kHz,10 kHz", "--metric",
+                 "rod_force_peak", "--metric", "ok_share", "--executor", "serial", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "sweep point scene.sample_rate = 1 kHz" in err and "[device.config.sampling]" in err and not out.exists()
