@@ -101,7 +101,7 @@ def machine_of(scene_text: str) -> dict[str, str]:
 
 def expand(patterns: Sequence[str]) -> list[Path]:
     """Paths named by ``patterns`` (globs, ``**`` recursive; a folder: the ``*.mcap`` files under it, at any
-    depth), sorted per pattern, each once, absolute (a worker of a cluster opens them from its own folder); a
+    depth, the extension in any case: ``RUN.MCAP`` too), sorted per pattern, each once, absolute (a worker of a cluster opens them from its own folder); a
     pattern that matches nothing is a ValueError naming it."""
     out: dict[Path, None] = {}
     for pattern in patterns:
@@ -110,7 +110,7 @@ def expand(patterns: Sequence[str]) -> list[Path]:
             raise ValueError(f"no recording matches {pattern!r}")
         for hit in (Path(h).absolute() for h in hits):
             if hit.is_dir():
-                out.update((p, None) for p in sorted(hit.rglob("*.mcap")) if p.is_file())
+                out.update((p, None) for p in sorted(hit.rglob("*")) if p.suffix.lower() == ".mcap" and p.is_file())
             elif hit.is_file():
                 out[hit] = None
     if not out:

@@ -172,3 +172,11 @@ def test_copies_of_a_run_count_once_and_runs_sharing_a_seed_are_said(recordings)
     assert lines[2].startswith("4 read (1 incomplete), 2 of them copies of another run (counted once), 0 unreadable; 5 curves")
     assert any(line.startswith("Note: 2 runs of pin_insertion L1 were made with seed ") for line in lines)
     assert "## Copies of another run (same scene, seed and start; counted once) (2)" in lines
+
+
+def test_a_folder_gives_its_recordings_whatever_the_case_of_their_extension(tmp_path):
+    """``UP.MCAP`` in a folder was neither analysed nor mentioned."""
+    (tmp_path / "a.mcap").write_bytes(b"x")
+    (tmp_path / "UP.MCAP").write_bytes(b"x")
+    (tmp_path / "notes.txt").write_bytes(b"x")
+    assert sorted(p.name for p in expand([str(tmp_path)])) == ["UP.MCAP", "a.mcap"]
