@@ -10,7 +10,8 @@ import pytest
 from rig.plants.cam_bar import PinInsertionMechanism, SingularPositionError
 from rig.plants.cam_bar.fourbar import (EXAMPLE_LENGTHS, EXAMPLE_TOLERANCES, influence_factors,
                                         rocker_angle)
-from rig.plants.cam_bar.montecarlo import monte_carlo, sample_clearance, sample_deviations, tasks
+from rig.plants.cam_bar.montecarlo import (PROBE, buildable_probe, monte_carlo, sample_clearance,
+                                           sample_deviations, tasks)
 from rig.plants.cam_bar.tolerance import (PARAMS, CamChain, ToleranceSet, linear_analysis,
                                           load_tolerances)
 from rig.scene import SceneError
@@ -175,3 +176,25 @@ def test_a_band_from_too_few_machines_says_what_it_is():
     assert "the sample's range" in tail_note(10)
     assert "rough estimate" in tail_note(2000) and "7408 samples" in tail_note(2000)
     assert tail_note(7408) == "" and tail_note(10**6) == ""
+
+
+def test_a_set_whose_tolerances_allow_machines_that_cannot_be_built_says_how_many(chain):
+    """The Monte-Carlo run stopped at the first machine that cannot be assembled, naming its angle only: it now says
+    which share of the set fails (counted machine by machine, here checked against the chain's own per-machine
+    evaluation)."""
+    tol = ToleranceSet({**{k: 1e-6 for k in PARAMS}, "r": 0.06})       # ±60 mm on the pitch radius
+    mask = buildable_probe(chain, tol, 5)
+    bad = int(np.count_nonzero(~mask))
+    assert 0 < bad < PROBE
+    dq = sample_deviations(np.random.default_rng(5), tol, PROBE)
+    for i in range(300):                                                # the same draws, one machine at a time
+        one = {k: v[i] for k, v in dq.items()}
+        try:
+            chain.stroke(one)
+            built = True
+        except SingularPositionError:
+            built = False
+        assert built == mask[i]
+    with pytest.raises(SingularPositionError, match=rf"{bad} of {PROBE} machines drawn from these tolerances "
+                                                    rf"\({100 * bad / PROBE:.3g} %\) cannot be assembled"):
+        monte_carlo(chain, tol, 2000, 5)

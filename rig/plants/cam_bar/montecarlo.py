@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 import numpy as np
 
 from rig.analysis.streaming import ColumnStats, column_statistics
+from rig.plants.cam_bar.chain import SingularPositionError
 from rig.plants.cam_bar.tolerance import PARAMS, CamChain, ToleranceSet
 
 if TYPE_CHECKING:
@@ -103,7 +104,22 @@ def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, executor:
 
     try:
         st = column_statistics(run, percents, n=n if one_pass else None)
+    except SingularPositionError as exc:
+        bad = int(np.count_nonzero(~buildable_probe(chain, tol, seed)))
+        raise SingularPositionError(
+            f"{exc}: {bad} of {PROBE} machines drawn from these tolerances ({100.0 * bad / PROBE:.3g} %) cannot be "
+            "assembled, so the stroke deviation of the set is not defined; tighten the tolerances (or the nominal "
+            "geometry's margin) until none fails") from None
     finally:
         if own:
             executor.close()
     return MonteCarloResult(**vars(st), phi=chain.phi)
+
+
+PROBE = 10_000         # machines drawn to tell how many of a set cannot be assembled
+
+
+def buildable_probe(chain: CamChain, tol: ToleranceSet, seed: int) -> np.ndarray:
+    """Whether each of :data:`PROBE` machines drawn from ``tol`` (generator seeded with ``seed``) can be assembled."""
+    dq = sample_deviations(np.random.default_rng(seed), tol, PROBE)
+    return chain.buildable(chain.deviation_rows(dq))

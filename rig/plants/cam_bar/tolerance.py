@@ -147,6 +147,15 @@ class CamChain:
             raise SingularPositionError(f"deviated rod does not reach the slider line at {self._where(j)}")
         return out
 
+    def buildable(self, rows: np.ndarray) -> np.ndarray:
+        """Per machine (columns of deviation ``rows``): whether its deviated chain can be assembled at every angle."""
+        from rig.plants.cam_bar import tolerance_kernel as kernel
+        q = np.array([self.q.get(k, 0.0) for k in PARAMS])
+        rows = np.ascontiguousarray(rows, dtype=float)
+        zero, out = np.zeros(self.phi.size), np.empty((1, self.phi.size))
+        return np.array([kernel.strokes(np.ascontiguousarray(rows[:, i:i + 1]), q, self.r, self.cam_branch,
+                                        float(self.rod_side), zero, out)[0] == kernel.OK for i in range(rows.shape[1])])
+
     def sensitivities(self) -> dict[str, np.ndarray]:
         """∂s/∂q_k (m/m) at each angle, corrected formulas of MODELS §3.5."""
         q, s, r = self.q, self.s, self.r
