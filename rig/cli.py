@@ -454,12 +454,19 @@ MAX_SAMPLES = 10**10   # Monte-Carlo machines rig tolerance takes (10^6 take ~15
 
 
 def _count(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
-    """argparse type: a whole number >= ``minimum`` (and <= ``maximum``)."""
+    """argparse type: a whole number >= ``minimum`` (and <= ``maximum``); written as an integer or, whole, in
+    scientific notation (``1e6``)."""
     def count(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number >= {minimum}, got {text!r}") from None
+            try:
+                number = float(text)
+            except ValueError:
+                number = math.nan
+            if not (math.isfinite(number) and number.is_integer()):
+                raise argparse.ArgumentTypeError(f"expected a whole number >= {minimum}, got {text!r}") from None
+            value = int(number)
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
         if maximum is not None and value > maximum:

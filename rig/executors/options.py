@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 
 from rig.executors import Executor, available, make_executor
 
@@ -16,6 +17,18 @@ def _workers(text: str) -> int:
     return value
 
 
+#: a Dask scheduler address: [tcp|tls|ws|wss|ucx]://host:port or host:port (IPv6 in brackets), or any inproc://…
+ADDRESS = re.compile(r"(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9a-fA-F:.]+\]|[^\s:/\[\]]+):\d{1,5}|inproc://\S+")
+
+
+def _address(text: str) -> str:
+    """argparse type of ``--scheduler``: a malformed address is a usage error (exit 2), not a failed run."""
+    if not ADDRESS.fullmatch(text.strip()):
+        raise argparse.ArgumentTypeError(f"expected a scheduler address such as tcp://10.0.0.5:8786 or "
+                                         f"10.0.0.5:8786, got {text!r}")
+    return text.strip()
+
+
 def add_executor_arguments(parser: argparse.ArgumentParser, local: str = "dask") -> None:
     """Add the executor options to a command's parser; ``local``: the local Dask kind the command uses when
     more than one worker is asked for without ``--executor`` (pass the same to :func:`executor_from_args`)."""
@@ -24,7 +37,7 @@ def add_executor_arguments(parser: argparse.ArgumentParser, local: str = "dask")
                              "else serial); results do not depend on it")
     parser.add_argument("--workers", type=_workers, default=1,
                         help="workers of the local Dask cluster (results do not depend on it)")
-    parser.add_argument("--scheduler", metavar="ADDR",
+    parser.add_argument("--scheduler", metavar="ADDR", type=_address,
                         help="address of an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (its workers need "
                              "mechrig installed)")
 

@@ -72,7 +72,7 @@ def grid(params: Sequence[Param]) -> list[tuple[Any, ...]]:
     """Every combination of the values, the last parameter varying fastest."""
     keys = [p.key for p in params]
     if len(set(keys)) != len(keys):
-        raise ValueError(f"a parameter is given twice: {', '.join(sorted(k for k in keys if keys.count(k) > 1))}")
+        raise ValueError(f"a parameter is given twice: {', '.join(sorted({k for k in keys if keys.count(k) > 1}))}")
     return list(itertools.product(*(p.values for p in params)))
 
 

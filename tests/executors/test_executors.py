@@ -174,6 +174,16 @@ def test_an_unreachable_scheduler_is_a_failed_run_naming_it(monkeypatch, capsys)
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("address", ["bogus", "tcp://host", "10.0.0.5:port"])
+def test_a_malformed_scheduler_address_is_a_usage_error(address, capsys):
+    """Exit 2 naming the option (it was exit 1, "the peer did not answer as one (ValueError: missing port number)")."""
+    from rig.cli import main
+    with pytest.raises(SystemExit) as stop:
+        main(["-q", "tolerance", "--samples", "1000", "--scheduler", address])
+    assert stop.value.code == 2
+    assert f"argument --scheduler: expected a scheduler address such as tcp://10.0.0.5:8786" in capsys.readouterr().err
+
+
 def _peer(answer: bytes | None):
     """A loopback server that takes connections and either never says a word (``answer`` None) or answers with
     ``answer`` and hangs up; (port, stop)."""

@@ -192,6 +192,15 @@ def test_other_counts_are_checked_too(argv, option, capsys):
     assert info.value.code == 2 and f"argument {option}" in one_error_line(capsys)
 
 
+def test_a_count_may_be_written_in_scientific_notation_when_whole(capsys):
+    """``--samples 1e3`` was "expected a whole number"; 1.5e0 and nan still are not counts."""
+    assert cli.build_parser().parse_args(["tolerance", "--samples", "1e3"]).samples == 1000
+    for text in ("1.5e0", "nan", "1e400"):
+        with pytest.raises(SystemExit):
+            cli.build_parser().parse_args(["tolerance", "--samples", text])
+        assert "expected a whole number" in capsys.readouterr().err
+
+
 def test_quiet_is_accepted_after_the_command_too(tmp_path, capsys):
     args = cli.build_parser().parse_args(["run", "-q", "--cycles", "2"])
     assert args.quiet and args.cycles == 2
