@@ -10,6 +10,7 @@ from pathlib import Path
 def cmd_analyse(args: argparse.Namespace) -> int:
     from rig.analysis.batch import analyse_batch, expand, report_lines, write_table
     from rig.analysis.numbers import plural
+    from rig.console import progress as progress_bar
     from rig.executors.options import executor_from_args
     from rig.outputs import claim_dir, writable_dir
     paths = expand(args.recordings)
@@ -19,7 +20,8 @@ def cmd_analyse(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"analysing {plural(len(paths), 'recording')} on {executor.describe()}", file=sys.stderr)
         t0 = time.perf_counter()
-        result = analyse_batch(paths, executor)
+        with progress_bar(len(paths), "analyse", " recordings", not args.quiet) as bar:
+            result = analyse_batch(paths, executor, bar.update)
         wall = time.perf_counter() - t0
     table = write_table(result, claim_dir(out) / "recordings.csv")
     lines = report_lines(result)

@@ -18,7 +18,7 @@ import csv
 import glob
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
@@ -188,10 +188,14 @@ class BatchResult:
     combined: dict[tuple[str, str], tuple[Moments, str]]
 
 
-def analyse_batch(paths: Sequence[Path], executor: "Executor") -> BatchResult:
-    """:func:`summarise` every path on ``executor``; merge the process values per scene and level in path
-    order (units must agree within one)."""
-    rows = [row for part in executor.map(summarise_all, batches(list(paths), executor.workers)) for row in part]
+def analyse_batch(paths: Sequence[Path], executor: "Executor",
+                  progress: Callable[[int], object] = lambda recordings: None) -> BatchResult:
+    """:func:`summarise` every path on ``executor`` (``progress(k)`` as each task's ``k`` recordings are read); merge
+    the process values per scene and level in path order (units must agree within one)."""
+    rows = []
+    for part in executor.map(summarise_all, batches(list(paths), executor.workers)):
+        rows += part
+        progress(len(part))
     _mark_copies(rows)
     _name_variants(rows)
     combined: dict[tuple[str, str], tuple[Moments, str]] = {}

@@ -17,17 +17,26 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.sweep import parse_param
     from rig.sweep.plots import MAX_MAPS, plot_sweep
     from rig.analysis.numbers import plural
+    from rig.console import progress as progress_bar
+    from rig.sweep import grid
     from rig.sweep.run import levels_text, run_sweep, write_table
     params = [parse_param(p) for p in args.param]
     scene = load_scene(args.scene)
     out = Path(args.output)
     writable_dir(out, "sweep")
+    bars = []
     with executor_from_args(args, local="dask-processes") as executor:
-        def starting() -> None:
+        def starting() -> None:             # the checks passed: the line naming the executor, then the bar
             if not args.quiet:
                 print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
+            bars.append(progress_bar(len(grid(params)), "sweep", " points", not args.quiet))
 
-        result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity, starting)
+        try:
+            result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity, starting,
+                               lambda points: bars[0].update(points))
+        finally:
+            for bar in bars:
+                bar.close()
     before = clear_previous(claim_dir(out), MANIFEST, lambda out: {"sweep.csv"} | {
         p.name for p in out.glob("*.png") if any(p.stem == m or p.stem.startswith(f"{m}_") for m in METRICS)})
     table = write_table(result, out / "sweep.csv")

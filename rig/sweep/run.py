@@ -73,12 +73,14 @@ class SweepResult:
 
 def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], executor: "Executor",
               revolutions: int | None = None, fidelity: int | None = None,
-              starting: Callable[[], object] = lambda: None) -> SweepResult:
+              starting: Callable[[], object] = lambda: None,
+              progress: Callable[[int], object] = lambda points: None) -> SweepResult:
     """Every grid point of ``params`` on ``executor``, at the model level ``fidelity`` (``--fidelity``; default:
     each point's own, :func:`rig.fidelity.choose`); scene and metric errors, and metrics a point's level cannot
     answer (:func:`rig.sweep.metrics.check_levels`), are raised before anything runs (:func:`_check_buildable`); a
     point whose run fails gets NaN metrics and its error. ``starting()`` runs when every check has passed, before the
-    points run (the command's line naming the executor: an error stays one line)."""
+    points run (the command's line naming the executor: an error stays one line); ``progress(k)`` as each task's
+    ``k`` points are done."""
     from rig.runner.config import read_config
     from rig.runner.plants import make_plant
     if not params or not metrics:
@@ -101,7 +103,10 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
                                                            else ""))
     _check_buildable(tasks, make_plant, read_config, "ok_share" in metrics)
     starting()
-    results = [r for part in executor.map(run_points, batches(tasks, executor.workers)) for r in part]
+    results = []
+    for part in executor.map(run_points, batches(tasks, executor.workers)):
+        results += part
+        progress(len(part))
     return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results],
                        levels)
 

@@ -116,9 +116,11 @@ def test_sweep_rows_are_identical_on_serial_and_dask(dask_scheduler):
     params = [parse_param(SPEEDS), parse_param(RATES)]
     with make_executor("serial") as ex:
         serial = run_sweep(scene, params, ["flank_switches", "rod_force_peak"], ex, revolutions=1)
+    done: list[int] = []
     with make_executor("dask", scheduler=dask_scheduler) as ex:
-        dask = run_sweep(scene, params, ["flank_switches", "rod_force_peak"], ex, revolutions=1)
+        dask = run_sweep(scene, params, ["flank_switches", "rod_force_peak"], ex, revolutions=1, progress=done.append)
     assert serial.points == dask.points and serial.values == dask.values
+    assert sum(done) == len(dask.points) == 4                 # the progress bar's counts: every point once
 
 
 def test_rig_sweep_writes_table_and_maps(tmp_path, capsys):
