@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections import deque
 from typing import Any, Callable, Iterable, Iterator
 
@@ -22,6 +23,9 @@ LOOPBACK_HTTP = "127.0.0.1:0"   # scheduler's and workers' HTTP status servers (
 CONNECT_TIMEOUT = 10  # s to reach a scheduler given by address
 WORKER_TIMEOUT = 10   # s a scheduler given by address has for its first worker to join
 IN_FLIGHT = 2  # tasks per worker submitted ahead of the one whose result is awaited
+WATCH = 5.0     # s between looks at the cluster while a task's result is awaited
+NO_WORKERS = 60.0   # s without a single worker before a run stops (its tasks would wait for ever)
+log = logging.getLogger(__name__)
 
 
 HANDSHAKE_GRACE = 5   # s beyond CONNECT_TIMEOUT for the Dask handshake (a port that takes connections but is silent)
@@ -109,13 +113,37 @@ class DaskExecutor(Executor):
         try:
             while pending:
                 future = pending.popleft()
-                result = future.result()
+                result = self._result(future)
                 future.release()
                 submit()
                 yield result
         finally:
             for future in pending:
                 future.cancel()
+
+    def _result(self, future: Any) -> Any:
+        """The task's result, looking at the cluster every :data:`WATCH` s meanwhile: with every worker gone (killed,
+        their machine down) the tasks would wait for ever without a word — a warning says so at once, and after
+        :data:`NO_WORKERS` s with none back the run stops with a ConnectionError."""
+        gone_since = None
+        while True:
+            try:
+                return future.result(timeout=WATCH)
+            except TimeoutError:
+                pass
+            if self.client.nthreads():
+                gone_since = None
+                continue
+            now = time.monotonic()
+            if gone_since is None:
+                gone_since = now
+                log.warning("every Dask worker of %s has left: the run waits up to %g s for one to join",
+                            self.address or "the local cluster", NO_WORKERS)
+            elif now - gone_since > NO_WORKERS:
+                raise ConnectionError(f"no Dask worker at {self.address or 'the local cluster'} for {NO_WORKERS:g} s: "
+                                      f"the run's tasks cannot go on" + (f" (start workers with 'dask worker "
+                                                                         f"{self.address}' and run again)"
+                                                                         if self.address else ""))
 
     def describe(self) -> str:
         where = (f"scheduler {self.address}" if self.address else

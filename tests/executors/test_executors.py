@@ -232,3 +232,27 @@ def test_an_address_that_is_not_a_dask_scheduler_is_one_error_in_bounded_time(mo
     finally:
         stop()
     assert time.monotonic() - began < 30.0
+
+
+def test_a_run_whose_workers_all_left_stops_with_a_clear_error(monkeypatch, caplog):
+    """Every worker of an external scheduler killed mid-run: the run waited for ever without a word. Now a warning at
+    once, and after NO_WORKERS s without one a ConnectionError naming the scheduler (times shortened here)."""
+    import time as clock
+    from distributed import LocalCluster
+    import rig.executors.dask_cluster as cluster_module
+    monkeypatch.setattr(cluster_module, "WATCH", 0.2)
+    monkeypatch.setattr(cluster_module, "NO_WORKERS", 1.0)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address="127.0.0.1:0",
+                      worker_dashboard_address="127.0.0.1:0") as cluster:
+        ex = make_executor("dask", scheduler=cluster.scheduler_address)
+        try:
+            cluster.scale(0)
+            deadline = clock.monotonic() + 30
+            while ex.client.nthreads() and clock.monotonic() < deadline:
+                clock.sleep(0.05)
+            with caplog.at_level("WARNING"), pytest.raises(ConnectionError,
+                                                           match=r"no Dask worker at \S+ for 1 s: the run.s tasks"):
+                list(ex.map(abs, [-1, -2]))
+        finally:
+            ex.close()
+    assert f"every Dask worker of {cluster.scheduler_address} has left" in caplog.text
