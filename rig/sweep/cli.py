@@ -12,14 +12,12 @@ MANIFEST = ".mechrig-sweep"      # in a sweep directory: the files the last swee
 def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.executors.options import executor_from_args
     from rig.outputs import claim_dir, clear_previous, list_written, writable_dir
-    from rig.sweep.metrics import METRICS
     from rig.scene import load_scene
-    from rig.sweep import parse_param
-    from rig.sweep.plots import MAX_MAPS, plot_sweep
     from rig.analysis.numbers import plural
     from rig.console import progress as progress_bar
-    from rig.sweep import grid
-    from rig.sweep.run import levels_text, run_sweep, write_table
+    from rig.sweep import grid, parse_param
+    from rig.sweep.plots import MAX_MAPS, plot_sweep
+    from rig.sweep.run import SweepInterrupted, levels_text, run_sweep, write_table
     params = [parse_param(p) for p in args.param]
     scene = load_scene(args.scene)
     out = Path(args.output)
@@ -34,11 +32,19 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         try:
             result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity, starting,
                                lambda points: bars[0].update(points))
+        except SweepInterrupted as stop:           # the points done are kept: a table of them, then the stop
+            for bar in bars:
+                bar.close()
+            before = clear_previous(claim_dir(out), MANIFEST, _earlier_sweep)
+            table = write_table(stop.result, out / "sweep.csv")
+            list_written(out, MANIFEST, before)
+            print(f"rig: the sweep was interrupted after {len(stop.result.points)} of {stop.total} points; their rows "
+                  f"are in {table} (no maps)", file=sys.stderr)
+            raise
         finally:
             for bar in bars:
                 bar.close()
-    before = clear_previous(claim_dir(out), MANIFEST, lambda out: {"sweep.csv"} | {
-        p.name for p in out.glob("*.png") if any(p.stem == m or p.stem.startswith(f"{m}_") for m in METRICS)})
+    before = clear_previous(claim_dir(out), MANIFEST, _earlier_sweep)
     table = write_table(result, out / "sweep.csv")
     failed = [(p, e) for p, e in zip(result.points, result.errors) if e]
     print(f"{plural(len(result.points), 'point')} at model level {levels_text(result.levels)}, {len(failed)} failed -> {table}")
@@ -52,6 +58,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"maps: the first {MAX_MAPS} of {combos} combinations of {', '.join(p.key for p in params[2:])} per "
               f"metric (the table holds every point; sweep fewer values of those for a map of each)")
     return 0
+
+
+def _earlier_sweep(out: Path) -> set[str]:
+    """What a sweep of an older rig (no manifest) wrote into ``out``: its table and metric maps."""
+    from rig.sweep.metrics import METRICS
+    return {"sweep.csv"} | {p.name for p in out.glob("*.png")
+                            if any(p.stem == m or p.stem.startswith(f"{m}_") for m in METRICS)}
 
 
 def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentParser]) -> None:

@@ -103,12 +103,27 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
                                                            else ""))
     _check_buildable(tasks, make_plant, read_config, "ok_share" in metrics)
     starting()
-    results = []
-    for part in executor.map(run_points, batches(tasks, executor.workers)):
-        results += part
-        progress(len(part))
-    return SweepResult(tuple(params), tuple(metrics), points, [r[0] for r in results], [r[1] for r in results],
-                       levels)
+    results: list[tuple[dict[str, float], str]] = []
+
+    def result(done: int) -> SweepResult:
+        return SweepResult(tuple(params), tuple(metrics), points[:done], [r[0] for r in results],
+                           [r[1] for r in results], levels[:done])
+    try:
+        for part in executor.map(run_points, batches(tasks, executor.workers)):
+            results += part
+            progress(len(part))
+    except KeyboardInterrupt as exc:
+        raise SweepInterrupted(result(len(results)), len(points)) from exc
+    return result(len(points))
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep: ``result`` holds the points done before it (the first of the grid, in order), of
+    ``total``."""
+
+    def __init__(self, result: SweepResult, total: int):
+        super().__init__()
+        self.result, self.total = result, total
 
 
 def _forced(scene: Scene, params: Sequence[Param], fidelity: int | None) -> Scene:

@@ -430,3 +430,25 @@ def test_a_sample_rate_the_units_program_refuses_is_an_input_error_before_anythi
                  "rod_force_peak", "--metric", "ok_share", "--executor", "serial", "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "sweep point scene.sample_rate = 1 kHz" in err and "[device.config.sampling]" in err and not out.exists()
+
+
+def test_ctrl_c_keeps_the_points_done_in_the_table(tmp_path, monkeypatch, capsys):
+    """A sweep stopped by Ctrl-C left nothing (no directory, no table): the points done before it are written."""
+    from dataclasses import replace
+    import rig.sweep.metrics as metrics_module
+    calls = []
+    peak = metrics_module.METRICS["rod_force_peak"]
+
+    def compute(run):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return peak.compute(run)
+    monkeypatch.setitem(metrics_module.METRICS, "rod_force_peak", replace(peak, compute=compute))
+    out = tmp_path / "sweep"
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.k=1.09 N/mm,1.19 N/mm,1.68 N/mm,1.89 N/mm",
+                 "--metric", "rod_force_peak", "--revolutions", "1", "--executor", "serial", "-o", str(out)]) == 130
+    rows = list(csv.DictReader((out / "sweep.csv").open()))
+    assert [r["plant.k"] for r in rows] == ["1.09 N/mm", "1.19 N/mm"] and all(float(r["rod_force_peak [N]"]) > 40
+                                                                              for r in rows)
+    assert "the sweep was interrupted after 2 of 4 points" in capsys.readouterr().err
