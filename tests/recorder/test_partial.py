@@ -22,16 +22,20 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "data" / "scenes" / "pin_insertion.toml"
 
 
+def _wait_for_4_mb(run: subprocess.Popen, out: Path) -> None:
+    """Until the child run has written 4 MB of its recording (a whole chunk and more), within 120 s."""
+    deadline = time.monotonic() + 120
+    while not out.exists() or out.stat().st_size < 4_000_000:
+        assert run.poll() is None, run.stderr.read()
+        assert time.monotonic() < deadline, "the run did not write 4 MB in 120 s"
+        time.sleep(0.05)
+
 def test_a_run_killed_halfway_reports_with_partial(tmp_path, capsys):
     out = tmp_path / "killed.mcap"
     run = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "run", str(SCENE), "--cycles", "200", "-o", str(out),
                             "--no-report"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        deadline = time.monotonic() + 120
-        while not out.exists() or out.stat().st_size < 4_000_000:
-            assert run.poll() is None, run.stderr.read()
-            assert time.monotonic() < deadline, "the run did not write 4 MB in 120 s"
-            time.sleep(0.05)
+        _wait_for_4_mb(run, out)
         os.kill(run.pid, signal.SIGKILL)
     finally:
         run.kill()
@@ -207,11 +211,7 @@ def test_sigterm_stops_the_console_script_as_ctrl_c_does(tmp_path):
                             "--cycles", "400", "-o", str(out), "--no-report"], stdout=subprocess.DEVNULL,
                            stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
-        deadline = time.monotonic() + 120
-        while not out.exists() or out.stat().st_size < 4_000_000:
-            assert run.poll() is None, run.stderr.read()
-            assert time.monotonic() < deadline, "the run did not write 4 MB in 120 s"
-            time.sleep(0.05)
+        _wait_for_4_mb(run, out)
         run.send_signal(signal.SIGTERM)
         err = run.communicate(timeout=120)[1]
     finally:
