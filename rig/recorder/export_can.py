@@ -368,8 +368,15 @@ class _AscWriter(can.ASCWriter):
         return self._start.strftime(f"%a %b %d %H:%M:%S.{self._start.microsecond // 1000:03d} %Y")
 
 
+def _whole_ms(start: float) -> float:
+    """The trace start down to its millisecond: the resolution of the ASC and BLF header dates, in both the same (ASC
+    cut it, python-can's BLF writer rounded it: one frame read back 1 ms apart from the two files)."""
+    return math.floor(start * 1e3) / 1e3
+
+
 class _Asc(_PythonCan):
     def __init__(self, out: Path, start: float):
+        start = _whole_ms(start)
         super().__init__(_AscWriter(out, start))
         self.writer.log_event("rig export: times are simulation time, s", start)   # header date = start
         self.writer.started = 0.0            # the writer subtracts this from every time: keep simulation time
@@ -379,7 +386,7 @@ class _Blf(_PythonCan):
     def __init__(self, out: Path, start: float):
         super().__init__(can.BLFWriter(out))
         self.writer.start_timestamp = 0.0    # object times (ns) = simulation time
-        self.start = start
+        self.start = _whole_ms(start)
 
     def close(self) -> None:
         w = self.writer

@@ -379,3 +379,19 @@ def test_the_trace_appears_under_its_name_only_when_whole(recording, tmp_path, m
     with pytest.raises(OSError):
         module.export_can(recording, tmp_path / f"other{ext}")
     assert [p.name for p in tmp_path.iterdir()] == [out.name]
+
+
+def test_asc_and_blf_read_back_the_same_frame_times(tmp_path):
+    """A start of …31.392608 s: the ASC header cut it to .392, python-can's BLF writer rounded it to .393, so the
+    same frame read back 1 ms apart from the two files; both now take the start down to its millisecond."""
+    start_ns = 1_795_000_031_392_608_000
+    rec = _write_mcap(tmp_path / "s.mcap", _blocks(FRAMES), {"wall_clock_start": str(start_ns)})
+    export_can(rec, tmp_path / "s.asc")
+    export_can(rec, tmp_path / "s.blf")
+    with can.ASCReader(tmp_path / "s.asc", relative_timestamp=False) as asc:
+        from_asc = [m.timestamp for m in asc]
+    with can.BLFReader(tmp_path / "s.blf") as blf:
+        from_blf = [m.timestamp for m in blf]
+    assert len(from_asc) == len(from_blf) == len(FRAMES)
+    assert from_asc == pytest.approx(from_blf, abs=2e-6)
+    assert from_asc[0] == pytest.approx(1_795_000_031.392 + FRAMES[0][0], abs=2e-6)
