@@ -185,6 +185,7 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
     the schema are an error unless ``allow_tables`` (then they are returned as they are).
     """
     out: dict[str, Any] = {}
+    spelled: dict[str, str] = {}            # each name's key as written
     for key, value in table.items():
         if allow_tables and isinstance(value, dict) and key not in schema:
             out[key] = value
@@ -197,7 +198,8 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
                              + f" (known keys: {known})")
         name, unit = found
         if name in out:
-            raise SceneError(f"{where}: {name!r} is given twice (as {key!r} and another spelling)")
+            raise SceneError(f"{where}: {name!r} is given twice (as {spelled[name]!r} and {key!r})")
+        spelled[name] = key
         field = schema[name]
         if field.unit is None:
             out[name] = value

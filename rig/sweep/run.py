@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
@@ -189,6 +190,11 @@ def _given(message: str, overrides: dict[str, Any]) -> str:
         head = f"[{section}]: key '{name}'"
         if head in message:
             return f"--param {key}={value}: {message.split(head, 1)[1].lstrip(': ')}"
+        twice = re.search(rf"\[{re.escape(section)}\]: '(\w+)' is given twice \(as '(\w+)' and '(\w+)'\)", message)
+        if twice and name in twice.group(2, 3):
+            written = next(k for k in twice.group(2, 3) if k != name)
+            return (f"--param {key}={value}: the scene gives {twice[1]!r} as {written!r}: sweep {section}.{written} "
+                    f"(one spelling per quantity)")
     return ""
 
 

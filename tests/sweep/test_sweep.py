@@ -452,3 +452,12 @@ def test_ctrl_c_keeps_the_points_done_in_the_table(tmp_path, monkeypatch, capsys
     assert [r["plant.k"] for r in rows] == ["1.09 N/mm", "1.19 N/mm"] and all(float(r["rod_force_peak [N]"]) > 40
                                                                               for r in rows)
     assert "the sweep was interrupted after 2 of 4 points" in capsys.readouterr().err
+
+
+def test_a_swept_spelling_of_a_key_the_scene_writes_otherwise_is_blamed_on_the_param(tmp_path, capsys):
+    """--param plant.L3_mm=300 beside the scene's L3: "pin_insertion.toml [plant]: 'L3' is given twice (as 'L3_mm'
+    and another spelling)" blamed the scene file; now the option, and the key to sweep instead."""
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.L3_mm=300", "--metric", "rod_force_peak",
+                 "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
+    assert capsys.readouterr().err == ("rig: error: --param plant.L3_mm=300: the scene gives 'L3' as 'L3': sweep "
+                                       "plant.L3 (one spelling per quantity)\n")
