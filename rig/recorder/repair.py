@@ -25,6 +25,7 @@ from rig.recorder.reader import Recording, RecordingError
 from rig.recorder.salvage import DataSectionReader
 
 REPAIRED = "repaired"      # the start of the rewritten file's rig.end reason
+REPAIR_METADATA = "rig.repair"   # a whole run's file rewritten (nothing of the run lost): what was repaired
 
 
 @dataclass(frozen=True)
@@ -51,6 +52,12 @@ class _Rewriter:
         self._schema_ids: dict[int, int] = {}          # source id -> id in the rewritten file
         self._channel_ids: dict[int, int] = {}
         self.end: dict[str, str] | None = None        # the source's own end record, written last
+
+    def known(self, summary: Any) -> None:
+        """The schemas and channels an intact summary names: a message whose chunk of definitions was lost is kept
+        by them (as the salvage reader keeps it)."""
+        self._schemas.update(summary.schemas)
+        self._defined.update(summary.channels)
 
     def add(self, record: Any) -> None:
         """Metadata and attachments outside the chunks, copied (the source's end record kept for the end)."""
@@ -107,10 +114,15 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
     part = out.with_name(f".{out.name}.{os.getpid()}.part")
     try:
         with open(source, "rb") as f, open(part, "wb") as sink:
+            size = os.fstat(f.fileno()).st_size
+            if not size:
+                raise RecordingError(f"{source}: empty file (0 bytes), nothing to repair")
             writer = Writer(sink, chunk_size=4 << 20, compression=CompressionType.ZSTD, enable_data_crcs=True)
             writer.start(profile="", library=f"mechrig/{rig.__version__} (rig repair)")
             rewriter = _Rewriter(source, writer)
-            reader = DataSectionReader(f, os.fstat(f.fileno()).st_size, rewriter)
+            reader = DataSectionReader(f, size, rewriter)
+            if reader.summary is not None:
+                rewriter.known(reader.summary)
             reader.read()
             reader.check()
             reader.finish()
@@ -122,7 +134,10 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
                 raise RecordingError(f"{source}: no message can be read from it ({'; '.join(problems) or 'empty'}): "
                                      "nothing to repair")
             end = dict(rewriter.end or {})
-            if problems:              # what was lost, in the file itself: a report of it says so
+            whole = end.get("complete") == "true" and not (rec.lost or rec.damaged or rewriter.orphans)
+            if problems and whole:    # every message and the end record read (e.g. only the summary was cut)
+                writer.add_metadata(REPAIR_METADATA, {"source": source.name, "problems": "; ".join(problems)})
+            elif problems:            # what was lost, in the file itself: a report of it says so
                 was = end.get("reason", "")
                 end.update({"complete": "false", "reason": f"{REPAIRED} by rig repair from {source.name}: "
                                                            f"{'; '.join(problems)}" + (f" (it stopped: {was})" if was

@@ -82,3 +82,34 @@ def test_cli_repair_names_its_output_and_what_was_lost(tmp_path, capsys):
     assert main(["report", str(fixed), "-o", str(tmp_path / "report"), "--format", "md"]) == 0
     assert "cut short, then repaired by rig repair from run.mcap" in (tmp_path / "report" / "report.md").read_text()
     assert main(["repair", str(cut), "-o", str(cut)]) == 2
+
+
+def test_messages_of_a_lost_chunk_of_definitions_are_kept_by_the_summary(tmp_path):
+    """A flipped byte in chunk 2 (where the result, event and log channels are defined): the salvage reader reads their
+    later messages by the intact summary's channels, and repair wrote only the curves (11 of 44 messages)."""
+    whole = _record(tmp_path / "whole.mcap")
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(_flip(whole.read_bytes(), 15_000))
+    salvaged = read_recording(damaged, allow_partial=True)
+    done = repair(damaged, tmp_path / "fixed.mcap")
+    assert done.messages == dict(salvaged.message_counts) and len(done.messages) > 1
+    assert len(read_recording(done.path).results) == len(salvaged.results) > 0
+
+
+def test_a_whole_run_whose_summary_alone_was_cut_stays_complete(tmp_path):
+    """Every message and the end record read (the file cut inside its summary): nothing of the run is lost, so the
+    rewritten file is complete, the repair noted in metadata ``rig.repair``."""
+    whole = _record(tmp_path / "whole.mcap")
+    raw = whole.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(raw[:len(raw) - 200])
+    done = repair(cut, tmp_path / "fixed.mcap")
+    fixed = read_recording(done.path)
+    assert done.problems and fixed.complete and fixed.metadata["rig.repair"]["source"] == "cut.mcap"
+    assert fixed.message_counts == read_recording(whole).message_counts
+
+
+def test_an_empty_file_is_named(tmp_path):
+    (tmp_path / "empty.mcap").write_bytes(b"")
+    with pytest.raises(RecordingError, match="empty file"):
+        repair(tmp_path / "empty.mcap", tmp_path / "out.mcap")
