@@ -16,6 +16,27 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 
+def _stops() -> list[int]:
+    """The signals that stop a run: SIGINT, and SIGTERM where a Python handler takes it (the console script's)."""
+    return [signal.SIGINT] + ([signal.SIGTERM] if callable(signal.getsignal(signal.SIGTERM)) else [])
+
+
+@contextmanager
+def shielded() -> Iterator[None]:
+    """Ctrl-C (and the console script's SIGTERM) ignored while the block runs: the closing of a recording after a stop
+    was asked for — a second Ctrl-C a few ms after the first once landed in the MCAP writer's finish and left the file
+    without its summary. Outside the main thread: nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, lambda signum, frame: None) for s in _stops()}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, signal.default_int_handler if handler is None else handler)
+
+
 @contextmanager
 def deferred_interrupt() -> Iterator[Callable[[], None]]:
     """The loop's ``check()``: raises KeyboardInterrupt if Ctrl-C came since the block began (and so does the block's
@@ -36,9 +57,7 @@ def deferred_interrupt() -> Iterator[Callable[[], None]]:
             pending.clear()
             raise KeyboardInterrupt
 
-    # SIGTERM too where a Python handler takes it (the console script's: it stops a run as Ctrl-C does)
-    signals = [signal.SIGINT] + ([signal.SIGTERM] if callable(signal.getsignal(signal.SIGTERM)) else [])
-    previous = {s: signal.signal(s, note) for s in signals}
+    previous = {s: signal.signal(s, note) for s in _stops()}
     try:
         yield check
     finally:

@@ -29,7 +29,7 @@ from rig.recorder.writer import interruption
 from firmware_sim.can_node import BusOverload
 from rig.runner.config import RunConfig, default_max_time, read_config
 from rig.runner.host import Host
-from rig.runner.interrupt import deferred_interrupt
+from rig.runner.interrupt import deferred_interrupt, shielded
 from rig.runner.machine import Machine
 from rig.runner.served import Anchored, IdleStatus, RunClock
 from rig.scene import load_scene
@@ -218,7 +218,7 @@ def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
     check()
     with lock:
         ended = machine.t
-        machine.flush(pace=pace)
+        machine.flush(pace=lambda t: (check(), pace(t)))    # realtime: up to a minute of pacing, Ctrl-C taken
         return machine.t - ended
 
 
@@ -283,29 +283,33 @@ def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
     try:
         yield rec
     except BaseException as exc:
-        kept = rec.messages > 0
-        rec.close(interrupted=interruption(exc))
-        restored = None
-        if kept:
-            earlier.unlink(missing_ok=True)
-        else:
-            output.unlink(missing_ok=True)
-            restored = _restore(earlier, output)
+        with shielded():                    # a second Ctrl-C must not cut the closing short
+            kept = rec.messages > 0
+            rec.close(interrupted=interruption(exc))
+            restored = None
+            if kept:
+                earlier.unlink(missing_ok=True)
+            else:
+                output.unlink(missing_ok=True)
+                restored = _restore(earlier, output)
         if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Interrupted):
             raise Interrupted(output if kept else None, restored, rec.curves, rec.simulation_time) from exc
         raise
-    rec.close()
+    with deferred_interrupt():              # a Ctrl-C while the whole file is finished: after it, not inside it
+        rec.close()
     earlier.unlink(missing_ok=True)
 
 
 def _keep_received(host: Host, drain: bool, why: str = "the interruption of the run") -> None:
     """On Ctrl-C or a run stopped by an error (``why``): what is already on the wire (``drain``: the in-process bus,
     whose machine has stopped) and received goes into the recording, and what the stop cut is said in events (a
-    curve in transfer, the last live drops); a failure doing so is a warning, the stop goes on."""
+    curve in transfer, the last live drops); a failure doing so is a warning, the stop goes on. A second Ctrl-C is
+    ignored meanwhile (:func:`.interrupt.shielded`)."""
     try:
-        while drain and host.poll():
-            pass
-        host.interrupted(why)
+        with shielded():
+            while drain and host.poll():
+                pass
+            host.interrupted(why)
     except Exception as exc:  # noqa: BLE001 - the recording is closed as interrupted either way
         log.warning("could not record what was received before the interruption (%s: %s)", type(exc).__name__, exc)
 
@@ -361,7 +365,8 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                     raise RunError(f"the host received only {host.curves_recorded} complete curves of "
                                    f"{machine.curves} measured (see /events in {output})")
                 _finishing(bar, cfg, machine.t)
-                stats = host.finish()
+                with deferred_interrupt():     # the serial read-back writes the statistics: not cut inside
+                    stats = host.finish()
                 _finished(bar, cfg, machine.t, host.curves_recorded)
         finally:
             if serial_dev is not None:
@@ -501,7 +506,8 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
             simulated = max(host.truth_t, host.can.device_time)
             compiled = compile_seconds() - compiled
             _finishing(bar, cfg, host.truth_t)
-            stats = host.finish()
+            with deferred_interrupt():
+                stats = host.finish()
             _finished(bar, cfg, host.truth_t, host.curves_recorded)
     return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats,
                       run_time, compiled)

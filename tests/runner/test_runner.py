@@ -509,3 +509,31 @@ def test_a_run_stopped_for_a_lost_curve_keeps_the_events_that_say_why(tmp_path: 
     kinds = [e["kind"] for e in events]
     assert {"sequence_gap", "incomplete_curve"} <= set(kinds) and kinds[-1] == "interrupted"
     assert [e["t"] for e in events] == sorted(e["t"] for e in events)
+
+
+def test_a_second_ctrl_c_while_the_stopped_run_closes_its_recording_does_not_cut_it(tmp_path, monkeypatch):
+    """Two SIGINTs a few ms apart: the second landed in the MCAP writer's finish and left the file without its
+    summary ("rig: interrupted", nothing named). The closing after a stop now ignores it: the file is whole."""
+    import os
+    import signal
+    from rig.recorder.writer import Recorder
+    from rig.runner.session import Interrupted
+    write_curve, close = Recorder.write_curve, Recorder.close
+
+    def curve(self, *args, **kwargs):
+        out = write_curve(self, *args, **kwargs)
+        if self.curves == 2:
+            os.kill(os.getpid(), signal.SIGINT)          # the first: the run stops at its next step
+        return out
+
+    def closing(self, *args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)              # the second, as the recording closes
+        return close(self, *args, **kwargs)
+
+    monkeypatch.setattr(Recorder, "write_curve", curve)
+    monkeypatch.setattr(Recorder, "close", closing)
+    out = tmp_path / "twice.mcap"
+    with pytest.raises(Interrupted) as stop:
+        run_scene(SCENE, out, cycles=20)
+    rec = read_recording(out)                            # whole: no allow_partial
+    assert rec.interrupted == "KeyboardInterrupt" and len(rec.curves) == stop.value.curves >= 2
