@@ -35,6 +35,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         except SweepInterrupted as stop:           # the points done are kept: a table of them, then the stop
             for bar in bars:
                 bar.close()
+            if not stop.result.points:              # nothing to keep: an earlier sweep's outputs stay as they were
+                print(f"rig: the sweep was interrupted before any of its {stop.total} points was done; nothing "
+                      f"written", file=sys.stderr)
+                raise
             before = clear_previous(claim_dir(out), MANIFEST, _earlier_sweep)
             table = write_table(stop.result, out / "sweep.csv")
             list_written(out, MANIFEST, before)
@@ -46,8 +50,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                 bar.close()
     before = clear_previous(claim_dir(out), MANIFEST, _earlier_sweep)
     table = write_table(result, out / "sweep.csv")
-    failed = [(p, e) for p, e in zip(result.points, result.errors) if e]
-    print(f"{plural(len(result.points), 'point')} at model level {levels_text(result.levels)}, {len(failed)} failed -> {table}")
+    failed = [(p, e) for p, e, v in zip(result.points, result.errors, result.values) if e]
+    whole = sum(all(math.isnan(x) for x in v.values()) for e, v in zip(result.errors, result.values) if e)
+    partly = f" ({len(failed) - whole} of them with values of their other metrics)" if len(failed) > whole else ""
+    print(f"{plural(len(result.points), 'point')} at model level {levels_text(result.levels)}, {len(failed)} failed"
+          f"{partly} -> {table}")
     for point, error in failed[:5]:
         print(f"  failed at {', '.join(f'{p.key} = {v}' for p, v in zip(params, point))}: {error}")
     for path in plot_sweep(result, out):

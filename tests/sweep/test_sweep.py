@@ -461,3 +461,21 @@ def test_a_swept_spelling_of_a_key_the_scene_writes_otherwise_is_blamed_on_the_p
                  "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
     assert capsys.readouterr().err == ("rig: error: --param plant.L3_mm=300: the scene gives 'L3' as 'L3': sweep "
                                        "plant.L3 (one spelling per quantity)\n")
+
+
+def test_ctrl_c_before_any_point_leaves_an_earlier_sweep_as_it_was(tmp_path, monkeypatch, capsys):
+    from dataclasses import replace
+    import rig.sweep.metrics as metrics_module
+    out = tmp_path / "sweep"
+    base = ["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.k=1.09 N/mm,1.89 N/mm", "--metric", "rod_force_peak",
+            "--revolutions", "1", "--executor", "serial", "-o", str(out)]
+    assert main(base) == 0
+    table = (out / "sweep.csv").read_text()
+
+    def stop(run):
+        raise KeyboardInterrupt
+    peak = metrics_module.METRICS["rod_force_peak"]
+    monkeypatch.setitem(metrics_module.METRICS, "rod_force_peak", replace(peak, compute=stop))
+    assert main(base) == 130
+    assert (out / "sweep.csv").read_text() == table and (out / "rod_force_peak.png").exists()
+    assert "interrupted before any of its 2 points was done; nothing written" in capsys.readouterr().err
