@@ -76,6 +76,7 @@ class StiffnessMonitor:
         self.watch = None                              # amplification test (fixed-step methods)
         self.origin: tuple | None = None               # the run's first (t, y), for the divergence report
         self._steps, self._next_check, self._last_check = 0, self.DENSE, 0
+        self._h_since = 0.0                            # the largest step taken since the last check (s)
         self._hits = [0, 0, 0.0]                       # positive and negative checks, summed spurious log-growth
         self._slow = 0.0                               # net spurious log-growth however small per step (see below)
         self.calls = 0                                 # RHS calls the amplification test made
@@ -176,6 +177,16 @@ class StiffnessMonitor:
             return
         first = self._steps
         self._steps += len(t)
+        checked = self._last_check
+        try:
+            self._check_due(first, t, y, h)
+        finally:                                       # the steps after the last check: what finish() tests
+            after = max(0, self._last_check + 1 - first) if self._last_check != checked else 0
+            largest = float(np.max(np.asarray(h[after:], dtype=float))) if len(h) > after else 0.0
+            self._h_since = largest if self._last_check != checked else max(self._h_since, largest)
+
+    def _check_due(self, first: int, t, y, h) -> None:
+        """The checks due among the steps ``first``… (see :meth:`_amplification`)."""
         while self._next_check < self._steps:
             k = self._next_check - first
             got = self.watch.check(float(t[k]), tuple(y[k]), float(h[k]))
@@ -200,14 +211,15 @@ class StiffnessMonitor:
                     self._hits = [0, 0, 0.0]
             self._next_check += self.DENSE if self._hits[0] else self.SPARSE
 
-    def finish(self, t: float, y: Sequence[float], h: float) -> None:
-        """End of a run at (t, y) with step h: the amplification test of a fixed-step method once more over the
-        steps since its last check. A run shorter than the first check (10 steps) or than the next one was
-        otherwise never tested: RK4 at h·|λ| = 5 returned 2e11 for a decay to 2e-22 after 10 steps, silently."""
+    def finish(self, t: float, y: Sequence[float]) -> None:
+        """End of a run at (t, y): the amplification test of a fixed-step method once more over the steps since its
+        last check, at the largest step among them (the steps a run takes, cut at time breaks or shorter than h, not
+        the nominal h). A run shorter than the first check (10 steps) or than the next one was otherwise never
+        tested: RK4 at h·|λ| = 5 returned 2e11 for a decay to 2e-22 after 10 steps, silently."""
         if not self.fixed or self.watch is None or self.detected_at is not None or self.policy == "ignore":
             return
-        since = self._steps - self._last_check
-        if since <= 0:
+        since, h = self._steps - self._last_check, self._h_since
+        if since <= 0 or not h > 0.0:
             return
         got = self.watch.check(float(t), tuple(y), float(h))
         self.calls += len(y) + 1

@@ -370,7 +370,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         restarts += 1
     if monitor is not None and isinstance(solver, FixedStepper):     # the steps since the growth test's last check
         calls = monitor.calls
-        monitor.finish(t, y, solver.h)
+        monitor.finish(t, y)
         nfev += monitor.calls - calls
         stiff_at = monitor.detected_at if stiff_at is None else stiff_at
     if t_eval is not None:

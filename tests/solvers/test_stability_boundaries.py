@@ -126,3 +126,15 @@ def test_a_run_too_short_for_the_periodic_checks_is_still_tested_at_its_end(meth
     inside = 2.5 if method == "RK4" else 1.5
     sol = integrate(problem, (0.0, steps * inside / 1000.0), method=method, h=inside / 1000.0)
     assert abs(sol.y[0, -1]) < 1.0
+
+
+def test_the_end_of_run_check_judges_the_steps_taken_not_the_nominal_h():
+    """A run shorter than h, or one whose steps the time breaks cut to 1 ms, takes no step of the nominal h = 5 ms
+    (h·|λ| = 5): the end-of-run check once judged them at h and raised; at the steps taken they are stable."""
+    decay = Problem(lambda t, y: (-1000.0 * y[0],), (1.0,))
+    assert integrate(decay, (0.0, 1e-4), method="RK4", h=5e-3).y[0, -1] == pytest.approx(math.exp(-0.1), rel=1e-6)
+    cut = Problem(decay.fun, (1.0,), time_breaks=[k * 1e-3 for k in range(1, 50)])
+    sol = integrate(cut, (0.0, 0.05), method="RK4", h=5e-3)
+    assert sol.nsteps == 50 and abs(sol.y[0, -1]) < 1e-20
+    with pytest.raises(SolverDivergence):
+        integrate(decay, (0.0, 0.05), method="RK4", h=5e-3)          # the same h uncut: 10 steps at h·|λ| = 5
