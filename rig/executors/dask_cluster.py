@@ -130,7 +130,8 @@ class DaskExecutor(Executor):
             try:
                 return future.result(timeout=WATCH)
             except TimeoutError:
-                pass
+                if future.done():       # the task's own TimeoutError (or it ended as the wait ran out): its result
+                    return future.result()
             if self.client.nthreads():
                 gone_since = None
                 continue

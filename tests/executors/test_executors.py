@@ -256,3 +256,16 @@ def test_a_run_whose_workers_all_left_stops_with_a_clear_error(monkeypatch, capl
         finally:
             ex.close()
     assert f"every Dask worker of {cluster.scheduler_address} has left" in caplog.text
+
+
+def _times_out(x: int) -> int:
+    if x == 2:
+        raise TimeoutError("the task's own timeout")
+    return x
+
+
+def test_a_task_that_raises_timeouterror_fails_the_run_at_once():
+    """The result wait took a task's own TimeoutError for its watch's and waited again, for ever."""
+    with make_executor("dask", 1) as ex:
+        with pytest.raises(TimeoutError, match="the task's own timeout"):
+            list(ex.map(_times_out, [1, 2, 3]))
