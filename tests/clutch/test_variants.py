@@ -312,3 +312,12 @@ def test_leaf_loop_area_equals_friction_work_and_direction_rules():
         c.loop_torque(np.zeros(5))
     with pytest.raises(ValueError, match="direction"):
         c.torque(0.1, 2)
+
+
+def test_an_apex_typed_to_six_digits_is_taken_at_its_whole_lobe_count():
+    """25.7143° (7 lobes) was refused with a message suggesting 25.7143°: within 1e-5 it is 180°/7, and taken so."""
+    c = RollerTappetClutch(**{**ROLLER, "n": 7, "apex": 25.7143 * DEG})
+    assert c.apex == pytest.approx(math.pi / 7, rel=1e-15) and c.period == pytest.approx(2 * math.pi / 7, rel=1e-15)
+    assert LeafSpringClutch(**{**LEAF, "apex": 0.7854}).apex == pytest.approx(math.pi / 4, rel=1e-15)
+    with pytest.raises(GeometryError, match=r"e\.g\. 25\.714286 deg"):
+        RollerTappetClutch(**{**ROLLER, "n": 7, "apex": 26.0 * DEG})

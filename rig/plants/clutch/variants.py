@@ -144,18 +144,20 @@ def _check_apex(owner: str, apex: float, limit: float) -> None:
         raise GeometryError(f"{owner}: apex {math.degrees(apex):.6g} deg must lie in (0, {math.degrees(limit):.6g}] deg")
 
 
-def _check_lobes(owner: str, apex: float, n: int, what: str) -> None:
-    """GeometryError unless the lobe period 2·apex divides the turn into a whole number of lobes, a multiple of the
-    ``n`` equally spaced tappets (``what``), which then all sit at the same phase of their lobes (T = n·one)."""
+def _check_lobes(owner: str, apex: float, n: int, what: str) -> float:
+    """The apex (rad) at exactly 180°/lobes, or a GeometryError unless the lobe period 2·apex divides the turn into a
+    whole number of lobes (within 1e-5: an apex typed to six digits, 25.7143° for 7), a multiple of the ``n`` equally
+    spaced tappets (``what``), which then all sit at the same phase of their lobes (T = n·one)."""
     lobes = math.pi / apex
     k = round(lobes)
-    if abs(lobes - k) > 1e-9 * k or k % n:
+    if abs(lobes - k) > 1e-5 * k or k % n:
         fits = [180 / m for m in range(n, 4 * n + 1, n)]
         raise GeometryError(f"{owner}: apex {math.degrees(apex):.6g} deg gives a lobe period of "
                             f"{2 * math.degrees(apex):.6g} deg, {lobes:.6g} lobes per turn: a cam has a whole number "
                             f"of lobes, and its n = {n} {what} sit in phase (torque n times one) only on a multiple of "
                             f"{n} lobes - use apex = 180 deg / lobes, e.g. "
-                            f"{', '.join(f'{a:.6g} deg' for a in fits)}")
+                            f"{', '.join(f'{a:.8g} deg' for a in fits)}")
+    return math.pi / k
 
 
 @dataclass
@@ -214,7 +216,7 @@ class RollerTappetClutch(StaticCharacteristic):
             raise ValueError(f"{self.name}: form must be 'source' or 'textbook', got {self.form!r}")
         _check_apex(self.name, self.apex, math.pi / 2)
         self.n = int(self.n)
-        _check_lobes(self.name, self.apex, self.n, "tappets")
+        self.apex = _check_lobes(self.name, self.apex, self.n, "tappets")
         self.period = 2.0 * self.apex
 
     def radius(self, phi: np.ndarray | float) -> np.ndarray:
@@ -284,7 +286,7 @@ class LeafSpringClutch(StaticCharacteristic):
             raise GeometryError(f"{self.name}: contact x = a1 sin(apex) = {self.a1 * math.sin(self.apex):.6g} m "
                                 f"reaches the leaf support at span/2 = {0.5 * self.span:.6g} m")
         self.n = int(self.n)
-        _check_lobes(self.name, self.apex, self.n, self.PARTS)
+        self.apex = _check_lobes(self.name, self.apex, self.n, self.PARTS)
         self.period = 2.0 * self.apex
 
     @property
