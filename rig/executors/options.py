@@ -17,13 +17,16 @@ def _workers(text: str) -> int:
     return value
 
 
-#: a Dask scheduler address: [tcp|tls|ws|wss|ucx]://host:port or host:port (IPv6 in brackets), or any inproc://…
-ADDRESS = re.compile(r"(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9a-fA-F:.]+\]|[^\s:/\[\]]+):\d{1,5}|inproc://\S+")
+#: a Dask scheduler address: [scheme://]host:port (tcp, tls, ws, wss, ucx, ucxx or a backend's own; IPv6 in brackets),
+#: or any inproc://…
+ADDRESS = re.compile(r"(?:[a-z][a-z0-9+.-]*://)?(?:\[[0-9a-f:.]+\]|[^\s:/\[\]]+):(\d{1,5})|inproc://\S+",
+                     re.IGNORECASE)
 
 
 def _address(text: str) -> str:
     """argparse type of ``--scheduler``: a malformed address is a usage error (exit 2), not a failed run."""
-    if not ADDRESS.fullmatch(text.strip()):
+    found = ADDRESS.fullmatch(text.strip())
+    if not found or (found[1] is not None and not 0 < int(found[1]) < 65536):
         raise argparse.ArgumentTypeError(f"expected a scheduler address such as tcp://10.0.0.5:8786 or "
                                          f"10.0.0.5:8786, got {text!r}")
     return text.strip()

@@ -174,7 +174,7 @@ def test_an_unreachable_scheduler_is_a_failed_run_naming_it(monkeypatch, capsys)
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("address", ["bogus", "tcp://host", "10.0.0.5:port"])
+@pytest.mark.parametrize("address", ["bogus", "tcp://host", "10.0.0.5:port", "10.0.0.5:70000"])
 def test_a_malformed_scheduler_address_is_a_usage_error(address, capsys):
     """Exit 2 naming the option (it was exit 1, "the peer did not answer as one (ValueError: missing port number)")."""
     from rig.cli import main
