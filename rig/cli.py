@@ -446,7 +446,10 @@ class _Parser(argparse.ArgumentParser):
         --cyles (rig run -h: usage)``), pointing at the usage that has the options it meant."""
         ns, extra = self.parse_known_args(args, namespace)
         if extra:
-            ns._rig_parser.error(f"unrecognized arguments: {' '.join(extra)}")
+            argv = list(sys.argv[1:] if args is None else args)
+            command = getattr(ns, "command", None)
+            before = command in argv and extra[0] in argv and argv.index(extra[0]) < argv.index(command)
+            (self if before else ns._rig_parser).error(f"unrecognized arguments: {' '.join(extra)}")
         return ns
 
 
