@@ -6,14 +6,18 @@ them), between recording a curve and marking it recorded (written twice, and a f
 inside a compiled numba function (``SystemError: … returned a result with an exception set`` and a traceback instead
 of the one-line stop). Inside :func:`deferred_interrupt` the first Ctrl-C (or SIGTERM, where the console script made
 it one: :func:`rig.launch.entry`) is only noted and raised at the loop's next ``check()``, where the host's and the
-writer's state is whole; a second one raises at once (a loop that no longer checks still stops).
+writer's state is whole; another one raises at once only when the first has waited :data:`STUCK` s for a check (a
+loop that no longer checks still stops) — a double tap a few ms apart once raised inside the writer all the same.
 """
 from __future__ import annotations
 
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+
+STUCK = 1.0       # s a stop may wait for the loop's check before another Ctrl-C raises at once
 
 
 def _stops() -> list[int]:
@@ -45,12 +49,13 @@ def deferred_interrupt() -> Iterator[Callable[[], None]]:
     if threading.current_thread() is not threading.main_thread():
         yield lambda: None
         return
-    pending: list[int] = []
+    pending: list[float] = []                  # when the stop was asked for (monotonic s)
 
     def note(signum: int, frame: object) -> None:
-        if pending:
+        if pending and time.monotonic() - pending[0] > STUCK:
             raise KeyboardInterrupt
-        pending.append(signum)
+        if not pending:
+            pending.append(time.monotonic())
 
     def check() -> None:
         if pending:
