@@ -133,7 +133,8 @@ def _rig_made(path: Path) -> bool:
     return False
 
 
-def clear_previous(out: Path, manifest: str, unlisted: Callable[[Path], set[str]] = lambda out: set()) -> dict[str, int]:
+def clear_previous(out: Path, manifest: str,
+                   unlisted: Callable[[Path], set[str]] = lambda out: set()) -> dict[str, int]:
     """Remove what an earlier run of a command wrote into ``out`` (the names in its ``manifest`` file; without one, in a
     directory marked as rig's, ``unlisted(out)``: what an older rig wrote there), so that no figure or table of
     another run is left beside this one's; return the files that stay, with their modification times (ns), for

@@ -101,7 +101,8 @@ def machine_of(scene_text: str) -> dict[str, str]:
 
 def expand(patterns: Sequence[str]) -> list[Path]:
     """Paths named by ``patterns`` (globs, ``**`` recursive; a folder: the ``*.mcap`` files under it, at any
-    depth, the extension in any case: ``RUN.MCAP`` too), sorted per pattern, each once, absolute (a worker of a cluster opens them from its own folder); a
+    depth, the extension in any case: ``RUN.MCAP`` too), sorted per pattern, each once, absolute (a worker of a
+    cluster opens them from its own folder); a
     pattern that matches nothing is a ValueError naming it."""
     out: dict[Path, None] = {}
     for pattern in patterns:

@@ -331,7 +331,8 @@ def _device_table(agreement: dict, units: DisplayUnits) -> list[Block]:
 def _values_table(values: dict) -> Table:
     """One row per process value: n, unit, descriptive statistics, capability, normality and trend checks."""
     rows = [[name, v["n"], v["unit"], *_at_row_places(v, "mean"), v["std"],
-             *_at_row_places(v, "min", "max", "minus_3sigma", "plus_3sigma", "lsl", "usl"), *_indices(v), v["band_within_limits"], v["normality"]["shapiro_p"],
+             *_at_row_places(v, "min", "max", "minus_3sigma", "plus_3sigma", "lsl", "usl"), *_indices(v),
+             v["band_within_limits"], v["normality"]["shapiro_p"],
              _anderson_cell(v["normality"]["anderson_p"]), v["normality"]["normal"], v["trend"]["slope_p"],
              v["trend"]["runs"]["p"], drift_text(v["trend"])] for name, v in values.items()]
     return Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",

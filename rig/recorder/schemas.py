@@ -122,16 +122,25 @@ CAN_SCHEMA = message_schema("rig.CanFrames", {
     description="block of raw CAN frames on the bus, the host's own included", extra=False)
 
 
+def _value_unit(name: str, units: Mapping[str, str]) -> str:
+    """The unit of a process value by its name: an X value's (``x_…``) and a Y value's (``y_…``) the channel's as
+    wired (``units`` x, y), a duration's s; "SI" where not known (an element's value, named by the program)."""
+    if name == "duration":
+        return "s"
+    return units.get(name[0], "SI") if name[:2] in ("x_", "y_") else "SI"
+
+
 def curve_schema(encoding: str, units: Mapping[str, str] | None = None) -> dict:
     """One measured curve of the device (all arrays of equal length); ``units`` of x and y where known."""
     units = units or {}
+    shown = {"t": "s", "x": units.get("x", "SI"), "y": units.get("y", "SI"), "angle": "rad"}
     return message_schema("rig.Curve", {
         "number": INTEGER, "program": INTEGER,
-        "t": _array(encoding, "sample time, s"), "x": _array(encoding, f"X channel, {units.get('x', 'SI')}"),
-        "y": _array(encoding, f"Y channel, {units.get('y', 'SI')}"), "angle": _array(encoding, "cam angle, rad"),
+        "t": _array(encoding, "sample time, s"), "x": _array(encoding, f"X channel, {shown['x']}"),
+        "y": _array(encoding, f"Y channel, {shown['y']}"), "angle": _array(encoding, "cam angle, rad"),
         "theory": {"type": "object", "description": "theoretical curve (arrays, SI); without t it shares the "
                                                     "curve's times",
-                   "properties": {k: _array(encoding, f"theory {k}") for k in ("t", "x", "y", "angle")},
+                   "properties": {k: _array(encoding, f"theory {k}, {u}") for k, u in shown.items()},
                    "additionalProperties": _array(encoding, "theory, SI")},
         "complete": {"type": "boolean", "description": "every block of the curve arrived"},
         "problems": array_of(STRING, "what was wrong with an incomplete curve"),
@@ -140,35 +149,60 @@ def curve_schema(encoding: str, units: Mapping[str, str] | None = None) -> dict:
 
 _VALUE = {"type": "number", "description": "process value, SI"}
 
-RESULT_SCHEMA = message_schema("rig.CurveResult", {
-    "number": INTEGER, "program": INTEGER, "ok": BOOLEAN,
-    "elements": array_of({"type": "object", "properties": {
-        "name": STRING, "kind": STRING, "ok": BOOLEAN, "reason": STRING}}),
-    "process_values": {"type": "object", "description": "process values by name (SI); an undefined one is in nulls",
-                       "properties": {name: _VALUE for name in PROCESS_VALUES.values()},
-                       "additionalProperties": _VALUE},
+
+_RESULT_FLAGS = {
     "complete": {"type": "boolean", "description": "every announced process value arrived"},
     "missing": array_of(STRING, "process values that did not arrive"),
     "memory_full": {"type": "boolean", "description": "the curve filled the unit's curve memory and was cut there "
                                                       "(overflow policy stop): elements beyond the cut saw no data"},
     "decimated": {"type": "boolean", "description": "the curve was thinned to fit the unit's memory (policy decimate)"},
-}, required=("ok",))
+}
 
-_VALUE_STATISTICS = {"type": "object", "properties": {
-    "n": INTEGER, "mean": NUMBER, "std": NUMBER, "min": NUMBER, "max": NUMBER, "lower": NUMBER, "upper": NUMBER,
-    "cp": NUMBER, "cpk": NUMBER}, "description": "per process value: n, mean, σ, min, max, limits, Cp, Cpk "
-                                                 "(an undefined one is in nulls)"}
 
-STATISTICS_SCHEMA = message_schema("rig.DeviceStatistics", {
-    "program": INTEGER, "total": INTEGER, "ok": INTEGER, "nok": INTEGER,
-    "elements": {"type": "object", "description": "OK/NOK counts by element name (the program's names)",
-                 "properties": {},
-                 "additionalProperties": {"type": "object", "properties": {"ok": INTEGER, "nok": INTEGER}}},
-    "values": {"type": "object", "description": "statistics by process value name (element values are named by "
-                                                "the program: additional properties)",
-               "properties": {name: _VALUE_STATISTICS for name in PROCESS_VALUES.values()},
-               "additionalProperties": _VALUE_STATISTICS},
-}, description="statistics snapshot of the device (counts, per-value mean/std/min/max/cp/cpk)")
+def result_schema(units: Mapping[str, str] | None = None) -> dict:
+    """A curve's result; its process values' units from the X and Y channels' (``units`` x, y) where known."""
+    units = units or {}
+    return message_schema("rig.CurveResult", {
+        "number": INTEGER, "program": INTEGER, "ok": BOOLEAN,
+        "elements": array_of({"type": "object", "properties": {
+            "name": STRING, "kind": STRING, "ok": BOOLEAN, "reason": STRING}}),
+        "process_values": {"type": "object", "description": "process values by name (SI); an undefined one is in "
+                                                            "nulls",
+                           "properties": {name: {"type": "number",
+                                                 "description": f"{name}, {_value_unit(name, units)}"}
+                                          for name in PROCESS_VALUES.values()},
+                           "additionalProperties": _VALUE},
+        **_RESULT_FLAGS}, required=("ok",))
+
+
+
+
+def _value_statistics(unit: str) -> dict:
+    """One process value's statistics: n, mean, σ, min, max and limits in ``unit``, Cp and Cpk (no unit)."""
+    def number(what: str) -> dict:
+        return {"type": "number", "description": f"{what}, {unit}"}
+    return {"type": "object", "properties": {
+        "n": INTEGER, "mean": number("mean"), "std": number("σ"), "min": number("min"), "max": number("max"),
+        "lower": number("lower limit"), "upper": number("upper limit"),
+        "cp": {"type": "number", "description": "Cp (no unit)"},
+        "cpk": {"type": "number", "description": "Cpk (no unit)"}},
+            "description": "per process value: n, mean, σ, min, max, limits, Cp, Cpk (an undefined one is in nulls)"}
+
+
+def statistics_schema(units: Mapping[str, str] | None = None) -> dict:
+    """The device's statistics snapshot; the values' units from the X and Y channels' (``units`` x, y) where known."""
+    units = units or {}
+    return message_schema("rig.DeviceStatistics", {
+        "program": INTEGER, "total": INTEGER, "ok": INTEGER, "nok": INTEGER,
+        "elements": {"type": "object", "description": "OK/NOK counts by element name (the program's names)",
+                     "properties": {},
+                     "additionalProperties": {"type": "object", "properties": {"ok": INTEGER, "nok": INTEGER}}},
+        "values": {"type": "object", "description": "statistics by process value name (element values are named by "
+                                                    "the program: additional properties)",
+                   "properties": {name: _value_statistics(_value_unit(name, units))
+                                  for name in PROCESS_VALUES.values()},
+                   "additionalProperties": _value_statistics("SI")},
+    }, description="statistics snapshot of the device (counts, per-value mean/std/min/max/cp/cpk)")
 
 EVENT_SCHEMA = message_schema("rig.Event", {"t": {"type": "number", "description": "simulation time, s"},
                                             "kind": STRING}, required=("t", "kind"))

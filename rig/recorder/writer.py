@@ -245,7 +245,8 @@ class Recorder:
                 raise ValueError(f"{topic}: signal {name!r} has shape {v.shape}, time has {t.shape}")
         block = self._blocks.get(topic)
         if block is None:
-            cid = self._channel(topic, S.block_schema(f"rig.Block{topic}", sig, self.encoding, self._units_of(topic)), f"rig.Block{topic}",
+            schema = S.block_schema(f"rig.Block{topic}", sig, self.encoding, self._units_of(topic))
+            cid = self._channel(topic, schema, f"rig.Block{topic}",
                                 {"encoding": self.encoding, "time_unit": "s"})
             block = self._blocks[topic] = _Block(cid, tuple(sig))
         elif set(sig) != set(block.fields):
@@ -268,7 +269,8 @@ class Recorder:
         decimator = self._views.get(topic)
         if decimator is None:
             return
-        cid = self._channel(topic, S.view_schema(f"rig.View{topic}", signals, description, self._units_of(topic)), f"rig.View{topic}",
+        schema = S.view_schema(f"rig.View{topic}", signals, description, self._units_of(topic))
+        cid = self._channel(topic, schema, f"rig.View{topic}",
                             {"rate_hz": repr(decimator.rate), "time_unit": "s"})
         keep = decimator.pick(t)
         if not keep.size:
@@ -367,7 +369,8 @@ class Recorder:
         if theory is not None:
             msg["theory"] = {str(k): encode_array(v, self.encoding) for k, v in theory.items()}
         msg.update(extra)
-        cid = self._channel(S.CURVE, S.curve_schema(self.encoding, self._units_of(S.CURVE)), "rig.Curve", {"encoding": self.encoding})
+        cid = self._channel(S.CURVE, S.curve_schema(self.encoding, self._units_of(S.CURVE)), "rig.Curve",
+                            {"encoding": self.encoding})
         self._put(cid, to_ns(t[-1], f"{S.CURVE} curve {number}"), dumps_message(msg))
         self.curves += 1
         self._data_end = max(self._data_end, float(t[-1]))
@@ -382,12 +385,12 @@ class Recorder:
         if "ok" not in result:
             raise ValueError(f"{S.RESULT}: result has no 'ok' key (keys: {sorted(result)})")
         when = t if t is not None else result.get("t")
-        cid = self._channel(S.RESULT, S.RESULT_SCHEMA, "rig.CurveResult")
+        cid = self._channel(S.RESULT, S.result_schema(self._units_of(S.CURVE)), "rig.CurveResult")
         self._put(cid, self._time_ns(when, S.RESULT), dumps_message(result))
 
     def write_statistics(self, stats: Mapping[str, Any], t: float | None = None) -> None:
         """Statistics snapshot of the device (``/device/statistics``); t default = latest time written."""
-        cid = self._channel(S.STATISTICS, S.STATISTICS_SCHEMA, "rig.DeviceStatistics")
+        cid = self._channel(S.STATISTICS, S.statistics_schema(self._units_of(S.CURVE)), "rig.DeviceStatistics")
         self._put(cid, self._time_ns(t, S.STATISTICS), dumps_message(stats))
 
     def write_event(self, t: float, kind: str, **data: Any) -> None:

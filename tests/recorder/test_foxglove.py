@@ -266,3 +266,10 @@ def test_schemas_state_each_signals_unit(channels):
     encoder = described("/stand/encoder1")
     assert encoder["speed"] == "speed, rad/s" and encoder["count"] == "count (a count or code, no unit)"
     assert not [(t, k) for t in channels for k, v in described(t).items() if "(SI units)" in v]
+    curve = channels["/device/curve"]["schema"]["properties"]["theory"]["properties"]
+    assert curve["x"]["description"] == "theory x, m" and curve["t"]["description"] == "theory t, s"
+    values = channels["/device/result"]["schema"]["properties"]["process_values"]["properties"]
+    assert (values["y_min"]["description"], values["x_max"]["description"], values["duration"]["description"]) == \
+        ("y_min, N", "x_max, m", "duration, s")
+    stats = channels["/device/statistics"]["schema"]["properties"]["values"]["properties"]["y_min"]["properties"]
+    assert stats["mean"]["description"] == "mean, N" and stats["cpk"]["description"] == "Cpk (no unit)"
