@@ -58,6 +58,7 @@ class Host:
         self.bus = bus
         self.can = CanHost(bus)
         self.rec = recorder
+        self.unit_gone = ""                   # why the unit can no longer be reached (a served machine that stopped)
         self.serial = (DigiForceClient(serial_port, baudrate=cfg.serial["baudrate"], address=cfg.serial["address"],
                                        timeout=2.0) if serial_port else None)
         self.theory = make_plant(cfg.plant, cfg.scene, nominal=True, fidelity=cfg.fidelity)
@@ -406,7 +407,11 @@ class Host:
         # the counters are those of the latest frames: at the bus's device time (past the machine's end while the
         # backlog drained), not before an event already recorded
         end = max(self.truth_t, self.rec.last_event_time, self.can.device_time)
-        if self.serial is not None:
+        if self.serial is not None and self.unit_gone:
+            self.rec.write_event(end, "statistics_not_read", detail=f"the unit's statistics were not read over serial: "
+                                                                    f"{self.unit_gone}")
+            self.serial.close()
+        elif self.serial is not None:
             stats = self.serial.read_statistics(self.program)
             self.rec.write_statistics(stats, t=end)
             over = {ch: int(n) for ch, n in self.serial.status().get("adc_overflows", {}).items() if n}
@@ -420,6 +425,7 @@ class Host:
             k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))},
             **({"illegal_transitions": dict(self._illegal)} if self._illegal else {}),
             **({"illegal_saturated": full} if (full := self._illegal_saturated()) else {}))
-        self.can.send_command("release")
+        if not self.unit_gone:
+            self.can.send_command("release")
         self._record_sent()
         return stats

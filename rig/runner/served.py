@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import select
+import socket
 import threading
 import time
 from typing import Any
@@ -113,6 +115,19 @@ class RunClock(can.BusABC):
             self.origin = float(math.floor(msg.timestamp))
         msg.timestamp = round((msg.timestamp - self.origin) * 1e6) / 1e6
         return msg, False
+
+    @property
+    def closed(self) -> bool:
+        """True when the server has closed the connection (its ``rig serve`` stopped): python-can's socketcand bus
+        then only returns nothing, as on a quiet bus. Looked at without taking any data (a peek at the socket)."""
+        sock = getattr(self._bus, "_SocketCanDaemonBus__socket", None)    # python-can keeps it private
+        if sock is None:
+            return False
+        try:
+            readable, _, _ = select.select([sock], [], [], 0.0)
+            return bool(readable) and sock.recv(1, socket.MSG_PEEK) == b""
+        except OSError:
+            return True
 
     def shutdown(self) -> None:
         super().shutdown()

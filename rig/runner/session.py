@@ -35,6 +35,7 @@ from rig.runner.served import Anchored, IdleStatus, RunClock
 from rig.scene import load_scene
 
 log = logging.getLogger(__name__)
+QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
 
 
 class RunError(RuntimeError):
@@ -529,6 +530,13 @@ def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], i
                         f"{cfg.cycles} curves" if cfg.cycles is not None else f"{cfg.duration:g} s")
             host.add_event(host.can.device_time, "run_short", curves=host.curves_recorded,
                            expected=cfg.cycles if cfg.cycles is not None else cfg.duration)
+            break
+        elif time.monotonic() - last > QUIET and getattr(host.can.bus, "closed", False):
+            if not host.done():
+                raise RunError(f"the served machine at {where} closed the connection (its rig serve stopped) after "
+                               f"{host.curves_recorded} curves recorded (kept in {output})")
+            host.unit_gone = f"the served machine at {where} closed the connection after this host's curves"
+            log.warning("%s; its run had not ended: the unit's statistics are not read", host.unit_gone)
             break
         elif time.monotonic() - last > idle_timeout:
             raise RunError(f"no CAN traffic from {where} for {idle_timeout:g} s; "

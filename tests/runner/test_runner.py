@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -541,3 +542,34 @@ def test_a_second_ctrl_c_while_the_stopped_run_closes_its_recording_does_not_cut
         run_scene(SCENE, out, cycles=20)
     rec = read_recording(out)                            # whole: no allow_partial
     assert rec.interrupted == "KeyboardInterrupt" and len(rec.curves) == stop.value.curves >= 2
+
+
+def test_a_served_machine_that_stops_mid_run_is_named_at_once_not_after_the_idle_timeout(tmp_path):
+    """`rig serve` stopped (here killed) while `rig record` still wants curves: python-can's socketcand bus then only
+    returns nothing, as a quiet bus does, and the host waited its 10 s idle timeout for "no CAN traffic". It now sees
+    the connection closed within a second and says so; what it recorded is kept."""
+    import json
+    import threading
+    from rig.runner import record_scene
+    from rig.runner.session import RunError
+    endpoints = tmp_path / "endpoints.json"
+    serve = subprocess.Popen([sys.executable, "-m", "rig.cli", "-q", "serve", str(SCENE), "--cycles", "400",
+                              "--endpoints", str(endpoints), "--wait", "120"], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while not endpoints.exists() or not endpoints.read_text():
+            assert serve.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        ep = json.loads(endpoints.read_text())
+        out = tmp_path / "rec.mcap"
+        threading.Timer(3.0, serve.kill).start()
+        t0 = time.monotonic()
+        with pytest.raises(RunError, match=r"closed the connection \(its rig serve stopped\) after \d+ curves"):
+            record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"], serial_port=ep["serial"],
+                         cycles=400, idle_timeout=60.0)
+        assert time.monotonic() - t0 < 30.0                  # not the 60 s idle timeout
+        assert read_recording(out, allow_partial=True).curves
+    finally:
+        serve.kill()
+        serve.wait()
