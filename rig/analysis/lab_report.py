@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import textwrap
 from dataclasses import dataclass, field, replace
-from math import cos, inf, radians, tau
+from math import cos, degrees, inf, radians, tau
 from typing import Any, Callable
 
 import numpy as np
@@ -542,9 +542,24 @@ def lab_sheets(rec: Recording) -> list[Sheet] | None:
     return None if lab is None else [replace(SHEETS[name](lab), key=name) for name in lab.lab["sheets"]]
 
 
-def summary_lines(sheets: list[Sheet]) -> list[str]:
-    """Console lines of a lab run: each sheet's result (its :func:`lab_sheets`)."""
-    return [f"lab sheet {s.key} ({s.title.lower()}): {s.result}" for s in sheets]
+def summary_lines(sheets: list[Sheet], rec: Recording | None = None) -> list[str]:
+    """Console lines of a lab run: each sheet's result (its :func:`lab_sheets`), then :func:`lift_warning`."""
+    warning = lift_warning(rec) if rec is not None else None
+    return [f"lab sheet {s.key} ({s.title.lower()}): {s.result}" for s in sheets] + (
+        [f"warning: {warning}"] if warning else [])
+
+
+def lift_warning(rec: Recording) -> str | None:
+    """What the ``follower_lift`` events of a cam bench say (None without any): the follower would leave the cam."""
+    lifts = [e for e in rec.events if e.get("kind") == "follower_lift"]
+    if not lifts:
+        return None
+    worst = min(lifts, key=lambda e: e.get("force", 0.0))
+    return (f"the follower would lift off the cam {len(lifts)} time(s) (the contact force its law needs down to "
+            f"{worst.get('force', float('nan')):.3g} N at cam angle {degrees(worst.get('cam_angle', float('nan'))):.4g}°"
+            f", t = {worst['t']:.4g} s): spring and weight do not hold it on the cam at this speed, so the bench's "
+            f"law-following model and these sheets' theory do not hold there (lower the speed, or stiffen or preload "
+            f"the spring)")
 
 
 def lab_section(ctx: ReportContext) -> list[Block]:
@@ -557,6 +572,9 @@ def lab_section(ctx: ReportContext) -> list[Block]:
         return []
     blocks: list[Block] = [Heading("Lab sheets"), Table(["sheet", "result"], [[sheet.title, sheet.result]
                                                                                for sheet in sheets])]
+    lift = lift_warning(ctx.recording)
+    if lift:
+        blocks.append(Text(f"Warning: {lift}.", "warning"))
     for sheet in sheets:
         blocks += [Heading(sheet.title, 3), Text(sheet.result)]
         if sheet.draw is not None:

@@ -488,6 +488,9 @@ EVENT_MEANING = {
                        "shaft (the run's totals are in link_summary)",
     "input_overrange": "the acquisition unit's inputs saw samples beyond their measuring range and clipped them (the "
                       "unit's own count, read over serial at the end): curves measured then hold the range's limit",
+    "follower_lift": "the lab cam's follower would lift off: the contact force its law needs went below zero (spring "
+                     "and weight no longer hold it on the cam; the law-following model and the sheets' theory do "
+                     "not hold there)",
     "statistics_not_read": "the unit's statistics could not be read over serial at the end (a served machine that "
                            "stopped after this host's curves): the report compares no device statistics",
     "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "

@@ -35,7 +35,7 @@ def stand_summary(rec: "Recording") -> StandSummary | None:
     except (SceneError, ValueError) as exc:
         return StandSummary([f"lab: no sheet ({exc})"], {})
     if sheets is not None:
-        return StandSummary(lab_report.summary_lines(sheets),
+        return StandSummary(lab_report.summary_lines(sheets, rec),
                             {f"lab.{sheet.key}.{_snake(name)}": lab_report.shown_value(name, float(v))
                              for sheet in sheets for name, v in sheet.values.items()})
     res = clutch_report.stand_results(rec)

@@ -44,7 +44,7 @@ SIGNAL_SI = {
     "F_rod": "N", "rod_tension": "N", "R23": "N", "F_c": "N", "F_a": "N", "N_B": "N", "force": "N",
     "M23": "N*m", "M_e": "N*m", "M_sigma": "N*m", "drive_torque": "N*m", "M1": "N*m", "M3": "N*m",
     "M_t": "N*m", "T_c": "N*m", "T_in": "N*m", "T_out": "N*m", "torque": "N*m", "shaft_torque": "N*m",
-    "motor_speed": "rad/s", "relative_angle": "rad", "lever_force": "N", "leaf_strain": "m/m",
+    "motor_speed": "rad/s", "relative_angle": "rad", "lever_force": "N", "leaf_strain": "m/m", "contact_force": "N",
 }
 #: what each plant truth signal is, for chart legends (the recorded name stays the key)
 SIGNAL_LABEL = {
@@ -59,6 +59,7 @@ SIGNAL_LABEL = {
     "N_B": "cam normal force N_B", "phi_in": "input angle", "phi_out": "output angle", "omega_in": "input speed",
     "omega_out": "output speed", "alpha_in": "input acceleration", "alpha_out": "output acceleration", "v": "speed v",
     "a": "acceleration a", "torque": "input torque", "relative_angle": "relative angle",
+    "contact_force": "cam–follower contact force the law needs (< 0: it would lift off)",
     "lever_force": "loading-lever force", "leaf_strain": "leaf-spring strain",
 }
 #: a plant's own meaning of a signal name several plants record (the ``plant`` of the recording's metadata)

@@ -35,12 +35,13 @@ SCHEMAS: dict[str, dict[str, Field]] = {
         below=pi / 2, says="must be at least 0° and below 90°")},
     "geneva": {"kind": Field(None), "slots": Field("1"), "centre_distance": Field("m")},
     "cam": {"kind": Field(None), "cam_program": Field(None, doc="array of tables [[plant.cam_program]]"),
-            "follower_mass": Field("kg", 0.0), "spring_rate": Field("N/m", 0.0),
+            "follower_mass": Field("kg", 0.0, minimum=0.0), "spring_rate": Field("N/m", 0.0, minimum=0.0),
             "spring_preload": Field("N", 0.0, "spring force at s = 0"),
             "gravity": Field("m/s^2", 0.0, "gravity against the follower's rise (its weight m·g adds to the contact "
                              "force G): 9.81 m/s^2 for a follower rising vertically, 0 for a horizontal "
                              "one", minimum=0.0),
-            "cam_inertia": Field("kg*m^2", 0.0, "inertia of the cam shaft beyond the torque transducer")},
+            "cam_inertia": Field("kg*m^2", 0.0, "inertia of the cam shaft beyond the torque transducer",
+                                 minimum=0.0)},
 }
 
 
@@ -57,6 +58,7 @@ class LabBench:
         self.spring_preload, self.cam_inertia, self.gravity = spring_preload, cam_inertia, gravity
         self.events: list[Event] = []
         self._t_last = -np.inf
+        self._lifting = False               # the cam follower's contact force was below zero at the last sample
 
     def advance(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """Truth at increasing times ``t`` (s), continuing from the previous call."""
@@ -65,7 +67,25 @@ class LabBench:
             raise ValueError("LabBench.advance needs strictly increasing times after the previous call")
         if t.size:
             self._t_last = float(t[-1])
-        return self.truth(t)
+        out = self.truth(t)
+        if "contact_force" in out and t.size:
+            self._lifts(t, out["phi_in"], out["contact_force"])
+        return out
+
+    def _lifts(self, t: np.ndarray, phi: np.ndarray, force: np.ndarray) -> None:
+        """A ``follower_lift`` event where the contact force the cam law needs goes below zero: the spring and the
+        weight no longer hold the follower on the cam (force closure lost: it would jump, MODELS §2), and the bench's
+        law-following model stops being the bench's motion there."""
+        below = force < 0.0
+        starts = np.flatnonzero(below & ~np.concatenate(([self._lifting], below[:-1])))
+        for k in starts:
+            end = k + int(np.argmax(~below[k:])) if not below[k:].all() else below.size
+            self.events.append(Event(float(t[k]), "follower_lift", {
+                "cam_angle": float(np.mod(phi[k], 2 * pi)), "force": float(np.min(force[k:end])),
+                "detail": "the contact force the cam law needs is below zero: spring and weight no longer hold the "
+                          "follower on the cam, which would lift off (jump) here; the law-following model and the "
+                          "sheets' theory do not hold beyond it"}))
+        self._lifting = bool(below[-1])
 
     def truth(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """The bench's signals at times ``t`` (s) (module docstring)."""
@@ -86,7 +106,7 @@ class LabBench:
             m = self.mechanism.evaluate(d.phi)
             v, a = d.omega * m.s_p, d.omega ** 2 * m.s_pp + d.alpha * m.s_p
             force = self.follower_mass * (a + self.gravity) + self.spring_rate * m.s + self.spring_preload
-            out.update(s=m.s, v=v, a=a, torque=force * m.s_p + self.cam_inertia * d.alpha)
+            out.update(s=m.s, v=v, a=a, torque=force * m.s_p + self.cam_inertia * d.alpha, contact_force=force)
         return out
 
     @classmethod
@@ -110,6 +130,8 @@ class LabBench:
                 program: CamProgram = read_program(p["cam_program"], 0.0, where)
                 return cls(kind, speed, program, p["follower_mass"], p["spring_rate"], p["spring_preload"],
                            p["cam_inertia"], p["gravity"])
+        except SceneError:                  # names the file and section itself
+            raise
         except ValueError as exc:
             raise SceneError(f"{where}: {exc}") from None
         return cls(kind, speed)

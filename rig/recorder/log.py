@@ -9,7 +9,8 @@ INFO, WARNING, ERROR = 2, 3, 4          # foxglove.LogLevel values
 WARNING_KINDS = frozenset({"sequence_gap", "unknown_frame", "bad_length", "decode_error", "error_frame", "curve",
                            "result", "incomplete_curve", "result_missing", "live_dropped", "shutdown",
                            "run_short", "curve_clipped", "input_overrange", "encoder_illegal", "curves_in_one_cycle",
-                           "not_recorded", "verdict_mismatch", "statistics_not_read"})
+                           "not_recorded", "verdict_mismatch", "statistics_not_read",
+                           "follower_lift"})
 ERROR_KINDS = frozenset({"interrupted"})
 
 

@@ -398,3 +398,35 @@ def test_the_speed_sheet_reads_the_counters_gate_as_the_counter_does(tmp_path_fa
         'overrides = { gate_time_ms = 500 }\n', 1).replace('readings = ["2.5 s"', 'readings = ["0.7 s"', 1))
     sheet = sheets["Speed measurement"]
     assert "OUTSIDE" not in sheet.result and sheet.result.count("within") == 3
+
+
+def test_a_cam_follower_that_would_lift_off_is_said(tmp_path_factory, cam):
+    """At 700 rpm the contact force the lab cam's law needs goes below zero (−5.6 N: spring and weight no longer hold
+    the follower on the cam): the run went on and the sheets compared against a theory assuming contact, without a
+    word. Now a follower_lift event per revolution, recorded with the contact force, and a warning with the sheets;
+    the shipped 30 rpm run has none."""
+    from rig.analysis.lab_report import lift_warning, summary_lines
+    rec, sheets = _run(tmp_path_factory, "lab_cam", lambda text: text.replace('speed = "30 rpm"', 'speed = "700 rpm"')
+                       .replace('duration = "4.5 s"', 'duration = "1 s"'))
+    lifts = [e for e in rec.events if e["kind"] == "follower_lift"]
+    force = rec.truth["contact_force"]
+    assert lifts and min(e["force"] for e in lifts) == pytest.approx(force.min(), rel=1e-9) and force.min() < -5.0
+    m, k = 0.4, 1500.0                                    # the scene's follower and spring, independently of the plant
+    assert np.allclose(force, m * (rec.truth["a"] + 9.81) + k * rec.truth["s"] + 25.0, atol=1e-9)
+    assert "the follower would lift off the cam" in summary_lines(list(sheets.values()), rec)[-1]
+    assert lift_warning(cam[0]) is None and cam[0].truth["contact_force"].min() > 0.0
+
+
+def test_a_lab_cam_with_a_negative_mass_or_spring_is_refused_and_program_errors_are_named_once(tmp_path):
+    text = (SCENES / "lab_cam.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    for old, new, key in (('follower_mass = "0.4 kg"', 'follower_mass = "-0.4 kg"', "follower_mass"),
+                          ('spring_rate = "1.5 N/mm"', 'spring_rate = "-1.5 N/mm"', "spring_rate")):
+        assert old in text
+        bad.write_text(text.replace(old, new))
+        with pytest.raises(SceneError, match=rf"\[plant\]: key '{key}'"):
+            run_scene(bad, tmp_path / "bad.mcap")
+    bad.write_text(text.replace('law = "3-4-5"', 'law = "3-4-6"', 1))
+    with pytest.raises(SceneError) as info:
+        run_scene(bad, tmp_path / "bad.mcap")
+    assert str(info.value).count("bad.toml [plant]") == 1 and "unknown motion law" in str(info.value)
