@@ -108,6 +108,29 @@ class Lab:
                              "([transducers.*] signal and to)")
         return found
 
+    def clipped(self, signal: str, values: np.ndarray, unit: str, scale: float = 1.0) -> str:
+        """"" or a sentence saying how many ``values`` of the transducer measuring ``signal`` sit at its output
+        limits (``clip_low``/``clip_high``: the input was beyond its range, the reading is the limit), shown in
+        ``unit`` (SI × ``scale``)."""
+        to = self.wired(signal)[0]
+        try:                    # the output limits (V) through the output's linear map onto the measured range
+            low, high = (self.setting(to, k, unit="V") for k in ("clip_low", "clip_high"))
+            out = [self.setting(to, k, unit="V") for k in ("output_at_min", "output_at_max")]
+            span = [self.setting(to, k, unit="1") for k in ("range_min", "range_max")]
+        except (SceneError, ValueError, KeyError, TypeError):
+            return ""
+        low, high = (span[0] + (v - out[0]) / (out[1] - out[0]) * (span[1] - span[0]) for v in (low, high))
+        near = 1e-6 * max(1.0, abs(low) if np.isfinite(low) else 0.0, abs(high) if np.isfinite(high) else 0.0)
+        at = [(n, limit) for n, limit in ((int(np.count_nonzero(values <= low + near)), low),      # within the CAN
+                                          (int(np.count_nonzero(values >= high - near)), high))    # field's rounding
+              if n and np.isfinite(limit)]
+        if not at:
+            return ""
+        where = " and ".join(f"{n} at {limit * scale:.4g} {unit}" for n, limit in at)
+        return (f"{sum(n for n, _ in at)} of {values.size} readings sit at the transducer's output limit ({where}): "
+                f"the input was beyond its range there, the reading is the limit — the comparison with the theory "
+                f"(and any lag or offset fitted to it) is not a measurement there")
+
     def angle(self, signal: str = "phi_in") -> tuple[np.ndarray, np.ndarray]:
         """Angle (rad) of the shaft whose plant ``signal`` an encoder measures, at each edge that changed its count:
         (edge times s, angles rad), strictly increasing in time. The count starts at the shaft's angle at power-on
@@ -337,7 +360,9 @@ def cam_follower_sheet(lab: Lab) -> Sheet:
               "rest_max": float(np.max(np.abs(rest))),
               "d1_rel": float(np.max(np.abs(d1 - law.s_p)) / peak1), "d2_rel": float(np.max(np.abs(d2 - law.s_pp)) / peak2),
               "law_d2_rel": float(np.max(np.abs(law_d2 - law.s_pp)) / peak2)}
-    result = (f"max |s − law| {1e6 * np.max(np.abs(s[1:-1] - law.s)):.1f} µm = a reading lag of {1e3 * lag:.2f} ms "
+    clipped = lab.clipped("s", motion["displacement"], "mm", 1e3)
+    result = (f"{clipped}; " if clipped else "") + (
+              f"max |s − law| {1e6 * np.max(np.abs(s[1:-1] - law.s)):.1f} µm = a reading lag of {1e3 * lag:.2f} ms "
               f"and an offset of {1e6 * offset:+.1f} µm (least squares) with {1e6 * np.max(np.abs(rest)):.1f} µm left; s' within "
               f"{100 * np.max(np.abs(d1 - law.s_p)) / peak1:.1f} %, s'' within {100 * np.max(np.abs(d2 - law.s_pp)) / peak2:.1f} % "
               f"of their peaks (the law itself differenced at 10°: s'' within "
@@ -394,7 +419,9 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
     span = angle <= angle[0] + turns * tau                          # whole turns only
     work = float(np.trapezoid(measured[span], angle[span])) if turns >= 1 else float("nan")
     peak = float(np.max(np.abs(truth["torque"])))
-    result = (f"max |measured − theory| per 10° bin {np.max(np.abs(dev)):.4f} N·m ({100 * np.max(np.abs(dev)) / peak:.1f} % "
+    clipped = lab.clipped("torque", torque["torque"], "N·m")
+    result = (f"{clipped}; " if clipped else "") + (
+              f"max |measured − theory| per 10° bin {np.max(np.abs(dev)):.4f} N·m ({100 * np.max(np.abs(dev)) / peak:.1f} % "
               f"of the {peak:.3g} N·m peak); work per turn ∮M dφ = {work / max(turns, 1e-9):.4f} J (0 for spring, "
               "mass and weight)")
 

@@ -430,3 +430,15 @@ def test_a_lab_cam_with_a_negative_mass_or_spring_is_refused_and_program_errors_
     with pytest.raises(SceneError) as info:
         run_scene(bad, tmp_path / "bad.mcap")
     assert str(info.value).count("bad.toml [plant]") == 1 and "unknown motion law" in str(info.value)
+
+
+def test_readings_at_a_transducers_output_limit_are_said_not_fitted_as_lag(tmp_path_factory, cam):
+    """A 200 mm stroke drives the 100 mm LVDT and the ±5 N·m torque shaft past their ranges: their readings sit at the
+    output limits (105 mm, ±5.5 N·m), which the sheets read as "a reading lag of 1.35 ms and an offset of −37 mm"
+    without a word. The sheets now say how many readings sit at the limit; the shipped run has none."""
+    rec, sheets = _run(tmp_path_factory, "lab_cam", lambda text: text.replace('stroke = "20 mm"', 'stroke = "200 mm"'))
+    follower, torque = sheets["Cam follower"].result, sheets["Cam-shaft torque"].result
+    at_limit = int(np.count_nonzero(rec.series["/stand/lab_motion"]["displacement"] >= 0.105 - 1e-7))
+    assert at_limit > 100 and follower.startswith(f"{at_limit} of ") and "at 105 mm" in follower
+    assert "at -5.5 N·m" in torque and "at 5.5 N·m" in torque
+    assert all("output limit" not in s.result for s in cam[1].values())
