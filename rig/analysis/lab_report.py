@@ -418,12 +418,15 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
     turns = np.floor((angle[-1] - angle[0]) / tau)
     span = angle <= angle[0] + turns * tau                          # whole turns only
     work = float(np.trapezoid(measured[span], angle[span])) if turns >= 1 else float("nan")
+    # the theory over the same turns: the change of the cam's and follower's energy there (0 at constant speed, where
+    # spring, mass and weight give back what they take; a speed ripple leaves ½J·Δω² and ½m·Δv²)
+    expected = float(np.trapezoid(theory_at(angle[span]), angle[span])) if turns >= 1 else float("nan")
     peak = float(np.max(np.abs(truth["torque"])))
     clipped = lab.clipped("torque", torque["torque"], "N·m")
     result = (f"{clipped}; " if clipped else "") + (
               f"max |measured − theory| per 10° bin {np.max(np.abs(dev)):.4f} N·m ({100 * np.max(np.abs(dev)) / peak:.1f} % "
-              f"of the {peak:.3g} N·m peak); work per turn ∮M dφ = {work / max(turns, 1e-9):.4f} J (0 for spring, "
-              "mass and weight)")
+              f"of the {peak:.3g} N·m peak); work per turn ∮M dφ = {work / max(turns, 1e-9):.4f} J (theory over the same "
+              f"turns {fixed(expected / max(turns, 1e-9), 4)} J: the cam's and follower's energy change, 0 at constant speed)")
 
     def draw(ax: Any) -> None:
         fine = np.linspace(angle[0], angle[0] + tau, 721)
@@ -443,7 +446,8 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
                   f"{float(np.interp(angle[0], phi, t_edge)):.3g} s: the start before it is left out), over "
                   f"{(angle[-1] - angle[0]) / tau:.2f} turns: a bin the turns pass more often holds more readings "
                   f"(the last column); the work per turn over the {turns:.0f} whole one(s)."], draw,
-                 {"deviation_max": float(np.max(np.abs(dev))), "peak": peak, "work_per_turn": work / max(turns, 1.0)})
+                 {"deviation_max": float(np.max(np.abs(dev))), "peak": peak, "work_per_turn": work / max(turns, 1.0),
+                  "work_per_turn_theory": expected / max(turns, 1.0)})
 
 
 def cardan_sheet(lab: Lab) -> Sheet:
