@@ -379,3 +379,21 @@ def test_a_radius_sized_to_the_limit_passes_its_check():
     assert Check("r", 25.0 * (1 - 1e-15), 25.0, "mm", "≥").ok and not Check("r", 24.99, 25.0, "mm", "≥").ok
     assert not Check("max Hertz stress", float("inf"), 1200.0, "MPa", "≤").ok            # a zero flank radius
     assert not Check("r", float("-inf"), 5.0, "mm", "≥").ok and not Check("r", float("nan"), 5.0, "mm", "≥").ok
+
+
+def test_a_clockwise_cam_needs_the_base_radius_of_the_reversed_law_counter_clockwise():
+    """The flat-faced check ignored the cam's sense of rotation (8.861 mm either way on the demo). Turned clockwise by
+    φ the cam meets the face lines a counter-clockwise cam meets with the law run backwards, ψ(−φ): the same envelope,
+    the same minimum base radius — an identity independent of the envelope code's sign conventions."""
+    prog = CamProgram([Segment("rise", radians(120), "cycloidal", radians(10)), Segment("dwell", radians(60)),
+                       Segment("return", radians(90), "3-4-5", radians(10)), Segment("dwell", radians(90))])
+    law = lambda f: prog.evaluate(f)[:3]                                           # noqa: E731
+
+    def backwards(f):
+        psi, psi_p, psi_pp = prog.evaluate(-np.asarray(f))[:3]
+        return psi, -psi_p, psi_pp
+    clockwise = FlatFollower(0.1, 0.0, law, -1.0).min_base_radius()
+    assert clockwise == pytest.approx(FlatFollower(0.1, 0.0, backwards, 1.0).min_base_radius(), rel=1e-9)
+    assert abs(clockwise - FlatFollower(0.1, 0.0, law, 1.0).min_base_radius()) > 1e-4     # not the same cam
+    with pytest.raises(ValueError, match="direction must be"):
+        FlatFollower(0.1, 0.0, law, 0.5)

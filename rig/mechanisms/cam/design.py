@@ -159,11 +159,12 @@ def _flat_follower_check(mech: "PinInsertionMechanism", phi: np.ndarray, pc: Pit
         return sign * (s.psi - psi_low), sign * s.psi_p, sign * s.psi_pp
 
     pivot = float(np.hypot(mech.x_A0, mech.y_A0))
-    rb_min = FlatFollower(pivot, 0.0, law).min_base_radius(phi)
+    rb_min = FlatFollower(pivot, 0.0, law, float(mech.cam_direction)).min_base_radius(phi)
     rb_cam = float(np.min(np.hypot(pc.x, pc.y))) - mech.r_R
+    sense = "counter-clockwise" if mech.cam_direction > 0 else "clockwise"
     return Check("flat-faced follower: base radius", rb_cam * 1e3, rb_min * 1e3, "mm", "≥",
                  f"present cam's smallest profile radius vs the cusp-free minimum for the same swing "
-                 f"(A = {pivot * 1e3:.2f} mm, e = 0)")
+                 f"(A = {pivot * 1e3:.2f} mm, e = 0, the cam turning {sense} as the scene's cam_direction)")
 
 
 def _synthesis_check(mech: "PinInsertionMechanism", phi: np.ndarray) -> Check:

@@ -2,8 +2,8 @@
 
 Cam centre O at the origin, follower pivot P = (A, 0). The follower face is a line at distance e from P,
 inclined by γ = ψ0 + ψ(φ) to P→O, with ψ0 = asin((R_b + e)/A) so that it touches the base circle R_b at
-ψ = 0. The cam turns counter-clockwise by φ. In the cam frame the face line has the outward normal angle
-θ = π/2 − γ − φ and the support distance p = A sin γ − e; the profile is the envelope
+ψ = 0. The cam turns by φ counter-clockwise (``direction`` +1) or clockwise (−1). In the cam frame the face line
+has the outward normal angle θ = π/2 − γ − d·φ and the support distance p = A sin γ − e; the profile is the envelope
 X = p·N(θ) + (dp/dθ)·T(θ) and its radius of curvature is ρ = p + d²p/dθ². A cusp appears where ρ ≤ 0.
 Lengths in m, angles in rad; ψ(φ) and its derivatives come from a callable ``law(phi) -> (ψ, ψ', ψ'')``.
 """
@@ -36,15 +36,19 @@ class FlatFollowerProfile:
 
 @dataclass(frozen=True)
 class FlatFollower:
-    """Pivot distance ``A`` (m), face offset ``e`` (m), swing law ``law`` (ψ = 0 on the base circle)."""
+    """Pivot distance ``A`` (m), face offset ``e`` (m), swing law ``law`` (ψ = 0 on the base circle), the cam's sense of
+    rotation ``direction`` (+1 counter-clockwise, −1 clockwise: the same swing needs another cam)."""
 
     A: float
     e: float
     law: Law
+    direction: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.A > 0.0:
             raise ValueError(f"pivot distance A must be positive, got {self.A!r} m")
+        if self.direction not in (1.0, -1.0):
+            raise ValueError(f"direction must be +1 (counter-clockwise) or -1 (clockwise), got {self.direction!r}")
 
     def psi0(self, base_radius: float) -> float:
         """ψ0 = asin((R_b + e)/A) (rad)."""
@@ -64,7 +68,7 @@ class FlatFollower:
         p = self.A * sg - self.e
         p1 = self.A * cg * psi_p
         p2 = self.A * (cg * psi_pp - sg * psi_p ** 2)
-        t1 = -(1.0 + psi_p)
+        t1 = -(self.direction + psi_p)                  # dθ/dφ
         t2 = -psi_pp
         if np.any(t1 == 0.0):
             i = int(np.argmax(t1 == 0.0))
@@ -72,7 +76,7 @@ class FlatFollower:
                              "(ψ' = −1): the envelope degenerates")
         p_th = p1 / t1
         p_thth = (p2 * t1 - p1 * t2) / t1 ** 3
-        theta = np.pi / 2 - g - phi
+        theta = np.pi / 2 - g - self.direction * phi
         nx, ny = np.cos(theta), np.sin(theta)
         x = p * nx - p_th * ny
         y = p * ny + p_th * nx
