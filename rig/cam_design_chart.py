@@ -33,13 +33,18 @@ def colour(check: "Check") -> str:
     return "0.6" if check.relation == "info" else "tab:green" if check.ok else "tab:red"
 
 
+FAILED = {"≤": ">", "≥": "<", "<": "≥", ">": "≤"}     # the relation a failed check's numbers stand in
+
+
 def row_text(check: "Check", use: float) -> str:
     """The text beside a check's row: its share of the limit and the comparison, or — without a share — that it
     has none, its verdict and the comparison."""
     relation = "vs" if check.relation == "info" else check.relation
     compared = f"{check.value:.4g} {relation} {check.limit:.4g} {check.unit}".rstrip()
-    if np.isfinite(use):
-        return f"{use:.2f}  ({compared})"
+    if np.isfinite(use):                 # a failed check's relation as it stands: 39.68 > 30 °, not "39.68 ≤ 30 °"
+        shown = relation if check.ok or check.relation == "info" else FAILED.get(relation, relation)
+        return f"{use:.2f}  ({check.value:.4g} {shown} {check.limit:.4g} {check.unit}".rstrip() + \
+            (": fails)" if not check.ok and check.relation != "info" else ")")
     if check.relation == "info":
         return f"information: {compared} (no ratio to its limit)"
     if check.ok:

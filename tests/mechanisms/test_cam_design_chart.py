@@ -62,3 +62,12 @@ def test_rig_cam_design_writes_the_chart(tmp_path, capsys):
     assert main(["-q", "cam-design", "-o", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert f"chart: {png}" in capsys.readouterr().out
+
+
+def test_a_failed_checks_label_states_its_numbers_as_they_stand():
+    """A failed pressure angle read "1.32 (39.68 ≤ 30 °)": the relation the check asks for, which its numbers break."""
+    from rig.cam_design_chart import row_text
+    from rig.mechanisms.cam.design import Check
+    assert row_text(Check("pressure angle", 39.68, 30.0, "°", "≤"), 1.32) == "1.32  (39.68 > 30 °: fails)"
+    assert row_text(Check("base radius", 11.29, 26.4, "mm", "≥"), 2.34) == "2.34  (11.29 < 26.4 mm: fails)"
+    assert row_text(Check("pressure angle", 18.4, 30.0, "°", "≤"), 0.61) == "0.61  (18.4 ≤ 30 °)"
