@@ -6,7 +6,7 @@ speed: v = ω s', a = ω² s'' + ω̇ s'. The output starts the revolution at le
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from math import degrees, tau
 from typing import NamedTuple, Sequence
 
@@ -16,6 +16,7 @@ from rig.motion.laws import MotionLaw
 from rig.motion.registry import UnknownLawError, get_law
 
 KINDS = ("rise", "dwell", "return")
+SUM_TOLERANCE = 1e-4    # rad: a program's angles summing this close to 360° are scaled to it
 
 
 class ProgramError(ValueError):
@@ -84,8 +85,12 @@ class CamProgram:
             if not seg.stroke > 0.0:
                 raise ProgramError(f"{where}: stroke must be positive, got {seg.stroke * 1e3:g} mm")
         total = sum(seg.angle for seg in segments)
-        if abs(total - tau) > 1e-9:
-            raise ProgramError(f"cam program segments sum to {degrees(total):.6g}°, not 360°")
+        if abs(total - tau) > SUM_TOLERANCE:
+            raise ProgramError(f"cam program segments sum to {degrees(total):.9g}°, not 360° (off by "
+                               f"{degrees(total - tau):+.3g}°; within {degrees(SUM_TOLERANCE):.2g}° — angles typed in "
+                               f"rad or rounded — they are taken as 360°)")
+        if total != tau:                    # typed in rad (3 × 2.0944 rad) or rounded: scaled to the whole turn
+            segments = [replace(seg, angle=seg.angle * tau / total) for seg in segments]
         up = sum(seg.stroke for seg in segments if seg.kind == "rise")
         down = sum(seg.stroke for seg in segments if seg.kind == "return")
         if abs(up - down) > 1e-12:

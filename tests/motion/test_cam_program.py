@@ -104,3 +104,15 @@ def test_speed_profiles_consistent():
     assert RampSpeed(5.0, 20.0, 0.3, 0.1).drive(np.array([1.0])).omega[0] == 20.0
     with pytest.raises(ValueError, match="amplitude"):
         SinusoidalSpeed(10.0, 12.0)
+
+
+def test_angles_typed_in_rad_or_rounded_are_taken_as_the_whole_turn():
+    """3 × 2.0944 rad sums to 6.2832 rad, 7e-6 rad past 2π: refused with "sum to 360°, not 360°" (the message rounded
+    to six digits). Within 1e-4 rad the program is scaled to exactly 360°; beyond, the message says by how much."""
+    prog = CamProgram([Segment("rise", 2.0944, "cycloidal", H), Segment("dwell", 2.0944),
+                       Segment("return", 2.0944, "cycloidal", H)])
+    assert sum(s.angle for s in prog.segments) == pytest.approx(tau, abs=1e-15)
+    assert prog.segments[0].angle == pytest.approx(tau / 3, rel=1e-15)
+    with pytest.raises(ProgramError, match=r"sum to 360\.035219°, not 360° \(off by \+0\.0352°; within 0\.0057°"):
+        CamProgram([Segment("rise", 2.095, "cycloidal", H), Segment("dwell", 2.0944), Segment("return", 2.0944,
+                                                                                              "cycloidal", H)])
