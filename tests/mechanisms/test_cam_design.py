@@ -397,3 +397,12 @@ def test_a_clockwise_cam_needs_the_base_radius_of_the_reversed_law_counter_clock
     assert abs(clockwise - FlatFollower(0.1, 0.0, law, 1.0).min_base_radius()) > 1e-4     # not the same cam
     with pytest.raises(ValueError, match="direction must be"):
         FlatFollower(0.1, 0.0, law, 0.5)
+
+
+def test_a_rise_angle_beyond_a_turn_is_refused_as_degrees_given_for_rad():
+    """flocke_base_radius(law, 0.02, 120, …) took Φ = 120 rad (degrees passed by mistake) and returned 9.4 mm."""
+    from rig.mechanisms.cam.sizing import flocke_base_radius
+    from rig.motion.registry import get_law
+    with pytest.raises(ValueError, match=r"rise angle Φ must lie in \(0, 2π\] rad, got 120 rad \(degrees given as rad\?\)"):
+        flocke_base_radius(get_law("3-4-5"), 0.02, 120, radians(30))
+    assert flocke_base_radius(get_law("3-4-5"), 0.02, radians(120), radians(30)) > 0.0

@@ -32,8 +32,9 @@ def _maximise(f, n: int = GRID) -> tuple[float, float]:
 def _check(h: float, big_phi: float, alpha: float) -> None:
     if not h > 0.0:
         raise ValueError(f"stroke h must be positive, got {h!r} m")
-    if not big_phi > 0.0:
-        raise ValueError(f"rise angle Φ must be positive, got {big_phi!r} rad")
+    if not 0.0 < big_phi <= 2.0 * np.pi:
+        raise ValueError(f"rise angle Φ must lie in (0, 2π] rad, got {big_phi!r} rad"
+                         + (" (degrees given as rad?)" if big_phi > 2.0 * np.pi else ""))
     if not 0.0 < alpha < np.pi / 2:
         raise ValueError(f"pressure angle must lie in (0, 90°), got {np.degrees(alpha):g}°")
 
