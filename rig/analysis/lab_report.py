@@ -477,7 +477,7 @@ def cardan_sheet(lab: Lab) -> Sheet:
         fine = np.linspace(0, tau, 721)
         ax.plot(np.degrees(fine), cardan.speed_ratio(fine), lw=0.9, label="theory cos α/(1 − sin²α cos²φ1)")
         ax.plot(np.degrees(grid[1:-1]) % 360, ratio, "o", ms=3, label="measured (two encoders, 36 points)")
-        ax.axhline(cos(a), ls=":", color="0.5")
+        ax.axhline(cos(a), ls=":", color="0.5", label=f"extremes cos α = {cos(a):.4f} and 1/cos α = {1 / cos(a):.4f}")
         ax.axhline(1 / cos(a), ls=":", color="0.5")
         ax.set(xlabel="input angle φ1 (°)", ylabel="ω2/ω1", title=f"Cardan joint at α = {np.degrees(a):.3g}°")
 
