@@ -181,7 +181,7 @@ def test_a_malformed_scheduler_address_is_a_usage_error(address, capsys):
     with pytest.raises(SystemExit) as stop:
         main(["-q", "tolerance", "--samples", "1000", "--scheduler", address])
     assert stop.value.code == 2
-    assert f"argument --scheduler: expected a scheduler address such as tcp://10.0.0.5:8786" in capsys.readouterr().err
+    assert "argument --scheduler: expected a scheduler address such as tcp://10.0.0.5:8786" in capsys.readouterr().err
 
 
 def _peer(answer: bytes | None):
