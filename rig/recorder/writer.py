@@ -198,8 +198,12 @@ class Recorder:
                 self._file.close()
 
     # -- channels --------------------------------------------------------------------------------
-    def _channel(self, topic: str, schema: dict, name: str, meta: Mapping[str, str] | None = None) -> int:
+    def _channel(self, topic: str, schema: dict | Callable[[], dict], name: str,
+                 meta: Mapping[str, str] | None = None) -> int:
+        """The channel id of ``topic``, registered on its first message with ``schema`` (or what a callable gives:
+        built once, not for every message)."""
         if topic not in self._channels:
+            schema = schema() if callable(schema) else schema
             sid = self._writer.register_schema(name=name, encoding="jsonschema", data=S.schema_bytes(schema))
             self._channels[topic] = self._writer.register_channel(
                 topic=topic, message_encoding="json", schema_id=sid, metadata=dict(meta or {}))
@@ -269,8 +273,8 @@ class Recorder:
         decimator = self._views.get(topic)
         if decimator is None:
             return
-        schema = S.view_schema(f"rig.View{topic}", signals, description, self._units_of(topic))
-        cid = self._channel(topic, schema, f"rig.View{topic}",
+        cid = self._channel(topic, lambda: S.view_schema(f"rig.View{topic}", signals, description,
+                                                         self._units_of(topic)), f"rig.View{topic}",
                             {"rate_hz": repr(decimator.rate), "time_unit": "s"})
         keep = decimator.pick(t)
         if not keep.size:
@@ -369,7 +373,7 @@ class Recorder:
         if theory is not None:
             msg["theory"] = {str(k): encode_array(v, self.encoding) for k, v in theory.items()}
         msg.update(extra)
-        cid = self._channel(S.CURVE, S.curve_schema(self.encoding, self._units_of(S.CURVE)), "rig.Curve",
+        cid = self._channel(S.CURVE, lambda: S.curve_schema(self.encoding, self._units_of(S.CURVE)), "rig.Curve",
                             {"encoding": self.encoding})
         self._put(cid, to_ns(t[-1], f"{S.CURVE} curve {number}"), dumps_message(msg))
         self.curves += 1
@@ -385,12 +389,13 @@ class Recorder:
         if "ok" not in result:
             raise ValueError(f"{S.RESULT}: result has no 'ok' key (keys: {sorted(result)})")
         when = t if t is not None else result.get("t")
-        cid = self._channel(S.RESULT, S.result_schema(self._units_of(S.CURVE)), "rig.CurveResult")
+        cid = self._channel(S.RESULT, lambda: S.result_schema(self._units_of(S.CURVE)), "rig.CurveResult")
         self._put(cid, self._time_ns(when, S.RESULT), dumps_message(result))
 
     def write_statistics(self, stats: Mapping[str, Any], t: float | None = None) -> None:
         """Statistics snapshot of the device (``/device/statistics``); t default = latest time written."""
-        cid = self._channel(S.STATISTICS, S.statistics_schema(self._units_of(S.CURVE)), "rig.DeviceStatistics")
+        cid = self._channel(S.STATISTICS, lambda: S.statistics_schema(self._units_of(S.CURVE)),
+                            "rig.DeviceStatistics")
         self._put(cid, self._time_ns(t, S.STATISTICS), dumps_message(stats))
 
     def write_event(self, t: float, kind: str, **data: Any) -> None:
