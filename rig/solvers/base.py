@@ -177,12 +177,15 @@ class StiffnessMonitor:
             return
         first = self._steps
         self._steps += len(t)
+        if self._next_check >= self._steps:            # no check due among these steps (most calls): the largest
+            self._h_since = max(self._h_since, _largest(h))     # step since the last one, for finish()
+            return
         checked = self._last_check
         try:
             self._check_due(first, t, y, h)
         finally:                                       # the steps after the last check: what finish() tests
             after = max(0, self._last_check + 1 - first) if self._last_check != checked else 0
-            largest = float(np.max(np.asarray(h[after:], dtype=float))) if len(h) > after else 0.0
+            largest = _largest(h[after:])
             self._h_since = largest if self._last_check != checked else max(self._h_since, largest)
 
     def _check_due(self, first: int, t, y, h) -> None:
@@ -277,6 +280,12 @@ class StiffnessMonitor:
             raise StiffnessError(msg, t, y)
         warnings.warn(msg, StiffnessWarning, stacklevel=6)
 
+
+def _largest(h) -> float:
+    """The largest of step sizes ``h`` (one Python step's list, or a compiled run's array; 0 for none)."""
+    if len(h) == 0:
+        return 0.0
+    return float(h.max() if isinstance(h, np.ndarray) else max(h))
 
 def lipschitz(fa: Sequence[float], fb: Sequence[float], ya: Sequence[float], yb: Sequence[float]) -> float:
     """‖fa − fb‖/‖ya − yb‖: estimate of |λ| from derivatives at two nearby states (0 if they coincide)."""
