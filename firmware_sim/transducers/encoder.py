@@ -33,6 +33,21 @@ A, B, Z = 0, 1, 2
 _STATE_OF_LEVELS = np.array([0, 1, 3, 2])  # index A + 2B -> position in the Gray sequence 00,10,11,01
 
 
+#: counts: a shaft whose angle at power-on, extrapolated to t = 0 from the first samples, lies this close to a line
+#: of the disc stands on it (the extrapolation's error, ~jerk·t³, is far below; a shaft 1e-6 counts off is on it)
+ON_LINE = 1e-6
+
+
+def _at_zero(t: np.ndarray, q: np.ndarray) -> float:
+    """Angle (rad) at t = 0 extrapolated from the first samples (times s, angles rad): by the parabola through three
+    (exact for a constant acceleration, as a ramp or a speed ripple's start), else the line through two."""
+    if t.size < 3:
+        return float(q[0] - t[0] * (q[1] - q[0]) / (t[1] - t[0]))
+    (t0, t1, t2), (q0, q1, q2) = t, q               # Lagrange form at 0
+    return float(q0 * t1 * t2 / ((t0 - t1) * (t0 - t2)) + q1 * t0 * t2 / ((t1 - t0) * (t1 - t2))
+                 + q2 * t0 * t1 / ((t2 - t0) * (t2 - t1)))
+
+
 @dataclass(frozen=True)
 class EncoderSample:
     """Line levels and counter-card latches at the sample times."""
@@ -168,10 +183,10 @@ class IncrementalEncoder(Transducer):
             t_on, q_on = float(t[0]), float(q[0])
             k0 = int(math.floor(q_on / self.step))
             if t.size > 1 and 0.0 < t[0] <= (t[1] - t[0]) * (1.0 + 1e-9):   # the stream's first sample after power-on
-                t_on, q_on = 0.0, float(q[0] - t[0] * (q[1] - q[0]) / (t[1] - t[0]))   # at t = 0: the card counts
-                edges = round(q_on / self.step)           # from the shaft's angle then (lab sheets align zero marks); on
-                on_edge = abs(q_on / self.step - edges) < 1e-9   # an edge — the scenes' 0° — whatever the
-                q_on = edges * self.step if on_edge else q_on     # extrapolation's last bit
+                t_on, q_on = 0.0, _at_zero(t[:3], q[:3])    # at t = 0: the card counts from the shaft's angle then
+                edges = round(q_on / self.step)           # (lab sheets align zero marks); on a line — the scenes' 0° —
+                on_edge = abs(q_on / self.step - edges) < ON_LINE   # whatever the extrapolation's error
+                q_on = edges * self.step if on_edge else q_on
                 k0 = edges if on_edge else int(math.floor(q_on / self.step))
             s0 = k0 % 4
             self._line[:] = (s0 in (1, 2), s0 in (2, 3), k0 % (4 * self.ppr) == 0)

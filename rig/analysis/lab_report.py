@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import textwrap
 from dataclasses import dataclass, field, replace
-from math import cos, degrees, inf, radians, tau
+from math import cos, degrees, floor, inf, radians, tau
 from typing import Any, Callable
 
 import numpy as np
@@ -19,6 +19,7 @@ from scipy.optimize import brentq
 
 from firmware_sim.transducers import REGISTRY
 from firmware_sim.transducers.description import described, read_description, resolve_path, validate
+from firmware_sim.transducers.encoder import ON_LINE
 from rig.analysis.numbers import fixed
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
@@ -134,13 +135,32 @@ class Lab:
     def angle(self, signal: str = "phi_in") -> tuple[np.ndarray, np.ndarray]:
         """Angle (rad) of the shaft whose plant ``signal`` an encoder measures, at each edge that changed its count:
         (edge times s, angles rad), strictly increasing in time. The count starts at the shaft's angle at power-on
-        (the zero marks aligned, as the lab sheet asks)."""
-        block = self.readings(self.wired(signal)[1], "edge_time")
+        (the zero marks aligned, as the lab sheet asks); the disc's lines sit at whole ×4 steps Δ = 2π/(4·ppr), so
+        an edge is where the shaft crosses one of them, not at the power-on angle plus whole counts: with the card
+        at k0 = ⌊θ_on/Δ⌋ at power-on, the ×N count (d = 4/N steps each) reaches R at the line
+        ((⌈k0/d⌉ + R − 1)·d + 1)·Δ turning forwards (the shipped benches)."""
+        to, topic = self.wired(signal)
+        block = self.readings(topic, "edge_time")
         edge, angle = block["edge_time"], block["angle"]
         ok = np.isfinite(edge)
         edge, angle = edge[ok], angle[ok]
         keep = np.r_[True, np.diff(edge) > 0]
-        return edge[keep], angle[keep] + float(self.bench.truth(np.zeros(1))[signal][0])
+        return edge[keep], angle[keep] + self._line_offset(to, float(self.bench.truth(np.zeros(1))[signal][0]))
+
+    def _line_offset(self, to: str, theta_on: float) -> float:
+        """Angle (rad) to add to the driver's count angle R·d·Δ to give the disc line an edge of count R sits at, for
+        power-on angle ``theta_on`` (rad; with the encoder's mount angle); ``theta_on`` itself where the description
+        has no ppr or multiplier."""
+        try:
+            ppr = int(round(self.setting(to, "ppr", unit="1")))
+            d = 4 // int(round(self.setting(to, "multiplier", unit="1")))
+            mount = self.setting(to, "mount_angle", unit="rad")
+        except (SceneError, ValueError, KeyError, TypeError):
+            return theta_on
+        step = 2.0 * np.pi / (4 * ppr)
+        q_on = theta_on + mount
+        k0 = floor(q_on / step + ON_LINE)   # a shaft standing on a line (the scenes' 0°) is on it
+        return (-(-k0 // d) - 1) * d * step + step - mount
 
 
 def _wired(scene: Scene, to: str) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -491,6 +491,8 @@ EVENT_MEANING = {
     "follower_lift": "the lab cam's follower would lift off: the contact force its law needs went below zero (spring "
                      "and weight no longer hold it on the cam; the law-following model and the sheets' theory do "
                      "not hold there)",
+    "cam_stalled": "the motor-driven cam stopped or turned back: its motor cannot carry the mechanism over the peak "
+                   "drive torque ([plant.drive] max_torque or slope too low); the run went on, not at its scene's speed",
     "statistics_not_read": "the unit's statistics could not be read over serial at the end (a served machine that "
                            "stopped after this host's curves): the report compares no device statistics",
     "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "

@@ -97,6 +97,11 @@ def test_level2_assumptions_are_the_runs_setting_not_the_mechanism(tmp_path):
     ({"k": -1000.0}, "cam-bar parameter k must not be negative, got -1000.0 N/m"),
     ({"l4": float("nan")}, "cam-bar parameter l4 must be a finite number, got nan m"),
     ({"mu": float("inf")}, "cam-bar parameter mu must be a finite number, got inf"),
+    ({"J4": -1.0}, "cam-bar parameter J4 must be positive, got -1.0 kg*m^2"),
+    ({"J3": 0.0}, "cam-bar parameter J3 must be positive, got 0.0 kg*m^2"),
+    ({"a3": -1.0}, "cam-bar parameter a3 must not be negative, got -1.0 m"),
+    ({"J3": 0.01}, "J3 = 0.01 kg*m^2 is the follower's inertia about its pivot B0: it cannot be below m3·a3² = 0.015379"),
+    ({"F_c_travel": 0.05}, "F_c_travel (50 mm) is longer than the stroke s_H (42 mm)"),
 ])
 def test_a_bad_parameter_is_named_with_its_unit(kw, message):
     with pytest.raises(ValueError, match=re.escape(message)):

@@ -80,3 +80,21 @@ def test_scene_table(tmp_path):
         path.write_text(text.replace(old, new))
         with pytest.raises(SceneError, match=match):
             mechanism_from_scene(load_scene(path))
+
+
+def test_a_motor_too_weak_for_the_peak_drive_torque_stalls_the_cam_and_says_so():
+    """Pull-out 1 N·m at the cam against a peak drive torque of ≈ 3–4 N·m: from rest the cam never gets over the rise;
+    it stops and rocks back, and each stop is a ``cam_stalled`` event (the run went on silently at no speed). The
+    default motor (60 N·m) brings the cam to speed without one."""
+    from rig.plants.cam_bar.level2_timeline import Level2Timeline
+    t = np.arange(1, 10001) * 1e-4                              # 1 s at 10 kHz, in 100 ms chunks as the runner steps
+    for max_torque, stalls in ((1.0, True), (60.0, False)):
+        timeline = Level2Timeline(PinInsertionMechanism(cam_drive=CamDrive(max_torque=max_torque)), DEMO_SPEED)
+        omega = np.concatenate([timeline.advance(chunk)["omega"] for chunk in np.split(t, 10)])
+        found = [e for e in timeline.events if e.kind == "cam_stalled"]
+        assert bool(found) == stalls
+        if stalls:
+            assert omega.max() > 0.0 and omega.min() < 0.0
+            for e in found:                                     # at a sample where the cam stopped after turning
+                k = int(np.argmin(np.abs(t - e.time)))
+                assert omega[k] <= 0.0 < omega[k - 1] and e.data["omega"] == omega[k]

@@ -455,3 +455,24 @@ def test_the_work_per_turn_is_compared_with_the_theorys_over_the_same_turns(tmp_
     assert 0.005 < values["work_per_turn_theory"] < 0.008
     assert abs(values["work_per_turn"] - values["work_per_turn_theory"]) < 0.006       # the torque shaft's offset
     assert abs(cam[1]["Cam-shaft torque"].values["work_per_turn_theory"]) < 1e-5
+
+
+@pytest.mark.parametrize("speed", ['phi0 = "37 deg"', 'profile = "ramp"\nspeed_end = "60 rpm"\nramp_time = "1 s"',
+                                   'profile = "sinusoidal"\namplitude = "20 rpm"\nfrequency = "0.7 Hz"'])
+def test_the_sheets_encoder_angles_sit_on_the_disc_lines_from_any_start(tmp_path_factory, speed):
+    """Each edge's angle, as the sheets take it, is where the shaft really was at that edge (within 1 % of a count):
+    from a start between two lines (37° is 420.98 counts: the sheet added the exact power-on angle to whole counts,
+    0.98 count high) and from a shaft accelerating at power-on (a ramp, a speed ripple: one count high)."""
+    from rig.analysis.lab_report import read_lab
+    if speed.startswith("phi0"):
+        edit = lambda text: text.replace('speed = "60 rpm"', f'speed = "60 rpm"\n{speed}')
+    else:
+        edit = lambda text: text.replace('profile = "constant"', speed).replace('speed = "60 rpm"', 'speed = "30 rpm"'
+                                                                                 if "ramp" in speed else 'speed = "60 rpm"')
+    rec, _ = _run(tmp_path_factory, "lab_cardan", edit)
+    lab = read_lab(rec)
+    for signal in ("phi_in", "phi_out"):
+        t, angle = lab.angle(signal)
+        truth = lab.bench.truth(t)[signal]
+        assert t.size > 1000
+        np.testing.assert_allclose((angle - truth) / (tau / 4096), 0.0, atol=0.01)

@@ -337,3 +337,17 @@ def test_missed_pulses_never_reverse_the_counting(seed, probability):
     after = t > 0.65
     lost = theta[after] / COUNT - count[after]
     assert np.ptp(lost) <= 2 and 0 < lost.mean()              # a fixed loss, the count still follows the shaft
+
+
+def test_a_shaft_accelerating_at_power_on_counts_from_the_line_it_stands_on():
+    """At t = 0 the shaft stands on a line (the scenes' 0°) but is already accelerating: the angle at power-on,
+    extrapolated from the first samples, must land on that line, not a hair below it (a straight line through two
+    samples did, −α·t0·t1/2: the card started one count low and every later count read one high)."""
+    dt, omega0, alpha = 1e-3, 2 * math.pi, 40.0                  # 1 kHz, 60 rpm, accelerating at 40 rad/s²
+    t = dt * (1 + np.arange(3000))
+    theta = omega0 * t + 0.5 * alpha * t * t
+    out = encoder(errors_enabled=False).sample(t, theta)
+    changed = np.flatnonzero(np.diff(np.r_[0, out.count]) != 0)
+    te = out.edge_time[changed]
+    edge_angle = omega0 * te + 0.5 * alpha * te * te
+    np.testing.assert_allclose(edge_angle / COUNT - out.count[changed], 0.0, atol=0.01)   # linear between samples

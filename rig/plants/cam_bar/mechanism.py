@@ -196,8 +196,27 @@ class PinInsertionMechanism:
             self.J4 = self.m4 * self.l4 ** 2 / 12.0
         if self.a3 is None:
             self.a3 = self.L3 / 2.0
+        self._check_inertias()
+        if self.F_c_travel > self.s_H:
+            raise ValueError(f"cam-bar parameter F_c_travel ({self.F_c_travel * 1e3:g} mm) is longer than the "
+                             f"stroke s_H ({self.s_H * 1e3:g} mm): the insertion force acts over the last F_c_travel "
+                             "of the rise")
         self.chain = self._assemble()
         self.psi0 = float(self.chain.angles(np.array([self.s_Srest])).psi[0])
+
+    def _check_inertias(self) -> None:
+        """J3, J4 positive and a3 not negative, J3 (about the pivot B0) at least m3·a3² (the parallel-axis theorem:
+        a body's inertia about a pivot exceeds its mass times the squared distance of its centre of gravity)."""
+        for name, unit in (("J3", "kg*m^2"), ("J4", "kg*m^2"), ("a3", "m")):
+            value = getattr(self, name)
+            if not (isfinite(value) and (value >= 0.0 if name == "a3" else value > 0.0)):
+                what = "must not be negative" if name == "a3" else "must be positive"
+                raise ValueError(f"cam-bar parameter {name} {what}, got {value!r} {unit}")
+        least = self.m3 * self.a3 ** 2
+        if self.J3 < least * (1.0 - 1e-12):
+            raise ValueError(f"cam-bar parameter J3 = {self.J3:.6g} kg*m^2 is the follower's inertia about its pivot "
+                             f"B0: it cannot be below m3·a3² = {least:.6g} kg*m^2 (m3 = {self.m3:g} kg, "
+                             f"a3 = {self.a3 * 1e3:g} mm, the parallel-axis theorem)")
 
     def _assemble(self) -> Chain:
         """Pick the branch nearest the machine's start angle and check the whole stroke range on it."""
