@@ -33,8 +33,14 @@ def cmd_analyse(args: argparse.Namespace) -> int:
             print(line)
     read = sum(not r.error for r in result.recordings)
     if not read:
-        which = "the file could not" if len(paths) == 1 else f"none of the {len(paths)} files could"
-        print(f"rig: error: {which} be read as a recording (the reasons: {table}, {report})", file=sys.stderr)
+        if len(paths) == 1:
+            only = result.recordings[0]
+            print(f"rig: error: {only.path}: {only.error} (not a recording: also in {table}, {report})",
+                  file=sys.stderr)
+        else:
+            first = result.recordings[0]
+            print(f"rig: error: none of the {len(paths)} files could be read as a recording (the first, {first.path}: "
+                  f"{first.error}; every reason in {table}, {report})", file=sys.stderr)
         return 2
     unread = f" ({len(paths) - read} unreadable, their reasons in the table)" if read < len(paths) else ""
     print(f"{plural(read, 'recording')} analysed{unread} in {wall:.1f} s -> {table}, {report}")

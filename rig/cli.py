@@ -340,7 +340,9 @@ def cmd_export_can(args: argparse.Namespace) -> int:
           f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}")
     if e.lost:
         logging.getLogger("rig").warning("the recording is cut or damaged, the trace holds the frames that read "
-                                         "(damaged parts skipped, as `rig report --partial` skips them): %s", e.lost)
+                                         "(damaged parts skipped, as `rig report --partial` skips them): %s; its last "
+                                         "frame is at %.6f s of simulation time: what the run sent after it (a killed "
+                                         "run's chunk not yet written) is not in the file", e.lost, e.t_last)
     return 0
 
 

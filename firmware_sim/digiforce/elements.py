@@ -300,7 +300,8 @@ class Threshold(Element):
             raise DigiForceError(f"{where}.range: expected [low, high] (either may be null), got {rng!r}")
         lo, hi = (None if v is None else checks.quantity(v, other_u, f"{where}.range") for v in rng)
         if lo is not None and hi is not None and not lo <= hi:
-            raise DigiForceError(f"{where}.range: low {lo:g} above high {hi:g}")
+            raise DigiForceError(f"{where}.range: low {checks.written(rng[0], other_u)} must be below high "
+                                 f"{checks.written(rng[1], other_u)}")
         return {"axis": axis, "value": checks.number(cfg, "value", xu if axis == "x" else yu, where),
                 "direction": checks.choice(cfg, "direction", ("rising", "falling", "any"), where, "rising"),
                 "range": [lo, hi]}

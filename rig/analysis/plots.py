@@ -30,6 +30,7 @@ MARGINS = (0.85, 0.2, 0.55, 0.4)   # inches around the axes grid: left, right, b
 ENVELOPE_BUCKETS = 1500            # long signals are drawn as their min/max over this many time buckets
 OVERLAY_POINTS = 600_000           # points of an overlay of curves beyond which each is drawn as its envelope
 OK_COLOR, NOK_COLOR = "tab:blue", FAILED
+THEORY_COLOR = "tab:orange"    # a single curve's theory, dashed over the measured trace (it coincides with it often)
 REASON_LINE = 0.17                 # inches per line of reasons under a curve's panels
 
 
@@ -203,7 +204,7 @@ def _over(ax: Axes, curves: Sequence[CurveRecord], axis: str, nok: set[int], uni
     theory = [c for c in curves if _theory_abscissa(c, axis) is not None]
     if theory:
         ax.plot(*_joined(theory, lambda c: (u(_theory_abscissa(c, axis)), uy(c.theory["y"])),
-                         lambda c: np.size(c.theory["y"])), "--", lw=0.8, color="0.45" if len(curves) == 1 else "k",
+                         lambda c: np.size(c.theory["y"])), "--", lw=0.8, color=THEORY_COLOR if len(curves) == 1 else "k",
                 alpha=0.9 if len(curves) == 1 else 0.25, zorder=5)
     ax.set(xlabel=u.axis("time since curve start") if axis == "t" else u.axis("cam angle"),
            ylabel=channel_label(units, "y"))
@@ -310,7 +311,7 @@ def curve_panels(curve: CurveRecord, elements: list, path: Path, nok: set[int] =
     bad = curve.number in nok
     if "y" in curve.theory:                # what the dashed line is (the overlays say it in their legend too)
         axs[0, -1].legend(handles=[Line2D([], [], color=_style(bad, True)["color"], lw=1.2, label="measured"),
-                                   Line2D([], [], color="0.45", ls="--", lw=0.8, label="theory")],
+                                   Line2D([], [], color=THEORY_COLOR, ls="--", lw=0.8, label="theory")],
                           fontsize=7, loc="best", framealpha=0.85)
     axs[0, 0].set_title(f"curve {curve.number}: {'NOK' if bad else 'OK'}", loc="left", fontsize=10,
                         fontweight="bold", color=NOK_COLOR if bad else "tab:green")

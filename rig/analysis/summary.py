@@ -32,7 +32,11 @@ def program_sets(rec: Recording, units: dict[int, DisplayUnits] | None = None) -
     device's final snapshot (in SI, as the device keeps it)."""
     sets = statistics_by_program(rec.results, rec.programs, units if units is not None else program_units(rec))
     for program, results in by_program(rec.results).items():
-        sets[program]["device_agreement"] = device_agreement(results, final_snapshot(rec.statistics, program))
+        agreement = device_agreement(results, final_snapshot(rec.statistics, program))
+        if not rec.statistics and not rec.complete and agreement["reason"]:     # none read, and the run ended early
+            agreement["reason"] = ("the host reads the device's statistics at the end of a run, and this one did not "
+                                   "end normally (killed, cut or interrupted): none were recorded")
+        sets[program]["device_agreement"] = agreement
     return sets
 
 

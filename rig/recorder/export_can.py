@@ -405,7 +405,7 @@ class _Trc(_PythonCan):
     def __init__(self, out: Path, start: float):
         super().__init__(can.TRCWriter(out))
         self.writer.first_timestamp = 0.0    # offsets (ms) = simulation time
-        self.writer.write_header(start)
+        self.start = start
         self.shown = out                     # the name its messages give (export_can: the trace's, not the part's)
 
     def write(self, frames: Frames) -> None:
@@ -415,6 +415,9 @@ class _Trc(_PythonCan):
             raise ValueError(f"{self.shown}: python-can's TRC writer cannot hold CAN FD or error frames, and the "
                              f"recording has {'an FD' if frames.fd[k] else 'an error'} frame at t = "
                              f"{frames.t[k]:.6f} s (id 0x{int(frames.id[k]):X}); export to .asc, .blf, .log or .mf4")
+        if not self.writer.header_written:   # the header names the trace (it is written under a part name first)
+            self.writer.filepath = os.path.abspath(self.shown)
+            self.writer.write_header(self.start)
         super().write(frames)
 
 

@@ -92,12 +92,14 @@ def test_rig_analyse_of_no_readable_recording_is_an_input_error(recordings, tmp_
     capsys.readouterr()
     assert main(["-q", "analyse", str(recordings / "cut.mcap"), "-o", str(tmp_path / "an")]) == 2
     out, err = capsys.readouterr()
-    assert err.count("\n") == 1 and err.startswith("rig: error: the file could not be read as a recording")
+    assert err.count("\n") == 1 and err.startswith(f"rig: error: {recordings / 'cut.mcap'}: the recording holds no "
+                                                     "message")              # the file and why, not only "see the table"
     assert "analysed" not in out               # no success line beside the error
     (tmp_path / "cut2.mcap").write_bytes((recordings / "cut.mcap").read_bytes())
     assert main(["-q", "analyse", str(recordings / "cut.mcap"), str(tmp_path / "cut2.mcap"), "-o",
                  str(tmp_path / "an2")]) == 2
-    assert capsys.readouterr().err.startswith("rig: error: none of the 2 files could be read")
+    err = capsys.readouterr().err
+    assert err.startswith("rig: error: none of the 2 files could be read") and "the recording holds no message" in err
 
 
 def test_recordings_of_different_scenes_or_levels_are_not_one_population(recordings, tmp_path, capsys):

@@ -237,6 +237,7 @@ def test_envelope_dx_widens_steep_parts():
     (TRAP_Y | {"start": "3 mm", "end": "1 mm"}, 'start "3 mm" must be below end "1 mm"'),
     ({"kind": "envelope", "name": "E", "references": [{"x": [0, 1, 0.5], "y": [0, 1, 2]}]}, "strictly monotonic"),
     (TH | {"part": "middle"}, "part: 'middle' is not one of"),
+    (TH | {"range": ["43 mm", "30 mm"]}, 'range: low "43 mm" must be below high "30 mm"'),      # as written, not SI
 ])
 def test_bad_element_configs_are_named(cfg, message, make_element):
     with pytest.raises(DigiForceError, match=message.replace("[", r"\[").replace("]", r"\]").replace("(", r"\(")

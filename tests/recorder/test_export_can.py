@@ -184,6 +184,8 @@ def test_headers_carry_the_wall_clock_start(tmp_path):
     assert [(m.arbitration_id, m.is_rx, m.channel, m.data.hex()) for m in msgs] == [
         (f[1], f[7] == "rx", ["rig", "aux"].index(f[8]) + 1, f[9]) for f in classic]
     assert [m.timestamp - start for m in msgs] == pytest.approx([f[0] for f in classic], abs=HEADER[".trc"])
+    named = [line for line in (tmp_path / "h.trc").read_text().splitlines()[:8] if line.startswith(";   /")]
+    assert named == [f";   {(tmp_path / 'h.trc').resolve()}"]          # the trace's own name, not its part file's
 
 
 def test_trc_refuses_fd_and_error_frames_and_leaves_no_file(tmp_path):
@@ -264,6 +266,8 @@ def test_partial_exports_the_frames_before_the_cut_and_says_where_it_ends(tmp_pa
     assert main(["export-can", "--partial", str(cut), "-o", str(tmp_path / "cli.asc")]) == 0
     err = capsys.readouterr().err
     assert "the recording is cut or damaged, the trace holds the frames that read" in err and e.lost in err
+    assert f"its last frame is at {e.t_last:.6f} s of simulation time" in err and e.t_last == pytest.approx(
+        b[-1].timestamp, abs=1e-6)                               # where what is lost begins (.log: simulation time)
     assert len(read_back(tmp_path / "cli.asc")) == len(b)
     # cut inside the first chunk: nothing before the cut reads, and the error says so (not "no frames in the recording")
     first = tmp_path / "first.mcap"

@@ -53,6 +53,8 @@ def test_a_run_killed_halfway_reports_with_partial(tmp_path, capsys):
     assert "no device statistics recorded" in said
     report = (tmp_path / "report" / "report.md").read_text()
     assert "no: file truncated" in report and f"{len(rec.curves)} of 200 requested curves" in report
+    assert "the device sent no statistics" not in report and (                 # it did not end: none were read
+        "the host reads the device's statistics at the end of a run, and this one did not end normally") in report
     assert report.index("Warning: incomplete recording, file truncated") < report.index("**OK: all") if "**OK: all" \
         in report else report.index("Warning: incomplete recording") < report.index("**NOK")   # before the verdict
     assert report.count("| OK |") + report.count("| NOK |") == len(rec.results)      # what it holds, reported
