@@ -319,6 +319,19 @@ class FixedStepper(Stepper):
         self.h = h
         self._start(h, nq=nq)
         self.monitor.watch = Amplification(fun, self.method, nq)
+        self.check_at_end = True        # the amplification test once more on reaching t_bound (integrate() does it
+                                        # itself at the end of the whole run, over its segments)
+
+    def step(self) -> None:
+        """One step; on reaching t_bound, the amplification test over the steps since its last check (a run of fewer
+        steps than the first check, driven step by step, returned RK4 at h·ω = 4 grown 25 000-fold, silently)."""
+        super().step()
+        if self.status == "finished" and self.check_at_end:
+            calls = self.monitor.calls
+            try:
+                self.monitor.finish(self.t, self.y)
+            finally:
+                self.nfev += self.monitor.calls - calls
 
     def state_at(self, t: float) -> tuple:
         """State at time t within the last step, by one step of size t − t_old from its start (the same
@@ -326,7 +339,9 @@ class FixedStepper(Stepper):
         compiled runs too."""
         if not t > self.t_old:
             return self.y_old
-        one = type(self)(self.fun, self.t_old, self.y_old, t, h=t - self.t_old, stiffness="ignore",
+        if t - self.t_old < 10.0 * (math.nextafter(self.t_old, math.inf) - self.t_old):   # no step that short: the
+            return tuple(self.dense_output()(t))        # interpolant (an event a few ulp past a time break, where the
+        one = type(self)(self.fun, self.t_old, self.y_old, t, h=t - self.t_old, stiffness="ignore",   # solver restarted)
                          compiled=self._compiled, **self._options())
         one.step()
         self.nfev += one.nfev
@@ -344,7 +359,9 @@ class FixedStepper(Stepper):
         else:
             t_new = t + h
         if h < self._min_step():
-            raise SolverDivergence(f"step size underflow (h = {h:.3g} s)", t, self.y)
+            raise SolverDivergence(f"{self.label}: step size underflow (h = {h:.3g} s): the span to t_bound = "
+                                   f"{self.t_bound!r} s is shorter than 10 ulp (two time breaks or events that "
+                                   "close: merge them in the problem)", t, self.y)
         return h, t_new
 
     def _finish(self, t_new: float, y_new: tuple, h: float, stages: tuple, hl: float | None = None) -> None:
