@@ -32,6 +32,10 @@ OVERLAY_POINTS = 600_000           # points of an overlay of curves beyond which
 OK_COLOR, NOK_COLOR = "tab:blue", FAILED
 THEORY_COLOR = "tab:orange"    # a single curve's theory, dashed over the measured trace (it coincides with it often)
 REASON_LINE = 0.17                 # inches per line of reasons under a curve's panels
+#: vertices per piece a long line is drawn in (matplotlib's agg.path.chunksize): the rasteriser's memory otherwise
+#: grows with the length drawn — an overlay of 5000 curves took +580 MB of RSS to draw, +10 MB in pieces
+PATH_CHUNK = 20_000
+matplotlib.rcParams["agg.path.chunksize"] = PATH_CHUNK     # read when a figure is drawn, and when a line is made
 
 
 def figure(nrows: int = 1, ncols: int = 1, size: tuple[float, float] = (7, 4.5), **kw: Any) -> tuple[Figure, Any]:
@@ -149,17 +153,18 @@ def _joined(items: Sequence[Any], xy: Callable[[Any], tuple[np.ndarray, np.ndarr
     only one full polyline is held at a time."""
     if not len(items):
         return np.array([]), np.array([])
-    total = sum(size(item) for item in items)
-    buckets = max(OVERLAY_POINTS // (2 * len(items)), 1) if total > OVERLAY_POINTS else 0
-    gap = np.array([np.nan])
-    xs, ys = [], []
+    sizes = [size(item) for item in items]
+    buckets = max(OVERLAY_POINTS // (2 * len(items)), 1) if sum(sizes) > OVERLAY_POINTS else 0
+    room = sum(min(n, 2 * buckets + 2) if buckets else n for n in sizes) + len(items)
+    xs, ys = np.full(room, np.nan), np.full(room, np.nan)     # filled in place: no small arrays held between the
+    at = 0                                                    # curves' large transient ones (they fragmented the heap)
     for item in items:
         x, y = (np.asarray(a, float) for a in xy(item))
         if buckets:
             x, y = envelope(x, y, buckets)
-        xs += [x, gap]
-        ys += [y, gap]
-    return np.concatenate(xs), np.concatenate(ys)
+        xs[at:at + x.size], ys[at:at + y.size] = x, y
+        at += x.size + 1                                      # a NaN between polylines
+    return xs[:at], ys[:at]
 
 
 def _plot_groups(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], xy: Any) -> None:
@@ -169,7 +174,7 @@ def _plot_groups(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], xy: Any
     for bad in (False, True):
         group = [c for c in curves if (c.number in nok) == bad]
         if group:
-            ax.plot(*_joined(group, xy, lambda c: c.t.size), **_style(bad, single))
+            ax.plot(*_joined(group, xy, lambda c: c.samples), **_style(bad, single))
 
 
 def _xy(ax: Axes, curves: Sequence[CurveRecord], elements: list, nok: set[int], units: DisplayUnits,
@@ -187,6 +192,12 @@ def _xy(ax: Axes, curves: Sequence[CurveRecord], elements: list, nok: set[int], 
     return notes
 
 
+def _has_theory_abscissa(curve: CurveRecord, axis: str) -> bool:
+    """:func:`_theory_abscissa` is not None, told without reading the curve's arrays."""
+    held = curve.theory_sizes
+    return "y" in held and (axis == "t" or "angle" in held or ("t" not in held and curve.has_angle))
+
+
 def _theory_abscissa(curve: CurveRecord, axis: str) -> np.ndarray | None:
     """Abscissa of the curve's Y theory: time since the curve start (s) or cam angle (rad); None if absent."""
     if "y" not in curve.theory:
@@ -201,10 +212,10 @@ def _over(ax: Axes, curves: Sequence[CurveRecord], axis: str, nok: set[int], uni
     uy, ut, ua = units.channel("y"), units.of("s"), units.of("rad")
     u = ut if axis == "t" else ua
     _plot_groups(ax, curves, nok, lambda c: (u(c.t - c.t[0] if axis == "t" else c.angle), uy(c.y)))
-    theory = [c for c in curves if _theory_abscissa(c, axis) is not None]
+    theory = [c for c in curves if _has_theory_abscissa(c, axis)]
     if theory:
         ax.plot(*_joined(theory, lambda c: (u(_theory_abscissa(c, axis)), uy(c.theory["y"])),
-                         lambda c: np.size(c.theory["y"])), "--", lw=0.8, color=THEORY_COLOR if len(curves) == 1 else "k",
+                         lambda c: c.theory_sizes["y"]), "--", lw=0.8, color=THEORY_COLOR if len(curves) == 1 else "k",
                 alpha=0.9 if len(curves) == 1 else 0.25, zorder=5)
     ax.set(xlabel=u.axis("time since curve start") if axis == "t" else u.axis("cam angle"),
            ylabel=channel_label(units, "y"))
@@ -214,7 +225,7 @@ def _over(ax: Axes, curves: Sequence[CurveRecord], axis: str, nok: set[int], uni
 
 def _axes_of(curves: Sequence[CurveRecord]) -> list[str]:
     """Abscissae to draw Y over: time, and cam angle when every curve has a measured angle."""
-    return ["t", "angle"] if all(c.angle is not None for c in curves) else ["t"]
+    return ["t", "angle"] if all(c.has_angle for c in curves) else ["t"]
 
 
 def force_displacement(curves: Sequence[CurveRecord], elements: list, path: Path, title: str,
@@ -239,7 +250,7 @@ def signals_over(curves: Sequence[CurveRecord], path: Path, title: str, nok: set
     for ax, axis in zip(axs[0], axes):
         _over(ax, curves, axis, nok, units)
     axs[0, 0].set_title(title, loc="left", fontsize=10)
-    _legend(axs[0, -1], curves, nok, theory=any("y" in c.theory for c in curves))
+    _legend(axs[0, -1], curves, nok, theory=any("y" in c.theory_sizes for c in curves))
     for ax in axs[0, 1:]:
         ax.set_ylabel("")
     return save(fig, path, wspace=0.08)
@@ -253,15 +264,15 @@ def theory_residuals(curves: Sequence[CurveRecord], path: Path, title: str, nok:
     mean over the curves; None when no curve has a theory."""
     lags = lags or {}
     units = units or DisplayUnits()
-    channels = [ch for ch in ("x", "y") if any(ch in c.theory for c in curves)]
+    channels = [ch for ch in ("x", "y") if any(ch in c.theory_sizes for c in curves)]
     if not channels:
         return None
     fig, axs = figure(len(channels), 1, size=(9.0, 0.9 + 2.3 * len(channels)), sharex=True, squeeze=False)
     ut = units.of("s")
     for ax, ch in zip(axs[:, 0], channels):
         u = units.channel(ch)
-        with_theory = [c for c in curves if ch in c.theory]
-        n = min(c.t.size for c in with_theory)             # the mean over the samples every curve has
+        with_theory = [c for c in curves if ch in c.theory_sizes]
+        n = min(c.samples for c in with_theory)            # the mean over the samples every curve has
         total, counts = np.zeros(n), np.zeros(n, dtype=np.int64)
 
         def residual(c: CurveRecord) -> tuple[np.ndarray, np.ndarray]:

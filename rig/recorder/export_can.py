@@ -238,7 +238,7 @@ class _FrameCollector:
                 with contextlib.suppress(KeyError, ValueError):
                     self.start = int(record.metadata["wall_clock_start"]) / 1e9
 
-    def add_chunk(self, records: list[Any]) -> None:
+    def add_chunk(self, records: list[Any], offset: int | None = None) -> None:
         buses, state = dict(self._buses), {"last": self._last, "k": self._k}
 
         def decode(topic: str, data: bytes) -> Frames | None:

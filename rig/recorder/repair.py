@@ -71,7 +71,7 @@ class _Rewriter:
             self._writer.add_attachment(record.create_time, record.log_time, record.name, record.media_type,
                                         record.data)
 
-    def add_chunk(self, records: list[Any]) -> None:
+    def add_chunk(self, records: list[Any], offset: int | None = None) -> None:
         """A chunk's schemas, channels and messages (a message on a channel defined in a lost part is counted, not
         written)."""
         for record in records:

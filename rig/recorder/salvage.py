@@ -267,7 +267,7 @@ class DataSectionReader:
             return None
         self.contents[digest] = self._chunk_name(pos)
         try:
-            self.collector.add_chunk(breakup_chunk(chunk, validate_crc=True))
+            self.collector.add_chunk(breakup_chunk(chunk, validate_crc=True), pos)
         except Exception as exc:  # any decoding failure of its data: the chunk is lost, the reading goes on
             return self._lose_chunk(pos, end, chunk, exc)
         return None
@@ -294,7 +294,7 @@ class DataSectionReader:
                 chunk = Chunk.read(ReadDataStream(f))
                 if not chunk.uncompressed_crc:
                     raise ValueError("it has no CRC to check its data by")
-                self.collector.add_chunk(breakup_chunk(chunk, validate_crc=True))
+                self.collector.add_chunk(breakup_chunk(chunk, validate_crc=True), pos)
             except Exception as again:  # its data is damaged too: lost
                 if self.summary is not None:
                     self.skipped = True

@@ -1,0 +1,75 @@
+"""Curves read back in bounded memory (rig.recorder.curves): beyond the held bytes a curve is read again from the file
+when used, and looks the same as a held one."""
+from __future__ import annotations
+
+import os
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rig.recorder.curves as curves
+from rig.analysis.report import write_report
+from rig.recorder import RecordingError, read_recording
+from rig.runner import run_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("store") / "run.mcap"
+    run_scene(ROOT / "data" / "scenes" / "pin_insertion.toml", out, cycles=12, progress=False)
+    return out
+
+
+def _arrays(c) -> list:
+    return [c.t, c.x, c.y, c.angle, *sorted(c.theory.items())]
+
+
+def _same(a, b) -> bool:
+    pairs = list(zip(_arrays(a), _arrays(b)))
+    return len(_arrays(a)) == len(_arrays(b)) and all(
+        (x is None and y is None) or (isinstance(x, tuple) and x[0] == y[0] and np.array_equal(x[1], y[1]))
+        or (isinstance(x, np.ndarray) and np.array_equal(x, y)) for x, y in pairs)
+
+
+def test_curves_beyond_the_held_bytes_are_read_again_and_equal(recording, monkeypatch):
+    held = read_recording(recording)
+    assert all(c.held for c in held.curves)
+    first = sum(curves.nbytes({k: getattr(c, k) for k in curves.ARRAYS}) for c in held.curves[:3])
+    monkeypatch.setattr(curves, "KEPT_BYTES", first)
+    monkeypatch.setattr(curves, "CACHED_CHUNKS", 1)
+    lazy = read_recording(recording)
+    assert [c.held for c in lazy.curves] == [True] * 3 + [False] * (len(lazy.curves) - 3)
+    assert [c.number for c in lazy.curves] == [c.number for c in held.curves]
+    for c, h in zip(reversed(lazy.curves), reversed(held.curves)):        # any order: chunks are read again
+        assert _same(c, h) and (c.samples, c.has_angle, c.theory_sizes) == (h.samples, h.has_angle, h.theory_sizes)
+        assert c.extra == h.extra and c.program == h.program
+    again = pickle.loads(pickle.dumps(lazy))                                 # e.g. to a worker process
+    assert _same(again.curves[-1], held.curves[-1])
+
+
+def test_a_report_from_curves_read_again_is_the_held_ones(recording, tmp_path, monkeypatch):
+    """The same report, every number and table, whether the curves are held or read again from the file."""
+    write_report(recording, tmp_path / "held", fmt="md")
+    monkeypatch.setattr(curves, "KEPT_BYTES", 0)
+    write_report(recording, tmp_path / "lazy", fmt="md")
+    for name in ("report.md", "results.csv", "curves.csv"):
+        assert (tmp_path / "held" / name).read_text() == (tmp_path / "lazy" / name).read_text()
+
+
+def test_a_recording_changed_after_it_was_read_is_said(recording, tmp_path, monkeypatch):
+    copy = tmp_path / "copy.mcap"
+    copy.write_bytes(recording.read_bytes())
+    monkeypatch.setattr(curves, "KEPT_BYTES", 0)
+    monkeypatch.setattr(curves, "CACHED_CHUNKS", 0)                  # every use reads the file
+    rec = read_recording(copy)
+    with open(copy, "ab") as f:
+        f.write(b"\0")
+    with pytest.raises(RecordingError, match="changed after it was read"):
+        rec.curves[0].t
+    os.remove(copy)
+    with pytest.raises(RecordingError, match="cannot read the recording's curves again"):
+        rec.curves[1].t
