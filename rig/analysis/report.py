@@ -493,6 +493,9 @@ EVENT_MEANING = {
                      "not hold there)",
     "cam_stalled": "the motor-driven cam stopped or turned back: its motor cannot carry the mechanism over the peak "
                    "drive torque ([plant.drive] max_torque or slope too low); the run went on, not at its scene's speed",
+    "motor_below_load": "the stand's motor stalls below the torque its shoe brakes hold at rest: the stand cannot start. "
+                        "A stick-slip brake holds it; a regularised (tanh) brake lets it creep at creep_speed (rad/s), "
+                        "which is the model's regularisation, not the stand",
     "statistics_not_read": "the unit's statistics could not be read over serial at the end (a served machine that "
                            "stopped after this host's curves): the report compares no device statistics",
     "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "

@@ -324,3 +324,25 @@ def test_a_stand_that_settles_into_stiffness_switches_to_the_implicit_method_and
             assert "stiff" in switches[0]["why"]
         torque[method] = rec.series["/plant/truth"]["T_c"]
     assert np.allclose(torque["DP45"], torque["Rodas4"], rtol=1e-4, atol=1e-4 * np.abs(torque["Rodas4"]).max())
+
+
+def test_a_motor_that_cannot_turn_the_brake_is_said_and_its_creep_explained(tmp_path, capsys):
+    """Stall torque 3 N·m against a 5 N·m shoe brake: the stand cannot start. The regularised (tanh) brake lets it creep
+    at ω_s·atanh(3/5) — the model's, not the stand's — and the run says so (an event, a console warning); the fitted
+    motor (15 N·m) starts without one."""
+    from rig.cli import main
+    from rig.recorder import read_recording
+    from rig.plants.clutch.stand import ClutchStand
+    weak = tmp_path / "weak.toml"
+    weak.write_text(re.sub(r'(?m)^a0 = .*$', 'a0 = "3 N*m"', (SCENES / "clutch_leaf_startup.toml").read_text()))
+    assert main(["-q", "run", str(weak), "-o", str(tmp_path / "weak.mcap"), "--no-report"]) == 0
+    said = capsys.readouterr().out
+    creep = 0.5 * math.atanh(3.0 / 5.0)
+    assert f"stall torque 3 N·m is below the 5 N·m the brake holds at rest: the stand cannot start" in said
+    assert f"creep at {creep:.3g} rad/s" in said
+    events = [e for e in read_recording(tmp_path / "weak.mcap").events if e["kind"] == "motor_below_load"]
+    assert len(events) == 1 and events[0]["creep_speed"] == pytest.approx(creep)
+    final = re.search(r"final speed ω3\s+([\d.]+) rad/s", said)
+    assert final and float(final.group(1)) == pytest.approx(creep, rel=0.05)      # what the model does: the creep
+    fitted = ClutchStand.from_scene(load_scene(SCENES / "clutch_leaf_startup.toml"))
+    assert not [e for e in fitted.events if e.kind == "motor_below_load"]

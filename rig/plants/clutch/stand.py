@@ -170,6 +170,22 @@ class ClutchStand:
         self.trip_on_shutdown = trip_on_shutdown
         self.rtol, self.atol = rtol, atol
         self._h: float | None = None
+        if omega0 == 0.0:
+            self._check_start()
+
+    def _check_start(self) -> None:
+        """A ``motor_below_load`` event at t = 0 when the motor's stall torque at the coupling is below what the shoe
+        brakes hold at rest: the stand cannot start. A stick–slip brake then holds it (as the stand would); a
+        regularised (tanh) one lets it creep at ω_s·atanh(M_motor/M_brake), which is the model's, not the stand's."""
+        motor, loads = self.dynamics.motor, getattr(self.dynamics.load, "loads", [self.dynamics.load])
+        brakes = [ld for ld in loads if isinstance(ld, ShoeBrake)]
+        held = sum(ld.gain * ld.force for ld in brakes)
+        stall = motor.ratio * motor.a0
+        if brakes and stall < held:
+            tanh = [ld for ld in brakes if ld.friction == "tanh"]
+            creep = tanh[0].omega_s * math.atanh(stall / held) if tanh and len(brakes) == 1 else None
+            data = {"motor_stall_torque": stall, "brake_torque": held}
+            self.events.append(Event(0.0, "motor_below_load", data if creep is None else {**data, "creep_speed": creep}))
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "ClutchStand":
