@@ -34,8 +34,21 @@ _STATE_OF_LEVELS = np.array([0, 1, 3, 2])  # index A + 2B -> position in the Gra
 
 
 #: counts: a shaft whose angle at power-on, extrapolated to t = 0 from the first samples, lies this close to a line
-#: of the disc stands on it (the extrapolation's error, ~jerk·t³, is far below; a shaft 1e-6 counts off is on it)
+#: of the disc stands on it (the extrapolation's error is the parabola's, ~jerk·t0·t1·t2/6: 1e-4 counts for a Cardan
+#: output sampled at 1 kHz)
 ON_LINE = 1e-6
+
+
+def power_on(t: np.ndarray, q: np.ndarray, step: float) -> tuple[float, int]:
+    """(angle rad, ×4 step k0 the card starts at) at power-on, t = 0, from the first samples (times ``t`` s after it,
+    angles ``q`` rad, with the mount angle; ``step`` rad per ×4 count): on a line within :data:`ON_LINE` counts, that
+    line (the scenes' 0°), else the step below the extrapolated angle. The lab sheets place the edges by the same rule
+    from the plant's truth at the same times (rig.analysis.lab_report)."""
+    q_on = _at_zero(t[:3], q[:3])
+    edges = round(q_on / step)
+    if abs(q_on / step - edges) < ON_LINE:
+        return edges * step, edges
+    return q_on, int(math.floor(q_on / step))
 
 
 def _at_zero(t: np.ndarray, q: np.ndarray) -> float:
@@ -183,11 +196,8 @@ class IncrementalEncoder(Transducer):
             t_on, q_on = float(t[0]), float(q[0])
             k0 = int(math.floor(q_on / self.step))
             if t.size > 1 and 0.0 < t[0] <= (t[1] - t[0]) * (1.0 + 1e-9):   # the stream's first sample after power-on
-                t_on, q_on = 0.0, _at_zero(t[:3], q[:3])    # at t = 0: the card counts from the shaft's angle then
-                edges = round(q_on / self.step)           # (lab sheets align zero marks); on a line — the scenes' 0° —
-                on_edge = abs(q_on / self.step - edges) < ON_LINE   # whatever the extrapolation's error
-                q_on = edges * self.step if on_edge else q_on
-                k0 = edges if on_edge else int(math.floor(q_on / self.step))
+                t_on = 0.0                  # at t = 0: the card counts from the shaft's angle then (sheets align zeros)
+                q_on, k0 = power_on(t, q, self.step)
             s0 = k0 % 4
             self._line[:] = (s0 in (1, 2), s0 in (2, 3), k0 % (4 * self.ppr) == 0)
             self._card_state, self._c4 = s0, k0

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import textwrap
 from dataclasses import dataclass, field, replace
-from math import cos, degrees, floor, inf, radians, tau
+from math import cos, degrees, inf, radians, tau
 from typing import Any, Callable
 
 import numpy as np
@@ -19,7 +19,7 @@ from scipy.optimize import brentq
 
 from firmware_sim.transducers import REGISTRY
 from firmware_sim.transducers.description import described, read_description, resolve_path, validate
-from firmware_sim.transducers.encoder import ON_LINE
+from firmware_sim.transducers.encoder import power_on
 from rig.analysis.numbers import fixed
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
@@ -145,21 +145,22 @@ class Lab:
         ok = np.isfinite(edge)
         edge, angle = edge[ok], angle[ok]
         keep = np.r_[True, np.diff(edge) > 0]
-        return edge[keep], angle[keep] + self._line_offset(to, float(self.bench.truth(np.zeros(1))[signal][0]))
+        return edge[keep], angle[keep] + self._line_offset(to, signal)
 
-    def _line_offset(self, to: str, theta_on: float) -> float:
-        """Angle (rad) to add to the driver's count angle R·d·Δ to give the disc line an edge of count R sits at, for
-        power-on angle ``theta_on`` (rad; with the encoder's mount angle); ``theta_on`` itself where the description
-        has no ppr or multiplier."""
+    def _line_offset(self, to: str, signal: str) -> float:
+        """Angle (rad) to add to the driver's count angle R·d·Δ to give the disc line an edge of count R sits at: the
+        card's start k0 by the encoder's own power-on rule (:func:`~firmware_sim.transducers.encoder.power_on`) from
+        the plant's ``signal`` at the machine's first three sample times (the recording's sample rate); the angle at
+        power-on where the description has no ppr or multiplier."""
         try:
+            first = np.arange(1, 4) / float(self.rec.metadata["rig"]["sample_rate"])    # Hz, as the run had it
             ppr = int(round(self.setting(to, "ppr", unit="1")))
             d = 4 // int(round(self.setting(to, "multiplier", unit="1")))
             mount = self.setting(to, "mount_angle", unit="rad")
         except (SceneError, ValueError, KeyError, TypeError):
-            return theta_on
+            return float(self.bench.truth(np.zeros(1))[signal][0])
         step = 2.0 * np.pi / (4 * ppr)
-        q_on = theta_on + mount
-        k0 = floor(q_on / step + ON_LINE)   # a shaft standing on a line (the scenes' 0°) is on it
+        _, k0 = power_on(first, self.bench.truth(first)[signal] + mount, step)
         return (-(-k0 // d) - 1) * d * step + step - mount
 
 

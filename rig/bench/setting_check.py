@@ -2,6 +2,8 @@
 (:data:`rig.fidelity.SETTING_CHECK`)."""
 from __future__ import annotations
 
+import math
+
 from rig.bench.harness import FIXED, _ours
 from rig.bench.problems import problem_of
 from rig.scene import Scene, SceneError
@@ -71,22 +73,27 @@ class _Answers:
         self.method = RUNNABLE.get(plant, {}).get(method)
         self.asked = asked if plant == "cam_bar" and self.method is not None else []
         self.named = "".join(f", {q}" for q in self.asked)
-        self.scene, self.scale = scene, atol_scale
-        self.reference = self._answers({"rtol": CHECK_RTOL, "atol": CHECK_RTOL * atol_scale}) if self.asked else {}
+        self.scene = scene
+        self.reference = self._answers("DP45", {"rtol": CHECK_RTOL, "atol": CHECK_RTOL * atol_scale}) \
+            if self.asked else {}
 
-    def _answers(self, options: dict[str, float]) -> dict[str, float]:
+    def _answers(self, method: str, options: dict[str, float]) -> dict[str, float]:
         from rig.plants.cam_bar.level_answers import LevelRuns
-        return LevelRuns(self.scene, self.method, options).answers(2)
+        return LevelRuns(self.scene, method, options).answers(2)
 
     def error(self, options: dict[str, float]) -> float:
+        """The largest relative error of the answers at ``options`` (a fixed-step method's ``h`` or rtol/atol); 1 for a
+        count that differs, an answer that is NaN where the reference's is not, or a nonzero one against zero."""
         if not self.asked:
             return 0.0
-        got = self._answers(options)
+        got = self._answers(self.method, options)
         worst = 0.0
         for q in self.asked:
             a, r = got[q], self.reference[q]
-            if q == "flank_switches":
+            if math.isnan(a) or math.isnan(r):
+                worst = max(worst, 0.0 if math.isnan(a) and math.isnan(r) else 1.0)
+            elif q == "flank_switches" or r == 0.0:
                 worst = max(worst, 0.0 if a == r else 1.0)
-            elif r != 0.0:
+            else:
                 worst = max(worst, abs(a - r) / abs(r))
         return worst

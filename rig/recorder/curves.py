@@ -19,6 +19,7 @@ from mcap.reader import breakup_chunk
 from mcap.records import Chunk
 
 from rig.recorder.encoding import decode_array, loads_message
+from rig.recorder.errors import RecordingError
 
 KEPT_BYTES = 128 << 20      # curve arrays held from the reading (beyond: read again from the file when used)
 CACHED_CHUNKS = 2           # chunks whose curves a store holds decoded (curves are used in file order)
@@ -42,7 +43,7 @@ class CurveStore:
     """Curves of one recording file read again on demand: ``place(chunk_offset, index)`` notes a curve message (the
     chunk record's byte offset, the message's place among the chunk's records) and returns its key; ``arrays(key)``
     reads it back (the whole chunk's noted curves decoded at once, :data:`CACHED_CHUNKS` chunks kept). The file must
-    not change after it was read: a :class:`~rig.recorder.reader.RecordingError` says so if it did."""
+    not change after it was read: a :class:`~rig.recorder.errors.RecordingError` says so if it did."""
 
     def __init__(self, path: Path, stamp: tuple[int, int]):
         self.path, self.stamp = path, stamp             # (size, mtime_ns) when it was read
@@ -69,7 +70,6 @@ class CurveStore:
             return curves[index]
 
     def _read(self, offset: int) -> dict[int, dict[str, Any]]:
-        from rig.recorder.reader import RecordingError
         try:
             st = os.stat(self.path)
             if (st.st_size, st.st_mtime_ns) != self.stamp:
@@ -106,7 +106,7 @@ class CurveRecord:
                  store: CurveStore | None = None, key: int = -1):
         theory = {} if theory is None else theory
         self.number, self.program, self.extra = number, program, {} if extra is None else extra
-        self.samples, self.has_angle = int(np.size(t)), angle is not None
+        self.samples, self.has_angle = 0 if t is None else int(np.size(t)), angle is not None
         self.t_end = float(t[-1]) if self.samples else None      # s: the last sample's time
         self.theory_sizes = {k: int(np.size(v)) for k, v in theory.items()}
         self._arrays = None if store is not None else {"t": t, "x": x, "y": y, "angle": angle, "theory": theory}

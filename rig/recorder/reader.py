@@ -20,17 +20,10 @@ from rig.recorder.salvage import MCAP_MAGIC, DataSectionReader, LostPart
 from rig.recorder import curves
 from rig.recorder.curves import CurveRecord, CurveStore, curve_arrays, nbytes
 from rig.recorder.encoding import decode_block, loads_message
+from rig.recorder.errors import RecordingError
 
 if TYPE_CHECKING:
     from rig.scene import Scene
-
-
-class RecordingError(ValueError):
-    """A recording is unreadable, truncated or corrupt; ``partial`` holds what could be recovered."""
-
-    def __init__(self, message: str, partial: "Recording | None" = None):
-        super().__init__(message)
-        self.partial = partial
 
 
 @dataclass

@@ -102,6 +102,7 @@ def test_level2_assumptions_are_the_runs_setting_not_the_mechanism(tmp_path):
     ({"a3": -1.0}, "cam-bar parameter a3 must not be negative, got -1.0 m"),
     ({"J3": 0.01}, "J3 = 0.01 kg*m^2 is the follower's inertia about its pivot B0: it cannot be below m3·a3² = 0.015379"),
     ({"F_c_travel": 0.05}, "F_c_travel (50 mm) is longer than the stroke s_H (42 mm)"),
+    ({"a3": 0.156}, "a3 = 156 mm puts the follower's centre of gravity where the default J3 = m3·L3²/3 = 0.0205053"),
 ])
 def test_a_bad_parameter_is_named_with_its_unit(kw, message):
     with pytest.raises(ValueError, match=re.escape(message)):

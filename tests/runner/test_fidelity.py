@@ -253,3 +253,12 @@ def test_the_answers_asked_meet_the_tolerance_not_only_the_deviation_e(tmp_path)
     got = LevelRuns(scene, choice.method, choice.options).answers(2)["dwell_vibration"]
     nominal = LevelRuns(scene, "DP45", {"rtol": 3.16228e-7, "atol": 3.16228e-12}).answers(2)["dwell_vibration"]
     assert abs(got / reference - 1.0) <= 1e-6 < abs(nominal / reference - 1.0)
+
+
+def test_a_fixed_step_setting_is_checked_not_changed():
+    """The check of a setting taken from another scene's data compares its answers with DP45 at the check's tolerance
+    (it built that reference with the method under test: RK4 with an rtol, a TypeError)."""
+    from rig.bench.setting_check import _check
+    scene = load_scene(ROOT / "data" / "scenes" / "pin_insertion.toml")
+    options, said = _check(scene, "rk4", {"h": 2e-5}, 1e-6)
+    assert options == {"h": 2e-5} and said.startswith("checked at this operating point: error ")

@@ -190,13 +190,14 @@ class PinInsertionMechanism:
                              f"to 1 at the slider joint D, got {self.sensor_position!r}")
         if self.cam_direction not in (1, -1):
             raise ValueError(f"cam_direction must be +1 (counter-clockwise) or -1, got {self.cam_direction!r}")
+        j3_given = self.J3 is not None
         if self.J3 is None:
             self.J3 = self.m3 * self.L3 ** 2 / 3.0
         if self.J4 is None:
             self.J4 = self.m4 * self.l4 ** 2 / 12.0
         if self.a3 is None:
             self.a3 = self.L3 / 2.0
-        self._check_inertias()
+        self._check_inertias(j3_given)
         if self.F_c_travel > self.s_H:
             raise ValueError(f"cam-bar parameter F_c_travel ({self.F_c_travel * 1e3:g} mm) is longer than the "
                              f"stroke s_H ({self.s_H * 1e3:g} mm): the insertion force acts over the last F_c_travel "
@@ -204,15 +205,20 @@ class PinInsertionMechanism:
         self.chain = self._assemble()
         self.psi0 = float(self.chain.angles(np.array([self.s_Srest])).psi[0])
 
-    def _check_inertias(self) -> None:
+    def _check_inertias(self, j3_given: bool = True) -> None:
         """J3, J4 positive and a3 not negative, J3 (about the pivot B0) at least m3·a3² (the parallel-axis theorem:
-        a body's inertia about a pivot exceeds its mass times the squared distance of its centre of gravity)."""
+        a body's inertia about a pivot exceeds its mass times the squared distance of its centre of gravity);
+        ``j3_given`` False: J3 is the default m3·L3²/3 (the message then asks for J3 with that a3)."""
         for name, unit in (("J3", "kg*m^2"), ("J4", "kg*m^2"), ("a3", "m")):
             value = getattr(self, name)
             if not (isfinite(value) and (value >= 0.0 if name == "a3" else value > 0.0)):
                 what = "must not be negative" if name == "a3" else "must be positive"
                 raise ValueError(f"cam-bar parameter {name} {what}, got {value!r} {unit}")
         least = self.m3 * self.a3 ** 2
+        if self.J3 < least * (1.0 - 1e-12) and not j3_given:
+            raise ValueError(f"cam-bar parameter a3 = {self.a3 * 1e3:g} mm puts the follower's centre of gravity where "
+                             f"the default J3 = m3·L3²/3 = {self.J3:.6g} kg*m^2 (a uniform bar) is below m3·a3² = "
+                             f"{least:.6g} kg*m^2: give J3, the inertia about B0, with that a3")
         if self.J3 < least * (1.0 - 1e-12):
             raise ValueError(f"cam-bar parameter J3 = {self.J3:.6g} kg*m^2 is the follower's inertia about its pivot "
                              f"B0: it cannot be below m3·a3² = {least:.6g} kg*m^2 (m3 = {self.m3:g} kg, "
