@@ -46,7 +46,9 @@ class CurveStore:
     not change after it was read: a :class:`~rig.recorder.errors.RecordingError` says so if it did."""
 
     def __init__(self, path: Path, stamp: tuple[int, int]):
-        self.path, self.stamp = path, stamp             # (size, mtime_ns) when it was read
+        self.path, self.stamp = Path(os.path.abspath(path)), stamp     # absolute: a later chdir or a worker process
+        #                                                               # elsewhere reads the same file; stamp: (size,
+        #                                                               # mtime_ns) when it was read
         self._places: list[tuple[int, int]] = []
         self._in_chunk: dict[int, list[int]] = {}       # chunk offset -> indices of its noted curve messages
         self._cache: OrderedDict[int, dict[int, dict[str, Any]]] = OrderedDict()
