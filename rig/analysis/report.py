@@ -492,10 +492,11 @@ EVENT_MEANING = {
                      "and weight no longer hold it on the cam; the law-following model and the sheets' theory do "
                      "not hold there)",
     "cam_stalled": "the motor-driven cam stopped or turned back: its motor cannot carry the mechanism over the peak "
-                   "drive torque ([plant.drive] max_torque or slope too low); the run went on, not at its scene's speed",
-    "motor_below_load": "the stand's motor stalls below the torque its shoe brakes hold at rest: the stand cannot start. "
-                        "A stick-slip brake holds it; a regularised (tanh) brake lets it creep at creep_speed (rad/s), "
-                        "which is the model's regularisation, not the stand",
+                   "drive torque ([plant.drive] max_torque or slope too low); the run went on, not at its scene's "
+                   "speed",
+    "motor_below_load": "the stand's motor stalls below the torque its shoe brakes hold at rest: the stand cannot "
+                        "start. A stick-slip brake holds it; a regularised (tanh) brake lets it creep at creep_speed "
+                        "(rad/s), which is the model's regularisation, not the stand",
     "statistics_not_read": "the unit's statistics could not be read over serial at the end (a served machine that "
                            "stopped after this host's curves): the report compares no device statistics",
     "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "
@@ -563,7 +564,7 @@ def _of_simulated(rec: Recording, t: np.ndarray) -> str:
 
 def _truth_window(rec: Recording, t: np.ndarray) -> tuple[tuple[float, float] | None, str]:
     """The part of the plant truth the chart shows (None: all of it, s) and its caption's span text."""
-    starts = np.array([c.t[0] for c in rec.curves]) if rec.curves else np.array([])
+    starts = np.array([c.t_start for c in rec.curves if c.t_start is not None])
     if starts.size > TRUTH_CYCLES and t.size:
         period = float(np.median(np.diff(starts)))
         end = float(starts[0] + TRUTH_CYCLES * period)

@@ -96,11 +96,11 @@ class CurveRecord:
     """One device curve: ``number``, ``program``, times ``t`` (s), ``x``/``y`` (SI), optional measured cam angle
     ``angle`` (rad) and ``theory`` arrays, the message's other fields in ``extra``. Its arrays are held, or read again
     from the recording when used (a :class:`CurveStore` and the curve's key in it): what they hold is known without
-    reading them (``samples``, ``t_end``, ``has_angle``, ``theory_sizes``: what a plot or the reader asks of every
-    curve before using it)."""
+    reading them (``samples``, ``t_start``, ``t_end``, ``has_angle``, ``theory_sizes``: what a plot or the reader asks
+    of every curve before using it)."""
 
-    __slots__ = ("number", "program", "extra", "samples", "t_end", "has_angle", "theory_sizes", "_arrays", "_store",
-                 "_key")
+    __slots__ = ("number", "program", "extra", "samples", "t_start", "t_end", "has_angle", "theory_sizes", "_arrays",
+                 "_store", "_key")
 
     def __init__(self, number: int, program: int, t: np.ndarray | None = None, x: np.ndarray | None = None,
                  y: np.ndarray | None = None, angle: np.ndarray | None = None,
@@ -109,7 +109,7 @@ class CurveRecord:
         theory = {} if theory is None else theory
         self.number, self.program, self.extra = number, program, {} if extra is None else extra
         self.samples, self.has_angle = 0 if t is None else int(np.size(t)), angle is not None
-        self.t_end = float(t[-1]) if self.samples else None      # s: the last sample's time
+        self.t_start, self.t_end = (float(t[0]), float(t[-1])) if self.samples else (None, None)   # s: first, last
         self.theory_sizes = {k: int(np.size(v)) for k, v in theory.items()}
         self._arrays = None if store is not None else {"t": t, "x": x, "y": y, "angle": angle, "theory": theory}
         self._store, self._key = store, key

@@ -341,8 +341,8 @@ class FixedStepper(Stepper):
             return self.y_old
         if t - self.t_old < 10.0 * (math.nextafter(self.t_old, math.inf) - self.t_old):   # no step that short: the
             return tuple(self.dense_output()(t))        # interpolant (an event a few ulp past a time break, where the
-        one = type(self)(self.fun, self.t_old, self.y_old, t, h=t - self.t_old, stiffness="ignore",   # solver restarted)
-                         compiled=self._compiled, **self._options())
+        one = type(self)(self.fun, self.t_old, self.y_old, t, h=t - self.t_old,   # solver restarted)
+                         stiffness="ignore", compiled=self._compiled, **self._options())
         one.step()
         self.nfev += one.nfev
         return one.y

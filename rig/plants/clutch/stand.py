@@ -185,7 +185,9 @@ class ClutchStand:
             tanh = [ld for ld in brakes if ld.friction == "tanh"]
             creep = tanh[0].omega_s * math.atanh(stall / held) if tanh and len(brakes) == 1 else None
             data = {"motor_stall_torque": stall, "brake_torque": held}
-            self.events.append(Event(0.0, "motor_below_load", data if creep is None else {**data, "creep_speed": creep}))
+            if creep is not None:
+                data["creep_speed"] = creep
+            self.events.append(Event(0.0, "motor_below_load", data))
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "ClutchStand":
