@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import textwrap
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import matplotlib
 import numpy as np
@@ -144,37 +144,67 @@ def _legend(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], theory: bool
     ax.legend(handles=handles, fontsize=7, loc="best", framealpha=0.85)
 
 
-def _joined(items: Sequence[Any], xy: Callable[[Any], tuple[np.ndarray, np.ndarray]] = lambda p: p,
-            size: Callable[[Any], int] = lambda p: np.size(p[1])) -> tuple[np.ndarray, np.ndarray]:
-    """The polylines ``xy(item)`` as one, NaN between them: one artist instead of one per curve (fast to draw).
-    Beyond :data:`OVERLAY_POINTS` points in all (``size(item)`` each), each polyline is drawn as the min and max
-    of its y in equal runs of samples (:func:`envelope`: every peak kept; a long recording's thousands of curves
-    drew tens of millions of points, ≈ 0.7 GB and 4 s per figure for 2000 curves), reduced as soon as it is made:
-    only one full polyline is held at a time."""
-    if not len(items):
-        return np.array([]), np.array([])
-    sizes = [size(item) for item in items]
-    buckets = max(OVERLAY_POINTS // (2 * len(items)), 1) if sum(sizes) > OVERLAY_POINTS else 0
-    room = sum(min(n, 2 * buckets + 2) if buckets else n for n in sizes) + len(items)
-    xs, ys = np.full(room, np.nan), np.full(room, np.nan)     # filled in place: no small arrays held between the
-    at = 0                                                    # curves' large transient ones (they fragmented the heap)
-    for item in items:
-        x, y = (np.asarray(a, float) for a in xy(item))
-        if buckets:
-            x, y = envelope(x, y, buckets)
-        xs[at:at + x.size], ys[at:at + y.size] = x, y
-        at += x.size + 1                                      # a NaN between polylines
-    return xs[:at], ys[:at]
+class _Overlay:
+    """Polylines joined into one as they are added (NaN between them): one artist instead of one per curve (fast to
+    draw). Beyond :data:`OVERLAY_POINTS` points in all (``sizes``: each polyline's), each polyline is drawn as the min
+    and max of its y in equal runs of samples (:func:`envelope`: every peak kept; a long recording's thousands of
+    curves drew tens of millions of points, ≈ 0.7 GB and 4 s per figure for 2000 curves), reduced as it is added: only
+    one full polyline is held at a time, in a buffer filled in place (no small arrays held between the curves' large
+    transient ones: they fragmented the heap)."""
+
+    def __init__(self, sizes: Sequence[int]):
+        n = len(sizes)
+        self.buckets = max(OVERLAY_POINTS // (2 * n), 1) if n and sum(sizes) > OVERLAY_POINTS else 0
+        room = sum(min(k, 2 * self.buckets + 2) if self.buckets else k for k in sizes) + n
+        self.x, self.y, self.at = np.full(room, np.nan), np.full(room, np.nan), 0
+
+    def add(self, x: Any, y: Any) -> None:
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        if self.buckets:
+            x, y = envelope(x, y, self.buckets)
+        self.x[self.at:self.at + x.size], self.y[self.at:self.at + y.size] = x, y
+        self.at += x.size + 1                                 # a NaN between polylines
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.x[:self.at], self.y[:self.at]
+
+
+class _Layer(NamedTuple):
+    """One artist of an overlay: its axes, the curves it draws (in order), ``xy(curve) -> (x, y)``, ``size(curve)``
+    (points of that polyline, known without reading the curve) and the line's style."""
+
+    ax: Axes
+    members: list
+    xy: Callable[[Any], tuple[Any, Any]]
+    size: Callable[[Any], int]
+    style: dict
+
+
+def _draw_layers(curves: Sequence[CurveRecord], layers: Sequence[_Layer]) -> None:
+    """Draw the layers with members, in order, each as one artist, from one pass over ``curves``: a curve read again
+    from its recording (:mod:`rig.recorder.curves`) is decoded once for all the layers, not once per layer."""
+    live = [layer for layer in layers if layer.members]
+    overlays = [_Overlay([layer.size(c) for c in layer.members]) for layer in live]
+    members = [{id(c) for c in layer.members} for layer in live]
+    for c in curves:
+        for layer, overlay, ids in zip(live, overlays, members):
+            if id(c) in ids:
+                overlay.add(*layer.xy(c))
+    for layer, overlay in zip(live, overlays):
+        layer.ax.plot(*overlay.arrays(), **layer.style)
+
+
+def _group_layers(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], xy: Any) -> list[_Layer]:
+    """The OK curves, then the NOK ones on top: ``xy(curve) -> (x, y)`` with as many points as ``curve.t``."""
+    single = len(curves) == 1
+    return [_Layer(ax, [c for c in curves if (c.number in nok) == bad], xy, lambda c: c.samples, _style(bad, single))
+            for bad in (False, True)]
 
 
 def _plot_groups(ax: Axes, curves: Sequence[CurveRecord], nok: set[int], xy: Any) -> None:
     """Draw ``xy(curve) -> (x, y)`` (as many points as ``curve.t``) of the OK curves, then of the NOK ones on top,
     one artist each; ``xy`` is called once per curve."""
-    single = len(curves) == 1
-    for bad in (False, True):
-        group = [c for c in curves if (c.number in nok) == bad]
-        if group:
-            ax.plot(*_joined(group, xy, lambda c: c.samples), **_style(bad, single))
+    _draw_layers(curves, _group_layers(ax, curves, nok, xy))
 
 
 def _xy(ax: Axes, curves: Sequence[CurveRecord], elements: list, nok: set[int], units: DisplayUnits,
@@ -211,12 +241,13 @@ def _over(ax: Axes, curves: Sequence[CurveRecord], axis: str, nok: set[int], uni
     """Measured Y (NOK red) and its theory (dashed) over time since the curve start or over cam angle."""
     uy, ut, ua = units.channel("y"), units.of("s"), units.of("rad")
     u = ut if axis == "t" else ua
-    _plot_groups(ax, curves, nok, lambda c: (u(c.t - c.t[0] if axis == "t" else c.angle), uy(c.y)))
-    theory = [c for c in curves if _has_theory_abscissa(c, axis)]
-    if theory:
-        ax.plot(*_joined(theory, lambda c: (u(_theory_abscissa(c, axis)), uy(c.theory["y"])),
-                         lambda c: c.theory_sizes["y"]), "--", lw=0.8, color=THEORY_COLOR if len(curves) == 1 else "k",
-                alpha=0.9 if len(curves) == 1 else 0.25, zorder=5)
+    one = len(curves) == 1
+    theory = _Layer(ax, [c for c in curves if _has_theory_abscissa(c, axis)],
+                    lambda c: (u(_theory_abscissa(c, axis)), uy(c.theory["y"])), lambda c: c.theory_sizes["y"],
+                    {"ls": "--", "lw": 0.8, "color": THEORY_COLOR if one else "k", "alpha": 0.9 if one else 0.25,
+                     "zorder": 5})
+    measured = _group_layers(ax, curves, nok, lambda c: (u(c.t - c.t[0] if axis == "t" else c.angle), uy(c.y)))
+    _draw_layers(curves, [*measured, theory])            # one pass: each curve's arrays used once for both
     ax.set(xlabel=u.axis("time since curve start") if axis == "t" else u.axis("cam angle"),
            ylabel=channel_label(units, "y"))
     _ticks(ax)
@@ -269,13 +300,14 @@ def theory_residuals(curves: Sequence[CurveRecord], path: Path, title: str, nok:
         return None
     fig, axs = figure(len(channels), 1, size=(9.0, 0.9 + 2.3 * len(channels)), sharex=True, squeeze=False)
     ut = units.of("s")
+    layers, sums = [], []
     for ax, ch in zip(axs[:, 0], channels):
         u = units.channel(ch)
         with_theory = [c for c in curves if ch in c.theory_sizes]
         n = min(c.samples for c in with_theory)            # the mean over the samples every curve has
         total, counts = np.zeros(n), np.zeros(n, dtype=np.int64)
 
-        def residual(c: CurveRecord) -> tuple[np.ndarray, np.ndarray]:
+        def residual(c: CurveRecord, ch=ch, u=u, n=n, total=total, counts=counts) -> tuple[np.ndarray, np.ndarray]:
             """The curve's residual over its time, added to the running mean's sums as it is made."""
             th_t = np.asarray(c.theory.get("t", c.t), dtype=float)
             at = c.t - lags.get((c.number, ch), 0.0)      # no theory before its first or after its last sample
@@ -287,9 +319,12 @@ def theory_residuals(curves: Sequence[CurveRecord], path: Path, title: str, nok:
             counts[finite] += 1
             return ut(c.t - c.t[0]), res
 
-        _plot_groups(ax, with_theory, nok, residual)
+        layers += _group_layers(ax, with_theory, nok, residual)
+        sums.append((with_theory[0], n, total, counts))
+    _draw_layers(curves, layers)                          # one pass for both channels: each curve decoded once
+    for ax, ch, (first, n, total, counts) in zip(axs[:, 0], channels, sums):
+        u = units.channel(ch)
         mean = np.where(counts > 0, total / np.maximum(counts, 1), np.nan)
-        first = with_theory[0]
         ax.plot(ut(first.t[:n] - first.t[0]), mean, color="k", lw=1.0, label="mean over the curves")
         ax.axhline(0.0, color="0.5", lw=0.6)
         ax.set_ylabel(u.axis(f"{ch.upper()} − theory"), fontsize=9)

@@ -223,7 +223,13 @@ def test_an_overlay_of_thousands_of_curves_keeps_every_peak_in_a_bounded_number_
     and max in runs of samples: at most OVERLAY_POINTS points in all (plus, per curve, the min and max of the
     shorter run left over and one gap), every curve's own extremes still drawn, even in the last samples; a few
     curves are drawn sample for sample."""
-    from rig.analysis.plots import OVERLAY_POINTS, _joined
+    from rig.analysis.plots import OVERLAY_POINTS, _Overlay
+
+    def _joined(items):
+        overlay = _Overlay([c[1].size for c in items])
+        for x_, y_ in items:
+            overlay.add(x_, y_)
+        return overlay.arrays()
     rng = np.random.default_rng(7)
     t = np.linspace(0.0, 0.31, 3100)
     curves = [(t, np.sin(40 * t) - 3.0 * np.exp(-((t - rng.uniform(0.05, 0.309)) / 2e-4) ** 2)) for _ in range(300)]
