@@ -200,7 +200,17 @@ def summary_lines(rec: Recording, stim: list[Stimulus], metrics: list[Metric]) -
     scene = _scene(rec)
     if scene is not None and scene.data.get("comparison"):
         lines.append(f"  thesis against rig: {agreement_text(compare(scene, stim, metrics))} (comparison.csv)")
-    return lines
+    return lines + [f"  warning: {text}" for text in stall_warnings(rec)]
+
+
+def stall_warnings(rec: Recording) -> list[str]:
+    """What the ``motor_below_load`` events say: the motor's stall torque is below the brake's holding torque, the
+    stand cannot start (and a regularised brake's creep is the model's)."""
+    return [f"the motor's stall torque {e['motor_stall_torque']:.4g} N·m is below the {e['brake_torque']:.4g} N·m the "
+            "brake holds at rest: the stand cannot start"
+            + (f"; the regularised (tanh) brake lets it creep at {e['creep_speed']:.3g} rad/s, the model's, not the "
+               "stand's" if "creep_speed" in e else "")
+            for e in rec.events if e.get("kind") == "motor_below_load"]
 
 
 def _torque_figure(ctx: ReportContext, data: StandRecord, stim: list[Stimulus]) -> Block:

@@ -40,12 +40,7 @@ def stand_summary(rec: "Recording") -> StandSummary | None:
                              for sheet in sheets for name, v in sheet.values.items()})
     res = clutch_report.stand_results(rec)
     if res is not None:
-        stalled = [e for e in rec.events if e.get("kind") == "motor_below_load"]
-        warning = [f"  warning: the motor's stall torque {e['motor_stall_torque']:.4g} N·m is below the "
-                   f"{e['brake_torque']:.4g} N·m the brake holds at rest: the stand cannot start"
-                   + (f"; the regularised (tanh) brake lets it creep at {e['creep_speed']:.3g} rad/s, the model's, not "
-                      "the stand's" if "creep_speed" in e else "") for e in stalled]
-        return StandSummary(clutch_report.summary_lines(rec, *res) + warning,
+        return StandSummary(clutch_report.summary_lines(rec, *res),
                             {"stand." + _snake(m.name): (number, m.unit) for m in res[1]
                              if (number := m.number()) is not None})
     static = static_clutch_report.summary(rec)

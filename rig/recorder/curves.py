@@ -14,12 +14,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mcap.data_stream import ReadDataStream
 from mcap.reader import breakup_chunk
-from mcap.records import Chunk
 
 from rig.recorder.encoding import decode_array, loads_message
 from rig.recorder.errors import RecordingError
+from rig.recorder.salvage import chunk_at
 
 KEPT_BYTES = 128 << 20      # curve arrays held from the reading (beyond: read again from the file when used)
 CACHED_CHUNKS = 2           # chunks whose curves a store holds decoded (curves are used in file order)
@@ -78,8 +77,7 @@ class CurveStore:
                 raise RecordingError(f"{self.path}: the recording changed after it was read (its curves are read "
                                      "again from the file when used): read it again")
             with open(self.path, "rb") as f:
-                f.seek(offset + 9)                      # past the chunk record's opcode and length
-                records = breakup_chunk(Chunk.read(ReadDataStream(f)), validate_crc=True)
+                records = breakup_chunk(chunk_at(f, offset), validate_crc=True)
         except OSError as exc:
             raise RecordingError(f"{self.path}: cannot read the recording's curves again: "
                                  f"{(exc.strerror or str(exc)).lower()}") from None

@@ -182,6 +182,13 @@ def _next_chunk(f: Any, start: int, size: int) -> int | None:
     return None
 
 
+def chunk_at(f: Any, pos: int) -> Chunk:
+    """The chunk whose record starts at byte ``pos`` of ``f``, read from its fields on (past the record's opcode and
+    length, which may be the damaged part)."""
+    f.seek(pos + 9)
+    return Chunk.read(ReadDataStream(f))
+
+
 class DataSectionReader:
     """Reads a recording's data section in file order into a :class:`_Collector`, past damage: a chunk that fails
     its CRC or does not decode is skipped; bytes that are no record are skipped to where the next record starts —
@@ -290,8 +297,7 @@ class DataSectionReader:
             self.chunks_read += 1
             self.seen.add(pos)
             try:
-                f.seek(pos + 9)
-                chunk = Chunk.read(ReadDataStream(f))
+                chunk = chunk_at(f, pos)
                 if not chunk.uncompressed_crc:
                     raise ValueError("it has no CRC to check its data by")
                 self.collector.add_chunk(breakup_chunk(chunk, validate_crc=True), pos)

@@ -353,5 +353,7 @@ class OdeSolver:
         """Interpolant over the last step [t_old, t]: callable on a float (tuple) or array (ndarray)."""
         raise NotImplementedError
 
-    def _min_step(self) -> float:
-        return 10.0 * (math.nextafter(self.t, math.inf) - self.t)
+    def _min_step(self, at: float | None = None) -> float:
+        """The smallest step (s) from ``at`` (default: the current time): 10 ulp."""
+        at = self.t if at is None else at
+        return 10.0 * (math.nextafter(at, math.inf) - at)

@@ -339,9 +339,9 @@ class FixedStepper(Stepper):
         compiled runs too."""
         if not t > self.t_old:
             return self.y_old
-        if t - self.t_old < 10.0 * (math.nextafter(self.t_old, math.inf) - self.t_old):   # no step that short: the
-            return tuple(self.dense_output()(t))        # interpolant (an event a few ulp past a time break, where the
-        one = type(self)(self.fun, self.t_old, self.y_old, t, h=t - self.t_old,   # solver restarted)
+        if t - self.t_old < self._min_step(self.t_old):    # no step that short: the interpolant (an event a few ulp
+            return tuple(self.dense_output()(t))            # past a time break, where the solver restarted)
+        one = type(self)(self.fun, self.t_old, self.y_old, t, h=t - self.t_old,
                          stiffness="ignore", compiled=self._compiled, **self._options())
         one.step()
         self.nfev += one.nfev
