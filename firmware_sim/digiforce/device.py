@@ -122,6 +122,7 @@ class DigiForce:
         self._pending_stop: float | None = None
         self._prev: dict[str, float] | None = None
         self._last_chunk: dict[str, np.ndarray] = {}
+        self._armed = {"start": False, "stop": False}     # x/y triggers armed in an earlier chunk (control.crossing)
 
     # --- channel commands -------------------------------------------------------------------------
     def _channels(self, channel: str | None) -> list[str]:
@@ -139,6 +140,7 @@ class DigiForce:
             if ch not in self._last_chunk:
                 raise DigiForceError(f"tare {ch}: no input sample yet; feed the unit first")
             self._chains[ch].tare_value = float(self._last_chunk[ch][-1])
+        self._armed = {"start": False, "stop": False}     # re-armed from the values as tared now
 
     def teach(self, channel: str, point: int, value: float) -> None:
         """Two-point teach: the latest input of ``channel`` shall read ``value`` (engineering units).
@@ -293,11 +295,18 @@ class DigiForce:
             cands.append(control.first_at_or_after(t, self._pending_start, pos))
         trig = self._prog["control"]["start"]
         if trig["mode"] in ("x", "y"):
-            ch = trig["mode"]
-            prev = self._prev_value(ch, val, pos)
-            cands.append(control.crossing(val[ch], prev, trig["value"], trig["direction"], pos))
+            cands.append(self._crossing("start", trig, val, pos))
         cands = [c for c in cands if c is not None]
         return min(cands) if cands else None
+
+    def _crossing(self, which: str, trig: dict[str, Any], val: dict[str, np.ndarray], first: int) -> int | None:
+        """Where the ``which`` (start / stop) x/y trigger fires from index ``first`` on; its arming carries over
+        to the next chunk while it has not fired (a fire, or a start or stop by other means, re-arms it from the
+        values: :meth:`_begin`, :meth:`_finish`)."""
+        ch = trig["mode"]
+        at, self._armed[which] = control.crossing(val[ch], self._prev_value(ch, val, first), trig["value"],
+                                                  trig["direction"], first, trig["hysteresis"], self._armed[which])
+        return at
 
     def _prev_value(self, ch: str, val: dict[str, np.ndarray], pos: int) -> float | None:
         """Value before index 0 of the chunk (tared now) when searching from ``pos`` = 0."""
@@ -313,10 +322,7 @@ class DigiForce:
         if trig["mode"] == "time":
             cands.append(control.last_up_to(t, self._t0 + trig["duration"]))
         elif trig["mode"] in ("x", "y"):
-            ch = trig["mode"]
-            first = pos if start is None else start + 1
-            cands.append(control.crossing(val[ch], self._prev_value(ch, val, first), trig["value"],
-                                          trig["direction"], first))
+            cands.append(self._crossing("stop", trig, val, pos if start is None else start + 1))
         cands = [c for c in cands if c is not None]
         return max(min(cands), pos - 1) if cands else None
 
@@ -348,6 +354,7 @@ class DigiForce:
 
     def _begin(self, t: np.ndarray, eng: dict[str, np.ndarray], start: int) -> None:
         self._pending_start = None
+        self._armed = {"start": False, "stop": False}
         for ch, chain in self._chains.items():
             if chain.cfg["tare_at_start"]:
                 chain.tare_value = float(eng[ch][start])
@@ -361,6 +368,7 @@ class DigiForce:
         rows = self._memory.finish()
         self._measuring = False
         self._pending_stop = None
+        self._armed = {"start": False, "stop": False}
         mem = self._memory
         began = time.perf_counter()
         k = turning_index(rows[:, 1])

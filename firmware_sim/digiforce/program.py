@@ -106,12 +106,13 @@ def _channel(name: str, cfg: Any, desc: Description, where: str) -> dict[str, An
 
 
 def _trigger(cfg: Any, modes: tuple[str, ...], units: Mapping[str, str], where: str) -> dict[str, Any]:
-    checks.known_keys(cfg, ("mode", "value", "direction", "duration"), where)
+    checks.known_keys(cfg, ("mode", "value", "direction", "hysteresis", "duration"), where)
     mode = checks.choice(cfg, "mode", modes, where, "command")
     out: dict[str, Any] = {"mode": mode}
     if mode in ("x", "y"):
         out["value"] = checks.number(cfg, "value", units[mode], where)
         out["direction"] = checks.choice(cfg, "direction", DIRECTIONS, where, "rising")
+        out["hysteresis"] = checks.number(cfg, "hysteresis", units[mode], where, default=0.0, minimum=0.0)
     elif mode == "time":
         out["duration"] = checks.number(cfg, "duration", "s", where, positive=True)
     extra = set(cfg) - set(out)

@@ -86,6 +86,64 @@ def test_y_threshold_start_and_stop(unit, press):
     assert r.curve.y[-1] <= 0.2 and r.curve.y[-2] > 0.2
 
 
+def _noisy_cycles(press, n_cycles, amplitude=0.08, seed=1):
+    """Press cycles with uniform noise of ±``amplitude`` N on Y (several crossings of any level it passes)."""
+    t, x, y = cycles(press, n_cycles)
+    return t, x, y + np.random.default_rng(seed).uniform(-amplitude, amplitude, y.size)
+
+
+@pytest.mark.parametrize("hysteresis, curves", [("0 N", None), ("0.2 N", 3)])
+def test_trigger_hysteresis_keeps_noise_from_restarting_a_curve(unit, press, hysteresis, curves):
+    """Start and stop on the same Y level with noise on Y: without hysteresis the noise around the level stops a
+    curve and starts the next at once (short spurious curves, more than one per cycle); with a band wider than
+    the noise, one curve per press cycle, each from the rise through the level to the fall through it."""
+    trig = {"mode": "y", "value": "0.5 N", "hysteresis": hysteresis}
+    unit.set_program(0, {"control": {"start": {**trig, "direction": "rising"},
+                                     "stop": {**trig, "direction": "falling"}}})
+    t, x, y = _noisy_cycles(press, 3)
+    out = unit.feed(t, x, y)
+    if curves is None:
+        assert len(out) > 3 and min(r.curve.t.size for r in out) < 50
+        return
+    assert len(out) == curves
+    for r in out:
+        c = r.curve
+        assert c.y[0] >= 0.5 and c.y[-1] <= 0.5 and c.x.max() == pytest.approx(4.0, abs=1e-3)
+        i0 = int(np.searchsorted(t, c.t[0]))
+        before = y[:i0][::-1]                           # back from the start: below 0.3 N before any 0.5 N
+        assert np.argmax(before < 0.3) < np.argmax(before >= 0.5) or not np.any(before >= 0.5)
+
+
+def test_trigger_hysteresis_carries_over_chunks(unit, press):
+    """The Schmitt trigger's arming carries from one ``feed`` to the next: cutting the input anywhere gives the
+    same curves."""
+    trig = {"mode": "y", "value": "0.5 N", "hysteresis": "0.2 N"}
+    unit.set_program(0, {"control": {"start": {**trig, "direction": "rising"},
+                                     "stop": {**trig, "direction": "falling"}}})
+    t, x, y = _noisy_cycles(press, 3)
+    whole = [r.curve for r in unit.feed(t, x, y)]
+    unit.select_program(0)
+    t2 = t + t[-1] + DT
+    cuts = np.sort(np.random.default_rng(3).choice(np.arange(1, t.size), 120, replace=False))
+    parts = []
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, t.size]):
+        parts += [r.curve for r in unit.feed(t2[a:b], x[a:b], y[a:b])]
+    assert len(parts) == len(whole) == 3
+    for p, w in zip(parts, whole):
+        assert np.array_equal(p.y, w.y) and np.allclose(p.t - t2[0], w.t)
+
+
+def test_trigger_hysteresis_is_a_quantity_of_the_channel_and_not_negative(unit):
+    unit.set_program(0, {"control": {"start": {"mode": "x", "value": "1 mm", "hysteresis": "0.2 mm"}}})
+    assert unit.get_program(0)["control"]["start"]["hysteresis"] == pytest.approx(2e-4)
+    with pytest.raises(DigiForceError, match=r"control\.start\.hysteresis: must be >= 0"):
+        unit.set_program(0, {"control": {"start": {"mode": "x", "value": "1 mm", "hysteresis": "-0.2 mm"}}})
+    with pytest.raises(DigiForceError, match="hysteresis"):
+        unit.set_program(0, {"control": {"start": {"mode": "x", "value": "1 mm", "hysteresis": "0.2 N"}}})
+    with pytest.raises(DigiForceError, match="'hysteresis' does not apply to mode 'time'"):
+        unit.set_program(0, {"control": {"stop": {"mode": "time", "duration": "1 s", "hysteresis": "1 s"}}})
+
+
 def test_time_stop(unit, press):
     unit.set_program(0, {"control": {"stop": {"mode": "time", "duration": "50 ms"}}})
     unit.start()
