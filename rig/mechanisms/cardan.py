@@ -72,7 +72,11 @@ class DoubleCardan:
     def __post_init__(self) -> None:
         if self.arrangement not in ("Z", "W"):
             raise ValueError(f"DoubleCardan arrangement must be 'Z' or 'W', got {self.arrangement!r}")
-        Cardan(self.angle1), Cardan(self.angle2)
+        for name in ("angle1", "angle2"):
+            try:
+                Cardan(getattr(self, name))
+            except ValueError as exc:
+                raise ValueError(f"DoubleCardan {name}: {exc}") from None
         finite(self.yoke_offset, "DoubleCardan yoke_offset (rad)")
 
     def output_angle(self, phi1: ArrayLike) -> np.ndarray:

@@ -76,8 +76,11 @@ class SpurGearPair:
         for z, x, name in ((self.z1, self.x1, "x1"), (self.z2, self.x2, "x2")):
             x_min = 1.0 - z * sin(self.pressure_angle) ** 2 / 2     # no undercut: x ≥ 1 − z sin²α0 / 2
             if x < x_min - 1e-12:
+                z_min = 2 * (1 - x) / sin(self.pressure_angle) ** 2
                 raise ValueError(f"SpurGearPair {name} = {x:g} undercuts the {z}-tooth gear (needs {name} >= "
-                                 f"{x_min:.3f})")
+                                 f"{x_min:.3f}, or at {name} = {x:g} at least {z_min:.2f} teeth: z ≥ 2(1 − x)/sin²α0); "
+                                 "undercut flanks (e.g. the practical 14-tooth limit at x = 0) are not modelled: their "
+                                 "form circle and contact ratio need the generating trochoid")
 
     def geometry(self) -> GearGeometry:
         """The pair's geometry; a pointed tooth tip, meshing interference (a tip reaching the mate inside its base

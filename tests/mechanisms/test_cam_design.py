@@ -406,3 +406,54 @@ def test_a_rise_angle_beyond_a_turn_is_refused_as_degrees_given_for_rad():
     with pytest.raises(ValueError, match=r"rise angle Φ must lie in \(0, 2π\] rad, got 120 rad \(degrees given as rad\?\)"):
         flocke_base_radius(get_law("3-4-5"), 0.02, 120, radians(30))
     assert flocke_base_radius(get_law("3-4-5"), 0.02, radians(120), radians(30)) > 0.0
+
+
+@pytest.mark.parametrize("scene, switches", [("pin_insertion.toml", False), ("pin_insertion_as_drawn.toml", True)])
+def test_force_closure_check_finds_where_the_roller_leaves_the_working_flank(scene, switches):
+    """MODELS §2: R23 must stay > 0 on the working flank; where it does not, the roller crosses the clearance (the
+    jump). The check's minimum and its spans against level 1's contact force on a finer grid of its own."""
+    from rig.mechanisms.cam.design import design_checks
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
+    mech, omega = cam_bar_from_scene(f"data/scenes/{scene}")
+    row = {c.name: c for c in design_checks(mech, omega, n=720).checks}["min contact force on the working flank"]
+    phi = np.linspace(0.0, tau, 7200, endpoint=False)
+    r23 = mech.kinetostatics(phi, omega).R23n
+    assert row.value == pytest.approx(r23.min(), rel=0.02, abs=1.0)
+    assert row.ok is not switches
+    if switches:
+        spans = [[float(v) for v in span.split("–")] for span in
+                 row.note.split("over φ = ")[1].split(":")[0].replace("°", "").split(", ")]
+        other = np.degrees(phi[r23 <= 0.0])
+        for lo, hi in spans:                    # each span named holds R23 ≤ 0 at its ends (within the coarse grid)
+            assert np.any(np.abs(other - lo) < 0.6) and np.any(np.abs(other - hi) < 0.6)
+        assert sum(hi - lo + 0.5 for lo, hi in spans) == pytest.approx(other.size * 0.05, abs=2.0)
+
+
+def test_an_undercut_wall_fails_the_hertz_check_instead_of_stopping_the_checks():
+    """A 13 mm roller on a steep 40° rise: where the loaded wall's radius ρ ∓ r_R changes sign the offset curve loops
+    (no contact geometry). The checks go on and the Hertz row fails naming it (it used to stop with 'concave profile
+    radius … tighter than the roller')."""
+    from rig.mechanisms.cam.design import design_checks
+    program = CamProgram([Segment("dwell", radians(140)), Segment("rise", radians(40), "3-4-5", 0.042),
+                          Segment("dwell", radians(40)), Segment("return", radians(100), "3-4-5", 0.042),
+                          Segment("dwell", radians(40))])
+    mech = PinInsertionMechanism(r_R=0.013, program=program)
+    design = design_checks(mech, 100 * tau / 60, n=3600)
+    rows = {c.name: c for c in design.checks}
+    hertz = rows["max Hertz stress"]
+    assert not hertz.ok and hertz.value == np.inf and "undercut" in hertz.note
+    gone = np.isnan(design.sigma_h)
+    assert 0 < gone.sum() < design.phi.size
+    assert not rows["min convex pitch radius"].ok and "series synthesis round trip" in rows
+
+
+def test_the_flocke_row_says_when_its_radius_is_exact():
+    """For the parabolic law the steepest pressure angle lies at s'_max: Flocke's radius is the exact one."""
+    from rig.mechanisms.cam.design import _sizing_checks
+    program = CamProgram([Segment("dwell", radians(60)), Segment("rise", radians(120), "parabolic", 0.042),
+                          Segment("dwell", radians(40)), Segment("return", radians(100), "parabolic", 0.042),
+                          Segment("dwell", radians(40))])
+    flocke = _sizing_checks(PinInsertionMechanism(program=program), 0.5)[0]
+    assert flocke.value == pytest.approx(30.0, rel=1e-9) and "exact for this law" in flocke.note
+    default = _sizing_checks(PinInsertionMechanism(), 0.5)[0]
+    assert default.value > 30.0 and "too small" in default.note

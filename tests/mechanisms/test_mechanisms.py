@@ -132,7 +132,7 @@ def test_unshifted_gears_have_the_standard_geometry_and_contact_ratio():
 
 
 def test_gears_refuse_undercut_and_bad_input():
-    with pytest.raises(ValueError, match=r"x1 = 0 undercuts the 12-tooth gear \(needs x1 >= 0.298\)"):
+    with pytest.raises(ValueError, match=r"x1 = 0 undercuts the 12-tooth gear \(needs x1 >= 0.298, or at x1 = 0 at least 17.10 teeth"):
         SpurGearPair(12, 40, 2e-3)
     with pytest.raises(ValueError, match="module is in metres, positive"):
         SpurGearPair(20, 40, 0.0)

@@ -57,7 +57,8 @@ class Check:
 
 @dataclass
 class CamDesign:
-    """Curves over one revolution (SI, rad) and the check rows."""
+    """Curves over one revolution (SI, rad) and the check rows; ``sigma_h`` NaN where the loaded wall is undercut,
+    ``contact_force`` R23 on the working flank (N, < 0: on the other flank)."""
 
     phi: np.ndarray
     pressure_angle: np.ndarray
@@ -66,6 +67,7 @@ class CamDesign:
     undercut: float
     sigma_h: np.ndarray
     sigma_allow: float
+    contact_force: np.ndarray
     checks: list[Check] = field(default_factory=list)
 
 
@@ -89,13 +91,17 @@ def design_checks(mech: "PinInsertionMechanism", omega: float, high_speed: bool 
     # R23n > 0 turns the follower towards larger ψ, which moves the roller towards the cam centre (§3.1 coordinates,
     # docs/cam-bar.md): the wall that pushes it so is the outer one, at r + r_R, concave to the roller
     outer = (ks.R23n >= 0.0) == (_towards_centre(mech, phi) > 0.0)
-    sigma = hertz_line_stress(ks.R23n, mech.roller_width, mech.r_R, flank_radius(pc.rho, mech.r_R, outer),
-                              effective_modulus(E, nu, E, nu))
-    out = CamDesign(phi, ks.pressure_angle, a_lim, pc.rho, cut, sigma, sigma_allow)
+    wall = flank_radius(pc.rho, mech.r_R, outer)
+    fits = 1.0 / mech.r_R + 1.0 / wall > 0.0        # else the wall's offset curve loops there (undercut): no contact
+    sigma = np.full(phi.size, np.nan)
+    sigma[fits] = hertz_line_stress(ks.R23n[fits], mech.roller_width, mech.r_R, wall[fits],
+                                    effective_modulus(E, nu, E, nu))
+    out = CamDesign(phi, ks.pressure_angle, a_lim, pc.rho, cut, sigma, sigma_allow, ks.R23n)
     c = out.checks
     i = int(np.argmax(ks.pressure_angle))
     c.append(Check("max pressure angle", degrees(ks.pressure_angle[i]), degrees(a_lim), "°", "≤",
                    f"at φ = {degrees(phi[i]):.1f}°, oscillating follower, {'high' if high_speed else 'low'} speed"))
+    c.append(_flank_check(phi, ks.R23n, mech.clearance))
     convex = pc.rho > 0.0
     i = int(np.argmin(np.where(convex, pc.rho, np.inf)))
     c.append(Check("min convex pitch radius", pc.rho[i] * 1e3, cut * 1e3, "mm", "≥",
@@ -104,16 +110,38 @@ def design_checks(mech: "PinInsertionMechanism", omega: float, high_speed: bool 
         i = int(np.argmin(np.where(convex, np.inf, -pc.rho)))
         c.append(Check("min concave pitch radius", -pc.rho[i] * 1e3, cut * 1e3, "mm", "≥",
                        f"at φ = {degrees(phi[i]):.1f}°, outer flank of the groove"))
-    i = int(np.argmax(sigma))
-    c.append(Check("max Hertz stress", sigma[i] / 1e6, sigma_allow / 1e6, "MPa", "≤",
-                   f"at φ = {degrees(phi[i]):.1f}°, |R23| = {abs(ks.R23n[i]):.1f} N on the "
-                   f"{'outer (concave) wall, r + r_R' if outer[i] else 'inner (convex) wall, r − r_R'}"
-                   f"{'' if ks.R23n[i] >= 0.0 else ' (the other flank: R23 < 0)'}, width {mech.roller_width * 1e3:g} mm, steel "
-                   f"E = {E / 1e9:g} GPa, ν = {nu:g} (assumptions)"))
+    i = int(np.nanargmax(sigma)) if fits.any() else 0
+    where = (f"at φ = {degrees(phi[i]):.1f}°, |R23| = {abs(ks.R23n[i]):.1f} N on the "
+             f"{'outer (concave) wall, r + r_R' if outer[i] else 'inner (convex) wall, r − r_R'}"
+             f"{'' if ks.R23n[i] >= 0.0 else ' (the other flank: R23 < 0)'}, width {mech.roller_width * 1e3:g} mm, steel "
+             f"E = {E / 1e9:g} GPa, ν = {nu:g} (assumptions)")
+    if not fits.all():
+        j = int(np.argmin(fits))
+        where = (f"the loaded wall is undercut from φ = {degrees(phi[j]):.1f}° ({np.count_nonzero(~fits)} of {phi.size} "
+                 f"angles: its radius {wall[j] * 1e3:.4g} mm against the {mech.r_R * 1e3:g} mm roller, the offset "
+                 f"curve loops — no contact geometry there); elsewhere {np.nanmax(sigma, initial=0.0) / 1e6:.5g} MPa "
+                 + where)
+    c.append(Check("max Hertz stress", sigma[i] / 1e6 if fits.all() else np.inf, sigma_allow / 1e6, "MPa", "≤",
+                   where))
     c.extend(_sizing_checks(mech, load_coefficient))
     c.append(_flat_follower_check(mech, phi, pc))
     c.append(_synthesis_check(mech, phi))
     return out
+
+
+def _flank_check(phi: np.ndarray, normal: np.ndarray, clearance: float) -> Check:
+    """Force closure (MODELS §2): the contact force on the working flank R23 stays > 0; where it changes sign the
+    roller crosses the groove's clearance to the other flank (the jump)."""
+    i = int(np.argmin(normal))
+    note = "the roller stays on the working flank" if normal[i] > 0.0 else ""
+    if normal[i] <= 0.0:
+        neg = np.flatnonzero(normal <= 0.0)
+        runs = np.split(neg, np.flatnonzero(np.diff(neg) > 1) + 1)
+        spans = ", ".join(f"{degrees(phi[r[0]]):.1f}–{degrees(phi[r[-1]]):.1f}°" for r in runs)
+        note = (f"R23 ≤ 0 over φ = {spans}: the roller crosses the {clearance * 1e3:g} mm clearance to the other "
+                f"flank (a jump; level 2 simulates it)")
+    return Check("min contact force on the working flank", float(normal[i]), 0.0, "N", "≥", f"at φ = "
+                 f"{degrees(phi[i]):.1f}°, level 1 at the scene's speed and spring; {note}")
 
 
 def _towards_centre(mech: "PinInsertionMechanism", phi: np.ndarray) -> np.ndarray:
@@ -132,8 +160,11 @@ def _sizing_checks(mech: "PinInsertionMechanism", load: float) -> list[Check]:
     rf = flocke_base_radius(law, h, big_phi, a_lim)
     re = exact_base_radius(law, h, big_phi, a_lim)
     what = f"centric translating roller follower on the rise ({seg.law}, h = {h * 1e3:g} mm, Φ = {degrees(big_phi):g}°)"
-    rows = [Check("Flocke base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, rf).max()),
-                  degrees(a_lim), "°", "info", f"r_b = {rf * 1e3:.2f} mm for {what}: evaluated at s'_max it is too small"),
+    flocke = degrees(pressure_angles(law, h, big_phi, rf).max())
+    verdict = ("evaluated at s'_max it is too small" if not isclose(flocke, degrees(a_lim), rel_tol=1e-9) else
+               "exact for this law (its steepest pressure angle lies at s'_max)")
+    rows = [Check("Flocke base radius: max pressure angle", flocke, degrees(a_lim), "°", "info",
+                  f"r_b = {rf * 1e3:.2f} mm for {what}: {verdict}"),
             Check("exact base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, re).max()),
                   degrees(a_lim), "°", "≤", f"r_b = {re * 1e3:.2f} mm (max over the rise, not at s'_max)")]
     model = SizeModel(law, big_phi, mech.mu, load)
