@@ -76,11 +76,7 @@ RUN_SETTING = {"scene": ("seed", "cycles", "duration", "name", "description", "m
 def machine_of(scene_text: str) -> dict[str, str]:
     """The recorded scene's values that describe the machine (dotted key → value as written), without
     :data:`RUN_SETTING`; {} for a recording without its scene or with one that does not parse."""
-    import tomllib
-    try:
-        data = tomllib.loads(scene_text)
-    except (tomllib.TOMLDecodeError, TypeError):
-        return {}
+    data = _scene_data(scene_text)
     out: dict[str, str] = {}
 
     def walk(node: object, key: str) -> None:
@@ -166,13 +162,19 @@ def summarise(path: Path) -> RecordingSummary:
 def _scene_table(scene_text: str) -> dict[str, object]:
     """The recorded scene's name, plant and seed ([scene]): what the run's metadata says, for a recording whose
     metadata record was lost ({} without a scene that parses)."""
-    import tomllib
-    try:
-        table = tomllib.loads(scene_text).get("scene", {})
-    except (tomllib.TOMLDecodeError, TypeError, AttributeError):
-        return {}
+    table = _scene_data(scene_text).get("scene", {})
     return {("scene" if k == "name" else k): table[k] for k in ("name", "plant", "seed") if k in table} \
         if isinstance(table, dict) else {}
+
+
+def _scene_data(scene_text: str | None) -> dict:
+    """The recorded scene as TOML data; {} for a recording without its scene (None) or with one that does not
+    parse (damaged)."""
+    import tomllib
+    try:
+        return tomllib.loads(scene_text) if isinstance(scene_text, str) else {}
+    except tomllib.TOMLDecodeError:
+        return {}
 
 
 def summarise_all(paths: list[Path]) -> list[RecordingSummary]:

@@ -24,12 +24,21 @@ def _ranges(numbers: list[int]) -> str:
     return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
 
 
+#: the first path element of every topic rig records (schemas: /plant, /can, /device, /stand, /view, /events, /log)
+RIG_TOPICS = ("plant", "can", "device", "stand", "view", "events", "log")
+
+
 def nothing_recorded(rec: Recording) -> str | None:
-    """Why a recording read with ``allow_partial`` holds nothing to report or analyse (no message), in words; None
-    when it holds messages."""
-    if rec.message_counts:
+    """Why a recording read with ``allow_partial`` holds nothing to report or analyse, in words: no message, or none
+    of rig's (a file another program wrote: no rig metadata, no scene, no rig topic); None when it holds some."""
+    if not rec.message_counts:
+        return "the recording holds no message: " + "; ".join(rec.problems or ["no message was written"])
+    ours = [t for t in rec.message_counts if t.split("/")[1:2] and t.split("/")[1] in RIG_TOPICS]
+    if ours or S.RIG_METADATA in rec.metadata or rec.scene_text is not None:
         return None
-    return "the recording holds no message: " + "; ".join(rec.problems or ["no message was written"])
+    topics = sorted(rec.message_counts)
+    return (f"not a rig recording: no rig metadata, no scene and none of rig's topics (it holds "
+            f"{', '.join(topics[:5])}{', …' if len(topics) > 5 else ''})")
 
 
 def file_problem(rec: Recording) -> str:

@@ -182,3 +182,31 @@ def test_a_folder_gives_its_recordings_whatever_the_case_of_their_extension(tmp_
     (tmp_path / "UP.MCAP").write_bytes(b"x")
     (tmp_path / "notes.txt").write_bytes(b"x")
     assert sorted(p.name for p in expand([str(tmp_path)])) == ["UP.MCAP", "a.mcap"]
+
+
+def test_a_file_another_program_wrote_or_a_lost_scene_does_not_stop_the_batch(recordings, tmp_path, capsys):
+    """A valid MCAP without anything of rig's is an unreadable row naming why (and `rig report` refuses it); a
+    recording whose scene attachment is lost or damaged is analysed (the scene's values used to raise
+    AttributeError on None and stop the whole batch)."""
+    from mcap.writer import Writer
+
+    from rig.analysis.batch import machine_of
+    foreign = tmp_path / "foreign.mcap"
+    with open(foreign, "wb") as fh:
+        w = Writer(fh)
+        w.start()
+        channel = w.register_channel(topic="/foo", message_encoding="json",
+                                     schema_id=w.register_schema(name="x", encoding="jsonschema", data=b"{}"))
+        for i in range(3):
+            w.add_message(channel, log_time=i, data=b"{}", publish_time=i)
+        w.finish()
+    assert machine_of(None) == {} and machine_of("[scene\nname = ") == {}
+    out = tmp_path / "an"
+    capsys.readouterr()
+    assert main(["-q", "analyse", str(foreign), str(recordings / "run2.mcap"), "-o", str(out)]) == 0
+    rows = {r["recording"].rsplit("/", 1)[1]: r for r in csv.DictReader((out / "recordings.csv").open())}
+    assert rows["foreign.mcap"]["error"] == ("not a rig recording: no rig metadata, no scene and none of rig's topics "
+                                             "(it holds /foo)")
+    assert rows["run2.mcap"]["curves"] == "2" and not rows["run2.mcap"]["error"]
+    assert main(["-q", "report", str(foreign), "-o", str(tmp_path / "rep")]) == 2
+    assert "not a rig recording" in capsys.readouterr().err and not (tmp_path / "rep").exists()
