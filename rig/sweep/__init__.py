@@ -44,7 +44,11 @@ def parse_param(text: str) -> Param:
                          f"'plant.k=1.09 N/mm,1.89 N/mm'")
     if len(key.split(".")) < 2:
         raise ValueError(f"--param {text!r}: {key!r} names a section, not a key (e.g. plant.k)")
-    return Param(key, tuple(_literal(p) for p in parts))
+    values = tuple(_literal(p) for p in parts)
+    twice = [v for i, v in enumerate(parts) if v in parts[:i]]
+    if twice:
+        raise ValueError(f"--param {key}: the value {twice[0]!r} is given twice (each point once)")
+    return Param(key, values)
 
 
 def check_units(scene: Scene, params: Sequence[Param]) -> None:
@@ -57,15 +61,19 @@ def check_units(scene: Scene, params: Sequence[Param]) -> None:
         unit = unit_of(node) if isinstance(node, str) else None
         if unit is None:
             continue
+        seen: dict[float, Any] = {}
         for value in param.values:
             what = f"--param {param.key}={value}"
             if isinstance(value, (int, float)) and not isinstance(value, bool):
                 raise UsageError(f'{what}: {value} has no unit; the scene writes {param.key} = "{node}": give the '
                                  f'unit, e.g. "{param.key}={value} {unit}"')
             try:
-                to_si(value, unit, what=what)
+                si = to_si(value, unit, what=what)
             except UnitError as exc:
                 raise UsageError(str(exc)) from None
+            if si in seen:
+                raise UsageError(f"--param {param.key}: {value!r} is the same value as {seen[si]!r} (each point once)")
+            seen[si] = value
 
 
 def grid(params: Sequence[Param]) -> list[tuple[Any, ...]]:

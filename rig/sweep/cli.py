@@ -17,7 +17,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.console import progress as progress_bar
     from rig.sweep import grid, parse_param
     from rig.sweep.plots import MAX_MAPS, plot_sweep
-    from rig.sweep.run import SweepInterrupted, levels_text, run_sweep, write_table
+    from rig.sweep.run import SweepInterrupted, inert_params, levels_text, run_sweep, write_table
     params = [parse_param(p) for p in args.param]
     scene = load_scene(args.scene)
     out = Path(args.output)
@@ -57,6 +57,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
           f"{partly} -> {table}")
     for point, error in failed[:5]:
         print(f"  failed at {', '.join(f'{p.key} = {v}' for p, v in zip(params, point))}: {error}")
+    for key in inert_params(result):
+        print(f"note: {key} changed none of the metrics ({', '.join(result.metrics)}): every value gave the same "
+              f"numbers — check that the model uses this key for them (docs/scale-out.md)")
     for path in plot_sweep(result, out):
         print(f"map: {path}")
     list_written(out, MANIFEST, before)

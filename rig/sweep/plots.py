@@ -97,13 +97,23 @@ def plot_sweep(result: SweepResult, out_dir: Path) -> list[Path]:
                     ax.annotate(f"L{level}", (xi, yi), textcoords="offset points", xytext=(0, 6), ha="center",
                                 fontsize=8)
             _no_value_note(ax, np.asarray(y, dtype=float))
+            failed = [xi for xi, yi in zip(xs, y) if np.isnan(yi)]
+            if failed and len(failed) < len(y):    # a failed point is shown where it would be, not left out
+                ax.plot(failed, [0.0] * len(failed), "x", color="tab:red", ms=9, mew=2, clip_on=False,
+                        transform=ax.get_xaxis_transform(), label="failed (sweep.csv's error column)")
+                ax.legend(fontsize=8, loc="best")
             if x is None:                     # words, or values in different units: in order, evenly spaced
                 ax.set_xticks(range(len(y)), [_label(v) for v in p.values])
+            elif len(xs) <= 12:               # few points: a tick at each value swept (seeds: whole numbers)
+                ax.set_xticks(sorted(set(xs)), [f"{v:g}" for v in sorted(set(xs))])
             ax.set_xlabel(p.key + (f" ({unit})" if unit else ""))
             ax.set_ylabel(label)
             ax.set_title(title, fontsize=9)
             if integer:
                 ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+                finite = np.asarray(y, dtype=float)[np.isfinite(np.asarray(y, dtype=float))]
+                if finite.size and np.ptp(finite) < 2:   # a flat count: whole-number ticks need two whole numbers
+                    ax.set_ylim(finite.min() - 1.0, finite.max() + 1.0)     # in the range, and a margin round it
             ax.grid(True)
             path = out_dir / f"{metric}.png"
             fig.tight_layout()

@@ -193,9 +193,26 @@ def _given(message: str, overrides: dict[str, Any]) -> str:
         twice = re.search(rf"\[{re.escape(section)}\]: '(\w+)' is given twice \(as '(\w+)' and '(\w+)'\)", message)
         if twice and name in twice.group(2, 3):
             written = next(k for k in twice.group(2, 3) if k != name)
-            return (f"--param {key}={value}: the scene gives {twice[1]!r} as {written!r}: sweep {section}.{written} "
-                    f"(one spelling per quantity)")
+            return (f"--param {key}={value}: {name!r} is another spelling of {twice[1]!r}, which the scene already "
+                    f"writes as {written!r}: sweep {section}.{written} (one spelling per quantity)")
     return ""
+
+
+def inert_params(result: SweepResult) -> list[str]:
+    """The keys of the parameters that changed nothing: among points that differ only in that parameter's value, every
+    metric is the same (NaN equal to NaN); a sweep over such a key (an assembly-branch selector, a key the metrics do
+    not depend on) says nothing, and the console says so."""
+    inert = []
+    for i, param in enumerate(result.params):
+        if len(param.values) < 2:
+            continue
+        groups: dict[tuple, set[tuple]] = {}
+        for point, values in zip(result.points, result.values):
+            rest = point[:i] + point[i + 1:]
+            groups.setdefault(rest, set()).add(tuple(repr(values[m]) for m in result.metrics))
+        if all(len(seen) == 1 for seen in groups.values()):
+            inert.append(param.key)
+    return inert
 
 
 def levels_text(levels: Sequence[int]) -> str:

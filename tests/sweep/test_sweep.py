@@ -459,8 +459,9 @@ def test_a_swept_spelling_of_a_key_the_scene_writes_otherwise_is_blamed_on_the_p
     and another spelling)" blamed the scene file; now the option, and the key to sweep instead."""
     assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.L3_mm=300", "--metric", "rod_force_peak",
                  "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
-    assert capsys.readouterr().err == ("rig: error: --param plant.L3_mm=300: the scene gives 'L3' as 'L3': sweep "
-                                       "plant.L3 (one spelling per quantity)\n")
+    assert capsys.readouterr().err == ("rig: error: --param plant.L3_mm=300: 'L3_mm' is another spelling of 'L3', "
+                                       "which the scene already writes as 'L3': sweep plant.L3 (one spelling per "
+                                       "quantity)\n")
 
 
 def test_ctrl_c_before_any_point_leaves_an_earlier_sweep_as_it_was(tmp_path, monkeypatch, capsys):
@@ -479,3 +480,27 @@ def test_ctrl_c_before_any_point_leaves_an_earlier_sweep_as_it_was(tmp_path, mon
     assert main(base) == 130
     assert (out / "sweep.csv").read_text() == table and (out / "rod_force_peak.png").exists()
     assert "interrupted before any of its 2 points was done; nothing written" in capsys.readouterr().err
+
+
+def test_a_value_given_twice_is_refused_as_written_or_in_si(tmp_path, capsys):
+    """Each point once: a repeated value (as written, or the same in SI) used to run twice and write two rows."""
+    with pytest.raises(ValueError, match="the value '1.09 N/mm' is given twice"):
+        parse_param("plant.k=1.09 N/mm,1.89 N/mm,1.09 N/mm")
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.k=1.09 N/mm,1090 N/m", "--metric",
+                 "rod_force_peak", "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
+    assert "--param plant.k: '1090 N/m' is the same value as '1.09 N/mm' (each point once)" in capsys.readouterr().err
+
+
+def test_a_parameter_that_changes_no_metric_is_named():
+    """plant.alpha_sk only picks the chain's assembly branch: a sweep over it gave the same numbers at every value
+    without a word. A parameter is inert when points differing only in it agree on every metric (NaN too)."""
+    from rig.sweep import Param
+    from rig.sweep.run import SweepResult, inert_params
+    params = (Param("plant.alpha_sk", ("4.65 deg", "10 deg")), Param("plant.k", ("1.09 N/mm", "1.89 N/mm")))
+    points = [(a, k) for a in params[0].values for k in params[1].values]
+    by_k = {"1.09 N/mm": 1.0, "1.89 N/mm": math.nan}
+    values = [{"m": by_k[k]} for _, k in points]
+    result = SweepResult(params, ("m",), points, values, [""] * 4, [1] * 4)
+    assert inert_params(result) == ["plant.alpha_sk"]
+    values[3] = {"m": 2.0}                      # alpha_sk now matters at k = 1.89 N/mm
+    assert inert_params(SweepResult(params, ("m",), points, values, [""] * 4, [1] * 4)) == []
