@@ -346,7 +346,7 @@ def report_lines(result: BatchResult) -> list[str]:
             lines.append(f"| {g} | {len(mine)} | {c} | {c - bad} | {bad} |")
         lines.append("")
     if result.combined:
-        kinds = [what for prefix, what in (("stand.", "stand"), ("lab.", "lab"))
+        kinds = [what for prefix, what in (("stand.", "stand"), ("static.", "static"), ("lab.", "lab"))
                  if any(name.startswith(prefix) for _, name in result.combined)]
         lines += ["## Process values" + (f" and {' and '.join(kinds)} results" if kinds else "")
                   + " per scene (over all its recordings)", "",

@@ -62,8 +62,8 @@ VALUE_UNITS = {"counter_rpm": "rpm", "truth_rpm": "rpm", "resolution_rpm": "rpm"
 
 
 def value_unit(name: str) -> str:
-    """SI unit of the sheet result number ``name`` ("1": a ratio or a count)."""
-    return VALUE_UNITS.get(name, "1")
+    """SI unit of the sheet result number ``name`` ("1": a ratio or a count); ``…_theory`` has its measured value's."""
+    return VALUE_UNITS.get(name.removesuffix("_theory"), "1")
 
 
 def shown_value(name: str, value: float) -> tuple[float, str]:

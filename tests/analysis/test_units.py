@@ -62,3 +62,4 @@ def test_an_energy_is_shown_in_joules_not_as_a_torque():
     from rig.analysis.units import unit
     assert (unit("J").label, unit("N*m").label) == ("J", "N·m")
     assert shown_value("work_per_turn", 0.0037) == (0.0037, "J")
+    assert shown_value("work_per_turn_theory", 0.0037) == (0.0037, "J")      # a theory beside its value: same unit

@@ -98,6 +98,15 @@ def test_rig_tolerance_json_is_the_same_on_serial_and_dask(tmp_path, dask_schedu
     assert all(a <= lo <= hi <= b for a, lo, hi, b in zip(mc["min"], mc["p0.135"], mc["p99.865"], mc["max"]))
     from rig.cli import DEFAULT_SCENE
     assert data["run"] == {"scene": str(DEFAULT_SCENE), "seed": 20240611, "machines": 3000, "task_samples": 700}
+    # each run names its seed, and that seed gives its numbers again through the API
+    assert (mc["seed"], data["monte_carlo_clearance"]["seed"]) == (20240611, 20240612)
+    from rig.plants.cam_bar.montecarlo import monte_carlo
+    from rig.plants.cam_bar.tolerance import CamChain, load_tolerances
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene
+    from rig.scene import load_scene
+    chain = CamChain.from_mechanism(mechanism_from_scene(load_scene(DEFAULT_SCENE)), np.radians(np.arange(0.0, 360.0)))
+    again = monte_carlo(chain, load_tolerances(), 3000, data["monte_carlo_clearance"]["seed"], task_samples=700)
+    assert again.mean.tolist() == data["monte_carlo_clearance"]["mean"]
 
 
 def test_commands_choose_their_local_dask_kind(monkeypatch):

@@ -18,16 +18,23 @@ from rig.plants.cam_bar.tolerance import PARAMS, CamChain, LinearResult, Toleran
 if TYPE_CHECKING:
     from rig.executors import Executor
 
+CLEARANCE_SEED = 1        # the run with the clearance law draws from seed + this: its machines are not the first run's
 TABLE_ANGLES = (90.0, 120.0, 150.0, 180.0, 200.0, 260.0)  # deg: rise, top of the rise, return
 
 
 @dataclass(frozen=True)
 class ToleranceStudy:
-    """Linear and Monte-Carlo results on one angle grid, the MC run without and with the clearance law."""
+    """Linear and Monte-Carlo results on one angle grid, the MC run without and with the clearance law, and the seed
+    each run drew from (the clearance run from seed + :data:`CLEARANCE_SEED`)."""
 
     linear: LinearResult
     mc: MonteCarloResult
     mc_clearance: MonteCarloResult | None
+    seed: int = 0
+
+    @property
+    def clearance_seed(self) -> int:
+        return self.seed + CLEARANCE_SEED
 
 
 def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed: int,
@@ -45,10 +52,10 @@ def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed
     with progress_bar(total, label, " machine evaluations", progress, unit_scale=True) as bar:
         def count(k: int) -> None:          # a rare extra refinement pass must not run the bar past 100 %
             bar.update(min(k, total - bar.n))
-        mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, seed + 1, executor,
-                                                                     task_samples, progress=count)
+        mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, seed + CLEARANCE_SEED,
+                                                                     executor, task_samples, progress=count)
         mc = monte_carlo(chain, lengths_only, samples, seed, executor, task_samples, progress=count)
-    return ToleranceStudy(linear_analysis(chain, tol), mc, mc_c)
+    return ToleranceStudy(linear_analysis(chain, tol), mc, mc_c, seed)
 
 
 def study_json(study: ToleranceStudy, run: dict | None = None) -> dict:
@@ -57,15 +64,15 @@ def study_json(study: ToleranceStudy, run: dict | None = None) -> dict:
     machines, task size), written first."""
     lin = study.linear
 
-    def mc_data(mc: MonteCarloResult) -> dict:
-        return {"machines": mc.n, "mean": mc.mean.tolist(), "std": mc.std.tolist(), "min": mc.minimum.tolist(),
+    def mc_data(mc: MonteCarloResult, seed: int) -> dict:
+        return {"machines": mc.n, "seed": seed, "mean": mc.mean.tolist(), "std": mc.std.tolist(), "min": mc.minimum.tolist(),
                 "max": mc.maximum.tolist(), **{f"p{p:g}": mc.percentiles[p].tolist() for p in PERCENTILES}}
 
     out = {"run": run or {}, "unit": "m", "phi_deg": np.round(np.degrees(lin.phi), 9).tolist(),
            "linear": {"rss": lin.rss.tolist(),
-           "worst": lin.worst.tolist(), "signed": lin.signed.tolist()}, "monte_carlo": mc_data(study.mc)}
+           "worst": lin.worst.tolist(), "signed": lin.signed.tolist()}, "monte_carlo": mc_data(study.mc, study.seed)}
     if study.mc_clearance is not None:
-        out["monte_carlo_clearance"] = mc_data(study.mc_clearance)
+        out["monte_carlo_clearance"] = mc_data(study.mc_clearance, study.clearance_seed)
     return out
 
 
