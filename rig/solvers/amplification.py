@@ -45,14 +45,16 @@ def jacobian(fun: Callable, t: float, y: Sequence[float], h: float = 0.0) -> np.
     return J if np.all(np.isfinite(J)) else None
 
 
-def step_matrix(method: str, hJ: np.ndarray, nq: int = 0) -> np.ndarray:
-    """M of one step of ``method`` on y' = J·y (``nq``: positions first, for symplectic Euler's kick–drift)."""
+def step_matrix(method: str, hJ: np.ndarray, positions: Sequence[int] = ()) -> np.ndarray:
+    """M of one step of ``method`` on y' = J·y (``positions``: the indices of the positions, for symplectic Euler's
+    kick–drift)."""
     n = hJ.shape[0]
     if method == "symplectic_euler":
-        q, v = slice(0, nq), slice(nq, n)
+        q = np.asarray(sorted(positions), dtype=int)
+        v = np.setdiff1d(np.arange(n), q)
         M = np.eye(n)
         M[v, :] += hJ[v, :]                                   # kick: v' = v + h·(J_vq q + J_vv v)
-        M[q, :] += hJ[q, q] @ np.eye(n)[q, :] + hJ[q, v] @ M[v, :]    # drift with the kicked v'
+        M[q, :] += hJ[np.ix_(q, q)] @ np.eye(n)[q, :] + hJ[np.ix_(q, v)] @ M[v, :]    # drift with the kicked v'
         return M
     z = hJ
     power, M = np.eye(n), np.zeros((n, n))
@@ -72,8 +74,8 @@ class Amplification:
     """The test for one method: ``check(t, y, h)`` → (ρ(M), ρ(exp(hJ)), λ) with λ the eigenvalue of J that the
     method amplifies most, or None where J is not available (n + 1 RHS calls)."""
 
-    def __init__(self, fun: Callable, method: str, nq: int = 0):
-        self.fun, self.method, self.nq = fun, method, nq
+    def __init__(self, fun: Callable, method: str, positions: Sequence[int] = ()):
+        self.fun, self.method, self.positions = fun, method, tuple(positions)
 
     def check(self, t: float, y: Sequence[float], h: float) -> tuple[float, float, complex] | None:
         J = jacobian(self.fun, t, y, h)
@@ -82,7 +84,7 @@ class Amplification:
         lam = np.linalg.eigvals(J)
         with np.errstate(over="ignore", invalid="ignore"):      # an exact growth beyond float range is inf: so said
             exact = float(np.max(np.exp(h * lam.real)))
-            rho = spectral_radius(step_matrix(self.method, h * J, self.nq))
+            rho = spectral_radius(step_matrix(self.method, h * J, self.positions))
         worst = lam[np.argmax(np.abs(POLYNOMIALS[self.method](h * lam)))] if self.method in POLYNOMIALS \
             else lam[np.argmax(np.abs(lam))]
         return rho, exact, complex(worst)
@@ -96,7 +98,7 @@ class Amplification:
         for _ in range(50):
             mid = 0.5 * (lo + hi)
             with np.errstate(over="ignore", invalid="ignore"):
-                rho = spectral_radius(step_matrix(self.method, mid * J, self.nq))
+                rho = spectral_radius(step_matrix(self.method, mid * J, self.positions))
             if rho <= 1.0 + 1e-12:
                 lo = mid
             else:

@@ -80,6 +80,7 @@ class StiffnessMonitor:
         self.origin: tuple | None = None               # the run's first (t, y), for the divergence report
         self._steps, self._next_check, self._last_check = 0, self.DENSE, -1    # index of the step checked last
         self._h_since = 0.0                            # the largest step taken since the last check (s)
+        self._hot: list[int] = []                      # steps of the current batch whose h·|λ| passed the limit
         self._hits = [0, 0, 0.0]                       # positive and negative checks, summed spurious log-growth
         self._slow = 0.0                               # net spurious log-growth however small per step (see below)
         self.calls = 0                                 # RHS calls the amplification test made
@@ -94,7 +95,7 @@ class StiffnessMonitor:
             return
         if self.fixed and len(t):
             self._growth(t, np.asarray(y, dtype=float), h)
-            self._amplification(t, y, h)
+            self._amplification(t, y, h, hl)
             return
         if self.count == 0 and (known.size == 0 or known.max() <= self.limit):
             self.calm += len(hl)
@@ -112,7 +113,7 @@ class StiffnessMonitor:
             return
         if self.fixed:
             self._growth([t], np.array([y], dtype=float), [h])
-            self._amplification([t], [y], [h])
+            self._amplification([t], [y], [h], [hl])
             return
         self._stiffness(t, y, h, hl)
 
@@ -168,8 +169,11 @@ class StiffnessMonitor:
                            f"remove the stiffness (e.g. a switched stick-slip friction model instead of a steep "
                            f"regularisation)")
 
-    def _amplification(self, t, y, h) -> None:
-        """Run the amplification test on the steps due among these (ends t, states y, sizes h): the spurious
+    def _amplification(self, t, y, h, hl=()) -> None:
+        """Run the amplification test on the steps due among these (ends t, states y, sizes h, Hairer's estimates hl
+        of h·|λ|): every SPARSE steps, every DENSE after a positive check, and at a step whose estimate passed the
+        method's limit (at most every DENSE steps: a stiff mode that acts only part of the time — a contact between
+        flights across a clearance — is looked at while it acts, not only where a schedule happens to fall). The spurious
         growth log(ρ(M)/ρ(exp(hJ))) is summed over the steps between positive checks; a report once it reaches
         a factor ``SPURIOUS`` over at least two positive checks (more checks where the method damps than positive
         ones since the first positive one start over; neutral states, e.g. no stiff mode, do not count). Growth
@@ -180,6 +184,9 @@ class StiffnessMonitor:
             return
         first = self._steps
         self._steps += len(t)
+        over = np.asarray(hl, dtype=float) > self.limit
+        self._hot = (first + np.flatnonzero(over)).tolist() if over.any() else []
+        self._pull_check()
         if self._next_check >= self._steps:            # no check due among these steps (most calls): the largest
             self._h_since = max(self._h_since, _largest(h))     # step since the last one, for finish()
             return
@@ -218,6 +225,16 @@ class StiffnessMonitor:
                 if self._hits[1] > self._hits[0]:
                     self._hits = [0, 0, 0.0]
             self._next_check += self.DENSE if self._hits[0] else self.SPARSE
+            self._pull_check()
+
+    def _pull_check(self) -> None:
+        """Bring the next check forward to the first step of :attr:`_hot` (estimates beyond the limit) at least DENSE
+        steps after the last check."""
+        hot = self._hot
+        while hot and hot[0] < self._last_check + self.DENSE:
+            hot.pop(0)
+        if hot and hot[0] < self._next_check:
+            self._next_check = hot[0]
 
     def finish(self, t: float, y: Sequence[float]) -> None:
         """End of a run at (t, y): the amplification test of a fixed-step method once more over the steps since its
@@ -245,8 +262,9 @@ class StiffnessMonitor:
                "no practical step keeps this method from amplifying a mode this lightly damped: use symplectic "
                "Euler, RK4 or the implicit method Rodas4")
         slow = rho <= exact * (1.0 + self.EXCESS)
-        grown = ("" if accumulated is None else
-                 f"; {'slowly, but ' if slow else ''}{math.exp(accumulated):.3g}-fold since the run began")
+        fold = f"{math.exp(accumulated):.3g}" if accumulated is not None and accumulated < 700.0 else \
+            f"10^{accumulated / math.log(10.0):.0f}" if accumulated is not None else ""    # exp overflows past ~709
+        grown = "" if accumulated is None else f"; {'slowly, but ' if slow else ''}{fold}-fold since the run began"
         self._report(t, y, f"{self.method} unstable at t = {t:.6g} s: at h = {h:.3g} s the step amplifies the "
                            f"mode lambda = {lam.real:.4g}{lam.imag:+.4g}j 1/s (|lambda| = {abs(lam):.4g} 1/s, damping "
                            f"ratio {zeta:.3g}) by {rho:.6g} per step while the exact flow changes it by {exact:.6g} "

@@ -57,10 +57,11 @@ class JitRhs:
 
 
 #: slots of the compiled step's work vector: T, H_ABS (in, updated to t_new, h_next), T_BOUND, RTOL,
-#: ATOL, MAX_STEP, NQ (in: settings; NQ = number of positions q of a (q, v) state), H, NFEV, HL, NEV, FAIL
+#: ATOL, MAX_STEP, QMASK (in: settings; QMASK = the position components of a (q, v) state as a bit mask, bit i for
+#: component i), H, NFEV, HL, NEV, FAIL
 #: (out: last step taken — or the failed one —, RHS calls, Hairer's stiffness estimate h·|λ|, events acted
 #: on in a run, failure status of a run: 1 step-size underflow, 2 non-finite state of a fixed-step method)
-T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, NQ, H, NFEV, HL, NEV, FAIL = range(12)
+T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, QMASK, H, NFEV, HL, NEV, FAIL = range(12)
 TEMPLATES = Path(__file__).with_name("templates")
 _KERNELS = re.compile(r"# <kernels>\n.*?# </kernels>\n", re.DOTALL)
 _INCLUDE = re.compile(r"^# <include (\w+)>\n", re.MULTILINE)     # a method template's shared part (templates/erk.py)

@@ -34,8 +34,9 @@ class Euler(FixedStepper):
 
 
 class SymplecticEuler(FixedStepper):
-    """Semi-implicit (symplectic) Euler for a second-order system with state y = (q, v), the first ``nq``
-    components positions (default half the state): kick v_new = v + h·f_v(t, q, v), then drift
+    """Semi-implicit (symplectic) Euler for a second-order system with positions q and velocities v: ``positions``
+    the indices of q in the state (in any order, e.g. (e, τė, φ, ω) → (0, 2)), or ``nq`` for the first nq
+    components (default: the first half): kick v_new = v + h·f_v(t, q, v), then drift
     q_new = q + h·f_q(t, q, v_new) — explicit, two RHS calls per step, order 1; for a Hamiltonian system
     with q̇ = v its energy error stays bounded instead of drifting (Hairer–Lubich–Wanner, *Geometric
     Numerical Integration*, §VI.3). Fixed step ``h`` (s), stability boundary h·ω ≤ 2 for an undamped
@@ -46,24 +47,32 @@ class SymplecticEuler(FixedStepper):
 
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, h: float = 1e-3,
                  first_step: float | None = None, stiffness: str = "raise", compiled: bool = True,
-                 nq: int | None = None):
+                 nq: int | None = None, positions: Sequence[int] | None = None):
         n = len(y0)
-        nq = n // 2 if nq is None else nq
         if n < 2:
             raise ValueError(f"symplectic Euler needs positions and velocities (at least 2 states), got {n}")
-        if not 1 <= nq < n:
-            raise ValueError(f"symplectic Euler: nq = {nq!r} positions must be in 1..{n - 1} for {n} states")
-        self.nq = nq
-        super().__init__(fun, t0, y0, t_bound, h, first_step, stiffness, compiled, nq)
+        if positions is not None and nq is not None:
+            raise ValueError("symplectic Euler: give the positions either as nq or as positions, not both")
+        if positions is None:
+            nq = n // 2 if nq is None else nq
+            if not 1 <= nq < n:
+                raise ValueError(f"symplectic Euler: nq = {nq!r} positions must be in 1..{n - 1} for {n} states")
+            positions = range(nq)
+        self.positions = tuple(sorted({int(i) for i in positions}))
+        if not 1 <= len(self.positions) < n or not 0 <= self.positions[0] <= self.positions[-1] < min(n, 53):
+            raise ValueError(f"symplectic Euler: positions {tuple(positions)!r} must name 1..{n - 1} of the {n} "
+                             f"state components (indices 0..{min(n, 53) - 1}), leaving at least one velocity")
+        super().__init__(fun, t0, y0, t_bound, h, first_step, stiffness, compiled, self.positions)
 
     def _options(self) -> dict:
-        return {"nq": self.nq}
+        return {"positions": self.positions}
 
     def _python_step(self) -> None:
-        t, y, f0, nq = self.t, self.y, self.f, self.nq
+        t, y, f0 = self.t, self.y, self.f
+        q = [i in self.positions for i in range(len(y))]
         h, t_new = self._fixed_h()
-        kicked = y[:nq] + tuple(a + h * b for a, b in zip(y[nq:], f0[nq:]))
+        kicked = tuple(a if is_q else a + h * b for a, b, is_q in zip(y, f0, q))
         f1 = tuple(self.fun(t, kicked))
         self.nfev += 1
-        y_new = tuple(a + h * b for a, b in zip(y[:nq], f1[:nq])) + kicked[nq:]
-        self._finish(t_new, y_new, h, (f0, f1[:nq] + f0[nq:]))
+        y_new = tuple(a + h * b if is_q else k for a, b, k, is_q in zip(y, f1, kicked, q))
+        self._finish(t_new, y_new, h, (f0, tuple(b if is_q else a for a, b, is_q in zip(f0, f1, q))))

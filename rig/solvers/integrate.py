@@ -89,7 +89,8 @@ class Problem:
     (a sequence, or a function ``(t0, tf) -> sequence`` of those in a span) and
     ``reset(t, y) -> bool`` (re-selects a discrete mode at the start and after restarts; True if changed);
     ``flow(t, y, t_bound)`` returns the exact solution from (t, y) in the current mode, or None
-    (asked at the start of every solver segment)."""
+    (asked at the start of every solver segment); ``positions`` the indices of the state's positions (the others
+    velocities: symplectic Euler's kick–drift split; empty: the first half)."""
 
     fun: Rhs
     y0: Sequence[float]
@@ -97,6 +98,7 @@ class Problem:
     time_breaks: Sequence[float] | Callable[[float, float], Sequence[float]] = ()
     reset: Callable[[float, tuple], bool] | None = None
     flow: Callable[[float, tuple, float], ClosedForm | None] | None = None
+    positions: Sequence[int] = ()
 
 
 @dataclass
@@ -188,7 +190,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     """Integrate ``problem`` over ``t_span`` with ``method`` (a name of :data:`METHODS` or a solver class).
 
     ``options`` go to the solver (rtol, atol, first_step, max_step, stiffness, compiled for DP45 and Rodas4;
-    h, stiffness, compiled for Euler, SymplecticEuler (and nq) and RK4).
+    h, stiffness, compiled for Euler, SymplecticEuler (and nq or positions; default the problem's) and RK4).
     ``t_eval`` (increasing, inside t_span) selects output times, otherwise every step is returned.
     """
     if isinstance(method, str) and method not in METHODS:
@@ -196,6 +198,9 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     t0, tf = float(t_span[0]), float(t_span[1])
     fun = problem.fun
     y = tuple(float(v) for v in (problem.y0 if y0 is None else y0))
+    cls = METHODS[method] if isinstance(method, str) else method
+    if problem.positions and issubclass(cls, SymplecticEuler) and "nq" not in options and "positions" not in options:
+        options = {**options, "positions": tuple(problem.positions)}     # the problem's kick–drift split
     batched = events is None                    # the RHS's event kernel, if any, matches problem.events
     events = list(problem.events if events is None else events)
     breaks = breaks_in(problem, t0, tf) + [tf]

@@ -74,7 +74,7 @@ class Stepper(OdeSolver):
         self._compiled = compiled and isinstance(fun, JitRhs)
 
     def _start(self, h_abs: float, rtol: float = 0.0, atol: float = 0.0, max_step: float = math.inf,
-               nq: int = 0) -> None:
+               positions: Sequence[int] = ()) -> None:
         """Set the first step size (s) and, for a compiled RHS, bind the compiled steps and their work vector."""
         self.h_abs = h_abs
         if self._compiled:
@@ -82,7 +82,8 @@ class Stepper(OdeSolver):
             self._jit, self._run, self._locate = compiled_solver(self.method, fun.kernel, fun.event, fun.act)
             self._p = fun.params()
             self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
-            self._w = np.array([self.t, h_abs, self.t_bound, rtol, atol, max_step, nq, 0.0, 0.0, 0.0, 0.0, 0.0])
+            self._w = np.array([self.t, h_abs, self.t_bound, rtol, atol, max_step, float(sum(1 << i for i in positions)),
+                                0.0, 0.0, 0.0, 0.0, 0.0])
 
     # ---- steps -------------------------------------------------------------------------------------------
     def _step_impl(self) -> None:
@@ -312,13 +313,14 @@ class FixedStepper(Stepper):
     fixed = True
 
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, h: float = 1e-3,
-                 first_step: float | None = None, stiffness: str = "raise", compiled: bool = True, nq: int = 0):
+                 first_step: float | None = None, stiffness: str = "raise", compiled: bool = True,
+                 positions: Sequence[int] = ()):
         super().__init__(fun, t0, y0, t_bound, stiffness, compiled)
         if not h > 0:
             raise ValueError(f"{self.label}: step h = {h!r} s must be positive")
         self.h = h
-        self._start(h, nq=nq)
-        self.monitor.watch = Amplification(fun, self.method, nq)
+        self._start(h, positions=positions)
+        self.monitor.watch = Amplification(fun, self.method, positions)
         self.check_at_end = True        # the amplification test once more on reaching t_bound (integrate() does it
                                         # itself at the end of the whole run, over its segments)
 

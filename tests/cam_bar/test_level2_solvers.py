@@ -95,3 +95,42 @@ def test_level2_fixed_step_beyond_the_contact_stability_limit_is_reported(method
     assert inside.stiff_at is None and inside.y_final[0] == pytest.approx(ref.y_final[0], rel=1e-3)
     fine = model.simulate((0.0, 0.1), method="RK4", h=1e-4).solution
     assert fine.y_final[0] == pytest.approx(ref.y_final[0], rel=1e-6)
+
+
+@pytest.mark.parametrize("method, h, span, width", [("RK4", 8e-4, 0.15, None), ("Euler", 1e-4, 0.2, 0.020)])
+def test_an_unstable_contact_between_flights_is_reported_wherever_the_run_ends(method, h, span, width):
+    """The machine as drawn at 300 rpm: the roller flies across the clearance part of the time, and the amplification
+    test's every-100-steps schedule fell in the flights (|λ| ≈ 11 1/s there). RK4 at 0.8 ms over 0.15 s then
+    finished with error 0.95 and 8 flank switches instead of 2, explicit Euler at 0.1 ms (20 mm roller) with 61 —
+    silently (an audit). A step whose h·|λ| estimate passes the method's limit now brings the next check forward."""
+    from rig.motion import ConstantSpeed
+    from rig.motion.speed import RPM
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_level2_model
+    from rig.scene import load_scene
+    scene = load_scene("data/scenes/pin_insertion_as_drawn.toml")
+    mech = mechanism_from_scene(scene, **({} if width is None else {"roller_width": width}))
+    model = Level2(mech, ConstantSpeed(300 * RPM), model=read_level2_model(scene))
+    label = {"Euler": "explicit Euler", "RK4": "RK4"}[method]
+    with pytest.raises(StiffnessError, match=rf"{label} unstable at t = .* amplifies the mode .*\|lambda\| = [45]\d{{3}}"):
+        model.simulate((0.0, span), method=method, h=h)
+
+
+def test_symplectic_euler_on_the_driven_cam_splits_positions_from_rates():
+    """With the cam drive the state is (e, τė, φ, ω, φ_m, ω_m): symplectic Euler took e, τė, φ as positions (its
+    first half) and gave error 0.89 with 2 spurious flank switches at h = 10 µs (an audit); with the problem's
+    positions it converges as on the undriven machine (error ≈ 4e-3 at 10 µs, halving with h)."""
+    from rig.motion import ConstantSpeed
+    from rig.motion.speed import RPM
+    from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_level2_model
+    from rig.scene import load_scene
+    scene = load_scene("data/scenes/pin_insertion_as_tested.toml")
+    mech = mechanism_from_scene(scene)
+    assert mech.cam_drive is not None
+    model = Level2(mech, ConstantSpeed(300 * RPM), model=read_level2_model(scene))
+    assert model.problem(model.initial_state(0.0)).positions == (0, 2, 4)
+    ref = model.simulate((0.0, 0.1), method="DP45", rtol=1e-11, atol=1e-16).solution
+    errors = []
+    for h in (2e-5, 1e-5):
+        run = model.simulate((0.0, 0.1), method="SymplecticEuler", h=h).solution
+        errors.append(abs(run.y_final[0] - ref.y_final[0]) / np.max(np.abs(ref.y[0])))
+    assert errors[1] < 0.02 and errors[0] / errors[1] == pytest.approx(2.0, rel=0.35)

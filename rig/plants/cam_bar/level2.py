@@ -296,7 +296,21 @@ class Level2:
                   SolverEvent(self._event(kernel.INSERTION), "insertion", restart=True, mode_dependent=True)]
         if self.mech.joints is not None:
             events.append(SolverEvent(self._event(kernel.PINS), "pins", restart=True))
-        return Problem(self.rhs, y0, events, time_breaks=self.program_breaks)
+        return Problem(self.rhs, y0, events, time_breaks=self.program_breaks, positions=self.positions(len(y0)))
+
+    def positions(self, n: int) -> tuple[int, ...]:
+        """Indices of the positions in a state of ``n`` components (:meth:`initial_state`'s layout): e, the cam's and
+        the motor's angles, the slider's z; the energy integrals drift with them (symplectic Euler's kick–drift
+        split; the others are rates)."""
+        q = [0]
+        k = 2
+        if self.cam_drive is not None:
+            q += [2, 4]
+            k = 6
+        if self.mech.joints is not None:
+            q.append(k)
+            k += 2
+        return tuple(q + list(range(k, n)))
 
     def program_breaks(self, t0: float, tf: float) -> list[float]:
         """Times in (t0, tf) (s) at which a cam turned at constant speed passes a boundary of its program's

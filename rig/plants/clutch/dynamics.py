@@ -43,6 +43,12 @@ from rig.solvers.compiled import JitRhs
 FRICTION_MODELS = ("stick_slip", "tanh")
 
 
+def positions(n: int) -> tuple[int, ...]:
+    """Indices of the positions in a stand state of ``n`` components (φr, ωr, φ3, ω3, *load states): φr, φ3 and the
+    load states (symplectic Euler's kick–drift split; ωr, ω3 are the rates)."""
+    return (0, 2, *range(4, n))
+
+
 class ClutchDynamics:
     """Equations of motion of clutch + motor + load; ``blocked=True`` clamps the driven half (ω3 ≡ 0).
 
@@ -336,7 +342,8 @@ class ClutchDynamics:
         """Problem for :func:`rig.solvers.integrate` with all events, time breaks and the mode reset."""
         breaks = sorted(set(self.load.time_breaks()) | set(self.motor.time_breaks()))
         flow = self.stuck_flow if self.friction == "stick_slip" else None
-        return Problem(self.rhs, y0, self.events(on_apex), breaks, reset=self.reset, flow=flow)
+        return Problem(self.rhs, y0, self.events(on_apex), breaks, reset=self.reset, flow=flow,
+                       positions=positions(len(y0)))
 
     def outputs(self, t: np.ndarray, Y: np.ndarray) -> dict[str, np.ndarray]:
         """Physical truth at samples: angles, speeds, φ_r, ω_r, M1, M3, torque meter M_t, T_c, F_a, N_B.

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rig.plants.clutch import kernel
+from rig.plants.clutch.dynamics import positions
 from rig.plants.clutch.loads import LinearMotor, Load, LoadSum
 from rig.plants.clutch.variants import LeafSpringClutch
 from rig.solvers import Event, EventRecord, Problem
@@ -81,7 +82,7 @@ class LeafDynamics:
         ``on_apex(record)`` returns True when it changed the problem) and the load/motor time breaks."""
         breaks = sorted(set(self.load.time_breaks()) | set(self.motor.time_breaks()))
         return Problem(self.rhs, y0, [Event(kernel.event_function(self._p, 0), "apex", restart=True, action=on_apex)],
-                       breaks)
+                       breaks, positions=positions(len(y0)))
 
     def outputs(self, t: np.ndarray, Y: np.ndarray) -> dict[str, np.ndarray]:
         """Truth at samples, with the keys of :meth:`ClutchDynamics.outputs` (``F_a`` and ``N_B``: the leaf force)."""

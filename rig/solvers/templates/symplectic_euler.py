@@ -1,11 +1,12 @@
 """Compiled semi-implicit (symplectic) Euler step (inserted into :mod:`runs` copies; as
-:class:`rig.solvers.euler.SymplecticEuler`'s Python step). State (q, v) with w[NQ] positions. K rows: f(t, y),
+:class:`rig.solvers.euler.SymplecticEuler`'s Python step). The positions q: the components whose bit is set in
+w[QMASK], the others v. K rows: f(t, y),
 the step's mean slope (y_new − y)/h and f(t_new, y_new)."""
 import math
 
 from numba import njit
 
-from rig.solvers.compiled import NQ, T_BOUND
+from rig.solvers.compiled import QMASK, T_BOUND
 from rig.solvers.euler import SYMPLECTIC_P as P
 
 # <kernels>
@@ -21,14 +22,15 @@ def one_step(t, h_abs, w, y, y_new, K, p):
     h, t_new = fixed_step(t, h_abs, w[T_BOUND])
     if h < min_step(t):
         return UNDERFLOW, t, h, h_abs, 0, 0.0
-    nq = int(w[NQ])
+    mask = int(w[QMASK])
     for i in range(y.size):
-        y_new[i] = y[i] + h * K[0, i] if i >= nq else y[i]
+        y_new[i] = y[i] if (mask >> i) & 1 else y[i] + h * K[0, i]
     kernel(t, y_new, p, K[1])
-    for i in range(nq):
-        y_new[i] = y[i] + h * K[1, i]
-    for i in range(nq, y.size):
-        K[1, i] = K[0, i]
+    for i in range(y.size):
+        if (mask >> i) & 1:
+            y_new[i] = y[i] + h * K[1, i]
+        else:
+            K[1, i] = K[0, i]
     if not finite(y_new):
         return NONFINITE, t_new, h, h_abs, 1, math.nan
     kernel(t_new, y_new, p, K[2])
