@@ -190,11 +190,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"cannot write the report to {report_dir}: that is the recording's path; give another "
                              f"--report-dir")
         writable_dir(report_dir, "report", hint="--report-dir DIR, or --no-report")
-    cfg = _scene_config(scene, args.cycles)
+    cfg = _scene_config(scene, args.cycles, args.fidelity)
     if cfg.plant == "cam_bar":
         writable_file(out.with_suffix(".cycle.png"), "cycle chart", PNG_MAGIC)
-        level = cfg.fidelity.level if args.fidelity is None else args.fidelity       # --fidelity forces it
-        _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"), level)
+        _print_cam_bar_summary(scene, out.with_suffix(".cycle.png"), cfg.fidelity.level)
     summary = run_scene(scene, out, cycles=args.cycles, mode="realtime" if args.realtime else None,
                         progress=not args.quiet, fidelity=args.fidelity)
     what = _done("recorded", summary.curves)
@@ -221,7 +220,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from rig.runner import serve_scene
     if args.endpoints:
         writable_file(Path(args.endpoints), "endpoints", JSON_START)
-    _scene_config(Path(args.scene), args.cycles)
+    _scene_config(Path(args.scene), args.cycles, args.fidelity)
 
     def announce(endpoints: dict[str, Any]) -> None:
         print(json.dumps(endpoints), flush=True)
@@ -237,17 +236,16 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from rig.fidelity import choose
     from rig.runner import record_scene
     from rig.runner.session import scene_digest
     new_folder = recording_file(Path(args.output))
-    cfg = _scene_config(Path(args.scene), args.cycles)
+    cfg = _scene_config(Path(args.scene), args.cycles, args.fidelity)
     if args.endpoints:                   # what `rig serve --endpoints` wrote: where to connect, and what it serves
         served = _served(Path(args.endpoints))
         if served["scene_sha256"] != scene_digest(args.scene):
             raise UsageError(f"{args.endpoints}: the served machine runs {served['scene']}, not {args.scene} (the "
                              "files differ): record the scene it serves")
-        level = choose(cfg.scene, cfg.plant, args.fidelity).level
+        level = cfg.fidelity.level
         if served["fidelity"] != level:
             raise UsageError(f"{args.endpoints}: the served machine runs {served['scene']} at fidelity L"
                              f"{served['fidelity']}, this host would record L{level}: give the same --fidelity to "
@@ -376,13 +374,14 @@ def cmd_summary(args: argparse.Namespace) -> int:
     return 0
 
 
-def _scene_config(scene: Path, cycles: int | None) -> Any:
-    """The scene's run configuration (scene errors first, before anything starts or is written: the transducers
-    and the unit's program are built once to check them); ``--cycles`` only for a scene that counts cycles."""
+def _scene_config(scene: Path, cycles: int | None, fidelity: int | None = None) -> Any:
+    """The scene's run configuration at the level ``--fidelity`` forces (scene errors first, before anything starts
+    or is written: the transducers and the unit's program are built once to check them); ``--cycles`` only for a
+    scene that counts cycles."""
     from rig.runner.config import read_config
     from rig.runner.machine import check_wiring, instruments
     from rig.scene import load_scene
-    cfg = read_config(load_scene(scene))
+    cfg = read_config(load_scene(scene), fidelity)
     instruments(cfg)
     check_wiring(cfg)
     if cycles is not None and cfg.cycles is None:
@@ -660,10 +659,15 @@ def _run(argv: list[str] | None) -> int:
     from rig.recorder import RecordingError
     from rig.runner.session import RunError
     from rig.scene import SceneError
+    from rig.solvers.base import SolverDivergence
     try:
         return args.func(args)
     except RunError as exc:
         print(f"rig: error: {exc}", file=sys.stderr)
+        return 1
+    except SolverDivergence as exc:         # the model's integration stopped: what, where and the fix, in one line
+        notes = "".join(f"; {n}" for n in getattr(exc, "__notes__", ()))
+        print(f"rig: error: the plant model could not go on: {_plain(exc)}{notes}", file=sys.stderr)
         return 1
     except (UsageError, SceneError, RecordingError, ValueError) as exc:
         print(f"rig: error: {_plain(exc)}", file=sys.stderr)

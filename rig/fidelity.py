@@ -230,7 +230,7 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
         raise SceneError(f"{where}: a {plant} plant has {has}; "
                          f"{'--fidelity' if forced is not None else 'fidelity'} {level} is not one of them")
     unanswered = tuple(q for q in asked if need[q] > level)
-    caveat = _caveat(plant, level, {q: need[q] for q in unanswered})
+    caveat = _and(_caveat(plant, level, {q: need[q] for q in unanswered}), _left_out(scene, plant, level))
     # the level whose answers the run gives: the cam bar's level 0 runs level 1's loads (SAME_RUN), so check those
     ran = max(SAME_RUN[plant]) if level in SAME_RUN.get(plant, ()) else level
     if ran < 2 and 2 in levels and plant in CHECKS and any(need[q] <= ran for q in asked):
@@ -306,6 +306,15 @@ def _caveat(plant: str, level: int, unanswered: Mapping[str, int]) -> str:
                 f"measurements are level {max(SAME_RUN[plant])}'s; level {level} only answers less in the summaries")
     return (f"fidelity L{level} is below what the scene asks: {need}; this run does not simulate what they need: "
             f"read nothing about them from it")
+
+
+def _left_out(scene: Scene, plant: str, level: int) -> str:
+    """What of the scene a lower level does not simulate at all, said: the cam bar's motor drive ([plant.drive]:
+    start-up, speed ripple) exists at level 2 only — levels 0 and 1 turn the cam at the speed profile's speed."""
+    if plant == "cam_bar" and level < 2 and scene.section("plant").get("drive") is not None:
+        return ("levels 0 and 1 turn the cam at the speed profile's constant speed: the scene's motor drive "
+                "([plant.drive]: the start-up, the speed ripple, the shaft) is simulated at level 2 only")
+    return ""
 
 
 def announce(fidelity: Fidelity) -> None:

@@ -281,8 +281,9 @@ def check_sections(scene: Scene, plant: str) -> None:
                              + "; links are [links.can] and [links.serial]")
 
 
-def read_config(scene: Scene) -> RunConfig:
-    """Validate the runner's sections of ``scene``; errors name the file, section and key."""
+def read_config(scene: Scene, fidelity: int | None = None) -> RunConfig:
+    """Validate the runner's sections of ``scene``; errors name the file, section and key. ``fidelity``: the level
+    ``--fidelity`` forces (:func:`rig.fidelity.choose`; None: the scene's own choice)."""
     from firmware_sim.transducers.description import described, resolve_path
     from rig.runner.plants import PLANTS
     where = f"{scene.path} [scene]"
@@ -368,4 +369,4 @@ def read_config(scene: Scene) -> RunConfig:
     return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=s["seed"],
                      cycles=cycles, duration=s["duration"], sample_rate=s["sample_rate"], chunk=s["chunk"],
                      mode=s["mode"], max_time=max_time, max_time_given=s["max_time"] is not None, transducers=tuple(transducers), device=device, can=can,
-                     serial=serial, recording=recording, fidelity=choose(scene, str(s["plant"])))
+                     serial=serial, recording=recording, fidelity=choose(scene, str(s["plant"]), fidelity))

@@ -65,7 +65,8 @@ class Host:
         self.program = cfg.device["program"]
         self.program_config: dict[str, Any] | None = None
         self._explain: ResultExplainer | None = None     # why a curve is NOK (rig.runner.reasons)
-        self.truth_t = 0.0
+        self.truth_t = 0.0                    # s: how far the theory is computed (at the end: how far it is recorded)
+        self._held: tuple[np.ndarray, dict[str, np.ndarray]] | None = None   # the latest block, not yet written
         self._truth: list[dict[str, np.ndarray]] = []   # theory blocks the curves still to come may need
         # the unit measures curves only with both of its channels wired (a stand scene has none): else no block is kept
         self._curves_come = cfg.wired("device.x") is not None and cfg.wired("device.y") is not None
@@ -140,6 +141,25 @@ class Host:
         self._record_link_events()
         self._write_events(self._settled())
 
+    def _write_held(self, end: float = math.inf) -> None:
+        """Write the held theory block, its samples up to ``end`` (s)."""
+        if self._held is None:
+            return
+        t, signals = self._held
+        self._held = None
+        keep = t <= end + 0.5 * self.cfg.dt
+        if keep.any():
+            self.rec.write_truth(t[keep], {name: v[keep] for name, v in signals.items()})
+
+    def _end_theory(self, end: float) -> None:
+        """The reception ended with the machine at ``end`` (s): the theory recorded up to there (computed on to it, the
+        held block cut at it) and the plant events after it dropped — the machine never ran there."""
+        if self.cfg.cycles is not None:
+            self._advance_theory(end)
+        self._write_held(end)
+        self._pending = [e for e in self._pending if not (e[1] == PLANT and e[0] > end + 0.5 * self.cfg.dt)]
+        self.truth_t = min(self.truth_t, end) if self.cfg.cycles is not None else self.truth_t
+
     def _settled(self) -> float:
         """Device time (s) up to which every event is found: the frames and the theory have passed it, and, where
         curves come, no curve still to be recorded began before it (the host's events of a curve — a result missing,
@@ -197,7 +217,9 @@ class Host:
     def _advance_theory(self, until: float) -> None:
         """Run the theory model on the machine's sample grid, in fixed blocks, until it covers ``until`` (s);
         record it and its events. A run of a stated duration ends its last block there (nothing past the run is
-        computed or recorded)."""
+        computed or recorded); a run of cycles ends wherever the machine stops, so the latest block is held back
+        until the next one is computed or the reception ends, and cut there (:meth:`_end_theory`): the recording
+        holds no plant signal or event from after the run (a block of 0.5 s ran on past it)."""
         dt, n, end = self.cfg.dt, self._block_n, self.cfg.duration
         keep = self.cfg.recording["truth_signals"]
         while self.truth_t < until - 1e-12 and (end is None or self.truth_t < end - 0.5 * dt):
@@ -211,7 +233,8 @@ class Host:
                        if k != "t" and np.shape(v) == t.shape and (keep is None or k in keep)}
             k = self.cfg.truth_every              # the samples first + 1, … whose index k divides
             kept = slice(-(first + 1) % k, None, k)
-            self.rec.write_truth(t[kept], {name: v[kept] for name, v in signals.items()})
+            self._write_held()
+            self._held = (t[kept], {name: v[kept] for name, v in signals.items()})
             if self._curves_come:
                 self._truth.append({"t": t, **signals})
             self.truth_t = float(t[-1])
@@ -346,6 +369,9 @@ class Host:
                            detail=f"the served machine sent {self._beyond} more curve(s) after the {self.cfg.cycles} "
                                   f"this host was asked to record (--cycles); they are in /can/raw only")
             self._beyond = 0
+        if self.cfg.cycles is None:          # a run of a stated duration: its theory to the end, wherever the run stopped
+            self._advance_theory(min(self.can.device_time, self.cfg.duration))
+        self._end_theory(self.can.device_time)
         self._write_events()
 
     def interrupted(self, why: str = "the interruption of the run") -> None:
@@ -399,10 +425,9 @@ class Host:
     def finish(self) -> dict[str, Any]:
         """Release what is still waiting, read the unit's statistics over serial and record them with the
         link counters, then tell the unit the host is done (CAN Release)."""
-        self._close_reception("the end of the recording")
         if self.cfg.cycles is None:
             self._advance_theory(self.cfg.duration)
-        self._write_events()
+        self._close_reception("the end of the recording")
         stats: dict[str, Any] = {}
         # the counters are those of the latest frames: at the bus's device time (past the machine's end while the
         # backlog drained), not before an event already recorded

@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 import rig
 from rig.console import progress as progress_bar, quiet_libraries
-from rig.fidelity import announce as announce_fidelity, choose
+from rig.fidelity import announce as announce_fidelity
 from firmware_sim.serial_device import SerialDevice
 from firmware_sim.socketcand_server import SocketcandServer
 from rig.numba_clock import compile_seconds, watch
@@ -87,10 +87,8 @@ class RunSummary:
 
 
 def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fidelity: int | None = None) -> RunConfig:
-    cfg = read_config(load_scene(scene_path))
+    cfg = read_config(load_scene(scene_path), fidelity)
     changes: dict[str, Any] = {}
-    if fidelity is not None:
-        changes["fidelity"] = choose(cfg.scene, cfg.plant, fidelity)
     if cycles is not None:
         if cfg.cycles is None:
             raise RunError(f"{scene_path}: --cycles given, but this scene runs for a duration")

@@ -134,3 +134,36 @@ def test_level2_starts_with_its_first_sample_alone():
     for key in ("s", "psi", "R23", "e"):
         if key in ref:
             assert np.array_equal(np.concatenate([first[key], rest[key]]), ref[key]), key
+
+
+def test_the_recording_holds_no_plant_signal_or_event_from_after_the_run(tmp_path, capsys):
+    """The host computes the plant's theory in blocks of 0.5 s: a 3-cycle run of the machine as drawn at 300 rpm stopped
+    at 0.75 s, but its recording held truth to 1.0 s and 10 flank switches (5 revolutions) beside 3 curves (an audit).
+    The last block is now cut where the machine stopped; a forced level is the one the wiring check speaks of; a
+    solver that cannot go on is one error line naming the integration."""
+    from rig.cli import main
+    drawn = ROOT / "data" / "scenes" / "pin_insertion_as_drawn.toml"
+    out = tmp_path / "drawn.mcap"
+    summary = run_scene(drawn, out, cycles=3)
+    rec = read_recording(out)
+    end = float(rec.metadata["rig.end"]["simulation_time"])
+    assert rec.truth["t"][-1] <= end + 1e-4 and rec.truth["t"][-1] >= summary.simulated_time - 1e-4
+    plant = [e for e in rec.events if e["kind"] in ("flank_switch", "flank_bounce")]
+    assert plant and max(e["t"] for e in plant) <= rec.truth["t"][-1] + 1e-4
+    switches = sorted(e["t"] for e in rec.events if e["kind"] == "flank_switch")
+    assert summary.simulated_time == pytest.approx(0.75) and len(switches) == 8   # two near 0.14 s of each revolution
+    # begun (0, 0.2, 0.4, 0.6 s), none from the theory's 0.75–1.0 s
+    stroke = tmp_path / "stroke.toml"
+    stroke.write_text(drawn.read_text().replace('questions = ["stroke", "rod_force", "flank_switches"]',
+                                                'questions = ["stroke"]'))
+    capsys.readouterr()
+    assert main(["-q", "run", str(stroke), "--fidelity", "2", "--cycles", "1", "--no-report",
+                 "-o", str(tmp_path / "s.mcap")]) == 0
+    assert "does not have at this model level" not in capsys.readouterr().err
+    soft = tmp_path / "soft.toml"
+    soft.write_text(drawn.read_text().replace('roller_width = "10 mm"', 'roller_width = "0.08 mm"'))
+    assert main(["-q", "run", str(soft), "--fidelity", "2", "--cycles", "1", "--no-report",
+                 "-o", str(tmp_path / "soft.mcap")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rig: error: the plant model could not go on: solver diverged: roller "
+                                               "penetrates a flank") and "integrated with DP45 (rtol = " in err[0]

@@ -262,3 +262,20 @@ def test_a_fixed_step_setting_is_checked_not_changed():
     scene = load_scene(ROOT / "data" / "scenes" / "pin_insertion.toml")
     options, said = _check(scene, "rk4", {"h": 2e-5}, 1e-6)
     assert options == {"h": 2e-5} and said.startswith("checked at this operating point: error ")
+
+
+def test_a_start_phase_jump_of_a_motor_driven_cam_makes_level_2_the_level(tmp_path):
+    """The machine as tested with a stronger motor (120 N·m pull-out) starting from rest at 260°: the start-up throws
+    the roller to the other flank twice (the thesis's start-phase jump) and level 2 records it. The check compared
+    only the steady third revolution, found level 1 agreeing and ran level 1 — no flank switch recorded (an audit).
+    Level 2's answers now cover the start-up; a forced lower level says that it leaves the motor drive out."""
+    text = (ROOT / "data" / "scenes" / "pin_insertion_as_tested.toml").read_text(encoding="utf-8")
+    text = re.sub(r"(?m)^questions = .*$", 'questions = ["stroke", "rod_force", "flank_switches"]', text)
+    text = re.sub(r'(?m)^speed = "150 rpm"(.*)$', r'speed = "150 rpm"\1\nphi0 = "260 deg"', text, count=1)
+    text = re.sub(r'(?m)^start = "rest"(.*)$', r'start = "rest"\1\nmax_torque = "120 N*m"', text, count=1)
+    scene = tmp_path / "strong.toml"
+    scene.write_text(text, encoding="utf-8")
+    fid = choose(load_scene(scene), "cam_bar")
+    assert fid.level == 2 and "L1's flank_switches 0 against L2's 2" in fid.reason
+    forced = choose(load_scene(scene), "cam_bar", forced=1)
+    assert "the scene's motor drive ([plant.drive]" in forced.caveat and "level 2 only" in forced.caveat

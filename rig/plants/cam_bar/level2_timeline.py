@@ -23,6 +23,7 @@ from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.cam_bar.timeline import Timeline
 from rig.plants.events import Event
+from rig.solvers import SolverDivergence
 
 if TYPE_CHECKING:
     from rig.motion.speed import SpeedProfile
@@ -82,7 +83,13 @@ class Level2Timeline(Timeline):
         if tt[-1] <= t0:                        # the very first sample alone: the initial state, nothing to integrate
             self._state = (t0, y0, flank)
             return model.signals(tt, np.repeat(np.asarray(y0, dtype=float).reshape(-1, 1), tt.size, axis=1)), tt.size
-        run = model.simulate((t0, tt[-1]), y0, flank, t_eval=tt, method=self.method, **self.options)
+        try:
+            run = model.simulate((t0, tt[-1]), y0, flank, t_eval=tt, method=self.method, **self.options)
+        except SolverDivergence as exc:         # which integration stopped: the message has the time, state and cause
+            settings = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in self.options.items())
+            exc.add_note(f"level 2 of machine cycle {cycle} integrated with {self.method}"
+                         + (f" ({settings})" if settings else ""))
+            raise
         part = model.signals(tt, run.solution.y)
         beyond = np.flatnonzero(part["phi"] >= tau * (cycle + 1)) if within else ()
         k = int(beyond[0]) if len(beyond) else tt.size
