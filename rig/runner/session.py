@@ -306,9 +306,11 @@ def _keep_received(host: Host, drain: bool, why: str = "the interruption of the 
     ignored meanwhile (:func:`.interrupt.shielded`)."""
     try:
         with shielded():
-            while drain and host.poll():
-                pass
-            host.interrupted(why)
+            try:
+                while drain and host.poll():
+                    pass
+            finally:                        # a failing drain too: the held theory and the events found go in
+                host.interrupted(why)
     except Exception as exc:  # noqa: BLE001 - the recording is closed as interrupted either way
         log.warning("could not record what was received before the interruption (%s: %s)", type(exc).__name__, exc)
 
