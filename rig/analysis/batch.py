@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import glob
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
@@ -83,6 +84,11 @@ def machine_of(scene_text: str) -> dict[str, str]:
         if isinstance(node, dict):
             for k, v in node.items():
                 walk(v, f"{key}.{k}" if key else k)
+        elif isinstance(node, list):          # arrays (of tables): item by item, so each value compares by value
+            for i, v in enumerate(node):
+                walk(v, f"{key}[{i}]")
+            if not node:
+                out[key] = "[]"
         else:
             out[key] = repr(node)
 
@@ -209,12 +215,25 @@ def analyse_batch(paths: Sequence[Path], executor: "Executor",
             key = (row.group, name)
             if key not in combined:
                 combined[key] = (m, unit)
-            elif combined[key][1] != unit:
-                raise ValueError(f"{row.path}: {name} in {unit!r}, earlier recordings of {row.group} in "
-                                 f"{combined[key][1]!r}")
-            else:
-                combined[key] = (combined[key][0].merge(m), unit)
+                continue
+            first = combined[key][1]              # one machine, a unit written otherwise (cm, mm): in the first's
+            factor = 1.0 if unit == first else _factor(unit, first)
+            if not factor > 0.0:
+                raise ValueError(f"{row.path}: {name} in {unit!r}, earlier recordings of {row.group} in {first!r}")
+            combined[key] = (combined[key][0].merge(m if factor == 1.0 else m.scaled(factor)), first)
     return BatchResult(rows, combined)
+
+
+def _factor(unit: str, to: str) -> float:
+    """The factor from display unit ``unit`` to ``to`` ("cm" → "mm": 10); NaN where they are not of one kind."""
+    from rig.units import ureg
+
+    def pint_text(label: str) -> str:
+        return label.replace("·", "*").replace("°", "degree").replace("%", "percent")
+    try:
+        return float(ureg.Quantity(1.0, pint_text(unit)).to(pint_text(to)).magnitude)
+    except Exception:  # noqa: BLE001 - pint raises many kinds for an unknown or mismatched unit
+        return math.nan
 
 
 def _name_variants(rows: list[RecordingSummary]) -> None:
@@ -228,12 +247,16 @@ def _name_variants(rows: list[RecordingSummary]) -> None:
         if len(seen) < 2:
             continue
         canon = [dict(c) for c in seen]
-        keys = sorted({k for m in canon for k in m if len({m.get(k) for m in canon}) > 1})
+        keys = sorted({k for m in canon for k in m if len({m.get(k) for m in canon}) > 1},
+                      key=lambda k: (not k.startswith("plant"), k))        # the machine's own values first
+        shown = 3                             # as few of them as tell every machine apart: the label is the population
+        while shown < len(keys) and len({tuple(m.get(k) for k in keys[:shown]) for m in canon}) < len(canon):
+            shown += 1
         for row in rows:
             if not row.error and row.group == group:
                 written = seen[_canonical(row.machine)]       # one label per machine, whatever the units written
-                shown = [f"{k} = {_plain(written.get(k, 'unset'))}" for k in keys[:3]]
-                row.variant = ", ".join(shown) + (f", … ({len(keys) - 3} more)" if len(keys) > 3 else "")
+                said = [f"{k} = {_plain(written.get(k, 'unset'))}" for k in keys[:shown]]
+                row.variant = ", ".join(said) + (f", … ({len(keys) - shown} more)" if len(keys) > shown else "")
 
 
 def _canonical(machine: dict[str, str]) -> tuple:

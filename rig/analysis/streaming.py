@@ -56,6 +56,10 @@ class Moments:
         return Moments(n, self.mean + delta * (other.n / n), self.m2 + other.m2 + delta ** 2 * (self.n * other.n / n),
                        np.minimum(self.minimum, other.minimum), np.maximum(self.maximum, other.maximum))
 
+    def scaled(self, factor: float) -> "Moments":
+        """The same values in another unit (each × ``factor`` > 0)."""
+        return Moments(self.n, self.mean * factor, self.m2 * factor ** 2, self.minimum * factor, self.maximum * factor)
+
     def std(self, ddof: int = 1) -> np.ndarray:
         return np.sqrt(self.m2 / (self.n - ddof))
 

@@ -210,3 +210,34 @@ def test_a_file_another_program_wrote_or_a_lost_scene_does_not_stop_the_batch(re
     assert rows["run2.mcap"]["curves"] == "2" and not rows["run2.mcap"]["error"]
     assert main(["-q", "report", str(foreign), "-o", str(tmp_path / "rep")]) == 2
     assert "not a rig recording" in capsys.readouterr().err and not (tmp_path / "rep").exists()
+
+
+def test_machines_are_told_apart_by_value_and_their_labels_never_merge_two():
+    """Populations were keyed by a label of the first 3 differing keys: two machines differing only beyond them were
+    pooled (F_c 61 N with the 40 N demo, σ 10.8 N over two modes), while the demo written in cm/kN was split off
+    (list values — the elements, the limit pairs — compared as text). An audit."""
+    from rig.analysis.batch import RecordingSummary, _name_variants, machine_of
+    demo = machine_of('[plant]\nF_c = "40 N"\n[device.config.limits]\nx_max = ["41.5 mm", "42.5 mm"]\n')
+    in_cm = machine_of('[plant]\nF_c = "0.04 kN"\n[device.config.limits]\nx_max = ["4.15 cm", "4.25 cm"]\n')
+    assert demo["device.config.limits.x_max[0]"] == "'41.5 mm'"
+    rows = [RecordingSummary(f"r{i}.mcap", "s", level="1", machine=m) for i, m in enumerate([demo, in_cm])]
+    _name_variants(rows)
+    assert rows[0].group == rows[1].group == "s L1"           # one machine, whatever the units written
+    base = {"plant.F_c": "'40 N'", "device.a": "1", "device.b": "1", "device.c": "1", "device.d": "1"}
+    machines = [base, {**base, "plant.F_c": "'61 N'", "device.a": "2", "device.b": "2", "device.c": "2"},
+                {**base, "device.d": "2"}]                    # the third differs from the first in device.d only
+    rows = [RecordingSummary(f"m{i}.mcap", "s", level="1", machine=m) for i, m in enumerate(machines)]
+    _name_variants(rows)
+    assert len({r.group for r in rows}) == 3
+    assert rows[0].group.startswith("s L1 (plant.F_c = 40 N, device.a = 1") and "device.d = 1" in rows[0].group
+    from rig.analysis.batch import _factor
+    from rig.analysis.streaming import Moments
+    import numpy as np
+    assert _factor("cm", "mm") == pytest.approx(10.0) and _factor("kN", "N") == pytest.approx(1e3)
+    assert _factor("N·m", "N·mm") == pytest.approx(1e3) and _factor("°", "rad") == pytest.approx(np.pi / 180)
+    assert np.isnan(_factor("mm", "N"))
+    a, b = np.array([[41.5], [42.0]]), np.array([[4.2], [4.3]])        # mm, and cm of the same machine
+    merged = Moments.of_block(a).merge(Moments.of_block(b).scaled(_factor("cm", "mm")))
+    whole = Moments.of_block(np.vstack([a, b * 10.0]))
+    assert (merged.n, float(merged.mean[0]), float(merged.maximum[0])) == (4, pytest.approx(float(whole.mean[0])), 43.0)
+    assert float(merged.m2[0]) == pytest.approx(float(whole.m2[0]))
