@@ -258,6 +258,7 @@ def check_sections(scene: Scene, plant: str) -> None:
     from rig.runner.plants import PLANT_SECTIONS
     own = PLANT_SECTIONS.get(plant, ())
     known = RUNNER_SECTIONS + own
+    wrong = []                                  # every section that does not belong, each said once
     for name, value in scene.data.items():
         if name in known:
             continue
@@ -265,13 +266,12 @@ def check_sections(scene: Scene, plant: str) -> None:
             raise SceneError(f"{scene.path}: unknown top-level key {name!r}; keys belong in a section such as "
                              f"[scene] (is a section header missing above it?)")
         others = sorted(k for k, sections in PLANT_SECTIONS.items() if name in sections)
-        if others:
-            raise SceneError(f"{scene.path}: section [{name}] is not used by plant {plant!r} (it belongs to "
-                             f"{' / '.join(others)}); the sections of this scene can be "
-                             f"{', '.join(f'[{k}]' for k in known)}")
         close = difflib.get_close_matches(name, known, n=1)
-        raise SceneError(f"{scene.path}: unknown section [{name}]" + (f" (did you mean [{close[0]}]?)" if close else "")
-                         + f"; the sections of a {plant!r} scene are {', '.join(f'[{k}]' for k in known)}")
+        wrong.append(f"section [{name}] is not used by plant {plant!r} (it belongs to {' / '.join(others)})" if others
+                     else f"unknown section [{name}]" + (f" (did you mean [{close[0]}]?)" if close else ""))
+    if wrong:
+        raise SceneError(f"{scene.path}: {'; '.join(wrong)}; the sections of a {plant!r} scene are "
+                         f"{', '.join(f'[{k}]' for k in known)}")
     links = scene.section("links", required=False)
     for name in links:
         if name not in LINKS:

@@ -43,6 +43,8 @@ def one_error_line(capsys) -> str:
     (CLUTCH, "[motor]\n", "[program]\nx = 1\n[motor]\n", r"section \[program\] is not used by plant 'clutch_dynamic'"),
     (STATIC, "[links.can]\n", "[links.cann]\n", r"unknown section \[links.cann\] \(did you mean \[links.can\]\?\)"),
     (DEMO, "[scene]\n", "stray = 1\n[scene]\n", r"unknown top-level key 'stray'"),
+    (DEMO, "[plant]\n", "[extra_thing]\na = 1\n[gadget]\nb = 2\n[plant]\n",        # each one named, not the first
+     r"unknown section \[extra_thing\]; unknown section \[gadget\]; the sections of a 'cam_bar' scene are"),
 ])
 def test_unknown_sections_name_the_section_and_the_file(tmp_path, source, old, new, message):
     path = edited(tmp_path, source, old, new)
@@ -92,6 +94,8 @@ def test_cli_unknown_section_exits_2_naming_it(tmp_path, capsys):
 @pytest.mark.parametrize("old, new, message", [
     ('signal = "F_rod"', 'signal = "F_rood"', "[transducers.rod_force]: the plant has no signal 'F_rood'"),
     ("bitrate = 1000000", "bitrate = 10000", "[links.can]: the periodic frames alone need"),
+    ('sample_rate = "10 kHz"', 'sample_rate = "400 kHz"',       # the unit's inputs: found in the first chunk before
+     "[scene]: 'sample_rate' = 400000 Hz is faster than the acquisition unit takes its inputs (100000 Hz"),
 ])
 def test_wiring_errors_are_found_before_anything_is_written(tmp_path, capsys, old, new, message):
     """What only the plant and the bus can check (a transducer's signal, the bus load) is checked before the summary,
