@@ -8,10 +8,14 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rig.analysis.numbers import fixed
+
+if TYPE_CHECKING:
+    from rig.analysis.units import Unit
 
 
 @dataclass(frozen=True)
@@ -384,7 +388,7 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
                   shutdown_window: float | None,
                   band: float = 0.05, dwell: float = 0.05, min_step: float = 1.0,
                   model_disengagements: int | None = None, trips_motor: bool = False, lobe: float = LOBE,
-                  apex: float = APEX) -> list[Metric]:
+                  apex: float = APEX, speed: "Unit | None" = None) -> list[Metric]:
     """Key results of a dynamic-stand run, each relative to a stated reference.
 
     Per stimulus (segments end at the next one or the end of the run): after a start, step or stop the
@@ -394,8 +398,11 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
     a stop also the standstill (last encoder edge); for a sweep (blocked half) the work on the coupling.
     Whole run: torque extremes, disengagements (apex passes of the measured relative angle), the
     shutdown rule of the scene, relative slip and when it ended, final speeds. ``lobe`` and ``apex`` (rad): the
-    coupling's period in φ_r and its first apex (flat tappets: 120°, 60°; leaf springs: 2φ_d, φ_d).
+    coupling's period in φ_r and its first apex (flat tappets: 120°, 60°; leaf springs: 2φ_d, φ_d). ``speed``: the
+    display unit of the final speeds (:class:`rig.analysis.units.Unit`, the scene's; default rad/s).
     """
+    from rig.analysis.units import unit
+    sp = speed if speed is not None else unit("rad/s", "rad/s")
     lobe_deg, apex_deg = float(np.degrees(lobe)), float(np.degrees(apex))
     t, m = np.asarray(rec.t, float), np.asarray(rec.torque, float)
     out: list[Metric] = []
@@ -450,23 +457,23 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
         if not ok.any():
             continue
         if np.all(w[ok] == 0.0) and np.all(method[ok] == 3):
-            out.append(Metric(f"final speed {name}", 0.0, "rad/s", "at rest: the encoder count has not changed "
-                                                                    "since power-on"))
+            out.append(Metric(f"final speed {name}", 0.0, sp.label, "at rest: the encoder count has not changed "
+                                                                     "since power-on"))
         elif np.all(method[ok] == 3):            # no count in the window: only a bound, the shaft is at rest
-            out.append(Metric(f"final speed {name}", f"< {np.max(np.abs(w[ok])):.2g} rad/s", "rad/s",
+            out.append(Metric(f"final speed {name}", f"< {np.max(np.abs(sp(w[ok]))):.2g} {sp.label}", sp.label,
                               "at rest: no encoder count in the last readings, so less than one count per time "
                               "since the last one"))
         else:
             mean = float(np.mean(w[ok]))
             change = np.polyfit(tr[ok] - rec.end, w[ok], 1)[0] * dwell if np.count_nonzero(ok) >= 3 else 0.0
             if abs(change) > SPEED_SETTLED * max(abs(mean), 1.0):
-                out.append(Metric(f"final speed {name}", None, "rad/s",
+                out.append(Metric(f"final speed {name}", None, sp.label,
                                   f"still {'speeding up' if change * mean >= 0 else 'slowing down'}"
                                   f"{' turning backwards (reversed)' if mean < 0 else ''} at the end of the "
-                                  f"run: {change:+.3g} rad/s over its last {dwell * 1e3:.0f} ms (trend), mean "
-                                  f"{mean:.4g} rad/s — no final speed within the run"))
+                                  f"run: {sp(change):+.3g} {sp.label} over its last {dwell * 1e3:.0f} ms (trend), "
+                                  f"mean {sp(mean):.4g} {sp.label} — no final speed within the run"))
             else:
-                out.append(Metric(f"final speed {name}", mean, "rad/s",
+                out.append(Metric(f"final speed {name}", sp(mean), sp.label,
                                   f"mean of the encoder speeds read in the last {dwell * 1e3:.0f} ms of the run"))
     return out
 

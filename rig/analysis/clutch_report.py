@@ -22,6 +22,7 @@ from rig.analysis.event_text import event_details
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Banner, Block, Heading, Link, ReportContext, Table, Text, fmt
 from rig.analysis.stand_comparison import agreement_text, compare, thesis_marks, write_csv
+from rig.analysis.units import display_units, scene_device_config
 from rig.recorder import Recording
 from rig.recorder.schemas import measuring
 from rig.scene import Scene, SceneError, read_table
@@ -186,9 +187,10 @@ def stand_results(rec: Recording) -> tuple[list[Stimulus], list[Metric]] | None:
         except (SceneError, ValueError):
             pass                                    # results without stimuli: no step figures, no shutdown rule
     model = sum(1 for e in rec.events if e.get("kind") == "disengagement")
+    speed = display_units(None, None, scene_device_config(rec.scene_text)[2]).of("rad/s")    # as the truth charts
     return stim, stand_metrics(data, stim, rule["shutdown_count"], rule["shutdown_window"], BAND, DWELL,
                                model_disengagements=model if "phi_r" in rec.truth else None,
-                               trips_motor=bool(rule["trip_on_shutdown"]), lobe=lobe, apex=apex)
+                               trips_motor=bool(rule["trip_on_shutdown"]), lobe=lobe, apex=apex, speed=speed)
 
 
 def summary_lines(rec: Recording, stim: list[Stimulus], metrics: list[Metric]) -> list[str]:

@@ -78,6 +78,11 @@ def test_metrics_fit_each_scene(runs):
     m = metrics(runs["clutch_blocked"][1])
     assert m["overshoot"].value is None and m["settling time"].value is None
     assert m["disengagements"].value.startswith("2,") and m["relative angle swept"].value == pytest.approx(257.7, abs=2)   # drive speed (a0 − T)/b0
+    # final speeds in the unit the scene's truth charts and CSVs show: rpm where it writes no speed (was rad/s there),
+    # rad/s where it writes them so (the start-up's comparison)
+    assert m["final speed ω1"].unit == "rpm" and m["final speed ω1"].value == pytest.approx(
+        float(np.mean(runs["clutch_blocked"][1].truth["omega1"][-50:])) * 30 / np.pi, rel=0.05)
+    assert metrics(runs["clutch_startup"][1])["final speed ω1"].unit == "rad/s"
     for name, (_, rec) in runs.items():                   # never a settling time as long as the run
         for x in metrics(rec).values():
             if "settling" in x.name or "recovery" in x.name:
