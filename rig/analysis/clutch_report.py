@@ -382,7 +382,7 @@ def comparison_section(ctx: ReportContext) -> list[Block]:
                  "bound: the thesis value is a limit; a count exactly); deviation = rig − thesis."),
             Table(["quantity", "unit", "thesis", "rig", "deviation", "tolerance", "agrees", "basis"]
                   + (["note"] if notes else []),
-                  [[r.quantity, r.unit.replace("*", "·"), f"{r.thesis:g}", r.rig_text(),
+                  [[r.quantity, {"deg": "°"}.get(r.unit, r.unit.replace("*", "·")), f"{r.thesis:g}", r.rig_text(),
                     r.deviation, r.tolerance or "— (not judged)", r.verdict, r.basis]
                    + ([r.why] if notes else []) for r in rows]),
             Table(["file", "contents"], [[Link("comparison.csv", "comparison.csv"), "this table, with the unrounded rig "

@@ -488,7 +488,8 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
     with RunClock(_socketcand(can_host, can_port, can_channel or cfg.can["channel"], connect_timeout)) as bus:
         with _recorder(cfg, output, "cross-process") as rec, _progress(cfg, progress) as bar:
             host = Host(cfg, bus, serial_port, rec)
-            host.arm()
+            with _serial_link(serial_port, "setting the unit up"):
+                host.arm()
             go, compiled = time.perf_counter(), compile_seconds()
             try:
                 with deferred_interrupt() as check:
@@ -507,11 +508,23 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
             simulated = max(host.truth_t, host.can.device_time)
             compiled = compile_seconds() - compiled
             _finishing(bar, cfg, host.truth_t)
-            with deferred_interrupt():
+            with deferred_interrupt(), _serial_link(serial_port, "reading the statistics back"):
                 stats = host.finish()
             _finished(bar, cfg, host.truth_t, host.curves_recorded)
     return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats,
                       run_time, compiled)
+
+
+@contextmanager
+def _serial_link(port: str | None, doing: str) -> Iterator[None]:
+    """A served machine's serial port that fails while ``doing`` (pyserial's "device reports readiness to read but
+    returned no data"): a :class:`RunError` saying which link and the likely cause."""
+    import serial
+    try:
+        yield
+    except serial.SerialException as exc:
+        raise RunError(f"the served machine's serial link {port} failed while {doing} ({exc}): its rig serve "
+                       f"stopped or the port was taken by another program") from None
 
 
 def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], idle_timeout: float, where: str,

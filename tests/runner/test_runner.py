@@ -573,3 +573,14 @@ def test_a_served_machine_that_stops_mid_run_is_named_at_once_not_after_the_idle
     finally:
         serve.kill()
         serve.wait()
+
+
+def test_a_served_serial_link_that_fails_is_said_in_plain_words():
+    """The served machine stopped while the host set the unit up: pyserial's "device reports readiness to read but
+    returned no data" reached the console as it was (an audit); it is a run error naming the link and the cause."""
+    import serial
+    from rig.runner.session import RunError, _serial_link
+    with pytest.raises(RunError, match=r"the served machine's serial link /dev/pts/7 failed while setting the unit "
+                                       r"up \(device reports .*\): its rig serve stopped"):
+        with _serial_link("/dev/pts/7", "setting the unit up"):
+            raise serial.SerialException("device reports readiness to read but returned no data")
