@@ -36,9 +36,10 @@ def _print_cam_bar_summary(scene_path: Path, png: Path, run_level: int | None = 
     from rig.scene import load_scene
     mech, omega = cam_bar_from_scene(scene_path)
     print(summary_table(mech, omega, run_level, read_spring_rates(load_scene(scene_path))))
+    new_folder = None if png.parent.exists() else Path(os.path.abspath(png)).parent
     png.parent.mkdir(parents=True, exist_ok=True)
     plot_cycle(mech, omega, png)
-    print(f"cycle chart: {png}")
+    print(f"cycle chart: {png}{_created(new_folder)}")
 
 
 def _analysed(recording: Path) -> tuple[Any, dict]:
@@ -332,10 +333,11 @@ def cmd_export_can(args: argparse.Namespace) -> int:
     require_recording(args.recording)
     output = Path(args.output)
     writable_file(output, "CAN trace", TRACE_MAGIC.get(output.suffix.lower()))
+    new_folder = None if output.parent.exists() else Path(os.path.abspath(output)).parent
     e = export_can(args.recording, file_parent(output), partial=args.partial)
     start = datetime.fromtimestamp(e.start, timezone.utc).isoformat() if e.start else "unknown (1970-01-01)"
     print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
-          f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}")
+          f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}{_created(new_folder)}")
     if e.lost:
         logging.getLogger("rig").warning("the recording is cut or damaged, the trace holds the frames that read "
                                          "(damaged parts skipped, as `rig report --partial` skips them): %s; its last "

@@ -234,6 +234,9 @@ def test_cli_export_can(recording, tmp_path, capsys):
     n = len(read_recording(recording).can_frames["t"])
     assert f"exported {n} CAN frames" in capsys.readouterr().out
     assert len(read_back(out)) == n
+    fresh = tmp_path / "new" / "bus.asc"          # a folder it makes is said, as rig run says it
+    assert main(["export-can", str(recording), "-o", str(fresh)]) == 0
+    assert f"-> {fresh} (created the folder {fresh.parent})" in capsys.readouterr().out
 
 
 def test_truncated_recording_is_an_error(recording, tmp_path):
