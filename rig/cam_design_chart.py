@@ -77,10 +77,10 @@ def plot_design(design: "CamDesign", path: str | Path) -> Path:
     axes[1].set_ylabel("ρ (mm, clipped at ±300)")
     axes[2].plot(deg, design.sigma_h / 1e6, label="Hertz stress σ_H")
     axes[2].axhline(design.sigma_allow / 1e6, color="r", ls="--", label="permissible (assumed)")
-    other = design.contact_force <= 0.0
+    other = design.contact_force < 0.0
     if other.any():                      # force closure lost: the roller on the other flank (the jump)
         axes[2].fill_between(deg, 0.0, 1.0, where=other, transform=axes[2].get_xaxis_transform(), color="tab:orange",
-                             alpha=0.25, lw=0, label="R23 ≤ 0: other flank")
+                             alpha=0.25, lw=0, label="R23 < 0: other flank")
     if np.isnan(design.sigma_h).any():
         axes[2].fill_between(deg, 0.0, 1.0, where=np.isnan(design.sigma_h), transform=axes[2].get_xaxis_transform(),
                              color="tab:red", alpha=0.25, lw=0, label="loaded wall undercut")

@@ -225,14 +225,13 @@ def analyse_batch(paths: Sequence[Path], executor: "Executor",
 
 
 def _factor(unit: str, to: str) -> float:
-    """The factor from display unit ``unit`` to ``to`` ("cm" → "mm": 10); NaN where they are not of one kind."""
-    from rig.units import ureg
-
-    def pint_text(label: str) -> str:
-        return label.replace("·", "*").replace("°", "degree").replace("%", "percent")
+    """The factor from display unit ``unit`` to ``to`` ("cm" → "mm": 10); NaN where they are not of one kind (an
+    angle's presence counts: 1/min is not rpm, as :func:`rig.units.to_si` says)."""
+    from rig.analysis.units import pint_label
+    from rig.units import to_si
     try:
-        return float(ureg.Quantity(1.0, pint_text(unit)).to(pint_text(to)).magnitude)
-    except Exception:  # noqa: BLE001 - pint raises many kinds for an unknown or mismatched unit
+        return to_si(f"1 {pint_label(unit)}", pint_label(to))
+    except ValueError:
         return math.nan
 
 
@@ -241,8 +240,11 @@ def _name_variants(rows: list[RecordingSummary]) -> None:
     run's setting), name each machine by the values that tell them apart: each is its own population."""
     machines: dict[str, dict[tuple, dict[str, str]]] = {}     # group → canonical machine → the first as written
     for row in rows:
-        if not row.error:
+        if not row.error and row.machine:
             machines.setdefault(row.group, {}).setdefault(_canonical(row.machine), row.machine)
+    for row in rows:                    # a scene lost (or damaged) in its file: which machine is not known, so not pooled
+        if not row.error and not row.machine:
+            row.variant = "scene lost: machine unknown"
     for group, seen in machines.items():
         if len(seen) < 2:
             continue
@@ -253,7 +255,7 @@ def _name_variants(rows: list[RecordingSummary]) -> None:
         while shown < len(keys) and len({tuple(m.get(k) for k in keys[:shown]) for m in canon}) < len(canon):
             shown += 1
         for row in rows:
-            if not row.error and row.group == group:
+            if not row.error and row.machine and row.group == group:
                 written = seen[_canonical(row.machine)]       # one label per machine, whatever the units written
                 said = [f"{k} = {_plain(written.get(k, 'unset'))}" for k in keys[:shown]]
                 row.variant = ", ".join(said) + (f", … ({len(keys) - shown} more)" if len(keys) > shown else "")

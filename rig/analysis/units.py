@@ -32,6 +32,7 @@ _LABELS = {"degree": ("°", "deg"), "meter * newton": ("N·m", "N*m"), "revoluti
            "micrometer / meter": ("µm/m", "um/m"), "millimeter / second ** 2": ("mm/s²", "mm/s^2"),
            "micrometer": ("µm", "um"),
            "dimensionless": ("", "")}
+_ASCII = {label: ascii_ for label, ascii_ in _LABELS.values() if label}     # display label → pint text
 _ANGLES = ("radian", "degree", "turn", "revolution", "arcminute", "arcsecond", "grad")
 
 # SI units of the plants' truth signals (rig.plants: cam bar level 1/2, clutch stand and static rig, lab bench)
@@ -223,7 +224,12 @@ class DisplayUnits:
 
 
 def _pint_text(u: Unit) -> str:
-    return {"°": "deg", "N·m": "N*m"}.get(u.label, u.ascii)
+    return pint_label(u.label)
+
+
+def pint_label(label: str) -> str:
+    """A display unit's label as pint reads it ("°" → "deg", "N·m" → "N*m", "µm" → "um")."""
+    return _ASCII.get(label, label.replace("·", "*"))
 
 
 def _axis_of_name(name: str) -> str:

@@ -228,12 +228,12 @@ class Host:
             if end is not None:
                 t = t[t <= end + 0.5 * dt]
             self._blocks += 1
+            self._write_held()                    # the machine is past it (a failing next block loses nothing)
             truth = self.theory.advance(t)
             signals = {k: np.asarray(v, dtype=float) for k, v in truth.items()
                        if k != "t" and np.shape(v) == t.shape and (keep is None or k in keep)}
             k = self.cfg.truth_every              # the samples first + 1, … whose index k divides
             kept = slice(-(first + 1) % k, None, k)
-            self._write_held()
             self._held = (t[kept], {name: v[kept] for name, v in signals.items()})
             if self._curves_come:
                 self._truth.append({"t": t, **signals})
@@ -425,8 +425,6 @@ class Host:
     def finish(self) -> dict[str, Any]:
         """Release what is still waiting, read the unit's statistics over serial and record them with the
         link counters, then tell the unit the host is done (CAN Release)."""
-        if self.cfg.cycles is None:
-            self._advance_theory(self.cfg.duration)
         self._close_reception("the end of the recording")
         stats: dict[str, Any] = {}
         # the counters are those of the latest frames: at the bus's device time (past the machine's end while the

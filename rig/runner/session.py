@@ -359,6 +359,9 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 except KeyboardInterrupt:
                     _keep_received(host, drain=True)
                     raise
+                except Exception as exc:           # a model that cannot go on, a fault: the run so far is kept
+                    _keep_received(host, drain=False, why=f"the run's stop on {type(exc).__name__}")
+                    raise
                 run_time, simulated = time.perf_counter() - go, machine.t     # the run phase (no read-back)
                 compiled = compile_seconds() - compiled
                 if not host.done():
@@ -494,7 +497,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
             try:
                 with deferred_interrupt() as check:
                     _receive(cfg, host, bar, check, idle_timeout, f"{can_host}:{can_port}", output)
-            except (RunError, KeyboardInterrupt) as exc:
+            except (KeyboardInterrupt, Exception) as exc:   # a RunError, a model that cannot go on, a fault
                 _keep_received(host, drain=False, why="the interruption of the run" if isinstance(exc, KeyboardInterrupt)
                                else "the recording's stop on an error")
                 try:                               # the served machine need not wait for its release timeout

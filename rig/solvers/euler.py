@@ -33,6 +33,9 @@ class Euler(FixedStepper):
         self._finish(t_new, y_new, h, (f0,))
 
 
+MASK_BITS = 53       # components the compiled step's position mask holds (a float64 holds whole numbers below 2^53)
+
+
 class SymplecticEuler(FixedStepper):
     """Semi-implicit (symplectic) Euler for a second-order system with positions q and velocities v: ``positions``
     the indices of q in the state (in any order, e.g. (e, τė, φ, ω) → (0, 2)), or ``nq`` for the first nq
@@ -59,9 +62,10 @@ class SymplecticEuler(FixedStepper):
                 raise ValueError(f"symplectic Euler: nq = {nq!r} positions must be in 1..{n - 1} for {n} states")
             positions = range(nq)
         self.positions = tuple(sorted({int(i) for i in positions}))
-        if not 1 <= len(self.positions) < n or not 0 <= self.positions[0] <= self.positions[-1] < min(n, 53):
+        if not 1 <= len(self.positions) < n or not 0 <= self.positions[0] <= self.positions[-1] < n:
             raise ValueError(f"symplectic Euler: positions {tuple(positions)!r} must name 1..{n - 1} of the {n} "
-                             f"state components (indices 0..{min(n, 53) - 1}), leaving at least one velocity")
+                             f"state components (indices 0..{n - 1}), leaving at least one velocity")
+        compiled = compiled and n <= MASK_BITS       # the compiled step keeps the positions as a float's bit mask
         super().__init__(fun, t0, y0, t_bound, h, first_step, stiffness, compiled, self.positions)
 
     def _options(self) -> dict:

@@ -45,7 +45,8 @@ def parse_param(text: str) -> Param:
     if len(key.split(".")) < 2:
         raise ValueError(f"--param {text!r}: {key!r} names a section, not a key (e.g. plant.k)")
     values = tuple(_literal(p) for p in parts)
-    twice = [v for i, v in enumerate(parts) if v in parts[:i]]
+    same = [float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v for v in values]   # 1 = 1.0
+    twice = [parts[i] for i, v in enumerate(same) if v in same[:i]]
     if twice:
         raise ValueError(f"--param {key}: the value {twice[0]!r} is given twice (each point once)")
     return Param(key, values)
@@ -71,6 +72,7 @@ def check_units(scene: Scene, params: Sequence[Param]) -> None:
                 si = to_si(value, unit, what=what)
             except UnitError as exc:
                 raise UsageError(str(exc)) from None
+            si = float(f"{si:.12g}")              # "0.07 cm" and "0.7 mm" differ in the last bits of their SI value
             if si in seen:
                 raise UsageError(f"--param {param.key}: {value!r} is the same value as {seen[si]!r} (each point once)")
             seen[si] = value

@@ -202,7 +202,9 @@ def inert_params(result: SweepResult) -> list[str]:
     """The keys of the parameters that changed nothing: among points that differ only in that parameter's value, every
     metric is the same (NaN equal to NaN); a sweep over such a key (an assembly-branch selector, a key the metrics do
     not depend on) says nothing, and the console says so."""
-    inert = []
+    inert: list[str] = []
+    if not any(math.isfinite(v) for values in result.values for v in values.values()):
+        return inert                    # every point failed: nothing was measured, so nothing is said to be inert
     for i, param in enumerate(result.params):
         if len(param.values) < 2:
             continue

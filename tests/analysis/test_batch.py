@@ -210,6 +210,15 @@ def test_a_file_another_program_wrote_or_a_lost_scene_does_not_stop_the_batch(re
     assert rows["run2.mcap"]["curves"] == "2" and not rows["run2.mcap"]["error"]
     assert main(["-q", "report", str(foreign), "-o", str(tmp_path / "rep")]) == 2
     assert "not a rig recording" in capsys.readouterr().err and not (tmp_path / "rep").exists()
+    data = bytearray((recordings / "run2.mcap").read_bytes())     # the scene attachment damaged: its machine unknown
+    at = data.find(b"[scene]", data.find(b"scene.toml"))
+    data[at:at + 7] = b"[[[[[[["
+    (tmp_path / "lost.mcap").write_bytes(bytes(data))
+    with make_executor("serial") as ex:
+        result = analyse_batch([recordings / "run2.mcap", recordings / "run3.mcap", tmp_path / "lost.mcap"], ex)
+    groups = [r.group for r in result.recordings]
+    assert groups == ["pin_insertion L1"] * 2 + ["pin_insertion L1 (scene lost: machine unknown)"]   # the pair stays
+    assert result.recordings[2].curves == 2 and not result.recordings[2].complete      # analysed for what it holds
 
 
 def test_machines_are_told_apart_by_value_and_their_labels_never_merge_two():

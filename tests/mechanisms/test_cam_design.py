@@ -423,8 +423,8 @@ def test_force_closure_check_finds_where_the_roller_leaves_the_working_flank(sce
     if switches:
         spans = [[float(v) for v in span.split("–")] for span in
                  row.note.split("over φ = ")[1].split(":")[0].replace("°", "").split(", ")]
-        other = np.degrees(phi[r23 <= 0.0])
-        for lo, hi in spans:                    # each span named holds R23 ≤ 0 at its ends (within the coarse grid)
+        other = np.degrees(phi[r23 < 0.0])
+        for lo, hi in spans:                    # each span named holds R23 < 0 at its ends (within the coarse grid)
             assert np.any(np.abs(other - lo) < 0.6) and np.any(np.abs(other - hi) < 0.6)
         assert sum(hi - lo + 0.5 for lo, hi in spans) == pytest.approx(other.size * 0.05, abs=2.0)
 

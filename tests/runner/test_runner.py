@@ -584,3 +584,24 @@ def test_a_served_serial_link_that_fails_is_said_in_plain_words():
                                        r"up \(device reports .*\): its rig serve stopped"):
         with _serial_link("/dev/pts/7", "setting the unit up"):
             raise serial.SerialException("device reports readiness to read but returned no data")
+
+
+def test_a_run_stopped_by_any_error_keeps_the_plant_truth_up_to_the_stop(tmp_path, monkeypatch):
+    """The host holds its latest 0.5 s theory block back until the machine is past it (a run of cycles must not
+    record plant truth from after its end); a run stopped by an error other than a RunError — a model that cannot
+    go on — lost that block (truth to 0.5 s of a run stopped at 0.7 s; the review of the change)."""
+    from rig.runner import machine as machine_module
+    from rig.solvers import SolverDivergence
+    original = machine_module.Machine.step
+
+    def step(self):
+        if self.t >= 0.7:
+            raise SolverDivergence("a test's stop", self.t, (0.0,))
+        return original(self)
+
+    monkeypatch.setattr(machine_module.Machine, "step", step)
+    out = tmp_path / "stopped.mcap"
+    with pytest.raises(SolverDivergence):
+        run_scene(ROOT / "data" / "scenes" / "clutch_startup.toml", out)
+    rec = read_recording(out)
+    assert rec.interrupted and rec.truth["t"][-1] == pytest.approx(0.7, abs=0.01)

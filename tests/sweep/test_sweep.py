@@ -486,6 +486,11 @@ def test_a_value_given_twice_is_refused_as_written_or_in_si(tmp_path, capsys):
     """Each point once: a repeated value (as written, or the same in SI) used to run twice and write two rows."""
     with pytest.raises(ValueError, match="the value '1.09 N/mm' is given twice"):
         parse_param("plant.k=1.09 N/mm,1.89 N/mm,1.09 N/mm")
+    with pytest.raises(ValueError, match="the value '1.0' is given twice"):
+        parse_param("plant.mu=1,1.0")
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.clearance=0.07 cm,0.7 mm", "--metric",
+                 "rod_force_peak", "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
+    assert "'0.7 mm' is the same value as '0.07 cm'" in capsys.readouterr().err      # equal to 12 digits, not bits
     assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.k=1.09 N/mm,1090 N/m", "--metric",
                  "rod_force_peak", "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
     assert "--param plant.k: '1090 N/m' is the same value as '1.09 N/mm' (each point once)" in capsys.readouterr().err
@@ -504,3 +509,5 @@ def test_a_parameter_that_changes_no_metric_is_named():
     assert inert_params(result) == ["plant.alpha_sk"]
     values[3] = {"m": 2.0}                      # alpha_sk now matters at k = 1.89 N/mm
     assert inert_params(SweepResult(params, ("m",), points, values, [""] * 4, [1] * 4)) == []
+    failed = [{"m": math.nan}] * 4              # every point failed: nothing measured, nothing called inert
+    assert inert_params(SweepResult(params, ("m",), points, failed, ["diverged"] * 4, [1] * 4)) == []

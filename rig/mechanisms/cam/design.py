@@ -133,12 +133,12 @@ def _flank_check(phi: np.ndarray, normal: np.ndarray, clearance: float) -> Check
     """Force closure (MODELS §2): the contact force on the working flank R23 stays > 0; where it changes sign the
     roller crosses the groove's clearance to the other flank (the jump)."""
     i = int(np.argmin(normal))
-    note = "the roller stays on the working flank" if normal[i] > 0.0 else ""
-    if normal[i] <= 0.0:
-        neg = np.flatnonzero(normal <= 0.0)
+    note = "the roller stays on the working flank" if normal[i] >= 0.0 else ""
+    if normal[i] < 0.0:
+        neg = np.flatnonzero(normal < 0.0)
         runs = np.split(neg, np.flatnonzero(np.diff(neg) > 1) + 1)
         spans = ", ".join(f"{degrees(phi[r[0]]):.1f}–{degrees(phi[r[-1]]):.1f}°" for r in runs)
-        note = (f"R23 ≤ 0 over φ = {spans}: the roller crosses the {clearance * 1e3:g} mm clearance to the other "
+        note = (f"R23 < 0 over φ = {spans}: the roller crosses the {clearance * 1e3:g} mm clearance to the other "
                 f"flank (a jump; level 2 simulates it)")
     return Check("min contact force on the working flank", float(normal[i]), 0.0, "N", "≥", f"at φ = "
                  f"{degrees(phi[i]):.1f}°, level 1 at the scene's speed and spring; {note}")
