@@ -151,11 +151,12 @@ class Host:
         if keep.any():
             self.rec.write_truth(t[keep], {name: v[keep] for name, v in signals.items()})
 
-    def _end_theory(self, end: float) -> None:
-        """The reception ended with the machine at ``end`` (s): the theory recorded up to there (computed on to it, the
-        held block cut at it) and the plant events after it dropped — the machine never ran there."""
-        if self.cfg.cycles is not None:
-            self._advance_theory(end)
+    def _end_theory(self, end: float, complete: bool) -> None:
+        """The reception ended with the machine at ``end`` (s): the theory recorded up to there (the held block cut at
+        it; on a ``complete`` run computed on to it first — not after a stop, whose cause may be the model itself) and
+        the plant events after it dropped — the machine never ran there."""
+        if complete:
+            self._advance_theory(min(end, self.cfg.duration) if self.cfg.cycles is None else end)
         self._write_held(end)
         self._pending = [e for e in self._pending if not (e[1] == PLANT and e[0] > end + 0.5 * self.cfg.dt)]
         self.truth_t = min(self.truth_t, end) if self.cfg.cycles is not None else self.truth_t
@@ -352,11 +353,12 @@ class Host:
             self._explain = ResultExplainer(program, display_units(program, self.cfg.device["config"]))
         return self._explain
 
-    def _close_reception(self, why: str) -> None:
+    def _close_reception(self, why: str, complete: bool = False) -> None:
         """Everything received so far into the recording (``why``: what ends the reception): a curve cut in
         transfer as an ``incomplete_curve`` event, curves whose result did not come without it, the last live-drop
         report, and the curves of a longer served run beyond this host's ``--cycles`` as one ``not_recorded``
-        event; every event found. Once: later calls do nothing."""
+        event; every event found; the theory up to the machine's end (``complete``: the run ended as asked, the
+        theory is computed on to there — see :meth:`_end_theory`). Once: later calls do nothing."""
         if self._closed:
             return
         self._closed = True
@@ -369,9 +371,7 @@ class Host:
                            detail=f"the served machine sent {self._beyond} more curve(s) after the {self.cfg.cycles} "
                                   f"this host was asked to record (--cycles); they are in /can/raw only")
             self._beyond = 0
-        if self.cfg.cycles is None:          # a run of a stated duration: its theory to the end, wherever the run stopped
-            self._advance_theory(min(self.can.device_time, self.cfg.duration))
-        self._end_theory(self.can.device_time)
+        self._end_theory(self.can.device_time, complete)
         self._write_events()
 
     def interrupted(self, why: str = "the interruption of the run") -> None:
@@ -425,7 +425,7 @@ class Host:
     def finish(self) -> dict[str, Any]:
         """Release what is still waiting, read the unit's statistics over serial and record them with the
         link counters, then tell the unit the host is done (CAN Release)."""
-        self._close_reception("the end of the recording")
+        self._close_reception("the end of the recording", complete=True)
         stats: dict[str, Any] = {}
         # the counters are those of the latest frames: at the bus's device time (past the machine's end while the
         # backlog drained), not before an event already recorded
