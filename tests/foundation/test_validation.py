@@ -549,3 +549,11 @@ def test_output_into_a_closed_pipe_ends_quietly(monkeypatch, capsys, tmp_path):
     monkeypatch.setattr(sys, "stdout", Closed())
     assert main(["summary", "--png", str(tmp_path / "cycle.png")]) == 141
     assert capsys.readouterr().err == ""
+
+
+def test_curve_plot_options_on_a_scene_without_curves_are_refused(tmp_path, capsys):
+    """--ok-plots on a lab scene was accepted without a word (an audit): it measures no curves to plot."""
+    lab = Path(DEMO).parent / "lab_cam.toml"
+    assert cli.main(["run", str(lab), "--ok-plots", "3", "-o", str(tmp_path / "x.mcap")]) == 2
+    assert ("--ok-plots chooses which curves the report plots, and " in one_error_line(capsys)
+            and not (tmp_path / "x.mcap").exists())
