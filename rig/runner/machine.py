@@ -92,7 +92,8 @@ def _in_scene_words(message: str, program: int) -> str:
         return f"[device.config]: {text}"
     listed = re.match(r"(\w+)\[(\d+)\](.*)", path)          # elements[0]: the scene's first [[device.config.elements]]
     if listed:
-        return f"[[device.config.{listed[1]}]] no. {int(listed[2]) + 1}{listed[3]}{which}: {text}"
+        rest = f", key {listed[3][1:]!r}" if listed[3].startswith(".") else listed[3]      # ".kind" → ", key 'kind'"
+        return f"[[device.config.{listed[1]}]] no. {int(listed[2]) + 1}{rest}{which}: {text}"
     section, _, key = path.rpartition(".")
     if section and "." not in section:
         return f"[device.config.{section}] key {key!r}{which}: {text}"

@@ -94,6 +94,8 @@ def test_cli_unknown_section_exits_2_naming_it(tmp_path, capsys):
 @pytest.mark.parametrize("old, new, message", [
     ('signal = "F_rod"', 'signal = "F_rood"', "[transducers.rod_force]: the plant has no signal 'F_rood'"),
     ("bitrate = 1000000", "bitrate = 10000", "[links.can]: the periodic frames alone need"),
+    ('kind = "window"', 'kind = "windw"',                       # an element's key said as a key ("no. 1.kind" before)
+     "[[device.config.elements]] no. 1, key 'kind': 'windw' is not one of 'window'"),
     ('sample_rate = "10 kHz"', 'sample_rate = "400 kHz"',       # the unit's inputs: found in the first chunk before
      "[scene]: 'sample_rate' = 400000 Hz is faster than the acquisition unit takes its inputs (100000 Hz"),
 ])
