@@ -67,6 +67,8 @@ class Host:
         self._explain: ResultExplainer | None = None     # why a curve is NOK (rig.runner.reasons)
         self.truth_t = 0.0                    # s: how far the theory is computed (at the end: how far it is recorded)
         self._held: tuple[np.ndarray, dict[str, np.ndarray]] | None = None   # the latest block, not yet written
+        self._frame_t = 0.0                   # s: device time of the latest frame received
+        self._curve_end = 0.0                 # s: end of the latest curve recorded
         self._truth: list[dict[str, np.ndarray]] = []   # theory blocks the curves still to come may need
         # the unit measures curves only with both of its channels wired (a stand scene has none): else no block is kept
         self._curves_come = cfg.wired("device.x") is not None and cfg.wired("device.y") is not None
@@ -130,6 +132,7 @@ class Host:
             self.rec.write_can_frames(FrameBlock(block.timestamp, block.arbitration_id, block.dlc, block.data,
                                                  block.flags | RX), channel=self.cfg.can["channel"])
             self.frames += len(block)
+            self._frame_t = max(self._frame_t, float(block.timestamp[-1]))
         t_live, x_live, y_live = self.can.take_live()
         if len(t_live):
             self.rec.write_live(t_live, x_live, y_live)
@@ -151,15 +154,32 @@ class Host:
         if keep.any():
             self.rec.write_truth(t[keep], {name: v[keep] for name, v in signals.items()})
 
+    def _machine_end(self, complete: bool) -> float:
+        """Where the machine stopped advancing its plant (s), from what every host sees alike: a run of a duration at
+        its duration; a complete run of cycles at the end of the runner step in which its last curve ended (the
+        machine stops after that step; the bus then only drains — in process or across processes, the same time);
+        a run stopped early at the latest device time its frames carried."""
+        heard = max(self.can.device_time, self._frame_t)
+        if self.cfg.cycles is None:
+            return min(heard, self.cfg.duration)
+        if complete and self._curve_end > 0.0:
+            n, rate = self.cfg.chunk_samples, self.cfg.sample_rate
+            return math.ceil(round(self._curve_end * rate) / n) * n / rate
+        return heard
+
     def _end_theory(self, end: float, complete: bool) -> None:
-        """The reception ended with the machine at ``end`` (s): the theory recorded up to there (the held block cut at
-        it; on a ``complete`` run computed on to it first — not after a stop, whose cause may be the model itself) and
-        the plant events after it dropped — the machine never ran there."""
-        if complete:
-            self._advance_theory(min(end, self.cfg.duration) if self.cfg.cycles is None else end)
+        """The reception ended with the machine at ``end`` (s): the theory recorded up to there (computed on to it,
+        the held block cut at it) and the plant events after it dropped — the machine never ran there. After a stop
+        the model may be what stopped the run: a failure computing it is left at what was computed."""
+        try:
+            self._advance_theory(end)
+        except Exception as exc:  # noqa: BLE001 - the stop's own cause, raised again: the run's error says it
+            if complete:
+                raise
+            log.debug("the theory stops at %.6g s: %s", self.truth_t, exc)
         self._write_held(end)
         self._pending = [e for e in self._pending if not (e[1] == PLANT and e[0] > end + 0.5 * self.cfg.dt)]
-        self.truth_t = min(self.truth_t, end) if self.cfg.cycles is not None else self.truth_t
+        self.truth_t = min(self.truth_t, end)
 
     def _settled(self) -> float:
         """Device time (s) up to which every event is found: the frames and the theory have passed it, and, where
@@ -284,6 +304,7 @@ class Host:
                                detail=why_no_result or "a later curve's result arrived first: this curve's "
                                                        "Result frame was lost")
             self._advance_theory(float(curve.t[-1]))
+            self._curve_end = max(self._curve_end, float(curve.t[-1]))
             theory = {}
             for role in ("x", "y"):
                 spec = self.cfg.wired(f"device.{role}")
@@ -371,7 +392,7 @@ class Host:
                            detail=f"the served machine sent {self._beyond} more curve(s) after the {self.cfg.cycles} "
                                   f"this host was asked to record (--cycles); they are in /can/raw only")
             self._beyond = 0
-        self._end_theory(self.can.device_time, complete)
+        self._end_theory(self._machine_end(complete), complete)
         self._write_events()
 
     def interrupted(self, why: str = "the interruption of the run") -> None:

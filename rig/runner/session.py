@@ -108,8 +108,12 @@ def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fideli
 def _machine_done(cfg: RunConfig, machine: Machine) -> bool:
     if cfg.cycles is not None:
         if machine.t > cfg.max_time:
+            why = (f"the scene's [scene] max_time = {cfg.max_time:g} s ends the run first: raise it for this many "
+                   f"cycles, or check the device's start/stop settings" if cfg.max_time_given else
+                   f"max_time {cfg.max_time:g} s, {cfg.max_time / cfg.cycles:g} s per cycle: check the device's "
+                   f"start/stop settings")
             raise OutOfTime(f"{cfg.scene.path}: only {machine.curves} of {cfg.cycles} curves by {machine.t:.3f} s "
-                           f"of simulated time (max_time {cfg.max_time:g} s): check the device's start/stop settings")
+                           f"of simulated time ({why})")
         return machine.curves >= cfg.cycles
     return machine.t >= cfg.duration - 1e-9
 

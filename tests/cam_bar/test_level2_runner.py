@@ -146,13 +146,12 @@ def test_the_recording_holds_no_plant_signal_or_event_from_after_the_run(tmp_pat
     out = tmp_path / "drawn.mcap"
     summary = run_scene(drawn, out, cycles=3)
     rec = read_recording(out)
-    end = float(rec.metadata["rig.end"]["simulation_time"])
-    assert rec.truth["t"][-1] <= end + 1e-4 and rec.truth["t"][-1] >= summary.simulated_time - 1e-4
+    # the machine stops after the step (100 ms) in which its 3rd curve ended (0.572 s): at 0.6 s; the bus then drains
+    # to 0.75 s with no plant behind it (an audit found the truth there, and a 4th revolution's flank switches)
+    assert summary.simulated_time == pytest.approx(0.75) and rec.truth["t"][-1] == pytest.approx(0.6)
     plant = [e for e in rec.events if e["kind"] in ("flank_switch", "flank_bounce")]
-    assert plant and max(e["t"] for e in plant) <= rec.truth["t"][-1] + 1e-4
-    switches = sorted(e["t"] for e in rec.events if e["kind"] == "flank_switch")
-    assert summary.simulated_time == pytest.approx(0.75) and len(switches) == 8   # two near 0.14 s of each revolution
-    # begun (0, 0.2, 0.4, 0.6 s), none from the theory's 0.75–1.0 s
+    assert plant and max(e["t"] for e in plant) <= 0.6
+    assert len([e for e in rec.events if e["kind"] == "flank_switch"]) == 6        # two in each of the 3 revolutions
     stroke = tmp_path / "stroke.toml"
     stroke.write_text(drawn.read_text().replace('questions = ["stroke", "rod_force", "flank_switches"]',
                                                 'questions = ["stroke"]'))

@@ -591,6 +591,7 @@ def test_a_run_stopped_by_any_error_keeps_the_plant_truth_up_to_the_stop(tmp_pat
     record plant truth from after its end); a run stopped by an error other than a RunError — a model that cannot
     go on — lost that block (truth to 0.5 s of a run stopped at 0.7 s; the review of the change)."""
     from rig.runner import machine as machine_module
+    from rig.runner.session import RunError
     from rig.solvers import SolverDivergence
     original = machine_module.Machine.step
 
@@ -605,3 +606,13 @@ def test_a_run_stopped_by_any_error_keeps_the_plant_truth_up_to_the_stop(tmp_pat
         run_scene(ROOT / "data" / "scenes" / "clutch_startup.toml", out)
     rec = read_recording(out)
     assert rec.interrupted and rec.truth["t"][-1] == pytest.approx(0.7, abs=0.01)
+    # a run of cycles stopped by the bus (a RunError at 1.57 s, the machine at 1.5 s): the truth to 1.5 s, not to the
+    # last 0.5 s block a curve needed (1.0 s; an audit)
+    drawn = (ROOT / "data" / "scenes" / "pin_insertion_as_drawn.toml").read_text()
+    slow = tmp_path / "slow.toml"
+    slow.write_text(drawn.replace("bitrate = 1000000", "bitrate = 500000"))
+    monkeypatch.undo()
+    with pytest.raises(RunError, match="cannot carry the curves"):
+        run_scene(slow, tmp_path / "slow.mcap", cycles=40)
+    rec = read_recording(tmp_path / "slow.mcap")
+    assert rec.truth["t"][-1] == pytest.approx(rec.can_frames["t"][-1], abs=0.011)
