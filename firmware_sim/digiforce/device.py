@@ -255,6 +255,11 @@ class DigiForce:
                                  f"(spacing {dt.min():g}...{dt.max():g} s)")
         return 1.0 / step
 
+    @property
+    def enabled_channels(self) -> tuple[str, ...]:
+        """The input channels the active program has enabled ("x", "y", "y2")."""
+        return tuple(self._chains)
+
     def feed(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, y2: np.ndarray | None = None) -> list[CurveResult]:
         """Electrical input samples (x in V; y, y2 in V/V for bridges or V) at times ``t`` (s, evenly spaced,
         after all earlier ones). Returns the results of curves that ended in this chunk."""

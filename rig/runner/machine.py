@@ -228,7 +228,9 @@ class Machine:
             output[spec.name] = read(t, truth[spec.signal])
         x, y = self._xy
         if x is not None and y is not None:
-            for result in self.device.feed(t, output[x.name], output[y.name]):     # queued when the curve ends
+            # Y2 has no transducer wired (scenes wire X and Y): enabled (a host may, over serial) it reads an open input
+            y2 = np.zeros(t.size) if "y2" in self.device.enabled_channels else None
+            for result in self.device.feed(t, output[x.name], output[y.name], y2):     # queued when the curve ends
                 self.node.publish_measurement(float(np.asarray(result.curve.t)[-1]), result)
                 self.curves += 1
             live = self.device.live_values()

@@ -616,3 +616,18 @@ def test_a_run_stopped_by_any_error_keeps_the_plant_truth_up_to_the_stop(tmp_pat
         run_scene(slow, tmp_path / "slow.mcap", cycles=40)
     rec = read_recording(tmp_path / "slow.mcap")
     assert rec.truth["t"][-1] == pytest.approx(rec.can_frames["t"][-1], abs=0.011)
+
+
+def test_an_enabled_y2_with_nothing_wired_reads_an_open_input(tmp_path):
+    """Scenes wire X and Y only: a program with Y2 enabled (in the scene, or by a host over serial) stopped the run with
+    "feed: channel y2 is enabled … but no y2 samples given" (a clean-room client crashed a served machine so). Y2 now
+    reads an open input, 0 V, and the curves are measured."""
+    text = (ROOT / "data" / "scenes" / "pin_insertion.toml").read_text()
+    y2 = ('[device.config.channels.y2]\nenabled = true\ninput = "process"\nrange = "5 V"\nunit = "V"\n'
+          'scaling = { mode = "sensitivity", electrical = "1 V", engineering = "1 V" }\n\n')
+    scene = tmp_path / "y2.toml"
+    scene.write_text(text.replace("[device.config.control.start]", y2 + "[device.config.control.start]", 1))
+    out = tmp_path / "y2.mcap"
+    run_scene(scene, out, cycles=2)
+    rec = read_recording(out)
+    assert len(rec.curves) == 2 and len(rec.results) == 2
