@@ -164,7 +164,7 @@ class Commands:
             raise CommandError(SYNTAX, f"PW configuration is not valid JSON: {e}") from None
         if not isinstance(config, dict):
             raise CommandError(SYNTAX, f"PW configuration must be a JSON object, got {type(config).__name__}")
-        self._device.set_program(_int(number, "program number"), config, fits=_readable)
+        self._device.set_program(self._program(number), config, fits=_readable)   # empty: the active one
 
     def _tare(self, data: str) -> None:
         self._device.tare(data or None)

@@ -128,3 +128,14 @@ def test_pw_null_removes_a_limit() -> None:
     assert commands.execute("PW", '3,{"limits":{"x_max":[0.01,0.02],"y_min":[-1,1]}}') == "00"
     assert commands.execute("PW", '3,{"limits":{"x_max":null}}') == "00"
     assert json.loads(commands.execute("PG", "3")[2:])["limits"] == {"y_min": [-1.0, 1.0]}
+
+
+def test_pw_with_an_empty_program_field_writes_the_active_program() -> None:
+    """docs/serial-protocol.md: "An empty program field means the active program" — PS, PG, RS and RZ followed it,
+    PW answered 02 (a clean-room client)."""
+    from firmware_sim.serial_protocol.commands import Commands
+    unit = DigiForce()
+    commands = Commands(unit, None, threading.Lock())
+    assert commands.execute("PS", "2").startswith("00")
+    assert commands.execute("PW", ',{"name":"active"}').startswith("00")
+    assert unit.get_program(2)["name"] == "active" and unit.get_program(0)["name"] != "active"
