@@ -193,7 +193,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         writable_dir(report_dir, "report", hint="--report-dir DIR, or --no-report")
     cfg = _scene_config(scene, args.cycles, args.fidelity)
     plots = [opt for opt, given in (("--ok-plots", args.ok_plots), ("--nok-plots", args.nok_plots is not None)) if given]
-    if plots and (cfg.wired("device.x") is None or cfg.wired("device.y") is None):
+    if plots and not cfg.measures_curves:
         raise UsageError(f"{', '.join(plots)} {'chooses' if len(plots) == 1 else 'choose'} which curves the report "
                          f"plots, and {scene} measures none (its acquisition unit's X and Y are not wired: a stand or "
                          f"lab scene)")

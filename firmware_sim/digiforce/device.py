@@ -122,7 +122,8 @@ class DigiForce:
         self._pending_stop: float | None = None
         self._prev: dict[str, float] | None = None
         self._last_chunk: dict[str, np.ndarray] = {}
-        self._armed = {"start": False, "stop": False}     # x/y triggers armed in an earlier chunk (control.crossing)
+        self._armed: dict[str, bool] = {}
+        self._disarm()
 
     # --- channel commands -------------------------------------------------------------------------
     def _channels(self, channel: str | None) -> list[str]:
@@ -140,7 +141,7 @@ class DigiForce:
             if ch not in self._last_chunk:
                 raise DigiForceError(f"tare {ch}: no input sample yet; feed the unit first")
             self._chains[ch].tare_value = float(self._last_chunk[ch][-1])
-        self._armed = {"start": False, "stop": False}     # re-armed from the values as tared now
+        self._disarm()                                    # re-armed from the values as tared now
 
     def teach(self, channel: str, point: int, value: float) -> None:
         """Two-point teach: the latest input of ``channel`` shall read ``value`` (engineering units).
@@ -304,6 +305,10 @@ class DigiForce:
         cands = [c for c in cands if c is not None]
         return min(cands) if cands else None
 
+    def _disarm(self) -> None:
+        """x/y triggers re-armed from the values from here on (none carried from an earlier chunk: control.crossing)."""
+        self._armed = {"start": False, "stop": False}
+
     def _crossing(self, which: str, trig: dict[str, Any], val: dict[str, np.ndarray], first: int) -> int | None:
         """Where the ``which`` (start / stop) x/y trigger fires from index ``first`` on; its arming carries over
         to the next chunk while it has not fired (a fire, or a start or stop by other means, re-arms it from the
@@ -359,7 +364,7 @@ class DigiForce:
 
     def _begin(self, t: np.ndarray, eng: dict[str, np.ndarray], start: int) -> None:
         self._pending_start = None
-        self._armed = {"start": False, "stop": False}
+        self._disarm()
         for ch, chain in self._chains.items():
             if chain.cfg["tare_at_start"]:
                 chain.tare_value = float(eng[ch][start])
@@ -373,7 +378,7 @@ class DigiForce:
         rows = self._memory.finish()
         self._measuring = False
         self._pending_stop = None
-        self._armed = {"start": False, "stop": False}
+        self._disarm()
         mem = self._memory
         began = time.perf_counter()
         k = turning_index(rows[:, 1])

@@ -198,7 +198,7 @@ class DisplayUnits:
         """Display unit of any SI unit: that of a channel of the same kind, else the scene's, else the default."""
         for u in self.channels.values():
             if u.si == si or same_kind(u.si, si):
-                return u if u.si == si else unit(si, _pint_text(u))
+                return u if u.si == si else unit(si, pint_label(u.label))
         written = written_units(self.scene, si) if si != "s" else None     # times stay in s (durations in ms)
         if written is not None:
             try:
@@ -221,10 +221,6 @@ class DisplayUnits:
         """Display unit of a plant truth signal (:data:`SIGNAL_SI`; unknown names stay unconverted)."""
         si = SIGNAL_SI.get(name)
         return self.of(si) if si is not None else Unit("SI", "SI", 1.0, "?")
-
-
-def _pint_text(u: Unit) -> str:
-    return pint_label(u.label)
 
 
 def pint_label(label: str) -> str:

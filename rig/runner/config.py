@@ -224,6 +224,11 @@ class RunConfig:
         nearest its exact value (0.0003 s, not 3 × 1e-4 = 0.00030000000000000003)."""
         return (first + 1 + np.arange(n)) / self.sample_rate
 
+    @property
+    def measures_curves(self) -> bool:
+        """Both of the acquisition unit's channels (X, Y) are wired: it measures curves (a stand or lab scene: no)."""
+        return self.wired("device.x") is not None and self.wired("device.y") is not None
+
     def wired(self, to: str) -> TransducerSpec | None:
         """The transducer whose output goes to ``to`` (e.g. 'device.x', 'can.Encoder1'), if any."""
         return next((t for t in self.transducers if t.to == to), None)

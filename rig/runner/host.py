@@ -71,7 +71,7 @@ class Host:
         self._curve_end = 0.0                 # s: end of the latest curve recorded
         self._truth: list[dict[str, np.ndarray]] = []   # theory blocks the curves still to come may need
         # the unit measures curves only with both of its channels wired (a stand scene has none): else no block is kept
-        self._curves_come = cfg.wired("device.x") is not None and cfg.wired("device.y") is not None
+        self._curves_come = cfg.measures_curves
         self._block_n = max(2, round(max(cfg.chunk, THEORY_BLOCK) * cfg.sample_rate))
         self._blocks = 0
         self._curves: list[Any] = []                    # complete curves waiting for their result or theory

@@ -61,8 +61,7 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
         device.select_program(program)
     except ValueError as exc:
         raise SceneError(f"{cfg.scene.path} {_in_scene_words(str(exc), program)}") from None
-    fed = cfg.wired("device.x") is not None and cfg.wired("device.y") is not None
-    if fed and cfg.sample_rate > device.desc.max_rate * (1 + 1e-9):     # found before the run, not in its first chunk
+    if cfg.measures_curves and cfg.sample_rate > device.desc.max_rate * (1 + 1e-9):     # found before the run, not in its first chunk
         raise SceneError(f"{cfg.scene.path} [scene]: 'sample_rate' = {cfg.sample_rate:g} Hz is faster than the "
                          f"acquisition unit takes its inputs ({device.desc.max_rate:g} Hz, [unit] max_rate of its "
                          f"description): lower sample_rate")

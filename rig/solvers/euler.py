@@ -65,6 +65,7 @@ class SymplecticEuler(FixedStepper):
         if not 1 <= len(self.positions) < n or not 0 <= self.positions[0] <= self.positions[-1] < n:
             raise ValueError(f"symplectic Euler: positions {tuple(positions)!r} must name 1..{n - 1} of the {n} "
                              f"state components (indices 0..{n - 1}), leaving at least one velocity")
+        self._is_q = tuple(i in self.positions for i in range(n))
         compiled = compiled and n <= MASK_BITS       # the compiled step keeps the positions as a float's bit mask
         super().__init__(fun, t0, y0, t_bound, h, first_step, stiffness, compiled, self.positions)
 
@@ -72,8 +73,7 @@ class SymplecticEuler(FixedStepper):
         return {"positions": self.positions}
 
     def _python_step(self) -> None:
-        t, y, f0 = self.t, self.y, self.f
-        q = [i in self.positions for i in range(len(y))]
+        t, y, f0, q = self.t, self.y, self.f, self._is_q
         h, t_new = self._fixed_h()
         kicked = tuple(a if is_q else a + h * b for a, b, is_q in zip(y, f0, q))
         f1 = tuple(self.fun(t, kicked))

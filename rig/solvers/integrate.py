@@ -140,8 +140,7 @@ def breaks_in(problem: Problem, t0: float, tf: float) -> list[float]:
     return kept
 
 
-def _make_solver(method, fun, t, y, t_bound, options):
-    cls = METHODS[method] if isinstance(method, str) else method
+def _make_solver(cls, fun, t, y, t_bound, options):
     return cls(fun, t, y, t_bound, **options)
 
 
@@ -230,7 +229,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     while True:
         exact = problem.flow(t, y, breaks[bi]) if problem.flow else None
         if exact is None:
-            solver = _make_solver(method, fun, t, y, breaks[bi], dict(options, first_step=h_next))
+            solver = _make_solver(cls, fun, t, y, breaks[bi], dict(options, first_step=h_next))
             if isinstance(solver, FixedStepper):
                 solver.check_at_end = False     # tested once at the end of the run, below
             if monitor is not None and hasattr(solver, "monitor"):
