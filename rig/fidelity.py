@@ -46,9 +46,9 @@ LEVELS = {"cam_bar": (0, 1, 2), "clutch_dynamic": (2,), "clutch_static": (1,)}
 DEFAULT_LEVEL = {"cam_bar": 1, "clutch_dynamic": 2, "clutch_static": 1}
 REFERENCE_DATA = {"cam_bar": "pin_insertion_l2", "clutch_dynamic": "clutch_startup"}
 #: work–precision method names → names of rig.solvers.METHODS the plant's integration can run
-RUNNABLE = {"cam_bar": {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45",
+RUNNABLE = {"cam_bar": {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45", "tsit5": "Tsit5",
                         "dop853": "DOP853", "rodas4": "Rodas4"},
-            "clutch_dynamic": {"dp45": "DP45", "dop853": "DOP853", "rodas4": "Rodas4"}}   # the stand takes rtol/atol
+            "clutch_dynamic": {"dp45": "DP45", "tsit5": "Tsit5", "dop853": "DOP853", "rodas4": "Rodas4"}}   # the stand takes rtol/atol
 #: atol = rtol · scale of each plant's dynamic problem (its state's magnitude; the work–precision harness's)
 ATOL_SCALE = {"cam_bar": 1e-5, "clutch_dynamic": 1e-3}
 #: the integration setting of a scene that states no questions or tolerance, or that no data answer: the

@@ -32,7 +32,8 @@ from rig.bench.problems import WorkProblem
 from rig.solvers import SolverDivergence, StiffnessWarning, integrate
 
 COLUMNS = ("method", "setting", "error", "wall_s", "nfev", "t_sim", "status")
-OURS = {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45", "dop853": "DOP853",
+OURS = {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4", "dp45": "DP45", "tsit5": "Tsit5",
+        "dop853": "DOP853",
         "rodas4": "Rodas4"}
 FIXED = ("euler", "semi-implicit euler", "rk4")
 METHODS = tuple(OURS) + PEERS

@@ -1,5 +1,5 @@
 """ODE solver objects (step(), dense output, events, statistics) and an event-locating driver, independent of
-problems: explicit Euler, symplectic Euler, RK4, DP45, DOP853, Rodas4 (each compiled for a numba right-hand side),
+problems: explicit Euler, symplectic Euler, RK4, DP45, Tsit5, DOP853, Rodas4 (each compiled for a numba right-hand side),
 Rosenbrock23, closed-form segments. Reference: docs/solvers.md."""
 from rig.solvers.base import OdeSolver, SolverDivergence, StiffnessError, StiffnessWarning
 from rig.solvers.compiled import JitRhs
@@ -11,7 +11,8 @@ from rig.solvers.implicit import Rosenbrock23
 from rig.solvers.integrate import METHODS, Event, EventRecord, Problem, Solution, integrate
 from rig.solvers.rk4 import RK4
 from rig.solvers.rodas import Rodas4
+from rig.solvers.tsit5 import Tsitouras45
 
 __all__ = ["DOP853", "METHODS", "RK4", "AffineRotor", "ClosedForm", "ClosedFormSolver", "DormandPrince45", "Euler", "Event",
            "EventRecord", "JitRhs", "OdeSolver", "Problem", "Rodas4", "Rosenbrock23", "Solution", "SolverDivergence",
-           "StiffnessError", "StiffnessWarning", "SymplecticEuler", "integrate"]
+           "StiffnessError", "StiffnessWarning", "SymplecticEuler", "Tsitouras45", "integrate"]

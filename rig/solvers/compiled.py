@@ -70,7 +70,7 @@ _IMPORTING = threading.Lock()   # threads (e.g. Dask worker threads) must not se
 
 @cache
 def compiled_solver(method: str, kernel, event=None, act=None):
-    """Compiled steps of ``method`` ("dp45", "rk4", "euler", "symplectic_euler", "rodas4": a template in
+    """Compiled steps of ``method`` ("dp45", "tsit5", "dop853", "rk4", "euler", "symplectic_euler", "rodas4": a template in
     :mod:`rig.solvers.templates`) for ``kernel`` (event kernels ``event``, ``act``: :class:`JitRhs`), cached:
 
     * ``step(w, y, y_new, K, f, p)`` advances from (w[T], y) with first derivative f by one accepted
@@ -87,7 +87,8 @@ def compiled_solver(method: str, kernel, event=None, act=None):
       EV[w[NEV]], restart with the last step size; the fired event keeps its value past the root, the
       others are re-evaluated (a zero keeps the old value);
     * ``locate(t_old, t_new, y_old, K, p, k)``: root of event k on the step's dense output by Brent's
-      method (as scipy's ``brentq``, xtol 1e-15, rtol 4·eps), given a sign change over the step.
+      method (as scipy's ``brentq``, xtol 1e-15, rtol 4·eps), given a sign change over the step;
+    * ``values(t, y, p, out)``: every event's value at (t, y) into ``out``.
 
     Arrays in, status out: numba's call overhead grows with the number of arguments and returned
     objects. The sign test is conservative (any change stops, whatever an event's direction): the
@@ -102,8 +103,9 @@ def compiled_solver(method: str, kernel, event=None, act=None):
     binding = "\n".join(f"from {mod} import {name} as {alias}" if mod
                         else f"{alias} = {'never' if alias == 'act' else 'None'}"
                         for (mod, name), alias in zip(names, ("kernel", "event", "act")))
-    step_source = _INCLUDE.sub(lambda m: (TEMPLATES / f"{m[1]}.py").read_text(),
-                               (TEMPLATES / f"{method}.py").read_text())
+    step_source = (TEMPLATES / f"{method}.py").read_text()
+    while _INCLUDE.search(step_source):         # included parts may include others (tsit5 → pair45 → erk)
+        step_source = _INCLUDE.sub(lambda m: (TEMPLATES / f"{m[1]}.py").read_text(), step_source)
     step_source = _KERNELS.sub("", step_source)
     source = _KERNELS.sub(binding + "\n", (TEMPLATES / "runs.py").read_text())
     source = re.sub(r"# <method>\n.*?# </method>\n", lambda _: step_source, source, flags=re.DOTALL)
@@ -129,8 +131,8 @@ def compiled_solver(method: str, kernel, event=None, act=None):
             sys.modules[name] = module
             spec.loader.exec_module(module)
     if event is None:
-        return module.step, None, None
-    return module.step, module.run, module.locate
+        return module.step, None, None, None
+    return module.step, module.run, module.locate, module.values
 
 
 def _import_path(f) -> tuple[str, str] | tuple[None, None]:

@@ -43,32 +43,19 @@ C = np.array([0.0, _C2, _C3, _C4, _C5, 1.0])
 E = np.array([_E1, 0.0, _E3, _E4, _E5, _E6, _E7])
 
 
-def _kernels(n: int):
-    """Unrolled DP5(4) stages and error norm for n states (generated once per n)."""
-    return rk_kernels(((_A21,), (_A31, _A32), (_A41, _A42, _A43), (_A51, _A52, _A53, _A54),
-                       (_A61, _A62, _A63, _A64, _A65)), (_B1, 0.0, _B3, _B4, _B5, _B6),
-                      (0.0, _C2, _C3, _C4, _C5, 1.0), (_E1, 0.0, _E3, _E4, _E5, _E6, _E7), n)
-
-
-class DormandPrince45(AdaptiveStepper):
-    """Adaptive Dormand–Prince 5(4) with FSAL, local extrapolation and quartic dense output.
-
-    ``rtol``, ``atol`` (scipy's RMS error norm), ``first_step`` (s; default Hairer's heuristic),
-    ``max_step`` (s). ``stiffness`` ('warn' | 'raise' | 'ignore'): Hairer's test on stages 6 and 7 (both
-    at t + h) against the stability boundary 3.25; ``stiff_at`` is the time it first fired (None
-    otherwise). A :class:`rig.solvers.compiled.JitRhs` right-hand side is stepped in machine code
-    (``compiled=False`` forces the pure-Python step).
-    """
+class EmbeddedPair(AdaptiveStepper):
+    """An explicit 5(4) pair with seven stages, FSAL and a quartic dense output (rows of ``P``): the Python step
+    through :func:`~rig.solvers.unrolled.rk_kernels` on the class's ``tableau`` (rows of A below the diagonal, B,
+    C, E with the FSAL stage's weight last), the compiled one through the template named by ``method``."""
 
     order = 5
-    method, label, P, limit = "dp45", "DP45", P, 3.25
-
     error_order = 4
     safety, min_factor, max_factor, exponent = SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT
+    tableau: tuple
 
     def _python_step(self) -> None:
         fun, t, y, k1 = self.fun, self.t, self.y, self.f
-        stages, error_norm = _kernels(len(y))
+        stages, error_norm = rk_kernels(*self.tableau, len(y))
 
         def attempt(h: float, t_new: float) -> tuple[float, tuple]:
             y_new, y6, k2, k3, k4, k5, k6 = stages(fun, t, y, k1, h)
@@ -82,3 +69,18 @@ class DormandPrince45(AdaptiveStepper):
 
         h, t_new, h_next, (y_new, y6, K) = self._adapt(attempt)
         self._accept(t_new, y_new, h, h * lipschitz(K[6], K[5], y_new, y6), K, h_next)
+
+
+class DormandPrince45(EmbeddedPair):
+    """Adaptive Dormand–Prince 5(4) with FSAL, local extrapolation and quartic dense output.
+
+    ``rtol``, ``atol`` (scipy's RMS error norm), ``first_step`` (s; default Hairer's heuristic),
+    ``max_step`` (s). ``stiffness`` ('warn' | 'raise' | 'ignore'): Hairer's test on stages 6 and 7 (both
+    at t + h) against the stability boundary 3.25; ``stiff_at`` is the time it first fired (None
+    otherwise). A :class:`rig.solvers.compiled.JitRhs` right-hand side is stepped in machine code
+    (``compiled=False`` forces the pure-Python step).
+    """
+
+    method, label, P, limit = "dp45", "DP45", P, 3.25
+    tableau = (((_A21,), (_A31, _A32), (_A41, _A42, _A43), (_A51, _A52, _A53, _A54), (_A61, _A62, _A63, _A64, _A65)),
+               (_B1, 0.0, _B3, _B4, _B5, _B6), (0.0, _C2, _C3, _C4, _C5, 1.0), (_E1, 0.0, _E3, _E4, _E5, _E6, _E7))

@@ -45,9 +45,10 @@ from rig.solvers.implicit import Rosenbrock23
 from rig.solvers.rk4 import RK4
 from rig.solvers.rodas import Rodas4
 from rig.solvers.stepper import FixedStepper
+from rig.solvers.tsit5 import Tsitouras45
 
 METHODS: dict[str, type[OdeSolver]] = {"Euler": Euler, "SymplecticEuler": SymplecticEuler, "RK4": RK4,
-                                       "DP45": DormandPrince45, "DOP853": DOP853, "Rodas4": Rodas4,
+                                       "DP45": DormandPrince45, "Tsit5": Tsitouras45, "DOP853": DOP853, "Rodas4": Rodas4,
                                        "Rosenbrock23": Rosenbrock23}
 MAX_STALLED = 50
 STALL_SPAN = 1e-12     # restarts closer than this (relative to max(1, |t|)) do not count as progress
@@ -242,6 +243,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         fixed = isinstance(solver, FixedStepper)     # events on re-stepped states (see the docstring)
         plain_restarts = problem.reset is None and hasattr(solver, "state_at")   # no mode to re-select
         runs = batched and bool(events) and getattr(solver, "can_advance", False)
+        values = (lambda t_, y_, s=solver, n=len(events): s.event_values(t_, y_, n)) if runs else \
+            (lambda t_, y_: [e.fun(t_, y_) for e in events])
         while solver.status == "running":
             if runs:                            # compiled run of steps up to a sign change of some event
                 g_run = np.array(g_old)
@@ -267,7 +270,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
             hits = []
             simultaneous: set[int] = set()
             if events:
-                g_new = [e.fun(t_new, y_new) for e in events]
+                g_new = values(t_new, y_new)
                 for i, e in enumerate(events):
                     a, b = g_old[i], g_new[i]
                     t_from = t_old
@@ -347,11 +350,12 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     ys.append(y)
                 reset(t, y)
                 fired = {i for tr, i, _ in hits if tr <= t and not events[i].mode_dependent} | simultaneous
+                now = values(t, y)
                 if cut[3]:                      # the action set a new state: every g from that state; one left on
-                    g_old = [e.fun(t, y) for e in events]      # its surface must leave zero before it can cross
+                    g_old = now                 # its surface must leave zero before it can cross
                     at_zero = {i for i, g in enumerate(g_old) if g == 0.0}
                 else:
-                    g_old = [g_new[i] if i in fired else e.fun(t, y) if e.mode_dependent else (e.fun(t, y) or g_old[i])
+                    g_old = [g_new[i] if i in fired else now[i] if e.mode_dependent else (now[i] or g_old[i])
                              for i, e in enumerate(events)]
                 stalled = stalled + 1 if t - t_last_cut <= STALL_SPAN * max(1.0, abs(t)) else 0
                 t_last_cut = t

@@ -70,7 +70,7 @@ class Stepper(OdeSolver):
         self.nfev = 1
         self.h_abs = math.nan
         self._K = None
-        self._jit = self._run = self._locate = None
+        self._jit = self._run = self._locate = self._values = None
         self._compiled = compiled and isinstance(fun, JitRhs)
 
     def _start(self, h_abs: float, rtol: float = 0.0, atol: float = 0.0, max_step: float = math.inf,
@@ -79,7 +79,8 @@ class Stepper(OdeSolver):
         self.h_abs = h_abs
         if self._compiled:
             fun = self.fun
-            self._jit, self._run, self._locate = compiled_solver(self.method, fun.kernel, fun.event, fun.act)
+            self._jit, self._run, self._locate, self._values = compiled_solver(self.method, fun.kernel, fun.event,
+                                                                                fun.act)
             self._p = fun.params()
             self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
             self._w = np.array([self.t, h_abs, self.t_bound, rtol, atol, max_step, float(sum(1 << i for i in positions)),
@@ -210,6 +211,12 @@ class Stepper(OdeSolver):
         """Root of event k (the RHS's event kernel) in the last step taken by :meth:`advance`, which
         changes sign over it (compiled Brent search on the dense output)."""
         return self._locate(self.t_old, self.t, self._yo, self._K, self._p, k)
+
+    def event_values(self, t: float, y: Sequence[float], n: int) -> list[float]:
+        """The values of the RHS's n event kernels at (t, y), in one compiled call (with :meth:`advance`)."""
+        out = np.empty(n)
+        self._values(t, np.asarray(y, dtype=float), self._p, out)
+        return out.tolist()
 
     @property
     def stiff_at(self) -> float | None:

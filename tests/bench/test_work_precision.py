@@ -15,7 +15,7 @@ from rig.bench.workprecision import run_scenes
 SCENES = Path(__file__).resolve().parents[2] / "data" / "scenes"
 L2 = SCENES / "pin_insertion_l2.toml"
 CLUTCH = SCENES / "clutch_startup.toml"
-OURS = ("euler", "semi-implicit euler", "rk4", "dp45", "dop853", "rodas4")
+OURS = ("euler", "semi-implicit euler", "rk4", "dp45", "tsit5", "dop853", "rodas4")
 PEERS = ("scipy RK45", "scipy DOP853", "scipy Radau", "scipy BDF", "scipy LSODA", "scipy odeint", "cvode",
          "scipy LSODA (no restarts)", "scipy odeint (no restarts)", "cvode (no restarts)")
 REQUIRED = OURS + PEERS

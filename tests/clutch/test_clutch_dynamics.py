@@ -127,7 +127,7 @@ def test_scene_errors_name_key(tmp_path):
     # a fixed-step method has no rtol/atol: named as the scene's key (was a TypeError traceback from rig run)
     p.write_text((SCENES / "clutch_startup.toml").read_text().replace("[plant]\n", '[plant]\nmethod = "RK4"\n', 1))
     with pytest.raises(SceneError, match=r"\[plant\]: key 'method': method 'RK4' is not one of the adaptive methods "
-                                         r"DP45, DOP853, Rodas4, Rosenbrock23 \(a fixed-step method has no rtol/atol"):
+                                         r"DP45, Tsit5, DOP853, Rodas4, Rosenbrock23 \(a fixed-step method has no rtol/atol"):
         ClutchStand.from_scene(load_scene(p))
 
 

@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate._ivp.rk import RK45, rk_step
 
 from rig.solvers import AffineRotor, Event, Problem, integrate
-from rig.solvers.dopri import _kernels
+from rig.solvers.dopri import DormandPrince45
 from rig.solvers.unrolled import rk_kernels
 
 
@@ -78,7 +78,7 @@ def test_unrolled_dp45_step_equals_scipy_rk45_step():
     def f(t, y):
         return (y[1], -4.0 * y[0] + math.sin(t), 0.1 * y[0] * y[1])
     y0, h, t0 = (1.0, 0.5, -0.2), 0.05, 0.3
-    stages, error_norm = _kernels(3)
+    stages, error_norm = rk_kernels(*DormandPrince45.tableau, 3)
     k1 = f(t0, y0)
     y_new, _, *ks = stages(f, t0, y0, k1, h)
     K = np.empty((RK45.n_stages + 1, 3))

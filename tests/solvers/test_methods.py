@@ -20,6 +20,7 @@ from rig.solvers import (
     StiffnessError,
     StiffnessWarning,
     SymplecticEuler,
+    Tsitouras45,
     integrate,
 )
 from rig.solvers.compiled import JitRhs
@@ -64,7 +65,8 @@ def _error_at(method: str, h: float, t_end: float = 2.0) -> float:
 
 
 @pytest.mark.parametrize("method, h, order", [("Euler", 1e-3, 1), ("SymplecticEuler", 1e-3, 1), ("RK4", 0.02, 4),
-                                              ("DP45", 0.05, 5), ("DOP853", 0.2, 8), ("Rodas4", 0.05, 4)])
+                                              ("DP45", 0.05, 5), ("Tsit5", 0.025, 5), ("DOP853", 0.2, 8),
+                                              ("Rodas4", 0.05, 4)])
 def test_order_of_convergence_on_the_harmonic_oscillator(method, h, order):
     errors = [_error_at(method, h / 2 ** k) for k in range(3)]
     observed = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
@@ -136,7 +138,7 @@ def test_rodas4_is_accurate_and_stable_where_explicit_methods_diverge(compiled):
     assert forced.nsteps == 20 and abs(forced.y_final[0] - math.cos(2.0)) < 1e-3
 
 
-@pytest.mark.parametrize("method", ["Euler", "SymplecticEuler", "RK4", "DP45", "DOP853", "Rodas4"])
+@pytest.mark.parametrize("method", ["Euler", "SymplecticEuler", "RK4", "DP45", "Tsit5", "DOP853", "Rodas4"])
 def test_compiled_runs_take_the_python_steps(method):
     """Same kernel, events (a recorded crossing and a restart), dense output: the compiled runs and the Python
     steps agree on steps, RHS calls, samples and event times."""
@@ -165,6 +167,7 @@ def test_compiled_runs_take_the_python_steps(method):
 
 @pytest.mark.parametrize("cls, opts", [(Euler, {"h": 0.01}), (SymplecticEuler, {"h": 0.01}), (RK4, {"h": 0.01}),
                                        (DormandPrince45, {"rtol": 1e-8, "atol": 1e-10}),
+                                       (Tsitouras45, {"rtol": 1e-8, "atol": 1e-10}),
                                        (DOP853, {"rtol": 1e-8, "atol": 1e-10}),
                                        (Rodas4, {"rtol": 1e-8, "atol": 1e-10})])
 def test_solver_objects_share_one_interface(cls, opts):

@@ -99,7 +99,7 @@ def _bounce_times(g: float, e: float, h0: float, t_end: float) -> list[float]:
     return times
 
 
-@pytest.mark.parametrize("method", ["DP45", "DOP853", "Rodas4"])
+@pytest.mark.parametrize("method", ["DP45", "Tsit5", "DOP853", "Rodas4"])
 @pytest.mark.parametrize("first_step", [None, 2.0])
 def test_an_action_that_resets_the_state_finds_every_later_crossing(method, first_step):
     """A bouncing ball: the action leaves the state on the event surface (y = 0) moving away. Every bounce is

@@ -1,32 +1,5 @@
 """Compiled Dormand–Prince 5(4) step (inserted into :mod:`runs` copies; same tableau, error norm and
-controller as :class:`rig.solvers.dopri.DormandPrince45`'s Python step). K rows: the seven stages (the
-last is f(t_new, y_new))."""
-import math
+controller as :class:`rig.solvers.dopri.DormandPrince45`'s Python step)."""
+from rig.solvers.dopri import P, A, B, C, E, EXPONENT, MAX_FACTOR, MIN_FACTOR, SAFETY  # A…SAFETY: for pair45
 
-from numba import njit
-
-from rig.solvers.dopri import P, A, B, C, E, EXPONENT, MAX_FACTOR, MIN_FACTOR, SAFETY  # A…SAFETY: for erk
-
-N_STAGES, F_NEW = 6, 6
-
-
-@njit(cache=True, error_model="numpy")
-def error_norm(h, K, y, y_new, rtol, atol):
-    """RMS of h·(Kᵀ E) / (atol + rtol·max(|y|, |y_new|)) (scipy's RK45)."""
-    acc = 0.0
-    for i in range(y.size):
-        e = 0.0
-        for j in range(7):
-            e += E[j] * K[j, i]
-        d = h * e / (atol + rtol * max(abs(y[i]), abs(y_new[i])))
-        acc += d * d
-    return math.sqrt(acc / y.size)
-
-
-@njit(cache=True, error_model="numpy")
-def extend(t, h, y, ys, K, p):
-    """No extra stages: the quartic dense output uses the seven stages."""
-    return 0
-
-
-# <include erk>
+# <include pair45>

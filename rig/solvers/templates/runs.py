@@ -93,6 +93,14 @@ def step(w, y, y_new, K, f, p):
 
 
 @njit(cache=True, error_model="numpy")
+def values(t, y, p, out):
+    """Every event's value at (t, y) into ``out`` (one call for the Python driver instead of one per event)."""
+    y, p, out = borrowed(y), borrowed(p), borrowed(out)
+    for k in range(out.size):
+        out[k] = event(t, y, p, k)
+
+
+@njit(cache=True, error_model="numpy")
 def coeffs(K, h, Q):
     """Dense-output coefficients Q = h·(Kᵀ P) of one step."""
     for i in range(Q.shape[0]):
