@@ -7,7 +7,7 @@ of the scene's machine from the quasi-static start. Each cell is compared with a
 (DP45 at rtol 1e-11) on the scene's sample grid (error = max|e − e_ref| / max|e_ref|) and classed
 ``converged`` (error ≤ 1e-3), ``inaccurate`` (1e-3 < error ≤ 1), ``detected`` (the method stopped with its
 divergence report) or ``silent`` (error > 1 or non-finite without a report: a wrong answer nobody was told
-about). The adaptive methods (dp45, rodas4) run once per stiffness at rtol 1e-6 with their RHS calls.
+about). The adaptive methods (dp45, tsit5, rodas4) run once per stiffness at rtol 1e-6 with their RHS calls.
 Writes ``DIR/stability.csv`` and ``DIR/stability.png`` (one panel per fixed-step method and cam speed).
 """
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 FIXED = {"euler": "Euler", "semi-implicit euler": "SymplecticEuler", "rk4": "RK4"}
-ADAPTIVE = {"dp45": "DP45", "rodas4": "Rodas4"}
+ADAPTIVE = {"dp45": "DP45", "tsit5": "Tsit5", "rodas4": "Rodas4"}
 STEPS = [4e-4, 2e-4, 1e-4, 5e-5, 2.5e-5, 1.25e-5]
 FACTORS = [0.5, 1.0, 2.0, 4.0]
 SPEEDS = [1.0, 2.0]            # × the scene's cam speed (the demo machine: 150 and 300 rpm)
