@@ -7,7 +7,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .elements import ELEMENT_KINDS
+from .elements import ELEMENT_KINDS, Formatter, plain_format
 
 BASE_VALUES = ("x_max", "x_min", "y_max", "y_min", "x_at_y_max", "y_at_x_max", "x_end", "y_end",
                "duration", "pairs")
@@ -52,8 +52,10 @@ def turning_index(x: np.ndarray) -> int:
     return i_max if x[i_max] - x[0] >= x[0] - x[i_min] else i_min
 
 
-def reference_x(x: np.ndarray, y: np.ndarray, k: int, reference: Mapping[str, Any]) -> tuple[float, str | None]:
-    """X to subtract for the reference mode, and why it cannot be found (or None).
+def reference_x(x: np.ndarray, y: np.ndarray, k: int, reference: Mapping[str, Any],
+                fmt: Formatter = plain_format) -> tuple[float, str | None]:
+    """X to subtract for the reference mode, and why it cannot be found (or None; its threshold written by ``fmt``,
+    e.g. with the Y channel's unit).
 
     ``y_threshold``: X where Y first reaches the threshold from below on the forward part (interpolated);
     ``end``: X at the end of the forward part (where the final force is reached).
@@ -67,7 +69,7 @@ def reference_x(x: np.ndarray, y: np.ndarray, k: int, reference: Mapping[str, An
     yf = y[:k + 1]
     hit = np.nonzero((yf[:-1] < level) & (yf[1:] >= level))[0]
     if hit.size == 0:
-        return 0.0, f"Y never reaches the reference threshold {level:g} from below on the forward part"
+        return 0.0, f"Y never reaches the reference threshold {fmt('y', level)} from below on the forward part"
     i = int(hit[0])
     return float(x[i] + (level - y[i]) / (y[i + 1] - y[i]) * (x[i + 1] - x[i])), None
 

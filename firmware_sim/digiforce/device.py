@@ -382,7 +382,7 @@ class DigiForce:
         mem = self._memory
         began = time.perf_counter()
         k = turning_index(rows[:, 1])
-        x_ref, ref_problem = reference_x(rows[:, 1], rows[:, 2], k, self._prog["reference"])
+        x_ref, ref_problem = reference_x(rows[:, 1], rows[:, 2], k, self._prog["reference"], _reason_format(self._prog))
         curve = Curve(t=rows[:, 0], x=rows[:, 1] - x_ref, y=rows[:, 2],
                       y2=rows[:, 3] if "y2" in self._chains else None, turning_index=k, x_reference=x_ref,
                       overflow=mem.overflow, decimations=mem.decimations, dropped=mem.dropped,

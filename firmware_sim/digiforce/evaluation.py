@@ -13,7 +13,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .curve import Curve, base_process_values, reference_x, turning_index
-from .elements import Element, Formatter, build_elements
+from .elements import Element, Formatter, build_elements, plain_format
 from .results import ElementResult
 
 
@@ -46,6 +46,7 @@ class Reevaluation:
         self.program = program
         self.elements = build_elements(list(program.get("elements", [])), fmt)
         self.reference = program.get("reference", {"mode": "absolute"})
+        self.fmt = fmt or plain_format
 
     @property
     def names(self) -> list[tuple[str, str]]:
@@ -58,7 +59,7 @@ class Reevaluation:
         x, y = np.asarray(x, float), np.asarray(y, float)
         k = turning_index(x)
         # the unit subtracted the reference from X; whether it found one depends on Y alone
-        problem = reference_x(x, y, k, self.reference)[1] if self.reference["mode"] == "y_threshold" else None
+        problem = reference_x(x, y, k, self.reference, self.fmt)[1] if self.reference["mode"] == "y_threshold" else None
         curve = Curve(t=np.asarray(t, float), x=x, y=y, y2=None if y2 is None else np.asarray(y2, float),
                       turning_index=k)
         out: list[ElementResult | None] = list(reference_verdict(problem))

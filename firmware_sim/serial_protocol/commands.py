@@ -81,6 +81,17 @@ def _not_json(token: str) -> Any:
     raise ValueError(f"{token} is not a JSON number (strict RFC 8259: no NaN or Infinity)")
 
 
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """A JSON object whose keys are unique: RFC 8259 leaves duplicates to the reader, and a last-wins reader would
+    silently drop the first value of a key the host sent twice."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"the key {key!r} appears twice in one object")
+        out[key] = value
+    return out
+
+
 def _finite_float(text: str) -> float:
     """A JSON number as a float; one beyond the float range (1e999) would be infinity: refused as NaN/Infinity are."""
     value = float(text)
@@ -159,9 +170,12 @@ class Commands:
         if not sep:
             raise CommandError(SYNTAX, "PW data must be '<program>,<JSON object>'")
         try:
-            config = json.loads(text, parse_constant=_not_json, parse_float=_finite_float)
-        except ValueError as e:                  # JSONDecodeError, or a NaN/Infinity token
+            config = json.loads(text, parse_constant=_not_json, parse_float=_finite_float, object_pairs_hook=_unique_keys)
+        except ValueError as e:                  # JSONDecodeError, a NaN/Infinity token or a repeated key
             raise CommandError(SYNTAX, f"PW configuration is not valid JSON: {e}") from None
+        except RecursionError:                   # nested deeper than the parser's stack (a program nests 4 deep)
+            raise CommandError(SYNTAX, "PW configuration is not valid JSON: nested too deeply (a program's JSON "
+                                       "nests 4 levels)") from None
         if not isinstance(config, dict):
             raise CommandError(SYNTAX, f"PW configuration must be a JSON object, got {type(config).__name__}")
         self._device.set_program(self._program(number), config, fits=_readable)   # empty: the active one

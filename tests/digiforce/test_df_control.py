@@ -194,7 +194,8 @@ def test_reference_y_threshold(unit, press):
     unit.start()
     unit.feed(t + 1, x, y)
     r = unit.stop()
-    assert not r.ok and r.elements[0].name == "reference" and "never reaches" in r.elements[0].reason
+    assert not r.ok and r.elements[0].name == "reference"
+    assert r.elements[0].reason == "Y never reaches the reference threshold 5 N from below on the forward part"
 
 
 def test_evaluation_through_unit_names_failing_element(unit, press):

@@ -106,6 +106,20 @@ def test_a_non_finite_token_in_pw_json_is_not_json(token) -> None:
     assert answer.startswith("02PW configuration is not valid JSON") and "no NaN or Infinity" in answer
 
 
+@pytest.mark.parametrize("payload, why", [
+    ('3,{"channels":{"x":{"cutoff":10,"cutoff":0}}}', "the key 'cutoff' appears twice in one object"),
+    ("3," + "[" * 100000 + "]" * 100000, "nested too deeply")])
+def test_pw_refuses_repeated_keys_and_deep_nesting_as_not_json(payload, why) -> None:
+    """A key twice in one object was accepted, the last value kept; JSON nested 100 000 deep answered 05 (an internal
+    fault, the parser's RecursionError). Both are the request's fault: 02 naming it, and the program unchanged."""
+    from firmware_sim.serial_protocol.commands import Commands
+    commands = Commands(DigiForce(), None, threading.Lock())
+    before = commands.execute("PG", "3")
+    answer = commands.execute("PW", payload)
+    assert answer.startswith("02PW configuration is not valid JSON") and why in answer
+    assert commands.execute("PG", "3") == before
+
+
 def test_pw_refuses_a_program_pg_could_not_read_back() -> None:
     """A 65 kB program name fits a PW request but makes the program's JSON longer than a PG response carries: PW
     accepted it and PG answered 09 until it was rewritten; PW refuses it (03) and the program stays as it was."""
