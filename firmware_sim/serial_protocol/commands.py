@@ -21,6 +21,7 @@ from firmware_sim.serial_protocol.framing import MAX_DATA
 OK, UNKNOWN, SYNTAX, REJECTED, NO_DATA, STATE, INTERNAL = 0, 1, 2, 3, 4, 5, 9
 BLOCK_PAIRS = 128          # value pairs per curve block (CB); CT blocks hold as many times
 MAX_MESSAGE = 200          # characters of an error message
+MAX_DEPTH = 8              # JSON nesting a request may carry (a program nests at most 6: PG of a program with every feature)
 
 
 class CommandError(Exception):
@@ -92,6 +93,18 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
     return out
 
 
+def _depth(value: Any) -> int:
+    """Nesting depth of parsed JSON (a scalar 0, ``{}`` 1, ``{"a": []}`` 2), without recursion."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        item, level = stack.pop()
+        if isinstance(item, (dict, list)):
+            level += 1
+            deepest = max(deepest, level)
+            stack.extend((v, level) for v in (item.values() if isinstance(item, dict) else item))
+    return deepest
+
+
 def _finite_float(text: str) -> float:
     """A JSON number as a float; one beyond the float range (1e999) would be infinity: refused as NaN/Infinity are."""
     value = float(text)
@@ -148,6 +161,8 @@ class Commands:
             code, message = e.code, str(e)
         except (ValueError, KeyError, IndexError, TypeError) as e:
             code, message = REJECTED, f"{type(e).__name__}: {e}"
+        except RecursionError as e:             # a RuntimeError, but the unit's fault, not a state: internal
+            code, message = INTERNAL, f"{type(e).__name__}: {e}"
         except RuntimeError as e:
             code, message = STATE, str(e)
         except Exception as e:  # the device must answer, never die: report the fault to the host
@@ -173,9 +188,12 @@ class Commands:
             config = json.loads(text, parse_constant=_not_json, parse_float=_finite_float, object_pairs_hook=_unique_keys)
         except ValueError as e:                  # JSONDecodeError, a NaN/Infinity token or a repeated key
             raise CommandError(SYNTAX, f"PW configuration is not valid JSON: {e}") from None
-        except RecursionError:                   # nested deeper than the parser's stack (a program nests 4 deep)
-            raise CommandError(SYNTAX, "PW configuration is not valid JSON: nested too deeply (a program's JSON "
-                                       "nests 4 levels)") from None
+        except RecursionError:                   # nested deeper than the parser's stack
+            raise CommandError(SYNTAX, f"PW configuration is not valid JSON: nested too deeply (more than "
+                                       f"{MAX_DEPTH} levels; a program nests at most 6)") from None
+        if _depth(config) > MAX_DEPTH:           # parsed, but the merge and checks would recurse past the stack
+            raise CommandError(SYNTAX, f"PW configuration is not valid JSON: nested too deeply (more than "
+                                       f"{MAX_DEPTH} levels; a program nests at most 6)")
         if not isinstance(config, dict):
             raise CommandError(SYNTAX, f"PW configuration must be a JSON object, got {type(config).__name__}")
         self._device.set_program(self._program(number), config, fits=_readable)   # empty: the active one

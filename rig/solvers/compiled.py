@@ -1,8 +1,8 @@
 """Right-hand sides compiled with numba, and the solvers compiled around them.
 
 A problem whose RHS is a :class:`JitRhs` (a numba kernel ``kernel(t, y, p, out)`` on float64 arrays plus
-its live parameter vector) lets every method of :mod:`rig.solvers` (explicit and symplectic Euler, RK4, DP45,
-Rodas4) run each step — all stages, the error norm, rejections and the step-size controller — in machine
+its live parameter vector) lets every method of :mod:`rig.solvers` (explicit and symplectic Euler, RK4, DP45, Tsit5,
+DOP853, Rodas4) run each step — all stages, the error norm, rejections and the step-size controller — in machine
 code; with the problem's event kernels it runs whole stretches of steps, locates event roots and restarts at
 simple events in machine code too, and the Python driver (:func:`rig.solvers.integrate`) only acts where the
 problem needs it. Same method as each solver's Python step (tableau, norm, controller constants); the tests

@@ -1,4 +1,4 @@
-"""Base of the one-step methods (Euler, symplectic Euler, RK4, DP45, Rodas4): Python and compiled steps,
+"""Base of the one-step methods (Euler, symplectic Euler, RK4, DP45, Tsit5, DOP853, Rodas4): Python and compiled steps,
 compiled runs of steps, dense output, stiffness monitor and divergence reports.
 
 Every method's step from (t, y) yields stage vectors K (rows) with y(t + θh) = y + h·Σ_c (Kᵀ P)[:, c]·θ^(c+1)

@@ -46,4 +46,4 @@ class Tsitouras45(EmbeddedPair):
     against 3.5, the stability boundary of the fifth-order solution on the negative real axis: −3.507)."""
 
     method, label, P, limit = "tsit5", "Tsit5", P, 3.5
-    tableau = (_ROWS, tuple(B), tuple(C), tuple(E.tolist()))
+    tableau = (_ROWS, tuple(B.tolist()), tuple(C.tolist()), tuple(E.tolist()))     # Python floats: the unrolled step

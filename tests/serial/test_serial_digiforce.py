@@ -108,10 +108,13 @@ def test_a_non_finite_token_in_pw_json_is_not_json(token) -> None:
 
 @pytest.mark.parametrize("payload, why", [
     ('3,{"channels":{"x":{"cutoff":10,"cutoff":0}}}', "the key 'cutoff' appears twice in one object"),
-    ("3," + "[" * 100000 + "]" * 100000, "nested too deeply")])
+    ("3," + "[" * 100000 + "]" * 100000, "nested too deeply"),
+    ('3,{"name":' + "[" * 500 + "]" * 500 + "}", "nested too deeply"),
+    ('3,{"channels":{"x":{"scaling":[[[[[[[[1]]]]]]]]}}}', "nested too deeply (more than 8 levels")])
 def test_pw_refuses_repeated_keys_and_deep_nesting_as_not_json(payload, why) -> None:
-    """A key twice in one object was accepted, the last value kept; JSON nested 100 000 deep answered 05 (an internal
-    fault, the parser's RecursionError). Both are the request's fault: 02 naming it, and the program unchanged."""
+    """A key twice in one object was accepted, the last value kept; JSON nested 100 000 deep answered 05 (the state
+    error: the parser's RecursionError is a RuntimeError), and 500 deep it parsed, then overflowed the stack in the
+    program's merge (05 again). All are the request's fault: 02 naming it, and the program unchanged."""
     from firmware_sim.serial_protocol.commands import Commands
     commands = Commands(DigiForce(), None, threading.Lock())
     before = commands.execute("PG", "3")
@@ -153,3 +156,12 @@ def test_pw_with_an_empty_program_field_writes_the_active_program() -> None:
     assert commands.execute("PS", "2").startswith("00")
     assert commands.execute("PW", ',{"name":"active"}').startswith("00")
     assert unit.get_program(2)["name"] == "active" and unit.get_program(0)["name"] != "active"
+
+
+def test_the_richest_program_nests_within_the_pw_depth_limit() -> None:
+    """The PW depth limit (8) leaves room above a program with every feature (6 levels): PW takes it, PG returns it."""
+    from firmware_sim.serial_protocol.commands import MAX_DEPTH, Commands, _depth
+    from tests.fuzz.test_fuzz_serial_device import FEATURES
+    commands = Commands(DigiForce(), None, threading.Lock())
+    assert commands.execute("PW", "3," + json.dumps(FEATURES, separators=(",", ":"))) == "00"
+    assert _depth(FEATURES) == _depth(json.loads(commands.execute("PG", "3")[2:])) == 6 < MAX_DEPTH

@@ -1,5 +1,5 @@
-"""Compiled step of an embedded explicit Runge–Kutta pair with FSAL (included by the DP45 and DOP853 templates,
-which define the tableau ``A``, ``B``, ``C`` with ``N_STAGES`` stages, ``F_NEW`` — the row of f(t_new, y_new) in
+"""Compiled step of an embedded explicit Runge–Kutta pair with FSAL (included by ``pair45.py`` — DP45, Tsit5 — and
+the DOP853 template, which define the tableau ``A``, ``B``, ``C`` with ``N_STAGES`` stages, ``F_NEW`` — the row of f(t_new, y_new) in
 K —, the controller constants, ``error_norm(h, K, y, y_new, rtol, atol)`` and ``extend(t, h, y, ys, K, p)``: the
 stages of the continuous extension, returning their RHS calls)."""
 import math
