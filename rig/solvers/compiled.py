@@ -60,8 +60,9 @@ class JitRhs:
 #: ATOL, MAX_STEP, QMASK (in: settings; QMASK = the position components of a (q, v) state as a bit mask, bit i for
 #: component i), H, NFEV, HL, NEV, FAIL
 #: (out: last step taken — or the failed one —, RHS calls, Hairer's stiffness estimate h·|λ|, events acted
-#: on in a run, failure status of a run: 1 step-size underflow, 2 non-finite state of a fixed-step method)
-T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, QMASK, H, NFEV, HL, NEV, FAIL = range(12)
+#: on in a run, failure status of a run: 1 step-size underflow, 2 non-finite state of a fixed-step method), NBREAK
+#: (in/out: how many of a run's further bounds ``BR`` it has passed, restarting past each as the driver would)
+T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, QMASK, H, NFEV, HL, NEV, FAIL, NBREAK = range(13)
 TEMPLATES = Path(__file__).with_name("templates")
 _KERNELS = re.compile(r"# <kernels>\n.*?# </kernels>\n", re.DOTALL)
 _INCLUDE = re.compile(r"^# <include (\w+)>\n", re.MULTILINE)     # a method template's shared part (templates/erk.py)
@@ -77,11 +78,14 @@ def compiled_solver(method: str, kernel, event=None, act=None):
       step, writing the new state into ``y_new``, the method's stage vectors into K (the last row is
       f(t_new, y_new)) and H, NFEV, HL and (on success) T, H_ABS into ``w``; returns 0, 1 on a step-size
       underflow (state untouched) or 2 when a fixed-step method's state became non-finite;
-    * ``run(w, Y, TT, HH, KK, HL, EV, g, p)`` (with ``event``) takes steps from (w[T], Y[0]) with
+    * ``run(w, Y, TT, HH, KK, HL, EV, g, p, BR)`` (with ``event``) takes steps from (w[T], Y[0]) with
       KK[0, 0] the first derivative, storing step ends TT[s + 1], states Y[s + 1], step sizes HH[s],
       stage vectors KK[s] and h·|λ| HL[s], until an event value in ``g`` (given at the start, updated in
       place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the number of
-      steps, or −1 − steps on a failure (status in w[FAIL]). Sign changes that ``act`` accepts (all of them
+      steps, or −1 − steps on a failure (status in w[FAIL]). A t_bound that is a time break of the problem,
+      with further bounds in ``BR`` (from w[NBREAK] on), is passed as :func:`rig.solvers.integrate` passes it:
+      the run restarts one ulp past it (f evaluated there, an adaptive method's step size kept, the step's
+      stored end TT[s + 1] that restart time), takes the next bound and counts it in w[NBREAK]. Sign changes that ``act`` accepts (all of them
       in the step, none exactly zero) are handled in the run as the Python driver would: cut at the
       earliest root (the step then ends there, TT[s + 1] < TT[s] + HH[s]), act, record (t, k, ±1, y) in
       EV[w[NEV]], restart with the last step size; the fired event keeps its value past the root, the

@@ -14,7 +14,8 @@ a *method* is a solver class. ``integrate`` drives one with the other:
 * at an event flagged ``restart`` (RHS discontinuous there, e.g. a cam phase boundary) or whose
   ``action`` reports a change of the problem, the step is cut at the event and the solver restarted;
 * ``time_breaks`` (load steps in time) are hit exactly by bounding the solver there and restarting
-  one ulp later; the RHS must be left-continuous there (value at t_b = value before the break);
+  one ulp later; the RHS must be left-continuous there (value at t_b = value before the break); for a problem
+  without ``reset`` (no mode to re-select) the compiled runs pass them the same way without returning here;
 * terminal events stop the integration;
 * hybrid (switched) problems keep a discrete mode outside the state: an event ``action`` may switch it
   and return a projected state to restart from, ``Problem.reset`` re-selects it at the start and after
@@ -243,12 +244,16 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         fixed = isinstance(solver, FixedStepper)     # events on re-stepped states (see the docstring)
         plain_restarts = problem.reset is None and hasattr(solver, "state_at")   # no mode to re-select
         runs = batched and bool(events) and getattr(solver, "can_advance", False)
+        bi0 = bi
+        if runs and problem.reset is None and bi + 1 < len(breaks):
+            solver.pass_breaks(breaks[bi + 1:])     # no mode to re-select there: the compiled runs pass the breaks
         values = (lambda t_, y_, s=solver, n=len(events): s.event_values(t_, y_, n)) if runs else \
             (lambda t_, y_: [e.fun(t_, y_) for e in events])
         while solver.status == "running":
             if runs:                            # compiled run of steps up to a sign change of some event
                 g_run = np.array(g_old)
                 quiet = solver.advance(g_run)
+                bi = bi0 + solver.breaks_passed
                 for row in solver.acted:        # restarts the compiled run acted on itself
                     records.append(EventRecord(float(row[0]), events[int(row[1])].name, tuple(row[3:].tolist()),
                                                float(row[2])))
@@ -368,6 +373,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 at_zero = set()
         nfev += solver.nfev
         nsteps += solver.nsteps
+        restarts += bi - bi0                    # the breaks a compiled run passed
         if stiff_at is None:
             stiff_at = getattr(solver, "stiff_at", None)
         if exact is None:                       # the old step size means nothing for a state an action set

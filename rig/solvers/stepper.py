@@ -19,7 +19,7 @@ import numpy as np
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessError, StiffnessMonitor, all_finite, lipschitz
 from rig.solvers.amplification import Amplification
 from rig.solvers.control import step_factor
-from rig.solvers.compiled import FAIL, H, H_ABS, HL, NEV, NFEV, T, JitRhs, compiled_solver
+from rig.solvers.compiled import FAIL, H, H_ABS, HL, NBREAK, NEV, NFEV, T, T_BOUND, JitRhs, compiled_solver
 from rig.solvers.dense import PolynomialDense, StepsDense
 
 UNDERFLOW, NONFINITE = 1, 2          # failure codes of the compiled steps (rig/solvers/templates/runs.py)
@@ -84,7 +84,9 @@ class Stepper(OdeSolver):
             self._p = fun.params()
             self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
             self._w = np.array([self.t, h_abs, self.t_bound, rtol, atol, max_step, float(sum(1 << i for i in positions)),
-                                0.0, 0.0, 0.0, 0.0, 0.0])
+                                0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        self._bounds = np.empty(0)
+        self.breaks_passed = 0
 
     # ---- steps -------------------------------------------------------------------------------------------
     def _step_impl(self) -> None:
@@ -182,8 +184,9 @@ class Stepper(OdeSolver):
         KK, HH, HL_ = np.empty((max_steps, self.P.shape[0], n)), np.empty(max_steps), np.empty(max_steps)
         EV = np.empty((max_steps, 3 + n))
         Y[0], KK[0, 0] = self._ya, self._fa
-        count = self._run(self._w, Y, TT, HH, KK, HL_, EV, g, self._p)
+        count = self._run(self._w, Y, TT, HH, KK, HL_, EV, g, self._p, self._bounds)
         self.nfev += int(self._w[NFEV])
+        self.breaks_passed, self.t_bound = int(self._w[NBREAK]), float(self._w[T_BOUND])
         self.acted = EV[:int(self._w[NEV])]
         done = count if count >= 0 else -1 - count
         calls = self.monitor.calls
@@ -206,6 +209,14 @@ class Stepper(OdeSolver):
         self._ya, self._fa = Y[count].copy(), KK[last, -1]
         self.h_last, self.h_abs = float(self._w[H]), float(self._w[H_ABS])
         return StepsDense(TT[:count], HH[:last], Y[:count], KK[:last], self.P) if last else None
+
+    def pass_breaks(self, bounds: Sequence[float]) -> None:
+        """Let :meth:`advance` go on past t_bound, a time break of the problem, to the later ``bounds`` (s, increasing,
+        the last the span's end): each passed as :func:`rig.solvers.integrate` passes one (a restart one ulp past
+        it), counted in ``breaks_passed``, ``t_bound`` the next one."""
+        self._bounds = np.array(bounds, dtype=float)
+        self._w[NBREAK] = 0.0
+        self.breaks_passed = 0
 
     def locate(self, k: int) -> float:
         """Root of event k (the RHS's event kernel) in the last step taken by :meth:`advance`, which

@@ -165,6 +165,55 @@ def test_compiled_runs_take_the_python_steps(method):
     assert np.max(np.abs(a.y[0] - exact)) < {"Euler": 0.02, "SymplecticEuler": 0.01}.get(method, 1e-4)
 
 
+@njit(cache=True)
+def _kicked(t, y, p, out):
+    """The damped oscillator of :func:`_oscillator` with a force switched on at each of the times p[3:] (left-
+    continuous: on after the time), so the RHS jumps at each break."""
+    out[0] = y[1]
+    kick = 0.0
+    for tb in p[3:]:
+        if t > tb:
+            kick += 1.0
+    out[1] = -p[0] * p[0] * y[0] - 2.0 * p[1] * p[0] * y[1] + kick
+
+
+@pytest.mark.parametrize("method", ["RK4", "DP45", "Tsit5", "Rodas4"])
+def test_compiled_runs_pass_time_breaks_as_the_driver_does(method, monkeypatch):
+    """Time breaks (a force stepping at 12 times): the compiled runs restart past each themselves (one ulp on, f
+    there, the step size kept) where the driver started a new solver for each — as it still does for a problem with
+    a mode to re-select (``reset``). Same steps, RHS calls, restarts and states either way; and as the Python steps
+    (Rodas4: to its LU's rounding, a decision or two apart)."""
+    breaks = np.linspace(0.1, 1.9, 12) + 1.234e-3
+    p = np.r_[W, 0.05, 10.0, breaks]
+    opts = {"h": 2e-3} if method in FIXED else {"rtol": 1e-8, "atol": 1e-10}
+    t = np.linspace(0.0, 2.0, 41)
+
+    import sys
+    driver = sys.modules["rig.solvers.integrate"]
+    made = []
+
+    def run(compiled, reset=None):
+        fun = JitRhs(_kicked, lambda: p, event=_crossings)
+        problem = Problem(fun, (1.0, 0.0), [Event(lambda tt, y: y[0], "zero")], time_breaks=list(breaks), reset=reset)
+        made.append(0)
+        return integrate(problem, (0.0, 2.0), method=method, t_eval=t, compiled=compiled, **opts)
+
+    def counting(*args):
+        made[-1] += 1
+        return make(*args)
+
+    make = driver._make_solver
+    monkeypatch.setattr(driver, "_make_solver", counting)
+    passed, segments, python = run(True), run(True, reset=lambda tt, y: False), run(False)
+    assert made == [1, 13, 13]                    # one solver across the breaks, else one per segment
+    for other in (segments, python):
+        implicit = other is python and method == "Rodas4"
+        assert passed.restarts == other.restarts == 12 and abs(passed.nsteps - other.nsteps) <= (2 if implicit else 0)
+        assert abs(passed.nfev - other.nfev) <= (40 if implicit else 0)       # two Rodas4 steps: 9 calls and more
+        np.testing.assert_allclose(passed.y, other.y, rtol=1e-7 if implicit else 1e-13, atol=1e-11 if implicit else 1e-14)
+        np.testing.assert_allclose(passed.t_events["zero"], other.t_events["zero"], rtol=1e-8 if implicit else 1e-14)
+
+
 @pytest.mark.parametrize("cls, opts", [(Euler, {"h": 0.01}), (SymplecticEuler, {"h": 0.01}), (RK4, {"h": 0.01}),
                                        (DormandPrince45, {"rtol": 1e-8, "atol": 1e-10}),
                                        (Tsitouras45, {"rtol": 1e-8, "atol": 1e-10}),

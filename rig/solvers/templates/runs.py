@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from rig.solvers.borrow import borrowed
-from rig.solvers.compiled import FAIL, H, H_ABS, HL, MAX_STEP, NEV, NFEV, T, T_BOUND
+from rig.solvers.compiled import FAIL, H, H_ABS, HL, MAX_STEP, NBREAK, NEV, NFEV, T, T_BOUND
 
 UNDERFLOW, NONFINITE = 1, 2
 
@@ -208,14 +208,15 @@ def land(t0, t_root, w, y0, K, yr, p):
 
 
 @njit(cache=True, error_model="numpy")
-def run(w, Y, TT, HH, KK, HL_, EV, g, p):
+def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR):
     """Steps from (w[T], Y[0]) with KK[0, 0] = f there, storing step ends TT[s + 1], states Y[s + 1], step
     sizes HH[s], stage vectors KK[s] and h·|λ| HL_[s], until an event value in ``g`` (given at the start,
     updated in place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the
     number of steps, or −1 − steps on a failure (status in w[FAIL], the failed step's size in w[H]). Sign
-    changes that ``act`` accepts are acted on in the run (see :func:`rig.solvers.compiled.compiled_solver`)."""
-    w, Y, TT, HH, KK, HL_, EV, g, p = (borrowed(w), borrowed(Y), borrowed(TT), borrowed(HH), borrowed(KK),
-                                       borrowed(HL_), borrowed(EV), borrowed(g), borrowed(p))
+    changes that ``act`` accepts are acted on in the run; a t_bound with further bounds BR[w[NBREAK]:] is a time
+    break passed in the run (see :func:`rig.solvers.compiled.compiled_solver`)."""
+    w, Y, TT, HH, KK, HL_, EV, g, p, BR = (borrowed(w), borrowed(Y), borrowed(TT), borrowed(HH), borrowed(KK),
+                                           borrowed(HL_), borrowed(EV), borrowed(g), borrowed(p), borrowed(BR))
     n = Y.shape[1]
     last = KK.shape[1] - 1
     g_new, yr = np.empty(g.size), np.empty(n)
@@ -244,9 +245,21 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p):
             if g_new[k] == 0.0 or (g[k] < 0.0) != (g_new[k] < 0.0):
                 crossed = True
         if not crossed:
-            if t_new >= w[T_BOUND] or s == m - 1:
+            passed = int(w[NBREAK])
+            if t_new >= w[T_BOUND] and (passed == BR.size or s == m - 1):
                 return s + 1                        # g holds the values at the last step's start
+            if s == m - 1:
+                return s + 1
             g[:] = g_new
+            if t_new >= w[T_BOUND]:                 # a time break: restart one ulp past it (integrate.py)
+                t_next = np.nextafter(t_new, np.inf)
+                TT[s + 1] = t_next
+                kernel(t_next, Y[s + 1], p, KK[s + 1, 0])
+                nfev += 1
+                w[T], w[T_BOUND], w[NBREAK], w[NFEV] = t_next, BR[passed], passed + 1, nfev
+                if ADAPTIVE:
+                    w[H_ABS] = h                    # the step that landed on it, as the driver's next solver takes
+                restarted = True
             continue
         if act is None or s == m - 1 or ne == EV.shape[0]:
             return s + 1
