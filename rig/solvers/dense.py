@@ -54,20 +54,21 @@ def _eval_steps(T, H, Y, K, P, t):
     """(n, m) states at sorted times t on consecutive polynomial steps (see :class:`StepsDense`)."""
     n, order, last = Y.shape[1], P.shape[1], K.shape[0] - 1
     out = np.empty((n, t.size))
-    Q = np.zeros((n, order))
+    Q = np.empty((n, order))
     s_cur = -1
     s = max(np.searchsorted(T, t[0], side="right") - 1, 0) if t.size else 0
+    h = 1.0
     for m in range(t.size):
         while s < last and T[s + 1] <= t[m]:          # sorted times: walk the steps forward
             s += 1
-        h = H[s]
         if s != s_cur:                                 # coefficients of step s: h·(Kᵀ P)
-            Q[:] = 0.0
+            h = H[s]
             for i in range(n):
                 for c in range(order):
+                    acc = 0.0
                     for j in range(K.shape[1]):
-                        Q[i, c] += K[s, j, i] * P[j, c]
-                    Q[i, c] *= h
+                        acc += K[s, j, i] * P[j, c]
+                    Q[i, c] = acc * h
             s_cur = s
         th = (t[m] - T[s]) / h
         for i in range(n):
