@@ -15,7 +15,9 @@ a *method* is a solver class. ``integrate`` drives one with the other:
   ``action`` reports a change of the problem, the step is cut at the event and the solver restarted;
 * ``time_breaks`` (load steps in time) are hit exactly by bounding the solver there and restarting
   one ulp later; the RHS must be left-continuous there (value at t_b = value before the break); for a problem
-  without ``reset`` (no mode to re-select) the compiled runs pass them the same way without returning here;
+  without ``reset`` (no mode to re-select) nor ``flow`` the compiled runs pass them the same way without returning
+  here (the state at a break then sampled from the step's interpolant at its end, and a step ending there recorded at
+  the restart time, one ulp on);
 * terminal events stop the integration;
 * hybrid (switched) problems keep a discrete mode outside the state: an event ``action`` may switch it
   and return a projected state to restart from, ``Problem.reset`` re-selects it at the start and after
@@ -245,8 +247,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         plain_restarts = problem.reset is None and hasattr(solver, "state_at")   # no mode to re-select
         runs = batched and bool(events) and getattr(solver, "can_advance", False)
         bi0 = bi
-        if runs and problem.reset is None and bi + 1 < len(breaks):
-            solver.pass_breaks(breaks[bi + 1:])     # no mode to re-select there: the compiled runs pass the breaks
+        if runs and problem.reset is None and problem.flow is None and bi + 1 < len(breaks):
+            solver.pass_breaks(breaks[bi + 1:])     # no mode to re-select, no closed form to ask: the runs pass them
         values = (lambda t_, y_, s=solver, n=len(events): s.event_values(t_, y_, n)) if runs else \
             (lambda t_, y_: [e.fun(t_, y_) for e in events])
         while solver.status == "running":

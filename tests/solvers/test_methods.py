@@ -167,25 +167,25 @@ def test_compiled_runs_take_the_python_steps(method):
 
 @njit(cache=True)
 def _kicked(t, y, p, out):
-    """The damped oscillator of :func:`_oscillator` with a force switched on at each of the times p[3:] (left-
-    continuous: on after the time), so the RHS jumps at each break."""
+    """The damped oscillator of :func:`_oscillator` whose frequency jumps p[2]-fold and back at the times p[3:]
+    (left-continuous: after the time), so the RHS jumps at each break and the step after it is refused."""
     out[0] = y[1]
-    kick = 0.0
+    w = p[0]
     for tb in p[3:]:
         if t > tb:
-            kick += 1.0
-    out[1] = -p[0] * p[0] * y[0] - 2.0 * p[1] * p[0] * y[1] + kick
+            w = p[0] * p[2] if w == p[0] else p[0]
+    out[1] = -w * w * y[0] - 2.0 * p[1] * w * y[1]
 
 
 @pytest.mark.parametrize("method", ["RK4", "DP45", "Tsit5", "Rodas4"])
 def test_compiled_runs_pass_time_breaks_as_the_driver_does(method, monkeypatch):
-    """Time breaks (a force stepping at 12 times): the compiled runs restart past each themselves (one ulp on, f
-    there, the step size kept) where the driver started a new solver for each — as it still does for a problem with
+    """Time breaks (the frequency jumping 20-fold and back at 12 times, some 20 µs apart, the steps after them refused): the compiled runs restart past each themselves
+    (one ulp on, f there, the step size kept within the next segment) where the driver started a new solver for each — as it still does for a problem with
     a mode to re-select (``reset``). Same steps, RHS calls, restarts and states either way; and as the Python steps
     (Rodas4: to its LU's rounding, a decision or two apart)."""
-    breaks = np.linspace(0.1, 1.9, 12) + 1.234e-3
-    p = np.r_[W, 0.05, 10.0, breaks]
-    opts = {"h": 2e-3} if method in FIXED else {"rtol": 1e-8, "atol": 1e-10}
+    breaks = np.array([0.6, 0.63, 0.9, 0.95, 1.3, 1.32, 1.6, 1.64, 1.8, 1.81, 1.9, 1.90002])   # fast phases, short
+    p = np.r_[W, 0.05, 20.0, breaks]
+    opts = {"h": 2e-3} if method in FIXED else {"rtol": 1e-6, "atol": 1e-8}
     t = np.linspace(0.0, 2.0, 41)
 
     import sys
@@ -208,10 +208,14 @@ def test_compiled_runs_pass_time_breaks_as_the_driver_does(method, monkeypatch):
     assert made == [1, 13, 13]                    # one solver across the breaks, else one per segment
     for other in (segments, python):
         implicit = other is python and method == "Rodas4"
-        assert passed.restarts == other.restarts == 12 and abs(passed.nsteps - other.nsteps) <= (2 if implicit else 0)
-        assert abs(passed.nfev - other.nfev) <= (40 if implicit else 0)       # two Rodas4 steps: 9 calls and more
-        np.testing.assert_allclose(passed.y, other.y, rtol=1e-7 if implicit else 1e-13, atol=1e-11 if implicit else 1e-14)
-        np.testing.assert_allclose(passed.t_events["zero"], other.t_events["zero"], rtol=1e-8 if implicit else 1e-14)
+        assert passed.restarts == other.restarts == 12
+        if not implicit:                        # Rodas4's LU rounds otherwise in Python: decisions a few steps apart
+            assert (passed.nsteps, passed.nfev) == (other.nsteps, other.nfev)
+        exact = other is segments              # the same compiled steps; the Python steps round otherwise
+        np.testing.assert_allclose(passed.y, other.y, rtol=1e-13 if exact else 1e-5 if implicit else 1e-9,
+                                   atol=1e-12 if exact else 1e-9)          # Rodas4 vs Python: to its tolerance
+        np.testing.assert_allclose(passed.t_events["zero"], other.t_events["zero"],
+                                   rtol=1e-14 if exact else 1e-5 if implicit else 1e-8)
 
 
 @pytest.mark.parametrize("cls, opts", [(Euler, {"h": 0.01}), (SymplecticEuler, {"h": 0.01}), (RK4, {"h": 0.01}),
@@ -361,3 +365,57 @@ def test_an_amplification_beyond_float_range_is_reported_not_an_overflow():
     monitor.watch = Watch()
     with pytest.raises(StiffnessError, match=r"10\^434-fold since the run began"):
         monitor._report_amplification(0.1, (1.0, 0.0), 4e-4, (3.0, 0.9, complex(-100.0, 4000.0)), 1000.0)
+
+
+@njit(cache=True)
+def _lost_after(t, y, p, out):
+    """The oscillator of :func:`_oscillator` whose derivatives are NaN after t = p[2] (a model that cannot go on)."""
+    out[0] = y[1] if t <= p[2] else math.nan
+    out[1] = -p[0] * p[0] * y[0]
+
+
+@pytest.mark.parametrize("method", ["RK4", "DP45", "Rodas4"])
+def test_non_finite_derivatives_past_a_passed_break_are_reported_there(method):
+    """The compiled run passing a break evaluates f one ulp past it; NaN there was stepped on (DP45 and Rodas4 shrank
+    to a step-size underflow, RK4 blamed its step size). It hands the break back to the driver, whose new solver
+    reports the derivatives at the break, as before."""
+    p = np.array([W, 0.0, 0.7])
+    opts = {"h": 2e-3} if method in FIXED else {"rtol": 1e-8, "atol": 1e-10}
+    problem = Problem(JitRhs(_lost_after, lambda: p, event=_crossings), (1.0, 0.0),
+                      [Event(lambda tt, y: y[0], "zero")], time_breaks=[0.3, 0.7])
+    with pytest.raises(SolverDivergence, match=r"non-finite derivatives at the start; state at t = 0\.7\b"):
+        integrate(problem, (0.0, 2.0), method=method, **opts)
+
+
+def test_a_problem_with_a_closed_form_is_asked_at_every_break():
+    """``flow`` is asked where each segment starts (the compiled runs do not pass breaks past it): from t = 1 on the
+    decay has its closed form, and the run follows it there."""
+    asked = []
+
+    def flow(t, y, t_bound):
+        asked.append(t)
+        if t < 1.0:
+            return None
+
+        class Exact:
+            stops: list = []
+
+            def __call__(self, tt):
+                return (y[0] * np.exp(-(np.asarray(tt) - t)),) if np.ndim(tt) else (y[0] * math.exp(-(tt - t)),)
+        return Exact()
+
+    p = np.array([0.0])
+    problem = Problem(JitRhs(_decay, lambda: p, event=_decay_events), (1.0,), [Event(lambda tt, y: y[0] - 2.0, "never")],
+                      time_breaks=[0.5, 1.0, 1.5], flow=flow)
+    sol = integrate(problem, (0.0, 2.0), rtol=1e-10, atol=1e-12)
+    assert [round(a, 12) for a in asked] == [0.0, 0.5, 1.0, 1.5] and abs(sol.y_final[0] - math.exp(-2.0)) < 1e-9
+
+
+@njit(cache=True)
+def _decay(t, y, p, out):
+    out[0] = -y[0]
+
+
+@njit(cache=True)
+def _decay_events(t, y, p, k):
+    return y[0] - 2.0

@@ -250,16 +250,21 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR):
                 return s + 1                        # g holds the values at the last step's start
             if s == m - 1:
                 return s + 1
-            g[:] = g_new
             if t_new >= w[T_BOUND]:                 # a time break: restart one ulp past it (integrate.py)
                 t_next = np.nextafter(t_new, np.inf)
-                TT[s + 1] = t_next
                 kernel(t_next, Y[s + 1], p, KK[s + 1, 0])
                 nfev += 1
-                w[T], w[T_BOUND], w[NBREAK], w[NFEV] = t_next, BR[passed], passed + 1, nfev
-                if ADAPTIVE:
-                    w[H_ABS] = h                    # the step that landed on it, as the driver's next solver takes
+                w[NFEV] = nfev
+                if not finite(KK[s + 1, 0]):
+                    return s + 1                    # the driver's next solver reports it, with the diagnosis
+                g[:] = g_new
+                TT[s + 1] = t_next
+                w[T], w[T_BOUND], w[NBREAK] = t_next, BR[passed], passed + 1
+                if ADAPTIVE:                        # the step that landed on it, within the next segment, as the
+                    w[H_ABS] = min(h, BR[passed] - t_next)     # driver's next solver starts
                 restarted = True
+                continue
+            g[:] = g_new
             continue
         if act is None or s == m - 1 or ne == EV.shape[0]:
             return s + 1
