@@ -312,5 +312,7 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR):
         kernel(t_root, Y[s + 1], p, KK[s + 1, 0])
         nfev += 1
         w[T], w[H_ABS], w[NFEV], w[NEV] = t_root, h, nfev, ne
+        if ADAPTIVE:                                # within the segment, as the driver's new solver starts
+            w[H_ABS] = min(h, w[T_BOUND] - t_root)
         restarted = True
     return m
