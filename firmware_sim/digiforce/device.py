@@ -421,11 +421,13 @@ class DigiForce:
         self._stats[self.active_program if program is None else self._check_program(program)].reset()
 
     def status(self) -> dict[str, Any]:
-        """State (idle/armed/measuring), time of the latest sample (s), OK/NOK outputs, counters,
-        overflow/ADC/filter flags, recent errors."""
+        """State (idle/armed/measuring), time of the latest sample (s), OK/NOK outputs, counters, the running
+        measurement's memory (pairs, full and dropping, decimations so far), overflow/ADC/filter flags, recent errors."""
         return {"state": self.state, "program": self.active_program, "time": self._prev_t,
                 "curves": self._curve_count,
                 "pairs_in_memory": self._memory.count if self._measuring else 0,
+                "memory_full": self._measuring and self._memory.overflow,
+                "decimations": self._memory.decimations if self._measuring else 0,
                 "dropped_pairs": self._dropped, "overflow_curves": self._overflow_curves,
                 "decimated_curves": self._decimated_curves,
                 "adc_overflows": {ch: c.adc_overflows for ch, c in self._chains.items()},

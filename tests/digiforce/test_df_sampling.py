@@ -80,6 +80,25 @@ def test_overflow_decimate_equals_coarser_sampling(unit):
     assert unit.status()["decimated_curves"] == 1
 
 
+@pytest.mark.parametrize("policy", ["stop", "decimate"])
+def test_a_full_memory_shows_in_the_status_while_measuring(unit, policy):
+    """A cut or thinned curve was seen only when it ended (overflow_curves, decimated_curves): while it runs the status
+    says so (memory_full with the stop policy, decimations with decimate), and both clear when it ends."""
+    unit.set_program(0, {"sampling": {"mode": "time", "delta": 1e-4, "overflow": policy}})
+    t = np.arange(10000) * 1e-4
+    unit.start()
+    unit.feed(t[:3000], np.sin(t[:3000]), 0 * t[:3000])
+    before = unit.status()
+    unit.feed(t[3000:], np.sin(t[3000:]), 0 * t[3000:])
+    during = unit.status()
+    unit.stop()
+    after = unit.status()
+    assert before["state"] == during["state"] == "measuring"
+    assert (before["memory_full"], before["decimations"]) == (False, 0)
+    assert (during["memory_full"], during["decimations"]) == ((True, 0) if policy == "stop" else (False, 2))
+    assert (after["memory_full"], after["decimations"]) == (False, 0)
+
+
 def test_overflow_decimate_in_dx_mode_keeps_whole_stroke(unit):
     unit.set_program(0, {"sampling": {"mode": "dx", "delta": 1e-3, "overflow": "decimate"}})
     t = np.arange(20000) * 1e-4
