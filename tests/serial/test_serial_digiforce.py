@@ -165,3 +165,20 @@ def test_the_richest_program_nests_within_the_pw_depth_limit() -> None:
     commands = Commands(DigiForce(), None, threading.Lock())
     assert commands.execute("PW", "3," + json.dumps(FEATURES, separators=(",", ":"))) == "00"
     assert _depth(FEATURES) == _depth(json.loads(commands.execute("PG", "3")[2:])) == 6 < MAX_DEPTH
+
+
+def test_curve_block_requests_are_checked_in_the_documented_order() -> None:
+    """docs/serial-protocol.md: a latched curve (04), for CY one with a second Y (04), then the index: decimal (02),
+    within the blocks (03) — the first broken one answers."""
+    from firmware_sim.serial_protocol.commands import Commands
+    unit = DigiForce()
+    commands = Commands(unit, None, threading.Lock())
+    assert commands.execute("CB", "x").startswith("04") and commands.execute("CB", "99").startswith("04")
+    t = np.arange(300) * 1e-3
+    unit.start()
+    unit.feed(t, np.sin(t), np.cos(t))
+    unit.stop()
+    assert commands.execute("CH", "").startswith("00")
+    assert commands.execute("CY", "x").startswith("04")                      # no second Y before the index
+    assert commands.execute("CB", "x").startswith("02") and commands.execute("CB", "99").startswith("03")
+    assert commands.execute("CB", "0").startswith("000,")
