@@ -9,6 +9,7 @@ Errors are :class:`UsageError` (exit status 2) naming the path and why, in plain
 """
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from pathlib import Path
@@ -45,8 +46,10 @@ def _creatable(path: Path, fail: Callable[[str], None]) -> None:
     try:                              # root passes os.access; a read-only or virtual file system does not take files
         with tempfile.TemporaryFile(dir=base):
             pass
-    except OSError as exc:
-        fail(f"cannot create files in {base} ({(exc.strerror or str(exc)).lower()})")
+    except OSError as exc:            # a virtual file system (/proc) answers "no such file" for the folder it has
+        why = ("it is a virtual or read-only file system that takes no new files" if exc.errno in
+               (errno.ENOENT, errno.EROFS, errno.EOPNOTSUPP) else (exc.strerror or str(exc)).lower())
+        fail(f"cannot create files in {base} ({why})")
 
 
 def writable_file(path: Path, what: str, magic: bytes | None = None) -> None:

@@ -282,7 +282,8 @@ def test_a_directory_without_write_permission_is_named(tmp_path, monkeypatch, ca
 def test_a_directory_that_takes_no_files_is_named_before_anything_runs(capsys):
     """/proc passes the permission check for root but takes no files: found before the run, not at the chart."""
     assert cli.main(["-q", "run", "--cycles", "1", "-o", "/proc/x.mcap"]) == 2
-    assert "cannot write the recording to /proc/x.mcap: cannot create files in /proc" in one_error_line(capsys)
+    assert ("cannot write the recording to /proc/x.mcap: cannot create files in /proc (it is a virtual or read-only "
+            "file system that takes no new files)") in one_error_line(capsys)       # not "(no such file or directory)"
 
 
 def test_rig_replaces_its_own_recordings_and_charts(tmp_path):
