@@ -186,12 +186,12 @@ class Commands:
             raise CommandError(SYNTAX, "PW data must be '<program>,<JSON object>'")
         try:
             config = json.loads(text, parse_constant=_not_json, parse_float=_finite_float, object_pairs_hook=_unique_keys)
+            depth = _depth(config)
         except ValueError as e:                  # JSONDecodeError, a NaN/Infinity token or a repeated key
             raise CommandError(SYNTAX, f"PW configuration is not valid JSON: {e}") from None
         except RecursionError:                   # nested deeper than the parser's stack
-            raise CommandError(SYNTAX, f"PW configuration is not valid JSON: nested too deeply (more than "
-                                       f"{MAX_DEPTH} levels; a program nests at most 6)") from None
-        if _depth(config) > MAX_DEPTH:           # parsed, but the merge and checks would recurse past the stack
+            depth = math.inf
+        if depth > MAX_DEPTH:                    # the merge and checks would recurse past the stack
             raise CommandError(SYNTAX, f"PW configuration is not valid JSON: nested too deeply (more than "
                                        f"{MAX_DEPTH} levels; a program nests at most 6)")
         if not isinstance(config, dict):

@@ -33,11 +33,26 @@ P = np.array([
     [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423]])
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0       # the step-size controller (scipy's RK45)
 EXPONENT = -0.2                                       # error estimator of order 4: −1/(order + 1)
+
+
+def lower_triangle(rows: tuple[tuple[float, ...], ...]) -> np.ndarray:
+    """A[s, j] of an explicit tableau from its rows below the diagonal (stage 2 on)."""
+    out = np.zeros((len(rows) + 1, len(rows) + 1))
+    for s, row in enumerate(rows, start=1):
+        out[s, :s] = row
+    return out
+
+
+def python_tableau(A: np.ndarray, B: np.ndarray, C: np.ndarray, E: np.ndarray) -> tuple:
+    """(rows of A below the diagonal, B, C, E) in Python floats: :func:`~rig.solvers.unrolled.rk_kernels`'s
+    arguments (numpy scalars there would make the unrolled step twice as slow)."""
+    rows = tuple(tuple(A[s, :s].tolist()) for s in range(1, A.shape[0]))
+    return rows, tuple(B.tolist()), tuple(C.tolist()), tuple(E.tolist())
+
+
 # the tableau as arrays, for the compiled step (rig.solvers.compiled): A[s, j], B, C, E (incl. FSAL stage)
-A = np.zeros((6, 6))
-for _s, _row in enumerate(((_A21,), (_A31, _A32), (_A41, _A42, _A43), (_A51, _A52, _A53, _A54),
-                           (_A61, _A62, _A63, _A64, _A65)), start=1):
-    A[_s, :_s] = _row
+A = lower_triangle(((_A21,), (_A31, _A32), (_A41, _A42, _A43), (_A51, _A52, _A53, _A54),
+                    (_A61, _A62, _A63, _A64, _A65)))
 B = np.array([_B1, 0.0, _B3, _B4, _B5, _B6])
 C = np.array([0.0, _C2, _C3, _C4, _C5, 1.0])
 E = np.array([_E1, 0.0, _E3, _E4, _E5, _E6, _E7])
@@ -82,5 +97,4 @@ class DormandPrince45(EmbeddedPair):
     """
 
     method, label, P, limit = "dp45", "DP45", P, 3.25
-    tableau = (((_A21,), (_A31, _A32), (_A41, _A42, _A43), (_A51, _A52, _A53, _A54), (_A61, _A62, _A63, _A64, _A65)),
-               (_B1, 0.0, _B3, _B4, _B5, _B6), (0.0, _C2, _C3, _C4, _C5, 1.0), (_E1, 0.0, _E3, _E4, _E5, _E6, _E7))
+    tableau = python_tableau(A, B, C, E)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rig.solvers.dopri import EmbeddedPair
+from rig.solvers.dopri import EmbeddedPair, lower_triangle, python_tableau
 
 C = np.array([0.0, 0.161, 0.327, 0.9, 0.98002554090450968573, 1.0])
 _ROWS = ((0.161,),
@@ -35,9 +35,7 @@ P = np.array([
     [0.0, 37.509313416511039195, -88.178904894766401101, 47.379521962819281220],
     [0.0, -27.896526289197287806, 65.091894674793671526, -34.870657861496609740],
     [0.0, 1.5, -4.0, 2.5]])
-A = np.zeros((6, 6))
-for _s, _row in enumerate(_ROWS, start=1):
-    A[_s, :_s] = _row
+A = lower_triangle(_ROWS)
 
 
 class Tsitouras45(EmbeddedPair):
@@ -46,4 +44,4 @@ class Tsitouras45(EmbeddedPair):
     against 3.5, the stability boundary of the fifth-order solution on the negative real axis: −3.507)."""
 
     method, label, P, limit = "tsit5", "Tsit5", P, 3.5
-    tableau = (_ROWS, tuple(B.tolist()), tuple(C.tolist()), tuple(E.tolist()))     # Python floats: the unrolled step
+    tableau = python_tableau(A, B, C, E)

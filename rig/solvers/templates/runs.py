@@ -246,10 +246,8 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR):
                 crossed = True
         if not crossed:
             passed = int(w[NBREAK])
-            if t_new >= w[T_BOUND] and (passed == BR.size or s == m - 1):
+            if s == m - 1 or (t_new >= w[T_BOUND] and passed == BR.size):
                 return s + 1                        # g holds the values at the last step's start
-            if s == m - 1:
-                return s + 1
             if t_new >= w[T_BOUND]:                 # a time break: restart one ulp past it (integrate.py)
                 t_next = np.nextafter(t_new, np.inf)
                 kernel(t_next, Y[s + 1], p, KK[s + 1, 0])
