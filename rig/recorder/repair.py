@@ -21,7 +21,7 @@ from mcap.writer import CompressionType, Writer
 
 import rig
 from rig.recorder import schemas as S
-from rig.recorder.reader import Recording, RecordingError
+from rig.recorder.reader import Recording, RecordingError, _Collector
 from rig.recorder.salvage import DataSectionReader
 
 REPAIRED = "repaired"      # the start of the rewritten file's rig.end reason
@@ -52,6 +52,7 @@ class _Rewriter:
         self._schema_ids: dict[int, int] = {}          # source id -> id in the rewritten file
         self._channel_ids: dict[int, int] = {}
         self.end: dict[str, str] | None = None        # the source's own end record, written last
+        self.latest: dict[int, Message] = {}           # per channel its message of the latest log time
 
     def known(self, summary: Any) -> None:
         """The schemas and channels an intact summary names: a message whose chunk of definitions was lost is kept
@@ -88,6 +89,16 @@ class _Rewriter:
                 self._writer.add_message(channel_id=self._channel(channel), log_time=record.log_time,
                                          data=record.data, publish_time=record.publish_time, sequence=record.sequence)
                 self.messages[channel.topic] += 1
+                if record.channel_id not in self.latest or record.log_time >= self.latest[record.channel_id].log_time:
+                    self.latest[record.channel_id] = record
+
+    def simulation_time(self) -> float:
+        """Simulation time (s) of the latest data rewritten — a sample, a frame or a message —, as the reader's
+        ``last_time``: only each channel's latest message decoded (a block, logged at its first sample, reaches
+        further than its log time)."""
+        collector = _Collector(Recording(path=self.rec.path, metadata=self.rec.metadata), can_frames=False)
+        collector.add_chunk([*self._defined.values(), *self.latest.values()])
+        return collector.finish().last_time
 
     def _channel(self, channel: Channel) -> int:
         new = self._channel_ids.get(channel.id)
@@ -143,6 +154,7 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
                                                            f"{'; '.join(problems)}" + (f" (it stopped: {was})" if was
                                                                                        else "")})
                 end["messages"] = str(sum(rewriter.messages.values()))
+                end.setdefault("simulation_time", repr(rewriter.simulation_time()))
             if end:
                 writer.add_metadata(S.END_METADATA, end)
             writer.finish()

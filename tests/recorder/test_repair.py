@@ -41,6 +41,9 @@ def test_a_cut_recording_is_rewritten_whole_with_what_the_salvage_reads(tmp_path
     original = _messages(whole)
     assert _messages(done.path) == original[:len(_messages(done.path))]    # the same records, times and sequences
     assert done.problems and "chunk 8" in done.problems[0]
+    # the cut file has no end record: the repaired one states the simulated time its data reach, as a reader finds it
+    assert fixed.simulation_time == salvaged.last_time == fixed.last_time > 0.0
+    assert fixed.simulation_time < read_recording(whole).simulation_time
 
 
 def test_a_damaged_middle_chunk_is_named_and_the_rest_rewritten(tmp_path):
