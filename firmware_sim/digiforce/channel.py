@@ -13,6 +13,7 @@ from scipy import signal
 
 from .description import Description, InputType
 from .errors import DigiForceError
+from .program import scaling_line
 
 BYPASS_FRACTION = 0.45   # a cut-off at or above this fraction of the sample rate leaves the filter out
 RATE_TOL = 1e-6          # relative change of the sample rate still treated as the same rate
@@ -43,13 +44,7 @@ class InputChain:
         self.offset_error = o * inp.accuracy * self.range
         self._noise = desc.noise_lsb * self.lsb if rng is not None else 0.0
         self._rng = rng
-        sc = cfg["scaling"]
-        if sc["mode"] == "sensitivity":
-            self.scale, self.zero = sc["engineering"] / sc["electrical"], sc["zero"]
-        else:
-            (e1, v1), (e2, v2) = sc["points"]
-            self.scale = (v2 - v1) / (e2 - e1)
-            self.zero = e1 - v1 / self.scale
+        self.scale, self.zero = scaling_line(cfg["scaling"])
         self.tare_value = 0.0
         self.adc_overflows = 0
         self.bypassed = False

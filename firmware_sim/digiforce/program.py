@@ -78,6 +78,21 @@ def _scaling(cfg: Any, electrical_unit: str, unit: str, where: str) -> dict[str,
     return {"mode": mode, "points": pts}
 
 
+def scaling_line(sc: Mapping[str, Any]) -> tuple[float, float]:
+    """(scale, zero) of a validated scaling: engineering = (electrical − zero)·scale."""
+    if sc["mode"] == "sensitivity":
+        return sc["engineering"] / sc["electrical"], sc["zero"]
+    (e1, v1), (e2, v2) = sc["points"]
+    scale = (v2 - v1) / (e2 - e1)
+    return scale, e1 - v1 / scale
+
+
+def span(channel: Mapping[str, Any]) -> float:
+    """Width of a validated channel's measuring range in its engineering unit: the electrical range ±range through
+    its scaling (tare shifts it, never widens it)."""
+    return abs(2.0 * channel["range"] * scaling_line(channel["scaling"])[0])
+
+
 def _channel(name: str, cfg: Any, desc: Description, where: str) -> dict[str, Any]:
     keys = ("enabled", "input", "range", "excitation", "sensor_resistance", "cutoff", "unit", "scaling",
             "tare_at_start")
@@ -191,6 +206,12 @@ def validate_program(cfg: Any, desc: Description, where: str = "program") -> dic
     checks.known_keys(control_cfg, ("start", "stop"), f"{where}.control")
     control = {"start": _trigger(control_cfg.get("start", {}), START_MODES, units, f"{where}.control.start"),
                "stop": _trigger(control_cfg.get("stop", {}), STOP_MODES, units, f"{where}.control.stop")}
+    for which, t in control.items():
+        if t["mode"] in ("x", "y") and t["hysteresis"] >= span(channels[t["mode"]]):
+            raise DigiForceError(f"{where}.control.{which}.hysteresis: {t['hysteresis']:g} {units[t['mode']]} is not "
+                                 f"below the whole measuring span of channel {t['mode']!r} "
+                                 f"({span(channels[t['mode']]):g} {units[t['mode']]}: its range scaled): the trigger "
+                                 f"could never arm")
     trig = control["start"]["mode"]
     if trig in ("x", "y") and channels[trig]["tare_at_start"]:
         raise DigiForceError(f"{where}.channels.{trig}.tare_at_start: cannot tare the channel that triggers the "

@@ -7,6 +7,8 @@ import pytest
 
 from firmware_sim.digiforce import DigiForceError
 
+from tests.digiforce.conftest import SIMPLE
+
 DT = 1e-4
 
 
@@ -244,3 +246,12 @@ def test_noisy_unit_is_reproducible_and_chunk_independent(press):
         curves.append(dev.stop().curve)
     assert np.array_equal(curves[0].y, curves[1].y) and np.array_equal(curves[0].x, curves[1].x)
     assert np.std(np.diff(curves[0].y[:50])) > 0    # noise and errors really present
+
+
+def test_a_hysteresis_as_wide_as_the_measuring_span_is_refused(unit):
+    """Y measures ±5 V through 1 N/V: a 10 N span. A Schmitt band of 10 N could never arm (the value would have to
+    swing more than the whole span); just below it is a valid, if odd, program."""
+    with pytest.raises(DigiForceError, match=r"control\.start\.hysteresis: 10 N is not below the whole measuring "
+                                             r"span of channel 'y' \(10 N"):
+        unit.set_program(1, {**SIMPLE, "control": {"start": {"mode": "y", "value": "0.5 N", "hysteresis": "10 N"}}})
+    unit.set_program(1, {**SIMPLE, "control": {"start": {"mode": "y", "value": "0.5 N", "hysteresis": "9.9 N"}}})
