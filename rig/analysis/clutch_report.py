@@ -119,11 +119,16 @@ def _speeds(e: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarra
     recordings) the same estimator run on the recorded counts and edge times."""
     if "speed" in e and "speed_time" in e and "speed_method" in e:
         return e["speed_time"], e["speed"], e["t"], e["speed_method"].astype(np.int8)
-    c = e["count"]
-    i = np.flatnonzero(c)
-    rad = float(e["angle"][i[0]] / c[i[0]]) if i.size else 1.0
-    est = SpeedEstimator(rad).update(e["t"], c.astype(np.int64), e["edge_time"])
+    est = SpeedEstimator(_rad_per_count(e) or 1.0).update(e["t"], e["count"].astype(np.int64), e["edge_time"])
     return est.time, est.speed, e["t"], est.method
+
+
+def _rad_per_count(e: dict[str, np.ndarray] | None) -> float | None:
+    """The encoder's resolution (rad per count) as its record gives it (angle over count); None before any count."""
+    if not e or "count" not in e or "angle" not in e:
+        return None
+    i = np.flatnonzero(e["count"])
+    return float(abs(e["angle"][i[0]] / e["count"][i[0]])) if i.size else None
 
 
 #: what the dynamic stand's record is made of: plant signal measured → its default topic (a recording without its scene)
@@ -253,24 +258,28 @@ def _torque_figure(ctx: ReportContext, data: StandRecord, stim: list[Stimulus]) 
 
 
 def _speed_figure(ctx: ReportContext, data: StandRecord) -> Block:
+    rec = ctx.recording
+    unit = display_units(None, None, scene_device_config(rec.scene_text)[2]).of("rad/s")   # as the truth charts
     fig, ax = figure(size=(8, 3.5))
-    truth = ctx.recording.truth
+    truth = rec.truth
     for name, (ts, w, _, _) in data.speeds.items():
         key, colour = ("omega1", "tab:blue") if name == "ω1" else ("omega3", "tab:orange")
         ok = np.isfinite(w)
         o = np.argsort(ts[ok], kind="stable")
-        ax.plot(ts[ok][o], w[ok][o], lw=0.9, color=colour,
+        ax.plot(ts[ok][o], unit(w[ok][o]), lw=0.9, color=colour,
                 label=f"{'driving' if name == 'ω1' else 'driven'} half {name} (encoder)")
         if key in truth:
-            ax.plot(truth["t"], truth[key], lw=0.7, ls="--", color="0.2" if name == "ω1" else "0.55",
+            ax.plot(truth["t"], unit(truth[key]), lw=0.7, ls="--", color="0.2" if name == "ω1" else "0.55",
                     label=f"{name} plant truth")
-    ax.set(xlabel="t (s)", ylabel="speed (rad/s)", title="Speeds of both halves", xlim=(0.0, data.end))
+    ax.set(xlabel="t (s)", ylabel=unit.axis("speed"), title="Speeds of both halves", xlim=(0.0, data.end))
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
+    rad = _rad_per_count(rec.series.get(stand_topics(rec)["phi1"]))
+    switch = (f" (frequency above {unit.text(SpeedEstimator(rad).switch_speed, 3)} for the driving half's "
+              f"{2 * np.pi / rad:.0f} counts per turn, period below)") if rad else ""
     return ctx.figure(save(fig, ctx.figure_path("clutch_speeds")),
                       "Speeds of both halves from the encoders: mixed frequency/period method on the latched edge "
-                      f"times (frequency above {SpeedEstimator(2 * np.pi / 4096).switch_speed:.3g} rad/s for a "
-                      "1024-line encoder, period below), each mean speed drawn at the middle of its window")
+                      f"times{switch}, each mean speed drawn at the middle of its window")
 
 
 def _static_characteristic(scene: Scene | None) -> Any:

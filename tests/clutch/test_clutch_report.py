@@ -220,3 +220,13 @@ def test_the_stand_finds_its_encoders_and_torque_by_what_they_measure(runs, tmp_
     assert got.keys() == want.keys()
     for name, m in want.items():
         assert got[name].value == (pytest.approx(m.value, rel=1e-9) if isinstance(m.value, float) else m.value), name
+
+
+def test_the_speed_chart_speaks_the_scenes_speed_unit_and_encoder(runs, tmp_path):
+    """The blocked stand shows speeds in rpm (its scene's unit, as the console and the truth chart): the speeds chart
+    did too — it was fixed at rad/s, its caption at a 1024-line encoder whatever the scene wired."""
+    out = write_report(runs["clutch_blocked"][1], tmp_path / "r", fmt="md")
+    text = out.read_text()
+    caption = next(line for line in text.splitlines() if line.startswith("*Speeds of both halves"))
+    assert re.search(r"frequency above \d+(\.\d+)? rpm for the driving half's 4096 counts per turn", caption), caption
+    assert "rad/s" not in caption
