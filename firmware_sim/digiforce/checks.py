@@ -68,9 +68,9 @@ def text(cfg: Mapping[str, Any], key: str, where: str, default: str | None = Non
     return value
 
 
-#: units a bare number of a channel in SI ``unit`` was likely meant in (the hint of a missing unit)
-#: the unit a bare number was taken in (SI) first, then the one a scene usually writes
-_EXAMPLE_UNITS = {"m": ("m", "mm"), "N": ("N", "kN"), "s": ("s", "ms"), "rad": ("rad", "deg"), "N*m": ("N*m",)}
+#: units a bare number of a quantity in SI ``unit`` was likely meant in (the hint of a missing unit): the one a
+#: scene usually writes first (a bare 41.5 for an X limit is far likelier 41.5 mm than 41.5 m), then another scale
+_EXAMPLE_UNITS = {"m": ("mm", "m"), "N": ("N", "kN"), "s": ("ms", "s"), "rad": ("deg", "rad"), "N*m": ("N*m",)}
 
 
 def quantity(value: Any, unit: str, what: str) -> float:
@@ -81,8 +81,8 @@ def quantity(value: Any, unit: str, what: str) -> float:
     if isinstance(value, (int, float)) and not isinstance(value, NormalisedSI) and unit not in ("", "1") \
             and _UNITS_REQUIRED.get():
         examples = " or ".join(f'"{value} {u}"' for u in _EXAMPLE_UNITS.get(unit, (unit,)))
-        raise MissingUnitError(f"{what}: {value!r} has no unit (the channel measures in {unit}); write it with the "
-                               f"unit you mean, e.g. {examples}")
+        raise MissingUnitError(f"{what}: {value!r} has no unit (a bare number is not read as SI here: it would be "
+                               f"{value!r} {unit}); write it with the unit you mean, e.g. {examples}")
     try:
         out = to_si(value, unit, unit if isinstance(value, (int, float)) and unit not in ("", "1") else None, what)
     except UnitError as exc:

@@ -69,7 +69,8 @@ def test_a_bare_number_in_the_limits_is_an_error_naming_key_and_file(tmp_path):
     message = str(err.value)
     assert str(scene) in message and "[device.config.limits] key 'x_max' (lower)" in message   # where the scene has it
     assert "has no unit" in message
-    assert '"0.0415 m" or "0.0415 mm"' in message                      # SI (what a bare number is), then the usual unit
+    assert "it would be 0.0415 m" in message and '"0.0415 mm" or "0.0415 m"' in message   # what it would mean as SI;
+    # the unit a scene usually writes first, then another scale
 
 
 def test_reversed_limits_are_named_where_the_scene_writes_them(tmp_path):

@@ -158,9 +158,9 @@ def test_a_program_written_by_a_person_needs_units_the_interface_takes_si():
     dev = DigiForce()
     dev.set_program(1, {"limits": {"x_max": [0.0415, 0.0425]}})      # the unit's interfaces: SI numbers
     assert dev.get_program(1)["limits"]["x_max"] == [0.0415, 0.0425]
-    with pytest.raises(DigiForceError, match=r'program 2.limits.x_max \(lower\): 0.0415 has no unit \(the channel '
-                                             r'measures in m\); write it with the unit you mean, e.g. "0.0415 m" or '
-                                             r'"0.0415 mm"'):
+    with pytest.raises(DigiForceError, match=r'program 2.limits.x_max \(lower\): 0.0415 has no unit \(a bare number '
+                                             r'is not read as SI here: it would be 0.0415 m\); write it with the unit '
+                                             r'you mean, e.g. "0.0415 mm" or "0.0415 m"'):
         dev.set_program(2, {"limits": {"x_max": [0.0415, 0.0425]}}, units_required=True)
     with pytest.raises(DigiForceError, match=r"program 2.control.start.value: 0.001 has no unit"):
         dev.set_program(2, {"control": {"start": {"mode": "x", "value": 0.001}}}, units_required=True)
