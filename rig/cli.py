@@ -30,7 +30,7 @@ COMMAND_MODULES: tuple[str, ...] = ("rig.bench.cli", "rig.sweep.cli", "rig.analy
 
 def _print_cam_bar_summary(scene_path: Path, png: Path, run_level: int | None = None) -> None:
     """Print the level-1 summary of a cam-bar scene and write its cycle chart ``png``; ``run_level``: the level of
-    the run it precedes (None: no run)."""
+    the run it precedes (None: no run; with a run, the recording's line says which folder was created, not this)."""
     from rig.plants.cam_bar.scene_io import cam_bar_from_scene, read_spring_rates
     from rig.plants.cam_bar.summary import plot_cycle, summary_table
     from rig.scene import load_scene
@@ -39,7 +39,7 @@ def _print_cam_bar_summary(scene_path: Path, png: Path, run_level: int | None = 
     new_folder = None if png.parent.exists() else Path(os.path.abspath(png)).parent
     png.parent.mkdir(parents=True, exist_ok=True)
     plot_cycle(mech, omega, png)
-    print(f"cycle chart: {png}{_created(new_folder)}")
+    print(f"cycle chart: {png}{'' if run_level is not None else _created(new_folder)}")
 
 
 def _analysed(recording: Path) -> tuple[Any, dict]:
@@ -206,8 +206,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     carried = (f" (its last {summary.flush_time * 1e3:.0f} ms: the bus sending what was queued at the end)"
                if summary.flush_time >= 0.5e-3 else "")
     print(f"{what}, {summary.simulated_time:.2f} s simulated{carried} in {summary.run_time:.2f} s "
-          f"({summary.realtime_factor:.1f}x real time{_compiled(summary)}; {summary.wall_time:.2f} s with serial "
-          f"set-up and read-back), {summary.frames} CAN frames received -> {summary.output}{_created(new_folder)}")
+          f"({summary.realtime_factor:.1f}x real time{_compiled(summary)}; {summary.wall_time:.2f} s with "
+          f"{'serial set-up and read-back' if cfg.serial['enabled'] else 'set-up and the recording closed'}), "
+          f"{summary.frames} CAN frames received -> {summary.output}{_created(new_folder)}")
     try:
         rec, analysis = _analysed(summary.output)
         if not _print_stand_summary(rec):

@@ -172,8 +172,10 @@ def _show(bar: tqdm, cfg: RunConfig, cycles: int, t: float, force: bool = False)
 
 
 def _finishing(bar: tqdm, cfg: RunConfig, t: float) -> None:
-    """Say on the bar that the run's last phase (statistics read back over serial) is under way."""
-    bar.set_postfix_str((f"t = {t:.2f} s; " if cfg.cycles is not None else "") + "reading the device statistics")
+    """Say on the bar that the run's last phase (statistics read back over serial, or without the serial link the
+    recording's end) is under way."""
+    bar.set_postfix_str((f"t = {t:.2f} s; " if cfg.cycles is not None else "")
+                        + ("reading the device statistics" if cfg.serial["enabled"] else "closing the recording"))
 
 
 def _finished(bar: tqdm, cfg: RunConfig, t: float, curves: int) -> None:

@@ -128,8 +128,10 @@ def test_a_recording_must_be_named_mcap(tmp_path, capsys, name, suggested):
 def test_a_new_folder_for_the_recording_is_made_and_said(tmp_path, capsys):
     out = tmp_path / "new" / "deeper" / "x.mcap"
     assert cli.main(["-q", "run", "--cycles", "1", "--no-report", "-o", str(out)]) == 0
-    said = [line for line in capsys.readouterr().out.splitlines() if line.startswith("recorded ")]
+    lines = capsys.readouterr().out.splitlines()
+    said = [line for line in lines if line.startswith("recorded ")]
     assert said[0].endswith(f"-> {out} (created the folder {out.parent})") and out.exists()
+    assert sum("created the folder" in line for line in lines) == 1     # not also on the cycle chart's line
     assert cli.main(["-q", "run", "--cycles", "1", "--no-report", "-o", str(out)]) == 0       # it exists now
     assert [line for line in capsys.readouterr().out.splitlines() if line.startswith("recorded ")][0].endswith(
         f"-> {out}")

@@ -294,3 +294,15 @@ def test_bootstrap_runs_commands_where_the_user_is_and_the_tests_in_the_project(
     monkeypatch.setattr(sys, "argv", ["bootstrap.py", command, "report", "demo.mcap"])
     bootstrap.main()
     assert seen["cwd"] == (tmp_path if in_root else elsewhere) and seen["argv"][1:] == ["report", "demo.mcap"]
+
+
+def test_a_run_without_the_serial_link_does_not_speak_of_it(tmp_path, capsys, monkeypatch):
+    """lab_cam has [links.serial] enabled = false: no statistics read back, so neither the bar nor the console line
+    may say so (they said "reading the device statistics" and "… s with serial set-up and read-back")."""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    scene = DEMO.with_name("lab_cam.toml")
+    assert cli.main(["run", str(scene), "-o", str(tmp_path / "lab.mcap"), "--no-report"]) == 0
+    out, err = capsys.readouterr()
+    assert "serial set-up" not in out and "set-up and the recording closed" in out
+    assert not any("device statistics" in line for line in bar_lines(err))
+    assert any("closing the recording" in line for line in bar_lines(err))
