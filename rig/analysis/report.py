@@ -200,6 +200,8 @@ def verdict(ctx: ReportContext) -> list[Block]:
         table = _capability_table(s["values"])
         label = f"program {program}" if len(a["sets"]) > 1 else "the process"
         if table is not None:
+            if s.get("small_set"):            # said before the table it qualifies, not after the failures
+                blocks.append(Text(f"Warning: {s['small_set']}", "warning"))
             blocks += [Text(f"Capability of {label} against the program's limits (Cp needs both limits; capable: "
                             f"Cpk ≥ {CAPABLE}, marginal: {MARGINAL}…{CAPABLE}):"), table]
             caveat = _normality_caveat(s["values"])
@@ -235,7 +237,8 @@ def _warnings(ctx: ReportContext) -> list[str]:
         out.append(f"{len(a['incomplete'])} incomplete result(s); their missing process values are left out of "
                    "the statistics, the values that arrived are used")
     for program, s in a["sets"].items():
-        out += [f"program {program}: {w}" if len(a["sets"]) > 1 else w for w in s["warnings"]]
+        out += [f"program {program}: {w}" if len(a["sets"]) > 1 else w for w in s["warnings"]
+                if w != s.get("small_set") or _capability_table(s["values"]) is None]   # else said above its table
         agreement = s.get("device_agreement") or {}
         if agreement.get("comparable") and not agreement.get("equal"):
             out.append(f"device statistics: {agreement_text(agreement)}")

@@ -150,10 +150,9 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
     du = _display(units)
     verdicts = curve_verdicts(results)
     nok_by_element = Counter(f["name"] for v in verdicts for f in v["failed"])
-    warnings = []
-    if len(results) < MIN_SET_SIZE:
-        warnings.append(f"only {len(results)} measurements in the set (< {MIN_SET_SIZE}): "
-                        f"statistics and capability are indicative only")
+    small = (f"only {len(results)} measurements in the set (< {MIN_SET_SIZE}): statistics and capability are "
+             f"indicative only") if len(results) < MIN_SET_SIZE else None
+    warnings = [small] if small else []
     values = {}
     table = process_values(results)
     finite_n = {name: int(np.count_nonzero(np.isfinite(v))) for name, v in table.items()}
@@ -183,7 +182,7 @@ def set_statistics(results: Sequence[Mapping], limits: Limits | None = None,
         values[name] = entry
     return {"n": len(results), "ok": sum(v["ok"] for v in verdicts), "nok": sum(not v["ok"] for v in verdicts),
             "incomplete": sum(not v["complete"] for v in verdicts), "nok_by_element": dict(nok_by_element),
-            "values": values, "warnings": warnings}
+            "values": values, "warnings": warnings, "small_set": small}
 
 
 def by_program(results: Iterable[Mapping]) -> dict[int, list[Mapping]]:

@@ -308,3 +308,13 @@ def test_a_process_value_row_is_at_one_precision():
     places = row_places(-20.1, 0.77)
     assert places == 2 and fixed(-19.0023, places) == "-19.00"
     assert row_places(41.72, 1e-14) == 2 and row_places(0.25503, 0.000751) == 5 and row_places(5.0, 0.0) == 3
+
+
+def test_a_small_sets_capability_comes_after_its_warning(tmp_path):
+    """16 curves (< 50): the "indicative only" warning stands before the capability table it qualifies (it came after
+    the table of NOK reasons, below a table that already said "capable"), and only there."""
+    path = tmp_path / "small.mcap"
+    synthetic(path, n_curves=16)
+    text = write_report(read_recording(path), tmp_path / "md", fmt="md").read_text()
+    warning = "only 16 measurements in the set (< 50): statistics and capability are indicative only"
+    assert text.count(warning) == 1 and text.index(warning) < text.index("Capability of the process")
