@@ -157,9 +157,11 @@ def summarise(path: Path) -> RecordingSummary:
         return RecordingSummary(str(path), error=text.removeprefix(f"{path}: "))     # the row names the file
     verdicts = result["verdicts"]
     ok = sum(1 for v in verdicts if v["ok"])
+    curves = len({c.number for c in rec.curves} | {v["number"] for v in verdicts})   # a cut run's last curve may
+    # have arrived without its result: recorded, not judged (ok + nok < curves; "why incomplete" says which)
     meta = {**_scene_table(rec.scene_text), **rec.metadata.get("rig", {})}   # the metadata, else the scene's words
     return RecordingSummary(str(path), str(meta.get("scene", "")), str(meta.get("plant", "")), rec.complete,
-                            len(verdicts), ok, len(verdicts) - ok, values, dict(result["events"]),
+                            curves, ok, len(verdicts) - ok, values, dict(result["events"]),
                             summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")),
                             incomplete=" ".join("; ".join(losses(rec)).split()), seed=str(meta.get("seed", "")),
                             started=str(meta.get("wall_clock_start", "")), machine=machine_of(rec.scene_text))
@@ -315,7 +317,8 @@ def _stats(m: Moments) -> tuple:
 
 
 def write_table(result: BatchResult, path: Path) -> Path:
-    """CSV, one row per recording: path, scene, level, plant, complete, why incomplete, curves, OK, NOK, error, the run
+    """CSV, one row per recording: path, scene, level, plant, complete, why incomplete, curves (recorded, judged or not),
+    OK, NOK (judged), error, the run
     it copies, seed, population (:attr:`RecordingSummary.group`), a stand's or lab's summary lines (joined by " | ",
     the console's column padding collapsed), then n/mean/std/min/max of every process value (and stand result) any
     recording has (display units, in the header; a value shown in two units gets a column group per unit)."""

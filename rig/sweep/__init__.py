@@ -44,6 +44,10 @@ def parse_param(text: str) -> Param:
                          f"'plant.k=1.09 N/mm,1.89 N/mm'")
     if len(key.split(".")) < 2:
         raise ValueError(f"--param {text!r}: {key!r} names a section, not a key (e.g. plant.k)")
+    for sep_ in (";", "|"):
+        if any(sep_ in p for p in parts):
+            raise ValueError(f"--param {text!r}: values are separated by commas, not {sep_!r} (e.g. "
+                             f"'{key}={values.replace(sep_, ',')}')")
     values = tuple(_literal(p) for p in parts)
     same = [float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v for v in values]   # 1 = 1.0
     twice = [parts[i] for i, v in enumerate(same) if v in same[:i]]

@@ -250,3 +250,22 @@ def test_machines_are_told_apart_by_value_and_their_labels_never_merge_two():
     whole = Moments.of_block(np.vstack([a, b * 10.0]))
     assert (merged.n, float(merged.mean[0]), float(merged.maximum[0])) == (4, pytest.approx(float(whole.mean[0])), 43.0)
     assert float(merged.m2[0]) == pytest.approx(float(whole.m2[0]))
+
+
+def test_a_curve_recorded_without_its_result_is_counted_not_judged(tmp_path):
+    """A run cut after its fourth curve but before that curve's result: 4 curves recorded, 3 judged. The row's
+    ``curves`` counted the judged ones (3), while its reason said 4 were recorded — the totals undercounted."""
+    import numpy as np
+
+    from rig.analysis.batch import summarise
+    from rig.recorder import Recorder
+    path = tmp_path / "cut_result.mcap"
+    with Recorder(path, scene_text="[scene]\nseed = 1\n", metadata={"seed": 1}, programs={1: {}}) as rec:
+        for k in range(4):
+            t = 1.0 + k + np.arange(0, 0.3, 1e-2)
+            rec.write_curve(k + 1, 1, t, 0.04 * (t - t[0]), 50.0 * (t - t[0]))
+            if k < 3:
+                rec.write_result({"number": k + 1, "program": 1, "ok": k != 1, "elements": [],
+                                  "process_values": {"y_max": 15.0}}, t=float(t[-1]))
+    row = summarise(path)
+    assert (row.curves, row.ok, row.nok) == (4, 2, 1)

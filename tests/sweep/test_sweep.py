@@ -27,7 +27,8 @@ def test_params_parse_scene_values_and_toml_literals():
     assert parse_param("plant.cam_direction=1,-1").values == (1, -1)
     assert grid([Param("a.x", (1, 2)), Param("a.y", ("u", "v", "w"))])[:4] == [(1, "u"), (1, "v"), (1, "w"), (2, "u")]
     for bad, match in (("plant.k", "KEY=VALUE"), ("plant.k=1,,2", "KEY=VALUE"), ("k=1", "names a section"),
-                       ("plant..k=1", "KEY=VALUE")):
+                       ("plant..k=1", "KEY=VALUE"),
+                       ("plant.k=1.09 N/mm;1.89 N/mm", r"separated by commas, not ';' \(e.g. 'plant.k=1.09 N/mm,1.89 N/mm'\)")):
         with pytest.raises(ValueError, match=match):
             parse_param(bad)
     with pytest.raises(ValueError, match="given twice: plant.k"):
