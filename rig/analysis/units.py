@@ -143,7 +143,7 @@ def unit(si: str, display: str | None = None) -> Unit:
     if si in ("", "1") or display in ("", "1"):
         return Unit("", "", 1.0, si or "1")
     pu = ureg.Unit(display)
-    label, text = _LABELS.get(str(pu), (f"{pu:~P}", f"{pu:~C}"))
+    label, text = _LABELS.get(str(pu), (f"{pu:~P}", f"{pu:~C}".replace("**", "^")))   # m/s^2 as mm/s^2, not m/s**2
     factor = float(ureg.Quantity(1.0, si).to(pu).magnitude)
     return Unit(label, text, 1.0 if abs(factor - 1.0) < 1e-15 else factor, si)
 

@@ -318,3 +318,11 @@ def test_a_small_sets_capability_comes_after_its_warning(tmp_path):
     text = write_report(read_recording(path), tmp_path / "md", fmt="md").read_text()
     warning = "only 16 measurements in the set (< 50): statistics and capability are indicative only"
     assert text.count(warning) == 1 and text.index(warning) < text.index("Capability of the process")
+
+
+def test_a_csv_header_unit_without_a_named_label_is_written_with_a_caret():
+    """Display units outside the named ones keep pint's compact text for CSV headers — with ^ for powers, as
+    "mm/s^2" is written: lab_cam's plant_truth.csv said "a [m/s**2]" and "alpha_in [rad/s**2]"."""
+    from rig.analysis.units import unit
+    assert unit("m/s^2", "m/s^2").ascii == "m/s^2" and unit("rad/s^2").ascii == "rad/s^2"
+    assert unit("m/s^2", "m/s^2").label == "m/s²"
