@@ -607,9 +607,11 @@ def lift_warning(rec: Recording) -> str | None:
     if not lifts:
         return None
     worst = min(lifts, key=lambda e: e.get("force", 0.0))
-    return (f"the follower would lift off the cam {len(lifts)} time(s) (the contact force its law needs down to "
-            f"{worst.get('force', float('nan')):.3g} N at cam angle {degrees(worst.get('cam_angle', float('nan'))):.4g}°"
-            f", t = {worst['t']:.4g} s): spring and weight do not hold it on the cam at this speed, so the bench's "
+    nan = float("nan")
+    return (f"the follower would lift off the cam {len(lifts)} time(s) (from cam angle "
+            f"{degrees(worst.get('cam_angle', nan)):.4g}° at t = {worst['t']:.4g} s, the contact force its law needs "
+            f"down to {worst.get('force', nan):.3g} N at {degrees(worst.get('min_cam_angle', nan)):.4g}°, t = "
+            f"{worst.get('min_t', nan):.4g} s): spring and weight do not hold it on the cam at this speed, so the bench's "
             f"law-following model and these sheets' theory do not hold there (lower the speed, or stiffen or preload "
             f"the spring)")
 

@@ -45,6 +45,9 @@ SCHEMAS: dict[str, dict[str, Field]] = {
 }
 
 
+SPAN_GRID = 3600          # points per cam turn a lift span's least contact force is sought on (then refined)
+
+
 class LabBench:
     """One lab bench: ``speed`` (the motor shaft), ``kind`` and its mechanism; ``advance(t)`` gives the truth."""
 
@@ -79,13 +82,30 @@ class LabBench:
         below = force < 0.0
         starts = np.flatnonzero(below & ~np.concatenate(([self._lifting], below[:-1])))
         for k in starts:
-            end = k + int(np.argmax(~below[k:])) if not below[k:].all() else below.size
+            t_min, f_min = self._lift_minimum(float(t[k]))
             self.events.append(Event(float(t[k]), "follower_lift", {
-                "cam_angle": float(np.mod(phi[k], 2 * pi)), "force": float(np.min(force[k:end])),
+                "cam_angle": float(np.mod(phi[k], 2 * pi)), "force": f_min, "min_t": t_min,
+                "min_cam_angle": float(np.mod(self.speed.drive(np.array([t_min])).phi[0], 2 * pi)),
                 "detail": "the contact force the cam law needs is below zero: spring and weight no longer hold the "
                           "follower on the cam, which would lift off (jump) here; the law-following model and the "
                           "sheets' theory do not hold beyond it"}))
         self._lifting = bool(below[-1])
+
+    def _lift_minimum(self, t0: float) -> tuple[float, float]:
+        """(time s, force N) of the least contact force over the lift span that starts at ``t0``: the closed-form
+        force on :data:`SPAN_GRID` points of the next cam turn up to where it is back at ≥ 0, its least sample refined
+        by a bounded scalar minimisation — the whole span, wherever the run's chunks cut it (a minimum taken from the
+        chunk's samples was the chunk's, and its angle the span's start)."""
+        from scipy.optimize import minimize_scalar
+        omega = abs(float(self.speed.drive(np.array([t0])).omega[0]))
+        dt = (2 * pi / omega if omega > 0.0 else 1.0) / SPAN_GRID
+        t = t0 + dt * np.arange(SPAN_GRID + 1)
+        force = self.truth(t)["contact_force"]
+        back = np.flatnonzero(force >= 0.0)
+        i = int(np.argmin(force[:back[0] if back.size else force.size]))
+        res = minimize_scalar(lambda x: float(self.truth(np.array([x]))["contact_force"][0]), method="bounded",
+                              bounds=(t[max(i - 1, 0)], t[min(i + 1, t.size - 1)]), options={"xatol": 1e-12})
+        return (float(res.x), float(res.fun)) if res.fun < force[i] else (float(t[i]), float(force[i]))
 
     def truth(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """The bench's signals at times ``t`` (s) (module docstring)."""
