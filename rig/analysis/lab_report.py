@@ -610,7 +610,7 @@ def lab_warnings(rec: Recording) -> list[str]:
 def encoder_warnings(rec: Recording) -> list[str]:
     """One line per counter whose card counted illegal transitions (``encoder_illegal`` events): from there its count
     may be off the shaft, and so may every sheet value taken from it (an output encoder at a Cardan angle of 89.9°
-    sees 2.4 M edges/s against its card's 1 MHz: the sheet read a mean ratio of 0.38 instead of 1)."""
+    sees 2.35 M edges/s against its card's 1 MHz: the sheet read a mean ratio of 0.38 instead of 1)."""
     return [f"counter {e.get('message', '?')} counted illegal transitions from t = {e['t']:.4g} s (edges faster than "
             f"its card follows, or glitches): from there its count may be off the shaft, and so may the sheet values "
             f"taken from it" for e in rec.events if e.get("kind") == "encoder_illegal"]

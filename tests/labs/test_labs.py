@@ -497,7 +497,7 @@ def test_the_sheets_encoder_angles_sit_on_the_disc_lines_from_any_start(tmp_path
 
 
 def test_a_counter_that_loses_the_shaft_is_said_with_the_sheets(tmp_path_factory, cardan):
-    """At a Cardan angle of 89.9° the output shaft peaks at 60 rpm / cos α ≈ 34 400 rpm: 2.3 M edges/s against the
+    """At a Cardan angle of 89.9° the output shaft peaks at 60 rpm / cos α ≈ 34 400 rpm: 2.35 M edges/s against the
     counter card's 1 MHz. The card counted illegal transitions and the sheet read a mean ratio of 0.38 (theory 1)
     without a word — the encoder_illegal event was only in the events table. Now a warning beside the sheets; the
     shipped 30° run has none."""
