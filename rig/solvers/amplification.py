@@ -70,24 +70,51 @@ def spectral_radius(M: np.ndarray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(M)))) if np.all(np.isfinite(M)) else math.inf
 
 
+#: modes the exact flow keeps at least this much of per step count for the accuracy test (a mode that loses more
+#: is gone in a few steps, whatever the method leaves of it: the stiff decays an explicit method is stable on)
+PERSISTENT = 0.5
+
+
+def mode_errors(method: str, M: np.ndarray, lam: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
+    """Per eigenvalue λ of J that persists and does not grow (:data:`PERSISTENT` ≤ |e^{hλ}| ≤ 1): the method's relative error per step on
+    its mode, |μ − e^{hλ}|/|e^{hλ}| (μ = R(hλ) for the methods of :data:`POLYNOMIALS`, else the eigenvalue of M
+    nearest e^{hλ}) where the method does not amplify the mode beyond the exact flow (else 0: growth is the
+    amplification test's to report), the mode's lifetime in steps 1/(1 − |e^{hλ}|) (inf when it does not decay)
+    and λ."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        exact = np.exp(h * lam)
+        keep = (np.abs(exact) >= PERSISTENT) & (np.abs(exact) <= 1.0 + 1e-3)     # not a physical growth (a blow-up)
+        lam, exact = lam[keep], exact[keep]
+        if method in POLYNOMIALS:
+            mu = POLYNOMIALS[method](h * lam)
+        else:
+            eig = np.linalg.eigvals(M) if np.all(np.isfinite(M)) else np.full(M.shape[0], np.nan)
+            mu = np.array([eig[np.argmin(np.abs(eig - e))] for e in exact]) if eig.size else exact
+        err = np.where(np.abs(mu) <= np.abs(exact) * (1.0 + 1e-4), np.abs(mu - exact) / np.abs(exact), 0.0)
+        life = np.where(np.abs(exact) < 1.0, 1.0 / (1.0 - np.abs(exact)), np.inf)
+    return err, life, lam
+
+
 class Amplification:
-    """The test for one method: ``check(t, y, h)`` → (ρ(M), ρ(exp(hJ)), λ) with λ the eigenvalue of J that the
-    method amplifies most, or None where J is not available (n + 1 RHS calls)."""
+    """The test for one method: ``check(t, y, h)`` → (ρ(M), ρ(exp(hJ)), λ, modes) with λ the eigenvalue of J that
+    the method amplifies most and ``modes`` the per-step errors, lifetimes and eigenvalues of its persistent modes
+    (:func:`mode_errors`, for the accuracy test), or None where J is not available (n + 1 RHS calls)."""
 
     def __init__(self, fun: Callable, method: str, positions: Sequence[int] = ()):
         self.fun, self.method, self.positions = fun, method, tuple(positions)
 
-    def check(self, t: float, y: Sequence[float], h: float) -> tuple[float, float, complex] | None:
+    def check(self, t: float, y: Sequence[float], h: float) -> tuple[float, float, complex, tuple] | None:
         J = jacobian(self.fun, t, y, h)
         if J is None:
             return None
         lam = np.linalg.eigvals(J)
         with np.errstate(over="ignore", invalid="ignore"):      # an exact growth beyond float range is inf: so said
             exact = float(np.max(np.exp(h * lam.real)))
-            rho = spectral_radius(step_matrix(self.method, h * J, self.positions))
+            M = step_matrix(self.method, h * J, self.positions)
+            rho = spectral_radius(M)
         worst = lam[np.argmax(np.abs(POLYNOMIALS[self.method](h * lam)))] if self.method in POLYNOMIALS \
             else lam[np.argmax(np.abs(lam))]
-        return rho, exact, complex(worst)
+        return rho, exact, complex(worst), mode_errors(self.method, M, lam, h)
 
     def largest_stable_step(self, t: float, y: Sequence[float], h: float) -> float:
         """The largest step ≤ h (s) at which the method does not amplify at (t, y) (bisection on ρ(M) ≤ 1)."""

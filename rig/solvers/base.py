@@ -37,6 +37,15 @@ class StiffnessError(SolverDivergence):
     """Raised instead of :class:`StiffnessWarning` when a solver is built with ``stiffness="raise"``."""
 
 
+class ResolutionWarning(RuntimeWarning):
+    """A fixed-step method, stable, steps a persistent mode so coarsely that its error there has grown to a large
+    share of the mode (a heavily damped, phase-shifted or decayed oscillation): the answer may be wrong."""
+
+
+#: order of the fixed-step methods' global error (the accuracy warning's suggested step)
+ORDERS = {"euler": 1, "symplectic_euler": 1, "rk4": 4}
+
+
 #: what keeps a fixed-step method stable on a lightly damped mode ω_n, ζ (for the amplification report)
 STABLE_WHEN = {"explicit Euler": "explicit Euler needs h*omega_n < 2*zeta",
                "symplectic Euler": "symplectic Euler needs h*omega_n < 2 on an undamped mode",
@@ -65,6 +74,12 @@ class StiffnessMonitor:
     #: growth per step beyond the exact flow's that counts (1e-4: +10 % in 1000 steps; explicit Euler on an
     #: undamped oscillation at a small h·ω grows by (h·ω)²/2 per step, which convergence studies accept)
     EXCESS = 1e-4
+    #: accuracy test at the same checks: a persistent mode stepped with an error of STEP_ERROR of the mode per step or
+    #: more (RK4 at h·ω ≳ 1.45, symplectic Euler at h·ω ≳ 1.05: about 6 steps per period or fewer) draws one
+    #: :class:`ResolutionWarning` per run; the suggested step aims at TARGET_ERROR. Not the error summed over the
+    #: mode's life: on level 2 it flagged every converged run (the contact mode, ζ = 0.16, rings with a small share of
+    #: the state — the linearisation cannot tell how much of a mode the answer holds)
+    STEP_ERROR, TARGET_ERROR = 0.05, 0.005
 
     def __init__(self, method: str, limit: float, policy: str = "warn", fixed: bool = False):
         if policy not in ("warn", "raise", "ignore"):
@@ -84,6 +99,7 @@ class StiffnessMonitor:
         self._hits = [0, 0, 0.0]                       # positive and negative checks, summed spurious log-growth
         self._slow = 0.0                               # net spurious log-growth however small per step (see below)
         self.calls = 0                                 # RHS calls the amplification test made
+        self.coarse: str | None = None                 # the accuracy warning, once given
 
     def update_many(self, t, y, h, hl) -> None:
         """:meth:`update` for consecutive steps (arrays; rows of ``y``); calm runs are skipped at once."""
@@ -206,6 +222,7 @@ class StiffnessMonitor:
             h_k = max(_largest(h[max(after, 0):k + 1]), self._h_since if after <= 0 else 0.0)   # check landing on a
             got = self.watch.check(float(t[k]), tuple(y[k]), h_k)       # run's cut last step missed the full ones)
             self.calls += len(y[k]) + 1
+            self._accuracy(float(t[k]), h_k, got)
             since, self._last_check = self._next_check - self._last_check, self._next_check
             if got is not None and got[0] > 1.0 + 1e-12 and got[0] > got[1]:
                 self._slow += since * math.log(got[0] / got[1])
@@ -248,14 +265,34 @@ class StiffnessMonitor:
             return
         got = self.watch.check(float(t), tuple(y), float(h))
         self.calls += len(y) + 1
+        self._accuracy(float(t), float(h), got)
         self._last_check = self._steps - 1
         if got is not None and got[0] > 1.0 + 1e-12 and got[0] > got[1]:
             grown = self._slow + since * math.log(got[0] / got[1])
             if grown >= math.log(self.SPURIOUS):
                 self._report_amplification(float(t), tuple(y), float(h), got, grown)
 
+    def _accuracy(self, t: float, h: float, got) -> None:
+        """The accuracy test on a check's persistent modes (see :data:`DRIFT`): one warning per run naming the mode,
+        its steps per period, the error per step and accumulated, and a step for :data:`TARGET_DRIFT`."""
+        if got is None or len(got) < 4 or self.coarse is not None:     # (a watch without the accuracy part)
+            return
+        err, _, lam = got[3]
+        if not err.size or not np.nanmax(err) >= self.STEP_ERROR:
+            return
+        i = int(np.nanargmax(err))
+        mode = complex(lam[i])
+        period = (f" (period {2 * math.pi / abs(mode.imag):.3g} s: {2 * math.pi / (h * abs(mode.imag)):.3g} steps "
+                  f"per period)") if mode.imag else ""
+        fix = h * (self.TARGET_ERROR / err[i]) ** (1.0 / (ORDERS.get(self.watch.method, 1) + 1))
+        self.coarse = (f"{self.method} may be inaccurate from t = {t:.6g} s: at h = {h:.3g} s it steps the mode lambda "
+                       f"= {mode.real:.4g}{mode.imag:+.4g}j 1/s{period} with an error of {err[i]:.2g} of the mode per "
+                       f"step: stable, but the answer is wrong wherever that mode shows (its amplitude or phase within a "
+                       f"few steps) - reduce h to about {fix:.2g} s or use an adaptive method (DP45, Tsit5)")
+        warnings.warn(self.coarse, ResolutionWarning, stacklevel=6)
+
     def _report_amplification(self, t: float, y: tuple, h: float, got, accumulated: float | None = None) -> None:
-        rho, exact, lam = got if got is not None else (math.nan, math.nan, complex(math.nan))
+        rho, exact, lam = got[:3] if got is not None else (math.nan, math.nan, complex(math.nan))
         zeta = -lam.real / abs(lam) + 0.0 if abs(lam) > 0 else math.nan       # + 0.0: no "-0"
         h_ok = self.watch.largest_stable_step(t, y, h)
         fix = (f"reduce h below {h_ok:.3g} s or use the implicit method Rodas4" if h_ok > 1e-3 * h else

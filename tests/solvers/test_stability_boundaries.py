@@ -208,3 +208,32 @@ def test_the_periodic_and_end_checks_count_the_steps_since_the_one_checked_last(
         end.update(t[k], (0.0,), h[k], 0.1)
     end.finish(t[-1], (0.0,))                           # one step after the check: 1.49-fold, below 2-fold: silent
     assert end.detected_at is None and end.watch.h[-1] == 1.0
+
+
+@pytest.mark.parametrize("method, hw, steps_per_period", [("RK4", 2.7, 2.33), ("SymplecticEuler", 1.9, 3.31)])
+def test_a_stable_but_coarse_fixed_step_is_warned(method, hw, steps_per_period):
+    """Inside the stability boundary and still wrong: RK4 at h·ω = 2.7 (< 2√2) damps an undamped oscillation by 28 %
+    per step (|R(2.7i)| = 0.72: x(1 s) ≈ 1e-52 instead of cos 1000), symplectic Euler at h·ω = 1.9 (< 2) keeps the
+    amplitude but turns 2.51 rad per step instead of 1.9 (error 3.1). Both ran to the end unreported (an audit); now a
+    ResolutionWarning names the mode, its steps per period and a step, once."""
+    from rig.solvers import ResolutionWarning
+    osc = Problem(lambda t, y: (y[1], -1e6 * y[0]), (1.0, 0.0), positions=(0,))
+    with pytest.warns(ResolutionWarning) as said:
+        sol = integrate(osc, (0.0, 1.0), method=method, h=hw / 1000.0)
+    assert abs(sol.y_final[0] - math.cos(1000.0 * sol.t_final)) > 0.5           # the answer it warns about
+    ours = [str(w.message) for w in said if issubclass(w.category, ResolutionWarning)]
+    assert len(ours) == 1 and "may be inaccurate" in ours[0] and "lambda = 0+1000j 1/s" in ours[0]
+    assert f"{steps_per_period:.3g} steps per period" in ours[0] and "reduce h to about" in ours[0]
+
+
+@pytest.mark.parametrize("method, hw", [("RK4", 0.05), ("SymplecticEuler", 0.05)])
+def test_a_fine_fixed_step_or_a_stiff_decay_draws_no_accuracy_warning(method, hw):
+    """20 000 steps of RK4 at h·ω = 0.05 end within 5e-5 of cos 1000; RK4 at h·λ = −2.5 on a decay is stable and
+    the mode is gone (e^−2.5 = 0.08 per step, not persistent): neither is warned."""
+    from rig.solvers import ResolutionWarning
+    osc = Problem(lambda t, y: (y[1], -1e6 * y[0]), (1.0, 0.0), positions=(0,))
+    decay = Problem(lambda t, y: (-1000.0 * y[0],), (1.0,))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ResolutionWarning)
+        integrate(osc, (0.0, 1.0), method=method, h=hw / 1000.0)
+        integrate(decay, (0.0, 0.2), method="RK4", h=2.5e-3)
