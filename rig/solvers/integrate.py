@@ -31,6 +31,7 @@ a *method* is a solver class. ``integrate`` drives one with the other:
 from __future__ import annotations
 
 import bisect
+import inspect
 import math
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -144,6 +145,20 @@ def breaks_in(problem: Problem, t0: float, tf: float) -> list[float]:
     return kept
 
 
+def _check_options(cls, options: dict) -> None:
+    """A ValueError naming an option the method does not take (``rtol`` for a fixed-step method, ``h`` for an
+    adaptive one: a TypeError from deep inside before) and the ones it does."""
+    params = inspect.signature(cls.__init__).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return
+    taken = [p for p in params if p not in ("self", "fun", "t0", "y0", "t_bound")]
+    unknown = sorted(set(options) - set(taken))
+    if unknown:
+        kind = "a fixed-step method (give h)" if "h" in taken else "an adaptive method (give rtol, atol)"
+        raise ValueError(f"integrate: {getattr(cls, 'label', cls.__name__)} is {kind} and takes no option "
+                         f"{', '.join(map(repr, unknown))} (its options: {', '.join(taken)})")
+
+
 def _make_solver(cls, fun, t, y, t_bound, options):
     return cls(fun, t, y, t_bound, **options)
 
@@ -202,6 +217,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     fun = problem.fun
     y = tuple(float(v) for v in (problem.y0 if y0 is None else y0))
     cls = METHODS[method] if isinstance(method, str) else method
+    _check_options(cls, options)
     if problem.positions and issubclass(cls, SymplecticEuler) and "nq" not in options and "positions" not in options:
         options = {**options, "positions": tuple(problem.positions)}     # the problem's kick–drift split
     batched = events is None                    # the RHS's event kernel, if any, matches problem.events
@@ -209,8 +225,9 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     breaks = breaks_in(problem, t0, tf) + [tf]
     if t_eval is not None:
         t_eval = np.asarray(t_eval, dtype=float)
-        if t_eval.size and (np.any(np.diff(t_eval) < 0) or t_eval[0] < t0 or t_eval[-1] > tf):
-            raise ValueError(f"integrate: t_eval must be increasing inside t_span = ({t0}, {tf})")
+        if t_eval.size and (not np.all(np.isfinite(t_eval)) or np.any(np.diff(t_eval) < 0) or t_eval[0] < t0
+                            or t_eval[-1] > tf):
+            raise ValueError(f"integrate: t_eval must be finite and increasing inside t_span = ({t0}, {tf})")
         out_y = np.empty((len(y), t_eval.size))
         i_eval = int(np.searchsorted(t_eval, t0, side="right"))
         out_y[:, :i_eval] = np.asarray(y)[:, None]

@@ -279,9 +279,14 @@ class AdaptiveStepper(Stepper):
                  stiffness: str | None = None, compiled: bool = True):
         if not (rtol > 0 and atol >= 0):
             raise ValueError(f"{type(self).__name__}: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
+        if not max_step > 0:
+            raise ValueError(f"{type(self).__name__}: max_step = {max_step!r} s must be positive (inf: no limit)")
+        if first_step is not None and not (first_step > 0 and math.isfinite(first_step)):
+            raise ValueError(f"{type(self).__name__}: first_step = {first_step!r} s must be positive and finite "
+                             f"(None: chosen by Hairer's heuristic)")
         super().__init__(fun, t0, y0, t_bound, self.default_stiffness if stiffness is None else stiffness, compiled)
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        if first_step is None or not first_step > 0:
+        if first_step is None:
             h_abs = initial_step(fun, self.t, self.y, self.f, self.error_order, rtol, atol, self.t_bound)
             self.nfev += 1
         else:

@@ -1,5 +1,6 @@
 """ODE solvers and the event-locating driver against closed forms and scipy."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -241,3 +242,22 @@ def test_stiffness_monitor_in_batches_is_the_monitor_step_by_step():
         assert [str(w.message) for w in said_many] == [str(w.message) for w in said_one], trial
         reports += len(said_one)
     assert 20 < reports < 290            # both outcomes are exercised
+
+
+def test_options_a_method_does_not_take_and_nonsense_steps_are_named():
+    """An audit: Euler given rtol crashed with a TypeError from deep inside; max_step 0 or −1 ran into a "step size
+    underflow (h = −1 s)"; a negative or NaN first_step was silently replaced by the heuristic; a NaN in t_eval gave
+    a NaN sample time. Each is now a ValueError naming the option."""
+    decay = Problem(lambda t, y: (-y[0],), (1.0,))
+    for options, said in ((dict(method="Euler", rtol=1e-3), "explicit Euler is a fixed-step method (give h) and takes "
+                                                             "no option 'rtol'"),
+                          (dict(method="DP45", h=1e-3), "DP45 is an adaptive method (give rtol, atol) and takes no "
+                                                        "option 'h'"),
+                          (dict(method="DP45", max_step=0.0), "max_step = 0.0 s must be positive"),
+                          (dict(method="Tsit5", max_step=-1.0), "max_step = -1.0 s must be positive"),
+                          (dict(method="Tsit5", first_step=-1.0), "first_step = -1.0 s must be positive and finite"),
+                          (dict(method="DP45", first_step=math.nan), "first_step = nan s must be positive and finite"),
+                          (dict(method="DP45", t_eval=[0.2, math.nan, 0.5]), "t_eval must be finite and increasing")):
+        with pytest.raises(ValueError, match=re.escape(said)):
+            integrate(decay, (0.0, 1.0), **options)
+    assert integrate(decay, (0.0, 1.0), method="DP45", first_step=1e-3).y_final[0] == pytest.approx(math.exp(-1), rel=1e-5)
