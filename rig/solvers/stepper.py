@@ -306,13 +306,16 @@ class AdaptiveStepper(Stepper):
     def _adapt(self, attempt: Callable[[float, float], tuple[float, Any]]) -> tuple[float, float, float, Any]:
         """Trial steps until one is accepted: ``attempt(h, t_new)`` returns the trial's error norm (NaN or inf
         when its state is not finite) and what the caller keeps of it; returns (h, t_new, next |h|, that).
-        A rejected or non-finite trial shrinks |h| (a non-finite one by ``min_factor``); no growth right after a
-        rejection (as scipy)."""
+        A rejected or non-finite trial (one whose right-hand side raised OverflowError included) shrinks |h| (a
+        non-finite one by ``min_factor``); no growth right after a rejection (as scipy)."""
         h_abs = min(self.h_abs, self.max_step)
         rejected = False
         while True:
             h, t_new = self._trial(h_abs)
-            err, kept = attempt(h, t_new)
+            try:
+                err, kept = attempt(h, t_new)
+            except OverflowError:               # a Python RHS overflowing on a trial stage (x**2 of a huge x; x*x
+                err, kept = math.nan, None      # gives inf): a rejected trial, as a non-finite one
             if not math.isfinite(err):
                 h_abs *= self.min_factor
                 rejected = True

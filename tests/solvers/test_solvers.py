@@ -1,6 +1,7 @@
 """ODE solvers and the event-locating driver against closed forms and scipy."""
 import math
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -261,3 +262,19 @@ def test_options_a_method_does_not_take_and_nonsense_steps_are_named():
         with pytest.raises(ValueError, match=re.escape(said)):
             integrate(decay, (0.0, 1.0), **options)
     assert integrate(decay, (0.0, 1.0), method="DP45", first_step=1e-3).y_final[0] == pytest.approx(math.exp(-1), rel=1e-5)
+
+
+def test_a_python_rhs_overflowing_on_a_trial_stage_rejects_the_trial():
+    """Robertson's kinetics written with y2**2: DOP853's first trial step from (1, 0, 0) is far too large and the
+    square raises OverflowError (y2*y2 would give inf). That trial is rejected as a non-finite one is — it stopped
+    the run as a divergence "at t = 0" (an audit), where scipy's DOP853 goes on."""
+    from scipy.integrate import solve_ivp
+
+    def rob(t, y):
+        return (-0.04 * y[0] + 1e4 * y[1] * y[2], 0.04 * y[0] - 1e4 * y[1] * y[2] - 3e7 * y[1] ** 2, 3e7 * y[1] ** 2)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                   # stiff for an explicit method: that is not the point here
+        sol = integrate(Problem(rob, (1.0, 0.0, 0.0)), (0.0, 0.5), method="DOP853", rtol=1e-8, atol=1e-11)
+        ref = solve_ivp(rob, (0.0, 0.5), (1.0, 0.0, 0.0), method="Radau", rtol=1e-11, atol=1e-14).y[:, -1]
+    assert sol.status == "finished" and sol.y_final[0] == pytest.approx(ref[0], rel=1e-7)
