@@ -121,13 +121,34 @@ class Stepper(OdeSolver):
         """Raise for a failed step from (t, y) of size h: step-size underflow, or a non-finite state y_bad."""
         self.status = "failed"
         if status == UNDERFLOW:
-            what = f"step size underflow (h = {h:.3g} s)"
-            if isinstance(self.fun, JitRhs):
-                self.fun.fail(t, y, what)
-            raise SolverDivergence(what, t, y)
+            raise self.underflow(t, y, h)
         if math.isfinite(hl):
             self.monitor.last = hl
         raise self.diverged(t + h, y_bad, h, (t, y))
+
+    def underflow(self, t: float, y: Sequence[float], h: float) -> SolverDivergence:
+        """The error for a step size that underflowed at (t, y): the method, and why where it can tell — the right-hand
+        side not finite just past t (the kernel's diagnosis when a JitRhs has one), else a solution that may blow up
+        (a finite-time singularity) or a problem too stiff for the method."""
+        what = f"{self.label} step size underflow (h = {h:.3g} s)"
+        if isinstance(self.fun, JitRhs):
+            why = self.fun.diagnose()
+            if why:
+                return SolverDivergence(f"{what}: {why}", t, y)
+        nudge = t + max(abs(h), 4.0 * np.finfo(float).eps * max(1.0, abs(t)))
+        try:
+            with np.errstate(all="ignore"):
+                f = np.asarray(self.fun(nudge, tuple(y)), dtype=float)
+            finite = bool(np.all(np.isfinite(f)))
+        except (ArithmeticError, SolverDivergence):
+            finite = False
+        if not finite:
+            return SolverDivergence(f"{what}: the right-hand side is not finite just past t = {t:.9g} s (NaN or inf "
+                                    f"from the model there: outside its range, or a singularity) - check the model "
+                                    f"there", t, y)
+        return SolverDivergence(f"{what}: the right-hand side is finite there, so the solution may be blowing up (a "
+                                f"finite-time singularity: |y| = {float(np.max(np.abs(y))):.3g}) or the problem is too "
+                                f"stiff for {self.label} - check the model, or try the implicit method Rodas4", t, y)
 
     def diverged(self, t: float, y: Sequence[float], h: float, last: tuple | None = None,
                  what: str = "non-finite state after a step") -> SolverDivergence:
@@ -297,7 +318,7 @@ class AdaptiveStepper(Stepper):
         """(h, t_new) of a trial step of size ``h_abs`` from ``t``, cut to land on t_bound; a step-size underflow
         raises :class:`SolverDivergence`."""
         if h_abs < self._min_step():
-            raise SolverDivergence(f"{self.label} step size underflow (h = {h_abs:.3g} s)", self.t, self.y)
+            raise self.underflow(self.t, self.y, h_abs)
         t_new = self.t + h_abs
         if t_new >= self.t_bound:
             return self.t_bound - self.t, self.t_bound

@@ -278,3 +278,17 @@ def test_a_python_rhs_overflowing_on_a_trial_stage_rejects_the_trial():
         sol = integrate(Problem(rob, (1.0, 0.0, 0.0)), (0.0, 0.5), method="DOP853", rtol=1e-8, atol=1e-11)
         ref = solve_ivp(rob, (0.0, 0.5), (1.0, 0.0, 0.0), method="Radau", rtol=1e-11, atol=1e-14).y[:, -1]
     assert sol.status == "finished" and sol.y_final[0] == pytest.approx(ref[0], rel=1e-7)
+
+
+def test_a_step_size_underflow_names_the_method_and_what_it_can_tell_of_the_cause():
+    """An audit: "solver diverged: step size underflow (h = 2.77e-16 s)" named neither the method (compiled path) nor
+    a cause. Now: a right-hand side that is NaN past the point says so; a finite one there points at a blow-up
+    (y' = y², y(0) = 1: singular at t = 1) or stiffness."""
+    nan_past = Problem(lambda t, y: (math.nan if t > 0.5 else -y[0],), (1.0,))
+    with pytest.raises(SolverDivergence, match=r"DP45 step size underflow \(h = .*\): the right-hand side is not "
+                                               r"finite just past t = 0\.5"):
+        integrate(nan_past, (0.0, 1.0), method="DP45")
+    blow_up = Problem(lambda t, y: (y[0] * y[0],), (1.0,))
+    with pytest.raises(SolverDivergence, match=r"Tsit5 step size underflow .*: the right-hand side is finite there, so "
+                                               r"the solution may be blowing up \(a finite-time singularity"):
+        integrate(blow_up, (0.0, 2.0), method="Tsit5")
