@@ -124,11 +124,12 @@ def _speeds(e: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def _rad_per_count(e: dict[str, np.ndarray] | None) -> float | None:
-    """The encoder's resolution (rad per count) as its record gives it (angle over count); None before any count."""
+    """The encoder's signed resolution (rad per count: negative for an encoder counting against the angle) as its
+    record gives it (angle over count); None before any count."""
     if not e or "count" not in e or "angle" not in e:
         return None
     i = np.flatnonzero(e["count"])
-    return float(abs(e["angle"][i[0]] / e["count"][i[0]])) if i.size else None
+    return float(e["angle"][i[0]] / e["count"][i[0]]) if i.size else None
 
 
 #: what the dynamic stand's record is made of: plant signal measured → its default topic (a recording without its scene)
@@ -275,8 +276,8 @@ def _speed_figure(ctx: ReportContext, data: StandRecord) -> Block:
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
     rad = _rad_per_count(rec.series.get(stand_topics(rec)["phi1"]))
-    switch = (f" (frequency above {unit.text(SpeedEstimator(rad).switch_speed, 3)} for the driving half's "
-              f"{2 * np.pi / rad:.0f} counts per turn, period below)") if rad else ""
+    switch = (f" (frequency above {unit.text(SpeedEstimator(abs(rad)).switch_speed, 3)} for the driving half's "
+              f"{2 * np.pi / abs(rad):.0f} counts per turn, period below)") if rad else ""
     return ctx.figure(save(fig, ctx.figure_path("clutch_speeds")),
                       "Speeds of both halves from the encoders: mixed frequency/period method on the latched edge "
                       f"times{switch}, each mean speed drawn at the middle of its window")

@@ -10,6 +10,7 @@ of it says so; the lost parts stay lost.
 """
 from __future__ import annotations
 
+import math
 import os
 from collections import Counter
 from dataclasses import dataclass
@@ -154,7 +155,9 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
                                                            f"{'; '.join(problems)}" + (f" (it stopped: {was})" if was
                                                                                        else "")})
                 end["messages"] = str(sum(rewriter.messages.values()))
-                end.setdefault("simulation_time", repr(rewriter.simulation_time()))
+                reached = rewriter.simulation_time()
+                if math.isfinite(reached):             # (no message that tells a time: none written)
+                    end.setdefault("simulation_time", repr(reached))
             if end:
                 writer.add_metadata(S.END_METADATA, end)
             writer.finish()

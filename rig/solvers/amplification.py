@@ -76,11 +76,12 @@ PERSISTENT = 0.5
 
 
 def mode_errors(method: str, M: np.ndarray, lam: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
-    """Per eigenvalue λ of J that persists and does not grow (:data:`PERSISTENT` ≤ |e^{hλ}| ≤ 1): the method's relative error per step on
-    its mode, |μ − e^{hλ}|/|e^{hλ}| (μ = R(hλ) for the methods of :data:`POLYNOMIALS`, else the eigenvalue of M
-    nearest e^{hλ}) where the method does not amplify the mode beyond the exact flow (else 0: growth is the
-    amplification test's to report), the mode's lifetime in steps 1/(1 − |e^{hλ}|) (inf when it does not decay)
-    and λ."""
+    """Per eigenvalue λ of J that persists and does not grow (:data:`PERSISTENT` ≤ |e^{hλ}| ≤ 1), where the method
+    does not amplify its mode beyond the exact flow (growth is the amplification test's to report; else zeros): the
+    method's relative error on the mode per step |μ − e^{hλ}|/|e^{hλ}| (μ = R(hλ) for the methods of
+    :data:`POLYNOMIALS`, else the eigenvalue of M nearest e^{hλ}: exact for one oscillation, possibly another mode's
+    in a system of close modes), its spurious decay −ln(|μ|/|e^{hλ}|) ≥ 0 and phase error |arg(μ/e^{hλ})| (rad) per
+    step, the mode's lifetime in steps 1/(1 − |e^{hλ}|) (inf when it does not decay) and λ."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         exact = np.exp(h * lam)
         keep = (np.abs(exact) >= PERSISTENT) & (np.abs(exact) <= 1.0 + 1e-3)     # not a physical growth (a blow-up)
@@ -90,9 +91,12 @@ def mode_errors(method: str, M: np.ndarray, lam: np.ndarray, h: float) -> tuple[
         else:
             eig = np.linalg.eigvals(M) if np.all(np.isfinite(M)) else np.full(M.shape[0], np.nan)
             mu = np.array([eig[np.argmin(np.abs(eig - e))] for e in exact]) if eig.size else exact
-        err = np.where(np.abs(mu) <= np.abs(exact) * (1.0 + 1e-4), np.abs(mu - exact) / np.abs(exact), 0.0)
+        damps = np.abs(mu) <= np.abs(exact) * (1.0 + 1e-4)
+        err = np.where(damps, np.abs(mu - exact) / np.abs(exact), 0.0)
+        decay = np.where(damps, np.maximum(-np.log(np.abs(mu) / np.abs(exact)), 0.0), 0.0)
+        phase = np.where(damps, np.abs(np.angle(mu / exact)), 0.0)
         life = np.where(np.abs(exact) < 1.0, 1.0 / (1.0 - np.abs(exact)), np.inf)
-    return err, life, lam
+    return err, decay, phase, life, lam
 
 
 class Amplification:

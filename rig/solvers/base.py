@@ -42,8 +42,9 @@ class ResolutionWarning(RuntimeWarning):
     share of the mode (a heavily damped, phase-shifted or decayed oscillation): the answer may be wrong."""
 
 
-#: order of the fixed-step methods' global error (the accuracy warning's suggested step)
-ORDERS = {"euler": 1, "symplectic_euler": 1, "rk4": 4}
+#: order in h of the fixed-step methods' error on a mode per step (the accuracy warning's suggested step): explicit
+#: Euler h², symplectic Euler's phase h³, RK4 h⁵
+STEP_ORDERS = {"euler": 2, "symplectic_euler": 3, "rk4": 5}
 
 
 #: what keeps a fixed-step method stable on a lightly damped mode ω_n, ζ (for the amplification report)
@@ -74,12 +75,16 @@ class StiffnessMonitor:
     #: growth per step beyond the exact flow's that counts (1e-4: +10 % in 1000 steps; explicit Euler on an
     #: undamped oscillation at a small h·ω grows by (h·ω)²/2 per step, which convergence studies accept)
     EXCESS = 1e-4
-    #: accuracy test at the same checks: a persistent mode stepped with an error of STEP_ERROR of the mode per step or
-    #: more (RK4 at h·ω ≳ 1.45, symplectic Euler at h·ω ≳ 1.05: about 6 steps per period or fewer) draws one
-    #: :class:`ResolutionWarning` per run; the suggested step aims at TARGET_ERROR. Not the error summed over the
-    #: mode's life: on level 2 it flagged every converged run (the contact mode, ζ = 0.16, rings with a small share of
-    #: the state — the linearisation cannot tell how much of a mode the answer holds)
-    STEP_ERROR, TARGET_ERROR = 0.05, 0.005
+    #: accuracy test at the same checks, on the persistent modes the method does not amplify
+    #: (:func:`rig.solvers.amplification.mode_errors`): one :class:`ResolutionWarning` per run where the error per step
+    #: reaches STEP_ERROR of the mode (RK4 at h·ω ≳ 1.45, symplectic Euler ≳ 1.05), or where, over the mode's life
+    #: (its lifetime, at most the steps so far), the method's spurious decay has halved it (SPURIOUS) or its phase
+    #: error reached PHASE rad, a fifth of a radian (RK4 at h·ω = 1 damps an undamped mode by 0.6 % per step: to 1e-3 in 1000 steps;
+    #: symplectic Euler at 0.1 turns 4e-5 rad per step too many: 0.4 rad in 10 000). Not the plain error summed
+    #: over the life (tried): on level 2 that flagged every converged run, the contact mode (ζ ≈ 0.16) being barely
+    #: excited — the linearisation cannot tell how much of a mode the answer holds. The suggested step aims at
+    #: TARGET_ERROR per step
+    STEP_ERROR, PHASE, TARGET_ERROR = 0.05, 0.2, 0.005
 
     def __init__(self, method: str, limit: float, policy: str = "warn", fixed: bool = False):
         if policy not in ("warn", "raise", "ignore"):
@@ -273,22 +278,34 @@ class StiffnessMonitor:
                 self._report_amplification(float(t), tuple(y), float(h), got, grown)
 
     def _accuracy(self, t: float, h: float, got) -> None:
-        """The accuracy test on a check's persistent modes (see :data:`DRIFT`): one warning per run naming the mode,
-        its steps per period, the error per step and accumulated, and a step for :data:`TARGET_DRIFT`."""
+        """The accuracy test on a check's persistent modes (see :data:`STEP_ERROR`): one warning per run naming the mode,
+        its steps per period, what the method does to it, and a step for :data:`TARGET_ERROR` per step."""
         if got is None or len(got) < 4 or self.coarse is not None:     # (a watch without the accuracy part)
             return
-        err, _, lam = got[3]
-        if not err.size or not np.nanmax(err) >= self.STEP_ERROR:
+        err, decay, phase, life, lam = got[3]
+        if not err.size:
             return
-        i = int(np.nanargmax(err))
+        span = np.minimum(life, self._steps)
+        faults = [(err, self.STEP_ERROR, "an error of {:.2g} of the mode per step"),
+                  (decay * span, math.log(self.SPURIOUS), "a spurious decay to {:.2g} of the mode over the {:.0f} steps "
+                                                          "it has lived"),
+                  (phase * span, self.PHASE, "a phase error of {:.2g} rad over the {:.0f} steps it has lived")]
+        for values, limit, text in faults:
+            if np.nanmax(values) >= limit:
+                i = int(np.nanargmax(values))
+                how = text.format(math.exp(-values[i]) if "decay" in text else values[i], span[i])
+                break
+        else:
+            return
         mode = complex(lam[i])
         period = (f" (period {2 * math.pi / abs(mode.imag):.3g} s: {2 * math.pi / (h * abs(mode.imag)):.3g} steps "
                   f"per period)") if mode.imag else ""
-        fix = h * (self.TARGET_ERROR / err[i]) ** (1.0 / (ORDERS.get(self.watch.method, 1) + 1))
+        fix = h * min(1.0, self.TARGET_ERROR / err[i]) ** (1.0 / STEP_ORDERS.get(self.watch.method, 2)) \
+            if err[i] > 0 else h
         self.coarse = (f"{self.method} may be inaccurate from t = {t:.6g} s: at h = {h:.3g} s it steps the mode lambda "
-                       f"= {mode.real:.4g}{mode.imag:+.4g}j 1/s{period} with an error of {err[i]:.2g} of the mode per "
-                       f"step: stable, but the answer is wrong wherever that mode shows (its amplitude or phase within a "
-                       f"few steps) - reduce h to about {fix:.2g} s or use an adaptive method (DP45, Tsit5)")
+                       f"= {mode.real:.4g}{mode.imag:+.4g}j 1/s{period} with {how}: stable, but the answer is wrong "
+                       f"wherever that mode shows - reduce h to about {fix:.2g} s or use an adaptive method (DP45, "
+                       f"Tsit5)")
         warnings.warn(self.coarse, ResolutionWarning, stacklevel=6)
 
     def _report_amplification(self, t: float, y: tuple, h: float, got, accumulated: float | None = None) -> None:

@@ -146,9 +146,12 @@ class Stepper(OdeSolver):
             return SolverDivergence(f"{what}: the right-hand side is not finite just past t = {t:.9g} s (NaN or inf "
                                     f"from the model there: outside its range, or a singularity) - check the model "
                                     f"there", t, y)
-        return SolverDivergence(f"{what}: the right-hand side is finite there, so the solution may be blowing up (a "
-                                f"finite-time singularity: |y| = {float(np.max(np.abs(y))):.3g}) or the problem is too "
-                                f"stiff for {self.label} - check the model, or try the implicit method Rodas4", t, y)
+        return SolverDivergence(f"{what}: the right-hand side is finite at the last state (|y| = "
+                                f"{float(np.max(np.abs(y))):.3g}), yet no step from it passes the error test — the "
+                                f"solution may blow up there (a finite-time singularity), the right-hand side may be "
+                                f"non-finite or jump just beyond it (where a trial step lands), or the problem is too "
+                                f"stiff for {self.label} - check the model there, or try the implicit method Rodas4",
+                                t, y)
 
     def diverged(self, t: float, y: Sequence[float], h: float, last: tuple | None = None,
                  what: str = "non-finite state after a step") -> SolverDivergence:
@@ -302,12 +305,12 @@ class AdaptiveStepper(Stepper):
             raise ValueError(f"{type(self).__name__}: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
         if not max_step > 0:
             raise ValueError(f"{type(self).__name__}: max_step = {max_step!r} s must be positive (inf: no limit)")
-        if first_step is not None and not (first_step > 0 and math.isfinite(first_step)):
+        if first_step is not None and (first_step < 0 or first_step == math.inf):
             raise ValueError(f"{type(self).__name__}: first_step = {first_step!r} s must be positive and finite "
-                             f"(None: chosen by Hairer's heuristic)")
+                             f"(None, 0 or NaN: chosen by Hairer's heuristic)")
         super().__init__(fun, t0, y0, t_bound, self.default_stiffness if stiffness is None else stiffness, compiled)
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        if first_step is None:
+        if first_step is None or not first_step > 0:          # None, 0, NaN (a run's h_last before any step)
             h_abs = initial_step(fun, self.t, self.y, self.f, self.error_order, rtol, atol, self.t_bound)
             self.nfev += 1
         else:

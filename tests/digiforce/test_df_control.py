@@ -250,8 +250,8 @@ def test_noisy_unit_is_reproducible_and_chunk_independent(press):
 
 def test_a_hysteresis_as_wide_as_the_measuring_span_is_refused(unit):
     """Y measures ±5 V through 1 N/V: a 10 N span. A Schmitt band of 10 N could never arm (the value would have to
-    swing more than the whole span); just below it is a valid, if odd, program."""
+    swing more than the whole span), tare or not; a band inside the span is taken."""
     with pytest.raises(DigiForceError, match=r"control\.start\.hysteresis: 10 N is not below the whole measuring "
                                              r"span of channel 'y' \(10 N"):
         unit.set_program(1, {**SIMPLE, "control": {"start": {"mode": "y", "value": "0.5 N", "hysteresis": "10 N"}}})
-    unit.set_program(1, {**SIMPLE, "control": {"start": {"mode": "y", "value": "0.5 N", "hysteresis": "9.9 N"}}})
+    unit.set_program(1, {**SIMPLE, "control": {"start": {"mode": "y", "value": "0.5 N", "hysteresis": "2 N"}}})

@@ -248,7 +248,8 @@ def test_stiffness_monitor_in_batches_is_the_monitor_step_by_step():
 def test_options_a_method_does_not_take_and_nonsense_steps_are_named():
     """An audit: Euler given rtol crashed with a TypeError from deep inside; max_step 0 or −1 ran into a "step size
     underflow (h = −1 s)"; a negative or NaN first_step was silently replaced by the heuristic; a NaN in t_eval gave
-    a NaN sample time. Each is now a ValueError naming the option."""
+    a NaN sample time. Each is now a ValueError naming the option (a first_step of 0 or NaN still means "choose
+    it": a run feeds a solver's h_last back, NaN before its first step)."""
     decay = Problem(lambda t, y: (-y[0],), (1.0,))
     for options, said in ((dict(method="Euler", rtol=1e-3), "explicit Euler is a fixed-step method (give h) and takes "
                                                              "no option 'rtol'"),
@@ -257,7 +258,7 @@ def test_options_a_method_does_not_take_and_nonsense_steps_are_named():
                           (dict(method="DP45", max_step=0.0), "max_step = 0.0 s must be positive"),
                           (dict(method="Tsit5", max_step=-1.0), "max_step = -1.0 s must be positive"),
                           (dict(method="Tsit5", first_step=-1.0), "first_step = -1.0 s must be positive and finite"),
-                          (dict(method="DP45", first_step=math.nan), "first_step = nan s must be positive and finite"),
+                          (dict(method="DP45", first_step=math.inf), "first_step = inf s must be positive and finite"),
                           (dict(method="DP45", t_eval=[0.2, math.nan, 0.5]), "t_eval must be finite and increasing")):
         with pytest.raises(ValueError, match=re.escape(said)):
             integrate(decay, (0.0, 1.0), **options)
@@ -283,12 +284,12 @@ def test_a_python_rhs_overflowing_on_a_trial_stage_rejects_the_trial():
 def test_a_step_size_underflow_names_the_method_and_what_it_can_tell_of_the_cause():
     """An audit: "solver diverged: step size underflow (h = 2.77e-16 s)" named neither the method (compiled path) nor
     a cause. Now: a right-hand side that is NaN past the point says so; a finite one there points at a blow-up
-    (y' = y², y(0) = 1: singular at t = 1) or stiffness."""
+    (y' = y², y(0) = 1: singular at t = 1), a right-hand side that fails just beyond, or stiffness."""
     nan_past = Problem(lambda t, y: (math.nan if t > 0.5 else -y[0],), (1.0,))
     with pytest.raises(SolverDivergence, match=r"DP45 step size underflow \(h = .*\): the right-hand side is not "
                                                r"finite just past t = 0\.5"):
         integrate(nan_past, (0.0, 1.0), method="DP45")
     blow_up = Problem(lambda t, y: (y[0] * y[0],), (1.0,))
-    with pytest.raises(SolverDivergence, match=r"Tsit5 step size underflow .*: the right-hand side is finite there, so "
-                                               r"the solution may be blowing up \(a finite-time singularity"):
+    with pytest.raises(SolverDivergence, match=r"Tsit5 step size underflow .*: the right-hand side is finite at the last "
+                                               r"state \(\|y\| = .*\), yet no step .*\(a finite-time singularity"):
         integrate(blow_up, (0.0, 2.0), method="Tsit5")
