@@ -95,7 +95,9 @@ class LabBench:
         """(time s, force N) of the least contact force over the lift span that starts at ``t0``: the closed-form
         force on :data:`SPAN_GRID` points of the next cam turn up to where it is back at ≥ 0, its least sample refined
         by a bounded scalar minimisation — the whole span, wherever the run's chunks cut it (a minimum taken from the
-        chunk's samples was the chunk's, and its angle the span's start)."""
+        chunk's samples was the chunk's, and its angle the span's start). The window is one turn at the speed at
+        ``t0`` (1 s at rest): a span longer than that (a negative preload on an accelerating cam) reports the least
+        force within its first turn."""
         from scipy.optimize import minimize_scalar
         omega = abs(float(self.speed.drive(np.array([t0])).omega[0]))
         dt = (2 * pi / omega if omega > 0.0 else 1.0) / SPAN_GRID
