@@ -401,20 +401,21 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         if exact is None:                       # the old step size means nothing for a state an action set
             h_next = first_step if cut is not None and cut[3] else solver.h_last
         if cut is None:
-            t, y = math.nextafter(solver.t, math.inf), solver.y
             bi += 1
-            if bi == len(breaks):
+            t, y = solver.t, solver.y
+            if bi == len(breaks):               # the span's end: t_final is it, not one ulp past
                 break
+            t = math.nextafter(t, math.inf)
             if reset(t, y):
                 g_old = [e.fun(t, y) for e in events]
         elif cut[2]:
             status = "terminated"
             break
         elif t >= breaks[bi]:                   # the event fell on the break itself: move on past it
-            t = math.nextafter(t, math.inf)
             bi += 1
             if bi == len(breaks):
                 break
+            t = math.nextafter(t, math.inf)
         restarts += 1
     if monitor is not None and isinstance(solver, FixedStepper):     # the steps since the growth test's last check
         calls = monitor.calls

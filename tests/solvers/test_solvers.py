@@ -293,3 +293,12 @@ def test_a_step_size_underflow_names_the_method_and_what_it_can_tell_of_the_caus
     with pytest.raises(SolverDivergence, match=r"Tsit5 step size underflow .*: the right-hand side is finite at the last "
                                                r"state \(\|y\| = .*\), yet no step .*\(a finite-time singularity"):
         integrate(blow_up, (0.0, 2.0), method="Tsit5")
+
+
+def test_a_run_ends_on_its_span_end_not_one_ulp_past():
+    """Solution.t_final is the span's end (it read 1.0000000000000002 for (0, 1): the restart one ulp past a break
+    was taken at the last one too), with or without t_eval and across a time break."""
+    decay = Problem(lambda t, y: (-y[0],), (1.0,), time_breaks=(0.5,))
+    for options in ({}, {"t_eval": [0.25, 1.0]}, {"method": "RK4", "h": 0.01}):
+        sol = integrate(decay, (0.0, 1.0), **options)
+        assert sol.t_final == 1.0 and sol.y_final[0] == pytest.approx(math.exp(-1.0), rel=1e-5)
