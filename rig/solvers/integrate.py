@@ -217,6 +217,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     if isinstance(method, str) and method not in METHODS:
         raise ValueError(f"integrate: unknown method {method!r} (known: {', '.join(METHODS)})")
     t0, tf = float(t_span[0]), float(t_span[1])
+    if not (math.isfinite(t0) and math.isfinite(tf) and tf > t0):
+        raise ValueError(f"integrate: t_span = ({t0}, {tf}) must be two finite times, the end after the start (s)")
     fun = problem.fun
     y = tuple(float(v) for v in (problem.y0 if y0 is None else y0))
     cls = METHODS[method] if isinstance(method, str) else method

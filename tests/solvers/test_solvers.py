@@ -262,6 +262,9 @@ def test_options_a_method_does_not_take_and_nonsense_steps_are_named():
                           (dict(method="DP45", t_eval=[0.2, math.nan, 0.5]), "t_eval must be finite and increasing")):
         with pytest.raises(ValueError, match=re.escape(said)):
             integrate(decay, (0.0, 1.0), **options)
+    for span in ((0.0, math.inf), (1.0, 0.0), (0.0, math.nan)):        # (0, inf) ran for ever
+        with pytest.raises(ValueError, match="t_span = .* must be two finite times, the end after the start"):
+            integrate(decay, span)
     assert integrate(decay, (0.0, 1.0), method="DP45", first_step=1e-3).y_final[0] == pytest.approx(math.exp(-1), rel=1e-5)
 
 
