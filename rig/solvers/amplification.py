@@ -65,9 +65,15 @@ def step_matrix(method: str, hJ: np.ndarray, positions: Sequence[int] = ()) -> n
     return M
 
 
+def step_eigenvalues(M: np.ndarray) -> np.ndarray | None:
+    """Eigenvalues of M; None where M overflowed (h·J of a state near overflow raised to the 4th power for RK4)."""
+    return np.linalg.eigvals(M) if np.all(np.isfinite(M)) else None
+
+
 def spectral_radius(M: np.ndarray) -> float:
-    """ρ(M); infinite where M overflowed (h·J of a state near overflow raised to the 4th power for RK4)."""
-    return float(np.max(np.abs(np.linalg.eigvals(M)))) if np.all(np.isfinite(M)) else math.inf
+    """ρ(M); infinite where M overflowed."""
+    eig = step_eigenvalues(M)
+    return float(np.max(np.abs(eig))) if eig is not None else math.inf
 
 
 #: modes the exact flow keeps at least this much of per step count for the accuracy test (a mode that loses more
@@ -75,11 +81,12 @@ def spectral_radius(M: np.ndarray) -> float:
 PERSISTENT = 0.5
 
 
-def mode_errors(method: str, M: np.ndarray, lam: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
+def mode_errors(method: str, eig: np.ndarray | None, lam: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
     """Per eigenvalue λ of J that persists and does not grow (:data:`PERSISTENT` ≤ |e^{hλ}| ≤ 1), where the method
     does not amplify its mode beyond the exact flow (growth is the amplification test's to report; else zeros): the
     method's relative error on the mode per step |μ − e^{hλ}|/|e^{hλ}| (μ = R(hλ) for the methods of
-    :data:`POLYNOMIALS`, else the eigenvalue of M nearest e^{hλ}: exact for one oscillation, possibly another mode's
+    :data:`POLYNOMIALS`, else the eigenvalue ``eig`` of the step matrix M nearest e^{hλ}: exact for one oscillation,
+    NaN where M overflowed, possibly another mode's
     in a system of close modes), its spurious decay −ln(|μ|/|e^{hλ}|) ≥ 0 and phase error |arg(μ/e^{hλ})| (rad) per
     step, the mode's lifetime in steps 1/(1 − |e^{hλ}|) (inf when it does not decay) and λ."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -88,9 +95,10 @@ def mode_errors(method: str, M: np.ndarray, lam: np.ndarray, h: float) -> tuple[
         lam, exact = lam[keep], exact[keep]
         if method in POLYNOMIALS:
             mu = POLYNOMIALS[method](h * lam)
+        elif eig is None:
+            mu = np.full(exact.shape, np.nan)
         else:
-            eig = np.linalg.eigvals(M) if np.all(np.isfinite(M)) else np.full(M.shape[0], np.nan)
-            mu = np.array([eig[np.argmin(np.abs(eig - e))] for e in exact]) if eig.size else exact
+            mu = np.array([eig[np.argmin(np.abs(eig - e))] for e in exact])
         damps = np.abs(mu) <= np.abs(exact) * (1.0 + 1e-4)
         err = np.where(damps, np.abs(mu - exact) / np.abs(exact), 0.0)
         decay = np.where(damps, np.maximum(-np.log(np.abs(mu) / np.abs(exact)), 0.0), 0.0)
@@ -114,11 +122,11 @@ class Amplification:
         lam = np.linalg.eigvals(J)
         with np.errstate(over="ignore", invalid="ignore"):      # an exact growth beyond float range is inf: so said
             exact = float(np.max(np.exp(h * lam.real)))
-            M = step_matrix(self.method, h * J, self.positions)
-            rho = spectral_radius(M)
+            eig = step_eigenvalues(step_matrix(self.method, h * J, self.positions))
+            rho = float(np.max(np.abs(eig))) if eig is not None else math.inf
         worst = lam[np.argmax(np.abs(POLYNOMIALS[self.method](h * lam)))] if self.method in POLYNOMIALS \
             else lam[np.argmax(np.abs(lam))]
-        return rho, exact, complex(worst), mode_errors(self.method, M, lam, h)
+        return rho, exact, complex(worst), mode_errors(self.method, eig, lam, h)
 
     def largest_stable_step(self, t: float, y: Sequence[float], h: float) -> float:
         """The largest step ≤ h (s) at which the method does not amplify at (t, y) (bisection on ρ(M) ≤ 1)."""

@@ -280,20 +280,20 @@ class StiffnessMonitor:
     def _accuracy(self, t: float, h: float, got) -> None:
         """The accuracy test on a check's persistent modes (see :data:`STEP_ERROR`): one warning per run naming the mode,
         its steps per period, what the method does to it, and a step for :data:`TARGET_ERROR` per step."""
-        if got is None or len(got) < 4 or self.coarse is not None:     # (a watch without the accuracy part)
+        if got is None or self.coarse is not None:
             return
         err, decay, phase, life, lam = got[3]
         if not err.size:
             return
         span = np.minimum(life, self._steps)
-        faults = [(err, self.STEP_ERROR, "an error of {:.2g} of the mode per step"),
-                  (decay * span, math.log(self.SPURIOUS), "a spurious decay to {:.2g} of the mode over the {:.0f} steps "
-                                                          "it has lived"),
-                  (phase * span, self.PHASE, "a phase error of {:.2g} rad over the {:.0f} steps it has lived")]
-        for values, limit, text in faults:
+        faults = [(err, self.STEP_ERROR, lambda v, n: f"an error of {v:.2g} of the mode per step"),
+                  (decay * span, math.log(self.SPURIOUS),
+                   lambda v, n: f"a spurious decay to {math.exp(-v):.2g} of the mode over the {n:.0f} steps it has lived"),
+                  (phase * span, self.PHASE, lambda v, n: f"a phase error of {v:.2g} rad over the {n:.0f} steps it has lived")]
+        for values, limit, said in faults:
             if np.nanmax(values) >= limit:
                 i = int(np.nanargmax(values))
-                how = text.format(math.exp(-values[i]) if "decay" in text else values[i], span[i])
+                how = said(values[i], span[i])
                 break
         else:
             return

@@ -34,6 +34,7 @@ import bisect
 import inspect
 import math
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Callable, Sequence
 
 import numpy as np
@@ -148,13 +149,22 @@ def breaks_in(problem: Problem, t0: float, tf: float) -> list[float]:
     return kept
 
 
+@cache
+def _options_of(cls) -> tuple[str, ...] | None:
+    """The options a method's constructor takes (None: any, it takes ``**kwargs``); once per class (inspecting the
+    signature costs ~15 µs, on a path called per chunk of a run)."""
+    params = inspect.signature(cls.__init__).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return None
+    return tuple(p for p in params if p not in ("self", "fun", "t0", "y0", "t_bound"))
+
+
 def _check_options(cls, options: dict) -> None:
     """A ValueError naming an option the method does not take (``rtol`` for a fixed-step method, ``h`` for an
     adaptive one: a TypeError from deep inside before) and the ones it does."""
-    params = inspect.signature(cls.__init__).parameters
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+    taken = _options_of(cls)
+    if taken is None:
         return
-    taken = [p for p in params if p not in ("self", "fun", "t0", "y0", "t_bound")]
     unknown = sorted(set(options) - set(taken))
     if unknown:
         kind = "a fixed-step method (give h)" if "h" in taken else "an adaptive method (give rtol, atol)"

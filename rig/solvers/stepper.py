@@ -137,9 +137,7 @@ class Stepper(OdeSolver):
                 return SolverDivergence(f"{what}: {why}", t, y)
         nudge = t + max(abs(h), 4.0 * np.finfo(float).eps * max(1.0, abs(t)))
         try:
-            with np.errstate(all="ignore"):
-                f = np.asarray(self.fun(nudge, tuple(y)), dtype=float)
-            finite = bool(np.all(np.isfinite(f)))
+            finite = all_finite(self.fun(nudge, tuple(y)))
         except (ArithmeticError, SolverDivergence):
             finite = False
         if not finite:
