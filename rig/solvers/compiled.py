@@ -23,6 +23,7 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from rig.solvers.base import SolverDivergence
 
@@ -56,13 +57,30 @@ class JitRhs:
         raise SolverDivergence(f"{what}: {why}" if why else what, t, y)
 
 
+@njit(cache=True)
+def scratch_rows(n: int) -> int:
+    """Rows of n floats a method's compiled step may use as scratch (its ``ws``) for a state of n components: 2n + 4,
+    what Rodas4 needs (its Jacobian, iteration matrix, ∂f/∂t, a stage state, a derivative and the pivots); the
+    explicit methods use up to three."""
+    return 2 * n + 4
+
+
+def run_scratch(n: int, events: int, stages: int, order: int, params: int) -> tuple[np.ndarray, ...]:
+    """The scratch arrays a compiled run takes after its buffers (the run allocates nothing:
+    :mod:`rig.solvers.templates.runs`), for a state of n components, that many events, a method with ``stages``
+    stage rows and a continuous extension of that order, and a parameter vector of ``params`` floats."""
+    return (np.empty((3 + scratch_rows(n), n)), np.empty(events), np.empty((n, order)), np.empty((stages, n)),
+            np.empty(params))
+
+
 #: slots of the compiled step's work vector: T, H_ABS (in, updated to t_new, h_next), T_BOUND, RTOL,
 #: ATOL, MAX_STEP, QMASK (in: settings; QMASK = the position components of a (q, v) state as a bit mask, bit i for
 #: component i), H, NFEV, HL, NEV, FAIL
 #: (out: last step taken — or the failed one —, RHS calls, Hairer's stiffness estimate h·|λ|, events acted
 #: on in a run, failure status of a run: 1 step-size underflow, 2 non-finite state of a fixed-step method), NBREAK
-#: (in/out: how many of a run's further bounds ``BR`` it has passed, restarting past each as the driver would)
-T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, QMASK, H, NFEV, HL, NEV, FAIL, NBREAK = range(13)
+#: (in/out: how many of a run's further bounds ``BR`` it has passed, restarting past each as the driver would), IE
+#: (in/out: index of the first output time a run has not sampled yet)
+T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, QMASK, H, NFEV, HL, NEV, FAIL, NBREAK, IE = range(14)
 TEMPLATES = Path(__file__).with_name("templates")
 _KERNELS = re.compile(r"# <kernels>\n.*?# </kernels>\n", re.DOTALL)
 _INCLUDE = re.compile(r"^# <include (\w+)>\n", re.MULTILINE)     # a method template's shared part (templates/erk.py)
@@ -78,8 +96,9 @@ def compiled_solver(method: str, kernel, event=None, act=None):
       step, writing the new state into ``y_new``, the method's stage vectors into K (the last row is
       f(t_new, y_new)) and H, NFEV, HL and (on success) T, H_ABS into ``w``; returns 0, 1 on a step-size
       underflow (state untouched) or 2 when a fixed-step method's state became non-finite;
-    * ``run(w, Y, TT, HH, KK, HL, EV, g, p, BR)`` (with ``event``) takes steps from (w[T], Y[0]) with
-      KK[0, 0] the first derivative, storing step ends TT[s + 1], states Y[s + 1], step sizes HH[s],
+    * ``run(w, Y, TT, HH, KK, HL, EV, g, p, BR, *scratch, TE, OUT)`` (with ``event``; ``scratch`` from
+      :func:`run_scratch`; output times TE and their states OUT, sampled on every step but the last from w[IE]
+      on) takes steps from (w[T], Y[0]) with KK[0, 0] the first derivative, storing step ends TT[s + 1], states Y[s + 1], step sizes HH[s],
       stage vectors KK[s] and h·|λ| HL[s], until an event value in ``g`` (given at the start, updated in
       place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the number of
       steps, or −1 − steps on a failure (status in w[FAIL]). A t_bound that is a time break of the problem,

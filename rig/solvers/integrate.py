@@ -286,20 +286,19 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
         while solver.status == "running":
             if runs:                            # compiled run of steps up to a sign change of some event
                 g_run = np.array(g_old)
-                quiet = solver.advance(g_run)
+                if t_eval is not None:          # the run samples the output times its quiet steps pass
+                    quiet = solver.advance(g_run, times=t_eval, out=out_y, first=i_eval)
+                    i_eval = solver.sampled
+                else:
+                    quiet = solver.advance(g_run)
                 bi = bi0 + solver.breaks_passed
                 for row in solver.acted:        # restarts the compiled run acted on itself
                     records.append(EventRecord(float(row[0]), events[int(row[1])].name, tuple(row[3:].tolist()),
                                                float(row[2])))
                     restarts += 1
-                if quiet is not None:           # steps before the current one, no event there: sample them
+                if quiet is not None:           # steps before the current one, no event there
                     g_old = g_run.tolist()
-                    if t_eval is not None:
-                        j = bisect.bisect_right(t_list, solver.t_old)
-                        if j > i_eval:
-                            pending.append((quiet, i_eval, j))
-                            i_eval = j
-                    else:
+                    if t_eval is None:
                         ts += quiet.T[1:].tolist()
                         ys += map(tuple, quiet.Y[1:].tolist())
             else:

@@ -19,10 +19,12 @@ import numpy as np
 from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessError, StiffnessMonitor, all_finite, lipschitz
 from rig.solvers.amplification import Amplification
 from rig.solvers.control import step_factor
-from rig.solvers.compiled import FAIL, H, H_ABS, HL, NBREAK, NEV, NFEV, T, T_BOUND, JitRhs, compiled_solver
+from rig.solvers.compiled import (FAIL, H, H_ABS, HL, IE, NBREAK, NEV, NFEV, T, T_BOUND, JitRhs, compiled_solver,
+                                  run_scratch)
 from rig.solvers.dense import PolynomialDense, StepsDense
 
 UNDERFLOW, NONFINITE = 1, 2          # failure codes of the compiled steps (rig/solvers/templates/runs.py)
+_NO_TIMES = np.empty(0)             # no output times for a compiled run to sample
 
 
 def initial_step(fun: Rhs, t0: float, y0: tuple, f0: Sequence[float], order: int, rtol: float, atol: float,
@@ -70,7 +72,7 @@ class Stepper(OdeSolver):
         self.nfev = 1
         self.h_abs = math.nan
         self._K = None
-        self._jit = self._run = self._locate = self._values = None
+        self._jit = self._run = self._locate = self._values = self._scratch = None
         self._compiled = compiled and isinstance(fun, JitRhs)
 
     def _start(self, h_abs: float, rtol: float = 0.0, atol: float = 0.0, max_step: float = math.inf,
@@ -84,7 +86,7 @@ class Stepper(OdeSolver):
             self._p = fun.params()
             self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
             self._w = np.array([self.t, h_abs, self.t_bound, rtol, atol, max_step, float(sum(1 << i for i in positions)),
-                                0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+                                0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
         self._bounds = np.empty(0)
         self.breaks_passed = 0
 
@@ -195,18 +197,26 @@ class Stepper(OdeSolver):
         """True when :meth:`advance` is available (compiled RHS with an event kernel)."""
         return self._run is not None
 
-    def advance(self, g: np.ndarray, max_steps: int = 256) -> StepsDense | None:
+    def advance(self, g: np.ndarray, max_steps: int = 256, times: np.ndarray = _NO_TIMES,
+                out: np.ndarray | None = None, first: int = 0) -> StepsDense | None:
         """Take accepted steps in one compiled call until an event value (``g``: at the current point, in
         the order of the RHS's event kernel; updated in place to the values at the last step's start)
         changes sign, t_bound is reached or ``max_steps`` are taken. The solver then stands after the
         last step as after :meth:`step`; returns the steps before it (interpolant with ``.T``, ``.Y`` of
-        their ends), or None."""
+        their ends), or None. With output ``times`` (s, increasing) and ``out`` (states × times), the steps
+        before the last fill out[:, i] for the times from index ``first`` on that they pass (the last step's are
+        the caller's, who examines its events); ``sampled`` is then the index of the first time not filled."""
         n = len(self.y)
         Y, TT = np.empty((max_steps + 1, n)), np.empty(max_steps + 1)
         KK, HH, HL_ = np.empty((max_steps, self.P.shape[0], n)), np.empty(max_steps), np.empty(max_steps)
         EV = np.empty((max_steps, 3 + n))
         Y[0], KK[0, 0] = self._ya, self._fa
-        count = self._run(self._w, Y, TT, HH, KK, HL_, EV, g, self._p, self._bounds)
+        if self._scratch is None or self._scratch[1].size != g.size:
+            self._scratch = run_scratch(n, g.size, self.P.shape[0], self.P.shape[1], self._p.size)
+        self._w[IE] = first
+        count = self._run(self._w, Y, TT, HH, KK, HL_, EV, g, self._p, self._bounds, *self._scratch, times,
+                          np.empty((n, 0)) if out is None else out)
+        self.sampled = int(self._w[IE])
         self.nfev += int(self._w[NFEV])
         self.breaks_passed, self.t_bound = int(self._w[NBREAK]), float(self._w[T_BOUND])
         self.acted = EV[:int(self._w[NEV])]

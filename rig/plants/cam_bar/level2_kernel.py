@@ -17,6 +17,10 @@ through the level-0 chain, and every force of the level-1 free-body diagrams
 force N ≥ 0 or N < 0). The cam moment is M_Σ(ψ̈) = M0 + M1·ψ̈; ℓ·(F_w − F_o) = M_Σ(ψ̈) gives ψ̈ directly. The
 branch N ≥ 0 is taken when consistent, else N < 0; neither is a jam (self-locking guide).
 
+The entry points the compiled solvers call (:func:`rhs`, :func:`event_value`, :func:`event_action`) are compiled
+without numba's runtime (``_nrt=False``: no reference counts on their arrays, ≈ 5 % of a level-2 run; they allocate
+nothing; see :mod:`rig.solvers.templates.runs`).
+
 All compiled code of level 2 lives in this one module (numba's disk cache is invalidated by changes to a
 function's own file only, not to the files of the functions it calls).
 """
@@ -583,7 +587,7 @@ def dynamics(e, e_d, z, z_d, phi, omega, alpha, omega_m, shaft, p):
             th_d, th_dd, mu, f_c, friction, omega_m, shaft, z_dd, tension, moment), status
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def rhs(t, y, p, out):
     """d/dt of (e, τ·ė[, φ, ω, φ_m, ω_m][, z, τ·ż][, W_drive, W_load, E_dissipated]) into ``out`` (the cam-drive
     states when p[DRIVE_ON], the slider's when p[JOINTS_ON]); NaN where the chain cannot be assembled or the guide jams (then p[JAM_T], p[JAM_PHI] record
@@ -637,7 +641,7 @@ def geometry_at(t, y, p):
     return g[3], g[0], p[IR_VALUE]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def event_value(t, y, p, k):
     """Event k: WORKING −e (< 0 while pressed into the working flank), OTHER e − c/ℓ (> 0 while pressed into
     the other flank), OVERLOAD max penetration (of a flank, or of the rod's pins) − p[MAX_PEN] (m), INSERTION > 0
@@ -673,7 +677,7 @@ def pin_penetration(psi, z, p):
     return abs(rod_span(c, s, s_r + z, p)[2] - p[L4]) - p[J_PLAY]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def event_action(t, y, p, k, apply):
     """Whether event k is a restart the compiled solver run may take itself: a contact onset or release on either
     flank or in the rod's pins (the contact force's derivatives jump there; nothing in p changes). Not the

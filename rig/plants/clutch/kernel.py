@@ -8,6 +8,10 @@ line and the loads as a program of codes (:meth:`rig.plants.clutch.loads.Load.pr
 y = (φr, ωr, φ3, ω3, *load states), rad and rad/s. Physics, symbols and sign conventions: the module
 docstring of :mod:`rig.plants.clutch.dynamics`.
 
+The entry points the compiled solvers call (:func:`rhs`, :func:`leaf_rhs`, :func:`event_value`,
+:func:`event_action`) are compiled without numba's runtime (``_nrt=False``: no reference counts on their arrays;
+they allocate nothing; see :mod:`rig.solvers.templates.runs`).
+
 All compiled code of the clutch lives in this one module (numba's disk cache is invalidated by changes
 to a function's own file only, not to the files of the functions it calls); it imports only the
 constants LOBE and APEX.
@@ -269,7 +273,7 @@ def brake_need(t, y, p):
     return m3 - other, p[s + BRAKE_GAIN] * y[4 + int(p[s + BRAKE_Z])]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def event_value(t, y, p, k):
     """Value of event k of the table: sin(π(y[i] − angle)/period) (phase boundaries, wrap, apex, load
     zones); clutch stick–slip: σ·ωr slipping, distance to the static band edges stuck; brake: b·ω3
@@ -295,7 +299,7 @@ def event_function(p: np.ndarray, k: int):
     return lambda t, y: event_value(t, np.asarray(y, dtype=float), p, k)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def event_action(t, y, p, k, apply):
     """Whether event k at (t, y) can be acted on in compiled code — a cam-segment boundary (phase
     boundary, lobe wrap) passed while slipping consistently with the mode (and the brake's mode still
@@ -319,7 +323,7 @@ def event_action(t, y, p, k, apply):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def rhs(t, y, p, out):
     """dy/dt into ``out`` in the current friction mode and held cam segment (p[MODE], p[BASE], p[SEG])."""
     r = core(t, y, int(p[MODE]), p, True)
@@ -396,7 +400,7 @@ def samples(t, Y, modes, brakes, p, brake_at):
     return vals
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def leaf_rhs(t, y, p, out):
     """dy/dt of the leaf-spring stand into ``out``: J1 ω̇1 = M1 − T_c, J3 ω̇3 = T_c − M3 (state as :func:`rhs`)."""
     tc = leaf_coupling(y[0], y[1], p)[0]

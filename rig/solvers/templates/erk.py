@@ -4,7 +4,6 @@ K —, the controller constants, ``error_norm(h, K, y, y_new, rtol, atol)`` and 
 stages of the continuous extension, returning their RHS calls)."""
 import math
 
-import numpy as np
 from numba import njit
 
 from rig.solvers.compiled import ATOL, RTOL, T_BOUND
@@ -19,12 +18,12 @@ ADAPTIVE = True  # error-controlled: lands on the roots of plain restarts (runs.
 
 
 @njit(cache=True, error_model="numpy")
-def one_step(t, h_abs, w, y, y_new, K, p):
-    """One accepted adaptive step (see :mod:`runs`)."""
+def one_step(t, h_abs, w, y, y_new, K, p, ws):
+    """One accepted adaptive step (see :mod:`runs`); the stage states in ws[0]."""
     t_bound, rtol, atol = w[T_BOUND], w[RTOL], w[ATOL]
     n = y.size
     h_min = min_step(t)
-    ys = np.empty(n)
+    ys = ws[0]
     rejected = False
     nfev = 0
     while True:

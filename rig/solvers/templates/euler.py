@@ -15,7 +15,7 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 
 
 @njit(cache=True, error_model="numpy")
-def one_step(t, h_abs, w, y, y_new, K, p):
+def one_step(t, h_abs, w, y, y_new, K, p, ws):
     """y_new = y + h·f(t, y), fixed h (the last step lands on t_bound; see :mod:`runs`)."""
     h, t_new = fixed_step(t, h_abs, w[T_BOUND])
     if h < min_step(t):

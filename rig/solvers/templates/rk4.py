@@ -1,7 +1,6 @@
 """Compiled classical Runge–Kutta 4 step (inserted into :mod:`runs` copies; as :class:`rig.solvers.rk4.RK4`'s
 Python step). K rows: k1..k4 and f(t_new, y_new)."""
 
-import numpy as np
 from numba import njit
 
 from rig.solvers.compiled import T_BOUND
@@ -15,14 +14,14 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 
 
 @njit(cache=True, error_model="numpy")
-def one_step(t, h_abs, w, y, y_new, K, p):
-    """One fixed step of size h_abs (the last one lands on t_bound; see :mod:`runs`)."""
+def one_step(t, h_abs, w, y, y_new, K, p, ws):
+    """One fixed step of size h_abs (the last one lands on t_bound; see :mod:`runs`); stage states in ws[0:3]."""
     h, t_new = fixed_step(t, h_abs, w[T_BOUND])
     if h < min_step(t):
         return UNDERFLOW, t, h, h_abs, 0, 0.0
     n = y.size
     hh = 0.5 * h
-    y2, y3, y4 = np.empty(n), np.empty(n), np.empty(n)
+    y2, y3, y4 = ws[0], ws[1], ws[2]
     for i in range(n):
         y2[i] = y[i] + hh * K[0, i]
     kernel(t + hh, y2, p, K[1])

@@ -3,7 +3,6 @@ controller as :class:`rig.solvers.rodas.Rodas4`'s Python step). K rows: f(t, y),
 by h, f(t_new, y_new)."""
 import math
 
-import numpy as np
 from numba import njit
 
 from rig.solvers.compiled import ATOL, RTOL, T_BOUND
@@ -19,7 +18,7 @@ ADAPTIVE = True  # error-controlled: lands on the roots of plain restarts (runs.
 
 @njit(cache=True, error_model="numpy")
 def lu_factor(W, piv):
-    """In-place LU factorisation of W with partial pivoting (row swaps in piv)."""
+    """In-place LU factorisation of W with partial pivoting (row swaps in piv, as floats)."""
     n = W.shape[0]
     for k in range(n):
         m = k
@@ -41,7 +40,7 @@ def lu_solve(W, piv, b):
     """Solve with the factors of :func:`lu_factor`, b overwritten by the solution."""
     n = W.shape[0]
     for k in range(n):
-        m = piv[k]
+        m = int(piv[k])
         if m != k:
             b[k], b[m] = b[m], b[k]
     for i in range(n):
@@ -54,11 +53,15 @@ def lu_solve(W, piv, b):
 
 
 @njit(cache=True, error_model="numpy")
-def one_step(t, h_abs, w, y, y_new, K, p):
-    """One accepted adaptive step (see :mod:`runs`); Jacobian and ∂f/∂t by forward differences, once."""
+def one_step(t, h_abs, w, y, y_new, K, p, ws):
+    """One accepted adaptive step (see :mod:`runs`); Jacobian and ∂f/∂t by forward differences, once. Scratch in
+    ws (:func:`rig.solvers.compiled.scratch_rows` rows): the Jacobian, the iteration matrix, ∂f/∂t, a stage state,
+    a derivative and the pivots."""
     t_bound, rtol, atol = w[T_BOUND], w[RTOL], w[ATOL]
     n = y.size
-    J, ft, tmp, fj = np.empty((n, n)), np.empty(n), y.copy(), np.empty(n)
+    J, W, ft, tmp, fj, piv = ws[:n], ws[n:2 * n], ws[2 * n], ws[2 * n + 1], ws[2 * n + 2], ws[2 * n + 3]
+    for i in range(n):
+        tmp[i] = y[i]
     floor = max(atol / rtol, 1e-300)
     for j in range(n):
         tmp[j] = y[j] + SQRT_EPS * max(abs(y[j]), floor)
@@ -73,7 +76,6 @@ def one_step(t, h_abs, w, y, y_new, K, p):
         ft[i] = (fj[i] - K[0, i]) / dt
     nfev = n + 1
     h_min = min_step(t)
-    W, piv = np.empty((n, n)), np.empty(n, np.int64)
     rejected = False
     while True:
         if h_abs < h_min:
@@ -93,7 +95,8 @@ def one_step(t, h_abs, w, y, y_new, K, p):
             if s:
                 kernel(t + STAGE_T[s] * h, tmp, p, fj)
             else:
-                fj[:] = K[0]
+                for i in range(n):
+                    fj[i] = K[0, i]
             for i in range(n):
                 acc = 0.0
                 for j in range(s):

@@ -6,12 +6,20 @@ and kernel, binding ``kernel``, ``event`` and ``act`` (the block marked below) t
 and inserting the method's template (``one_step`` and its continuous extension ``P``) in the second block, so
 that numba can cache the compiled code on disk — it cannot cache closures or functions passed as values.
 
-A method's ``one_step(t, h_abs, w, y, y_new, K, p) -> (status, t_new, h, h_next, nfev, h·|λ|)`` advances from
-(t, y) with K[0] = f(t, y) by one accepted step of size h (at most h_abs), writes the new state into
-``y_new``, its stage vectors into K (rows matching the rows of P: y(t + θh) = y + h·Σ_c (Kᵀ P)[:, c]·θ^(c+1))
-and f(t_new, y_new) into the last row of K (the next step's K[0]); status 0, UNDERFLOW or NONFINITE (a
+A method's ``one_step(t, h_abs, w, y, y_new, K, p, ws) -> (status, t_new, h, h_next, nfev, h·|λ|)`` advances from
+(t, y) with K[0] = f(t, y) by one accepted step of size h (at most h_abs), its scratch in the rows of ``ws``
+(:func:`rig.solvers.compiled.scratch_rows`), writes the new state into ``y_new``, its stage vectors into K
+(rows matching the rows of P: y(t + θh) = y + h·Σ_c (Kᵀ P)[:, c]·θ^(c+1)) and f(t_new, y_new) into the last row of K (the next step's K[0]); status 0, UNDERFLOW or NONFINITE (a
 fixed-step method's state became non-finite: t_new, h are the failed step's). ``w`` holds the solver's
 settings (slots of :mod:`rig.solvers.compiled`).
+
+``run`` is compiled without numba's runtime (``_nrt=False``): no reference counting of the arrays it passes on
+(every call of a method's step and of the kernel would otherwise increment and decrement counts, and the call that
+does it makes the compiled code spill its registers: a fifth of a level-2 run), hence no allocation in it nor in
+the helpers compiled into it: its scratch comes from the caller, and arrays are copied element by element
+(:func:`put`), as numba's slice assignment between arrays needs its runtime. A kernel compiled with the runtime
+still works (numba calls the version the solver's first Python-side call compiled); the plants' kernels are compiled
+without it as well.
 """
 import math
 
@@ -19,7 +27,7 @@ import numpy as np
 from numba import njit
 
 from rig.solvers.borrow import borrowed
-from rig.solvers.compiled import FAIL, H, H_ABS, HL, MAX_STEP, NBREAK, NEV, NFEV, T, T_BOUND
+from rig.solvers.compiled import FAIL, H, H_ABS, HL, IE, MAX_STEP, NBREAK, NEV, NFEV, T, T_BOUND, scratch_rows
 
 UNDERFLOW, NONFINITE = 1, 2
 
@@ -85,7 +93,8 @@ def step(w, y, y_new, K, f, p):
     and sets H, NFEV, HL and, on success, T, H_ABS in w."""
     w, y, y_new, K, f, p = borrowed(w), borrowed(y), borrowed(y_new), borrowed(K), borrowed(f), borrowed(p)
     K[0] = f
-    status, t_new, h, h_next, nfev, hl = one_step(w[T], min(w[H_ABS], w[MAX_STEP]), w, y, y_new, K, p)
+    ws = np.empty((scratch_rows(y.size), y.size))
+    status, t_new, h, h_next, nfev, hl = one_step(w[T], min(w[H_ABS], w[MAX_STEP]), w, y, y_new, K, p, ws)
     w[H], w[NFEV], w[HL] = h, nfev, hl
     if status == 0:
         w[T], w[H_ABS] = t_new, h_next
@@ -112,22 +121,41 @@ def coeffs(K, h, Q):
 
 
 @njit(cache=True, error_model="numpy")
-def g_dense(t, t_old, h, y_old, Q, p, k, y):
-    """Event k at time t on the dense output y_old + Σ_c Q[:, c] θ^(c+1) (θ = (t − t_old)/h)."""
-    th = (t - t_old) / h
+def dense_at(th, y_old, Q, y):
+    """y = y_old + Σ_c Q[:, c] θ^(c+1): the dense output at θ (Horner, as :func:`rig.solvers.dense._eval_steps`)."""
     for i in range(y.size):
         acc = 0.0
         for c in range(Q.shape[1] - 1, -1, -1):
             acc = acc * th + Q[i, c]
         y[i] = y_old[i] + acc * th
+
+
+@njit(cache=True, error_model="numpy")
+def g_dense(t, t_old, h, y_old, Q, p, k, y):
+    """Event k at time t on the dense output y_old + Σ_c Q[:, c] θ^(c+1) (θ = (t − t_old)/h)."""
+    dense_at((t - t_old) / h, y_old, Q, y)
     return event(t, y, p, k)
 
 
 @njit(cache=True, error_model="numpy")
-def brent(t_old, t_new, y_old, Q, p, k):
-    """Root of event k in [t_old, t_new] on the dense output (scipy's brentq.c, xtol 1e-15, rtol 4 eps)."""
+def sample(TE, OUT, w, t_old, t_end, h, y_old, K, Q):
+    """OUT[:, i] = y(TE[i]) for the output times from w[IE] on that lie in [t_old, t_end), on the dense output of
+    the step of size h from (t_old, y_old) with stages K (Q: scratch); w[IE] moved past them."""
+    i = int(w[IE])
+    if i >= TE.size or not TE[i] < t_end:
+        return
+    coeffs(K, h, Q)
+    while i < TE.size and TE[i] < t_end:
+        dense_at((TE[i] - t_old) / h, y_old, Q, OUT[:, i])
+        i += 1
+    w[IE] = i
+
+
+@njit(cache=True, error_model="numpy")
+def brent(t_old, t_new, y_old, Q, p, k, y):
+    """Root of event k in [t_old, t_new] on the dense output (scipy's brentq.c, xtol 1e-15, rtol 4 eps); ``y``
+    scratch for the states."""
     h = t_new - t_old
-    y = np.empty(y_old.size)
     xtol, rtol = 1e-15, 4.0 * 2.220446049250313e-16
     xpre, xcur = t_old, t_new
     fpre, fcur = g_dense(xpre, t_old, h, y_old, Q, p, k, y), g_dense(xcur, t_old, h, y_old, Q, p, k, y)
@@ -175,7 +203,14 @@ def locate(t_old, t_new, y_old, K, p, k):
     y_old, K, p = borrowed(y_old), borrowed(K), borrowed(p)
     Q = np.empty((y_old.size, P.shape[1]))
     coeffs(K, t_new - t_old, Q)
-    return brent(t_old, t_new, y_old, Q, p, k)
+    return brent(t_old, t_new, y_old, Q, p, k, np.empty(y_old.size))
+
+
+@njit(cache=True, error_model="numpy")
+def put(dst, src):
+    """dst[:] = src element by element (without numba's runtime)."""
+    for i in range(dst.size):
+        dst[i] = src[i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -188,50 +223,55 @@ def same(a, b):
 
 
 @njit(cache=True, error_model="numpy")
-def land(t0, t_root, w, y0, K, yr, p):
+def land(t0, t_root, w, y0, K, yr, p, saved, y_new, ws):
     """Redo a step from (t0, y0) as a step of the method itself ending on the root t_root, its stages into K: the
     state there then carries the step's controlled error, not the interpolant's (one order lower). Returns
     (RHS calls, step size); if that step is refused (error test, underflow) step size 0, and ``yr`` (as
     interpolated) and K are left as they were. Only for restarts that change nothing in p: where an event
     switches the RHS (a new cam segment) the state must stay on the event surface (g = 0 on the interpolant), or
-    the new mode starts from a state on the old side."""
-    t_bound, saved = w[T_BOUND], K.copy()
+    the new mode starts from a state on the old side. Scratch: ``saved`` (K's shape), ``y_new``, ``ws`` (the step's)."""
+    t_bound = w[T_BOUND]
+    for j in range(K.shape[0]):
+        put(saved[j], K[j])
     w[T_BOUND] = t_root
-    y_new = np.empty(yr.size)
-    status, t_end, h, _, nf, _ = one_step(t0, (t_root - t0) * (1.0 + 1e-9), w, y0, y_new, K, p)
+    status, t_end, h, _, nf, _ = one_step(t0, (t_root - t0) * (1.0 + 1e-9), w, y0, y_new, K, p, ws)
     w[T_BOUND] = t_bound
     if status != 0 or t_end != t_root:
-        K[:] = saved
+        for j in range(K.shape[0]):
+            put(K[j], saved[j])
         return nf, 0.0
-    yr[:] = y_new
+    put(yr, y_new)
     return nf, h
 
 
-@njit(cache=True, error_model="numpy")
-def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR):
+@njit(cache=True, error_model="numpy", _nrt=False)
+def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR, S, GN, Q, KS, PB, TE, OUT):
     """Steps from (w[T], Y[0]) with KK[0, 0] = f there, storing step ends TT[s + 1], states Y[s + 1], step
     sizes HH[s], stage vectors KK[s] and h·|λ| HL_[s], until an event value in ``g`` (given at the start,
     updated in place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the
     number of steps, or −1 − steps on a failure (status in w[FAIL], the failed step's size in w[H]). Sign
     changes that ``act`` accepts are acted on in the run; a t_bound with further bounds BR[w[NBREAK]:] is a time
-    break passed in the run (see :func:`rig.solvers.compiled.compiled_solver`)."""
-    w, Y, TT, HH, KK, HL_, EV, g, p, BR = (borrowed(w), borrowed(Y), borrowed(TT), borrowed(HH), borrowed(KK),
-                                           borrowed(HL_), borrowed(EV), borrowed(g), borrowed(p), borrowed(BR))
-    n = Y.shape[1]
+    break passed in the run (see :func:`rig.solvers.compiled.compiled_solver`). Scratch
+    (:func:`~rig.solvers.compiled.run_scratch`): S (rows of the state's size: the root's state, Brent's states, the
+    landing step's new state, then the method's rows), GN (event values), Q (dense-output coefficients), KS (one
+    step's stages), PB (the parameter vector's size). Output times TE (may be empty) and their states OUT: every step
+    but the last (the caller's, who examines its events) samples the times from w[IE] on that it passes
+    (:func:`sample`)."""
     last = KK.shape[1] - 1
-    g_new, yr = np.empty(g.size), np.empty(n)
-    Q = np.empty((n, P.shape[1]))
+    g_new, yr, y_brent, y_land, ws = GN, S[0], S[1], S[2], S[3:]
     TT[0] = w[T]
     nfev = 0
     ne = 0
     m = KK.shape[0]
     restarted = False
     for s in range(m):
+        if s:                                       # step s − 1 is final: its output times
+            sample(TE, OUT, w, TT[s - 1], TT[s], HH[s - 1], Y[s - 1], KK[s - 1], Q)
         if s and not restarted:
-            KK[s, 0] = KK[s - 1, last]
+            put(KK[s, 0], KK[s - 1, last])
         restarted = False
         status, t_new, h, h_next, nf, hl = one_step(TT[s], min(w[H_ABS], w[MAX_STEP]), w, Y[s], Y[s + 1], KK[s],
-                                                    p)
+                                                    p, ws)
         nfev += nf
         w[NFEV], w[NEV] = nfev, ne
         if status:
@@ -255,14 +295,14 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR):
                 w[NFEV] = nfev
                 if not finite(KK[s + 1, 0]):
                     return s + 1                    # the driver's next solver reports it, with the diagnosis
-                g[:] = g_new
+                put(g, g_new)
                 TT[s + 1] = t_next
                 w[T], w[T_BOUND], w[NBREAK] = t_next, BR[passed], passed + 1
                 if ADAPTIVE:                        # the step that landed on it, within the next segment, as the
                     w[H_ABS] = min(h, BR[passed] - t_next)     # driver's next solver starts
                 restarted = True
                 continue
-            g[:] = g_new
+            put(g, g_new)
             continue
         if act is None or s == m - 1 or ne == EV.shape[0]:
             return s + 1
@@ -275,7 +315,7 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR):
                 if not act(t_new, Y[s + 1], p, k, False):
                     ok = False
                 else:
-                    tk = brent(TT[s], t_new, Y[s], Q, p, k)
+                    tk = brent(TT[s], t_new, Y[s], Q, p, k, y_brent)
                     if tk == t_root:
                         ok = False
                     elif tk < t_root:
@@ -287,17 +327,18 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR):
         g_dense(t_root, TT[s], h, Y[s], Q, p, k_root, yr)
         if not act(t_root, yr, p, k_root, False):
             return s + 1
-        p_before = p.copy() if ADAPTIVE else p
+        if ADAPTIVE:
+            put(PB, p)
         act(t_root, yr, p, k_root, True)
-        if ADAPTIVE and same(p, p_before):          # a plain restart (the RHS continuous, its derivatives jump):
-            nf, h_root = land(TT[s], t_root, w, Y[s], KK[s], yr, p)     # land on the root with a step
+        if ADAPTIVE and same(p, PB):          # a plain restart (the RHS continuous, its derivatives jump):
+            nf, h_root = land(TT[s], t_root, w, Y[s], KK[s], yr, p, KS, y_land, ws)     # land on the root with a step
             nfev += nf
             if h_root > 0.0:
                 HH[s] = h_root
-        Y[s + 1] = yr
+        put(Y[s + 1], yr)
         EV[ne, 0], EV[ne, 1] = t_root, k_root
         EV[ne, 2] = 1.0 if g_new[k_root] > g[k_root] else -1.0
-        EV[ne, 3:] = Y[s + 1]
+        put(EV[ne, 3:], Y[s + 1])
         ne += 1
         TT[s + 1] = t_root
         for k in range(g.size):

@@ -17,7 +17,7 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 
 
 @njit(cache=True, error_model="numpy")
-def one_step(t, h_abs, w, y, y_new, K, p):
+def one_step(t, h_abs, w, y, y_new, K, p, ws):
     """Kick v_new = v + h·f_v(t, q, v), drift q_new = q + h·f_q(t, q, v_new); fixed h (see :mod:`runs`)."""
     h, t_new = fixed_step(t, h_abs, w[T_BOUND])
     if h < min_step(t):
