@@ -72,7 +72,7 @@ class Stepper(OdeSolver):
         self.nfev = 1
         self.h_abs = math.nan
         self._K = None
-        self._jit = self._run = self._locate = self._values = self._scratch = None
+        self._jit = self._run = self._locate = self._values = self._scratch = self._buffers = None
         self._compiled = compiled and isinstance(fun, JitRhs)
 
     def _start(self, h_abs: float, rtol: float = 0.0, atol: float = 0.0, max_step: float = math.inf,
@@ -203,23 +203,25 @@ class Stepper(OdeSolver):
         the order of the RHS's event kernel; updated in place to the values at the last step's start)
         changes sign, t_bound is reached or ``max_steps`` are taken. The solver then stands after the
         last step as after :meth:`step`; returns the steps before it (interpolant with ``.T``, ``.Y`` of
-        their ends), or None. With output ``times`` (s, increasing) and ``out`` (states × times), the steps
-        before the last fill out[:, i] for the times from index ``first`` on that they pass (the last step's are
-        the caller's, who examines its events); ``sampled`` is then the index of the first time not filled."""
+        their ends; valid until the next call: the buffers are reused), or None. With output ``times`` (s,
+        increasing) and ``out`` (states × times), the steps fill out[:, i] for the times from index ``first`` on
+        that they pass, but for the last one when an event's sign changed in it (the caller's, who examines its
+        events); ``sampled`` is then the index of the first time not filled."""
         n = len(self.y)
-        Y, TT = np.empty((max_steps + 1, n)), np.empty(max_steps + 1)
-        KK, HH, HL_ = np.empty((max_steps, self.P.shape[0], n)), np.empty(max_steps), np.empty(max_steps)
-        EV = np.empty((max_steps, 3 + n))
-        Y[0], KK[0, 0] = self._ya, self._fa
-        if self._scratch is None or self._scratch[1].size != g.size:
+        if self._buffers is None or self._buffers[0].shape[0] != max_steps + 1 or self._scratch[1].size != g.size:
+            self._buffers = (np.empty((max_steps + 1, n)), np.empty(max_steps + 1), np.empty(max_steps),
+                             np.empty((max_steps, self.P.shape[0], n)), np.empty(max_steps),
+                             np.empty((max_steps, 3 + n)))
             self._scratch = run_scratch(n, g.size, self.P.shape[0], self.P.shape[1], self._p.size)
+        Y, TT, HH, KK, HL_, EV = self._buffers
+        Y[0], KK[0, 0] = self._ya, self._fa
         self._w[IE] = first
         count = self._run(self._w, Y, TT, HH, KK, HL_, EV, g, self._p, self._bounds, *self._scratch, times,
                           np.empty((n, 0)) if out is None else out)
         self.sampled = int(self._w[IE])
         self.nfev += int(self._w[NFEV])
         self.breaks_passed, self.t_bound = int(self._w[NBREAK]), float(self._w[T_BOUND])
-        self.acted = EV[:int(self._w[NEV])]
+        self.acted = EV[:int(self._w[NEV])].copy()
         done = count if count >= 0 else -1 - count
         calls = self.monitor.calls
         try:
@@ -237,8 +239,9 @@ class Stepper(OdeSolver):
         last = count - 1
         self.t_old, self.y_old = float(TT[last]), tuple(Y[last].tolist())
         self.t, self.y = float(TT[count]), tuple(Y[count].tolist())
-        self._K, self.f, self._yo = KK[last], KK[last, -1], Y[last]
-        self._ya, self._fa = Y[count].copy(), KK[last, -1]
+        self._K, self._yo = KK[last].copy(), Y[last].copy()
+        self.f = self._fa = self._K[-1]
+        self._ya = Y[count].copy()
         self.h_last, self.h_abs = float(self._w[H]), float(self._w[H_ABS])
         return StepsDense(TT[:count], HH[:last], Y[:count], KK[:last], self.P) if last else None
 

@@ -255,8 +255,8 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR, S, GN, Q, KS, PB, TE, OUT):
     (:func:`~rig.solvers.compiled.run_scratch`): S (rows of the state's size: the root's state, Brent's states, the
     landing step's new state, then the method's rows), GN (event values), Q (dense-output coefficients), KS (one
     step's stages), PB (the parameter vector's size). Output times TE (may be empty) and their states OUT: every step
-    but the last (the caller's, who examines its events) samples the times from w[IE] on that it passes
-    (:func:`sample`)."""
+    samples the times from w[IE] on that it passes (:func:`sample`), but for the last one when an event's sign
+    changed in it (the caller examines it)."""
     last = KK.shape[1] - 1
     g_new, yr, y_brent, y_land, ws = GN, S[0], S[1], S[2], S[3:]
     TT[0] = w[T]
@@ -287,6 +287,11 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR, S, GN, Q, KS, PB, TE, OUT):
         if not crossed:
             passed = int(w[NBREAK])
             if s == m - 1 or (t_new >= w[T_BOUND] and passed == BR.size):
+                sample(TE, OUT, w, TT[s], t_new, h, Y[s], KK[s], Q)   # no event in it: its output times too,
+                i = int(w[IE])                                     # the one at its end its state
+                if i < TE.size and TE[i] == t_new:
+                    put(OUT[:, i], Y[s + 1])
+                    w[IE] = i + 1
                 return s + 1                        # g holds the values at the last step's start
             if t_new >= w[T_BOUND]:                 # a time break: restart one ulp past it (integrate.py)
                 t_next = np.nextafter(t_new, np.inf)
