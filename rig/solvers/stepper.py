@@ -57,6 +57,9 @@ class Stepper(OdeSolver):
     P: np.ndarray
     limit: float = math.inf
     fixed: bool = False
+    #: steps a compiled run may take before it returns to Python (:meth:`advance`); 256 for the fixed-step methods:
+    #: their divergence tests look at each run's steps, and longer runs would change which test reports first
+    run_steps: int = 256
 
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, stiffness: str, compiled: bool):
         super().__init__(fun, t0, y0, t_bound)
@@ -197,17 +200,18 @@ class Stepper(OdeSolver):
         """True when :meth:`advance` is available (compiled RHS with an event kernel)."""
         return self._run is not None
 
-    def advance(self, g: np.ndarray, max_steps: int = 256, times: np.ndarray = _NO_TIMES,
+    def advance(self, g: np.ndarray, max_steps: int | None = None, times: np.ndarray = _NO_TIMES,
                 out: np.ndarray | None = None, first: int = 0) -> StepsDense | None:
         """Take accepted steps in one compiled call until an event value (``g``: at the current point, in
         the order of the RHS's event kernel; updated in place to the values at the last step's start)
-        changes sign, t_bound is reached or ``max_steps`` are taken. The solver then stands after the
+        changes sign, t_bound is reached or ``max_steps`` (default :attr:`run_steps`) are taken. The solver then stands after the
         last step as after :meth:`step`; returns the steps before it (interpolant with ``.T``, ``.Y`` of
         their ends; valid until the next call: the buffers are reused), or None. With output ``times`` (s,
         increasing) and ``out`` (states × times), the steps fill out[:, i] for the times from index ``first`` on
         that they pass, but for the last one when an event's sign changed in it (the caller's, who examines its
         events); ``sampled`` is then the index of the first time not filled."""
         n = len(self.y)
+        max_steps = self.run_steps if max_steps is None else max_steps
         if self._buffers is None or self._buffers[0].shape[0] != max_steps + 1 or self._scratch[1].size != g.size:
             self._buffers = (np.empty((max_steps + 1, n)), np.empty(max_steps + 1), np.empty(max_steps),
                              np.empty((max_steps, self.P.shape[0], n)), np.empty(max_steps),
@@ -300,6 +304,7 @@ class AdaptiveStepper(Stepper):
     ``default_stiffness``. Subclasses implement ``_python_step``."""
 
     error_order: int = 4
+    run_steps = 1024            # fewer returns to Python per integration (≈ 2 % of a level-2 revolution)
     default_stiffness: str = "warn"
     #: the step-size controller (:func:`~rig.solvers.control.step_factor`), set by each method: safety factor,
     #: bounds of the factor on |h|, exponent −1/(error_order + 1); whether an error norm of exactly 1 is accepted
