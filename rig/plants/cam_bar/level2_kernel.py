@@ -43,7 +43,9 @@ if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
 
 TAU = 1e-3              # s, scale of the velocity state: y = (e, τ·ė)
+INV_TAU = 1.0 / TAU
 TWO_PI = 2.0 * math.pi
+INV_TWO_PI = 1.0 / TWO_PI
 DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinear (as rig.plants.cam_bar.chain)
 
 # p layout: chain, masses, loads, contact, speed profile, event cache, diagnosis, cam program
@@ -59,7 +61,8 @@ DEAD_CENTRE_TOL = 1e-6  # |sin(ϑ − ψ)| below this: follower and rod collinea
  DRIVE_ON, W_SYNC, B_MOTOR, M_MAX, J_MOTOR, J_CAM, K_SHAFT, C_SHAFT,
  JOINTS_ON, J_PLAY, J_K, J_ALPHA,
  COS_PSI0, SIN_PSI0,
- NSEG) = range(73)
+ INV_L3, INV_L4, INV_V_S, SPRING0,
+ NSEG) = range(77)
 PROGRAM = NSEG + 1      # segment table: rows of SEG_ROW = (start, angle, level, signed stroke, law offset)
 SEG_ROW = 5
 #: speed profiles (p[SPEED]); parameters SP1..SP4: constant ω; ramp ω0, ω1, t_ramp, t_start; sinusoidal
@@ -109,6 +112,7 @@ def pack(mech: "PinInsertionMechanism", speed: "SpeedProfile | None" = None, sti
                                           d.motor_inertia, d.cam_inertia, d.shaft_stiffness, d.shaft_damping]),
             *_joints(mech.joints),
             math.cos(mech.psi0), math.sin(mech.psi0),
+            1.0 / mech.L3, 1.0 / mech.l4, 1.0 / friction_speed, mech.Me_0 / mech.l_F,
             float(len(mech.program.segments))]
     assert len(head) == PROGRAM
     table, laws = [], []
@@ -207,7 +211,9 @@ def law(p, at, x):
 @njit(cache=True, error_model="numpy", inline="always")
 def wrap(phi):
     """φ mod 2π in [0, 2π) (rad; by floor, cheaper than the float modulo, equal to it within an ulp)."""
-    x = phi - TWO_PI * math.floor(phi / TWO_PI)
+    x = phi - TWO_PI * math.floor(phi * INV_TWO_PI)
+    if x < 0.0:                                   # the reciprocal's rounding put the floor one turn high
+        x += TWO_PI
     return x if x < TWO_PI else 0.0
 
 
@@ -225,9 +231,9 @@ def program(phi, p):
     h = p[r + 3]
     if h == 0.0:
         return p[r + 2], 0.0, 0.0, False
-    big = p[r + 1]
-    y, y1, y2 = law(p, int(p[r + 4]), (x - p[r]) / big)
-    return p[r + 2] + h * y, h / big * y1, h / (big * big) * y2, h > 0.0
+    inv = 1.0 / p[r + 1]
+    y, y1, y2 = law(p, int(p[r + 4]), (x - p[r]) * inv)
+    return p[r + 2] + h * y, h * inv * y1, h * inv * inv * y2, h > 0.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -253,14 +259,15 @@ def chain_angles(s, p):
     u = p[S0] - s
     rho2 = u * u + p[E_SK] ** 2
     rho = math.sqrt(rho2)
-    cos_g = (p[L3] ** 2 - p[L4] ** 2 + rho2) / (2.0 * p[L3] * rho)
+    inv_rho = 1.0 / rho
+    cos_g = (p[L3] ** 2 - p[L4] ** 2 + rho2) * (0.5 * p[INV_L3]) * inv_rho
     if abs(cos_g) > 1.0:
         return math.nan, 0.0, 0.0, 0.0, 0.0, 0.0
     sin_g = p[BRANCH] * math.sqrt((1.0 - cos_g) * (1.0 + cos_g))     # ψ = atan2(e, u) − branch·γ, by identities
-    cp, sp = (u * cos_g + p[E_SK] * sin_g) / rho, (p[E_SK] * cos_g - u * sin_g) / rho
+    cp, sp = (u * cos_g + p[E_SK] * sin_g) * inv_rho, (p[E_SK] * cos_g - u * sin_g) * inv_rho
     c0, s0 = p[COS_PSI0], p[SIN_PSI0]                                 # ψ on its branch: ψ0 + (ψ − ψ0), |ψ − ψ0| < π
     psi = p[PSI0] + math.atan2(sp * c0 - cp * s0, cp * c0 + sp * s0)    # (one atan2 instead of atan2 and acos)
-    ct, st = (u - p[L3] * cp) / p[L4], (p[E_SK] - p[L3] * sp) / p[L4]
+    ct, st = (u - p[L3] * cp) * p[INV_L4], (p[E_SK] - p[L3] * sp) * p[INV_L4]
     sin_rel = st * cp - ct * sp
     if abs(sin_rel) < DEAD_CENTRE_TOL:
         return math.nan, cp, sp, ct, st, sin_rel
@@ -270,12 +277,13 @@ def chain_angles(s, p):
 @njit(cache=True, error_model="numpy", inline="always")
 def chain_derivatives(cp, sp, ct, st, sin_rel, s_p, s_pp, p):
     """ψ', ψ'', ϑ', ϑ'' from the loop closure for ds/dq = s_p, d²s/dq² = s_pp (as :meth:`Chain.derivatives`)."""
-    det_l = p[L3] * sin_rel
-    psi_p = -s_p * ct / det_l
-    th_p = s_p * cp / (p[L4] * sin_rel)
+    inv = 1.0 / sin_rel                           # one division (its latency is the kernel's critical path)
+    over_l3, over_l4 = p[INV_L3] * inv, p[INV_L4] * inv     # 1/(L3·sin), 1/(l4·sin)
+    psi_p = -s_p * ct * over_l3
+    th_p = s_p * cp * over_l4
     b1 = -s_pp + p[L3] * psi_p ** 2 * cp + p[L4] * th_p ** 2 * ct
     b2 = p[L3] * psi_p ** 2 * sp + p[L4] * th_p ** 2 * st
-    return psi_p, (b1 * ct + b2 * st) / det_l, th_p, -(b2 * sp + b1 * cp) / (p[L4] * sin_rel)
+    return psi_p, (b1 * ct + b2 * st) * over_l3, th_p, -(b2 * sp + b1 * cp) * over_l4
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -310,10 +318,10 @@ def groove(phi, p):
     dty = lr * (cp * ppp - sp * pp ** 2) - d * dbx
     lev = bx * tx + by * ty
     dlev = dbx * tx + dby * ty + bx * dtx + by * dty
-    tn = math.sqrt(tx * tx + ty * ty)
-    dtn = (tx * dtx + ty * dty) / tn
+    inv_tn = 1.0 / math.sqrt(tx * tx + ty * ty)
+    dtn = (tx * dtx + ty * dty) * inv_tn
     sgn = 1.0 if lev > 0.0 else -1.0 if lev < 0.0 else 0.0
-    return psi, pp, ppp, sgn * lev / tn, sgn * (dlev / tn - lev * dtn / tn ** 2), rise, cp, sp
+    return psi, pp, ppp, sgn * lev * inv_tn, sgn * (dlev - lev * dtn * inv_tn) * inv_tn, rise, cp, sp
 
 
 # ---- contact and free body ----------------------------------------------------------------------------------
@@ -377,7 +385,7 @@ def rigid_rod(cp, sp, p):
     if rad < 0.0:
         return math.nan, 0.0, 0.0, 0.0, False
     root = p[ROD_SIDE] * math.sqrt(rad)
-    ct, st = root / l4_, (esk - l3_ * sp) / l4_
+    ct, st = root * p[INV_L4], (esk - l3_ * sp) * p[INV_L4]
     sin_rel = st * cp - ct * sp
     return p[S0] - (l3_ * cp + root), ct, st, sin_rel, abs(sin_rel) >= DEAD_CENTRE_TOL
 
@@ -385,7 +393,7 @@ def rigid_rod(cp, sp, p):
 @njit(cache=True, error_model="numpy", inline="always")
 def spring_moment(psi, p):
     """Moment of the follower's spring at ψ (N·m, towards smaller ψ)."""
-    return (p[ME0] / p[L_F] + p[K_SPRING] * p[L_F] * (psi - p[PSI0])) * p[L_F]
+    return (p[SPRING0] + p[K_SPRING] * p[L_F] * (psi - p[PSI0])) * p[L_F]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -397,7 +405,7 @@ def slider_sign(s_d):
 @njit(cache=True, error_model="numpy", inline="always")
 def regularised_mu(s_d, p):
     """The regularised guide's coefficient μ·tanh(|ṡ|/v_s) (tanh rounds to 1 beyond 19: μ itself past 20)."""
-    x = abs(s_d) / p[V_S]
+    x = abs(s_d) * p[INV_V_S]
     return p[MU] if x > 20.0 else p[MU] * math.tanh(x)
 
 
@@ -459,7 +467,8 @@ def free_body(psi, cp, sp, psi_d, rising, moment, p):
     for branch in (1.0, -1.0):                        # guide normal force N ≥ 0 first, as kinetostatics._guide
         c = mu * sv * branch
         den = lx + c * ly
-        y0, y1 = (ly * (q0 - c * w5) - m40) / den, (ly * q1 - m41) / den     # R54 = (x54, y)
+        inv = 1.0 / den
+        y0, y1 = (ly * (q0 - c * w5) - m40) * inv, (ly * q1 - m41) * inv     # R54 = (x54, y)
         x0, x1 = q0 - c * (y0 + w5), q1 - c * y1
         r34x0, r34x1 = -x0 - f4x0, -x1 - f4x1
         r34y0, r34y1 = -y0 - f4y0, -y1 - f4y1
@@ -598,14 +607,14 @@ def rhs(t, y, p, out):
     phi, omega, alpha, omega_m, shaft = cam_state(t, y, p)
     j = joint_index(p)
     joints = p[JOINTS_ON] != 0.0
-    z, z_d = (y[j], y[j + 1] / TAU) if joints else (0.0, 0.0)
-    r, status = dynamics(y[0], y[1] / TAU, z, z_d, phi, omega, alpha, omega_m, shaft, p)
+    z, z_d = (y[j], y[j + 1] * INV_TAU) if joints else (0.0, 0.0)
+    r, status = dynamics(y[0], y[1] * INV_TAU, z, z_d, phi, omega, alpha, omega_m, shaft, p)
     if status:
         out[:] = math.nan
         if status == 2 and math.isnan(p[JAM_T]):
             p[JAM_T], p[JAM_PHI] = t, r[0]
         return
-    out[0] = y[1] / TAU
+    out[0] = y[1] * INV_TAU
     out[1] = TAU * r[6]
     k = 2
     if p[DRIVE_ON] != 0.0:
@@ -694,8 +703,8 @@ def evaluate(t, y, p):
     for m in range(t.size):
         ym = y[:, m]
         phi, omega, alpha, omega_m, shaft = cam_state(t[m], ym, p)
-        z, z_d = (ym[j], ym[j + 1] / TAU) if p[JOINTS_ON] != 0.0 else (0.0, 0.0)
-        r, _ = dynamics(ym[0], ym[1] / TAU, z, z_d, phi, omega, alpha, omega_m, shaft, p)
+        z, z_d = (ym[j], ym[j + 1] * INV_TAU) if p[JOINTS_ON] != 0.0 else (0.0, 0.0)
+        r, _ = dynamics(ym[0], ym[1] * INV_TAU, z, z_d, phi, omega, alpha, omega_m, shaft, p)
         for i in range(N_OUT):
             out[i, m] = r[i]
     return out
