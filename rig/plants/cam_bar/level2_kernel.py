@@ -689,9 +689,11 @@ def pin_penetration(psi, z, p):
 @njit(cache=True, error_model="numpy", _nrt=False)
 def event_action(t, y, p, k, apply):
     """Whether event k is a restart the compiled solver run may take itself: a contact onset or release on either
-    flank or in the rod's pins (the contact force's derivatives jump there; nothing in p changes). Not the
-    insertion switch (its mode-dependent root is placed by the Python driver) nor the terminal overload."""
-    return k == WORKING or k == OTHER or k == PINS
+    flank or in the rod's pins (the contact force's derivatives jump there; nothing in p changes), and the insertion
+    switch under the smooth force–travel law (the bump starts from zero force with zero slope and curvature: a restart
+    for smoothness, like a contact onset). Not the step law's switch (F_c jumps: its mode-dependent root is placed by
+    the Python driver) nor the terminal overload."""
+    return k == WORKING or k == OTHER or k == PINS or (k == INSERTION and p[INS_LAW] != 1.0)
 
 
 @njit(cache=True, error_model="numpy")
