@@ -82,8 +82,8 @@ class StiffnessMonitor:
     #: error reached PHASE rad, a fifth of a radian (RK4 at h·ω = 1 damps an undamped mode by 0.6 % per step: to 1e-3 in 1000 steps;
     #: symplectic Euler at 0.1 turns 4e-5 rad per step too many: 0.4 rad in 10 000). Not the plain error summed
     #: over the life (tried): on level 2 that flagged every converged run, the contact mode (ζ ≈ 0.16) being barely
-    #: excited — the linearisation cannot tell how much of a mode the answer holds. The suggested step aims at
-    #: TARGET_ERROR per step
+    #: excited — the linearisation cannot tell how much of a mode the answer holds. The suggested step takes the
+    #: fault that fired to TARGET_ERROR / STEP_ERROR (a tenth) of its limit, with the fault's order in h
     STEP_ERROR, PHASE, TARGET_ERROR = 0.05, 0.2, 0.005
 
     def __init__(self, method: str, limit: float, policy: str = "warn", fixed: bool = False):
@@ -279,29 +279,33 @@ class StiffnessMonitor:
 
     def _accuracy(self, t: float, h: float, got) -> None:
         """The accuracy test on a check's persistent modes (see :data:`STEP_ERROR`): one warning per run naming the mode,
-        its steps per period, what the method does to it, and a step for :data:`TARGET_ERROR` per step."""
+        its steps per period, what the method does to it, and a step that takes that fault to a tenth of its limit."""
         if got is None or self.coarse is not None:
             return
         err, decay, phase, life, lam = got[3]
         if not err.size:
             return
         span = np.minimum(life, self._steps)
-        faults = [(err, self.STEP_ERROR, lambda v, n: f"an error of {v:.2g} of the mode per step"),
-                  (decay * span, math.log(self.SPURIOUS),
+        order = STEP_ORDERS.get(self.watch.method, 2)
+        # (values, limit, exponent in h — an error summed over the mode's life in a given time has one order fewer —,
+        # wording)
+        faults = [(err, self.STEP_ERROR, order, lambda v, n: f"an error of {v:.2g} of the mode per step"),
+                  (decay * span, math.log(self.SPURIOUS), order - 1,
                    lambda v, n: f"a spurious decay to {math.exp(-v):.2g} of the mode over the {n:.0f} steps it has lived"),
-                  (phase * span, self.PHASE, lambda v, n: f"a phase error of {v:.2g} rad over the {n:.0f} steps it has lived")]
-        for values, limit, said in faults:
+                  (phase * span, self.PHASE, order - 1,
+                   lambda v, n: f"a phase error of {v:.2g} rad over the {n:.0f} steps it has lived")]
+        for values, limit, power, said in faults:
             if np.nanmax(values) >= limit:
                 i = int(np.nanargmax(values))
                 how = said(values[i], span[i])
+                # the step that takes this fault to TARGET_ERROR / STEP_ERROR of its limit (a tenth)
+                fix = h * (self.TARGET_ERROR / self.STEP_ERROR * limit / values[i]) ** (1.0 / power)
                 break
         else:
             return
         mode = complex(lam[i])
         period = (f" (period {2 * math.pi / abs(mode.imag):.3g} s: {2 * math.pi / (h * abs(mode.imag)):.3g} steps "
                   f"per period)") if mode.imag else ""
-        fix = h * min(1.0, self.TARGET_ERROR / err[i]) ** (1.0 / STEP_ORDERS.get(self.watch.method, 2)) \
-            if err[i] > 0 else h
         self.coarse = (f"{self.method} may be inaccurate from t = {t:.6g} s: at h = {h:.3g} s it steps the mode lambda "
                        f"= {mode.real:.4g}{mode.imag:+.4g}j 1/s{period} with {how}: stable, but the answer is wrong "
                        f"wherever that mode shows - reduce h to about {fix:.2g} s or use an adaptive method (DP45, "

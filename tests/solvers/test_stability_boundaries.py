@@ -225,6 +225,8 @@ def test_a_stable_but_coarse_fixed_step_is_warned(method, hw, steps_per_period):
     ours = [str(w.message) for w in said if issubclass(w.category, ResolutionWarning)]
     assert len(ours) == 1 and "may be inaccurate" in ours[0] and "lambda = 0+1000j 1/s" in ours[0]
     assert f"{steps_per_period:.3g} steps per period" in ours[0] and "reduce h to about" in ours[0]
+    suggested = float(ours[0].split("reduce h to about ")[1].split(" s")[0])
+    assert suggested < 0.5 * hw / 1000.0                # a step that helps (an audit saw "at h = 0.0002 s … about 0.0002 s")
 
 
 @pytest.mark.parametrize("method, hw, within", [("RK4", 0.05, 5e-5), ("RK4", 0.2, 0.01), ("SymplecticEuler", 0.02, 0.03)])
