@@ -204,9 +204,9 @@ class Stepper(OdeSolver):
                 out: np.ndarray | None = None, first: int = 0) -> StepsDense | None:
         """Take accepted steps in one compiled call until an event value (``g``: at the current point, in
         the order of the RHS's event kernel; updated in place to the values at the last step's start)
-        changes sign, t_bound is reached or ``max_steps`` (default :attr:`run_steps`) are taken. The solver then stands after the
-        last step as after :meth:`step`; returns the steps before it (interpolant with ``.T``, ``.Y`` of
-        their ends; valid until the next call: the buffers are reused), or None. With output ``times`` (s,
+        changes sign, t_bound is reached or ``max_steps`` (default :attr:`run_steps`) are taken. The solver then
+        stands after the last step as after :meth:`step`; returns the steps before it (interpolant with ``.T``,
+        ``.Y`` of their ends; valid until the next call: the buffers are reused), or None. With output ``times`` (s,
         increasing) and ``out`` (states × times), the steps fill out[:, i] for the times from index ``first`` on
         that they pass, but for the last one when an event's sign changed in it (the caller's, who examines its
         events); ``sampled`` is then the index of the first time not filled."""
