@@ -82,8 +82,9 @@ class StiffnessMonitor:
     #: error reached PHASE rad, a fifth of a radian (RK4 at h·ω = 1 damps an undamped mode by 0.6 % per step: to 1e-3 in 1000 steps;
     #: symplectic Euler at 0.1 turns 4e-5 rad per step too many: 0.4 rad in 10 000). Not the plain error summed
     #: over the life (tried): on level 2 that flagged every converged run, the contact mode (ζ ≈ 0.16) being barely
-    #: excited — the linearisation cannot tell how much of a mode the answer holds. The suggested step takes the
-    #: fault that fired to TARGET_ERROR / STEP_ERROR (a tenth) of its limit, with the fault's order in h
+    #: excited — the linearisation cannot tell how much of a mode the answer holds. The suggested step takes each
+    #: fault of the mode to TARGET_ERROR / STEP_ERROR (a tenth) of its limit, with the fault's order in h, the summed
+    #: ones extrapolated to the run's end (``horizon``, set by :func:`rig.solvers.integrate`)
     STEP_ERROR, PHASE, TARGET_ERROR = 0.05, 0.2, 0.005
 
     def __init__(self, method: str, limit: float, policy: str = "warn", fixed: bool = False):
@@ -98,6 +99,7 @@ class StiffnessMonitor:
         self._window = [0, 0.0, 0.0, 0]               # steps, max increment, previous window's max, growing
         self.watch = None                              # amplification test (fixed-step methods)
         self.origin: tuple | None = None               # the run's first (t, y), for the divergence report
+        self.horizon = math.nan                        # the run's end (s), when known: the accuracy advice's span
         self._steps, self._next_check, self._last_check = 0, self.DENSE, -1    # index of the step checked last
         self._h_since = 0.0                            # the largest step taken since the last check (s)
         self._hot: list[int] = []                      # steps of the current batch whose h·|λ| passed the limit
@@ -279,7 +281,8 @@ class StiffnessMonitor:
 
     def _accuracy(self, t: float, h: float, got) -> None:
         """The accuracy test on a check's persistent modes (see :data:`STEP_ERROR`): one warning per run naming the mode,
-        its steps per period, what the method does to it, and a step that takes that fault to a tenth of its limit."""
+        its steps per period, what the method does to it, and a step that takes each of its faults to a tenth of its
+        limit by the run's end."""
         if got is None or self.coarse is not None:
             return
         err, decay, phase, life, lam = got[3]
@@ -298,11 +301,16 @@ class StiffnessMonitor:
             if np.nanmax(values) >= limit:
                 i = int(np.nanargmax(values))
                 how = said(values[i], span[i])
-                # the step that takes this fault to TARGET_ERROR / STEP_ERROR of its limit (a tenth)
-                fix = h * (self.TARGET_ERROR / self.STEP_ERROR * limit / values[i]) ** (1.0 / power)
                 break
         else:
             return
+        # the advice: the step that takes every fault of that mode to a tenth of its limit (TARGET_ERROR /
+        # STEP_ERROR), the summed ones as they will have grown by the run's end (horizon) at this step
+        t0 = self.origin[0] if self.origin is not None else t
+        steps_end = self._steps * (self.horizon - t0) / (t - t0) if self.horizon > t > t0 else self._steps
+        grow = [1.0] + [min(life[i], steps_end) / span[i] if span[i] > 0 else 1.0] * 2
+        fix = min(h * (self.TARGET_ERROR / self.STEP_ERROR * limit / (values[i] * g)) ** (1.0 / power)
+                  for (values, limit, power, _), g in zip(faults, grow) if values[i] * g > 0.0)
         mode = complex(lam[i])
         period = (f" (period {2 * math.pi / abs(mode.imag):.3g} s: {2 * math.pi / (h * abs(mode.imag)):.3g} steps "
                   f"per period)") if mode.imag else ""

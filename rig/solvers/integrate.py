@@ -272,6 +272,8 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 monitor.watch = solver.monitor.watch    # the stiffness/growth watch spans restarts (else a
                 solver.monitor = monitor                # diverging run bouncing between contacts is never reported)
             monitor = getattr(solver, "monitor", monitor)
+            if monitor is not None:
+                monitor.horizon = tf            # the span the accuracy advice extrapolates its summed faults to
         else:
             solver = ClosedFormSolver(exact, t, y, breaks[bi])
         cut = None

@@ -212,6 +212,10 @@ class Stepper(OdeSolver):
         events); ``sampled`` is then the index of the first time not filled."""
         n = len(self.y)
         max_steps = self.run_steps if max_steps is None else max_steps
+        if out is None:
+            times, out = _NO_TIMES, np.empty((n, 0))
+        elif out.shape != (n, times.size):
+            raise ValueError(f"advance: out has shape {out.shape}, the states at the times need ({n}, {times.size})")
         if self._buffers is None or self._buffers[0].shape[0] != max_steps + 1 or self._scratch[1].size != g.size:
             self._buffers = (np.empty((max_steps + 1, n)), np.empty(max_steps + 1), np.empty(max_steps),
                              np.empty((max_steps, self.P.shape[0], n)), np.empty(max_steps),
@@ -220,8 +224,7 @@ class Stepper(OdeSolver):
         Y, TT, HH, KK, HL_, EV = self._buffers
         Y[0], KK[0, 0] = self._ya, self._fa
         self._w[IE] = first
-        count = self._run(self._w, Y, TT, HH, KK, HL_, EV, g, self._p, self._bounds, *self._scratch, times,
-                          np.empty((n, 0)) if out is None else out)
+        count = self._run(self._w, Y, TT, HH, KK, HL_, EV, g, self._p, self._bounds, *self._scratch, times, out)
         self.sampled = int(self._w[IE])
         self.nfev += int(self._w[NFEV])
         self.breaks_passed, self.t_bound = int(self._w[NBREAK]), float(self._w[T_BOUND])

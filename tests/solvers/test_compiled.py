@@ -107,3 +107,37 @@ def test_clutch_self_locking_is_named():
     d = ClutchDynamics(c, LinearMotor(437.708, 3.870), ShoeBrake(0.01, 0.005, 5000.0))
     with pytest.raises(SolverDivergence, match="self-locks in its guide"):
         integrate(d.problem((0.3, 5.0, 0.0, 50.0, 5000.0)), (0.0, 0.1), rtol=1e-6, atol=1e-9)
+
+
+@njit(cache=True)
+def _unit_rate(t, y, p, out):
+    out[0] = 1.0
+
+
+@njit(cache=True)
+def _level(t, y, p, k):
+    return y[0]
+
+
+@pytest.mark.parametrize("method, options", [("RK4", {"h": 0.1}), ("Euler", {"h": 0.1}), ("DP45", {"rtol": 1e-6})])
+def test_a_compiled_run_sees_an_event_leaving_zero_and_samples_nothing_past_its_stop(method, options):
+    """y' = 1 from y = 0 with a rising terminal event on y: leaving g = 0 upwards counts (a direction is given), so
+    the integration stops at t = 0 — the compiled runs stepped on past it (an audit: they tested only sign changes
+    and zeros at a step's end), and sampled the output times of a step the driver then cut."""
+    stop = Event(lambda t, y: y[0], "up", direction=1.0, terminal=True)
+    runs = [integrate(Problem(fun, (0.0,), [stop]), (0.0, 1.0), method=method, t_eval=[0.0, 0.5, 1.0], **options)
+            for fun in (JitRhs(_unit_rate, lambda: np.zeros(1), event=_level), lambda t, y: (1.0,))]
+    for sol in runs:
+        assert sol.status == "terminated" and sol.t_final == 0.0 and [r.t for r in sol.events] == [0.0]
+        assert sol.t.tolist() == [0.0] and sol.y.tolist() == [[0.0]]
+
+
+def test_advance_refuses_an_output_array_that_does_not_fit_its_times():
+    """A compiled run writes its samples without bounds checks: the output array must match the times."""
+    from rig.solvers.tsit5 import Tsitouras45
+    solver = Tsitouras45(JitRhs(_unit_rate, lambda: np.zeros(1), event=_level), 0.0, (1.0,), 1.0)
+    times = np.linspace(0.0, 1.0, 11)
+    with pytest.raises(ValueError, match=r"out has shape \(1, 5\).*\(1, 11\)"):
+        solver.advance(np.array([1.0]), times=times, out=np.empty((1, 5)))
+    solver.advance(np.array([1.0]), times=times)           # times without an output array: nothing sampled
+    assert solver.sampled == 0 and solver.t > 0.0

@@ -227,6 +227,25 @@ def test_a_stable_but_coarse_fixed_step_is_warned(method, hw, steps_per_period):
     assert f"{steps_per_period:.3g} steps per period" in ours[0] and "reduce h to about" in ours[0]
     suggested = float(ours[0].split("reduce h to about ")[1].split(" s")[0])
     assert suggested < 0.5 * hw / 1000.0                # a step that helps (an audit saw "at h = 0.0002 s … about 0.0002 s")
+    with warnings.catch_warnings():                     # and following the advice ends the warnings (an audit: it took
+        warnings.simplefilter("error", ResolutionWarning)   # two or three reruns when only the fault that fired counted)
+        again = integrate(osc, (0.0, 1.0), method=method, h=suggested)
+    assert abs(again.y_final[0] - math.cos(1000.0 * again.t_final)) < 0.05
+
+
+@pytest.mark.parametrize("method, hw", [("RK4", 1.0), ("SymplecticEuler", 0.3)])
+def test_the_accuracy_advice_counts_the_phase_error_still_to_come(method, hw):
+    """A phase error summed over a persistent mode's life fires part-way through the run and keeps growing: the advice
+    extrapolates it to the run's end, so a rerun at the suggested step is not warned again."""
+    from rig.solvers import ResolutionWarning
+    osc = Problem(lambda t, y: (y[1], -1e6 * y[0]), (1.0, 0.0), positions=(0,))
+    with pytest.warns(ResolutionWarning, match="phase error") as said:
+        integrate(osc, (0.0, 1.0), method=method, h=hw / 1000.0)
+    message = next(str(w.message) for w in said if issubclass(w.category, ResolutionWarning))
+    suggested = float(message.split("reduce h to about ")[1].split(" s")[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ResolutionWarning)
+        integrate(osc, (0.0, 1.0), method=method, h=suggested)
 
 
 @pytest.mark.parametrize("method, hw, within", [("RK4", 0.05, 5e-5), ("RK4", 0.2, 0.01), ("SymplecticEuler", 0.02, 0.03)])
