@@ -338,7 +338,7 @@ def test_a_motor_that_cannot_turn_the_brake_is_said_and_its_creep_explained(tmp_
     assert main(["-q", "run", str(weak), "-o", str(tmp_path / "weak.mcap"), "--no-report"]) == 0
     said = capsys.readouterr().out
     creep = 0.5 * math.atanh(3.0 / 5.0)
-    assert f"stall torque 3 N·m is below the 5 N·m the brake holds at rest: the stand cannot start" in said
+    assert "stall torque 3 N·m is below the 5 N·m the brake holds at rest: the stand cannot start" in said
     assert f"creep at {creep:.3g} rad/s" in said
     events = [e for e in read_recording(tmp_path / "weak.mcap").events if e["kind"] == "motor_below_load"]
     assert len(events) == 1 and events[0]["creep_speed"] == pytest.approx(creep)
