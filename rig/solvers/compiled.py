@@ -98,9 +98,9 @@ def compiled_solver(method: str, kernel, event=None, act=None):
       underflow (state untouched) or 2 when a fixed-step method's state became non-finite;
     * ``run(w, Y, TT, HH, KK, HL, EV, g, p, BR, *scratch, TE, OUT)`` (with ``event``; ``scratch`` from
       :func:`run_scratch`; output times TE and their states OUT, sampled from w[IE] on by every step but one
-      where an event's sign changed) takes steps from (w[T], Y[0]) with KK[0, 0] the first derivative, storing step ends TT[s + 1], states Y[s + 1], step sizes HH[s],
-      stage vectors KK[s] and h·|λ| HL[s], until an event value in ``g`` (given at the start, updated in
-      place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the number of
+      where an event's sign changed) takes steps from (w[T], Y[0]) with KK[0, 0] the first derivative, storing
+      step ends TT[s + 1], states Y[s + 1], step sizes HH[s], stage vectors KK[s] and h·|λ| HL[s], until an event
+      value in ``g`` (given at the start, updated in place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the number of
       steps, or −1 − steps on a failure (status in w[FAIL]). A t_bound that is a time break of the problem,
       with further bounds in ``BR`` (from w[NBREAK] on), is passed as :func:`rig.solvers.integrate` passes it:
       the run restarts one ulp past it (f evaluated there, an adaptive method's step size kept, the step's

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -21,10 +21,18 @@ from rig.solvers.amplification import Amplification
 from rig.solvers.control import step_factor
 from rig.solvers.compiled import (FAIL, H, H_ABS, HL, IE, NBREAK, NEV, NFEV, T, T_BOUND, JitRhs, compiled_solver,
                                   run_scratch)
-from rig.solvers.dense import PolynomialDense, StepsDense
+from rig.solvers.dense import PolynomialDense
 
 UNDERFLOW, NONFINITE = 1, 2          # failure codes of the compiled steps (rig/solvers/templates/runs.py)
 _NO_TIMES = np.empty(0)             # no output times for a compiled run to sample
+
+
+class StepEnds(NamedTuple):
+    """The steps of a compiled run before its last: their start times ``T`` and states ``Y`` (rows), the first the
+    run's start (views of the run's buffers)."""
+
+    T: np.ndarray
+    Y: np.ndarray
 
 
 def initial_step(fun: Rhs, t0: float, y0: tuple, f0: Sequence[float], order: int, rtol: float, atol: float,
@@ -201,12 +209,12 @@ class Stepper(OdeSolver):
         return self._run is not None
 
     def advance(self, g: np.ndarray, max_steps: int | None = None, times: np.ndarray = _NO_TIMES,
-                out: np.ndarray | None = None, first: int = 0) -> StepsDense | None:
+                out: np.ndarray | None = None, first: int = 0) -> StepEnds | None:
         """Take accepted steps in one compiled call until an event value (``g``: at the current point, in
         the order of the RHS's event kernel; updated in place to the values at the last step's start)
         changes sign, t_bound is reached or ``max_steps`` (default :attr:`run_steps`) are taken. The solver then
-        stands after the last step as after :meth:`step`; returns the steps before it (interpolant with ``.T``,
-        ``.Y`` of their ends; valid until the next call: the buffers are reused), or None. With output ``times`` (s,
+        stands after the last step as after :meth:`step`; returns the steps before it (their times and states, valid
+        until the next call: the buffers are reused), or None. With output ``times`` (s,
         increasing) and ``out`` (states × times), the steps fill out[:, i] for the times from index ``first`` on
         that they pass, but for the last one when an event's sign changed in it (the caller's, who examines its
         events); ``sampled`` is then the index of the first time not filled."""
@@ -250,7 +258,7 @@ class Stepper(OdeSolver):
         self.f = self._fa = self._K[-1]
         self._ya = Y[count].copy()
         self.h_last, self.h_abs = float(self._w[H]), float(self._w[H_ABS])
-        return StepsDense(TT[:count], HH[:last], Y[:count], KK[:last], self.P) if last else None
+        return StepEnds(TT[:count], Y[:count]) if last else None
 
     def pass_breaks(self, bounds: Sequence[float]) -> None:
         """Let :meth:`advance` go on past t_bound, a time break of the problem, to the later ``bounds`` (s, increasing,

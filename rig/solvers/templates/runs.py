@@ -9,8 +9,9 @@ that numba can cache the compiled code on disk — it cannot cache closures or f
 A method's ``one_step(t, h_abs, w, y, y_new, K, p, ws) -> (status, t_new, h, h_next, nfev, h·|λ|)`` advances from
 (t, y) with K[0] = f(t, y) by one accepted step of size h (at most h_abs), its scratch in the rows of ``ws``
 (:func:`rig.solvers.compiled.scratch_rows`), writes the new state into ``y_new``, its stage vectors into K
-(rows matching the rows of P: y(t + θh) = y + h·Σ_c (Kᵀ P)[:, c]·θ^(c+1)) and f(t_new, y_new) into the last row of K (the next step's K[0]); status 0, UNDERFLOW or NONFINITE (a
-fixed-step method's state became non-finite: t_new, h are the failed step's). ``w`` holds the solver's
+(rows matching the rows of P: y(t + θh) = y + h·Σ_c (Kᵀ P)[:, c]·θ^(c+1)) and f(t_new, y_new) into the last row
+of K (the next step's K[0]); status 0, UNDERFLOW or NONFINITE (a fixed-step method's state became non-finite: t_new,
+h are the failed step's). ``w`` holds the solver's
 settings (slots of :mod:`rig.solvers.compiled`).
 
 ``run`` is compiled without numba's runtime (``_nrt=False``): no reference counting of the arrays it passes on
@@ -122,7 +123,8 @@ def coeffs(K, h, Q):
 
 @njit(cache=True, error_model="numpy")
 def dense_at(th, y_old, Q, y):
-    """y = y_old + Σ_c Q[:, c] θ^(c+1): the dense output at θ (Horner, as :func:`rig.solvers.dense._eval_steps`)."""
+    """y = y_old + Σ_c Q[:, c] θ^(c+1): the dense output at θ (Horner; in Python
+    :class:`~rig.solvers.dense.PolynomialDense`)."""
     for i in range(y.size):
         acc = 0.0
         for c in range(Q.shape[1] - 1, -1, -1):
