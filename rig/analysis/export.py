@@ -9,9 +9,9 @@ from __future__ import annotations
 import csv
 import functools
 import math
-from itertools import repeat
+from itertools import chain, repeat
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -165,9 +165,10 @@ def dbc_steps() -> dict[str, dict[str, float]]:
             for message, signals in _device_signals().items()}
 
 
-def export_series(series: Mapping[str, np.ndarray], path: Path, units: DisplayUnits | None = None,
-                  topic: str = "") -> Path:
-    """One recorded stand topic (``t`` and its columns, SI) as CSV, one row per reading, each quantity in its
+def export_series(series: Mapping[str, np.ndarray] | Iterable[Mapping[str, np.ndarray]], path: Path,
+                  units: DisplayUnits | None = None, topic: str = "") -> Path:
+    """One recorded stand topic (``t`` and its columns, SI; or its blocks one after the other, e.g.
+    ``Recording.series_blocks``, written as they come) as CSV, one row per reading, each quantity in its
     display unit (``units``: the report's; default :data:`~rig.analysis.units.DEFAULTS`), named in brackets (units
     from the stand columns, the DBC's signals, the plants' truth signals). With its ``topic``, a reading its message
     carries in a DBC step has the decimals that step resolves in its display unit (a tachometer's 0.01 rad/s:
@@ -175,14 +176,17 @@ def export_series(series: Mapping[str, np.ndarray], path: Path, units: DisplayUn
     counts and edge times) keep 9 significant digits."""
     from rig.analysis.units import SIGNAL_SI
     du = units or DisplayUnits()
-    names = list(series)
+    blocks = iter([series] if isinstance(series, Mapping) else series)
+    first = next(blocks, {})
+    names = list(first)
     shown = [unit("s", "s") if n in ("t", "edge_time", "speed_time") else
              du.of(STAND_SI.get(n) or dbc_units().get(n) or SIGNAL_SI.get(n, "1")) for n in names]
     steps = dbc_steps().get(topic.removeprefix("/stand/"), {}) if topic else {}     # the columns its message carries
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow([column(n, u) for n, u in zip(names, shown)])
-        w.writerows(zip(*(_cells(u(np.asarray(series[n], dtype=float)),
-                                 decimals=decimals(steps[n] * u(1.0), 1) if n in steps and n != "t" else None)
-                          for n, u in zip(names, shown))))
+        for block in chain([first], blocks):
+            w.writerows(zip(*(_cells(u(np.asarray(block[n], dtype=float)),
+                                     decimals=decimals(steps[n] * u(1.0), 1) if n in steps and n != "t" else None)
+                              for n, u in zip(names, shown))))
     return path

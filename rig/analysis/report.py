@@ -42,6 +42,8 @@ from rig.outputs import clear_previous, list_written
 from rig.recorder import Recording, read_recording
 from rig.recorder.completeness import file_problem, losses
 from rig.recorder.reader import interruption_text
+from rig.recorder.schemas import TRUTH
+from rig.recorder.series import held_text
 
 MANIFEST = ".mechrig-report"    # in a report directory: the files the last report wrote there
 NOK_ROWS = 60         # rows of the "what failed and why" table (all of them are in results.csv)
@@ -640,6 +642,11 @@ def overview(ctx: ReportContext) -> list[Block]:
     if lost:
         blocks += [Text("Warning: this recording is incomplete; the report shows what it holds.", "warning"),
                    Table(["what is incomplete or lost"], [[line] for line in lost])]
+    if rec.series_beyond:
+        blocks += [Text("Read in bounded memory: the charts and analyses of these topics cover the span held; the "
+                        "exports hold every sample."),
+                   Table(["topic beyond the memory held"],
+                         [[held_text(t, rec.series.get(t, {}), b)] for t, b in rec.series_beyond.items()])]
     return blocks
 
 
@@ -671,11 +678,11 @@ def exports(ctx: ReportContext) -> list[Block]:
             if "speed_method" in data:
                 from drivers.encoder import METHOD_NAMES
                 codes = "; speed_method: " + ", ".join(f"{k} {v}" for k, v in sorted(METHOD_NAMES.items()))
-            files.append((export_series(data, ctx.out_dir / name, units, topic),
+            files.append((export_series(rec.series_blocks(topic), ctx.out_dir / name, units, topic),
                           f"{topic}: one row per reading ({', '.join(k for k in data if k != 't')}){codes}"))
     truth = rec.truth
     if not rec.curves and truth and "t" in truth and len(truth["t"]):   # a stand or lab run: what the plant did (the
-        files.append((export_series(truth, ctx.out_dir / "plant_truth.csv", units),     # applied loads among it)
+        files.append((export_series(rec.series_blocks(TRUTH), ctx.out_dir / "plant_truth.csv", units),  # loads too)
                       f"/plant/truth: one row per model sample ({', '.join(k for k in truth if k != 't')})"))
     return [Heading("Exports"), Table(["file", "contents"], [[Link(f.name, f.name), what] for f, what in files])
             ] if files else []

@@ -9,7 +9,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 import orjson
@@ -17,10 +17,11 @@ from mcap.records import Attachment, Channel, Message, Metadata
 
 from rig.recorder import schemas as S
 from rig.recorder.salvage import MCAP_MAGIC, DataSectionReader, LostPart
-from rig.recorder import curves
-from rig.recorder.curves import CurveRecord, CurveStore, curve_arrays, nbytes
+from rig.recorder import curves, series as bulk
+from rig.recorder.curves import CurveRecord, curve_arrays, curve_message, nbytes
 from rig.recorder.encoding import decode_block, loads_message
 from rig.recorder.errors import RecordingError
+from rig.recorder.store import MessageStore
 
 if TYPE_CHECKING:
     from rig.scene import Scene
@@ -32,7 +33,9 @@ class Recording:
     ``can_frames`` the ``/can/raw`` columns (``t``, ``id``, ``data`` bytes, ``dir`` and ``channel`` str lists,
     bool arrays ``is_fd``, ``brs``, ``esi``, ``is_extended``, ``error``; empty when read with ``can_frames=False``),
     ``can_counts`` its ``frames`` and ``sent`` (the host's own) counted either way. View channels and ``/log``
-    repeat other topics and are only counted.
+    repeat other topics and are only counted. A topic's arrays beyond :data:`rig.recorder.series.KEPT_BYTES` are not
+    held: ``series`` holds its first samples, ``series_beyond`` says what the rest spans, and
+    :meth:`series_blocks` yields all of them (the rest read again from the file, ``series_store``).
 
     ``complete``: the file is whole and the run ended normally. ``truncated``: the file is cut short or
     damaged (read with ``allow_partial``). ``end``: the run's end record (metadata ``rig.end``: ``complete``,
@@ -54,6 +57,8 @@ class Recording:
     statistics: list[dict] = field(default_factory=list)
     events: list[dict] = field(default_factory=list)
     series: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    series_beyond: dict[str, bulk.Beyond] = field(default_factory=dict)
+    series_store: MessageStore | None = None
     can_frames: dict[str, Any] = field(default_factory=dict)
     can_counts: dict[str, int] = field(default_factory=lambda: {"frames": 0, "sent": 0})
     message_counts: dict[str, int] = field(default_factory=dict)
@@ -82,6 +87,10 @@ class Recording:
     @property
     def live(self) -> dict[str, np.ndarray]:
         return self.series.get(S.LIVE, {})
+
+    def series_blocks(self, topic: str) -> Iterator[dict[str, np.ndarray]]:
+        """Every sample of a bulk topic in file order, a block at a time (what ``series`` holds first)."""
+        return bulk.blocks(self.series.get(topic, {}), self.series_beyond.get(topic), self.series_store)
 
     def scene(self) -> "Scene":
         """The recorded scene, named ``<recording>:scene.toml`` in its errors; SceneError if there is none or
@@ -197,11 +206,16 @@ def stage_chunk(channels: dict[int, str], records: list[Any],
 class _Collector:
     """Sorts decoded records into a :class:`Recording`."""
 
-    def __init__(self, rec: Recording, can_frames: bool = True, store: CurveStore | None = None):
+    def __init__(self, rec: Recording, can_frames: bool = True, path: Path | None = None,
+                 stamp: tuple[int, int] = (0, 0)):
         self.rec = rec
         self.keep_can = can_frames
-        self.store = store                                  # where curves beyond KEPT_BYTES are read again from
+        # where curves beyond curves.KEPT_BYTES and series beyond series.KEPT_BYTES are read again from (none
+        # without a file: everything held)
+        self.store = None if path is None else MessageStore(path, stamp, curve_message, "curves")
+        rec.series_store = None if path is None else MessageStore(path, stamp, decode_block, "series")
         self.kept = 0                                       # bytes of curve arrays held
+        self.series_kept: dict[str, int] = defaultdict(int)     # bytes of each topic's series held
         self.can_end = -math.inf                            # the last /can/raw frame's time (s)
         self.channels: dict[int, str] = {}
         self.blocks: dict[str, list[dict[str, np.ndarray]]] = defaultdict(list)
@@ -246,11 +260,26 @@ class _Collector:
                 else:
                     rec.curves.append(CurveRecord(**fields, **arrays, store=self.store,     # what they hold, not them
                                                   key=self.store.place(offset, place[id(record)])))
+            elif topic in (S.RESULT, S.STATISTICS, S.EVENTS):
+                {S.RESULT: rec.results, S.STATISTICS: rec.statistics, S.EVENTS: rec.events}[topic].append(value)
             elif value is not None:
-                lists = {S.RESULT: rec.results, S.STATISTICS: rec.statistics, S.EVENTS: rec.events}
-                (lists[topic] if topic in lists else self.blocks[topic]).append(value)
+                self._series(topic, value, None if place is None else (offset, place[id(record)]))
             rec.message_counts[topic] = rec.message_counts.get(topic, 0) + 1
             self.last_log_ns = max(self.last_log_ns, record.log_time)
+
+    def _series(self, topic: str, block: dict[str, np.ndarray], where: tuple[int, int] | None) -> None:
+        """A bulk block held, or — once its topic's held bytes would pass the budget — noted where it is in the file
+        (``where``: its chunk's offset and place; None: held whatever its size)."""
+        size = bulk.block_bytes(block)
+        beyond = self.rec.series_beyond.get(topic)
+        kept = self.series_kept[topic]                  # a topic's first block is held whatever its size
+        if where is not None and (beyond is not None or 0 < kept and kept + size > bulk.KEPT_BYTES):
+            if beyond is None:
+                beyond = self.rec.series_beyond[topic] = bulk.Beyond()
+            beyond.add(self.rec.series_store.place(*where), block)
+        else:
+            self.series_kept[topic] += size
+            self.blocks[topic].append(block)
 
     def _decode(self, topic: str, data: bytes) -> Any:
         if topic in _REPEATS:
@@ -274,6 +303,7 @@ class _Collector:
             self.rec.can_frames = _can(self.can)
         # a block's log time is its first sample's: its samples (and a CAN block's frames) reach further
         ends = [float(s["t"][-1]) for s in self.rec.series.values() if "t" in s and len(s["t"])]
+        ends += [b.t_last for b in self.rec.series_beyond.values() if b.samples]
         ends += [c.t_end for c in self.rec.curves if c.t_end is not None]
         ends += [float(e["t"]) for e in self.rec.events if isinstance(e.get("t"), (int, float))]
         if "wall_clock_start" in self.rec.metadata.get(S.RIG_METADATA, {}):   # log times as simulation times
@@ -369,7 +399,7 @@ def read_recording(path: str | Path, allow_partial: bool = False, can_frames: bo
     try:
         with open(path, "rb") as f:
             st = os.fstat(f.fileno())
-            collector = _Collector(rec, can_frames, CurveStore(path, (st.st_size, st.st_mtime_ns)))
+            collector = _Collector(rec, can_frames, path, (st.st_size, st.st_mtime_ns))
             reader = DataSectionReader(f, _front(path, f), collector)
             reader.read()
             reader.check()

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import rig.recorder.curves as curves
+import rig.recorder.store as store
 from rig.analysis.report import write_report
 from rig.recorder import RecordingError, read_recording
 from rig.runner import run_scene
@@ -40,7 +41,7 @@ def test_curves_beyond_the_held_bytes_are_read_again_and_equal(recording, monkey
     assert all(c.held for c in held.curves)
     first = sum(curves.nbytes({k: getattr(c, k) for k in curves.ARRAYS}) for c in held.curves[:3])
     monkeypatch.setattr(curves, "KEPT_BYTES", first)
-    monkeypatch.setattr(curves, "CACHED_CHUNKS", 1)
+    monkeypatch.setattr(store, "CACHED_CHUNKS", 1)
     lazy = read_recording(recording)
     assert [c.held for c in lazy.curves] == [True] * 3 + [False] * (len(lazy.curves) - 3)
     assert [c.number for c in lazy.curves] == [c.number for c in held.curves]
@@ -64,7 +65,7 @@ def test_a_recording_changed_after_it_was_read_is_said(recording, tmp_path, monk
     copy = tmp_path / "copy.mcap"
     copy.write_bytes(recording.read_bytes())
     monkeypatch.setattr(curves, "KEPT_BYTES", 0)
-    monkeypatch.setattr(curves, "CACHED_CHUNKS", 0)                  # every use reads the file
+    monkeypatch.setattr(store, "CACHED_CHUNKS", 0)                  # every use reads the file
     rec = read_recording(copy)
     with open(copy, "ab") as f:
         f.write(b"\0")
