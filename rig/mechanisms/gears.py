@@ -3,6 +3,7 @@ a = m(z1 + z2)/2 · cos α0 / cos α_w, and the usual diameters (ISO 21771 / DIN
 coefficient 1, dedendum 1.25)."""
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from math import acos, cos, degrees, hypot, pi, radians, sin, sqrt, tan
 from typing import NamedTuple
@@ -12,6 +13,11 @@ from scipy.optimize import brentq
 from rig.mechanisms.checks import degrees_hint, finite, whole
 
 MODULE_MAX = 0.1      # m: the largest gear module taken for one (larger ones are mm given as m)
+TIP_THICKNESS_MIN = 0.2     # tip thickness s_a / m below which a tooth is called nearly pointed (warned)
+
+
+class ThinToothWarning(UserWarning):
+    """A gear's tooth tip is thinner than :data:`TIP_THICKNESS_MIN`·m (valid, but nearly pointed)."""
 
 
 def involute(alpha: float) -> float:
@@ -32,7 +38,7 @@ class GearGeometry(NamedTuple):
     """Lengths in m, angles in rad. ``centre_distance_modification`` y·m = a − a0; ``tip_reduction`` k·m
     (tooth-height reduction keeping the tip clearance); ``tooth_thickness`` on the reference circles (negative for a
     gear shifted so far negative that its whole tooth lies inside the reference circle: a formal value then, the
-    tooth itself is checked at its tip)."""
+    tooth itself is checked at its tip); ``tip_thickness`` s_a on the tip circles."""
 
     working_pressure_angle: float
     centre_distance: float
@@ -46,6 +52,7 @@ class GearGeometry(NamedTuple):
     root_diameters: tuple[float, float]
     tooth_thickness: tuple[float, float]
     contact_ratio: float
+    tip_thickness: tuple[float, float]
 
 
 @dataclass(frozen=True)
@@ -105,6 +112,7 @@ class SpurGearPair:
         df = (d[0] - 2 * m * (1.25 - x1), d[1] - 2 * m * (1.25 - x2))
         s = tuple(m * (pi / 2 + 2 * x * tan(a0_)) for x in (x1, x2))
         gears = ((z1, x1), (z2, x2))
+        tips = [0.0, 0.0]                              # tip thickness s_a (m)
         # Roll lengths (m) along the line of action from each base-circle tangent point T_i: the involute the rack
         # cuts starts at form_i (its straight flank ends 1·m deep, the undercut limit's convention: form_i ≥ 0
         # without undercut), on the form circle d_Ff; the tip lies sqrt(r_a² − r_b²) out.
@@ -116,11 +124,15 @@ class SpurGearPair:
                                  f"({da[i] * 1e3:.3f} mm) inside its form circle ({d_form[i] * 1e3:.3f} mm, where the "
                                  f"cut involute starts; base circle {db[i] * 1e3:.3f} mm): no involute flank; the "
                                  "shifts (and the tip reduction they cause) are too large")
-            alpha_a = acos(db[i] / da[i])                 # tooth thickness at the tip > 0
-            s_a = da[i] * (s[i] / d[i] + involute(a0_) - involute(alpha_a))
+            s_a = tips[i] = da[i] * (s[i] / d[i] + involute(a0_) - involute(acos(db[i] / da[i])))
             if s_a <= 0:
                 raise ValueError(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has a pointed tooth "
                                  f"(tip thickness {s_a * 1e3:.3f} mm)")
+            if s_a < TIP_THICKNESS_MIN * m:
+                warnings.warn(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has a nearly pointed tooth: tip "
+                              f"thickness {s_a * 1e3:.4g} mm = {s_a / m:.3g}·m, below the usual {TIP_THICKNESS_MIN:g}·m "
+                              "(design practice asks 0.2–0.4·m); a smaller shift thickens the tip",
+                              ThinToothWarning, stacklevel=2)
         # Meshing interference: gear j's tip meets gear i at T1T2 − tip_j from T_i (T1T2 = a·sin α_w); before
         # form_i it cuts into the fillet, before T_i into the base circle, where there is no involute.
         line = a * sin(aw)
@@ -144,5 +156,5 @@ class SpurGearPair:
             raise ValueError(f"SpurGearPair: contact ratio {eps:.3f} < 1 (the teeth lose mesh): the profile shifts "
                              f"x1 = {x1:g}, x2 = {x2:g} (sum {x1 + x2:g}) spread the gears to a working pressure angle "
                              f"of {degrees(aw):.1f}°; a smaller shift sum keeps them in mesh")
-        return GearGeometry(aw, a, a_ref, ym, km, d, db, dw, da, df, s, eps)
+        return GearGeometry(aw, a, a_ref, ym, km, d, db, dw, da, df, s, eps, tuple(tips))
 

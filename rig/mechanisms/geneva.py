@@ -63,7 +63,9 @@ class Geneva:
         return pi / 2 - pi / self.slots
 
     def kinematics(self, phi1: np.ndarray | float, omega1: float = 1.0) -> GenevaMotion:
-        """Wheel motion at crank angles ``phi1`` (rad, 0 = centre line) for crank speed ``omega1`` (rad/s)."""
+        """Wheel motion at crank angles ``phi1`` (rad, 0 = centre line) for crank speed ``omega1`` (rad/s). The
+        wheel's angle, speed and acceleration are counted positive in the sense opposite to the crank's: an external
+        Geneva wheel turns against its crank, so ω2 > 0 for ω1 > 0 means the wheel turns the other way."""
         finite(omega1, "Geneva omega1 (rad/s)")
         phi1 = finite_array(phi1, "Geneva crank angles phi1 (rad)")
         lam = sin(pi / self.slots)

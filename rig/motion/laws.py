@@ -73,6 +73,22 @@ class MotionLaw(ABC):
         return f"<MotionLaw {self.name}>"
 
 
+class ReversedLaw(MotionLaw):
+    """A return read backwards in cam angle, as a rise: y_r(x) = 1 − y(1 − x) of the law ``y`` a return segment
+    follows (s = level − h·y over the segment). A centric follower's pressure angle depends only on |s'| and s, so
+    sizing the rise y_r sizes the return."""
+
+    def __init__(self, law: MotionLaw):
+        self.law, self.name = law, f"{law.name}, reversed"
+
+    def derivatives(self, x):
+        y, y1, y2, y3 = self.law.derivatives(1.0 - np.asarray(x, dtype=float))
+        return 1.0 - y, y1, -y2, y3
+
+    def breakpoints(self) -> tuple[float, ...]:
+        return tuple(sorted(1.0 - b for b in self.law.breakpoints()))
+
+
 class PolynomialLaw(MotionLaw):
     """y = Σ c_n x^n (coefficients lowest power first)."""
 

@@ -87,8 +87,8 @@ class CamProgram:
         total = sum(seg.angle for seg in segments)
         if abs(total - tau) > SUM_TOLERANCE:
             raise ProgramError(f"cam program segments sum to {degrees(total):.9g}°, not 360° (off by "
-                               f"{degrees(total - tau):+.3g}°; within {degrees(SUM_TOLERANCE):.2g}° — angles typed in "
-                               f"rad or rounded — they are taken as 360°)")
+                               f"{degrees(total - tau):+.3g}°; only a sum within {degrees(SUM_TOLERANCE):.2g}° of 360° — "
+                               f"angles typed in rad or rounded — is taken as a whole turn)")
         if total != tau:                    # typed in rad (3 × 2.0944 rad) or rounded: scaled to the whole turn
             segments = [replace(seg, angle=seg.angle * tau / total) for seg in segments]
         up = sum(seg.stroke for seg in segments if seg.kind == "rise")

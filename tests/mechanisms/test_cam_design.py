@@ -457,3 +457,40 @@ def test_the_flocke_row_says_when_its_radius_is_exact():
     assert flocke.value == pytest.approx(30.0, rel=1e-9) and "exact for this law" in flocke.note
     default = _sizing_checks(PinInsertionMechanism(), 0.5)[0]
     assert default.value > 30.0 and "too small" in default.note
+
+
+@pytest.mark.parametrize("name", ["3-4-5", "cycloidal", "modified_trapezoid", "parabolic"])
+def test_a_reversed_law_is_the_return_read_backwards(name):
+    """y_r(x) = 1 − y(1 − x): a rise from 0 to 1, its derivatives those of the return s = 1 − y run backwards
+    (finite differences of y_r itself)."""
+    from rig.motion.laws import ReversedLaw
+    law = ReversedLaw(get_law(name))
+    x = np.linspace(0.01, 0.99, 97)
+    x = x[np.all(np.abs(x[:, None] - np.array([*law.breakpoints(), -1.0])) > 1e-3, axis=1)]   # y'' jumps there
+    assert law.breakpoints() == tuple(sorted(1.0 - b for b in get_law(name).breakpoints()))
+    y, y1, y2, _ = law.derivatives(x)
+    assert law.y(np.array([0.0, 1.0])) == pytest.approx([0.0, 1.0], abs=1e-12)
+    h = 1e-6
+    assert np.allclose(y1, (law.y(x + h) - law.y(x - h)) / (2 * h), atol=1e-6)
+    assert np.allclose(y2, (law.derivatives(x + h)[1] - law.derivatives(x - h)[1]) / (2 * h), atol=1e-4)
+    back = get_law(name).derivatives(1.0 - x)
+    assert np.allclose(y, 1.0 - back[0]) and np.allclose(y1, back[1])
+
+
+def test_the_sizing_rows_size_the_segment_that_needs_the_largest_radius():
+    """The demo's return (100°, 3-4-5) is steeper than its rise (120°): the exact radius must keep |α| ≤ 30° on both
+    (it was sized on the first rise only, 47.05 mm, where the return reaches ≈ 34.7°). Independent: the program's own
+    s, s' over each moving segment, s measured from the segment's bottom, r_b = max(|s'|/tan 30° − s)."""
+    from rig.mechanisms.cam.design import _sizing_checks
+    mech = PinInsertionMechanism()
+    prog = mech.program
+    need = []
+    for seg, start in zip(prog.segments, prog.starts):
+        if seg.kind in ("rise", "return"):
+            phi = start + np.linspace(0.0, seg.angle, 200001)
+            m = prog.evaluate(phi)
+            need.append(float(np.max(np.abs(m.s_p) / np.tan(radians(30)) - (m.s - m.s.min()))))
+    flocke, exact = _sizing_checks(mech, 0.5)[:2]
+    assert float(exact.note.split("r_b = ")[1].split(" mm")[0]) == pytest.approx(max(need) * 1e3, abs=0.006)
+    assert max(need) > min(need) * 1.2 and "on the return" in flocke.note and "the others: rise 47.05 mm" in exact.note
+    assert exact.ok and exact.value == pytest.approx(30.0, rel=1e-9)

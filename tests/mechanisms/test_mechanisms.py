@@ -3,13 +3,16 @@ double-Cardan cancellation, Geneva timing and kinematics, gear geometry consiste
 from __future__ import annotations
 
 import re
-from math import cos, degrees, pi, radians, sin, tan
+import warnings
+from math import cos, degrees, pi, radians, sin, sqrt, tan
 
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 from scipy.integrate import trapezoid
 
+from rig.mechanisms.cam.sizing import flocke_base_radius
+from rig.motion import get_law
 from rig.mechanisms import (Belt, Cardan, DoubleCardan, FrictionWheels, Geneva, Ratchet, SpurGearPair, involute,
                             inverse_involute, mobility, willis)
 
@@ -225,6 +228,9 @@ def test_belt_ratchet_and_friction_wheels():
                                              "F1 − F2 = 10000000000.0 N"),
     (lambda: inverse_involute(float("nan")), "inverse_involute value inv α (rad) must be a finite number, got nan"),
     (lambda: inverse_involute(1e12), "inverse_involute value inv α must lie in [0, 1e+09) rad"),
+    (lambda: Belt(0.3, pi, slip="0.02"), "Belt slip must be a finite number, got '0.02'"),
+    (lambda: flocke_base_radius(get_law("3-4-5"), 0.042, radians(120), radians(30), e=float("nan")),
+     "offset e (m) must be a finite number, got nan"),
 ])
 def test_impossible_or_mistyped_input_is_named(make, message):
     """Geometry that cannot exist, a value in the wrong unit or not a finite number: a ValueError saying which
@@ -285,6 +291,7 @@ def test_gears_refuse_tip_interference_named_with_its_numbers(pair, numbers):
         pair.geometry()
 
 
+@pytest.mark.filterwarnings("ignore::rig.mechanisms.gears.ThinToothWarning")     # thin tips among the grid: valid
 def test_gear_interference_against_the_cartesian_construction():
     """Over a grid of tooth counts and shifts (from each undercut limit up), geometry() refuses exactly the pairs
     whose tips reach the mate inside its base circle or below its form circle."""
@@ -338,3 +345,31 @@ def test_geneva_wheel_angle_is_continuous_through_every_dwell_even_on_odd_multip
 def test_a_cardan_shaft_angle_hints_at_degrees_only_for_an_impossible_angle(alpha, message):
     with pytest.raises(ValueError, match=message):
         Cardan(alpha)
+
+
+def _tip_thickness_from_the_curve(d: float, db: float, s: float, da: float) -> float:
+    """The tip's arc thickness from the involute drawn in Cartesian coordinates: the flank through the reference
+    circle at half the tooth's angle s/d, followed out to the tip circle (roll t: r = r_b·sqrt(1 + t²))."""
+    rb = db / 2
+
+    def unrolled(r: float) -> float:
+        """Polar angle of the point at radius r of the involute unrolled from the base circle at angle 0."""
+        t = sqrt((r / rb) ** 2 - 1)
+        return float(np.arctan2(rb * (np.sin(t) - t * np.cos(t)), rb * (np.cos(t) + t * np.sin(t))))
+    theta0 = s / d + unrolled(d / 2)           # the flank, unrolled towards the tooth's centre line, at s/d there
+    return 2 * (theta0 - unrolled(da / 2)) * da / 2
+
+
+def test_the_tip_thickness_is_the_involute_drawn_out_and_a_nearly_pointed_tip_is_warned():
+    from rig.mechanisms.gears import ThinToothWarning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        g = SpurGearPair(34, 80, 4.5e-3, 0.98, 1.81).geometry()           # no warning: s_a ≈ 0.8·m
+    for i in (0, 1):
+        assert g.tip_thickness[i] == pytest.approx(_tip_thickness_from_the_curve(
+            g.reference_diameters[i], g.base_diameters[i], g.tooth_thickness[i], g.tip_diameters[i]), rel=1e-9)
+    with pytest.warns(ThinToothWarning, match=r"gear 1 \(12 teeth, x = 0.85\) has a nearly pointed tooth: tip "
+                                              r"thickness 0.002696 mm = 0.0027·m"):
+        thin = SpurGearPair(12, 300, 0.001, 0.85, 0.0).geometry()       # an independent audit's case
+    assert thin.tip_thickness[0] == pytest.approx(_tip_thickness_from_the_curve(
+        thin.reference_diameters[0], thin.base_diameters[0], thin.tooth_thickness[0], thin.tip_diameters[0]), rel=1e-6)

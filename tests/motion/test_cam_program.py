@@ -113,6 +113,6 @@ def test_angles_typed_in_rad_or_rounded_are_taken_as_the_whole_turn():
                        Segment("return", 2.0944, "cycloidal", H)])
     assert sum(s.angle for s in prog.segments) == pytest.approx(tau, abs=1e-15)
     assert prog.segments[0].angle == pytest.approx(tau / 3, rel=1e-15)
-    with pytest.raises(ProgramError, match=r"sum to 360\.035219°, not 360° \(off by \+0\.0352°; within 0\.0057°"):
+    with pytest.raises(ProgramError, match=r"sum to 360\.035219°, not 360° \(off by \+0\.0352°; only a sum within 0\.0057° of 360°"):
         CamProgram([Segment("rise", 2.095, "cycloidal", H), Segment("dwell", 2.0944), Segment("return", 2.0944,
                                                                                               "cycloidal", H)])

@@ -2,8 +2,8 @@
 
 Pressure angle and contact force come from the level-1 kinetostatics at the nominal speed with the mounted
 spring; curvature from the pitch curve (:mod:`.pitch`); Hertz stress on the flank that carries the load.
-The translating-follower sizing (Flocke, guide, H/h) is applied to the program's first rise as a design
-alternative, and so is an oscillating flat-faced follower on the same follower swing. Series synthesis
+The translating-follower sizing (Flocke, guide, H/h) is applied to the program's rise or return that needs the
+largest base radius (a return read backwards as a rise) as a design alternative, and so is an oscillating flat-faced follower on the same follower swing. Series synthesis
 inverts the follower–rod–slider chain (an offset slider-crank) for the programmed slider law.
 """
 from __future__ import annotations
@@ -21,6 +21,7 @@ from rig.mechanisms.cam.pitch import PitchCurve, flank_radius, pitch_curve
 from rig.mechanisms.cam.sizing import SizeModel, exact_base_radius, flocke_base_radius, pressure_angles
 from rig.mechanisms.cam.synthesis import SliderCrank, round_trip_error, synthesize
 from rig.motion.program import Segment
+from rig.motion.laws import MotionLaw, ReversedLaw
 from rig.motion.registry import get_law
 
 if TYPE_CHECKING:
@@ -71,11 +72,19 @@ class CamDesign:
     checks: list[Check] = field(default_factory=list)
 
 
-def _first_rise(mech: "PinInsertionMechanism") -> Segment:
-    for seg in mech.program.segments:
-        if seg.kind == "rise":
-            return seg
-    raise ValueError("the cam program has no rise")
+def _governing_segment(mech: "PinInsertionMechanism", alpha: float) -> tuple[Segment, MotionLaw, dict[str, float]]:
+    """The rise or return that needs the largest centric base radius at pressure angle ``alpha`` (rad), its law as
+    a rise (a return reversed: :class:`~rig.motion.laws.ReversedLaw`), and every moving segment's exact radius (m)
+    by its name ('rise', 'return'; numbered where a kind recurs: 'rise 1', 'rise 2', …); each segment's stroke is measured from its own lowest level."""
+    moving = [(seg, get_law(seg.law) if seg.kind == "rise" else ReversedLaw(get_law(seg.law)))
+              for seg in mech.program.segments if seg.kind in ("rise", "return")]
+    if not moving:
+        raise ValueError("the cam program has no rise")
+    kinds = [seg.kind for seg, _ in moving]
+    names = [kind if kinds.count(kind) == 1 else f"{kind} {kinds[:i + 1].count(kind)}" for i, kind in enumerate(kinds)]
+    radii = {name: exact_base_radius(law, seg.stroke, seg.angle, alpha) for name, (seg, law) in zip(names, moving)}
+    i = int(np.argmax(list(radii.values())))
+    return *moving[i], radii
 
 
 def design_checks(mech: "PinInsertionMechanism", omega: float, high_speed: bool = True, n: int = 3600,
@@ -154,19 +163,23 @@ def _towards_centre(mech: "PinInsertionMechanism", phi: np.ndarray) -> np.ndarra
 
 
 def _sizing_checks(mech: "PinInsertionMechanism", load: float) -> list[Check]:
-    seg = _first_rise(mech)
-    law, h, big_phi = get_law(seg.law), seg.stroke, seg.angle
     a_lim = pressure_angle_limit("translating")
+    seg, law, radii = _governing_segment(mech, a_lim)
+    h, big_phi = seg.stroke, seg.angle
     rf = flocke_base_radius(law, h, big_phi, a_lim)
-    re = exact_base_radius(law, h, big_phi, a_lim)
-    what = f"centric translating roller follower on the rise ({seg.law}, h = {h * 1e3:g} mm, Φ = {degrees(big_phi):g}°)"
+    re = max(radii.values())
+    name = next(k for k, v in radii.items() if v == re)
+    what = (f"centric translating roller follower on the {name} ({seg.law}, h = {h * 1e3:g} mm, "
+            f"Φ = {degrees(big_phi):g}°{', read backwards as a rise' if seg.kind == 'return' else ''})")
     flocke = degrees(pressure_angles(law, h, big_phi, rf).max())
     verdict = ("evaluated at s'_max it is too small" if not isclose(flocke, degrees(a_lim), rel_tol=1e-9) else
                "exact for this law (its steepest pressure angle lies at s'_max)")
+    others = ", ".join(f"{k} {v * 1e3:.2f} mm" for k, v in radii.items() if k != name)
     rows = [Check("Flocke base radius: max pressure angle", flocke, degrees(a_lim), "°", "info",
                   f"r_b = {rf * 1e3:.2f} mm for {what}: {verdict}"),
             Check("exact base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, re).max()),
-                  degrees(a_lim), "°", "≤", f"r_b = {re * 1e3:.2f} mm (max over the rise, not at s'_max)")]
+                  degrees(a_lim), "°", "≤", f"r_b = {re * 1e3:.2f} mm (max over the {name}, not at s'_max), the "
+                  f"segment that needs the largest radius{f' (the others: {others})' if others else ''}")]
     model = SizeModel(law, big_phi, mech.mu, load)
     opt, scan = model.optimum(), model.scan()
     rows.append(Check("optimum pressure angle (dH/dα = 0)", degrees(opt.alpha), degrees(model.alpha_lock), "°", "≤",

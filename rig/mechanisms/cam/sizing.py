@@ -48,6 +48,7 @@ def peak_velocity(law: MotionLaw) -> tuple[float, float, float]:
 def flocke_base_radius(law: MotionLaw, h: float, big_phi: float, alpha: float, e: float = 0.0) -> float:
     """Flocke: r_b = sqrt(((s'_max + e)/tan α − s|_{s'max})² + e²) (m), evaluated at the velocity peak."""
     _check(h, big_phi, alpha)
+    e = finite(e, "offset e (m)")
     _, v, y = peak_velocity(law)
     return sqrt(((h / big_phi * v + e) / tan(alpha) - h * y) ** 2 + e * e)
 
