@@ -53,8 +53,9 @@ def row_text(check: "Check", use: float) -> str:
 
 
 def plot_design(design: "CamDesign", path: str | Path) -> Path:
-    """PNG: pressure angle with its limit, pitch-curve radius with the undercut limit, Hertz stress over the cam
-    angle, and every check's use of its limit (module docstring)."""
+    """PNG: pressure angle with its limit, pitch-curve radius with the undercut limit, Hertz stress (without a
+    permissible stress: the contact force) over the cam angle, and every check's use of its limit (module
+    docstring)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -72,19 +73,24 @@ def plot_design(design: "CamDesign", path: str | Path) -> Path:
     axes[0].set_ylabel("pressure angle (°)")
     rho = np.clip(design.rho * 1e3, -300.0, 300.0)
     axes[1].plot(deg, rho, label="ρ pitch curve")
-    for sgn in (1, -1):
+    for sgn in (1, -1) if np.isfinite(design.undercut) else ():     # no roller radius: no limit
         axes[1].axhline(sgn * design.undercut * 1e3, color="r", ls="--", label="±r_R/0.7" if sgn > 0 else None)
     axes[1].set_ylabel("ρ (mm, clipped at ±300)")
-    axes[2].plot(deg, design.sigma_h / 1e6, label="Hertz stress σ_H")
-    axes[2].axhline(design.sigma_allow / 1e6, color="r", ls="--", label="permissible (assumed)")
+    hertz = bool(np.isfinite(design.sigma_allow))     # else no roller width: the contact force instead
+    if hertz:
+        axes[2].plot(deg, design.sigma_h / 1e6, label="Hertz stress σ_H")
+        axes[2].axhline(design.sigma_allow / 1e6, color="r", ls="--", label="permissible (assumed)")
+    else:
+        axes[2].plot(deg, design.contact_force, label="contact force")
+        axes[2].axhline(0.0, color="r", ls="--", label="force closure")
     other = design.contact_force < 0.0
-    if other.any():                      # force closure lost: the roller on the other flank (the jump)
+    if other.any():                      # force closure lost: the roller on the other flank or lifted (the jump)
         axes[2].fill_between(deg, 0.0, 1.0, where=other, transform=axes[2].get_xaxis_transform(), color="tab:orange",
-                             alpha=0.25, lw=0, label="R23 < 0: other flank")
-    if np.isnan(design.sigma_h).any():
+                             alpha=0.25, lw=0, label="R23 < 0: other flank" if hertz else "lifts off")
+    if hertz and np.isnan(design.sigma_h).any():
         axes[2].fill_between(deg, 0.0, 1.0, where=np.isnan(design.sigma_h), transform=axes[2].get_xaxis_transform(),
                              color="tab:red", alpha=0.25, lw=0, label="loaded wall undercut")
-    axes[2].set_ylabel("σ_H (MPa)")
+    axes[2].set_ylabel("σ_H (MPa)" if hertz else "contact force (N)")
     for ax in axes:
         ax.grid(True)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)

@@ -41,7 +41,11 @@ SCHEMAS: dict[str, dict[str, Field]] = {
                              "force G): 9.81 m/s^2 for a follower rising vertically, 0 for a horizontal "
                              "one", minimum=0.0),
             "cam_inertia": Field("kg*m^2", 0.0, "inertia of the cam shaft beyond the torque transducer",
-                                 minimum=0.0)},
+                                 minimum=0.0),
+            "base_radius": Field("m", None, "the cam's base radius (for `rig cam-design` only; the run follows the "
+                                 "law)", positive=True),
+            "roller_radius": Field("m", None, "the follower roller's radius (for `rig cam-design` only)",
+                                   positive=True)},
 }
 
 
@@ -127,9 +131,19 @@ class LabBench:
         elif self.kind == "cam":
             m = self.mechanism.evaluate(d.phi)
             v, a = d.omega * m.s_p, d.omega ** 2 * m.s_pp + d.alpha * m.s_p
-            force = self.follower_mass * (a + self.gravity) + self.spring_rate * m.s + self.spring_preload
+            force = self.contact_force(m.s, a)
             out.update(s=m.s, v=v, a=a, torque=force * m.s_p + self.cam_inertia * d.alpha, contact_force=force)
         return out
+
+    def contact_force(self, s: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """The cam follower's contact force (N) at its position ``s`` (m) and acceleration ``a`` (m/s²): inertia and
+        weight m·(a + g), spring k·s + preload (< 0: spring and weight no longer hold it on the cam)."""
+        return self.follower_mass * (a + self.gravity) + self.spring_rate * s + self.spring_preload
+
+    def cam_contact_force(self, phi: np.ndarray, omega: float) -> np.ndarray:
+        """The contact force (N) at cam angles ``phi`` (rad) turning steadily at ``omega`` (rad/s)."""
+        m = self.mechanism.evaluate(phi)
+        return self.contact_force(m.s, omega * omega * m.s_pp)
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "LabBench":

@@ -449,13 +449,13 @@ def test_an_undercut_wall_fails_the_hertz_check_instead_of_stopping_the_checks()
 
 def test_the_flocke_row_says_when_its_radius_is_exact():
     """For the parabolic law the steepest pressure angle lies at s'_max: Flocke's radius is the exact one."""
-    from rig.mechanisms.cam.design import _sizing_checks
+    from rig.mechanisms.cam.design import sizing_checks
     program = CamProgram([Segment("dwell", radians(60)), Segment("rise", radians(120), "parabolic", 0.042),
                           Segment("dwell", radians(40)), Segment("return", radians(100), "parabolic", 0.042),
                           Segment("dwell", radians(40))])
-    flocke = _sizing_checks(PinInsertionMechanism(program=program), 0.5)[0]
+    flocke = sizing_checks(program, 0.1, 0.5)[0]
     assert flocke.value == pytest.approx(30.0, rel=1e-9) and "exact for this law" in flocke.note
-    default = _sizing_checks(PinInsertionMechanism(), 0.5)[0]
+    default = sizing_checks(PinInsertionMechanism().program, 0.1, 0.5)[0]
     assert default.value > 30.0 and "too small" in default.note
 
 
@@ -481,7 +481,7 @@ def test_the_sizing_rows_size_the_segment_that_needs_the_largest_radius():
     """The demo's return (100°, 3-4-5) is steeper than its rise (120°): the exact radius must keep |α| ≤ 30° on both
     (it was sized on the first rise only, 47.05 mm, where the return reaches ≈ 34.7°). Independent: the program's own
     s, s' over each moving segment, s measured from the segment's bottom, r_b = max(|s'|/tan 30° − s)."""
-    from rig.mechanisms.cam.design import _sizing_checks
+    from rig.mechanisms.cam.design import sizing_checks
     mech = PinInsertionMechanism()
     prog = mech.program
     need = []
@@ -490,7 +490,7 @@ def test_the_sizing_rows_size_the_segment_that_needs_the_largest_radius():
             phi = start + np.linspace(0.0, seg.angle, 200001)
             m = prog.evaluate(phi)
             need.append(float(np.max(np.abs(m.s_p) / np.tan(radians(30)) - (m.s - m.s.min()))))
-    flocke, exact = _sizing_checks(mech, 0.5)[:2]
+    flocke, exact = sizing_checks(mech.program, mech.mu, 0.5)[:2]
     assert float(exact.note.split("r_b = ")[1].split(" mm")[0]) == pytest.approx(max(need) * 1e3, abs=0.006)
     assert max(need) > min(need) * 1.2 and "on the return" in flocke.note and "the others: rise 47.05 mm" in exact.note
     assert exact.ok and exact.value == pytest.approx(30.0, rel=1e-9)

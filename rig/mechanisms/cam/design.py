@@ -20,7 +20,7 @@ from rig.mechanisms.cam.limits import pressure_angle_limit, undercut_radius
 from rig.mechanisms.cam.pitch import PitchCurve, flank_radius, pitch_curve
 from rig.mechanisms.cam.sizing import SizeModel, exact_base_radius, flocke_base_radius, pressure_angles
 from rig.mechanisms.cam.synthesis import SliderCrank, round_trip_error, synthesize
-from rig.motion.program import Segment
+from rig.motion.program import CamProgram, Segment
 from rig.motion.laws import MotionLaw, ReversedLaw
 from rig.motion.registry import get_law
 
@@ -72,12 +72,12 @@ class CamDesign:
     checks: list[Check] = field(default_factory=list)
 
 
-def _governing_segment(mech: "PinInsertionMechanism", alpha: float) -> tuple[Segment, MotionLaw, dict[str, float]]:
+def _governing_segment(program: CamProgram, alpha: float) -> tuple[Segment, MotionLaw, dict[str, float]]:
     """The rise or return that needs the largest centric base radius at pressure angle ``alpha`` (rad), its law as
     a rise (a return reversed: :class:`~rig.motion.laws.ReversedLaw`), and every moving segment's exact radius (m)
     by its name ('rise', 'return'; numbered where a kind recurs: 'rise 1', 'rise 2', …); each segment's stroke is measured from its own lowest level."""
     moving = [(seg, get_law(seg.law) if seg.kind == "rise" else ReversedLaw(get_law(seg.law)))
-              for seg in mech.program.segments if seg.kind in ("rise", "return")]
+              for seg in program.segments if seg.kind in ("rise", "return")]
     if not moving:
         raise ValueError("the cam program has no rise")
     kinds = [seg.kind for seg, _ in moving]
@@ -132,7 +132,7 @@ def design_checks(mech: "PinInsertionMechanism", omega: float, high_speed: bool 
                  + where)
     c.append(Check("max Hertz stress", sigma[i] / 1e6 if fits.all() else np.inf, sigma_allow / 1e6, "MPa", "≤",
                    where))
-    c.extend(_sizing_checks(mech, load_coefficient))
+    c.extend(sizing_checks(mech.program, mech.mu, load_coefficient))
     c.append(_flat_follower_check(mech, phi, pc))
     c.append(_synthesis_check(mech, phi))
     return out
@@ -162,9 +162,16 @@ def _towards_centre(mech: "PinInsertionMechanism", phi: np.ndarray) -> np.ndarra
     return -np.sign(dr_dpsi)
 
 
-def _sizing_checks(mech: "PinInsertionMechanism", load: float) -> list[Check]:
+def required_base_radius(program: CamProgram, alpha: float) -> float:
+    """The smallest centric base radius (m) keeping |pressure angle| ≤ ``alpha`` (rad) on every rise and return."""
+    return max(_governing_segment(program, alpha)[2].values())
+
+
+def sizing_checks(program: CamProgram, mu: float, load: float, mu_note: str = "") -> list[Check]:
+    """The translating roller-follower sizing rows of ``program`` (Flocke, exact base radius, the H/h optimum with
+    guide friction ``mu`` and load coefficient ``load``; ``mu_note`` says where μ comes from when not the scene)."""
     a_lim = pressure_angle_limit("translating")
-    seg, law, radii = _governing_segment(mech, a_lim)
+    seg, law, radii = _governing_segment(program, a_lim)
     h, big_phi = seg.stroke, seg.angle
     rf = flocke_base_radius(law, h, big_phi, a_lim)
     re = max(radii.values())
@@ -180,10 +187,10 @@ def _sizing_checks(mech: "PinInsertionMechanism", load: float) -> list[Check]:
             Check("exact base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, re).max()),
                   degrees(a_lim), "°", "≤", f"r_b = {re * 1e3:.2f} mm (max over the {name}, not at s'_max), the "
                   f"segment that needs the largest radius{f' (the others: {others})' if others else ''}")]
-    model = SizeModel(law, big_phi, mech.mu, load)
+    model = SizeModel(law, big_phi, mu, load)
     opt, scan = model.optimum(), model.scan()
     rows.append(Check("optimum pressure angle (dH/dα = 0)", degrees(opt.alpha), degrees(model.alpha_lock), "°", "≤",
-                      f"H/h = {opt.total:.4f}, r_b/h = {opt.base:.4f}, b/h = {opt.guide:.4f} (μ = {mech.mu:g}, "
+                      f"H/h = {opt.total:.4f}, r_b/h = {opt.base:.4f}, b/h = {opt.guide:.4f} (μ = {mu:g}{mu_note}, "
                       f"Φ_L = {load:g}; scan: {degrees(scan.alpha):.3f}°, H/h = {scan.total:.4f}); "
                       "limit: self-locking angle"))
     rows.append(Check("optimum: centric base radius r_b/h", opt.base, 0.0, "", "≥",
