@@ -203,8 +203,10 @@ def stage_chunk(channels: dict[int, str], records: list[Any],
     return channels, staged
 
 
-class _Collector:
-    """Sorts decoded records into a :class:`Recording`."""
+class Collector:
+    """Sorts decoded records into a :class:`Recording`: the reader's, and the salvage and repair passes' (which read
+    the data section themselves). With the recording's ``path`` (and its (size, mtime_ns) ``stamp``) curves and series
+    beyond their budgets are noted to be read again from it; without, everything is held."""
 
     def __init__(self, rec: Recording, can_frames: bool = True, path: Path | None = None,
                  stamp: tuple[int, int] = (0, 0)):
@@ -399,7 +401,7 @@ def read_recording(path: str | Path, allow_partial: bool = False, can_frames: bo
     try:
         with open(path, "rb") as f:
             st = os.fstat(f.fileno())
-            collector = _Collector(rec, can_frames, path, (st.st_size, st.st_mtime_ns))
+            collector = Collector(rec, can_frames, path, (st.st_size, st.st_mtime_ns))
             reader = DataSectionReader(f, _front(path, f), collector)
             reader.read()
             reader.check()

@@ -22,7 +22,7 @@ from mcap.writer import CompressionType, Writer
 
 import rig
 from rig.recorder import schemas as S
-from rig.recorder.reader import Recording, RecordingError, _Collector
+from rig.recorder.reader import Collector, Recording, RecordingError
 from rig.recorder.salvage import DataSectionReader
 
 REPAIRED = "repaired"      # the start of the rewritten file's rig.end reason
@@ -97,7 +97,7 @@ class _Rewriter:
         """Simulation time (s) of the latest data rewritten — a sample, a frame or a message —, as the reader's
         ``last_time``: only each channel's latest message decoded (a block, logged at its first sample, reaches
         further than its log time)."""
-        collector = _Collector(Recording(path=self.rec.path, metadata=self.rec.metadata), can_frames=False)
+        collector = Collector(Recording(path=self.rec.path, metadata=self.rec.metadata), can_frames=False)
         collector.add_chunk([*self._defined.values(), *self.latest.values()])
         return collector.finish().last_time
 

@@ -25,7 +25,7 @@ from mcap.summary import Summary
 from rig.recorder import schemas as S
 
 if TYPE_CHECKING:
-    from rig.recorder.reader import _Collector
+    from rig.recorder.reader import Collector
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"     # every MCAP file's first 8 bytes (and a complete one's last 8)
 
@@ -190,13 +190,13 @@ def chunk_at(f: Any, pos: int) -> Chunk:
 
 
 class DataSectionReader:
-    """Reads a recording's data section in file order into a :class:`_Collector`, past damage: a chunk that fails
+    """Reads a recording's data section in file order into a :class:`Collector`, past damage: a chunk that fails
     its CRC or does not decode is skipped; bytes that are no record are skipped to where the next record starts —
     by the summary's index when the summary is intact (a chunk whose record header is damaged is then read by its
     index entry), else at the next whole chunk. Each skipped part becomes a :class:`LostPart`; a cut file ends
     the reading as before."""
 
-    def __init__(self, f: Any, size: int, collector: "_Collector"):
+    def __init__(self, f: Any, size: int, collector: "Collector"):
         self.f, self.size, self.collector, self.rec = f, size, collector, collector.rec
         found, summary_damage = _summary(f, size)
         self.summary = None if found is None else found[0]
