@@ -29,7 +29,7 @@ def cmd_cam_design(args: argparse.Namespace) -> int:
     if scene.section("scene").get("plant") == "lab_bench" and scene.section("plant").get("kind") == "cam":
         design = _lab_cam_design(scene, options)
     else:
-        require_cam_bar(scene, "rig cam-design (or a lab_bench scene of kind \"cam\")")
+        require_cam_bar(scene, "rig cam-design", 'or a lab_bench scene of kind "cam" (lab_cam.toml)')
         mech, omega = mechanism_from_scene(scene), read_speed_profile(scene).nominal_omega
         design = design_checks(mech, omega, high_speed=not args.low_speed, **options)
     print(f"cam design checks for {args.scene}")

@@ -79,32 +79,46 @@ def spectral_radius(M: np.ndarray) -> float:
 #: modes the exact flow keeps at least this much of per step count for the accuracy test (a mode that loses more
 #: is gone in a few steps, whatever the method leaves of it: the stiff decays an explicit method is stable on)
 PERSISTENT = 0.5
+#: ... and so does one the method keeps this much of per step (where the exact flow loses it fast: RK4 at hλ = −2.78
+#: keeps 0.99, a decay to nothing stepped as a near-constant), or of which this much is left in a run as short as the
+#: check has seen (two steps of explicit Euler at hλ = −0.7)
+LINGER, LEFT = 0.9, 0.05
 
 
-def mode_errors(method: str, eig: np.ndarray | None, lam: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
-    """Per eigenvalue λ of J that persists and does not grow (:data:`PERSISTENT` ≤ |e^{hλ}| ≤ 1), where the method
-    does not amplify its mode beyond the exact flow (growth is the amplification test's to report; else zeros): the
-    method's relative error on the mode per step |μ − e^{hλ}|/|e^{hλ}| (μ = R(hλ) for the methods of
-    :data:`POLYNOMIALS`, else the eigenvalue ``eig`` of the step matrix M nearest e^{hλ}: exact for one oscillation,
-    NaN where M overflowed, possibly another mode's
-    in a system of close modes), its spurious decay −ln(|μ|/|e^{hλ}|) ≥ 0 and phase error |arg(μ/e^{hλ})| (rad) per
-    step, the mode's lifetime in steps 1/(1 − |e^{hλ}|) (inf when it does not decay) and λ."""
+def mode_errors(method: str, eig: np.ndarray | None, lam: np.ndarray, h: float,
+                steps: float = 0.0) -> tuple[np.ndarray, ...]:
+    """Per eigenvalue λ of J whose mode persists in the exact flow (:data:`PERSISTENT` ≤ |e^{hλ}|) or lingers in the
+    method (:data:`LINGER` ≤ |μ|), or — in a run of only ``steps`` steps — of which max(|e^{hλ}|, |μ|)^steps, at
+    least :data:`LEFT`, is left after them, where the method does not amplify it beyond 1 and the exact flow (growth is the amplification test's to
+    report; else zeros): the method's relative error on the mode per step |μ − e^{hλ}|/max(|e^{hλ}|, |μ|) (μ = R(hλ)
+    for the methods of :data:`POLYNOMIALS`, else the eigenvalue ``eig`` of the step matrix M nearest e^{hλ}: exact for
+    one oscillation, NaN where M overflowed, possibly another mode's in a system of close modes) — a fast decay the
+    method keeps alive (explicit Euler at hλ = −1.99: μ = −0.99 against e^{hλ} = 0.14) and a growth it does not
+    resolve (a finite-time blow-up) count too —, its spurious decay −ln(|μ|/|e^{hλ}|) ≥ 0 and phase error
+    |arg(μ/e^{hλ})| (rad) per step (of modes that do not grow), its spurious growth ln(|μ|/|e^{hλ}|) ≥ 0 per step
+    where the method amplifies it but not beyond what the amplification test reports (explicit Euler's slow growth of
+    an undamped oscillation), the mode's lifetime in steps 1/(1 − max(|e^{hλ}|, |μ|)) (inf when it does not decay)
+    and λ."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         exact = np.exp(h * lam)
-        keep = (np.abs(exact) >= PERSISTENT) & (np.abs(exact) <= 1.0 + 1e-3)     # not a physical growth (a blow-up)
-        lam, exact = lam[keep], exact[keep]
         if method in POLYNOMIALS:
             mu = POLYNOMIALS[method](h * lam)
         elif eig is None:
             mu = np.full(exact.shape, np.nan)
         else:
-            mu = np.array([eig[np.argmin(np.abs(eig - e))] for e in exact])
+            mu = np.array([eig[np.argmin(np.abs(eig - e))] for e in exact], dtype=complex)
+        kept = np.maximum(np.abs(exact), np.abs(mu))
+        keep = ((np.abs(exact) >= PERSISTENT) | (np.abs(mu) >= LINGER) | (kept ** steps >= LEFT)) & np.isfinite(exact)
+        lam, exact, mu, kept = lam[keep], exact[keep], mu[keep], kept[keep]
+        lasting = np.abs(exact) <= 1.0 + 1e-3                 # not a growth: its summed faults count
         damps = np.abs(mu) <= np.abs(exact) * (1.0 + 1e-4)
-        err = np.where(damps, np.abs(mu - exact) / np.abs(exact), 0.0)
-        decay = np.where(damps, np.maximum(-np.log(np.abs(mu) / np.abs(exact)), 0.0), 0.0)
-        phase = np.where(damps, np.abs(np.angle(mu / exact)), 0.0)
-        life = np.where(np.abs(exact) < 1.0, 1.0 / (1.0 - np.abs(exact)), np.inf)
-    return err, decay, phase, life, lam
+        tested = damps | (np.abs(mu) <= 1.0)
+        err = np.where(tested, np.abs(mu - exact) / kept, 0.0)
+        decay = np.where(damps & lasting, np.maximum(-np.log(np.abs(mu) / np.abs(exact)), 0.0), 0.0)
+        phase = np.where(damps & lasting, np.abs(np.angle(mu / exact)), 0.0)
+        growth = np.where(~damps & lasting, np.maximum(np.log(np.abs(mu) / np.abs(exact)), 0.0), 0.0)
+        life = np.where(kept < 1.0, 1.0 / (1.0 - kept), np.inf)
+    return err, decay, phase, growth, life, lam
 
 
 class Amplification:
@@ -115,7 +129,8 @@ class Amplification:
     def __init__(self, fun: Callable, method: str, positions: Sequence[int] = ()):
         self.fun, self.method, self.positions = fun, method, tuple(positions)
 
-    def check(self, t: float, y: Sequence[float], h: float) -> tuple[float, float, complex, tuple] | None:
+    def check(self, t: float, y: Sequence[float], h: float, steps: float = 0.0
+              ) -> tuple[float, float, complex, tuple] | None:
         J = jacobian(self.fun, t, y, h)
         if J is None:
             return None
@@ -126,7 +141,7 @@ class Amplification:
             rho = float(np.max(np.abs(eig))) if eig is not None else math.inf
         worst = lam[np.argmax(np.abs(POLYNOMIALS[self.method](h * lam)))] if self.method in POLYNOMIALS \
             else lam[np.argmax(np.abs(lam))]
-        return rho, exact, complex(worst), mode_errors(self.method, eig, lam, h)
+        return rho, exact, complex(worst), mode_errors(self.method, eig, lam, h, steps)
 
     def largest_stable_step(self, t: float, y: Sequence[float], h: float) -> float:
         """The largest step ≤ h (s) at which the method does not amplify at (t, y) (bisection on ρ(M) ≤ 1)."""

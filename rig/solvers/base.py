@@ -8,6 +8,8 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Sequence
+from numbers import Real
+from typing import Any
 
 import numpy as np
 
@@ -22,6 +24,52 @@ class SolverDivergence(RuntimeError):
         super().__init__(f"solver diverged: {what}; state at t = {t:.9g} s: ({state})")
         self.t = t
         self.y = tuple(y)
+
+
+RTOL_MIN = 100.0 * np.finfo(float).eps      # the tightest relative tolerance taken (scipy's floor)
+
+
+def check_step_options(name: str, rtol: Any, atol: Any, first_step: Any, max_step: Any) -> None:
+    """An adaptive method's options named when they cannot work (scipy's words where it has them): ``rtol`` and
+    ``atol`` real scalars, rtol > 0 and finite, atol > 0 and finite (with atol = 0 a component at 0 has no error scale);
+    ``max_step`` > 0 (inf: no limit); ``first_step`` None, 0 or NaN (chosen by Hairer's heuristic) or positive and
+    finite."""
+    for key, value in (("rtol", rtol), ("atol", atol), ("max_step", max_step)):
+        if isinstance(value, (bool, str, bytes)) or not isinstance(value, Real):
+            raise ValueError(f"{name}: {key} = {value!r} must be a real number (one for every component)")
+    if not RTOL_MIN <= rtol < math.inf:
+        raise ValueError(f"{name}: rtol = {rtol!r} must be finite and at least {RTOL_MIN:.3g} (100 ulp: no step meets "
+                         "a tighter one in double precision)")
+    if not 0.0 < atol < math.inf:
+        raise ValueError(f"{name}: atol = {atol!r} must be positive and finite (with atol = 0 a state component at 0 "
+                         "has no error scale)")
+    if not max_step > 0:
+        raise ValueError(f"{name}: max_step = {max_step!r} s must be positive (inf: no limit)")
+    if first_step is not None and (isinstance(first_step, (bool, str, bytes)) or not isinstance(first_step, Real)
+                                   or first_step < 0 or first_step == math.inf):
+        raise ValueError(f"{name}: first_step = {first_step!r} s must be positive and finite (None, 0 or NaN: chosen "
+                         "by Hairer's heuristic)")
+
+
+def rhs_not_finite(fun: Callable, t: float, y: Sequence[float], ahead: Sequence[float]) -> float | None:
+    """The first time t + a (a in ``ahead``, s) where the right-hand side at the state ``y`` is NaN, or infinite though
+    the state is of moderate size (|y| < 1e100: an overflow of a state near the float range is the solution's growth),
+    or raises an arithmetic error; else None: a step that failed there failed on the model, not the method."""
+    moderate = float(np.max(np.abs(y))) < 1e100
+    for a in ahead:
+        try:
+            f = np.asarray(fun(t + a, tuple(y)), dtype=float)
+        except (ArithmeticError, SolverDivergence):
+            return t + a if moderate else None
+        if np.isnan(f).any() or (moderate and not np.all(np.isfinite(f))):
+            return t + a
+    return None
+
+
+def not_finite_text(bad: float, t: float) -> str:
+    """What a step-size underflow at ``t`` is when the right-hand side is not finite at ``bad`` just past it."""
+    return (f"the right-hand side is not finite at t = {bad:.9g} s, just past t = {t:.9g} s (NaN or inf from the model "
+            f"there: outside its range, or a singularity) - check the model there")
 
 
 def all_finite(y: Sequence[float]) -> bool:
@@ -227,7 +275,9 @@ class StiffnessMonitor:
             k = self._next_check - first
             after = self._last_check - first + 1       # the steps since the last check: tested at the largest (a
             h_k = max(_largest(h[max(after, 0):k + 1]), self._h_since if after <= 0 else 0.0)   # check landing on a
-            got = self.watch.check(float(t[k]), tuple(y[k]), h_k)       # run's cut last step missed the full ones)
+            got = self.watch.check(float(t[k]), tuple(y[k]), h_k,    # run's cut last step missed the full ones);
+                                   self._steps_by_end(float(t[k])) if math.isfinite(self.horizon) else math.inf)
+            #                                                         the run's length unknown: no short-run test
             self.calls += len(y[k]) + 1
             self._accuracy(float(t[k]), h_k, got)
             since, self._last_check = self._next_check - self._last_check, self._next_check
@@ -270,7 +320,7 @@ class StiffnessMonitor:
         since, h = self._steps - 1 - self._last_check, self._h_since     # the steps after the one checked last
         if since <= 0 or not h > 0.0:
             return
-        got = self.watch.check(float(t), tuple(y), float(h))
+        got = self.watch.check(float(t), tuple(y), float(h), self._steps)
         self.calls += len(y) + 1
         self._accuracy(float(t), float(h), got)
         self._last_check = self._steps - 1
@@ -279,13 +329,18 @@ class StiffnessMonitor:
             if grown >= math.log(self.SPURIOUS):
                 self._report_amplification(float(t), tuple(y), float(h), got, grown)
 
+    def _steps_by_end(self, t: float) -> float:
+        """The steps the run will have taken by its end (:attr:`horizon`) at the pace so far, at time ``t``."""
+        t0 = self.origin[0] if self.origin is not None else t
+        return self._steps * (self.horizon - t0) / (t - t0) if self.horizon > t > t0 else self._steps
+
     def _accuracy(self, t: float, h: float, got) -> None:
         """The accuracy test on a check's persistent modes (see :data:`STEP_ERROR`): one warning per run naming the mode,
         its steps per period, what the method does to it, and a step that takes each of its faults to a tenth of its
         limit by the run's end."""
         if got is None or self.coarse is not None:
             return
-        err, decay, phase, life, lam = got[3]
+        err, decay, phase, growth, life, lam = got[3]
         if not err.size:
             return
         span = np.minimum(life, self._steps)
@@ -296,8 +351,12 @@ class StiffnessMonitor:
                   (decay * span, math.log(self.SPURIOUS), order - 1,
                    lambda v, n: f"a spurious decay to {math.exp(-v):.2g} of the mode over the {n:.0f} steps it has lived"),
                   (phase * span, self.PHASE, order - 1,
-                   lambda v, n: f"a phase error of {v:.2g} rad over the {n:.0f} steps it has lived")]
-        for values, limit, power, said in faults:
+                   lambda v, n: f"a phase error of {v:.2g} rad over the {n:.0f} steps it has lived"),
+                  # a growth short of the amplification test's report (SPURIOUS): that one says "unstable"
+                  (np.where(growth * span < math.log(self.SPURIOUS), growth * span, 0.0), self.PHASE, order - 1,
+                   lambda v, n: f"a spurious growth to {math.exp(v):.3g} times the mode over the {n:.0f} steps it has "
+                                f"lived (short of the {self.SPURIOUS:g}-fold the instability report needs)")]
+        for k, (values, limit, power, said) in enumerate(faults):
             if np.nanmax(values) >= limit:
                 i = int(np.nanargmax(values))
                 how = said(values[i], span[i])
@@ -306,16 +365,18 @@ class StiffnessMonitor:
             return
         # the advice: the step that takes every fault of that mode to a tenth of its limit (TARGET_ERROR /
         # STEP_ERROR), the summed ones as they will have grown by the run's end (horizon) at this step
-        t0 = self.origin[0] if self.origin is not None else t
-        steps_end = self._steps * (self.horizon - t0) / (t - t0) if self.horizon > t > t0 else self._steps
-        grow = [1.0] + [min(life[i], steps_end) / span[i] if span[i] > 0 else 1.0] * 2
+        steps_end = self._steps_by_end(t)
+        grow = [1.0] + [min(life[i], steps_end) / span[i] if span[i] > 0 else 1.0] * 3
         fix = min(h * (self.TARGET_ERROR / self.STEP_ERROR * limit / (values[i] * g)) ** (1.0 / power)
                   for (values, limit, power, _), g in zip(faults, grow) if values[i] * g > 0.0)
         mode = complex(lam[i])
+        growth_per_step = math.exp(min(h * mode.real, 700.0))
+        qualifier = ("" if k == 3 else f"the mode grows by {growth_per_step:.3g} per step, faster than the step "
+                     "resolves (a blow-up ahead?): " if growth_per_step > 1.0 + 1e-3 else "stable, but ")
         period = (f" (period {2 * math.pi / abs(mode.imag):.3g} s: {2 * math.pi / (h * abs(mode.imag)):.3g} steps "
                   f"per period)") if mode.imag else ""
         self.coarse = (f"{self.method} may be inaccurate from t = {t:.6g} s: at h = {h:.3g} s it steps the mode lambda "
-                       f"= {mode.real:.4g}{mode.imag:+.4g}j 1/s{period} with {how}: stable, but the answer is wrong "
+                       f"= {mode.real:.4g}{mode.imag:+.4g}j 1/s{period} with {how}: {qualifier}the answer is wrong "
                        f"wherever that mode shows - reduce h to about {fix:.2g} s or use an adaptive method (DP45, "
                        f"Tsit5)")
         warnings.warn(self.coarse, ResolutionWarning, stacklevel=6)

@@ -15,7 +15,8 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
-from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, all_finite
+from rig.solvers.base import (OdeSolver, Rhs, SolverDivergence, all_finite, check_step_options,
+                              not_finite_text, rhs_not_finite)
 from rig.solvers.dense import PolynomialDense
 from rig.solvers.rodas import fd_jacobian
 from rig.solvers.stepper import initial_step
@@ -42,13 +43,17 @@ class Rosenbrock23(OdeSolver):
                  atol: float = 1e-6, first_step: float | None = None, max_step: float = math.inf,
                  jac: Jac | None = None, stiffness: str = "ignore"):
         super().__init__(fun, t0, y0, t_bound)
-        if not (rtol > 0 and atol >= 0):
-            raise ValueError(f"Rosenbrock23: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
+        check_step_options("Rosenbrock23", rtol, atol, first_step, max_step)
         if stiffness not in ("warn", "raise", "ignore"):
             raise ValueError(f"Rosenbrock23: stiffness = {stiffness!r} must be 'warn', 'raise' or 'ignore'")
         self.rtol, self.atol, self.max_step, self.jac = rtol, atol, max_step, jac
         self.f = np.array(fun(self.t, self.y), dtype=float)
         self.nfev, self.njev = 1, 0
+        if self.f.shape != (len(self.y),):
+            raise ValueError(f"Rosenbrock23: the right-hand side returned {self.f.size} components at the start for a "
+                             f"state of {len(self.y)}")
+        if not np.all(np.isfinite(self.f)):
+            raise SolverDivergence("non-finite derivatives at the start", self.t, self.y)
         if first_step is None or not first_step > 0:
             self.h_abs = initial_step(fun, self.t, self.y, tuple(self.f), 2, rtol, atol, self.t_bound)
             self.nfev += 1
@@ -70,8 +75,12 @@ class Rosenbrock23(OdeSolver):
         h_abs = min(self.h_abs, self.max_step)
         min_step = self._min_step()
         while True:
-            if h_abs < min_step:
-                raise SolverDivergence(f"Rosenbrock23 step size underflow (h = {h_abs:.3g} s)", t, self.y)
+            if not h_abs >= min_step:
+                bad = rhs_not_finite(fun, t, self.y, (max(h_abs, min_step), 1e-7 * max(1.0, abs(t))))
+                raise SolverDivergence(f"Rosenbrock23 step size underflow (h = {h_abs:.3g} s): " + (
+                    not_finite_text(bad, t) if bad is not None else "the error estimate keeps rejecting the step - "
+                    "the solution may blow up here (a finite-time singularity) or the right-hand side jump just "
+                    "beyond it"), t, self.y)
             h = h_abs
             t_new = t + h
             if t_new >= self.t_bound:

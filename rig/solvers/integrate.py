@@ -35,7 +35,7 @@ import inspect
 import math
 from dataclasses import dataclass, field
 from functools import cache
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from scipy.optimize import brentq
@@ -74,7 +74,7 @@ class Event:
     """Event function g(t, y) whose zeros are located.
 
     ``direction`` > 0 / < 0 keeps only rising / falling crossings (leaving g = 0 in that direction
-    counts); without one, a sign change or reaching g = 0 counts, leaving g = 0 does not (a root exactly at the span's
+    counts, and so does reaching it at the span's end, as in scipy); without one, a sign change or reaching g = 0 counts, leaving g = 0 does not (a root exactly at the span's
     start, or where a restart left g, is not recorded: give a direction to count it — unlike scipy, which records
     it). Two roots inside one step (g of one sign at both ends) are not seen, as in scipy: bound the step
     (``max_step``) where such pairs matter; ``terminal`` stops the integration; ``restart`` restarts the solver at the event (RHS
@@ -215,6 +215,24 @@ def _left_zero(g: Callable[[float, tuple], float], dense: Callable, t_old: float
     return t_old, 0.0
 
 
+def _finite(events: Sequence[Event], g: Sequence[float], t: float, y: tuple) -> Sequence[float]:
+    """The event values ``g`` at (t, y), or a :class:`SolverDivergence` naming an event whose value is not finite (its
+    zeros are found by sign changes: a NaN would hide every one)."""
+    for e, v in zip(events, g):
+        if not math.isfinite(v):
+            raise SolverDivergence(f"event {e.name!r} returned {v} at t = {t:.9g} s: an event function must be finite "
+                                   "(its zeros are found by sign changes)", t, y)
+    return g
+
+
+def _state(y0: Any) -> tuple[float, ...]:
+    """An initial state as a tuple of floats: a non-empty sequence of real numbers, named when it is not."""
+    arr = np.asarray(y0, dtype=float) if not isinstance(y0, (str, bytes)) else np.empty((0, 0))
+    if arr.ndim != 1 or not arr.size:
+        raise ValueError(f"integrate: y0 = {y0!r} must be a non-empty sequence of numbers (one per state component)")
+    return tuple(float(v) for v in arr)
+
+
 def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[OdeSolver] = "DP45",
               events: Sequence[Event] | None = None, t_eval: Sequence[float] | None = None,
               y0: Sequence[float] | None = None, **options) -> Solution:
@@ -230,7 +248,9 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     if not (math.isfinite(t0) and math.isfinite(tf) and tf > t0):
         raise ValueError(f"integrate: t_span = ({t0}, {tf}) must be two finite times, the end after the start (s)")
     fun = problem.fun
-    y = tuple(float(v) for v in (problem.y0 if y0 is None else y0))
+    y = _state(problem.y0 if y0 is None else y0)
+    if y0 is not None and len(y) != len(problem.y0):        # a compiled kernel would read and write past it
+        raise ValueError(f"integrate: y0 has {len(y)} components, the problem's state {len(problem.y0)}")
     cls = METHODS[method] if isinstance(method, str) else method
     _check_options(cls, options)
     if problem.positions and issubclass(cls, SymplecticEuler) and "nq" not in options and "positions" not in options:
@@ -253,7 +273,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     t = t0
     reset = problem.reset or (lambda t_, y_: False)
     reset(t, y)
-    g_old = [e.fun(t, y) for e in events]
+    g_old = _finite(events, [e.fun(t, y) for e in events], t, y)
     stalled, t_last_cut, stiff_at = 0, math.nan, None
     monitor = None
     records: list[EventRecord] = []
@@ -310,14 +330,15 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
             hits = []
             simultaneous: set[int] = set()
             if events:
-                g_new = values(t_new, y_new)
+                g_new = _finite(events, values(t_new, y_new), t_new, y_new)
                 for i, e in enumerate(events):
                     a, b = g_old[i], g_new[i]
                     t_from = t_old
                     if a == 0.0 and i in at_zero and b != 0.0:   # a new crossing only if g left zero first
                         t_from, a = _left_zero(e.fun, dense := dense or solver.dense_output(), t_old, t_new, b)
-                    if e.direction:
-                        if not (b < 0.0 <= a if e.direction < 0 else a <= 0.0 < b):
+                    if e.direction:              # reaching zero at the span's end: no later step sees it leave
+                        on_end = b == 0.0 and t_new >= tf and (a < 0.0 if e.direction > 0 else a > 0.0)
+                        if not (on_end or (b < 0.0 <= a if e.direction < 0 else a <= 0.0 < b)):
                             continue
                         rising = e.direction > 0
                     elif a * b < 0 or (b == 0.0 and a != 0.0):
@@ -420,7 +441,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                 break
             t = math.nextafter(t, math.inf)
             if reset(t, y):
-                g_old = [e.fun(t, y) for e in events]
+                g_old = _finite(events, [e.fun(t, y) for e in events], t, y)
         elif cut[2]:
             status = "terminated"
             break

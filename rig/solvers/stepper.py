@@ -16,7 +16,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from rig.solvers.base import OdeSolver, Rhs, SolverDivergence, StiffnessError, StiffnessMonitor, all_finite, lipschitz
+from rig.solvers.base import (OdeSolver, Rhs, SolverDivergence, StiffnessError, StiffnessMonitor, all_finite,
+                              check_step_options, lipschitz, not_finite_text, rhs_not_finite)
 from rig.solvers.amplification import Amplification
 from rig.solvers.control import step_factor
 from rig.solvers.compiled import (FAIL, H, H_ABS, HL, IE, NBREAK, NEV, NFEV, T, T_BOUND, JitRhs, compiled_solver,
@@ -76,6 +77,9 @@ class Stepper(OdeSolver):
         if not math.isfinite(self.limit):             # implicit: stable on any stiff decay, nothing to report
             self.monitor.policy = "ignore"
         self.f = tuple(fun(self.t, self.y))
+        if len(self.f) != len(self.y):
+            raise ValueError(f"{self.label}: the right-hand side returned {len(self.f)} components at the start for a "
+                             f"state of {len(self.y)}")
         if not all_finite(self.f):
             if isinstance(fun, JitRhs):
                 fun.fail(self.t, self.y, "non-finite derivatives at the start")
@@ -148,21 +152,16 @@ class Stepper(OdeSolver):
             why = self.fun.diagnose()
             if why:
                 return SolverDivergence(f"{what}: {why}", t, y)
-        nudge = t + max(abs(h), 4.0 * np.finfo(float).eps * max(1.0, abs(t)))
-        try:
-            finite = all_finite(self.fun(nudge, tuple(y)))
-        except (ArithmeticError, SolverDivergence):
-            finite = False
-        if not finite:
-            return SolverDivergence(f"{what}: the right-hand side is not finite just past t = {t:.9g} s (NaN or inf "
-                                    f"from the model there: outside its range, or a singularity) - check the model "
-                                    f"there", t, y)
+        bad = rhs_not_finite(self.fun, t, y, (max(abs(h), 4.0 * np.finfo(float).eps * max(1.0, abs(t))),
+                                              1e-7 * max(1.0, abs(t))))
+        if bad is not None:
+            return SolverDivergence(f"{what}: {not_finite_text(bad, t)}", t, y)
+        other = "" if self.label == "Rodas4" else ", or try the implicit method Rodas4"
         return SolverDivergence(f"{what}: the right-hand side is finite at the last state (|y| = "
                                 f"{float(np.max(np.abs(y))):.3g}), yet no step from it passes the error test — the "
-                                f"solution may blow up there (a finite-time singularity), the right-hand side may be "
-                                f"non-finite or jump just beyond it (where a trial step lands), or the problem is too "
-                                f"stiff for {self.label} - check the model there, or try the implicit method Rodas4",
-                                t, y)
+                                f"solution may blow up there (a finite-time singularity), the right-hand side may "
+                                f"jump just beyond it (where a trial step lands), or the problem is too stiff for "
+                                f"{self.label} - check the model there{other}", t, y)
 
     def diverged(self, t: float, y: Sequence[float], h: float, last: tuple | None = None,
                  what: str = "non-finite state after a step") -> SolverDivergence:
@@ -197,6 +196,11 @@ class Stepper(OdeSolver):
                      f"Rodas4, unless the model itself diverges")
         else:
             cause = "the model itself diverges"
+        bad = None if last is None else rhs_not_finite(self.fun, last[0], last[1], (0.0, 0.5 * h, h))
+        if bad is not None:                  # the model, not the method: say so before any stability diagnosis
+            cause = (f"the right-hand side is not finite at t = {bad:.9g} s at the last finite state (NaN or inf from "
+                     f"the model there: outside its range, or a singularity) - check the model there")
+            hl = -math.inf
         why = self.fun.diagnose() if isinstance(self.fun, JitRhs) else None
         kind = StiffnessError if hl > lim else SolverDivergence      # unstable step: the stiffness report's class
         return kind(f"{self.label} diverged: {what} of h = {h:.3g} s; {cause}"
@@ -328,13 +332,7 @@ class AdaptiveStepper(Stepper):
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float, rtol: float = 1e-6,
                  atol: float = 1e-9, first_step: float | None = None, max_step: float = math.inf,
                  stiffness: str | None = None, compiled: bool = True):
-        if not (rtol > 0 and atol >= 0):
-            raise ValueError(f"{type(self).__name__}: need rtol > 0 and atol >= 0, got rtol={rtol}, atol={atol}")
-        if not max_step > 0:
-            raise ValueError(f"{type(self).__name__}: max_step = {max_step!r} s must be positive (inf: no limit)")
-        if first_step is not None and (first_step < 0 or first_step == math.inf):
-            raise ValueError(f"{type(self).__name__}: first_step = {first_step!r} s must be positive and finite "
-                             f"(None, 0 or NaN: chosen by Hairer's heuristic)")
+        check_step_options(type(self).__name__, rtol, atol, first_step, max_step)
         super().__init__(fun, t0, y0, t_bound, self.default_stiffness if stiffness is None else stiffness, compiled)
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
         if first_step is None or not first_step > 0:          # None, 0, NaN (a run's h_last before any step)
@@ -347,7 +345,7 @@ class AdaptiveStepper(Stepper):
     def _trial(self, h_abs: float) -> tuple[float, float]:
         """(h, t_new) of a trial step of size ``h_abs`` from ``t``, cut to land on t_bound; a step-size underflow
         raises :class:`SolverDivergence`."""
-        if h_abs < self._min_step():
+        if not h_abs >= self._min_step():                  # NaN too: it never ends a loop otherwise
             raise self.underflow(self.t, self.y, h_abs)
         t_new = self.t + h_abs
         if t_new >= self.t_bound:
@@ -393,8 +391,8 @@ class FixedStepper(Stepper):
                  first_step: float | None = None, stiffness: str = "raise", compiled: bool = True,
                  positions: Sequence[int] = ()):
         super().__init__(fun, t0, y0, t_bound, stiffness, compiled)
-        if not h > 0:
-            raise ValueError(f"{self.label}: step h = {h!r} s must be positive")
+        if not 0 < h < math.inf:
+            raise ValueError(f"{self.label}: step h = {h!r} s must be positive and finite")
         self.h = h
         self._start(h, positions=positions)
         self.monitor.watch = Amplification(fun, self.method, positions)
@@ -437,7 +435,7 @@ class FixedStepper(Stepper):
             h, t_new = self.t_bound - t, self.t_bound
         else:
             t_new = t + h
-        if h < self._min_step():
+        if not h >= self._min_step():
             raise SolverDivergence(f"{self.label}: step size underflow (h = {h:.3g} s): the span to t_bound = "
                                    f"{self.t_bound!r} s is shorter than 10 ulp (two time breaks or events that "
                                    "close: merge them in the problem)", t, self.y)

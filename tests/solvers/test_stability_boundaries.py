@@ -126,8 +126,14 @@ def test_a_run_too_short_for_the_periodic_checks_is_still_tested_at_its_end(meth
     with pytest.raises(SolverDivergence, match=r"unstable at t = .* by .* per step"):
         integrate(problem, (0.0, steps * hl / 1000.0), method=method, h=hl / 1000.0)
     inside = 2.5 if method == "RK4" else 1.5
-    sol = integrate(problem, (0.0, steps * inside / 1000.0), method=method, h=inside / 1000.0)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        sol = integrate(problem, (0.0, steps * inside / 1000.0), method=method, h=inside / 1000.0)
     assert abs(sol.y[0, -1]) < 1.0
+    # warned as inaccurate where 5 % of the mode is left at the end against the exact e^{-2.5·steps}: RK4's one step
+    left = abs(sol.y[0, -1])
+    warned = any("may be inaccurate" in str(w.message) for w in said)
+    assert warned == (left >= 0.05) and warned == ((method, steps) == ("RK4", 1))
 
 
 def test_the_end_of_run_check_judges_the_steps_taken_not_the_nominal_h():
@@ -192,9 +198,9 @@ def test_the_periodic_and_end_checks_count_the_steps_since_the_one_checked_last(
         def __init__(self, grows):
             self.grows, self.h = grows, []
 
-        def check(self, t, y, h):
+        def check(self, t, y, h, steps=0.0):
             self.h.append(h)
-            modes = (np.empty(0),) * 5                  # no persistent mode for the accuracy test
+            modes = (np.empty(0),) * 6                  # no persistent mode for the accuracy test
             return (math.exp(0.4), 1.0, 1j, modes) if self.grows and t > 12.5 else (1.0, 1.0, 1j, modes)
 
     h = [2.0] + [1.0] * 11

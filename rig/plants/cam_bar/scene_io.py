@@ -103,13 +103,14 @@ def read_speed_profile(scene: Scene) -> SpeedProfile:
     return read_speed(scene.section("speed"), f"{scene.path} [speed]")
 
 
-def require_cam_bar(scene: Scene, command: str) -> None:
-    """A :class:`SceneError` saying that ``command`` (e.g. "rig tolerance") needs a cam-bar scene, for a scene of
-    another plant (before its [plant] keys are read as the cam-bar's and found unknown)."""
+def require_cam_bar(scene: Scene, command: str, also: str = "") -> None:
+    """A :class:`SceneError` saying that ``command`` (e.g. "rig tolerance") needs a cam-bar scene (``also``: what else
+    it takes, e.g. 'or a lab_bench scene of kind "cam"'), for a scene of another plant (before its [plant] keys are
+    read as the cam-bar's and found unknown)."""
     plant = scene.section("scene").get("plant", "cam_bar")
     if plant != "cam_bar":
-        raise SceneError(f"{command} needs plant \"cam_bar\" in [scene] (a cam-bar scene such as pin_insertion.toml); "
-                         f"{scene.path} is a {plant!r} scene")
+        raise SceneError(f"{command} needs plant \"cam_bar\" in [scene] (a cam-bar scene such as pin_insertion.toml)"
+                         f"{' ' + also if also else ''}; {scene.path} is a {plant!r} scene")
 
 
 def require_level2(scene: Scene, command: str) -> None:

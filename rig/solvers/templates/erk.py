@@ -27,7 +27,7 @@ def one_step(t, h_abs, w, y, y_new, K, p, ws):
     rejected = False
     nfev = 0
     while True:
-        if h_abs < h_min:
+        if not h_abs >= h_min:      # NaN too
             return UNDERFLOW, t, h_abs, h_abs, nfev, 0.0
         h, t_new = trial(t, h_abs, t_bound)
         for s in range(1, N_STAGES):

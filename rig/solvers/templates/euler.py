@@ -18,7 +18,7 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 def one_step(t, h_abs, w, y, y_new, K, p, ws):
     """y_new = y + h·f(t, y), fixed h (the last step lands on t_bound; see :mod:`runs`)."""
     h, t_new = fixed_step(t, h_abs, w[T_BOUND])
-    if h < min_step(t):
+    if not h >= min_step(t):
         return UNDERFLOW, t, h, h_abs, 0, 0.0
     for i in range(y.size):
         y_new[i] = y[i] + h * K[0, i]

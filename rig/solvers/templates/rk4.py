@@ -17,7 +17,7 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 def one_step(t, h_abs, w, y, y_new, K, p, ws):
     """One fixed step of size h_abs (the last one lands on t_bound; see :mod:`runs`); stage states in ws[0:3]."""
     h, t_new = fixed_step(t, h_abs, w[T_BOUND])
-    if h < min_step(t):
+    if not h >= min_step(t):
         return UNDERFLOW, t, h, h_abs, 0, 0.0
     n = y.size
     hh = 0.5 * h

@@ -78,7 +78,7 @@ def one_step(t, h_abs, w, y, y_new, K, p, ws):
     h_min = min_step(t)
     rejected = False
     while True:
-        if h_abs < h_min:
+        if not h_abs >= h_min:      # NaN too
             return UNDERFLOW, t, h_abs, h_abs, nfev, 0.0
         h, t_new = trial(t, h_abs, t_bound)
         for i in range(n):

@@ -20,7 +20,7 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 def one_step(t, h_abs, w, y, y_new, K, p, ws):
     """Kick v_new = v + h·f_v(t, q, v), drift q_new = q + h·f_q(t, q, v_new); fixed h (see :mod:`runs`)."""
     h, t_new = fixed_step(t, h_abs, w[T_BOUND])
-    if h < min_step(t):
+    if not h >= min_step(t):
         return UNDERFLOW, t, h, h_abs, 0, 0.0
     mask = int(w[QMASK])
     for i in range(y.size):

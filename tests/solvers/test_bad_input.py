@@ -1,0 +1,96 @@
+"""Input no method can work with, and failures of the model rather than the method, named as such — never a hang, a
+silent wrong answer or another method's words (cases from an independent audit against scipy's solve_ivp)."""
+import math
+
+import pytest
+
+from rig.solvers import METHODS, Event, Problem, SolverDivergence, integrate
+from rig.solvers.implicit import Rosenbrock23
+
+ADAPTIVE = ("DP45", "Tsit5", "DOP853", "Rodas4")
+FIXED = ("Euler", "SymplecticEuler", "RK4")
+DECAY = Problem(lambda t, y: (-y[0],), (1.0,))
+OSCILLATOR = Problem(lambda t, y: (y[1], -y[0]), (1.0, 0.0))       # two states: symplectic Euler too
+
+
+def _options(method: str) -> dict:
+    return {"h": 1e-3} if method in FIXED else {"rtol": 1e-8, "atol": 1e-10}
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("method", ADAPTIVE)
+@pytest.mark.parametrize("rtol, atol, said", [
+    (math.inf, 1e-9, "rtol = inf must be finite"),          # hung: a NaN first step passed the underflow test
+    (1e-20, 1e-9, "rtol = 1e-20 must be finite and at least 2.22e-14"),
+    (1e-6, 0.0, "atol = 0.0 must be positive and finite"),
+    (1e-6, math.inf, "atol = inf must be positive and finite"),
+    (1e-6, [1e-9, 1e-9], "atol = [1e-09, 1e-09] must be a real number"),
+])
+def test_tolerances_no_step_can_meet_are_named(method, rtol, atol, said):
+    with pytest.raises(ValueError, match=re_escape(said)):
+        integrate(DECAY, (0.0, 1.0), method, rtol=rtol, atol=atol)
+
+
+def re_escape(text: str) -> str:
+    import re
+    return re.escape(text)
+
+
+@pytest.mark.timeout(60)
+def test_rosenbrock23_checks_as_the_others_and_never_hangs():
+    nan = Problem(lambda t, y: (math.nan,), (1.0,))
+    with pytest.raises(SolverDivergence, match="non-finite derivatives at the start"):
+        integrate(nan, (0.0, 1.0), Rosenbrock23)
+    for options, said in (({"first_step": -1.0}, "first_step = -1.0 s must be positive"),
+                          ({"max_step": 0.0}, "max_step = 0.0 s must be positive"),
+                          ({"first_step": math.inf}, "first_step = inf s must be positive and finite"),
+                          ({"rtol": math.inf}, "rtol = inf must be finite")):
+        with pytest.raises(ValueError, match=re_escape(said)):
+            integrate(DECAY, (0.0, 1.0), Rosenbrock23, **options)
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_a_right_hand_side_of_the_wrong_length_is_named(method):
+    """Euler, RK4 and symplectic Euler shrank the state to one component (zip), DP45 and Tsit5 said 'not enough values
+    to unpack'."""
+    short = Problem(lambda t, y: (-y[0],), (1.0, 5.0))
+    with pytest.raises(ValueError, match="returned 1 components at the start for a state of 2"):
+        integrate(short, (0.0, 1.0), method, **_options(method))
+
+
+def test_an_initial_state_that_does_not_fit_the_problem_is_named():
+    """A compiled kernel read and wrote past a shorter or longer state (the process aborted at exit)."""
+    for y0 in ((1.0,), (1.0, 0.0, 0.0)):
+        with pytest.raises(ValueError, match=f"y0 has {len(y0)} components, the problem's state 2"):
+            integrate(Problem(lambda t, y: (y[1], -y[0]), (1.0, 0.0)), (0.0, 1.0), y0=y0)
+    for y0 in ((), [[1.0, 2.0]], "1.0"):
+        with pytest.raises(ValueError, match="must be a non-empty sequence of numbers"):
+            integrate(DECAY, (0.0, 1.0), y0=y0)
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_a_directional_event_reaching_zero_at_the_spans_end_is_recorded(method, direction):
+    """g = ±(t − 1) on (0, 1): scipy records t = 1 and stops; it was lost (no later step to see g leave zero)."""
+    event = Event(lambda t, y: direction * (t - 1.0), "end", direction=direction, terminal=True)
+    sol = integrate(OSCILLATOR, (0.0, 1.0), method, events=[event], **_options(method))
+    assert sol.t_events.get("end") == [1.0] and sol.status == "terminated"
+
+
+@pytest.mark.parametrize("method", ("DP45", "RK4"))
+def test_an_event_function_returning_nan_is_named(method):
+    event = Event(lambda t, y: math.nan if t > 0.3 else 1.0, "broken")
+    with pytest.raises(SolverDivergence, match="event 'broken' returned nan at t = 0.3"):
+        integrate(OSCILLATOR, (0.0, 1.0), method, events=[event], **_options(method))
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_a_right_hand_side_turning_nan_is_blamed_not_the_method(method):
+    """NaN from t = 0.5: the fixed-step methods said 'h*|lambda| = 0.01 … reduce h', Rodas4 'too stiff for Rodas4 …
+    try the implicit method Rodas4'."""
+    nan_late = Problem(lambda t, y: (y[1], math.nan if t >= 0.5 else -y[0]), (1.0, 0.0))
+    with pytest.raises(SolverDivergence) as info:
+        integrate(nan_late, (0.0, 1.0), method, **_options(method))
+    said = str(info.value)
+    assert "the right-hand side is not finite at t = 0.5" in said and "Rodas4 - check" not in said
+    assert "try the implicit method Rodas4" not in said or method != "Rodas4"
