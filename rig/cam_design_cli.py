@@ -27,6 +27,9 @@ def cmd_cam_design(args: argparse.Namespace) -> int:
         options["load_coefficient"] = args.load_coefficient
     scene = load_scene(args.scene)
     if scene.section("scene").get("plant") == "lab_bench" and scene.section("plant").get("kind") == "cam":
+        if args.low_speed:
+            raise ValueError("--low-speed picks the oscillating follower's 45° limit; a lab cam's translating follower "
+                             "has one limit, 30°")
         design = _lab_cam_design(scene, options)
     else:
         require_cam_bar(scene, "rig cam-design", 'or a lab_bench scene of kind "cam" (lab_cam.toml)')

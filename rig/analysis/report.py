@@ -43,7 +43,7 @@ from rig.recorder import Recording, read_recording
 from rig.recorder.completeness import file_problem, losses
 from rig.recorder.reader import interruption_text
 from rig.recorder.schemas import TRUTH
-from rig.recorder.series import held_text
+from rig.recorder.series import KEPT_BYTES, held_text
 
 MANIFEST = ".mechrig-report"    # in a report directory: the files the last report wrote there
 NOK_ROWS = 60         # rows of the "what failed and why" table (all of them are in results.csv)
@@ -643,11 +643,20 @@ def overview(ctx: ReportContext) -> list[Block]:
         blocks += [Text("Warning: this recording is incomplete; the report shows what it holds.", "warning"),
                    Table(["what is incomplete or lost"], [[line] for line in lost])]
     if rec.series_beyond:
-        blocks += [Text("Read in bounded memory: the charts and analyses of these topics cover the span held; the "
-                        "exports hold every sample."),
+        cut = min(b.t_first for b in rec.series_beyond.values())
+        blocks += [Text(f"Read in bounded memory: every series is held up to t = {cut:.6g} s, where one topic's arrays "
+                        f"reached {KEPT_BYTES / 2**20:g} MiB; the charts and analyses of these topics cover that span."),
                    Table(["topic beyond the memory held"],
-                         [[held_text(t, rec.series.get(t, {}), b)] for t, b in rec.series_beyond.items()])]
+                         [[held_text(t, rec.series.get(t, {}), b, series_export_name(rec, t))]
+                          for t, b in rec.series_beyond.items()])]
     return blocks
+
+
+def series_export_name(rec: Recording, topic: str) -> str | None:
+    """The file the report's exports write a series topic to (every sample), or None where it is not exported."""
+    if topic.startswith("/stand/"):
+        return "stand_" + topic.removeprefix("/stand/") + ".csv"
+    return "plant_truth.csv" if topic == TRUTH and not rec.curves else None
 
 
 def _complete(rec: Recording) -> str:
@@ -671,18 +680,20 @@ def exports(ctx: ReportContext) -> list[Block]:
                       "one row per curve: OK/NOK, failed elements and why, completeness, process values"))
     files += ctx.exported                               # written by the sections (events.csv), not a stale copy
     units = ctx.main_units
-    for topic, data in rec.series.items():
-        if topic.startswith("/stand/") and "t" in data and len(data["t"]):
-            name = "stand_" + topic.removeprefix("/stand/") + ".csv"
+    for topic in [*rec.series, *(t for t in rec.series_beyond if t not in rec.series)]:    # one held or not
+        name = series_export_name(rec, topic)
+        data = next(rec.series_blocks(topic), {}) if topic.startswith("/stand/") and name else {}
+        if "t" in data and len(data["t"]):
             codes = ""
             if "speed_method" in data:
                 from drivers.encoder import METHOD_NAMES
                 codes = "; speed_method: " + ", ".join(f"{k} {v}" for k, v in sorted(METHOD_NAMES.items()))
             files.append((export_series(rec.series_blocks(topic), ctx.out_dir / name, units, topic),
                           f"{topic}: one row per reading ({', '.join(k for k in data if k != 't')}){codes}"))
-    truth = rec.truth
-    if not rec.curves and truth and "t" in truth and len(truth["t"]):   # a stand or lab run: what the plant did (the
-        files.append((export_series(rec.series_blocks(TRUTH), ctx.out_dir / "plant_truth.csv", units),  # loads too)
+    name = series_export_name(rec, TRUTH)                # a stand or lab run: what the plant did (the loads too)
+    truth = next(rec.series_blocks(TRUTH), {}) if name else {}
+    if "t" in truth and len(truth["t"]):
+        files.append((export_series(rec.series_blocks(TRUTH), ctx.out_dir / name, units),
                       f"/plant/truth: one row per model sample ({', '.join(k for k in truth if k != 't')})"))
     return [Heading("Exports"), Table(["file", "contents"], [[Link(f.name, f.name), what] for f, what in files])
             ] if files else []

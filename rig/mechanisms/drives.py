@@ -83,7 +83,7 @@ class FrictionWheels:
         if not (self.d1 > 0 and self.d2 > 0 and self.mu > 0 and self.safety >= 1):
             raise ValueError(f"FrictionWheels: diameters and mu must be positive and safety >= 1, got "
                              f"d1 = {self.d1!r}, d2 = {self.d2!r}, mu = {self.mu!r}, safety = {self.safety!r}")
-        if not 0 <= finite(self.slip, "Belt slip") < 1:
+        if not 0 <= self.slip < 1:
             raise ValueError(f"FrictionWheels slip is a fraction in [0, 1), got {self.slip!r}")
 
     @property

@@ -128,11 +128,6 @@ class SpurGearPair:
             if s_a <= 0:
                 raise ValueError(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has a pointed tooth "
                                  f"(tip thickness {s_a * 1e3:.3f} mm)")
-            if s_a < TIP_THICKNESS_MIN * m:
-                warnings.warn(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has a nearly pointed tooth: tip "
-                              f"thickness {s_a * 1e3:.4g} mm = {s_a / m:.3g}·m, below the usual {TIP_THICKNESS_MIN:g}·m "
-                              "(design practice asks 0.2–0.4·m); a smaller shift thickens the tip",
-                              ThinToothWarning, stacklevel=2)
         # Meshing interference: gear j's tip meets gear i at T1T2 − tip_j from T_i (T1T2 = a·sin α_w); before
         # form_i it cuts into the fillet, before T_i into the base circle, where there is no involute.
         line = a * sin(aw)
@@ -156,5 +151,11 @@ class SpurGearPair:
             raise ValueError(f"SpurGearPair: contact ratio {eps:.3f} < 1 (the teeth lose mesh): the profile shifts "
                              f"x1 = {x1:g}, x2 = {x2:g} (sum {x1 + x2:g}) spread the gears to a working pressure angle "
                              f"of {degrees(aw):.1f}°; a smaller shift sum keeps them in mesh")
+        for i, ((z, x), s_a) in enumerate(zip(gears, tips)):        # valid, but nearly pointed: said once it is valid
+            if s_a < TIP_THICKNESS_MIN * m:
+                warnings.warn(f"SpurGearPair: gear {i + 1} ({z} teeth, x = {x:g}) has a nearly pointed tooth: tip "
+                              f"thickness {s_a * 1e3:.4g} mm = {s_a / m:.3g}·m, below the usual {TIP_THICKNESS_MIN:g}·m "
+                              "(design practice asks 0.2–0.4·m); a smaller shift thickens the tip",
+                              ThinToothWarning, stacklevel=2)
         return GearGeometry(aw, a, a_ref, ym, km, d, db, dw, da, df, s, eps, tuple(tips))
 

@@ -218,6 +218,7 @@ class Collector:
         rec.series_store = None if path is None else MessageStore(path, stamp, decode_block, "series")
         self.kept = 0                                       # bytes of curve arrays held
         self.series_kept: dict[str, int] = defaultdict(int)     # bytes of each topic's series held
+        self.series_cut: float | None = None            # the time (s) every series topic is held up to (see _series)
         self.can_end = -math.inf                            # the last /can/raw frame's time (s)
         self.channels: dict[int, str] = {}
         self.blocks: dict[str, list[dict[str, np.ndarray]]] = defaultdict(list)
@@ -270,15 +271,19 @@ class Collector:
             self.last_log_ns = max(self.last_log_ns, record.log_time)
 
     def _series(self, topic: str, block: dict[str, np.ndarray], where: tuple[int, int] | None) -> None:
-        """A bulk block held, or — once its topic's held bytes would pass the budget — noted where it is in the file
-        (``where``: its chunk's offset and place; None: held whatever its size)."""
+        """A bulk block held, or noted where it is in the file (``where``: its chunk's offset and place; None: held
+        whatever its size). Every topic is cut at one time, so that analyses joining topics see the same span: the
+        first block of any topic whose held bytes would pass the budget sets it (``series_cut``, its first sample's
+        time); from then on a block of any topic starting there or later is noted, not held (:meth:`finish` trims
+        what the held ones hold past it)."""
         size = bulk.block_bytes(block)
-        beyond = self.rec.series_beyond.get(topic)
+        t = block.get("t")
+        first = float(t[0]) if t is not None and t.size else -math.inf
         kept = self.series_kept[topic]                  # a topic's first block is held whatever its size
-        if where is not None and (beyond is not None or 0 < kept and kept + size > bulk.KEPT_BYTES):
-            if beyond is None:
-                beyond = self.rec.series_beyond[topic] = bulk.Beyond()
-            beyond.add(self.rec.series_store.place(*where), block)
+        if where is not None and self.series_cut is None and 0 < kept and kept + size > bulk.KEPT_BYTES:
+            self.series_cut = first
+        if where is not None and self.series_cut is not None and first >= self.series_cut:
+            self.rec.series_beyond.setdefault(topic, bulk.Beyond()).add(self.rec.series_store.place(*where), block)
         else:
             self.series_kept[topic] += size
             self.blocks[topic].append(block)
@@ -301,6 +306,13 @@ class Collector:
             for k in list(blocks[0]):
                 series[k] = np.concatenate([b.pop(k) for b in blocks])
             blocks.clear()
+            if self.series_cut is not None and "t" in series:      # the held part past the common cut: its tail
+                n = int(np.searchsorted(series["t"], self.series_cut, side="left"))
+                if n < series["t"].size:
+                    self.rec.series_beyond.setdefault(topic, bulk.Beyond()).set_tail(
+                        {k: v[n:].copy() for k, v in series.items()})
+                    for k in series:
+                        series[k] = series[k][:n].copy()
         if self.can:
             self.rec.can_frames = _can(self.can)
         # a block's log time is its first sample's: its samples (and a CAN block's frames) reach further

@@ -23,8 +23,8 @@ CACHED_CHUNKS = 2           # chunks whose noted messages a store holds decoded 
 class MessageStore:
     """Messages of one recording file read again on demand: ``place(chunk_offset, index)`` notes a message (the chunk
     record's byte offset, the message's place among the chunk's records) and returns its key; ``get(key)`` reads it
-    back, ``decode(data)`` of its bytes (the whole chunk's noted messages decoded at once, :data:`CACHED_CHUNKS`
-    chunks kept). ``what`` names the messages in errors. The file must not change after it was read: a
+    back, ``decode(data)`` of its bytes (its chunk read once, each message decoded when first asked for — a store shared
+    by several topics decodes only the topic read —, :data:`CACHED_CHUNKS` chunks kept). ``what`` names the messages in errors. The file must not change after it was read: a
     :class:`~rig.recorder.errors.RecordingError` says so if it did."""
 
     def __init__(self, path: Path, stamp: tuple[int, int], decode: Callable[[bytes], Any], what: str):
@@ -33,28 +33,29 @@ class MessageStore:
         #                                                               # mtime_ns) when it was read
         self.decode, self.what = decode, what
         self._places: list[tuple[int, int]] = []
-        self._in_chunk: dict[int, list[int]] = {}       # chunk offset -> indices of its noted messages
-        self._cache: OrderedDict[int, dict[int, Any]] = OrderedDict()
+        self._cache: OrderedDict[int, tuple[list, dict[int, Any]]] = OrderedDict()   # chunk: records, decoded
         self._lock = threading.Lock()
 
     def place(self, chunk: int, index: int) -> int:
         self._places.append((chunk, index))
-        self._in_chunk.setdefault(chunk, []).append(index)
         return len(self._places) - 1
 
     def get(self, key: int) -> Any:
         chunk, index = self._places[key]
         with self._lock:
-            decoded = self._cache.get(chunk)
-            if decoded is None:
-                decoded = self._cache[chunk] = self._read(chunk)
+            cached = self._cache.get(chunk)
+            if cached is None:
+                cached = self._cache[chunk] = (self._read(chunk), {})
                 while len(self._cache) > CACHED_CHUNKS:
                     self._cache.popitem(last=False)
             else:
                 self._cache.move_to_end(chunk)
+            records, decoded = cached
+            if index not in decoded:
+                decoded[index] = self.decode(records[index].data)
             return decoded[index]
 
-    def _read(self, offset: int) -> dict[int, Any]:
+    def _read(self, offset: int) -> list:
         try:
             st = os.stat(self.path)
             if (st.st_size, st.st_mtime_ns) != self.stamp:
@@ -65,7 +66,7 @@ class MessageStore:
         except OSError as exc:
             raise RecordingError(f"{self.path}: cannot read the recording's {self.what} again: "
                                  f"{(exc.strerror or str(exc)).lower()}") from None
-        return {i: self.decode(records[i].data) for i in self._in_chunk[offset]}
+        return records
 
     def __getstate__(self) -> dict[str, Any]:
         return {**self.__dict__, "_cache": OrderedDict(), "_lock": None}

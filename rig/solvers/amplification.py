@@ -86,7 +86,7 @@ LINGER, LEFT = 0.9, 0.05
 
 
 def mode_errors(method: str, eig: np.ndarray | None, lam: np.ndarray, h: float,
-                steps: float = 0.0) -> tuple[np.ndarray, ...]:
+                steps: float = math.inf) -> tuple[np.ndarray, ...]:
     """Per eigenvalue λ of J whose mode persists in the exact flow (:data:`PERSISTENT` ≤ |e^{hλ}|) or lingers in the
     method (:data:`LINGER` ≤ |μ|), or — in a run of only ``steps`` steps — of which max(|e^{hλ}|, |μ|)^steps, at
     least :data:`LEFT`, is left after them, where the method does not amplify it beyond 1 and the exact flow (growth is the amplification test's to
@@ -129,7 +129,7 @@ class Amplification:
     def __init__(self, fun: Callable, method: str, positions: Sequence[int] = ()):
         self.fun, self.method, self.positions = fun, method, tuple(positions)
 
-    def check(self, t: float, y: Sequence[float], h: float, steps: float = 0.0
+    def check(self, t: float, y: Sequence[float], h: float, steps: float = math.inf
               ) -> tuple[float, float, complex, tuple] | None:
         J = jacobian(self.fun, t, y, h)
         if J is None:

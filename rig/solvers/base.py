@@ -52,16 +52,16 @@ def check_step_options(name: str, rtol: Any, atol: Any, first_step: Any, max_ste
 
 
 def rhs_not_finite(fun: Callable, t: float, y: Sequence[float], ahead: Sequence[float]) -> float | None:
-    """The first time t + a (a in ``ahead``, s) where the right-hand side at the state ``y`` is NaN, or infinite though
-    the state is of moderate size (|y| < 1e100: an overflow of a state near the float range is the solution's growth),
-    or raises an arithmetic error; else None: a step that failed there failed on the model, not the method."""
-    moderate = float(np.max(np.abs(y))) < 1e100
+    """The first time t + a (a in ``ahead``, s) where the right-hand side at the state ``y`` is not finite or raises an
+    arithmetic error, the state being of moderate size (|y| < 1e100: NaN or inf from a state near the float range —
+    inf/inf — is the solution's growth); else None: a step that failed there failed on the model, not the method."""
+    if not float(np.max(np.abs(y))) < 1e100:
+        return None
     for a in ahead:
         try:
-            f = np.asarray(fun(t + a, tuple(y)), dtype=float)
+            if not all_finite(fun(t + a, tuple(y))):
+                return t + a
         except (ArithmeticError, SolverDivergence):
-            return t + a if moderate else None
-        if np.isnan(f).any() or (moderate and not np.all(np.isfinite(f))):
             return t + a
     return None
 
@@ -276,10 +276,11 @@ class StiffnessMonitor:
             after = self._last_check - first + 1       # the steps since the last check: tested at the largest (a
             h_k = max(_largest(h[max(after, 0):k + 1]), self._h_since if after <= 0 else 0.0)   # check landing on a
             got = self.watch.check(float(t[k]), tuple(y[k]), h_k,    # run's cut last step missed the full ones);
-                                   self._steps_by_end(float(t[k])) if math.isfinite(self.horizon) else math.inf)
+                                   self._steps_by_end(float(t[k]), self._next_check + 1)
+                                   if math.isfinite(self.horizon) else math.inf)
             #                                                         the run's length unknown: no short-run test
             self.calls += len(y[k]) + 1
-            self._accuracy(float(t[k]), h_k, got)
+            self._accuracy(float(t[k]), h_k, got, self._next_check + 1)    # the steps up to the checked one
             since, self._last_check = self._next_check - self._last_check, self._next_check
             if got is not None and got[0] > 1.0 + 1e-12 and got[0] > got[1]:
                 self._slow += since * math.log(got[0] / got[1])
@@ -322,19 +323,20 @@ class StiffnessMonitor:
             return
         got = self.watch.check(float(t), tuple(y), float(h), self._steps)
         self.calls += len(y) + 1
-        self._accuracy(float(t), float(h), got)
+        self._accuracy(float(t), float(h), got, self._steps)
         self._last_check = self._steps - 1
         if got is not None and got[0] > 1.0 + 1e-12 and got[0] > got[1]:
             grown = self._slow + since * math.log(got[0] / got[1])
             if grown >= math.log(self.SPURIOUS):
                 self._report_amplification(float(t), tuple(y), float(h), got, grown)
 
-    def _steps_by_end(self, t: float) -> float:
-        """The steps the run will have taken by its end (:attr:`horizon`) at the pace so far, at time ``t``."""
+    def _steps_by_end(self, t: float, steps: int) -> float:
+        """The steps the run will have taken by its end (:attr:`horizon`) at the pace of the ``steps`` it took up to
+        time ``t``."""
         t0 = self.origin[0] if self.origin is not None else t
-        return self._steps * (self.horizon - t0) / (t - t0) if self.horizon > t > t0 else self._steps
+        return steps * (self.horizon - t0) / (t - t0) if self.horizon > t > t0 else steps
 
-    def _accuracy(self, t: float, h: float, got) -> None:
+    def _accuracy(self, t: float, h: float, got, steps: int) -> None:
         """The accuracy test on a check's persistent modes (see :data:`STEP_ERROR`): one warning per run naming the mode,
         its steps per period, what the method does to it, and a step that takes each of its faults to a tenth of its
         limit by the run's end."""
@@ -343,7 +345,7 @@ class StiffnessMonitor:
         err, decay, phase, growth, life, lam = got[3]
         if not err.size:
             return
-        span = np.minimum(life, self._steps)
+        span = np.minimum(life, steps)
         order = STEP_ORDERS.get(self.watch.method, 2)
         # (values, limit, exponent in h — an error summed over the mode's life in a given time has one order fewer —,
         # wording)
@@ -365,7 +367,7 @@ class StiffnessMonitor:
             return
         # the advice: the step that takes every fault of that mode to a tenth of its limit (TARGET_ERROR /
         # STEP_ERROR), the summed ones as they will have grown by the run's end (horizon) at this step
-        steps_end = self._steps_by_end(t)
+        steps_end = self._steps_by_end(t, steps)
         grow = [1.0] + [min(life[i], steps_end) / span[i] if span[i] > 0 else 1.0] * 3
         fix = min(h * (self.TARGET_ERROR / self.STEP_ERROR * limit / (values[i] * g)) ** (1.0 / power)
                   for (values, limit, power, _), g in zip(faults, grow) if values[i] * g > 0.0)

@@ -411,7 +411,7 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                     ys.append(y)
                 reset(t, y)
                 fired = {i for tr, i, _ in hits if tr <= t and not events[i].mode_dependent} | simultaneous
-                now = values(t, y)
+                now = _finite(events, values(t, y), t, y)
                 if cut[3]:                      # the action set a new state: every g from that state; one left on
                     g_old = now                 # its surface must leave zero before it can cross
                     at_zero = {i for i, g in enumerate(g_old) if g == 0.0}

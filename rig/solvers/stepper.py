@@ -159,8 +159,9 @@ class Stepper(OdeSolver):
         other = "" if self.label == "Rodas4" else ", or try the implicit method Rodas4"
         return SolverDivergence(f"{what}: the right-hand side is finite at the last state (|y| = "
                                 f"{float(np.max(np.abs(y))):.3g}), yet no step from it passes the error test — the "
-                                f"solution may blow up there (a finite-time singularity), the right-hand side may "
-                                f"jump just beyond it (where a trial step lands), or the problem is too stiff for "
+                                f"solution may blow up there (a finite-time singularity), the right-hand side may be "
+                                f"non-finite or jump just beyond it (where a trial step lands), or the problem is too "
+                                f"stiff for "
                                 f"{self.label} - check the model there{other}", t, y)
 
     def diverged(self, t: float, y: Sequence[float], h: float, last: tuple | None = None,
@@ -196,8 +197,9 @@ class Stepper(OdeSolver):
                      f"Rodas4, unless the model itself diverges")
         else:
             cause = "the model itself diverges"
-        bad = None if last is None else rhs_not_finite(self.fun, last[0], last[1], (0.0, 0.5 * h, h))
-        if bad is not None:                  # the model, not the method: say so before any stability diagnosis
+        bad = None if last is None or got is not None else rhs_not_finite(self.fun, last[0], last[1],
+                                                                            (0.0, 0.5 * h, h))
+        if bad is not None:                  # no mode amplified: the model, not the method
             cause = (f"the right-hand side is not finite at t = {bad:.9g} s at the last finite state (NaN or inf from "
                      f"the model there: outside its range, or a singularity) - check the model there")
             hl = -math.inf

@@ -103,9 +103,14 @@ def test_a_topic_beyond_its_budget_holds_its_first_blocks_and_yields_all(recordi
         np.testing.assert_array_equal(v, truth[k], err_msg=k)
     again = pickle.loads(pickle.dumps(cut))             # e.g. to a worker process
     np.testing.assert_array_equal(_joined(again.series_blocks(TRUTH))["t"], truth["t"])
-    for topic, data in whole.series.items():             # the smaller topics held whole
-        if topic not in cut.series_beyond:
-            assert cut.series[topic]["t"].size == data["t"].size
+    cut_at = min(b.t_first for b in cut.series_beyond.values())
+    for topic, data in whole.series.items():             # every topic held up to one time: joins see one span
+        held_t, later = cut.series.get(topic, {}).get("t", np.empty(0)), cut.series_beyond.get(topic)
+        assert held_t.size + (later.samples if later else 0) == data["t"].size
+        assert np.all(held_t < cut_at) and (later is None or later.t_first >= cut_at)
+        assert later is None or data["t"][-1] < cut_at or later.t_last == data["t"][-1]
+        np.testing.assert_array_equal(_joined(cut.series_blocks(topic))["t"], data["t"])
+    assert len(cut.series_beyond) > 1                    # the encoder's readings cut where the truth's were
 
 
 def test_the_exports_hold_every_sample_and_the_report_says_what_is_held(recording, tmp_path, monkeypatch):

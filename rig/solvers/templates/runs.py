@@ -283,9 +283,9 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR, S, GN, Q, KS, PB, TE, OUT):
         w[T], w[H_ABS], w[H] = t_new, h_next, h
         crossed = False
         for k in range(g.size):                     # a zero at either end counts: leaving g = 0 may be an event
-            g_new[k] = event(t_new, Y[s + 1], p, k)  # (a direction given), the driver decides
-            if g[k] == 0.0 or g_new[k] == 0.0 or (g[k] < 0.0) != (g_new[k] < 0.0):
-                crossed = True
+            g_new[k] = event(t_new, Y[s + 1], p, k)  # (a direction given), the driver decides; so does a NaN (the
+            if g[k] == 0.0 or g_new[k] == 0.0 or (g[k] < 0.0) != (g_new[k] < 0.0) or not np.isfinite(g_new[k]):
+                crossed = True                      # driver names it)
         if not crossed:
             passed = int(w[NBREAK])
             if s == m - 1 or (t_new >= w[T_BOUND] and passed == BR.size):
