@@ -1,9 +1,10 @@
 """Device curves read back from a recording, in bounded memory.
 
-A long run holds thousands of curves (the demo's take 143 kB each as arrays: a one-hour run's would fill 1.3 GB, and
-a report of it twice that). The reader keeps the arrays of the first curves up to :data:`KEPT_BYTES`; of the others it
+A long run holds thousands of curves (the demo's take 143 kB each as arrays: a one-hour run's would fill 1.3 GB, and a
+report of it twice that). The reader keeps the arrays of the first curves up to :data:`KEPT_BYTES`; of the others it
 keeps where they are in the file (the chunk and the message's place in it) and reads them again when asked, a few
-chunks' curves at a time (a :class:`~rig.recorder.store.MessageStore`). A curve looks the same either way (:class:`CurveRecord`).
+chunks' curves at a time (a :class:`~rig.recorder.store.MessageStore`). A curve looks the same either way
+(:class:`CurveRecord`).
 """
 from __future__ import annotations
 
@@ -39,9 +40,9 @@ def curve_message(data: bytes) -> dict[str, Any]:
 class CurveRecord:
     """One device curve: ``number``, ``program``, times ``t`` (s), ``x``/``y`` (SI), optional measured cam angle
     ``angle`` (rad) and ``theory`` arrays, the message's other fields in ``extra``. Its arrays are held, or read again
-    from the recording when used (a :class:`~rig.recorder.store.MessageStore` and the curve's key in it): what they hold is known without
-    reading them (``samples``, ``t_start``, ``t_end``, ``has_angle``, ``theory_sizes``: what a plot or the reader asks
-    of every curve before using it)."""
+    from the recording when used (a :class:`~rig.recorder.store.MessageStore` and the curve's key in it): what they hold
+    is known without reading them (``samples``, ``t_start``, ``t_end``, ``has_angle``, ``theory_sizes``: what a plot or
+    the reader asks of every curve before using it)."""
 
     __slots__ = ("number", "program", "extra", "samples", "t_start", "t_end", "has_angle", "theory_sizes", "_arrays",
                  "_store", "_key")

@@ -24,8 +24,9 @@ class MessageStore:
     """Messages of one recording file read again on demand: ``place(chunk_offset, index)`` notes a message (the chunk
     record's byte offset, the message's place among the chunk's records) and returns its key; ``get(key)`` reads it
     back, ``decode(data)`` of its bytes (its chunk read once, each message decoded when first asked for — a store shared
-    by several topics decodes only the topic read —, :data:`CACHED_CHUNKS` chunks kept). ``what`` names the messages in errors. The file must not change after it was read: a
-    :class:`~rig.recorder.errors.RecordingError` says so if it did."""
+    by several topics decodes only the topic read —, :data:`CACHED_CHUNKS` chunks kept). ``what`` names the messages in
+    errors. The file must not change after it was read: a :class:`~rig.recorder.errors.RecordingError` says so if it
+    did."""
 
     def __init__(self, path: Path, stamp: tuple[int, int], decode: Callable[[bytes], Any], what: str):
         self.path, self.stamp = Path(os.path.abspath(path)), stamp     # absolute: a later chdir or a worker process

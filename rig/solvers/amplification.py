@@ -88,17 +88,17 @@ LINGER, LEFT = 0.9, 0.05
 def mode_errors(method: str, eig: np.ndarray | None, lam: np.ndarray, h: float,
                 steps: float = math.inf) -> tuple[np.ndarray, ...]:
     """Per eigenvalue λ of J whose mode persists in the exact flow (:data:`PERSISTENT` ≤ |e^{hλ}|) or lingers in the
-    method (:data:`LINGER` ≤ |μ|), or — in a run of only ``steps`` steps — of which max(|e^{hλ}|, |μ|)^steps, at
-    least :data:`LEFT`, is left after them, where the method does not amplify it beyond 1 and the exact flow (growth is the amplification test's to
-    report; else zeros): the method's relative error on the mode per step |μ − e^{hλ}|/max(|e^{hλ}|, |μ|) (μ = R(hλ)
-    for the methods of :data:`POLYNOMIALS`, else the eigenvalue ``eig`` of the step matrix M nearest e^{hλ}: exact for
-    one oscillation, NaN where M overflowed, possibly another mode's in a system of close modes) — a fast decay the
-    method keeps alive (explicit Euler at hλ = −1.99: μ = −0.99 against e^{hλ} = 0.14) and a growth it does not
-    resolve (a finite-time blow-up) count too —, its spurious decay −ln(|μ|/|e^{hλ}|) ≥ 0 and phase error
-    |arg(μ/e^{hλ})| (rad) per step (of modes that do not grow), its spurious growth ln(|μ|/|e^{hλ}|) ≥ 0 per step
-    where the method amplifies it but not beyond what the amplification test reports (explicit Euler's slow growth of
-    an undamped oscillation), the mode's lifetime in steps 1/(1 − max(|e^{hλ}|, |μ|)) (inf when it does not decay)
-    and λ."""
+    method (:data:`LINGER` ≤ |μ|), or — in a run of only ``steps`` steps — of which max(|e^{hλ}|, |μ|)^steps, at least
+    :data:`LEFT`, is left after them, where the method does not amplify it beyond 1 and the exact flow (growth is the
+    amplification test's to report; else zeros): the method's relative error on the mode per step |μ −
+    e^{hλ}|/max(|e^{hλ}|, |μ|) (μ = R(hλ) for the methods of :data:`POLYNOMIALS`, else the eigenvalue ``eig`` of the
+    step matrix M nearest e^{hλ}: exact for one oscillation, NaN where M overflowed, possibly another mode's in a system
+    of close modes) — a fast decay the method keeps alive (explicit Euler at hλ = −1.99: μ = −0.99 against e^{hλ} =
+    0.14) and a growth it does not resolve (a finite-time blow-up) count too —, its spurious decay −ln(|μ|/|e^{hλ}|) ≥ 0
+    and phase error |arg(μ/e^{hλ})| (rad) per step (of modes that do not grow), its spurious growth ln(|μ|/|e^{hλ}|) ≥ 0
+    per step where the method amplifies it but not beyond what the amplification test reports (explicit Euler's slow
+    growth of an undamped oscillation), the mode's lifetime in steps 1/(1 − max(|e^{hλ}|, |μ|)) (inf when it does not
+    decay) and λ."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         exact = np.exp(h * lam)
         if method in POLYNOMIALS:

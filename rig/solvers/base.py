@@ -34,8 +34,11 @@ def check_step_options(name: str, rtol: Any, atol: Any, first_step: Any, max_ste
     ``atol`` real scalars, rtol > 0 and finite, atol > 0 and finite (with atol = 0 a component at 0 has no error scale);
     ``max_step`` > 0 (inf: no limit); ``first_step`` None, 0 or NaN (chosen by Hairer's heuristic) or positive and
     finite."""
+    def real(value: Any) -> bool:
+        return isinstance(value, Real) and not isinstance(value, bool)
+
     for key, value in (("rtol", rtol), ("atol", atol), ("max_step", max_step)):
-        if isinstance(value, (bool, str, bytes)) or not isinstance(value, Real):
+        if not real(value):
             raise ValueError(f"{name}: {key} = {value!r} must be a real number (one for every component)")
     if not RTOL_MIN <= rtol < math.inf:
         raise ValueError(f"{name}: rtol = {rtol!r} must be finite and at least {RTOL_MIN:.3g} (100 ulp: no step meets "
@@ -45,8 +48,7 @@ def check_step_options(name: str, rtol: Any, atol: Any, first_step: Any, max_ste
                          "has no error scale)")
     if not max_step > 0:
         raise ValueError(f"{name}: max_step = {max_step!r} s must be positive (inf: no limit)")
-    if first_step is not None and (isinstance(first_step, (bool, str, bytes)) or not isinstance(first_step, Real)
-                                   or first_step < 0 or first_step == math.inf):
+    if first_step is not None and (not real(first_step) or first_step < 0 or first_step == math.inf):
         raise ValueError(f"{name}: first_step = {first_step!r} s must be positive and finite (None, 0 or NaN: chosen "
                          "by Hairer's heuristic)")
 
@@ -67,9 +69,10 @@ def rhs_not_finite(fun: Callable, t: float, y: Sequence[float], ahead: Sequence[
 
 
 def not_finite_text(bad: float, t: float) -> str:
-    """What a step-size underflow at ``t`` is when the right-hand side is not finite at ``bad`` just past it."""
-    return (f"the right-hand side is not finite at t = {bad:.9g} s, just past t = {t:.9g} s (NaN or inf from the model "
-            f"there: outside its range, or a singularity) - check the model there")
+    """What a failed step from ``t`` (an underflow, a non-finite state) is when the right-hand side is not finite at
+    ``bad``, just past it (or at it)."""
+    return (f"the right-hand side is not finite at t = {bad:.9g} s, just past t = {t:.9g} s (NaN or inf from the "
+            f"model there: outside its range, or a singularity) - check the model there")
 
 
 def all_finite(y: Sequence[float]) -> bool:
@@ -347,8 +350,8 @@ class StiffnessMonitor:
             return
         span = np.minimum(life, steps)
         order = STEP_ORDERS.get(self.watch.method, 2)
-        # (values, limit, exponent in h — an error summed over the mode's life in a given time has one order fewer —,
-        # wording)
+        # (values, limit, exponent in h — an error summed over the mode's life in a given time has one order
+        # fewer —, wording)
         faults = [(err, self.STEP_ERROR, order, lambda v, n: f"an error of {v:.2g} of the mode per step"),
                   (decay * span, math.log(self.SPURIOUS), order - 1,
                    lambda v, n: f"a spurious decay to {math.exp(-v):.2g} of the mode over the {n:.0f} steps it has lived"),
@@ -373,8 +376,13 @@ class StiffnessMonitor:
                   for (values, limit, power, _), g in zip(faults, grow) if values[i] * g > 0.0)
         mode = complex(lam[i])
         growth_per_step = math.exp(min(h * mode.real, 700.0))
-        qualifier = ("" if k == 3 else f"the mode grows by {growth_per_step:.3g} per step, faster than the step "
-                     "resolves (a blow-up ahead?): " if growth_per_step > 1.0 + 1e-3 else "stable, but ")
+        if k == 3:                                   # the spurious-growth fault says what it is itself
+            qualifier = ""
+        elif growth_per_step > 1.0 + 1e-3:
+            qualifier = (f"the mode grows by {growth_per_step:.3g} per step, faster than the step resolves (a blow-up "
+                         "ahead?): ")
+        else:
+            qualifier = "stable, but "
         period = (f" (period {2 * math.pi / abs(mode.imag):.3g} s: {2 * math.pi / (h * abs(mode.imag)):.3g} steps "
                   f"per period)") if mode.imag else ""
         self.coarse = (f"{self.method} may be inaccurate from t = {t:.6g} s: at h = {h:.3g} s it steps the mode lambda "

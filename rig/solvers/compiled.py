@@ -97,18 +97,18 @@ def compiled_solver(method: str, kernel, event=None, act=None):
       f(t_new, y_new)) and H, NFEV, HL and (on success) T, H_ABS into ``w``; returns 0, 1 on a step-size
       underflow (state untouched) or 2 when a fixed-step method's state became non-finite;
     * ``run(w, Y, TT, HH, KK, HL, EV, g, p, BR, *scratch, TE, OUT)`` (with ``event``; ``scratch`` from
-      :func:`run_scratch`; output times TE and their states OUT, sampled from w[IE] on by every step but one
-      where an event's sign changed) takes steps from (w[T], Y[0]) with KK[0, 0] the first derivative, storing
-      step ends TT[s + 1], states Y[s + 1], step sizes HH[s], stage vectors KK[s] and h·|λ| HL[s], until an event
-      value in ``g`` (given at the start, updated in place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the number of
-      steps, or −1 − steps on a failure (status in w[FAIL]). A t_bound that is a time break of the problem,
-      with further bounds in ``BR`` (from w[NBREAK] on), is passed as :func:`rig.solvers.integrate` passes it:
-      the run restarts one ulp past it (f evaluated there, an adaptive method's step size kept, the step's
-      stored end TT[s + 1] that restart time), takes the next bound and counts it in w[NBREAK]. Sign changes that ``act`` accepts (all of them
-      in the step, none exactly zero) are handled in the run as the Python driver would: cut at the
-      earliest root (the step then ends there, TT[s + 1] < TT[s] + HH[s]), act, record (t, k, ±1, y) in
-      EV[w[NEV]], restart with the last step size; the fired event keeps its value past the root, the
-      others are re-evaluated (a zero keeps the old value);
+      :func:`run_scratch`; output times TE and their states OUT, sampled from w[IE] on by every step but one where an
+      event's sign changed) takes steps from (w[T], Y[0]) with KK[0, 0] the first derivative, storing step ends TT[s +
+      1], states Y[s + 1], step sizes HH[s], stage vectors KK[s] and h·|λ| HL[s], until an event value in ``g`` (given
+      at the start, updated in place) changes sign or reaches 0, t_bound is reached or the buffers are full; returns the
+      number of steps, or −1 − steps on a failure (status in w[FAIL]). A t_bound that is a time break of the problem,
+      with further bounds in ``BR`` (from w[NBREAK] on), is passed as :func:`rig.solvers.integrate` passes it: the run
+      restarts one ulp past it (f evaluated there, an adaptive method's step size kept, the step's stored end TT[s + 1]
+      that restart time), takes the next bound and counts it in w[NBREAK]. Sign changes that ``act`` accepts (all of
+      them in the step, none exactly zero) are handled in the run as the Python driver would: cut at the earliest root
+      (the step then ends there, TT[s + 1] < TT[s] + HH[s]), act, record (t, k, ±1, y) in EV[w[NEV]], restart with the
+      last step size; the fired event keeps its value past the root, the others are re-evaluated (a zero keeps the old
+      value);
     * ``locate(t_old, t_new, y_old, K, p, k)``: root of event k on the step's dense output by Brent's
       method (as scipy's ``brentq``, xtol 1e-15, rtol 4·eps), given a sign change over the step;
     * ``values(t, y, p, out)``: every event's value at (t, y) into ``out``.

@@ -73,13 +73,13 @@ class EventRecord:
 class Event:
     """Event function g(t, y) whose zeros are located.
 
-    ``direction`` > 0 / < 0 keeps only rising / falling crossings (leaving g = 0 in that direction
-    counts, and so does reaching it at the span's end, as in scipy); without one, a sign change or reaching g = 0 counts, leaving g = 0 does not (a root exactly at the span's
-    start, or where a restart left g, is not recorded: give a direction to count it — unlike scipy, which records
-    it). Two roots inside one step (g of one sign at both ends) are not seen, as in scipy: bound the step
-    (``max_step``) where such pairs matter; ``terminal`` stops the integration; ``restart`` restarts the solver at the event (RHS
-    discontinuous there); ``action(record)`` is called for each recorded event and returns True when it
-    changed the problem, or a new state tuple to restart from (then the solver is restarted too);
+    ``direction`` > 0 / < 0 keeps only rising / falling crossings (leaving g = 0 in that direction counts, and so does
+    reaching it at the span's end, as in scipy); without one, a sign change or reaching g = 0 counts, leaving g = 0 does
+    not (a root exactly at the span's start, or where a restart left g, is not recorded: give a direction to count it —
+    unlike scipy, which records it). Two roots inside one step (g of one sign at both ends) are not seen, as in scipy:
+    bound the step (``max_step``) where such pairs matter; ``terminal`` stops the integration; ``restart`` restarts the
+    solver at the event (RHS discontinuous there); ``action(record)`` is called for each recorded event and returns True
+    when it changed the problem, or a new state tuple to restart from (then the solver is restarted too);
     ``mode_dependent`` marks a g that changes with the problem's discrete mode (re-evaluated after a restart).
     """
 

@@ -161,8 +161,7 @@ class Stepper(OdeSolver):
                                 f"{float(np.max(np.abs(y))):.3g}), yet no step from it passes the error test — the "
                                 f"solution may blow up there (a finite-time singularity), the right-hand side may be "
                                 f"non-finite or jump just beyond it (where a trial step lands), or the problem is too "
-                                f"stiff for "
-                                f"{self.label} - check the model there{other}", t, y)
+                                f"stiff for {self.label} - check the model there{other}", t, y)
 
     def diverged(self, t: float, y: Sequence[float], h: float, last: tuple | None = None,
                  what: str = "non-finite state after a step") -> SolverDivergence:
@@ -188,6 +187,9 @@ class Stepper(OdeSolver):
                      f"reduce h below {watch.largest_stable_step(point[0], point[1], h):.3g} s or use the implicit "
                      f"method Rodas4")
             hl = math.inf                    # an unstable step: reported as such
+        elif last is not None and (bad := rhs_not_finite(self.fun, last[0], last[1], (0.0, 0.5 * h, h))) is not None:
+            cause = not_finite_text(bad, last[0])      # no mode amplified: the model, not the method
+            hl = -math.inf                   # so reported, whatever the step's h·|λ|
         elif hl > lim:
             cause = (f"{self.label} unstable: h*|lambda| = {hl:.3g} > {lim:g} (its stability limit on the negative "
                      f"real axis) - reduce h below {lim * h / hl:.3g} s or use the implicit method Rodas4")
@@ -197,12 +199,6 @@ class Stepper(OdeSolver):
                      f"Rodas4, unless the model itself diverges")
         else:
             cause = "the model itself diverges"
-        bad = None if last is None or got is not None else rhs_not_finite(self.fun, last[0], last[1],
-                                                                            (0.0, 0.5 * h, h))
-        if bad is not None:                  # no mode amplified: the model, not the method
-            cause = (f"the right-hand side is not finite at t = {bad:.9g} s at the last finite state (NaN or inf from "
-                     f"the model there: outside its range, or a singularity) - check the model there")
-            hl = -math.inf
         why = self.fun.diagnose() if isinstance(self.fun, JitRhs) else None
         kind = StiffnessError if hl > lim else SolverDivergence      # unstable step: the stiffness report's class
         return kind(f"{self.label} diverged: {what} of h = {h:.3g} s; {cause}"

@@ -1,10 +1,11 @@
 """Cam-design checks of the pin-insertion mechanism (MODELS §2, §3.6): each with its value, limit and verdict.
 
-Pressure angle and contact force come from the level-1 kinetostatics at the nominal speed with the mounted
-spring; curvature from the pitch curve (:mod:`.pitch`); Hertz stress on the flank that carries the load.
-The translating-follower sizing (Flocke, guide, H/h) is applied to the program's rise or return that needs the
-largest base radius (a return read backwards as a rise) as a design alternative, and so is an oscillating flat-faced follower on the same follower swing. Series synthesis
-inverts the follower–rod–slider chain (an offset slider-crank) for the programmed slider law.
+Pressure angle and contact force come from the level-1 kinetostatics at the nominal speed with the mounted spring;
+curvature from the pitch curve (:mod:`.pitch`); Hertz stress on the flank that carries the load. The
+translating-follower sizing (Flocke, guide, H/h) is applied to the program's rise or return that needs the largest base
+radius (a return read backwards as a rise) as a design alternative, and so is an oscillating flat-faced follower on the
+same follower swing. Series synthesis inverts the follower–rod–slider chain (an offset slider-crank) for the programmed
+slider law.
 """
 from __future__ import annotations
 
@@ -73,9 +74,10 @@ class CamDesign:
 
 
 def _governing_segment(program: CamProgram, alpha: float) -> tuple[Segment, MotionLaw, dict[str, float]]:
-    """The rise or return that needs the largest centric base radius at pressure angle ``alpha`` (rad), its law as
-    a rise (a return reversed: :class:`~rig.motion.laws.ReversedLaw`), and every moving segment's exact radius (m)
-    by its name ('rise', 'return'; numbered where a kind recurs: 'rise 1', 'rise 2', …); each segment's stroke is measured from its own lowest level."""
+    """The rise or return that needs the largest centric base radius at pressure angle ``alpha`` (rad), its law as a
+    rise (a return reversed: :class:`~rig.motion.laws.ReversedLaw`), and every moving segment's exact radius (m) by its
+    name ('rise', 'return'; numbered where a kind recurs: 'rise 1', 'rise 2', …); each segment's stroke is measured from
+    its own lowest level."""
     moving = [(seg, get_law(seg.law) if seg.kind == "rise" else ReversedLaw(get_law(seg.law)))
               for seg in program.segments if seg.kind in ("rise", "return")]
     if not moving:

@@ -598,9 +598,9 @@ def dynamics(e, e_d, z, z_d, phi, omega, alpha, omega_m, shaft, p):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def rhs(t, y, p, out):
-    """d/dt of (e, τ·ė[, φ, ω, φ_m, ω_m][, z, τ·ż][, W_drive, W_load, E_dissipated]) into ``out`` (the cam-drive
-    states when p[DRIVE_ON], the slider's when p[JOINTS_ON]); NaN where the chain cannot be assembled or the guide jams (then p[JAM_T], p[JAM_PHI] record
-    the first jam)."""
+    """d/dt of (e, τ·ė[, φ, ω, φ_m, ω_m][, z, τ·ż][, W_drive, W_load, E_dissipated]) into ``out`` (the cam-drive states
+    when p[DRIVE_ON], the slider's when p[JOINTS_ON]); NaN where the chain cannot be assembled or the guide jams (then
+    p[JAM_T], p[JAM_PHI] record the first jam)."""
     if not math.isfinite(y.sum()):
         out[:] = math.nan
         return
