@@ -64,6 +64,7 @@ CHECKS = {"cam_bar": "rig.plants.cam_bar.level_answers:compare"}
 SETTING_CHECK = "rig.bench.setting_check:at_this_point"
 MODEL_TOLERANCE = 0.05
 _checked: dict[tuple, list] = {}       # compare()'s answers per scene content, level and questions (choose runs often)
+_level2_runs = 0                       # level-2 computations a choice made (the check, a setting check): kept on disk
 #: levels whose runs are the same for a plant (the cam bar: the force sensor needs the level-1 loads at level 0 too)
 SAME_RUN = {"cam_bar": (0, 1)}
 
@@ -191,6 +192,7 @@ def _method(scene: Scene, plant: str, tolerance: float,
                 why = (f"the cheapest setting with error <= {tolerance:g} in {path.name} (error "
                        f"{float(row['error']):.1e}, {per_second * 1e3:.1f} ms per simulated s)")
                 if path != own:              # measured at another operating point: check it at this one
+                    _ran_level2()
                     module, _, name = SETTING_CHECK.partition(":")
                     options, here = getattr(importlib.import_module(module), name)(scene, row["method"], options,
                                                                                   tolerance)
@@ -216,7 +218,29 @@ def _default_method(scene: Scene, plant: str) -> tuple[str, dict[str, float]]:
 
 def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DATA) -> Fidelity:
     """The fidelity of a run of ``scene`` (a ``plant`` kind): ``forced`` (``--fidelity``) first, then
-    ``[scene] fidelity``, then the lowest level answering ``[scene] questions``, else the plant's default."""
+    ``[scene] fidelity``, then the lowest level answering ``[scene] questions``, else the plant's default. A choice
+    that ran level 2 to decide (the check against level 2, a setting checked at this operating point: 0.5–1 s) is
+    kept on disk for the next command on the same scene (:mod:`rig.fidelity_cache`)."""
+    from rig import fidelity_cache
+    key = fidelity_cache.key(scene, plant, forced, data)
+    kept = fidelity_cache.read(key)
+    if kept is not None:
+        return kept
+    before = _level2_runs
+    chosen = _choose(scene, plant, forced, data)
+    if _level2_runs > before:
+        fidelity_cache.write(key, chosen)
+    return chosen
+
+
+def _ran_level2() -> None:
+    """Count a level-2 computation of a choice (its result is then worth keeping on disk)."""
+    global _level2_runs
+    _level2_runs += 1
+
+
+def _choose(scene: Scene, plant: str, forced: int | None, data: Path) -> Fidelity:
+    """:func:`choose`, computed."""
     where = f"{scene.path} [scene]"
     asked = _questions(scene, plant, where)
     levels = LEVELS.get(plant, (1,))
@@ -293,6 +317,7 @@ def _check(scene: Scene, plant: str, level: int, questions: list[str]) -> list |
         top = choose(scene, plant, forced=2)
         module, _, name = CHECKS[plant].partition(":")
         try:
+            _ran_level2()
             _checked[key] = getattr(importlib.import_module(module), name)(scene, level, questions, top.method,
                                                                           top.options)
         except (SolverDivergence, ArithmeticError, ValueError) as exc:

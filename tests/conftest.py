@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import subprocess
 import sys
 import time
@@ -12,6 +13,10 @@ from pathlib import Path
 from typing import Iterator
 
 import pytest
+
+# tests replace the fidelity checks and data: no choice is read from, or kept in, the user's cache (rig.fidelity_cache;
+# its own tests turn it on in a folder of their own); the commands the tests start inherit this
+os.environ["MECHRIG_FIDELITY_CACHE"] = "0"
 
 
 @contextlib.contextmanager

@@ -5,7 +5,9 @@ between samples gets its exact time. With ``Δ = 2π/(4·ppr)`` and ``k = floor(
 ``k mod 4`` in the Gray sequence (A, B) = 00, 10, 11, 01 (A leads B for positive rotation): crossing
 boundary ``mΔ`` toggles A for odd m and B for even m; Z is high for ``k ≡ 0 (mod 4·ppr)``.
 
-Error source (``errors_enabled``): Gaussian edge-time jitter ``jitter_rms``. Faults: ``missed_pulses``
+Error source (``errors_enabled``): Gaussian edge-time jitter ``jitter_rms``, never moving an edge to or before the
+sample preceding its crossing (the card has latched there): the result does not depend on how the samples are cut
+into calls (the faults' draws do). Faults: ``missed_pulses``
 (a pulse of A or B disappears with ``probability`` per pulse) and ``glitches`` (spurious pulses of
 ``width`` on A or B at a Poisson ``rate``).
 
@@ -128,21 +130,22 @@ class IncrementalEncoder(Transducer):
         return self.sample(t, q).levels
 
     # --- edges -----------------------------------------------------------------------------------
-    def _edges(self, tt: np.ndarray, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Boundary crossings between consecutive samples: times and boundary indices m."""
+    def _edges(self, tt: np.ndarray, th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Boundary crossings between consecutive samples: times, boundary indices m and the time of the sample before
+        each crossing."""
         kk = np.floor(th / self.step).astype(np.int64)
         dk = np.diff(kk)
         n = np.abs(dk)
         total = int(n.sum())
         if total == 0:
-            return np.empty(0), np.empty(0, dtype=np.int64)
+            return np.empty(0), np.empty(0, dtype=np.int64), np.empty(0)
         interval = np.repeat(np.arange(dk.size), n)
         j = np.arange(total) - np.repeat(np.cumsum(n) - n, n)
         up = dk[interval] > 0
         m = np.where(up, kk[interval] + 1 + j, kk[interval] - j)
         frac = (m * self.step - th[interval]) / (th[interval + 1] - th[interval])
         times = tt[interval] + frac * (tt[interval + 1] - tt[interval])
-        return times, m
+        return times, m, tt[interval]
 
     def _missed(self, times: np.ndarray, chan: np.ndarray) -> np.ndarray:
         """Keep-mask after dropping whole pulses (an edge and the next one on the same channel)."""
@@ -208,10 +211,13 @@ class IncrementalEncoder(Transducer):
         dt = np.diff(tt)
         if np.any(dt[1:] <= 0.0) or dt[0] < 0.0 or (dt[0] == 0.0 and th[1] != th[0]):
             raise ValueError(f"{self.name}: sample times must increase strictly (continuing from t={self._t} s)")
-        times, m = self._edges(tt, th)
+        times, m, before = self._edges(tt, th)
         chan = np.where(m % 2 == 1, A, B)
         if self.errors_enabled and self.p["jitter_rms"] > 0.0:
-            times = times + self.rng.normal(0.0, self.p["jitter_rms"], size=times.size)
+            # jitter never moves an edge to or before the sample preceding its crossing, whose latch is taken (it may be
+            # the last sample of the previous call): where the samples are cut into calls changes no count
+            times = np.maximum(times + self.rng.normal(0.0, self.p["jitter_rms"], size=times.size),
+                               np.nextafter(before, np.inf))
         zsel = np.isin(m % (4 * self.ppr), (0, 1))
         z_times = times[zsel]
         keep = self._missed(times, chan)

@@ -23,7 +23,8 @@ SCENE_SCHEMA = {
     "cycles": Field("1", None, "number of device curves (machine cycles) to record", integer=True, minimum=1),
     "duration": Field("s", None, "simulated time to run when the scene has no cycles"),
     "sample_rate": Field("Hz", 10_000.0, "plant/transducer/acquisition sample rate"),
-    "chunk": Field("s", 0.02, "simulated time advanced per runner step"),
+    "chunk": Field("s", 0.1, "simulated time the plant and transducers advance per runner step: a whole number of "
+                   "the unit's transmit cycles ([links.can] tx_period); it changes no recorded value (docs/scenes.md)"),
     "mode": Field(None, "virtual", "'virtual' (as fast as possible) or 'realtime' (paced to the wall clock)"),
     "fidelity": Field(None, None, "model level (0/1/2 or kinematic/kinetostatic/dynamic); default: chosen by questions"),
     "questions": Field(None, None, "what the run must answer, e.g. [\"stroke\", \"dwell_vibration\"] (rig.fidelity)"),
@@ -39,7 +40,8 @@ TRANSDUCER_SCHEMA = {
                           "'can.MESSAGE' (a counter's Count and EdgeTime, e.g. 'can.Encoder1')"),
     "overrides": Field(None, {}, "description values to override, with units"),
     "faults": Field(None, [], "list of {fault = ..., at = '.. s', ...} tables"),
-    "rate": Field("Hz", None, "publishing rate of its CAN frames (default: once per chunk)"),
+    "rate": Field("Hz", None, "publishing rate of its CAN frames (default: once per transmit cycle, [links.can] "
+                              "tx_period)"),
 }
 DEVICE_SCHEMA = {
     "program": Field("1", 0, "program number the run uses", integer=True, minimum=0),
@@ -55,6 +57,8 @@ CAN_SCHEMA = {
     "data_bitrate": Field("bit/s", None, "of the CAN FD data phase, e.g. \"2 Mbit/s\"", integer=True, minimum=1,
                           plain=True),
     "live_share": Field("1", 0.5, "share of the bus for live data"),
+    "tx_period": Field("s", 0.1, "the unit's transmit cycle: each cycle it plans its live data against the bus, sends "
+                       "the readings without a rate of their own and takes the host's commands"),
     "tx_curves": Field("1", 4, "curve transfers the unit holds for sending (more: the bus cannot carry the curves)",
                        integer=True, minimum=1),
     "host": Field(None, "127.0.0.1", "socketcand server address (cross-process)"),
@@ -215,6 +219,11 @@ class RunConfig:
         return max(2, round(self.chunk * self.sample_rate))
 
     @property
+    def period_samples(self) -> int:
+        """Samples per transmit cycle of the unit (``[links.can] tx_period`` at ``sample_rate``; validated whole)."""
+        return round(self.can["tx_period"] * self.sample_rate)
+
+    @property
     def truth_every(self) -> int:
         """/plant/truth keeps the model samples whose index is a multiple of this (1: every sample)."""
         return _truth_every(self.recording["truth_rate"], self.sample_rate, "")
@@ -286,6 +295,20 @@ def check_sections(scene: Scene, plant: str) -> None:
                              + "; links are [links.can] and [links.serial]")
 
 
+def _check_period(period: float, chunk: float, rate: float, where: str) -> None:
+    """The transmit cycle a whole number of samples, and the chunk a whole number of cycles: the runner steps the
+    unit and its bus cycle by cycle within a chunk, so that the chunk changes no recorded value."""
+    samples = period * rate
+    if not period > 0 or round(samples) < 2 or abs(samples - round(samples)) > 1e-6 * samples:
+        raise SceneError(f"{where}: key 'tx_period' = {period:g} s must be a whole number (at least 2) of samples at "
+                         f"[scene] sample_rate = {rate:g} Hz (it holds {samples:g})")
+    cycles = chunk / period
+    if abs(cycles - round(cycles)) > 1e-6 * cycles or round(cycles) < 1:
+        raise SceneError(f"{where}: [scene] chunk = {chunk:g} s must be a whole number of the unit's transmit cycles "
+                         f"(key 'tx_period' = {period:g} s; it holds {cycles:g}): the runner steps the unit cycle by "
+                         "cycle within a chunk")
+
+
 def read_config(scene: Scene, fidelity: int | None = None) -> RunConfig:
     """Validate the runner's sections of ``scene``; errors name the file, section and key. ``fidelity``: the level
     ``--fidelity`` forces (:func:`rig.fidelity.choose`; None: the scene's own choice)."""
@@ -350,6 +373,7 @@ def read_config(scene: Scene, fidelity: int | None = None) -> RunConfig:
     if can["data_bitrate"] is not None and can["data_bitrate"] < can["bitrate"]:
         raise SceneError(f"{cw}: key 'data_bitrate' = {can['data_bitrate']} bit/s must be at least 'bitrate' = "
                          f"{can['bitrate']} bit/s (the data phase is the faster one)")
+    _check_period(can["tx_period"], s["chunk"], s["sample_rate"], cw)
     _of_type(can["channel"], str, "channel", cw, "a string")
     _of_type(can["host"], str, "host", cw, "a host name or address")
     if can["interface"] not in IN_PROCESS_INTERFACES:

@@ -72,7 +72,7 @@ class Host:
         self._truth: list[dict[str, np.ndarray]] = []   # theory blocks the curves still to come may need
         # the unit measures curves only with both of its channels wired (a stand scene has none): else no block is kept
         self._curves_come = cfg.measures_curves
-        self._block_n = max(2, round(max(cfg.chunk, THEORY_BLOCK) * cfg.sample_rate))
+        self._block_n = max(2, round(THEORY_BLOCK * cfg.sample_rate))
         self._blocks = 0
         self._curves: list[Any] = []                    # complete curves waiting for their result or theory
         self._results: dict[int, Any] = {}              # released results by curve number (mod 65536)
@@ -156,14 +156,14 @@ class Host:
 
     def _machine_end(self, complete: bool) -> float:
         """Where the machine stopped advancing its plant (s), from what every host sees alike: a run of a duration at
-        its duration; a complete run of cycles at the end of the runner step in which its last curve ended (the
-        machine stops after that step; the bus then only drains — in process or across processes, the same time);
+        its duration; a complete run of cycles at the end of the unit's transmit cycle in which its last curve ended
+        (the machine stops after that cycle; the bus then only drains — in process or across processes, the same time);
         a run stopped early at the latest device time its frames carried."""
         heard = max(self.can.device_time, self._frame_t)
         if self.cfg.cycles is None:
             return min(heard, self.cfg.duration)
         if complete and self._curve_end > 0.0:
-            n, rate = self.cfg.chunk_samples, self.cfg.sample_rate
+            n, rate = self.cfg.period_samples, self.cfg.sample_rate
             return math.ceil(round(self._curve_end * rate) / n) * n / rate
         return heard
 

@@ -1,12 +1,13 @@
 """The simulated machine: plant truth → transducers → DigiForce → CAN node (and serial device).
 
 This is the device side of the wire; ``rig serve`` runs it as its own process. It advances in chunks of
-simulated time; everything random comes from the scene's seed.
+simulated time, the unit and its bus in transmit cycles within them; everything random comes from the scene's seed.
 """
 from __future__ import annotations
 
 import difflib
 import logging
+import math
 import re
 from collections.abc import Callable, Iterable
 from typing import Any
@@ -132,7 +133,7 @@ def bus_plan(cfg: RunConfig, node: CanNode) -> dict[str, float]:
     plan = {"status": sum(node.frame_time_planned(n) for n in ("Heartbeat", "StatusCounters", "TxStatus"))
             / node.heartbeat_period}
     for message, specs in cfg.frames().items():
-        plan[message] = (specs[0].rate or 1.0 / cfg.chunk) * node.frame_time_planned(message)
+        plan[message] = (specs[0].rate or 1.0 / cfg.can["tx_period"]) * node.frame_time_planned(message)
     if sum(plan.values()) > 1.0:
         shares = ", ".join(f"{k} {v:.0%}" for k, v in plan.items())
         raise SceneError(f"{cfg.scene.path} [links.can]: the periodic frames alone need {sum(plan.values()):.0%} "
@@ -189,13 +190,18 @@ class Machine:
         self.t = 0.0
         self._step_index = 0
         self._n = cfg.chunk_samples
+        self._period = cfg.period_samples
+        # a run of a duration: its samples up to the first transmit cycle's end at or after it (none computed beyond)
+        self._last = None if cfg.duration is None else \
+            -(-math.ceil((cfg.duration - 1e-9) * cfg.sample_rate) // self._period) * self._period
         self.curves = 0
+        self.cycle_curves = 0          # curves queued in the latest transmit cycle
 
     def _publish_indices(self, rate: float | None, first_sample: int, n: int) -> np.ndarray:
-        """Indices in a chunk (whose first sample has global number ``first_sample``) at which readings at
-        ``rate`` (Hz; None: once per chunk) are published: global sample numbers that are multiples of
-        ``sample_rate / rate``."""
-        every = n if rate is None else max(1, round(self.cfg.sample_rate / rate))
+        """Indices in a transmit cycle (whose first sample has global number ``first_sample``) at which readings at
+        ``rate`` (Hz; None: once per cycle, at its last sample) are published: global sample numbers that are
+        multiples of ``sample_rate / rate``."""
+        every = self._period if rate is None else max(1, round(self.cfg.sample_rate / rate))
         return np.arange((-first_sample) % every, n, every)
 
     def _frame_values(self, spec: TransducerSpec, output: Any, idx: np.ndarray, message: str) -> dict[str, np.ndarray]:
@@ -213,11 +219,17 @@ class Machine:
         reading = self.transducers[spec.name].to_physical(output[idx])
         return {spec.frame_signal: np.ravel(reading)}
 
-    def step(self) -> dict[str, np.ndarray]:
-        """Advance one chunk; returns the plant truth of the chunk (SI, with its times ``t``). Every output
-        goes where the scene wires it (``to``): the unit's channels or a CAN reading message."""
+    def step(self, done: Callable[["Machine"], bool] = lambda machine: False) -> dict[str, np.ndarray]:
+        """Advance one chunk: the plant and the transducers over the whole chunk at once, then the unit and its bus
+        one transmit cycle after the other, as a chunk of one cycle would (the curves that ended in the cycle
+        queued, its live pairs planned against the bus, its readings queued, the bus run to the cycle's end): the
+        chunk changes no recorded value. ``done(machine)``, asked after each cycle, ends the step there (the unit
+        is not fed past it; the plant and transducers have computed the rest of the chunk, unused). A run of a
+        duration ends its last chunk at the first cycle end at or after it. Returns the plant truth of the chunk (SI,
+        with its times ``t``). Every output goes where the scene wires it (``to``)."""
         i0 = self._step_index * self._n
-        t = self.cfg.sample_times(i0, self._n)
+        n = self._n if self._last is None else min(self._n, self._last - i0)
+        t = self.cfg.sample_times(i0, n)
         self._step_index += 1
         truth = self.plant.advance(t)
         output = {}
@@ -225,24 +237,34 @@ class Machine:
             sensor = self.transducers[spec.name]
             read = sensor.sample if hasattr(sensor, "sample") else sensor.measure
             output[spec.name] = read(t, truth[spec.signal])
+        for a in range(0, n, self._period):
+            self._cycle(t, output, i0, a, min(a + self._period, n))
+            if done(self) or self.node.released:
+                break
+        return truth
+
+    def _cycle(self, t: np.ndarray, output: dict[str, Any], i0: int, a: int, b: int) -> None:
+        """One transmit cycle, the samples ``a:b`` of the chunk whose first sample follows sample number ``i0``."""
+        self.cycle_curves = 0
         x, y = self._xy
+        part = slice(a, b)
         if x is not None and y is not None:
             # Y2 has no transducer wired (scenes wire X and Y): enabled (a host may, over serial) it reads an open input
-            y2 = np.zeros(t.size) if "y2" in self.device.enabled_channels else None
-            for result in self.device.feed(t, output[x.name], output[y.name], y2):     # queued when the curve ends
-                self.node.publish_measurement(float(np.asarray(result.curve.t)[-1]), result)
+            y2 = np.zeros(b - a) if "y2" in self.device.enabled_channels else None
+            for result in self.device.feed(t[part], output[x.name][part], output[y.name][part], y2):   # queued when
+                self.node.publish_measurement(float(np.asarray(result.curve.t)[-1]), result)           # the curve ends
                 self.curves += 1
+                self.cycle_curves += 1
             live = self.device.live_values()
-            self.node.publish_live(t, live["x"], live["y"])
+            self.node.publish_live(t[part], live["x"], live["y"])
         for message, specs in self._frames.items():
-            idx = self._publish_indices(specs[0].rate, i0 + 1, t.size)
+            idx = a + self._publish_indices(specs[0].rate, i0 + a + 1, b - a)
             values: dict[str, np.ndarray] = {}
             for spec in specs:
                 values.update(self._frame_values(spec, output[spec.name], idx, message))
             self.node.publish_reading(message, t[idx], values)
-        self.node.advance_to(float(t[-1]))
-        self.t = float(t[-1])
-        return truth
+        self.node.advance_to(float(t[b - 1]))
+        self.t = float(t[b - 1])
 
     def flush(self, limit: float = 60.0, pace: Callable[[float], object] = lambda t: None) -> None:
         """End the run: let the node send everything still queued (results of the last curve) in virtual

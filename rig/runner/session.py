@@ -101,6 +101,8 @@ def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fideli
         changes["mode"] = mode
     if changes:
         cfg = replace(cfg, **changes)
+    if cfg.mode == "realtime" and cfg.chunk > cfg.can["tx_period"]:
+        cfg = replace(cfg, chunk=cfg.can["tx_period"])    # paced cycle by cycle: the bus keeps to the wall clock
     announce_fidelity(cfg.fidelity)
     return cfg
 
@@ -204,16 +206,15 @@ def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
         check()
         gone = host_gone()                 # before the step: a Release sent just before leaving counts
         with lock:
-            before = machine.curves
             try:
-                machine.step()
+                machine.step(done=lambda m: _machine_done(cfg, m))
             except BusOverload as exc:
-                burst, held = machine.curves - before, cfg.can["tx_curves"]
-                if burst >= held:          # the step, not the bus: its curves all ended before any could leave
-                    raise RunError(f"{cfg.scene.path} [scene]: chunk = {cfg.chunk:g} s is too long for the bus: one "
-                                   f"runner step measured {burst} curves at once, as many as the unit holds for "
-                                   f"sending ([links.can] tx_curves = {held}); shorten the chunk (e.g. \"100 ms\") "
-                                   f"so that each curve is sent as it ends") from None
+                burst, held = machine.cycle_curves, cfg.can["tx_curves"]
+                if burst >= held:          # the cycle, not the bus: its curves all ended before any could leave
+                    raise RunError(f"{cfg.scene.path} [links.can]: tx_period = {cfg.can['tx_period']:g} s is too long "
+                                   f"for the bus: one transmit cycle of the unit measured {burst} curves at once, as "
+                                   f"many as it holds for sending (tx_curves = {held}); shorten tx_period (e.g. "
+                                   "\"100 ms\") so that each curve is sent as it ends") from None
                 raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
         if gone and not machine.node.released:
             raise _host_left(machine, "during the run")

@@ -308,3 +308,43 @@ def test_a_start_phase_jump_of_a_motor_driven_cam_makes_level_2_the_level(tmp_pa
     assert fid.level == 2 and "L1's flank_switches 0 against L2's 2" in fid.reason
     forced = choose(load_scene(scene), "cam_bar", forced=1)
     assert "the scene's motor drive ([plant.drive]" in forced.caveat and "level 2 only" in forced.caveat
+
+
+def test_a_choice_that_ran_level_2_is_kept_on_disk_for_the_next_command(tmp_path, monkeypatch):
+    """The demo's choice (L1, checked against one revolution of level 2) is computed once, then read from the cache in
+    a later process (here: the in-process memo cleared); another scene content, other data or a damaged entry is
+    computed again; a choice that ran no level 2 writes nothing."""
+    import rig.fidelity as fidelity
+    monkeypatch.setenv("MECHRIG_FIDELITY_CACHE", "1")
+    monkeypatch.setenv("MECHRIG_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "cache" / "fidelity"
+
+    def fresh(path: Path, data: Path = fidelity.DATA):
+        monkeypatch.setattr(fidelity, "_checked", {})          # as a new process: nothing remembered in memory
+        before = fidelity._level2_runs
+        chosen = choose(load_scene(path), "cam_bar", data=data)
+        return chosen, fidelity._level2_runs - before
+
+    def entries() -> int:
+        return len(list(folder.glob("*.json")))
+
+    first, ran = fresh(DEMO)
+    kept = entries()           # the choice, and level 2's setting it checked the answers with
+    assert ran > 0 and first.level == 1 and "level 2 agrees" in first.reason and kept == 2
+    again, ran = fresh(DEMO)
+    assert ran == 0 and again == first and entries() == kept
+    _, ran = fresh(scene_with(tmp_path, 'questions = ["rod_force"]'))
+    assert ran > 0 and entries() > kept
+    kept = entries()
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "pin_insertion_l2.csv").write_text(CSV)
+    _, ran = fresh(DEMO, data)
+    assert ran > 0 and entries() > kept
+    for entry in folder.glob("*.json"):
+        entry.write_text("{not json")
+    damaged, ran = fresh(DEMO)
+    assert ran > 0 and damaged == first
+    kept = entries()
+    plain, ran = fresh(scene_with(tmp_path, "", "plain"))      # no questions: the plant's default level, unchecked
+    assert ran == 0 and plain.level == 1 and entries() == kept

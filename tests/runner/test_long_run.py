@@ -137,15 +137,3 @@ def test_heartbeats_report_the_state_at_their_own_device_time(tmp_path: Path):
         assert b["LastOk"] == ("None" if not ended else ("OK" if ended[-1] else "NOK")), (t, b)
         checked += 1
     assert checked > 20
-
-
-def test_a_chunk_that_measures_several_curves_at_once_is_named_not_the_bus(tmp_path: Path):
-    """A 2 s runner step ends 5 demo cycles before the bus can send any: the queue is full because of the step, and
-    the error said to raise the bitrate or use CAN FD; it names [scene] chunk."""
-    long = tmp_path / "long_chunk.toml"
-    text = SCENE.read_text()
-    assert '\nchunk = "100 ms"' in text
-    long.write_text(text.replace('\nchunk = "100 ms"', '\nchunk = "2 s"', 1))
-    with pytest.raises(RunError, match=r"\[scene\]: chunk = 2 s is too long for the bus: one runner step measured "
-                                       r"\d+ curves at once.*shorten the chunk"):
-        run_scene(long, tmp_path / "long.mcap", cycles=10)
