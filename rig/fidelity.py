@@ -224,12 +224,19 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     from rig import fidelity_cache
     key = fidelity_cache.key(scene, plant, forced, data)
     kept = fidelity_cache.read(key)
-    if kept is not None:
-        return kept
+    try:
+        return Fidelity(level=int(kept["level"]), reason=str(kept["reason"]), method=kept["method"],
+                        options={str(k): float(v) for k, v in kept["options"].items()},
+                        unanswered=tuple(kept["unanswered"]), short_of=str(kept["short_of"]),
+                        caveat=str(kept["caveat"]))
+    except (TypeError, KeyError, ValueError, AttributeError):       # none kept, or not a choice: computed
+        pass
     before = _level2_runs
     chosen = _choose(scene, plant, forced, data)
     if _level2_runs > before:
-        fidelity_cache.write(key, chosen)
+        fidelity_cache.write(key, {"level": chosen.level, "reason": chosen.reason, "method": chosen.method,
+                                   "options": dict(chosen.options), "unanswered": list(chosen.unanswered),
+                                   "short_of": chosen.short_of, "caveat": chosen.caveat})
     return chosen
 
 

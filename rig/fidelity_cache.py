@@ -17,7 +17,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from rig.fidelity import Fidelity
     from rig.scene import Scene
 
 log = logging.getLogger(__name__)
@@ -51,37 +50,31 @@ def key(scene: "Scene", plant: str, forced: int | None, data: Path) -> str | Non
     return h.hexdigest()[:32]
 
 
-def read(name: str | None) -> "Fidelity | None":
-    """The kept choice ``name``, if there is one that reads."""
-    from rig.fidelity import Fidelity
+def read(name: str | None) -> dict | None:
+    """The kept choice ``name`` (the fields of a :class:`rig.fidelity.Fidelity`), if there is one that reads."""
     if name is None:
         return None
     path = _folder() / f"{name}.json"
     try:
         kept = json.loads(path.read_text(encoding="utf-8"))
-        return Fidelity(level=int(kept["level"]), reason=str(kept["reason"]), method=kept["method"],
-                        options={str(k): float(v) for k, v in kept["options"].items()},
-                        unanswered=tuple(kept["unanswered"]), short_of=str(kept["short_of"]),
-                        caveat=str(kept["caveat"]))
     except FileNotFoundError:
         return None
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:     # damaged or from elsewhere
+    except (OSError, ValueError) as exc:         # damaged, or not ours
         log.debug("fidelity cache %s does not read (%s): computed again", path, exc)
         return None
+    return kept if isinstance(kept, dict) else None
 
 
-def write(name: str | None, chosen: "Fidelity") -> None:
-    """Keep ``chosen`` as ``name`` (nothing when the cache is off or its folder cannot be written)."""
+def write(name: str | None, fields: dict) -> None:
+    """Keep a choice's ``fields`` (JSON) as ``name`` (nothing when the cache is off or its folder cannot be
+    written)."""
     if name is None:
         return
     folder = _folder()
-    entry = {"level": chosen.level, "reason": chosen.reason, "method": chosen.method,
-             "options": dict(chosen.options), "unanswered": list(chosen.unanswered), "short_of": chosen.short_of,
-             "caveat": chosen.caveat}
     try:
         folder.mkdir(parents=True, exist_ok=True)
         tmp = folder / f"{name}.{os.getpid()}.tmp"
-        tmp.write_text(json.dumps(entry), encoding="utf-8")
+        tmp.write_text(json.dumps(fields), encoding="utf-8")
         os.replace(tmp, folder / f"{name}.json")            # atomic: parallel processes see whole files only
     except OSError as exc:
         log.debug("fidelity cache %s not written (%s)", folder, exc)

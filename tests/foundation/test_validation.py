@@ -499,8 +499,8 @@ def test_a_negative_speed_is_named_by_its_key_in_the_unit_written(tmp_path, old,
 
 @pytest.mark.parametrize("old, new, message", [
     ('sample_rate = "10 kHz"', 'sample_rate = "0 Hz"', r"\[scene\]: key 'sample_rate' must be positive, got 0 Hz$"),
-    ('chunk = "100 ms"', 'chunk = "-1 s"', r"\[scene\]: key 'chunk' must be positive, got -1 s$"),
-    ('chunk = "100 ms"', 'chunk = "0.1 ms"', r"\[scene\]: 'chunk' = 0.0001 s holds 1 samples at 'sample_rate' = "
+    ('chunk = "500 ms"', 'chunk = "-1 s"', r"\[scene\]: key 'chunk' must be positive, got -1 s$"),
+    ('chunk = "500 ms"', 'chunk = "0.1 ms"', r"\[scene\]: 'chunk' = 0.0001 s holds 1 samples at 'sample_rate' = "
                                              r"10000 Hz: a chunk needs at least 2$"),
 ])
 def test_the_run_grid_names_the_key_that_is_wrong(tmp_path, old, new, message):

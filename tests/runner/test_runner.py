@@ -595,10 +595,10 @@ def test_a_run_stopped_by_any_error_keeps_the_plant_truth_up_to_the_stop(tmp_pat
     from rig.solvers import SolverDivergence
     original = machine_module.Machine.step
 
-    def step(self):
+    def step(self, **kwargs):
         if self.t >= 0.7:
             raise SolverDivergence("a test's stop", self.t, (0.0,))
-        return original(self)
+        return original(self, **kwargs)
 
     monkeypatch.setattr(machine_module.Machine, "step", step)
     out = tmp_path / "stopped.mcap"
