@@ -7,7 +7,7 @@ boundary ``mΔ`` toggles A for odd m and B for even m; Z is high for ``k ≡ 0 (
 
 Error source (``errors_enabled``): Gaussian edge-time jitter ``jitter_rms``, never moving an edge to or before the
 sample preceding its crossing (the card has latched there): the result does not depend on how the samples are cut
-into calls (the faults' draws do). Faults: ``missed_pulses``
+into calls; nor do the faults', each drawn from a stream of its own in time order. Faults: ``missed_pulses``
 (a pulse of A or B disappears with ``probability`` per pulse) and ``glitches`` (spurious pulses of
 ``width`` on A or B at a Poisson ``rate``).
 
@@ -110,6 +110,8 @@ class IncrementalEncoder(Transducer):
         self._line = np.zeros(3, dtype=np.uint8)       # line levels after all emitted edges
         self._pending = (np.empty(0), np.empty(0, dtype=np.int64))  # jittered edges after the last sample
         self._drop_next = np.zeros(2, dtype=bool)     # missed pulse whose second edge is still to come
+        self._streams: dict[tuple[int, int], tuple[Any, np.random.Generator]] = {}    # per fault (and channel)
+        self._next_glitch: dict[int, float] = {}       # per glitch fault: the start of its next pulse (s)
         self._last_edge_t = -math.inf  # time of the last edge the counter card accepted
         self._card_state = 0           # Gray position the card saw last
         self._c4 = 0
@@ -147,41 +149,67 @@ class IncrementalEncoder(Transducer):
         times = tt[interval] + frac * (tt[interval + 1] - tt[interval])
         return times, m, tt[interval]
 
+    def _stream(self, fault: Any, channel: int = 0) -> np.random.Generator:
+        """The random stream of one fault (and channel): a child of the transducer's generator, spawned in the order
+        the faults were injected, drawn in time order — where the samples are cut into calls changes no draw."""
+        key = (id(fault), channel)
+        if key not in self._streams:
+            for f in self.faults.faults:                   # every fault's streams at once, in injection order
+                for c in (A, B):
+                    self._streams.setdefault((id(f), c), (f, self.rng.spawn(1)[0]))
+        return self._streams[key][1]
+
     def _missed(self, times: np.ndarray, chan: np.ndarray) -> np.ndarray:
-        """Keep-mask after dropping whole pulses (an edge and the next one on the same channel)."""
+        """Keep-mask after dropping whole pulses (an edge and the next one on the same channel): a pulse starts at
+        an edge drawn missing that is not the second edge of the pulse before; one draw per edge in a fault's
+        window, in time order."""
         keep = np.ones(times.size, dtype=bool)
-        windows = self.faults.windows("missed_pulses", times)
+        faults = [f for f in self.faults.faults if f.kind == "missed_pulses"]
         for c in (A, B):
             idx = np.flatnonzero(chan == c)
+            drawn = np.zeros(idx.size, dtype=bool)
+            for f in faults:
+                inside = np.flatnonzero((times[idx] >= f.at) & (times[idx] < f.until))
+                if inside.size:
+                    drawn[inside] |= self._stream(f, c).uniform(size=inside.size) < f.params["probability"]
+            last = -1 if self._drop_next[c] else -2        # -1: the edge before this call's first started a pulse
             if self._drop_next[c] and idx.size:
                 keep[idx[0]] = False
-                idx = idx[1:]
-                self._drop_next[c] = False
-            drawn = np.zeros(idx.size, dtype=bool)
-            for mask, par in windows:
-                drawn |= mask[idx] & (self.rng.uniform(size=idx.size) < par["probability"])
-            hit = _pulse_starts(np.flatnonzero(drawn))
+            hit = []
+            for i in np.flatnonzero(drawn).tolist():
+                if i > last + 1:
+                    hit.append(i)
+                    last = i
+            hit = np.asarray(hit, dtype=np.int64)
             keep[idx[hit]] = False
             second = hit + 1
             keep[idx[second[second < idx.size]]] = False
-            if hit.size and hit[-1] == idx.size - 1:
-                self._drop_next[c] = True
+            if idx.size:
+                self._drop_next[c] = bool(hit.size and hit[-1] == idx.size - 1)
         return keep
 
     def _glitches(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
-        """Spurious pulses (two edges each) in (t0, t1]."""
+        """Spurious pulses (two edges each) starting in (t0, t1]: each fault's Poisson process drawn as exponential
+        gaps from its start, in time order."""
         times, chans = [], []
         for f in self.faults.faults:
-            if f.kind != "glitches":
+            rate = f.params.get("rate", 0.0) if f.kind == "glitches" else 0.0
+            if not rate > 0.0:
                 continue
-            lo, hi = max(t0, f.at), min(t1, f.until)
-            if hi <= lo:
-                continue
-            n = self.rng.poisson(f.params["rate"] * (hi - lo))
-            start = self.rng.uniform(lo, hi, size=n)
-            c = self.rng.integers(0, 2, size=n)
+            stream = self._stream(f)
+            nxt = self._next_glitch.get(id(f))
+            if nxt is None:
+                nxt = f.at + stream.exponential(1.0 / rate)
+            starts, cs = [], []
+            while nxt <= t1 and nxt < f.until:
+                if nxt > t0:
+                    starts.append(nxt)
+                    cs.append(int(stream.integers(0, 2)))
+                nxt += stream.exponential(1.0 / rate)
+            self._next_glitch[id(f)] = nxt
+            start = np.asarray(starts)
             times += [start, start + f.params["width"]]
-            chans += [c, c]
+            chans += [np.asarray(cs, dtype=np.int64)] * 2
         if not times:
             return np.empty(0), np.empty(0, dtype=np.int64)
         return np.concatenate(times), np.concatenate(chans)
@@ -282,15 +310,3 @@ class IncrementalEncoder(Transducer):
         if change_t.size:
             self._count_edge_t = float(change_t[-1])
         return count.astype(np.int64), edge_time, illegal.astype(np.int64)
-
-
-def _pulse_starts(drawn: np.ndarray) -> np.ndarray:
-    """The edges (indices on one channel, sorted) that start a missed pulse: a drawn edge that is not the second edge
-    of the pulse before. A pulse is two edges: dropping them in pairs keeps the channel's level and the phase of A
-    and B; a third edge dropped (two draws side by side) inverted the channel and reversed the counting for good."""
-    starts, last = [], -2
-    for i in drawn.tolist():
-        if i > last + 1:
-            starts.append(i)
-            last = i
-    return np.asarray(starts, dtype=np.int64)

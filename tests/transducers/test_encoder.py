@@ -351,3 +351,30 @@ def test_a_shaft_accelerating_at_power_on_counts_from_the_line_it_stands_on():
     te = out.edge_time[changed]
     edge_angle = omega0 * te + 0.5 * alpha * te * te
     np.testing.assert_allclose(edge_angle / COUNT - out.count[changed], 0.0, atol=0.01)   # linear between samples
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_any_cutting_of_the_samples_into_calls_gives_the_same_card_latches(seed):
+    """Jitter, missed pulses and glitches together: one call over 0.5 s and calls of 1 ms, 37 samples and 0.1 s give
+    the same counts, edge times, illegal transitions and line levels. Before, the faults drew per call (a Poisson count
+    per call, the channels' draws interleaved by call) and a jittered edge could land before the last sample of the
+    previous call, after its latch: the runner's chunk changed the recording."""
+    t = np.arange(1, 50_001) * 1e-5                        # 0.5 s at 100 kHz
+    theta = 0.3 + 12.0 * t + 3.0 * t * t                   # 1900..2200 edges per channel per second
+    outs = []
+    for size in (t.size, 100, 37, 10_000):
+        enc = load_transducer("encoder_1024", np.random.default_rng(seed), jitter_rms="0.2 us")
+        enc.inject("missed_pulses", at=0.1, until=0.3, probability=0.05)
+        enc.inject("glitches", at=0.2, until=0.45, rate=300.0, width=2e-6)
+        parts = [enc.sample(t[k:k + size], theta[k:k + size]) for k in range(0, t.size, size)]
+        outs.append({name: np.concatenate([getattr(p, name) for p in parts])
+                     for name in ("count", "edge_time", "illegal", "levels")})
+    clean = load_transducer("encoder_1024", np.random.default_rng(seed), jitter_rms="0.2 us").sample(t, theta)
+    glitched = (t > 0.3) & (t < 0.45)                       # pulses went missing, glitches moved the last edge times:
+    assert outs[0]["count"][-1] < clean.count[-1] - 4
+    only = load_transducer("encoder_1024", np.random.default_rng(seed), jitter_rms="0.2 us")
+    only.inject("glitches", at=0.2, until=0.45, rate=300.0, width=2e-6)
+    assert np.any(only.sample(t, theta).edge_time[glitched] != clean.edge_time[glitched])
+    for out in outs[1:]:
+        for name, value in out.items():
+            assert np.array_equal(value, outs[0][name], equal_nan=name == "edge_time"), name
