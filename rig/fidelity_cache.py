@@ -12,6 +12,7 @@ import hashlib
 import json
 import logging
 import os
+import threading
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -59,7 +60,7 @@ def read(name: str | None) -> dict | None:
         kept = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         return None
-    except (OSError, ValueError) as exc:         # damaged, or not ours
+    except (OSError, ValueError, RecursionError) as exc:         # damaged, or not ours
         log.debug("fidelity cache %s does not read (%s): computed again", path, exc)
         return None
     return kept if isinstance(kept, dict) else None
@@ -73,8 +74,8 @@ def write(name: str | None, fields: dict) -> None:
     folder = _folder()
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        tmp = folder / f"{name}.{os.getpid()}.tmp"
+        tmp = folder / f"{name}.{os.getpid()}.{threading.get_ident()}.tmp"
         tmp.write_text(json.dumps(fields), encoding="utf-8")
-        os.replace(tmp, folder / f"{name}.json")            # atomic: parallel processes see whole files only
+        os.replace(tmp, folder / f"{name}.json")            # atomic: parallel writers see whole files only
     except OSError as exc:
         log.debug("fidelity cache %s not written (%s)", folder, exc)

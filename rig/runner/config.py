@@ -24,7 +24,8 @@ SCENE_SCHEMA = {
     "duration": Field("s", None, "simulated time to run when the scene has no cycles"),
     "sample_rate": Field("Hz", 10_000.0, "plant/transducer/acquisition sample rate"),
     "chunk": Field("s", 0.1, "simulated time the plant and transducers advance per runner step: a whole number of "
-                   "the unit's transmit cycles ([links.can] tx_period); it changes no recorded value (docs/scenes.md)"),
+                   "the unit's transmit cycles ([links.can] tx_period); the unit, its bus and the transducers record "
+                   "the same whatever it is, a plant that integrates restarts there (docs/can-protocol.md)"),
     "mode": Field(None, "virtual", "'virtual' (as fast as possible) or 'realtime' (paced to the wall clock)"),
     "fidelity": Field(None, None, "model level (0/1/2 or kinematic/kinetostatic/dynamic); default: chosen by questions"),
     "questions": Field(None, None, "what the run must answer, e.g. [\"stroke\", \"dwell_vibration\"] (rig.fidelity)"),
@@ -295,18 +296,21 @@ def check_sections(scene: Scene, plant: str) -> None:
                              + "; links are [links.can] and [links.serial]")
 
 
-def _check_period(period: float, chunk: float, rate: float, where: str) -> None:
+def _check_period(period: float, chunk: float, rate: float, where: str, scene_where: str) -> None:
     """The transmit cycle a whole number of samples, and the chunk a whole number of cycles: the runner steps the
-    unit and its bus cycle by cycle within a chunk, so that the chunk changes no recorded value."""
+    unit and its bus cycle by cycle within a chunk."""
     samples = period * rate
-    if not period > 0 or round(samples) < 2 or abs(samples - round(samples)) > 1e-6 * samples:
+    if not period > 0:
+        raise SceneError(f"{where}: key 'tx_period' must be positive, got {period:g} s")
+    if round(samples) < 2 or abs(samples - round(samples)) > 1e-6 * samples:
         raise SceneError(f"{where}: key 'tx_period' = {period:g} s must be a whole number (at least 2) of samples at "
                          f"[scene] sample_rate = {rate:g} Hz (it holds {samples:g})")
-    cycles = chunk / period
-    if abs(cycles - round(cycles)) > 1e-6 * cycles or round(cycles) < 1:
-        raise SceneError(f"{where}: [scene] chunk = {chunk:g} s must be a whole number of the unit's transmit cycles "
-                         f"(key 'tx_period' = {period:g} s; it holds {cycles:g}): the runner steps the unit cycle by "
-                         "cycle within a chunk")
+    chunk_samples = max(2, round(chunk * rate))
+    if chunk_samples % round(samples):
+        raise SceneError(f"{scene_where}: key 'chunk' = {chunk:g} s must be a whole number of the unit's transmit "
+                         f"cycles ([links.can] tx_period = {period:g} s; it holds {chunk_samples / round(samples):g}): "
+                         "the runner steps the unit cycle by cycle within a chunk; change the chunk, or tx_period to a "
+                         "divisor of it")
 
 
 def read_config(scene: Scene, fidelity: int | None = None) -> RunConfig:
@@ -373,7 +377,7 @@ def read_config(scene: Scene, fidelity: int | None = None) -> RunConfig:
     if can["data_bitrate"] is not None and can["data_bitrate"] < can["bitrate"]:
         raise SceneError(f"{cw}: key 'data_bitrate' = {can['data_bitrate']} bit/s must be at least 'bitrate' = "
                          f"{can['bitrate']} bit/s (the data phase is the faster one)")
-    _check_period(can["tx_period"], s["chunk"], s["sample_rate"], cw)
+    _check_period(can["tx_period"], s["chunk"], s["sample_rate"], cw, where)
     _of_type(can["channel"], str, "channel", cw, "a string")
     _of_type(can["host"], str, "host", cw, "a host name or address")
     if can["interface"] not in IN_PROCESS_INTERFACES:

@@ -1,6 +1,7 @@
 """The runner's chunk is a setting of the computation, not of the machine: the unit and its bus run in their own
-transmit cycles (``[links.can] tx_period``) within a chunk, so a chunk of one cycle and a chunk of twenty record the
-same values, frame for frame."""
+transmit cycles (``[links.can] tx_period``) within a chunk and the transducers filter and count alike however their
+samples are cut, so with a plant evaluated point by point (the demo, level 1) a chunk of one cycle and a chunk of
+twenty record the same values, frame for frame (a plant that integrates restarts at each step: docs/can-protocol.md)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -97,8 +98,10 @@ def test_a_run_of_a_duration_ends_at_the_first_cycle_end_after_it(tmp_path: Path
 
 
 @pytest.mark.parametrize("keys, error", [
-    ({"chunk": "250 ms"}, r"\[links.can\]: \[scene\] chunk = 0.25 s must be a whole number of the unit's transmit "
-                          r"cycles \(key 'tx_period' = 0.1 s; it holds 2.5\)"),
+    ({"chunk": "250 ms"}, r"\[scene\]: key 'chunk' = 0.25 s must be a whole number of the unit's transmit cycles "
+                          r"\(\[links.can\] tx_period = 0.1 s; it holds 2.5\).*or tx_period to a divisor of it"),
+    ({"chunk": "100.0001 s"}, r"\[scene\]: key 'chunk' = 100 s must be a whole number .* it holds 1000"),
+    ({"tx_period": "-0.1 s"}, r"\[links.can\]: key 'tx_period' must be positive, got -0.1 s"),
     ({"tx_period": "0.15 ms"}, r"\[links.can\]: key 'tx_period' = 0.00015 s must be a whole number \(at least 2\) of "
                                r"samples at \[scene\] sample_rate = 10000 Hz \(it holds 1.5\)"),
 ])
