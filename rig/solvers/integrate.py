@@ -259,7 +259,13 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
     events = list(problem.events if events is None else events)
     breaks = breaks_in(problem, t0, tf) + [tf]
     if t_eval is not None:
-        t_eval = np.asarray(t_eval, dtype=float)
+        try:
+            t_eval = np.asarray(t_eval, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"integrate: t_eval must be a sequence of times (s), got {t_eval!r:.80}") from None
+        if t_eval.ndim != 1:
+            raise ValueError(f"integrate: t_eval must be a 1-D sequence of times (s), got an array of shape "
+                             f"{t_eval.shape}")
         if t_eval.size and (not np.all(np.isfinite(t_eval)) or np.any(np.diff(t_eval) < 0) or t_eval[0] < t0
                             or t_eval[-1] > tf):
             raise ValueError(f"integrate: t_eval must be finite and increasing inside t_span = ({t0}, {tf})")

@@ -111,3 +111,14 @@ def test_a_right_hand_side_turning_nan_is_blamed_not_the_method(method):
     said = str(info.value)
     assert "the right-hand side is not finite at t = 0.5" in said and "Rodas4 - check" not in said
     assert "try the implicit method Rodas4" not in said or method != "Rodas4"
+
+
+@pytest.mark.parametrize("t_eval, said", [
+    ([[0.1, 0.2]], "t_eval must be a 1-D sequence of times (s), got an array of shape (1, 2)"),   # numpy's "truth
+    (0.5, "t_eval must be a 1-D sequence of times (s), got an array of shape ()"),     # value of an array ...", and
+    ("abc", "t_eval must be a sequence of times (s), got 'abc'"),        # "diff requires input that is at least 1-D"
+])
+def test_output_times_that_are_not_a_sequence_are_named(t_eval, said):
+    with pytest.raises(ValueError, match=re_escape(said)):
+        integrate(DECAY, (0.0, 1.0), "DP45", t_eval=t_eval)
+    assert np.allclose(integrate(DECAY, (0.0, 1.0), "DP45", t_eval=[0.1, 0.5]).y[0], np.exp([-0.1, -0.5]), rtol=1e-5)
