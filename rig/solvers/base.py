@@ -5,6 +5,7 @@ States are tuples of floats (pure Python is much faster than numpy for 4–6 sta
 """
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Callable, Sequence
@@ -463,6 +464,21 @@ class OdeSolver:
     """
 
     order: int = 0
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """A method's own ``dense_output`` asked before its first step says so (it failed on a None ``t_old``)."""
+        super().__init_subclass__(**kwargs)
+        own = cls.__dict__.get("dense_output")
+        if own is None:
+            return
+
+        @functools.wraps(own)
+        def dense_output(self: "OdeSolver", *args: Any, **kw: Any) -> Any:
+            if self.t_old is None:
+                raise RuntimeError(f"{type(self).__name__}: dense_output() interpolates over the last step: call "
+                                   "step() first")
+            return own(self, *args, **kw)
+        cls.dense_output = dense_output
 
     def __init__(self, fun: Rhs, t0: float, y0: Sequence[float], t_bound: float):
         if not t_bound > t0:

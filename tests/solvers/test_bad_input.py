@@ -122,3 +122,13 @@ def test_output_times_that_are_not_a_sequence_are_named(t_eval, said):
     with pytest.raises(ValueError, match=re_escape(said)):
         integrate(DECAY, (0.0, 1.0), "DP45", t_eval=t_eval)
     assert np.allclose(integrate(DECAY, (0.0, 1.0), "DP45", t_eval=[0.1, 0.5]).y[0], np.exp([-0.1, -0.5]), rtol=1e-5)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_dense_output_before_the_first_step_is_named(method):
+    """The interpolant spans the last step: asked before one, every method says so (it failed on ``None - float``)."""
+    solver = METHODS[method](OSCILLATOR.fun, 0.0, OSCILLATOR.y0, 1.0, **({"h": 1e-3} if method in FIXED else {}))
+    with pytest.raises(RuntimeError, match="dense_output\\(\\) interpolates over the last step: call step\\(\\) first"):
+        solver.dense_output()
+    solver.step()
+    assert solver.dense_output()(solver.t_old)[0] == pytest.approx(1.0)
