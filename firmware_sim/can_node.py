@@ -12,8 +12,8 @@ The unit's transmit policy (docs/can-protocol.md, "Transmit queue"): curves firs
 (header, timing, blocks, end, result, process values, end marker) is never dropped; at most
 ``tx_curves`` transfers wait, and a curve beyond that raises :class:`BusOverload` (the configuration
 cannot fit the bus). Live data takes at most ``live_share`` of each transmit cycle's bus time (the samples
-one :meth:`publish_live` call gives) and only the time the queued transfer and status frames leave free in that cycle: it is decimated by an integer factor,
-or dropped, to fit; live frames still queued ``live_max_age`` after their last sample are stale and
+one :meth:`publish_live` call gives) and only the time the queued transfer and status frames leave free in that
+cycle: it is decimated by an integer factor, or dropped, to fit; live frames still queued ``live_max_age`` after their last sample are stale and
 dropped. Every pair not sent is counted (``LiveDropped`` in ``StatusCounters``; stale ones also in
 ``LiveStale`` of ``TxStatus``).
 """
@@ -316,8 +316,8 @@ class CanNode:
         The cycle gets at most ``live_share`` of its bus time, and no more than the queued transfer and
         status frames leave free in it (curves first). Only pairs sampled on the ``Tick`` grid (100 µs) are sent,
         so that every stamp is exact (at 20 kHz every other one), decimated by the smallest integer factor that
-        fits; returns the factor against the samples (0: nothing fits, the cycle's pairs are dropped). Pairs not sent are
-        counted in :attr:`live_dropped`.
+        fits; returns the factor against the samples (0: nothing fits, the cycle's pairs are dropped). Pairs not sent
+        are counted in :attr:`live_dropped`.
         """
         t, x, y = (np.asarray(a, dtype=float) for a in (t, x, y))
         if t.ndim != 1 or t.size < 2 or x.shape != t.shape or y.shape != t.shape:

@@ -19,7 +19,7 @@ import csv
 import importlib
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -225,18 +225,13 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     key = fidelity_cache.key(scene, plant, forced, data)
     kept = fidelity_cache.read(key)
     try:
-        return Fidelity(level=int(kept["level"]), reason=str(kept["reason"]), method=kept["method"],
-                        options={str(k): float(v) for k, v in kept["options"].items()},
-                        unanswered=tuple(kept["unanswered"]), short_of=str(kept["short_of"]),
-                        caveat=str(kept["caveat"]))
-    except (TypeError, KeyError, ValueError, AttributeError):       # none kept, or not a choice: computed
+        return Fidelity(**{**kept, "unanswered": tuple(kept["unanswered"])})
+    except (TypeError, KeyError):           # none kept, or not a choice: computed
         pass
     before = _level2_runs
     chosen = _choose(scene, plant, forced, data)
     if _level2_runs > before:
-        fidelity_cache.write(key, {"level": chosen.level, "reason": chosen.reason, "method": chosen.method,
-                                   "options": dict(chosen.options), "unanswered": list(chosen.unanswered),
-                                   "short_of": chosen.short_of, "caveat": chosen.caveat})
+        fidelity_cache.write(key, asdict(chosen))
     return chosen
 
 

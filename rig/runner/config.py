@@ -300,15 +300,16 @@ def _check_period(period: float, chunk: float, rate: float, where: str, scene_wh
     """The transmit cycle a whole number of samples, and the chunk a whole number of cycles: the runner steps the
     unit and its bus cycle by cycle within a chunk."""
     samples = period * rate
+    whole = round(samples) if period > 0 else 0
     if not period > 0:
         raise SceneError(f"{where}: key 'tx_period' must be positive, got {period:g} s")
-    if round(samples) < 2 or abs(samples - round(samples)) > 1e-6 * samples:
+    if whole < 2 or abs(samples - whole) > 1e-6 * samples:
         raise SceneError(f"{where}: key 'tx_period' = {period:g} s must be a whole number (at least 2) of samples at "
                          f"[scene] sample_rate = {rate:g} Hz (it holds {samples:g})")
-    chunk_samples = max(2, round(chunk * rate))
-    if chunk_samples % round(samples):
+    chunk_samples = max(2, round(chunk * rate))           # RunConfig.chunk_samples
+    if chunk_samples % whole:
         raise SceneError(f"{scene_where}: key 'chunk' = {chunk:g} s must be a whole number of the unit's transmit "
-                         f"cycles ([links.can] tx_period = {period:g} s; it holds {chunk_samples / round(samples):g}): "
+                         f"cycles ([links.can] tx_period = {period:g} s; it holds {chunk_samples / whole:g}): "
                          "the runner steps the unit cycle by cycle within a chunk; change the chunk, or tx_period to a "
                          "divisor of it")
 

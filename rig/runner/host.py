@@ -157,7 +157,8 @@ class Host:
     def _machine_end(self, complete: bool) -> float:
         """Where the machine stopped advancing its plant (s), from what every host sees alike: a run of a duration at
         its duration; a complete run of cycles at the end of the unit's transmit cycle in which its last curve ended
-        (the machine stops after that cycle; the bus then only drains — in process or across processes, the same time);
+        (the machine stops after that cycle; the bus then only drains — in process or across processes, the same
+        time);
         a run stopped early at the latest device time its frames carried."""
         heard = max(self.can.device_time, self._frame_t)
         if self.cfg.cycles is None:

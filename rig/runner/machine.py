@@ -223,7 +223,8 @@ class Machine:
         """Advance one chunk: the plant and the transducers over the whole chunk at once, then the unit and its bus
         one transmit cycle after the other, as a chunk of one cycle would (the curves that ended in the cycle
         queued, its live pairs planned against the bus, its readings queued, the bus run to the cycle's end): with a
-        plant evaluated point by point the chunk changes no recorded value (one that integrates restarts at each call). ``done(machine)``, asked after each cycle, ends the step there (the unit
+        plant evaluated point by point the chunk changes no recorded value (one that integrates restarts at each
+        call). ``done(machine)``, asked after each cycle, ends the step there (the unit
         is not fed past it; the plant and transducers have computed the rest of the chunk, unused). A run of a
         duration ends its last chunk at the first cycle end at or after it. Returns the plant truth of the chunk (SI,
         with its times ``t``). Every output goes where the scene wires it (``to``)."""

@@ -125,7 +125,8 @@ def test_supply_outside_data_sheet_is_rejected():
 def test_the_low_pass_gives_the_same_output_however_the_samples_are_cut(order):
     """Exact sample times k/rate differ in the last bits of their spacings: the uniform path's coefficients come from
     the nominal step, not from whichever spacing a call starts with, so one call and calls of 1000, 333 or 5000
-    samples filter alike to the bit (before, 1e-17..1e-13 apart: the runner's chunk changed the transducers' outputs)."""
+    samples filter alike to the bit (before, 1e-17..1e-13 apart: the runner's chunk changed the transducers'
+    outputs)."""
     from firmware_sim.transducers.lowpass import LowPass
     t = np.arange(1, 30_001) / 10_000.0
     u = np.sin(40 * t) + 0.3 * np.cos(700 * t)
