@@ -79,8 +79,9 @@ def run_scratch(n: int, events: int, stages: int, order: int, params: int) -> tu
 #: (out: last step taken — or the failed one —, RHS calls, Hairer's stiffness estimate h·|λ|, events acted
 #: on in a run, failure status of a run: 1 step-size underflow, 2 non-finite state of a fixed-step method), NBREAK
 #: (in/out: how many of a run's further bounds ``BR`` it has passed, restarting past each as the driver would), IE
-#: (in/out: index of the first output time a run has not sampled yet)
-T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, QMASK, H, NFEV, HL, NEV, FAIL, NBREAK, IE = range(14)
+#: (in/out: index of the first output time a run has not sampled yet), T0 (in/out: where a fixed-step method's grid
+#: t0 + k·h starts: the start, or the last restart of a run past a time break or an event it acted on)
+T, H_ABS, T_BOUND, RTOL, ATOL, MAX_STEP, QMASK, H, NFEV, HL, NEV, FAIL, NBREAK, IE, T0 = range(15)
 TEMPLATES = Path(__file__).with_name("templates")
 _KERNELS = re.compile(r"# <kernels>\n.*?# </kernels>\n", re.DOTALL)
 _INCLUDE = re.compile(r"^# <include (\w+)>\n", re.MULTILINE)     # a method template's shared part (templates/erk.py)

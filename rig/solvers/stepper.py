@@ -101,7 +101,7 @@ class Stepper(OdeSolver):
             self._p = fun.params()
             self._ya, self._yb, self._fa = np.array(self.y), np.empty(len(self.y)), np.array(self.f)
             self._w = np.array([self.t, h_abs, self.t_bound, rtol, atol, max_step, float(sum(1 << i for i in positions)),
-                                0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+                                0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self.t])
         self._bounds = np.empty(0)
         self.breaks_passed = 0
 
@@ -377,8 +377,8 @@ class AdaptiveStepper(Stepper):
 
 
 class FixedStepper(Stepper):
-    """A fixed-step method: step ``h`` (s), the last step shortened (or stretched by < 1e-6·h) to land on
-    t_bound; no error control. ``first_step`` is accepted for interface compatibility and ignored. A step
+    """A fixed-step method: steps ``h`` (s) on the grid t0 + k·h, the last shortened (or stretched by < 1e-6·h) to
+    land on t_bound; no error control. ``first_step`` is accepted for interface compatibility and ignored. A step
     size beyond the method's stability limit is reported by the stiffness test as divergence
     (``stiffness="raise"``, the default: :class:`~rig.solvers.base.StiffnessError` naming h·|λ| and the fix)
     and a non-finite state raises :class:`~rig.solvers.base.SolverDivergence` likewise."""
@@ -391,7 +391,7 @@ class FixedStepper(Stepper):
         super().__init__(fun, t0, y0, t_bound, stiffness, compiled)
         if not 0 < h < math.inf:
             raise ValueError(f"{self.label}: step h = {h!r} s must be positive and finite")
-        self.h = h
+        self.h, self.t0 = h, self.t   # steps on the grid t0 + k·h
         self._start(h, positions=positions)
         self.monitor.watch = Amplification(fun, self.method, positions)
         self.check_at_end = True        # the amplification test once more on reaching t_bound (integrate() does it
@@ -427,12 +427,11 @@ class FixedStepper(Stepper):
         return {}
 
     def _fixed_h(self) -> tuple[float, float]:
-        """(h, t_new) of the next step (as the compiled ``fixed_step``)."""
-        t, h = self.t, self.h
-        if self.t_bound - t - h < 1e-6 * h:
+        """(h, t_new) of the next step (as the compiled ``fixed_step``: on the grid t0 + k·h from the start)."""
+        t, h, t0 = self.t, self.h, self.t0
+        t_new = t0 + (math.floor((t - t0) / h + 0.5) + 1.0) * h
+        if self.t_bound - t_new < 1e-6 * h:
             h, t_new = self.t_bound - t, self.t_bound
-        else:
-            t_new = t + h
         if not h >= self._min_step():
             raise SolverDivergence(f"{self.label}: step size underflow (h = {h:.3g} s): the span to t_bound = "
                                    f"{self.t_bound!r} s is shorter than 10 ulp (two time breaks or events that "

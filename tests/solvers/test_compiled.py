@@ -141,3 +141,16 @@ def test_advance_refuses_an_output_array_that_does_not_fit_its_times():
         solver.advance(np.array([1.0]), times=times, out=np.empty((1, 5)))
     solver.advance(np.array([1.0]), times=times)           # times without an output array: nothing sampled
     assert solver.sampled == 0 and solver.t > 0.0
+
+
+@pytest.mark.parametrize("method", ["Euler", "SymplecticEuler", "RK4"])
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_long_fixed_step_run_stays_on_its_grid(method, compiled):
+    """10 000 steps of 0.1 ms from t = 1000 s: step k ends at t0 + k·h (t + h summed step by step drifted by 2.5e-5·h
+    and ended in an extra step of 2.5e-9 s), the last one of size h."""
+    h, t0 = 1e-4, 1000.0
+    sol = integrate(Problem(_vdp(), (2.0, 0.0)), (t0, t0 + 1.0), method=method, h=h, compiled=compiled)
+    assert sol.nsteps == 10_000 and sol.t[-1] == t0 + 1.0
+    grid = t0 + np.arange(sol.t.size) * h
+    assert np.max(np.abs(sol.t - grid)) <= 2 * np.spacing(t0 + 1.0)
+    assert sol.h_last == pytest.approx(h, rel=1e-9)

@@ -4,7 +4,7 @@ import math
 
 from numba import njit
 
-from rig.solvers.compiled import T_BOUND
+from rig.solvers.compiled import T0, T_BOUND
 from rig.solvers.euler import EULER_P as P
 
 # <kernels>
@@ -17,7 +17,7 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 @njit(cache=True, error_model="numpy")
 def one_step(t, h_abs, w, y, y_new, K, p, ws):
     """y_new = y + h·f(t, y), fixed h (the last step lands on t_bound; see :mod:`runs`)."""
-    h, t_new = fixed_step(t, h_abs, w[T_BOUND])
+    h, t_new = fixed_step(t, h_abs, w[T_BOUND], w[T0])
     if not h >= min_step(t):
         return UNDERFLOW, t, h, h_abs, 0, 0.0
     for i in range(y.size):

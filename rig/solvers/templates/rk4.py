@@ -3,7 +3,7 @@ Python step). K rows: k1..k4 and f(t_new, y_new)."""
 
 from numba import njit
 
-from rig.solvers.compiled import T_BOUND
+from rig.solvers.compiled import T0, T_BOUND
 from rig.solvers.rk4 import P
 
 # <kernels>
@@ -16,7 +16,7 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 @njit(cache=True, error_model="numpy")
 def one_step(t, h_abs, w, y, y_new, K, p, ws):
     """One fixed step of size h_abs (the last one lands on t_bound; see :mod:`runs`); stage states in ws[0:3]."""
-    h, t_new = fixed_step(t, h_abs, w[T_BOUND])
+    h, t_new = fixed_step(t, h_abs, w[T_BOUND], w[T0])
     if not h >= min_step(t):
         return UNDERFLOW, t, h, h_abs, 0, 0.0
     n = y.size

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 
 from rig.solvers.borrow import borrowed
-from rig.solvers.compiled import FAIL, H, H_ABS, HL, IE, MAX_STEP, NBREAK, NEV, NFEV, T, T_BOUND, scratch_rows
+from rig.solvers.compiled import FAIL, H, H_ABS, HL, IE, MAX_STEP, NBREAK, NEV, NFEV, T, T0, T_BOUND, scratch_rows
 
 UNDERFLOW, NONFINITE = 1, 2
 
@@ -49,11 +49,13 @@ ADAPTIVE = False    # the method controls its error: it lands on the roots of pl
 
 
 @njit(cache=True, error_model="numpy")
-def fixed_step(t, h, t_bound):
-    """(h, t_new) of a fixed-step method: the last step is stretched or cut to land on t_bound."""
-    if t_bound - t - h < 1e-6 * h:
+def fixed_step(t, h, t_bound, t0):
+    """(h, t_new) of a fixed-step method on the grid t0 + k·h (t0 the time it started or restarted at: no rounding
+    of t + h piles up over the steps); the last step is stretched or cut to land on t_bound."""
+    t_new = t0 + (math.floor((t - t0) / h + 0.5) + 1.0) * h
+    if t_bound - t_new < 1e-6 * h:
         return t_bound - t, t_bound
-    return h, t + h
+    return h, t_new
 
 
 @njit(cache=True, error_model="numpy")
@@ -304,7 +306,7 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR, S, GN, Q, KS, PB, TE, OUT):
                     return s + 1                    # the driver's next solver reports it, with the diagnosis
                 put(g, g_new)
                 TT[s + 1] = t_next
-                w[T], w[T_BOUND], w[NBREAK] = t_next, BR[passed], passed + 1
+                w[T], w[T0], w[T_BOUND], w[NBREAK] = t_next, t_next, BR[passed], passed + 1
                 if ADAPTIVE:                        # the step that landed on it, within the next segment, as the
                     w[H_ABS] = min(h, BR[passed] - t_next)     # driver's next solver starts
                 restarted = True
@@ -357,7 +359,7 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR, S, GN, Q, KS, PB, TE, OUT):
                     g[k] = v
         kernel(t_root, Y[s + 1], p, KK[s + 1, 0])
         nfev += 1
-        w[T], w[H_ABS], w[NFEV], w[NEV] = t_root, h, nfev, ne
+        w[T], w[T0], w[H_ABS], w[NFEV], w[NEV] = t_root, t_root, h, nfev, ne
         if ADAPTIVE:                                # within the segment, as the driver's new solver starts
             w[H_ABS] = min(h, w[T_BOUND] - t_root)
         restarted = True

@@ -6,7 +6,7 @@ import math
 
 from numba import njit
 
-from rig.solvers.compiled import QMASK, T_BOUND
+from rig.solvers.compiled import QMASK, T0, T_BOUND
 from rig.solvers.euler import SYMPLECTIC_P as P
 
 # <kernels>
@@ -19,7 +19,7 @@ ADAPTIVE = False  # fixed step: events on re-stepped states in the Python driver
 @njit(cache=True, error_model="numpy")
 def one_step(t, h_abs, w, y, y_new, K, p, ws):
     """Kick v_new = v + h·f_v(t, q, v), drift q_new = q + h·f_q(t, q, v_new); fixed h (see :mod:`runs`)."""
-    h, t_new = fixed_step(t, h_abs, w[T_BOUND])
+    h, t_new = fixed_step(t, h_abs, w[T_BOUND], w[T0])
     if not h >= min_step(t):
         return UNDERFLOW, t, h, h_abs, 0, 0.0
     mask = int(w[QMASK])
