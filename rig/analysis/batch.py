@@ -323,12 +323,14 @@ def write_table(result: BatchResult, path: Path) -> Path:
     the console's column padding collapsed), then n/mean/std/min/max of every process value (and stand result) any
     recording has (display units, in the header; a value shown in two units gets a column group per unit)."""
     keys = sorted({(k, u) for r in result.recordings for k, (_, u) in r.values.items()})
+    names = [k for k, _ in keys]
+    twice = {k for k in names if names.count(k) > 1}     # shown in two units: its n columns named by unit too
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         out = csv.writer(f)
         out.writerow(["recording", "scene", "level", "plant", "complete", "why incomplete", "curves", "ok", "nok",
                       "error", "copy of (not counted)", "seed", "population", "stand"]
-                     + [f"{k} {s}" + (f" [{u}]" if u and s != "n" else "") for k, u in keys for s in STATS])
+                     + [f"{k} {s}" + (f" [{u}]" if u and (s != "n" or k in twice) else "") for k, u in keys for s in STATS])
         for r in result.recordings:
             out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.incomplete, r.curves, r.ok, r.nok,
                           r.error, r.copy_of, r.seed, "" if r.error else r.group,

@@ -269,3 +269,18 @@ def test_a_curve_recorded_without_its_result_is_counted_not_judged(tmp_path):
                                   "process_values": {"y_max": 15.0}}, t=float(t[-1]))
     row = summarise(path)
     assert (row.curves, row.ok, row.nok) == (4, 2, 1)
+
+
+def test_a_value_shown_in_two_units_gets_distinct_column_names(tmp_path):
+    """A stand's speed in rpm in one recording and in rad/s in another: a column group per unit, every header once
+    (the count columns had the same name twice)."""
+    import numpy as np
+    from rig.analysis.batch import BatchResult, RecordingSummary, write_table
+    from rig.analysis.streaming import Moments
+    m = Moments.of_block(np.array([[1.0], [2.0]]))
+    rows = [RecordingSummary("a.mcap", "s", values={"stand.speed": (m, "rpm"), "stand.t": (m, "s")}),
+            RecordingSummary("b.mcap", "s", values={"stand.speed": (m, "rad/s")})]
+    with write_table(BatchResult(rows, {}), tmp_path / "t.csv").open(newline="") as f:
+        header = next(csv.reader(f))
+    assert len(header) == len(set(header))
+    assert {"stand.speed n [rpm]", "stand.speed n [rad/s]", "stand.t n", "stand.t mean [s]"} <= set(header)

@@ -52,7 +52,8 @@ def test_plots_and_peak_table(tmp_path):
     for p in paths:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
     rows = write_peak_table(tmp_path).read_text().splitlines()
-    assert rows[0] == "parameter,value_SI,peak_torque_N_m,peak_angle_deg"
+    assert rows[0] == "parameter,value,unit,peak_torque [N*m],peak_angle [deg]"    # values as the charts show them
     assert len(rows) == 1 + sum(len(v) for v in FAMILIES.values())
-    ref = [r for r in rows if r.startswith("k_a,28000,")][0].split(",")
-    assert float(ref[2]) == pytest.approx(parameter_family("k_a").peak_torque[2], rel=1e-5)
+    ref = [r for r in rows if r.startswith("k_a,28,N/mm,")][0].split(",")
+    assert float(ref[3]) == pytest.approx(parameter_family("k_a").peak_torque[2], rel=1e-5)
+    assert [r for r in rows if r.startswith("r0,")][0].split(",")[1:3] == ["29", "mm"]

@@ -105,14 +105,17 @@ def plot_parameter_studies(out_dir: str | Path, mu_B: float = 0.0) -> list[Path]
 
 
 def write_peak_table(out_dir: str | Path, mu_B: float = 0.0) -> Path:
-    """CSV of peak torque (N·m) and peak angle (deg) per family member; returns its path."""
+    """CSV of peak torque (N·m) and peak angle (deg) per family member, the varied value in its charts' unit (mm,
+    N/mm) named in the row; returns its path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "clutch_study_peaks.csv"
     with path.open("w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(["parameter", "value_SI", "peak_torque_N_m", "peak_angle_deg"])
+        w.writerow(["parameter", "value", "unit", "peak_torque [N*m]", "peak_angle [deg]"])
         for name, fam in parameter_studies(mu_B).items():
+            label, scale = _DISPLAY[name]
             for v, pt, pa in zip(fam.values, fam.peak_torque, fam.peak_angle):
-                w.writerow([name, f"{v:.6g}", f"{pt:.6g}", f"{math.degrees(pa):.6g}"])
+                w.writerow([name, f"{v * scale:.6g}", label[label.index("(") + 1:-1], f"{pt:.6g}",
+                            f"{math.degrees(pa):.6g}"])
     return path
