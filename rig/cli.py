@@ -635,17 +635,20 @@ def _interrupted(exc: KeyboardInterrupt) -> str:
                     f"{recording}` writes its report")
         return (f"rig: interrupted while summarising the run or writing its report; the recording {recording} is "
                 f"complete: `rig report {recording} -o {folder}` writes the report")
+    from rig.stops import Terminated
+    said = "terminated (SIGTERM)" if isinstance(exc, Terminated) or isinstance(exc.__cause__, Terminated) else \
+        "interrupted"
     if not hasattr(exc, "recording"):
-        return "rig: interrupted"
+        return f"rig: {said}"
     recording = getattr(exc, "recording")
     if recording is None:
         kept = getattr(exc, "kept", None)
-        return ("rig: interrupted before anything was recorded; no recording was written"
+        return (f"rig: {said} before anything was recorded; no recording was written"
                 + (f" (the earlier recording at {kept} is kept as it was)" if kept else ""))
     from rig.analysis.numbers import plural
     curves, until = getattr(exc, "curves", 0), getattr(exc, "simulation_time", 0.0)
     held = (f"{plural(curves, 'curve')}, " if curves else "") + f"{until:.2f} s of simulation time"
-    return f"rig: interrupted; what was recorded so far ({held}) is in {recording} (marked interrupted)"
+    return f"rig: {said}; what was recorded so far ({held}) is in {recording} (marked interrupted)"
 
 
 def _plain(exc: BaseException) -> str:

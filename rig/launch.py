@@ -24,14 +24,16 @@ else:
 
 
 def _terminated(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
+    from rig.stops import Terminated
+    raise Terminated
 
 
 def entry() -> None:
     """Import the command line under the start-up handler, then hand Ctrl-C back to Python (a KeyboardInterrupt that
     :func:`rig.cli.main` turns into its one line and the recorder into an interrupted, closed recording); SIGTERM (sent
-    by ``timeout``, ``docker stop``, systemd, CI runners) stops the command the same way, instead of leaving a cut
-    recording without a word."""
+    by ``timeout``, ``docker stop``, systemd, CI runners) stops the command the same way (as
+    :class:`rig.stops.Terminated`, named so in the recording and the console), instead of leaving a cut recording
+    without a word."""
     from rig.cli import entry as run
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, _terminated)

@@ -181,7 +181,9 @@ def verdict(ctx: ReportContext) -> list[Block]:
     what = ", ".join(f"program {p}" + (f" “{names[p]}”" if names.get(p) else "") for p in a["sets"])
     judged = {v["number"] for v in verdicts}
     unjudged = [c.number for c in rec.curves if c.number not in judged]
-    text = (f"OK: all {n} curves passed" if nok == 0 else f"NOK: {nok} of {n} curves failed, {n - nok} OK") + \
+    lost = sorted(judged & {e.get("number") for e in rec.events if e.get("kind") == "incomplete_curve"})
+    text = (f"NOK: {nok} of {n} curves failed, {n - nok} OK" if nok else
+            f"INCOMPLETE: the unit passed all {n} curves" if lost else f"OK: all {n} curves passed") + \
         (f" ({what})" if what else "") + \
         (f"; {len(unjudged)} recorded curve{'s' if len(unjudged) > 1 else ''} without a result, not judged "
          f"(curve {', '.join(map(str, unjudged[:10]))}{' …' if len(unjudged) > 10 else ''})" if unjudged else "")
@@ -189,12 +191,17 @@ def verdict(ctx: ReportContext) -> list[Block]:
     if cut:                               # the unit's verdict arrived, not all of the result's process values
         text += (f"; {len(cut)} of them judged by the unit with an incomplete result (curve "
                  f"{', '.join(map(str, cut[:10]))}{' …' if len(cut) > 10 else ''}: process values missing)")
+    if lost:                              # judged by the unit, but the host has not got their samples (a curve cut
+                                          # by a stop, its result not in, is the incomplete recording's warning)
+        text += (f"; {len(lost)} curve{'s' if len(lost) > 1 else ''} not recorded, "
+                 f"{'their' if len(lost) > 1 else 'its'} frames incomplete (curve {', '.join(map(str, lost[:10]))}"
+                 f"{' …' if len(lost) > 10 else ''}: the incomplete_curve events)")
     blocks: list[Block] = [Heading("Verdict")]
     if not rec.complete:                  # a cut or interrupted recording: said before the verdict it qualifies
         why = _complete(rec).removeprefix("no: ")
         blocks.append(Text(f"Warning: incomplete recording, {why}: the verdict covers the {n} curves it holds; "
                            "what was lost is under Recording.", "warning"))
-    blocks.append(Banner(text, nok == 0))
+    blocks.append(Banner(text, nok == 0 and not lost))
     caveat = rec.metadata.get("rig", {}).get("fidelity_caveat")
     if caveat:                            # a forced model level below what the scene asks (rig.fidelity)
         blocks.append(Text(f"Model level: {caveat}.", "warning"))

@@ -141,10 +141,13 @@ USER_STOPS = ("KeyboardInterrupt", "Interrupted")
 
 def interruption_text(reason: str) -> str:
     """Why a run stopped early in plain words, from its end record's ``reason`` (the exception, e.g.
-    ``KeyboardInterrupt`` or ``RunError: …``): "interrupted by the user (Ctrl-C)", "stopped by an error — …"."""
+    ``KeyboardInterrupt``, ``Terminated: SIGTERM`` or ``RunError: …``): "interrupted by the user (Ctrl-C)",
+    "terminated by SIGTERM (…)", "stopped by an error — …"."""
     kind = reason.split(":", 1)[0].strip()
     if kind in USER_STOPS:
         return "interrupted by the user (Ctrl-C)"
+    if kind == "Terminated":                       # rig.stops.Terminated: the console script's SIGTERM
+        return "terminated by SIGTERM (timeout, docker stop, systemd or a CI runner)"
     if reason == "unknown reason":                 # the reader's word for an end record without a reason
         return "stopped early (the recording does not say why)"
     if reason.startswith("repaired by rig repair"):    # rig.recorder.repair: a cut file rewritten whole

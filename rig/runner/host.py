@@ -88,6 +88,7 @@ class Host:
         recorder.held.append(self._write_events)       # a run that stops on any error still writes what was found
         self._done_at: float | None = None          # device time (s) when the host first had all it needs
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
+        self.curves_incomplete = 0                  # curves whose frames did not all arrive (samples not recorded)
         self.frames = 0
         frames = cfg.frames()                                   # the reading messages the scene wires
         self._rad_per_count = {m: encoder_resolution(specs[0]) for m, specs in frames.items()
@@ -284,6 +285,7 @@ class Host:
                 self.add_event(max(self.can.device_time, 0.0), "incomplete_curve", number=curve.number,
                                problems=list(curve.problems))
                 self._orphans.add(curve.number)
+                self.curves_incomplete += 1
         for res in self.can.take_results():
             self._results[res.number] = res
 

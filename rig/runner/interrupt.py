@@ -17,6 +17,8 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
+from rig.stops import Terminated
+
 STUCK = 1.0       # s a stop may wait for the loop's check before another Ctrl-C raises at once
 
 
@@ -43,24 +45,28 @@ def shielded() -> Iterator[None]:
 
 @contextmanager
 def deferred_interrupt() -> Iterator[Callable[[], None]]:
-    """The loop's ``check()``: raises KeyboardInterrupt if Ctrl-C came since the block began (and so does the block's
-    end, for one after the last check). Outside the main thread
-    (no signal handlers there) ``check()`` does nothing and Ctrl-C keeps Python's own behaviour."""
+    """The loop's ``check()``: raises KeyboardInterrupt if Ctrl-C came since the block began,
+    :class:`~rig.stops.Terminated` if SIGTERM did (and so does the block's end, for one after the last check).
+    Outside the main thread (no signal handlers there) ``check()`` does nothing and Ctrl-C keeps Python's own
+    behaviour."""
     if threading.current_thread() is not threading.main_thread():
         yield lambda: None
         return
-    pending: list[float] = []                  # when the stop was asked for (monotonic s)
+    pending: list[tuple[float, int]] = []       # when the stop was asked for (monotonic s), and by which signal
+
+    def stop(signum: int) -> KeyboardInterrupt:
+        return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
     def note(signum: int, frame: object) -> None:
-        if pending and time.monotonic() - pending[0] > STUCK:
-            raise KeyboardInterrupt
+        if pending and time.monotonic() - pending[0][0] > STUCK:
+            raise stop(signum)
         if not pending:
-            pending.append(time.monotonic())
+            pending.append((time.monotonic(), signum))
 
     def check() -> None:
         if pending:
-            pending.clear()
-            raise KeyboardInterrupt
+            signum = pending.pop()[1]
+            raise stop(signum)
 
     previous = {s: signal.signal(s, note) for s in _stops()}
     try:

@@ -32,7 +32,7 @@ from rig.runner.host import Host
 from rig.runner.interrupt import deferred_interrupt, shielded
 from rig.runner.machine import Machine
 from rig.runner.served import Anchored, IdleStatus, RunClock
-from rig.scene import load_scene
+from rig.scene import SceneError, load_scene
 
 log = logging.getLogger(__name__)
 QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
@@ -84,6 +84,15 @@ class RunSummary:
         """Simulated time per wall time of the run phase, its one-time numba compilations left out."""
         busy = self.run_time - self.compile_time
         return self.simulated_time / busy if busy > 0 else float("inf")
+
+
+def _classic_can(cfg: RunConfig, role: str) -> None:
+    """Refuse a CAN FD scene where the bus runs over socketcand (``role``: what is starting), whose raw mode carries
+    classic frames only: the unit's 64-byte curve and live frames could never reach the host."""
+    if cfg.can["fd"]:
+        raise SceneError(f"{cfg.scene.path} [links.can]: fd = true, but {role} over socketcand, which carries classic "
+                       "CAN frames only (its curve and live frames of 64 bytes would never reach the host): set "
+                       "fd = false for a served run, or run the scene in one process with rig run")
 
 
 def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fidelity: int | None = None) -> RunConfig:
@@ -400,6 +409,7 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
     is reported as an error. Frames are stamped in Unix time (:mod:`rig.runner.served`).
     """
     cfg = _config(scene_path, cycles, mode, fidelity)
+    _classic_can(cfg, "rig serve serves its bus")
     channel = f"rig-{uuid.uuid4().hex}"
     with can.Bus(interface="blockbus", channel=channel) as bus:
         wire = Anchored(bus)
@@ -493,6 +503,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
     :class:`RunError` naming it."""
     watch()
     cfg = _config(scene_path, cycles, None, fidelity)
+    _classic_can(cfg, "rig record receives its bus")
     output = Path(output)
     wall = time.perf_counter()
     with RunClock(_socketcand(can_host, can_port, can_channel or cfg.can["channel"], connect_timeout)) as bus:
@@ -548,11 +559,17 @@ def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], i
             last = time.monotonic()
         elif host.can.run_ended:       # the served run is shorter than this scene's: keep what it sent
             host.poll(0.05)
-            log.warning("the served machine ended its run after %d curves (its --cycles); this host "
-                        "was to record %s: recorded what it sent", host.curves_recorded,
-                        f"{cfg.cycles} curves" if cfg.cycles is not None else f"{cfg.duration:g} s")
-            host.add_event(host.can.device_time, "run_short", curves=host.curves_recorded,
-                           expected=cfg.cycles if cfg.cycles is not None else cfg.duration)
+            lost = host.curves_incomplete
+            served = host.curves_recorded + lost
+            short = cfg.cycles is None or served < cfg.cycles
+            log.warning("the served machine ended its run after %d curves%s; this host was to record %s: recorded "
+                        "what it sent%s", served, " (its --cycles)" if short else "",
+                        f"{cfg.cycles} complete curves" if cfg.cycles is not None else f"{cfg.duration:g} s",
+                        f", {lost} of its curves incomplete (their frames did not all arrive: the incomplete_curve "
+                        "events)" if lost else "")
+            if short:
+                host.add_event(host.can.device_time, "run_short", curves=served,
+                               expected=cfg.cycles if cfg.cycles is not None else cfg.duration)
             break
         elif time.monotonic() - last > QUIET and getattr(host.can.bus, "closed", False):
             if not host.done():

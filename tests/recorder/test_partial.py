@@ -222,8 +222,10 @@ def test_sigterm_stops_the_console_script_as_ctrl_c_does(tmp_path):
     assert run.returncode == 130 and "Traceback" not in err
     rec = read_recording(out)
     numbers = [c.number for c in rec.curves]
-    assert rec.interrupted == "KeyboardInterrupt" and not rec.truncated and numbers == list(range(1, len(numbers) + 1))
-    assert f"rig: interrupted; what was recorded so far ({len(numbers)} curves," in err
+    assert rec.interrupted == "Terminated: SIGTERM" and not rec.truncated
+    assert numbers == list(range(1, len(numbers) + 1))
+    assert f"rig: terminated (SIGTERM); what was recorded so far ({len(numbers)} curves," in err
+    assert "terminated by SIGTERM" in " ".join(rec.problems)             # the report's words (Ctrl-C's were used)
 
 def test_the_console_script_takes_ctrl_c_before_it_imports_the_command_line():
     """The console script's module sets its Ctrl-C handler before rig.cli and its imports load: an interrupt while
