@@ -158,6 +158,7 @@ class StiffnessMonitor:
         self._hits = [0, 0, 0.0]                       # positive and negative checks, summed spurious log-growth
         self._slow = 0.0                               # net spurious log-growth however small per step (see below)
         self.calls = 0                                 # RHS calls the amplification test made
+        self.growing = None                            # (t, y, Re λ) of the latest check if a mode grew by itself
         self.coarse: str | None = None                 # the accuracy warning, once given
 
     def update_many(self, t, y, h, hl) -> None:
@@ -284,6 +285,7 @@ class StiffnessMonitor:
                                    if math.isfinite(self.horizon) else math.inf)
             #                                                         the run's length unknown: no short-run test
             self.calls += len(y[k]) + 1
+            self._note_growth(float(t[k]), tuple(y[k]), h_k, got)
             self._accuracy(float(t[k]), h_k, got, self._next_check + 1)    # the steps up to the checked one
             since, self._last_check = self._next_check - self._last_check, self._next_check
             if got is not None and got[0] > 1.0 + 1e-12 and got[0] > got[1]:
@@ -333,6 +335,13 @@ class StiffnessMonitor:
             grown = self._slow + since * math.log(got[0] / got[1])
             if grown >= math.log(self.SPURIOUS):
                 self._report_amplification(float(t), tuple(y), float(h), got, grown)
+
+    def _note_growth(self, t: float, y: tuple, h: float, got) -> None:
+        """Note in :attr:`growing` whether the latest check (at (t, y), step h) found a mode the exact flow grows: (t, y,
+        its largest Re λ in 1/s) — the solution grows by itself there (:meth:`rig.solvers.stepper.Stepper.diverged`
+        names it if the run then overflows) —, else None."""
+        self.growing = (t, y, math.log(got[1]) / h) if got is not None and got[1] > 1.0 + 1e-12 \
+            and got[0] <= got[1] * (1.0 + self.EXCESS) else None
 
     def _steps_by_end(self, t: float, steps: int) -> float:
         """The steps the run will have taken by its end (:attr:`horizon`) at the pace of the ``steps`` it took up to

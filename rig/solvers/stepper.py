@@ -168,17 +168,23 @@ class Stepper(OdeSolver):
         """The error for a state that became non-finite (or a right-hand side that overflowed: ``what``) after a
         step of size h: names the method, the mode the step amplified (fixed-step methods: at the run's first
         state if it amplifies there — a nonlinear model linearised at a state near overflow would ask for a
-        meaningless step —, else at the ``last`` finite (t, y)) or the latest h·|λ| against the stability limit,
-        and the fix."""
+        meaningless step —, else at the ``last`` finite (t, y)), or a solution that grows by itself there (a mode
+        with Re λ > 0 that the step amplifies no more than the exact flow: a blow-up of the model, which a smaller h
+        does not cure), or the latest h·|λ| against the stability limit, and the fix."""
         hl, lim = self.monitor.last, self.limit
         watch = self.monitor.watch
-        got = None
+        got = grows = None
         for point in (self.monitor.origin, last) if watch is not None else ():
             if point is not None:
                 got = watch.check(point[0], point[1], h)
                 if got is not None and got[0] > 1.0 and got[0] > got[1] * (1.0 + self.monitor.EXCESS):
                     break
+                if point is last and got is not None and got[1] > 1.0 + 1e-12:
+                    grows = (point[0], point[1], math.log(got[1]) / h)
                 got = None
+        grows = grows or self.monitor.growing      # a state near overflow has no Jacobian: the latest check's, if
+        if grows is not None and grows[2] * (t - grows[0]) < 1.0:    # its growth explains the overflow (an e-fold or
+            grows = None                                            # more by t; else the method, not the model)
         if got is not None:
             rho, lam = got[0], got[2]
             where = "from the run's start, " if point is self.monitor.origin else ""
@@ -190,6 +196,12 @@ class Stepper(OdeSolver):
         elif last is not None and (bad := rhs_not_finite(self.fun, last[0], last[1], (0.0, 0.5 * h, h))) is not None:
             cause = not_finite_text(bad, last[0])      # no mode amplified: the model, not the method
             hl = -math.inf                   # so reported, whatever the step's h·|λ|
+        elif grows is not None:
+            cause = (f"the solution itself grows without bound: at t = {grows[0]:.6g} s (|y| = "
+                     f"{float(np.max(np.abs(grows[1]))):.3g}) a mode with Re lambda = {grows[2]:.4g} 1/s grows, and the "
+                     f"step amplifies it no more than the exact flow does - the model blows up there (a finite-time "
+                     f"singularity or an unstable model), not the method: check the model")
+            hl = -math.inf                   # the model, whatever the step's h·|λ|
         elif hl > lim:
             cause = (f"{self.label} unstable: h*|lambda| = {hl:.3g} > {lim:g} (its stability limit on the negative "
                      f"real axis) - reduce h below {lim * h / hl:.3g} s or use the implicit method Rodas4")

@@ -132,3 +132,21 @@ def test_dense_output_before_the_first_step_is_named(method):
         solver.dense_output()
     solver.step()
     assert solver.dense_output()(solver.t_old)[0] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("method", ["Euler", "RK4", "SymplecticEuler"])
+def test_a_blow_up_of_the_model_is_named_as_such_not_as_an_unstable_step(method):
+    """y' = y² (q'' = q² for symplectic Euler) goes to infinity in finite time whatever the step: the overflow is the
+    model's, and the error says so (it read "explicit Euler unstable: h*|lambda| = 5.76e+69 > 2 … reduce h below
+    3.47e-73 s")."""
+    import warnings
+    from rig.solvers import StiffnessError
+    problem = (Problem(lambda t, y: (y[1], y[0] * y[0]), (1.0, 1.0)) if method == "SymplecticEuler"
+               else Problem(lambda t, y: (y[0] * y[0],), (1.0,)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                   # the ResolutionWarning before it ("a blow-up ahead?")
+        with pytest.raises(SolverDivergence) as info:
+            integrate(problem, (0.0, 5.0), method=method, h=1e-3)
+    assert not isinstance(info.value, StiffnessError)
+    assert "the solution itself grows without bound" in str(info.value) and "not the method" in str(info.value)
+    assert "reduce h" not in str(info.value)
