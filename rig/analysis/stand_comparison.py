@@ -258,16 +258,17 @@ def _agrees(tolerance: Any, thesis: float, unit: str, si: str, scale: float, rig
 
 
 def write_csv(rows: list[Row], path: Path) -> Path:
-    """``comparison.csv``: quantity, unit, thesis, rig (empty: n/a; ``>X``: the run ended before the result, which
-    lies beyond X), agrees (yes / NO / - not judged / n/a),
-    fitted (1/0), note, deviation (rig − thesis), tolerance (as the scene writes it; "exact" for a count), basis
-    (fitted / input / predicted)."""
+    """``comparison.csv``: quantity, unit, thesis, rig (a number; empty: no value), rig beyond (X where the run ended
+    before the result, which lies beyond X; else empty), agrees (yes / NO / - not judged / n/a), fitted (1/0), note,
+    deviation (rig − thesis), tolerance (as the scene writes it; "exact" for a count), basis (fitted / input /
+    predicted). Every cell of the number columns is a number or empty (a spreadsheet reads them as numbers)."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["quantity", "unit", "thesis", "rig", "agrees", "fitted", "note", "deviation", "tolerance", "basis"])
+        w.writerow(["quantity", "unit", "thesis", "rig", "rig beyond", "agrees", "fitted", "note", "deviation",
+                    "tolerance", "basis"])
         for r in rows:
-            rig = f"{r.rig:.6g}" if r.rig is not None else f">{r.beyond:.6g}" if r.beyond is not None else ""
-            w.writerow([r.quantity, r.unit, f"{r.thesis:g}", rig, r.verdict,
+            w.writerow([r.quantity, r.unit, f"{r.thesis:g}", "" if r.rig is None else f"{r.rig:.6g}",
+                        "" if r.beyond is None else f"{r.beyond:.6g}", r.verdict,
                         int(r.fitted), r.why, r.deviation, r.tolerance, r.basis])
     return path
 

@@ -253,7 +253,7 @@ def test_a_result_the_run_ended_before_and_a_slip_without_disengagement_are_judg
     from rig.analysis.stand_comparison import write_csv
 
     written = list(csv.DictReader(write_csv([stopped, slip], tmp_path / "c.csv").open()))
-    assert [r["rig"] for r in written] == [">400", "-7"]                 # the bound passed is in the CSV too
+    assert [(r["rig"], r["rig beyond"]) for r in written] == [("", "400"), ("-7", "")]   # the bound passed, a number
     short = Metric("stop at 0.5 s: standstill", None, "s", "still turning", exceeds=0.1)    # ended before the bound
     assert compare(load_scene(scene_path), [Stimulus(0.5, "stop", "motor off")], [short])[0].verdict == "n/a"
 
