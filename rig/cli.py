@@ -103,6 +103,10 @@ def _print_set_summary(result: dict) -> None:
     cut = memory_warning(verdicts)
     if cut:
         print(f"  warning: {cut}")
+    lost = result.get("not_recorded", [])
+    if lost:
+        print(f"  warning: {len(lost)} of these curves not recorded, their frames incomplete (curve "
+              f"{', '.join(map(str, lost[:10]))}{' …' if len(lost) > 10 else ''}): judged by the unit only")
     incomplete = result["incomplete"]
     if incomplete:
         print(f"  warning: {len(incomplete)} incomplete result(s): " + "; ".join(
@@ -626,18 +630,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _interrupted(exc: KeyboardInterrupt) -> str:
-    """One line on Ctrl-C: what a recorded run left (rig.runner.session.Interrupted), or that the report of a whole
-    recording was cut, else nothing claimed."""
+    """One line on Ctrl-C (or SIGTERM, named so): what a recorded run left (rig.runner.session.Interrupted), or that
+    the report of a whole recording was cut, else nothing claimed."""
+    from rig.stops import stopped
+    said = stopped(exc)
     if hasattr(exc, "report_of"):
         recording, folder, no_report = getattr(exc, "report_of")
         if no_report:
-            return (f"rig: interrupted while summarising the run; the recording {recording} is complete: `rig report "
+            return (f"rig: {said} while summarising the run; the recording {recording} is complete: `rig report "
                     f"{recording}` writes its report")
-        return (f"rig: interrupted while summarising the run or writing its report; the recording {recording} is "
+        return (f"rig: {said} while summarising the run or writing its report; the recording {recording} is "
                 f"complete: `rig report {recording} -o {folder}` writes the report")
-    from rig.stops import Terminated
-    said = "terminated (SIGTERM)" if isinstance(exc, Terminated) or isinstance(exc.__cause__, Terminated) else \
-        "interrupted"
     if not hasattr(exc, "recording"):
         return f"rig: {said}"
     recording = getattr(exc, "recording")

@@ -5,6 +5,8 @@ import os
 import signal
 import sys
 
+from rig.stops import Terminated
+
 
 def _interrupted_while_starting(signum: int, frame: object) -> None:
     sys.stderr.write("rig: interrupted\n")
@@ -24,7 +26,6 @@ else:
 
 
 def _terminated(signum: int, frame: object) -> None:
-    from rig.stops import Terminated
     raise Terminated
 
 

@@ -1,10 +1,25 @@
 """The stop by SIGTERM, told apart from Ctrl-C (both stop a command the same way; the recording and the console name
 which)."""
+from __future__ import annotations
 
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM (sent by ``timeout``, ``docker stop``, systemd, CI runners) where the console script takes it
     (:func:`rig.launch.entry`): stops the command as Ctrl-C does; a recording names it ``Terminated: SIGTERM``."""
 
-    def __init__(self) -> None:
-        super().__init__("SIGTERM")
+    def __init__(self, *args: object) -> None:          # (pickle and copy pass the message again)
+        super().__init__(*(args or ("SIGTERM",)))
+
+
+def terminated(exc: BaseException | None) -> bool:
+    """Whether a stop is SIGTERM's: a :class:`Terminated`, or an exception raised from one."""
+    while exc is not None:
+        if isinstance(exc, Terminated):
+            return True
+        exc = exc.__cause__
+    return False
+
+
+def stopped(exc: BaseException | None) -> str:
+    """The console's word for a stop: "terminated (SIGTERM)" or "interrupted" (Ctrl-C)."""
+    return "terminated (SIGTERM)" if terminated(exc) else "interrupted"

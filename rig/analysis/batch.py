@@ -330,7 +330,8 @@ def write_table(result: BatchResult, path: Path) -> Path:
         out = csv.writer(f)
         out.writerow(["recording", "scene", "level", "plant", "complete", "why incomplete", "curves", "ok", "nok",
                       "error", "copy of (not counted)", "seed", "population", "stand"]
-                     + [f"{k} {s}" + (f" [{u}]" if u and (s != "n" or k in twice) else "") for k, u in keys for s in STATS])
+                     + [f"{k} {s}" + (f" [{u}]" if u and (s != "n" or k in twice) else "")
+                        for k, u in keys for s in STATS])
         for r in result.recordings:
             out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.incomplete, r.curves, r.ok, r.nok,
                           r.error, r.copy_of, r.seed, "" if r.error else r.group,

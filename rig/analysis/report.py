@@ -181,7 +181,7 @@ def verdict(ctx: ReportContext) -> list[Block]:
     what = ", ".join(f"program {p}" + (f" “{names[p]}”" if names.get(p) else "") for p in a["sets"])
     judged = {v["number"] for v in verdicts}
     unjudged = [c.number for c in rec.curves if c.number not in judged]
-    lost = sorted(judged & {e.get("number") for e in rec.events if e.get("kind") == "incomplete_curve"})
+    lost = a.get("not_recorded", [])
     text = (f"NOK: {nok} of {n} curves failed, {n - nok} OK" if nok else
             f"INCOMPLETE: the unit passed all {n} curves" if lost else f"OK: all {n} curves passed") + \
         (f" ({what})" if what else "") + \
@@ -191,8 +191,7 @@ def verdict(ctx: ReportContext) -> list[Block]:
     if cut:                               # the unit's verdict arrived, not all of the result's process values
         text += (f"; {len(cut)} of them judged by the unit with an incomplete result (curve "
                  f"{', '.join(map(str, cut[:10]))}{' …' if len(cut) > 10 else ''}: process values missing)")
-    if lost:                              # judged by the unit, but the host has not got their samples (a curve cut
-                                          # by a stop, its result not in, is the incomplete recording's warning)
+    if lost:                              # judged by the unit, but the host has not got their samples
         text += (f"; {len(lost)} curve{'s' if len(lost) > 1 else ''} not recorded, "
                  f"{'their' if len(lost) > 1 else 'its'} frames incomplete (curve {', '.join(map(str, lost[:10]))}"
                  f"{' …' if len(lost) > 10 else ''}: the incomplete_curve events)")

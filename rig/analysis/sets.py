@@ -72,6 +72,13 @@ def incomplete_results(results: Iterable[Mapping]) -> list[dict]:
             for r in results if r.get("complete", True) is False]
 
 
+def curves_not_recorded(results: Iterable[Mapping], events: Iterable[Mapping]) -> list[int]:
+    """Numbers of the curves the unit judged (a result) whose samples were not recorded: their frames did not all
+    arrive (an ``incomplete_curve`` event), in order. A curve cut by a stop before its result is not among them."""
+    judged = {r.get("number") for r in results}
+    return sorted(judged & {e.get("number") for e in events if e.get("kind") == "incomplete_curve"})
+
+
 def _value(result: Mapping, name: str) -> float:
     """One process value of a result (its unit), NaN when absent, null or marked missing."""
     v = result.get("process_values", {}).get(name)

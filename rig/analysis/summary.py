@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from rig.analysis.device import device_agreement, final_snapshot
 from rig.analysis.lag import compare_theory
-from rig.analysis.sets import by_program, curve_verdicts, event_counts, incomplete_results, statistics_by_program
+from rig.analysis.sets import (by_program, curve_verdicts, curves_not_recorded, event_counts, incomplete_results,
+                               statistics_by_program)
 from rig.analysis.units import DisplayUnits, recording_units
 from rig.recorder import CurveRecord, Recording
 
@@ -41,12 +42,13 @@ def program_sets(rec: Recording, units: dict[int, DisplayUnits] | None = None) -
 
 
 def analyse(rec: Recording) -> dict:
-    """Verdicts per curve, incomplete results, display units per program, statistics per program (with
-    the device comparison), theory vs measurement per curve, event counts."""
+    """Verdicts per curve, incomplete results, judged curves not recorded, display units per program, statistics per
+    program (with the device comparison), theory vs measurement per curve, event counts."""
     units = program_units(rec)
     return {
         "verdicts": curve_verdicts(rec.results),
         "incomplete": incomplete_results(rec.results),
+        "not_recorded": curves_not_recorded(rec.results, rec.events),
         "units": units,
         "sets": program_sets(rec, units),
         "theory": [row for c in rec.curves for row in theory_comparison(c)],

@@ -33,6 +33,7 @@ from rig.runner.interrupt import deferred_interrupt, shielded
 from rig.runner.machine import Machine
 from rig.runner.served import Anchored, IdleStatus, RunClock
 from rig.scene import SceneError, load_scene
+from rig.stops import terminated
 
 log = logging.getLogger(__name__)
 QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
@@ -315,6 +316,11 @@ def _recorder(cfg: RunConfig, output: Path, mode: str) -> Iterator[Recorder]:
     earlier.unlink(missing_ok=True)
 
 
+def _stop_of_run(exc: KeyboardInterrupt) -> str:
+    """What cut a curve in transfer, in its ``incomplete_curve`` event: Ctrl-C's or SIGTERM's stop."""
+    return "the termination (SIGTERM) of the run" if terminated(exc) else "the interruption of the run"
+
+
 def _keep_received(host: Host, drain: bool, why: str = "the interruption of the run") -> None:
     """On Ctrl-C or a run stopped by an error (``why``): what is already on the wire (``drain``: the in-process bus,
     whose machine has stopped) and received goes into the recording, and what the stop cut is said in events (a
@@ -372,8 +378,8 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
                 except RunError:               # record what is already on the wire and what the stop cut
                     _keep_received(host, drain=True, why="the run's stop on an error")
                     raise
-                except KeyboardInterrupt:
-                    _keep_received(host, drain=True)
+                except KeyboardInterrupt as exc:
+                    _keep_received(host, drain=True, why=_stop_of_run(exc))
                     raise
                 except Exception as exc:           # a model that cannot go on, a fault: the run so far is kept
                     _keep_received(host, drain=False, why=f"the run's stop on {type(exc).__name__}")
@@ -516,7 +522,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                 with deferred_interrupt() as check:
                     _receive(cfg, host, bar, check, idle_timeout, f"{can_host}:{can_port}", output)
             except (KeyboardInterrupt, Exception) as exc:   # a RunError, a model that cannot go on, a fault
-                _keep_received(host, drain=False, why="the interruption of the run" if isinstance(exc, KeyboardInterrupt)
+                _keep_received(host, drain=False, why=_stop_of_run(exc) if isinstance(exc, KeyboardInterrupt)
                                else "the recording's stop on an error")
                 try:                               # the served machine need not wait for its release timeout
                     host.can.send_command("release")

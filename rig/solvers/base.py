@@ -337,9 +337,9 @@ class StiffnessMonitor:
                 self._report_amplification(float(t), tuple(y), float(h), got, grown)
 
     def _note_growth(self, t: float, y: tuple, h: float, got) -> None:
-        """Note in :attr:`growing` whether the latest check (at (t, y), step h) found a mode the exact flow grows: (t, y,
-        its largest Re λ in 1/s) — the solution grows by itself there (:meth:`rig.solvers.stepper.Stepper.diverged`
-        names it if the run then overflows) —, else None."""
+        """Note in :attr:`growing` whether the latest check (at (t, y), step h) found a mode the exact flow grows: (t,
+        y, its largest Re λ in 1/s) — the solution grows by itself there
+        (:meth:`rig.solvers.stepper.Stepper.diverged` names it if the run then overflows) —, else None."""
         self.growing = (t, y, math.log(got[1]) / h) if got is not None and got[1] > 1.0 + 1e-12 \
             and got[0] <= got[1] * (1.0 + self.EXCESS) else None
 

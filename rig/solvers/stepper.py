@@ -174,17 +174,20 @@ class Stepper(OdeSolver):
         hl, lim = self.monitor.last, self.limit
         watch = self.monitor.watch
         got = grows = None
+        linearised = False                  # the last finite state had a Jacobian
         for point in (self.monitor.origin, last) if watch is not None else ():
             if point is not None:
                 got = watch.check(point[0], point[1], h)
                 if got is not None and got[0] > 1.0 and got[0] > got[1] * (1.0 + self.monitor.EXCESS):
                     break
-                if point is last and got is not None and got[1] > 1.0 + 1e-12:
-                    grows = (point[0], point[1], math.log(got[1]) / h)
+                if point is last and got is not None:
+                    linearised = True
+                    grows = (point[0], point[1], math.log(got[1]) / h) if got[1] > 1.0 + 1e-12 else None
                 got = None
-        grows = grows or self.monitor.growing      # a state near overflow has no Jacobian: the latest check's, if
-        if grows is not None and grows[2] * (t - grows[0]) < 1.0:    # its growth explains the overflow (an e-fold or
-            grows = None                                            # more by t; else the method, not the model)
+        if not linearised:                  # a state near overflow has no Jacobian: the latest check's growth, if any
+            grows = self.monitor.growing
+        if grows is not None and grows[2] * (t - grows[0]) < 1.0:    # the growth must explain the overflow (an e-fold
+            grows = None                                            # or more by t; else the method, not the model)
         if got is not None:
             rho, lam = got[0], got[2]
             where = "from the run's start, " if point is self.monitor.origin else ""
@@ -198,9 +201,9 @@ class Stepper(OdeSolver):
             hl = -math.inf                   # so reported, whatever the step's h·|λ|
         elif grows is not None:
             cause = (f"the solution itself grows without bound: at t = {grows[0]:.6g} s (|y| = "
-                     f"{float(np.max(np.abs(grows[1]))):.3g}) a mode with Re lambda = {grows[2]:.4g} 1/s grows, and the "
-                     f"step amplifies it no more than the exact flow does - the model blows up there (a finite-time "
-                     f"singularity or an unstable model), not the method: check the model")
+                     f"{float(np.max(np.abs(grows[1]))):.3g}) a mode with Re lambda = {grows[2]:.4g} 1/s grows, and "
+                     f"the step amplifies it no more than the exact flow does - the model blows up there (a "
+                     f"finite-time singularity or an unstable model), not the method: check the model")
             hl = -math.inf                   # the model, whatever the step's h·|λ|
         elif hl > lim:
             cause = (f"{self.label} unstable: h*|lambda| = {hl:.3g} > {lim:g} (its stability limit on the negative "

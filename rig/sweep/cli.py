@@ -18,6 +18,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from rig.sweep import grid, parse_param
     from rig.sweep.plots import MAX_MAPS, plot_sweep
     from rig.sweep.run import SweepInterrupted, inert_params, levels_text, run_sweep, write_table
+    from rig.stops import stopped
     params = [parse_param(p) for p in args.param]
     scene = load_scene(args.scene)
     out = Path(args.output)
@@ -36,14 +37,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             for bar in bars:
                 bar.close()
             if not stop.result.points:              # nothing to keep: an earlier sweep's outputs stay as they were
-                print(f"rig: the sweep was interrupted before any of its {stop.total} points was done; nothing "
+                print(f"rig: the sweep was {stopped(stop)} before any of its {stop.total} points was done; nothing "
                       f"written", file=sys.stderr)
                 raise
             before = clear_previous(claim_dir(out), MANIFEST, _earlier_sweep)
             table = write_table(stop.result, out / "sweep.csv")
             list_written(out, MANIFEST, before)
-            print(f"rig: the sweep was interrupted after {len(stop.result.points)} of {stop.total} points; their rows "
-                  f"are in {table} (no maps)", file=sys.stderr)
+            print(f"rig: the sweep was {stopped(stop)} after {len(stop.result.points)} of {stop.total} points; their "
+                  f"rows are in {table} (no maps)", file=sys.stderr)
             raise
         finally:
             for bar in bars:

@@ -328,7 +328,7 @@ def test_a_csv_header_unit_without_a_named_label_is_written_with_a_caret():
     assert unit("m/s^2", "m/s^2").label == "m/s²"
 
 
-def test_curves_judged_but_not_recorded_make_the_verdict_incomplete_not_ok(tmp_path):
+def test_curves_judged_but_not_recorded_make_the_verdict_incomplete_not_ok(tmp_path, capsys):
     """Results of 5 curves all OK, the samples of curves 2 and 4 lost on the way (``incomplete_curve``): the verdict
     says so and is not green (it read "OK: all 5 curves passed" with every curve of a run missing)."""
     from rig.analysis.report_blocks import Banner, ReportContext
@@ -347,3 +347,6 @@ def test_curves_judged_but_not_recorded_make_the_verdict_incomplete_not_ok(tmp_p
     (banner,) = [b for b in blocks if isinstance(b, Banner)]
     assert not banner.ok and banner.text.startswith("INCOMPLETE: the unit passed all 5 curves")
     assert "2 curves not recorded, their frames incomplete (curve 2, 4" in banner.text
+    from rig.cli import _print_set_summary                # the console says it under its counts too
+    _print_set_summary(analyse(recording))
+    assert "warning: 2 of these curves not recorded, their frames incomplete (curve 2, 4)" in capsys.readouterr().out

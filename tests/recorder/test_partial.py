@@ -309,3 +309,22 @@ def test_ctrl_c_while_summarising_a_run_without_report_says_the_recording_is_who
     assert line == (f"rig: interrupted while summarising the run; the recording {out} is complete: `rig report {out}` "
                     f"writes its report")
     assert read_recording(out).complete
+
+
+def test_a_sigterm_stop_is_told_apart_through_the_exceptions_raised_from_it():
+    """rig.stops: a Terminated (or a stop raised from one, as the runner's Interrupted is) reads "terminated
+    (SIGTERM)", a Ctrl-C "interrupted"; a Terminated survives pickle and copy (a worker's exception travels)."""
+    import copy
+    import pickle
+    from rig.runner.session import Interrupted
+    from rig.stops import Terminated, stopped
+    try:
+        try:
+            raise Terminated
+        except KeyboardInterrupt as exc:
+            raise Interrupted(None) from exc
+    except KeyboardInterrupt as exc:
+        assert stopped(exc) == "terminated (SIGTERM)" and stopped(exc.__cause__) == "terminated (SIGTERM)"
+    assert stopped(KeyboardInterrupt()) == stopped(Interrupted(None)) == "interrupted"
+    for twin in (pickle.loads(pickle.dumps(Terminated())), copy.copy(Terminated())):
+        assert isinstance(twin, Terminated) and str(twin) == "SIGTERM"

@@ -427,3 +427,25 @@ def _decay(t, y, p, out):
 @njit(cache=True)
 def _decay_events(t, y, p, k):
     return y[0] - 2.0
+
+
+@pytest.mark.parametrize("method", ["Euler", "RK4"])
+def test_a_fixed_step_run_restarted_by_an_acted_event_keeps_its_step_and_grid(method):
+    """y = t⁵ crosses 0.5 (RK4: at t ≈ 0.87, inside the step 0.8 → 0.88 that a time break at 0.88 cut to 0.08):
+    the run restarts at the root (and the break), and from the last restart steps 0.1 again on its grid, whether the
+    Python driver or the compiled run (``act``) restarts (the compiled restart kept the cut 0.08 as its step: 0.96,
+    1.04, …, one step more)."""
+    p = np.array([0.5])
+    runs = []
+    for compiled, act in ((False, None), (True, None), (True, _plain_restart)):
+        fun = JitRhs(_quintic, lambda: p, event=_level, act=act)
+        runs.append(integrate(Problem(fun, (0.0,), [Event(lambda tt, y: y[0] - p[0], "level", restart=True)],
+                                      time_breaks=[0.88]), (0.0, 2.0), method=method, h=0.1, compiled=compiled))
+    for sol in runs:
+        (rec,) = sol.events
+        assert 0.8 < rec.t < 0.88 if method == "RK4" else 0.88 < rec.t < 0.98     # Euler lags: after the break
+        start = max(rec.t, 0.88)                           # the last restart (one ulp past the break: aside)
+        after = sol.t[sol.t > start + 1e-9]
+        assert np.allclose(after[:-1], start + 0.1 * np.arange(1, after.size), rtol=0, atol=1e-12), sol.t
+    assert [s.nsteps for s in runs[1:]] == [runs[0].nsteps] * 2
+    np.testing.assert_allclose(runs[2].t, runs[0].t, rtol=0, atol=1e-6)     # the root: found to Brent's tolerance

@@ -30,9 +30,9 @@ FAMILIES: dict[str, tuple[float, ...]] = {
     "delta": (0.003, 0.004, 0.005, 0.006, 0.007),
 }
 
-#: how each parameter is shown (label, SI → display factor)
-_DISPLAY = {"r0": ("r0 (mm)", 1e3), "r1": ("r1 (mm)", 1e3), "r2": ("r2 (mm)", 1e3),
-            "k_a": ("k_a (N/mm)", 1e-3), "delta": ("δ (mm)", 1e3)}
+#: how each parameter is shown (symbol, display unit, SI → display factor)
+_DISPLAY = {"r0": ("r0", "mm", 1e3), "r1": ("r1", "mm", 1e3), "r2": ("r2", "mm", 1e3),
+            "k_a": ("k_a", "N/mm", 1e-3), "delta": ("δ", "mm", 1e3)}
 
 
 @dataclass(frozen=True)
@@ -86,10 +86,11 @@ def plot_parameter_studies(out_dir: str | Path, mu_B: float = 0.0) -> list[Path]
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, fam in parameter_studies(mu_B).items():
-        label, scale = _DISPLAY[name]
+        symbol, unit, scale = _DISPLAY[name]
+        label = f"{symbol} ({unit})"
         fig, ax = plt.subplots(figsize=(6.4, 4.2))
         for v, curve, pa, pt in zip(fam.values, fam.torque, fam.peak_angle, fam.peak_torque):
-            line, = ax.plot(np.degrees(fam.phi), curve, label=f"{label.split(' ')[0]} = {v * scale:g}")
+            line, = ax.plot(np.degrees(fam.phi), curve, label=f"{symbol} = {v * scale:g}")
             ax.plot(math.degrees(pa), pt, "o", color=line.get_color(), ms=4)
         ax.set_xlabel("relative angle φ (°)")
         ax.set_ylabel("torque T (N·m)")
@@ -114,8 +115,7 @@ def write_peak_table(out_dir: str | Path, mu_B: float = 0.0) -> Path:
         w = csv.writer(fh)
         w.writerow(["parameter", "value", "unit", "peak_torque [N*m]", "peak_angle [deg]"])
         for name, fam in parameter_studies(mu_B).items():
-            label, scale = _DISPLAY[name]
+            _, unit, scale = _DISPLAY[name]
             for v, pt, pa in zip(fam.values, fam.peak_torque, fam.peak_angle):
-                w.writerow([name, f"{v * scale:.6g}", label[label.index("(") + 1:-1], f"{pt:.6g}",
-                            f"{math.degrees(pa):.6g}"])
+                w.writerow([name, f"{v * scale:.6g}", unit, f"{pt:.6g}", f"{math.degrees(pa):.6g}"])
     return path

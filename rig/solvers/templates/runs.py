@@ -359,8 +359,8 @@ def run(w, Y, TT, HH, KK, HL_, EV, g, p, BR, S, GN, Q, KS, PB, TE, OUT):
                     g[k] = v
         kernel(t_root, Y[s + 1], p, KK[s + 1, 0])
         nfev += 1
-        w[T], w[T0], w[H_ABS], w[NFEV], w[NEV] = t_root, t_root, h, nfev, ne
-        if ADAPTIVE:                                # within the segment, as the driver's new solver starts
-            w[H_ABS] = min(h, w[T_BOUND] - t_root)
+        w[T], w[T0], w[NFEV], w[NEV] = t_root, t_root, nfev, ne
+        if ADAPTIVE:                                # within the segment, as the driver's new solver starts (a fixed
+            w[H_ABS] = min(h, w[T_BOUND] - t_root)  # step keeps its h: the step that held the root may be a cut one)
         restarted = True
     return m
