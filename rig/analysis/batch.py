@@ -56,6 +56,7 @@ class RecordingSummary:
     error: str = ""
     level: str = ""
     incomplete: str = ""
+    not_recorded: int = 0      # curves the unit judged whose samples were not recorded (frames incomplete): in ok / nok
     seed: str = ""
     started: str = ""          # the run's wall-clock start (ns, from its metadata): with scene and seed, which run
     copy_of: str = ""          # the path of another copy of the same run, counted instead of this one
@@ -164,7 +165,8 @@ def summarise(path: Path) -> RecordingSummary:
                             curves, ok, len(verdicts) - ok, values, dict(result["events"]),
                             summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")),
                             incomplete=" ".join("; ".join(losses(rec)).split()), seed=str(meta.get("seed", "")),
-                            started=str(meta.get("wall_clock_start", "")), machine=machine_of(rec.scene_text))
+                            started=str(meta.get("wall_clock_start", "")), machine=machine_of(rec.scene_text),
+                            not_recorded=len(result["not_recorded"]))
 
 
 def _scene_table(scene_text: str) -> dict[str, object]:
@@ -318,10 +320,10 @@ def _stats(m: Moments) -> tuple:
 
 def write_table(result: BatchResult, path: Path) -> Path:
     """CSV, one row per recording: path, scene, level, plant, complete, why incomplete, curves (recorded, judged or not),
-    OK, NOK (judged), error, the run
-    it copies, seed, population (:attr:`RecordingSummary.group`), a stand's or lab's summary lines (joined by " | ",
-    the console's column padding collapsed), then n/mean/std/min/max of every process value (and stand result) any
-    recording has (display units, in the header; a value shown in two units gets a column group per unit)."""
+    OK, NOK (judged), judged not recorded (curves whose frames did not all arrive), error, the run it copies, seed,
+    population (:attr:`RecordingSummary.group`), a stand's or lab's summary lines (joined by " | ", the console's column
+    padding collapsed), then n/mean/std/min/max of every process value (and stand result) any recording has (display
+    units, in the header; a value shown in two units gets a column group per unit)."""
     keys = sorted({(k, u) for r in result.recordings for k, (_, u) in r.values.items()})
     names = [k for k, _ in keys]
     twice = {k for k in names if names.count(k) > 1}     # shown in two units: its n columns named by unit too
@@ -329,12 +331,12 @@ def write_table(result: BatchResult, path: Path) -> Path:
     with path.open("w", newline="") as f:
         out = csv.writer(f)
         out.writerow(["recording", "scene", "level", "plant", "complete", "why incomplete", "curves", "ok", "nok",
-                      "error", "copy of (not counted)", "seed", "population", "stand"]
+                      "judged not recorded", "error", "copy of (not counted)", "seed", "population", "stand"]
                      + [f"{k} {s}" + (f" [{u}]" if u and (s != "n" or k in twice) else "")
                         for k, u in keys for s in STATS])
         for r in result.recordings:
             out.writerow([r.path, r.scene, r.level, r.plant, r.complete, r.incomplete, r.curves, r.ok, r.nok,
-                          r.error, r.copy_of, r.seed, "" if r.error else r.group,
+                          r.not_recorded, r.error, r.copy_of, r.seed, "" if r.error else r.group,
                           " | ".join(" ".join(line.split()) for line in r.stand)]      # no console padding
                          + [x for k, u in keys
                             for x in (_stats(r.values[k][0]) if k in r.values and r.values[k][1] == u else [""] * 5)])
