@@ -286,25 +286,11 @@ def test_a_value_shown_in_two_units_gets_distinct_column_names(tmp_path):
     assert {"stand.speed n [rpm]", "stand.speed n [rad/s]", "stand.t n", "stand.t mean [s]"} <= set(header)
 
 
-def test_curves_judged_but_not_recorded_are_counted_in_the_table(tmp_path):
+def test_curves_judged_but_not_recorded_are_counted_in_the_table(lost_curves, tmp_path):
     """A recording whose curves 2 and 4 were judged OK by the unit but lost on the way: the row counts them OK (the
     unit's verdict) and says 2 were not recorded, as the report's verdict and the console do."""
-    import numpy as np
     from rig.analysis.batch import BatchResult, summarise, write_table
-    from rig.recorder import Recorder
-    path = tmp_path / "lost.mcap"
-    program = {"elements": [], "limits": {}}
-    with Recorder(path, scene_text="[scene]\nname = \"s\"\nseed = 1\n", metadata={"seed": 1},
-                  programs={1: program}) as rec:
-        for k in range(1, 6):
-            t = k + np.arange(0, 0.3, 2e-3)
-            if k in (2, 4):
-                rec.write_event(float(t[-1]), "incomplete_curve", number=k, problems=["pairs missing"])
-            else:
-                rec.write_curve(k, 1, t, 0.04 * (t - k), 40 * (t - k))
-            rec.write_result({"number": k, "program": 1, "ok": True, "elements": [],
-                              "process_values": {"y_max": 40.0 + k}}, t=float(t[-1]))
-    row = summarise(path)
+    row = summarise(lost_curves)
     assert (row.curves, row.ok, row.nok, row.not_recorded) == (5, 5, 0, 2)
     with write_table(BatchResult([row], {}), tmp_path / "t.csv").open(newline="") as f:
         (written,) = csv.DictReader(f)

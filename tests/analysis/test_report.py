@@ -328,21 +328,11 @@ def test_a_csv_header_unit_without_a_named_label_is_written_with_a_caret():
     assert unit("m/s^2", "m/s^2").label == "m/s²"
 
 
-def test_curves_judged_but_not_recorded_make_the_verdict_incomplete_not_ok(tmp_path, capsys):
+def test_curves_judged_but_not_recorded_make_the_verdict_incomplete_not_ok(lost_curves, tmp_path, capsys):
     """Results of 5 curves all OK, the samples of curves 2 and 4 lost on the way (``incomplete_curve``): the verdict
     says so and is not green (it read "OK: all 5 curves passed" with every curve of a run missing)."""
     from rig.analysis.report_blocks import Banner, ReportContext
-    path = tmp_path / "lost.mcap"
-    with Recorder(path, scene_text="[scene]\nseed = 1\n", metadata={"seed": 1}, programs={1: PROGRAM}) as rec:
-        for k in range(1, 6):
-            t = k + np.arange(0, 0.3, 2e-3)
-            if k in (2, 4):
-                rec.write_event(float(t[-1]), "incomplete_curve", number=k, problems=["pairs missing"])
-            else:
-                rec.write_curve(k, 1, t, 0.04 * (t - k), 40 * (t - k))
-            rec.write_result({"number": k, "program": 1, "ok": True, "elements": [],
-                              "process_values": {"y_max": 40.0 + k, "x_at_y_max": 0.01}}, t=float(t[-1]))
-    recording = read_recording(path)
+    recording = read_recording(lost_curves)
     blocks = report.verdict(ReportContext(recording, analyse(recording), tmp_path))
     (banner,) = [b for b in blocks if isinstance(b, Banner)]
     assert not banner.ok and banner.text.startswith("INCOMPLETE: the unit passed all 5 curves")
