@@ -91,9 +91,9 @@ def _classic_can(cfg: RunConfig, role: str) -> None:
     """Refuse a CAN FD scene where the bus runs over socketcand (``role``: what is starting), whose raw mode carries
     classic frames only: the unit's 64-byte curve and live frames could never reach the host."""
     if cfg.can["fd"]:
-        raise SceneError(f"{cfg.scene.path} [links.can]: fd = true, but {role} over socketcand, which carries classic "
-                       "CAN frames only (its curve and live frames of 64 bytes would never reach the host): set "
-                       "fd = false for a served run, or run the scene in one process with rig run")
+        raise SceneError(f"{cfg.scene.path} [links.can]: fd = true, but {role} over socketcand, which carries "
+                         "classic CAN frames only (its curve and live frames of 64 bytes would never reach the host): "
+                         "set fd = false for a served run, or run the scene in one process with rig run")
 
 
 def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fidelity: int | None = None) -> RunConfig:
