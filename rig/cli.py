@@ -103,7 +103,7 @@ def _print_set_summary(result: dict) -> None:
     cut = memory_warning(verdicts)
     if cut:
         print(f"  warning: {cut}")
-    lost = result.get("not_recorded", [])
+    lost = result["not_recorded"]
     if lost:
         print(f"  warning: {len(lost)} of these curves not recorded, their frames incomplete (curve "
               f"{', '.join(map(str, lost[:10]))}{' …' if len(lost) > 10 else ''}): judged by the unit only")

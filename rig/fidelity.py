@@ -224,10 +224,11 @@ def choose(scene: Scene, plant: str, forced: int | None = None, data: Path = DAT
     from rig import fidelity_cache
     key = fidelity_cache.key(scene, plant, forced, data)
     kept = fidelity_cache.read(key)
-    try:
-        return Fidelity(**{**kept, "unanswered": tuple(kept["unanswered"])})
-    except (TypeError, KeyError):           # none kept, or not a choice: computed
-        pass
+    if kept is not None:
+        try:
+            return Fidelity(**{**kept, "unanswered": tuple(kept["unanswered"])})
+        except (TypeError, KeyError):       # not a choice (damaged, or another version's fields): computed
+            pass
     before = _level2_runs
     chosen = _choose(scene, plant, forced, data)
     if _level2_runs > before:

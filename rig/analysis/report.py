@@ -181,7 +181,7 @@ def verdict(ctx: ReportContext) -> list[Block]:
     what = ", ".join(f"program {p}" + (f" “{names[p]}”" if names.get(p) else "") for p in a["sets"])
     judged = {v["number"] for v in verdicts}
     unjudged = [c.number for c in rec.curves if c.number not in judged]
-    lost = a.get("not_recorded", [])
+    lost = a["not_recorded"]
     text = (f"NOK: {nok} of {n} curves failed, {n - nok} OK" if nok else
             f"INCOMPLETE: the unit passed all {n} curves" if lost else f"OK: all {n} curves passed") + \
         (f" ({what})" if what else "") + \

@@ -299,10 +299,10 @@ def check_sections(scene: Scene, plant: str) -> None:
 def _check_period(period: float, chunk: float, rate: float, where: str, scene_where: str) -> None:
     """The transmit cycle a whole number of samples, and the chunk a whole number of cycles: the runner steps the
     unit and its bus cycle by cycle within a chunk."""
-    samples = period * rate
-    whole = round(samples) if period > 0 else 0
     if not period > 0:
         raise SceneError(f"{where}: key 'tx_period' must be positive, got {period:g} s")
+    samples = period * rate
+    whole = round(samples)
     if whole < 2 or abs(samples - whole) > 1e-6 * samples:
         raise SceneError(f"{where}: key 'tx_period' = {period:g} s must be a whole number (at least 2) of samples at "
                          f"[scene] sample_rate = {rate:g} Hz (it holds {samples:g})")

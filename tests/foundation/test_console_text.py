@@ -40,7 +40,7 @@ def test_limits_no_value_meets_are_said_not_capable_not_n_a(capsys):
 
 
 def test_the_theory_lag_is_in_degrees_like_every_other_angle(capsys):
-    result = {"verdicts": [], "incomplete": [], "sets": {}, "events": {},
+    result = {"verdicts": [], "incomplete": [], "not_recorded": [], "sets": {}, "events": {},
               "theory": [{"signal": "x", "curve": 1, "lag_time": 2.47e-3, "lag_angle": 0.03892}]}
     cli._print_set_summary(result)
     out = capsys.readouterr().out
