@@ -1,9 +1,11 @@
 """Shared fixtures: a small Dask cluster for the executor, sweep and batch tests (2 worker threads in this
-process, in-process transport, HTTP status servers on 127.0.0.1 only), started once when first asked for; and
-a served machine (``rig serve`` in its own process) for the cross-process tests."""
+process, in-process transport, HTTP status servers on 127.0.0.1 only), started once when first asked for; a
+served machine (``rig serve`` in its own process) for the cross-process tests; and the fuzz tests' case counter,
+its counts summed over pytest-xdist's workers (the suite runs on every core: ``-n auto`` in pyproject.toml)."""
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import json
 import os
 import subprocess
@@ -17,6 +19,11 @@ import pytest
 # tests replace the fidelity checks and data: no choice is read from, or kept in, the user's cache (rig.fidelity_cache;
 # its own tests turn it on in a folder of their own); the commands the tests start inherit this
 os.environ["MECHRIG_FIDELITY_CACHE"] = "0"
+
+_spec = importlib.util.spec_from_file_location("fuzz_cases", Path(__file__).parent / "fuzz" / "cases.py")
+cases = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(cases)
+_FUZZ_LOG = pytest.StashKey[object]()
 
 
 @contextlib.contextmanager
@@ -52,3 +59,40 @@ def dask_scheduler():
 def serve_scene():
     """:func:`served`, for the cross-process tests."""
     return served
+
+
+@pytest.fixture(scope="session")
+def fuzz_cases(request) -> "cases.CaseLog":
+    """The session's :class:`cases.CaseLog` of the fuzz tests (``tests/fuzz/cases.py``)."""
+    return request.config.stash.setdefault(_FUZZ_LOG, cases.CaseLog())
+
+
+def pytest_sessionfinish(session) -> None:
+    """A pytest-xdist worker hands its fuzz case counts to the controller; the controller (or a session without
+    workers) writes the sum to ``<basetemp>/fuzz-cases.json``."""
+    log = session.config.stash.get(_FUZZ_LOG, None)
+    if log is None or not log.examples:
+        return
+    workeroutput = getattr(session.config, "workeroutput", None)
+    if workeroutput is not None:
+        workeroutput["fuzz_cases"] = log.as_dict()
+    else:
+        log.write(session.config._tmp_path_factory.getbasetemp() / cases.FILE_NAME)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error) -> None:
+    """On pytest-xdist's controller: add a finished worker's fuzz case counts to the session's."""
+    counts = getattr(node, "workeroutput", {}).get("fuzz_cases")
+    if counts:
+        node.config.stash.setdefault(_FUZZ_LOG, cases.CaseLog()).merge(counts)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
+    """The fuzz case counts of the session, as a table in pytest's summary."""
+    log = config.stash.get(_FUZZ_LOG, None)
+    if log is None or not log.examples or hasattr(config, "workeroutput"):
+        return
+    terminalreporter.section("fuzz case counts")
+    for line in cases.table(log.as_dict()):
+        terminalreporter.write_line(line)

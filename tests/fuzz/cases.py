@@ -1,8 +1,8 @@
 """Case counts of the fuzz tests: examples run per target and outcomes counted per reason.
 
-The fuzz tests record through the ``fuzz_cases`` fixture (``tests/fuzz/conftest.py``), which writes
+The fuzz tests record through the ``fuzz_cases`` fixture (``tests/conftest.py``), which writes
 ``fuzz-cases.json`` into pytest's base temporary directory at the end of the session and prints the
-table in pytest's terminal summary. Run as a script to summarize a written file::
+table in pytest's terminal summary (with pytest-xdist, the workers' counts summed by the controller). Run as a script to summarize a written file::
 
     python tests/fuzz/cases.py [FILE]     # default: the newest fuzz-cases.json of pytest's sessions
 """
@@ -77,6 +77,12 @@ class CaseLog:
         """``{target: {"examples": n, "outcomes": {reason: count}}}``, sorted."""
         return {t: {"examples": n, "outcomes": dict(sorted(self.outcomes[t].items()))}
                 for t, n in sorted(self.examples.items())}
+
+    def merge(self, counts: dict[str, dict]) -> None:
+        """Add counts in the form of :meth:`as_dict` (another process's)."""
+        for target, entry in counts.items():
+            self.examples[target] += entry["examples"]
+            self.outcomes[target].update(entry["outcomes"])
 
     def write(self, path: Path) -> None:
         """Write :meth:`as_dict` to ``path`` as JSON."""

@@ -1,9 +1,8 @@
-"""Fixtures of the fuzz tests: the case counter (written to ``fuzz-cases.json`` under pytest's base
-temporary directory and printed in the terminal summary), byte-stream mutations and a 1-cycle demo
-recording made once per session."""
+"""Fixtures of the fuzz tests: byte-stream mutations and a 1-cycle demo recording made once per session (the
+case counter ``fuzz_cases`` is in ``tests/conftest.py``: its counts are summed over pytest-xdist's workers
+there)."""
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -13,29 +12,6 @@ from hypothesis import strategies as st
 from rig.runner import run_scene
 
 ROOT = Path(__file__).resolve().parents[2]
-_spec = importlib.util.spec_from_file_location("fuzz_cases", Path(__file__).with_name("cases.py"))
-cases = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(cases)
-_LOG_KEY = pytest.StashKey[object]()
-
-
-@pytest.fixture(scope="session")
-def fuzz_cases(request, tmp_path_factory) -> "cases.CaseLog":
-    """The session's :class:`cases.CaseLog`; written to ``<basetemp>/fuzz-cases.json`` at the end."""
-    log = cases.CaseLog()
-    request.config.stash[_LOG_KEY] = log
-    yield log
-    log.write(tmp_path_factory.getbasetemp() / cases.FILE_NAME)
-
-
-def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
-    """The case counts of the session, as a table in pytest's summary."""
-    log = config.stash.get(_LOG_KEY, None)
-    if log is None or not log.examples:
-        return
-    terminalreporter.section("fuzz case counts")
-    for line in cases.table(log.as_dict()):
-        terminalreporter.write_line(line)
 
 
 # -- byte-stream mutations -------------------------------------------------------------------------
