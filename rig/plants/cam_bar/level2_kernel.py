@@ -562,7 +562,9 @@ def joint_index(p):
     return 2 if p[DRIVE_ON] == 0.0 else 6
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+# Called, not inlined (its helpers are): rhs and evaluate share one compilation of it — a first run compiles the
+# level-2 kernel in about half the time, and a level-2 integration runs within 3 % of the inlined one.
+@njit(cache=True, error_model="numpy")
 def dynamics(e, e_d, z, z_d, phi, omega, alpha, omega_m, shaft, p):
     """Everything for deviation e (rad) and rate ė (rad/s) with the cam at φ, ω (rad, rad/s), in the
     order of :data:`OUTPUTS`, and a status (0, 1 chain cannot be assembled, 2 jammed guide: the values are then
