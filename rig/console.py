@@ -30,9 +30,9 @@ HARMLESS: dict[str, tuple[str, ...]] = {
 }
 #: numba compilations announced: module prefix -> (what is compiled, how long a first compilation takes)
 COMPILED: dict[str, tuple[str, str]] = {
-    "rig.plants.": ("the plant model and its solver", "20-40 s"),
-    "rig.solvers.": ("the plant model and its solver", "20-40 s"),
-    "mechrig_": ("the plant model and its solver", "20-40 s"),     # solver modules generated per kernel
+    "rig.plants.": ("the plant model and its solver", "30-60 s"),
+    "rig.solvers.": ("the plant model and its solver", "30-60 s"),
+    "mechrig_": ("the plant model and its solver", "30-60 s"),     # solver modules generated per kernel
     "firmware_sim.can_arbitration": ("the CAN arbitration", "1 s"),
     "firmware_sim.transducers": ("the transducer models", "1 s"),
     "rig.analysis.streaming": ("the Monte-Carlo statistics", "5-10 s"),
