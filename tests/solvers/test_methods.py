@@ -31,9 +31,16 @@ FIXED = ("Euler", "SymplecticEuler", "RK4")
 
 @njit(cache=True)
 def _oscillator(t, y, p, out):
-    """q'' = −ω²q − 2ζωq' with p = (ω, ζ, ·), state (q, q')."""
-    out[0] = y[1]
-    out[1] = -p[0] * p[0] * y[0] - 2.0 * p[1] * p[0] * y[1]
+    """q'' = −ω²q − 2ζωq' with p = (ω, ζ, t_r, t_nan, k, breaks…), state (q, q'); t_r is the restart time of
+    :func:`_crossings`. The derivatives are NaN after t_nan (a model that cannot go on), and ω jumps k-fold and back
+    at each break (left-continuous: after the time, so the RHS jumps there and the step after it is refused). One
+    kernel for the tests of this file: each kernel costs every method a numba compilation (~10 s)."""
+    w = p[0]
+    for tb in p[5:]:
+        if t > tb:
+            w = p[0] * p[4] if w == p[0] else p[0]
+    out[0] = y[1] if t <= p[3] else math.nan
+    out[1] = -w * w * y[0] - 2.0 * p[1] * w * y[1]
 
 
 @njit(cache=True)
@@ -150,7 +157,7 @@ def test_rodas4_is_accurate_and_stable_where_explicit_methods_diverge(compiled):
 def test_compiled_runs_take_the_python_steps(method):
     """Same kernel, events (a recorded crossing and a restart), dense output: the compiled runs and the Python
     steps agree on steps, RHS calls, samples and event times."""
-    p = np.array([W, 0.05, 0.77])
+    p = np.array([W, 0.05, 0.77, math.inf, 1.0])
     opts = {"h": 2e-3} if method in FIXED else {"rtol": 1e-8, "atol": 1e-10}
     t = np.linspace(0.0, 2.0, 41)
     runs = []
@@ -173,18 +180,6 @@ def test_compiled_runs_take_the_python_steps(method):
     assert np.max(np.abs(a.y[0] - exact)) < {"Euler": 0.02, "SymplecticEuler": 0.01}.get(method, 1e-4)
 
 
-@njit(cache=True)
-def _kicked(t, y, p, out):
-    """The damped oscillator of :func:`_oscillator` whose frequency jumps p[2]-fold and back at the times p[3:]
-    (left-continuous: after the time), so the RHS jumps at each break and the step after it is refused."""
-    out[0] = y[1]
-    w = p[0]
-    for tb in p[3:]:
-        if t > tb:
-            w = p[0] * p[2] if w == p[0] else p[0]
-    out[1] = -w * w * y[0] - 2.0 * p[1] * w * y[1]
-
-
 @pytest.mark.parametrize("method", ["RK4", "DP45", "Tsit5", "Rodas4"])
 def test_compiled_runs_pass_time_breaks_as_the_driver_does(method, monkeypatch):
     """Time breaks (the frequency jumping 20-fold and back at 12 times, some 20 µs apart, the steps after them refused): the compiled runs restart past each themselves
@@ -192,7 +187,7 @@ def test_compiled_runs_pass_time_breaks_as_the_driver_does(method, monkeypatch):
     a mode to re-select (``reset``). Same steps, RHS calls, restarts and states either way; and as the Python steps
     (Rodas4: to its LU's rounding, a decision or two apart)."""
     breaks = np.array([0.6, 0.63, 0.9, 0.95, 1.3, 1.32, 1.6, 1.64, 1.8, 1.81, 1.9, 1.90002])   # fast phases, short
-    p = np.r_[W, 0.05, 20.0, breaks]
+    p = np.r_[W, 0.05, 20.0, math.inf, 20.0, breaks]     # ω jumping 20-fold at the breaks; the restart at t = 20
     opts = {"h": 2e-3} if method in FIXED else {"rtol": 1e-6, "atol": 1e-8}
     t = np.linspace(0.0, 2.0, 41)
 
@@ -201,7 +196,7 @@ def test_compiled_runs_pass_time_breaks_as_the_driver_does(method, monkeypatch):
     made = []
 
     def run(compiled, reset=None):
-        fun = JitRhs(_kicked, lambda: p, event=_crossings)
+        fun = JitRhs(_oscillator, lambda: p, event=_crossings)
         problem = Problem(fun, (1.0, 0.0), [Event(lambda tt, y: y[0], "zero")], time_breaks=list(breaks), reset=reset)
         made.append(0)
         return integrate(problem, (0.0, 2.0), method=method, t_eval=t, compiled=compiled, **opts)
@@ -301,7 +296,7 @@ def test_dop853_takes_scipys_steps(compiled):
     """The same tableau, error norm and controller as scipy's DOP853: the same step times and the same solution to
     rounding, and its 7th-order dense output (our polynomial form of scipy's nested one) gives scipy's samples."""
     from scipy.integrate import solve_ivp
-    p = np.array([W, 0.05, 1e9])
+    p = np.array([W, 0.05, 1e9, math.inf, 1.0])
     fun = JitRhs(_oscillator, lambda: p)
     t = np.linspace(0.0, 2.0, 41)
     for rtol in (1e-4, 1e-9):
@@ -375,21 +370,14 @@ def test_an_amplification_beyond_float_range_is_reported_not_an_overflow():
         monitor._report_amplification(0.1, (1.0, 0.0), 4e-4, (3.0, 0.9, complex(-100.0, 4000.0)), 1000.0)
 
 
-@njit(cache=True)
-def _lost_after(t, y, p, out):
-    """The oscillator of :func:`_oscillator` whose derivatives are NaN after t = p[2] (a model that cannot go on)."""
-    out[0] = y[1] if t <= p[2] else math.nan
-    out[1] = -p[0] * p[0] * y[0]
-
-
 @pytest.mark.parametrize("method", ["RK4", "DP45", "Rodas4"])
 def test_non_finite_derivatives_past_a_passed_break_are_reported_there(method):
     """The compiled run passing a break evaluates f one ulp past it; NaN there was stepped on (DP45 and Rodas4 shrank
     to a step-size underflow, RK4 blamed its step size). It hands the break back to the driver, whose new solver
     reports the derivatives at the break, as before."""
-    p = np.array([W, 0.0, 0.7])
+    p = np.array([W, 0.0, 0.7, 0.7, 1.0])                  # the derivatives NaN after t = 0.7
     opts = {"h": 2e-3} if method in FIXED else {"rtol": 1e-8, "atol": 1e-10}
-    problem = Problem(JitRhs(_lost_after, lambda: p, event=_crossings), (1.0, 0.0),
+    problem = Problem(JitRhs(_oscillator, lambda: p, event=_crossings), (1.0, 0.0),
                       [Event(lambda tt, y: y[0], "zero")], time_breaks=[0.3, 0.7])
     with pytest.raises(SolverDivergence, match=r"non-finite derivatives at the start; state at t = 0\.7\b"):
         integrate(problem, (0.0, 2.0), method=method, **opts)
