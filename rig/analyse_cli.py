@@ -10,6 +10,7 @@ from pathlib import Path
 def cmd_analyse(args: argparse.Namespace) -> int:
     from rig.analysis.batch import analyse_batch, expand, report_lines, write_table
     from rig.analysis.numbers import plural
+    from rig.analysis.stand_summary import NO_SHEET
     from rig.console import progress as progress_bar
     from rig.executors.options import executor_from_args
     from rig.outputs import claim_dir, writable_dir
@@ -31,6 +32,10 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     for line in lines:                           # the notes under the totals (runs that share a seed)
         if line.startswith("Note: "):
             print(line)
+    for row in result.recordings:                # a lab sheet that could not be made: one line each, as rig report
+        for line in row.stand:
+            if line.startswith(NO_SHEET):
+                print(f"rig: warning: {row.path}: {line}", file=sys.stderr)
     read = sum(not r.error for r in result.recordings)
     if not read:
         if len(paths) == 1:

@@ -90,13 +90,21 @@ class Row:
         return f" {self.unit.replace('*', '·')}" if self.unit else ""
 
     @property
-    def deviation(self) -> str:
-        """rig − thesis in the row's unit, and as a share of the thesis value (empty when n/a)."""
+    def difference(self) -> tuple[float, float | None] | None:
+        """(rig − thesis in the row's unit, the same in % of the thesis value — None for a count or a thesis of 0);
+        None without a rig value."""
         if self.rig is None:
-            return ""
+            return None
         d = self.rig - self.thesis
-        share = f" ({100 * d / abs(self.thesis):+.3g} %)" if self.thesis and self.unit else ""
-        return f"{d:+.3g}{self.shown_unit}{share}"
+        return d, (100 * d / abs(self.thesis) if self.thesis and self.unit else None)
+
+    @property
+    def deviation(self) -> str:
+        """:attr:`difference` as text: rig − thesis in the row's unit, and its share (empty when n/a)."""
+        if self.difference is None:
+            return ""
+        d, share = self.difference
+        return f"{d:+.3g}{self.shown_unit}" + ("" if share is None else f" ({share:+.3g} %)")
 
 
 def read_rows(scene: Scene) -> list[dict[str, Any]]:
@@ -260,16 +268,20 @@ def _agrees(tolerance: Any, thesis: float, unit: str, si: str, scale: float, rig
 def write_csv(rows: list[Row], path: Path) -> Path:
     """``comparison.csv``: quantity, unit, thesis, rig (a number; empty: no value), rig beyond (X where the run ended
     before the result, which lies beyond X; else empty), agrees (yes / NO / - not judged / n/a), fitted (1/0), note,
-    deviation (rig − thesis), tolerance (as the scene writes it; "exact" for a count), basis (fitted / input /
-    predicted). Every cell of the number columns is a number or empty (a spreadsheet reads them as numbers)."""
+    deviation (rig − thesis, in the row's unit), deviation [%] (of the thesis value; empty for a count or a thesis
+    of 0), tolerance (as the scene writes it; "exact" for a count), basis (fitted / input / predicted). Every cell of
+    the number columns is a number or empty (a spreadsheet reads them as numbers)."""
+    def number(x: float | None, form: str = ".6g") -> str:
+        return "" if x is None else f"{x:{form}}"
+
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(["quantity", "unit", "thesis", "rig", "rig beyond", "agrees", "fitted", "note", "deviation",
-                    "tolerance", "basis"])
+                    "deviation [%]", "tolerance", "basis"])
         for r in rows:
-            w.writerow([r.quantity, r.unit, f"{r.thesis:g}", "" if r.rig is None else f"{r.rig:.6g}",
-                        "" if r.beyond is None else f"{r.beyond:.6g}", r.verdict,
-                        int(r.fitted), r.why, r.deviation, r.tolerance, r.basis])
+            d, share = r.difference or (None, None)
+            w.writerow([r.quantity, r.unit, f"{r.thesis:g}", number(r.rig), number(r.beyond), r.verdict,
+                        int(r.fitted), r.why, number(d), number(share, ".4g"), r.tolerance, r.basis])
     return path
 
 

@@ -24,6 +24,10 @@ class StandSummary:
     values: dict[str, tuple[float, str]]
 
 
+#: how a summary line starts whose lab sheet could not be made (``rig analyse`` repeats it on the console)
+NO_SHEET = "lab: no sheet"
+
+
 def stand_summary(rec: "Recording") -> StandSummary | None:
     """The summary of a lab bench, clutch dynamic stand or static clutch rig run (in that order of trial); None
     for a recording with curves or of no stand."""
@@ -33,7 +37,7 @@ def stand_summary(rec: "Recording") -> StandSummary | None:
     try:
         sheets = lab_report.lab_sheets(rec)
     except (SceneError, ValueError) as exc:
-        return StandSummary([f"lab: no sheet ({exc})"], {})
+        return StandSummary([f"{NO_SHEET} ({exc})"], {})
     if sheets is not None:
         return StandSummary(lab_report.summary_lines(sheets, rec),
                             {f"lab.{sheet.key}.{_snake(name)}": lab_report.shown_value(name, float(v))

@@ -162,8 +162,8 @@ DAMAGED = (McapError, ZstdError, RuntimeError, struct.error)
 
 def _unreadable(path: Path, exc: Exception) -> RecordingError:
     return RecordingError(f"{path}: cannot read the MCAP recording, it is damaged ({plain(exc)}); exporting CAN "
-                          f"needs an undamaged file — `rig export-can --partial` exports the frames before the "
-                          f"damage, `rig report --partial {path}` reports what it holds")
+                          f"needs an undamaged file — `rig export-can --partial` exports every frame that reads "
+                          f"(damaged chunks skipped, and named), `rig report --partial {path}` reports what it holds")
 
 
 def trace_start(path: Path) -> float:

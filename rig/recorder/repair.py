@@ -156,8 +156,11 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
                                                                                        else "")})
                 end["messages"] = str(sum(rewriter.messages.values()))
                 reached = rewriter.simulation_time()
+                said = end.get("simulation_time")
                 if math.isfinite(reached):             # (no message that tells a time: none written)
-                    end.setdefault("simulation_time", repr(reached))
+                    end["simulation_time"] = repr(reached)
+                    if said not in (None, repr(reached)):  # an end record read, then data of the last chunk lost
+                        end["reason"] += f" (its end record said {float(said):.6g} s of simulation; the data kept reach {reached:.6g} s)"
             if end:
                 writer.add_metadata(S.END_METADATA, end)
             writer.finish()

@@ -98,6 +98,14 @@ def test_leaf_startup_scene_writes_the_comparison(tmp_path):
     assert 0.0 < float(settle["rig"]) <= 450.0
     assert rows["disengagements"]["rig"] == "0" and peak["fitted"] == "1" and settle["fitted"] == "1"
     assert [r["basis"] for r in rows.values()] == ["fitted"] * 4 + ["input"]    # the final torque is the load set
+    for r in rows.values():                      # the number columns parse as numbers (deviation was "+0.035 N·m (…)")
+        assert all(r[k] == "" or math.isfinite(float(r[k])) for k in ("thesis", "rig", "rig beyond", "deviation",
+                                                                        "deviation [%]"))
+        if r["rig"]:
+            assert float(r["deviation"]) == pytest.approx(float(r["rig"]) - float(r["thesis"]),   # rig: 6 digits
+                                                          abs=1e-5 * abs(float(r["rig"])) + 1e-9)
+    assert float(peak["deviation [%]"]) == pytest.approx(100 * (float(peak["rig"]) / 14.5 - 1), rel=1e-3)
+    assert rows["disengagements"]["deviation [%]"] == ""                          # a count: no share
     assert [r["agrees"] for r in rows.values()] == ["yes"] * 5          # 15 %, 20 %, at most, exact count, 5 %
     assert "Thesis against rig" in (tmp_path / "report" / "report.html").read_text(encoding="utf-8")
 

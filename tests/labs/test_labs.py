@@ -373,6 +373,20 @@ def test_rig_analyse_merges_the_lab_sheets_numbers(speed, cardan, tmp_path):
     assert "lab sheet cardan (cardan joint):" in report and "## Stand and lab recordings (2)" in report
 
 
+def test_rig_analyse_says_on_the_console_when_a_lab_sheet_cannot_be_made(speed, tmp_path, capsys, monkeypatch):
+    """A sheet that cannot be made (e.g. its scene's device file moved away) is one warning line per recording on
+    the console, as `rig report` gives it, not only a line in the report."""
+    from rig.analysis import lab_report
+    from rig.cli import main
+
+    def unreadable(rec):
+        raise ValueError("cannot read device description devs/tacho.toml: No such file or directory")
+    monkeypatch.setattr(lab_report, "lab_sheets", unreadable)
+    assert main(["-q", "analyse", str(speed[0].path), "--executor", "serial", "-o", str(tmp_path / "an")]) == 0
+    err = capsys.readouterr().err
+    assert f"rig: warning: {speed[0].path}: lab: no sheet (cannot read device description devs/tacho.toml" in err
+
+
 def test_a_recording_without_a_scene_has_no_lab_section(tmp_path):
     """A truncated file that kept no scene is not called a broken lab: no lab section, no warning about it."""
     from rig.analysis.lab_report import lab_section, lab_sheets

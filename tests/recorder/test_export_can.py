@@ -330,6 +330,7 @@ def test_a_damaged_chunk_is_one_line_naming_the_file_and_no_trace_is_left(record
     assert main(["-q", "export-can", str(bad), "-o", str(tmp_path / "bus.asc")]) == 2
     err = capsys.readouterr().err
     assert f"{bad}: cannot read the MCAP recording, it is damaged (" in err and "rig report --partial" in err
+    assert "--partial` exports every frame that reads (damaged chunks skipped" in err       # not "before the damage"
     assert "rig export-can --partial" in err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "bus.asc").exists()

@@ -11,8 +11,11 @@ from mcap.reader import make_reader
 from rig.cli import main
 from rig.recorder import RecordingError, read_recording
 from rig.recorder.repair import repair
+from rig.runner import run_scene
 
 from tests.recorder.test_damaged import _chunks, _flip, _record
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _messages(path: Path) -> list[tuple[str, int, int, bytes]]:
@@ -46,6 +49,21 @@ def test_a_cut_recording_is_rewritten_whole_with_what_the_salvage_reads(tmp_path
     assert fixed.simulation_time < read_recording(whole).simulation_time
 
 
+def test_a_copy_cut_in_its_last_chunk_states_the_time_its_data_reach_not_the_runs(tmp_path):
+    """The end record is written before the last chunk: a copy cut inside that chunk has it (the whole run's time,
+    complete) but not the chunk's messages; the repaired file says the time the data kept reach, and the run's."""
+    whole = tmp_path / "whole.mcap"
+    run_scene(ROOT / "data" / "scenes" / "pin_insertion.toml", whole, cycles=10)     # 4.3 s in two chunks
+    last = _chunks(whole)[-1]
+    assert last.message_end_time - last.message_start_time > 0.2e9
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(whole.read_bytes()[:last.chunk_start_offset + last.chunk_length // 2])
+    fixed = read_recording(repair(cut, tmp_path / "fixed.mcap").path)
+    run_time = read_recording(whole).simulation_time
+    assert not fixed.complete and fixed.simulation_time == fixed.last_time < run_time
+    assert f"its end record said {run_time:.6g} s of simulation" in fixed.interrupted
+
+
 def test_a_damaged_middle_chunk_is_named_and_the_rest_rewritten(tmp_path):
     whole = _record(tmp_path / "whole.mcap")
     index = _chunks(whole)[4]
@@ -64,7 +82,7 @@ def test_a_whole_recording_repairs_to_itself(tmp_path):
     assert _messages(done.path) == _messages(whole)
 
 
-def test_nothing_to_repair_and_no_overwriting_of_the_source(tmp_path):
+def test_nothing_to_repair_and_no_overwriting_of_the_source(tmp_path, capsys):
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 20)
     with pytest.raises(RecordingError, match="no message can be read from it"):
@@ -72,6 +90,8 @@ def test_nothing_to_repair_and_no_overwriting_of_the_source(tmp_path):
     assert not (tmp_path / "out.mcap").exists() and [p.name for p in tmp_path.iterdir()] == ["junk.mcap"]
     with pytest.raises(ValueError, match="must not replace its source"):
         repair(junk, junk)
+    assert main(["repair", str(junk), "-o", str(junk)]) == 2       # whether damaged or not: the file it reads
+    assert "that is the recording it reads (name another)" in capsys.readouterr().err
 
 
 def test_cli_repair_names_its_output_and_what_was_lost(tmp_path, capsys):
