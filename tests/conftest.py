@@ -76,8 +76,8 @@ def pytest_sessionfinish(session) -> None:
     workeroutput = getattr(session.config, "workeroutput", None)
     if workeroutput is not None:
         workeroutput["fuzz_cases"] = log.as_dict()
-    else:
-        log.write(session.config._tmp_path_factory.getbasetemp() / cases.FILE_NAME)
+    elif (factory := getattr(session.config, "_tmp_path_factory", None)) is not None:   # pytest's, not public
+        log.write(factory.getbasetemp() / cases.FILE_NAME)
 
 
 @pytest.hookimpl(optionalhook=True)

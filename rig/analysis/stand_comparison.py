@@ -101,9 +101,10 @@ class Row:
     @property
     def deviation(self) -> str:
         """:attr:`difference` as text: rig − thesis in the row's unit, and its share (empty when n/a)."""
-        if self.difference is None:
+        difference = self.difference
+        if difference is None:
             return ""
-        d, share = self.difference
+        d, share = difference
         return f"{d:+.3g}{self.shown_unit}" + ("" if share is None else f" ({share:+.3g} %)")
 
 

@@ -160,7 +160,11 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
                 if math.isfinite(reached):             # (no message that tells a time: none written)
                     end["simulation_time"] = repr(reached)
                     if said not in (None, repr(reached)):  # an end record read, then data of the last chunk lost
-                        end["reason"] += f" (its end record said {float(said):.6g} s of simulation; the data kept reach {reached:.6g} s)"
+                        try:
+                            said = f"said {float(said):.6g} s of simulation"
+                        except ValueError:
+                            said = f"gave a damaged simulation time ({said!r})"
+                        end["reason"] += f" (its end record {said}; the data kept reach {reached:.6g} s)"
             if end:
                 writer.add_metadata(S.END_METADATA, end)
             writer.finish()

@@ -1,8 +1,8 @@
 """Case counts of the fuzz tests: examples run per target and outcomes counted per reason.
 
-The fuzz tests record through the ``fuzz_cases`` fixture (``tests/conftest.py``), which writes
-``fuzz-cases.json`` into pytest's base temporary directory at the end of the session and prints the
-table in pytest's terminal summary (with pytest-xdist, the workers' counts summed by the controller). Run as a script to summarize a written file::
+The fuzz tests record through the ``fuzz_cases`` fixture of ``tests/conftest.py``, whose hooks write
+``fuzz-cases.json`` into pytest's base temporary directory at the end of the session and print the
+table in pytest's terminal summary (with pytest-xdist: the workers' counts, summed by the controller). Run as a script to summarize a written file::
 
     python tests/fuzz/cases.py [FILE]     # default: the newest fuzz-cases.json of pytest's sessions
 """

@@ -7,7 +7,7 @@ program, CAN node: :class:`rig.runner.machine.Machine`). Each case either gives 
 ``[transducers.x]``, ...) or, for TOML syntax, the line; nothing else escapes, nothing hangs.
 
 Deterministic (``derandomize``, no example database). The cases per outcome are counted by the
-``fuzz_cases`` fixture (tests/fuzz/conftest.py: pytest's terminal summary and ``fuzz-cases.json``).
+``fuzz_cases`` fixture (tests/conftest.py: pytest's terminal summary and ``fuzz-cases.json``).
 """
 from __future__ import annotations
 
