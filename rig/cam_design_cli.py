@@ -19,7 +19,8 @@ def cmd_cam_design(args: argparse.Namespace) -> int:
     from rig.outputs import PNG_MAGIC, file_parent, writable_file
     from rig.plants.cam_bar.scene_io import mechanism_from_scene, read_speed_profile, require_cam_bar
     from rig.scene import load_scene
-    writable_file(Path(args.output), "cam-design chart", PNG_MAGIC)
+    output = Path(args.output) if args.output else Path("out") / f"{Path(args.scene).stem}.cam_design.png"
+    writable_file(output, "cam-design chart", PNG_MAGIC)
     if args.sigma_allow is not None and not (math.isfinite(args.sigma_allow) and args.sigma_allow > 0):
         raise ValueError(f"--sigma-allow must be a positive permissible Hertz stress in MPa, got {args.sigma_allow}")
     options = {} if args.sigma_allow is None else {"sigma_allow": args.sigma_allow * 1e6}
@@ -37,7 +38,7 @@ def cmd_cam_design(args: argparse.Namespace) -> int:
         design = design_checks(mech, omega, high_speed=not args.low_speed, **options)
     print(f"cam design checks for {args.scene}")
     print(format_checks(design))
-    print(f"chart: {plot_design(design, file_parent(Path(args.output)))}")
+    print(f"chart: {plot_design(design, file_parent(output))}")
     return 0 if all(c.ok for c in design.checks) else 1
 
 
@@ -66,5 +67,6 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
                    help="permissible Hertz stress (MPa; default 1200, an assumption for hardened steel)")
     p.add_argument("--load-coefficient", type=float, metavar="Q/F",
                    help="load coefficient Φ_L of the H/h optimum (default 0.5, an assumption)")
-    p.add_argument("-o", "--output", default="out/cam_design.png", help="chart PNG (default out/cam_design.png)")
+    p.add_argument("-o", "--output", help="chart PNG (default out/<scene name>.cam_design.png, e.g. "
+                                            "out/pin_insertion.cam_design.png)")
     p.set_defaults(func=cmd_cam_design)

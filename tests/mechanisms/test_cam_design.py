@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from math import asin, pi, radians, sin, sqrt, tau
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -261,6 +262,19 @@ def test_rig_cam_design_command(tmp_path, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["cam-design", "--load-coefficient", "0", "-o", str(png)]) == 1   # r_b/h < 0 at the optimum
     assert "FAIL" in capsys.readouterr().out
+
+
+
+def test_the_default_chart_is_named_after_the_scene(tmp_path, capsys, monkeypatch):
+    """Without -o each scene's chart has a name of its own (one fixed name let a second scene replace the first)."""
+    from rig.cli import main
+    root = Path(__file__).resolve().parents[2] / "data" / "scenes"
+    monkeypatch.chdir(tmp_path)
+    assert main(["-q", "cam-design"]) == 0
+    assert main(["-q", "cam-design", str(root / "lab_cam.toml")]) in (0, 1)
+    assert "chart: out/lab_cam.cam_design.png" in capsys.readouterr().out
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["lab_cam.cam_design.png",
+                                                                   "pin_insertion.cam_design.png"]
 
 
 def test_cam_design_refuses_a_scene_without_a_cam():
