@@ -96,7 +96,10 @@ def _classic_can(cfg: RunConfig, role: str) -> None:
                          "set fd = false for a served run, or run the scene in one process with rig run")
 
 
-def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fidelity: int | None = None) -> RunConfig:
+def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fidelity: int | None = None,
+            classic_can: str | None = None) -> RunConfig:
+    """The run's configuration with the command line's changes; ``classic_can`` (the role, for its message): refuse a
+    CAN FD scene before the fidelity is announced."""
     cfg = read_config(load_scene(scene_path), fidelity)
     changes: dict[str, Any] = {}
     if cycles is not None:
@@ -113,6 +116,8 @@ def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fideli
         cfg = replace(cfg, **changes)
     if cfg.mode == "realtime" and cfg.chunk > cfg.can["tx_period"]:
         cfg = replace(cfg, chunk=cfg.can["tx_period"])    # paced cycle by cycle: the bus keeps to the wall clock
+    if classic_can is not None:
+        _classic_can(cfg, classic_can)
     announce_fidelity(cfg.fidelity)
     return cfg
 
@@ -414,8 +419,7 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
     everything); the links stay up until then, or ``release_timeout`` s after the scene's last cycle, which
     is reported as an error. Frames are stamped in Unix time (:mod:`rig.runner.served`).
     """
-    cfg = _config(scene_path, cycles, mode, fidelity)
-    _classic_can(cfg, "rig serve serves its bus")
+    cfg = _config(scene_path, cycles, mode, fidelity, classic_can="rig serve serves its bus")
     channel = f"rig-{uuid.uuid4().hex}"
     with can.Bus(interface="blockbus", channel=channel) as bus:
         wire = Anchored(bus)
@@ -508,8 +512,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
     (or its first ``cycles`` curves). A server that does not answer within ``connect_timeout`` s is a
     :class:`RunError` naming it."""
     watch()
-    cfg = _config(scene_path, cycles, None, fidelity)
-    _classic_can(cfg, "rig record receives its bus")
+    cfg = _config(scene_path, cycles, None, fidelity, classic_can="rig record receives its bus")
     output = Path(output)
     wall = time.perf_counter()
     with RunClock(_socketcand(can_host, can_port, can_channel or cfg.can["channel"], connect_timeout)) as bus:

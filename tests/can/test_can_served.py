@@ -193,11 +193,13 @@ def test_a_release_before_any_run_says_no_run_was_served_and_the_endpoints_name_
         serve.wait()
 
 
-def test_a_can_fd_scene_is_refused_by_serve_and_record_before_anything_starts(tmp_path: Path) -> None:
+def test_a_can_fd_scene_is_refused_by_serve_and_record_before_anything_starts(tmp_path: Path, caplog) -> None:
     """socketcand carries classic frames only: an FD scene served lost every curve frame while the host recorded an
-    "OK" run of curves it never got; now both ends refuse it, naming the key and the way out."""
+    "OK" run of curves it never got; now both ends refuse it, naming the key and the way out — before the run's
+    fidelity is announced (nothing is said about a run that will not start)."""
     import pytest
     from rig.scene import SceneError
+    caplog.set_level("INFO")
     fd = tmp_path / "fd.toml"
     fd.write_text(SCENE.read_text().replace("bitrate = 1000000", "bitrate = 500000\nfd = true\ndata_bitrate = 2000000",
                                             1))
@@ -207,3 +209,4 @@ def test_a_can_fd_scene_is_refused_by_serve_and_record_before_anything_starts(tm
     with pytest.raises(SceneError, match=r"\[links.can\]: fd = true, but rig record .*set fd = false"):
         record_scene(fd, tmp_path / "x.mcap", can_port=1, serial_port=None)
     assert not (tmp_path / "x.mcap").exists()
+    assert not [r for r in caplog.records if "fidelity" in r.getMessage()], [r.getMessage() for r in caplog.records]
