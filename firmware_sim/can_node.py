@@ -14,8 +14,8 @@ The unit's transmit policy (docs/can-protocol.md, "Transmit queue"): curves firs
 cannot fit the bus). Live data takes at most ``live_share`` of each transmit cycle's bus time (the samples
 one :meth:`publish_live` call gives) and only the time the queued transfer and status frames leave free in that
 cycle: it is decimated by an integer factor, or dropped, to fit; live frames still queued ``live_max_age`` after
-their last sample are stale and dropped. Every pair not sent is counted (``LiveDropped`` in ``StatusCounters``; stale ones also in
-``LiveStale`` of ``TxStatus``).
+their last sample are stale and dropped. Every pair not sent is counted (``LiveDropped`` in ``StatusCounters``;
+stale ones also in ``LiveStale`` of ``TxStatus``).
 """
 from __future__ import annotations
 

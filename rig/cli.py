@@ -362,7 +362,8 @@ def cmd_repair(args: argparse.Namespace) -> int:
     source = Path(args.recording)
     output = Path(args.output) if args.output else source.with_name(f"{source.stem}.repaired.mcap")
     if output.resolve() == source.resolve():
-        raise UsageError(f"cannot write the repaired recording to {output}: that is the recording it reads (name another)")
+        raise UsageError(f"cannot write the repaired recording to {output}: that is the recording it reads "
+                         f"(name another)")
     require_recording(source)
     recording_file(output)
     done = repair(source, file_parent(output))

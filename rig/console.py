@@ -28,11 +28,12 @@ HARMLESS: dict[str, tuple[str, ...]] = {
     # a TCP read ended inside a "< frame ... >" line; python-can waits for the rest, as it should
     "can.interfaces.socketcand.socketcand": ("Got incomplete message", "Failed to connect to server"),
 }
+_PLANT = ("the plant model and its solver", "30-60 s")
 #: numba compilations announced: module prefix -> (what is compiled, how long a first compilation takes)
 COMPILED: dict[str, tuple[str, str]] = {
-    "rig.plants.": ("the plant model and its solver", "30-60 s"),
-    "rig.solvers.": ("the plant model and its solver", "30-60 s"),
-    "mechrig_": ("the plant model and its solver", "30-60 s"),     # solver modules generated per kernel
+    "rig.plants.": _PLANT,
+    "rig.solvers.": _PLANT,
+    "mechrig_": _PLANT,     # solver modules generated per kernel
     "firmware_sim.can_arbitration": ("the CAN arbitration", "1 s"),
     "firmware_sim.transducers": ("the transducer models", "1 s"),
     "rig.analysis.streaming": ("the Monte-Carlo statistics", "5-10 s"),

@@ -156,15 +156,15 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
                                                                                        else "")})
                 end["messages"] = str(sum(rewriter.messages.values()))
                 reached = rewriter.simulation_time()
-                said = end.get("simulation_time")
+                recorded = end.get("simulation_time")
                 if math.isfinite(reached):             # (no message that tells a time: none written)
                     end["simulation_time"] = repr(reached)
-                    if said not in (None, repr(reached)):  # an end record read, then data of the last chunk lost
+                    if recorded not in (None, repr(reached)):  # an end record read, then data of the last chunk lost
                         try:
-                            said = f"said {float(said):.6g} s of simulation"
+                            told = f"said {float(recorded):.6g} s of simulation"
                         except ValueError:
-                            said = f"gave a damaged simulation time ({said!r})"
-                        end["reason"] += f" (its end record {said}; the data kept reach {reached:.6g} s)"
+                            told = f"gave a damaged simulation time ({recorded!r})"
+                        end["reason"] += f" (its end record {told}; the data kept reach {reached:.6g} s)"
             if end:
                 writer.add_metadata(S.END_METADATA, end)
             writer.finish()

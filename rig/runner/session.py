@@ -326,11 +326,11 @@ def _stop_of_run(exc: KeyboardInterrupt) -> str:
     return "the termination (SIGTERM) of the run" if terminated(exc) else "the interruption of the run"
 
 
-def _keep_received(host: Host, drain: bool, why: str = "the interruption of the run") -> None:
-    """On Ctrl-C or a run stopped by an error (``why``): what is already on the wire (``drain``: the in-process bus,
-    whose machine has stopped) and received goes into the recording, and what the stop cut is said in events (a
-    curve in transfer, the last live drops); a failure doing so is a warning, the stop goes on. A second Ctrl-C is
-    ignored meanwhile (:func:`.interrupt.shielded`)."""
+def _keep_received(host: Host, drain: bool, why: str) -> None:
+    """On Ctrl-C, SIGTERM (``why``: :func:`_stop_of_run`) or a run stopped by an error (``why`` names it): what is
+    already on the wire (``drain``: the in-process bus, whose machine has stopped) and received goes into the
+    recording, and what the stop cut is said in events (a curve in transfer, the last live drops); a failure doing so
+    is a warning, the stop goes on. A second Ctrl-C is ignored meanwhile (:func:`.interrupt.shielded`)."""
     try:
         with shielded():
             try:

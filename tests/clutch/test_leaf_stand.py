@@ -98,7 +98,8 @@ def test_leaf_startup_scene_writes_the_comparison(tmp_path):
     assert 0.0 < float(settle["rig"]) <= 450.0
     assert rows["disengagements"]["rig"] == "0" and peak["fitted"] == "1" and settle["fitted"] == "1"
     assert [r["basis"] for r in rows.values()] == ["fitted"] * 4 + ["input"]    # the final torque is the load set
-    for r in rows.values():                      # the number columns parse as numbers (deviation was "+0.035 N·m (…)")
+    # the number columns parse as numbers (deviation was text such as "+0.035 N·m (+0.241 %)")
+    for r in rows.values():
         assert all(r[k] == "" or math.isfinite(float(r[k])) for k in ("thesis", "rig", "rig beyond", "deviation",
                                                                         "deviation [%]"))
         if r["rig"]:

@@ -2,7 +2,8 @@
 
 The fuzz tests record through the ``fuzz_cases`` fixture of ``tests/conftest.py``, whose hooks write
 ``fuzz-cases.json`` into pytest's base temporary directory at the end of the session and print the
-table in pytest's terminal summary (with pytest-xdist: the workers' counts, summed by the controller). Run as a script to summarize a written file::
+table in pytest's terminal summary (with pytest-xdist: the workers' counts, summed by the
+controller). Run as a script to summarize a written file::
 
     python tests/fuzz/cases.py [FILE]     # default: the newest fuzz-cases.json of pytest's sessions
 """

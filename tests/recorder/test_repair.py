@@ -67,7 +67,8 @@ def test_a_copy_cut_in_its_last_chunk_states_the_time_its_data_reach_not_the_run
     assert raw.count(said) == 1
     cut.write_bytes(raw.replace(said, said[:-1] + b"x"))
     fixed = read_recording(repair(cut, tmp_path / "fixed2.mcap").path)
-    assert fixed.simulation_time == fixed.last_time and "its end record gave a damaged simulation time" in fixed.interrupted
+    assert fixed.simulation_time == fixed.last_time
+    assert "its end record gave a damaged simulation time" in fixed.interrupted
 
 
 def test_a_damaged_middle_chunk_is_named_and_the_rest_rewritten(tmp_path):
