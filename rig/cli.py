@@ -443,7 +443,11 @@ def cmd_studies(args: argparse.Namespace) -> int:
 
 # -- arguments ------------------------------------------------------------------------------------------
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors: ``rig run: error: argument --cycles: ... (rig run -h: usage)``."""
+    """argparse with one-line errors: ``rig run: error: argument --cycles: ... (rig run -h: usage)``, and no
+    abbreviated options (``--cyc`` is not ``--cycles``: a later option of the same prefix would change its meaning)."""
+
+    def __init__(self, *args, allow_abbrev: bool = False, **kwargs):
+        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)
 
     def error(self, message: str) -> None:
         self.exit(2, f"{self.prog}: error: {message} ({self.prog} -h: usage)\n")

@@ -162,9 +162,12 @@ def test_report_options_with_no_report_are_refused(tmp_path, capsys, extra, mess
 
 @pytest.mark.parametrize("argv, usage", [(["run", "--cyles"], "rig run"),
                                          (["bench", "work-precision", "--quik", "-o", "x"], "rig bench work-precision"),
-                                         (["--bogus"], "rig"), (["--bogus", "run"], "rig")])
+                                         (["--bogus"], "rig"), (["--bogus", "run"], "rig"),
+                                         (["run", "--cyc", "3"], "rig run"), (["--qui", "run"], "rig"),
+                                         (["tolerance", "--sampl", "10"], "rig tolerance")])
 def test_an_unknown_option_points_at_the_usage_of_its_subcommand(argv, usage, capsys):
-    """It pointed at ``rig -h`` for a subcommand's misspelt option, whose usage lists none of the subcommand's."""
+    """It pointed at ``rig -h`` for a subcommand's misspelt option, whose usage lists none of the subcommand's; an
+    abbreviation is unknown too (argparse took ``--cyc`` for ``--cycles``)."""
     with pytest.raises(SystemExit) as info:
         cli.main(argv)
     assert info.value.code == 2
