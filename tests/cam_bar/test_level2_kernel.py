@@ -113,3 +113,19 @@ def test_unknown_speed_profile_is_refused_and_a_jam_is_named():
     model.params[kernel.MU] = 1e3                          # a guide that self-locks under the rod's push
     with pytest.raises(SolverDivergence, match=r"no consistent friction state in the slider guide at t = .* cam angle"):
         model.simulate((0.115, 0.12), rtol=1e-6)
+
+
+def test_the_jam_record_describes_the_latest_evaluation():
+    """A jam a rejected trial step met must not name the cause of a later, different failure: the record is the latest
+    evaluation's at a finite state (a stage computed from a NaN stage keeps it)."""
+    model = Level2(PinInsertionMechanism(), DEMO_SPEED)
+    y = np.array(model.initial_state(0.115))
+    out = np.empty(len(y))
+    model.params[kernel.MU] = 1e3                          # self-locking guide: this state jams
+    kernel.rhs(0.115, y, model.params, out)
+    assert np.isnan(out).all() and model.params[kernel.JAM_T] == 0.115
+    kernel.rhs(0.116, np.full_like(y, np.nan), model.params, out)     # a later stage of the same trial step
+    assert model.params[kernel.JAM_T] == 0.115 and "self-locks" in model._diagnose()
+    model.params[kernel.MU] = PinInsertionMechanism().mu
+    kernel.rhs(0.115, y, model.params, out)                # the same state evaluates: the jam is history
+    assert np.isfinite(out).all() and np.isnan(model.params[kernel.JAM_T]) and model._diagnose() is None

@@ -214,7 +214,7 @@ class Level2:
         self.rhs = JitRhs(kernel.rhs, self._sync, self._diagnose, kernel.event_value, kernel.event_action)
 
     def _sync(self) -> np.ndarray:
-        """The parameter vector with the jam record cleared."""
+        """The parameter vector with the jam record (the latest NaN's, when it was a jam) cleared."""
         self.params[kernel.JAM_T] = math.nan
         return self.params
 

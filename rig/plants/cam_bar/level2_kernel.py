@@ -602,8 +602,9 @@ def dynamics(e, e_d, z, z_d, phi, omega, alpha, omega_m, shaft, p):
 def rhs(t, y, p, out):
     """d/dt of (e, τ·ė[, φ, ω, φ_m, ω_m][, z, τ·ż][, W_drive, W_load, E_dissipated]) into ``out`` (the cam-drive states
     when p[DRIVE_ON], the slider's when p[JOINTS_ON]); NaN where the chain cannot be assembled or the guide jams (then
-    p[JAM_T], p[JAM_PHI] record the first jam)."""
-    if not math.isfinite(y.sum()):
+    p[JAM_T], p[JAM_PHI] record where; they describe the latest evaluation at a finite state, NaN unless it jammed:
+    the one a failing solver gave up on, not a jam some rejected trial step met earlier)."""
+    if not math.isfinite(y.sum()):               # a stage after a NaN stage: the NaN's cause stays recorded
         out[:] = math.nan
         return
     phi, omega, alpha, omega_m, shaft = cam_state(t, y, p)
@@ -613,9 +614,9 @@ def rhs(t, y, p, out):
     r, status = dynamics(y[0], y[1] * INV_TAU, z, z_d, phi, omega, alpha, omega_m, shaft, p)
     if status:
         out[:] = math.nan
-        if status == 2 and math.isnan(p[JAM_T]):
-            p[JAM_T], p[JAM_PHI] = t, r[0]
+        p[JAM_T], p[JAM_PHI] = (t, r[0]) if status == 2 else (math.nan, math.nan)
         return
+    p[JAM_T] = math.nan
     out[0] = y[1] * INV_TAU
     out[1] = TAU * r[6]
     k = 2
