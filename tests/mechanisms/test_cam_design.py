@@ -232,6 +232,22 @@ def test_synthesis_refuses_an_unreachable_output():
         DoubleSlider(0.0)
 
 
+@pytest.mark.parametrize("linkage", [DoubleSlider(0.05), FourBar(0.1, 0.04, 0.09, 0.07, 1.0)])
+def test_synthesis_refuses_a_law_through_a_dead_centre_between_samples(linkage):
+    """A smooth input q(φ) whose output passes the linkage's extreme (its dead centre, F_q = 0) between two grid
+    points: continuity picked the mirrored assembly (the Scotch yoke's q bounced off 0 with a velocity step) or gave a
+    q' of 0/0 (the four-bar's off by 0.23 against an amplitude of 0.5), silently. Now it is refused, naming where."""
+    phi = np.linspace(0.0, 2 * pi, 3601)
+    q = (0.3 if isinstance(linkage, DoubleSlider) else 1.0) + 0.5 * np.sin(phi)
+    o = np.unwrap(linkage.forward(q)) if linkage.angular_output else linkage.forward(q)
+    o_p = np.gradient(o, phi)
+    with pytest.raises(SingularPositionError, match="passes a dead centre near point"):
+        synthesize(linkage, o, o_p, np.gradient(o_p, phi), q_start=q[0])
+    far = slice(0, 1200)                         # the same law short of the dead centre: inverted as before
+    law = synthesize(linkage, o[far], o_p[far], np.gradient(o_p, phi)[far], q_start=q[0])
+    assert np.max(np.abs(np.angle(np.exp(1j * (law.q - q[far]))))) < 1e-9
+
+
 def test_design_checks_of_the_scene(tmp_path):
     from rig.cam_design_chart import plot_design
     from rig.mechanisms.cam.design import design_checks, format_checks

@@ -169,6 +169,7 @@ def synthesize(linkage: Linkage, o: np.ndarray, o_p: np.ndarray, o_pp: np.ndarra
         steps = np.angle(np.exp(1j * (roots[:, i] - prev)))
         prev = prev + steps[np.argmin(np.abs(steps))]
         q[i] = prev
+    _through_dead_centre(linkage, roots, q)
     cq, sq = np.cos(q), np.sin(q)
     f_q = -a * sq + b * cq
     if np.any(np.abs(f_q) < 1e-12 * np.hypot(a, b)):
@@ -182,6 +183,26 @@ def synthesize(linkage: Linkage, o: np.ndarray, o_p: np.ndarray, o_pp: np.ndarra
     f_oo = a2 * cq + b2 * sq + c2
     q_pp = -(f_qq * q_p ** 2 + 2 * f_qo * q_p * o_p + f_oo * o_p ** 2 + f_o * o_pp) / f_q
     return FollowerLaw(q, q_p, q_pp)
+
+
+def _through_dead_centre(linkage: Linkage, roots: np.ndarray, q: np.ndarray) -> None:
+    """Raise :class:`SingularPositionError` where the two roots (the linkage's two assemblies) lie within two of the
+    law's steps in q of each other: the output passes (or nearly passes) the extreme it has at a dead centre (F_q = 0)
+    between two samples, where continuity cannot tell which assembly the input goes on in — it would bounce off the
+    dead centre (a velocity step) or give a q' of 0/0. A law sampled on a grid rarely lands on F_q = 0 exactly."""
+    if q.size < 2:
+        return
+    gap = np.abs(np.angle(np.exp(1j * (roots[0] - roots[1]))))
+    dq = np.abs(np.diff(q))
+    near = np.maximum(np.r_[dq[0], dq], np.r_[dq, dq[-1]])      # the larger of the steps beside each point
+    close = gap < 2.0 * near
+    if np.any(close):
+        i = int(np.argmax(close))
+        raise SingularPositionError(
+            f"{type(linkage).__name__} passes a dead centre near point {i} (q = {degrees(q[i]):.4g}°): its two "
+            f"assemblies are {degrees(gap[i]):.3g}° apart there, within two steps of the law "
+            f"({degrees(near[i]):.3g}° each): the output reaches the extreme the linkage has at a dead centre, "
+            f"where the input's motion cannot be inverted (q' = 0/0); keep the required output short of it")
 
 
 def round_trip_error(linkage: Linkage, law: FollowerLaw, o: np.ndarray) -> float:
