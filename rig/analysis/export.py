@@ -11,7 +11,7 @@ import functools
 import math
 from itertools import chain, repeat
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -155,6 +155,16 @@ def export_events(events: Sequence[Mapping], details: Sequence[str], path: Path)
         w = csv.writer(f)
         w.writerow(["t [s]", "kind", "details"])
         w.writerows([f"{e.get('t', math.nan):.9g}", e.get("kind", ""), d] for e, d in zip(events, details))
+    return path
+
+
+def export_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], path: Path) -> Path:
+    """A report table (a lab sheet's) as CSV, its cells as the report shows them (units in the headers), a dash
+    (no value) as an empty cell."""
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(headers)
+        w.writerows(["" if cell in ("—", None) else cell for cell in row] for row in rows)
     return path
 
 

@@ -20,6 +20,7 @@ from scipy.optimize import brentq
 from firmware_sim.transducers import REGISTRY
 from firmware_sim.transducers.description import described, read_description, resolve_path, validate
 from firmware_sim.transducers.encoder import power_on
+from rig.analysis.export import export_table
 from rig.analysis.numbers import fixed
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
@@ -657,6 +658,8 @@ def lab_section(ctx: ReportContext) -> list[Block]:
             path = save(fig, ctx.figure_path(f"lab_{sheet.key}"), right=2.3)        # legend beside the axes: no data hidden
             blocks.append(ctx.figure(path, sheet.title))
         blocks.append(Table(sheet.headers, sheet.rows))
+        ctx.exported.append((export_table(sheet.headers, sheet.rows, ctx.out_dir / f"lab_{sheet.key}.csv"),
+                             f"the {sheet.title.lower()} sheet's table, as above"))
         blocks += [Text(note, "note") for note in sheet.notes]
     return blocks
 

@@ -2,6 +2,7 @@
 against the closed forms of its mechanism (rig.mechanisms), and the frames decoded with cantools alone."""
 from __future__ import annotations
 
+import csv
 import re
 from math import cos, radians, tau
 from pathlib import Path
@@ -402,6 +403,11 @@ def test_the_lab_report_opens_with_every_sheets_result(cardan, tmp_path):
     text = write_report(cardan[0], tmp_path, fmt="md").read_text()
     summary = text.index("| sheet | result |")
     assert summary < text.index(".png") and f"| Cardan joint | {cardan[1]['Cardan joint'].result}" in text
+    sheet = cardan[1]["Cardan joint"]                   # its table as CSV too, listed with the exports
+    with open(tmp_path / "lab_cardan.csv", newline="", encoding="utf-8") as f:
+        table = list(csv.reader(f))
+    assert table == [sheet.headers, *[["" if c == "—" else str(c) for c in row] for row in sheet.rows]]
+    assert len(table) > 30 and "lab_cardan.csv" in text[text.index("Exports"):]
 
 
 def test_the_speed_sheet_reads_the_counters_gate_as_the_counter_does(tmp_path_factory):
