@@ -362,7 +362,8 @@ def test_record_against_a_closed_port_is_one_line_and_exit_1(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "rig.cli", "record", str(DEMO), "-o", str(out), "--can-port",
                            str(port)], capture_output=True, text=True, timeout=120, cwd=tmp_path,
                           env={**os.environ, "MPLBACKEND": "Agg"})
-    lines = proc.stderr.splitlines()
+    lines = [line for line in proc.stderr.splitlines()     # on a cold cache the fidelity check's compilation
+             if not line.startswith("rig: compiling ")]     # is announced first: it depends on the test order
     assert proc.returncode == 1, proc.stderr
     assert len(lines) <= 3, lines[:5]
     assert re.search(rf"cannot connect to socketcand at 127\.0\.0\.1:{port}: connection refused", proc.stderr)
