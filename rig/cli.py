@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import hashlib
 import importlib
 import json
 import logging
@@ -415,7 +416,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     writable_file(chart, "tolerance chart", PNG_MAGIC)
     if args.json:
         writable_file(Path(args.json), "tolerance JSON", JSON_START)
-    cfg = read_config(load_scene(scene_path))
+    cfg = read_config(load_scene(scene_path), choose_level=False)     # the chain's geometry only: no plant run
     require_cam_bar(cfg.scene, "rig tolerance")
     with executor_from_args(args) as executor:
         if not args.quiet:
@@ -425,7 +426,8 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     print(study_table(study))
     print(f"chart: {plot_study(study, chart)}")
     if args.json:
-        run = {"scene": str(scene_path), "seed": cfg.seed, "machines": args.samples, "task_samples": args.task_samples}
+        run = {"scene": cfg.name, "scene_sha256": hashlib.sha256(scene_path.read_bytes()).hexdigest(),  # the content,
+               "seed": cfg.seed, "machines": args.samples, "task_samples": args.task_samples}   # not its path's spelling
         file_parent(Path(args.json)).write_text(json.dumps(study_json(study, run), indent=1) + "\n")
         print(f"JSON: {args.json}")
     return 0

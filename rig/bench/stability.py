@@ -70,7 +70,7 @@ def stability_map(scene_path: str | Path, t_sim: float = 0.2, steps: list[float]
     from rig.solvers import SolverDivergence
     scene = load_scene(scene_path)
     require_level2(scene, "rig bench stability")
-    rate = read_config(scene).sample_rate
+    rate = read_config(scene, choose_level=False).sample_rate
     grid = np.linspace(0.0, t_sim, int(round(t_sim * rate)) + 1)
     rows: list[dict[str, Any]] = []
     for speed, f in [(v, f) for v in speeds for f in factors]:

@@ -208,7 +208,7 @@ class RunConfig:
     can: dict[str, Any]
     serial: dict[str, Any]
     recording: dict[str, Any]
-    fidelity: Fidelity
+    fidelity: Fidelity | None                 # None: not chosen (read_config's choose_level=False)
 
     @property
     def dt(self) -> float:
@@ -314,9 +314,11 @@ def _check_period(period: float, chunk: float, rate: float, where: str, scene_wh
                          "divisor of it")
 
 
-def read_config(scene: Scene, fidelity: int | None = None) -> RunConfig:
+def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool = True) -> RunConfig:
     """Validate the runner's sections of ``scene``; errors name the file, section and key. ``fidelity``: the level
-    ``--fidelity`` forces (:func:`rig.fidelity.choose`; None: the scene's own choice)."""
+    ``--fidelity`` forces (:func:`rig.fidelity.choose`; None: the scene's own choice). ``choose_level=False`` leaves
+    the model level unchosen (``fidelity`` None in the result) for a command that does not run the plant: the choice
+    may simulate a level-2 revolution, and compile it on a new machine (tens of seconds)."""
     from firmware_sim.transducers.description import described, resolve_path
     from rig.runner.plants import PLANTS
     where = f"{scene.path} [scene]"
@@ -403,4 +405,4 @@ def read_config(scene: Scene, fidelity: int | None = None) -> RunConfig:
     return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=s["seed"],
                      cycles=cycles, duration=s["duration"], sample_rate=s["sample_rate"], chunk=s["chunk"],
                      mode=s["mode"], max_time=max_time, max_time_given=s["max_time"] is not None, transducers=tuple(transducers), device=device, can=can,
-                     serial=serial, recording=recording, fidelity=choose(scene, str(s["plant"]), fidelity))
+                     serial=serial, recording=recording, fidelity=choose(scene, str(s["plant"]), fidelity) if choose_level else None)

@@ -86,7 +86,7 @@ def run_sweep(scene: Scene, params: Sequence[Param], metrics: Sequence[str], exe
     from rig.runner.plants import make_plant
     if not params or not metrics:
         raise ValueError("a sweep needs at least one --param and one --metric")
-    plant = read_config(scene).plant
+    plant = read_config(scene, choose_level=False).plant      # each point chooses its own level as it is built
     if revolutions is not None and plant != "cam_bar":
         raise ValueError(f"--revolutions counts cam revolutions of a cam-bar scene; {scene.path} is a {plant} scene "
                          "(its run lasts its [scene] duration)")

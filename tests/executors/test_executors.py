@@ -1,6 +1,7 @@
 """Executors by name (rig.executors): same results in task order on serial and Dask, clear errors."""
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
@@ -83,7 +84,7 @@ def test_monte_carlo_is_bit_identical_on_serial_and_dask(dask_scheduler):
     assert not np.array_equal(serial.mean, other_split.mean)
 
 
-def test_rig_tolerance_json_is_the_same_on_serial_and_dask(tmp_path, dask_scheduler):
+def test_rig_tolerance_json_is_the_same_on_serial_and_dask(tmp_path, dask_scheduler, monkeypatch):
     from rig.cli import main
     common = ["-q", "tolerance", "--samples", "3000", "--task-samples", "700", "-o", str(tmp_path)]
     assert main(common + ["--executor", "serial", "--json", str(tmp_path / "a.json")]) == 0
@@ -97,7 +98,12 @@ def test_rig_tolerance_json_is_the_same_on_serial_and_dask(tmp_path, dask_schedu
     mc = data["monte_carlo"]
     assert all(a <= lo <= hi <= b for a, lo, hi, b in zip(mc["min"], mc["p0.135"], mc["p99.865"], mc["max"]))
     from rig.cli import DEFAULT_SCENE
-    assert data["run"] == {"scene": str(DEFAULT_SCENE), "seed": 20240611, "machines": 3000, "task_samples": 700}
+    assert data["run"] == {"scene": "pin_insertion", "scene_sha256": hashlib.sha256(DEFAULT_SCENE.read_bytes()).hexdigest(),
+                           "seed": 20240611, "machines": 3000, "task_samples": 700}
+    # the scene's content, not its path's spelling: the same file named relative to another directory, same JSON
+    monkeypatch.chdir(DEFAULT_SCENE.parent)
+    assert main(common + ["--executor", "serial", "--json", str(tmp_path / "c.json"), DEFAULT_SCENE.name]) == 0
+    assert (tmp_path / "c.json").read_text() == a
     # each run names its seed, and that seed gives its numbers again through the API
     assert (mc["seed"], data["monte_carlo_clearance"]["seed"]) == (20240611, 20240612)
     from rig.plants.cam_bar.montecarlo import monte_carlo
@@ -278,3 +284,15 @@ def test_a_task_that_raises_timeouterror_fails_the_run_at_once():
     with make_executor("dask", 1) as ex:
         with pytest.raises(TimeoutError, match="the task's own timeout"):
             list(ex.map(_times_out, [1, 2, 3]))
+
+
+def test_rig_tolerance_does_not_choose_a_model_level(tmp_path, monkeypatch):
+    """The Monte Carlo uses the chain's geometry only: reading the scene ran the fidelity choice, which simulates a
+    level-2 revolution (and on a new machine compiled it: 11-38 s of a first 10^6 run that took 70 s)."""
+    from rig.cli import main
+    from rig.runner import config
+
+    def never(*args, **kwargs):
+        raise AssertionError("rig tolerance chose a model level")
+    monkeypatch.setattr(config, "choose", never)
+    assert main(["-q", "tolerance", "--samples", "200", "--executor", "serial", "-o", str(tmp_path)]) == 0
