@@ -58,19 +58,25 @@ def parse_param(text: str) -> Param:
 
 def check_units(scene: Scene, params: Sequence[Param]) -> None:
     """A :class:`UsageError` naming the ``--param`` whose value has no unit, or one of another dimension, where the
-    scene writes that key with a unit (``plant.k = "1.68 N/mm"``): the value given, not the scene, is wrong."""
+    scene writes that key with a unit (``plant.k = "1.68 N/mm"``): the value given, not the scene, is wrong; where the
+    scene leaves the key to its default, the values are compared in the unit of the first that has one. A value given
+    twice (as written or in another unit) is refused: each point runs once."""
     for param in params:
         node: Any = scene.data
         for part in param.key.split("."):
             node = node.get(part) if isinstance(node, dict) else None
         unit = unit_of(node) if isinstance(node, str) else None
+        where = f'the scene writes {param.key} = "{node}"'
         if unit is None:
+            unit = next((u for u in (unit_of(v) for v in param.values if isinstance(v, str)) if u), None)
+            where = f"{param.key}'s other values have units"
+        if unit is None:                          # plain numbers: parse_param refused repeats as written
             continue
         seen: dict[float, Any] = {}
         for value in param.values:
             what = f"--param {param.key}={value}"
             if isinstance(value, (int, float)) and not isinstance(value, bool):
-                raise UsageError(f'{what}: {value} has no unit; the scene writes {param.key} = "{node}": give the '
+                raise UsageError(f'{what}: {value} has no unit; {where}: give the '
                                  f'unit, e.g. "{param.key}={value} {unit}"')
             try:
                 si = to_si(value, unit, what=what)

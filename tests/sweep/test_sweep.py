@@ -495,6 +495,14 @@ def test_a_value_given_twice_is_refused_as_written_or_in_si(tmp_path, capsys):
     assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.k=1.09 N/mm,1090 N/m", "--metric",
                  "rod_force_peak", "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
     assert "--param plant.k: '1090 N/m' is the same value as '1.09 N/mm' (each point once)" in capsys.readouterr().err
+    # a key the scene leaves to its default (J3): compared in the unit of the first value that has one
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.J3=0.02 kg*m^2,200 kg*cm^2", "--metric",
+                 "rod_force_peak", "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
+    assert "--param plant.J3: '200 kg*cm^2' is the same value as '0.02 kg*m^2'" in capsys.readouterr().err
+    assert main(["-q", "sweep", str(DEFAULT_SCENE), "--param", "plant.J3=0.02 kg*m^2,0.03", "--metric",
+                 "rod_force_peak", "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
+    assert ("--param plant.J3=0.03: 0.03 has no unit; plant.J3's other values have units: give the unit, e.g. "
+            '"plant.J3=0.03 kg*m^2"') in capsys.readouterr().err
 
 
 def test_a_parameter_that_changes_no_metric_is_named():
