@@ -12,6 +12,7 @@ installed (tasks are functions of rig's modules).
 from __future__ import annotations
 
 import logging
+import socket
 import threading
 import time
 from collections import deque
@@ -33,10 +34,34 @@ _abandoned: list[Any] = []   # connection attempts given up: kept, so that no ha
 #                              __del__ would wait 20 s for a close that cannot come, and print a traceback)
 
 
+def _probe(scheduler: str) -> None:
+    """For a TCP address (``tcp://``, ``tls://``), ConnectionError at once naming why nothing can be reached there — a
+    name that does not resolve, a connection refused — rather than Dask's "timed out after 10 s" for every cause."""
+    scheme, _, rest = scheduler.rpartition("://")
+    if scheme not in ("tcp", "tls"):
+        return
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    try:
+        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT).close()
+    except socket.gaierror as exc:
+        raise ConnectionError(f"cannot reach the Dask scheduler at {scheduler}: host name {host!r} does not resolve "
+                              f"({exc.strerror or exc})") from None
+    except ConnectionRefusedError:
+        raise ConnectionError(f"cannot reach the Dask scheduler at {scheduler}: connection refused (nothing listens on "
+                              f"port {port} of {host}: is the scheduler running, and is this its port?)") from None
+    except (TimeoutError, socket.timeout):
+        raise ConnectionError(f"cannot reach the Dask scheduler at {scheduler}: no answer within {CONNECT_TIMEOUT:g} s "
+                              f"(host down, or a firewall drops the connection)") from None
+    except (OSError, ValueError):
+        return                      # another cause: Dask's own attempt below says it
+
+
 def _connect(client: Callable[..., Any], scheduler: str) -> Any:
     """``client(scheduler)`` (distributed.Client) within CONNECT_TIMEOUT + HANDSHAKE_GRACE s, else ConnectionError in one
     line: Client's own timeout covers reaching the address, not a peer that accepts the connection and never answers
     (it waited forever) or answers with something else (a traceback ending in a 3 EiB allocation)."""
+    _probe(scheduler)
     attempt: dict[str, Any] = {}
 
     def connect() -> None:

@@ -186,7 +186,11 @@ def test_an_unreachable_scheduler_is_a_failed_run_naming_it(monkeypatch, capsys)
     from rig.cli import main
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 1)
     assert main(["-q", "tolerance", "--samples", "1000", "--scheduler", "tcp://127.0.0.1:1"]) == 1
-    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err
+    assert ("cannot reach the Dask scheduler at tcp://127.0.0.1:1: connection refused (nothing listens on port 1 of "
+            "127.0.0.1") in capsys.readouterr().err         # the cause, not Dask's "timed out" for every cause
+    assert main(["-q", "tolerance", "--samples", "1000", "--scheduler", "tcp://no-such-host.invalid:8786"]) == 1
+    assert "at tcp://no-such-host.invalid:8786: host name 'no-such-host.invalid' does not resolve" in \
+        capsys.readouterr().err
 
 
 @pytest.mark.parametrize("address", ["bogus", "tcp://host", "10.0.0.5:port", "10.0.0.5:70000"])
