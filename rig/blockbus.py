@@ -136,7 +136,10 @@ class BlockBus(can.BusABC):
         self._channel = str(channel)
         self._rx: deque[FrameBlock] = deque()
         self._head = 0                     # frames of _rx[0] already taken one by one
-        self._ready = threading.Condition(threading.Lock())
+        self._pending = 0                  # frames received and not yet taken
+        self._open = True
+        self.sent = 0                      # frames this bus has sent
+        self._ready = threading.Condition(threading.Lock())     # notified on arrivals, takes and shutdown
         with _channels_lock:
             _channels.setdefault(self._channel, []).append(self)
 
@@ -150,10 +153,24 @@ class BlockBus(can.BusABC):
             return
         for a in (block.timestamp, block.arbitration_id, block.dlc, block.data, block.flags):
             a.flags.writeable = False
+        self.sent += len(block)
         for peer in self._peers():
             with peer._ready:
                 peer._rx.append(block)
-                peer._ready.notify()
+                peer._pending += len(block)
+                peer._ready.notify_all()
+
+    @property
+    def pending(self) -> int:
+        """Frames received and not yet taken."""
+        return self._pending
+
+    def wait_pending_below(self, frames: int, timeout: float) -> bool:
+        """Wait up to ``timeout`` s until fewer than ``frames`` frames wait here (or the bus is shut down, when none
+        will be taken any more); whether that is so. A sender that waits for its receiver's room before sending
+        bounds what waits between them (the served machine's back-pressure)."""
+        with self._ready:
+            return self._ready.wait_for(lambda: self._pending < frames or not self._open, timeout)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self.send_block(FrameBlock.of_messages([msg]))
@@ -165,6 +182,8 @@ class BlockBus(can.BusABC):
                 self._ready.wait_for(lambda: bool(self._rx), timeout)
             blocks, self._rx = list(self._rx), deque()
             head, self._head = self._head, 0
+            self._pending = 0
+            self._ready.notify_all()
         if blocks and head:
             blocks[0] = blocks[0].take(slice(head, None))
         return blocks
@@ -177,12 +196,18 @@ class BlockBus(can.BusABC):
                 return None, False
             block, i = self._rx[0], self._head
             self._head += 1
+            self._pending -= 1
             if self._head >= len(block):
                 self._rx.popleft()
                 self._head = 0
+            if self._pending % 1024 == 0:      # a waiting sender need not wake for every frame taken
+                self._ready.notify_all()
         return block.message(i, self._channel), False
 
     def shutdown(self) -> None:
+        with self._ready:
+            self._open = False
+            self._ready.notify_all()
         with _channels_lock:
             peers = _channels.get(self._channel, [])
             if self in peers:

@@ -36,6 +36,8 @@ from rig.scene import SceneError, load_scene
 from rig.stops import terminated
 
 log = logging.getLogger(__name__)
+SERVE_BACKLOG = 20_000   # frames a served machine may have sent that its host's connection has not yet taken (~2.5 s
+#                          of a saturated 1 Mbit/s bus); beyond, it waits for its host (TCP's buffers hold more)
 QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
 
 
@@ -200,25 +202,31 @@ def _finished(bar: tqdm, cfg: RunConfig, t: float, curves: int) -> None:
 
 
 def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
-           after_step: Callable[[], object], host_gone: Callable[[], bool] = lambda: False) -> float:
+           after_step: Callable[[], object], host_gone: Callable[[], bool] = lambda: False,
+           room: Callable[[float], bool] = lambda timeout: True) -> float:
     """Step the machine until the scene is done or the host released it (paced in real-time mode), then
     flush its transmit queue; the simulated time (s) that flush took (the bus carrying the last frames).
     ``after_step`` runs after each step (e.g. the in-process host's poll); ``host_gone()`` true (the served host
-    disconnected) stops the run with a :class:`RunError`. Ctrl-C is taken between steps (:mod:`.interrupt`)."""
+    disconnected) stops the run with a :class:`RunError`; ``room(timeout)``: whether the link has room for the next
+    step's frames, waiting up to ``timeout`` s (a served machine waits for its host: back-pressure, so what it has
+    computed and not yet delivered stays bounded). Ctrl-C is taken between steps (:mod:`.interrupt`)."""
     pace = _Pacer(cfg.mode == "realtime")
     try:
         with deferred_interrupt() as check:
-            return _steps(cfg, machine, lock, bar, after_step, host_gone, pace, check)
+            return _steps(cfg, machine, lock, bar, after_step, host_gone, pace, check, room)
     finally:
         _show(bar, cfg, machine.curves, machine.t, force=True)
         pace.finish()
 
 
 def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, after_step: Callable[[], object],
-           host_gone: Callable[[], bool], pace: "_Pacer", check: Callable[[], None]) -> float:
+           host_gone: Callable[[], bool], pace: "_Pacer", check: Callable[[], None],
+           room: Callable[[float], bool]) -> float:
     """:func:`_drive`'s loop, ``check()`` for Ctrl-C before each step and before the flush."""
     while not _machine_done(cfg, machine) and not machine.node.released:
         check()
+        while not room(0.1) and not host_gone():   # outside the device lock: the serial link answers meanwhile
+            check()
         gone = host_gone()                 # before the step: a Release sent just before leaving counts
         with lock:
             try:
@@ -425,9 +433,17 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
         wire = Anchored(bus)
         machine = Machine(cfg, wire)
         lock = threading.Lock()
+        clients: list[Any] = []             # each connection's bus: the frames it has not yet taken
+
+        def client_bus() -> can.BusABC:
+            clients.append(can.Bus(interface="blockbus", channel=channel))
+            return clients[-1]
+
+        def room(timeout: float) -> bool:   # the hosts' (connections that sent commands), not a passive logger's;
+            return bus.pending > 0 or all(      # a command waiting (a Release) is taken at once, room or not
+                c.wait_pending_below(SERVE_BACKLOG, timeout) for c in list(clients) if c.sent)
         server = SocketcandServer(channel=cfg.can["channel"], host=cfg.can["host"],
-                                  port=cfg.can["port"] if port is None else port,
-                                  bus_factory=lambda: can.Bus(interface="blockbus", channel=channel))
+                                  port=cfg.can["port"] if port is None else port, bus_factory=client_bus)
         serial_dev = (SerialDevice(machine.device, cfg.serial["port"], cfg.serial["baudrate"], cfg.serial["address"],
                                    lock=lock) if cfg.serial["enabled"] else None)
         try:
@@ -451,7 +467,7 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                 return server.open_buses == 0
             with _progress(cfg, progress) as bar:
                 try:
-                    _drive(cfg, machine, lock, bar, lambda: None, gone)
+                    _drive(cfg, machine, lock, bar, lambda: None, gone, room)
                 except OutOfTime as exc:    # e.g. a host driving a program started by command: end the run as usual
                     log.warning("%s; the served run ends here: RunEnded sent, the links stay up until the host "
                                 "releases the device", exc)

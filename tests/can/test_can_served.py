@@ -166,6 +166,57 @@ def test_a_host_that_disconnects_without_releasing_stops_the_server_at_once() ->
     assert "without releasing the device" in str(outcome[0])
 
 
+def test_a_served_machine_waits_for_a_host_that_stops_reading_while_a_passive_logger_keeps_up() -> None:
+    """Back-pressure: a host that stopped reading (stalled, suspended) let the served machine compute its whole run
+    ahead into an unbounded queue (1500 cycles in 49 s, +105 MB; curves measured but never delivered when serve was
+    stopped). Now the machine waits once its host's connection holds SERVE_BACKLOG frames (plus what the sockets
+    buffer): a passive logger beside it sees the frames stop far short of the run's end, and then again when the
+    host reads on. A logger that only listens holds nothing back."""
+    from rig.runner.session import SERVE_BACKLOG
+    thread, announced, outcome = _serve_in_thread(cycles=500, wait=60, release_timeout=60)     # 200 s of device time
+    ep = announced.get(timeout=60)
+    seen: list[float] = []
+    stop = threading.Event()
+
+    def log_times(bus: can.BusABC) -> None:
+        while not stop.is_set():
+            try:
+                msg = bus.recv(0.05)
+            except can.CanError:                  # the server closed the connection at its end
+                return
+            if msg is not None:
+                seen.append(msg.timestamp)
+
+    def stalled() -> float:
+        """The passive logger's last stamp once no frame came for 2 s of wall time (the machine waits)."""
+        count, quiet = len(seen), time.monotonic()
+        while time.monotonic() - quiet < 2.0:
+            time.sleep(0.1)
+            if len(seen) != count:
+                count, quiet = len(seen), time.monotonic()
+            assert thread.is_alive(), outcome
+        return seen[-1]
+
+    with can.Bus(**ep["can"]) as passive, can.Bus(**ep["can"]) as host:
+        logger = threading.Thread(target=log_times, args=(passive,), daemon=True)
+        logger.start()
+        _command(host, "SelectProgram", 1, 1)                     # the run starts; the host reads nothing more
+        first = stalled()
+        origin = math.floor(min(t for t in seen if t >= first - 300))
+        assert first - origin < 100, "the machine ran on without its host"
+        frames, deadline = len(seen), time.monotonic() + 120
+        while len(seen) == frames and time.monotonic() < deadline:   # the host reads on (through the sockets'
+            for _ in range(SERVE_BACKLOG):                        # buffers first): the machine goes on
+                host.recv(1.0)
+        second = stalled()
+        assert len(seen) > frames and second > first and second - origin < 150
+        _command(host, "Release", 0, 2)               # taken at once, though the host reads nothing more
+        thread.join(timeout=120)
+        stop.set()
+        logger.join(timeout=10)
+    assert not thread.is_alive() and outcome[0].curves < 500
+
+
 def test_a_release_before_any_run_says_no_run_was_served_and_the_endpoints_name_the_scene_absolutely(tmp_path):
     """`rig serve` given a relative scene path published it as such (a host elsewhere could not open it), and a
     Release before any start printed "no run served" and then "served the run, 0.00 s simulated"."""
