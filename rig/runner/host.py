@@ -43,6 +43,7 @@ def encoder_resolution(spec: Any) -> float:
 PLANT, LINK, HOST = range(3)   # sources of events, their order at equal times (Host._write_events)
 THEORY_BLOCK = 0.5        # s of theory computed per plant call (on a fixed grid: the same calls in every run)
 SLOW_SETUP = 5.0          # s of serial set-up beyond which the host says how long it takes
+WINDOW = 0.5              # s of device time at most in one piece of a drained batch (< RUN_END_WAIT: see Host.poll)
 RUN_END_WAIT = 2.0        # s of device time a host that has all its curves waits for the machine's run to end
 
 
@@ -86,7 +87,9 @@ class Host:
         self._seen_start = 0.0                          # start (s) of the last curve received (curves come in order)
         self._closed = False                            # the reception was closed (_close_reception)
         recorder.held.append(self._write_events)       # a run that stops on any error still writes what was found
-        self._done_at: float | None = None          # device time (s) when the host first had all it needs
+        self.stops_listening = False                # served: stop RUN_END_WAIT after it has all (record_scene)
+        self._cut_at: float | None = None           # device time (s) past which such a host records no frame
+        self._past_cut = False                      # a frame past it has arrived
         self._orphans: set[int] = set()             # numbers of incomplete curves whose result is to be recorded
         self.curves_incomplete = 0                  # curves whose frames did not all arrive (samples not recorded)
         self.frames = 0
@@ -117,11 +120,24 @@ class Host:
 
     # ---------------------------------------------------------------- reception
     def poll(self, timeout: float = 0.0) -> int:
-        """Receive what is on the bus, record raw and decoded data; returns the number of frames."""
+        """Receive what is on the bus, record raw and decoded data; returns the number of frames. The batch is taken
+        in pieces of at most :data:`WINDOW` s of device time; a host that :attr:`stops_listening` records no frame past
+        its cut (:meth:`run_over`): the piece in which it got all it needs ends before the cut, so where the recording
+        ends follows from the frames, not from how the bus delivered them."""
         block = drain_block(self.bus, timeout)
-        self.can.receive_block(block)
-        self._record(block)
-        return len(block)
+        taken = 0
+        for part in _pieces(block, WINDOW):
+            if self.stops_listening and self._cut_at is not None:
+                keep = part.timestamp <= self._cut_at
+                if not keep.all():
+                    self._past_cut = True
+                    part = part.take(keep)
+            self.can.receive_block(part)
+            self._record(part)
+            taken += len(part)
+            if self._past_cut:
+                break
+        return taken
 
     def _record_sent(self) -> None:
         """The commands this host sent (``tx`` in ``/can/raw``), before the frames received after them."""
@@ -328,6 +344,8 @@ class Host:
                 self.rec.write_result(self._result_dict(result, curve.program, curve), t=float(curve.t[-1]))
             self._curves.pop(0)
             self._curves_done += 1
+            if self._curves_done == self.cfg.cycles:    # all it needs: the cut follows from this curve's frames
+                self._cut_at = max(float(curve.t[-1]), result.received if result is not None else 0.0) + RUN_END_WAIT
             self._truth = [c for c in self._truth if c["t"][-1] >= curve.t[-1]]     # later curves start later
         for number in sorted(self._orphans & set(self._results)):
             self.rec.write_result(self._result_dict(self._results.pop(number), self.program), t=self.truth_t)
@@ -437,14 +455,15 @@ class Host:
         return self.can.device_time >= self.cfg.duration - 1e-9
 
     def run_over(self) -> bool:
-        """Whether the machine's run is over for this host: its last frame (``RunEnded``) has arrived, or
-        (the served scene runs longer than this host records) ``RUN_END_WAIT`` s of device time passed
-        since the host got all it needs. Decided from the frames only, so every run ends at the same frame."""
-        if self.can.run_ended:
+        """Whether the machine's run is over for this host (asked once it has all it needs): its last frame
+        (``RunEnded``) has arrived, or (the served scene runs longer than this host records) a frame past its cut,
+        ``RUN_END_WAIT`` s of device time after the frames that completed its last curve (or after its duration).
+        Decided from the frames only, so every run ends at the same frame."""
+        if self.can.run_ended or self._past_cut:
             return True
-        if self._done_at is None:
-            self._done_at = self.can.device_time
-        return self.can.device_time - self._done_at > RUN_END_WAIT
+        if self._cut_at is None:
+            self._cut_at = (self.cfg.duration if self.cfg.cycles is None else self.can.device_time) + RUN_END_WAIT
+        return self.can.device_time > self._cut_at
 
     def finish(self) -> dict[str, Any]:
         """Release what is still waiting, read the unit's statistics over serial and record them with the
@@ -476,3 +495,14 @@ class Host:
             self.can.send_command("release")
         self._record_sent()
         return stats
+
+
+def _pieces(block: FrameBlock, span: float) -> list[FrameBlock]:
+    """``block`` (time stamps non-decreasing) cut into consecutive pieces of at most ``span`` s each (itself when it
+    spans no more; one empty piece for an empty block)."""
+    t = block.timestamp
+    if len(block) == 0 or t[-1] - t[0] <= span:
+        return [block]
+    edges = np.searchsorted(t, np.arange(t[0] + span, t[-1], span), side="right")
+    bounds = [0, *edges.tolist(), len(block)]
+    return [block.take(slice(a, b)) for a, b in zip(bounds, bounds[1:]) if b > a]

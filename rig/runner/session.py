@@ -534,6 +534,7 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
     with RunClock(_socketcand(can_host, can_port, can_channel or cfg.can["channel"], connect_timeout)) as bus:
         with _recorder(cfg, output, "cross-process") as rec, _progress(cfg, progress) as bar:
             host = Host(cfg, bus, serial_port, rec)
+            host.stops_listening = True         # a longer served run: the recording ends at a frame-defined time
             with _serial_link(serial_port, "setting the unit up"):
                 host.arm()
             go, compiled = time.perf_counter(), compile_seconds()

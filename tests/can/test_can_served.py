@@ -261,3 +261,45 @@ def test_a_can_fd_scene_is_refused_by_serve_and_record_before_anything_starts(tm
         record_scene(fd, tmp_path / "x.mcap", can_port=1, serial_port=None)
     assert not (tmp_path / "x.mcap").exists()
     assert not [r for r in caplog.records if "fidelity" in r.getMessage()], [r.getMessage() for r in caplog.records]
+
+
+def test_a_host_recording_fewer_cycles_than_served_ends_at_the_same_frame_however_the_frames_come(tmp_path) -> None:
+    """`rig record --cycles 8` against a longer served run stops listening RUN_END_WAIT s of device time after the
+    frames that completed its 8th curve. Its cut was taken from the device time of whatever batch it had just read,
+    so the recording's end moved with the processes' timing (12.29 s, 10.42 s, 10.40 s in three runs of one scene).
+    Here the same frames reach the host at once, in blocks of 997 and of 50: the same recording every time."""
+    from rig.blockbus import FrameBlock
+    from rig.runner.host import Host
+    from rig.runner.session import _config, _recorder, run_scene
+    served = tmp_path / "served.mcap"
+    run_scene(SCENE, served, cycles=14)                           # what a 14-cycle served run puts on the bus
+    raw = read_recording(served).can_frames
+    rx = np.array([d == "rx" for d in raw["dir"]])
+    data = np.zeros((int(rx.sum()), 8), np.uint8)
+    for row, payload in enumerate(p for p, keep in zip(raw["data"], rx) if keep):
+        data[row, :len(payload)] = np.frombuffer(payload, np.uint8)
+    frames = FrameBlock(np.asarray(raw["t"])[rx], np.asarray(raw["id"], np.uint32)[rx],
+                        np.array([len(p) for p, keep in zip(raw["data"], rx) if keep], np.int16), data,
+                        np.zeros(int(rx.sum()), np.uint8))
+    ends = []
+    for size in (len(frames), 997, 50):
+        cfg = _config(SCENE, 8, None)
+        channel = f"test-cut-{size}"
+        with can.Bus(interface="blockbus", channel=channel) as wire, \
+                can.Bus(interface="blockbus", channel=channel) as bus, \
+                _recorder(cfg, tmp_path / f"host_{size}.mcap", "cross-process") as rec:
+            host = Host(cfg, bus, None, rec)
+            host.stops_listening = True
+            for start in range(0, len(frames), size):
+                wire.send_block(frames.take(slice(start, start + size)))
+                host.poll()
+                if host.done() and host.run_over():
+                    break
+            assert host.done() and host.run_over() and not host.can.run_ended
+            ends.append((host.frames, host.can.device_time, host.curves_recorded))
+            host.finish()
+    assert ends[0][2] == 8 and ends[0][0] < len(frames)
+    assert ends[1] == ends[0] and ends[2] == ends[0], ends
+    recorded = [read_recording(tmp_path / f"host_{size}.mcap").can_frames for size in (len(frames), 997, 50)]
+    for other in recorded[1:]:
+        np.testing.assert_array_equal(other["t"], recorded[0]["t"])
