@@ -492,9 +492,15 @@ class Host:
             **({"illegal_transitions": dict(self._illegal)} if self._illegal else {}),
             **({"illegal_saturated": full} if (full := self._illegal_saturated()) else {}))
         if not self.unit_gone:
-            self.can.send_command("release")
+            self.release()
         self._record_sent()
         return stats
+
+    def release(self) -> None:
+        """Tell the unit this host is done (CAN ``Release``), recorded in ``/can/raw`` as the host's last frame
+        (also when a run stops on Ctrl-C, SIGTERM or an error: the served machine need not wait for its timeout)."""
+        self.can.send_command("release")
+        self._record_sent()
 
 
 def _pieces(block: FrameBlock, span: float) -> list[FrameBlock]:

@@ -545,9 +545,11 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
                 _keep_received(host, drain=False, why=_stop_of_run(exc) if isinstance(exc, KeyboardInterrupt)
                                else "the recording's stop on an error")
                 try:                               # the served machine need not wait for its release timeout
-                    host.can.send_command("release")
+                    host.release()
                 except (can.CanError, OSError):
                     pass
+                except Exception as exc:  # noqa: BLE001 - recording the frame failed: the stop goes on, said once
+                    log.warning("could not record the Release sent at the stop (%s: %s)", type(exc).__name__, exc)
                 raise
             _show(bar, cfg, host.curves_recorded, host.truth_t, force=True)
             run_time = time.perf_counter() - go   # simulated: the device time the last frames carried (as in-process;

@@ -14,6 +14,7 @@ import can
 import cantools
 import jsonschema
 import numpy as np
+import pytest
 
 from firmware_sim.can_node import DBC_PATH
 from rig.recorder import read_recording
@@ -303,3 +304,30 @@ def test_a_host_recording_fewer_cycles_than_served_ends_at_the_same_frame_howeve
     recorded = [read_recording(tmp_path / f"host_{size}.mcap").can_frames for size in (len(frames), 997, 50)]
     for other in recorded[1:]:
         np.testing.assert_array_equal(other["t"], recorded[0]["t"])
+
+
+def test_a_recording_stopped_by_ctrl_c_holds_the_release_it_sent(tmp_path, monkeypatch) -> None:
+    """On Ctrl-C (or SIGTERM, or an error) `rig record` tells the served machine it is done; the Release went on the
+    bus but not into /can/raw, whose doc promises every frame, the host's own commands included."""
+    from rig.runner.host import Host
+    thread, announced, outcome = _serve_in_thread(cycles=200, wait=60, release_timeout=60)
+    ep = announced.get(timeout=60)
+    polls = {"n": 0}
+    poll = Host.poll
+
+    def interrupted_poll(self, timeout=0.0):
+        polls["n"] += 1
+        if polls["n"] == 40:
+            raise KeyboardInterrupt
+        return poll(self, timeout)
+    monkeypatch.setattr(Host, "poll", interrupted_poll)
+    out = tmp_path / "stopped.mcap"
+    with pytest.raises(BaseException):
+        record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"], serial_port=ep["serial"],
+                     idle_timeout=60)
+    thread.join(timeout=120)
+    rec = read_recording(out, allow_partial=True)
+    raw = rec.can_frames
+    sent = [DB.decode_message(int(i), d) for i, d, way in zip(raw["id"], raw["data"], raw["dir"]) if way == "tx"]
+    assert rec.interrupted and sent[-1]["Cmd"] == "Release" and len(sent) >= 2
+    assert not thread.is_alive() and not isinstance(outcome[0], Exception)    # released: serve ended as asked
