@@ -130,7 +130,9 @@ def _print_set_summary(result: dict) -> None:
             parts.append(f"{signal.upper()} {lt * 1e3:.2f} ms{la}")
         print(f"  theory vs measurement, mean lag over {len({r['curve'] for r in lags})} curves: {', '.join(parts)}")
     if result["events"]:
-        print("  events: " + ", ".join(f"{k} {v}" for k, v in sorted(result["events"].items())))
+        pairs = result.get("live_pairs_dropped", 0)
+        print("  events: " + ", ".join(f"{k} {v}" + (f" ({pairs} live pairs in all)" if k == "live_dropped" else "")
+                                       for k, v in sorted(result["events"].items())))
 
 
 def _compiled(summary: Any) -> str:

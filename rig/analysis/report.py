@@ -33,7 +33,7 @@ from rig.analysis.normality import ANDERSON_P
 from rig.analysis.numbers import fixed, row_places
 from rig.analysis.report_blocks import (NOK_PLOTS, Banner, Block, Figure, Heading, Link, ReportContext, Section, Table,
                                         Text, fmt)
-from rig.analysis.sets import by_program, cut_reason, memory_warning, process_values
+from rig.analysis.sets import by_program, cut_reason, live_pairs_dropped, memory_warning, process_values
 from rig.analysis.static_clutch_report import static_clutch_section
 from rig.analysis.summary import analyse
 from rig.analysis.trend import drift_text
@@ -527,15 +527,6 @@ EVENT_MEANING = {
     "not_recorded": "the served machine went on after the curves this host was asked to record (rig record --cycles); "
                     "the later ones are in /can/raw only",
 }
-
-
-def live_pairs_dropped(recorded: list[dict]) -> int:
-    """Live pairs the unit did not send, all reasons: its cumulative count (``total`` of each report, the link
-    summary's ``live_dropped``) at the latest report recorded — right also when reports between were lost (a
-    damaged part of a recording); 0 without any."""
-    totals = [int(e["total"]) for e in recorded if e.get("kind") == "live_dropped" and "total" in e]
-    totals += [int(e["live_dropped"]) for e in recorded if e.get("kind") == "link_summary" and "live_dropped" in e]
-    return max(totals, default=0)
 
 
 EVENT_ROWS = 200      # rows of the event-by-event table (every event is in events.csv)

@@ -213,3 +213,12 @@ def statistics_by_program(results: Sequence[Mapping], programs: Mapping[int, Map
 def event_counts(events: Iterable[Mapping]) -> dict[str, int]:
     """Number of events of each kind."""
     return dict(Counter(str(e["kind"]) for e in events))
+
+
+def live_pairs_dropped(recorded: list[dict]) -> int:
+    """Live pairs the unit did not send, all reasons: its cumulative count (``total`` of each report, the link
+    summary's ``live_dropped``) at the latest report recorded — right also when reports between were lost (a
+    damaged part of a recording); 0 without any."""
+    totals = [int(e["total"]) for e in recorded if e.get("kind") == "live_dropped" and "total" in e]
+    totals += [int(e["live_dropped"]) for e in recorded if e.get("kind") == "link_summary" and "live_dropped" in e]
+    return max(totals, default=0)

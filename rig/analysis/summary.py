@@ -4,7 +4,7 @@ from __future__ import annotations
 from rig.analysis.device import device_agreement, final_snapshot
 from rig.analysis.lag import compare_theory
 from rig.analysis.sets import (by_program, curve_verdicts, curves_not_recorded, event_counts, incomplete_results,
-                               statistics_by_program)
+                               live_pairs_dropped, statistics_by_program)
 from rig.analysis.units import DisplayUnits, recording_units
 from rig.recorder import CurveRecord, Recording
 
@@ -43,7 +43,8 @@ def program_sets(rec: Recording, units: dict[int, DisplayUnits] | None = None) -
 
 def analyse(rec: Recording) -> dict:
     """Verdicts per curve, incomplete results, judged curves not recorded, display units per program, statistics per
-    program (with the device comparison), theory vs measurement per curve, event counts."""
+    program (with the device comparison), theory vs measurement per curve, event counts, live pairs the unit did not
+    send (all reasons)."""
     units = program_units(rec)
     return {
         "verdicts": curve_verdicts(rec.results),
@@ -53,5 +54,6 @@ def analyse(rec: Recording) -> dict:
         "sets": program_sets(rec, units),
         "theory": [row for c in rec.curves for row in theory_comparison(c)],
         "events": event_counts(rec.events),
+        "live_pairs_dropped": live_pairs_dropped(rec.events),
         "device_statistics": rec.statistics[-1] if rec.statistics else None,
     }

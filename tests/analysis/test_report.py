@@ -193,7 +193,7 @@ def test_a_report_written_again_leaves_nothing_of_the_earlier_one(recording, tmp
 
 
 def test_live_pairs_dropped_is_the_latest_cumulative_count_even_with_reports_lost():
-    from rig.analysis.report import live_pairs_dropped
+    from rig.analysis.sets import live_pairs_dropped
     reports = [{"kind": "live_dropped", "t": t, "count": c, "total": tot}
                for t, c, tot in ((1.0, 100, 100), (2.0, 50, 150), (3.0, 70, 220))]
     del reports[1]                                   # a damaged chunk held it: the sum of counts would say 170
