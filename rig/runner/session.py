@@ -38,6 +38,7 @@ from rig.stops import terminated
 log = logging.getLogger(__name__)
 SERVE_BACKLOG = 20_000   # frames a served machine may have sent that its host's connection has not yet taken (~2.5 s
 #                          of a saturated 1 Mbit/s bus); beyond, it waits for its host (TCP's buffers hold more)
+SERVE_DRAIN = 10.0      # s a served machine stopped by an error waits for its hosts to take what it sent
 QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
 
 
@@ -473,6 +474,9 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                                 "releases the device", exc)
                     with lock:
                         machine.flush()
+                except RunError:            # a run that cannot go on: what was sent reaches the hosts before the
+                    _delivered(clients, SERVE_DRAIN)    # links close (as `rig run` records what is on the wire)
+                    raise
             if machine.node.released and not _machine_done(cfg, machine):
                 log.warning("the host released the device after %d curves (%.3f s of device time), before the end "
                             "of the scene's run (%s): the run was cut short there", machine.curves, machine.t,
@@ -483,6 +487,13 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             if serial_dev is not None:
                 serial_dev.close()
     return machine
+
+
+def _delivered(clients: list[Any], timeout: float) -> bool:
+    """Wait up to ``timeout`` s until every connection has taken the frames sent to it; whether they all have (the
+    socket then delivers them before the connection's end)."""
+    deadline = time.monotonic() + timeout
+    return all(c.wait_pending_below(1, max(0.0, deadline - time.monotonic())) for c in list(clients))
 
 
 def _endpoints(cfg: RunConfig, server: SocketcandServer, serial_dev: SerialDevice | None) -> dict[str, Any]:
@@ -601,7 +612,8 @@ def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], i
             break
         elif time.monotonic() - last > QUIET and getattr(host.can.bus, "closed", False):
             if not host.done():
-                raise RunError(f"the served machine at {where} closed the connection (its rig serve stopped) after "
+                raise RunError(f"the served machine at {where} closed the connection (its rig serve stopped: its "
+                               f"console says why) after "
                                f"{host.curves_recorded} curves recorded (kept in {output})")
             host.unit_gone = f"the served machine at {where} closed the connection after this host's curves"
             log.warning("%s; its run had not ended: the unit's statistics are not read", host.unit_gone)

@@ -331,3 +331,38 @@ def test_a_recording_stopped_by_ctrl_c_holds_the_release_it_sent(tmp_path, monke
     sent = [DB.decode_message(int(i), d) for i, d, way in zip(raw["id"], raw["data"], raw["dir"]) if way == "tx"]
     assert rec.interrupted and sent[-1]["Cmd"] == "Release" and len(sent) >= 2
     assert not thread.is_alive() and not isinstance(outcome[0], Exception)    # released: serve ended as asked
+
+
+def test_a_served_run_stopped_by_an_error_delivers_what_it_sent_as_rig_run_records_it(tmp_path) -> None:
+    """A bus too slow for the scene's curves stops the run with an error. `rig run` records every frame already on
+    the wire; `rig serve` closed its links at once, so its host recorded 7 547, 10 469 or 10 206 frames in three
+    identical runs. Now it waits for its hosts to take what it sent: the same frames as in one process."""
+    from rig.runner.session import RunError, run_scene
+    scene = tmp_path / "slow_bus.toml"
+    text = SCENE.read_text()
+    assert "bitrate = 1000000" in text
+    scene.write_text(text.replace("bitrate = 1000000", "bitrate = 500000", 1))
+    one = tmp_path / "one.mcap"
+    with pytest.raises(RunError, match="cannot carry the curves"):
+        run_scene(scene, one)
+    announced: queue.Queue = queue.Queue()
+    outcome: list = []
+
+    def serve() -> None:
+        try:
+            outcome.append(serve_scene(scene, port=0, announce=announced.put, wait=60, release_timeout=60))
+        except Exception as exc:                 # noqa: BLE001 - the test reads it
+            outcome.append(exc)
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    ep = announced.get(timeout=60)
+    two = tmp_path / "two.mcap"
+    with pytest.raises(RunError, match="closed the connection .*its console says why"):
+        record_scene(scene, two, can_host=ep["can"]["host"], can_port=ep["can"]["port"], serial_port=ep["serial"],
+                     idle_timeout=60)
+    thread.join(timeout=60)
+    assert isinstance(outcome[0], RunError) and "cannot carry the curves" in str(outcome[0])
+    a, b = (read_recording(p, allow_partial=True).can_frames for p in (one, two))
+    rx_a, rx_b = ([k for k, way in enumerate(f["dir"]) if way == "rx"] for f in (a, b))
+    assert len(rx_a) > 5000 and len(rx_b) == len(rx_a)
+    np.testing.assert_array_equal(np.asarray(b["t"])[rx_b], np.asarray(a["t"])[rx_a])
