@@ -100,7 +100,9 @@ class SocketcandServer:
         self._listener = socket.create_server((host, port))
         self.host, self.port = self._listener.getsockname()[:2]
         self._stop = threading.Event()
+        self._draining = threading.Event()   # forwarders end once they have sent all their bus holds (drain())
         self._threads: list[threading.Thread] = []
+        self._forwarders: list[threading.Thread] = []
         self._conns: set[socket.socket] = set()     # open client connections (stop() unblocks their threads)
         self._lock = threading.Lock()
         self.fd_dropped = 0
@@ -115,10 +117,21 @@ class SocketcandServer:
             self._spawn(self._beacon_loop)
         return self.port
 
-    def _spawn(self, target: Callable, *args) -> None:
+    def _spawn(self, target: Callable, *args) -> threading.Thread:
         th = threading.Thread(target=target, args=args, daemon=True)
         th.start()
         self._threads.append(th)
+        return th
+
+    def drain(self, timeout: float) -> bool:
+        """Let every connection's forwarder send all its bus holds, then end (no frame is to come: the served run
+        stopped); waits up to ``timeout`` s, and whether they all got there. Call before :meth:`stop`, which
+        discards what a forwarder has not sent."""
+        self._draining.set()
+        deadline = time.monotonic() + timeout
+        for th in list(self._forwarders):
+            th.join(timeout=max(0.0, deadline - time.monotonic()))
+        return not any(th.is_alive() for th in self._forwarders)
 
     def stop(self) -> None:
         """Close the listener and all connections; joins the server threads."""
@@ -203,7 +216,7 @@ class SocketcandServer:
                     elif body == "rawmode" and bus is not None and not raw:
                         reply("< ok >")
                         raw = True
-                        self._spawn(self._forward, conn, bus, sending)
+                        self._forwarders.append(self._spawn(self._forward, conn, bus, sending))
                     elif body.startswith("send ") and bus is not None:
                         try:
                             msg = parse_send(body)
@@ -236,6 +249,8 @@ class SocketcandServer:
         try:
             while not self._stop.is_set() and conn.fileno() != -1:
                 msg = bus.recv(0.05)
+                if msg is None and self._draining.is_set():
+                    return                      # all its bus held is sent (drain())
                 if msg is None or msg.is_error_frame or msg.is_remote_frame:
                     continue
                 if len(msg.data) > 8:

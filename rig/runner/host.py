@@ -127,8 +127,9 @@ class Host:
         block = drain_block(self.bus, timeout)
         taken = 0
         for part in _pieces(block, WINDOW):
-            if self.stops_listening and self._cut_at is not None:
-                keep = part.timestamp <= self._cut_at
+            cut = self._cut()
+            if self.stops_listening and cut is not None:
+                keep = part.timestamp <= cut
                 if not keep.all():
                     self._past_cut = True
                     part = part.take(keep)
@@ -461,9 +462,16 @@ class Host:
         Decided from the frames only, so every run ends at the same frame."""
         if self.can.run_ended or self._past_cut:
             return True
-        if self._cut_at is None:
-            self._cut_at = (self.cfg.duration if self.cfg.cycles is None else self.can.device_time) + RUN_END_WAIT
-        return self.can.device_time > self._cut_at
+        if self._cut() is None:             # (its last curve sets it: a safeguard)
+            self._cut_at = self.can.device_time + RUN_END_WAIT
+        return self.can.device_time > self._cut()
+
+    def _cut(self) -> float | None:
+        """Device time (s) past which a host that :attr:`stops_listening` records nothing: ``RUN_END_WAIT`` after the
+        frames that completed its last curve, or after its duration; None while it is still to come."""
+        if self._cut_at is None and self.cfg.cycles is None:
+            return self.cfg.duration + RUN_END_WAIT
+        return self._cut_at
 
     def finish(self) -> dict[str, Any]:
         """Release what is still waiting, read the unit's statistics over serial and record them with the

@@ -475,7 +475,7 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                     with lock:
                         machine.flush()
                 except RunError:            # a run that cannot go on: what was sent reaches the hosts before the
-                    _delivered(clients, SERVE_DRAIN)    # links close (as `rig run` records what is on the wire)
+                    server.drain(SERVE_DRAIN)   # links close (as `rig run` records what is on the wire)
                     raise
             if machine.node.released and not _machine_done(cfg, machine):
                 log.warning("the host released the device after %d curves (%.3f s of device time), before the end "
@@ -487,13 +487,6 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             if serial_dev is not None:
                 serial_dev.close()
     return machine
-
-
-def _delivered(clients: list[Any], timeout: float) -> bool:
-    """Wait up to ``timeout`` s until every connection has taken the frames sent to it; whether they all have (the
-    socket then delivers them before the connection's end)."""
-    deadline = time.monotonic() + timeout
-    return all(c.wait_pending_below(1, max(0.0, deadline - time.monotonic())) for c in list(clients))
 
 
 def _endpoints(cfg: RunConfig, server: SocketcandServer, serial_dev: SerialDevice | None) -> dict[str, Any]:
@@ -612,9 +605,8 @@ def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], i
             break
         elif time.monotonic() - last > QUIET and getattr(host.can.bus, "closed", False):
             if not host.done():
-                raise RunError(f"the served machine at {where} closed the connection (its rig serve stopped: its "
-                               f"console says why) after "
-                               f"{host.curves_recorded} curves recorded (kept in {output})")
+                raise RunError(f"the served machine at {where} closed the connection (its rig serve stopped: see its "
+                               f"console) after {host.curves_recorded} curves recorded (kept in {output})")
             host.unit_gone = f"the served machine at {where} closed the connection after this host's curves"
             log.warning("%s; its run had not ended: the unit's statistics are not read", host.unit_gone)
             break

@@ -264,16 +264,20 @@ def test_a_can_fd_scene_is_refused_by_serve_and_record_before_anything_starts(tm
     assert not [r for r in caplog.records if "fidelity" in r.getMessage()], [r.getMessage() for r in caplog.records]
 
 
-def test_a_host_recording_fewer_cycles_than_served_ends_at_the_same_frame_however_the_frames_come(tmp_path) -> None:
+@pytest.mark.parametrize("scene", [SCENE, ROOT / "data" / "scenes" / "lab_speed.toml"])
+def test_a_host_recording_less_than_served_ends_at_the_same_frame_however_the_frames_come(tmp_path, scene) -> None:
     """`rig record --cycles 8` against a longer served run stops listening RUN_END_WAIT s of device time after the
-    frames that completed its 8th curve. Its cut was taken from the device time of whatever batch it had just read,
-    so the recording's end moved with the processes' timing (12.29 s, 10.42 s, 10.40 s in three runs of one scene).
-    Here the same frames reach the host at once, in blocks of 997 and of 50: the same recording every time."""
+    frames that completed its 8th curve (a duration scene: after its duration). Its cut was taken from the device
+    time of whatever batch it had just read, so the recording's end moved with the processes' timing (12.29 s,
+    10.42 s, 10.40 s in three runs of one scene). Here the same frames reach the host at once, in blocks of 997 and
+    of 50: the same recording every time."""
+    import dataclasses
     from rig.blockbus import FrameBlock
     from rig.runner.host import Host
     from rig.runner.session import _config, _recorder, run_scene
     served = tmp_path / "served.mcap"
-    run_scene(SCENE, served, cycles=14)                           # what a 14-cycle served run puts on the bus
+    cycles = scene == SCENE
+    run_scene(scene, served, cycles=14 if cycles else None)      # what a longer served run puts on the bus
     raw = read_recording(served).can_frames
     rx = np.array([d == "rx" for d in raw["dir"]])
     data = np.zeros((int(rx.sum()), 8), np.uint8)
@@ -284,7 +288,7 @@ def test_a_host_recording_fewer_cycles_than_served_ends_at_the_same_frame_howeve
                         np.zeros(int(rx.sum()), np.uint8))
     ends = []
     for size in (len(frames), 997, 50):
-        cfg = _config(SCENE, 8, None)
+        cfg = _config(scene, 8, None) if cycles else dataclasses.replace(_config(scene, None, None), duration=2.5)
         channel = f"test-cut-{size}"
         with can.Bus(interface="blockbus", channel=channel) as wire, \
                 can.Bus(interface="blockbus", channel=channel) as bus, \
@@ -299,7 +303,8 @@ def test_a_host_recording_fewer_cycles_than_served_ends_at_the_same_frame_howeve
             assert host.done() and host.run_over() and not host.can.run_ended
             ends.append((host.frames, host.can.device_time, host.curves_recorded))
             host.finish()
-    assert ends[0][2] == 8 and ends[0][0] < len(frames)
+    assert ends[0][2] == (8 if cycles else 0) and ends[0][0] < len(frames)
+    assert cycles or ends[0][1] <= 2.5 + 2.0          # a duration scene: cut RUN_END_WAIT after its duration
     assert ends[1] == ends[0] and ends[2] == ends[0], ends
     recorded = [read_recording(tmp_path / f"host_{size}.mcap").can_frames for size in (len(frames), 997, 50)]
     for other in recorded[1:]:
@@ -357,7 +362,7 @@ def test_a_served_run_stopped_by_an_error_delivers_what_it_sent_as_rig_run_recor
     thread.start()
     ep = announced.get(timeout=60)
     two = tmp_path / "two.mcap"
-    with pytest.raises(RunError, match="closed the connection .*its console says why"):
+    with pytest.raises(RunError, match="closed the connection .*see its console"):
         record_scene(scene, two, can_host=ep["can"]["host"], can_port=ep["can"]["port"], serial_port=ep["serial"],
                      idle_timeout=60)
     thread.join(timeout=60)

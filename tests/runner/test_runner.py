@@ -565,7 +565,8 @@ def test_a_served_machine_that_stops_mid_run_is_named_at_once_not_after_the_idle
         out = tmp_path / "rec.mcap"
         threading.Timer(3.0, serve.kill).start()
         t0 = time.monotonic()
-        with pytest.raises(RunError, match=r"closed the connection \(its rig serve stopped\) after \d+ curves"):
+        with pytest.raises(RunError, match=r"closed the connection \(its rig serve stopped: see its console\) "
+                                           r"after \d+ curves"):
             record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"], serial_port=ep["serial"],
                          cycles=400, idle_timeout=60.0)
         assert time.monotonic() - t0 < 30.0                  # not the 60 s idle timeout
