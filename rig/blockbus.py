@@ -139,6 +139,7 @@ class BlockBus(can.BusABC):
         self._pending = 0                  # frames received and not yet taken
         self._open = True
         self.sent = 0                      # frames this bus has sent
+        self.reading = False               # something has asked it for frames (a consumer is there)
         self._ready = threading.Condition(threading.Lock())     # notified on arrivals, takes and shutdown
         with _channels_lock:
             _channels.setdefault(self._channel, []).append(self)
@@ -162,8 +163,12 @@ class BlockBus(can.BusABC):
 
     @property
     def pending(self) -> int:
-        """Frames received and not yet taken."""
+        """Frames received and not yet taken (read without the lock: a snapshot)."""
         return self._pending
+
+    @property
+    def closed(self) -> bool:
+        return not self._open
 
     def wait_pending_below(self, frames: int, timeout: float) -> bool:
         """Wait up to ``timeout`` s until fewer than ``frames`` frames wait here (or the bus is shut down, when none
@@ -177,6 +182,7 @@ class BlockBus(can.BusABC):
 
     def recv_blocks(self, timeout: float | None = 0.0) -> list[FrameBlock]:
         """Every block waiting (waits up to ``timeout`` s for the first; None: forever)."""
+        self.reading = True
         with self._ready:
             if not self._rx and timeout != 0.0:
                 self._ready.wait_for(lambda: bool(self._rx), timeout)
@@ -189,6 +195,7 @@ class BlockBus(can.BusABC):
         return blocks
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        self.reading = True
         with self._ready:
             if not self._rx and timeout != 0.0:
                 self._ready.wait_for(lambda: bool(self._rx), timeout)
@@ -207,6 +214,7 @@ class BlockBus(can.BusABC):
     def shutdown(self) -> None:
         with self._ready:
             self._open = False
+            self._rx, self._head, self._pending = deque(), 0, 0     # nothing will take them: not kept
             self._ready.notify_all()
         with _channels_lock:
             peers = _channels.get(self._channel, [])

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import atexit
-import hashlib
 import importlib
 import json
 import logging
@@ -131,7 +130,8 @@ def _print_set_summary(result: dict) -> None:
         print(f"  theory vs measurement, mean lag over {len({r['curve'] for r in lags})} curves: {', '.join(parts)}")
     if result["events"]:
         pairs = result.get("live_pairs_dropped", 0)
-        print("  events: " + ", ".join(f"{k} {v}" + (f" ({pairs} live pairs in all)" if k == "live_dropped" else "")
+        print("  events: " + ", ".join(f"{k} {v}" + (f" ({pairs} live pairs in all)" if k == "live_dropped" and pairs
+                                                     else "")
                                        for k, v in sorted(result["events"].items())))
 
 
@@ -410,6 +410,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.executors.options import executor_from_args
     from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_json, study_table
     from rig.runner.config import read_config
+    from rig.runner.session import scene_digest
     from rig.plants.cam_bar.scene_io import mechanism_from_scene, require_cam_bar
     from rig.scene import load_scene
     scene_path = Path(args.scene)
@@ -428,8 +429,8 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     print(study_table(study))
     print(f"chart: {plot_study(study, chart)}")
     if args.json:
-        run = {"scene": cfg.name, "scene_sha256": hashlib.sha256(scene_path.read_bytes()).hexdigest(),  # the content,
-               "seed": cfg.seed, "machines": args.samples, "task_samples": args.task_samples}   # not its path's spelling
+        run = {"scene": cfg.name, "scene_sha256": scene_digest(scene_path),      # its content, not its path's spelling
+               "seed": cfg.seed, "machines": args.samples, "task_samples": args.task_samples}
         file_parent(Path(args.json)).write_text(json.dumps(study_json(study, run), indent=1) + "\n")
         print(f"JSON: {args.json}")
     return 0
@@ -450,7 +451,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors: ``rig run: error: argument --cycles: ... (rig run -h: usage)``, and no
     abbreviated options (``--cyc`` is not ``--cycles``: a later option of the same prefix would change its meaning)."""
 
-    def __init__(self, *args, allow_abbrev: bool = False, **kwargs):
+    def __init__(self, *args, allow_abbrev: bool = False, **kwargs) -> None:
         super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)
 
     def error(self, message: str) -> None:

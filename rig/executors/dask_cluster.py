@@ -38,7 +38,7 @@ def _probe(scheduler: str) -> None:
     """For a TCP address (``tcp://``, ``tls://``), ConnectionError at once naming why nothing can be reached there — a
     name that does not resolve, a connection refused — rather than Dask's "timed out after 10 s" for every cause."""
     scheme, _, rest = scheduler.rpartition("://")
-    if scheme not in ("tcp", "tls"):
+    if (scheme.lower() or "tcp") not in ("tcp", "tls"):          # host:port alone is Dask's tcp
         return
     host, _, port = rest.rpartition(":")
     host = host.strip("[]")

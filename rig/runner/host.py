@@ -129,10 +129,10 @@ class Host:
         for part in _pieces(block, WINDOW):
             cut = self._cut()
             if self.stops_listening and cut is not None:
-                keep = part.timestamp <= cut
-                if not keep.all():
+                past = int(np.argmax(part.timestamp > cut)) if np.any(part.timestamp > cut) else len(part)
+                if past < len(part):              # nothing from the first frame past the cut on
                     self._past_cut = True
-                    part = part.take(keep)
+                    part = part.take(slice(0, past))
             self.can.receive_block(part)
             self._record(part)
             taken += len(part)
@@ -346,7 +346,9 @@ class Host:
             self._curves.pop(0)
             self._curves_done += 1
             if self._curves_done == self.cfg.cycles:    # all it needs: the cut follows from this curve's frames
-                self._cut_at = max(float(curve.t[-1]), result.received if result is not None else 0.0) + RUN_END_WAIT
+                came = result.received if result is not None else max(  # (its result lost: the later one that
+                    (r.received for r in self._results.values()), default=0.0)   # showed it)
+                self._cut_at = max(float(curve.t[-1]), came) + RUN_END_WAIT
             self._truth = [c for c in self._truth if c["t"][-1] >= curve.t[-1]]     # later curves start later
         for number in sorted(self._orphans & set(self._results)):
             self.rec.write_result(self._result_dict(self._results.pop(number), self.program), t=self.truth_t)
@@ -512,9 +514,9 @@ class Host:
 
 
 def _pieces(block: FrameBlock, span: float) -> list[FrameBlock]:
-    """``block`` (time stamps non-decreasing) cut into consecutive pieces of at most ``span`` s each (itself when it
-    spans no more; one empty piece for an empty block)."""
-    t = block.timestamp
+    """``block`` cut into consecutive pieces of at most ``span`` s each by its running latest time stamp (itself when
+    it spans no more; one empty piece for an empty block)."""
+    t = np.maximum.accumulate(block.timestamp)      # (another host's command, stamped by its clock, among them)
     if len(block) == 0 or t[-1] - t[0] <= span:
         return [block]
     edges = np.searchsorted(t, np.arange(t[0] + span, t[-1], span), side="right")

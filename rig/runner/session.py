@@ -38,7 +38,8 @@ from rig.stops import terminated
 log = logging.getLogger(__name__)
 SERVE_BACKLOG = 20_000   # frames a served machine may have sent that its host's connection has not yet taken (~2.5 s
 #                          of a saturated 1 Mbit/s bus); beyond, it waits for its host (TCP's buffers hold more)
-SERVE_DRAIN = 10.0      # s a served machine stopped by an error waits for its hosts to take what it sent
+SERVE_DRAIN = 10.0      # s a served machine stopped by an error waits for what it sent to be sent to its hosts
+SLOW_HOST = 10.0        # s of waiting for a host that does not read before the served machine says so
 QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
 
 
@@ -426,7 +427,8 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
     device sends its status frames every heartbeat period of wall time; the run starts then, from device
     time 0, and ends when the host releases it (CAN ``Release`` command, sent when it has read
     everything); the links stay up until then, or ``release_timeout`` s after the scene's last cycle, which
-    is reported as an error. Frames are stamped in Unix time (:mod:`rig.runner.served`).
+    is reported as an error. The machine waits for a host that does not read (:data:`SERVE_BACKLOG`), saying so after
+    :data:`SLOW_HOST` s and stopping with an error after ``release_timeout`` s. Frames are stamped in Unix time (:mod:`rig.runner.served`).
     """
     cfg = _config(scene_path, cycles, mode, fidelity, classic_can="rig serve serves its bus")
     channel = f"rig-{uuid.uuid4().hex}"
@@ -440,9 +442,23 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             clients.append(can.Bus(interface="blockbus", channel=channel))
             return clients[-1]
 
-        def room(timeout: float) -> bool:   # the hosts' (connections that sent commands), not a passive logger's;
-            return bus.pending > 0 or all(      # a command waiting (a Release) is taken at once, room or not
-                c.wait_pending_below(SERVE_BACKLOG, timeout) for c in list(clients) if c.sent)
+        waiting: dict[str, float] = {}      # wall time (monotonic) the machine began to wait for its hosts
+
+        def room(timeout: float) -> bool:   # the hosts' (connections that sent commands and read), not a passive
+            clients[:] = [c for c in clients if not c.closed]       # logger's; a command waiting (a Release) is
+            if bus.pending > 0 or all(c.wait_pending_below(SERVE_BACKLOG, timeout)   # taken at once, room or not
+                                      for c in list(clients) if c.sent and c.reading):
+                waiting.clear()
+                return True
+            began = waiting.setdefault("since", time.monotonic())
+            if time.monotonic() - began > release_timeout:
+                raise RunError(f"the host has not read for {release_timeout:g} s ({SERVE_BACKLOG} frames wait for it: "
+                               f"stalled or suspended): the served run stops at {machine.t:.3f} s of device time")
+            if time.monotonic() - began > SLOW_HOST and "said" not in waiting:
+                waiting["said"] = began
+                log.warning("waiting for the host to read: %d frames it has not taken (the machine computes on as it "
+                            "reads; it stops after --release-timeout %g s without)", SERVE_BACKLOG, release_timeout)
+            return False
         server = SocketcandServer(channel=cfg.can["channel"], host=cfg.can["host"],
                                   port=cfg.can["port"] if port is None else port, bus_factory=client_bus)
         serial_dev = (SerialDevice(machine.device, cfg.serial["port"], cfg.serial["baudrate"], cfg.serial["address"],
@@ -474,8 +490,9 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                                 "releases the device", exc)
                     with lock:
                         machine.flush()
-                except RunError:            # a run that cannot go on: what was sent reaches the hosts before the
-                    server.drain(SERVE_DRAIN)   # links close (as `rig run` records what is on the wire)
+                except RunError:            # a run that cannot go on: what was sent is sent to the hosts before
+                    if not server.drain(SERVE_DRAIN):   # the links close (as `rig run` records what is on the wire)
+                        log.warning("not every frame sent reached the hosts' connections within %g s", SERVE_DRAIN)
                     raise
             if machine.node.released and not _machine_done(cfg, machine):
                 log.warning("the host released the device after %d curves (%.3f s of device time), before the end "

@@ -59,7 +59,8 @@ def parse_param(text: str) -> Param:
 def check_units(scene: Scene, params: Sequence[Param]) -> None:
     """A :class:`UsageError` naming the ``--param`` whose value has no unit, or one of another dimension, where the
     scene writes that key with a unit (``plant.k = "1.68 N/mm"``): the value given, not the scene, is wrong; where the
-    scene leaves the key to its default, the values are compared in the unit of the first that has one. A value given
+    scene leaves the key to its default (does not write it), the values are compared in the unit of the first that has
+    one. A value given
     twice (as written or in another unit) is refused: each point runs once."""
     for param in params:
         node: Any = scene.data
@@ -67,7 +68,7 @@ def check_units(scene: Scene, params: Sequence[Param]) -> None:
             node = node.get(part) if isinstance(node, dict) else None
         unit = unit_of(node) if isinstance(node, str) else None
         where = f'the scene writes {param.key} = "{node}"'
-        if unit is None:
+        if node is None:                          # the key left to its default: the values' own units
             unit = next((u for u in (unit_of(v) for v in param.values if isinstance(v, str)) if u), None)
             where = f"{param.key}'s other values have units"
         if unit is None:                          # plain numbers: parse_param refused repeats as written

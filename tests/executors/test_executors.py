@@ -188,6 +188,8 @@ def test_an_unreachable_scheduler_is_a_failed_run_naming_it(monkeypatch, capsys)
     assert main(["-q", "tolerance", "--samples", "1000", "--scheduler", "tcp://127.0.0.1:1"]) == 1
     assert ("cannot reach the Dask scheduler at tcp://127.0.0.1:1: connection refused (nothing listens on port 1 of "
             "127.0.0.1") in capsys.readouterr().err         # the cause, not Dask's "timed out" for every cause
+    assert main(["-q", "tolerance", "--samples", "1000", "--scheduler", "127.0.0.1:1"]) == 1     # Dask's tcp too
+    assert "127.0.0.1:1: connection refused" in capsys.readouterr().err
     assert main(["-q", "tolerance", "--samples", "1000", "--scheduler", "tcp://no-such-host.invalid:8786"]) == 1
     assert "at tcp://no-such-host.invalid:8786: host name 'no-such-host.invalid' does not resolve" in \
         capsys.readouterr().err

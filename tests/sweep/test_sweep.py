@@ -503,6 +503,10 @@ def test_a_value_given_twice_is_refused_as_written_or_in_si(tmp_path, capsys):
                  "rod_force_peak", "--executor", "serial", "-o", str(tmp_path / "sweep")]) == 2
     assert ("--param plant.J3=0.03: 0.03 has no unit; plant.J3's other values have units: give the unit, e.g. "
             '"plant.J3=0.03 kg*m^2"') in capsys.readouterr().err
+    # a key the scene writes as a bare number (plant.mu = 0.1) takes bare numbers: no unit inferred from the others
+    from rig.sweep import check_units
+    from rig.scene import load_scene
+    check_units(load_scene(DEFAULT_SCENE), [parse_param("plant.mu=0.1,0.2")])
 
 
 def test_a_parameter_that_changes_no_metric_is_named():

@@ -10,7 +10,7 @@ slider law.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import degrees, isclose, isfinite, tau
+from math import degrees, inf, isclose, isfinite, tau
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -21,6 +21,7 @@ from rig.mechanisms.cam.limits import pressure_angle_limit, undercut_radius
 from rig.mechanisms.cam.pitch import PitchCurve, flank_radius, pitch_curve
 from rig.mechanisms.cam.sizing import SizeModel, exact_base_radius, flocke_base_radius, pressure_angles
 from rig.mechanisms.cam.synthesis import SliderCrank, round_trip_error, synthesize
+from rig.plants.cam_bar.chain import SingularPositionError
 from rig.motion.program import CamProgram, Segment
 from rig.motion.laws import MotionLaw, ReversedLaw
 from rig.motion.registry import get_law
@@ -224,7 +225,11 @@ def _synthesis_check(mech: "PinInsertionMechanism", phi: np.ndarray) -> Check:
     st = mech.state(phi)
     crank = SliderCrank(mech.L3, mech.l4, mech.e_sk, mech.chain.rod_side)
     x = mech.s0 - st.s
-    law = synthesize(crank, x, -st.s_p, -st.s_pp)
+    try:
+        law = synthesize(crank, x, -st.s_p, -st.s_pp)
+    except SingularPositionError as exc:         # a chain at (or within a step of) a dead centre: a failed check
+        return Check("series synthesis round trip", inf, ROUND_TRIP_TOL * 1e3, "mm", "≤",
+                     f"slider law → follower law (slider-crank L3/l4/e_sk): {exc}")
     dpsi = float(np.max(np.abs(np.angle(np.exp(1j * (law.q - st.psi))))))
     return Check("series synthesis round trip", round_trip_error(crank, law, x) * 1e3, ROUND_TRIP_TOL * 1e3, "mm",
                  "≤", f"slider law → follower law (slider-crank L3/l4/e_sk) → slider law; follower law vs the "
