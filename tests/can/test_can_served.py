@@ -173,7 +173,6 @@ def test_a_served_machine_waits_for_a_host_that_stops_reading_while_a_passive_lo
     stopped). Now the machine waits once its host's connection holds SERVE_BACKLOG frames (plus what the sockets
     buffer): a passive logger beside it sees the frames stop far short of the run's end, and then again when the
     host reads on. A logger that only listens holds nothing back."""
-    from rig.runner.session import SERVE_BACKLOG
     thread, announced, outcome = _serve_in_thread(cycles=500, wait=60, release_timeout=60)     # 200 s of device time
     ep = announced.get(timeout=60)
     seen: list[float] = []
