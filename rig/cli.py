@@ -130,9 +130,9 @@ def _print_set_summary(result: dict) -> None:
         print(f"  theory vs measurement, mean lag over {len({r['curve'] for r in lags})} curves: {', '.join(parts)}")
     if result["events"]:
         pairs = result.get("live_pairs_dropped", 0)
-        print("  events: " + ", ".join(f"{k} {v}" + (f" ({pairs} live pairs in all)" if k == "live_dropped" and pairs
-                                                     else "")
-                                       for k, v in sorted(result["events"].items())))
+        counts = {k: f"{v} ({pairs} live pairs in all)" if k == "live_dropped" and pairs else str(v)
+                  for k, v in result["events"].items()}
+        print("  events: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
 
 
 def _compiled(summary: Any) -> str:

@@ -58,9 +58,10 @@ def _probe(scheduler: str) -> None:
 
 
 def _connect(client: Callable[..., Any], scheduler: str) -> Any:
-    """``client(scheduler)`` (distributed.Client) within CONNECT_TIMEOUT + HANDSHAKE_GRACE s, else ConnectionError in one
-    line: Client's own timeout covers reaching the address, not a peer that accepts the connection and never answers
-    (it waited forever) or answers with something else (a traceback ending in a 3 EiB allocation)."""
+    """``client(scheduler)`` (distributed.Client) after :func:`_probe` (up to CONNECT_TIMEOUT s) within CONNECT_TIMEOUT +
+    HANDSHAKE_GRACE s, else ConnectionError in one line: Client's own timeout covers reaching the address, not a peer
+    that accepts the connection and never answers (it waited forever) or answers with something else (a traceback
+    ending in a 3 EiB allocation)."""
     _probe(scheduler)
     attempt: dict[str, Any] = {}
 

@@ -405,4 +405,5 @@ def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool
     return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=s["seed"],
                      cycles=cycles, duration=s["duration"], sample_rate=s["sample_rate"], chunk=s["chunk"],
                      mode=s["mode"], max_time=max_time, max_time_given=s["max_time"] is not None, transducers=tuple(transducers), device=device, can=can,
-                     serial=serial, recording=recording, fidelity=choose(scene, str(s["plant"]), fidelity) if choose_level else None)
+                     serial=serial, recording=recording,
+                     fidelity=choose(scene, str(s["plant"]), fidelity) if choose_level else None)

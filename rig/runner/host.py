@@ -127,9 +127,8 @@ class Host:
         block = drain_block(self.bus, timeout)
         taken = 0
         for part in _pieces(block, WINDOW):
-            cut = self._cut()
-            if self.stops_listening and cut is not None:
-                past = int(np.argmax(part.timestamp > cut)) if np.any(part.timestamp > cut) else len(part)
+            if self.stops_listening and (cut := self._cut()) is not None:
+                past = int(np.searchsorted(np.maximum.accumulate(part.timestamp), cut, side="right"))
                 if past < len(part):              # nothing from the first frame past the cut on
                     self._past_cut = True
                     part = part.take(slice(0, past))

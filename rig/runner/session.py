@@ -427,8 +427,9 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
     device sends its status frames every heartbeat period of wall time; the run starts then, from device
     time 0, and ends when the host releases it (CAN ``Release`` command, sent when it has read
     everything); the links stay up until then, or ``release_timeout`` s after the scene's last cycle, which
-    is reported as an error. The machine waits for a host that does not read (:data:`SERVE_BACKLOG`), saying so after
-    :data:`SLOW_HOST` s and stopping with an error after ``release_timeout`` s. Frames are stamped in Unix time (:mod:`rig.runner.served`).
+    is reported as an error. The machine waits for a host that does not read (:class:`_HostRoom`), saying so after
+    :data:`SLOW_HOST` s and stopping with an error after ``release_timeout`` s. Frames are stamped in Unix time
+    (:mod:`rig.runner.served`).
     """
     cfg = _config(scene_path, cycles, mode, fidelity, classic_can="rig serve serves its bus")
     channel = f"rig-{uuid.uuid4().hex}"
@@ -436,31 +437,9 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
         wire = Anchored(bus)
         machine = Machine(cfg, wire)
         lock = threading.Lock()
-        clients: list[Any] = []             # each connection's bus: the frames it has not yet taken
-
-        def client_bus() -> can.BusABC:
-            clients.append(can.Bus(interface="blockbus", channel=channel))
-            return clients[-1]
-
-        waiting: dict[str, float] = {}      # wall time (monotonic) the machine began to wait for its hosts
-
-        def room(timeout: float) -> bool:   # the hosts' (connections that sent commands and read), not a passive
-            clients[:] = [c for c in clients if not c.closed]       # logger's; a command waiting (a Release) is
-            if bus.pending > 0 or all(c.wait_pending_below(SERVE_BACKLOG, timeout)   # taken at once, room or not
-                                      for c in list(clients) if c.sent and c.reading):
-                waiting.clear()
-                return True
-            began = waiting.setdefault("since", time.monotonic())
-            if time.monotonic() - began > release_timeout:
-                raise RunError(f"the host has not read for {release_timeout:g} s ({SERVE_BACKLOG} frames wait for it: "
-                               f"stalled or suspended): the served run stops at {machine.t:.3f} s of device time")
-            if time.monotonic() - began > SLOW_HOST and "said" not in waiting:
-                waiting["said"] = began
-                log.warning("waiting for the host to read: %d frames it has not taken (the machine computes on as it "
-                            "reads; it stops after --release-timeout %g s without)", SERVE_BACKLOG, release_timeout)
-            return False
+        room = _HostRoom(bus, channel, machine, release_timeout)
         server = SocketcandServer(channel=cfg.can["channel"], host=cfg.can["host"],
-                                  port=cfg.can["port"] if port is None else port, bus_factory=client_bus)
+                                  port=cfg.can["port"] if port is None else port, bus_factory=room.client_bus)
         serial_dev = (SerialDevice(machine.device, cfg.serial["port"], cfg.serial["baudrate"], cfg.serial["address"],
                                    lock=lock) if cfg.serial["enabled"] else None)
         try:
@@ -504,6 +483,45 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             if serial_dev is not None:
                 serial_dev.close()
     return machine
+
+
+class _HostRoom:
+    """A served machine's back-pressure: the connections' buses (:meth:`client_bus`, the server's bus factory), and,
+    on ``channel``, called with a timeout, whether its hosts (connections that sent a frame and read; not a passive logger) have room
+    for its next step — fewer than :data:`SERVE_BACKLOG` frames not taken —, or a command waits on the machine's
+    ``bus`` (a Release is taken at once). Waiting on, it says so after :data:`SLOW_HOST` s and raises
+    :class:`RunError` after ``limit`` s."""
+
+    def __init__(self, bus: Any, channel: str, machine: Machine, limit: float) -> None:
+        self.bus, self.channel, self.machine, self.limit = bus, channel, machine, limit
+        self.clients: list[Any] = []
+        self._lock = threading.Lock()       # the server's threads add clients while the machine's looks at them
+        self._since: float | None = None    # wall time (monotonic) the machine began to wait
+        self._said = False
+
+    def client_bus(self) -> can.BusABC:
+        client = can.Bus(interface="blockbus", channel=self.channel)
+        with self._lock:
+            self.clients.append(client)
+        return client
+
+    def __call__(self, timeout: float) -> bool:
+        with self._lock:
+            self.clients = [c for c in self.clients if not c.closed]
+            hosts = [c for c in self.clients if c.sent and c.reading]
+        if self.bus.pending > 0 or all(c.wait_pending_below(SERVE_BACKLOG, timeout) for c in hosts):
+            self._since, self._said = None, False
+            return True
+        now = time.monotonic()
+        self._since = now if self._since is None else self._since
+        if now - self._since > self.limit:
+            raise RunError(f"the host has not read for {self.limit:g} s ({SERVE_BACKLOG} frames wait for it: stalled "
+                           f"or suspended): the served run stops at {self.machine.t:.3f} s of device time")
+        if now - self._since > SLOW_HOST and not self._said:
+            self._said = True
+            log.warning("waiting for the host to read: %d frames it has not taken (the machine computes on as it "
+                        "reads; it stops after --release-timeout %g s without)", SERVE_BACKLOG, self.limit)
+        return False
 
 
 def _endpoints(cfg: RunConfig, server: SocketcandServer, serial_dev: SerialDevice | None) -> dict[str, Any]:

@@ -60,8 +60,7 @@ def check_units(scene: Scene, params: Sequence[Param]) -> None:
     """A :class:`UsageError` naming the ``--param`` whose value has no unit, or one of another dimension, where the
     scene writes that key with a unit (``plant.k = "1.68 N/mm"``): the value given, not the scene, is wrong; where the
     scene leaves the key to its default (does not write it), the values are compared in the unit of the first that has
-    one. A value given
-    twice (as written or in another unit) is refused: each point runs once."""
+    one. A value given twice (as written or in another unit) is refused: each point runs once."""
     for param in params:
         node: Any = scene.data
         for part in param.key.split("."):
