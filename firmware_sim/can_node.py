@@ -207,6 +207,8 @@ class CanNode:
         self.timing = BusTiming(float(bitrate), fd, None if data_bitrate is None else float(data_bitrate))
         self.db = load_dbc(str(dbc_path))
         self._msg = {m.name: m for m in self.db.messages}
+        self._stop_causes = {str(name): value for value, name in
+                             self._msg["TxStatus"].get_signal_by_name("StopCause").choices.items()}
         for m in self.db.messages:
             if "DEVICE" in m.senders and not any(s.name == "Seq" and s.start == 0 and s.length == 8 for s in m.signals):
                 raise ValueError(f"{dbc_path}: device frame {m.name} must start with the 8-bit Seq counter")
@@ -228,6 +230,8 @@ class CanNode:
         self.live_sent = 0
         self.clipped = 0                 # values saturated to the signal range
         self.frames_sent = 0
+        self.frames_discarded = 0        # queued frames a stopped run did not send (abort)
+        self.ended = False               # the run's last frame (TxStatus RunEnded) is queued: nothing follows
         self.busy_time = 0.0             # total wire time of sent frames (s)
         self.rx_errors: list[str] = []   # malformed or unexpected frames received
         self.curves_measured = 0
@@ -304,7 +308,8 @@ class CanNode:
     def counters(self) -> dict[str, float]:
         """What the node did: live pairs sent/dropped, clipped values, frames, bus load so far."""
         return {"live_sent": self.live_sent, "live_dropped": self.live_dropped, "live_stale": self.live_stale,
-                "clipped": self.clipped, "frames_sent": self.frames_sent, "busy_time": self.busy_time,
+                "clipped": self.clipped, "frames_sent": self.frames_sent,
+                "frames_discarded": self.frames_discarded, "busy_time": self.busy_time,
                 "bus_load": self.busy_time / self.now if self.now > 0 else 0.0,
                 "pending_frames": self.pending_frames, "backlog_time": self.backlog_time,
                 "rx_errors": len(self.rx_errors)}
@@ -450,8 +455,11 @@ class CanNode:
                 columns[signal] = np.rint(value / spec.scale).astype(np.int64) % (1 << spec.length)
         self._enqueue_rows(name, columns, t)
 
-    def publish_status(self, t: float, run_ended: bool = False) -> None:
-        """Queue a heartbeat, the status counters and the transmit-queue status at time ``t`` (s)."""
+    def publish_status(self, t: float, run_ended: bool = False, stop_cause: str = "Completed",
+                       backlog: float | None = None) -> None:
+        """Queue a heartbeat, the status counters and the transmit-queue status at time ``t`` (s); ``stop_cause``: a
+        ``StopCause`` choice of the DBC (with ``run_ended``), ``backlog``: the wire time (s) reported instead of the
+        queue's."""
         status = self.device.status()
         state, last = self.device.state_at(t)         # at t, which may lie inside the chunk just fed
         self._enqueue("Heartbeat", {
@@ -463,9 +471,10 @@ class CanNode:
         self._enqueue("StatusCounters", {"LiveDropped": self.live_dropped % (1 << 32),
                                          "CurveCount": self.curves_measured % 65536,
                                          "CurvesPending": min(self.curves_pending, 255)}, t)
-        self._enqueue("TxStatus", {"Backlog": min(int(round(self.backlog_time * 1000)), 65535),
+        backlog = self.backlog_time if backlog is None else backlog
+        self._enqueue("TxStatus", {"Backlog": min(int(round(backlog * 1000)), 65535),
                                    "LiveFactor": min(self.live_factor, 255), "LiveStale": self.live_stale % (1 << 24),
-                                   "RunEnded": int(run_ended)}, t)
+                                   "RunEnded": int(run_ended), "StopCause": self._stop_causes[stop_cause]}, t)
 
     # ------------------------------------------------------------------ host commands
     def handle_commands(self) -> int:
@@ -535,13 +544,36 @@ class CanNode:
             self._next_heartbeat += self.heartbeat_period
         return self._transmit(t)
 
-    def close(self, t: float) -> int:
-        """End of the run at time ``t`` (s): the final status (``RunEnded`` set), then everything still queued
-        goes on the wire; no heartbeat follows. Returns the number of frames sent."""
+    def close(self, t: float, cause: str = "Completed") -> int:
+        """End of the run at time ``t`` (s): the final status (``RunEnded`` set, ``StopCause`` ``cause``), then
+        everything still queued goes on the wire; no heartbeat follows. Returns the number of frames sent."""
         self.now = max(self.now, float(t))
         self._next_heartbeat = math.inf
-        self.publish_status(self.now, run_ended=True)
+        self.publish_status(self.now, run_ended=True, stop_cause=cause)
+        self.ended = True
         return self._transmit(self.now + self.backlog_time + 1.0)
+
+    def abort(self, cause: str) -> int:
+        """The run stops at :attr:`now` for ``cause`` (a ``StopCause`` choice of the DBC other than ``Completed``):
+        the unit discards what it still has queued (counted in :attr:`frames_discarded`, its live pairs in
+        :attr:`live_dropped`; its wire time is the final ``TxStatus.Backlog``) and sends its final status at once
+        (``RunEnded`` set, ``StopCause`` named); nothing follows. Nothing happens once the run has ended. Returns the
+        number of frames sent."""
+        if self.ended:
+            return 0
+        if cause not in self._stop_causes or cause == "Completed":
+            raise ValueError(f"unknown stop cause {cause!r} (the DBC's TxStatus.StopCause has "
+                             f"{', '.join(c for c in self._stop_causes if c != 'Completed')})")
+        backlog = self.backlog_time
+        q = self._queue.merged()
+        if q is not None:
+            self.frames_discarded += q.ready.size
+            self.live_dropped += int(q.pairs.sum())
+            self._queue.remove(q, np.ones(q.ready.size, bool))
+        self._next_heartbeat = math.inf
+        self.publish_status(self.now, run_ended=True, stop_cause=cause, backlog=backlog)
+        self.ended = True
+        return self._transmit(self.now + 1.0)
 
     def _transmit(self, t: float) -> int:
         """Send the queued frames that are complete on the wire by ``t`` (s), in arbitration order."""

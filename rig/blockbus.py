@@ -104,6 +104,12 @@ class FrameBlock:
         return [self.message(i, channel) for i in range(len(self))]
 
 
+def ids_out_of_range(ids: np.ndarray, extended: np.ndarray) -> np.ndarray:
+    """Which arbitration ids do not fit their frame's format (11-bit standard, 29-bit extended)."""
+    ids = np.asarray(ids, np.int64)
+    return (ids < 0) | (ids > np.where(np.asarray(extended, bool), 0x1FFFFFFF, 0x7FF))
+
+
 def frames_of(received: Iterable[FrameBlock | can.Message]) -> FrameBlock:
     """One block of what a receiver got, blocks and single messages mixed, in order."""
     blocks, singles = [], []
@@ -140,6 +146,7 @@ class BlockBus(can.BusABC):
         self._open = True
         self.sent = 0                      # frames this bus has sent
         self.reading = False               # something has asked it for frames (a consumer is there)
+        self.dropped = 0                   # frames dropped unread (overflow)
         self._ready = threading.Condition(threading.Lock())     # notified on arrivals, takes and shutdown
         with _channels_lock:
             _channels.setdefault(self._channel, []).append(self)
@@ -176,6 +183,20 @@ class BlockBus(can.BusABC):
         bounds what waits between them (the served machine's back-pressure)."""
         with self._ready:
             return self._ready.wait_for(lambda: self._pending < frames or not self._open, timeout)
+
+    def overflow(self, keep: int) -> int:
+        """Drop the oldest waiting frames, whole blocks, while more than ``keep`` would still wait after the block (a
+        receiver that does not read, as a CAN interface's receive queue overflows); how many were dropped, also
+        added to :attr:`dropped`."""
+        gone = 0
+        with self._ready:
+            while self._rx and self._pending - (len(self._rx[0]) - self._head) >= keep:
+                n = len(self._rx.popleft()) - self._head
+                self._head, self._pending, gone = 0, self._pending - n, gone + n
+            if gone:
+                self.dropped += gone
+                self._ready.notify_all()
+        return gone
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self.send_block(FrameBlock.of_messages([msg]))

@@ -352,10 +352,11 @@ def cmd_export_can(args: argparse.Namespace) -> int:
     print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
           f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}{_created(new_folder)}")
     if e.lost:
-        logging.getLogger("rig").warning("the recording is cut or damaged, the trace holds the frames that read "
-                                         "(damaged parts skipped, as `rig report --partial` skips them): %s; its last "
-                                         "frame is at %.6f s of simulation time: what the run sent after it (a killed "
-                                         "run's chunk not yet written) is not in the file", e.lost, e.t_last)
+        logging.getLogger("rig").warning(
+            "the recording is cut or damaged, the trace holds the frames that read (damaged parts skipped, as `rig "
+            "report --partial` skips them): %s; its last frame is at %.6f s of simulation time%s", e.lost, e.t_last,
+            ": what the run sent after it (a killed run's chunk not yet written) is not in the file" if e.tail_lost
+            else " (the file was read to its end: only what the parts named held is missing)")
     return 0
 
 

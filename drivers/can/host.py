@@ -61,10 +61,22 @@ class _Rx(NamedTuple):
     is_fd: bool = False
 
 
+#: what each ``TxStatus.StopCause`` of a run that did not complete means (docs/can-protocol.md)
+STOP_CAUSES = {
+    "OperatorStop": "the unit's operator stopped it (Ctrl-C or SIGTERM on its rig serve)",
+    "HostLeft": "the host that started the run disconnected without releasing the unit",
+    "HostStalled": "the host stopped reading its frames and the unit waited for it in vain",
+    "BusOverload": "the CAN bus cannot carry the curves the unit measures (its scene's [links.can])",
+    "OutOfTime": "the scene's cycles were not complete by its max_time (its queue was sent)",
+    "Fault": "the simulated machine could not go on (its console names the error)",
+}
+
+
 @dataclass(frozen=True)
 class LinkEvent:
     """Something wrong on the link: ``kind`` is one of sequence_gap, unknown_frame, bad_length,
-    decode_error, error_frame, curve, result; ``count`` = frames (or pairs, or missing values) concerned."""
+    decode_error, error_frame, curve, result, run_stopped; ``count`` = frames (or pairs, or missing values)
+    concerned (run_stopped: the unit's run ended other than complete, the detail names its StopCause)."""
 
     time: float
     kind: str
@@ -127,6 +139,9 @@ class CanHost:
         self.status: dict[str, Any] = {}
         self.counters: dict[str, int] = {}
         self.run_ended = False        # the device's last frame of the run (TxStatus RunEnded) has arrived
+        self.stop_cause = ""          # then why its run ended: a TxStatus.StopCause choice ("Completed", ...)
+        self._stop_causes = {value: str(name) for value, name in
+                             self.db.get_message_by_name("TxStatus").get_signal_by_name("StopCause").choices.items()}
         self.drop_period = 1.0        # s of device time between two reports of dropped live pairs
         self.drop_reports: list[dict[str, float]] = []   # not yet taken (see take_drop_reports)
         self._drops_reported, self._drops_at = 0, -float("inf")
@@ -343,6 +358,14 @@ class CanHost:
     def _tx_status(self, msg, spec, raw) -> None:
         self.counters.update({"backlog": raw["Backlog"] * spec.get_signal_by_name("Backlog").scale,
                               "live_factor": raw["LiveFactor"], "live_stale": raw["LiveStale"]})
+        if raw["RunEnded"] and not self.run_ended:
+            self.stop_cause = self._stop_causes.get(raw["StopCause"], f"unknown ({raw['StopCause']})")
+            if self.stop_cause != "Completed":
+                backlog = raw["Backlog"] * spec.get_signal_by_name("Backlog").scale
+                self._event(msg, "run_stopped", 0, f"{self.stop_cause}: "
+                            f"{STOP_CAUSES.get(self.stop_cause, 'a cause this host does not know')}" + (
+                                "" if self.stop_cause == "OutOfTime" else "; what the unit still had queued was not "
+                                f"sent (its wire time {backlog:.3f} s)"))
         self.run_ended = self.run_ended or bool(raw["RunEnded"])
         if self.counters.get("live_dropped", 0) != self._drops_reported and (
                 self.run_ended or self._device_time - self._drops_at >= self.drop_period):

@@ -57,7 +57,9 @@ def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3, bot
                         wspace=wspace, hspace=hspace)
     separate_labels(fig)
     fig.savefig(path, dpi=DPI)
-    fig.clear()         # its lines (and their data) go now, not when the garbage collector next meets the figure's cycles
+    for ax in fig.axes:     # its drawn data go now, not when the garbage collector next meets the figure's cycles
+        for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.images]:
+            artist.remove()     # (fig.clear() made every axes anew, ticks and all: 0.1 s per figure)
     return path
 
 

@@ -204,6 +204,9 @@ def verdict(ctx: ReportContext) -> list[Block]:
     caveat = rec.metadata.get("rig", {}).get("fidelity_caveat")
     if caveat:                            # a forced model level below what the scene asks (rig.fidelity)
         blocks.append(Text(f"Model level: {caveat}.", "warning"))
+    truth = rec.metadata.get("rig", {}).get("truth_caveat")
+    if truth:                             # per-cycle variation: the truth and theory are the nominal machine's
+        blocks.append(Text(f"Truth and theory: {truth}."))
     for program, s in a["sets"].items():
         table = _capability_table(s["values"])
         label = f"program {program}" if len(a["sets"]) > 1 else "the process"
@@ -523,6 +526,9 @@ EVENT_MEANING = {
     "result_missing": "a curve whose result did not arrive",
     "verdict_mismatch": "the host's re-evaluation of a curve differs from the device's verdict",
     "interrupted": "the run stopped early",
+    "run_stopped": "the unit ended its run before it was complete and said why (TxStatus.StopCause: its operator "
+                   "stopped it, its host left or stalled, the bus could not carry the curves, the scene's max_time, a "
+                   "fault of the simulated machine)",
     "run_short": "the served machine ended its run before this host had recorded the scene's cycles or duration",
     "not_recorded": "the served machine went on after the curves this host was asked to record (rig record --cycles); "
                     "the later ones are in /can/raw only",

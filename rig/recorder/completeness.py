@@ -49,6 +49,22 @@ def file_problem(rec: Recording) -> str:
     return "file damaged" + ("" if rec.read_to_data_end or rec.data_whole else f" and {cut}")
 
 
+def all_counted(rec: Recording) -> bool:
+    """Whether the file's run end record (written when the recorder closed) counts exactly the messages read, with
+    no part lost: a file cut just after its last chunk lacks only its index (summary, footer)."""
+    try:
+        written = int(rec.end.get("messages", ""))
+    except ValueError:
+        return False
+    return not rec.lost and written == sum(rec.message_counts.values())
+
+
+def tail_lost(rec: Recording) -> bool:
+    """Whether messages after the last one read may be missing (reading stopped at a cut before the data end, and
+    the run's end record does not show that everything was read)."""
+    return rec.truncated and not rec.read_to_data_end and not rec.data_whole and not all_counted(rec)
+
+
 def losses(rec: Recording) -> list[str]:
     """Sentences naming why ``rec`` is incomplete and what it lacks; [] for a complete recording."""
     if rec.complete:
@@ -57,6 +73,9 @@ def losses(rec: Recording) -> list[str]:
     if rec.truncated and rec.data_whole:
         out.append("nothing of the run is lost: every message up to the file's data end was read"
                    + ("" if rec.end else "; the run's end record is not in it"))
+    elif rec.truncated and all_counted(rec):
+        out.append(f"nothing of the run is lost: its end record counts {rec.end['messages']} messages and all were "
+                   "read; the file lacks only its index after the data (summary, footer)")
     elif rec.truncated and rec.read_to_data_end:
         out.append(f"lost: only what the damaged part{'s' if len(rec.lost) > 1 else ''} named above held; every "
                    "other record up to the file's data end was read"

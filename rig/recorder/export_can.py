@@ -28,7 +28,8 @@ format  time       direction  FD, BRS, ESI        channel                  error
 ======  =========  =========  ==================  =======================  =======================
 
 Channel numbers count 1, 2, ... in the order the recorded names first appear (one bus: 1; python-can's ASC and
-BLF readers return it less 1); without recorded names the ``.log`` gets python-can's default ``vcan0``.
+BLF readers return it less 1); without recorded names (or with empty ones) the ``.log`` gets python-can's default
+``vcan0``, and a name with white space (no candump interface has one) is refused with an error.
 """
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ import queue
 import struct
 import threading
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol
@@ -56,7 +57,9 @@ from zstandard import ZstdError
 from mcap.reader import NonSeekingReader, make_reader
 from mcap.records import Metadata
 
+from rig.blockbus import ids_out_of_range
 from rig.recorder import schemas as S
+from rig.recorder.completeness import tail_lost
 from rig.recorder.reader import Recording, RecordingError, require_whole_file, stage_chunk
 from rig.recorder.salvage import DataSectionReader, plain
 
@@ -145,7 +148,7 @@ def _decode(block: Any, where: str, buses: dict[str, int], last: float) -> Frame
            "time not finite, negative or before the previous frame": ~np.isfinite(f.t) | (f.t < 0)
            | (np.diff(f.t, prepend=last) < 0),
            "id out of range (11-bit standard, 29-bit extended)":
-               (f.id < 0) | (f.id > np.where(f.extended, 0x1FFFFFFF, 0x7FF)),
+               ids_out_of_range(f.id, f.extended),
            "data length not a CAN (0-8) or CAN FD length": np.where(f.fd, ~np.isin(length, CAN_FD_DLC), length > 8)}
     for problem, rows in bad.items():
         if rows.any():
@@ -218,7 +221,8 @@ class _Cancelled(BaseException):
 
 class _FrameCollector:
     """The salvage reader's collector for an export: the ``/can/raw`` blocks of each chunk decoded and checked, all or
-    none (a chunk with a malformed block is a lost part, named), handed on one block at a time; nothing else is kept.
+    none (a chunk with a malformed block is a lost part, named), handed on one block at a time; of the rest only the
+    messages per topic are counted.
     ``start``: the run's wall-clock start (s since 1970): the ``rig`` metadata's, else the first block's log time
     less its first frame's simulation time."""
 
@@ -255,7 +259,9 @@ class _FrameCollector:
         for record, topic, frames in staged:
             if topic is None:                   # its channel was defined in a part of the file that was lost
                 self.orphans[record.channel_id] += 1
-            elif frames is not None and len(frames):
+                continue
+            self.rec.message_counts[topic] = self.rec.message_counts.get(topic, 0) + 1   # (the run's end record
+            if frames is not None and len(frames):                                       # counts them all)
                 if not self.start:
                     self.start = record.log_time / 1e9 - float(frames.t[0])
                 self._hand_on(frames)
@@ -280,6 +286,11 @@ class Salvage:
     @property
     def start(self) -> float:
         return self._collector.start
+
+    @property
+    def recording(self) -> Recording:
+        """What was read of the file (after :meth:`blocks` is exhausted; its frames are not kept)."""
+        return self._collector.rec
 
     @property
     def empty(self) -> bool:
@@ -399,6 +410,20 @@ class _Log(_PythonCan):
 
     def __init__(self, out: Path, start: float):
         super().__init__(can.CanutilsLogWriter(out))
+        self.shown = out
+
+    def write(self, frames: Frames) -> None:
+        """A name with white space cannot be a candump interface (its reader splits lines at spaces: the file
+        would not read back); an empty name is none (python-can's default ``vcan0``)."""
+        if frames.channel is not None:
+            spaced = next((c for c in frames.channel if any(ch.isspace() for ch in c)), None)
+            if spaced is not None:
+                raise ValueError(f"{self.shown}: the recording's CAN channel {spaced!r} has white space, which a "
+                                 "candump .log cannot hold (its interface names are single words); export to .asc, "
+                                 ".blf, .trc or .mf4, which number the channels")
+            if "" in frames.channel:
+                frames = replace(frames, channel=[c or None for c in frames.channel])
+        super().write(frames)
 
 
 class _Trc(_PythonCan):
@@ -472,6 +497,7 @@ class Export:
     t_first: float
     t_last: float
     lost: str = ""      # partial: what the recording lacks, its lost parts first ("" = nothing)
+    tail_lost: bool = False     # partial: frames after the last one exported may be missing (a cut before them)
 
 
 def export_can(recording: str | Path, out: str | Path, partial: bool = False) -> Export:
@@ -526,4 +552,4 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
             part.unlink(missing_ok=True)
             raise
     return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last,
-                  "; ".join(salvage.problems) if partial else "")
+                  "; ".join(salvage.problems) if partial else "", partial and tail_lost(salvage.recording))

@@ -11,7 +11,7 @@ WARNING_KINDS = frozenset({"sequence_gap", "unknown_frame", "bad_length", "decod
                            "run_short", "curve_clipped", "input_overrange", "encoder_illegal", "curves_in_one_cycle",
                            "not_recorded", "verdict_mismatch", "statistics_not_read",
                            "follower_lift", "cam_stalled", "motor_below_load"})
-ERROR_KINDS = frozenset({"interrupted"})
+ERROR_KINDS = frozenset({"interrupted", "run_stopped"})
 
 
 def level(kind: str) -> int:

@@ -24,7 +24,7 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 import rig
-from rig.blockbus import BRS, ERROR, ESI, EXTENDED, FD, RX, FrameBlock, frames_of
+from rig.blockbus import BRS, ERROR, ESI, EXTENDED, FD, REMOTE, RX, FrameBlock, frames_of, ids_out_of_range
 from rig.recorder import schemas as S
 from rig.recorder.encoding import ENCODINGS, NULLS, dumps, dumps_message, dumps_rows, encode_array, encode_block
 from rig.recorder.log import log_message
@@ -299,11 +299,22 @@ class Recorder:
     def write_can_frames(self, frames: FrameBlock | Iterable[Any], channel: str = "") -> None:
         """Raw CAN frames on ``channel`` (``/can/raw``): a :class:`rig.blockbus.FrameBlock`, python-can
         ``Message`` objects or ``(t, id, data, is_fd)`` tuples. Direction from the RX flag (``rx`` when set,
-        ``tx``: sent by the host); flags FD, BRS, ESI, EXTENDED, ERROR as columns."""
+        ``tx``: sent by the host); flags FD, BRS, ESI, EXTENDED, ERROR as columns; every frame on ``channel`` (a
+        message's own ``channel`` is not read). An id that does not fit its format, or a remote (RTR) frame (the
+        schema has no RTR flag; the rig's links carry none), is a ValueError naming the frame: nothing of the call
+        is written."""
         if not isinstance(frames, FrameBlock):
             frames = frames_of(f if hasattr(f, "arbitration_id") else can.Message(
                 timestamp=float(f[0]), arbitration_id=int(f[1]), data=bytes(f[2]), is_fd=bool(f[3]),
                 is_extended_id=int(f[1]) > 0x7FF, check=False) for f in frames)
+        flags = frames.flags
+        for problem, rows in (("id out of range (11-bit standard, 29-bit extended)",
+                               ids_out_of_range(frames.arbitration_id, (flags & EXTENDED) != 0)),
+                              ("a remote (RTR) frame, which /can/raw cannot hold", (flags & REMOTE) != 0)):
+            if rows.any():
+                k = int(np.flatnonzero(rows)[0])
+                raise ValueError(f"{S.CAN_RAW}: frame {k} of {len(frames)} at t = {frames.timestamp[k]} s, id "
+                                 f"0x{int(frames.arbitration_id[k]):X}: {problem}; none of these frames is written")
         t = frames.timestamp.astype(float)
         if t.size:
             late = np.flatnonzero(np.diff(np.concatenate([[self._can_last], t])) < 0)
@@ -316,7 +327,6 @@ class Recorder:
             self._can_last = float(t[-1])
             self._data_end = max(self._data_end, self._can_last)
         n = len(frames)
-        flags = frames.flags
         part = {"t": t, "id": frames.arbitration_id.astype(np.int64), "dir": np.where((flags & RX) != 0, "rx", "tx"),
                 "channel": np.full(n, str(channel)),
                 **{name: (flags & bit) != 0 for name, bit in (("is_fd", FD), ("brs", BRS), ("esi", ESI),

@@ -215,6 +215,12 @@ class RunConfig:
         return 1.0 / self.sample_rate
 
     @property
+    def truth_caveat(self) -> str:
+        """What the recorded truth is not (empty: it is the plant's): :func:`rig.runner.plants.truth_caveat`."""
+        from rig.runner.plants import truth_caveat
+        return truth_caveat(self.plant, self.scene)
+
+    @property
     def chunk_samples(self) -> int:
         """Samples the machine advances per step (``chunk`` at ``sample_rate``; at least 2)."""
         return max(2, round(self.chunk * self.sample_rate))
@@ -382,6 +388,9 @@ def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool
                          f"{can['bitrate']} bit/s (the data phase is the faster one)")
     _check_period(can["tx_period"], s["chunk"], s["sample_rate"], cw, where)
     _of_type(can["channel"], str, "channel", cw, "a string")
+    if not can["channel"] or any(ch.isspace() for ch in can["channel"]):
+        raise SceneError(f"{cw}: key 'channel' must be a name without white space, like a CAN interface's (can0, "
+                         f"vcan0, rig); got {can['channel']!r}")
     _of_type(can["host"], str, "host", cw, "a host name or address")
     if can["interface"] not in IN_PROCESS_INTERFACES:
         raise SceneError(f"{cw}: key 'interface' must be one of {IN_PROCESS_INTERFACES} "

@@ -267,14 +267,16 @@ class Machine:
         self.node.advance_to(float(t[b - 1]))
         self.t = float(t[b - 1])
 
-    def flush(self, limit: float = 60.0, pace: Callable[[float], object] = lambda t: None) -> None:
+    def flush(self, limit: float = 60.0, pace: Callable[[float], object] = lambda t: None,
+              cause: str = "Completed") -> None:
         """End the run: let the node send everything still queued (results of the last curve) in virtual
-        time, then close it (final status with ``RunEnded``; nothing follows it on the wire). ``pace(t)`` after
-        each chunk (real-time mode: the bus drains its backlog on the wall clock too)."""
+        time, then close it (final status with ``RunEnded`` and ``cause``, a ``StopCause`` of the DBC; nothing follows
+        it on the wire). ``pace(t)`` after each chunk (real-time mode: the bus drains its backlog on the wall clock
+        too)."""
         t_start, t_end = self.t, self.t + limit
         step = min(self.cfg.chunk, FLUSH_STEP)
         while self.node.has_pending_before(t_start) and self.t < t_end:   # later heartbeats need not wait
             self.t += step
             self.node.advance_to(self.t)
             pace(self.t)
-        self.node.close(self.t)
+        self.node.close(self.t, cause)

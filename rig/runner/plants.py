@@ -52,6 +52,27 @@ PLANT_SECTIONS: dict[str, tuple[str, ...]] = {
     "clutch_static": ("plant", "program"), "lab_bench": ("plant", "speed", "lab")}
 
 
+def _cam_bar_drawn(scene: Scene) -> list[str]:
+    from rig.plants.cam_bar.scene_io import drawn_per_cycle
+    return drawn_per_cycle(scene)
+
+
+#: what a plant's scene draws per cycle on the device's plant only (the host's theory is the nominal machine)
+DRAWN_PER_CYCLE: dict[str, Callable[[Scene], list[str]]] = {"cam_bar": _cam_bar_drawn}
+
+
+def truth_caveat(kind: str, scene: Scene) -> str:
+    """What a run's recorded truth is not, for a plant of ``kind`` built from ``scene`` (empty: it is the plant's).
+    The host records its theory, the nominal machine (:func:`make_plant` ``nominal``), as the truth; per-cycle
+    variation acts on the device's plant only, so with it the truth is not what the measured curves came from."""
+    drawn = DRAWN_PER_CYCLE.get(kind, lambda s: [])(scene)
+    if not drawn:
+        return ""
+    return (f"/plant/truth and the plant events are the nominal machine's (the host's theory): [plant.variation] "
+            f"draws {', '.join(drawn)} per cycle on the device's plant only, so the measured curves scatter about them "
+            "(and a fidelity level chosen on the nominal machine may miss flank switches only a varied cycle makes)")
+
+
 def make_plant(kind: str, scene: Scene, nominal: bool = False, fidelity: Fidelity | None = None) -> Any:
     """A fresh plant of ``kind`` built from ``scene`` (each call gives an independent instance);
     ``nominal`` leaves out the scene's per-cycle variation (the theory the host compares against);

@@ -26,6 +26,7 @@ from firmware_sim.socketcand_server import SocketcandServer
 from rig.numba_clock import compile_seconds, watch
 from rig.recorder import Recorder
 from rig.recorder.writer import interruption
+from drivers.can.host import STOP_CAUSES
 from firmware_sim.can_node import BusOverload
 from rig.runner.config import RunConfig, default_max_time, read_config
 from rig.runner.host import Host
@@ -38,17 +39,42 @@ from rig.stops import terminated
 log = logging.getLogger(__name__)
 SERVE_BACKLOG = 20_000   # frames a served machine may have sent that its host's connection has not yet taken (~2.5 s
 #                          of a saturated 1 Mbit/s bus); beyond, it waits for its host (TCP's buffers hold more)
+LISTENER_BACKLOG = 200_000   # frames held for a connection that does not hold the machine back (a logger that only
+#                              listens) and does not read: beyond, its oldest are dropped (a receive queue's overflow)
 SERVE_DRAIN = 10.0      # s a served machine stopped by an error waits for what it sent to be sent to its hosts
 SLOW_HOST = 10.0        # s of waiting for a host that does not read before the served machine says so
 QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
 
 
 class RunError(RuntimeError):
-    """A run could not complete (the machine did not produce what the scene asks for in time)."""
+    """A run could not complete (the machine did not produce what the scene asks for in time). ``stop_cause``: the
+    ``TxStatus.StopCause`` the unit sends when this stops its run (its hosts learn why)."""
+
+    stop_cause = "Fault"
 
 
 class OutOfTime(RunError):
     """The scene's cycles were not complete by its ``max_time`` of simulated time."""
+
+    stop_cause = "OutOfTime"
+
+
+class HostLeft(RunError):
+    """The served host disconnected without releasing the device."""
+
+    stop_cause = "HostLeft"
+
+
+class HostStalled(RunError):
+    """The served host stopped reading (the machine waited for it in vain)."""
+
+    stop_cause = "HostStalled"
+
+
+class BusTooSlow(RunError):
+    """The scene's CAN link cannot carry what the unit measures."""
+
+    stop_cause = "BusOverload"
 
 
 class Interrupted(KeyboardInterrupt):
@@ -216,6 +242,13 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
     try:
         with deferred_interrupt() as check:
             return _steps(cfg, machine, lock, bar, after_step, host_gone, pace, check, room)
+    except OutOfTime:               # the run ends as a complete one (its queue sent), its last status saying why
+        with lock:
+            machine.flush(cause=OutOfTime.stop_cause)
+        raise
+    except BaseException as exc:    # the unit stops sending and says why (every host records it)
+        _abort(machine, lock, exc)
+        raise
     finally:
         _show(bar, cfg, machine.curves, machine.t, force=True)
         pace.finish()
@@ -236,11 +269,11 @@ def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
             except BusOverload as exc:
                 burst, held = machine.cycle_curves, cfg.can["tx_curves"]
                 if burst >= held:          # the cycle, not the bus: its curves all ended before any could leave
-                    raise RunError(f"{cfg.scene.path} [links.can]: tx_period = {cfg.can['tx_period']:g} s is too long "
+                    raise BusTooSlow(f"{cfg.scene.path} [links.can]: tx_period = {cfg.can['tx_period']:g} s is too long "
                                    f"for the bus: one transmit cycle of the unit measured {burst} curves at once, as "
                                    f"many as it holds for sending (tx_curves = {held}); shorten tx_period (e.g. "
                                    "\"100 ms\") so that each curve is sent as it ends") from None
-                raise RunError(f"{cfg.scene.path} [links.can]: {exc}") from None
+                raise BusTooSlow(f"{cfg.scene.path} [links.can]: {exc}") from None
         if gone and not machine.node.released:
             raise _host_left(machine, "during the run")
         after_step()
@@ -251,6 +284,18 @@ def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
         ended = machine.t
         machine.flush(pace=lambda t: (check(), pace(t)))    # realtime: up to a minute of pacing, Ctrl-C taken
         return machine.t - ended
+
+
+def _abort(machine: Machine, lock: threading.Lock, exc: BaseException) -> None:
+    """The machine's run stopped by ``exc``: its unit discards what it still has queued and sends its final status,
+    ``StopCause`` naming why (Ctrl-C or SIGTERM: ``OperatorStop``; a :class:`RunError`: its ``stop_cause``; any other
+    error: ``Fault``). A failure doing so is a warning: the stop goes on with its own error."""
+    cause = "OperatorStop" if isinstance(exc, KeyboardInterrupt) else getattr(exc, "stop_cause", RunError.stop_cause)
+    try:
+        with lock:
+            machine.node.abort(cause)
+    except Exception as err:  # noqa: BLE001 - the stop's own error is what the user needs
+        log.warning("the unit could not send its final status (%s: %s)", type(err).__name__, err)
 
 
 def _wait_for_go(machine: Machine, timeout: float, idle: Callable[[], None] = lambda: None,
@@ -270,7 +315,7 @@ def _wait_for_go(machine: Machine, timeout: float, idle: Callable[[], None] = la
 
 
 def _host_left(machine: Machine, when: str) -> RunError:
-    return RunError(f"the host disconnected {when} without releasing the device ({machine.curves} curves served, "
+    return HostLeft(f"the host disconnected {when} without releasing the device ({machine.curves} curves served, "
                     f"{machine.t:.3f} s of device time); stopping")
 
 
@@ -279,7 +324,7 @@ def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
             "run_mode": mode, "software_version": rig.__version__, "sample_rate": cfg.sample_rate,
             "cycles": cfg.cycles, "duration": cfg.duration, "fidelity_level": cfg.fidelity.level,
             "fidelity_reason": cfg.fidelity.reason, "method": cfg.fidelity.method_text,
-            "fidelity_caveat": cfg.fidelity.caveat}
+            "fidelity_caveat": cfg.fidelity.caveat, "truth_caveat": cfg.truth_caveat}
 
 
 def _units(cfg: RunConfig) -> dict[str, dict[str, str]]:
@@ -371,6 +416,8 @@ def run_scene(scene_path: str | Path, output: str | Path, *, cycles: int | None 
     """Run machine and host in one process: CAN on python-can's ``virtual`` interface, serial on a pty."""
     watch()
     cfg = _config(scene_path, cycles, mode, fidelity)
+    if cfg.truth_caveat:                # (in the recording's metadata and its report too)
+        log.info("%s", cfg.truth_caveat)
     output = Path(output)
     channel = f"rig-{uuid.uuid4().hex}"
     wall = time.perf_counter()
@@ -464,14 +511,13 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
             with _progress(cfg, progress) as bar:
                 try:
                     _drive(cfg, machine, lock, bar, lambda: None, gone, room)
-                except OutOfTime as exc:    # e.g. a host driving a program started by command: end the run as usual
-                    log.warning("%s; the served run ends here: RunEnded sent, the links stay up until the host "
-                                "releases the device", exc)
-                    with lock:
-                        machine.flush()
-                except RunError:            # a run that cannot go on: what was sent is sent to the hosts before
-                    if not server.drain(SERVE_DRAIN):   # the links close (as `rig run` records what is on the wire)
-                        log.warning("not every frame sent reached the hosts' connections within %g s", SERVE_DRAIN)
+                except OutOfTime as exc:    # e.g. a host driving a program started by command: the run ends as
+                    log.warning("%s; the served run ends here: RunEnded sent (StopCause OutOfTime), the links stay "
+                                "up until the host releases the device", exc)       # usual (its queue sent)
+                except BaseException:       # an error, Ctrl-C, SIGTERM: the unit's last status (its StopCause) and
+                    if not server.drain(SERVE_DRAIN):   # what it sent reach the hosts before the links close (as
+                        log.warning("not every frame sent reached the hosts' connections within %g s",   # `rig run`
+                                    SERVE_DRAIN)                                   # records what is on the wire)
                     raise
             if machine.node.released and not _machine_done(cfg, machine):
                 log.warning("the host released the device after %d curves (%.3f s of device time), before the end "
@@ -479,6 +525,8 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                             f"{cfg.cycles} cycles" if cfg.cycles is not None else f"{cfg.duration:g} s")
             _wait_for_release(machine, lock, release_timeout, gone)
         finally:
+            if room.dropped:
+                log.warning("%d frames were dropped for connections that listened and did not read", room.dropped)
             server.stop()
             if serial_dev is not None:
                 serial_dev.close()
@@ -490,11 +538,14 @@ class _HostRoom:
     on ``channel``, called with a timeout, whether its hosts (connections that sent a frame and read; not a passive logger) have room
     for its next step — fewer than :data:`SERVE_BACKLOG` frames not taken —, or a command waits on the machine's
     ``bus`` (a Release is taken at once). Waiting on, it says so after :data:`SLOW_HOST` s and raises
-    :class:`RunError` after ``limit`` s."""
+    :class:`RunError` after ``limit`` s. A connection that does not hold it back and does not read (a logger that
+    stopped) keeps at most :data:`LISTENER_BACKLOG` frames: its oldest are dropped beyond, counted in
+    :attr:`dropped` and said once per connection, as a CAN interface's receive queue overflows."""
 
     def __init__(self, bus: Any, channel: str, machine: Machine, limit: float) -> None:
         self.bus, self.channel, self.machine, self.limit = bus, channel, machine, limit
         self.clients: list[Any] = []
+        self.dropped = 0                    # frames dropped for listeners that did not read
         self._lock = threading.Lock()       # the server's threads add clients while the machine's looks at them
         self._since: float | None = None    # wall time (monotonic) the machine began to wait
         self._said = False
@@ -509,14 +560,22 @@ class _HostRoom:
         with self._lock:
             self.clients = [c for c in self.clients if not c.closed]
             hosts = [c for c in self.clients if c.sent and c.reading]
+            listeners = [c for c in self.clients if not (c.sent and c.reading)]
+        for c in listeners:
+            gone = c.overflow(LISTENER_BACKLOG)
+            if gone and c.dropped == gone:
+                log.warning("a connection that only listens does not read: its oldest frames beyond %d are dropped "
+                            "(as a CAN interface's receive queue overflows; its logger sees Seq gaps); the run goes on",
+                            LISTENER_BACKLOG)
+            self.dropped += gone
         if self.bus.pending > 0 or all(c.wait_pending_below(SERVE_BACKLOG, timeout) for c in hosts):
             self._since, self._said = None, False
             return True
         now = time.monotonic()
         self._since = now if self._since is None else self._since
         if now - self._since > self.limit:
-            raise RunError(f"the host has not read for {self.limit:g} s ({SERVE_BACKLOG} frames wait for it: stalled "
-                           f"or suspended): the served run stops at {self.machine.t:.3f} s of device time")
+            raise HostStalled(f"the host has not read for {self.limit:g} s ({SERVE_BACKLOG} frames wait for it: "
+                              f"stalled or suspended): the served run stops at {self.machine.t:.3f} s of device time")
         if now - self._since > SLOW_HOST and not self._said:
             self._said = True
             log.warning("waiting for the host to read: %d frames it has not taken (the machine computes on as it "
@@ -624,6 +683,10 @@ def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], i
         check()
         if host.poll(0.05):
             last = time.monotonic()
+        elif host.can.run_ended and host.can.stop_cause not in ("Completed", "OutOfTime"):
+            raise RunError(f"the served machine at {where} stopped its run ({host.can.stop_cause}: "
+                           f"{STOP_CAUSES.get(host.can.stop_cause, 'a cause this host does not know')}) after "
+                           f"{host.curves_recorded} curves recorded (kept in {output}, its run_stopped event)")
         elif host.can.run_ended:       # the served run is shorter than this scene's: keep what it sent
             host.poll(0.05)
             lost = host.curves_incomplete

@@ -106,6 +106,22 @@ def test_block_bus_delivers_blocks_and_single_frames_to_every_other_bus():
         assert [m.arbitration_id for m in drain(b)] == [0, 1, 2, 3, 4] and a.recv(0) is None
 
 
+def test_a_block_bus_that_is_not_read_drops_its_oldest_blocks_beyond_what_it_keeps():
+    """overflow(): a receiver that does not read keeps at most about ``keep`` frames (whole blocks, the newest), the
+    rest counted as dropped; what it then reads is the newest frames in order."""
+    channel = f"blockbus-{next(_channels)}"
+    with can.Bus(interface="blockbus", channel=channel) as tx, can.Bus(interface="blockbus", channel=channel) as rx:
+        for k in range(10):                       # ten blocks of 100 frames, ids 100k..100k+99
+            tx.send_block(FrameBlock.of_messages([can.Message(timestamp=k + i * 1e-3, arbitration_id=100 * k + i,
+                                                              is_extended_id=True) for i in range(100)]))
+        first = rx.recv(0)                        # one frame of the first block taken: its rest waits
+        assert first.arbitration_id == 0 and rx.pending == 999
+        assert rx.overflow(1000) == 0 and rx.overflow(250) == 699 and rx.dropped == 699 and rx.pending == 300
+        assert rx.overflow(300) == 0              # 300 - 100 < 300: the oldest block stays
+        ids = [m.arbitration_id for m in drain(rx)]
+        assert ids == list(range(700, 1000)) and rx.pending == 0
+
+
 def _frames(fd: bool, seed: int) -> list[can.Message]:
     """Traffic of a node: live data, two curves, heartbeats, with damage: a lost frame, a wrong length, an
     error frame, an unknown id, a curve block without its header."""

@@ -529,3 +529,39 @@ def test_encoder_counts_unwrap_past_24_bits_and_carry_the_cards_illegal_transiti
         host.poll()
     rows = host.take_readings()["counters"]
     assert [r[2] for r in rows] == counts and [r[4] for r in rows] == illegal
+
+
+def test_a_stopped_run_discards_its_queue_and_its_last_status_says_why(buses, device, rng, elements, make_curve):
+    """abort(): the unit stops sending what it has queued (counted, its wire time in the final Backlog) and sends
+    its final status at once: RunEnded with the StopCause named, read with cantools and the DBC alone; the host
+    makes it a run_stopped event naming the cause. Nothing follows, and a second stop or an unknown cause is not
+    sent."""
+    import cantools
+    from firmware_sim.can_node import DBC_PATH
+    db = cantools.database.load_file(str(DBC_PATH))
+    dev_bus, host_bus = buses
+    node = CanNode(dev_bus, device, bitrate=1_000_000, heartbeat_period=100.0)
+    host = CanHost(host_bus)
+    node.advance_to(0.2)
+    device.finish(*make_curve(rng, 4000), elements[:1], {})
+    run(node, host, 0.25)                             # a 4000-pair curve takes about 0.55 s of wire: mid-transfer
+    queued, backlog = node.pending_frames, node.backlog_time
+    assert queued > 1000 and backlog > 0.1
+    with pytest.raises(ValueError, match="unknown stop cause 'Lunch'.*HostStalled"):
+        node.abort("Lunch")
+    assert node.abort("HostStalled") == 3 and node.frames_discarded == queued and node.pending_frames == 0
+    frames = []
+    while (m := host_bus.recv(0)) is not None:
+        frames.append(m)
+        host.receive(m)
+    assert [db.get_message_by_frame_id(m.arbitration_id).name for m in frames] == \
+        ["Heartbeat", "StatusCounters", "TxStatus"]
+    status = db.decode_message(frames[-1].arbitration_id, frames[-1].data)
+    assert status["RunEnded"] == 1 and str(status["StopCause"]) == "HostStalled"
+    assert status["Backlog"] == pytest.approx(backlog, abs=1e-3)
+    assert host.run_ended and host.stop_cause == "HostStalled"
+    stopped = host.events_of("run_stopped")
+    assert len(stopped) == 1 and stopped[0].detail.startswith("HostStalled: the host stopped reading")
+    assert node.abort("Fault") == 0 and host_bus.recv(0) is None            # the run has ended: nothing more
+    node.advance_to(1.0)
+    assert host_bus.recv(0) is None

@@ -3,6 +3,7 @@ Unix time stamps that never go back, one run from device time 0 that the host re
 and the endpoints it announces."""
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import queue
@@ -337,7 +338,9 @@ def test_a_recording_stopped_by_ctrl_c_holds_the_release_it_sent(tmp_path, monke
 def test_a_served_run_stopped_by_an_error_delivers_what_it_sent_as_rig_run_records_it(tmp_path) -> None:
     """A bus too slow for the scene's curves stops the run with an error. `rig run` records every frame already on
     the wire; `rig serve` closed its links at once, so its host recorded 7 547, 10 469 or 10 206 frames in three
-    identical runs. Now it waits for its hosts to take what it sent: the same frames as in one process."""
+    identical runs. Now it waits for its hosts to take what it sent: the same frames as in one process. The unit's
+    last frame says why its run stopped (TxStatus.StopCause, read here with cantools and the DBC alone): the host
+    names the cause instead of "see its console", and both recordings hold it as a run_stopped event."""
     from rig.runner.session import RunError, run_scene
     scene = tmp_path / "slow_bus.toml"
     text = SCENE.read_text()
@@ -358,12 +361,88 @@ def test_a_served_run_stopped_by_an_error_delivers_what_it_sent_as_rig_run_recor
     thread.start()
     ep = announced.get(timeout=60)
     two = tmp_path / "two.mcap"
-    with pytest.raises(RunError, match="closed the connection .*see its console"):
+    with pytest.raises(RunError, match=r"stopped its run \(BusOverload: the CAN bus cannot carry"):
         record_scene(scene, two, can_host=ep["can"]["host"], can_port=ep["can"]["port"], serial_port=ep["serial"],
                      idle_timeout=60)
     thread.join(timeout=60)
     assert isinstance(outcome[0], RunError) and "cannot carry the curves" in str(outcome[0])
-    a, b = (read_recording(p, allow_partial=True).can_frames for p in (one, two))
+    recs = [read_recording(p, allow_partial=True) for p in (one, two)]
+    a, b = (r.can_frames for r in recs)
     rx_a, rx_b = ([k for k, way in enumerate(f["dir"]) if way == "rx"] for f in (a, b))
     assert len(rx_a) > 5000 and len(rx_b) == len(rx_a)
     np.testing.assert_array_equal(np.asarray(b["t"])[rx_b], np.asarray(a["t"])[rx_a])
+    last = rx_a[-1]
+    assert a["id"][last] == ID["TxStatus"]
+    status = DB.decode_message(ID["TxStatus"], bytes(a["data"][last]))
+    assert status["RunEnded"] == 1 and str(status["StopCause"]) == "BusOverload"
+    for rec in recs:
+        stopped = [e for e in rec.events if e["kind"] == "run_stopped"]
+        assert len(stopped) == 1 and stopped[0]["detail"].startswith("BusOverload: ")
+
+
+def test_a_served_run_stopped_by_its_operator_tells_its_host_why(tmp_path, monkeypatch) -> None:
+    """Ctrl-C (or SIGTERM) on `rig serve` closed its links at once: its host could only say "closed the connection
+    (see its console)". Now the unit's last status names the stop (StopCause OperatorStop), the served machine waits
+    for its host to take it, and the host's error and recording say why."""
+    from rig.runner.machine import Machine
+    from rig.runner.session import RunError
+    step = Machine.step
+
+    def stopped_step(self, *args, **kwargs):
+        if self.curves >= 3:                    # mid-run: the operator presses Ctrl-C
+            raise KeyboardInterrupt
+        return step(self, *args, **kwargs)
+    monkeypatch.setattr(Machine, "step", stopped_step)
+    announced: queue.Queue = queue.Queue()
+    outcome: list = []
+
+    def serve() -> None:
+        try:
+            outcome.append(serve_scene(SCENE, port=0, announce=announced.put, wait=60, release_timeout=60))
+        except BaseException as exc:            # noqa: BLE001 - the test reads it (Ctrl-C is not an Exception)
+            outcome.append(exc)
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    ep = announced.get(timeout=60)
+    out = tmp_path / "stopped.mcap"
+    with pytest.raises(RunError, match=r"stopped its run \(OperatorStop: the unit's operator stopped it"):
+        record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"], serial_port=ep["serial"],
+                     cycles=10, idle_timeout=60)
+    thread.join(timeout=60)
+    assert not thread.is_alive() and isinstance(outcome[0], KeyboardInterrupt)
+    rec = read_recording(out, allow_partial=True)
+    stopped = [e for e in rec.events if e["kind"] == "run_stopped"]
+    assert rec.interrupted and 1 <= len(rec.curves) <= 3 and len(stopped) == 1
+    raw = rec.can_frames
+    last = max(k for k, way in enumerate(raw["dir"]) if way == "rx")
+    status = DB.decode_message(int(raw["id"][last]), bytes(raw["data"][last]))
+    assert str(status["StopCause"]) == "OperatorStop" and status["RunEnded"] == 1
+
+
+def test_a_listener_that_does_not_read_keeps_a_bounded_queue_and_the_drops_are_said(monkeypatch, caplog) -> None:
+    """A connection that only listens never holds the served machine back; when it stopped reading, what it had not
+    taken grew without bound in rig serve. Now beyond LISTENER_BACKLOG frames its oldest are dropped, counted and
+    said once, as a CAN interface's receive queue overflows; a host that reads is not touched."""
+    from types import SimpleNamespace
+    from rig.blockbus import FrameBlock
+    from rig.runner import session
+    monkeypatch.setattr(session, "LISTENER_BACKLOG", 500)
+    channel = f"room-{time.monotonic_ns()}"
+    with can.Bus(interface="blockbus", channel=channel) as machine_bus, contextlib.ExitStack() as stack:
+        room = session._HostRoom(machine_bus, channel, SimpleNamespace(t=0.0), limit=60.0)
+        listener, host = room.client_bus(), room.client_bus()
+        stack.callback(listener.shutdown)
+        stack.callback(host.shutdown)
+        host.send(can.Message(arbitration_id=0x50, data=bytes(8), is_extended_id=False))   # a host: sent and reads
+        host.recv(0)
+        for k in range(20):
+            machine_bus.send_block(FrameBlock.of_messages([can.Message(timestamp=k + i * 1e-3, arbitration_id=0x200,
+                                                                       is_extended_id=False, data=bytes(8))
+                                                           for i in range(100)]))
+            with caplog.at_level("WARNING", logger="rig.runner.session"):
+                assert room(0.0)                  # the listener never holds the machine back
+            host.recv_blocks(0.0)                 # the host reads on
+        assert listener.pending < 600 and listener.dropped == 2001 - listener.pending == room.dropped  # + the command
+        assert host.dropped == 0
+        said = [r.getMessage() for r in caplog.records if "only listens" in r.getMessage()]
+        assert len(said) == 1 and "beyond 500 are dropped" in said[0]

@@ -64,6 +64,8 @@ def test_unknown_sections_name_the_section_and_the_file(tmp_path, source, old, n
     ('channel = "rig"', 'channel = "rig"\nport = 70000', r"\[links.can\]: key 'port' must be an integer >= 0 and <= 65535"),
     ('channel = "rig"', 'channel = "rig"\nfd = 1', r"\[links.can\]: key 'fd' must be true or false"),
     ('channel = "rig"', 'channel = "rig"\nlive_share = 0', r"\[links.can\]: key 'live_share' must be in \(0, 1\]"),
+    ('channel = "rig"', 'channel = ""', r"\[links.can\]: key 'channel' must be a name without white space.*got ''"),
+    ('channel = "rig"', 'channel = "my bus"', r"\[links.can\]: key 'channel' must be a name without white space"),
     ("[recording]\n", '[recording]\nencoding = "xml"\n', r"\[recording\]: key 'encoding' must be one of 'json', 'base64'"),
     ("[recording]\n", '[recording]\ncompression = "gzip"\n', r"\[recording\]: key 'compression' must be one of"),
     ('truth_signals = ["phi"', 'truth_signals = [1, "phi"', r"\[recording\]: key 'truth_signals' must be a list"),

@@ -30,7 +30,8 @@ DB = cantools.database.load_file(str(DBC_PATH))
 DEVICE_IDS = {m.frame_id: m.length for m in DB.messages if "DEVICE" in m.senders}
 COMMAND_ID = DB.get_message_by_name("HostCommand").frame_id
 DOCUMENTED_KINDS = set(re.search(r"``kind`` is one of ([\w,\s]+);", LinkEvent.__doc__)[1].replace(",", " ").split())
-DECODED_KINDS = {"sequence_gap", "decode_error", "curve", "result"}    # what a frame of the right length may raise
+#: what a frame of the right length may raise (run_stopped: a TxStatus whose RunEnded names a cause, any of 16)
+DECODED_KINDS = {"sequence_gap", "decode_error", "curve", "result", "run_stopped"}
 FUZZ = dict(derandomize=True, database=None, deadline=None,
             suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)

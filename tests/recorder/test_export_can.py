@@ -196,6 +196,21 @@ def test_trc_refuses_fd_and_error_frames_and_leaves_no_file(tmp_path):
     assert not out.exists()
 
 
+def test_a_log_gets_the_default_interface_for_an_empty_channel_name_and_refuses_one_with_spaces(tmp_path):
+    """candump's .log names the interface in one word: an empty name was written as nothing ("(0.000000)  050#…"),
+    a name with a space as two words, and can.LogReader could not read either file back."""
+    empty = [f[:8] + ("",) + f[9:] for f in FRAMES]
+    export_can(_write_mcap(tmp_path / "empty.mcap", _blocks(empty)), tmp_path / "empty.log")
+    msgs = read_back(tmp_path / "empty.log")
+    assert len(msgs) == len(FRAMES) and {m.channel for m in msgs if not m.is_error_frame} == {"vcan0"}
+    spaced = [f[:8] + ("my bus",) + f[9:] for f in FRAMES]
+    with pytest.raises(ValueError, match=r"channel 'my bus' has white space.*export to \.asc"):
+        export_can(_write_mcap(tmp_path / "spaced.mcap", _blocks(spaced)), tmp_path / "spaced.log")
+    assert not (tmp_path / "spaced.log").exists()
+    assert len(read_back(export_can(tmp_path / "spaced.mcap", tmp_path / "spaced.asc") and tmp_path / "spaced.asc")) \
+        == len(FRAMES)
+
+
 def test_unknown_extension_is_an_error(recording, tmp_path):
     for name in ("bus.csv", "bus"):
         with pytest.raises(ValueError, match="unknown CAN trace format"):
@@ -271,6 +286,18 @@ def test_partial_exports_the_frames_before_the_cut_and_says_where_it_ends(tmp_pa
     assert "the recording is cut or damaged, the trace holds the frames that read" in err and e.lost in err
     assert f"its last frame is at {e.t_last:.6f} s of simulation time" in err and e.t_last == pytest.approx(
         b[-1].timestamp, abs=1e-6)                               # where what is lost begins (.log: simulation time)
+    assert e.tail_lost and "what the run sent after it (a killed run's chunk not yet written) is not in the file" in err
+    # cut just after the last chunk (and its message indexes): every message is there, the run's end record counts
+    # them, and the file lacks only its summary: not "lost: the messages after the last whole chunk"
+    last = max(chunks, key=lambda c: c.chunk_start_offset)
+    edge = tmp_path / "edge.mcap"
+    edge.write_bytes(recording.read_bytes()[:last.chunk_start_offset + last.chunk_length + last.message_index_length])
+    e = export_can(edge, tmp_path / "edge.log", partial=True)
+    assert not e.tail_lost and len(read_back(tmp_path / "edge.log")) == len(a)
+    from rig.recorder import read_recording
+    from rig.recorder.completeness import losses
+    said = losses(read_recording(edge, allow_partial=True))
+    assert any(line.startswith("nothing of the run is lost: its end record counts") for line in said), said
     assert len(read_back(tmp_path / "cli.asc")) == len(b)
     # cut inside the first chunk: nothing before the cut reads, and the error says so (not "no frames in the recording")
     first = tmp_path / "first.mcap"
@@ -316,6 +343,11 @@ def test_partial_reads_past_a_damaged_chunk_as_the_report_does(tmp_path, capsys)
     assert all(any(x.equals(y) for y in it) for x in b)
     assert e.lost.startswith("chunk 1 of ") and "skipped" in e.lost and "/can/raw" in e.lost
     assert e.t_last == pytest.approx(a[-1].timestamp)   # read to the end, past the damage
+    assert not e.tail_lost                              # the warning said the run's tail was not in the file
+    assert main(["export-can", "--partial", str(damaged), "-o", str(tmp_path / "cli.asc")]) == 0
+    err = capsys.readouterr().err
+    assert "the file was read to its end: only what the parts named held is missing" in err
+    assert "is not in the file" not in err
 
 
 @pytest.mark.parametrize("damage", ["flipped", "zeroed"])

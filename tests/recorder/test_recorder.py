@@ -245,6 +245,25 @@ def test_frame_block_direction_channel_and_flags_become_columns(tmp_path):
     assert counted.last_time == whole.last_time == 0.4 and "6 frames: 4 received, 2 sent" in counted.summary()
 
 
+def test_frames_no_trace_format_can_hold_are_refused_when_written_not_when_exported(tmp_path):
+    """An id beyond its format (an error frame's SocketCAN flag bits in it) and a remote (RTR) frame were written
+    without a word; the first made every `rig export-can` fail, the second came back as a 0-byte data frame."""
+    import can
+    with Recorder(tmp_path / "odd.mcap") as rec:
+        rec.write_can_frames([(0.1, 0x100, b"\x01", False)])
+        for bad, problem in ((can.Message(timestamp=0.2, arbitration_id=0x20000080, is_extended_id=True,
+                                          is_error_frame=True, data=bytes(8)), "id out of range"),
+                             (can.Message(timestamp=0.2, arbitration_id=0x800, is_extended_id=False, check=False),
+                              "id out of range"),
+                             (can.Message(timestamp=0.2, arbitration_id=0x555, is_extended_id=False,
+                                          is_remote_frame=True, dlc=4), "a remote \\(RTR\\) frame")):
+            with pytest.raises(ValueError, match=rf"frame 1 of 2 at t = 0.2 s, id 0x{bad.arbitration_id:X}: {problem}"):
+                rec.write_can_frames([can.Message(timestamp=0.15, arbitration_id=0x101, data=b""), bad])
+        rec.write_can_frames([(0.3, 0x1FFFFFFF, b"", False)])
+    cf = read_recording(tmp_path / "odd.mcap").can_frames
+    assert cf["id"].tolist() == [0x100, 0x1FFFFFFF] and cf["t"].tolist() == [0.1, 0.3]     # nothing of the refused
+
+
 def test_undefined_values_round_trip_without_json_nulls(tmp_path):
     path = tmp_path / "nan.mcap"
     t = np.arange(5) * 0.1

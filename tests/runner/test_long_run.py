@@ -58,7 +58,7 @@ def test_a_bus_that_cannot_carry_the_curves_stops_the_run_with_a_clear_error(tmp
     with pytest.raises(RunError, match=r"\[links.can\].*cannot carry the curves.*CAN FD"):
         run_scene(slow, out, cycles=20)
     rec = read_recording(out)                    # what was recorded before stays readable, marked as stopped
-    assert not rec.truncated and rec.interrupted.startswith("RunError") and 1 <= len(rec.curves) < 20
+    assert not rec.truncated and rec.interrupted.startswith("BusTooSlow: ") and 1 <= len(rec.curves) < 20
     cut = [e for e in rec.events if e["kind"] == "incomplete_curve"]   # the curve in transfer is said, as on Ctrl-C
     assert len(cut) == 1 and cut[0]["number"] == len(rec.curves) + 1 and "stop on an error" in str(cut[0]["problems"])
 

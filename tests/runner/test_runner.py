@@ -58,6 +58,22 @@ def test_in_process_recording_holds_curves_theory_results_statistics(in_process:
     assert rec.can_frames is not None
 
 
+def test_the_recording_says_its_truth_is_the_nominal_machine_where_the_scene_varies_the_plant(in_process, tmp_path):
+    """[plant.variation] acts on the device's plant only; /plant/truth is the host's nominal theory. That was said in
+    docs/cam-bar.md alone: the recording, its report and the console said nothing while a measured y_min lay beyond
+    the truth's minimum. A scene without variation has no such note."""
+    from rig.analysis.report import write_report
+    caveat = read_recording(in_process).metadata["rig"]["truth_caveat"]
+    assert "nominal machine" in caveat and "F_c, F_c_travel, the clearance taken up" in caveat
+    html = write_report(in_process, tmp_path / "report").read_text(encoding="utf-8")
+    assert "Truth and theory: /plant/truth and the plant events are the nominal machine" in html
+    text = SCENE.read_text()
+    start = text.index("[plant.variation]")
+    plain = tmp_path / "plain.toml"
+    plain.write_text(text[:start] + text[text.index("[[plant.cam_program]]"):])
+    assert read_config(load_scene(plain)).truth_caveat == ""
+
+
 def _busy_cores(n: int) -> list[subprocess.Popen]:
     """Processes that keep ``n`` cores busy (the machine under load)."""
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]

@@ -199,6 +199,16 @@ def read_setting(scene: Scene) -> dict[str, Any]:
     return kw
 
 
+def drawn_per_cycle(scene: Scene) -> list[str]:
+    """What the scene's ``[plant.variation]`` draws per cycle (its parameters with a non-zero σ, and the clearance
+    when ``clearance_lambda`` is given); empty without variation."""
+    table = scene.read("plant", PLANT_SCHEMA)["variation"]
+    if table is None:
+        return []
+    variation = CycleVariation.from_table(table, f"{scene.path} [plant.variation]")
+    return sorted(variation.sigma) + (["the clearance taken up"] if variation.clearance_lambda is not None else [])
+
+
 def mechanism_from_scene(scene: Scene, **overrides: Any) -> PinInsertionMechanism:
     """The mechanism a scene's [plant] section describes (with [[plant.cam_program]]; the description only, the
     run's setting with its [speed]: :func:`read_setting`); ``overrides`` replace keyword arguments of
