@@ -98,15 +98,15 @@ def test_served_machine_idles_then_runs_once_in_device_time(tmp_path: Path) -> N
     np.testing.assert_array_equal(raw["t"][received], [round((m.timestamp - origin) * 1e6) / 1e6 for m in run])
 
 
-def _serve_in_thread(**kwargs) -> tuple[threading.Thread, queue.Queue, list]:
-    """serve_scene in a thread: (thread, its endpoints queue, [its machine or its exception])."""
+def _serve_in_thread(scene: Path = SCENE, **kwargs) -> tuple[threading.Thread, queue.Queue, list]:
+    """serve_scene in a thread: (thread, its endpoints queue, [its machine or its exception, Ctrl-C's too])."""
     announced: queue.Queue = queue.Queue()
     outcome: list = []
 
     def serve() -> None:
         try:
-            outcome.append(serve_scene(SCENE, port=0, announce=announced.put, **kwargs))
-        except Exception as exc:                 # noqa: BLE001 - the test reads it
+            outcome.append(serve_scene(scene, port=0, announce=announced.put, **kwargs))
+        except BaseException as exc:             # noqa: BLE001 - the test reads it (Ctrl-C is not an Exception)
             outcome.append(exc)
     thread = threading.Thread(target=serve, daemon=True)
     thread.start()
@@ -349,16 +349,7 @@ def test_a_served_run_stopped_by_an_error_delivers_what_it_sent_as_rig_run_recor
     one = tmp_path / "one.mcap"
     with pytest.raises(RunError, match="cannot carry the curves"):
         run_scene(scene, one)
-    announced: queue.Queue = queue.Queue()
-    outcome: list = []
-
-    def serve() -> None:
-        try:
-            outcome.append(serve_scene(scene, port=0, announce=announced.put, wait=60, release_timeout=60))
-        except Exception as exc:                 # noqa: BLE001 - the test reads it
-            outcome.append(exc)
-    thread = threading.Thread(target=serve, daemon=True)
-    thread.start()
+    thread, announced, outcome = _serve_in_thread(scene, wait=60, release_timeout=60)
     ep = announced.get(timeout=60)
     two = tmp_path / "two.mcap"
     with pytest.raises(RunError, match=r"stopped its run \(BusOverload: the CAN bus cannot carry"):
@@ -393,16 +384,7 @@ def test_a_served_run_stopped_by_its_operator_tells_its_host_why(tmp_path, monke
             raise KeyboardInterrupt
         return step(self, *args, **kwargs)
     monkeypatch.setattr(Machine, "step", stopped_step)
-    announced: queue.Queue = queue.Queue()
-    outcome: list = []
-
-    def serve() -> None:
-        try:
-            outcome.append(serve_scene(SCENE, port=0, announce=announced.put, wait=60, release_timeout=60))
-        except BaseException as exc:            # noqa: BLE001 - the test reads it (Ctrl-C is not an Exception)
-            outcome.append(exc)
-    thread = threading.Thread(target=serve, daemon=True)
-    thread.start()
+    thread, announced, outcome = _serve_in_thread(wait=60, release_timeout=60)
     ep = announced.get(timeout=60)
     out = tmp_path / "stopped.mcap"
     with pytest.raises(RunError, match=r"stopped its run \(OperatorStop: the unit's operator stopped it"):
