@@ -204,9 +204,6 @@ def verdict(ctx: ReportContext) -> list[Block]:
     caveat = rec.metadata.get("rig", {}).get("fidelity_caveat")
     if caveat:                            # a forced model level below what the scene asks (rig.fidelity)
         blocks.append(Text(f"Model level: {caveat}.", "warning"))
-    truth = rec.metadata.get("rig", {}).get("truth_caveat")
-    if truth:                             # per-cycle variation: the truth and theory are the nominal machine's
-        blocks.append(Text(f"Truth and theory: {truth}."))
     for program, s in a["sets"].items():
         table = _capability_table(s["values"])
         label = f"program {program}" if len(a["sets"]) > 1 else "the process"
@@ -438,6 +435,13 @@ def curve_table(ctx: ReportContext) -> list[Block]:
                   collapsed=f"{len(rows)} curves: verdict, failed elements, completeness")]
 
 
+def _truth_caveat(ctx: ReportContext) -> list[Block]:
+    """What the recorded truth and theory are not (the recording's ``truth_caveat``: per-cycle variation on the
+    device's plant only), said where they are shown; nothing otherwise."""
+    caveat = ctx.recording.metadata.get("rig", {}).get("truth_caveat")
+    return [Text(f"Truth and theory: {caveat}.")] if caveat else []
+
+
 def theory(ctx: ReportContext) -> list[Block]:
     rows = ctx.analysis["theory"]
     ok = [r for r in rows if r.get("lag_time") is not None]
@@ -454,7 +458,7 @@ def theory(ctx: ReportContext) -> list[Block]:
                       float(np.mean(angle)) if angle else None, u.label,
                       float(np.mean([u(r["rms_before"]) for r in rs])), float(np.mean([u(r["rms_after"]) for r in rs])),
                       float(np.mean([u(r["peak_difference"]) for r in rs]))])
-    blocks: list[Block] = [Heading("Theory vs measurement"),
+    blocks: list[Block] = [Heading("Theory vs measurement"), *_truth_caveat(ctx),
                            Text("Lag > 0: the measurement is late. RMS deviation before and after removing the time "
                                 "lag, means over the curves."),
                            Table(["signal", "curves", "mean lag (ms)", "lag range (ms)", "mean lag (°)",
@@ -601,7 +605,7 @@ def truth(ctx: ReportContext) -> list[Block]:
     axes = " | ".join(", ".join(members) for members in panels)
     constant = f"; not drawn (constant over it, or equal to a drawn signal): {', '.join(undrawn)}" if undrawn else ""
     ramp = "; not drawn: phi (the cam angle unwrapped, a ramp; cam_angle is drawn)" if unwrapped else ""
-    return [Heading("Plant truth"),
+    return [Heading("Plant truth"), *_truth_caveat(ctx),
             ctx.figure(path, f"Plant truth over {span}, one axis per unit (split where ranges differ more than "
                              f"{plots.SCALE_SPLIT:g}×), top to bottom: {axes}{constant}{ramp}")]
 
