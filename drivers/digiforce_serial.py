@@ -22,6 +22,13 @@ from typing import Any
 import numpy as np
 import serial
 
+try:
+    import termios
+    #: what pyserial passes on unwrapped from a port whose device is gone (a closed pty: its buffer flush)
+    PORT_GONE: tuple[type[BaseException], ...] = (OSError, termios.error)
+except ImportError:                 # not POSIX
+    PORT_GONE = (OSError,)
+
 from drivers.serial_framing import Corrupt, Frame, FrameParser, Handshake, encode_frame, encode_handshake
 
 BITS_PER_BYTE = 10      # 8N1
@@ -234,7 +241,10 @@ class DigiForceClient:
         """One exchange; returns the payload of a ``00`` response."""
         self._seq = (self._seq + 1) % 10
         request = encode_frame(self.address, self._seq, command, data)
-        self._port.reset_input_buffer()
+        try:
+            self._port.reset_input_buffer()
+        except PORT_GONE as exc:        # pyserial's other calls say it as a SerialException: so does this one
+            raise serial.SerialException(f"{self.port}: {exc}") from None
         self._parser.reset()
         reasons: list[str] = []
         outgoing = request

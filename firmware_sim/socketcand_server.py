@@ -102,7 +102,7 @@ class SocketcandServer:
         self._stop = threading.Event()
         self._draining = threading.Event()   # forwarders end once they have sent all their bus holds (drain())
         self._threads: list[threading.Thread] = []
-        self._forwarders: list[threading.Thread] = []
+        self._forwarders: list[tuple[threading.Thread, can.BusABC]] = []     # per connection in raw mode
         self._conns: set[socket.socket] = set()     # open client connections (stop() unblocks their threads)
         self._lock = threading.Lock()
         self.fd_dropped = 0
@@ -123,15 +123,16 @@ class SocketcandServer:
         self._threads.append(th)
         return th
 
-    def drain(self, timeout: float) -> bool:
+    def drain(self, timeout: float, which: Callable[[can.BusABC], bool] = lambda bus: True) -> bool:
         """Let every connection's forwarder send all its bus holds, then end (no frame is to come: the served run
-        stopped); waits up to ``timeout`` s, and whether they all got there. Call before :meth:`stop`, which
-        discards what a forwarder has not sent."""
+        stopped); waits up to ``timeout`` s for those whose bus ``which`` selects (default all), and whether they all
+        got there. Call before :meth:`stop`, which discards what a forwarder has not sent."""
         self._draining.set()
         deadline = time.monotonic() + timeout
-        for th in list(self._forwarders):
+        waited = [th for th, bus in list(self._forwarders) if which(bus)]
+        for th in waited:
             th.join(timeout=max(0.0, deadline - time.monotonic()))
-        return not any(th.is_alive() for th in self._forwarders)
+        return not any(th.is_alive() for th in waited)
 
     def stop(self) -> None:
         """Close the listener and all connections; joins the server threads."""
@@ -216,7 +217,7 @@ class SocketcandServer:
                     elif body == "rawmode" and bus is not None and not raw:
                         reply("< ok >")
                         raw = True
-                        self._forwarders.append(self._spawn(self._forward, conn, bus, sending))
+                        self._forwarders.append((self._spawn(self._forward, conn, bus, sending), bus))
                     elif body.startswith("send ") and bus is not None:
                         try:
                             msg = parse_send(body)

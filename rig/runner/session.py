@@ -34,7 +34,7 @@ from rig.runner.interrupt import deferred_interrupt, shielded
 from rig.runner.machine import Machine
 from rig.runner.served import Anchored, IdleStatus, RunClock
 from rig.scene import SceneError, load_scene
-from rig.stops import terminated
+from rig.stops import stopped, terminated
 
 log = logging.getLogger(__name__)
 SERVE_BACKLOG = 20_000   # frames a served machine may have sent that its host's connection has not yet taken (~2.5 s
@@ -286,14 +286,19 @@ def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
         return machine.t - ended
 
 
+def _stop_cause(exc: BaseException) -> str:
+    """The ``TxStatus.StopCause`` of a run stopped by ``exc``: Ctrl-C or SIGTERM ``OperatorStop``, a
+    :class:`RunError` its ``stop_cause``, any other error ``Fault``."""
+    return "OperatorStop" if isinstance(exc, KeyboardInterrupt) else getattr(exc, "stop_cause", RunError.stop_cause)
+
+
 def _abort(machine: Machine, lock: threading.Lock, exc: BaseException) -> None:
     """The machine's run stopped by ``exc``: its unit discards what it still has queued and sends its final status,
-    ``StopCause`` naming why (Ctrl-C or SIGTERM: ``OperatorStop``; a :class:`RunError`: its ``stop_cause``; any other
-    error: ``Fault``). A failure doing so is a warning: the stop goes on with its own error."""
-    cause = "OperatorStop" if isinstance(exc, KeyboardInterrupt) else getattr(exc, "stop_cause", RunError.stop_cause)
+    ``StopCause`` naming why (:func:`_stop_cause`). A failure doing so is a warning: the stop goes on with its own
+    error."""
     try:
         with lock:
-            machine.node.abort(cause)
+            machine.node.abort(_stop_cause(exc))
     except Exception as err:  # noqa: BLE001 - the stop's own error is what the user needs
         log.warning("the unit could not send its final status (%s: %s)", type(err).__name__, err)
 
@@ -506,27 +511,39 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                 return machine
             wire.origin = math.ceil(time.time())
 
-            def gone() -> bool:                        # the host that started the run has left
-                return server.open_buses == 0
             with _progress(cfg, progress) as bar:
                 try:
-                    _drive(cfg, machine, lock, bar, lambda: None, gone, room)
+                    _drive(cfg, machine, lock, bar, lambda: None, room.host_left, room)
                 except OutOfTime as exc:    # e.g. a host driving a program started by command: the run ends as
                     log.warning("%s; the served run ends here: RunEnded sent (StopCause OutOfTime), the links stay "
                                 "up until the host releases the device", exc)       # usual (its queue sent)
-                except BaseException:       # an error, Ctrl-C, SIGTERM: the unit's last status (its StopCause) and
-                    if not server.drain(SERVE_DRAIN):   # what it sent reach the hosts before the links close (as
-                        log.warning("not every frame sent reached the hosts' connections within %g s",   # `rig run`
-                                    SERVE_DRAIN)                                   # records what is on the wire)
-                    raise
+                except BaseException as exc:    # an error, Ctrl-C, SIGTERM: said now, not after the wait; the unit's
+                    log.warning("the served run stops at %.3f s of device time after %d curves (%s): the unit's last "
+                                "status says so (StopCause %s); its hosts have up to %g s to take what it sent",
+                                machine.t, machine.curves, stopped(exc) if isinstance(exc, KeyboardInterrupt) else exc,
+                                _stop_cause(exc), SERVE_DRAIN)
+                    _drain(server)          # last status and what it sent reach the hosts before the links close
+                    raise                   # (as `rig run` records what is on the wire)
             if machine.node.released and not _machine_done(cfg, machine):
                 log.warning("the host released the device after %d curves (%.3f s of device time), before the end "
                             "of the scene's run (%s): the run was cut short there", machine.curves, machine.t,
                             f"{cfg.cycles} cycles" if cfg.cycles is not None else f"{cfg.duration:g} s")
-            _wait_for_release(machine, lock, release_timeout, gone)
+            try:
+                _wait_for_release(machine, lock, release_timeout, room.host_left)
+            except KeyboardInterrupt as exc:    # the run has ended (RunEnded sent): its hosts take what was sent
+                log.warning("the served machine is %s after its run (%d curves served), before its host released "
+                            "it: its hosts have up to %g s to take what it sent; its statistics can no longer be "
+                            "read over serial", stopped(exc), machine.curves, SERVE_DRAIN)
+                _drain(server)
+                raise
+            _drain(server, lambda bus: not bus.sent)    # a listener still reading gets the run to its last frame (its
+            #                                             host, done with Release, reads no more)
         finally:
-            if room.dropped:
-                log.warning("%d frames were dropped for connections that listened and did not read", room.dropped)
+            undelivered = room.undelivered()    # what connections had not taken when the links close
+            if room.dropped or undelivered:
+                log.warning("%d frames were not delivered to listening connections that did not read them (%d "
+                            "dropped while the machine ran, %d left when rig serve closed)", room.dropped + undelivered,
+                            room.dropped, undelivered)
             server.stop()
             if serial_dev is not None:
                 serial_dev.close()
@@ -556,9 +573,22 @@ class _HostRoom:
             self.clients.append(client)
         return client
 
+    def host_left(self) -> bool:
+        """Whether the run's hosts (connections that sent a frame; the one that started it) have all closed: a
+        listener left behind does not keep the run going."""
+        with self._lock:
+            senders = [c for c in self.clients if c.sent]
+            return bool(senders) and all(c.closed for c in senders)
+
+    def undelivered(self) -> int:
+        """Frames the open listeners (connections that never sent) have not taken (a host stops reading once it has
+        sent Release, before the unit's ack)."""
+        with self._lock:
+            return sum(c.pending for c in self.clients if not c.closed and not c.sent)
+
     def __call__(self, timeout: float) -> bool:
         with self._lock:
-            self.clients = [c for c in self.clients if not c.closed]
+            self.clients = [c for c in self.clients if not c.closed or c.sent]   # (hosts kept: host_left)
             hosts = [c for c in self.clients if c.sent and c.reading]
             listeners = [c for c in self.clients if not (c.sent and c.reading)]
         for c in listeners:
@@ -576,7 +606,7 @@ class _HostRoom:
         if now - self._since > self.limit:
             raise HostStalled(f"the host has not read for {self.limit:g} s ({SERVE_BACKLOG} frames wait for it: "
                               f"stalled or suspended): the served run stops at {self.machine.t:.3f} s of device time")
-        if now - self._since > SLOW_HOST and not self._said:
+        if now - self._since > min(SLOW_HOST, self.limit / 2) and not self._said:
             self._said = True
             log.warning("waiting for the host to read: %d frames it has not taken (the machine computes on as it "
                         "reads; it stops after --release-timeout %g s without)", SERVE_BACKLOG, self.limit)
@@ -597,6 +627,14 @@ def _endpoints(cfg: RunConfig, server: SocketcandServer, serial_dev: SerialDevic
 def scene_digest(path: str | Path) -> str:
     """SHA-256 (hex) of a scene file's bytes: which scene a served machine runs."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _drain(server: SocketcandServer, which: Callable[[can.BusABC], bool] = lambda bus: True) -> None:
+    """Let the connections (those ``which`` selects by their bus) take what the machine sent, up to
+    :data:`SERVE_DRAIN` s (a warning if they do not)."""
+    if not server.drain(SERVE_DRAIN, which):
+        log.warning("not every frame sent reached the connections within %g s (a connection that does not read)",
+                    SERVE_DRAIN)
 
 
 def _wait_for_release(machine: Machine, lock: threading.Lock, timeout: float,

@@ -168,6 +168,32 @@ def test_a_host_that_disconnects_without_releasing_stops_the_server_at_once() ->
     assert "without releasing the device" in str(outcome[0])
 
 
+def test_a_host_that_leaves_while_a_listener_stays_stops_the_run_and_the_listener_hears_why() -> None:
+    """The run's host left without Release while a passive logger stayed connected: the served machine ran on to its
+    end (any open connection kept it going) and then waited for a Release that could not come. Now the host's
+    leaving stops the run at once, and the logger gets the unit's last status naming it (StopCause HostLeft)."""
+    thread, announced, outcome = _serve_in_thread(cycles=200, wait=60, release_timeout=60)
+    ep = announced.get(timeout=60)
+    frames: list[can.Message] = []
+    stop = threading.Event()
+    with can.Bus(**ep["can"]) as passive:
+        logger = threading.Thread(target=listen, args=(passive, frames, stop), daemon=True)
+        logger.start()
+        with can.Bus(**ep["can"]) as host:
+            _command(host, "SelectProgram", 1, 1)
+            assert _ack(host, 30) is not None                     # the run has started; the host leaves
+        thread.join(timeout=60)
+        logger.join(timeout=30)
+        stop.set()
+    assert not thread.is_alive() and "the host disconnected during the run" in str(outcome[0])
+    status = DB.decode_message(frames[-1].arbitration_id, frames[-1].data)
+    assert frames[-1].arbitration_id == ID["TxStatus"] and status["RunEnded"] == 1
+    assert str(status["StopCause"]) == "HostLeft"
+    beats = [DB.decode_message(m.arbitration_id, m.data)["DeviceTime"] for m in frames
+             if m.arbitration_id == ID["Heartbeat"]]
+    assert beats[-1] < 40.0                                        # far from the 80 s run's end
+
+
 def test_a_served_machine_waits_for_a_host_that_stops_reading_while_a_passive_logger_keeps_up() -> None:
     """Back-pressure: a host that stopped reading (stalled, suspended) let the served machine compute its whole run
     ahead into an unbounded queue (1500 cycles in 49 s, +105 MB; curves measured but never delivered when serve was

@@ -140,6 +140,21 @@ def test_silence_ends_in_a_clear_timeout_error(link) -> None:
     assert client.identify() == fake.identify()        # the link works again afterwards
 
 
+def test_a_port_whose_device_is_gone_is_a_serial_exception_naming_it(fake) -> None:
+    """A served machine that stopped while its host read the statistics: pyserial's flush of the dead pty raised a
+    bare termios.error, which `rig record` printed as a traceback. Now it is pyserial's SerialException, which the
+    host turns into its one-line error naming the link."""
+    device = SerialDevice(fake, "pty", baudrate=1_000_000, address=5).start()
+    client = DigiForceClient(device.port, baudrate=1_000_000, address=5, timeout=0.2, retries=1)
+    try:
+        assert client.identify() == fake.identify()
+        device.close()                          # its pty is gone
+        with pytest.raises(serial.SerialException, match=device.port):
+            client.identify()
+    finally:
+        client.close()
+
+
 def test_persistent_corruption_ends_in_a_link_error(link) -> None:
     device, client, fake = link
     device.corrupt_next_responses(4)
