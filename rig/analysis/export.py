@@ -159,8 +159,8 @@ def export_events(events: Sequence[Mapping], details: Sequence[str], path: Path)
 
 
 def export_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], path: Path) -> Path:
-    """A report table (a lab sheet's) as CSV, its cells as the report shows them (units in the headers), a dash
-    (no value) as an empty cell."""
+    """A report table (a lab sheet's) as CSV: its cells (as the report shows them, or numbers; units in the headers),
+    a dash or None (no value) as an empty cell."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(headers)

@@ -54,6 +54,8 @@ class Sheet:
     values: dict[str, float] = field(default_factory=dict)     # the result line's numbers (unit: value_unit)
     panels: int = 1                      # stacked axes of the figure (draw gets a list of them when more than one)
     key: str = ""                        # its name in [lab] sheets (:data:`SHEETS`), set by :func:`lab_sheets`
+    csv: tuple[list[str], list[list[Any]]] | None = None    # the table for lab_<key>.csv where the shown one joins
+    #                                                         several numbers in a cell: one number per column
 
 
 #: SI units of the sheets' result numbers (Sheet.values); names starting "error" or "class" are ratios
@@ -296,6 +298,9 @@ def speed_sheet(lab: Lab) -> Sheet:
     counter = [_latest(pulses["t"], pulses["pulses"], at) / (holes * gate) * 60.0 for at in times]
     truth = rec.truth
     rows = [["pulse counter (N / (z·T))"] + [fmt(v) for v in counter] + [fmt(np.mean(counter)), "reference", ""]]
+    n = len(times)
+    table = [["pulse counter (N / (z·T))", *_csv(counter), *[None] * n, _csv(np.mean(counter)), None, None, None,
+              None, None]]
     instruments = [("tachogenerator", pulses, "tacho", "can.LabSpeed.Tacho"),
                    ("mechanical tachometer", display, "tachometer", "can.LabDisplay.Tachometer"),
                    ("stroboscope (60·f_x)", display, "strobe", "can.LabDisplay.Strobe")]
@@ -312,6 +317,9 @@ def speed_sheet(lab: Lab) -> Sheet:
         rows.append([name] + [f"{fmt(v)} ({fixed(100 * (v - c) / c, 2, sign=True)} %)" for v, c in zip(read, counter)]
                     + [fmt(np.mean(read)), f"{fixed(100 * errors[name], 2, sign=True)} %",
                        f"±{100 * bounds[name]:.2f} % (class ±{100 * classes[name]:.2g} %): {within}"])
+        table.append([name, *_csv(read), *_csv([100 * (v - c) / c for v, c in zip(read, counter)]),
+                      _csv(np.mean(read)), _csv(100 * errors[name]), _csv(100 * bounds[name]),
+                      _csv(100 * classes[name]), "yes" if within == "within" else "no", None])
     gate_truth = []                 # the truth over the gate whose count the reading shows: the last one completed
     for at in times:                # before that count's message (gates run from t = 0), not the second before it
         end = np.floor(_latest(pulses["t"], pulses["t"], at) / gate + 1e-9) * gate
@@ -322,6 +330,10 @@ def speed_sheet(lab: Lab) -> Sheet:
                    ""])
     at_reading = np.interp(times, truth["t"], truth["omega_in"]) / RPM
     rows.append(["plant truth at the reading"] + [fmt(v) for v in at_reading] + [fmt(np.mean(at_reading)), "", ""])
+    table += [["plant truth (mean over the gate)", *_csv(gate_truth), *[None] * n, _csv(np.mean(gate_truth)), None,
+               None, None, None, _csv(100 * (np.mean(counter) - np.mean(gate_truth)) / np.mean(gate_truth))],
+              ["plant truth at the reading", *_csv(at_reading), *[None] * n, _csv(np.mean(at_reading)), None, None,
+               None, None, None]]
     moved = float(np.max(np.abs(at_reading - np.asarray(gate_truth))))
     drift = ([f"The shaft speed at the readings differs from its mean over the counted gates by up to {moved:.3g} rpm "
               f"(more than the counter's {resolution:.3g} rpm step): the instruments read the speed of the moment, the "
@@ -354,7 +366,18 @@ def speed_sheet(lab: Lab) -> Sheet:
                   "(data/devices)."], draw,
                  {"counter_rpm": float(np.mean(counter)), "truth_rpm": float(np.mean(gate_truth)),
                   "resolution_rpm": resolution, **{f"error {k}": float(v) for k, v in errors.items()},
-                  **{f"class {k}": float(v) for k, v in bounds.items()}})
+                  **{f"class {k}": float(v) for k, v in bounds.items()}},
+                 csv=(["instrument", *[f"reading {i + 1} (rpm)" for i in range(n)],
+                       *[f"reading {i + 1} error vs counter (%)" for i in range(n)], "mean (rpm)",
+                       "error of the mean vs counter (%)", "worst-case limit (%)", "data-sheet class (%)",
+                       "within the limit", "counter error vs it (%)"], table))
+
+
+def _csv(v: Any) -> Any:
+    """Numbers for a CSV cell (one, or a list): rounded to 6 significant digits, as plain floats."""
+    if np.ndim(v):
+        return [_csv(x) for x in v]
+    return float(f"{float(v):.6g}")
 
 
 def cam_follower_sheet(lab: Lab) -> Sheet:
@@ -658,8 +681,10 @@ def lab_section(ctx: ReportContext) -> list[Block]:
             path = save(fig, ctx.figure_path(f"lab_{sheet.key}"), right=2.3)        # legend beside the axes: no data hidden
             blocks.append(ctx.figure(path, sheet.title))
         blocks.append(Table(sheet.headers, sheet.rows))
-        ctx.exported.append((export_table(sheet.headers, sheet.rows, ctx.out_dir / f"lab_{sheet.key}.csv"),
-                             f"the {sheet.title.lower()} sheet's table, as above"))
+        headers, rows = sheet.csv or (sheet.headers, sheet.rows)
+        ctx.exported.append((export_table(headers, rows, ctx.out_dir / f"lab_{sheet.key}.csv"),
+                             f"the {sheet.title.lower()} sheet's table" + (", one number per column" if sheet.csv
+                                                                           else ", as above")))
         blocks += [Text(note, "note") for note in sheet.notes]
     return blocks
 

@@ -57,6 +57,29 @@ def test_speed_lab_instruments_against_the_counter(speed):
     assert "within its" in sheets["Speed measurement"].result
 
 
+def test_the_speed_sheets_csv_has_one_number_per_column(speed, tmp_path):
+    """lab_speed.csv held the report's cells ("1144 (+0.33 %)", "±3.19 % (class ±1 %): within"): a spreadsheet read
+    text. Now each reading, its error and the limits are numbers of their own, equal to the sheet's values."""
+    from rig.analysis.report import write_report
+    rec, sheets = speed
+    write_report(rec, tmp_path)
+    with open(tmp_path / "lab_speed.csv", newline="", encoding="utf-8") as f:
+        rows = {row["instrument"]: row for row in csv.DictReader(f)}
+    v = sheets["Speed measurement"].values
+    assert float(rows["pulse counter (N / (z·T))"]["mean (rpm)"]) == pytest.approx(v["counter_rpm"], rel=1e-6)
+    for name in ("tachogenerator", "mechanical tachometer", "stroboscope (60·f_x)"):
+        row = rows[name]
+        readings = [float(row[f"reading {i} (rpm)"]) for i in (1, 2, 3)]
+        errors = [float(row[f"reading {i} error vs counter (%)"]) for i in (1, 2, 3)]
+        counter = [float(rows["pulse counter (N / (z·T))"][f"reading {i} (rpm)"]) for i in (1, 2, 3)]
+        assert errors == pytest.approx([100 * (r - c) / c for r, c in zip(readings, counter)], abs=1e-3)  # (rounded rpm)
+        assert float(row["error of the mean vs counter (%)"]) == pytest.approx(100 * v[f"error {name}"], rel=1e-5)
+        assert float(row["worst-case limit (%)"]) == pytest.approx(100 * v[f"class {name}"], rel=1e-5)
+        assert row["within the limit"] == ("yes" if abs(v[f"error {name}"]) <= v[f"class {name}"] else "no")
+    assert float(rows["plant truth (mean over the gate)"]["counter error vs it (%)"]) == pytest.approx(
+        100 * (v["counter_rpm"] - v["truth_rpm"]) / v["truth_rpm"], abs=1e-6)
+
+
 def test_the_speed_sheets_truth_is_that_of_the_gate_the_counter_shows(tmp_path_factory):
     """A speed that varies by ±60 rpm at 0.5 Hz: the truth row is the mean over the gate whose count each reading
     shows (the last completed gate, [1, 2] s for a reading at 2.5 s), not over the second before the reading, and
