@@ -238,13 +238,19 @@ class DigiForceClient:
         self.bytes_sent += len(data)
 
     def _transact(self, command: str, data: str = "") -> str:
-        """One exchange; returns the payload of a ``00`` response."""
+        """One exchange; returns the payload of a ``00`` response. A port whose device is gone is pyserial's
+        :class:`serial.SerialException` naming it, whichever call found it."""
+        try:
+            return self._exchange(command, data)
+        except (serial.SerialException, DigiForceLinkError):    # (both OSErrors) already named
+            raise
+        except PORT_GONE as exc:        # pyserial's flush and in_waiting pass the OS's error on unwrapped
+            raise serial.SerialException(f"{self.port}: {exc}") from None
+
+    def _exchange(self, command: str, data: str) -> str:
         self._seq = (self._seq + 1) % 10
         request = encode_frame(self.address, self._seq, command, data)
-        try:
-            self._port.reset_input_buffer()
-        except PORT_GONE as exc:        # pyserial's other calls say it as a SerialException: so does this one
-            raise serial.SerialException(f"{self.port}: {exc}") from None
+        self._port.reset_input_buffer()
         self._parser.reset()
         reasons: list[str] = []
         outgoing = request

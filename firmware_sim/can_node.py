@@ -232,6 +232,7 @@ class CanNode:
         self.frames_sent = 0
         self.frames_discarded = 0        # queued frames a stopped run did not send (abort)
         self.ended = False               # the run's last frame (TxStatus RunEnded) is queued: nothing follows
+        self.stop_cause = ""             # then its StopCause
         self.busy_time = 0.0             # total wire time of sent frames (s)
         self.rx_errors: list[str] = []   # malformed or unexpected frames received
         self.curves_measured = 0
@@ -547,11 +548,18 @@ class CanNode:
     def close(self, t: float, cause: str = "Completed") -> int:
         """End of the run at time ``t`` (s): the final status (``RunEnded`` set, ``StopCause`` ``cause``), then
         everything still queued goes on the wire; no heartbeat follows. Returns the number of frames sent."""
+        self._check_cause(cause)
         self.now = max(self.now, float(t))
         self._next_heartbeat = math.inf
         self.publish_status(self.now, run_ended=True, stop_cause=cause)
-        self.ended = True
+        self.ended, self.stop_cause = True, cause
         return self._transmit(self.now + self.backlog_time + 1.0)
+
+    def _check_cause(self, cause: str, stop: bool = False) -> None:
+        """``cause`` must be a ``StopCause`` choice of the DBC (``stop``: other than ``Completed``)."""
+        if cause not in self._stop_causes or (stop and cause == "Completed"):
+            known = [c for c in self._stop_causes if not (stop and c == "Completed")]
+            raise ValueError(f"unknown stop cause {cause!r} (the DBC's TxStatus.StopCause has {', '.join(known)})")
 
     def abort(self, cause: str) -> int:
         """The run stops at :attr:`now` for ``cause`` (a ``StopCause`` choice of the DBC other than ``Completed``):
@@ -561,9 +569,7 @@ class CanNode:
         number of frames sent."""
         if self.ended:
             return 0
-        if cause not in self._stop_causes or cause == "Completed":
-            raise ValueError(f"unknown stop cause {cause!r} (the DBC's TxStatus.StopCause has "
-                             f"{', '.join(c for c in self._stop_causes if c != 'Completed')})")
+        self._check_cause(cause, stop=True)
         backlog = self.backlog_time
         q = self._queue.merged()
         if q is not None:
@@ -572,7 +578,7 @@ class CanNode:
             self._queue.remove(q, np.ones(q.ready.size, bool))
         self._next_heartbeat = math.inf
         self.publish_status(self.now, run_ended=True, stop_cause=cause, backlog=backlog)
-        self.ended = True
+        self.ended, self.stop_cause = True, cause
         return self._transmit(self.now + 1.0)
 
     def _transmit(self, t: float) -> int:

@@ -185,9 +185,9 @@ class BlockBus(can.BusABC):
             return self._ready.wait_for(lambda: self._pending < frames or not self._open, timeout)
 
     def overflow(self, keep: int) -> int:
-        """Drop the oldest waiting frames, whole blocks, while more than ``keep`` would still wait after the block (a
-        receiver that does not read, as a CAN interface's receive queue overflows); how many were dropped, also
-        added to :attr:`dropped`."""
+        """Drop the oldest waiting frames, whole blocks, while at least ``keep`` would still wait without the block (a
+        receiver that does not read, as a CAN interface's receive queue overflows: fewer than ``keep`` plus one block
+        stay); how many were dropped, also added to :attr:`dropped`."""
         gone = 0
         with self._ready:
             while self._rx and self._pending - (len(self._rx[0]) - self._head) >= keep:

@@ -356,6 +356,8 @@ def cmd_export_can(args: argparse.Namespace) -> int:
             "the recording is cut or damaged, the trace holds the frames that read (damaged parts skipped, as `rig "
             "report --partial` skips them): %s; its last frame is at %.6f s of simulation time%s", e.lost, e.t_last,
             ": what the run sent after it (a killed run's chunk not yet written) is not in the file" if e.tail_lost
+            else " (the run's end record counts every message and all were read: nothing of the run is lost, only the "
+                 "file's index after its data)" if e.all_read
             else " (the file was read to its end: only what the parts named held is missing)")
     return 0
 

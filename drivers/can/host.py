@@ -63,8 +63,9 @@ class _Rx(NamedTuple):
 
 #: what each ``TxStatus.StopCause`` of a run that did not complete means (docs/can-protocol.md)
 STOP_CAUSES = {
-    "OperatorStop": "the unit's operator stopped it (Ctrl-C or SIGTERM on its rig serve)",
-    "HostLeft": "the host that started the run disconnected without releasing the unit",
+    "OperatorStop": "the unit's operator stopped it (Ctrl-C or SIGTERM on its rig serve, or on rig run)",
+    "HostLeft": "its hosts (the connections that sent, the one that started the run) all disconnected without "
+                "releasing the unit",
     "HostStalled": "the host stopped reading its frames and the unit waited for it in vain",
     "BusOverload": "the CAN bus cannot carry the curves the unit measures (its scene's [links.can])",
     "OutOfTime": "the scene's cycles were not complete by its max_time (its queue was sent)",

@@ -62,7 +62,7 @@ def all_counted(rec: Recording) -> bool:
 def tail_lost(rec: Recording) -> bool:
     """Whether messages after the last one read may be missing (reading stopped at a cut before the data end, and
     the run's end record does not show that everything was read)."""
-    return rec.truncated and not rec.read_to_data_end and not rec.data_whole and not all_counted(rec)
+    return rec.truncated and not rec.read_to_data_end and not all_counted(rec)
 
 
 def losses(rec: Recording) -> list[str]:

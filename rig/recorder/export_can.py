@@ -59,7 +59,7 @@ from mcap.records import Metadata
 
 from rig.blockbus import ids_out_of_range
 from rig.recorder import schemas as S
-from rig.recorder.completeness import tail_lost
+from rig.recorder.completeness import all_counted, tail_lost
 from rig.recorder.reader import Recording, RecordingError, require_whole_file, stage_chunk
 from rig.recorder.salvage import DataSectionReader, plain
 
@@ -498,6 +498,7 @@ class Export:
     t_last: float
     lost: str = ""      # partial: what the recording lacks, its lost parts first ("" = nothing)
     tail_lost: bool = False     # partial: frames after the last one exported may be missing (a cut before them)
+    all_read: bool = False      # partial: the run's end record counts every message and all were read
 
 
 def export_can(recording: str | Path, out: str | Path, partial: bool = False) -> Export:
@@ -552,4 +553,5 @@ def export_can(recording: str | Path, out: str | Path, partial: bool = False) ->
             part.unlink(missing_ok=True)
             raise
     return Export(out, frames, errors, list(names), start, float(first.t[0]), t_last,
-                  "; ".join(salvage.problems) if partial else "", partial and tail_lost(salvage.recording))
+                  "; ".join(salvage.problems) if partial else "", partial and tail_lost(salvage.recording),
+                  partial and all_counted(salvage.recording))

@@ -19,6 +19,7 @@ import can
 from tqdm import tqdm
 
 import rig
+from drivers.can.host import STOP_CAUSES
 from rig.console import progress as progress_bar, quiet_libraries
 from rig.fidelity import announce as announce_fidelity
 from firmware_sim.serial_device import SerialDevice
@@ -26,7 +27,6 @@ from firmware_sim.socketcand_server import SocketcandServer
 from rig.numba_clock import compile_seconds, watch
 from rig.recorder import Recorder
 from rig.recorder.writer import interruption
-from drivers.can.host import STOP_CAUSES
 from firmware_sim.can_node import BusOverload
 from rig.runner.config import RunConfig, default_max_time, read_config
 from rig.runner.host import Host
@@ -269,10 +269,10 @@ def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
             except BusOverload as exc:
                 burst, held = machine.cycle_curves, cfg.can["tx_curves"]
                 if burst >= held:          # the cycle, not the bus: its curves all ended before any could leave
-                    raise BusTooSlow(f"{cfg.scene.path} [links.can]: tx_period = {cfg.can['tx_period']:g} s is too long "
-                                   f"for the bus: one transmit cycle of the unit measured {burst} curves at once, as "
-                                   f"many as it holds for sending (tx_curves = {held}); shorten tx_period (e.g. "
-                                   "\"100 ms\") so that each curve is sent as it ends") from None
+                    raise BusTooSlow(f"{cfg.scene.path} [links.can]: tx_period = {cfg.can['tx_period']:g} s is too "
+                                     f"long for the bus: one transmit cycle of the unit measured {burst} curves at "
+                                     f"once, as many as it holds for sending (tx_curves = {held}); shorten tx_period "
+                                     "(e.g. \"100 ms\") so that each curve is sent as it ends") from None
                 raise BusTooSlow(f"{cfg.scene.path} [links.can]: {exc}") from None
         if gone and not machine.node.released:
             raise _host_left(machine, "during the run")
@@ -290,6 +290,13 @@ def _stop_cause(exc: BaseException) -> str:
     """The ``TxStatus.StopCause`` of a run stopped by ``exc``: Ctrl-C or SIGTERM ``OperatorStop``, a
     :class:`RunError` its ``stop_cause``, any other error ``Fault``."""
     return "OperatorStop" if isinstance(exc, KeyboardInterrupt) else getattr(exc, "stop_cause", RunError.stop_cause)
+
+
+def _last_status(machine: Machine) -> str:
+    """What the unit's last status said of the run's end, in words (its ``StopCause``, or that none was sent)."""
+    if machine.node.ended:
+        return f"the unit's last status says StopCause {machine.node.stop_cause}"
+    return "the unit could not send its last status"
 
 
 def _abort(machine: Machine, lock: threading.Lock, exc: BaseException) -> None:
@@ -518,10 +525,10 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                     log.warning("%s; the served run ends here: RunEnded sent (StopCause OutOfTime), the links stay "
                                 "up until the host releases the device", exc)       # usual (its queue sent)
                 except BaseException as exc:    # an error, Ctrl-C, SIGTERM: said now, not after the wait; the unit's
-                    log.warning("the served run stops at %.3f s of device time after %d curves (%s): the unit's last "
-                                "status says so (StopCause %s); its hosts have up to %g s to take what it sent",
-                                machine.t, machine.curves, stopped(exc) if isinstance(exc, KeyboardInterrupt) else exc,
-                                _stop_cause(exc), SERVE_DRAIN)
+                    log.warning("the served run stops at %.3f s of device time after %d curves (%s): %s; its hosts "
+                                "have up to %g s to take what it sent", machine.t, machine.curves,
+                                stopped(exc) if isinstance(exc, KeyboardInterrupt) else exc, _last_status(machine),
+                                SERVE_DRAIN)
                     _drain(server)          # last status and what it sent reach the hosts before the links close
                     raise                   # (as `rig run` records what is on the wire)
             if machine.node.released and not _machine_done(cfg, machine):
@@ -536,8 +543,13 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
                             "read over serial", stopped(exc), machine.curves, SERVE_DRAIN)
                 _drain(server)
                 raise
-            _drain(server, lambda bus: not bus.sent)    # a listener still reading gets the run to its last frame (its
-            #                                             host, done with Release, reads no more)
+            except RunError:                    # no Release (its host left, or the timeout): listeners still get
+                _drain(server, _listening)      # the run to its last frame
+                raise
+            try:                                # a listener still reading gets the run to its last frame (its host,
+                _drain(server, _listening)      # done with Release, reads no more)
+            except KeyboardInterrupt as exc:    # the run is complete and released: only the listeners' wait is cut
+                log.warning("%s while the listeners took the run's last frames: they may lack them", stopped(exc))
         finally:
             undelivered = room.undelivered()    # what connections had not taken when the links close
             if room.dropped or undelivered:
@@ -550,14 +562,20 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
     return machine
 
 
+def _listening(bus: Any) -> bool:
+    """Whether a served connection's bus is a listener's — it does not hold the machine back —, not a host's (a host
+    has sent a frame, the one that started the run, and reads)."""
+    return not (bus.sent and bus.reading)
+
+
 class _HostRoom:
     """A served machine's back-pressure: the connections' buses (:meth:`client_bus`, the server's bus factory), and,
-    on ``channel``, called with a timeout, whether its hosts (connections that sent a frame and read; not a passive logger) have room
-    for its next step — fewer than :data:`SERVE_BACKLOG` frames not taken —, or a command waits on the machine's
-    ``bus`` (a Release is taken at once). Waiting on, it says so after :data:`SLOW_HOST` s and raises
-    :class:`RunError` after ``limit`` s. A connection that does not hold it back and does not read (a logger that
-    stopped) keeps at most :data:`LISTENER_BACKLOG` frames: its oldest are dropped beyond, counted in
-    :attr:`dropped` and said once per connection, as a CAN interface's receive queue overflows."""
+    on ``channel``, called with a timeout, whether its hosts (connections that sent a frame and read; not a listener)
+    have room for its next step — fewer than :data:`SERVE_BACKLOG` frames not taken —, or a command waits on the
+    machine's ``bus`` (a Release is taken at once). Waiting on, it says so after :data:`SLOW_HOST` s and raises
+    :class:`RunError` after ``limit`` s. A listener (:func:`_listening`) that does not read (a logger that stopped)
+    keeps fewer than :data:`LISTENER_BACKLOG` frames plus one received block: its oldest are dropped beyond, counted
+    in :attr:`dropped` and said once per connection, as a CAN interface's receive queue overflows."""
 
     def __init__(self, bus: Any, channel: str, machine: Machine, limit: float) -> None:
         self.bus, self.channel, self.machine, self.limit = bus, channel, machine, limit
@@ -573,6 +591,11 @@ class _HostRoom:
             self.clients.append(client)
         return client
 
+    def listeners(self) -> list[Any]:
+        """The open connections that do not hold the machine back (:func:`_listening`)."""
+        with self._lock:
+            return [c for c in self.clients if not c.closed and _listening(c)]
+
     def host_left(self) -> bool:
         """Whether the run's hosts (connections that sent a frame; the one that started it) have all closed: a
         listener left behind does not keep the run going."""
@@ -581,17 +604,15 @@ class _HostRoom:
             return bool(senders) and all(c.closed for c in senders)
 
     def undelivered(self) -> int:
-        """Frames the open listeners (connections that never sent) have not taken (a host stops reading once it has
-        sent Release, before the unit's ack)."""
-        with self._lock:
-            return sum(c.pending for c in self.clients if not c.closed and not c.sent)
+        """Frames the open listeners have not taken (a host stops reading once it has sent Release, before the unit's
+        ack: not counted)."""
+        return sum(c.pending for c in self.listeners())
 
     def __call__(self, timeout: float) -> bool:
         with self._lock:
             self.clients = [c for c in self.clients if not c.closed or c.sent]   # (hosts kept: host_left)
-            hosts = [c for c in self.clients if c.sent and c.reading]
-            listeners = [c for c in self.clients if not (c.sent and c.reading)]
-        for c in listeners:
+            hosts = [c for c in self.clients if not _listening(c)]
+        for c in self.listeners():
             gone = c.overflow(LISTENER_BACKLOG)
             if gone and c.dropped == gone:
                 log.warning("a connection that only listens does not read: its oldest frames beyond %d are dropped "

@@ -560,6 +560,7 @@ def test_a_stopped_run_discards_its_queue_and_its_last_status_says_why(buses, de
     assert status["RunEnded"] == 1 and str(status["StopCause"]) == "HostStalled"
     assert status["Backlog"] == pytest.approx(backlog, abs=1e-3)
     assert host.run_ended and host.stop_cause == "HostStalled"
+    assert host.events_of("sequence_gap") == []        # discarded frames took no Seq numbers
     stopped = host.events_of("run_stopped")
     assert len(stopped) == 1 and stopped[0].detail.startswith("HostStalled: the host stopped reading")
     assert node.abort("Fault") == 0 and host_bus.recv(0) is None            # the run has ended: nothing more

@@ -449,8 +449,32 @@ def test_a_listener_that_does_not_read_keeps_a_bounded_queue_and_the_drops_are_s
                                                            for i in range(100)]))
             with caplog.at_level("WARNING", logger="rig.runner.session"):
                 assert room(0.0)                  # the listener never holds the machine back
-            host.recv_blocks(0.0)                 # the host reads on
+            if k % 10 == 9:                       # the host reads on, 1000 frames behind at times: beyond what a
+                host.recv_blocks(0.0)             # listener keeps, within a host's SERVE_BACKLOG — nothing dropped
         assert listener.pending < 600 and listener.dropped == 2001 - listener.pending == room.dropped  # + the command
         assert host.dropped == 0
         said = [r.getMessage() for r in caplog.records if "only listens" in r.getMessage()]
         assert len(said) == 1 and "beyond 500 are dropped" in said[0]
+
+
+def test_ctrl_c_after_the_served_run_lets_the_host_take_every_curve(tmp_path, monkeypatch, caplog) -> None:
+    """Ctrl-C on `rig serve` after its run ended (RunEnded sent) while its host still read the backlog closed the
+    links at once: the host lost its last curves and printed a termios traceback reading the statistics. Now the
+    served machine waits for its hosts to take what it sent; the host records every curve and stops in one line
+    naming the serial link (the statistics can no longer be read)."""
+    from rig.runner import session
+    from rig.runner.session import RunError
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(session, "_wait_for_release", interrupted)
+    thread, announced, outcome = _serve_in_thread(cycles=10, wait=60, release_timeout=60)
+    ep = announced.get(timeout=60)
+    out = tmp_path / "after.mcap"
+    with pytest.raises(RunError, match="serial link .* failed while reading the statistics back"):
+        record_scene(SCENE, out, can_host=ep["can"]["host"], can_port=ep["can"]["port"], serial_port=ep["serial"],
+                     idle_timeout=60)
+    thread.join(timeout=60)
+    assert isinstance(outcome[0], KeyboardInterrupt) and "after its run (10 curves served)" in caplog.text
+    rec = read_recording(out, allow_partial=True)
+    assert len(rec.curves) == 10 and len(rec.results) == 10

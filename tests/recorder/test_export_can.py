@@ -293,7 +293,9 @@ def test_partial_exports_the_frames_before_the_cut_and_says_where_it_ends(tmp_pa
     edge = tmp_path / "edge.mcap"
     edge.write_bytes(recording.read_bytes()[:last.chunk_start_offset + last.chunk_length + last.message_index_length])
     e = export_can(edge, tmp_path / "edge.log", partial=True)
-    assert not e.tail_lost and len(read_back(tmp_path / "edge.log")) == len(a)
+    assert not e.tail_lost and e.all_read and len(read_back(tmp_path / "edge.log")) == len(a)
+    assert main(["export-can", "--partial", str(edge), "-o", str(tmp_path / "edge.asc")]) == 0
+    assert "nothing of the run is lost, only the file's index after its data" in capsys.readouterr().err
     from rig.recorder import read_recording
     from rig.recorder.completeness import losses
     said = losses(read_recording(edge, allow_partial=True))

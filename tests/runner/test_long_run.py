@@ -63,6 +63,28 @@ def test_a_bus_that_cannot_carry_the_curves_stops_the_run_with_a_clear_error(tmp
     assert len(cut) == 1 and cut[0]["number"] == len(rec.curves) + 1 and "stop on an error" in str(cut[0]["problems"])
 
 
+def test_a_run_out_of_time_sends_its_queue_and_its_last_status_says_so(tmp_path: Path):
+    """The scene's cycles not in by its max_time: the unit ends its run as a complete one would (what it had queued
+    is sent), its last frame says why (TxStatus.StopCause OutOfTime, read with cantools and the DBC alone), and the
+    recording holds it as a run_stopped event beside every curve measured before the limit."""
+    import cantools
+    from firmware_sim.can_node import DBC_PATH
+    short = tmp_path / "short.toml"
+    short.write_text(SCENE.read_text().replace("cycles = 50 ", "cycles = 50\nmax_time = \"1.3 s\" ", 1))
+    out = tmp_path / "short.mcap"
+    with pytest.raises(RunError, match="only 3 of 50 curves by"):
+        run_scene(short, out)
+    rec = read_recording(out)
+    assert len(rec.curves) == 3 and len(rec.results) == 3          # the queue was sent: the third curve too
+    stopped = [e for e in rec.events if e["kind"] == "run_stopped"]
+    assert len(stopped) == 1 and stopped[0]["detail"].startswith("OutOfTime: ")
+    db = cantools.database.load_file(str(DBC_PATH))
+    raw = rec.can_frames
+    last = max(k for k, way in enumerate(raw["dir"]) if way == "rx")
+    status = db.decode_message(int(raw["id"][last]), bytes(raw["data"][last]))
+    assert status["RunEnded"] == 1 and str(status["StopCause"]) == "OutOfTime"
+
+
 def test_cycles_from_the_command_line_raise_the_time_limit():
     assert _config(SCENE, None, None).max_time == pytest.approx(3 * 50 + 10)
     assert _config(SCENE, 500, None).max_time == pytest.approx(3 * 500 + 10)

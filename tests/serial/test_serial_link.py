@@ -153,6 +153,17 @@ def test_a_port_whose_device_is_gone_is_a_serial_exception_naming_it(fake) -> No
             client.identify()
     finally:
         client.close()
+    device = SerialDevice(fake, "pty", baudrate=1_000_000, address=5).start()      # gone while a reply is awaited
+    client = DigiForceClient(device.port, baudrate=1_000_000, address=5, timeout=2.0, retries=1)
+    try:
+        device.drop_next_responses(2)
+        closing = threading.Timer(0.2, device.close)
+        closing.start()
+        with pytest.raises(serial.SerialException):      # pyserial's read, or its in_waiting's OSError wrapped
+            client.identify()
+        closing.join()
+    finally:
+        client.close()
 
 
 def test_persistent_corruption_ends_in_a_link_error(link) -> None:
