@@ -41,7 +41,7 @@ SERVE_BACKLOG = 20_000   # frames a served machine may have sent that its host's
 #                          of a saturated 1 Mbit/s bus); beyond, it waits for its host (TCP's buffers hold more)
 LISTENER_BACKLOG = 200_000   # frames held for a connection that does not hold the machine back (a logger that only
 #                              listens) and does not read: beyond, its oldest are dropped (a receive queue's overflow)
-SERVE_DRAIN = 10.0      # s a served machine stopped by an error waits for what it sent to be sent to its hosts
+SERVE_DRAIN = 10.0      # s a served machine waits at its stop (for its hosts) or end (for listeners) for what it sent
 SLOW_HOST = 10.0        # s of waiting for a host that does not read before the served machine says so
 QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
 
