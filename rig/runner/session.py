@@ -487,8 +487,10 @@ def serve_scene(scene_path: str | Path, *, mode: str | None = None, port: int | 
     time 0, and ends when the host releases it (CAN ``Release`` command, sent when it has read
     everything); the links stay up until then, or ``release_timeout`` s after the scene's last cycle, which
     is reported as an error. The machine waits for a host that does not read (:class:`_HostRoom`), saying so after
-    :data:`SLOW_HOST` s and stopping with an error after ``release_timeout`` s. Frames are stamped in Unix time
-    (:mod:`rig.runner.served`).
+    :data:`SLOW_HOST` s and stopping with an error after ``release_timeout`` s. A run stopped early (an error, its
+    hosts gone, Ctrl-C, SIGTERM) ends with the unit's last status naming the cause (``TxStatus.StopCause``), and the
+    connections get up to :data:`SERVE_DRAIN` s to take what was sent before the links close (listeners at a normal
+    end too). Frames are stamped in Unix time (:mod:`rig.runner.served`).
     """
     cfg = _config(scene_path, cycles, mode, fidelity, classic_can="rig serve serves its bus")
     channel = f"rig-{uuid.uuid4().hex}"
