@@ -110,6 +110,12 @@ def ids_out_of_range(ids: np.ndarray, extended: np.ndarray) -> np.ndarray:
     return (ids < 0) | (ids > np.where(np.asarray(extended, bool), 0x1FFFFFFF, 0x7FF))
 
 
+def is_interface_name(name: str) -> bool:
+    """Whether ``name`` can name a CAN interface (channel): not empty, no white space (candump's .log and SocketCAN
+    take a single word)."""
+    return bool(name) and not any(ch.isspace() for ch in name)
+
+
 def frames_of(received: Iterable[FrameBlock | can.Message]) -> FrameBlock:
     """One block of what a receiver got, blocks and single messages mixed, in order."""
     blocks, singles = [], []

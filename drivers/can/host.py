@@ -363,14 +363,27 @@ class CanHost:
             self.stop_cause = self._stop_causes.get(raw["StopCause"], f"unknown ({raw['StopCause']})")
             if self.stop_cause != "Completed":
                 backlog = raw["Backlog"] * spec.get_signal_by_name("Backlog").scale
-                self._event(msg, "run_stopped", 0, f"{self.stop_cause}: "
-                            f"{STOP_CAUSES.get(self.stop_cause, 'a cause this host does not know')}" + (
-                                "" if self.stop_cause == "OutOfTime" else "; what the unit still had queued was not "
-                                f"sent (its wire time {backlog:.3f} s)"))
+                self._event(msg, "run_stopped", 0, self.stop_reason + (
+                    f"; what the unit still had queued was not sent (its wire time {backlog:.3f} s)"
+                    if self.stopped_early else ""))
         self.run_ended = self.run_ended or bool(raw["RunEnded"])
         if self.counters.get("live_dropped", 0) != self._drops_reported and (
                 self.run_ended or self._device_time - self._drops_at >= self.drop_period):
             self._report_drops()
+
+    @property
+    def stop_reason(self) -> str:
+        """The run's ``StopCause`` and what it means ("HostStalled: the host stopped reading …"); "" before the run's
+        last frame."""
+        if not self.stop_cause:
+            return ""
+        return f"{self.stop_cause}: {STOP_CAUSES.get(self.stop_cause, 'a cause this host does not know')}"
+
+    @property
+    def stopped_early(self) -> bool:
+        """Whether the unit stopped its run, discarding what it still had queued: any ``StopCause`` but ``Completed``
+        and ``OutOfTime`` (which end as a complete run does)."""
+        return self.stop_cause not in ("", "Completed", "OutOfTime")
 
     def _live_time(self, tick: int) -> float:
         t = unwrap(tick * 1e-4, TICK_WRAP, self._device_time)

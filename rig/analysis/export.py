@@ -24,7 +24,7 @@ from rig.recorder import CurveRecord
 NO_REASON = "NOK: the device named no failing element"
 
 
-def _cells(values: np.ndarray, digits: int = 9, decimals: int | None = None) -> list[str]:
+def cells(values: np.ndarray, digits: int = 9, decimals: int | None = None) -> list[str]:
     """Each value to ``digits`` significant digits (more than the float32 / 20-bit resolution the curves
     cross the bus with), or to ``decimals`` fixed decimals; empty for NaN."""
     form = f"%.{digits}g" if decimals is None else f"%.{decimals}f"
@@ -60,9 +60,9 @@ def export_curves(curves: Sequence[CurveRecord], path: Path,
             if all(np.isfinite(v).all() for v in columns):   # every cell a number: one formatting pass per curve
                 f.write(_rows(c.number, c.program, columns))
                 continue
-            angle = _cells(columns[3]) if c.angle is not None else [""] * c.t.size
-            w.writerows(zip(repeat(c.number), repeat(c.program), range(c.t.size), _cells(columns[0], 12),
-                            _cells(columns[1]), _cells(columns[2]), angle))
+            angle = cells(columns[3]) if c.angle is not None else [""] * c.t.size
+            w.writerows(zip(repeat(c.number), repeat(c.program), range(c.t.size), cells(columns[0], 12),
+                            cells(columns[1]), cells(columns[2]), angle))
     return path
 
 
@@ -196,7 +196,7 @@ def export_series(series: Mapping[str, np.ndarray] | Iterable[Mapping[str, np.nd
         w = csv.writer(f)
         w.writerow([column(n, u) for n, u in zip(names, shown)])
         for block in chain([first], blocks):
-            w.writerows(zip(*(_cells(u(np.asarray(block[n], dtype=float)),
+            w.writerows(zip(*(cells(u(np.asarray(block[n], dtype=float)),
                                      decimals=decimals(steps[n] * u(1.0), 1) if n in steps and n != "t" else None)
                               for n, u in zip(names, shown))))
     return path

@@ -20,7 +20,7 @@ from scipy.optimize import brentq
 from firmware_sim.transducers import REGISTRY
 from firmware_sim.transducers.description import described, read_description, resolve_path, validate
 from firmware_sim.transducers.encoder import power_on
-from rig.analysis.export import export_table
+from rig.analysis.export import cells, export_table
 from rig.analysis.numbers import fixed
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Block, Heading, ReportContext, Table, Text, fmt
@@ -374,10 +374,9 @@ def speed_sheet(lab: Lab) -> Sheet:
 
 
 def _csv(v: Any) -> Any:
-    """Numbers for a CSV cell (one, or a list): rounded to 6 significant digits, as plain floats."""
-    if np.ndim(v):
-        return [_csv(x) for x in v]
-    return float(f"{float(v):.6g}")
+    """CSV cells of a number or a list of them, to 6 significant digits (:func:`rig.analysis.export.cells`)."""
+    out = cells(np.atleast_1d(np.asarray(v, dtype=float)), 6)
+    return out if np.ndim(v) else out[0]
 
 
 def cam_follower_sheet(lab: Lab) -> Sheet:

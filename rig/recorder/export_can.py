@@ -57,7 +57,7 @@ from zstandard import ZstdError
 from mcap.reader import NonSeekingReader, make_reader
 from mcap.records import Metadata
 
-from rig.blockbus import ids_out_of_range
+from rig.blockbus import ids_out_of_range, is_interface_name
 from rig.recorder import schemas as S
 from rig.recorder.completeness import all_counted, tail_lost
 from rig.recorder.reader import Recording, RecordingError, require_whole_file, stage_chunk
@@ -416,7 +416,7 @@ class _Log(_PythonCan):
         """A name with white space cannot be a candump interface (its reader splits lines at spaces: the file
         would not read back); an empty name is none (python-can's default ``vcan0``)."""
         if frames.channel is not None:
-            spaced = next((c for c in frames.channel if any(ch.isspace() for ch in c)), None)
+            spaced = next((c for c in frames.channel if c and not is_interface_name(c)), None)
             if spaced is not None:
                 raise ValueError(f"{self.shown}: the recording's CAN channel {spaced!r} has white space, which a "
                                  "candump .log cannot hold (its interface names are single words); export to .asc, "

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from rig.blockbus import is_interface_name
 from rig.fidelity import Fidelity, choose
 from rig.scene import Field, Scene, SceneError, read_table
 
@@ -388,7 +389,7 @@ def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool
                          f"{can['bitrate']} bit/s (the data phase is the faster one)")
     _check_period(can["tx_period"], s["chunk"], s["sample_rate"], cw, where)
     _of_type(can["channel"], str, "channel", cw, "a string")
-    if not can["channel"] or any(ch.isspace() for ch in can["channel"]):
+    if not is_interface_name(can["channel"]):
         raise SceneError(f"{cw}: key 'channel' must be a name without white space, like a CAN interface's (can0, "
                          f"vcan0, rig); got {can['channel']!r}")
     _of_type(can["host"], str, "host", cw, "a host name or address")

@@ -19,7 +19,6 @@ import can
 from tqdm import tqdm
 
 import rig
-from drivers.can.host import STOP_CAUSES
 from rig.console import progress as progress_bar, quiet_libraries
 from rig.fidelity import announce as announce_fidelity
 from firmware_sim.serial_device import SerialDevice
@@ -744,9 +743,8 @@ def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], i
         check()
         if host.poll(0.05):
             last = time.monotonic()
-        elif host.can.run_ended and host.can.stop_cause not in ("Completed", "OutOfTime"):
-            raise RunError(f"the served machine at {where} stopped its run ({host.can.stop_cause}: "
-                           f"{STOP_CAUSES.get(host.can.stop_cause, 'a cause this host does not know')}) after "
+        elif host.can.stopped_early:
+            raise RunError(f"the served machine at {where} stopped its run ({host.can.stop_reason}) after "
                            f"{host.curves_recorded} curves recorded (kept in {output}, its run_stopped event)")
         elif host.can.run_ended:       # the served run is shorter than this scene's: keep what it sent
             host.poll(0.05)
