@@ -683,8 +683,8 @@ def _run(argv: list[str] | None) -> int:
     args.quiet = getattr(args, "quiet", False)
     from rig.console import configure
     configure(quiet=args.quiet)
-    from rig.recorder import RecordingError
-    from rig.runner.session import RunError
+    from rig.recorder.errors import RecordingError
+    from rig.runner.errors import RunError
     from rig.scene import SceneError
     from rig.solvers.base import SolverDivergence
     try:

@@ -30,6 +30,7 @@ import numpy as np
 
 from drivers.can.drain import drain_block
 from drivers.can.layout import FrameLayout, supports
+from drivers.can.process_values import PROCESS_VALUES
 from drivers.can.reassembly import Curve, CurveAssembler
 from drivers.can.sequence import SequenceChecker
 from drivers.can.timebase import unwrap
@@ -41,8 +42,6 @@ COMMANDS = {"start": 1, "stop": 2, "select_program": 3, "tare": 4, "reset_statis
 TARE_CHANNELS = {"x": 0, "y": 1, "y2": 2, None: 3}
 STATES = {0: "idle", 1: "measuring", 2: "armed", 15: "unknown"}
 ACK = {0: "done", 1: "rejected", 2: "unknown_command"}
-PROCESS_VALUES = {"XMax": "x_max", "XMin": "x_min", "YMax": "y_max", "YMin": "y_min", "XAtYMax": "x_at_y_max",
-                  "YAtXMax": "y_at_x_max", "XEnd": "x_end", "YEnd": "y_end", "Duration": "duration"}
 TICK_WRAP = 6.5536          # s, 16-bit Tick at 100 us
 EDGE_WRAP = 16.777216       # s, 24-bit EdgeTime and TStart at 1 us
 START_WRAP = 2.0 ** 40 * 1e-6   # s, 40-bit curve start (TStartHigh:TStart) at 1 us: 12.7 days

@@ -10,7 +10,7 @@ import json
 import re
 from typing import Iterable, Mapping
 
-from drivers.can.host import PROCESS_VALUES
+from drivers.can.process_values import PROCESS_VALUES
 from rig.recorder.encoding import NULLS
 
 

@@ -6,9 +6,14 @@
   serial device) — what ``rig serve`` runs;
 * :mod:`rig.runner.host` is the host side (CAN and serial drivers, theory, recorder) — what
   ``rig record`` runs;
-* :mod:`rig.runner.session` runs both in one process (``rig run``) or either alone.
-"""
-from rig.runner.config import RunConfig, read_config
-from rig.runner.session import RunSummary, record_scene, run_scene, serve_scene
+* :mod:`rig.runner.session` runs both in one process (``rig run``) or either alone;
+* :mod:`rig.runner.errors` holds why a run could not complete.
 
-__all__ = ["RunConfig", "RunSummary", "read_config", "record_scene", "run_scene", "serve_scene"]
+The names below are imported on first use (:mod:`rig.lazy`).
+"""
+from rig.lazy import exports
+
+_WHERE = {"RunConfig": "rig.runner.config", "read_config": "rig.runner.config",
+          **dict.fromkeys(("RunSummary", "record_scene", "run_scene", "serve_scene"), "rig.runner.session")}
+__all__ = list(_WHERE)
+__getattr__ = exports(__name__, _WHERE)

@@ -28,6 +28,7 @@ from rig.recorder import Recorder
 from rig.recorder.writer import interruption
 from firmware_sim.can_node import BusOverload
 from rig.runner.config import RunConfig, default_max_time, read_config
+from rig.runner.errors import BusTooSlow, HostLeft, HostStalled, OutOfTime, RunError
 from rig.runner.host import Host
 from rig.runner.interrupt import deferred_interrupt, shielded
 from rig.runner.machine import Machine
@@ -43,37 +44,6 @@ LISTENER_BACKLOG = 200_000   # frames held for a connection that does not hold t
 SERVE_DRAIN = 10.0      # s a served machine waits at its stop (for its hosts) or end (for listeners) for what it sent
 SLOW_HOST = 10.0        # s of waiting for a host that does not read before the served machine says so
 QUIET = 0.5        # s without frames after which `rig record` looks whether the served machine closed the connection
-
-
-class RunError(RuntimeError):
-    """A run could not complete (the machine did not produce what the scene asks for in time). ``stop_cause``: the
-    ``TxStatus.StopCause`` the unit sends when this stops its run (its hosts learn why)."""
-
-    stop_cause = "Fault"
-
-
-class OutOfTime(RunError):
-    """The scene's cycles were not complete by its ``max_time`` of simulated time."""
-
-    stop_cause = "OutOfTime"
-
-
-class HostLeft(RunError):
-    """The served host disconnected without releasing the device."""
-
-    stop_cause = "HostLeft"
-
-
-class HostStalled(RunError):
-    """The served host stopped reading (the machine waited for it in vain)."""
-
-    stop_cause = "HostStalled"
-
-
-class BusTooSlow(RunError):
-    """The scene's CAN link cannot carry what the unit measures."""
-
-    stop_cause = "BusOverload"
 
 
 class Interrupted(KeyboardInterrupt):

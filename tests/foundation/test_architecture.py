@@ -4,6 +4,8 @@ inside functions; those under ``if TYPE_CHECKING:`` are for the type checker onl
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -11,7 +13,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("rig", "drivers", "firmware_sim")
 #: what `drivers` and `firmware_sim` may import from `rig` (docs/ARCHITECTURE.md)
-GENERIC = {"rig", "rig.units", "rig.scene", "rig.blockbus", "rig.dbc"}
+GENERIC = {"rig", "rig.units", "rig.scene", "rig.blockbus", "rig.dbc", "rig.lazy"}
 
 
 def _modules() -> dict[str, Path]:
@@ -131,3 +133,26 @@ def test_the_wire_sides_take_only_the_generic_utilities_from_the_host(side):
 
 def test_no_import_circles():
     assert _cycles(GRAPH) == []
+
+
+def test_naming_the_errors_imports_neither_the_runner_nor_the_can_stack():
+    """The command line catches the runner's and the recorder's errors for every command: naming them must not import
+    the runner (scipy.signal, the simulated unit) or python-can (with asammdf and pandas), 1–1.5 s of every
+    `rig report`, `rig summary`, `rig export-can` before (lazy package exports, rig.lazy)."""
+    code = ("import sys; from rig.runner.errors import RunError; from rig.recorder.errors import RecordingError; "
+            "from drivers.can.process_values import PROCESS_VALUES; import rig.recorder.schemas; "
+            "print(sorted(m for m in ('rig.runner.session', 'can', 'scipy.signal', 'firmware_sim.digiforce') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert out.stdout.strip() == "[]"
+
+
+def test_lazy_package_exports_resolve_and_refuse_unknown_names():
+    import drivers.can
+    import rig.recorder
+    import rig.runner
+    for package in (rig.runner, rig.recorder, drivers.can):
+        for name in package.__all__:
+            assert getattr(package, name).__name__ == name
+        with pytest.raises(AttributeError, match="has no attribute 'nope'"):
+            package.nope
