@@ -98,7 +98,8 @@ def mode_errors(method: str, eig: np.ndarray | None, lam: np.ndarray, h: float,
     and phase error |arg(μ/e^{hλ})| (rad) per step (of modes that do not grow), its spurious growth ln(|μ|/|e^{hλ}|) ≥ 0
     per step where the method amplifies it but not beyond what the amplification test reports (explicit Euler's slow
     growth of an undamped oscillation), the mode's lifetime in steps 1/(1 − max(|e^{hλ}|, |μ|)) (inf when it does not
-    decay) and λ."""
+    decay), λ, and for a mode the exact flow grows the method's relative error on it per step |ln(μ/e^{hλ})| (modulus and
+    phase; it compounds while the mode grows: RK4 at hλ = 1.9 on y' = 10y, 4.5 % per step, is 20 % off after 1 s)."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         exact = np.exp(h * lam)
         if method in POLYNOMIALS:
@@ -118,7 +119,8 @@ def mode_errors(method: str, eig: np.ndarray | None, lam: np.ndarray, h: float,
         phase = np.where(damps & lasting, np.abs(np.angle(mu / exact)), 0.0)
         growth = np.where(~damps & lasting, np.maximum(np.log(np.abs(mu) / np.abs(exact)), 0.0), 0.0)
         life = np.where(kept < 1.0, 1.0 / (1.0 - kept), np.inf)
-    return err, decay, phase, growth, life, lam
+        drift = np.where(~lasting & np.isfinite(mu), np.abs(np.log(mu / exact)), 0.0)
+    return err, decay, phase, growth, life, lam, drift
 
 
 class Amplification:

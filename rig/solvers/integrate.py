@@ -203,6 +203,19 @@ def _before_root(g: Callable[[float, tuple], float], states: Callable, t_root: f
     return t_old
 
 
+def _root(g_at: Callable[[float], float], t_a: float, t_new: float) -> float:
+    """The root of ``g_at`` (the event on the step's interpolant) in [t_a, t_new], given that the event's values at the
+    step's states changed sign; ``t_new`` when the interpolant shows no sign change over the step: the end state is
+    then on the other side, but the interpolant at the step's end misses it by its rounding (DOP853's by ≈ 1e-13·h·|y'|)
+    — the root lies within that of the step's end, and brentq would refuse the bracket."""
+    g_a, g_b = g_at(t_a), g_at(t_new)
+    if g_a == 0.0:
+        return t_a
+    if g_b == 0.0 or (g_a < 0.0) == (g_b < 0.0):
+        return t_new
+    return brentq(g_at, t_a, t_new, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+
+
 def _left_zero(g: Callable[[float, tuple], float], dense: Callable, t_old: float, t_new: float,
                b: float) -> tuple[float, float]:
     """For an event an action left on its surface (g = 0 at ``t_old``) and found at ``b`` ≠ 0 at the step's end:
@@ -358,13 +371,13 @@ def integrate(problem: Problem, t_span: tuple[float, float], method: str | type[
                         on = solver.state_at if fixed else dense
                         g_at = (lambda tt, f=e.fun, d=on: f(tt, d(tt)))
                         if t_from > t_old:
-                            t_root = brentq(g_at, t_from, t_new, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                            t_root = _root(g_at, t_from, t_new)
                         elif (g_at(t_old) < 0.0) == (b < 0.0):
                             t_root = t_old      # g jumped at a restart (RHS/mode discontinuity): past at once
                         elif runs and not fixed:  # compiled events: compiled search on the same dense output
                             t_root = solver.locate(i)
                         else:
-                            t_root = brentq(g_at, t_old, t_new, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                            t_root = _root(g_at, t_old, t_new)
                         if e.mode_dependent:
                             t_root = _past_root(e.fun, on, t_root, t_new, rising)
                     hits.append((t_root, i, 1.0 if rising else -1.0))

@@ -150,3 +150,36 @@ def test_a_blow_up_of_the_model_is_named_as_such_not_as_an_unstable_step(method)
     assert not isinstance(info.value, StiffnessError)
     assert "the solution itself grows without bound" in str(info.value) and "not the method" in str(info.value)
     assert "reduce h" not in str(info.value)
+
+
+@njit(cache=True)
+def _drift(t, y, p, out):
+    out[0] = 1.0
+    out[1] = 0.0
+
+
+@njit(cache=True)
+def _level(t, y, p, k):
+    return y[0] - p[0]
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+@pytest.mark.parametrize("method", ("DOP853", "Tsit5", "DP45"))
+@pytest.mark.parametrize("kind", ["terminal", "restart"])
+@pytest.mark.parametrize("level, breaks", [(1.0, ()), (0.5, (0.5,))])
+def test_a_root_on_a_step_end_within_the_interpolants_rounding_is_found_there(method, compiled, kind, level, breaks):
+    """y = t, the event y − level with its root on the span's end or on a time break, where every step ends: DOP853's
+    interpolant misses the end state by ≈ 1e-13·h, the sign change was in the states but not on it — the compiled root
+    search returned t = 0 (a terminal run 'stopped' at 0, a restart sent time back and ended at y = 1.11) and the
+    Python one raised brentq's bare ValueError (an audit)."""
+    p = np.array([level])
+    fun = JitRhs(_drift, lambda: p, event=_level) if compiled else (lambda t, y: (1.0, 0.0))
+    event = Event(lambda t, y: y[0] - level, "level", direction=1.0, terminal=kind == "terminal",
+                  restart=kind == "restart")
+    sol = integrate(Problem(fun, (0.0, 0.0), [event], time_breaks=list(breaks)), (0.0, 1.0), method,
+                    rtol=1e-8, atol=1e-10)
+    found = sol.t_events.get("level", [])      # on the span's end y may stop an ulp short of 1: then none
+    assert found == pytest.approx([level], abs=1e-12) or (level == 1.0 and found == [])
+    assert np.all(np.diff(sol.t) >= 0.0)
+    end = level if kind == "terminal" else 1.0
+    assert sol.t_final == pytest.approx(end, abs=1e-12) and sol.y_final[0] == pytest.approx(end, abs=1e-12)

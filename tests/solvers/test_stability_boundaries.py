@@ -200,7 +200,7 @@ def test_the_periodic_and_end_checks_count_the_steps_since_the_one_checked_last(
 
         def check(self, t, y, h, steps=0.0):
             self.h.append(h)
-            modes = (np.empty(0),) * 6                  # no persistent mode for the accuracy test
+            modes = (np.empty(0),) * 7                  # no persistent mode for the accuracy test
             return (math.exp(0.4), 1.0, 1j, modes) if self.grows and t > 12.5 else (1.0, 1.0, 1j, modes)
 
     h = [2.0] + [1.0] * 11
@@ -286,3 +286,52 @@ def test_a_stiff_decay_stepped_stably_draws_no_accuracy_warning():
         warnings.simplefilter("error", ResolutionWarning)
         sol = integrate(Problem(lambda t, y: (-1000.0 * y[0],), (1.0,)), (0.0, 0.2), method="RK4", h=2.5e-3)
     assert abs(sol.y_final[0]) < 1e-15
+
+
+GROWTH = Problem(lambda t, y: (10.0 * y[0],), (1.0,))                         # y = e^{10t}
+
+
+def _falling_pendulum(t, y):
+    """An inverted pendulum (g/l = 98.1 1/s², damping 0.5 1/s) falling from 1e-8 rad: a mode growing at ≈ 9.7 1/s for
+    ≈ 2 s, then a swing."""
+    return (y[1], 98.1 * math.sin(y[0]) - 0.5 * y[1])
+
+
+@pytest.mark.parametrize("problem, h, t_end", [(GROWTH, 0.005, 5.0), (Problem(_falling_pendulum, (1e-8, 0.0),
+                                                                                positions=(0,)), 0.002, 4.0)])
+def test_a_model_that_grows_by_itself_is_not_called_unstable(problem, h, t_end):
+    """The increments' growth test stopped both as "RK4 unstable … a lightly damped mode outside the method's stability
+    region" (×12.2 per 50 steps: e^2.5, the model's own growth), though 2.5e-6 from e^50 and 5e-8 from the reference
+    (an audit): it now asks the amplification test whether a mode grows by itself at that rate."""
+    from scipy.integrate import solve_ivp
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sol = integrate(problem, (0.0, t_end), "RK4", h=h)
+    ref = solve_ivp(lambda t, y: problem.fun(t, y), (0.0, t_end), problem.y0, method="DOP853", rtol=1e-12,
+                    atol=1e-14).y[:, -1]
+    assert np.allclose(sol.y_final, ref, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("method, h", [("Euler", 0.01), ("Euler", 0.03), ("RK4", 0.19), ("RK4", 0.15)])
+def test_a_growing_mode_stepped_coarsely_is_warned(method, h):
+    """y' = 10y over 1 s: explicit Euler at h·λ = 0.1 ends 37 % low, RK4 at h·λ = 1.9 20 % and at 1.5 11 % low — all
+    silent before (the accuracy test judged only modes that do not grow; an audit). The error on a growing mode
+    compounds while it grows: summed, it is warned once at 5 %."""
+    from rig.solvers import ResolutionWarning
+    with pytest.warns(ResolutionWarning, match=r"lambda = 10\+0j 1/s, which grows by .* summed while it grew") as said:
+        sol = integrate(GROWTH, (0.0, 1.0), method, h=h)
+    assert abs(sol.y_final[0] / math.exp(10.0) - 1.0) > 0.1                        # the answer it warns about
+    assert len([w for w in said if issubclass(w.category, ResolutionWarning)]) == 1
+    fix = float(str(said[0].message).split("reduce h to about ")[1].split(" s")[0])
+    with warnings.catch_warnings():                                                 # the step it suggests is fine
+        warnings.simplefilter("error")
+        better = integrate(GROWTH, (0.0, 1.0), method, h=1.0 / math.ceil(1.0 / fix))
+    assert abs(better.y_final[0] / math.exp(10.0) - 1.0) < 0.05
+
+
+@pytest.mark.parametrize("method, h", [("Euler", 1e-4), ("RK4", 0.01)])
+def test_a_growing_mode_stepped_finely_draws_no_warning(method, h):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sol = integrate(GROWTH, (0.0, 1.0), method, h=h)
+    assert abs(sol.y_final[0] / math.exp(10.0) - 1.0) < 0.01

@@ -165,8 +165,8 @@ def brent(t_old, t_new, y_old, Q, p, k, y):
     fpre, fcur = g_dense(xpre, t_old, h, y_old, Q, p, k, y), g_dense(xcur, t_old, h, y_old, Q, p, k, y)
     if fpre == 0.0:
         return xpre
-    if fcur == 0.0:
-        return xcur
+    if fcur == 0.0 or (fpre < 0.0) == (fcur < 0.0):    # no sign change on the interpolant: the end states' change lies
+        return xcur                                    # within its rounding of the step's end (as integrate._root)
     xblk = fblk = spre = scur = 0.0
     for _ in range(100):
         if fpre != 0.0 and fcur != 0.0 and (fpre < 0.0) != (fcur < 0.0):
