@@ -647,6 +647,8 @@ def _interrupted(exc: KeyboardInterrupt) -> str:
     the report of a whole recording was cut, else nothing claimed."""
     from rig.stops import stopped
     said = stopped(exc)
+    if hasattr(exc, "said"):               # a command that has its own line for it (a sweep: what it kept)
+        return getattr(exc, "said")
     if hasattr(exc, "report_of"):
         recording, folder, no_report = getattr(exc, "report_of")
         if no_report:

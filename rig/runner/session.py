@@ -305,7 +305,8 @@ def _metadata(cfg: RunConfig, mode: str) -> dict[str, Any]:
             "run_mode": mode, "software_version": rig.__version__, "sample_rate": cfg.sample_rate,
             "cycles": cfg.cycles, "duration": cfg.duration, "fidelity_level": cfg.fidelity.level,
             "fidelity_reason": cfg.fidelity.reason, "method": cfg.fidelity.method_text,
-            "fidelity_caveat": cfg.fidelity.caveat, "truth_caveat": cfg.truth_caveat}
+            "fidelity_caveat": cfg.fidelity.caveat, "truth_caveat": cfg.truth_caveat,
+            "serial_link": "on" if cfg.serial["enabled"] else "off"}
 
 
 def _units(cfg: RunConfig) -> dict[str, dict[str, str]]:
@@ -684,10 +685,10 @@ def record_scene(scene_path: str | Path, output: str | Path, *, can_host: str = 
             # a served run longer than asked for: the span recorded, its 2 s wait for the run end included)
             simulated = max(host.truth_t, host.can.device_time)
             compiled = compile_seconds() - compiled
-            _finishing(bar, cfg, host.truth_t)
-            with deferred_interrupt(), _serial_link(serial_port, "reading the statistics back"):
+            _finishing(bar, cfg, simulated)       # the time the summary says (finish() trims the theory to the
+            with deferred_interrupt(), _serial_link(serial_port, "reading the statistics back"):    # recorded span)
                 stats = host.finish()
-            _finished(bar, cfg, host.truth_t, host.curves_recorded)
+            _finished(bar, cfg, simulated, host.curves_recorded)
     return RunSummary(output, host.curves_recorded, simulated, time.perf_counter() - wall, host.frames, stats,
                       run_time, compiled)
 

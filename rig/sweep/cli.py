@@ -37,14 +37,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             for bar in bars:
                 bar.close()
             if not stop.result.points:              # nothing to keep: an earlier sweep's outputs stay as they were
-                print(f"rig: the sweep was {stopped(stop)} before any of its {stop.total} points was done; nothing "
-                      f"written", file=sys.stderr)
+                stop.said = (f"rig: the sweep was {stopped(stop)} before any of its {stop.total} points was done; "
+                             f"nothing written")          # the one line rig.cli says for it
                 raise
             before = clear_previous(claim_dir(out), MANIFEST, _earlier_sweep)
             table = write_table(stop.result, out / "sweep.csv")
             list_written(out, MANIFEST, before)
-            print(f"rig: the sweep was {stopped(stop)} after {len(stop.result.points)} of {stop.total} points; their "
-                  f"rows are in {table} (no maps)", file=sys.stderr)
+            stop.said = (f"rig: the sweep was {stopped(stop)} after {len(stop.result.points)} of {stop.total} points; "
+                         f"their rows are in {table} (no maps)")
             raise
         finally:
             for bar in bars:

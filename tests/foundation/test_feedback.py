@@ -306,3 +306,14 @@ def test_a_run_without_the_serial_link_does_not_speak_of_it(tmp_path, capsys, mo
     assert "serial set-up" not in out and "set-up and the recording closed" in out
     assert not any("device statistics" in line for line in bar_lines(err))
     assert any("closing the recording" in line for line in bar_lines(err))
+
+
+def test_statistics_not_read_back_for_a_scene_without_the_serial_link_blame_the_scene_not_the_device(tmp_path, capsys):
+    """The demo with [links.serial] enabled = false said "not compared: the device sent no statistics for this
+    program" (an audit): it was the scene that switched the read-back off."""
+    scene = tmp_path / "noserial.toml"
+    scene.write_text(DEMO.read_text().replace("[links.serial]\n", "[links.serial]\nenabled = false\n", 1))
+    assert cli.main(["run", str(scene), "-o", str(tmp_path / "n.mcap"), "--cycles", "2", "--no-report"]) == 0
+    out = capsys.readouterr().out
+    assert ("device statistics (program 1): not compared: the scene's serial link is off ([links.serial] enabled = "
+            "false): the host read no statistics back from the device") in out and "device sent no" not in out
