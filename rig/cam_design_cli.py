@@ -67,6 +67,6 @@ def register(sub: argparse._SubParsersAction, parents: list[argparse.ArgumentPar
                    help="permissible Hertz stress (MPa; default 1200, an assumption for hardened steel)")
     p.add_argument("--load-coefficient", type=float, metavar="Q/F",
                    help="load coefficient Φ_L of the H/h optimum (default 0.5, an assumption)")
-    p.add_argument("-o", "--output", help="chart PNG (default out/<scene name>.cam_design.png, e.g. "
+    p.add_argument("-o", "--output", help="chart PNG (default out/<scene file name>.cam_design.png, e.g. "
                                             "out/pin_insertion.cam_design.png)")
     p.set_defaults(func=cmd_cam_design)

@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 from typing import Any, Callable
 
-from rig.outputs import (JSON_START, PNG_MAGIC, TRACE_MAGIC, UsageError, claim_dir, file_parent, recording_file,
-                         writable_dir, writable_file)
+from rig.outputs import (JSON_START, PNG_MAGIC, TRACE_MAGIC, UsageError, claim_dir, file_parent, new_folder,
+                         recording_file, writable_dir, writable_file)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SCENE = DATA / "scenes" / "pin_insertion.toml"
@@ -36,10 +36,10 @@ def _print_cam_bar_summary(scene_path: Path, png: Path, run_level: int | None = 
     from rig.scene import load_scene
     mech, omega = cam_bar_from_scene(scene_path)
     print(summary_table(mech, omega, run_level, read_spring_rates(load_scene(scene_path))))
-    new_folder = None if png.parent.exists() else Path(os.path.abspath(png)).parent
+    created = new_folder(png)
     png.parent.mkdir(parents=True, exist_ok=True)
     plot_cycle(mech, omega, png)
-    print(f"cycle chart: {png}{'' if run_level is not None else _created(new_folder)}")
+    print(f"cycle chart: {png}{'' if run_level is not None else _created(created, png)}")
 
 
 def _analysed(recording: Path) -> tuple[Any, dict]:
@@ -178,16 +178,20 @@ def _report(recording: Any, out_dir: Path, fmt: str, analysis: dict | None = Non
                             nok_plots=NOK_PLOTS if nok_plots is None else nok_plots)
 
 
-def _created(folder: Path | None) -> str:
-    """The note on the output line that rig made the recording's folder (it did not exist)."""
-    return f" (created the folder {folder})" if folder is not None and folder.is_dir() else ""
+def _created(folder: Path | None, file: Path) -> str:
+    """The note on an output line that rig made the ``file``'s folder (:func:`rig.outputs.new_folder`: the outermost
+    folder it created, the file's own one or one above it)."""
+    if folder is None or not folder.is_dir():
+        return ""
+    own = Path(os.path.abspath(file)).parent
+    return f" (created the folder {folder})" if own == folder else f" (created the folders {folder} … {own})"
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from rig.runner import run_scene
     scene = Path(args.scene)
     out = Path(args.output) if args.output else Path("out") / f"{scene.stem}.mcap"
-    new_folder = recording_file(out)
+    created = recording_file(out)
     report_dir = Path(args.report_dir) if args.report_dir else out.with_suffix("")
     unused = [opt for opt, given in (("--format", args.format != "html"), ("--ok-plots", args.ok_plots),
                                      ("--nok-plots", args.nok_plots is not None)) if given]
@@ -215,7 +219,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"{what}, {summary.simulated_time:.2f} s simulated{carried} in {summary.run_time:.2f} s "
           f"({summary.realtime_factor:.1f}x real time{_compiled(summary)}; {summary.wall_time:.2f} s with "
           f"{'serial set-up and read-back' if cfg.serial['enabled'] else 'set-up and the recording closed'}), "
-          f"{summary.frames} CAN frames received -> {summary.output}{_created(new_folder)}")
+          f"{summary.frames} CAN frames received -> {summary.output}{_created(created, summary.output)}")
     try:
         rec, analysis = _analysed(summary.output)
         if not _print_stand_summary(rec):
@@ -233,7 +237,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_serve(args: argparse.Namespace) -> int:
     from rig.runner import serve_scene
     if args.endpoints:
-        writable_file(Path(args.endpoints), "endpoints", JSON_START)
+        writable_file(Path(args.endpoints), "serve endpoints", JSON_START)
     _scene_config(Path(args.scene), args.cycles, args.fidelity)
 
     def announce(endpoints: dict[str, Any]) -> None:
@@ -252,7 +256,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 def cmd_record(args: argparse.Namespace) -> int:
     from rig.runner import record_scene
     from rig.runner.session import scene_digest
-    new_folder = recording_file(Path(args.output))
+    created = recording_file(Path(args.output))
     cfg = _scene_config(Path(args.scene), args.cycles, args.fidelity)
     if args.endpoints:                   # what `rig serve --endpoints` wrote: where to connect, and what it serves
         served = _served(Path(args.endpoints))
@@ -274,7 +278,7 @@ def cmd_record(args: argparse.Namespace) -> int:
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet, fidelity=args.fidelity)
     print(f"{_done('recorded', summary.curves)}, {summary.simulated_time:.2f} s simulated -> {summary.output}"
-          f"{_created(new_folder)}")
+          f"{_created(created, summary.output)}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
         _print_set_summary(analysis)
@@ -346,11 +350,11 @@ def cmd_export_can(args: argparse.Namespace) -> int:
     require_recording(args.recording)
     output = Path(args.output)
     writable_file(output, "CAN trace", TRACE_MAGIC.get(output.suffix.lower()))
-    new_folder = None if output.parent.exists() else Path(os.path.abspath(output)).parent
+    created = new_folder(output)
     e = export_can(args.recording, file_parent(output), partial=args.partial)
     start = datetime.fromtimestamp(e.start, timezone.utc).isoformat() if e.start else "unknown (1970-01-01)"
     print(f"exported {e.frames} CAN frames ({e.error_frames} error frames) on {len(e.channels) or 1} channel(s), "
-          f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}{_created(new_folder)}")
+          f"simulation time {e.t_first:.6f}..{e.t_last:.6f} s, trace start {start} -> {e.path}{_created(created, e.path)}")
     if e.lost:
         logging.getLogger("rig").warning(
             "the recording is cut or damaged, the trace holds the frames that read (damaged parts skipped, as `rig "

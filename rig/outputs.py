@@ -82,15 +82,25 @@ def writable_file(path: Path, what: str, magic: bytes | None = None) -> None:
 def recording_file(path: Path) -> Path | None:
     """Check the output recording ``path`` of ``rig run``/``rig record`` (:func:`writable_file`, then its name:
     a recording is an MCAP file, ``*.mcap`` — ``-o x.txt`` would write MCAP bytes under a name that says text);
-    returns the folder rig will create for it, None when it exists."""
+    returns the outermost folder rig will create for it (:func:`new_folder`), None when its folder exists."""
     from rig.recorder.salvage import MCAP_MAGIC
     path = Path(path)
     writable_file(path, "recording", MCAP_MAGIC)
     if path.suffix.lower() != ".mcap":
         raise UsageError(f"cannot write the recording to {path}: a recording is an MCAP file, its name must end in "
                          f".mcap (e.g. {path.with_suffix('.mcap') if path.suffix else path.with_name(path.name + '.mcap')})")
+    return new_folder(path)
+
+
+def new_folder(path: Path) -> Path | None:
+    """The outermost folder that writing the file ``path`` will create (its folder and any missing above it), None
+    when its folder exists."""
     folder = Path(os.path.abspath(path)).parent
-    return None if folder.exists() else folder
+    if folder.exists():
+        return None
+    while not folder.parent.exists():
+        folder = folder.parent
+    return folder
 
 
 def writable_dir(path: Path, what: str, shared: bool = False, hint: str = "") -> None:

@@ -179,8 +179,14 @@ class DaskExecutor(Executor):
 
     def close(self) -> None:
         self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
+        if self.cluster is not None:          # our own cluster: its shutdown's notices ("Worker process still alive
+            quiet = logging.getLogger("distributed")      # after 4.0 seconds, killing", heartbeats of workers leaving)
+            level = quiet.level                           # are our doing, no news
+            quiet.setLevel(logging.ERROR)
+            try:
+                self.cluster.close()
+            finally:
+                quiet.setLevel(level)
 
 
 class DaskProcessesExecutor(DaskExecutor):

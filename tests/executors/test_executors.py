@@ -302,3 +302,20 @@ def test_rig_tolerance_does_not_choose_a_model_level(tmp_path, monkeypatch):
         raise AssertionError("rig tolerance chose a model level")
     monkeypatch.setattr(config, "choose", never)
     assert main(["-q", "tolerance", "--samples", "200", "--executor", "serial", "-o", str(tmp_path)]) == 0
+
+
+def test_closing_our_own_cluster_says_nothing_of_its_shutdown(caplog):
+    """A sweep on worker processes ended with "rig: distributed.nanny: warning: Worker process still alive after 4.0
+    seconds, killing" twice (an audit): the shutdown of the cluster the rig made is its own doing, no news. The
+    notice is made here as the nanny makes it, inside the cluster's close."""
+    import logging
+    with make_executor("dask", workers=1) as ex:
+        close = ex.cluster.close
+
+        def noisy_close(*args, **kwargs):
+            logging.getLogger("distributed.nanny").warning("Worker process still alive after 4.0 seconds, killing")
+            return close(*args, **kwargs)
+        ex.cluster.close = noisy_close
+    assert not [r for r in caplog.records if "still alive" in r.getMessage()]
+    logging.getLogger("distributed.nanny").warning("a notice outside the close")    # the level is given back after it
+    assert [r for r in caplog.records if "outside the close" in r.getMessage()]

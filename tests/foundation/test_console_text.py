@@ -130,8 +130,12 @@ def test_a_new_folder_for_the_recording_is_made_and_said(tmp_path, capsys):
     assert cli.main(["-q", "run", "--cycles", "1", "--no-report", "-o", str(out)]) == 0
     lines = capsys.readouterr().out.splitlines()
     said = [line for line in lines if line.startswith("recorded ")]
-    assert said[0].endswith(f"-> {out} (created the folder {out.parent})") and out.exists()
+    # both folders were made: it said only the innermost (an audit)
+    assert said[0].endswith(f"-> {out} (created the folders {tmp_path / 'new'} … {out.parent})") and out.exists()
     assert sum("created the folder" in line for line in lines) == 1     # not also on the cycle chart's line
+    again = tmp_path / "new" / "other" / "y.mcap"
+    assert cli.main(["-q", "run", "--cycles", "1", "--no-report", "-o", str(again)]) == 0
+    assert f"-> {again} (created the folder {again.parent})" in capsys.readouterr().out
     assert cli.main(["-q", "run", "--cycles", "1", "--no-report", "-o", str(out)]) == 0       # it exists now
     assert [line for line in capsys.readouterr().out.splitlines() if line.startswith("recorded ")][0].endswith(
         f"-> {out}")

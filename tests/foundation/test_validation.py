@@ -266,7 +266,8 @@ def test_an_existing_foreign_file_is_never_overwritten(foreign, capsys):
     (lambda t: ["cam-design", "-o", str(t / "cd.txt")], "cannot write the cam-design chart to {t}/cd.txt: a chart is a "
                                                        "PNG file, its name must end in .png (e.g. {t}/cd.png)"),
     (lambda t: ["tolerance", "-o", str(t / "passwd")], "cannot write the tolerance chart to {t}/passwd: it exists"),
-    (lambda t: ["serve", str(DEMO), "--endpoints", str(t / "passwd")], "cannot write the endpoints to {t}/passwd: "),
+    (lambda t: ["serve", str(DEMO), "--endpoints", str(t / "passwd")],
+     "cannot write the serve endpoints to {t}/passwd: it exists and is not a serve endpoints file"),    # "a endpoints"
     (lambda t: [(t / "a.mcap").write_bytes(b"\x89MCAP0\r\n") and "export-can", str(t / "a.mcap"), "-o", str(t)],
      "cannot write the CAN trace to {t}: it is a directory"),          # an MCAP file's start: the output is next
 ])
