@@ -6,8 +6,8 @@ set (``VmRSS``/``VmHWM`` of /proc/self/status) together with the host's progress
 and the machine's simulated time. Reports:
 
 * RSS after warm-up (the first sample at or after ``--warmup`` curves) against RSS at the end, and the
-  least-squares slope of RSS after warm-up in MB per 1000 cycles with its ±2σ band (flat: the band inside
-  ±1 MB/1000; growing: above it; undecided: a band too wide for the run's length — run longer);
+  least-squares slope of RSS after warm-up in MB per 1000 cycles with its ±2σ band (flat: the band below
+  +1 MB/1000; growing: above it; undecided: a band across it, too wide for the run's length — run longer);
 * the recording's size (and bytes per cycle), the run-phase real-time factor (``RunSummary.run_time``),
   the wall time with serial set-up and the process CPU time (simulated time per CPU second does not depend
   on what else the shared cores run);
@@ -172,7 +172,7 @@ def slope_error(x: np.ndarray, resid: np.ndarray) -> float:
     if n < 4 or sxx <= 0.0:
         return math.inf
     r1 = float(np.corrcoef(resid[:-1], resid[1:])[0, 1]) if resid.std() > 0 else 0.0
-    r1 = min(max(r1, 0.0), 0.99)
+    r1 = min(max(r1, 0.0), 0.99) if math.isfinite(r1) else 0.0
     return math.sqrt(float((resid ** 2).sum()) / (n - 2) / sxx * (1.0 + r1) / (1.0 - r1))
 
 
@@ -194,14 +194,14 @@ def report_memory(samples: list, warmup: int, cycles: int) -> None:
     half = 2.0 * slope_error(after[:, 1], resid) * 1000          # ±2σ of the slope, MB per 1000 cycles
     lo, hi = slope * 1000 - half, slope * 1000 + half
     grown = (end[4] - w[4]) / MB
-    if max(abs(lo), abs(hi)) < 1.0 and grown < 10.0:
+    if hi < 1.0 and grown < 10.0:                          # a leak is a growth: falling or level is flat
         verdict = "yes"
     elif lo > 1.0 or grown >= 10.0:
         verdict = "NO (growing)"
     else:
         verdict = "undecided (the RSS noise is too large for this many cycles: run longer)"
     print(f"  slope ±2σ (residuals' lag-1 correlation counted): {lo:+.3f} .. {hi:+.3f} MB per 1000 cycles")
-    print(f"  flat after warm-up (the slope's ±2σ band inside ±1 MB/1000 cycles and < 10 MB growth): {verdict}")
+    print(f"  flat after warm-up (the slope's ±2σ band below +1 MB/1000 cycles and < 10 MB growth): {verdict}")
     for q in (0.25, 0.5, 0.75):                         # a few points of the RSS curve
         k = min(range(len(after)), key=lambda i: abs(after[i, 1] - warmup - q * (end[1] - warmup)))
         print(f"    curve {int(after[k, 1]):6d}: RSS {after[k, 4] / MB:7.1f} MB at {after[k, 0]:6.0f} s")

@@ -648,11 +648,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _interrupted(exc: KeyboardInterrupt) -> str:
     """One line on Ctrl-C (or SIGTERM, named so): what a recorded run left (rig.runner.session.Interrupted), or that
-    the report of a whole recording was cut, else nothing claimed."""
+    the report of a whole recording was cut, else nothing claimed; empty when the command said it (``exc.said``)."""
     from rig.stops import stopped
-    said = stopped(exc)
-    if hasattr(exc, "said"):               # a command that has its own line for it (a sweep: what it kept)
+    if hasattr(exc, "said"):               # a command that said it itself ("": a sweep, what it kept) or has its line
         return getattr(exc, "said")
+    said = stopped(exc)
     if hasattr(exc, "report_of"):
         recording, folder, no_report = getattr(exc, "report_of")
         if no_report:
@@ -729,7 +729,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _run(argv)
     except KeyboardInterrupt as exc:
-        print(_interrupted(exc), file=sys.stderr)
+        line = _interrupted(exc)
+        if line:
+            print(line, file=sys.stderr)
         return 130
 
 

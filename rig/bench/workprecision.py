@@ -122,8 +122,9 @@ def _measure(problem: Any, quick: bool, methods: tuple[str, ...], limit: float |
             bar.set_postfix_str(f"{row.method} {row.setting}", refresh=False)
             bar.update()
 
+        # the reference's line is printed with the summary (run_scenes): here only its warning, at once
         return work_precision(problem, quick, methods,
-                              log=lambda line: (log.warning if line.startswith("WARNING") else log.info)(line),
+                              log=lambda line: (log.warning if line.startswith("WARNING") else log.debug)(line),
                               limit=limit, done=done)
 
 

@@ -141,7 +141,8 @@ class StiffnessMonitor:
     #: relative error on modes the exact flow grows, summed over the steps between the checks that find one (the
     #: method's error compounds while the mode grows): one :class:`ResolutionWarning` at GROWN_ERROR (5 %, half of
     #: where the stability map calls a run's error silent: an inverted pendulum falling from 1e-8 rad under explicit
-    #: Euler at 1 ms sums 9 % and its speed is then 20 % off); the suggested step takes it to a tenth
+    #: Euler at 1 ms reaches it at t ≈ 1.1 s, and its speed is later 20 % off); the suggested step takes it to a tenth.
+    #: Summed per episode of growth: a check that finds none ends it
     GROWN_ERROR = 0.05
 
     def __init__(self, method: str, limit: float, policy: str = "warn", fixed: bool = False):
@@ -162,7 +163,8 @@ class StiffnessMonitor:
         self._hot: list[int] = []                      # steps of the current batch whose h·|λ| passed the limit
         self._hits = [0, 0, 0.0]                       # positive and negative checks, summed spurious log-growth
         self._slow = 0.0                               # net spurious log-growth however small per step (see below)
-        self._drift = 0.0                              # summed relative error on growing modes (GROWN_ERROR)
+        self._drift = 0.0                              # summed relative error on a growing mode (GROWN_ERROR)
+        self._grew = False                             # whether the latest check found a mode growing
         self.calls = 0                                 # RHS calls the amplification test made
         self.growing = None                            # (t, y, Re λ) of the latest check if a mode grew by itself
         self.coarse: str | None = None                 # the accuracy warning, once given
@@ -177,7 +179,8 @@ class StiffnessMonitor:
             return
         if self.fixed and len(t):
             self._amplification(t, y, h, hl)        # first: its checks say whether a mode grows by itself
-            self._growth(t, np.asarray(y, dtype=float), h)
+            if self.detected_at is None:
+                self._growth(t, np.asarray(y, dtype=float), h)
             return
         if self.count == 0 and (known.size == 0 or known.max() <= self.limit):
             self.calm += len(hl)
@@ -195,7 +198,8 @@ class StiffnessMonitor:
             return
         if self.fixed:
             self._amplification([t], [y], [h], [hl])
-            self._growth([t], np.array([y], dtype=float), [h])
+            if self.detected_at is None:
+                self._growth([t], np.array([y], dtype=float), [h])
             return
         self._stiffness(t, y, h, hl)
 
@@ -366,8 +370,11 @@ class StiffnessMonitor:
         if not err.size:
             return
         grown = int(np.argmax(drift)) if drift.max() > 0.0 else None
-        if grown is not None:
-            self._drift += since * float(drift[grown])
+        if grown is None:                  # an episode of growth is over: a model that damps between them (a
+            self._drift = 0.0              # two-well oscillator crossing its saddle) does not sum its episodes
+        else:                              # a new episode counts from at most DENSE steps before its first check
+            self._drift += (since if self._grew else min(since, self.DENSE)) * float(drift[grown])
+        self._grew = grown is not None
         span = np.minimum(life, steps)
         order = STEP_ORDERS.get(self.watch.method, 2)
         # (values, limit, exponent in h — an error summed over the mode's life in a given time has one order
@@ -421,7 +428,7 @@ class StiffnessMonitor:
         fix = h * (0.1 * self.GROWN_ERROR / by_end) ** (1.0 / order)
         self.coarse = (f"{self.method} may be inaccurate from t = {t:.6g} s: at h = {h:.3g} s it steps the mode lambda "
                        f"= {mode.real:.4g}{mode.imag:+.4g}j 1/s, which grows by "
-                       f"{math.exp(min(h * mode.real, 700.0)):.3g} per step, with an error of {per_step:.2g} of it per "
+                       f"{math.exp(min(h * mode.real, 700.0)):.4g} per step, with an error of {per_step:.2g} of it per "
                        f"step, {self._drift:.2g} summed while it grew: the answer is wrong wherever that mode shows - "
                        f"reduce h to about {fix:.2g} s or use an adaptive method (DP45, Tsit5)")
         warnings.warn(self.coarse, ResolutionWarning, stacklevel=7)
@@ -470,6 +477,7 @@ class StiffnessMonitor:
                              f"{self.last:.3g}): a lightly damped mode outside the method's stability region "
                              f"(explicit Euler: h*omega_n > 2*zeta) - reduce h or use the implicit method Rodas4 "
                              f"(stiffness='ignore' if the model itself grows)")
+                return
 
     def _grows_by_itself(self, ratio: float, h: float) -> bool:
         """Whether the step increments' growth ``ratio`` per window of :data:`GROWTH_STEPS` steps of ``h`` (s) is a mode

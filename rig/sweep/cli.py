@@ -37,14 +37,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             for bar in bars:
                 bar.close()
             if not stop.result.points:              # nothing to keep: an earlier sweep's outputs stay as they were
-                stop.said = (f"rig: the sweep was {stopped(stop)} before any of its {stop.total} points was done; "
-                             f"nothing written")          # the one line rig.cli says for it
-                raise
+                print(f"rig: the sweep was {stopped(stop)} before any of its {stop.total} points was done; nothing "
+                      f"written", file=sys.stderr)
+                stop.said = ""                  # said: rig.cli adds no "rig: interrupted" (a second Ctrl-C while the
+                raise                           # executor closes is a new one, and says so)
             before = clear_previous(claim_dir(out), MANIFEST, _earlier_sweep)
             table = write_table(stop.result, out / "sweep.csv")
             list_written(out, MANIFEST, before)
-            stop.said = (f"rig: the sweep was {stopped(stop)} after {len(stop.result.points)} of {stop.total} points; "
-                         f"their rows are in {table} (no maps)")
+            print(f"rig: the sweep was {stopped(stop)} after {len(stop.result.points)} of {stop.total} points; their "
+                  f"rows are in {table} (no maps)", file=sys.stderr)
+            stop.said = ""
             raise
         finally:
             for bar in bars:

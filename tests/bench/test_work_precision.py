@@ -105,6 +105,7 @@ def test_cli_writes_csv_and_chart_for_a_clutch_scene(tmp_path, capsys):
     assert {r["method"] for r in rows} >= set(REQUIRED)
     assert (out / "clutch_startup.png").read_bytes()[:4] == b"\x89PNG"
     assert "clutch_startup: reference dp45" in text and "ours best" in text
+    assert "reference" not in err              # said once, on stdout with the summary (twice before: an audit)
 
 
 def test_cli_refuses_a_scene_without_a_work_precision_problem(tmp_path, capsys):

@@ -335,3 +335,18 @@ def test_a_growing_mode_stepped_finely_draws_no_warning(method, h):
         warnings.simplefilter("error")
         sol = integrate(GROWTH, (0.0, 1.0), method, h=h)
     assert abs(sol.y_final[0] / math.exp(10.0) - 1.0) < 0.01
+
+
+def test_episodes_of_growth_in_a_model_that_damps_between_them_are_not_summed():
+    """A forced two-well oscillator y' = 10(y − y³) + 10 cos t grows (λ up to 10 1/s) each time it crosses between
+    its wells and damps in them: explicit Euler at 2 ms ends 6e-5 from the reference after 100 s, and the growing-mode
+    test, summing every episode over the run, warned (a review); each episode is summed alone now."""
+    from scipy.integrate import solve_ivp
+
+    def two_wells(t, y):
+        return (10.0 * (y[0] - y[0] ** 3) + 10.0 * math.cos(t),)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sol = integrate(Problem(two_wells, (0.5,)), (0.0, 100.0), "Euler", h=2e-3)
+    ref = solve_ivp(two_wells, (0.0, 100.0), [0.5], method="DOP853", rtol=1e-12, atol=1e-14).y[0, -1]
+    assert abs(sol.y_final[0] - ref) < 1e-3
