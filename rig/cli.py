@@ -4,6 +4,10 @@
 """
 from __future__ import annotations
 
+if __name__ == "__mp_main__":      # a Dask worker process that `python -m rig.cli` spawned (as rig.launch does for
+    from rig.stops import spawned_worker           # the `rig` console script's)
+    spawned_worker()
+
 import argparse
 import atexit
 import importlib

@@ -5,7 +5,7 @@ import os
 import signal
 import sys
 
-from rig.stops import Terminated
+from rig.stops import Terminated, spawned_worker
 
 
 def _interrupted_while_starting(signum: int, frame: object) -> None:
@@ -17,10 +17,7 @@ def _interrupted_while_starting(signum: int, frame: object) -> None:
 # A worker process that multiprocessing spawns (Dask's) runs the console script again, as __mp_main__, and a Ctrl-C
 # at the terminal reaches every process of the group: the workers ignore it, the parent says it once and closes them.
 if "__mp_main__" in sys.modules:
-    import logging
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    # the tasks the parent cancels then end "with CancelledError": its doing, no news (as in rig.executors)
-    logging.getLogger("distributed.worker.state_machine").setLevel(logging.ERROR)
+    spawned_worker()
 else:
     signal.signal(signal.SIGINT, _interrupted_while_starting)
 

@@ -1,6 +1,9 @@
 """The stop by SIGTERM, told apart from Ctrl-C (both stop a command the same way; the recording and the console name
-which)."""
+which); a spawned worker process's part in a stop."""
 from __future__ import annotations
+
+import logging
+import signal
 
 
 class Terminated(KeyboardInterrupt):
@@ -23,3 +26,11 @@ def terminated(exc: BaseException | None) -> bool:
 def stopped(exc: BaseException | None) -> str:
     """The console's word for a stop: "terminated (SIGTERM)" or "interrupted" (Ctrl-C)."""
     return "terminated (SIGTERM)" if terminated(exc) else "interrupted"
+
+
+def spawned_worker() -> None:
+    """In a worker process that multiprocessing spawned (Dask's, re-running the command's main module as
+    ``__mp_main__``): ignore Ctrl-C — it reaches every process of the terminal's group, and the parent says it once and
+    closes its workers — and the "task cancelled" notices of the tasks the parent cancels then (its doing, no news)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.getLogger("distributed.worker.state_machine").setLevel(logging.ERROR)

@@ -266,6 +266,19 @@ def test_worker_processes_spawned_from_the_console_script_leave_ctrl_c_to_their_
     assert parent.stdout.split() == ["False", "0"], parent.stderr
 
 
+def test_a_worker_process_spawned_from_python_m_rig_cli_ignores_ctrl_c_too():
+    """`python -m rig.cli sweep … --workers 2` and Ctrl-C: the Dask worker processes, spawned with rig.cli as their
+    __mp_main__ (not the console script, which imports rig.launch), printed the cancelled tasks' notices in Dask's raw
+    format after the sweep's line (found with an audit's `python -c` wrapper, which no spawned worker can re-run)."""
+    code = ("import logging, runpy, signal, sys, types\n"
+            "sys.modules['__mp_main__'] = types.ModuleType('__mp_main__')   # as multiprocessing's spawn does\n"
+            "runpy.run_module('rig.cli', run_name='__mp_main__', alter_sys=True)\n"
+            "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN,\n"
+            "      logging.getLogger('distributed.worker.state_machine').level)\n")
+    worker = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert worker.stdout.split() == ["True", str(logging.ERROR)], worker.stderr
+
+
 def test_a_directory_given_as_the_recording_is_named_as_such(tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 2
     assert capsys.readouterr().err == f"rig: error: cannot read recording {tmp_path}: is a directory\n"
