@@ -178,15 +178,20 @@ class DaskExecutor(Executor):
         return f"dask ({where}), {self.workers} worker{'s' if self.workers != 1 else ''}"
 
     def close(self) -> None:
-        self.client.close()
-        if self.cluster is not None:          # our own cluster: its shutdown's notices ("Worker process still alive
-            quiet = logging.getLogger("distributed")      # after 4.0 seconds, killing", heartbeats of workers leaving)
-            level = quiet.level                           # are our doing, no news
-            quiet.setLevel(logging.ERROR)
-            try:
-                self.cluster.close()
-            finally:
-                quiet.setLevel(level)
+        """Close the client and our own cluster; a Ctrl-C meanwhile is raised once the cluster is closed (raised inside
+        its close, it left the cluster half closed for distributed's exit handler, whose second close printed a
+        traceback after rig's line)."""
+        from rig.runner.interrupt import deferred_interrupt
+        with deferred_interrupt():
+            self.client.close()
+            if self.cluster is not None:      # our own cluster: its shutdown's notices ("Worker process still alive
+                quiet = logging.getLogger("distributed")  # after 4.0 seconds, killing", heartbeats of workers leaving)
+                level = quiet.level                       # are our doing, no news
+                quiet.setLevel(logging.ERROR)
+                try:
+                    self.cluster.close()
+                finally:
+                    quiet.setLevel(level)
 
 
 class DaskProcessesExecutor(DaskExecutor):

@@ -319,3 +319,20 @@ def test_closing_our_own_cluster_says_nothing_of_its_shutdown(caplog):
     assert not [r for r in caplog.records if "still alive" in r.getMessage()]
     logging.getLogger("distributed.nanny").warning("a notice outside the close")    # the level is given back after it
     assert [r for r in caplog.records if "outside the close" in r.getMessage()]
+
+
+def test_ctrl_c_while_our_cluster_closes_is_raised_once_it_is_closed():
+    """Ctrl-C inside the cluster's close left it half closed; distributed's exit handler then closed it again and
+    printed a KeyboardInterrupt traceback after rig's one line (an audit's sweep). The close finishes first now."""
+    import os
+    import signal
+    ex = make_executor("dask", workers=1)
+    close = ex.cluster.close
+
+    def interrupted_close(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)             # Ctrl-C arriving in the middle of the close
+        return close(*args, **kwargs)
+    ex.cluster.close = interrupted_close
+    with pytest.raises(KeyboardInterrupt):
+        ex.close()
+    assert ex.cluster.status.name == "closed" and ex.client.status == "closed"

@@ -525,3 +525,22 @@ def test_a_parameter_that_changes_no_metric_is_named():
     assert inert_params(SweepResult(params, ("m",), points, values, [""] * 4, [1] * 4)) == []
     failed = [{"m": math.nan}] * 4              # every point failed: nothing measured, nothing called inert
     assert inert_params(SweepResult(params, ("m",), points, failed, ["diverged"] * 4, [1] * 4)) == []
+
+
+def test_ctrl_c_while_the_workers_close_keeps_every_point(tmp_path, monkeypatch, capsys):
+    """Ctrl-C after the last point, while a local cluster's workers closed (seconds, the nanny's kill): the points were
+    all done and lost, and distributed's exit handler closed the cluster again with a traceback. The executor's close
+    now raises it at its end (rig.executors.dask_cluster); the sweep keeps its table and says so in one line."""
+    from rig.executors.serial import SerialExecutor
+
+    def close(self):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(SerialExecutor, "close", close)
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(DEFAULT_SCENE), "--param", "plant.k=1.09 N/mm,1.89 N/mm", "--metric", "rod_force_peak",
+                 "--revolutions", "1", "--executor", "serial", "-o", str(out)]) == 130
+    rows = list(csv.DictReader((out / "sweep.csv").open()))
+    assert [r["plant.k"] for r in rows] == ["1.09 N/mm", "1.89 N/mm"]
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("rig:")]
+    assert err == [f"rig: interrupted while the workers closed, after the sweep's last point: its 2 points are in "
+                   f"{out / 'sweep.csv'} (no maps)"]
