@@ -515,6 +515,10 @@ EVENT_MEANING = {
     "motor_below_load": "the stand's motor stalls below the torque its shoe brakes hold at rest: the stand cannot "
                         "start. A stick-slip brake holds it; a regularised (tanh) brake lets it creep at creep_speed "
                         "(rad/s), which is the model's regularisation, not the stand",
+    "tappet_lift_off": "the cam–tappet contact force would be negative: the tappets' inertia and centrifugal force "
+                       "beat the spring and they lift off the cam (omega3 rad/s, phi_r rad where it began). The model "
+                       "has the tappets follow the cam (N_B held at 0, the spring's torque still passed on): torques, "
+                       "speeds and disengagements from here are not the machine's",
     "statistics_not_read": "the unit's statistics could not be read over serial at the end (a served machine that "
                            "stopped after this host's curves): the report compares no device statistics",
     "curve_clipped": "pairs of a curve whose values (or times) did not fit the CAN frame's fields and were sent "

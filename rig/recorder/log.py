@@ -10,7 +10,7 @@ WARNING_KINDS = frozenset({"sequence_gap", "unknown_frame", "bad_length", "decod
                            "result", "incomplete_curve", "result_missing", "live_dropped", "shutdown",
                            "run_short", "curve_clipped", "input_overrange", "encoder_illegal", "curves_in_one_cycle",
                            "not_recorded", "verdict_mismatch", "statistics_not_read",
-                           "follower_lift", "cam_stalled", "motor_below_load"})
+                           "follower_lift", "cam_stalled", "motor_below_load", "tappet_lift_off"})
 ERROR_KINDS = frozenset({"interrupted", "run_stopped"})
 
 

@@ -165,6 +165,7 @@ class ClutchStand:
         self.t = 0.0
         self.events: list[Event] = []
         self.disengagement_times: list[float] = []
+        self._lifted = False                 # whether the last sample had the tappets off the cam (N_B = 0)
         self.shutdown = False
         self.shutdown_count, self.shutdown_window = int(shutdown_count), shutdown_window
         self.trip_on_shutdown = trip_on_shutdown
@@ -279,4 +280,22 @@ class ClutchStand:
             Y = sol.y
         else:
             Y = np.asarray(self.y)[:, None]
-        return self.dynamics.outputs(t, Y)
+        out = self.dynamics.outputs(t, Y)
+        if isinstance(self.dynamics, ClutchDynamics):
+            self._lift_offs(t, out)
+        return out
+
+    def _lift_offs(self, t: np.ndarray, out: dict[str, np.ndarray]) -> None:
+        """A ``tappet_lift_off`` event (data ``omega3`` rad/s, ``phi_r`` rad) at the first sample of each stretch where
+        the cam–tappet normal force N_B would be negative — the tappets' inertia and their centrifugal force beat the
+        spring: they lift off the cam. The model (tappets following the cam, N_B held at 0 there) no longer describes
+        the coupling — it still transmits the spring's torque through a contact without force —, so what follows is
+        not the machine's (an audit: a 400 rad/s stand 'disengaged' and swung ±65 N·m with N_B = 0 throughout)."""
+        off = out["N_B"] <= 0.0                      # NaN (the tappet self-locked in its guide) is not a lift-off
+        starts = np.flatnonzero(off & ~np.r_[self._lifted, off[:-1]])
+        self._lifted = bool(off[-1])
+        for k in starts:
+            self.events.append(Event(float(t[k]), "tappet_lift_off", {"omega3": float(out["omega3"][k]),
+                                                                     "phi_r": float(out["phi_r"][k])}))
+        if starts.size:
+            self.events.sort(key=lambda e: e.time)
