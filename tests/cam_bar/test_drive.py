@@ -98,3 +98,18 @@ def test_a_motor_too_weak_for_the_peak_drive_torque_stalls_the_cam_and_says_so()
             for e in found:                                     # at a sample where the cam stopped after turning
                 k = int(np.argmin(np.abs(t - e.time)))
                 assert omega[k] <= 0.0 < omega[k - 1] and e.data["omega"] == omega[k]
+
+
+def test_a_motor_that_cannot_start_the_cam_and_lets_it_run_back_says_so():
+    """A drive of 0.05 N·m at the cam, the cam at rest at 100° on the rise: the mechanism's torque turns it backwards
+    from its start (to about −60°) and it never turns forwards — no ``cam_stalled`` event, since that looked for a stop
+    after turning forwards, and the run recorded its curves as if driven (an audit). The event is now at the first
+    sample turning back."""
+    from rig.plants.cam_bar.level2_timeline import Level2Timeline
+    speed = ConstantSpeed(DEMO_SPEED.omega, phi0=radians(100.0))
+    timeline = Level2Timeline(PinInsertionMechanism(cam_drive=CamDrive(max_torque=0.05)), speed)
+    t = np.arange(1, 2001) * 1e-4
+    omega = np.concatenate([timeline.advance(chunk)["omega"] for chunk in np.split(t, 4)])
+    found = [e for e in timeline.events if e.kind == "cam_stalled"]
+    assert omega.max() <= 0.0 and omega.min() < -1.0                 # it never turned forwards
+    assert len(found) == 1 and found[0].time == t[np.argmax(omega < 0.0)] and found[0].data["omega"] < 0.0

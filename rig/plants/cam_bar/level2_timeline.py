@@ -109,12 +109,14 @@ class Level2Timeline(Timeline):
 
     def _stalls(self, t: np.ndarray, omega: np.ndarray, phi: np.ndarray) -> None:
         """A ``cam_stalled`` event (data ``phi`` rad, ``omega`` rad/s) at each sample where the driven cam, having
-        turned forwards, stops or turns back: the motor cannot carry the mechanism over its peak drive torque (its
-        pull-out torque, or the start-up's, too low) — the run then goes on, but not at the speed its scene says."""
+        turned forwards, stops or turns back, or, at rest, starts turning back (a motor that cannot start it: the
+        mechanism's torque drives it backwards from its start, an audit's drive of 0.05 N·m at 100°): the motor cannot
+        carry the mechanism over its peak drive torque (its pull-out torque, or the start-up's, too low) — the run
+        then goes on, but not at the speed its scene says."""
         before = self._omega_last
         self._omega_last = float(omega[-1])
-        was = np.r_[before, omega[:-1]] > 0.0
-        for k in np.flatnonzero(was & (omega <= 0.0)):
+        prev = np.r_[before, omega[:-1]]
+        for k in np.flatnonzero(((prev > 0.0) & (omega <= 0.0)) | ((prev == 0.0) & (omega < 0.0))):
             self.events.append(Event(float(t[k]), "cam_stalled", {"phi": float(phi[k]), "omega": float(omega[k])}))
 
     def _driven(self, t: np.ndarray) -> list[dict[str, np.ndarray]]:
