@@ -296,6 +296,12 @@ def speed_sheet(lab: Lab) -> Sheet:
     pulses = rec.series.get("/stand/lab_speed", {})
     display = rec.series.get("/stand/lab_display", {})
     counter = [_latest(pulses["t"], pulses["pulses"], at) / (holes * gate) * 60.0 for at in times]
+    if min(counter) <= 0.0:        # the reference of every error: none without a pulse (a ZeroDivisionError before)
+        at = times[int(np.argmin(counter))]
+        raise ValueError(f"the pulse counter counted no pulse in its gate before the reading at t = {at:.4g} s: a gate "
+                         f"of {gate * 1e3:.4g} ms sees under one of the disc's {holes:.0f} holes per gate at this speed "
+                         f"(one pulse per gate is {60.0 / (holes * gate):.4g} rpm), so the sheet has no reference speed "
+                         f"— lengthen the counter's gate_time")
     truth = rec.truth
     rows = [["pulse counter (N / (z·T))"] + [fmt(v) for v in counter] + [fmt(np.mean(counter)), "reference", ""]]
     n = len(times)
@@ -659,7 +665,8 @@ def lab_section(ctx: ReportContext) -> list[Block]:
         sheets = lab_sheets(ctx.recording)
     except (SceneError, ValueError) as exc:
         log.warning("lab: no sheet in the report (%s)", exc)       # on the console too: the report leaves it out
-        return [Heading("Lab sheets"), Text(f"No lab sheet: {exc}", "warning")]
+        return [Heading("Lab sheets"), Text(f"No lab sheet: {exc}", "warning"),   # and what may have caused it
+                *[Text(w, "warning") for w in lab_warnings(ctx.recording)]]
     if sheets is None:
         return []
     blocks: list[Block] = [Heading("Lab sheets"), Table(["sheet", "result"], [[sheet.title, sheet.result]

@@ -36,8 +36,8 @@ def stand_summary(rec: "Recording") -> StandSummary | None:
     from rig.analysis import clutch_report, lab_report, static_clutch_report
     try:
         sheets = lab_report.lab_sheets(rec)
-    except (SceneError, ValueError) as exc:
-        return StandSummary([f"{NO_SHEET} ({exc})"], {})
+    except (SceneError, ValueError) as exc:     # and what may be behind it (a counter card that lost the shaft)
+        return StandSummary([f"{NO_SHEET} ({exc})"] + [f"warning: {w}" for w in lab_report.lab_warnings(rec)], {})
     if sheets is not None:
         return StandSummary(lab_report.summary_lines(sheets, rec),
                             {f"lab.{sheet.key}.{_snake(name)}": lab_report.shown_value(name, float(v))

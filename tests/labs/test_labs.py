@@ -131,6 +131,15 @@ def test_a_stroboscope_at_half_the_rotation_frequency_reads_half(tmp_path_factor
     assert re.search(r"stroboscope \(60·f_x\) -50\.\d\d % \(OUTSIDE its worst-case ±\d", sheets["Speed measurement"].result)
 
 
+def test_a_gate_too_short_for_one_pulse_is_named_not_a_division_by_zero(tmp_path_factory):
+    """A 5 ms gate at 1140 rpm sees 0.57 pulses of the 6-hole disc: the counter read 0 and the sheet, dividing every
+    instrument's error by it, ended the command in a ZeroDivisionError traceback (an audit)."""
+    gate = 'to = "can.LabSpeed.Pulses"\nrate = "50 Hz"\n'
+    with pytest.raises(ValueError, match=r"the pulse counter counted no pulse in its gate .* a gate of 5 ms sees under "
+                                         r"one of the disc's 6 holes per gate .* lengthen the counter's gate_time"):
+        _run(tmp_path_factory, "lab_speed", lambda s: s.replace(gate, gate + 'overrides = { gate_time = "5 ms" }\n', 1))
+
+
 def test_pulse_counter_counts_whole_gates():
     counter = load_transducer("slotted_disc_6", np.random.default_rng(0), gate_time="0.5 s")
     t = np.arange(1, 20001) / 10_000.0
@@ -550,3 +559,15 @@ def test_a_counter_that_loses_the_shaft_is_said_with_the_sheets(tmp_path_factory
     said = [w for w in lab_warnings(rec) if w.startswith("counter Encoder2 counted illegal transitions")]
     assert said and any(line == f"warning: {said[0]}" for line in summary_lines(list(sheets.values()), rec))
     assert lab_warnings(cardan[0]) == []
+
+
+def test_no_sheet_because_a_counter_lost_the_shaft_says_so(tmp_path):
+    """The Geneva bench at 20 000 rpm: both counter cards lose the shaft (encoder_illegal), the sheet finds less than
+    a turn — and the console said only that, blaming the run's length (an audit). Now with the counters' warnings."""
+    from rig.analysis.stand_summary import NO_SHEET, stand_summary
+    scene = tmp_path / "fast_geneva.toml"
+    scene.write_text(re.sub(r'(?m)^speed = "484.5 rpm"', 'speed = "20000 rpm"', (SCENES / "lab_geneva.toml").read_text()))
+    run_scene(scene, tmp_path / "g.mcap")
+    lines = stand_summary(read_recording(tmp_path / "g.mcap")).lines
+    assert lines[0].startswith(NO_SHEET)
+    assert any(line.startswith("warning: counter Encoder1 counted illegal transitions") for line in lines[1:])
