@@ -262,6 +262,12 @@ def _last_turn(t_edge: np.ndarray, angle: np.ndarray, start: float = 0.0) -> np.
     return end - tau + STEP * np.arange(-1, 37)
 
 
+def _counter_wrap() -> int:
+    """The pulse counts the lab's counter holds (its DBC signal ``LabSpeed.Pulses``, counted modulo this)."""
+    from rig.dbc import load_dbc
+    return 2 ** load_dbc().get_message_by_name("LabSpeed").get_signal_by_name("Pulses").length
+
+
 def class_bound(lab: Lab, to: str, reading: float, counter_step: float) -> float:
     """Largest error (fraction of the reading) the data sheet allows the instrument wired to ``to`` reading
     ``reading`` (rad/s) against the counter, worst case: gain error, non-linearity (a fraction of full scale), half
@@ -341,6 +347,13 @@ def speed_sheet(lab: Lab) -> Sheet:
               ["plant truth at the reading", *_csv(at_reading), *[None] * n, _csv(np.mean(at_reading)), None, None,
                None, None, None]]
     moved = float(np.max(np.abs(at_reading - np.asarray(gate_truth))))
+    wrap = _counter_wrap() / (holes * gate) * 60.0                    # rpm: the speed whose pulses fill the counter
+    fastest = max((float(np.mean([_latest(b["t"], b[key], at) for at in times])) / RPM
+                   for _, b, key, _ in instruments if key in b), default=0.0)
+    beyond = ([f"The instruments read up to {fastest:.6g} rpm, beyond the counter's range: {_counter_wrap()} pulses "
+               f"per gate = {wrap:.6g} rpm, where it wraps (its reading is the pulses modulo that) — the counter is "
+               f"wrong here, not the instruments; shorten the gate or use a disc with fewer holes."]
+              if fastest >= wrap else [])
     drift = ([f"The shaft speed at the readings differs from its mean over the counted gates by up to {moved:.3g} rpm "
               f"(more than the counter's {resolution:.3g} rpm step): the instruments read the speed of the moment, the "
               f"counter that of the last completed gate, so their errors against it include the speed's change — "
@@ -362,9 +375,11 @@ def speed_sheet(lab: Lab) -> Sheet:
                  "; ".join(f"{k} {100 * v:+.2f} % ({'within' if abs(v) <= bounds[k] else 'OUTSIDE'} its "
                            f"worst-case ±{100 * bounds[k]:.2f} %)" for k, v in errors.items()) + " against the counter"
                  + (f" (the shaft's speed at the readings differs from the counted gates' by up to {moved:.3g} rpm: "
-                    "these errors include that change)" if drift else ""),
+                    "these errors include that change)" if drift else "")
+                 + (f" (the counter wrapped: the instruments read beyond its range of {wrap:.6g} rpm)" if beyond
+                    else ""),
                  [f"Counter resolution: one pulse in the gate = 60/(z·T) = {resolution:.4g} rpm "
-                  f"(z = {holes:g} holes, T = {gate:g} s).", *drift,
+                  f"(z = {holes:g} holes, T = {gate:g} s).", *drift, *beyond,
                   "The stroboscope's image also stands still at f_i/k: a reading near 1/k of the others means the "
                   "flash rate was a sub-multiple (its 'divisor').",
                   "Worst-case limit against the counter: the data-sheet class (gain error) + non-linearity × full "

@@ -571,3 +571,15 @@ def test_no_sheet_because_a_counter_lost_the_shaft_says_so(tmp_path):
     lines = stand_summary(read_recording(tmp_path / "g.mcap")).lines
     assert lines[0].startswith(NO_SHEET)
     assert any(line.startswith("warning: counter Encoder1 counted illegal transitions") for line in lines[1:])
+
+
+def test_a_counter_that_wraps_is_named_not_the_instruments(tmp_path_factory, speed):
+    """A 600-hole disc at 7000 rpm fills the 16-bit counter (70 000 pulses per 1 s gate): it read 446 rpm and the
+    sheet called all three instruments 1470 % OUTSIDE (an audit). It now says the counter wrapped, where."""
+    gate = 'to = "can.LabSpeed.Pulses"\nrate = "50 Hz"\n'
+    _, sheets = _run(tmp_path_factory, "lab_speed", lambda s: re.sub(
+        r'(?m)^speed = "[^"]*"', 'speed = "7000 rpm"', s.replace(gate, gate + "overrides = { holes = 600 }\n", 1)))
+    sheet = sheets["Speed measurement"]
+    assert "(the counter wrapped: the instruments read beyond its range of 6553.6 rpm)" in sheet.result
+    assert any("65536 pulses per gate = 6553.6 rpm, where it wraps" in note for note in sheet.notes)
+    assert "wrapped" not in speed[1]["Speed measurement"].result
