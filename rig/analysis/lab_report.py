@@ -317,7 +317,7 @@ def speed_sheet(lab: Lab) -> Sheet:
                    ("mechanical tachometer", display, "tachometer", "can.LabDisplay.Tachometer"),
                    ("stroboscope (60·f_x)", display, "strobe", "can.LabDisplay.Strobe")]
     resolution = 60.0 / (holes * gate)
-    errors, bounds, classes = {}, {}, {}
+    errors, bounds, classes, verdicts = {}, {}, {}, {}
     for name, block, key, to in instruments:
         if key not in block:
             continue
@@ -325,13 +325,17 @@ def speed_sheet(lab: Lab) -> Sheet:
         errors[name] = (np.mean(read) - np.mean(counter)) / np.mean(counter)
         bounds[name] = class_bound(lab, to, float(np.mean(counter)) * RPM, resolution * RPM)
         classes[name] = lab.setting(to, "gain_error_max", "1")
-        within = "within" if abs(errors[name]) <= bounds[name] else "OUTSIDE"
+        top = lab.setting(to, "range_max", "rad/s") / RPM
+        verdicts[name] = within = (f"beyond its range (to {top:.6g} rpm): no class holds there"
+                                   if max(np.mean(counter), np.mean(read)) > top else
+                                   "within" if abs(errors[name]) <= bounds[name] else "OUTSIDE")
         rows.append([name] + [f"{fmt(v)} ({fixed(100 * (v - c) / c, 2, sign=True)} %)" for v, c in zip(read, counter)]
                     + [fmt(np.mean(read)), f"{fixed(100 * errors[name], 2, sign=True)} %",
                        f"±{100 * bounds[name]:.2f} % (class ±{100 * classes[name]:.2g} %): {within}"])
         table.append([name, *_csv(read), *_csv([100 * (v - c) / c for v, c in zip(read, counter)]),
                       _csv(np.mean(read)), _csv(100 * errors[name]), _csv(100 * bounds[name]),
-                      _csv(100 * classes[name]), "yes" if within == "within" else "no", None])
+                      _csv(100 * classes[name]), {"within": "yes", "OUTSIDE": "no"}.get(within, "beyond its range"),
+                      None])
     gate_truth = []                 # the truth over the gate whose count the reading shows: the last one completed
     for at in times:                # before that count's message (gates run from t = 0), not the second before it
         end = np.floor(_latest(pulses["t"], pulses["t"], at) / gate + 1e-9) * gate
@@ -372,8 +376,9 @@ def speed_sheet(lab: Lab) -> Sheet:
 
     return Sheet("Speed measurement", ["instrument", *[f"reading {i + 1} (rpm)" for i in range(len(times))],
                                        "mean (rpm)", "error of the mean vs counter", "worst-case limit (data sheet + dials)"], rows,
-                 "; ".join(f"{k} {100 * v:+.2f} % ({'within' if abs(v) <= bounds[k] else 'OUTSIDE'} its "
-                           f"worst-case ±{100 * bounds[k]:.2f} %)" for k, v in errors.items()) + " against the counter"
+                 "; ".join(f"{k} {100 * v:+.2f} % ({verdicts[k]} its worst-case ±{100 * bounds[k]:.2f} %)"
+                           if verdicts[k] in ("within", "OUTSIDE") else f"{k} {100 * v:+.2f} % ({verdicts[k]})"
+                           for k, v in errors.items()) + " against the counter"
                  + (f" (the shaft's speed at the readings differs from the counted gates' by up to {moved:.3g} rpm: "
                     "these errors include that change)" if drift else "")
                  + (f" (the counter wrapped: the instruments read beyond its range of {wrap:.6g} rpm)" if beyond

@@ -583,3 +583,13 @@ def test_a_counter_that_wraps_is_named_not_the_instruments(tmp_path_factory, spe
     assert "(the counter wrapped: the instruments read beyond its range of 6553.6 rpm)" in sheet.result
     assert any("65536 pulses per gate = 6553.6 rpm, where it wraps" in note for note in sheet.notes)
     assert "wrapped" not in speed[1]["Speed measurement"].result
+
+
+def test_an_instrument_beyond_its_range_is_said_so_not_judged_by_its_class(tmp_path_factory):
+    """At 5000 rpm the mechanical tachometer (a 0…3000 rpm dial) and the tachogenerator (0…3000 rpm) read beyond their
+    ranges and were called within their class (an audit); the stroboscope (to 6000 rpm) is still judged."""
+    _, sheets = _run(tmp_path_factory, "lab_speed", lambda s: re.sub(r'(?m)^speed = "[^"]*"', 'speed = "5000 rpm"', s))
+    result = sheets["Speed measurement"].result
+    assert re.search(r"mechanical tachometer [+-]\d+\.\d\d % \(beyond its range \(to 3000 rpm\): no class holds", result)
+    assert re.search(r"tachogenerator [+-]\d+\.\d\d % \(beyond its range", result)
+    assert re.search(r"stroboscope \(60·f_x\) [+-]\d+\.\d\d % \((within|OUTSIDE) its worst-case", result)
