@@ -302,12 +302,12 @@ def speed_sheet(lab: Lab) -> Sheet:
     pulses = rec.series.get("/stand/lab_speed", {})
     display = rec.series.get("/stand/lab_display", {})
     counter = [_latest(pulses["t"], pulses["pulses"], at) / (holes * gate) * 60.0 for at in times]
-    if min(counter) <= 0.0:        # the reference of every error: none without a pulse (a ZeroDivisionError before)
-        at = times[int(np.argmin(counter))]
-        raise ValueError(f"the pulse counter counted no pulse in its gate before the reading at t = {at:.4g} s: a gate "
-                         f"of {gate * 1e3:.4g} ms sees under one of the disc's {holes:.0f} holes per gate at this speed "
-                         f"(one pulse per gate is {60.0 / (holes * gate):.4g} rpm), so the sheet has no reference speed "
-                         f"— lengthen the counter's gate_time")
+    empty = [at for at, c in zip(times, counter) if not c > 0.0]    # no pulse (or no count): no reference speed
+    if empty:                                                       # (a ZeroDivisionError before)
+        raise ValueError(f"the pulse counter counted no pulse in its gate before the reading at t = {empty[0]:.4g} s "
+                         f"(one pulse per gate of {gate * 1e3:.4g} ms with the disc's {holes:.0f} holes is "
+                         f"{60.0 / (holes * gate):.4g} rpm): the shaft too slow for this gate, or at rest — the sheet "
+                         f"has no reference speed there (lengthen the counter's gate_time, or move the reading)")
     truth = rec.truth
     rows = [["pulse counter (N / (z·T))"] + [fmt(v) for v in counter] + [fmt(np.mean(counter)), "reference", ""]]
     n = len(times)
@@ -317,16 +317,24 @@ def speed_sheet(lab: Lab) -> Sheet:
                    ("mechanical tachometer", display, "tachometer", "can.LabDisplay.Tachometer"),
                    ("stroboscope (60·f_x)", display, "strobe", "can.LabDisplay.Strobe")]
     resolution = 60.0 / (holes * gate)
+    reads = {name: [_latest(block["t"], block[key], at) / RPM for at in times]
+             for name, block, key, _ in instruments if key in block}
+    # the counter holds its pulses modulo 2^16: wrapped k times where the instruments read about k ranges above it
+    # (rounded: robust to their few per cent)
+    wrap = _counter_wrap() / (holes * gate) * 60.0                    # rpm: the speed whose pulses fill the counter
+    fastest = max((float(np.mean(r)) for r in reads.values()), default=0.0)
+    wrapped = round((fastest - float(np.mean(counter))) / wrap) >= 1
     errors, bounds, classes, verdicts = {}, {}, {}, {}
     for name, block, key, to in instruments:
-        if key not in block:
+        if name not in reads:
             continue
-        read = [_latest(block["t"], block[key], at) / RPM for at in times]
+        read = reads[name]
         errors[name] = (np.mean(read) - np.mean(counter)) / np.mean(counter)
         bounds[name] = class_bound(lab, to, float(np.mean(counter)) * RPM, resolution * RPM)
         classes[name] = lab.setting(to, "gain_error_max", "1")
         top = lab.setting(to, "range_max", "rad/s") / RPM
-        verdicts[name] = within = (f"beyond its range (to {top:.6g} rpm): no class holds there"
+        verdicts[name] = within = ("not judged: the counter wrapped" if wrapped else
+                                   f"beyond its range (to {top:.6g} rpm): no class holds there"
                                    if max(np.mean(counter), np.mean(read)) > top else
                                    "within" if abs(errors[name]) <= bounds[name] else "OUTSIDE")
         rows.append([name] + [f"{fmt(v)} ({fixed(100 * (v - c) / c, 2, sign=True)} %)" for v, c in zip(read, counter)]
@@ -334,7 +342,7 @@ def speed_sheet(lab: Lab) -> Sheet:
                        f"±{100 * bounds[name]:.2f} % (class ±{100 * classes[name]:.2g} %): {within}"])
         table.append([name, *_csv(read), *_csv([100 * (v - c) / c for v, c in zip(read, counter)]),
                       _csv(np.mean(read)), _csv(100 * errors[name]), _csv(100 * bounds[name]),
-                      _csv(100 * classes[name]), {"within": "yes", "OUTSIDE": "no"}.get(within, "beyond its range"),
+                      _csv(100 * classes[name]), {"within": "yes", "OUTSIDE": "no"}.get(within, within.split(":")[0]),
                       None])
     gate_truth = []                 # the truth over the gate whose count the reading shows: the last one completed
     for at in times:                # before that count's message (gates run from t = 0), not the second before it
@@ -351,13 +359,10 @@ def speed_sheet(lab: Lab) -> Sheet:
               ["plant truth at the reading", *_csv(at_reading), *[None] * n, _csv(np.mean(at_reading)), None, None,
                None, None, None]]
     moved = float(np.max(np.abs(at_reading - np.asarray(gate_truth))))
-    wrap = _counter_wrap() / (holes * gate) * 60.0                    # rpm: the speed whose pulses fill the counter
-    fastest = max((float(np.mean([_latest(b["t"], b[key], at) for at in times])) / RPM
-                   for _, b, key, _ in instruments if key in b), default=0.0)
     beyond = ([f"The instruments read up to {fastest:.6g} rpm, beyond the counter's range: {_counter_wrap()} pulses "
                f"per gate = {wrap:.6g} rpm, where it wraps (its reading is the pulses modulo that) — the counter is "
-               f"wrong here, not the instruments; shorten the gate or use a disc with fewer holes."]
-              if fastest >= wrap else [])
+               f"wrong here, not the instruments, which are not judged against it; shorten the gate or use a disc with "
+               f"fewer holes."] if wrapped else [])
     drift = ([f"The shaft speed at the readings differs from its mean over the counted gates by up to {moved:.3g} rpm "
               f"(more than the counter's {resolution:.3g} rpm step): the instruments read the speed of the moment, the "
               f"counter that of the last completed gate, so their errors against it include the speed's change — "
@@ -686,7 +691,7 @@ def lab_section(ctx: ReportContext) -> list[Block]:
     except (SceneError, ValueError) as exc:
         log.warning("lab: no sheet in the report (%s)", exc)       # on the console too: the report leaves it out
         return [Heading("Lab sheets"), Text(f"No lab sheet: {exc}", "warning"),   # and what may have caused it
-                *[Text(w, "warning") for w in lab_warnings(ctx.recording)]]
+                *[Text(f"Warning: {w}.", "warning") for w in lab_warnings(ctx.recording)]]
     if sheets is None:
         return []
     blocks: list[Block] = [Heading("Lab sheets"), Table(["sheet", "result"], [[sheet.title, sheet.result]

@@ -142,7 +142,8 @@ class StiffnessMonitor:
     #: method's error compounds while the mode grows): one :class:`ResolutionWarning` at GROWN_ERROR (5 %, half of
     #: where the stability map calls a run's error silent: an inverted pendulum falling from 1e-8 rad under explicit
     #: Euler at 1 ms reaches it at t ≈ 1.1 s, and its speed is later 20 % off); the suggested step takes it to a tenth.
-    #: Summed per episode of growth: a check that finds none ends it
+    #: Summed per episode of growth: a check that finds none ends it, and an episode's first check counts at most
+    #: DENSE steps (of the up to SPARSE since the check before: it may start late in them)
     GROWN_ERROR = 0.05
 
     def __init__(self, method: str, limit: float, policy: str = "warn", fixed: bool = False):
@@ -361,7 +362,8 @@ class StiffnessMonitor:
 
     def _accuracy(self, t: float, h: float, got, steps: int, since: int) -> None:
         """The accuracy test on a check's persistent modes (see :data:`STEP_ERROR`) and on the modes it finds growing
-        (:data:`GROWN_ERROR`, their error summed over the ``since`` steps since the last check): one warning per run
+        (:data:`GROWN_ERROR`, their error summed per episode of growth: over the ``since`` steps since the last check,
+        at most DENSE of them at an episode's first check; a check without one ends it): one warning per run
         naming the mode, its steps per period, what the method does to it, and a step that takes each of its faults to
         a tenth of its limit by the run's end."""
         if got is None or self.coarse is not None:

@@ -135,8 +135,8 @@ def test_a_gate_too_short_for_one_pulse_is_named_not_a_division_by_zero(tmp_path
     """A 5 ms gate at 1140 rpm sees 0.57 pulses of the 6-hole disc: the counter read 0 and the sheet, dividing every
     instrument's error by it, ended the command in a ZeroDivisionError traceback (an audit)."""
     gate = 'to = "can.LabSpeed.Pulses"\nrate = "50 Hz"\n'
-    with pytest.raises(ValueError, match=r"the pulse counter counted no pulse in its gate .* a gate of 5 ms sees under "
-                                         r"one of the disc's 6 holes per gate .* lengthen the counter's gate_time"):
+    with pytest.raises(ValueError, match=r"the pulse counter counted no pulse in its gate .*one pulse per gate of 5 ms "
+                                         r"with the disc's 6 holes is 2000 rpm.*\(lengthen the counter's gate_time"):
         _run(tmp_path_factory, "lab_speed", lambda s: s.replace(gate, gate + 'overrides = { gate_time = "5 ms" }\n', 1))
 
 
@@ -574,14 +574,16 @@ def test_no_sheet_because_a_counter_lost_the_shaft_says_so(tmp_path):
 
 
 def test_a_counter_that_wraps_is_named_not_the_instruments(tmp_path_factory, speed):
-    """A 600-hole disc at 7000 rpm fills the 16-bit counter (70 000 pulses per 1 s gate): it read 446 rpm and the
-    sheet called all three instruments 1470 % OUTSIDE (an audit). It now says the counter wrapped, where."""
+    """A 2000-hole disc at 2500 rpm fills the 16-bit counter (83 333 pulses per 1 s gate, wrapping at 1966 rpm): it
+    read 533 rpm and the sheet called all three instruments, each inside its range, ≈ 370 % OUTSIDE (an audit, then a
+    review). It says the counter wrapped, and judges no instrument against it."""
     gate = 'to = "can.LabSpeed.Pulses"\nrate = "50 Hz"\n'
     _, sheets = _run(tmp_path_factory, "lab_speed", lambda s: re.sub(
-        r'(?m)^speed = "[^"]*"', 'speed = "7000 rpm"', s.replace(gate, gate + "overrides = { holes = 600 }\n", 1)))
+        r'(?m)^speed = "[^"]*"', 'speed = "2500 rpm"', s.replace(gate, gate + "overrides = { holes = 2000 }\n", 1)))
     sheet = sheets["Speed measurement"]
-    assert "(the counter wrapped: the instruments read beyond its range of 6553.6 rpm)" in sheet.result
-    assert any("65536 pulses per gate = 6553.6 rpm, where it wraps" in note for note in sheet.notes)
+    assert "(the counter wrapped: the instruments read beyond its range of 1966.08 rpm)" in sheet.result
+    assert sheet.result.count("(not judged: the counter wrapped)") == 3 and "OUTSIDE" not in sheet.result
+    assert any("65536 pulses per gate = 1966.08 rpm, where it wraps" in note for note in sheet.notes)
     assert "wrapped" not in speed[1]["Speed measurement"].result
 
 

@@ -165,7 +165,7 @@ class ClutchStand:
         self.t = 0.0
         self.events: list[Event] = []
         self.disengagement_times: list[float] = []
-        self._lifted = False                 # whether the last sample had the tappets off the cam (N_B = 0)
+        self._lifted = False                 # whether the last sample had the tappets off the cam (N_B ≤ 0)
         self.shutdown = False
         self.shutdown_count, self.shutdown_window = int(shutdown_count), shutdown_window
         self.trip_on_shutdown = trip_on_shutdown
