@@ -321,7 +321,8 @@ def speed_sheet(lab: Lab) -> Sheet:
              for name, block, key, _ in instruments if key in block}
     # the counter holds its pulses modulo 2^16: wrapped k times where the instruments read about k ranges above it
     # (rounded: robust to their few per cent)
-    wrap = _counter_wrap() / (holes * gate) * 60.0                    # rpm: the speed whose pulses fill the counter
+    held = _counter_wrap()                                            # pulses the counter holds
+    wrap = held / (holes * gate) * 60.0                               # rpm: the speed whose pulses fill the counter
     fastest = max((float(np.mean(r)) for r in reads.values()), default=0.0)
     wrapped = round((fastest - float(np.mean(counter))) / wrap) >= 1
     errors, bounds, classes, verdicts = {}, {}, {}, {}
@@ -359,7 +360,7 @@ def speed_sheet(lab: Lab) -> Sheet:
               ["plant truth at the reading", *_csv(at_reading), *[None] * n, _csv(np.mean(at_reading)), None, None,
                None, None, None]]
     moved = float(np.max(np.abs(at_reading - np.asarray(gate_truth))))
-    beyond = ([f"The instruments read up to {fastest:.6g} rpm, beyond the counter's range: {_counter_wrap()} pulses "
+    beyond = ([f"The instruments read up to {fastest:.6g} rpm, beyond the counter's range: {held} pulses "
                f"per gate = {wrap:.6g} rpm, where it wraps (its reading is the pulses modulo that) — the counter is "
                f"wrong here, not the instruments, which are not judged against it; shorten the gate or use a disc with "
                f"fewer holes."] if wrapped else [])

@@ -181,7 +181,7 @@ class DaskExecutor(Executor):
         """Close the client and our own cluster; a Ctrl-C meanwhile is raised once the cluster is closed (raised inside
         its close, it left the cluster half closed for distributed's exit handler, whose second close printed a
         traceback after rig's line)."""
-        from rig.runner.interrupt import deferred_interrupt
+        from rig.interrupt import deferred_interrupt
         with deferred_interrupt():
             self.client.close()
             if self.cluster is not None:      # our own cluster: its shutdown's notices ("Worker process still alive

@@ -30,7 +30,7 @@ from firmware_sim.can_node import BusOverload
 from rig.runner.config import RunConfig, default_max_time, read_config
 from rig.runner.errors import BusTooSlow, HostLeft, HostStalled, OutOfTime, RunError
 from rig.runner.host import Host
-from rig.runner.interrupt import deferred_interrupt, shielded
+from rig.interrupt import deferred_interrupt, shielded
 from rig.runner.machine import Machine
 from rig.runner.served import Anchored, IdleStatus, RunClock
 from rig.scene import SceneError, load_scene

@@ -191,7 +191,7 @@ def test_ctrl_c_inside_a_deferred_block_waits_for_its_check_and_so_does_a_double
     as Python's own did); only one after the first has waited STUCK s for a check raises at once."""
     import os
     import signal
-    import rig.runner.interrupt as interrupt
+    import rig.interrupt as interrupt
     with pytest.raises(KeyboardInterrupt):
         with interrupt.deferred_interrupt() as check:
             os.kill(os.getpid(), signal.SIGINT)
