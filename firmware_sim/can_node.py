@@ -229,11 +229,9 @@ class CanNode:
         self.live_factor = 0             # decimation of the last live chunk (0: none sent, as before the first)
         self.live_sent = 0
         self.clipped = 0                 # values saturated to the signal range
-        self.frames_sent = 0
         self.frames_discarded = 0        # queued frames a stopped run did not send (abort)
         self.ended = False               # the run's last frame (TxStatus RunEnded) is queued: nothing follows
         self.stop_cause = ""             # then its StopCause
-        self.busy_time = 0.0             # total wire time of sent frames (s)
         self.rx_errors: list[str] = []   # malformed or unexpected frames received
         self.curves_measured = 0
         self.released = False            # the host said it is done (HostCommand Release)
@@ -305,15 +303,6 @@ class CanNode:
     def curves_pending(self) -> int:
         """Curves whose transfer has not finished."""
         return self._queue.transfers
-
-    def counters(self) -> dict[str, float]:
-        """What the node did: live pairs sent/dropped, clipped values, frames, bus load so far."""
-        return {"live_sent": self.live_sent, "live_dropped": self.live_dropped, "live_stale": self.live_stale,
-                "clipped": self.clipped, "frames_sent": self.frames_sent,
-                "frames_discarded": self.frames_discarded, "busy_time": self.busy_time,
-                "bus_load": self.busy_time / self.now if self.now > 0 else 0.0,
-                "pending_frames": self.pending_frames, "backlog_time": self.backlog_time,
-                "rx_errors": len(self.rx_errors)}
 
     # ------------------------------------------------------------------ publishing
     def publish_live(self, t: np.ndarray, x: np.ndarray, y: np.ndarray) -> int:
@@ -593,8 +582,6 @@ class CanNode:
         self.live_stale += int(q.pairs[dropped].sum())
         self.live_dropped += int(q.pairs[dropped].sum())
         self.live_sent += int(q.pairs[sent].sum())
-        self.busy_time += float(q.duration[sent].sum())
-        self.frames_sent += order.size
         if order.size:
             self._send(q, order, ends[order])
         self._queue.remove(q, state != PENDING)

@@ -268,6 +268,18 @@ def _counter_wrap() -> int:
     return 2 ** load_dbc().get_message_by_name("LabSpeed").get_signal_by_name("Pulses").length
 
 
+def _at_field_limit(to: str, values: list[float], unit: float = 1.0) -> bool:
+    """Whether any of ``values`` (SI / ``unit``) of the signed CAN signal ``to`` (``can.Message.Signal``) sits at its
+    field's limit: the unit sent the limit for a quantity beyond the field's range."""
+    from rig.dbc import load_dbc
+    _, message, signal = to.split(".")
+    spec = load_dbc().get_message_by_name(message).get_signal_by_name(signal)
+    if not spec.is_signed:
+        return False
+    v = np.asarray(values, float) * unit
+    return bool(np.any((v <= spec.minimum + 0.5 * spec.scale) | (v >= spec.maximum - 0.5 * spec.scale)))
+
+
 def class_bound(lab: Lab, to: str, reading: float, counter_step: float) -> float:
     """Largest error (fraction of the reading) the data sheet allows the instrument wired to ``to`` reading
     ``reading`` (rad/s) against the counter, worst case: gain error, non-linearity (a fraction of full scale), half
@@ -335,6 +347,8 @@ def speed_sheet(lab: Lab) -> Sheet:
         classes[name] = lab.setting(to, "gain_error_max", "1")
         top = lab.setting(to, "range_max", "rad/s") / RPM
         verdicts[name] = within = ("not judged: the counter wrapped" if wrapped else
+                                   "not judged: its readings sit at the CAN field's limit"
+                                   if _at_field_limit(to, read, RPM) else
                                    f"beyond its range (to {top:.6g} rpm): no class holds there"
                                    if max(np.mean(counter), np.mean(read)) > top else
                                    "within" if abs(errors[name]) <= bounds[name] else "OUTSIDE")
@@ -657,9 +671,23 @@ def summary_lines(sheets: list[Sheet], rec: Recording | None = None) -> list[str
 
 def lab_warnings(rec: Recording) -> list[str]:
     """What makes a lab run's sheets not hold: a follower that would lift off (:func:`lift_warning`), a counter card
-    that lost the shaft (:func:`encoder_warnings`)."""
+    that lost the shaft (:func:`encoder_warnings`), readings at their CAN field's limit (:func:`limit_warnings`)."""
     lift = lift_warning(rec)
-    return ([lift] if lift else []) + encoder_warnings(rec)
+    return ([lift] if lift else []) + encoder_warnings(rec) + limit_warnings(rec)
+
+
+def limit_warnings(rec: Recording) -> list[str]:
+    """One line per signal whose readings sat at its CAN field's limit (``reading_at_limit`` events; the count from
+    ``link_summary``): the quantity was beyond what the frame carries, so sheet values taken from it are the limit."""
+    totals = next((e.get("readings_at_limit", {}) for e in rec.events if e.get("kind") == "link_summary"), {})
+    lines = []
+    for e in (e for e in rec.events if e.get("kind") == "reading_at_limit"):
+        key = f"{e.get('message', '?')}.{e.get('signal', '?')}"
+        value = f"{e.get('limit', float('nan')):g} {e.get('unit', '')}".rstrip()
+        lines.append(f"{key} read {value}, the limit of its CAN field, from t = {e['t']:.4g} s "
+                     f"({totals.get(key, '?')} readings in all): the quantity was beyond what the frame carries, so "
+                     f"sheet values taken from it are the limit, not the measurement")
+    return lines
 
 
 def encoder_warnings(rec: Recording) -> list[str]:

@@ -504,6 +504,9 @@ EVENT_MEANING = {
     "encoder_illegal": "a counter card first counted illegal transitions (both encoder channels changed at once: a "
                        "glitch, or edges faster than it follows); it kept its count, which from there may be off the "
                        "shaft (the run's totals are in link_summary)",
+    "reading_at_limit": "a reading first sat at the limit of its CAN field (the unit sends a value beyond the field's "
+                        "range as the limit): the quantity was beyond what the frame carries, the reading is not it "
+                        "(the run's totals per signal are in link_summary.readings_at_limit)",
     "input_overrange": "the acquisition unit's inputs saw samples beyond their measuring range and clipped them (the "
                       "unit's own count, read over serial at the end): curves measured then hold the range's limit",
     "follower_lift": "the lab cam's follower would lift off: the contact force its law needs went below zero (spring "

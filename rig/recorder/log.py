@@ -8,7 +8,8 @@ INFO, WARNING, ERROR = 2, 3, 4          # foxglove.LogLevel values
 #: event kinds that say something went wrong on the link, in the data or the machine (else INFO)
 WARNING_KINDS = frozenset({"sequence_gap", "unknown_frame", "bad_length", "decode_error", "error_frame", "curve",
                            "result", "incomplete_curve", "result_missing", "live_dropped", "shutdown",
-                           "run_short", "curve_clipped", "input_overrange", "encoder_illegal", "curves_in_one_cycle",
+                           "run_short", "curve_clipped", "input_overrange", "encoder_illegal", "reading_at_limit",
+                           "curves_in_one_cycle",
                            "not_recorded", "verdict_mismatch", "statistics_not_read",
                            "follower_lift", "cam_stalled", "motor_below_load", "tappet_lift_off"})
 ERROR_KINDS = frozenset({"interrupted", "run_stopped"})

@@ -82,6 +82,7 @@ class Host:
         self._plant_events = 0
         self._last_start: tuple[int, float] | None = None   # (number, theory cam angle phi) of the last curve's start
         self._illegal: dict[str, int] = {}              # counter message -> its card's illegal transitions (> 0)
+        self._at_limit: dict[str, int] = {}             # "Message.Signal" -> readings at the CAN field's limit
         self._pending: list[tuple[float, int, int, str, dict[str, Any]]] = []   # events not yet written (add_event)
         self._found = 0                                 # events found so far (their order within a source)
         self._seen_start = 0.0                          # start (s) of the last curve received (curves come in order)
@@ -232,6 +233,8 @@ class Host:
             if message in new["readings"]:
                 t, values = new["readings"][message]
                 self.rec.write_block(stand_topic(message), t, {snake(name): values[name] for name in signals})
+                for name in signals:
+                    self._readings_at_limit(message, name, t, values[name])
 
     def _illegal_transitions(self, message: str, t: np.ndarray, illegal: np.ndarray) -> None:
         """The first reading of ``message`` whose counter card counted illegal transitions (glitches, edges faster
@@ -247,6 +250,31 @@ class Host:
                        detail="the counter card saw illegal transitions (both channels changed at once: a glitch, "
                               "or edges faster than it follows) and kept its count: from here the count may be off "
                               "the shaft (the run's total in link_summary)")
+
+    def _readings_at_limit(self, message: str, signal: str, t: np.ndarray, values: np.ndarray) -> None:
+        """Count the readings of a signed ``message.signal`` that sit at its CAN field's limit (the unit saturates a
+        value beyond the field's range to it: the reading is the limit, not the quantity); the first is a
+        ``reading_at_limit`` event, the run's totals go into ``link_summary.readings_at_limit``."""
+        spec = self.can.db.get_message_by_name(message).get_signal_by_name(signal)
+        if not spec.is_signed:
+            return
+        half = 0.5 * spec.scale
+        low, high = values <= spec.minimum + half, values >= spec.maximum - half
+        n = int(np.count_nonzero(low | high))
+        if not n:
+            return
+        key = f"{message}.{signal}"
+        said = key in self._at_limit
+        self._at_limit[key] = self._at_limit.get(key, 0) + n
+        if said:
+            return
+        k = int(np.argmax(low | high))
+        limit = spec.minimum if low[k] else spec.maximum
+        self.add_event(float(t[k]), "reading_at_limit", LINK, message=message, signal=signal, limit=float(limit),
+                       unit=spec.unit or "",
+                       detail=f"{key} read {limit:g} {spec.unit or ''}".rstrip() + ", the limit of its CAN field: the "
+                              "quantity was beyond what the frame carries and the unit sent the limit (the run's "
+                              "totals in link_summary.readings_at_limit)")
 
     def _illegal_saturated(self) -> list[str]:
         """The counter messages whose ``Illegal`` field reached its maximum: their card counted at least that many."""
@@ -499,7 +527,8 @@ class Host:
         self.rec.write_event(end, "link_summary", frames=self.frames, **{
             k: v for k, v in self.can.counters.items() if isinstance(v, (int, float))},
             **({"illegal_transitions": dict(self._illegal)} if self._illegal else {}),
-            **({"illegal_saturated": full} if (full := self._illegal_saturated()) else {}))
+            **({"illegal_saturated": full} if (full := self._illegal_saturated()) else {}),
+            **({"readings_at_limit": dict(self._at_limit)} if self._at_limit else {}))
         if not self.unit_gone:
             self.release()
         self._record_sent()

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.transducers import load_transducer
-from rig.analysis.lab_report import lab_sheets
+from rig.analysis.lab_report import lab_sheets, lab_warnings
 from rig.mechanisms import Cardan, Geneva
 from rig.plants.lab_bench import LabBench
 from rig.recorder import read_recording
@@ -595,3 +595,23 @@ def test_an_instrument_beyond_its_range_is_said_so_not_judged_by_its_class(tmp_p
     assert re.search(r"mechanical tachometer [+-]\d+\.\d\d % \(beyond its range \(to 3000 rpm\): no class holds", result)
     assert re.search(r"tachogenerator [+-]\d+\.\d\d % \(beyond its range", result)
     assert re.search(r"stroboscope \(60·f_x\) [+-]\d+\.\d\d % \((within|OUTSIDE) its worst-case", result)
+
+
+def test_readings_at_their_can_fields_limit_are_counted_and_not_judged(tmp_path_factory, speed):
+    """At 52 000 rpm the displays' speeds (5445 rad/s) exceed their CAN fields (±5242.87 rad/s): the unit sends the
+    limit, which the sheet called 3.7 % OUTSIDE with no word (a leftover). The host counts the readings at the
+    field's limit (a ``reading_at_limit`` event, totals in ``link_summary``), the sheet judges neither display."""
+    strobe = 'overrides = { divisor = 1 }'
+    rec, sheets = _run(tmp_path_factory, "lab_speed", lambda s: re.sub(
+        r'(?m)^speed = "[^"]*"', 'speed = "52000 rpm"', s.replace(strobe, strobe[:-2] + ', range_max = "1e5 rpm" }')))
+    result = sheets["Speed measurement"].result
+    assert result.count("(not judged: its readings sit at the CAN field's limit)") == 2 and "OUTSIDE" not in result
+    first = {e["signal"]: e for e in rec.events if e["kind"] == "reading_at_limit"}
+    assert set(first) == {"Tachometer", "Strobe"} and first["Strobe"]["limit"] == pytest.approx(5242.87)
+    totals = next(e for e in rec.events if e["kind"] == "link_summary")["readings_at_limit"]
+    display = rec.series["/stand/lab_display"]
+    assert totals == {"LabDisplay.Tachometer": int(np.sum(display["tachometer"] >= 5242.87 - 0.005)),
+                      "LabDisplay.Strobe": int(np.sum(display["strobe"] >= 5242.87 - 0.005))}
+    assert totals["LabDisplay.Strobe"] > 200                                   # 50 Hz over 6 s, all but the first
+    assert sum("the limit of its CAN field" in w for w in lab_warnings(rec)) == 2
+    assert not [e for e in speed[0].events if e["kind"] == "reading_at_limit"]
