@@ -424,6 +424,7 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.runner.session import scene_digest
     from rig.plants.cam_bar.scene_io import mechanism_from_scene, require_cam_bar
     from rig.scene import load_scene
+    from rig.stops import stopped
     scene_path = Path(args.scene)
     chart = Path(args.output) / f"{scene_path.stem}.tolerance.png"
     writable_dir(Path(args.output), "tolerance chart", shared=True)
@@ -432,18 +433,33 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
         writable_file(Path(args.json), "tolerance JSON", JSON_START)
     cfg = read_config(load_scene(scene_path), choose_level=False)     # the chain's geometry only: no plant run
     require_cam_bar(cfg.scene, "rig tolerance")
-    with executor_from_args(args) as executor:
-        if not args.quiet:
-            print(f"Monte Carlo on {executor.describe()}", file=sys.stderr)
-        study = run_study(mechanism_from_scene(cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
-                          progress=not args.quiet, task_samples=args.task_samples)
-    print(study_table(study))
-    print(f"chart: {plot_study(study, chart)}")
-    if args.json:
-        run = {"scene": cfg.name, "scene_sha256": scene_digest(scene_path),      # its content, not its path's spelling
-               "seed": cfg.seed, "machines": args.samples, "task_samples": args.task_samples}
-        file_parent(Path(args.json)).write_text(json.dumps(study_json(study, run), indent=1) + "\n")
-        print(f"JSON: {args.json}")
+    study = None
+
+    def write() -> None:
+        """The finished study's table, chart and JSON."""
+        print(study_table(study))
+        print(f"chart: {plot_study(study, chart)}")
+        if args.json:
+            run = {"scene": cfg.name, "scene_sha256": scene_digest(scene_path),  # its content, not its path's spelling
+                   "seed": cfg.seed, "machines": args.samples, "task_samples": args.task_samples}
+            file_parent(Path(args.json)).write_text(json.dumps(study_json(study, run), indent=1) + "\n")
+            print(f"JSON: {args.json}")
+
+    try:
+        with executor_from_args(args) as executor:
+            if not args.quiet:
+                print(f"Monte Carlo on {executor.describe()}", file=sys.stderr)
+            study = run_study(mechanism_from_scene(cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
+                              progress=not args.quiet, task_samples=args.task_samples)
+    except KeyboardInterrupt as stop:           # after the last sample: while the workers closed — keep the study
+        if study is None:
+            raise
+        write()
+        print(f"rig: {stopped(stop)} while the workers closed, after the study's last sample: its outputs above are "
+              f"whole", file=sys.stderr)
+        stop.said = ""
+        raise
+    write()
     return 0
 
 

@@ -50,3 +50,24 @@ def test_upper_dwell_gripper_vibration_of_clearance_times_lever_ratio_when_the_r
     gripper, roller = moves[0.0]
     assert roller > 0.3 * 0.05e-3 and gripper / roller == pytest.approx(lever, rel=0.15)
     assert moves[1890.0][0] < 1e-6
+
+
+def test_ctrl_c_while_the_workers_close_keeps_the_map(tmp_path, monkeypatch, capsys):
+    """Ctrl-C after the map's last point, while the workers closed: the map was lost (a leftover). Its table and chart
+    are written, one line says so, status 130."""
+    from rig.executors.serial import SerialExecutor
+    from rig.plants.cam_bar import jump_map as module
+
+    def close(self):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(SerialExecutor, "close", close)
+    small = module.jump_map
+    monkeypatch.setattr(module, "jump_map", lambda scene, executor: small(
+        scene, speeds=(150.0,), rates=(1890.0,), clearances=(0.05e-3,), revolutions=1, executor=executor))
+    with pytest.raises(SystemExit) as stop:
+        module.main(["--executor", "serial", "-o", str(tmp_path / "map.png")])
+    assert stop.value.code == 130
+    out, err = capsys.readouterr()
+    assert "clearance 0.05 mm" in out and f"map: {tmp_path / 'map.png'}" in out
+    assert (tmp_path / "map.png").read_bytes().startswith(b"\x89PNG")
+    assert "interrupted while the workers closed, after the map's last point" in err

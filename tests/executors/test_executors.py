@@ -304,6 +304,25 @@ def test_rig_tolerance_does_not_choose_a_model_level(tmp_path, monkeypatch):
     assert main(["-q", "tolerance", "--samples", "200", "--executor", "serial", "-o", str(tmp_path)]) == 0
 
 
+def test_ctrl_c_while_the_workers_close_keeps_the_tolerance_study(tmp_path, monkeypatch, capsys):
+    """Ctrl-C after the last sample, while the workers closed: the finished study was lost (a leftover). Its table,
+    chart and JSON are written, then one line says so; status 130."""
+    from rig.cli import main
+    from rig.executors.serial import SerialExecutor
+
+    def close(self):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(SerialExecutor, "close", close)
+    assert main(["tolerance", "--samples", "200", "--executor", "serial", "-o", str(tmp_path),
+                 "--json", str(tmp_path / "study.json")]) == 130
+    captured = capsys.readouterr()
+    assert json.loads((tmp_path / "study.json").read_text())["run"]["machines"] == 200
+    assert (tmp_path / "pin_insertion.tolerance.png").read_bytes().startswith(b"\x89PNG")
+    assert "chart: " in captured.out and f"JSON: {tmp_path / 'study.json'}" in captured.out
+    assert [line for line in captured.err.splitlines() if line.startswith("rig:")] == [
+        "rig: interrupted while the workers closed, after the study's last sample: its outputs above are whole"]
+
+
 def test_closing_our_own_cluster_says_nothing_of_its_shutdown(caplog):
     """A sweep on worker processes ended with "rig: distributed.nanny: warning: Worker process still alive after 4.0
     seconds, killing" twice (an audit): the shutdown of the cluster the rig made is its own doing, no news. The

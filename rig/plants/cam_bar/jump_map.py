@@ -13,6 +13,7 @@ Run: python -m rig.plants.cam_bar.jump_map [SCENE] [-o out/jump_map.png] [--exec
 from __future__ import annotations
 
 import argparse
+import sys
 from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
@@ -100,8 +101,22 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("-o", "--output", default="out/jump_map.png")
     add_executor_arguments(parser, local="dask-processes")
     args = parser.parse_args(argv)
-    with executor_from_args(args, local="dask-processes") as executor:
-        result = jump_map(load_scene(args.scene), executor=executor)
+    result = None
+    try:
+        with executor_from_args(args, local="dask-processes") as executor:
+            result = jump_map(load_scene(args.scene), executor=executor)
+    except KeyboardInterrupt:                   # after the last point, while the workers closed: keep the map
+        if result is None:
+            raise
+        show(result, Path(args.output))
+        print("interrupted while the workers closed, after the map's last point: the map above is whole",
+              file=sys.stderr)
+        raise SystemExit(130) from None
+    show(result, Path(args.output))
+
+
+def show(result: JumpMap, output: Path) -> None:
+    """Print the map's table and failures, and write its chart to ``output``."""
     for m, c in enumerate(result.clearances):
         print(f"clearance {c * 1e3:g} mm: switches per revolution (rows: spring rate N/mm; columns: rpm "
               f"{', '.join(f'{v / RPM:g}' for v in result.speeds)})")
@@ -112,8 +127,7 @@ def main(argv: list[str] | None = None) -> None:
     for index in zip(*np.nonzero(result.errors != "")):
         print(f"  failed at {result.speeds[index[0]] / RPM:g} rpm, {result.rates[index[1]] / 1e3:g} N/mm, "
               f"{result.clearances[index[2]] * 1e3:g} mm: {result.errors[index]}")
-    print(f"map: {plot(result, Path(args.output))}")
-
+    print(f"map: {plot(result, output)}")
 
 if __name__ == "__main__":
     main()
