@@ -100,6 +100,22 @@ def test_a_motor_too_weak_for_the_peak_drive_torque_stalls_the_cam_and_says_so()
                 assert omega[k] <= 0.0 < omega[k - 1] and e.data["omega"] == omega[k]
 
 
+def test_level2_simulate_reports_the_stall_too():
+    """The API's Level2.simulate (not only the runner's timeline) names the stalls of a weak motor: its run said
+    nothing (a leftover). With t_eval the events are at those samples, as the timeline's."""
+    from rig.plants.cam_bar.level2 import Level2
+    t = np.arange(0, 10001) * 1e-4
+    weak = Level2(PinInsertionMechanism(cam_drive=CamDrive(max_torque=1.0)), DEMO_SPEED)
+    run = weak.simulate((0.0, 1.0), t_eval=t)
+    omega = run.solution.y[3]
+    assert run.stalls and [e for e in run.events if e.kind == "cam_stalled"] == run.stalls
+    for e in run.stalls:
+        k = int(np.argmin(np.abs(t - e.time)))
+        assert omega[k] <= 0.0 < omega[k - 1] and e.data["omega"] == omega[k]
+    assert not Level2(PinInsertionMechanism(cam_drive=CamDrive(max_torque=60.0)), DEMO_SPEED).simulate(
+        (0.0, 1.0), t_eval=t).stalls
+
+
 def test_a_motor_that_cannot_start_the_cam_and_lets_it_run_back_says_so():
     """A drive of 0.05 N·m at the cam, the cam at rest at 100° on the rise: the mechanism's torque turns it backwards
     from its start (to about −60°) and it never turns forwards — no ``cam_stalled`` event, since that looked for a stop

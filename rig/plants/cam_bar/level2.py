@@ -156,7 +156,8 @@ class Level2Run:
     data ``phi`` (rad, wrapped), ``to``: contact arrives on the other flank than the last one), the contact
     onsets on either flank (``impacts``, times in s), the contact losses (``releases``: (time, flank)), the flank
     last in contact and the bounces (``Event`` kind "flank_bounce", data ``phi``, ``flank``, ``left_phi``,
-    ``flight``: the roller left its flank and struck the same one again, a jump without a switch)."""
+    ``flight``: the roller left its flank and struck the same one again, a jump without a switch) and, with a cam
+    drive, the cam's stalls (:func:`stalls`, at the solution's samples)."""
 
     solution: Solution
     switches: list[Event]
@@ -164,11 +165,23 @@ class Level2Run:
     releases: list[tuple[float, str]]
     flank: str
     bounces: list[Event] = field(default_factory=list)
+    stalls: list[Event] = field(default_factory=list)
 
     @property
     def events(self) -> list[Event]:
-        """Switches and bounces in time order."""
-        return sorted(self.switches + self.bounces, key=lambda e: e.time)
+        """Switches, bounces and cam stalls in time order."""
+        return sorted(self.switches + self.bounces + self.stalls, key=lambda e: e.time)
+
+
+def stalls(t: np.ndarray, omega: np.ndarray, phi: np.ndarray, before: float) -> list[Event]:
+    """A ``cam_stalled`` event (data ``phi`` rad, ``omega`` rad/s) at each sample ``t`` (s) where a driven cam, having
+    turned forwards (``before``: its speed at the sample before the first), stops or turns back, or, at rest, starts
+    turning back (a motor that cannot start it: the mechanism's torque drives it backwards from its start, an audit's
+    drive of 0.05 N·m at 100°): the motor cannot carry the mechanism over its peak drive torque (its pull-out torque,
+    or the start-up's, too low) — the run goes on, but not at the speed its scene says."""
+    prev = np.r_[before, omega][:-1]
+    return [Event(float(t[k]), "cam_stalled", {"phi": float(phi[k]), "omega": float(omega[k])})
+            for k in np.flatnonzero(((prev > 0.0) & (omega <= 0.0)) | ((prev == 0.0) & (omega < 0.0)))]
 
 
 @dataclass
@@ -374,7 +387,8 @@ class Level2:
                 switches.append(Event(rec.t, "flank_switch", {**data, "to": rec.name}))
             else:                               # back on the flank it left (in this run or an earlier chunk)
                 bounces.append(Event(rec.t, "flank_bounce", {**data, "flank": rec.name}))
-        return Level2Run(sol, switches, impacts, releases, flank, bounces)
+        stalled = [] if self.cam_drive is None else stalls(sol.t, sol.y[3], sol.y[2], float(y0[3]))
+        return Level2Run(sol, switches, impacts, releases, flank, bounces, stalled)
 
     # ---- outputs -------------------------------------------------------------------------------------------
     def evaluate(self, t: np.ndarray, y: np.ndarray) -> Dynamics:

@@ -22,7 +22,6 @@ import numpy as np
 from rig.plants.cam_bar.level2 import Level2
 from rig.plants.cam_bar.level2_model import Level2Model
 from rig.plants.cam_bar.timeline import Timeline
-from rig.plants.events import Event
 from rig.solvers import SolverDivergence
 
 if TYPE_CHECKING:
@@ -40,7 +39,6 @@ class Level2Timeline(Timeline):
         self._state: tuple[float, tuple, str | None] | None = None
         self._models: dict[int, Level2] = {}
         self._cycle = 0                     # with a cam drive: the revolution the integration state is in
-        self._omega_last = 0.0              # with a cam drive: the cam speed at the last sample (rad/s)
 
     def _model(self, cycle: int) -> Level2:
         if cycle not in self._models:
@@ -59,9 +57,7 @@ class Level2Timeline(Timeline):
         else:
             if self.cycles is not None:
                 self.cycles.forget_before(self._cycle - 1)
-            parts = self._driven(t)
-            if t.size:
-                self._stalls(t, np.concatenate([p["omega"] for p in parts]), np.concatenate([p["phi"] for p in parts]))
+            parts = self._driven(t)                     # (a stalled cam: the runs' cam_stalled events)
         if not t.size:
             return self._model(min(self._models, default=0)).signals(t, np.zeros((2, 0)))
         out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
@@ -106,18 +102,6 @@ class Level2Timeline(Timeline):
             part = {key: v[:k] for key, v in part.items()}
         self.events.extend(kept)
         return (part if self.cycles is None else self._deviate(part, cycle)), k
-
-    def _stalls(self, t: np.ndarray, omega: np.ndarray, phi: np.ndarray) -> None:
-        """A ``cam_stalled`` event (data ``phi`` rad, ``omega`` rad/s) at each sample where the driven cam, having
-        turned forwards, stops or turns back, or, at rest, starts turning back (a motor that cannot start it: the
-        mechanism's torque drives it backwards from its start, an audit's drive of 0.05 N·m at 100°): the motor cannot
-        carry the mechanism over its peak drive torque (its pull-out torque, or the start-up's, too low) — the run
-        then goes on, but not at the speed its scene says."""
-        before = self._omega_last
-        self._omega_last = float(omega[-1])
-        prev = np.r_[before, omega[:-1]]
-        for k in np.flatnonzero(((prev > 0.0) & (omega <= 0.0)) | ((prev == 0.0) & (omega < 0.0))):
-            self.events.append(Event(float(t[k]), "cam_stalled", {"phi": float(phi[k]), "omega": float(omega[k])}))
 
     def _driven(self, t: np.ndarray) -> list[dict[str, np.ndarray]]:
         """The samples ``t`` with a cam drive: each revolution's samples with that cycle's mechanism (where the cam
