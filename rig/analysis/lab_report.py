@@ -529,8 +529,8 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
                 zorder=3)
         ax.set(xlabel="cam angle (°)", ylabel="torque (N·m)", title="Cam-shaft torque")
 
-    return Sheet("Cam-shaft torque", ["cam angle (°)", "measured mean (N·m)", "theory (N·m)",
-                                      "difference (N·m)", "readings"], rows, result,
+    headers = ["cam angle (°)", "measured mean (N·m)", "theory (N·m)", "difference (N·m)", "readings"]
+    return Sheet("Cam-shaft torque", headers, rows, result,
                  ["The torque shaft is elastic: its 1 kHz bandwidth and the reading rate set how fast a torque "
                   "change is seen.",
                   f"Readings from the first whole turn on ({np.degrees(angle[0]):.0f}° of cam angle, "
@@ -538,7 +538,9 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
                   f"{(angle[-1] - angle[0]) / tau:.2f} turns: a bin the turns pass more often holds more readings "
                   f"(the last column); the work per turn over the {turns:.0f} whole one(s)."], draw,
                  {"deviation_max": float(np.max(np.abs(dev))), "peak": peak, "work_per_turn": work / max(turns, 1.0),
-                  "work_per_turn_theory": expected / max(turns, 1.0)})
+                  "work_per_turn_theory": expected / max(turns, 1.0)},
+                 csv=(["cam angle from (°)", "cam angle to (°)", *headers[1:]],
+                      [[*(int(a) for a in row[0].split("–")), *row[1:]] for row in rows]))
 
 
 def cardan_sheet(lab: Lab) -> Sheet:
@@ -561,7 +563,7 @@ def cardan_sheet(lab: Lab) -> Sheet:
     lag = out[1:-1] - grid[1:-1]
     lag_theory = exact_out[1:-1] - grid[1:-1]
     rows = [[f"{np.degrees(p) % 360:.0f}", fixed(np.degrees(a), 3, sign=True), fixed(np.degrees(b), 3, sign=True),
-             fixed(c, 4), fixed(e, 4), f"{fixed(100 * (c - e) / e, 2, sign=True)} %", fixed(d, 4)]
+             fixed(c, 4), fixed(e, 4), fixed(100 * (c - e) / e, 2, sign=True), fixed(d, 4)]
             for p, a, b, c, d, e in zip(grid[1:-1], lag, lag_theory, ratio, theory, differenced)]
     a = cardan.shaft_angle
     turn = output_at(time_at([grid[1], grid[1] + tau]))     # φ2 over one whole input turn
@@ -584,7 +586,7 @@ def cardan_sheet(lab: Lab) -> Sheet:
         ax.set(xlabel="input angle φ1 (°)", ylabel="ω2/ω1", title=f"Cardan joint at α = {np.degrees(a):.3g}°")
 
     return Sheet("Cardan joint", ["φ1 (°)", "φ2 − φ1 measured (°)", "φ2 − φ1 theory (°)",
-                                  "ω2/ω1 measured", "ω2/ω1 theory, same differences", "measurement error",
+                                  "ω2/ω1 measured", "ω2/ω1 theory, same differences", "measurement error (%)",
                                   "ω2/ω1 theory, exact"], rows, result,
                  ["ω2/ω1 by central differences of the output angle over ±10° of input angle. The measurement "
                   "error is against the closed-form φ2 differenced the same way; the exact ratio differs from that "

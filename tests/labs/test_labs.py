@@ -80,6 +80,24 @@ def test_the_speed_sheets_csv_has_one_number_per_column(speed, tmp_path):
         100 * (v["counter_rpm"] - v["truth_rpm"]) / v["truth_rpm"], abs=1e-6)
 
 
+@pytest.mark.parametrize("bench", ["cam", "cardan"])
+def test_the_other_lab_csvs_hold_one_number_per_cell(bench, request, tmp_path):
+    """lab_cardan.csv held "-0.04 %" and lab_cam_torque.csv "0–10" (a leftover): a spreadsheet read text. Every cell of
+    their CSVs is now a number; the units are in the headers."""
+    from rig.analysis.report import write_report
+    rec, _ = request.getfixturevalue(bench)
+    write_report(rec, tmp_path)
+    files = sorted(tmp_path.glob("lab_*.csv"))
+    assert len(files) == {"cam": 2, "cardan": 1}[bench]
+    for path in files:
+        with open(path, newline="", encoding="utf-8") as f:
+            header, *rows = list(csv.reader(f))
+        assert rows and all(len(row) == len(header) for row in rows)
+        for row in rows:
+            for name, cell in zip(header, row):
+                assert re.fullmatch(r"[+-]?\d+(\.\d+)?", cell), (path.name, name, cell)
+
+
 def test_the_speed_sheets_truth_is_that_of_the_gate_the_counter_shows(tmp_path_factory):
     """A speed that varies by ±60 rpm at 0.5 Hz: the truth row is the mean over the gate whose count each reading
     shows (the last completed gate, [1, 2] s for a reading at 2.5 s), not over the second before the reading, and
