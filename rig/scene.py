@@ -202,6 +202,9 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
         spelled[name] = key
         field = schema[name]
         if field.unit is None:
+            if isinstance(field.default, bool) and not isinstance(value, bool):      # a switch: TOML's true / false
+                raise SceneError(f"{where}: key {key!r} must be true or false (no quotes)"
+                                 + (f" ({field.doc})" if field.doc else "") + f", got {as_written(value)}")
             out[name] = value
             continue
         if unit is None and field.plain and isinstance(value, (int, float)) and not isinstance(value, bool):

@@ -6,7 +6,8 @@ from rig.recorder.reader import interruption_text
 
 #: SI unit of an event's numeric field (shown in the program's display units); other fields are shown as recorded
 EVENT_FIELD_SI = {"phi": "rad", "left_phi": "rad", "phi_r": "rad", "flight": "s", "backlog": "s", "torque": "N*m",
-                  "peak_torque": "N*m", "cam_angle": "rad"}
+                  "peak_torque": "N*m", "cam_angle": "rad", "min_cam_angle": "rad", "min_t": "s", "force": "N",
+                  "omega": "rad/s", "omega3": "rad/s"}
 
 
 def event_details(event: dict, units: DisplayUnits) -> str:

@@ -43,7 +43,7 @@ TRANSDUCER_SCHEMA = {
     "overrides": Field(None, {}, "description values to override, with units"),
     "faults": Field(None, [], "list of {fault = ..., at = '.. s', ...} tables"),
     "rate": Field("Hz", None, "publishing rate of its CAN frames (default: once per transmit cycle, [links.can] "
-                              "tx_period)"),
+                              "tx_period)", positive=True),
 }
 DEVICE_SCHEMA = {
     "program": Field("1", 0, "program number the run uses", integer=True, minimum=0),

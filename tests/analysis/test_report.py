@@ -285,6 +285,9 @@ def test_event_fields_read_in_display_units_without_rounding_noise():
     assert event_details({"t": 0.1, "kind": "disengagement", "phi_r": 1.0471975511965976, "direction": 1},
                          units) == "phi_r 60°, direction 1"
     assert event_details({"t": 0.1, "kind": "x", "phi_r": 1e-6}, units) == "phi_r 5.73e-05°"
+    lift = event_details({"t": 0.1, "kind": "follower_lift", "cam_angle": 1.416, "force": -3.837, "min_t": 0.02134,
+                          "min_cam_angle": 1.542}, units)           # min_cam_angle read in rad with no unit (an audit)
+    assert lift.startswith("cam_angle 81.13°, force -3.837 N, min_t 0.02134 s, min_cam_angle 88.35°"), lift
 
 
 def test_the_truth_caption_accounts_for_every_signal(tmp_path):

@@ -75,6 +75,23 @@ def test_runner_sections_reject_values_they_cannot_use(tmp_path, old, new, messa
         read_config(load_scene(edited(tmp_path, DEMO, old, new)))
 
 
+@pytest.mark.parametrize("scene, old, new, message", [
+    ("lab_cam", 'rate = "500 Hz"', 'rate = "0 Hz"', r"\[transducers.cam_encoder\]: key 'rate' must be positive"),
+    ("lab_cam", 'rate = "500 Hz"', 'rate = "-500 Hz"', r"key 'rate' must be positive.*got \"-500 Hz\""),
+    ("clutch_static_rubber_table", "through_origin = true", 'through_origin = "false"',
+     r"\[plant.clutch\]: key 'through_origin' must be true or false \(no quotes\).*got \"false\""),
+    ("lab_cam", 'rate = "500 Hz"', 'rate = "500 Hz"\noverrides = { errors_enabled = "false" }',
+     r"override 'errors_enabled' must be true or false \(no quotes\), got 'false'"),
+])
+def test_rates_and_switches_are_checked(tmp_path, scene, old, new, message):
+    """A transducer rate of 0 Hz ended in a ZeroDivisionError traceback, -500 Hz ran and filled the sheet with garbage;
+    "false" in quotes is a string, which Python takes for true (an audit)."""
+    from rig.runner.session import run_scene
+    path = edited(tmp_path, SCENES / f"{scene}.toml", old, new)
+    with pytest.raises(SceneError, match=message):
+        run_scene(path, tmp_path / "x.mcap")
+
+
 def test_a_scene_port_is_an_integer(tmp_path):
     cfg = read_config(load_scene(edited(tmp_path, DEMO, 'channel = "rig"', 'channel = "rig"\nport = 29536')))
     assert cfg.can["port"] == 29536 and isinstance(cfg.can["port"], int)
