@@ -39,26 +39,48 @@ def _limit(clutch: Any, short: bool = False) -> str:
             f"disengages above its loading-branch peak, {clutch.peak_torque:.4g} N·m")
 
 
+def self_locking(clutch: Any) -> str:
+    """"" or the sentence saying the clutch is self-locking: its unloading branch never rises above 0 N·m (the
+    friction beats the spring's return: above μ_B = 0.188 for the reference flat tappet of the parameter studies),
+    so an unloaded clutch stays where the load left it and does not spring back."""
+    if not clutch.has_friction:
+        return ""
+    peak = float(clutch.branch_peak(-1.0)[1])
+    if peak > 1e-9 * clutch.peak_torque:
+        return ""
+    peak = min(peak, 0.0) if peak < -1e-9 * clutch.peak_torque else 0.0        # (rounding residue: 0)
+    return (f"self-locking: the unloading branch never rises above {peak:.3g} N·m (friction beats the spring's "
+            f"return), so unloaded the clutch stays where the load left it; it does not spring back")
+
+
 def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
     """Per loading/unloading cycle: torque extremes (N·m), measured/truth/theory loop energy (J; ``lossless``: the
     characteristic has no hysteresis, theory 0 — and a truth of rounding residue shown as 0), slip."""
     truth, readings = rec.truth, rec.series[TOPIC]
     t_m, phi_m = reading_points(readings["t"], readings["angle"])
-    torque_m = np.interp(t_m, truth["t"], truth["torque"])
     phi = float(rig.clutch.phi_min)
     rows = []
     for c in cycles(truth["t"], truth["torque"]):
         e_theory, phi_next, slip = theory_cycle_energy(rig.clutch, phi, c.torque_min, c.torque_max)
         inside = (t_m >= c.start) & (t_m <= c.end)
         residue = 1e-6 * max(abs(c.torque_max), 1.0)       # J: a loop of no area, computed (frictionless)
-        lossless = abs(e_theory) < residue
+        still = abs(e_theory) < residue                     # no loop: frictionless, or friction held the clutch
         e_truth = cycle_energy(truth["t"], truth["relative_angle"], truth["torque"], c)
+        # the display's value at the cycle's ends too: a clutch that friction holds shows no new angle while it is
+        # unloaded, and the loop closed from its last new reading cut the unloading off (a self-locking flat tappet
+        # read 0.110 J against 0.146 J; an audit)
+        ends = np.array([c.start, c.end])
+        held = phi_m[np.maximum(np.searchsorted(t_m, ends, side="right") - 1, 0)]
+        t_c = np.r_[c.start, t_m[inside], c.end]
         rows.append({"start": c.start, "end": c.end, "torque_min": c.torque_min, "torque_max": c.torque_max,
                      "angle_min": float(phi_m[inside].min()) if inside.any() else None,
                      "angle_max": float(phi_m[inside].max()) if inside.any() else None,
-                     "measured": cycle_energy(t_m, phi_m, torque_m, c) if inside.sum() >= 3 else None,
-                     "truth": 0.0 if abs(e_truth) < residue else e_truth, "theory": 0.0 if lossless else e_theory,
-                     "lossless": lossless, "disengaged": slip})
+                     "measured": cycle_energy(t_c, np.r_[held[0], phi_m[inside], held[1]],
+                                              np.interp(t_c, truth["t"], truth["torque"]), c)
+                     if inside.sum() >= 1 else None,
+                     "truth": 0.0 if abs(e_truth) < residue else e_truth, "theory": 0.0 if still else e_theory,
+                     "lossless": still and not rig.clutch.has_friction, "held": still and rig.clutch.has_friction,
+                     "disengaged": slip})
         phi = phi_next
     return rows
 
@@ -95,13 +117,14 @@ def summary(rec: Recording) -> tuple[list[str], dict[str, tuple[float, str]]] | 
 def _lines(rows: list[dict], rig: StaticClutchRig) -> list[str]:
     lines = [f"static clutch rig: {len(rows)} loading/unloading cycle(s); applied torque = lever force × arm (the "
              f"weights); loop energy ∮T dφ measured (multimeter angle) vs theory (characteristic); the model "
-             f"{_limit(rig.clutch)}"]
+             f"{_limit(rig.clutch)}"] + ([f"  {locking}"] if (locking := self_locking(rig.clutch)) else [])
     span = span_format(rows)
     for i, r in enumerate(rows, start=1):
         angle = ("no reading" if r["angle_min"] is None
                  else f"{fixed_range(np.degrees(r['angle_min']), np.degrees(r['angle_max']))}°")
         dev = ("" if r["measured"] is None else " (no hysteresis in the characteristic: the measured loop is the "
-               "readings' lag)" if r["lossless"] else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
+               "readings' lag)" if r["lossless"] else " (friction held the clutch: no loop; the measured one is the "
+               "readings' noise)" if r["held"] else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
         energy = "—" if r["measured"] is None else f"{r['measured']:.4g} J"
         lines.append(f"  cycle {i} ({span(r)} s): applied torque {r['torque_min']:.4g} → "
                      f"{r['torque_max']:.4g} N·m, measured angle {angle}, loop energy {energy} vs {r['theory']:.4g} J{dev}, "
@@ -167,7 +190,8 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
     table = cycle_table(rec, rig)
     span = span_format(table)
     for i, r in enumerate(table, start=1):
-        dev = None if r["measured"] is None or r["lossless"] else (r["measured"] - r["theory"]) / r["theory"]
+        dev = (None if r["measured"] is None or r["lossless"] or r["held"]
+               else (r["measured"] - r["theory"]) / r["theory"])
         rows.append([i, span(r), fmt(r["torque_min"]), fmt(r["torque_max"]),
                      "—" if r["angle_min"] is None else fixed_range(np.degrees(r["angle_min"]), np.degrees(r["angle_max"]),
                                                                    sep="–"),
@@ -183,6 +207,8 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
                             [[f"{e['t']:.6g}", e["kind"], event_details(e, ctx.main_units)] for e in events]))
     else:
         blocks.append(Text(f"No disengagement: the load stayed below {_limit(rig.clutch, short=True)}."))
+    if locking := self_locking(rig.clutch):
+        blocks.append(Text(f"The clutch is {locking}.", "warning"))
     t_m, phi_m = reading_points(readings["t"], readings["angle"])
     torque_m = np.interp(t_m, rec.truth["t"], rec.truth["torque"])
     blocks.append(Heading("Torque and angle", 3))

@@ -231,3 +231,25 @@ def test_one_precision_per_number_and_no_negative_zero():
     assert fixed(-0.00004, 4) == "0.0000" and fixed(-0.00004, 4, sign=True) == "0.0000"
     assert fixed(0.00071, 4, sign=True) == "+0.0007" and fixed(-0.2, 2) == "-0.20" and fixed(None, 2) == "—"
     assert (decimals(120.0), decimals(0.6), decimals(0.0), decimals(float("nan"))) == (0, 3, 0, 0)
+
+
+def test_a_self_locking_clutch_runs_and_is_said(tmp_path):
+    """μ_B = 0.2 on the reference flat tappet (above 0.188, where its unloading branch stays below 0 N·m) ended in
+    "torque -0.169 N*m exceeds the peak -0.169 N*m of the branch" (an audit): now the rig holds the clutch where the
+    load left it, the summary says self-locking, and the measured loops, with the display's value held to each
+    cycle's end, agree with the theory (they were 25 % and 100 % low)."""
+    from rig.analysis.static_clutch_report import summary
+    scene = (SCENES / "clutch_static_flat_tappet.toml").read_text()
+    assert "mu_B = 0.10\n" in scene
+    path = tmp_path / "locking.toml"
+    path.write_text(scene.replace("mu_B = 0.10\n", "mu_B = 0.2\n"))
+    rec = read_recording(run_scene(path, tmp_path / "locking.mcap").output)
+    lines, _ = summary(rec)
+    assert lines[1].startswith("  self-locking: the unloading branch never rises above -0.169 N·m")
+    rows = cycle_table(rec, static_rig(rec))
+    angle = rec.truth["relative_angle"]
+    unloaded = (rec.truth["t"] > 20.0) & (rec.truth["t"] <= 40.0)              # the first unloading ramp
+    assert np.ptp(angle[unloaded]) == 0.0 and angle[unloaded][0] > 0.04         # held where the load left it
+    for r in rows:
+        assert r["truth"] == pytest.approx(r["theory"], rel=2e-4)
+        assert r["measured"] == pytest.approx(r["theory"], rel=0.05)

@@ -96,7 +96,7 @@ class StaticCharacteristic(ABC):
         target = np.asarray(torque, dtype=float)
         phi_peak, t_peak = self.branch_peak(direction)
         t_low = float(self._torque(np.array(self.phi_min), direction if self.has_friction else 0.0))
-        if np.any(~np.isfinite(target)) or np.any(target > t_peak * (1 + 1e-12)):
+        if np.any(~np.isfinite(target)) or np.any(target > t_peak + 1e-12 * abs(t_peak)):
             raise ValueError(f"{self.name}: torque {np.max(target):.6g} N*m exceeds the peak "
                              f"{t_peak:.6g} N*m of the branch (direction {direction:+g}); the clutch disengages")
         if not clip_low and np.any(target < t_low - 1e-12 * max(abs(t_low), 1.0)):
