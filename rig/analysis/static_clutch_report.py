@@ -72,10 +72,15 @@ def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
         ends = np.array([c.start, c.end])
         held = phi_m[np.maximum(np.searchsorted(t_m, ends, side="right") - 1, 0)]
         t_c = np.r_[c.start, t_m[inside], c.end]
-        rows.append({"start": c.start, "end": c.end, "torque_min": c.torque_min, "torque_max": c.torque_max,
-                     "angle_min": float(phi_m[inside].min()) if inside.any() else None,
-                     "angle_max": float(phi_m[inside].max()) if inside.any() else None,
-                     "measured": cycle_energy(t_c, np.r_[held[0], phi_m[inside], held[1]],
+        span = {"start": c.start, "end": c.end, "torque_min": c.torque_min, "torque_max": c.torque_max,
+                "angle_min": float(phi_m[inside].min()) if inside.any() else None,
+                "angle_max": float(phi_m[inside].max()) if inside.any() else None, "cut": c.cut}
+        if c.cut:                   # the run ended on the way down: no closed loop to compare (one was, with the
+            rows.append({**span, "measured": None, "truth": None, "theory": None, "lossless": False,   # full
+                         "held": False, "disengaged": slip,                                         # theory's)
+                         "torque_end": float(np.interp(c.end, truth["t"], truth["torque"]))})
+            break
+        rows.append({**span, "measured": cycle_energy(t_c, np.r_[held[0], phi_m[inside], held[1]],
                                               np.interp(t_c, truth["t"], truth["torque"]), c)
                      if inside.sum() >= 1 else None,
                      "truth": 0.0 if abs(e_truth) < residue else e_truth, "theory": 0.0 if still else e_theory,
@@ -107,14 +112,15 @@ def summary(rec: Recording) -> tuple[list[str], dict[str, tuple[float, str]]] | 
     values: dict[str, tuple[float, str]] = {}
     for i, r in enumerate(rows, start=1):
         values.update({f"cycle_{i}.torque_max": (float(r["torque_max"]), "N·m"),
-                       f"cycle_{i}.loop_energy_theory": (float(r["theory"]), "J"),
                        f"cycle_{i}.disengaged": (float(bool(r["disengaged"])), "")})
+        if r["theory"] is not None:
+            values[f"cycle_{i}.loop_energy_theory"] = (float(r["theory"]), "J")
         if r["measured"] is not None:
             values[f"cycle_{i}.loop_energy"] = (float(r["measured"]), "J")
-    return _lines(rows, rig), values
+    return _lines(rows, rig, rec.events), values
 
 
-def _lines(rows: list[dict], rig: StaticClutchRig) -> list[str]:
+def _lines(rows: list[dict], rig: StaticClutchRig, rec_events: list[dict]) -> list[str]:
     lines = [f"static clutch rig: {len(rows)} loading/unloading cycle(s); applied torque = lever force × arm (the "
              f"weights); loop energy ∮T dφ measured (multimeter angle) vs theory (characteristic); the model "
              f"{_limit(rig.clutch)}"] + ([f"  {locking}"] if (locking := self_locking(rig.clutch)) else [])
@@ -126,9 +132,16 @@ def _lines(rows: list[dict], rig: StaticClutchRig) -> list[str]:
                "readings' lag)" if r["lossless"] else " (friction held the clutch: no loop; the measured one is the "
                "readings' noise)" if r["held"] else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
         energy = "—" if r["measured"] is None else f"{r['measured']:.4g} J"
+        loop = (f"cut by the run's end at {r['torque_end']:.4g} N·m on the way down: no closed loop, no energy "
+                f"compared" if r["cut"] else f"loop energy {energy} vs {r['theory']:.4g} J{dev}")
         lines.append(f"  cycle {i} ({span(r)} s): applied torque {r['torque_min']:.4g} → "
-                     f"{r['torque_max']:.4g} N·m, measured angle {angle}, loop energy {energy} vs {r['theory']:.4g} J{dev}, "
+                     f"{r['torque_max']:.4g} N·m, measured angle {angle}, {loop}, "
                      + ("disengaged (slipped a lobe)" if r["disengaged"] else "no disengagement"))
+    within = [(r["start"], r["end"]) for r in rows]
+    for e in rec_events:
+        if e.get("kind") == "disengagement" and not any(a <= e["t"] <= b for a, b in within):
+            lines.append(f"  disengaged at t = {e['t']:.4g} s, outside a whole loading/unloading cycle (the load "
+                         f"rose there and did not come back down before the run ended)")
     return lines
 
 
@@ -201,6 +214,8 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
     blocks.append(Heading("Hysteresis-loop energy ∮T dφ per cycle", 3))
     blocks.append(Table(["cycle", "t (s)", "applied T min (N·m)", "applied T max (N·m)", "measured angle (°)",
                          "measured (J)", "plant truth (J)", "theory (J)", "measured − theory", "disengaged"], rows))
+    blocks += [Text(f"Cycle {i} was cut by the run's end at {r['torque_end']:.4g} N·m on the way down: no closed loop, "
+                    "no energy compared.", "warning") for i, r in enumerate(table, start=1) if r["cut"]]
     events = [e for e in rec.events if e.get("kind") in ("disengagement", "reengaged")]
     if events:
         blocks.append(Table(["t (s)", "event", "details"],

@@ -253,3 +253,24 @@ def test_a_self_locking_clutch_runs_and_is_said(tmp_path):
     for r in rows:
         assert r["truth"] == pytest.approx(r["theory"], rel=2e-4)
         assert r["measured"] == pytest.approx(r["theory"], rel=0.05)
+
+
+def test_a_cycle_cut_by_the_runs_end_and_a_disengagement_outside_cycles_are_said(tmp_path):
+    """A 30 s run of the 90 s lever program compared its half loop (0 → 4 → 2 N·m) with the whole loop's theory
+    (−38 %); a last ramp to 1e6 N disengaged the clutch and the console listed one cycle and no word of it (an
+    audit)."""
+    from rig.analysis.static_clutch_report import summary
+    scene = (SCENES / "clutch_static_flat_tappet.toml").read_text()
+    short = tmp_path / "short.toml"
+    short.write_text(scene.replace('duration = "90 s"', 'duration = "30 s"', 1))
+    lines, values = summary(read_recording(run_scene(short, tmp_path / "short.mcap").output))
+    assert len(lines) == 2 and "cut by the run's end at 2 N·m on the way down: no closed loop" in lines[1]
+    assert "cycle_1.loop_energy_theory" not in values and "cycle_1.loop_energy" not in values
+    last = scene.rindex('force = "0 N"')
+    huge = tmp_path / "huge.toml"
+    huge.write_text(scene[:last] + 'force = "1e6 N"' + scene[last + len('force = "0 N"'):])
+    rec = read_recording(run_scene(huge, tmp_path / "huge.mcap").output)
+    lines, _ = summary(rec)
+    t = next(e["t"] for e in rec.events if e["kind"] == "disengagement")
+    assert lines[-1] == (f"  disengaged at t = {t:.4g} s, outside a whole loading/unloading cycle (the load rose there "
+                         "and did not come back down before the run ended)")
