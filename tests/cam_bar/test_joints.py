@@ -100,9 +100,16 @@ def test_scene_table(tmp_path):
                   "[[plant.cam_program]]", "[[plant.cam_program]]")
     assert mechanism_from_scene(scene).joints == JointClearance(20e-6, 30e-6, 2e7)
     path = tmp_path / "scene.toml"
-    path.write_text(path.read_text().replace('slider = "0.03 mm"', 'slider = "-0.03 mm"'))
-    with pytest.raises(SceneError, match="joint clearances"):
-        mechanism_from_scene(load_scene(path))
+    text = path.read_text()
+    for old, new, message in [             # each names its key as written (it gave the four values in SI, no key)
+            ('slider = "0.03 mm"', 'slider = "-0.03 mm"', r"key 'slider' must not be negative .*got \"-0.03 mm\""),
+            ('stiffness = "20 N/um"', 'stiffness = "0 N/um"', r"key 'stiffness' must be positive and at most 1e12"),
+            ('stiffness = "20 N/um"', 'stiffness = "1e9 N/um"', r"key 'stiffness' must be positive and at most 1e12"),
+            ('follower = "0.02 mm"', 'follower = "500 mm"',            # (an audit: 500 mm ran, no curve came)
+             r"pin clearances \(\[plant.joints\] follower \+ slider = 500.03 mm\) are not smaller than the stroke")]:
+        path.write_text(text.replace(old, new))
+        with pytest.raises(SceneError, match=message):
+            mechanism_from_scene(load_scene(path))
 
 
 def test_pins_driven_beyond_the_overload_limit_are_named():

@@ -25,11 +25,17 @@ from typing import Any
 
 from rig.scene import Field, read_subtable
 
+#: N/m: the stiffest rod the model takes — a steel bar of 1 m² section 0.2 m long (E·A/l); 1e15 N/m hung the run in
+#: its solver-setting check, whose explicit reference then needs steps of nanoseconds (an audit)
+STIFFEST = 1e12
+
 SCHEMA = {
-    "follower": Field("m", 0.0, "diametral clearance of the rod's pin at the follower (C)"),
-    "slider": Field("m", 0.0, "diametral clearance of the rod's pin at the gripper slider (D)"),
-    "stiffness": Field("N/m", 4e7, "axial stiffness of the rod with both pins bearing"),
-    "damping": Field("s/m", 20.0, "Hunt-Crossley damping alpha of the pins' contact"),
+    "follower": Field("m", 0.0, "diametral clearance of the rod's pin at the follower (C)", minimum=0.0),
+    "slider": Field("m", 0.0, "diametral clearance of the rod's pin at the gripper slider (D)", minimum=0.0),
+    "stiffness": Field("N/m", 4e7, "axial stiffness of the rod with both pins bearing", positive=True,
+                       maximum=STIFFEST, says="must be positive and at most 1e12 N/m (a steel bar of 1 m² section "
+                                              "0.2 m long)"),
+    "damping": Field("s/m", 20.0, "Hunt-Crossley damping alpha of the pins' contact", minimum=0.0),
 }
 
 

@@ -202,6 +202,10 @@ class PinInsertionMechanism:
             raise ValueError(f"cam-bar parameter F_c_travel ({self.F_c_travel * 1e3:g} mm) is longer than the "
                              f"stroke s_H ({self.s_H * 1e3:g} mm): the insertion force acts over the last F_c_travel "
                              "of the rise")
+        if self.joints is not None and self.joints.follower + self.joints.slider >= self.s_H:
+            raise ValueError(f"the rod's pin clearances ([plant.joints] follower + slider = "
+                             f"{(self.joints.follower + self.joints.slider) * 1e3:g} mm) are not smaller than the "
+                             f"stroke s_H ({self.s_H * 1e3:g} mm): the play would swallow the gripper's motion")
         self.chain = self._assemble()
         self.psi0 = float(self.chain.angles(np.array([self.s_Srest])).psi[0])
 
