@@ -123,11 +123,16 @@ def _config(scene_path: str | Path, cycles: int | None, mode: str | None, fideli
 
 def _machine_done(cfg: RunConfig, machine: Machine) -> bool:
     if cfg.cycles is not None:
-        if machine.t > cfg.max_time:
+        if machine.curves < cfg.cycles and machine.t > cfg.max_time:
             why = (f"the scene's [scene] max_time = {cfg.max_time:g} s ends the run first: raise it for this many "
                    f"cycles, or check the device's start/stop settings" if cfg.max_time_given else
                    f"max_time {cfg.max_time:g} s, {cfg.max_time / cfg.cycles:g} s per cycle: check the device's "
                    f"start/stop settings")
+            stalls = [e for e in getattr(machine.plant, "events", []) if e.kind == "cam_stalled"]
+            if stalls:              # the machine's own cause, not the device's settings (an audit: 190 stalls unsaid)
+                why = (f"the cam stalled {len(stalls)} time(s), first at t = {stalls[0].time:.4g} s: its motor cannot "
+                       f"carry the mechanism over its peak drive torque ([plant.drive] max_torque, or a load too "
+                       f"high), so the machine made no cycles at its speed — see the cam_stalled events")
             raise OutOfTime(f"{cfg.scene.path}: only {machine.curves} of {cfg.cycles} curves by {machine.t:.3f} s "
                            f"of simulated time ({why})")
         return machine.curves >= cfg.cycles

@@ -1,6 +1,7 @@
 """The cam drive at level 2 (rig.plants.cam_bar.drive): motor line, shaft compliance, start-up, speed ripple."""
 from math import radians, tau
 
+from pathlib import Path
 import numpy as np
 import pytest
 
@@ -129,3 +130,17 @@ def test_a_motor_that_cannot_start_the_cam_and_lets_it_run_back_says_so():
     found = [e for e in timeline.events if e.kind == "cam_stalled"]
     assert omega.max() <= 0.0 and omega.min() < -1.0                 # it never turned forwards
     assert len(found) == 1 and found[0].time == t[np.argmax(omega < 0.0)] and found[0].data["omega"] < 0.0
+
+
+def test_a_run_that_runs_out_of_time_because_the_cam_stalled_says_so(tmp_path):
+    """The as-tested machine with a 1 N·m motor: no curve came and the run ended in "check the device's start/stop
+    settings", with the cam_stalled events unsaid (an audit): the message now names the stalls."""
+    from rig.runner import run_scene
+    from rig.runner.errors import OutOfTime
+    scene = (Path(__file__).resolve().parents[2] / "data" / "scenes" / "pin_insertion_as_tested.toml").read_text()
+    path = tmp_path / "weak.toml"
+    path.write_text(scene.replace('start = "rest"', 'start = "rest"\nmax_torque = "1 N*m"', 1)
+                    .replace("cycles = 5", 'cycles = 2\nmax_time = "1 s"', 1))
+    with pytest.raises(OutOfTime, match=r"only [01] of 2 curves by .* \(the cam stalled \d+ time\(s\), first at t = "
+                                        r".* its motor cannot carry the mechanism"):
+        run_scene(path, tmp_path / "weak.mcap")
