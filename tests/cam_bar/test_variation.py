@@ -120,6 +120,9 @@ def test_clearance_take_up_follows_the_truncated_exponential_law():
     ({"F_c": "1 mm"}, r"\[plant.variation\].*'F_c'.*wrong dimension"),
     ({"L3": "-1 mm"}, r"\[plant.variation\].*L3 must not be negative"),
     ({"clearance_lambda": "0 / mm"}, r"clearance_lambda must be positive"),
+    ({"F_c": "100 N"}, r"\[plant.variation\]: key 'F_c' σ = 100 N is too wide for the nominal 40 N: a draw -3σ from "
+                       r"it is no valid machine \(cam-bar parameter F_c must not be negative"),   # (failed at cycle 2)
+    ({"mu": "1"}, r"key 'mu' σ = 1 is too wide for the nominal 0.1: a draw -3σ"),
 ])
 def test_bad_variation_tables_are_clear_errors(table, message):
     with pytest.raises(SceneError, match=message):

@@ -18,7 +18,7 @@ from rig.plants.cam_bar.insertion import read_insertion
 from rig.plants.cam_bar.joints import read_joints
 from rig.plants.cam_bar.level2_model import CONTACT_DAMPING, Level2Model
 from rig.plants.cam_bar.mechanism import NON_NEGATIVE, POSITIVE, PinInsertionMechanism
-from rig.plants.cam_bar.variation import CycleVariation, plant_generator
+from rig.plants.cam_bar.variation import CycleVariation, check_draws, plant_generator
 from rig.units import UnitError, to_si
 
 PLANT_SCHEMA = {
@@ -183,14 +183,18 @@ def read_setting(scene: Scene) -> dict[str, Any]:
     level and level-2 method (:func:`rig.fidelity.choose`), the level-2 model assumptions, the per-cycle variation
     [plant.variation] and its generator (under [scene] seed)."""
     from rig.fidelity import choose
+    variation = scene.read("plant", PLANT_SCHEMA)["variation"]
+    if variation is not None:
+        where = f"{scene.path} [plant.variation]"
+        variation = CycleVariation.from_table(variation, where)
+        check_draws(variation, mechanism_from_scene(scene), where)
     choice = choose(scene, "cam_bar")
     kw: dict[str, Any] = {"speed": read_speed_profile(scene), "fidelity": choice.level,
                           "level2": read_level2_model(scene)}
     if choice.method is not None:
         kw["method"], kw["method_options"] = choice.method, dict(choice.options)
-    variation = scene.read("plant", PLANT_SCHEMA)["variation"]
     if variation is not None:
-        kw["variation"] = CycleVariation.from_table(variation, f"{scene.path} [plant.variation]")
+        kw["variation"] = variation
         seed = scene.section("scene").get("seed")
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise SceneError(f"{scene.path} [scene]: 'seed' must be a non-negative integer for [plant.variation], "

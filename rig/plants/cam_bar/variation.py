@@ -23,7 +23,7 @@ import numpy as np
 
 from rig.plants.cam_bar.montecarlo import sample_clearance
 from rig.plants.cam_bar.tolerance import PARAMS, CamChain
-from rig.scene import Field, read_table
+from rig.scene import Field, SceneError, read_table
 
 if TYPE_CHECKING:
     from rig.plants.cam_bar.mechanism import PinInsertionMechanism
@@ -56,7 +56,6 @@ class CycleVariation:
     @classmethod
     def from_table(cls, table: Any, where: str) -> "CycleVariation":
         """From a ``[plant.variation]`` table (quantities with units)."""
-        from rig.scene import SceneError
         if not isinstance(table, dict):
             raise SceneError(f"{where}: 'variation' must be a table ([plant.variation])")
         v = read_table(table, VARIATION_SCHEMA, where)
@@ -75,6 +74,25 @@ class CycleVariation:
             take_up = float(sample_clearance(rng, self.clearance_lambda, 1, clearance)[0])
             chain["r"] = chain.get("r", 0.0) - take_up
         return CycleDeviation(load, chain, take_up)
+
+
+def check_draws(variation: CycleVariation, nominal: "PinInsertionMechanism", where: str) -> None:
+    """SceneError naming the key of a load parameter whose draws 3σ from the nominal are not a valid machine (a
+    negative piercing force, a friction coefficient below 0): about 0.3 % of the cycles would draw one and stop the
+    run there, after cycles already simulated (an audit: F_c σ = 100 N on 40 N failed at cycle 2)."""
+    for key in LOAD_UNITS:
+        sigma = variation.sigma.get(key, 0.0)
+        if not sigma:
+            continue
+        for side in (-3.0, 3.0):
+            try:
+                replace(nominal, **{key: getattr(nominal, key) + side * sigma})
+            except ValueError as exc:
+                unit = "" if LOAD_UNITS[key] == "1" else f" {LOAD_UNITS[key]}"
+                raise SceneError(f"{where}: key {key!r} σ = {sigma:g}{unit} is too wide for the nominal "
+                                 f"{getattr(nominal, key):g}{unit}: a draw {side:+g}σ from it is no valid machine "
+                                 f"({exc}); at least 0.13 % of the cycles would draw one and stop the run there — "
+                                 f"lower σ to keep ±3σ a valid machine") from None
 
 
 @dataclass(frozen=True)
