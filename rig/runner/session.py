@@ -228,6 +228,9 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
         pace.finish()
 
 
+SHORT_TX = 0.1      # s: a transmit cycle this short sends a machine cycle's curve as it ends (the unit's default)
+
+
 def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, after_step: Callable[[], object],
            host_gone: Callable[[], bool], pace: "_Pacer", check: Callable[[], None],
            room: Callable[[float], bool]) -> float:
@@ -242,11 +245,18 @@ def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
                 machine.step(done=lambda m: _machine_done(cfg, m))
             except BusOverload as exc:
                 burst, held = machine.cycle_curves, cfg.can["tx_curves"]
-                if burst >= held:          # the cycle, not the bus: its curves all ended before any could leave
+                if burst >= held and cfg.can["tx_period"] > SHORT_TX:      # the cycle, not the bus: its curves
                     raise BusTooSlow(f"{cfg.scene.path} [links.can]: tx_period = {cfg.can['tx_period']:g} s is too "
                                      f"long for the bus: one transmit cycle of the unit measured {burst} curves at "
                                      f"once, as many as it holds for sending (tx_curves = {held}); shorten tx_period "
                                      "(e.g. \"100 ms\") so that each curve is sent as it ends") from None
+                if burst >= held:          # curves that short are no machine cycles (an audit: 1 rpm was told to
+                    raise BusTooSlow(       # shorten a 100 ms tx_period to 100 ms)
+                        f"{cfg.scene.path}: the unit measured {burst} curves within one transmit cycle of "
+                        f"{cfg.can['tx_period']:g} s, as many as it holds for sending (tx_curves = {held}): curves that "
+                        f"short are not machine cycles but its start/stop trigger firing again and again (a signal "
+                        f"chattering about its threshold, e.g. at a crawl) — check the device's start/stop settings "
+                        f"([device.config]) against the signals") from None
                 raise BusTooSlow(f"{cfg.scene.path} [links.can]: {exc}") from None
         if gone and not machine.node.released:
             raise _host_left(machine, "during the run")

@@ -57,3 +57,22 @@ def test_worn_pins_strike_where_the_rod_force_reverses(tmp_path):
     rec = read_recording(out)
     assert rec.truth["F_rod"].min() < -150.0 and rec.truth["R23"].min() == 0.0
     assert rec.curves[0].y.min() < -150.0
+
+
+def test_a_trigger_chattering_at_a_crawl_is_named_not_the_transmit_period(tmp_path, monkeypatch):
+    """The worn-pin machine at 1 rpm: its pins' play makes the start/stop trigger fire again and again, 4 curves in
+    one 100 ms transmit cycle, and the run said "tx_period = 0.1 s is too long … shorten tx_period (e.g. "100 ms")"
+    (an audit). It now names the trigger."""
+    from rig.bench import setting_check
+    from rig.runner import run_scene
+    from rig.runner.errors import BusTooSlow
+    # the solver setting unchecked at 1 rpm (its check, a level-2 reference at 1e-10, is 30 s of this test's 35)
+    monkeypatch.setattr(setting_check, "at_this_point", lambda scene, method, options, tolerance: (options, ""))
+    text = (SCENES / "pin_insertion_worn_pins.toml").read_text()
+    assert 'speed = "150 rpm"' in text
+    path = tmp_path / "crawl.toml"
+    path.write_text(text.replace('speed = "150 rpm"', 'speed = "1 rpm"', 1))
+    with pytest.raises(BusTooSlow, match=r"measured 4 curves within one transmit cycle of 0.1 s.*start/stop trigger "
+                                         r"firing again and again") as info:
+        run_scene(path, tmp_path / "crawl.mcap")
+    assert "shorten tx_period" not in str(info.value)
