@@ -503,6 +503,7 @@ class _Parser(argparse.ArgumentParser):
         return ns
 
 
+MAX_CYCLES = 10**9     # machine cycles a run takes (as [scene] cycles: 10^9 at 150 rpm are 13 years)
 MAX_SAMPLES = 10**10   # Monte-Carlo machines rig tolerance takes (10^6 take ~15 s on two workers: this, ~2 days)
 
 
@@ -564,7 +565,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                         help="force the model level (default: [scene] fidelity, else the lowest answering "
                         "[scene] questions)")
-    run.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
+    run.add_argument("--cycles", type=_count(1, MAX_CYCLES), help="override the scene's number of cycles (>= 1)")
     run.add_argument("--realtime", action="store_true", help="pace to the wall clock (warns when it falls behind)")
     where = run.add_mutually_exclusive_group()
     where.add_argument("--report-dir", help="report directory (default: next to the recording)")
@@ -587,7 +588,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                         help="force the model level (default: [scene] fidelity, else the lowest answering "
                         "[scene] questions)")
-    serve.add_argument("--cycles", type=_count(1), help="override the scene's number of cycles (>= 1)")
+    serve.add_argument("--cycles", type=_count(1, MAX_CYCLES), help="override the scene's number of cycles (>= 1)")
     serve.add_argument("--release-timeout", type=_seconds, default=300.0,
                        help="seconds to wait after the run for the host to release the device (CAN Release; "
                             "default 300)")
@@ -609,7 +610,7 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--fidelity", type=int, choices=(0, 1, 2),
                         help="force the model level (default: [scene] fidelity, else the lowest answering "
                         "[scene] questions)")
-    rec.add_argument("--cycles", type=_count(1), help="record only the first N curves (>= 1)")
+    rec.add_argument("--cycles", type=_count(1, MAX_CYCLES), help="record only the first N curves (>= 1)")
     rec.set_defaults(func=cmd_record)
     rep = sub.add_parser("report", parents=[quiet],
                          help="write an HTML/Markdown report with plots and CSV from a recording")

@@ -136,9 +136,12 @@ def load_scene(path: str | Path) -> Scene:
     """Parse a scene file; syntax errors are reported with the file name."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")         # (a byte-order mark, as some editors write, is fine)
     except OSError as exc:
         raise SceneError(f"cannot read scene file {path}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start}): a scene "
+                         f"is a TOML file in UTF-8") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -175,6 +178,9 @@ def read_subtable(table: Any, schema: Mapping[str, Field], where: str, name: str
         return build(values)
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
+
+
+HUGE = 1e30          # the largest magnitude of a scene quantity in SI (larger ones overflow the models' arithmetic)
 
 
 def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str,
@@ -219,6 +225,9 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
         if not math.isfinite(out[name]):
             raise SceneError(f"{where}: key {key!r} must be a finite quantity, got {value!r}"
                              + (f" {unit}" if unit else ""))
+        if abs(out[name]) > HUGE:            # finite, but its square overflows (L3 = "1e308 mm": a traceback)
+            raise SceneError(f"{where}: key {key!r} is beyond any machine (more than {HUGE:g} in SI units), got "
+                             f"{as_written(value, unit)}")
         wrong = field.out_of_range(out[name])
         if wrong is not None:
             raise SceneError(f"{where}: key {key!r} {wrong}" + (f" ({field.doc})" if field.doc else "")

@@ -17,11 +17,14 @@ from rig.blockbus import is_interface_name
 from rig.fidelity import Fidelity, choose
 from rig.scene import Field, Scene, SceneError, read_table
 
+MAX_SAMPLE_RATE = 1e6      # Hz: the fastest plant/transducer sample rate a scene may ask
+
 SCENE_SCHEMA = {
     "name": Field(None), "description": Field(None, ""),
     "plant": Field(None, doc="plant kind, e.g. 'cam_bar' or 'clutch_dynamic'"),
     "seed": Field("1", doc="seed of every random draw of the run", integer=True, minimum=0),
-    "cycles": Field("1", None, "number of device curves (machine cycles) to record", integer=True, minimum=1),
+    "cycles": Field("1", None, "number of device curves (machine cycles) to record", integer=True, minimum=1,
+                    maximum=1e9),                       # (as rig run --cycles; beyond int64, a traceback)
     "duration": Field("s", None, "simulated time to run when the scene has no cycles"),
     "sample_rate": Field("Hz", 10_000.0, "plant/transducer/acquisition sample rate"),
     "chunk": Field("s", 0.1, "simulated time the plant and transducers advance per runner step: a whole number of "
@@ -343,6 +346,9 @@ def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool
     for key, unit in (("sample_rate", "Hz"), ("chunk", "s")):
         if not s[key] > 0:
             raise SceneError(f"{where}: key {key!r} must be positive, got {s[key]:g} {unit}")
+    if s["sample_rate"] > MAX_SAMPLE_RATE:     # (1e12 Hz asked 2.9 TiB for one revolution's samples)
+        raise SceneError(f"{where}: key 'sample_rate' must be at most {MAX_SAMPLE_RATE / 1e6:g} MHz (the acquisition "
+                         f"unit samples at up to 20 kHz), got {s['sample_rate']:g} Hz")
     if s["chunk"] * s["sample_rate"] < 2:
         raise SceneError(f"{where}: 'chunk' = {s['chunk']:g} s holds {s['chunk'] * s['sample_rate']:g} samples at "
                          f"'sample_rate' = {s['sample_rate']:g} Hz: a chunk needs at least 2")

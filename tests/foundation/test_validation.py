@@ -92,6 +92,31 @@ def test_rates_and_switches_are_checked(tmp_path, scene, old, new, message):
         run_scene(path, tmp_path / "x.mcap")
 
 
+@pytest.mark.parametrize("old, new, message", [
+    ('L3 = "260 mm"', 'L3 = "1e308 mm"', r"\[plant\]: key 'L3' is beyond any machine \(more than 1e\+30 in SI units\), "
+                                        r"got \"1e308 mm\""),                  # (an OverflowError traceback)
+    ('sample_rate = "10 kHz"', 'sample_rate = "1e12 Hz"', r"key 'sample_rate' must be at most 1 MHz"),  # (MemoryError)
+    ('speed = "150 rpm"', 'speed = "1e30 rpm"', r"\[speed\]: key 'speed' must be positive and at most 1e6 rpm"),  # hung
+    ("cycles = 50", "cycles = 99999999999999999999", r"key 'cycles' must be an integer >= 1 and <= 1000000000"),
+])
+def test_quantities_beyond_any_machine_are_named(tmp_path, old, new, message):
+    """Each was a traceback, a 2.9 TiB allocation or a hang (an audit)."""
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
+    scene = load_scene(edited(tmp_path, DEMO, old, new))
+    with pytest.raises(SceneError, match=message):
+        read_config(scene, choose_level=False)
+        cam_bar_from_scene(scene.path)
+
+
+def test_a_scene_with_a_byte_order_mark_reads_and_one_not_in_utf8_is_named(tmp_path):
+    text = DEMO.read_text(encoding="utf-8")
+    (tmp_path / "bom.toml").write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    assert load_scene(tmp_path / "bom.toml").data == load_scene(DEMO).data
+    (tmp_path / "latin1.toml").write_bytes('name = "Géneva"\n'.encode("latin-1"))
+    with pytest.raises(SceneError, match=r"latin1.toml: not UTF-8 text \(byte 0xe9 at offset 9\)"):
+        load_scene(tmp_path / "latin1.toml")
+
+
 def test_a_scene_port_is_an_integer(tmp_path):
     cfg = read_config(load_scene(edited(tmp_path, DEMO, 'channel = "rig"', 'channel = "rig"\nport = 29536')))
     assert cfg.can["port"] == 29536 and isinstance(cfg.can["port"], int)
@@ -511,9 +536,9 @@ def test_a_report_without_its_lab_sheet_says_so_on_the_console(tmp_path, caplog)
 
 # -- messages in the scene's own terms ----------------------------------------------------------------
 @pytest.mark.parametrize("old, new, message", [
-    ('speed = "150 rpm"', 'speed = "-120 rpm"', r"\[speed\]: key 'speed' must be positive, got \"-120 rpm\"$"),
+    ('speed = "150 rpm"', 'speed = "-120 rpm"', r"\[speed\]: key 'speed' must be positive and at most 1e6 rpm, got \"-120 rpm\"$"),
     ('profile = "constant"', 'profile = "ramp"\nspeed_end = "-120 rpm"\nramp_time = "1 s"',
-     r"\[speed\]: key 'speed_end' must be positive, got \"-120 rpm\"$"),
+     r"\[speed\]: key 'speed_end' must be positive and at most 1e6 rpm, got \"-120 rpm\"$"),
 ])
 def test_a_negative_speed_is_named_by_its_key_in_the_unit_written(tmp_path, old, new, message):
     from rig.plants.cam_bar.scene_io import read_speed_profile

@@ -5,6 +5,7 @@ cam-program table every key is checked (unknown, missing, wrong unit → :class:
 """
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -57,12 +58,14 @@ PLANT_SCHEMA.update({name: replace(PLANT_SCHEMA[name], minimum=0.0) for name in 
 SEGMENT_SCHEMA = {"kind": Field(None), "angle": Field("rad"), "law": Field(None, None),
                   "stroke": Field("m", None, "defaults to s_H for rise/return")}
 # the ranges the speed profiles check, checked on the scene's values: the error names the key and the value as written
+FASTEST = 1e6 * math.tau / 60      # rad/s: 1e6 rpm, beyond any bench (1e30 rpm drew 1e27 cycles per chunk: a hang)
+_SPEED = dict(positive=True, maximum=FASTEST, says="must be positive and at most 1e6 rpm")
 SPEED_SCHEMAS = {
-    "constant": {"profile": Field(None), "speed": Field("rad/s", positive=True), "phi0": Field("rad", 0.0)},
-    "ramp": {"profile": Field(None), "speed": Field("rad/s", positive=True), "speed_end": Field("rad/s", positive=True),
+    "constant": {"profile": Field(None), "speed": Field("rad/s", **_SPEED), "phi0": Field("rad", 0.0)},
+    "ramp": {"profile": Field(None), "speed": Field("rad/s", **_SPEED), "speed_end": Field("rad/s", **_SPEED),
              "ramp_time": Field("s", positive=True), "ramp_start": Field("s", 0.0, minimum=0.0),
              "phi0": Field("rad", 0.0)},
-    "sinusoidal": {"profile": Field(None), "speed": Field("rad/s", doc="mean speed", positive=True),
+    "sinusoidal": {"profile": Field(None), "speed": Field("rad/s", doc="mean speed", **_SPEED),
                    "amplitude": Field("rad/s", minimum=0.0),
                    "frequency": Field("Hz", None, "default: once per revolution", positive=True),
                    "phi0": Field("rad", 0.0)},
