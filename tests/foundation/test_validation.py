@@ -536,7 +536,8 @@ def test_a_report_without_its_lab_sheet_says_so_on_the_console(tmp_path, caplog)
 
 # -- messages in the scene's own terms ----------------------------------------------------------------
 @pytest.mark.parametrize("old, new, message", [
-    ('speed = "150 rpm"', 'speed = "-120 rpm"', r"\[speed\]: key 'speed' must be positive and at most 1e6 rpm, got \"-120 rpm\"$"),
+    ('speed = "150 rpm"', 'speed = "-120 rpm"',
+     r"\[speed\]: key 'speed' must be positive and at most 1e6 rpm, got \"-120 rpm\"$"),
     ('profile = "constant"', 'profile = "ramp"\nspeed_end = "-120 rpm"\nramp_time = "1 s"',
      r"\[speed\]: key 'speed_end' must be positive and at most 1e6 rpm, got \"-120 rpm\"$"),
 ])
