@@ -524,3 +524,37 @@ def test_the_sizing_rows_size_the_segment_that_needs_the_largest_radius():
     assert float(exact.note.split("r_b = ")[1].split(" mm")[0]) == pytest.approx(max(need) * 1e3, abs=0.006)
     assert max(need) > min(need) * 1.2 and "on the return" in flocke.note and "the others: rise 47.05 mm" in exact.note
     assert exact.ok and exact.value == pytest.approx(30.0, rel=1e-9)
+
+
+def test_the_exact_base_radius_counts_the_lift_a_stacked_rise_starts_from():
+    """A 5 mm rise then a 15 mm rise (60° each, cycloidal): the second was sized from its own bottom, 42.58 mm, where
+    tan α = s'/(r_b + s) with the whole lift s needs 37.58 mm (an audit). Brute force over the program."""
+    from rig.mechanisms.cam.design import required_base_radius
+    program = CamProgram([Segment("rise", radians(60), "cycloidal", 0.005), Segment("rise", radians(60), "cycloidal",
+                                                                                      0.015),
+                          Segment("dwell", radians(60)), Segment("return", radians(120), "cycloidal", 0.02),
+                          Segment("dwell", radians(60))])
+    m = program.evaluate(np.linspace(0.0, tau, 720_001))
+    brute = float(np.max(np.abs(m.s_p) / np.tan(radians(30)) - m.s))
+    assert required_base_radius(program, radians(30)) == pytest.approx(brute, rel=1e-6)
+    assert brute == pytest.approx(0.03758, abs=1e-5)
+
+
+def test_a_steep_program_fails_the_flat_follower_row_and_keeps_the_table(tmp_path):
+    """A 20° rise: no cusp-free flat-faced follower exists below the pivot distance, and rig cam-design ended with that
+    sentence and no table (an audit). The row fails; the others are computed."""
+    from rig.mechanisms.cam.design import design_checks
+    from rig.plants.cam_bar.scene_io import cam_bar_from_scene
+    text = (Path(__file__).resolve().parents[2] / "data" / "scenes" / "pin_insertion.toml").read_text()
+    program = text[text.index("[[plant.cam_program]]"):]
+    first, rise = program.index('angle = "'), program.index('kind = "rise"')
+    steep = text.replace(program, program[:first] + 'angle = "160 deg"' + program[program.index("\n", first):rise]
+                         + program[rise:].replace(program[rise:][program[rise:].index('angle = "'):].split("\n")[0],
+                                                  'angle = "20 deg"', 1))
+    path = tmp_path / "steep.toml"
+    path.write_text(steep)
+    mech, omega = cam_bar_from_scene(path)
+    checks = {c.name: c for c in design_checks(mech, omega, n=720).checks}
+    flat = checks["flat-faced follower: base radius"]
+    assert not flat.ok and "no cusp-free flat-faced follower for this swing" in flat.note
+    assert checks["series synthesis round trip"].ok and not checks["max pressure angle"].ok

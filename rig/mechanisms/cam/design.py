@@ -74,20 +74,30 @@ class CamDesign:
     checks: list[Check] = field(default_factory=list)
 
 
-def _governing_segment(program: CamProgram, alpha: float) -> tuple[Segment, MotionLaw, dict[str, float]]:
+def _governing_segment(program: CamProgram,
+                       alpha: float) -> tuple[Segment, MotionLaw, dict[str, float], float]:
     """The rise or return that needs the largest centric base radius at pressure angle ``alpha`` (rad), its law as a
-    rise (a return reversed: :class:`~rig.motion.laws.ReversedLaw`), and every moving segment's exact radius (m) by its
-    name ('rise', 'return'; numbered where a kind recurs: 'rise 1', 'rise 2', …); each segment's stroke is measured from
-    its own lowest level."""
-    moving = [(seg, get_law(seg.law) if seg.kind == "rise" else ReversedLaw(get_law(seg.law)))
-              for seg in program.segments if seg.kind in ("rise", "return")]
+    rise (a return reversed: :class:`~rig.motion.laws.ReversedLaw`), every moving segment's exact radius (m) by its
+    name ('rise', 'return'; numbered where a kind recurs: 'rise 1', 'rise 2', …), and the governing segment's lower
+    level above the program's lowest (m). A segment's pressure angle is tan α = s'/(r_b + s) with s the follower's
+    whole lift, so a segment that starts higher needs that much less radius (a second rise stacked on a first one
+    was sized from its own bottom: 5 mm too much, an audit)."""
+    level, lowest = 0.0, program.levels[0]
+    moving = []
+    for seg in program.segments:
+        step = seg.stroke if seg.kind == "rise" else -seg.stroke if seg.kind == "return" else 0.0
+        if seg.kind in ("rise", "return"):
+            moving.append((seg, get_law(seg.law) if seg.kind == "rise" else ReversedLaw(get_law(seg.law)),
+                           min(level, level + step) - lowest))
+        level += step
     if not moving:
         raise ValueError("the cam program has no rise")
-    kinds = [seg.kind for seg, _ in moving]
+    kinds = [seg.kind for seg, _, _ in moving]
     names = [kind if kinds.count(kind) == 1 else f"{kind} {kinds[:i + 1].count(kind)}" for i, kind in enumerate(kinds)]
-    radii = {name: exact_base_radius(law, seg.stroke, seg.angle, alpha) for name, (seg, law) in zip(names, moving)}
+    radii = {name: exact_base_radius(law, seg.stroke, seg.angle, alpha) - below
+             for name, (seg, law, below) in zip(names, moving)}
     i = int(np.argmax(list(radii.values())))
-    return *moving[i], radii
+    return *moving[i][:2], radii, moving[i][2]
 
 
 def design_checks(mech: "PinInsertionMechanism", omega: float, high_speed: bool = True, n: int = 3600,
@@ -174,20 +184,21 @@ def sizing_checks(program: CamProgram, mu: float, load: float, mu_note: str = ""
     """The translating roller-follower sizing rows of ``program`` (Flocke, exact base radius, the H/h optimum with
     guide friction ``mu`` and load coefficient ``load``; ``mu_note`` says where μ comes from when not the scene)."""
     a_lim = pressure_angle_limit("translating")
-    seg, law, radii = _governing_segment(program, a_lim)
+    seg, law, radii, below = _governing_segment(program, a_lim)
     h, big_phi = seg.stroke, seg.angle
-    rf = flocke_base_radius(law, h, big_phi, a_lim)
+    rf = flocke_base_radius(law, h, big_phi, a_lim) - below
     re = max(radii.values())
     name = next(k for k, v in radii.items() if v == re)
     what = (f"centric translating roller follower on the {name} ({seg.law}, h = {h * 1e3:g} mm, "
-            f"Φ = {degrees(big_phi):g}°{', read backwards as a rise' if seg.kind == 'return' else ''})")
-    flocke = degrees(pressure_angles(law, h, big_phi, rf).max())
+            f"Φ = {degrees(big_phi):g}°{', read backwards as a rise' if seg.kind == 'return' else ''}"
+            f"{f', from a lift of {below * 1e3:g} mm' if below > 0.0 else ''})")
+    flocke = degrees(pressure_angles(law, h, big_phi, rf + below).max())
     verdict = ("evaluated at s'_max it is too small" if not isclose(flocke, degrees(a_lim), rel_tol=1e-9) else
                "exact for this law (its steepest pressure angle lies at s'_max)")
     others = ", ".join(f"{k} {v * 1e3:.2f} mm" for k, v in radii.items() if k != name)
     rows = [Check("Flocke base radius: max pressure angle", flocke, degrees(a_lim), "°", "info",
                   f"r_b = {rf * 1e3:.2f} mm for {what}: {verdict}"),
-            Check("exact base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, re).max()),
+            Check("exact base radius: max pressure angle", degrees(pressure_angles(law, h, big_phi, re + below).max()),
                   degrees(a_lim), "°", "≤", f"r_b = {re * 1e3:.2f} mm (max over the {name}, not at s'_max), the "
                   f"segment that needs the largest radius{f' (the others: {others})' if others else ''}")]
     model = SizeModel(law, big_phi, mu, load)
@@ -213,9 +224,13 @@ def _flat_follower_check(mech: "PinInsertionMechanism", phi: np.ndarray, pc: Pit
         return sign * (s.psi - psi_low), sign * s.psi_p, sign * s.psi_pp
 
     pivot = float(np.hypot(mech.x_A0, mech.y_A0))
-    rb_min = FlatFollower(pivot, 0.0, law, float(mech.cam_direction)).min_base_radius(phi)
     rb_cam = float(np.min(np.hypot(pc.x, pc.y))) - mech.r_R
     sense = "counter-clockwise" if mech.cam_direction > 0 else "clockwise"
+    try:
+        rb_min = FlatFollower(pivot, 0.0, law, float(mech.cam_direction)).min_base_radius(phi)
+    except ValueError as exc:       # no cusp-free radius below the pivot: a failed check (it ended rig cam-design
+        return Check("flat-faced follower: base radius", rb_cam * 1e3, inf, "mm", "≥",      # with no table; an audit)
+                     f"no cusp-free flat-faced follower for this swing: {exc} (A = {pivot * 1e3:.2f} mm, e = 0)")
     return Check("flat-faced follower: base radius", rb_cam * 1e3, rb_min * 1e3, "mm", "≥",
                  f"present cam's smallest profile radius vs the cusp-free minimum for the same swing "
                  f"(A = {pivot * 1e3:.2f} mm, e = 0, the cam turning {sense} as the scene's cam_direction)")
