@@ -40,6 +40,19 @@ def test_cardan_ratio_lies_between_cos_and_its_inverse_and_averages_one(alpha_de
     assert np.allclose(c.input_angle(c.output_angle(TURN[::1001])), TURN[::1001], atol=1e-12)
 
 
+def test_cardan_ratio_holds_to_rounding_next_to_90_degrees():
+    """1 − sin²α cos²φ cancelled near 90°: 1/cos α read 37 % high at 89.999999° and divided by zero at 90° − 1e-12 rad
+    (an audit). At φ1 = 0 the ratio is 1/cos α, at 90° it is cos α, to rounding; no warning."""
+    import warnings
+    for alpha in (np.radians(89.999999), pi / 2 - 1e-12):
+        joint = Cardan(alpha)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert joint.speed_ratio(0.0) == pytest.approx(1 / np.cos(alpha), rel=1e-12)
+            assert joint.speed_ratio(pi / 2) == pytest.approx(np.cos(alpha), rel=1e-12)
+            assert np.isfinite(joint.acceleration(np.linspace(0, 2 * pi, 13), 1.0)).all()
+
+
 @pytest.mark.parametrize("arrangement", ["Z", "W"])
 def test_double_cardan_cancels_with_equal_angles_and_yokes_in_one_plane(arrangement):
     equal = DoubleCardan(radians(25), radians(25), arrangement)
