@@ -25,15 +25,12 @@ def _ranges(numbers: list[int]) -> str:
 
 
 #: the first path element of every topic rig records (schemas: /plant, /can, /device, /stand, /view, /events, /log)
-RIG_TOPICS = ("plant", "can", "device", "stand", "view", "events", "log")
-
-
 def nothing_recorded(rec: Recording) -> str | None:
     """Why a recording read with ``allow_partial`` holds nothing to report or analyse, in words: no message, or none
     of rig's (a file another program wrote: no rig metadata, no scene, no rig topic); None when it holds some."""
     if not rec.message_counts:
         return "the recording holds no message: " + "; ".join(rec.problems or ["no message was written"])
-    ours = [t for t in rec.message_counts if t.split("/")[1:2] and t.split("/")[1] in RIG_TOPICS]
+    ours = [t for t in rec.message_counts if S.is_rig_topic(t)]
     if ours or S.RIG_METADATA in rec.metadata or rec.scene_text is not None:
         return None
     topics = sorted(rec.message_counts)

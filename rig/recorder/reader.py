@@ -292,8 +292,8 @@ class Collector:
             self.blocks[topic].append(block)
 
     def _decode(self, topic: str, data: bytes) -> Any:
-        if topic in _REPEATS:
-            return None
+        if topic in _REPEATS or not S.is_rig_topic(topic):     # (another tool's topic: counted, not read — a JSON
+            return None                                         # or CDR message of its own was called damage)
         if topic == S.CURVE:
             return _curve(loads_message(data))
         if topic == S.CAN_RAW:

@@ -47,6 +47,16 @@ VIEW_DEVICE = "/view/device"
 VIEW_PLANT = "/view/plant"
 VIEWS = (VIEW_DEVICE, VIEW_PLANT)
 
+RIG_TOPICS = ("plant", "can", "device", "stand", "view", "events", "log")     # the first parts of the rig's topics
+
+
+def is_rig_topic(topic: str) -> bool:
+    """Whether ``topic`` is one the rig writes (``/plant/truth``, ``/stand/encoder1`` …); a file written by another
+    tool holds others, which the reader counts and does not decode."""
+    parts = topic.split("/")
+    return len(parts) > 1 and parts[0] == "" and parts[1] in RIG_TOPICS
+
+
 SCENE_ATTACHMENT = "scene.toml"
 PROGRAM_ATTACHMENT = "device/program/{number}.json"
 RIG_METADATA = "rig"

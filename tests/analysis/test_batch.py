@@ -197,16 +197,22 @@ def test_a_file_another_program_wrote_or_a_lost_scene_does_not_stop_the_batch(re
         w.start()
         channel = w.register_channel(topic="/foo", message_encoding="json",
                                      schema_id=w.register_schema(name="x", encoding="jsonschema", data=b"{}"))
-        for i in range(3):
-            w.add_message(channel, log_time=i, data=b"{}", publish_time=i)
+        ros = w.register_channel(topic="/chatter", message_encoding="cdr",          # a ROS 2 message
+                                 schema_id=w.register_schema(name="y", encoding="ros2msg", data=b"string data"))
+        for i in range(3):      # (a JSON object of numbers, or CDR, was read as a rig block: "chunk does not decode")
+            w.add_message(channel, log_time=i, data=b'{"a": 1.0, "b": [1, 2]}', publish_time=i)
+            w.add_message(ros, log_time=i, data=b"\x00\x01\x00\x00\x05\x00\x00\x00hell\x00", publish_time=i)
         w.finish()
+    from rig.recorder import read_recording
+    other = read_recording(foreign, allow_partial=True)
+    assert not other.truncated and not other.problems and other.message_counts == {"/foo": 3, "/chatter": 3}
     assert machine_of(None) == {} and machine_of("[scene\nname = ") == {}
     out = tmp_path / "an"
     capsys.readouterr()
     assert main(["-q", "analyse", str(foreign), str(recordings / "run2.mcap"), "-o", str(out)]) == 0
     rows = {r["recording"].rsplit("/", 1)[1]: r for r in csv.DictReader((out / "recordings.csv").open())}
     assert rows["foreign.mcap"]["error"] == ("not a rig recording: no rig metadata, no scene and none of rig's topics "
-                                             "(it holds /foo)")
+                                             "(it holds /chatter, /foo)")
     assert rows["run2.mcap"]["curves"] == "2" and not rows["run2.mcap"]["error"]
     assert main(["-q", "report", str(foreign), "-o", str(tmp_path / "rep")]) == 2
     assert "not a rig recording" in capsys.readouterr().err and not (tmp_path / "rep").exists()
