@@ -341,3 +341,16 @@ def test_a_sigterm_stop_is_told_apart_through_the_exceptions_raised_from_it():
     assert stopped(KeyboardInterrupt()) == stopped(Interrupted(None)) == "interrupted"
     for twin in (pickle.loads(pickle.dumps(Terminated())), copy.copy(Terminated())):
         assert isinstance(twin, Terminated) and str(twin) == "SIGTERM"
+
+
+def test_a_cut_lab_recording_does_not_miss_device_statistics_it_never_had(tmp_path):
+    """A lab or a stand has its serial link off and reads no statistics: its cut recording said "no device statistics
+    recorded (the host reads them at the end of a run)", a loss that is none (an audit)."""
+    from rig.recorder.completeness import losses
+    from rig.runner import run_scene
+    out = run_scene(ROOT / "data" / "scenes" / "lab_speed.toml", tmp_path / "lab.mcap").output
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(out.read_bytes()[:int(out.stat().st_size * 0.7)])
+    rec = read_recording(cut, allow_partial=True)
+    said = losses(rec)
+    assert rec.truncated and said and not any("device statistics" in line for line in said)
