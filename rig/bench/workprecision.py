@@ -79,7 +79,8 @@ def run_scenes(scenes: list[Path], out: Path, quick: bool = False, t_sim: float 
     writable_dir(out, "work-precision charts")
     for scene in scenes:                     # check every input and output before the long runs
         if not scene.is_file():
-            raise ValueError(f"scene {scene} does not exist")
+            raise ValueError(f"scene {scene} " + ("is a directory, not a scene file" if scene.is_dir() else
+                                                  "does not exist"))
         if measured is not None and not (source := outputs(measured, scene)[0]).is_file():
             raise ValueError(f"--from {measured}: no {source.name} there for the scene {scene}")
         for path, head in zip(outputs(out, scene), (CSV_HEAD, PNG_HEAD)):

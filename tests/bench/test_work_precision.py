@@ -114,6 +114,12 @@ def test_cli_refuses_a_scene_without_a_work_precision_problem(tmp_path, capsys):
     assert "fidelity = 2" in capsys.readouterr().err
 
 
+def test_cli_names_a_directory_given_as_the_scene(tmp_path, capsys):
+    """A folder was called "does not exist" (an audit)."""
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(SCENES), "--quick", "-o", str(tmp_path / "o")]) == 2
+    assert f"scene {SCENES} is a directory, not a scene file" in capsys.readouterr().err
+
+
 def test_cli_never_overwrites_another_file(tmp_path, capsys):
     """A directory holding files rig did not write is refused before anything runs (rig's rule for output
     directories, as the other benches); in a directory rig wrote before, a foreign file of the chart's name is."""
