@@ -78,6 +78,9 @@ def _unit_text(suffix: str) -> str:
     return suffix.replace("_per_", "/").replace("_", "*")
 
 
+_NUMBER = re.compile(r"\d|\binf\b|\bnan\b", re.IGNORECASE)      # a quantity string holds a number
+
+
 @lru_cache(maxsize=4096)
 def _parsed(text: str) -> tuple[float, str]:
     """(magnitude, unit) of a quantity string, parsed by pint once per text (a scene is read several times per
@@ -133,6 +136,9 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
         if isinstance(value, str):
             if unit is not None:
                 raise UnitError(f"{what}: the key already names the unit {unit!r}; give a plain number, not {value!r}")
+            if not _NUMBER.search(value):           # ("mm" read as 1 mm; an audit)
+                raise UnitError(f"{what}: {value!r} is not a quantity with a unit (e.g. \"260 mm\"): it has no "
+                                "number")
             magnitude, unit_text = _parsed(value)
             if unit_text in ("", "dimensionless") and not is_dimensionless(si_unit):
                 raise UnitError(f"{what}: {value!r} has no unit; expected something convertible to {si_unit}")
@@ -159,4 +165,4 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
                         f"expected something convertible to {si_unit}") from None
     except Exception as exc:  # pint's parser raises many kinds (TokenError, ZeroDivisionError, AssertionError ...)
         raise UnitError(f"{what}: cannot read {value!r}{' with unit ' + unit if unit else ''} as a quantity "
-                        f"({exc})") from None
+                        f"(a number and a unit, e.g. \"260 mm\" or \"1.89 N/mm\")") from None
