@@ -397,18 +397,19 @@ def cmd_summary(args: argparse.Namespace) -> int:
     png = Path(args.png) if args.png else Path("out") / f"{scene.stem}.cycle.png"
     writable_file(png, "cycle chart", PNG_MAGIC)
     require_cam_bar(load_scene(scene), "rig summary")
+    _scene_config(scene, None, choose_level=False)      # the whole scene checked, as rig run checks it
     _print_cam_bar_summary(scene, png)
     return 0
 
 
-def _scene_config(scene: Path, cycles: int | None, fidelity: int | None = None) -> Any:
+def _scene_config(scene: Path, cycles: int | None, fidelity: int | None = None, choose_level: bool = True) -> Any:
     """The scene's run configuration at the level ``--fidelity`` forces (scene errors first, before anything starts
     or is written: the transducers and the unit's program are built once to check them); ``--cycles`` only for a
-    scene that counts cycles."""
+    scene that counts cycles; ``choose_level`` False: no level chosen (a command that does not run the plant)."""
     from rig.runner.config import read_config
     from rig.runner.machine import check_wiring, instruments
     from rig.scene import load_scene
-    cfg = read_config(load_scene(scene), fidelity)
+    cfg = read_config(load_scene(scene), fidelity, choose_level=choose_level)
     instruments(cfg)
     check_wiring(cfg)
     if cycles is not None and cfg.cycles is None:
@@ -420,7 +421,6 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.plants.cam_bar.tolerance import load_tolerances
     from rig.executors.options import executor_from_args
     from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_json, study_table
-    from rig.runner.config import read_config
     from rig.runner.session import scene_digest
     from rig.plants.cam_bar.scene_io import mechanism_from_scene, require_cam_bar
     from rig.scene import load_scene
@@ -431,8 +431,8 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
     writable_file(chart, "tolerance chart", PNG_MAGIC)
     if args.json:
         writable_file(Path(args.json), "tolerance JSON", JSON_START)
-    cfg = read_config(load_scene(scene_path), choose_level=False)     # the chain's geometry only: no plant run
-    require_cam_bar(cfg.scene, "rig tolerance")
+    require_cam_bar(load_scene(scene_path), "rig tolerance")
+    cfg = _scene_config(scene_path, None, choose_level=False)     # the whole scene checked; no level: no plant run
     study = None
 
     def write() -> None:

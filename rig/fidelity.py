@@ -242,6 +242,20 @@ def _ran_level2() -> None:
     _level2_runs += 1
 
 
+def check_scene(scene: Scene, plant: str) -> None:
+    """The scene's [scene] questions, fidelity and tolerances checked as :func:`choose` reads them, without choosing
+    (a command that does not run the plant: ``rig summary``, ``rig tolerance`` took ``fidelity = 7`` without a word)."""
+    where = f"{scene.path} [scene]"
+    _questions(scene, plant, where)
+    explicit = scene.section("scene").get("fidelity")
+    levels = LEVELS.get(plant, (1,))
+    if explicit is not None and parse_level(explicit, f"{where}: 'fidelity'") not in levels:
+        raise SceneError(f"{where}: a {plant} plant has levels {', '.join(map(str, levels))}; fidelity {explicit!r} is "
+                         f"not one of them")
+    _tolerance(scene, where)
+    _tolerance(scene, where, "model_tolerance", MODEL_TOLERANCE)
+
+
 def _choose(scene: Scene, plant: str, forced: int | None, data: Path) -> Fidelity:
     """:func:`choose`, computed."""
     where = f"{scene.path} [scene]"

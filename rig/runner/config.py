@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from rig.blockbus import is_interface_name
-from rig.fidelity import Fidelity, choose
+from rig.fidelity import Fidelity, check_scene, choose
 from rig.scene import Field, Scene, SceneError, read_table
 
 MAX_SAMPLE_RATE = 1e6      # Hz: the fastest plant/transducer sample rate a scene may ask
@@ -422,4 +422,5 @@ def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool
                      cycles=cycles, duration=s["duration"], sample_rate=s["sample_rate"], chunk=s["chunk"],
                      mode=s["mode"], max_time=max_time, max_time_given=s["max_time"] is not None, transducers=tuple(transducers), device=device, can=can,
                      serial=serial, recording=recording,
-                     fidelity=choose(scene, str(s["plant"]), fidelity) if choose_level else None)
+                     fidelity=choose(scene, str(s["plant"]), fidelity) if choose_level else
+                     check_scene(scene, str(s["plant"])))

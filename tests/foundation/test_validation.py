@@ -117,6 +117,23 @@ def test_a_scene_with_a_byte_order_mark_reads_and_one_not_in_utf8_is_named(tmp_p
         load_scene(tmp_path / "latin1.toml")
 
 
+@pytest.mark.parametrize("command", ["summary", "tolerance"])
+@pytest.mark.parametrize("old, new, message", [
+    ('sample_rate = "10 kHz"', 'sample_rate = "10 kg"', r"key 'sample_rate': '10 kg' has the wrong dimension"),
+    ("cycles = 50", "cycles = 50\nfidelity = 7", r"'fidelity' must be 0, 1, 2"),
+    ('questions = ["stroke"', 'questions = ["nope"', r"question 'nope' is not one a cam_bar scene can answer"),
+    ('description = "burster_8411"', 'description = "nope_9999"', r"cannot read device description .*nope_9999"),
+])
+def test_commands_that_do_not_run_the_plant_check_the_whole_scene(tmp_path, capsys, command, old, new, message):
+    """rig summary wrote its chart for each of these and exited 0, rig tolerance took most (an audit); rig run
+    refuses them all."""
+    path = edited(tmp_path, DEMO, old, new)
+    extra = ["--png", str(tmp_path / "c.png")] if command == "summary" else ["--samples", "100", "-o", str(tmp_path)]
+    assert cli.main(["-q", command, str(path), *extra]) == 2
+    assert re.search(message, one_error_line(capsys))
+    assert not list(tmp_path.glob("*.png"))
+
+
 def test_a_scene_port_is_an_integer(tmp_path):
     cfg = read_config(load_scene(edited(tmp_path, DEMO, 'channel = "rig"', 'channel = "rig"\nport = 29536')))
     assert cfg.can["port"] == 29536 and isinstance(cfg.can["port"], int)
