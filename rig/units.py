@@ -66,7 +66,7 @@ def _unknown(value: object, unit: str | None, si_unit: str, names: tuple[str, ..
     hint = f'(e.g. "{example(si_unit)}")'
     if unit is not None:
         return UnitError(f"{what}: the key's unit {unit!r} is not a unit rig knows {hint}")
-    if isinstance(value, str) and not re.search(r"\d", value):
+    if isinstance(value, str) and not _NUMBER.search(value):
         kind = "a number" if si_unit in (None, "", "1") else "a quantity with a unit"
         return UnitError(f"{what}: {value!r} is not {kind} {hint}")
     unknown = ", ".join(repr(n) for n in names) or "its unit"
@@ -136,9 +136,8 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
         if isinstance(value, str):
             if unit is not None:
                 raise UnitError(f"{what}: the key already names the unit {unit!r}; give a plain number, not {value!r}")
-            if not _NUMBER.search(value):           # ("mm" read as 1 mm; an audit)
-                raise UnitError(f"{what}: {value!r} is not a quantity with a unit (e.g. \"260 mm\"): it has no "
-                                "number")
+            if not _NUMBER.search(value):           # no number: not a quantity ("mm" was read as 1 mm; an audit)
+                raise _unknown(value, None, si_unit, (), what)
             magnitude, unit_text = _parsed(value)
             if unit_text in ("", "dimensionless") and not is_dimensionless(si_unit):
                 raise UnitError(f"{what}: {value!r} has no unit; expected something convertible to {si_unit}")
@@ -163,6 +162,6 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
     except pint.DimensionalityError:
         raise UnitError(f"{what}: {value!r}{' ' + unit if unit else ''} has the wrong dimension; "
                         f"expected something convertible to {si_unit}") from None
-    except Exception as exc:  # pint's parser raises many kinds (TokenError, ZeroDivisionError, AssertionError ...)
+    except Exception:  # pint's parser raises many kinds (TokenError, ZeroDivisionError, AssertionError ...)
         raise UnitError(f"{what}: cannot read {value!r}{' with unit ' + unit if unit else ''} as a quantity "
                         f"(a number and a unit, e.g. \"260 mm\" or \"1.89 N/mm\")") from None
