@@ -312,10 +312,12 @@ def agreement_text(rows: list[Row]) -> str:
         if group]
     if inputs:
         parts.append(_inputs_text(inputs, alone=not parts))
-    text = "; ".join(parts) or "no row judged (no tolerances)"
+    text = "; ".join(parts) or ("no row judged (no row has a value in this run)" if len(missing) == len(rows) else
+                                "no row judged (no tolerances)")
     if off:
         text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{r.shown_unit}, "
                                            f"rig {r.rig_text()}{r.shown_unit})" for r in off)
-    if missing:
-        text += f"; n/a in this run: {', '.join(r.quantity for r in missing)}"
+    if missing:             # a result the run does not have is named (a misspelt rig = "…" was never said)
+        text += "; n/a in this run: " + ", ".join(r.quantity + (f" ({r.why})" if r.why.startswith("no result ") else "")
+                                                  for r in missing)
     return text

@@ -296,6 +296,9 @@ def test_a_comparison_of_inputs_only_says_first_that_it_checks_nothing_of_the_mo
     assert agreement_text([other]).startswith("no check of the model here — its 1 row is set by the scene's inputs, "
                                               "not shown as set")
     assert agreement_text([replace(one, agrees=None)]) == "no row judged (no tolerances)"
+    missing = replace(one, quantity="steady speed", rig=None, agrees=None, why="no result 'nope' in this run")
+    assert agreement_text([missing]) == ("no row judged (no row has a value in this run); n/a in this run: steady "
+                                         "speed (no result 'nope' in this run)")     # a misspelt rig = "…" (an audit)
 
 
 def test_comparison_units_are_written_as_the_console_writes_them():
