@@ -383,7 +383,10 @@ def cmd_repair(args: argparse.Namespace) -> int:
     done = repair(source, file_parent(output))
     topics = ", ".join(f"{topic} {n}" for topic, n in sorted(done.messages.items()))
     print(f"wrote {sum(done.messages.values())} messages ({topics}) -> {done.path}")
-    if done.problems:
+    if done.problems and done.whole:        # ("lacks what is lost for good" where nothing was; an audit)
+        print(f"nothing of the run was lost: every message and its end record were read; the source lacked only "
+              f"the file's index after its data ({'; '.join(done.problems)}), written anew")
+    elif done.problems:
         print(f"the source lacks what is lost for good: {'; '.join(done.problems)}")
     else:
         print("the source was whole: nothing was lost")

@@ -150,8 +150,8 @@ def interruption_text(reason: str) -> str:
         return "terminated by SIGTERM (timeout, docker stop, systemd or a CI runner)"
     if reason == "unknown reason":                 # the reader's word for an end record without a reason
         return "stopped early (the recording does not say why)"
-    if reason.startswith("repaired by rig repair"):    # rig.recorder.repair: a cut file rewritten whole
-        return f"cut short, then {reason}"
+    if reason.startswith("repaired by rig repair"):    # rig.recorder.repair: a cut or damaged file rewritten whole
+        return f"cut short or damaged, then {reason}"
     return f"stopped by an error — {reason}"
 
 
@@ -430,8 +430,9 @@ def read_recording(path: str | Path, allow_partial: bool = False, can_frames: bo
         collector.finish()
         if rec.interrupted is not None:
             t = _metadata_number(rec, S.END_METADATA, "simulation_time", "nan", float)
-            rec.problems.append(interruption_text(rec.interrupted) + (f" at {t:.3f} s of simulation time"
-                                                                      if math.isfinite(t) else ""))
+            at = (f" (its data reach {t:.3f} s of simulation time)" if rec.interrupted.startswith("repaired by")
+                  else f" at {t:.3f} s of simulation time")     # (a repaired file's time is not where it was damaged)
+            rec.problems.append(interruption_text(rec.interrupted) + (at if math.isfinite(t) else ""))
     except ValueError as exc:  # a damaged metadata value
         rec.truncated = rec.damaged = True
         rec.problems.append(f"damaged {exc}")

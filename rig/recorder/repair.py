@@ -37,6 +37,7 @@ class Repaired:
     path: Path
     messages: dict[str, int]
     problems: list[str]
+    whole: bool = False     # every message and the run's end record were read: only the file's index was missing
 
 
 class _Rewriter:
@@ -172,4 +173,4 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
     except BaseException:
         part.unlink(missing_ok=True)
         raise
-    return Repaired(out, dict(rewriter.messages), problems)
+    return Repaired(out, dict(rewriter.messages), problems, whole)

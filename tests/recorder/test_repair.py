@@ -37,7 +37,7 @@ def test_a_cut_recording_is_rewritten_whole_with_what_the_salvage_reads(tmp_path
     salvaged = read_recording(cut, allow_partial=True)
     fixed = read_recording(done.path)                                      # no allow_partial needed
     assert not fixed.truncated and not fixed.complete and fixed.interrupted.startswith("repaired by rig repair from")
-    assert "cut short, then repaired by rig repair from cut.mcap: " in "; ".join(fixed.problems)
+    assert "cut short or damaged, then repaired by rig repair from cut.mcap: " in "; ".join(fixed.problems)
     assert [c.number for c in fixed.curves] == [c.number for c in salvaged.curves] == list(range(1, 8))
     assert fixed.message_counts == salvaged.message_counts and done.messages == dict(salvaged.message_counts)
     assert fixed.scene_text == salvaged.scene_text and fixed.metadata["rig"] == salvaged.metadata["rig"]
@@ -80,6 +80,8 @@ def test_a_damaged_middle_chunk_is_named_and_the_rest_rewritten(tmp_path):
     fixed = read_recording(done.path)
     assert "fails its CRC" in done.problems[0] and "fails its CRC" in fixed.interrupted
     assert len(fixed.curves) == len(read_recording(damaged, allow_partial=True).curves) < 12
+    said = "; ".join(fixed.problems)        # it said "cut short, then repaired … at 20.295 s" (an audit)
+    assert "cut short or damaged, then repaired" in said and "(its data reach " in said
 
 
 def test_a_whole_recording_repairs_to_itself(tmp_path):
@@ -110,7 +112,7 @@ def test_cli_repair_names_its_output_and_what_was_lost(tmp_path, capsys):
     fixed = tmp_path / "run.repaired.mcap"
     assert f"-> {fixed}" in out and "the source lacks what is lost for good: chunk 6" in out
     assert main(["report", str(fixed), "-o", str(tmp_path / "report"), "--format", "md"]) == 0
-    assert "cut short, then repaired by rig repair from run.mcap" in (tmp_path / "report" / "report.md").read_text()
+    assert "cut short or damaged, then repaired by rig repair from run.mcap" in (tmp_path / "report" / "report.md").read_text()
     assert main(["repair", str(cut), "-o", str(cut)]) == 2
 
 
@@ -135,8 +137,21 @@ def test_a_whole_run_whose_summary_alone_was_cut_stays_complete(tmp_path):
     cut.write_bytes(raw[:len(raw) - 200])
     done = repair(cut, tmp_path / "fixed.mcap")
     fixed = read_recording(done.path)
-    assert done.problems and fixed.complete and fixed.metadata["rig.repair"]["source"] == "cut.mcap"
+    assert done.problems and done.whole and fixed.complete and fixed.metadata["rig.repair"]["source"] == "cut.mcap"
     assert fixed.message_counts == read_recording(whole).message_counts
+
+
+def test_cli_repair_of_a_run_that_lost_only_its_index_says_nothing_was_lost(tmp_path, capsys):
+    """It said "the source lacks what is lost for good: file ends after a whole record…" where every message and the
+    end record were read (an audit)."""
+    from rig.cli import main
+    raw = _record(tmp_path / "whole.mcap").read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(raw[:len(raw) - 200])
+    assert main(["repair", str(cut), "-o", str(tmp_path / "fixed.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert "nothing of the run was lost: every message and its end record were read" in out
+    assert "lost for good" not in out
 
 
 def test_an_empty_file_is_named(tmp_path):
