@@ -8,11 +8,13 @@ from typing import Any
 import numpy as np
 
 
-def whole(value: Any, minimum: int, what: str) -> int:
-    """``value`` as an int if it is a whole number (Python or numpy integer, not a bool) >= ``minimum``; else a
-    ValueError starting with ``what``."""
-    if isinstance(value, bool) or not isinstance(value, Integral) or value < minimum:
-        raise ValueError(f"{what} must be a whole number >= {minimum}, got {value!r}")
+def whole(value: Any, minimum: int, what: str, maximum: int | None = None) -> int:
+    """``value`` as an int if it is a whole number (Python or numpy integer, not a bool) >= ``minimum`` (and <=
+    ``maximum``); else a ValueError starting with ``what``."""
+    if (isinstance(value, bool) or not isinstance(value, Integral) or value < minimum
+            or (maximum is not None and value > maximum)):
+        raise ValueError(f"{what} must be a whole number >= {minimum}" + (f" and <= {maximum}" if maximum else "")
+                         + f", got {value!r}")
     return int(value)
 
 

@@ -13,6 +13,8 @@ from scipy.optimize import brentq
 from rig.mechanisms.checks import degrees_hint, finite, whole
 
 MODULE_MAX = 0.1      # m: the largest gear module taken for one (larger ones are mm given as m)
+TEETH_MAX = 10_000    # teeth of one gear (10^9 read a false interference from rounding; an audit)
+MODULE_MIN = 1e-5     # m: the smallest (0.01 mm; watch gears start at 0.05 mm)
 TIP_THICKNESS_MIN = 0.2     # tip thickness s_a / m below which a tooth is called nearly pointed (warned)
 
 
@@ -21,7 +23,9 @@ class ThinToothWarning(UserWarning):
 
 
 def involute(alpha: float) -> float:
-    """inv α = tan α − α (rad)."""
+    """inv α = tan α − α (rad), α in [0, 90°) (NaN and 90° read nan and 1.6e16; an audit)."""
+    if not 0.0 <= finite(alpha, "involute angle α (rad)") < pi / 2:
+        raise ValueError(f"involute angle α must lie in [0, 90°), got {alpha!r} rad")
     return tan(alpha) - alpha
 
 
@@ -69,11 +73,11 @@ class SpurGearPair:
 
     def __post_init__(self) -> None:
         for name in ("z1", "z2"):
-            object.__setattr__(self, name, whole(getattr(self, name), 5, f"SpurGearPair {name} (teeth)"))
+            object.__setattr__(self, name, whole(getattr(self, name), 5, f"SpurGearPair {name} (teeth)", TEETH_MAX))
         for name in ("module", "x1", "x2", "pressure_angle"):
             finite(getattr(self, name), f"SpurGearPair {name}")
-        if not 0 < self.module <= MODULE_MAX:
-            raise ValueError(f"SpurGearPair module is in metres, positive and at most {MODULE_MAX:g} m (gear modules "
+        if not MODULE_MIN <= self.module <= MODULE_MAX:      # (1e-200 m read a contact ratio of −3.5; an audit)
+            raise ValueError(f"SpurGearPair module is in metres, from {MODULE_MIN:g} to {MODULE_MAX:g} m (gear modules "
                              f"run from 0.05 to 50 mm), got {self.module!r} m"
                              + (f": did you mean {self.module:g} mm = {self.module * 1e-3:g} m?"
                                 if self.module > MODULE_MAX else ""))
@@ -131,7 +135,7 @@ class SpurGearPair:
         # Meshing interference: gear j's tip meets gear i at T1T2 − tip_j from T_i (T1T2 = a·sin α_w); before
         # form_i it cuts into the fillet, before T_i into the base circle, where there is no involute.
         line = a * sin(aw)
-        tip_roll = tuple(sqrt(da[i] ** 2 - db[i] ** 2) / 2 for i in (0, 1))
+        tip_roll = tuple(sqrt((da[i] - db[i]) * (da[i] + db[i])) / 2 for i in (0, 1))    # (no cancellation)
         clashes = []
         for i, j in ((0, 1), (1, 0)):
             start = line - tip_roll[j]

@@ -147,10 +147,32 @@ def test_unshifted_gears_have_the_standard_geometry_and_contact_ratio():
     assert g.contact_ratio == pytest.approx(1.64, abs=0.01)
 
 
+def test_library_inputs_beyond_their_formulas_are_named():
+    """Each returned NaN, inf or a misleading error, or raised a TypeError/ZeroDivisionError (an audit)."""
+    from rig.mechanisms.cam import hertz_line_stress
+    from rig.mechanisms.cam.sizing import guide_ratio, pressure_angles
+    from rig.mechanisms.gears import involute
+    from rig.motion import get_law
+    for call, message in [
+            (lambda: hertz_line_stress(float("nan"), 0.01, 0.01, 0.05), "contact force \\(N\\) must be finite"),
+            (lambda: hertz_line_stress(100.0, 0.01, 0.01, 0.0), "profile radius \\(m\\) must be a number other than 0"),
+            (lambda: hertz_line_stress(100.0, float("inf"), 0.01, 0.05), "contact width \\(m\\) must be a finite"),
+            (lambda: pressure_angles(get_law("cycloidal"), float("nan"), 1.0, 0.05), "stroke h \\(m\\) must be a finite"),
+            (lambda: guide_ratio(-0.3, 0.1, 1.0, 0.5), "pressure angle α must lie in \\(0, 90°\\)"),
+            (lambda: guide_ratio(0.3, -0.1, 1.0, 0.5), "guide friction μ and Φ_L must not be negative"),
+            (lambda: involute(float("nan")), "involute angle α \\(rad\\) must be a finite"),
+            (lambda: involute(pi / 2), "involute angle α must lie in \\[0, 90°\\)"),
+            (lambda: SpurGearPair(20, 40, 1e-200), "module is in metres, from 1e-05"),
+            (lambda: SpurGearPair(10**9, 10**9, 1e-3), "z1 \\(teeth\\) must be a whole number >= 5 and <= 10000")]:
+        with pytest.raises(ValueError, match=message):
+            call()
+    assert hertz_line_stress(100.0, 0.01, 0.01, np.inf) == pytest.approx(hertz_line_stress(100.0, 0.01, 0.01, 1e300))
+
+
 def test_gears_refuse_undercut_and_bad_input():
     with pytest.raises(ValueError, match=r"x1 = 0 undercuts the 12-tooth gear \(needs x1 >= 0.298, or at x1 = 0 at least 17.10 teeth"):
         SpurGearPair(12, 40, 2e-3)
-    with pytest.raises(ValueError, match="module is in metres, positive"):
+    with pytest.raises(ValueError, match="module is in metres, from 1e-05 to 0.1 m"):
         SpurGearPair(20, 40, 0.0)
     with pytest.raises(ValueError, match="pointed tooth"):
         SpurGearPair(12, 40, 2e-3, 1.5, 0.0).geometry()

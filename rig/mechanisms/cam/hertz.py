@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rig.mechanisms.checks import finite_array, positive
+
 STEEL_E = 210e9     # Pa, assumption
 STEEL_NU = 0.3      # assumption
 
@@ -16,8 +18,7 @@ def effective_modulus(E_roller: float = STEEL_E, nu_roller: float = STEEL_NU, E_
                       nu_cam: float = STEEL_NU) -> float:
     """E* = 2/((1 − ν_R²)/E_R + (1 − ν_C²)/E_C) (Pa)."""
     for name, e in (("E_roller", E_roller), ("E_cam", E_cam)):
-        if not e > 0.0:
-            raise ValueError(f"{name} must be positive, got {e!r}")
+        positive(e, f"{name} (Pa)")                 # (inf divided by zero, an audit)
     for name, nu in (("nu_roller", nu_roller), ("nu_cam", nu_cam)):
         if not -1.0 < nu < 0.5:
             raise ValueError(f"{name} must lie in (-1, 0.5), got {nu!r}")
@@ -29,10 +30,15 @@ def hertz_line_stress(force: np.ndarray, width: float, roller_radius: float, pro
     """Peak contact pressure σ_H (Pa) for normal force ``force`` (N, its magnitude is used) over ``width`` (m)
     between a roller of ``roller_radius`` (m) and a profile of signed radius ``profile_radius`` (m). Raises
     where a concave profile is tighter than the roller (1/r_R + 1/ρ_C ≤ 0: the roller does not fit)."""
-    if not width > 0.0 or not roller_radius > 0.0:
-        raise ValueError(f"contact width and roller radius must be positive, got {width!r}, {roller_radius!r}")
-    e_star = effective_modulus() if e_star is None else e_star
-    rel = 1.0 / roller_radius + 1.0 / np.asarray(profile_radius, dtype=float)
+    positive(width, "contact width (m)")
+    positive(roller_radius, "roller radius (m)")
+    e_star = effective_modulus() if e_star is None else positive(e_star, "e_star (Pa)")
+    force = finite_array(force, "contact force (N)")           # (NaN, inf and a zero radius read NaN or inf, an
+    radius = np.asarray(profile_radius, dtype=float)                # audit; an infinite radius is a flat: fine)
+    if np.any(np.isnan(radius) | (radius == 0.0)):
+        raise ValueError("profile radius (m) must be a number other than 0 (±inf: a flat), got "
+                         f"{float(np.ravel(radius)[np.argmax(np.isnan(radius) | (radius == 0.0))])!r}")
+    rel = 1.0 / roller_radius + 1.0 / radius
     if np.any(rel <= 0.0):
         i = int(np.argmax(rel <= 0.0))
         raise ValueError(f"concave profile radius {float(np.ravel(profile_radius)[i]) * 1e3:.4g} mm is tighter than "

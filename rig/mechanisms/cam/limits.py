@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from math import radians
 
+from rig.mechanisms.checks import positive
+
 UNDERCUT_FACTOR = 0.7  # the pitch curve must keep ρ ≥ r_R/0.7 (MODELS §2)
 
 
@@ -18,6 +20,4 @@ def pressure_angle_limit(follower: str, high_speed: bool = True) -> float:
 
 def undercut_radius(roller_radius: float) -> float:
     """Smallest admissible |ρ| of the pitch curve (m) for a roller of radius ``roller_radius`` (m): r_R/0.7."""
-    if not roller_radius > 0.0:
-        raise ValueError(f"roller radius must be positive, got {roller_radius!r}")
-    return roller_radius / UNDERCUT_FACTOR
+    return positive(roller_radius, "roller radius (m)") / UNDERCUT_FACTOR

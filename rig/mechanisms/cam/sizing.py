@@ -12,7 +12,7 @@ from math import atan, cos, sin, sqrt, tan
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
-from rig.mechanisms.checks import finite
+from rig.mechanisms.checks import finite, positive
 from rig.motion.laws import MotionLaw
 
 GRID = 4001
@@ -30,8 +30,9 @@ def _maximise(f, n: int = GRID) -> tuple[float, float]:
 
 
 def _check(h: float, big_phi: float, alpha: float) -> None:
-    if not h > 0.0:
-        raise ValueError(f"stroke h must be positive, got {h!r} m")
+    positive(h, "stroke h (m)")                 # (inf read NaN, a string a TypeError; an audit)
+    finite(big_phi, "rise angle Φ (rad)")
+    finite(alpha, "pressure angle α (rad)")
     if not 0.0 < big_phi <= 2.0 * np.pi:
         raise ValueError(f"rise angle Φ must lie in (0, 2π] rad, got {big_phi!r} rad"
                          + (" (degrees given as rad?)" if big_phi > 2.0 * np.pi else ""))
@@ -75,7 +76,9 @@ def exact_base_radius(law: MotionLaw, h: float, big_phi: float, alpha: float, e:
 def pressure_angles(law: MotionLaw, h: float, big_phi: float, base_radius: float, e: float = 0.0,
                     x: np.ndarray | None = None) -> np.ndarray:
     """Forward check: α(x) = atan((s' + e)/(sqrt(r_b² − e²) + s)) (rad) over the rise at ``x`` (default a grid)."""
-    if not base_radius > abs(e):
+    _check(h, big_phi, np.pi / 4)
+    finite(e, "offset e (m)")
+    if not finite(base_radius, "base radius (m)") > abs(e):
         raise ValueError(f"base radius {base_radius * 1e3:g} mm must exceed the offset |e| = {abs(e) * 1e3:g} mm")
     x = np.linspace(0.0, 1.0, GRID) if x is None else np.asarray(x, float)
     y, y1 = law.derivatives(x)[:2]
@@ -96,6 +99,11 @@ class TotalSize:
 def guide_ratio(alpha: float, mu: float, base_ratio: float, load: float = 0.0) -> float:
     """b/h ≥ μ sin α/(cos α − μ sin α − Φ_L)·(1 + 2r_b/h); Φ_L = Q/F the load coefficient. Raises where the
     follower self-locks in its guide (denominator ≤ 0)."""
+    if not 0.0 < finite(alpha, "pressure angle α (rad)") < np.pi / 2:      # (a negative α or μ read −0.183, an audit)
+        raise ValueError(f"pressure angle α must lie in (0, 90°), got {np.degrees(alpha):g}°")
+    if finite(mu, "guide friction μ") < 0.0 or finite(load, "Φ_L") < 0.0:     # (r_b/h may be: the formula's
+        raise ValueError(f"guide friction μ and Φ_L must not be negative, got {mu!r}, {load!r}")   # range, said)
+    finite(base_ratio, "r_b/h")
     den = cos(alpha) - mu * sin(alpha) - load
     if not den > 0.0:
         raise ValueError(f"follower self-locks in its guide at α = {np.degrees(alpha):.4g}° (μ = {mu:g}, "
