@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import pi, sin, tau
+from math import isfinite, pi, sin, tau
 from typing import NamedTuple
 
 import numpy as np
@@ -91,5 +91,7 @@ class Geneva:
         """Motion and dwell times of one crank turn at ``crank_speed`` (rad/s)."""
         positive(crank_speed, "Geneva crank_speed", "rad/s")
         period = tau / crank_speed
+        if not isfinite(period):                # (1e-320 rad/s read an infinite motion and a NaN dwell; an audit)
+            raise ValueError(f"Geneva crank_speed {crank_speed!r} rad/s is too slow to time: one turn overflows")
         motion = 2 * self.engagement_half_angle / crank_speed
         return GenevaTiming(motion, period - motion, period, motion / period, (period - motion) / period)

@@ -149,7 +149,7 @@ def test_unshifted_gears_have_the_standard_geometry_and_contact_ratio():
 
 def test_library_inputs_beyond_their_formulas_are_named():
     """Each returned NaN, inf or a misleading error, or raised a TypeError/ZeroDivisionError (an audit)."""
-    from rig.mechanisms.cam import hertz_line_stress
+    from rig.mechanisms.cam import DoubleSlider, FourBar, SliderCrank, hertz_line_stress, synthesize
     from rig.mechanisms.cam.sizing import guide_ratio, pressure_angles
     from rig.mechanisms.gears import involute
     from rig.motion import get_law
@@ -163,7 +163,14 @@ def test_library_inputs_beyond_their_formulas_are_named():
             (lambda: involute(float("nan")), "involute angle α \\(rad\\) must be a finite"),
             (lambda: involute(pi / 2), "involute angle α must lie in \\[0, 90°\\)"),
             (lambda: SpurGearPair(20, 40, 1e-200), "module is in metres, from 1e-05"),
-            (lambda: SpurGearPair(10**9, 10**9, 1e-3), "z1 \\(teeth\\) must be a whole number >= 5 and <= 10000")]:
+            (lambda: SpurGearPair(10**9, 10**9, 1e-3), "z1 \\(teeth\\) must be a whole number >= 5 and <= 10000"),
+            (lambda: SliderCrank(0.05, 0.1, 0.0, 0.0), "linkage side is an assembly choice, \\+1 or -1, got 0.0"),
+            (lambda: FourBar(0.1, 0.04, 0.09, 0.07, 0), "linkage branch is an assembly choice"),
+            (lambda: SliderCrank(0.05, float("inf")), "linkage length l must be positive and finite"),
+            (lambda: synthesize(DoubleSlider(0.05), np.array([0.01, np.nan]), np.zeros(2), np.zeros(2)),
+             "synthesize needs finite output values"),
+            (lambda: synthesize(DoubleSlider(0.05), np.array(0.01), np.zeros(1), np.zeros(1)), "as 1-D arrays"),
+            (lambda: Geneva(4, 0.05).timing(1e-320), "too slow to time")]:
         with pytest.raises(ValueError, match=message):
             call()
     assert hertz_line_stress(100.0, 0.01, 0.01, np.inf) == pytest.approx(hertz_line_stress(100.0, 0.01, 0.01, 1e300))

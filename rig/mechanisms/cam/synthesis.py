@@ -22,8 +22,14 @@ Coeffs = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 def _positive(**lengths: float) -> None:
     for name, v in lengths.items():
-        if not v > 0.0:
-            raise ValueError(f"linkage length {name} must be positive, got {v!r} m")
+        if not 0.0 < v < np.inf:
+            raise ValueError(f"linkage length {name} must be positive and finite, got {v!r} m")
+
+
+def _sign(name: str, value: float) -> None:
+    """An assembly choice must be +1 or −1 (``side = 0`` or ``5`` read a wrong position silently; an audit)."""
+    if value not in (1.0, -1.0):
+        raise ValueError(f"linkage {name} is an assembly choice, +1 or -1, got {value!r}")
 
 
 class Linkage(ABC):
@@ -53,6 +59,9 @@ class SliderCrank(Linkage):
 
     def __post_init__(self) -> None:
         _positive(r=self.r, l=self.l)
+        _sign("side", self.side)
+        if not np.isfinite(self.e):
+            raise ValueError(f"slider offset e must be a finite length, got {self.e!r} m")
 
     def coefficients(self, o):
         z, one = np.zeros_like(o), np.ones_like(o)
@@ -80,6 +89,7 @@ class FourBar(Linkage):
 
     def __post_init__(self) -> None:
         _positive(l1=self.l1, l2=self.l2, l3=self.l3, l4=self.l4)
+        _sign("branch", self.branch)
 
     def coefficients(self, o):
         l1, l2, l3, l4 = self.l1, self.l2, self.l3, self.l4
@@ -152,6 +162,11 @@ def synthesize(linkage: Linkage, o: np.ndarray, o_p: np.ndarray, o_pp: np.ndarra
     :class:`SingularPositionError` where o cannot be reached or the linkage is at a dead centre (F_q = 0).
     """
     o, o_p, o_pp = (np.asarray(v, dtype=float) for v in (o, o_p, o_pp))
+    if o.ndim != 1 or o.size == 0 or o_p.shape != o.shape or o_pp.shape != o.shape:
+        raise ValueError(f"synthesize needs the output law o, o', o'' as 1-D arrays of one length, got shapes "
+                         f"{o.shape}, {o_p.shape}, {o_pp.shape}")
+    if not (np.isfinite(o).all() and np.isfinite(o_p).all() and np.isfinite(o_pp).all()):
+        raise ValueError("synthesize needs finite output values o, o', o'' (NaN or inf found)")
     (a, b, c), (a1, b1, c1), (a2, b2, c2) = linkage.coefficients(o)
     disc = a * a + b * b - c * c
     if np.any(disc < 0.0):
