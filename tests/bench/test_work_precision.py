@@ -116,7 +116,8 @@ def test_cli_refuses_a_scene_without_a_work_precision_problem(tmp_path, capsys):
 
 def test_cli_names_a_directory_given_as_the_scene(tmp_path, capsys):
     """A folder was called "does not exist" (an audit)."""
-    assert cli.main(["-q", "bench", "work-precision", "--scene", str(SCENES), "--quick", "-o", str(tmp_path / "o")]) == 2
+    assert cli.main(["-q", "bench", "work-precision", "--scene", str(SCENES), "--quick", "-o",
+                     str(tmp_path / "o")]) == 2
     assert f"scene {SCENES} is a directory, not a scene file" in capsys.readouterr().err
 
 

@@ -112,7 +112,8 @@ def test_cli_repair_names_its_output_and_what_was_lost(tmp_path, capsys):
     fixed = tmp_path / "run.repaired.mcap"
     assert f"-> {fixed}" in out and "the source lacks what is lost for good: chunk 6" in out
     assert main(["report", str(fixed), "-o", str(tmp_path / "report"), "--format", "md"]) == 0
-    assert "cut short or damaged, then repaired by rig repair from run.mcap" in (tmp_path / "report" / "report.md").read_text()
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "cut short or damaged, then repaired by rig repair from run.mcap" in report
     assert main(["repair", str(cut), "-o", str(cut)]) == 2
 
 
