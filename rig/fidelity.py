@@ -248,12 +248,22 @@ def check_scene(scene: Scene, plant: str) -> None:
     where = f"{scene.path} [scene]"
     _questions(scene, plant, where)
     explicit = scene.section("scene").get("fidelity")
-    levels = LEVELS.get(plant, (1,))
-    if explicit is not None and parse_level(explicit, f"{where}: 'fidelity'") not in levels:
-        raise SceneError(f"{where}: a {plant} plant has levels {', '.join(map(str, levels))}; fidelity {explicit!r} is "
-                         f"not one of them")
+    if explicit is not None:
+        _offered(plant, parse_level(explicit, f"{where}: 'fidelity'"), where, "fidelity")
     _tolerance(scene, where)
     _tolerance(scene, where, "model_tolerance", MODEL_TOLERANCE)
+
+
+def _offered(plant: str, level: int, where: str, given: str | None) -> None:
+    """SceneError unless ``plant`` has model ``level``; ``given``: what set it ("fidelity", "--fidelity"; None: the
+    questions)."""
+    levels = LEVELS.get(plant, (1,))
+    if level in levels:
+        return
+    has = f"only level {levels[0]}" if len(levels) == 1 else f"levels {', '.join(map(str, levels))}"
+    if given is None:
+        raise SceneError(f"{where}: a {plant} plant has {has}, not {level}")
+    raise SceneError(f"{where}: a {plant} plant has {has}; {given} {level} is not one of them")
 
 
 def _choose(scene: Scene, plant: str, forced: int | None, data: Path) -> Fidelity:
@@ -273,12 +283,7 @@ def _choose(scene: Scene, plant: str, forced: int | None, data: Path) -> Fidelit
         reason = f"lowest level answering {', '.join(asked)} ({'; '.join(WHY[q] for q in top)})"
     else:
         level, reason = DEFAULT_LEVEL.get(plant, 1), "no questions stated; the plant's default level"
-    if level not in levels:
-        has = f"only level {levels[0]}" if len(levels) == 1 else f"levels {', '.join(map(str, levels))}"
-        if forced is None and explicit is None:
-            raise SceneError(f"{where}: a {plant} plant has {has}, not {level}")
-        raise SceneError(f"{where}: a {plant} plant has {has}; "
-                         f"{'--fidelity' if forced is not None else 'fidelity'} {level} is not one of them")
+    _offered(plant, level, where, "--fidelity" if forced is not None else "fidelity" if explicit is not None else None)
     unanswered = tuple(q for q in asked if need[q] > level)
     caveat = _and(_caveat(plant, level, {q: need[q] for q in unanswered}), _left_out(scene, plant, level))
     # the level whose answers the run gives: the cam bar's level 0 runs level 1's loads (SAME_RUN), so check those

@@ -272,13 +272,10 @@ def _counter_wrap() -> int:
 def _at_field_limit(to: str, values: list[float], unit: float = 1.0) -> bool:
     """Whether any of ``values`` (SI / ``unit``) of the signed CAN signal ``to`` (``can.Message.Signal``) sits at its
     field's limit: the unit sent the limit for a quantity beyond the field's range."""
-    from rig.dbc import load_dbc
+    from rig.dbc import at_field_limit, load_dbc
     _, message, signal = to.split(".")
     spec = load_dbc().get_message_by_name(message).get_signal_by_name(signal)
-    if not spec.is_signed:
-        return False
-    v = np.asarray(values, float) * unit
-    return bool(np.any((v <= spec.minimum + 0.5 * spec.scale) | (v >= spec.maximum - 0.5 * spec.scale)))
+    return bool(np.any(at_field_limit(spec, np.asarray(values, float) * unit)))
 
 
 def class_bound(lab: Lab, to: str, reading: float, counter_step: float) -> float:
@@ -495,7 +492,7 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
     angle, measured = angle[whole], torque["torque"][inside][whole]
     bins = np.floor((angle % tau) / STEP).astype(int)
     theory_at = lambda p: np.interp(p, truth["phi_in"], truth["torque"])      # noqa: E731
-    rows, dev, means = [], [], []
+    rows, spans, dev, means = [], [], [], []          # spans: the rows with the angles as numbers (the CSV)
     for k in range(36):
         here = bins == k
         if not here.any():
@@ -504,8 +501,10 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
         theory = float(np.mean(theory_at(angle[here])))
         dev.append(mean - theory)
         means.append((10 * k + 5, mean))
-        rows.append([f"{10 * k}–{10 * k + 10}", fixed(mean, TORQUE_PLACES), fixed(theory, TORQUE_PLACES),
-                     fixed(mean - theory, TORQUE_PLACES, sign=True), int(here.sum())])
+        cells = [fixed(mean, TORQUE_PLACES), fixed(theory, TORQUE_PLACES), fixed(mean - theory, TORQUE_PLACES,
+                                                                                   sign=True), int(here.sum())]
+        rows.append([f"{10 * k}–{10 * k + 10}", *cells])
+        spans.append([10 * k, 10 * k + 10, *cells])
     turns = np.floor((angle[-1] - angle[0]) / tau)
     span = angle <= angle[0] + turns * tau                          # whole turns only
     work = float(np.trapezoid(measured[span], angle[span])) if turns >= 1 else float("nan")
@@ -539,8 +538,7 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
                   f"(the last column); the work per turn over the {turns:.0f} whole one(s)."], draw,
                  {"deviation_max": float(np.max(np.abs(dev))), "peak": peak, "work_per_turn": work / max(turns, 1.0),
                   "work_per_turn_theory": expected / max(turns, 1.0)},
-                 csv=(["cam angle from (°)", "cam angle to (°)", *headers[1:]],
-                      [[*(int(a) for a in row[0].split("–")), *row[1:]] for row in rows]))
+                 csv=(["cam angle from (°)", "cam angle to (°)", *headers[1:]], spans))
 
 
 def cardan_sheet(lab: Lab) -> Sheet:
@@ -650,7 +648,7 @@ def geneva_sheet(lab: Lab) -> Sheet:
     late = float(np.median(np.diff(read))) / timing.period
     low = one_count - late
     k_m = measured / timing.period
-    outside = not low - 1e-9 <= k_m <= timing.motion_ratio + 1e-9
+    outside = bool(motion) and not low - 1e-9 <= k_m <= timing.motion_ratio + 1e-9     # (no indexing: NaN, no band)
     result = (f"motion {1e3 * measured:.2f} ms, dwell {1e3 * (timing.period - measured):.2f} ms of "
               f"{1e3 * timing.period:.2f} ms: k_m = {k_m:.4f} (theory (z − 2)/(2z) = "
               f"{timing.motion_ratio:.4f}; seen by a counting encoder, from the first to the last count change, "

@@ -48,7 +48,7 @@ def self_locking(clutch: Any) -> str:
     peak = float(clutch.branch_peak(-1.0)[1])
     if peak > 1e-9 * clutch.peak_torque:
         return ""
-    peak = min(peak, 0.0) if peak < -1e-9 * clutch.peak_torque else 0.0        # (rounding residue: 0)
+    peak = peak if peak < -1e-9 * clutch.peak_torque else 0.0        # (rounding residue: 0)
     return (f"self-locking: the unloading branch never rises above {peak:.3g} N·m (friction beats the spring's "
             f"return), so unloaded the clutch stays where the load left it; it does not spring back")
 
@@ -60,7 +60,12 @@ def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
     t_m, phi_m = reading_points(readings["t"], readings["angle"])
     phi = float(rig.clutch.phi_min)
     rows = []
-    for c in cycles(truth["t"], truth["torque"]):
+    found = cycles(truth["t"], truth["torque"])
+    # the last cycle is cut when the run ended before its lever program did, on the way down (a program that ends
+    # holding a load is whole)
+    short = truth["t"][-1] < rig.duration - 1e-9
+    for k, c in enumerate(found):
+        cut = short and k == len(found) - 1 and truth["torque"][-1] > c.torque_min + 1e-9 * max(abs(c.torque_max), 1.0)
         e_theory, phi_next, slip = theory_cycle_energy(rig.clutch, phi, c.torque_min, c.torque_max)
         inside = (t_m >= c.start) & (t_m <= c.end)
         residue = 1e-6 * max(abs(c.torque_max), 1.0)       # J: a loop of no area, computed (frictionless)
@@ -74,8 +79,8 @@ def cycle_table(rec: Recording, rig: StaticClutchRig) -> list[dict]:
         t_c = np.r_[c.start, t_m[inside], c.end]
         span = {"start": c.start, "end": c.end, "torque_min": c.torque_min, "torque_max": c.torque_max,
                 "angle_min": float(phi_m[inside].min()) if inside.any() else None,
-                "angle_max": float(phi_m[inside].max()) if inside.any() else None, "cut": c.cut}
-        if c.cut:                   # the run ended on the way down: no closed loop to compare (one was, with the
+                "angle_max": float(phi_m[inside].max()) if inside.any() else None, "cut": cut}
+        if cut:                   # the run ended on the way down: no closed loop to compare (one was, with the
             rows.append({**span, "measured": None, "truth": None, "theory": None, "lossless": False,   # full
                          "held": False, "disengaged": slip,                                         # theory's)
                          "torque_end": float(np.interp(c.end, truth["t"], truth["torque"]))})

@@ -27,13 +27,10 @@ class Cycle:
     end: float
     torque_min: float
     torque_max: float
-    cut: bool = False       # the record ended before the load came back down: no closed loop
 
 
 def cycles(t: np.ndarray, torque: np.ndarray) -> list[Cycle]:
-    """Split an applied-torque record (s, N·m) at its valleys into cycles that both load and unload; the last one is
-    ``cut`` when the record ends before the load is back down to where that cycle began (a run shorter than its
-    lever program)."""
+    """Split an applied-torque record (s, N·m) at its valleys into cycles that both load and unload."""
     t, torque = np.asarray(t, dtype=float), np.asarray(torque, dtype=float)
     if t.ndim != 1 or t.shape != torque.shape or t.size < 3:
         raise ValueError(f"applied torque: need matching 1-D t and torque with >= 3 samples, got {t.shape}, "
@@ -47,8 +44,7 @@ def cycles(t: np.ndarray, torque: np.ndarray) -> list[Cycle]:
     for a, b in zip(bounds[:-1], bounds[1:]):
         seg = torque[a:b + 1]
         if np.any(np.diff(seg) > 0) and np.any(np.diff(seg) < 0):
-            cut = b == t.size - 1 and seg[-1] > seg[0] + 1e-9 * max(abs(float(seg.max())), 1.0)
-            out.append(Cycle(float(t[a]), float(t[b]), float(seg.min()), float(seg.max()), bool(cut)))
+            out.append(Cycle(float(t[a]), float(t[b]), float(seg.min()), float(seg.max())))
     return out
 
 

@@ -327,8 +327,9 @@ def _check_period(period: float, chunk: float, rate: float, where: str, scene_wh
 def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool = True) -> RunConfig:
     """Validate the runner's sections of ``scene``; errors name the file, section and key. ``fidelity``: the level
     ``--fidelity`` forces (:func:`rig.fidelity.choose`; None: the scene's own choice). ``choose_level=False`` leaves
-    the model level unchosen (``fidelity`` None in the result) for a command that does not run the plant: the choice
-    may simulate a level-2 revolution, and compile it on a new machine (tens of seconds)."""
+    the model level unchosen (``fidelity`` None in the result, the argument ignored; the scene's questions, fidelity
+    and tolerances still checked) for a command that does not run the plant: the choice may simulate a level-2
+    revolution, and compile it on a new machine (tens of seconds)."""
     from firmware_sim.transducers.description import described, resolve_path
     from rig.runner.plants import PLANTS
     where = f"{scene.path} [scene]"
@@ -386,7 +387,6 @@ def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool
     cw = f"{scene.path} [links.can]"
     if not 0.0 < can["live_share"] <= 1.0:
         raise SceneError(f"{cw}: key 'live_share' must be in (0, 1], got {can['live_share']}")
-    _of_type(can["fd"], bool, "fd", cw, "true or false")
     if can["data_bitrate"] is not None and not can["fd"]:
         raise SceneError(f"{cw}: key 'data_bitrate' is the data phase of CAN FD: set fd = true, or remove it for "
                          f"classic CAN")
@@ -404,7 +404,6 @@ def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool
                          f"(the in-process bus), got {can['interface']!r}")
     serial = scene.read("links.serial", SERIAL_SCHEMA, required=False)
     sw = f"{scene.path} [links.serial]"
-    _of_type(serial["enabled"], bool, "enabled", sw, "true or false")
     _of_type(serial["port"], str, "port", sw, "'pty', a pyserial URL or a device path")
     recording = scene.read("recording", RECORDING_SCHEMA, required=False)
     rw = f"{scene.path} [recording]"
@@ -416,11 +415,12 @@ def read_config(scene: Scene, fidelity: int | None = None, *, choose_level: bool
     if signals is not None and not (isinstance(signals, list) and all(isinstance(x, str) for x in signals)):
         raise SceneError(f"{rw}: key 'truth_signals' must be a list of signal names, got {signals!r}")
     _truth_every(recording["truth_rate"], s["sample_rate"], rw)
+    if not choose_level:                    # the level's keys checked all the same (choose checks them as it reads)
+        check_scene(scene, str(s["plant"]))
     max_time = s["max_time"] if s["max_time"] is not None else (
         s["duration"] if s["duration"] is not None else default_max_time(cycles))
     return RunConfig(scene=scene, name=str(s["name"]), plant=str(s["plant"]), seed=s["seed"],
                      cycles=cycles, duration=s["duration"], sample_rate=s["sample_rate"], chunk=s["chunk"],
                      mode=s["mode"], max_time=max_time, max_time_given=s["max_time"] is not None, transducers=tuple(transducers), device=device, can=can,
                      serial=serial, recording=recording,
-                     fidelity=choose(scene, str(s["plant"]), fidelity) if choose_level else
-                     check_scene(scene, str(s["plant"])))
+                     fidelity=choose(scene, str(s["plant"]), fidelity) if choose_level else None)

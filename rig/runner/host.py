@@ -22,6 +22,7 @@ from firmware_sim.digiforce.program import default_program, merge, validate_prog
 from firmware_sim.transducers.description import read_description, resolve_path
 from rig.analysis.units import display_units
 from rig.blockbus import RX, FrameBlock
+from rig.dbc import at_field_limit
 from rig.recorder import Recorder
 from rig.recorder.schemas import snake, stand_topic
 from rig.runner.config import RunConfig
@@ -256,11 +257,8 @@ class Host:
         value beyond the field's range to it: the reading is the limit, not the quantity); the first is a
         ``reading_at_limit`` event, the run's totals go into ``link_summary.readings_at_limit``."""
         spec = self.can.db.get_message_by_name(message).get_signal_by_name(signal)
-        if not spec.is_signed:
-            return
-        half = 0.5 * spec.scale
-        low, high = values <= spec.minimum + half, values >= spec.maximum - half
-        n = int(np.count_nonzero(low | high))
+        limit = at_field_limit(spec, values)
+        n = int(np.count_nonzero(limit))
         if not n:
             return
         key = f"{message}.{signal}"
@@ -268,11 +266,11 @@ class Host:
         self._at_limit[key] = self._at_limit.get(key, 0) + n
         if said:
             return
-        k = int(np.argmax(low | high))
-        limit = spec.minimum if low[k] else spec.maximum
-        self.add_event(float(t[k]), "reading_at_limit", LINK, message=message, signal=signal, limit=float(limit),
+        k = int(np.argmax(limit))
+        value = float(values[k])
+        self.add_event(float(t[k]), "reading_at_limit", LINK, message=message, signal=signal, limit=value,
                        unit=spec.unit or "",
-                       detail=f"{key} read {limit:g} {spec.unit or ''}".rstrip() + ", the limit of its CAN field: the "
+                       detail=f"{key} read {value:g} {spec.unit or ''}".rstrip() + ", the limit of its CAN field: the "
                               "quantity was beyond what the frame carries and the unit sent the limit (the run's "
                               "totals in link_summary.readings_at_limit)")
 

@@ -132,3 +132,16 @@ def test_bad_variation_tables_are_clear_errors(table, message):
 def test_variation_needs_a_generator():
     with pytest.raises(ValueError, match="needs a numpy Generator"):
         Setting(variation=CycleVariation({"F_c": 1.0}))
+
+
+def test_a_draw_that_is_no_valid_machine_names_the_scenes_section():
+    """Beyond what check_draws refuses, a draw past 3σ can still be no valid machine: the run stopped with
+    "variation: cycle 2 drew an invalid parameter set", no file or section (a review)."""
+    from rig.plants.cam_bar import PinInsertionMechanism
+    from rig.plants.cam_bar.variation import CyclePlant
+    plant = CyclePlant(PinInsertionMechanism(), CycleVariation({"F_c": 100.0}, where="x.toml [plant.variation]"),
+                       plant_generator(1))
+    with pytest.raises(SceneError, match=r"x.toml \[plant.variation\]: cycle \d+ drew no valid machine \(cam-bar "
+                                         r"parameter F_c must not be negative"):
+        for cycle in range(100):
+            plant.mechanism(cycle)

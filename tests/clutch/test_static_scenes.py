@@ -267,6 +267,10 @@ def test_a_cycle_cut_by_the_runs_end_and_a_disengagement_outside_cycles_are_said
     assert len(lines) == 2 and "cut by the run's end at 2 N·m on the way down: no closed loop" in lines[1]
     assert "cycle_1.loop_energy_theory" not in values and "cycle_1.loop_energy" not in values
     last = scene.rindex('force = "0 N"')
+    held = tmp_path / "held.toml"            # a whole program that ends holding 1 N: not cut (a review)
+    held.write_text(scene[:last] + 'force = "1 N"' + scene[last + len('force = "0 N"'):])
+    lines, values = summary(read_recording(run_scene(held, tmp_path / "held.mcap").output))
+    assert not any("cut by the run's end" in line for line in lines) and "cycle_2.loop_energy_theory" in values
     huge = tmp_path / "huge.toml"
     huge.write_text(scene[:last] + 'force = "1e6 N"' + scene[last + len('force = "0 N"'):])
     rec = read_recording(run_scene(huge, tmp_path / "huge.mcap").output)

@@ -95,6 +95,7 @@ def plot(result: JumpMap, path: Path) -> Path:
 def main(argv: list[str] | None = None) -> None:
     from rig.executors.options import add_executor_arguments, executor_from_args
     from rig.scene import load_scene
+    from rig.stops import stopped
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene", nargs="?", default=str(Path(__file__).resolve().parents[3] / "data" / "scenes"
                                                        / "pin_insertion_as_drawn.toml"))
@@ -105,11 +106,11 @@ def main(argv: list[str] | None = None) -> None:
     try:
         with executor_from_args(args, local="dask-processes") as executor:
             result = jump_map(load_scene(args.scene), executor=executor)
-    except KeyboardInterrupt:                   # after the last point, while the workers closed: keep the map
+    except KeyboardInterrupt as stop:           # after the last point, while the workers closed: keep the map
         if result is None:
             raise
         show(result, Path(args.output))
-        print("interrupted while the workers closed, after the map's last point: the map above is whole",
+        print(f"{stopped(stop)} while the workers closed, after the map's last point: the map above is whole",
               file=sys.stderr)
         raise SystemExit(130) from None
     show(result, Path(args.output))
@@ -128,6 +129,7 @@ def show(result: JumpMap, output: Path) -> None:
         print(f"  failed at {result.speeds[index[0]] / RPM:g} rpm, {result.rates[index[1]] / 1e3:g} N/mm, "
               f"{result.clearances[index[2]] * 1e3:g} mm: {result.errors[index]}")
     print(f"map: {plot(result, output)}")
+
 
 if __name__ == "__main__":
     main()
