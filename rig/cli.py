@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any, Callable
 
+from rig.limits import MAX_CYCLES
 from rig.outputs import (JSON_START, PNG_MAGIC, TRACE_MAGIC, UsageError, claim_dir, file_parent, new_folder,
                          recording_file, writable_dir, writable_file)
 
@@ -506,7 +507,6 @@ class _Parser(argparse.ArgumentParser):
         return ns
 
 
-MAX_CYCLES = 10**9     # machine cycles a run takes (as [scene] cycles: 10^9 at 150 rpm are 13 years)
 MAX_SAMPLES = 10**10   # Monte-Carlo machines rig tolerance takes (10^6 take ~15 s on two workers: this, ~2 days)
 
 

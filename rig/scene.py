@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, TypeVar
 
+from rig.limits import HUGE
 from rig.units import UnitError, to_si
 
 REQUIRED = object()
@@ -180,9 +181,6 @@ def read_subtable(table: Any, schema: Mapping[str, Field], where: str, name: str
         raise SceneError(f"{where}: {exc}") from None
 
 
-HUGE = 1e30          # the largest magnitude of a scene quantity in SI (larger ones overflow the models' arithmetic)
-
-
 def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str,
                allow_tables: bool = False) -> dict[str, Any]:
     """Check ``table`` against ``schema`` and return ``{field: value}`` with quantities in SI.
@@ -225,7 +223,8 @@ def read_table(table: Mapping[str, Any], schema: Mapping[str, Field], where: str
         if not math.isfinite(out[name]):
             raise SceneError(f"{where}: key {key!r} must be a finite quantity, got {value!r}"
                              + (f" {unit}" if unit else ""))
-        if abs(out[name]) > HUGE:            # finite, but its square overflows (L3 = "1e308 mm": a traceback)
+        if abs(out[name]) > HUGE and not field.integer:     # finite, but its square overflows (L3 = "1e308 mm": a
+            #                                                   traceback); a whole number (a seed) is no magnitude
             raise SceneError(f"{where}: key {key!r} is beyond any machine (more than {HUGE:g} in SI units), got "
                              f"{as_written(value, unit)}")
         wrong = field.out_of_range(out[name])

@@ -90,7 +90,7 @@ def load_transducer(name_or_path: str | Path, rng: np.random.Generator, **overri
     cls = REGISTRY[type_name]
     flags = {k: overrides.pop(k) for k in ("errors_enabled", "dynamics_enabled") if k in overrides}
     for key, value in flags.items():
-        if not isinstance(value, bool):                 # "false" is a string, and bool("false") is True
+        if not isinstance(value, (bool, np.bool_)):     # "false" is a string, and bool("false") is True
             raise SceneError(f"{path} [transducer]: override {key!r} must be true or false (no quotes), got {value!r}")
     params = validate(table, overrides, cls.SCHEMA, f"{path} [transducer]")
     return cls(params, rng, name=path.stem, **flags)

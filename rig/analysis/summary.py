@@ -34,7 +34,7 @@ def program_sets(rec: Recording, units: dict[int, DisplayUnits] | None = None) -
     sets = statistics_by_program(rec.results, rec.programs, units if units is not None else program_units(rec))
     for program, results in by_program(rec.results).items():
         agreement = device_agreement(results, final_snapshot(rec.statistics, program))
-        if not rec.statistics and rec.metadata.get("rig", {}).get("serial_link") == "off" and agreement["reason"]:
+        if not rec.statistics and rec.serial_link_off and agreement["reason"]:
             agreement["reason"] = ("the scene's serial link is off ([links.serial] enabled = false): the host read no "
                                    "statistics back from the device")
         elif not rec.statistics and not rec.complete and agreement["reason"]:     # none read, the run ended early

@@ -24,7 +24,6 @@ def _ranges(numbers: list[int]) -> str:
     return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
 
 
-#: the first path element of every topic rig records (schemas: /plant, /can, /device, /stand, /view, /events, /log)
 def nothing_recorded(rec: Recording) -> str | None:
     """Why a recording read with ``allow_partial`` holds nothing to report or analyse, in words: no message, or none
     of rig's (a file another program wrote: no rig metadata, no scene, no rig topic); None when it holds some."""
@@ -98,6 +97,6 @@ def losses(rec: Recording) -> list[str]:
     unmatched = {c.number for c in rec.curves} - {int(r["number"]) for r in rec.results if "number" in r}
     if unmatched:
         out.append(f"no result for curve(s) {_ranges(list(unmatched))}")
-    if not rec.statistics and rec.metadata.get(S.RIG_METADATA, {}).get("serial_link") != "off":   # (a stand or a
-        out.append("no device statistics recorded (the host reads them at the end of a run)")     # lab reads none)
+    if not rec.statistics and not rec.serial_link_off:       # (a stand or a lab reads none)
+        out.append("no device statistics recorded (the host reads them at the end of a run)")
     return out

@@ -88,6 +88,11 @@ class Recording:
     def live(self) -> dict[str, np.ndarray]:
         return self.series.get(S.LIVE, {})
 
+    @property
+    def serial_link_off(self) -> bool:
+        """Whether the run had its serial link off (a stand, a lab): the host read no device statistics, none lost."""
+        return self.metadata.get(S.RIG_METADATA, {}).get("serial_link") == "off"
+
     def series_blocks(self, topic: str) -> Iterator[dict[str, np.ndarray]]:
         """Every sample of a bulk topic in file order, a block at a time (what ``series`` holds first)."""
         return bulk.blocks(self.series.get(topic, {}), self.series_beyond.get(topic), self.series_store)
@@ -150,7 +155,7 @@ def interruption_text(reason: str) -> str:
         return "terminated by SIGTERM (timeout, docker stop, systemd or a CI runner)"
     if reason == "unknown reason":                 # the reader's word for an end record without a reason
         return "stopped early (the recording does not say why)"
-    if reason.startswith("repaired by rig repair"):    # rig.recorder.repair: a cut or damaged file rewritten whole
+    if S.is_repaired(reason):                        # rig.recorder.repair: a cut or damaged file rewritten whole
         return f"cut short or damaged, then {reason}"
     return f"stopped by an error — {reason}"
 
@@ -430,7 +435,7 @@ def read_recording(path: str | Path, allow_partial: bool = False, can_frames: bo
         collector.finish()
         if rec.interrupted is not None:
             t = _metadata_number(rec, S.END_METADATA, "simulation_time", "nan", float)
-            at = (f" (its data reach {t:.3f} s of simulation time)" if rec.interrupted.startswith("repaired by")
+            at = (f" (its data reach {t:.3f} s of simulation time)" if S.is_repaired(rec.interrupted)
                   else f" at {t:.3f} s of simulation time")     # (a repaired file's time is not where it was damaged)
             rec.problems.append(interruption_text(rec.interrupted) + (at if math.isfinite(t) else ""))
     except ValueError as exc:  # a damaged metadata value

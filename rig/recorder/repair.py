@@ -25,7 +25,6 @@ from rig.recorder import schemas as S
 from rig.recorder.reader import Collector, Recording, RecordingError
 from rig.recorder.salvage import DataSectionReader
 
-REPAIRED = "repaired"      # the start of the rewritten file's rig.end reason
 REPAIR_METADATA = "rig.repair"   # a whole run's file rewritten (nothing of the run lost): what was repaired
 
 
@@ -152,7 +151,7 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
                 writer.add_metadata(REPAIR_METADATA, {"source": source.name, "problems": "; ".join(problems)})
             elif problems:            # what was lost, in the file itself: a report of it says so
                 was = end.get("reason", "")
-                end.update({"complete": "false", "reason": f"{REPAIRED} by rig repair from {source.name}: "
+                end.update({"complete": "false", "reason": f"{S.REPAIRED} from {source.name}: "
                                                            f"{'; '.join(problems)}" + (f" (it stopped: {was})" if was
                                                                                        else "")})
                 end["messages"] = str(sum(rewriter.messages.values()))

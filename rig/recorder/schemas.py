@@ -57,6 +57,14 @@ def is_rig_topic(topic: str) -> bool:
     return len(parts) > 1 and parts[0] == "" and parts[1] in RIG_TOPICS
 
 
+REPAIRED = "repaired by rig repair"     # the start of a rewritten file's rig.end reason (rig.recorder.repair)
+
+
+def is_repaired(reason: str) -> bool:
+    """Whether a recording's end ``reason`` says :func:`rig.recorder.repair.repair` rewrote it."""
+    return reason.startswith(REPAIRED)
+
+
 SCENE_ATTACHMENT = "scene.toml"
 PROGRAM_ATTACHMENT = "device/program/{number}.json"
 RIG_METADATA = "rig"

@@ -15,6 +15,7 @@ import numpy as np
 
 from rig.blockbus import is_interface_name
 from rig.fidelity import Fidelity, check_scene, choose
+from rig.limits import MAX_CYCLES
 from rig.scene import Field, Scene, SceneError, read_table
 
 MAX_SAMPLE_RATE = 1e6      # Hz: the fastest plant/transducer sample rate a scene may ask
@@ -24,7 +25,7 @@ SCENE_SCHEMA = {
     "plant": Field(None, doc="plant kind, e.g. 'cam_bar' or 'clutch_dynamic'"),
     "seed": Field("1", doc="seed of every random draw of the run", integer=True, minimum=0),
     "cycles": Field("1", None, "number of device curves (machine cycles) to record", integer=True, minimum=1,
-                    maximum=1e9),                       # (as rig run --cycles; beyond int64, a traceback)
+                    maximum=MAX_CYCLES),                # (as rig run --cycles; beyond int64, a traceback)
     "duration": Field("s", None, "simulated time to run when the scene has no cycles"),
     "sample_rate": Field("Hz", 10_000.0, "plant/transducer/acquisition sample rate"),
     "chunk": Field("s", 0.1, "simulated time the plant and transducers advance per runner step: a whole number of "

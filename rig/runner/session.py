@@ -27,7 +27,7 @@ from rig.numba_clock import compile_seconds, watch
 from rig.recorder import Recorder
 from rig.recorder.writer import interruption
 from firmware_sim.can_node import BusOverload
-from rig.runner.config import RunConfig, default_max_time, read_config
+from rig.runner.config import CAN_SCHEMA, RunConfig, default_max_time, read_config
 from rig.runner.errors import BusTooSlow, HostLeft, HostStalled, OutOfTime, RunError
 from rig.runner.host import Host
 from rig.interrupt import deferred_interrupt, shielded
@@ -228,7 +228,7 @@ def _drive(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm,
         pace.finish()
 
 
-SHORT_TX = 0.1      # s: a transmit cycle this short sends a machine cycle's curve as it ends (the unit's default)
+SHORT_TX = CAN_SCHEMA["tx_period"].default      # s: the unit's default transmit cycle sends each curve as it ends
 
 
 def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, after_step: Callable[[], object],
@@ -245,18 +245,16 @@ def _steps(cfg: RunConfig, machine: Machine, lock: threading.Lock, bar: tqdm, af
                 machine.step(done=lambda m: _machine_done(cfg, m))
             except BusOverload as exc:
                 burst, held = machine.cycle_curves, cfg.can["tx_curves"]
-                if burst >= held and cfg.can["tx_period"] > SHORT_TX:      # the cycle, not the bus: its curves
-                    raise BusTooSlow(f"{cfg.scene.path} [links.can]: tx_period = {cfg.can['tx_period']:g} s is too "
-                                     f"long for the bus: one transmit cycle of the unit measured {burst} curves at "
-                                     f"once, as many as it holds for sending (tx_curves = {held}); shorten tx_period "
-                                     "(e.g. \"100 ms\") so that each curve is sent as it ends") from None
-                if burst >= held:          # curves that short are no machine cycles (an audit: 1 rpm was told to
-                    raise BusTooSlow(       # shorten a 100 ms tx_period to 100 ms)
-                        f"{cfg.scene.path}: the unit measured {burst} curves within one transmit cycle of "
-                        f"{cfg.can['tx_period']:g} s, as many as it holds for sending (tx_curves = {held}): curves that "
-                        f"short are not machine cycles but its start/stop trigger firing again and again (a signal "
-                        f"chattering about its threshold, e.g. at a crawl) — check the device's start/stop settings "
-                        f"([device.config]) against the signals") from None
+                if burst >= held:          # the cycle, not the bus: its curves all ended before any could leave
+                    period = cfg.can["tx_period"]
+                    shorter = (f"shorten [links.can] tx_period (e.g. \"{SHORT_TX * 1e3:g} ms\") so that each curve is "
+                               f"sent as it ends, " if period > SHORT_TX else "")       # (1 rpm was told to shorten
+                    raise BusTooSlow(                                                   # 100 ms to 100 ms; an audit)
+                        f"{cfg.scene.path}: one transmit cycle of the unit ({period:g} s) measured {burst} curves at "
+                        f"once, as many as it holds for sending (tx_curves = {held}): if the machine makes that many "
+                        f"cycles so fast, {shorter or 'raise [links.can] tx_curves, '}else curves that short are its start/stop "
+                        f"trigger firing again and again (a signal chattering about its threshold, e.g. at a crawl) — "
+                        f"check the device's start/stop settings ([device.config]) against the signals") from None
                 raise BusTooSlow(f"{cfg.scene.path} [links.can]: {exc}") from None
         if gone and not machine.node.released:
             raise _host_left(machine, "during the run")

@@ -1,7 +1,7 @@
 """The cam drive at level 2 (rig.plants.cam_bar.drive): motor line, shaft compliance, start-up, speed ripple."""
 from math import radians, tau
-
 from pathlib import Path
+
 import numpy as np
 import pytest
 

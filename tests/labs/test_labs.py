@@ -659,3 +659,20 @@ def test_the_cardan_sheet_interpolates_between_sparse_readings_by_splines(tmp_pa
     assert sheet.values["ratio_error_max"] < 2e-3
     assert "(the readings lie 18° apart, more than the table's step)" in sheet.result
     assert any("The readings lie 18° of input angle apart" in note for note in sheet.notes)
+
+
+def test_a_cardan_input_that_turns_back_is_named_and_a_geneva_k_m_outside_its_band_is_said(tmp_path_factory,
+                                                                                         monkeypatch):
+    """An output encoder that counts backwards (mounted the other way round) turns the Cardan's output back: the
+    sheet's splines need both shafts turning one way, and say so (a review). A Geneva k_m outside the band a counting
+    encoder can see is said so."""
+    from rig.analysis import lab_report
+    angle = lab_report.Lab.angle
+    monkeypatch.setattr(lab_report.Lab, "angle", lambda lab, signal="phi_in": (
+        lambda t, phi: (t, -phi if signal == "phi_out" else phi))(*angle(lab, signal)))
+    with pytest.raises(ValueError, match="a Cardan shaft turned back"):
+        _run(tmp_path_factory, "lab_cardan")
+    monkeypatch.setattr(lab_report.Lab, "angle", angle)
+    monkeypatch.setattr(lab_report, "_counted_motion_ratio", lambda geneva, count: 0.299)   # a band it lies below
+    _, sheets = _run(tmp_path_factory, "lab_geneva")
+    assert sheets["Geneva drive"].result.endswith("— OUTSIDE that band)")
