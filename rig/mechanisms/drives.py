@@ -31,7 +31,10 @@ class Belt:
         if not finite(force, "Belt peripheral force F1 − F2 (N)") >= 0:
             raise ValueError(f"Belt peripheral force F1 − F2 must not be negative (N), got {force!r}: a belt pulls, "
                              "it cannot push; swap the pulleys' roles instead")
-        grip = expm1(self.mu * self.wrap)                 # e^{μβ} − 1, exact for a small μβ
+        try:
+            grip = expm1(self.mu * self.wrap)             # e^{μβ} − 1, exact for a small μβ
+        except OverflowError:                             # a grip beyond any number: no slack tension needed (it
+            grip = inf                                    # raised OverflowError, not naming mu; an audit)
         slack = force / grip if grip > 0.0 else inf
         if not isfinite(slack + force):
             raise ValueError(f"Belt mu·wrap = {self.mu * self.wrap:g} (mu = {self.mu!r}, wrap = {self.wrap!r} rad) is too "
@@ -89,11 +92,19 @@ class FrictionWheels:
     @property
     def ratio(self) -> float:
         """i = ω1/ω2."""
-        return self.d2 / self.d1 / (1 - self.slip)
+        return _finite_result(self.d2 / self.d1 / (1 - self.slip), "ratio d2/d1", self)
 
     def pressing_force(self, tangential_force: float) -> float:
         """Q (N) to carry the peripheral force F_t ≥ 0 (N)."""
         if not finite(tangential_force, "FrictionWheels tangential force F_t (N)") >= 0:
             raise ValueError(f"FrictionWheels tangential force F_t must not be negative (N), got {tangential_force!r}: "
                              "the pressing force carries its magnitude")
-        return self.safety * tangential_force / self.mu
+        return _finite_result(self.safety * tangential_force / self.mu, "pressing force", self)
+
+
+def _finite_result(value: float, what: str, drive: object) -> float:
+    """``value`` if finite, else a ValueError naming ``what`` of ``drive``: its inputs, finite each, give none (a
+    diameter or μ of 1e-320 read inf; an audit)."""
+    if not isfinite(value):
+        raise ValueError(f"{type(drive).__name__}: the {what} overflows for {drive!r} (a diameter or mu too small)")
+    return value

@@ -1,6 +1,7 @@
 """Structure of planar mechanisms and gear trains: the lab guide's mobility formula and Willis's formula."""
 from __future__ import annotations
 
+from math import isfinite
 from numbers import Integral
 
 from rig.mechanisms.checks import finite, whole
@@ -39,4 +40,7 @@ def willis(n1: float | None, n3: float | None, carrier: float | None, ratio: flo
         n3 = carrier + (n1 - carrier) / ratio
     else:
         carrier = (n1 - ratio * n3) / (1 - ratio)
-    return {"n1": n1, "n3": n3, "carrier": carrier}
+    speeds = {"n1": n1, "n3": n3, "carrier": carrier}
+    if not all(isfinite(v) for v in speeds.values()):      # (i0 = 1e-320 read n3 = −inf; an audit)
+        raise ValueError(f"willis: the speeds overflow ({speeds}) for i0 = {ratio!r} and the given {given}")
+    return speeds

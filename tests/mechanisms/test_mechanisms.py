@@ -171,10 +171,14 @@ def test_library_inputs_beyond_their_formulas_are_named():
             (lambda: synthesize(DoubleSlider(0.05), np.array([0.01, np.nan]), np.zeros(2), np.zeros(2)),
              "synthesize needs finite output values"),
             (lambda: synthesize(DoubleSlider(0.05), np.array(0.01), np.zeros(1), np.zeros(1)), "as 1-D arrays"),
-            (lambda: Geneva(4, 0.05).timing(1e-320), "too slow to time")]:
+            (lambda: Geneva(4, 0.05).timing(1e-320), "too slow to time"),
+            (lambda: FrictionWheels(0.1, 0.3, 1e-320).pressing_force(100.0), "pressing force overflows"),
+            (lambda: FrictionWheels(1e-320, 0.3, 0.3).ratio, "ratio d2/d1 overflows"),
+            (lambda: willis(1, None, 3, 1e-320), "willis: the speeds overflow")]:
         with pytest.raises(ValueError, match=message):
             call()
     assert hertz_line_stress(100.0, 0.01, 0.01, np.inf) == pytest.approx(hertz_line_stress(100.0, 0.01, 0.01, 1e300))
+    assert Belt(1e3, pi).tensions(100.0) == (100.0, 0.0)     # a grip beyond any number (an OverflowError before)
 
 
 def test_gears_refuse_undercut_and_bad_input():
