@@ -15,7 +15,7 @@ import numpy as np
 
 from rig.blockbus import is_interface_name
 from rig.fidelity import Fidelity, check_scene, choose
-from rig.limits import MAX_CYCLES
+from rig.limits import MAX_CYCLES, MAX_DURATION
 from rig.scene import Field, Scene, SceneError, read_table
 
 MAX_SAMPLE_RATE = 1e6      # Hz: the fastest plant/transducer sample rate a scene may ask
@@ -26,7 +26,7 @@ SCENE_SCHEMA = {
     "seed": Field("1", doc="seed of every random draw of the run", integer=True, minimum=0),
     "cycles": Field("1", None, "number of device curves (machine cycles) to record", integer=True, minimum=1,
                     maximum=MAX_CYCLES),                # (as rig run --cycles; beyond int64, a traceback)
-    "duration": Field("s", None, "simulated time to run when the scene has no cycles"),
+    "duration": Field("s", None, "simulated time to run when the scene has no cycles", maximum=MAX_DURATION),
     "sample_rate": Field("Hz", 10_000.0, "plant/transducer/acquisition sample rate"),
     "chunk": Field("s", 0.1, "simulated time the plant and transducers advance per runner step: a whole number of "
                    "the unit's transmit cycles ([links.can] tx_period); the unit, its bus and the transducers record "
@@ -36,7 +36,8 @@ SCENE_SCHEMA = {
     "questions": Field(None, None, "what the run must answer, e.g. [\"stroke\", \"dwell_vibration\"] (rig.fidelity)"),
     "tolerance": Field("1", None, "relative error the answers need (default 1e-6); picks the solver setting"),
     "model_tolerance": Field("1", None, "how far a lower model level may be from level 2 (relative, default 0.05)"),
-    "max_time": Field("s", None, "give up when the cycles are not complete by this simulated time"),
+    "max_time": Field("s", None, "give up when the cycles are not complete by this simulated time",
+                      maximum=MAX_DURATION),
 }
 TRANSDUCER_SCHEMA = {
     "description": Field(None, doc="device description name in data/devices or a path (relative to the scene file)"),

@@ -98,6 +98,7 @@ def test_rates_and_switches_are_checked(tmp_path, scene, old, new, message):
     ('sample_rate = "10 kHz"', 'sample_rate = "1e12 Hz"', True, r"key 'sample_rate' must be at most 1 MHz"),  # (MemoryE.)
     ('speed = "150 rpm"', 'speed = "1e30 rpm"', False, r"\[speed\]: key 'speed' must be positive and at most 1e6 rpm"),
     ("cycles = 50", "cycles = 99999999999999999999", True, r"key 'cycles' must be an integer >= 1 and <= 1000000000"),
+    ("cycles = 50", 'cycles = 50\nmax_time = "1e20 s"', True, r"key 'max_time' must be at most 1e\+09 s"),
     ("seed = 20240611", "seed = 123456789012345678901234567890123", True, None),     # a whole number: no magnitude
 ])
 def test_quantities_beyond_any_machine_are_named(tmp_path, old, new, runner, message):
