@@ -150,7 +150,7 @@ def test_unshifted_gears_have_the_standard_geometry_and_contact_ratio():
 def test_library_inputs_beyond_their_formulas_are_named():
     """Each returned NaN, inf or a misleading error, or raised a TypeError/ZeroDivisionError (an audit)."""
     from rig.mechanisms.cam import DoubleSlider, FourBar, SliderCrank, hertz_line_stress, synthesize
-    from rig.mechanisms.cam.sizing import guide_ratio, pressure_angles
+    from rig.mechanisms.cam.sizing import flocke_base_radius, guide_ratio, pressure_angles
     from rig.mechanisms.gears import involute
     from rig.motion import get_law
     for call, message in [
@@ -174,7 +174,8 @@ def test_library_inputs_beyond_their_formulas_are_named():
             (lambda: Geneva(4, 0.05).timing(1e-320), "too slow to time"),
             (lambda: FrictionWheels(0.1, 0.3, 1e-320).pressing_force(100.0), "pressing force overflows"),
             (lambda: FrictionWheels(1e-320, 0.3, 0.3).ratio, "ratio d2/d1 overflows"),
-            (lambda: willis(1, None, 3, 1e-320), "willis: the speeds overflow")]:
+            (lambda: willis(1, None, 3, 1e-320), "willis: the speeds overflow"),
+            (lambda: flocke_base_radius(get_law("cycloidal"), 0.02, 1.0, 1e-320), "must lie in \\[0.1°, 90°\\)")]:
         with pytest.raises(ValueError, match=message):
             call()
     assert hertz_line_stress(100.0, 0.01, 0.01, np.inf) == pytest.approx(hertz_line_stress(100.0, 0.01, 0.01, 1e300))

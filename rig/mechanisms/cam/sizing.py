@@ -29,6 +29,9 @@ def _maximise(f, n: int = GRID) -> tuple[float, float]:
     return (float(res.x), -float(res.fun)) if -res.fun > v[i] else (float(x[i]), float(v[i]))
 
 
+SMALLEST_ALPHA = np.radians(0.1) * (1.0 - 1e-12)     # rad: the least pressure angle sized for (SizeModel scans from it)
+
+
 def _check(h: float, big_phi: float, alpha: float) -> None:
     positive(h, "stroke h (m)")                 # (inf read NaN, a string a TypeError; an audit)
     finite(big_phi, "rise angle Φ (rad)")
@@ -36,8 +39,9 @@ def _check(h: float, big_phi: float, alpha: float) -> None:
     if not 0.0 < big_phi <= 2.0 * np.pi:
         raise ValueError(f"rise angle Φ must lie in (0, 2π] rad, got {big_phi!r} rad"
                          + (" (degrees given as rad?)" if big_phi > 2.0 * np.pi else ""))
-    if not 0.0 < alpha < np.pi / 2:
-        raise ValueError(f"pressure angle must lie in (0, 90°), got {np.degrees(alpha):g}°")
+    if not SMALLEST_ALPHA <= alpha < np.pi / 2:       # (1e-320 rad read an infinite radius; an audit)
+        raise ValueError(f"pressure angle must lie in [0.1°, 90°) (below 0.1° the base radius exceeds 500 strokes), "
+                         f"got {np.degrees(alpha):g}°")
 
 
 def peak_velocity(law: MotionLaw) -> tuple[float, float, float]:
