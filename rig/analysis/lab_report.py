@@ -263,19 +263,23 @@ def _last_turn(t_edge: np.ndarray, angle: np.ndarray, start: float = 0.0) -> np.
     return end - tau + STEP * np.arange(-1, 37)
 
 
+def _dbc_signal(to: str) -> Any:
+    """The DBC's signal a scene wires to as ``can.Message.Signal``."""
+    from rig.dbc import load_dbc
+    _, message, signal = to.split(".")
+    return load_dbc().get_message_by_name(message).get_signal_by_name(signal)
+
+
 def _counter_wrap() -> int:
     """The pulse counts the lab's counter holds (its DBC signal ``LabSpeed.Pulses``, counted modulo this)."""
-    from rig.dbc import load_dbc
-    return 2 ** load_dbc().get_message_by_name("LabSpeed").get_signal_by_name("Pulses").length
+    return 2 ** _dbc_signal("can.LabSpeed.Pulses").length
 
 
 def _at_field_limit(to: str, values: list[float], unit: float = 1.0) -> bool:
     """Whether any of ``values`` (SI / ``unit``) of the signed CAN signal ``to`` (``can.Message.Signal``) sits at its
     field's limit: the unit sent the limit for a quantity beyond the field's range."""
-    from rig.dbc import at_field_limit, load_dbc
-    _, message, signal = to.split(".")
-    spec = load_dbc().get_message_by_name(message).get_signal_by_name(signal)
-    return bool(np.any(at_field_limit(spec, np.asarray(values, float) * unit)))
+    from rig.dbc import at_field_limit
+    return bool(np.any(at_field_limit(_dbc_signal(to), np.asarray(values, float) * unit)))
 
 
 def class_bound(lab: Lab, to: str, reading: float, counter_step: float) -> float:

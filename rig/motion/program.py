@@ -108,6 +108,11 @@ class CamProgram:
         return self._start.copy()
 
     @property
+    def start_levels(self) -> np.ndarray:
+        """Output (m) at the start of every segment."""
+        return self._level.copy()
+
+    @property
     def levels(self) -> tuple[float, float]:
         """(lowest, highest) output over the revolution (m)."""
         lv = np.append(self._level, 0.0)

@@ -82,14 +82,10 @@ def _governing_segment(program: CamProgram,
     level above the program's lowest (m). A segment's pressure angle is tan α = s'/(r_b + s) with s the follower's
     whole lift, so a segment that starts higher needs that much less radius (a second rise stacked on a first one
     was sized from its own bottom: 5 mm too much, an audit)."""
-    level, lowest = 0.0, program.levels[0]
-    moving = []
-    for seg in program.segments:
-        step = seg.stroke if seg.kind == "rise" else -seg.stroke if seg.kind == "return" else 0.0
-        if seg.kind in ("rise", "return"):
-            moving.append((seg, get_law(seg.law) if seg.kind == "rise" else ReversedLaw(get_law(seg.law)),
-                           min(level, level + step) - lowest))
-        level += step
+    lowest = program.levels[0]
+    moving = [(seg, get_law(seg.law) if seg.kind == "rise" else ReversedLaw(get_law(seg.law)),
+               level - lowest - (seg.stroke if seg.kind == "return" else 0.0))    # the segment's lower level
+              for seg, level in zip(program.segments, program.start_levels) if seg.kind in ("rise", "return")]
     if not moving:
         raise ValueError("the cam program has no rise")
     kinds = [seg.kind for seg, _, _ in moving]
