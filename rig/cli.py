@@ -423,7 +423,7 @@ def _scene_config(scene: Path, cycles: int | None, fidelity: int | None = None, 
 
 def cmd_tolerance(args: argparse.Namespace) -> int:
     from rig.plants.cam_bar.tolerance import load_tolerances
-    from rig.executors.options import executor_from_args
+    from rig.executors.options import run_on_executor
     from rig.plants.cam_bar.tolerance_report import plot_study, run_study, study_json, study_table
     from rig.runner.session import scene_digest
     from rig.plants.cam_bar.scene_io import mechanism_from_scene, require_cam_bar
@@ -437,9 +437,8 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
         writable_file(Path(args.json), "tolerance JSON", JSON_START)
     require_cam_bar(load_scene(scene_path), "rig tolerance")
     cfg = _scene_config(scene_path, None, choose_level=False)     # the whole scene checked; no level: no plant run
-    study = None
 
-    def write() -> None:
+    def write(study: Any) -> None:
         """The finished study's table, chart and JSON."""
         print(study_table(study))
         print(f"chart: {plot_study(study, chart)}")
@@ -449,21 +448,18 @@ def cmd_tolerance(args: argparse.Namespace) -> int:
             file_parent(Path(args.json)).write_text(json.dumps(study_json(study, run), indent=1) + "\n")
             print(f"JSON: {args.json}")
 
-    try:
-        with executor_from_args(args) as executor:
-            if not args.quiet:
-                print(f"Monte Carlo on {executor.describe()}", file=sys.stderr)
-            study = run_study(mechanism_from_scene(cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
-                              progress=not args.quiet, task_samples=args.task_samples)
-    except KeyboardInterrupt as stop:           # after the last sample: while the workers closed — keep the study
-        if study is None:
-            raise
-        write()
+    def study_on(executor: Any) -> Any:
+        if not args.quiet:
+            print(f"Monte Carlo on {executor.describe()}", file=sys.stderr)
+        return run_study(mechanism_from_scene(cfg.scene), load_tolerances(), args.samples, cfg.seed, executor,
+                         progress=not args.quiet, task_samples=args.task_samples)
+
+    def kept(study: Any, stop: KeyboardInterrupt) -> None:  # after the last sample, while the workers closed
+        write(study)
         print(f"rig: {stopped(stop)} while the workers closed, after the study's last sample: its outputs above are "
               f"whole", file=sys.stderr)
-        stop.said = ""
-        raise
-    write()
+
+    write(run_on_executor(args, study_on, kept))
     return 0
 
 

@@ -3,8 +3,12 @@ from __future__ import annotations
 
 import argparse
 import re
+from collections.abc import Callable
+from typing import TypeVar
 
 from rig.executors import Executor, available, make_executor
+
+T = TypeVar("T")
 
 
 def _workers(text: str) -> int:
@@ -53,3 +57,22 @@ def executor_from_args(args: argparse.Namespace, local: str = "dask") -> Executo
     if name is None and args.scheduler is None and args.workers > 1:
         name = local
     return make_executor(name, args.workers, args.scheduler)
+
+
+def run_on_executor(args: argparse.Namespace, work: Callable[[Executor], T], kept: Callable[[T, KeyboardInterrupt], None],
+                    local: str = "dask") -> T:
+    """``work(executor)`` on the executor the options name, its result returned once the executor has closed.
+    A Ctrl-C while the workers close, after ``work`` returned, does not lose the result: ``kept(result, stop)``
+    writes it and says so, then the stop goes on (marked said: the command line adds no second line). A stop
+    inside ``work`` goes on as it came."""
+    done: list[T] = []
+    try:
+        with executor_from_args(args, local=local) as executor:
+            done.append(work(executor))
+    except KeyboardInterrupt as stop:
+        if not done:
+            raise
+        kept(done[0], stop)
+        stop.said = ""          # type: ignore[attr-defined]
+        raise
+    return done[0]

@@ -11,7 +11,7 @@ MANIFEST = ".mechrig-sweep"      # in a sweep directory: the files the last swee
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from rig.executors.options import executor_from_args
+    from rig.executors.options import run_on_executor
     from rig.outputs import claim_dir, clear_previous, list_written, writable_dir
     from rig.scene import load_scene
     from rig.analysis.numbers import plural
@@ -24,7 +24,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
     out = Path(args.output)
     writable_dir(out, "sweep")
-    bars, result = [], None
 
     def table_of(done: Any) -> Path:
         """The table of a stopped sweep's points (no maps), in place of an earlier sweep's outputs."""
@@ -33,38 +32,38 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         list_written(out, MANIFEST, before)
         return table
 
-    try:
-        with executor_from_args(args, local="dask-processes") as executor:
-            def starting() -> None:             # the checks passed: the line naming the executor, then the bar
-                if not args.quiet:
-                    print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
-                bars.append(progress_bar(len(grid(params)), "sweep", " points", not args.quiet))
+    def sweep_on(executor: Any) -> Any:
+        bars: list[Any] = []
 
-            try:
-                result = run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity, starting,
-                                   lambda points: bars[0].update(points))
-            except SweepInterrupted as stop:           # the points done are kept: a table of them, then the stop
-                for bar in bars:
-                    bar.close()
-                if not stop.result.points:              # nothing to keep: an earlier sweep's outputs stay as they were
-                    print(f"rig: the sweep was {stopped(stop)} before any of its {stop.total} points was done; nothing "
-                          f"written", file=sys.stderr)
-                    stop.said = ""                  # said: rig.cli adds no "rig: interrupted" (a second Ctrl-C while the
-                    raise                           # executor closes is a new one, and says so)
-                print(f"rig: the sweep was {stopped(stop)} after {len(stop.result.points)} of {stop.total} points; their "
-                      f"rows are in {table_of(stop.result)} (no maps)", file=sys.stderr)
-                stop.said = ""
-                raise
-            finally:
-                for bar in bars:
-                    bar.close()
-    except KeyboardInterrupt as stop:           # after the last point: while the workers closed — keep the points
-        if result is None or isinstance(stop, SweepInterrupted):
+        def starting() -> None:                 # the checks passed: the line naming the executor, then the bar
+            if not args.quiet:
+                print(f"sweep of {len(params)} parameter(s) on {executor.describe()}", file=sys.stderr)
+            bars.append(progress_bar(len(grid(params)), "sweep", " points", not args.quiet))
+
+        try:
+            return run_sweep(scene, params, args.metric, executor, args.revolutions, args.fidelity, starting,
+                             lambda points: bars[0].update(points))
+        except SweepInterrupted as stop:               # the points done are kept: a table of them, then the stop
+            for bar in bars:
+                bar.close()
+            if not stop.result.points:                  # nothing to keep: an earlier sweep's outputs stay as they were
+                print(f"rig: the sweep was {stopped(stop)} before any of its {stop.total} points was done; nothing "
+                      f"written", file=sys.stderr)
+                stop.said = ""                      # said: rig.cli adds no "rig: interrupted" (a second Ctrl-C while the
+                raise                               # executor closes is a new one, and says so)
+            print(f"rig: the sweep was {stopped(stop)} after {len(stop.result.points)} of {stop.total} points; their "
+                  f"rows are in {table_of(stop.result)} (no maps)", file=sys.stderr)
+            stop.said = ""
             raise
+        finally:
+            for bar in bars:
+                bar.close()
+
+    def kept(done: Any, stop: KeyboardInterrupt) -> None:   # after the last point, while the workers closed
         print(f"rig: {stopped(stop)} while the workers closed, after the sweep's last point: its "
-              f"{plural(len(result.points), 'point')} are in {table_of(result)} (no maps)", file=sys.stderr)
-        stop.said = ""
-        raise
+              f"{plural(len(done.points), 'point')} are in {table_of(done)} (no maps)", file=sys.stderr)
+
+    result = run_on_executor(args, sweep_on, kept, local="dask-processes")
     before = clear_previous(claim_dir(out), MANIFEST, _earlier_sweep)
     table = write_table(result, out / "sweep.csv")
     failed = [(p, e) for p, e, v in zip(result.points, result.errors, result.values) if e]

@@ -93,7 +93,7 @@ def plot(result: JumpMap, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from rig.executors.options import add_executor_arguments, executor_from_args
+    from rig.executors.options import add_executor_arguments, run_on_executor
     from rig.scene import load_scene
     from rig.stops import stopped
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -102,18 +102,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("-o", "--output", default="out/jump_map.png")
     add_executor_arguments(parser, local="dask-processes")
     args = parser.parse_args(argv)
-    result = None
-    try:
-        with executor_from_args(args, local="dask-processes") as executor:
-            result = jump_map(load_scene(args.scene), executor=executor)
-    except KeyboardInterrupt as stop:           # after the last point, while the workers closed: keep the map
-        if result is None:
-            raise
+
+    def kept(result: JumpMap, stop: KeyboardInterrupt) -> None:     # after the last point, while the workers closed
         show(result, Path(args.output))
         print(f"{stopped(stop)} while the workers closed, after the map's last point: the map above is whole",
               file=sys.stderr)
         raise SystemExit(130) from None
-    show(result, Path(args.output))
+
+    show(run_on_executor(args, lambda executor: jump_map(load_scene(args.scene), executor=executor), kept,
+                         local="dask-processes"), Path(args.output))
 
 
 def show(result: JumpMap, output: Path) -> None:
