@@ -2,6 +2,7 @@
 curve against the pitch curve drawn point by point, and the checks a scene's radii make possible."""
 from __future__ import annotations
 
+import re
 from math import radians
 from pathlib import Path
 
@@ -55,3 +56,19 @@ def test_the_lab_cam_scene_is_checked_and_its_missing_radii_are_said(tmp_path, c
     rows = {line.split("  ")[0]: line for line in capsys.readouterr().out.splitlines()}
     assert "FAIL" in rows["max pressure angle"] and "r_b = 20 mm" in rows["max pressure angle"]
     assert "FAIL" in rows["min convex pitch radius"] and "r_R = 18 mm" in rows["min convex pitch radius"]
+
+
+@pytest.mark.parametrize("kwargs, named", [
+    (dict(base_radius=float("nan")), "base radius (m) must be a finite number"),
+    (dict(base_radius=-0.01), "base radius (m) must be positive"),
+    (dict(roller_radius=0.0), "roller radius (m) must be positive"),
+    (dict(mu=-0.1), "guide friction mu must be >= 0"),
+    (dict(n=2), "angles n must be a whole number >= 8"),
+    (dict(omega=float("inf")), "cam speed omega (rad/s) must be a finite number"),
+    (dict(contact_force=lambda f: np.full_like(f, np.nan)), "contact force (N) must be finite (3600 of 3600"),
+])
+def test_library_call_with_an_impossible_input_names_it(kwargs, named):
+    """Called from a script (no scene checks in between), a NaN base radius drew every curve as NaN without a word."""
+    args = dict(omega=1.0, contact_force=lambda f: np.ones_like(f)) | kwargs
+    with pytest.raises(ValueError, match=re.escape(named)):
+        translating_design(PROGRAM, **args)

@@ -16,6 +16,7 @@ import numpy as np
 from rig.mechanisms.cam.curvature import curvature_radius
 from rig.mechanisms.cam.design import LOAD_COEFFICIENT, CamDesign, Check, required_base_radius, sizing_checks
 from rig.mechanisms.cam.limits import pressure_angle_limit, undercut_radius
+from rig.mechanisms.checks import finite, finite_array, positive, whole
 from rig.motion.program import CamProgram
 
 GUIDE_MU = 0.1      # guide friction of the H/h optimum when the scene gives none (assumption, as the cam-bar's μ)
@@ -37,6 +38,15 @@ def translating_design(program: CamProgram, omega: float, contact_force: Callabl
     ``contact_force(phi)`` (N) the force pressing the roller on the cam at those angles (< 0: it lifts off);
     ``base_radius``/``roller_radius`` (m) the cam's, when known; ``mu`` the guide friction (default
     :data:`GUIDE_MU`, an assumption)."""
+    finite(omega, "cam speed omega (rad/s)")
+    if base_radius is not None:
+        positive(base_radius, "base radius (m)")
+    if roller_radius is not None:
+        positive(roller_radius, "roller radius (m)")
+    if mu is not None and finite(mu, "guide friction mu") < 0.0:
+        raise ValueError(f"guide friction mu must be >= 0, got {mu!r}")
+    positive(load_coefficient, "load coefficient")
+    n = whole(n, 8, "angles n")
     phi = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     a_lim = pressure_angle_limit("translating")
     sizing = sizing_checks(program, GUIDE_MU if mu is None else mu, load_coefficient,
@@ -46,7 +56,7 @@ def translating_design(program: CamProgram, omega: float, contact_force: Callabl
     alpha = np.arctan(m.s_p / (r_b + m.s))
     rho = pitch_radius(program, r_b, phi)
     cut = undercut_radius(roller_radius) if roller_radius is not None else float("nan")
-    force = np.asarray(contact_force(phi), dtype=float)
+    force = finite_array(contact_force(phi), "contact force (N)")
     out = CamDesign(phi, np.abs(alpha), a_lim, rho, cut, np.full(n, np.nan), float("nan"), force)
     c = out.checks
     i = int(np.argmax(np.abs(alpha)))
