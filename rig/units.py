@@ -79,6 +79,20 @@ def _unit_text(suffix: str) -> str:
 
 
 _NUMBER = re.compile(r"\d|\binf\b|\bnan\b", re.IGNORECASE)      # a quantity string holds a number
+#: "1 500 rpm": pint multiplies the two (500 rpm; "1 000 mm" is 0); not a unit that starts with a number ("150 1/min")
+_SIDE_BY_SIDE = re.compile(r"\d\.?\s+\.?\d+(?:\.\d*)?(?!\s*/)")
+
+
+def _one_number(value: str, what: str) -> None:
+    """Refuse a quantity string whose number a person and pint read differently: a comma (a decimal comma, "1,89
+    N/mm", or a thousands separator, "1,500 rpm": 100× off either way read as the other) and numbers side by side
+    (a thousands space, "1 500 rpm", which pint reads as the product 1·500)."""
+    if "," in value:
+        raise UnitError(f"{what}: {value!r} has a comma: a decimal comma or a thousands separator? Write the number "
+                        f"with a decimal point and no separators (e.g. \"1.89 N/mm\", \"1500 rpm\")")
+    if _SIDE_BY_SIDE.search(value):
+        raise UnitError(f"{what}: {value!r} has two numbers side by side (pint would multiply them: \"1 500\" reads "
+                        f"500): write one number without spaces (e.g. \"1500 rpm\")")
 
 
 @lru_cache(maxsize=4096)
@@ -86,7 +100,7 @@ def _parsed(text: str) -> tuple[float, str]:
     """(magnitude, unit) of a quantity string, parsed by pint once per text (a scene is read several times per
     command, 1600 quantities in the demo's ``rig run``; pint's parser takes ~0.2 ms each). Integer literals read as
     floats: a power of numbers ("9**9**9") overflows at once instead of computing a huge integer for minutes."""
-    q = ureg.Quantity(_INTEGER.sub(r"\1.0", text.replace(",", "")))
+    q = ureg.Quantity(_INTEGER.sub(r"\1.0", text))
     if not isinstance(q, ureg.Quantity):
         q = ureg.Quantity(float(q), "")
     return float(q.magnitude), str(q.units)
@@ -138,6 +152,7 @@ def to_si(value: object, si_unit: str, unit: str | None = None, what: str = "val
                 raise UnitError(f"{what}: the key already names the unit {unit!r}; give a plain number, not {value!r}")
             if not _NUMBER.search(value):           # no number: not a quantity ("mm" was read as 1 mm; an audit)
                 raise _unknown(value, None, si_unit, (), what)
+            _one_number(value, what)
             magnitude, unit_text = _parsed(value)
             if unit_text in ("", "dimensionless") and not is_dimensionless(si_unit):
                 raise UnitError(f"{what}: {value!r} has no unit; expected something convertible to {si_unit}")

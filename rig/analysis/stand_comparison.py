@@ -124,10 +124,14 @@ def read_rows(scene: Scene) -> list[dict[str, Any]]:
 
 def _split(text: str, where: str) -> tuple[float, str, str]:
     """(number as written, unit as written, SI unit) of a thesis value such as "46.6 ms" or "2"."""
-    m = re.fullmatch(r"\s*([-+0-9.eE]+)\s*(.*?)\s*", str(text))
+    text = str(text)                                    # a TOML number too (thesis = 2)
+    m = re.fullmatch(r"\s*([-+0-9.eE]+)\s*(.*?)\s*", text)
     if m is None:
         raise SceneError(f"{where}: thesis value {text!r} is not a number with a unit")
     number, unit = float(m.group(1)), m.group(2)
+    if not unit and not number.is_integer():        # 0.0466 read as a count, or 14.5 compared with a torque (an audit)
+        raise SceneError(f"{where}: thesis value {text!r} has no unit, which makes it a count, and it is not a whole "
+                         f"number: write its unit, e.g. \"{text} N*m\" or \"{text} ms\"")
     for si in ("N*m", "s", "rad", "rad/s", "J", "1"):
         try:
             to_si(f"1 {unit}" if unit else 1.0, si)
@@ -171,6 +175,16 @@ def check_rows(scene: Scene) -> None:
         _agrees(th.spec["tolerance"], th.number, th.unit, th.si, th.scale, th.number, th.where)
 
 
+def _same_dimension(si: str, metric_unit: str) -> bool:
+    """Whether a thesis value in ``si`` can be compared with a result in ``metric_unit`` (a word result such as
+    "required" counts as a number)."""
+    try:
+        to_si(1.0, si, metric_unit or "1")
+        return True
+    except UnitError:
+        return False
+
+
 def _origins(stimuli: list[Stimulus]) -> Callable[[str], float]:
     """Time (s) of the stimulus a result named ``"<stimulus>: …"`` is measured from (0: the run's start)."""
     starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}
@@ -192,6 +206,10 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
                                  f"{'none' if after is None else after.value_text()}: another event, not judged")
         if metric is None:
             why = why or f"no result {spec['rig']!r} in this run"
+        elif spec["part"] == "value" and not _same_dimension(si, SI.get(metric.unit, metric.unit)):
+            metric, why = None, (f"the thesis value {spec['thesis']!r} is {'a count' if si == '1' else f'in {unit}'}, "
+                                 f"the rig's {metric.name!r} in {metric.unit or 'counts'}: not compared (write the "
+                                 f"thesis with its unit)")
         elif spec["part"] == "value":
             value = metric.number()                          # a count "3, at …": 3; shutdown "required": 1
             if value is not None and not isinstance(metric.value, str):

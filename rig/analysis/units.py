@@ -165,7 +165,10 @@ def _strings(node: Any) -> Iterable[str]:
 
 @lru_cache(maxsize=256)
 def _quantity_unit(text: str) -> str | None:
-    """The unit a quantity string is written in (``"43 mm"`` → ``"millimeter"``); None if it is not one."""
+    """The unit a quantity string is written in (``"43 mm"`` → ``"millimeter"``); None if it is not one, nor is a
+    unit alone (a channel's ``unit = "rad"``: its coherent SI unit, not how the scene writes its values)."""
+    if not any(c.isdigit() for c in text):
+        return None
     try:
         q = ureg.Quantity(text)
     except Exception:  # not a quantity (names, modes): pint raises many kinds
@@ -238,6 +241,20 @@ def _axis_of_name(name: str) -> str:
     return "y2" if base.startswith("y2") else base[:1]
 
 
+def configured_units(config: Mapping | None) -> dict[str, str]:
+    """Channel units a scene's raw ``[device.config]`` sets, over the unit's factory X (m) and Y (N), a channel it
+    disables left out: the units of a program the host did not read back (the serial link off; the schemas say
+    "rad" where the report said mm)."""
+    written = (config or {}).get("channels")
+    out = {"x": "m", "y": "N"}
+    for ch, c in (written.items() if isinstance(written, Mapping) else ()):
+        if isinstance(c, Mapping) and c.get("enabled", True) is False:
+            out.pop(ch, None)
+        elif isinstance(c, Mapping) and isinstance(c.get("unit"), str):
+            out[ch] = c["unit"]
+    return out
+
+
 def display_units(program: Mapping | None, scene_config: Mapping | None = None,
                   scene: Mapping | None = None) -> DisplayUnits:
     """Display units of a program (normalised, as the device returns it: ``channels.<ch>.unit`` and
@@ -246,7 +263,7 @@ def display_units(program: Mapping | None, scene_config: Mapping | None = None,
     program = program or {}
     channels = {ch: c.get("unit") for ch, c in (program.get("channels") or {}).items()
                 if isinstance(c, Mapping) and c.get("enabled", True) and c.get("unit")}
-    channels = channels or {"x": "m", "y": "N"}
+    channels = channels or configured_units(scene_config)
     shown = {}
     for ch, si in channels.items():
         try:
@@ -280,6 +297,7 @@ def scene_device_config(scene_text: str | None) -> tuple[int | None, Mapping | N
 
 
 def recording_units(rec: Any, program: int) -> DisplayUnits:
-    """Display units of ``program`` in a recording (its program attachment and the scene that wrote it)."""
+    """Display units of ``program`` in a recording (its program attachment and the scene that wrote it; the scene's
+    ``[device] program`` defaults to 0, as the run's)."""
     number, config, scene = scene_device_config(getattr(rec, "scene_text", None))
-    return display_units(rec.programs.get(program), config if number == program else None, scene)
+    return display_units(rec.programs.get(program), config if (number or 0) == program else None, scene)

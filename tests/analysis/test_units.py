@@ -63,3 +63,18 @@ def test_an_energy_is_shown_in_joules_not_as_a_torque():
     assert (unit("J").label, unit("N*m").label) == ("J", "N·m")
     assert shown_value("work_per_turn", 0.0037) == (0.0037, "J")
     assert shown_value("work_per_turn_theory", 0.0037) == (0.0037, "J")      # a theory beside its value: same unit
+
+
+def test_without_a_program_read_back_the_scene_config_gives_the_channel_units():
+    """The serial link off: no program attachment. The report, results.csv and curves.csv showed an angle channel as
+    mm and a torque as N (the unit's factory X and Y); the scene's [device.config] says rad and N·m, written in °."""
+    config = {"channels": {"x": {"unit": "rad", "scaling": {"electrical": "10 V", "engineering": "340 deg"}},
+                           "y": {"unit": "N*m", "scaling": {"electrical": "5 V", "engineering": "50 N*m"}}}}
+    du = display_units(None, config)
+    assert (du.channel("x").si, du.channel("x").label, du.channel("y").si) == ("rad", "°", "N*m")
+    assert du.value("x_max").label == "°" and du.value("y_min").label == "N·m"
+    plain = display_units(None, {"channels": {"y2": {"enabled": False}}})       # nothing configured: factory m, N
+    assert (plain.channel("x").si, plain.channel("y").si) == ("m", "N") and "y2" not in plain.channels
+    rec = Recording(path=None, scene_text='[device.config.channels.x]\nunit = "rad"\n'
+                                          'scaling = { electrical = "10 V", engineering = "340 deg" }\n')
+    assert recording_units(rec, 0).channel("x").label == "°"       # [device] program defaults to 0, as the run's

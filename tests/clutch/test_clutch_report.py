@@ -190,7 +190,9 @@ def test_rig_values_are_shown_as_precisely_as_the_thesis_values_beside_them():
 
 
 @pytest.mark.parametrize("old, new, said", [('thesis = "', 'thesis = "7 N', r"unit 'N.*' of '7 N.*' is not a torque"),
-                                            ('thesis = "', 'thesis = "abc', r"thesis value 'abc.*' is not a number")])
+                                            ('thesis = "', 'thesis = "abc', r"thesis value 'abc.*' is not a number"),
+                                            ('thesis = "100.18 rad/s"', 'thesis = 100.18',
+                                             r"thesis value '100.18' has no unit, which makes it a count")])
 def test_a_comparison_row_in_error_is_refused_before_the_run(tmp_path, capsys, old, new, said):
     """A [[comparison]] mistake once surfaced after a whole recording, naming the recording (exit 2 must mean nothing
     ran): it names the scene and nothing is recorded."""
@@ -230,3 +232,18 @@ def test_the_speed_chart_speaks_the_scenes_speed_unit_and_encoder(runs, tmp_path
     caption = next(line for line in text.splitlines() if line.startswith("*Speeds of both halves"))
     assert re.search(r"frequency above \d+(\.\d+)? rpm for the driving half's 4096 counts per turn", caption), caption
     assert "rad/s" not in caption
+
+
+def test_a_count_thesis_beside_a_quantity_is_not_compared_and_says_why(tmp_path):
+    """thesis = 14 beside the start-up's peak torque (N·m): the run recorded, then failed with "1.0 N*m has the wrong
+    dimension", naming no key, and no report could be written. The row is not compared and says why."""
+    from rig.analysis.clutch_metrics import Metric
+    from rig.analysis.stand_comparison import compare
+    from rig.scene import load_scene
+    text = (SCENES / "clutch_leaf_startup.toml").read_text()
+    assert 'thesis = "14.5 N*m"' in text
+    scene_path = tmp_path / "count.toml"
+    scene_path.write_text(text.replace('thesis = "14.5 N*m"', "thesis = 14", 1))
+    peak = Metric("start-up: peak torque", 14.7, "N*m", "extreme reading", at=0.0466)
+    (row,) = [r for r in compare(load_scene(scene_path), [], [peak]) if r.thesis == 14]
+    assert row.rig is None and row.verdict == "n/a" and "is a count, the rig's 'start-up: peak torque' in N*m" in row.why

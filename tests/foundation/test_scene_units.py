@@ -98,3 +98,29 @@ def test_an_angle_pint_counts_as_no_dimension_is_still_checked(value, unit, si, 
 @pytest.mark.parametrize("value", ["150 rpm", "2.5 rev/s", "2.5 revolution/s", "900 deg/s", "15.707963267948966 rad/s"])
 def test_an_angular_speed_in_revolutions_or_angles_per_time(value):
     assert to_si(value, "rad/s") == pytest.approx(5 * 3.141592653589793, rel=1e-12)
+
+
+@pytest.mark.parametrize("value, si, message", [
+    ("0,05 mm", "m", "has a comma"),                # read 5 mm: the comma was dropped (an audit)
+    ("1,89 N/mm", "N/m", "has a comma"),            # read 189 N/mm
+    ("1,500 rpm", "rad/s", "has a comma"),          # a thousands separator: as ambiguous
+    ("1 500 rpm", "rad/s", "has two numbers side by side"),     # read 500 rpm: pint multiplied 1·500
+    ("1 000 mm", "m", "has two numbers side by side"),          # read 0 m
+    ("3 2 mm", "m", "has two numbers side by side"),
+])
+def test_a_number_a_person_and_pint_read_differently_is_refused(value, si, message):
+    with pytest.raises(UnitError, match=f"stroke: '{value}' {message}"):
+        to_si(value, si, what="stroke")
+
+
+@pytest.mark.parametrize("value, si, expected", [("60 / mm", "1/m", 60000.0), ("1.5e3 mm", "m", 1.5), ("150 1/s", "Hz", 150.0),
+                                                 ("10 ** 3 mm", "m", 1.0), ("0.5 * 2 mm", "m", 0.001)])
+def test_one_number_with_its_unit_is_still_read(value, si, expected):
+    assert to_si(value, si) == pytest.approx(expected)
+
+
+def test_a_decimal_comma_in_a_scene_names_the_key(tmp_path: Path):
+    scene = tmp_path / "s.toml"
+    scene.write_text('[plant]\nL3 = "0,26 m"\n')
+    with pytest.raises(SceneError, match=r"L3.*'0,26 m' has a comma"):
+        load_scene(scene).read("plant", SCHEMA)
