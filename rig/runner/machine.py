@@ -6,6 +6,7 @@ simulated time, the unit and its bus in transmit cycles within them; everything 
 from __future__ import annotations
 
 import difflib
+import hashlib
 import logging
 import math
 import re
@@ -26,10 +27,16 @@ from rig.units import to_si
 log = logging.getLogger(__name__)
 
 
+INSTRUMENT_STREAM = 0x696E737472   # spawn key of the instruments' generators under the scene seed ("instr")
+
+
 def seeded_generators(seed: int, names: list[str]) -> dict[str, np.random.Generator]:
-    """One independent generator per name, stable for a given seed and name list."""
-    children = np.random.SeedSequence(seed).spawn(len(names))
-    return {name: np.random.default_rng(child) for name, child in zip(names, children)}
+    """One independent generator per name, each a function of the seed and its name alone: a sensor draws the same
+    errors wherever its table stands in the scene and whichever others the scene adds (by position, swapping two
+    [transducers.*] tables re-drew both, x_max 42.16 → 41.89 mm; an audit)."""
+    return {name: np.random.default_rng(np.random.SeedSequence(
+        seed, spawn_key=(INSTRUMENT_STREAM, int.from_bytes(hashlib.sha256(name.encode()).digest()[:8], "big"))))
+        for name in names}
 
 
 def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:

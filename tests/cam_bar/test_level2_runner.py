@@ -1,5 +1,6 @@
 """Fidelity 2 through the runner interface and a scene recorded end to end."""
 import re
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from rig.plants.cam_bar.variation import CycleVariation
 from rig.recorder import read_recording
 from rig.runner import run_scene
 from rig.scene import SceneError, load_scene
+from rig.units import to_si
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "data" / "scenes" / "pin_insertion_l2.toml"
@@ -98,9 +100,15 @@ def test_level2_scene_records_end_to_end(tmp_path):
     assert np.max(rec.truth["delta_w"]) > 1e-6                   # pressed into the working flank
     curve = rec.curves[0]
     assert 0.041 < curve.x.max() < 0.043
-    level1 = PinInsertionMechanism()          # the pin's force-travel law: no ringing, the rod force follows level 1
-    peak = level1.kinetostatics(np.linspace(0, 2 * np.pi, 3601), 150 * RPM).F_rod.min()
-    assert abs(curve.y.min() - peak) < 5.0                       # F_c drawn with σ = 2 N, transducer noise
+    # the pin's force-travel law: no ringing (a step rang the contact ±100 N), the rod force follows level 1 of the
+    # cycle's drawn machine (F_c 42.9 N) within what the load cell's static errors allow (its description's bounds)
+    drawn = CamBarPlant.from_scene(load_scene(SCENE)).cycles.mechanism(0)
+    peak = drawn.kinetostatics(np.linspace(0, 2 * np.pi, 3601), 150 * RPM).F_rod.min()
+    cell = tomllib.loads((ROOT / "data" / "devices" / "burster_8411.toml").read_text())["transducer"]
+    full_scale = to_si(cell["range_max"], "N")
+    static = (full_scale * sum(to_si(cell[k], "1") for k in ("zero_offset_max", "nonlinearity_max"))
+              + full_scale * to_si(cell["hysteresis_max"], "1") / 2 + to_si(cell["gain_error_max"], "1") * abs(peak))
+    assert abs(curve.y.min() - peak) < static + 1.0              # 8.3 N + the noise and the 2 kHz element's ripple
 
 
 def test_a_driven_cam_switches_to_the_next_cycles_loads_at_its_revolution_whatever_the_chunk():
@@ -149,7 +157,8 @@ def test_the_recording_holds_no_plant_signal_or_event_from_after_the_run(tmp_pat
     rec = read_recording(out)
     # the machine stops after the step (100 ms) in which its 3rd curve ended (0.572 s): at 0.6 s; the bus then drains
     # to 0.75 s with no plant behind it (an audit found the truth there, and a 4th revolution's flank switches)
-    assert summary.simulated_time == pytest.approx(0.75) and rec.truth["t"][-1] == pytest.approx(0.6)
+    assert 0.7 < summary.simulated_time <= 0.75 and rec.truth["t"][-1] == pytest.approx(0.6)    # the drain: the
+    # queued frames, some of whose sizes follow the sensors' draws (0.75 s, 0.745 s after their streams were named)
     plant = [e for e in rec.events if e["kind"] in ("flank_switch", "flank_bounce")]
     assert plant and max(e["t"] for e in plant) <= 0.6
     assert len([e for e in rec.events if e["kind"] == "flank_switch"]) == 6        # two in each of the 3 revolutions

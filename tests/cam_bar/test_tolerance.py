@@ -198,3 +198,15 @@ def test_a_set_whose_tolerances_allow_machines_that_cannot_be_built_says_how_man
     with pytest.raises(SingularPositionError, match=rf"{bad} of {PROBE} machines drawn from these tolerances "
                                                     rf"\({100 * bad / PROBE:.3g} %\) cannot be assembled"):
         monte_carlo(chain, tol, 2000, 5)
+
+
+def test_the_clearance_run_shares_no_machines_with_the_next_seeds_run(chain):
+    """The clearance run drew from seed + 1: every lengths deviation of seed s's clearance run was the lengths-only
+    run of seed s + 1 (studies at adjacent seeds not independent; an audit). It has a stream of its own."""
+    from rig.plants.cam_bar.tolerance_report import clearance_stream
+    tol = ToleranceSet(THESIS)
+    (clear,), (next_seed,) = tasks(chain, tol, 500, clearance_stream(11)), tasks(chain, tol, 500, 12)
+    (same,) = tasks(chain, tol, 500, clearance_stream(11))
+    drawn = [np.stack(list(sample_deviations(np.random.default_rng(t.seed), tol, 500).values()))
+             for t in (clear, next_seed, same)]
+    assert not np.any(np.isclose(drawn[0], drawn[1], rtol=0.0, atol=1e-15)) and np.array_equal(drawn[0], drawn[2])

@@ -250,9 +250,16 @@ def test_a_self_locking_clutch_runs_and_is_said(tmp_path):
     angle = rec.truth["relative_angle"]
     unloaded = (rec.truth["t"] > 20.0) & (rec.truth["t"] <= 40.0)              # the first unloading ramp
     assert np.ptp(angle[unloaded]) == 0.0 and angle[unloaded][0] > 0.04         # held where the load left it
+    # the multimeter's loop differs from the theory by what its potentiometer's draws allow: the gain error scales
+    # the loop, its hysteresis (rising − falling angle) and one reading step widen or narrow it by up to that angle
+    # times the torque span (5.4 % on one draw, 8 % possible: a fixed 5 % passed or failed with the seed)
+    span = to_si(POT["range_max"], "rad")
+    gain, hyst = (to_si(POT[k], "1") for k in ("gain_error_max", "hysteresis_max"))
+    step = to_si(POT["resolution"], "V") / to_si(POT["output_at_max"], "V") * span
     for r in rows:
         assert r["truth"] == pytest.approx(r["theory"], rel=2e-4)
-        assert r["measured"] == pytest.approx(r["theory"], rel=0.05)
+        allowed = gain * r["theory"] + (hyst * span + step) * (r["torque_max"] - r["torque_min"])
+        assert abs(r["measured"] - r["theory"]) <= allowed, (r, allowed)
 
 
 def test_a_cycle_cut_by_the_runs_end_and_a_disengagement_outside_cycles_are_said(tmp_path):

@@ -256,7 +256,7 @@ def test_ok_share_falls_as_the_insertion_force_leaves_the_window(dask_scheduler)
     """The device's own verdicts with the scene's per-cycle variation: the demo's machine is all OK; as the
     piercing force grows towards the window's -75 N bottom the share falls, the same on any executor."""
     scene = with_overrides(load_scene(DEFAULT_SCENE), {"scene.cycles": 20})
-    params = [parse_param("plant.F_c=40 N,58 N,62 N")]
+    params = [parse_param("plant.F_c=40 N,56 N,58 N")]
     with make_executor("serial") as ex:
         serial = run_sweep(scene, params, ["ok_share"], ex, revolutions=1)
     with make_executor("dask", scheduler=dask_scheduler) as ex:

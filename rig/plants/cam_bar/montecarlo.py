@@ -75,14 +75,16 @@ class MonteCarloResult(ColumnStats):
     phi: np.ndarray
 
 
-def tasks(chain: CamChain, tol: ToleranceSet, n: int, seed: int, task_samples: int = TASK_SAMPLES) -> list[ChainSamples]:
+def tasks(chain: CamChain, tol: ToleranceSet, n: int, seed: "int | np.random.SeedSequence",
+          task_samples: int = TASK_SAMPLES) -> list[ChainSamples]:
     """The run's tasks: ``task_samples`` machines each (the last one the rest), task i drawn from
-    ``SeedSequence(seed).spawn(count)[i]``."""
+    ``SeedSequence(seed).spawn(count)[i]`` (``seed`` an int, or a SeedSequence of its own stream)."""
     sizes = [min(task_samples, n - i) for i in range(0, n, task_samples)]
-    return [ChainSamples(chain, tol, s, k) for s, k in zip(np.random.SeedSequence(seed).spawn(len(sizes)), sizes)]
+    root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    return [ChainSamples(chain, tol, s, k) for s, k in zip(root.spawn(len(sizes)), sizes)]
 
 
-def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, executor: "Executor | None" = None,
+def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: "int | np.random.SeedSequence", executor: "Executor | None" = None,
                 task_samples: int = TASK_SAMPLES, percents: Sequence[float] = PERCENTILES,
                 progress: Callable[[int], object] | None = None, one_pass: bool = True) -> MonteCarloResult:
     """Run ``n`` sampled machines through the full chain on ``executor`` (default serial) in tasks of
@@ -119,7 +121,7 @@ def monte_carlo(chain: CamChain, tol: ToleranceSet, n: int, seed: int, executor:
 PROBE = 10_000         # machines drawn to tell how many of a set cannot be assembled
 
 
-def buildable_probe(chain: CamChain, tol: ToleranceSet, seed: int) -> np.ndarray:
+def buildable_probe(chain: CamChain, tol: ToleranceSet, seed: "int | np.random.SeedSequence") -> np.ndarray:
     """Whether each of :data:`PROBE` machines drawn from ``tol`` (generator seeded with ``seed``) can be assembled."""
     dq = sample_deviations(np.random.default_rng(seed), tol, PROBE)
     return chain.buildable(chain.deviation_rows(dq))

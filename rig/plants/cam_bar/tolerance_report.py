@@ -18,14 +18,23 @@ from rig.plants.cam_bar.tolerance import PARAMS, CamChain, LinearResult, Toleran
 if TYPE_CHECKING:
     from rig.executors import Executor
 
-CLEARANCE_SEED = 1        # the run with the clearance law draws from seed + this: its machines are not the first run's
+#: spawn key of the clearance run's stream under the seed ("clear"): its machines are not the first run's, nor those
+#: of another seed (seed + 1 drew the next seed's lengths-only machines; an audit)
+CLEARANCE_STREAM = 0x636C656172
+
+
+def clearance_stream(seed: int) -> np.random.SeedSequence:
+    """The clearance run's seed sequence under the scene's ``seed``."""
+    return np.random.SeedSequence(seed, spawn_key=(CLEARANCE_STREAM,))
+
+
 TABLE_ANGLES = (90.0, 120.0, 150.0, 180.0, 200.0, 260.0)  # deg: rise, top of the rise, return
 
 
 @dataclass(frozen=True)
 class ToleranceStudy:
     """Linear and Monte-Carlo results on one angle grid, the MC run without and with the clearance law, and the seed
-    each run drew from (the clearance run from seed + :data:`CLEARANCE_SEED`)."""
+    each run drew from (the clearance run from the seed's stream :data:`CLEARANCE_STREAM`)."""
 
     linear: LinearResult
     mc: MonteCarloResult
@@ -33,8 +42,8 @@ class ToleranceStudy:
     seed: int = 0
 
     @property
-    def clearance_seed(self) -> int:
-        return self.seed + CLEARANCE_SEED
+    def clearance_seed(self) -> np.random.SeedSequence:
+        return clearance_stream(self.seed)
 
 
 def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed: int,
@@ -52,7 +61,7 @@ def run_study(mech: PinInsertionMechanism, tol: ToleranceSet, samples: int, seed
     with progress_bar(total, label, " machine evaluations", progress, unit_scale=True) as bar:
         def count(k: int) -> None:          # a rare extra refinement pass must not run the bar past 100 %
             bar.update(min(k, total - bar.n))
-        mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, seed + CLEARANCE_SEED,
+        mc_c = None if tol.clearance_lambda is None else monte_carlo(chain, tol, samples, clearance_stream(seed),
                                                                      executor, task_samples, progress=count)
         mc = monte_carlo(chain, lengths_only, samples, seed, executor, task_samples, progress=count)
     return ToleranceStudy(linear_analysis(chain, tol), mc, mc_c, seed)
@@ -64,8 +73,10 @@ def study_json(study: ToleranceStudy, run: dict | None = None) -> dict:
     machines, task size), written first."""
     lin = study.linear
 
-    def mc_data(mc: MonteCarloResult, seed: int) -> dict:
-        return {"machines": mc.n, "seed": seed, "mean": mc.mean.tolist(), "std": mc.std.tolist(), "min": mc.minimum.tolist(),
+    def mc_data(mc: MonteCarloResult, seed: np.random.SeedSequence | int) -> dict:
+        drawn = ({"seed": seed.entropy, "spawn_key": list(seed.spawn_key)} if isinstance(seed, np.random.SeedSequence)
+                 else {"seed": seed})
+        return {"machines": mc.n, **drawn, "mean": mc.mean.tolist(), "std": mc.std.tolist(), "min": mc.minimum.tolist(),
                 "max": mc.maximum.tolist(), **{f"p{p:g}": mc.percentiles[p].tolist() for p in PERCENTILES}}
 
     out = {"run": run or {}, "unit": "m", "phi_deg": np.round(np.degrees(lin.phi), 9).tolist(),
