@@ -52,10 +52,10 @@ def row_text(check: "Check", use: float) -> str:
     return f"FAIL, {compared} does not hold (no ratio to its limit)"
 
 
-def plot_design(design: "CamDesign", path: str | Path) -> Path:
+def plot_design(design: "CamDesign", path: str | Path, title: str = "") -> Path:
     """PNG: pressure angle with its limit, pitch-curve radius with the undercut limit, Hertz stress (without a
     permissible stress: the contact force) over the cam angle, and every check's use of its limit (module
-    docstring)."""
+    docstring); ``title``: what was checked (the scene's file name), in the chart's title."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -125,5 +125,6 @@ def plot_design(design: "CamDesign", path: str | Path) -> Path:
     bars.set_xlabel("use of the limit (value/limit for ≤, limit/value for ≥; ≤ 1 passes)")
     bars.set_title("every check against its limit (bars: green PASS, red FAIL, grey information; ◇ italic: "
                    "no ratio to its limit)", fontsize=9, loc="left")
-    fig.suptitle("cam design checks")
+    fig.suptitle(f"cam design checks: {title}" if title else "cam design checks")   # the scene: charts of two
+                                                                                    # scenes looked alike
     return write_tight(fig, path, tight=False)             # the grid specs leave room for names and legends

@@ -38,7 +38,7 @@ def cmd_cam_design(args: argparse.Namespace) -> int:
         design = design_checks(mech, omega, high_speed=not args.low_speed, **options)
     print(f"cam design checks for {args.scene}")
     print(format_checks(design))
-    print(f"chart: {plot_design(design, file_parent(output))}")
+    print(f"chart: {plot_design(design, file_parent(output), Path(args.scene).name)}")
     return 0 if all(c.ok for c in design.checks) else 1
 
 

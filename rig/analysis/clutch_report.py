@@ -38,6 +38,13 @@ def _scene(rec: Recording) -> Scene | None:
         return None
 
 
+def _when(s: Stimulus) -> str:
+    """'stop at 0.5 s', 'shock from 0.1 s to 0.155 s' (a pulse's span, shaded on the chart)."""
+    if s.kind == "shock" and s.duration:
+        return f"shock from {s.time:.4g} s to {s.time + s.duration:.4g} s (shaded)"
+    return f"{s.kind} at {s.time:.4g} s"
+
+
 def stimuli(scene: Scene) -> tuple[list[Stimulus], dict[str, Any]]:
     """What the scene does to the stand, in time order, and its shutdown rule (``shutdown_count``,
     ``shutdown_window`` s, ``trip_on_shutdown``). Loads fixed in time (constant, step, shock, brake
@@ -232,6 +239,9 @@ def _torque_figure(ctx: ReportContext, data: StandRecord, stim: list[Stimulus]) 
         ax.axvline(s.time, color="0.4", lw=0.7, ls=":")
         ax.annotate(s.kind, (s.time, 1.0), xycoords=("data", "axes fraction"), fontsize="small",
                     ha="left", va="top", color="0.3")
+        if s.kind == "shock" and s.duration:       # the pulse's end too: its span shaded between the two
+            ax.axvline(s.time + s.duration, color="0.4", lw=0.7, ls=":")
+            ax.axvspan(s.time, s.time + s.duration, color="0.5", alpha=0.08, lw=0)
     scene = _scene(ctx.recording)
     marks = []
     if scene is not None and scene.data.get("comparison"):
@@ -252,7 +262,7 @@ def _torque_figure(ctx: ReportContext, data: StandRecord, stim: list[Stimulus]) 
     ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
     caption = "Torque over time, measured (solid) and the plant model (dashed)"
     if later:
-        caption += f"; dotted: what the scene changes ({', '.join(f'{s.kind} at {s.time:.4g} s' for s in later)})"
+        caption += f"; dotted: what the scene changes ({', '.join(_when(s) for s in later)})"
     if marks:
         caption += "; dash-dotted lines and crosses: the thesis's values (Thesis against rig, below)"
     return ctx.figure(save(fig, ctx.figure_path("clutch_torque_time"), right=3.2), caption)

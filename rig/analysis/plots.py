@@ -21,6 +21,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
+from rig.analysis.capability import MIN_SET_SIZE
 from rig.analysis.elements_plot import FAILED, draw_elements
 from rig.analysis.units import QUANTITY, DisplayUnits, Unit, signal_label
 from rig.recorder import CurveRecord
@@ -327,7 +328,7 @@ def theory_residuals(curves: Sequence[CurveRecord], path: Path, title: str, nok:
     for ax, ch, (first, n, total, counts) in zip(axs[:, 0], channels, sums):
         u = units.channel(ch)
         mean = np.where(counts > 0, total / np.maximum(counts, 1), np.nan)
-        ax.plot(ut(first.t[:n] - first.t[0]), mean, color="k", lw=1.0, label="mean over the curves")
+        ax.plot(ut(first.t[:n] - first.t[0]), mean, color="k", lw=1.0, label="mean over the curves", zorder=5)
         ax.axhline(0.0, color="0.5", lw=0.6)
         ax.set_ylabel(u.axis(f"{ch.upper()} − theory"), fontsize=9)
         _ticks(ax, 8, 5)
@@ -410,7 +411,8 @@ def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
     if not spread and (stats.get("cp") is not None or stats.get("cpk") is not None):
         cap = ", Cp/Cpk n/a (no spread)"
     elif stats.get("cp") is not None or stats.get("cpk") is not None:
-        cap = f", Cp {_f(stats['cp'], 4)}, Cpk {_f(stats['cpk'], 4)}"
+        cap = f", Cp {_f(stats['cp'], 4)}, Cpk {_f(stats['cpk'], 4)}" + (
+            f" (indicative: n < {MIN_SET_SIZE})" if stats["n"] < MIN_SET_SIZE else "")
     else:
         cap = ""
     ax.set_title(f"{stats['name']}: n = {stats['n']}{cap}", fontsize=9, loc="left")
@@ -476,7 +478,8 @@ def truth_groups(data: Mapping[str, np.ndarray], names: Sequence[str], units: Di
                  ) -> list[tuple[Unit, str, list[str]]]:
     """Signals grouped by display unit, then split where their ranges differ by more than
     :data:`SCALE_SPLIT` (a 9° follower swing is not drawn on the axis of a 360° cam angle):
-    ``[(unit, quantity, names)]`` in the order the units first appear."""
+    ``[(unit, quantity, names)]`` in the order the units first appear, the largest range first within a unit, each
+    axis's names in their order in ``names``."""
     by_unit: dict[str, tuple[Unit, list[str]]] = {}
     for n in names:
         u = units.signal(n)
@@ -485,14 +488,13 @@ def truth_groups(data: Mapping[str, np.ndarray], names: Sequence[str], units: Di
     for u, members in by_unit.values():
         quantity = QUANTITY.get(u.si, "value")
         span = {n: float(np.ptp(u(data[n]))) if data[n].size else 0.0 for n in members}
-        group: list[str] = []
+        groups: list[list[str]] = [[]]
         for n in sorted(members, key=lambda n: -span[n]):
-            if group and span[n] * SCALE_SPLIT < span[group[0]]:
-                out.append((u, quantity, group))
-                group = []
-            group.append(n)
-        out.append((u, quantity, group))
-    return out
+            if groups[-1] and span[n] * SCALE_SPLIT < span[groups[-1][0]]:
+                groups.append([])
+            groups[-1].append(n)
+        out += [(u, quantity, sorted(g, key=members.index)) for g in groups]   # each axis in the recording's order:
+    return out                                                              # ω1 before ω3 (its colour) on every run
 
 
 def truth_panels(data: Mapping[str, np.ndarray], names: Sequence[str], path: Path, units: DisplayUnits,

@@ -24,13 +24,14 @@ from typing import Any, Sequence
 import numpy as np
 
 from rig.analysis import plots
+from rig.analysis.capability import MIN_SET_SIZE
 from rig.analysis.clutch_report import clutch_section, comparison_section
 from rig.analysis.device import agreement_text
 from rig.analysis.event_text import event_details
 from rig.analysis.export import export_curves, export_events, export_results, export_series
 from rig.analysis.lab_report import lab_section
 from rig.analysis.normality import ANDERSON_P
-from rig.analysis.numbers import fixed, row_places
+from rig.analysis.numbers import decimals, fixed, row_places
 from rig.analysis.report_blocks import (NOK_PLOTS, Banner, Block, Figure, Heading, Link, ReportContext, Section, Table,
                                         Text, fmt)
 from rig.analysis.sets import by_program, cut_reason, live_pairs_dropped, memory_warning, process_values
@@ -82,7 +83,10 @@ def _capability(v: dict) -> str:
         return "NOT capable: every value outside the limits"
     if not v["spread"]:
         return "n/a: no spread (every value the same, at the instrument's resolution)"
-    return "capable" if v["cpk"] >= CAPABLE else "marginal" if v["cpk"] >= MARGINAL else "NOT capable"
+    reads = "capable" if v["cpk"] >= CAPABLE else "marginal" if v["cpk"] >= MARGINAL else "NOT capable"
+    if v.get("n", MIN_SET_SIZE) < MIN_SET_SIZE and reads != "NOT capable":    # (5 values read "capable" at Cpk 45
+        return f"not judged: n = {v['n']} < {MIN_SET_SIZE} (reads {reads})"     # with σ the noise's)
+    return reads
 
 
 def _indices(v: dict) -> list[Any]:
@@ -328,8 +332,10 @@ def _device_table(agreement: dict, units: DisplayUnits) -> list[Block]:
     rows = []
     for name, v in agreement["values"].items():
         scale = units.value(name)
-        rows.append([name, scale.label, v["host"]["n"], v["device"]["n"], scale(v["host"]["mean"]),
-                     scale(v["device"]["mean"]), scale(v["host"]["std"]), scale(v["device"]["std"]),
+        mean, std = scale(v["host"]["mean"]), scale(v["host"]["std"])
+        at, sd = _comparison_places(mean, std)     # host and device at one precision: "equal" values read equal
+        rows.append([name, scale.label, v["host"]["n"], v["device"]["n"], fixed(mean, at),
+                     fixed(scale(v["device"]["mean"]), at), fixed(std, sd), fixed(scale(v["device"]["std"]), sd),
                      ", ".join(v["differs"]) or "equal"])
     blocks: list[Block] = [Table(["value", "unit", "n host", "n device", "mean host", "mean device", "σ host",
                                   "σ device", "agreement"], rows)]
@@ -339,16 +345,27 @@ def _device_table(agreement: dict, units: DisplayUnits) -> list[Block]:
     return blocks
 
 
-def _values_table(values: dict) -> Table:
-    """One row per process value: n, unit, descriptive statistics, capability, normality and trend checks."""
-    rows = [[name, v["n"], v["unit"], *_at_row_places(v, "mean"), v["std"],
-             *_at_row_places(v, "min", "max", "minus_3sigma", "plus_3sigma", "lsl", "usl"), *_indices(v),
-             v["band_within_limits"], v["normality"]["shapiro_p"],
-             _anderson_cell(v["normality"]["anderson_p"]), v["normality"]["normal"], v["trend"]["slope_p"],
-             v["trend"]["runs"]["p"], drift_text(v["trend"])] for name, v in values.items()]
-    return Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
-                  "±3σ in limits", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"],
-                 rows)
+def _comparison_places(mean: float | None, std: float | None) -> tuple[int, int]:
+    """Decimals of a host-vs-device row's means (:func:`row_places`, one more) and σ (three digits; the means' when
+    σ is at rounding level: a device's 3e-17 beside the host's 0 is no spread either)."""
+    if mean is None or std is None or mean != mean or std != std:
+        return 4, 4
+    places = row_places(mean, std) + 1
+    return places, decimals(std, 3) if std > 1e-9 * abs(mean) else places
+
+
+def _values_tables(values: dict) -> list[Table]:
+    """Two tables of the process values, each fitting the page: descriptive statistics and capability, then the
+    normality and trend checks (as one table of 20 columns the last ones were off the page)."""
+    stats = [[name, v["n"], v["unit"], *_at_row_places(v, "mean"), v["std"],
+              *_at_row_places(v, "min", "max", "minus_3sigma", "plus_3sigma", "lsl", "usl"), *_indices(v),
+              v["band_within_limits"]] for name, v in values.items()]
+    checks = [[name, v["n"], v["normality"]["shapiro_p"], _anderson_cell(v["normality"]["anderson_p"]),
+               v["normality"]["normal"], v["trend"]["slope_p"], v["trend"]["runs"]["p"], drift_text(v["trend"])]
+              for name, v in values.items()]
+    return [Table(["value", "n", "unit", "mean", "σ", "min", "max", "μ−3σ", "μ+3σ", "LSL", "USL", "Cp", "Cpk",
+                   "±3σ in limits"], stats),
+            Table(["value", "n", "Shapiro p", "A–D p", "normal", "trend p", "runs p", "drift"], checks)]
 
 
 def _at_row_places(v: dict, *keys: str) -> list[str | None]:
@@ -370,9 +387,10 @@ def set_statistics(ctx: ReportContext) -> list[Block]:
         blocks += [Heading(f"Process values, program {program}"),
                    Text(f"{s['n']} curves, {s['ok']} OK, {s['nok']} NOK, {s['incomplete']} incomplete; "
                         f"NOK by element: {', '.join(f'{k}: {v}' for k, v in s['nok_by_element'].items()) or 'none'}"
-                        ". Values in the units the scene writes them in; limits, mean and ±3σ band in the same unit.")]
+                        + (". Values in the units the scene writes them in; limits, mean and ±3σ band in the same "
+                           "unit; then the normality and trend checks of each value." if s["values"] else "."))]
         if s["values"]:
-            blocks.append(_values_table(s["values"]))
+            blocks += _values_tables(s["values"])
             table = process_values(by_program(ctx.recording.results)[program])
             path = plots.histograms(table, s["values"], ctx.figure_path(f"hist_p{program}"))
             blocks.append(ctx.figure(path, f"Program {program}: histogram of each process value with its limits "
@@ -439,7 +457,12 @@ def _truth_caveat(ctx: ReportContext) -> list[Block]:
     """What the recorded truth and theory are not (the recording's ``truth_caveat``: per-cycle variation on the
     device's plant only), said where they are shown; nothing otherwise."""
     caveat = ctx.recording.metadata.get("rig", {}).get("truth_caveat")
-    return [Text(f"Truth and theory: {caveat}.")] if caveat else []
+    if not caveat:
+        return []
+    if "truth_caveat" in ctx.said:          # once in full (it was in both sections, word for word)
+        return [Text("Truth and theory: as said above (the caveat on the recorded truth and theory).", "note")]
+    ctx.said.add("truth_caveat")
+    return [Text(f"Truth and theory: {caveat}.")]
 
 
 def theory(ctx: ReportContext) -> list[Block]:
@@ -483,21 +506,23 @@ def theory(ctx: ReportContext) -> list[Block]:
 #: what an event kind means to the reader of a report (kinds not listed: the plant's or the link's own words)
 EVENT_MEANING = {
     "flank_switch": "the roller changed groove flank. Level 1: the kinetostatic cam contact force changes sign at phi "
-                    "(the roller would cross). Level 2 (groove dynamics): at phi it reached the other flank (to), "
-                    "having left the one it was on at left_phi (level 1's sign change) after a flight of flight s",
-    "flank_bounce": "level 2: the roller left its flank at left_phi and struck the same flank again at phi after a "
-                    "flight of flight s (a jump without a switch; after a switch back it bounces, each flight shorter)",
+                    "(the roller would cross). Level 2 (groove dynamics): at the angle [phi] it reached the other flank "
+                    "[to], having left the one it was on at [left_phi] (level 1's sign change) after a flight of "
+                    "[flight]",
+    "flank_bounce": "level 2: the roller left its flank at the angle [left_phi] and struck the same flank again at "
+                    "[phi] after a flight of [flight] (a jump without a switch; after a switch back it bounces, each "
+                    "flight shorter)",
     "accel_jump": "the cam program's acceleration jumps at this angle (a segment boundary)",
     "disengagement": "the clutch's safety stage let go (relative angle past the engagement)",
     "reengaged": "the clutch engaged again after a disengagement",
     "phase_boundary": "the tappets passed from the cam's phase-I arc to its fillet (or back): the clutch's "
-                      "stiffness changes there (relative angle phi_r in the event)",
+                      "stiffness changes there (relative angle [phi_r])",
     "lobe_wrap": "the relative angle crossed a lobe boundary k·120° (the tappets at a lobe's base): at 0° that is "
                  "elastic deflection the other way (reverse torque), not a slip — a disengagement is an apex pass",
     "load_zone": "the load's angle-dependent torque changed zone",
     "shutdown": "repeated disengagements: the stand switched the motor off",
     "method_switch": "the explicit integration method met stiffness (its steps limited by stability, not accuracy: "
-                     "why); the run went on with the implicit method (to), as LSODA switches",
+                     "why); the run went on with the implicit method [to], as LSODA switches",
     "curves_in_one_cycle": "two curves began in one machine cycle (less than half a cam revolution apart): the unit's "
                            "start/stop trigger fired twice (an X dropout, or chatter at a crawl); the run counts curves, "
                            "so it then has fewer machine cycles than curves",
@@ -516,10 +541,11 @@ EVENT_MEANING = {
                    "drive torque ([plant.drive] max_torque or slope too low); the run went on, not at its scene's "
                    "speed",
     "motor_below_load": "the stand's motor stalls below the torque its shoe brakes hold at rest: the stand cannot "
-                        "start. A stick-slip brake holds it; a regularised (tanh) brake lets it creep at creep_speed "
-                        "(rad/s), which is the model's regularisation, not the stand",
+                        "start. A stick-slip brake holds it; a regularised (tanh) brake lets it creep at the speed "
+                        "[creep_speed], which is the model's regularisation, not the stand",
     "tappet_lift_off": "the cam–tappet contact force would be negative: the tappets' inertia and centrifugal force "
-                       "beat the spring and they lift off the cam (omega3 rad/s, phi_r rad where it began). The model "
+                       "beat the spring and they lift off the cam (at the speed [omega3] and relative angle [phi_r] where it "
+                       "began). The model "
                        "has the tappets follow the cam (N_B held at 0, the spring's torque still passed on): torques, "
                        "speeds and disengagements from here are not the machine's",
     "statistics_not_read": "the unit's statistics could not be read over serial at the end (a served machine that "
@@ -558,6 +584,8 @@ def events(ctx: ReportContext) -> list[Block]:
     rows = [[k, v, EVENT_MEANING.get(k, "") + (f" ({dropped} pairs in all)" if k == "live_dropped" else "")]
             for k, v in sorted(counts.items())]
     blocks: list[Block] = [Heading("Events"), Table(["kind", "count", "what it means"], rows)]
+    if any("[" in row[2] for row in rows):
+        blocks.append(Text("[name]: a field of the event, its value in the event's details below.", "note"))
     if rec.events:
         details = [event_details(e, ctx.main_units) for e in rec.events]
         ctx.exported.append((export_events(rec.events, details, ctx.out_dir / "events.csv"),
@@ -575,10 +603,11 @@ TRUTH_CYCLES = 3      # the plant truth chart shows this many machine cycles (th
 
 
 def _of_simulated(rec: Recording, t: np.ndarray) -> str:
-    """' of the 20.30 s simulated' (the run's recorded simulated time, as the console prints it), else — a file
-    its writer never closed — ' of the 20 s of truth recorded'."""
+    """' of the 20.30 s recorded' (the recording's simulated time, its statistics read-back after the run included:
+    the console's "20.29 s simulated" is the run's alone), else — a file its writer never closed — ' of the 20 s of
+    truth recorded'."""
     sim = rec.simulation_time
-    return f" of the {sim:.2f} s simulated" if sim is not None else f" of the {t[-1] - t[0]:.3g} s of truth recorded"
+    return f" of the {sim:.2f} s recorded" if sim is not None else f" of the {t[-1] - t[0]:.3g} s of truth recorded"
 
 
 def _truth_window(rec: Recording, t: np.ndarray) -> tuple[tuple[float, float] | None, str]:

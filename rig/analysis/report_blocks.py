@@ -58,7 +58,8 @@ Block = Heading | Text | Banner | Table | Figure
 @dataclass
 class ReportContext:
     """What sections see: the recording, its analysis, the output directory, how many OK and NOK curves get
-    their own figure, a figure counter, and the files sections exported for the exports table (path, contents)."""
+    their own figure, a figure counter, the files sections exported for the exports table (path, contents) and the
+    notes already given in full (``said``)."""
 
     recording: Recording
     analysis: dict
@@ -67,6 +68,7 @@ class ReportContext:
     nok_plots: int = NOK_PLOTS
     _count: list[int] = field(default_factory=lambda: [0])
     exported: list[tuple[Path, str]] = field(default_factory=list)
+    said: set[str] = field(default_factory=set)     # notes a section gave in full: a later one refers back to it
 
     def figure_path(self, stem: str) -> Path:
         self._count[0] += 1

@@ -163,13 +163,25 @@ def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarr
                     ls=":", label=label if k == 0 else None)
     ax.plot(np.degrees(truth["relative_angle"]), truth["torque"], color="0.5", lw=0.8, ls="--", label="plant truth")
     ax.plot(np.degrees(phi_m), torque_m, ".-", ms=2, lw=0.7, color="k", label="measured (multimeter angle)")
+    peak = float(c.branch_peak(1.0)[1])
+    top = 1.1 * max(float(np.max(truth["torque"])), peak)
+    over = bool(np.any(truth["torque"] > peak))
+    ax.axhline(peak, color="tab:red", lw=0.7, alpha=0.6, label=f"capacity (loading peak) {peak:.4g} N·m")
+    if over:                                    # the lever's load beyond it is not the clutch's: shade, say so
+        ax.axhspan(peak, top, color="tab:red", alpha=0.07, lw=0, label="overload: no equilibrium (see caption)")
     ax.set(xlabel="relative angle (°)", ylabel="torque = F·L (N·m)", title="Static rig: torque over relative angle",
-           ylim=(min(0.0, float(np.min(truth["torque"]))), 1.1 * float(np.max(truth["torque"]))))
+           ylim=(min(0.0, float(np.min(truth["torque"]))), top))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncols=2, frameon=False)  # below: inside
     # it hid the slip plateau between the lobes
-    return ctx.figure(save(fig, ctx.figure_path("static_torque_angle"), bottom=1.05),
-                      "Torque over relative angle: loading/unloading hysteresis loop, measured vs theory")
+    caption = "Torque over relative angle: loading/unloading hysteresis loop, measured vs theory"
+    if over:
+        caption += (f". Above the capacity ({peak:.4g} N·m) the lever's load is more than the clutch holds: quasi-"
+                    "statically there is no equilibrium (the clutch slips over the apex; on the rig the lever drops "
+                    "onto its support). The model holds the angle at the peak while overloaded, so the points in the "
+                    "shaded band are the lever's load, not a torque the clutch carries; when the load falls back "
+                    "below the capacity the clutch has slipped one lobe, drawn as the step at the peak torque")
+    return ctx.figure(save(fig, ctx.figure_path("static_torque_angle"), bottom=1.05), caption)
 
 
 def _strain_figure(ctx: ReportContext, rig: StaticClutchRig) -> Block:

@@ -204,9 +204,9 @@ def test_live_pairs_dropped_is_the_latest_cumulative_count_even_with_reports_los
 
 @pytest.mark.parametrize("end, cycles, truth_end, expected", [
     ({"simulation_time": "20.300405"}, 50, 20.0,
-     "the first 1.2 s of the 20.30 s simulated (≈ 3 machine cycles of 0.4 s)"),
+     "the first 1.2 s of the 20.30 s recorded (≈ 3 machine cycles of 0.4 s)"),
     ({}, 50, 20.0, "the first 1.2 s of the 20 s of truth recorded (≈ 3 machine cycles of 0.4 s)"),
-    ({"simulation_time": "0.62"}, 0, 0.6, "0.6 s of the 0.62 s simulated"),
+    ({"simulation_time": "0.62"}, 0, 0.6, "0.6 s of the 0.62 s recorded"),
     ({"simulation_time": "0.6"}, 0, 0.6, "0.6 s")])
 def test_truth_caption_states_the_recorded_simulated_time(tmp_path, end, cycles, truth_end, expected):
     """'over the first 1.29 s of 20 s' read the truth's own span while 20.30 s were simulated (the console's

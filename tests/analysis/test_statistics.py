@@ -143,3 +143,17 @@ def test_too_few_readings_get_no_drift_verdict_but_a_long_staircase_is_a_drift()
     assert stairs["drift"] is True and stairs["slope_p"] < 1e-6
     v = np.random.default_rng(3).normal(0.0, 1.0, 40) + 0.02 * np.arange(40)
     assert trend(v)["slope_p"] == pytest.approx(stats.linregress(np.arange(40), v).pvalue, rel=1e-12)
+
+
+def test_a_small_set_is_not_called_capable():
+    """Five curves read "capable" at Cpk 45 (σ the LVDT's noise): below MIN_SET_SIZE the verdict is not judged, the
+    reading kept; a set that reads NOT capable is said so whatever its size (more values would not rescue it)."""
+    from rig.analysis.capability import MIN_SET_SIZE
+    from rig.analysis.report import _capability
+    rng = np.random.default_rng(5)
+    small = describe(42.0 + 0.0027 * rng.standard_normal(5), (41.5, 42.5), "x_max")
+    assert small["cpk"] > 40 and _capability(small) == f"not judged: n = 5 < {MIN_SET_SIZE} (reads capable)"
+    full = describe(42.0 + 0.0027 * rng.standard_normal(MIN_SET_SIZE), (41.5, 42.5), "x_max")
+    assert _capability(full) == "capable"
+    outside = describe(43.0 + 0.1 * rng.standard_normal(5), (41.5, 42.5), "x_max")
+    assert _capability(outside) == "NOT capable"

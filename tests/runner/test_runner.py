@@ -66,7 +66,8 @@ def test_the_recording_says_its_truth_is_the_nominal_machine_where_the_scene_var
     caveat = read_recording(in_process).metadata["rig"]["truth_caveat"]
     assert "nominal machine" in caveat and "F_c, F_c_travel, the clearance taken up" in caveat
     html = write_report(in_process, tmp_path / "report").read_text(encoding="utf-8")
-    assert html.count("Truth and theory: /plant/truth and the plant events are the nominal machine") == 2
+    assert html.count("Truth and theory: /plant/truth and the plant events are the nominal machine") == 1
+    assert html.count("Truth and theory: as said above") == 1          # the second section refers back to it
     text = SCENE.read_text()
     start = text.index("[plant.variation]")
     plain = tmp_path / "plain.toml"
