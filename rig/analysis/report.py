@@ -499,7 +499,11 @@ def theory(ctx: ReportContext) -> list[Block]:
         blocks.append(ctx.figure(path, "Measurement minus theory of every curve at its samples, the theory delayed by "
                                        "the curve's lag from the table (the transducers' filters delay the measurement; "
                                        "their delay would otherwise dominate), NOK red, and their mean (black): where "
-                                       "and how far the measurement departs from the model"))
+                                       "and how far the measurement departs from the model. A departure every curve "
+                                       "shares is mostly the measuring chain's static errors, which the theory leaves "
+                                       "out: each transducer's zero offset, gain and non-linearity and the acquisition "
+                                       "unit's input accuracy (offset and gain within its class), drawn once from the "
+                                       "scene's seed (docs/transducers.md)"))
     return blocks
 
 
