@@ -79,7 +79,34 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
         raise SceneError(f"{cfg.scene.path} [device.config.sampling]: 'delta' = {sampling['delta'] * 1e3:g} ms is "
                          f"finer than the machine's samples ({cfg.dt * 1e3:g} ms at [scene] sample_rate = "
                          f"{cfg.sample_rate:g} Hz): the unit can only take every sample; raise sample_rate or delta")
+    if cfg.measures_curves:
+        _warn_beyond_curve_fields(cfg, device.get_program(program))
     return transducers, device
+
+
+_SAID: set[str] = set()        # the scene warnings already given in this process
+
+
+def _warn_beyond_curve_fields(cfg: RunConfig, program: dict[str, Any]) -> None:
+    """Warn where a channel measures beyond what the curve frames carry (its DBC field in the channel's SI unit,
+    ±0.524 for X: 0.524 m, but only ±30° of an angle channel): there the curves are sent saturated
+    (``curve_clipped``); said before the run instead of after it."""
+    from rig.dbc import load_dbc
+    from firmware_sim.digiforce.program import scaling_line
+    block = load_dbc().get_message_by_name("CurveBlock")
+    for ch, c in program["channels"].items():
+        if not c.get("enabled", True) or ch.upper() not in block.signal_tree:
+            continue
+        field = block.get_signal_by_name(ch.upper()).maximum
+        scale, zero = scaling_line(c["scaling"])
+        reach = (c["range"] + abs(zero)) * abs(scale)            # the electrical range ±range through the scaling
+        said = (f"{cfg.scene.path} [device.config.channels.{ch}]: the channel measures up to ±{reach:.4g} {c['unit']}, "
+                f"the curve frames carry ±{field:.4g} {c['unit']} (CurveBlock.{ch.upper()}): values beyond are sent at "
+                f"the limit and counted (curve_clipped events)"
+                + ("; an angle channel carries ±30° (the field is sized for metres)" if c["unit"] == "rad" else ""))
+        if reach > field * (1 + 1e-9) and said not in _SAID:      # once per process: the check before the run and
+            _SAID.add(said)                                       # its machine both build the instruments
+            log.warning("%s", said)
 
 
 FLUSH_STEP = 0.005       # s: the end of a run drains the unit's transmit queue in steps this fine (not whole chunks)

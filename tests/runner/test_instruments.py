@@ -1,4 +1,5 @@
-"""Each instrument's random draws follow from the scene's seed and its own name, not from where its table stands."""
+"""The scene's instruments: draws from the seed and each one's name, not from where its table stands; channels the
+curve frames cannot carry said before the run."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -42,3 +43,26 @@ def test_swapping_or_adding_transducer_tables_keeps_each_sensors_draws(tmp_path)
     assert set(base) == set(turned) >= {"rod_force", "gripper_lvdt"}
     for name in base:
         np.testing.assert_array_equal(base[name], turned[name])
+
+
+def test_a_channel_measuring_beyond_the_curve_frames_is_said_before_the_run(caplog, tmp_path):
+    """An angle channel (10 V = 340°) sent its curves clipped at ±0.524 rad (±30°: the X field is sized for metres),
+    said only by curve_clipped events after the run (an audit). The scene check says it, once."""
+    from types import SimpleNamespace
+
+    from rig.runner.machine import _warn_beyond_curve_fields
+    angle = {"enabled": True, "unit": "rad", "range": 10.0, "tare_at_start": False,
+             "scaling": {"mode": "sensitivity", "electrical": 10.0, "engineering": np.radians(340.0), "zero": 0.0}}
+    metres = dict(angle, unit="m", scaling={"mode": "sensitivity", "electrical": 5.0, "engineering": 0.1, "zero": 0.0})
+    cfg = SimpleNamespace(scene=SimpleNamespace(path=tmp_path / "angle.toml"))
+    with caplog.at_level("WARNING"):
+        _warn_beyond_curve_fields(cfg, {"channels": {"x": angle, "y": dict(metres, unit="N")}})
+        _warn_beyond_curve_fields(cfg, {"channels": {"x": angle}})
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 1 and "[device.config.channels.x]: the channel measures up to ±5.934 rad" in said[0]
+    assert "carry ±0.5243 rad (CurveBlock.X)" in said[0] and "an angle channel carries ±30°" in said[0]
+    caplog.clear()
+    with caplog.at_level("WARNING"):                    # the demo's LVDT: ±0.2 m within the field
+        _warn_beyond_curve_fields(SimpleNamespace(scene=SimpleNamespace(path=tmp_path / "m.toml")),
+                                  {"channels": {"x": metres}})
+    assert not caplog.records
