@@ -81,7 +81,37 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
                          f"{cfg.sample_rate:g} Hz): the unit can only take every sample; raise sample_rate or delta")
     if cfg.measures_curves:
         _warn_beyond_curve_fields(cfg, device.get_program(program))
+    _warn_scaling_mismatch(cfg, transducers, device.get_program(program))
     return transducers, device
+
+
+def _warn(said: str) -> None:
+    """A scene warning, once per process: the check before the run and its machine both build the instruments."""
+    if said not in _SAID:
+        _SAID.add(said)
+        log.warning("%s", said)
+
+
+def _warn_scaling_mismatch(cfg: RunConfig, transducers: dict[str, Any], program: dict[str, Any]) -> None:
+    """Warn where the unit's channel scaling reads a wired transducer's nominal output as another quantity than the
+    one it stands for (a 2 mV/V cell on a channel set for 1.5 mV/V = 1000 N read every force 1.333× too large with
+    no word; an audit): the reading of the transducer's range ends through the channel, against those ends. A
+    rehearsal of a mis-set unit may mean it: a warning, not an error."""
+    from firmware_sim.digiforce.program import scaling_line
+    for spec in cfg.transducers:
+        sensor, c = transducers.get(spec.name), program["channels"].get(spec.channel or "")
+        if c is None or not c.get("enabled", True) or not hasattr(sensor, "nominal"):
+            continue
+        scale, zero = scaling_line(c["scaling"])
+        ends = np.array([sensor.p["range_min"], sensor.p["range_max"]])
+        read = (sensor.nominal(ends) - zero) * scale
+        if np.max(np.abs(read - ends)) > 0.01 * (ends[1] - ends[0]):
+            gain = (read[1] - read[0]) / (ends[1] - ends[0])
+            _warn(f"{cfg.scene.path} [transducers.{spec.name}] → device.{spec.channel}: the unit's scaling "
+                  f"([device.config.channels.{spec.channel}] scaling) reads the transducer's nominal output at "
+                  f"{ends[0]:.4g} … {ends[1]:.4g} {c['unit']} as {read[0]:.4g} … {read[1]:.4g} {c['unit']} (× "
+                  f"{gain:.4g}): every reading is off by that; set the channel's scaling to the transducer's "
+                  f"(output_at_min/output_at_max of its description or overrides)")
 
 
 _SAID: set[str] = set()        # the scene warnings already given in this process
@@ -104,9 +134,8 @@ def _warn_beyond_curve_fields(cfg: RunConfig, program: dict[str, Any]) -> None:
                 f"the curve frames carry ±{field:.4g} {c['unit']} (CurveBlock.{ch.upper()}): values beyond are sent at "
                 f"the limit and counted (curve_clipped events)"
                 + ("; an angle channel carries ±30° (the field is sized for metres)" if c["unit"] == "rad" else ""))
-        if reach > field * (1 + 1e-9) and said not in _SAID:      # once per process: the check before the run and
-            _SAID.add(said)                                       # its machine both build the instruments
-            log.warning("%s", said)
+        if reach > field * (1 + 1e-9):
+            _warn(said)
 
 
 FLUSH_STEP = 0.005       # s: the end of a run drains the unit's transmit queue in steps this fine (not whole chunks)

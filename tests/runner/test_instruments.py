@@ -66,3 +66,18 @@ def test_a_channel_measuring_beyond_the_curve_frames_is_said_before_the_run(capl
         _warn_beyond_curve_fields(SimpleNamespace(scene=SimpleNamespace(path=tmp_path / "m.toml")),
                                   {"channels": {"x": metres}})
     assert not caplog.records
+
+
+def test_a_channel_scaled_for_another_transducer_is_said(caplog, tmp_path):
+    """A 2 mV/V cell on the channel set for 1.5 mV/V = 1000 N read every force 1.333× too large, without a word (an
+    audit). The scene check names the transducer, the channel and the factor; the demo as shipped says nothing."""
+    text = SCENE.read_text()
+    assert 'description = "burster_8411"' in text
+    swapped = text.replace('description = "burster_8411"', 'description = "burster_8411"\noverrides = { '
+                           'output_at_max = "2 mV/V", output_at_min = "-2 mV/V" }', 1)
+    with caplog.at_level("WARNING"):
+        _readings(swapped, tmp_path, "cell.toml")
+        _readings(text, tmp_path, "demo.toml")
+    said = [r.getMessage() for r in caplog.records if "scaling" in r.getMessage()]
+    assert len(said) == 1 and "cell.toml [transducers.rod_force] → device.y" in said[0]
+    assert "-1000 … 1000 N as -1333 … 1333 N (× 1.333)" in said[0]
