@@ -45,7 +45,11 @@ def split_quantity(text: str) -> tuple[float, str] | None:
     """(number, unit as written) of a text that starts with a number (``"1.68 N/mm"`` → (1.68, "N/mm"); the unit ""
     for a plain number); None otherwise. The unit is not checked (:func:`unit_of` does)."""
     m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*", text)
-    return None if m is None else (float(m.group(1)), m.group(2))
+    if m is None:
+        return None
+    unit = m.group(2)
+    return float(m.group(1)), "1" + unit if unit.startswith("/") else unit     # "60 / mm": the unit 1/mm (pint
+    # reads "/ mm" alone as no unit: two equal scenes, "60 / mm" and "60000 1/m", were two machines; an audit)
 
 
 def unit_of(text: str) -> str | None:

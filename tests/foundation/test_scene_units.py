@@ -124,3 +124,13 @@ def test_a_decimal_comma_in_a_scene_names_the_key(tmp_path: Path):
     scene.write_text('[plant]\nL3 = "0,26 m"\n')
     with pytest.raises(SceneError, match=r"L3.*'0,26 m' has a comma"):
         load_scene(scene).read("plant", SCHEMA)
+
+
+def test_a_per_unit_quantity_written_with_a_leading_slash_has_its_unit():
+    """"60 / mm" (the demo's clearance_lambda) had no unit for rig analyse and rig sweep: pint reads "/ mm" alone as
+    nothing, so two identical machines ("60 / mm", "60000 1/m") were two, and the sweep skipped its unit checks."""
+    from rig.analysis.batch import _canonical
+    from rig.units import split_quantity, unit_of
+    assert split_quantity("60 / mm") == (60.0, "1/ mm") and unit_of("60 / mm") == "1/ mm"
+    key = "plant.variation.clearance_lambda"
+    assert _canonical({key: '"60 / mm"'}) == _canonical({key: '"60000 1/m"'}) != _canonical({key: '"61 / mm"'})
