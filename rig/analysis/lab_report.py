@@ -392,8 +392,9 @@ def speed_sheet(lab: Lab) -> Sheet:
                 label="pulse counter")
         for name, block, key, _ in instruments:
             if key in block:
-                ax.plot(block["t"], block[key] / RPM, lw=0.8, label=name)
-        ax.plot(times, counter, "kx", ms=8, label="readings")
+                (line,) = ax.plot(block["t"], block[key] / RPM, lw=0.8, label=name)
+                ax.plot(times, reads[name], "x", ms=8, color=line.get_color())     # each one's readings, the table's
+        ax.plot(times, counter, "kx", ms=8, label="readings (× on each instrument)")
         ax.set(xlabel="time (s)", ylabel="speed (rpm)", title="Speed measurement")
 
     return Sheet("Speed measurement", ["instrument", *[f"reading {i + 1} (rpm)" for i in range(len(times))],
@@ -525,9 +526,10 @@ def cam_torque_sheet(lab: Lab) -> Sheet:
     def draw(ax: Any) -> None:
         fine = np.linspace(angle[0], angle[0] + tau, 721)
         order = np.argsort(fine % tau)
-        ax.plot(np.degrees(fine % tau)[order], theory_at(fine)[order], "-", lw=1.2, color="tab:red",
+        ax.plot(np.degrees(fine % tau)[order], theory_at(fine)[order], "-", lw=0.9, color="tab:red",
                 label="theory M = F·ds/dφ + J·ω̇", zorder=1)
-        ax.plot(np.degrees(angle % tau), measured, ".", ms=1, color="0.3", alpha=0.5, label="measured", zorder=2)
+        ax.plot(np.degrees(angle % tau), measured, ".", ms=3, color="tab:blue", alpha=0.5, label="measured",
+                zorder=2)                       # visible where it lies on the theory (at 1 px it was lost under it)
         ax.plot(*zip(*means), "s", ms=3.5, mfc="none", color="k", label="measured, 10° means",
                 zorder=3)
         ax.set(xlabel="cam angle (°)", ylabel="torque (N·m)", title="Cam-shaft torque")
