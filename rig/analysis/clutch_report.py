@@ -21,7 +21,7 @@ from rig.analysis.clutch_metrics import APEX, LOBE, Metric, StandRecord, Stimulu
 from rig.analysis.event_text import event_details
 from rig.analysis.plots import figure, save
 from rig.analysis.report_blocks import Banner, Block, Heading, Link, ReportContext, Table, Text, fmt
-from rig.analysis.stand_comparison import agreement_text, compare, thesis_marks, write_csv
+from rig.analysis.stand_comparison import agreement_parts, agreement_text, compare, thesis_marks, write_csv
 from rig.analysis.units import display_units, scene_device_config
 from rig.recorder import Recording
 from rig.recorder.schemas import measuring
@@ -326,15 +326,19 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     blocks: list[Block] = [Heading("Clutch stand")]
     banner = _verdict(metrics)
     scene = _scene(ctx.recording)
+    details = ""
     if banner is not None and scene is not None and scene.data.get("comparison"):
         try:                                   # the thesis comparison's outcome up front (its table is below):
             rows = compare(scene, stim, metrics)       # a row that disagrees turns the banner red and is named
-            banner.text += f"; thesis against rig: {agreement_text(rows)}"
+            counts, details = agreement_parts(rows)    # under it (in the banner they made a bold paragraph)
+            banner.text += f"; thesis against rig: {counts}"
             banner.ok = banner.ok and not any(r.agrees is False for r in rows)
         except SceneError:
             pass
     if banner is not None:
         blocks.append(banner)
+    if details:
+        blocks.append(Text(f"Thesis against rig: {details} (Thesis against rig, below).", "" if banner.ok else "warning"))
     if stim:
         blocks.append(Text("The scene: " + "; ".join(f"{s.text} at {s.time:.4g} s" for s in stim) + "."))
     blocks.append(Table(["result", "value", "relative to / definition"],

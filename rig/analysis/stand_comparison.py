@@ -320,6 +320,13 @@ def agreement_text(rows: list[Row]) -> str:
     """One line: how many judged predictions agree with the thesis, how many fitted rows the run reproduces (a row
     fitted on this run agreeing says little) and how many rows set by the scene's inputs it shows as set (they check
     nothing of the model: with nothing else judged the line says so first), and which rows do not agree."""
+    counts, details = agreement_parts(rows)
+    return "; ".join(p for p in (counts, details) if p)
+
+
+def agreement_parts(rows: list[Row]) -> tuple[str, str]:
+    """:func:`agreement_text` in two: the counts (a report's headline) and the rows that disagree or have no value
+    in this run (empty when none)."""
     judged = [r for r in rows if r.agrees is not None]
     off = [r for r in judged if not r.agrees]
     missing = [r for r in rows if r.rig is None and r.agrees is None]
@@ -330,12 +337,13 @@ def agreement_text(rows: list[Row]) -> str:
         if group]
     if inputs:
         parts.append(_inputs_text(inputs, alone=not parts))
-    text = "; ".join(parts) or ("no row judged (no row has a value in this run)" if len(missing) == len(rows) else
-                                "no row judged (no tolerances)")
+    counts = "; ".join(parts) or ("no row judged (no row has a value in this run)" if len(missing) == len(rows) else
+                                  "no row judged (no tolerances)")
+    details = []
     if off:
-        text += "; DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{r.shown_unit}, "
-                                           f"rig {r.rig_text()}{r.shown_unit})" for r in off)
+        details.append("DISAGREE: " + "; ".join(f"{r.quantity} (thesis {r.thesis:g}{r.shown_unit}, "
+                                                f"rig {r.rig_text()}{r.shown_unit})" for r in off))
     if missing:             # a result the run does not have is named (a misspelt rig = "…" was never said)
-        text += "; n/a in this run: " + ", ".join(r.quantity + (f" ({r.why})" if r.why.startswith("no result ") else "")
-                                                  for r in missing)
-    return text
+        details.append("n/a in this run: " + ", ".join(r.quantity + (f" ({r.why})" if r.why.startswith("no result ")
+                                                                     else "") for r in missing))
+    return counts, "; ".join(details)
