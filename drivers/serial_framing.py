@@ -102,6 +102,9 @@ class FrameParser:
             if b in (ACK, NAK):
                 self._mode, self._ack, self._buf = "handshake", b == ACK, bytearray()
             return None
+        if self._mode == "handshake" and b in (ACK, NAK):     # a new handshake: the one before lost its address
+            self._ack, self._buf = b == ACK, bytearray()
+            return None
         self._buf.append(b)
         if self._mode == "handshake":
             if len(self._buf) < 2:

@@ -97,15 +97,15 @@ class SerialDevice:
                 log.warning("serial device: the line is gone (%s); the device no longer answers", exc)
 
     def _serve(self) -> None:
-        rx_done = last_rx = 0.0
+        rx_done = 0.0               # when the latest byte received has arrived on the simulated line (monotonic s)
         while not self._stop.is_set():
             data = self._transport.read(0.02)
             now = time.monotonic()
-            if not data:
-                if self._rx.pending and now - last_rx > self._gap:
-                    self._rx.reset()
-                continue
-            rx_done, last_rx = max(now, rx_done) + len(data) * self._char, now
+            if self._rx.pending and now - rx_done > self._gap:      # the gap after the last byte's arrival on the
+                self._rx.reset()                                    # line, not after its read: 15000 bytes at 115200
+            if not data:                                            # baud arrive over 1.3 s (a frame written in two
+                continue                                            # pieces was dropped; an audit)
+            rx_done = max(now, rx_done) + len(data) * self._char
             for event in self._rx.feed(data):
                 self._wait_until(rx_done)
                 self._handle(event)

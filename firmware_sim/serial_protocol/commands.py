@@ -199,6 +199,8 @@ class Commands:
         self._device.set_program(self._program(number), config, fits=_readable)   # empty: the active one
 
     def _tare(self, data: str) -> None:
+        if data not in ("", "x", "y", "y2"):      # not a channel name: malformed data (02), not a value out of range
+            raise CommandError(SYNTAX, f"TA takes a channel name (x, y, y2) or nothing, got {data[:40]!r}")
         self._device.tare(data or None)
 
     def _latch(self) -> str:

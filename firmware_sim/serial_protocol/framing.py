@@ -13,6 +13,7 @@ STX, ETX, ACK, NAK = 0x02, 0x03, 0x06, 0x15
 MAX_DATA = 65536
 _CONTROL = re.compile(rb"[^\x20-\x7e]")
 _START = re.compile(rb"[\x02\x06\x15]")
+_STARTS = (STX, ACK, NAK)
 _HEADER = re.compile(rb"([0-9A-F]{2})([0-9])([A-Z]{2})")
 
 
@@ -86,8 +87,9 @@ class Receiver:
                 return events
             buf = self._buf = self._buf[m.start():]
             if buf[0] != STX:
-                if STX in buf[1:3]:          # STX always starts a frame, even inside a handshake
-                    self._buf = buf[buf.index(STX, 1):]
+                cut = next((k for k in (1, 2) if k < len(buf) and buf[k] in _STARTS), None)
+                if cut is not None:          # STX, ACK or NAK starts anew, even inside a handshake: "NAK NAK 0 1" is
+                    self._buf = buf[cut:]    # a stray byte, then NAK "01" (it read NAK "\x150" and swallowed the NAK)
                     continue
                 if len(buf) < 3:
                     return events

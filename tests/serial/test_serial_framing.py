@@ -124,3 +124,13 @@ def test_stx_inside_a_handshake_starts_a_frame() -> None:
     for parser in (host.FrameParser(), dev.Receiver()):
         events = parser.feed(b"\x06x" + good)
         assert [(type(e).__name__, e.address) for e in events] in ([("Frame", 1)], [("Request", 1)])
+
+
+@pytest.mark.parametrize("stray", [b"\x15", b"\x06", b"\x15\x30"])
+def test_a_handshake_that_lost_its_address_does_not_swallow_the_next(stray: bytes) -> None:
+    """"NAK NAK 0 1" was read as NAK "\\x150" and the real NAK "01" lost (silence, then the host's timeout): a new ACK
+    or NAK restarts the handshake on both sides."""
+    for parser in (host.FrameParser(), dev.Receiver()):
+        events = parser.feed(stray + b"\x1501")
+        assert [(type(e).__name__, e.ack, e.address) for e in events] in (
+            [("Handshake", False, 1)], [("Reply", False, 1)]), (parser, events)

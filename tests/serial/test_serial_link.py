@@ -74,7 +74,7 @@ def test_device_errors_name_the_problem(link) -> None:
     assert e.value.code == 3
     with pytest.raises(DigiForceError, match="unknown keys.*colour"):
         client.set_program(1, {"name": "x", "colour": "red"})
-    with pytest.raises(DigiForceError, match="no channel 'z'"):
+    with pytest.raises(DigiForceError, match="status 02: TA takes a channel name .*got 'z'"):
         client.tare("z")
     client.start()
     with pytest.raises(DigiForceError, match="already running"):
@@ -311,3 +311,29 @@ def test_bad_settings_are_refused_clearly(fake) -> None:
         DigiForceClient("/dev/does-not-exist")
     with pytest.raises(ValueError, match="address"):
         DigiForceClient("loop://", address=0)
+
+
+def test_a_frame_written_in_pieces_is_timed_by_the_simulated_line(fake) -> None:
+    """At 9600 baud 2000 bytes take 2.08 s on the line; the rest of the frame written 0.2 s after them follows with no
+    gap there, yet the device dropped the frame (it timed the gap from its read of the bytes; an audit). The gap runs
+    from the last byte's arrival on the line: the frame is whole, and answered."""
+    with SerialDevice(fake, "pty", baudrate=9600, address=5) as device:
+        with serial.Serial(device.port, 9600, timeout=0.05) as raw:
+            frame = encode_frame(5, 1, "ID", "x" * 2000)
+            raw.write(frame[:2000])
+            time.sleep(0.2)                         # well inside the 2.08 s the first piece takes on the line
+            raw.write(frame[2000:])
+            parser, events, deadline = FrameParser(), [], time.monotonic() + 30.0
+            while not events and time.monotonic() < deadline:     # the answer, however long a loaded machine takes
+                events = parser.feed(raw.read(64))
+    assert [e.data[:2] for e in events] == ["02"] and "ID takes no request data" in events[0].data
+
+
+def test_tare_of_no_channel_is_malformed_data(link) -> None:
+    """TA z was status 03 (value out of range); a name that is no channel is malformed request data, 02."""
+    device, client, fake = link
+    client.close()
+    with serial.Serial(device.port, 1_000_000, timeout=0.02) as raw:
+        for seq, name in enumerate(("z", "X", "x,y"), start=1):
+            (answer,) = _raw_exchange(raw, encode_frame(5, seq, "TA", name))
+            assert answer.data == f"02TA takes a channel name (x, y, y2) or nothing, got {name!r}"
