@@ -61,6 +61,7 @@ def _print_values(st: dict) -> None:
     without statistics)."""
     if not st.get("values"):
         return
+    from rig.analysis.capability import index_text
     from rig.analysis.numbers import fixed, row_places
     from rig.analysis.trend import drift_text
     print(f"  {'process value':>16} {'n':>4} {'unit':>5}  {'mean μ':>10} {'σ':>9} {'min':>10} {'max':>10}  "
@@ -73,7 +74,7 @@ def _print_values(st: dict) -> None:
             cap = f"{'n/a':>7} {'-inf':>7}"
             outside.append(name)
         else:                                                                          # σ = 0: say nothing
-            cap = f"{pv['cp']:7.4g} {pv['cpk']:7.4g}" if pv["spread"] else f"{'n/a':>7} {'n/a':>7}"
+            cap = f"{index_text(pv['cp']):>7} {index_text(pv['cpk']):>7}" if pv["spread"] else f"{'n/a':>7} {'n/a':>7}"
         drift = drift_text(pv["trend"], "-")
         places = row_places(pv["mean"], pv["std"])                 # mean, min, max and the band at one precision
         band = f"{fixed(pv['minus_3sigma'], places)}..{fixed(pv['plus_3sigma'], places)}"

@@ -9,6 +9,14 @@ import numpy as np
 MIN_SET_SIZE = 50   # fewer measurements than this: capability figures are flagged as unreliable
 
 
+def index_text(value: float | None) -> str:
+    """A capability index as tables print it: two decimals (Cp 3.19 beside Cpk 0.87, not 3.19 beside 0.8691), the
+    infinities spelled, a dash for none."""
+    if value is None or value != value:
+        return "—"
+    return f"{value:.2f}" if math.isfinite(value) else ("∞" if value > 0 else "−∞")
+
+
 def capability(mean: float, std: float, lsl: float | None, usl: float | None) -> tuple[float | None, float | None]:
     """Cp = (USL − LSL)/6σ (needs both limits) and Cpk = min(USL − μ, μ − LSL)/3σ (either limit).
 

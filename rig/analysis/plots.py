@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from rig.analysis.capability import MIN_SET_SIZE
+from rig.analysis.capability import MIN_SET_SIZE, index_text
 from rig.analysis.elements_plot import FAILED, draw_elements
 from rig.analysis.units import QUANTITY, DisplayUnits, Unit, signal_label
 from rig.recorder import CurveRecord
@@ -411,7 +411,7 @@ def _histogram(ax: Axes, values: np.ndarray, stats: Mapping) -> None:
     if not spread and (stats.get("cp") is not None or stats.get("cpk") is not None):
         cap = ", Cp/Cpk n/a (no spread)"
     elif stats.get("cp") is not None or stats.get("cpk") is not None:
-        cap = f", Cp {_f(stats['cp'], 4)}, Cpk {_f(stats['cpk'], 4)}" + (
+        cap = f", Cp {index_text(stats['cp'])}, Cpk {index_text(stats['cpk'])}" + (
             f" (indicative: n < {MIN_SET_SIZE})" if stats["n"] < MIN_SET_SIZE else "")
     else:
         cap = ""

@@ -24,7 +24,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from rig.analysis import plots
-from rig.analysis.capability import MIN_SET_SIZE
+from rig.analysis.capability import MIN_SET_SIZE, index_text
 from rig.analysis.clutch_report import clutch_section, comparison_section
 from rig.analysis.device import agreement_text
 from rig.analysis.event_text import event_details
@@ -93,7 +93,7 @@ def _indices(v: dict) -> list[Any]:
     """Cp and Cpk cells: n/a without spread (σ = 0 makes them infinite, which says nothing), except a Cpk of −∞:
     every value outside a limit."""
     if v["spread"]:
-        return [v["cp"], v["cpk"]]
+        return [index_text(v["cp"]) if v["cp"] is not None else None, index_text(v["cpk"])]
     return ["n/a", "−∞" if _outside(v) else "n/a"]
 
 

@@ -40,3 +40,14 @@ def test_plant_truth_axes_keep_the_recordings_order():
     assert [names for _, _, names in groups] == [["omega1", "omega3"], ["phi1", "phi3"]]
     wide = {"u_small": 0.01 * t, "u_mid": 300.0 * t, "u_big": 360.0 * t}     # one unit, split by scale: the largest
     assert [n for _, _, n in truth_groups(wide, list(wide), units)] == [["u_mid", "u_big"], ["u_small"]]   # first
+
+
+def test_capability_indices_read_at_one_precision():
+    """"Cp 3.19, Cpk 0.8691" and "Cp 1.717 beside Cpk 1.26": every index with two decimals, in the report's tables,
+    its histograms and the console."""
+    from rig.analysis.capability import index_text
+    from rig.analysis.report import _indices
+    assert [index_text(v) for v in (3.19, 0.869123, 1.7171, 1.26, -1307.4, float("inf"), None)] == [
+        "3.19", "0.87", "1.72", "1.26", "-1307.40", "∞", "—"]
+    v = describe(42.0 + 0.01 * np.random.default_rng(2).standard_normal(60), (41.5, 42.5), "x_max")
+    assert _indices(v) == [index_text(v["cp"]), index_text(v["cpk"])] and len(_indices(v)[1].split(".")[1]) == 2
