@@ -85,6 +85,9 @@ def instruments(cfg: RunConfig) -> tuple[dict[str, Any], DigiForce]:
     return transducers, device
 
 
+_SAID: set[str] = set()        # the scene warnings already given in this process
+
+
 def _warn(said: str) -> None:
     """A scene warning, once per process: the check before the run and its machine both build the instruments."""
     if said not in _SAID:
@@ -112,9 +115,6 @@ def _warn_scaling_mismatch(cfg: RunConfig, transducers: dict[str, Any], program:
                   f"{ends[0]:.4g} … {ends[1]:.4g} {c['unit']} as {read[0]:.4g} … {read[1]:.4g} {c['unit']} (× "
                   f"{gain:.4g}): every reading is off by that; set the channel's scaling to the transducer's "
                   f"(output_at_min/output_at_max of its description or overrides)")
-
-
-_SAID: set[str] = set()        # the scene warnings already given in this process
 
 
 def _warn_beyond_curve_fields(cfg: RunConfig, program: dict[str, Any]) -> None:
