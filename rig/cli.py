@@ -771,5 +771,6 @@ def entry() -> None:
     os._exit(code)
 
 
-if __name__ == "__main__":
-    entry()
+if __name__ == "__main__":       # python -m rig.cli: as the console script, SIGTERM a stop that closes the recording
+    from rig.launch import entry as launched    # (it killed the run outright, leaving a cut file; an audit)
+    launched()

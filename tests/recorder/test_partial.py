@@ -205,11 +205,13 @@ def test_a_missing_recording_is_named_before_an_output_in_the_way(tmp_path, caps
     assert capsys.readouterr().err == "rig: error: cannot read recording missing.mcap: no such file or directory\n"
 
 
-def test_sigterm_stops_the_console_script_as_ctrl_c_does(tmp_path):
+@pytest.mark.parametrize("start", [["-c", "from rig.launch import entry; entry()"], ["-m", "rig.cli"]])
+def test_sigterm_stops_the_console_script_as_ctrl_c_does(tmp_path, start):
     """``timeout``, ``docker stop``, systemd send SIGTERM: the run stops between steps and the recording is closed,
-    marked interrupted, every curve once (it was cut like a SIGKILL, exit 143 and no word)."""
+    marked interrupted, every curve once (it was cut like a SIGKILL, exit 143 and no word) — also when started as
+    ``python -m rig.cli`` (which skipped the console script's handler: killed outright, a cut file; an audit)."""
     out = tmp_path / "terminated.mcap"
-    run = subprocess.Popen([sys.executable, "-c", "from rig.launch import entry; entry()", "-q", "run", str(SCENE),
+    run = subprocess.Popen([sys.executable, *start, "-q", "run", str(SCENE),
                             "--cycles", "400", "-o", str(out), "--no-report"], stdout=subprocess.DEVNULL,
                            stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:

@@ -159,3 +159,46 @@ def test_an_empty_file_is_named(tmp_path):
     (tmp_path / "empty.mcap").write_bytes(b"")
     with pytest.raises(RecordingError, match="empty file"):
         repair(tmp_path / "empty.mcap", tmp_path / "out.mcap")
+
+
+def _after_end_record(raw: bytes) -> int:
+    """Offset just after the data section's ``rig.end`` metadata record (opcode 0x0C, then its length, then the name
+    with its uint32 length)."""
+    at = 0
+    while True:
+        at = raw.index(b"\x07\x00\x00\x00rig.end", at + 1)
+        start = at - 9
+        if raw[start] == 0x0C:
+            return start + 9 + int.from_bytes(raw[start + 1:start + 9], "little")
+
+
+def test_a_file_cut_after_its_end_record_has_lost_its_last_chunk_and_says_so(tmp_path):
+    """The recorder writes the run's end record before the writer flushes its last chunk: a file cut between them (a
+    kill, a full disk) read every record up to the cut and the end record, and repair called it whole — "nothing of
+    the run was lost", complete — with 3 of 50 curves gone (an audit). The end record's message count tells."""
+    whole = _record(tmp_path / "whole.mcap")
+    raw = whole.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(raw[:_after_end_record(raw)])
+    done = repair(cut, tmp_path / "fixed.mcap")
+    fixed = read_recording(done.path)
+    counted = int(read_recording(whole).end["messages"])
+    kept = sum(fixed.message_counts.values())
+    assert kept < counted and not done.whole and not fixed.complete
+    assert any(f"{counted - kept} of the {counted} messages the run's end record counts are not in the file" in p
+               for p in done.problems)
+
+
+def test_a_whole_run_whose_message_index_alone_is_damaged_stays_complete(tmp_path):
+    """A bit flipped in a message index (an index record: the messages are all in their chunk): every message read,
+    the end record's count met — yet the rewritten file was marked incomplete and its report said "cut short or
+    damaged" (an audit). Nothing of the run is lost: the repaired file is complete, the repair noted."""
+    whole = _record(tmp_path / "whole.mcap")
+    first = _chunks(whole)[0]
+    damaged = tmp_path / "index.mcap"
+    damaged.write_bytes(_flip(whole.read_bytes(), first.chunk_start_offset + first.chunk_length + 20))
+    assert read_recording(damaged, allow_partial=True).problems            # the damage is seen
+    done = repair(damaged, tmp_path / "fixed.mcap")
+    fixed = read_recording(done.path)
+    assert done.whole and fixed.complete and fixed.message_counts == read_recording(whole).message_counts
+    assert "rig.repair" in fixed.metadata
