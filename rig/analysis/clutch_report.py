@@ -165,7 +165,13 @@ def stand_record(rec: Recording) -> StandRecord | None:
     if len(encs) == 2:
         (t1, a1), (t3, a3) = _edge_points(encs[1]), _edge_points(encs[2])
         t_angle = np.union1d(t1, t3)
-        offset = float(rec.truth["phi_r"][0]) if "phi_r" in rec.truth and rec.truth["phi_r"].size else 0.0
+        offset = 0.0
+        if "phi_r" in rec.truth and rec.truth["phi_r"].size:     # the angle at power-on, where the counts are 0
+            t0, step = rec.truth["t"][0], np.diff(rec.truth["t"][:2])
+            offset = float(rec.truth["phi_r"][0])
+            if step.size and t0 > 10 * step[0]:     # the start lost (a damaged first chunk): the counts are not 0 at
+                offset -= float(np.interp(t0, t1, a1) - np.interp(t0, t3, a3))   # the truth's first sample (they
+                # count from power-on): the offset that meets the truth there (its angle was read as power-on's)
         rel = np.interp(t_angle, t1, a1) - np.interp(t_angle, t3, a3) + offset
     speeds = {("ω1" if i == 1 else "ω3"): _speeds(e) for i, e in encs.items()}
     last = [float(_edge_points(e)[0][-1]) for e in encs.values() if np.any(e["count"] != 0)]
@@ -215,7 +221,21 @@ def summary_lines(rec: Recording, stim: list[Stimulus], metrics: list[Metric]) -
     scene = _scene(rec)
     if scene is not None and scene.data.get("comparison"):
         lines.append(f"  thesis against rig: {agreement_text(compare(scene, stim, metrics))} (comparison.csv)")
-    return lines + [f"  warning: {text}" for text in stall_warnings(rec)]
+    return lines + [f"  warning: {text}" for text in lost_start_warnings(rec) + stall_warnings(rec)]
+
+
+def lost_start_warnings(rec: Recording) -> list[str]:
+    """A recording whose stand readings begin late (its first chunk lost): what its results cover (they said "at
+    power-on" and "of the run" of the first reading kept; an audit)."""
+    data = stand_record(rec)
+    if data is None or rec.complete or data.t[0] <= START_KEPT:
+        return []
+    return [f"the stand's readings begin at {data.t[0]:.4g} s: the run's start was lost, so \"at power-on\" and "
+            f"\"since power-on\" below mean that first reading, and the counts and extremes cover "
+            f"{data.t[0]:.4g} … {data.end:.4g} s only"]
+
+
+START_KEPT = 0.5     # s: stand readings that begin later than this come from a recording that lost its start
 
 
 def stall_warnings(rec: Recording) -> list[str]:
@@ -339,6 +359,7 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
         blocks.append(banner)
     if details:
         blocks.append(Text(f"Thesis against rig: {details} (Thesis against rig, below).", "" if banner.ok else "warning"))
+    blocks += [Text(f"Warning: {text}.", "warning") for text in lost_start_warnings(ctx.recording)]
     if stim:
         blocks.append(Text("The scene: " + "; ".join(f"{s.text} at {s.time:.4g} s" for s in stim) + "."))
     blocks.append(Table(["result", "value", "relative to / definition"],

@@ -247,3 +247,23 @@ def test_a_count_thesis_beside_a_quantity_is_not_compared_and_says_why(tmp_path)
     peak = Metric("start-up: peak torque", 14.7, "N*m", "extreme reading", at=0.0466)
     (row,) = [r for r in compare(load_scene(scene_path), [], [peak]) if r.thesis == 14]
     assert row.rig is None and row.verdict == "n/a" and "is a count, the rig's 'start-up: peak torque' in N*m" in row.why
+
+
+def test_a_stand_recording_that_lost_its_start_says_what_its_results_cover(runs):
+    """The first chunk of a blocked-clutch run damaged: its results took the first reading kept (7 s) as power-on —
+    "347.44° at power-on", a disengagement at 9.494 s the run never had (an audit). The relative angle meets the truth
+    where it begins, and the console and report say what the results cover."""
+    import copy
+    from rig.analysis.clutch_report import lost_start_warnings, stand_record, summary_lines
+    _, whole = runs["clutch_blocked"]
+    cut = copy.copy(whole)
+    start = 2.0                                                     # the run's first 2 s lost
+    cut.series = {k: {c: v[s["t"] >= start] for c, v in s.items()} for k, s in whole.series.items()}   # truth too
+    cut.complete = False
+    assert whole.complete and not lost_start_warnings(whole)
+    (said,) = lost_start_warnings(cut)
+    assert said.startswith("the stand's readings begin at 2") and "cover 2" in said
+    assert any(line == f"  warning: {said}" for line in summary_lines(cut, *stand_results(cut)))
+    full, kept = stand_record(whole), stand_record(cut)
+    at = kept.t_angle[0]                                          # the angle where the kept readings begin: the truth's
+    assert kept.rel_angle[0] == pytest.approx(np.interp(at, full.t_angle, full.rel_angle), abs=np.radians(1.0))
