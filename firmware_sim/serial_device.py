@@ -101,10 +101,10 @@ class SerialDevice:
         while not self._stop.is_set():
             data = self._transport.read(0.02)
             now = time.monotonic()
-            if self._rx.pending and now - rx_done > self._gap:      # the gap after the last byte's arrival on the
-                self._rx.reset()                                    # line, not after its read: 15000 bytes at 115200
-            if not data:                                            # baud arrive over 1.3 s (a frame written in two
-                continue                                            # pieces was dropped; an audit)
+            if not data:                            # silence: a partial frame is dropped after the gap from its last
+                if self._rx.pending and now - rx_done > self._gap:  # byte's arrival on the line, not from its read:
+                    self._rx.reset()                # 15000 bytes at 115200 baud arrive over 1.3 s (a frame written in
+                continue                            # two pieces was dropped; an audit)
             rx_done = max(now, rx_done) + len(data) * self._char
             for event in self._rx.feed(data):
                 self._wait_until(rx_done)

@@ -84,12 +84,12 @@ def _unit_text(suffix: str) -> str:
 
 _NUMBER = re.compile(r"\d|\binf\b|\bnan\b", re.IGNORECASE)      # a quantity string holds a number
 #: "1 500 rpm": pint multiplies the two (500 rpm; "1 000 mm" is 0); not a unit that starts with a number ("150 1/min")
-_SIDE_BY_SIDE = re.compile(r"\d\.?\s+\.?\d+(?:\.\d*)?(?!\s*/)")
+_SIDE_BY_SIDE = re.compile(r"\d\.?\s+\.?\d+(?:\.\d*)?(?!\d|\s*/\s*[^\d\s.])")   # ("2 1/2 in" is refused)
 
 
 def _one_number(value: str, what: str) -> None:
     """Refuse a quantity string whose number a person and pint read differently: a comma (a decimal comma, "1,89
-    N/mm", or a thousands separator, "1,500 rpm": 100× off either way read as the other) and numbers side by side
+    N/mm", or a thousands separator, "1,500 rpm": 100× or 1000× off read as the other) and numbers side by side
     (a thousands space, "1 500 rpm", which pint reads as the product 1·500)."""
     if "," in value:
         raise UnitError(f"{what}: {value!r} has a comma: a decimal comma or a thousands separator? Write the number "

@@ -14,7 +14,7 @@ def index_text(value: float | None) -> str:
     infinities spelled, a dash for none."""
     if value is None or value != value:
         return "—"
-    return f"{value:.2f}" if math.isfinite(value) else ("∞" if value > 0 else "−∞")
+    return f"{value:.2f}" if math.isfinite(value) else ("∞" if value > 0 else "-∞")
 
 
 def capability(mean: float, std: float, lsl: float | None, usl: float | None) -> tuple[float | None, float | None]:

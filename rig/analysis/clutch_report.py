@@ -167,11 +167,12 @@ def stand_record(rec: Recording) -> StandRecord | None:
         t_angle = np.union1d(t1, t3)
         offset = 0.0
         if "phi_r" in rec.truth and rec.truth["phi_r"].size:     # the angle at power-on, where the counts are 0
-            t0, step = rec.truth["t"][0], np.diff(rec.truth["t"][:2])
+            truth_t = rec.truth["t"]
             offset = float(rec.truth["phi_r"][0])
-            if step.size and t0 > 10 * step[0]:     # the start lost (a damaged first chunk): the counts are not 0 at
-                offset -= float(np.interp(t0, t1, a1) - np.interp(t0, t3, a3))   # the truth's first sample (they
-                # count from power-on): the offset that meets the truth there (its angle was read as power-on's)
+            if _lost_start(rec):            # the counts are not 0 where the kept readings begin (they count from
+                at = max(float(truth_t[0]), float(t1[0]), float(t3[0]))           # power-on): the offset that meets
+                offset = float(np.interp(at, truth_t, rec.truth["phi_r"]) - (np.interp(at, t1, a1)    # the truth
+                                                                              - np.interp(at, t3, a3)))  # there
         rel = np.interp(t_angle, t1, a1) - np.interp(t_angle, t3, a3) + offset
     speeds = {("ω1" if i == 1 else "ω3"): _speeds(e) for i, e in encs.items()}
     last = [float(_edge_points(e)[0][-1]) for e in encs.values() if np.any(e["count"] != 0)]
@@ -228,7 +229,7 @@ def lost_start_warnings(rec: Recording) -> list[str]:
     """A recording whose stand readings begin late (its first chunk lost): what its results cover (they said "at
     power-on" and "of the run" of the first reading kept; an audit)."""
     data = stand_record(rec)
-    if data is None or rec.complete or data.t[0] <= START_KEPT:
+    if data is None or not _lost_start(rec):
         return []
     return [f"the stand's readings begin at {data.t[0]:.4g} s: the run's start was lost, so \"at power-on\" and "
             f"\"since power-on\" below mean that first reading, and the counts and extremes cover "
@@ -236,6 +237,12 @@ def lost_start_warnings(rec: Recording) -> list[str]:
 
 
 START_KEPT = 0.5     # s: stand readings that begin later than this come from a recording that lost its start
+
+
+def _lost_start(rec: Recording) -> bool:
+    """Whether an incomplete recording lost the start of its stand readings (they begin after :data:`START_KEPT`)."""
+    torque = rec.series.get(stand_topics(rec)["M_t"]) or {}
+    return not rec.complete and "t" in torque and torque["t"].size > 0 and float(torque["t"][0]) > START_KEPT
 
 
 def stall_warnings(rec: Recording) -> list[str]:

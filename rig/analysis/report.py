@@ -93,7 +93,7 @@ def _indices(v: dict) -> list[Any]:
     """Cp and Cpk cells: n/a without spread (σ = 0 makes them infinite, which says nothing), except a Cpk of −∞:
     every value outside a limit."""
     if v["spread"]:
-        return [index_text(v["cp"]) if v["cp"] is not None else None, index_text(v["cpk"])]
+        return [index_text(v["cp"]), index_text(v["cpk"])]
     return ["n/a", "−∞" if _outside(v) else "n/a"]
 
 

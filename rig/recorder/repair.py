@@ -147,11 +147,11 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
                                      "nothing to repair")
             end = dict(rewriter.end or {})
             kept, counted = sum(rewriter.messages.values()), end.get("messages", "")
-            if counted.isdigit() and int(counted) != kept:  # the end record precedes the last chunk in the file: a
+            if counted.isdigit() and int(counted) > kept and not rec.lost:    # the end record precedes the last chunk
                 problems.append(f"{int(counted) - kept} of the {counted} messages the run's end record counts are "
-                                "not in the file (written after that record: the last chunk, lost)")   # cut there
-            whole = (end.get("complete") == "true" and counted.isdigit() and int(counted) == kept  # read nothing
-                     and not (rec.lost or rewriter.orphans))     # lost: a damaged index alone leaves the run whole
+                                "not in the file (written after that record: the last chunk, lost)")   # in the file
+            whole = (end.get("complete") == "true" and counted.isdigit() and int(counted) == kept   # a file cut there
+                     and not (rec.lost or rec.damaged or rewriter.orphans))   # read all else: its count tells
             if problems and whole:    # every message and the end record read (e.g. only the summary was cut)
                 writer.add_metadata(REPAIR_METADATA, {"source": source.name, "problems": "; ".join(problems)})
             elif problems:            # what was lost, in the file itself: a report of it says so

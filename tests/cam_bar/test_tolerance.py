@@ -206,7 +206,10 @@ def test_the_clearance_run_shares_no_machines_with_the_next_seeds_run(chain):
     from rig.plants.cam_bar.tolerance_report import clearance_stream
     tol = ToleranceSet(THESIS)
     (clear,), (next_seed,) = tasks(chain, tol, 500, clearance_stream(11)), tasks(chain, tol, 500, 12)
-    (same,) = tasks(chain, tol, 500, clearance_stream(11))
+    stream = clearance_stream(11)
+    (same,) = tasks(chain, tol, 500, stream)
+    (again,) = tasks(chain, tol, 500, stream)            # the same object twice: the same machines (spawn counts)
+    assert again.seed.spawn_key == same.seed.spawn_key
     drawn = [np.stack(list(sample_deviations(np.random.default_rng(t.seed), tol, 500).values()))
              for t in (clear, next_seed, same)]
     assert not np.any(np.isclose(drawn[0], drawn[1], rtol=0.0, atol=1e-15)) and np.array_equal(drawn[0], drawn[2])

@@ -80,7 +80,8 @@ def tasks(chain: CamChain, tol: ToleranceSet, n: int, seed: "int | np.random.See
     """The run's tasks: ``task_samples`` machines each (the last one the rest), task i drawn from
     ``SeedSequence(seed).spawn(count)[i]`` (``seed`` an int, or a SeedSequence of its own stream)."""
     sizes = [min(task_samples, n - i) for i in range(0, n, task_samples)]
-    root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    root = (np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key, pool_size=seed.pool_size)   # a copy:
+            if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed))   # spawn counts its children
     return [ChainSamples(chain, tol, s, k) for s, k in zip(root.spawn(len(sizes)), sizes)]
 
 
