@@ -772,5 +772,6 @@ def entry() -> None:
 
 
 if __name__ == "__main__":       # python -m rig.cli: as the console script, SIGTERM a stop that closes the recording
-    from rig.launch import entry as launched    # (it killed the run outright, leaving a cut file; an audit)
-    launched()
+    from rig.stops import stop_on_signals       # (it killed the run outright, leaving a cut file; an audit)
+    stop_on_signals()
+    entry()

@@ -5,7 +5,7 @@ import os
 import signal
 import sys
 
-from rig.stops import Terminated, spawned_worker
+from rig.stops import spawned_worker, stop_on_signals
 
 
 def _interrupted_while_starting(signum: int, frame: object) -> None:
@@ -22,10 +22,6 @@ else:
     signal.signal(signal.SIGINT, _interrupted_while_starting)
 
 
-def _terminated(signum: int, frame: object) -> None:
-    raise Terminated
-
-
 def entry() -> None:
     """Import the command line under the start-up handler, then hand Ctrl-C back to Python (a KeyboardInterrupt that
     :func:`rig.cli.main` turns into its one line and the recorder into an interrupted, closed recording); SIGTERM (sent
@@ -33,6 +29,5 @@ def entry() -> None:
     :class:`rig.stops.Terminated`, named so in the recording and the console), instead of leaving a cut recording
     without a word."""
     from rig.cli import entry as run
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, _terminated)
+    stop_on_signals()
     run()

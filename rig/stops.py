@@ -28,6 +28,17 @@ def stopped(exc: BaseException | None) -> str:
     return "terminated (SIGTERM)" if terminated(exc) else "interrupted"
 
 
+def stop_on_signals() -> None:
+    """Ctrl-C back to Python's KeyboardInterrupt and SIGTERM a :class:`Terminated`: both stop a command with its one
+    line, the recording closed and marked interrupted (the console script's, and ``python -m rig.cli``'s)."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _raise_terminated)
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated
+
+
 def spawned_worker() -> None:
     """In a worker process that multiprocessing spawned (Dask's, re-running the command's main module as
     ``__mp_main__``): ignore Ctrl-C — it reaches every process of the terminal's group, and the parent says it once and
