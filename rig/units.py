@@ -88,9 +88,13 @@ _SIDE_BY_SIDE = re.compile(r"\d\.?\s+\.?\d+(?:\.\d*)?(?!\d|\s*/\s*[^\d\s.])")   
 
 
 def _one_number(value: str, what: str) -> None:
-    """Refuse a quantity string whose number a person and pint read differently: a comma (a decimal comma, "1,89
+    """Refuse a quantity string whose number a person and pint read differently: a ± (pint's measurement, then a
+    product: "1.5 ± 0.1 mm" read 0.15 mm), a comma (a decimal comma, "1,89
     N/mm", or a thousands separator, "1,500 rpm": 100× or 1000× off read as the other) and numbers side by side
     (a thousands space, "1 500 rpm", which pint reads as the product 1·500)."""
+    if "±" in value or "+/-" in value:      # pint reads "1.5 ± 0.1 mm" as 0.15 mm (a measurement, then a product)
+        raise UnitError(f"{what}: {value!r} has a ± (a tolerance): write the value alone (e.g. \"1.5 mm\"); a "
+                        f"tolerance has its own key where the scene takes one")
     if "," in value:
         raise UnitError(f"{what}: {value!r} has a comma: a decimal comma or a thousands separator? Write the number "
                         f"with a decimal point and no separators (e.g. \"1.89 N/mm\", \"1500 rpm\")")

@@ -1,4 +1,5 @@
 """Scene validation and unit parsing: every failure names the key and the file."""
+import re
 from pathlib import Path
 
 import pytest
@@ -107,9 +108,12 @@ def test_an_angular_speed_in_revolutions_or_angles_per_time(value):
     ("1 500 rpm", "rad/s", "has two numbers side by side"),     # read 500 rpm: pint multiplied 1·500
     ("1 000 mm", "m", "has two numbers side by side"),          # read 0 m
     ("3 2 mm", "m", "has two numbers side by side"),
+    ("2 1/2 in", "m", "has two numbers side by side"),            # a mixed fraction: pint read 1 in
+    ("1.5 ± 0.1 mm", "m", "has a ±"),                             # read 0.15 mm
+    ("1.5 +/- 0.1 mm", "m", "has a ±"),
 ])
 def test_a_number_a_person_and_pint_read_differently_is_refused(value, si, message):
-    with pytest.raises(UnitError, match=f"stroke: '{value}' {message}"):
+    with pytest.raises(UnitError, match=re.escape(f"stroke: '{value}' {message}")):
         to_si(value, si, what="stroke")
 
 
