@@ -16,6 +16,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from firmware_sim.digiforce.description import CHANNELS
 from firmware_sim.serial_protocol.framing import MAX_DATA
 
 OK, UNKNOWN, SYNTAX, REJECTED, NO_DATA, STATE, INTERNAL = 0, 1, 2, 3, 4, 5, 9
@@ -199,8 +200,8 @@ class Commands:
         self._device.set_program(self._program(number), config, fits=_readable)   # empty: the active one
 
     def _tare(self, data: str) -> None:
-        if data not in ("", "x", "y", "y2"):      # not a channel name: malformed data (02), not a value out of range
-            raise CommandError(SYNTAX, f"TA takes a channel name (x, y, y2) or nothing, got {data[:40]!r}")
+        if data and data not in CHANNELS:         # not a channel name: malformed data (02), not a value out of range
+            raise CommandError(SYNTAX, f"TA takes a channel name ({', '.join(CHANNELS)}) or nothing, got {data[:40]!r}")
         self._device.tare(data or None)
 
     def _latch(self) -> str:

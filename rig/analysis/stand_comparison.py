@@ -21,6 +21,7 @@ from typing import Any, Callable
 
 from rig.analysis.clutch_metrics import Metric, Stimulus
 from rig.analysis.numbers import plural
+from rig.analysis.units import same_kind
 from rig.scene import Field, Scene, SceneError, read_table
 from rig.units import UnitError, to_si
 
@@ -175,16 +176,6 @@ def check_rows(scene: Scene) -> None:
         _agrees(th.spec["tolerance"], th.number, th.unit, th.si, th.scale, th.number, th.where)
 
 
-def _same_dimension(si: str, metric_unit: str) -> bool:
-    """Whether a thesis value in ``si`` can be compared with a result in ``metric_unit`` (a word result such as
-    "required" counts as a number)."""
-    try:
-        to_si(1.0, si, metric_unit or "1")
-        return True
-    except UnitError:
-        return False
-
-
 def _origins(stimuli: list[Stimulus]) -> Callable[[str], float]:
     """Time (s) of the stimulus a result named ``"<stimulus>: …"`` is measured from (0: the run's start)."""
     starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}
@@ -206,7 +197,7 @@ def compare(scene: Scene, stimuli: list[Stimulus], metrics: list[Metric]) -> lis
                                  f"{'none' if after is None else after.value_text()}: another event, not judged")
         if metric is None:
             why = why or f"no result {spec['rig']!r} in this run"
-        elif spec["part"] == "value" and not _same_dimension(si, SI.get(metric.unit, metric.unit)):
+        elif spec["part"] == "value" and not same_kind(si, SI.get(metric.unit, metric.unit) or "1"):
             metric, why = None, (f"the thesis value {spec['thesis']!r} is {'a count' if si == '1' else f'in {unit}'}, "
                                  f"the rig's {metric.name!r} in {metric.unit or 'counts'}: not compared (write the "
                                  f"thesis with its unit)")
