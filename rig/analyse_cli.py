@@ -9,6 +9,7 @@ from pathlib import Path
 
 def cmd_analyse(args: argparse.Namespace) -> int:
     from rig.analysis.batch import analyse_batch, expand, report_lines, write_table
+    from rig.analysis.batch_charts import write_charts
     from rig.analysis.numbers import plural
     from rig.analysis.stand_summary import NO_SHEET
     from rig.console import progress as progress_bar
@@ -25,7 +26,8 @@ def cmd_analyse(args: argparse.Namespace) -> int:
             result = analyse_batch(paths, executor, bar.update)
         wall = time.perf_counter() - t0
     table = write_table(result, claim_dir(out) / "recordings.csv")
-    lines = report_lines(result)
+    charts = write_charts(result, out / "charts")
+    lines = report_lines(result, [(c.group, str(c.path.relative_to(out)), c.omitted) for c in charts])
     report = out / "report.md"
     report.write_text("\n".join(lines) + "\n")
     print(lines[2])
@@ -48,7 +50,8 @@ def cmd_analyse(args: argparse.Namespace) -> int:
                   f"{first.error}; every reason in {table}, {report})", file=sys.stderr)
         return 2
     unread = f" ({len(paths) - read} unreadable, their reasons in the table)" if read < len(paths) else ""
-    print(f"{plural(read, 'recording')} analysed{unread} in {wall:.1f} s -> {table}, {report}")
+    print(f"{plural(read, 'recording')} analysed{unread} in {wall:.1f} s -> {table}, {report}"
+          + (f" ({plural(len(charts), 'chart')} in {out / 'charts'})" if charts else ""))
     return 0
 
 

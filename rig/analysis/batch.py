@@ -62,6 +62,7 @@ class RecordingSummary:
     copy_of: str = ""          # the path of another copy of the same run, counted instead of this one
     machine: dict[str, str] = field(default_factory=dict)     # the scene's values but the run's (RUN_SETTING)
     variant: str = ""          # set by analyse_batch where recordings of one scene name describe different machines
+    limits: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)  # program limits, display units
 
     @property
     def group(self) -> str:
@@ -122,19 +123,22 @@ def expand(patterns: Sequence[str]) -> list[Path]:
     return list(out)
 
 
-def _value_moments(rec: "Recording", units: dict) -> dict[str, tuple[Moments, str]]:
+def _value_moments(rec: "Recording", units: dict) -> tuple[dict[str, tuple[Moments, str]], dict[str, tuple]]:
     """Per program and process value the moments of its finite values in display units (every curve counts,
-    also in sets too small for the per-set statistics)."""
-    from rig.analysis.sets import by_program, process_values
-    out = {}
+    also in sets too small for the per-set statistics), and its program's limits in that unit (where it has any)."""
+    from rig.analysis.sets import by_program, limits_from_program, process_values
+    out, limits = {}, {}
     for program, results in by_program(rec.results).items():
+        bounds = limits_from_program(rec.programs.get(program))
         for name, v in process_values(results).items():
             u = units[program].value(name)
             shown = np.asarray(u(v), dtype=float)
             shown = shown[np.isfinite(shown)]
             if shown.size:
                 out[f"p{program}.{name}"] = (Moments.of_block(shown[:, None]), u.label)
-    return out
+                if name in bounds:
+                    limits[f"p{program}.{name}"] = (u(bounds[name][0]), u(bounds[name][1]))
+    return out, limits
 
 
 def summarise(path: Path) -> RecordingSummary:
@@ -149,7 +153,7 @@ def summarise(path: Path) -> RecordingSummary:
         if empty is not None:
             raise RecordingError(f"{path}: {empty}")
         result = analyse(rec)
-        values = _value_moments(rec, result["units"])
+        values, limits = _value_moments(rec, result["units"])
         summary = stand_summary(rec)
         if summary is not None:
             values.update({k: (Moments.of_block(np.array([[v]])), unit) for k, (v, unit) in summary.values.items()})
@@ -166,7 +170,7 @@ def summarise(path: Path) -> RecordingSummary:
                             summary.lines if summary is not None else [], level=str(meta.get("fidelity_level", "")),
                             incomplete=" ".join("; ".join(losses(rec)).split()), seed=str(meta.get("seed", "")),
                             started=str(meta.get("wall_clock_start", "")), machine=machine_of(rec.scene_text),
-                            not_recorded=len(result["not_recorded"]))
+                            not_recorded=len(result["not_recorded"]), limits=limits)
 
 
 def _scene_table(scene_text: str) -> dict[str, object]:
@@ -221,14 +225,14 @@ def analyse_batch(paths: Sequence[Path], executor: "Executor",
                 combined[key] = (m, unit)
                 continue
             first = combined[key][1]              # one machine, a unit written otherwise (cm, mm): in the first's
-            factor = 1.0 if unit == first else _factor(unit, first)
+            factor = 1.0 if unit == first else unit_factor(unit, first)
             if not factor > 0.0:
                 raise ValueError(f"{row.path}: {name} in {unit!r}, earlier recordings of {row.group} in {first!r}")
             combined[key] = (combined[key][0].merge(m if factor == 1.0 else m.scaled(factor)), first)
     return BatchResult(rows, combined)
 
 
-def _factor(unit: str, to: str) -> float:
+def unit_factor(unit: str, to: str) -> float:
     """The factor from display unit ``unit`` to ``to`` ("cm" → "mm": 10); NaN where they are not of one kind (an
     angle's presence counts: 1/min is not rpm, as :func:`rig.units.to_si` says)."""
     from rig.analysis.units import pint_label
@@ -343,10 +347,12 @@ def write_table(result: BatchResult, path: Path) -> Path:
     return path
 
 
-def report_lines(result: BatchResult) -> list[str]:
-    """The combined report (Markdown): totals, process values (and stand results) over all recordings, the
-    stand and lab recordings with their summaries, recordings with NOK curves, incomplete ones (with the reason: a
-    cut or damaged file analysed for what it holds, a run stopped early) and unreadable ones."""
+def report_lines(result: BatchResult, charts: Sequence[tuple[str, str, Sequence[str]]] = ()) -> list[str]:
+    """The combined report (Markdown): totals, process values (and stand results) over all recordings, the charts
+    (``charts``: population, the PNG's path relative to the report, the values it leaves out; see
+    :mod:`rig.analysis.batch_charts`), the stand and lab recordings with their summaries, recordings with NOK curves,
+    incomplete ones (with the reason: a cut or damaged file analysed for what it holds, a run stopped early) and
+    unreadable ones."""
     recs = result.recordings
     copies = [r for r in recs if r.copy_of]
     read = [r for r in recs if not r.error and not r.copy_of]
@@ -389,6 +395,14 @@ def report_lines(result: BatchResult) -> list[str]:
             lines.append(f"| {group} | {name} | {unit} | {n} | {mean:.6g} | {std if std == '' else f'{std:.4g}'} | "
                          f"{lo:.6g} | {hi:.6g} |")
         lines.append("")
+    if charts:
+        lines += ["## Per recording, against the run's start", "",
+                  "Each recording's mean (red: it holds NOK curves) and min … max, the mean and ±3σ of all (black) and "
+                  "the program's limits (red); above them the share of NOK curves per recording.", ""]
+        for group, png, omitted in charts:
+            lines += [f"![{group}]({png})", ""]
+            if omitted:
+                lines += [f"({group}: {plural(len(omitted), 'more value')} in the table only: {', '.join(omitted)})", ""]
     stands = [r for r in read if r.stand]
     if stands:
         lines += [f"## Stand and lab recordings ({len(stands)})", ""]

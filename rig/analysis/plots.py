@@ -47,13 +47,13 @@ def figure(nrows: int = 1, ncols: int = 1, size: tuple[float, float] = (7, 4.5),
 
 
 def save(fig: Figure, path: Path, wspace: float = 0.25, hspace: float = 0.3, bottom: float | None = None,
-         left: float | None = None, right: float | None = None) -> Path:
-    """Place the axes with :data:`MARGINS` (``bottom``/``left``/``right``: other margins in inches, e.g. for a
-    legend beside the axes; spacing as fractions of an axes) and write the PNG."""
+         left: float | None = None, right: float | None = None, top: float | None = None) -> Path:
+    """Place the axes with :data:`MARGINS` (``bottom``/``left``/``right``/``top``: other margins in inches, e.g. for
+    a legend beside the axes or a figure title; spacing as fractions of an axes) and write the PNG."""
     w, h = fig.get_size_inches()
-    m_left, m_right, m_bottom, top = MARGINS
+    m_left, m_right, m_bottom, m_top = MARGINS
     left, bottom = m_left if left is None else left, m_bottom if bottom is None else bottom
-    right = m_right if right is None else right
+    right, top = m_right if right is None else right, m_top if top is None else top
     fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
                         wspace=wspace, hspace=hspace)
     separate_labels(fig)

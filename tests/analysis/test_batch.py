@@ -245,14 +245,14 @@ def test_machines_are_told_apart_by_value_and_their_labels_never_merge_two():
     _name_variants(rows)
     assert len({r.group for r in rows}) == 3
     assert rows[0].group.startswith("s L1 (plant.F_c = 40 N, device.a = 1") and "device.d = 1" in rows[0].group
-    from rig.analysis.batch import _factor
+    from rig.analysis.batch import unit_factor
     from rig.analysis.streaming import Moments
     import numpy as np
-    assert _factor("cm", "mm") == pytest.approx(10.0) and _factor("kN", "N") == pytest.approx(1e3)
-    assert _factor("N·m", "N·mm") == pytest.approx(1e3) and _factor("°", "rad") == pytest.approx(np.pi / 180)
-    assert np.isnan(_factor("mm", "N"))
+    assert unit_factor("cm", "mm") == pytest.approx(10.0) and unit_factor("kN", "N") == pytest.approx(1e3)
+    assert unit_factor("N·m", "N·mm") == pytest.approx(1e3) and unit_factor("°", "rad") == pytest.approx(np.pi / 180)
+    assert np.isnan(unit_factor("mm", "N"))
     a, b = np.array([[41.5], [42.0]]), np.array([[4.2], [4.3]])        # mm, and cm of the same machine
-    merged = Moments.of_block(a).merge(Moments.of_block(b).scaled(_factor("cm", "mm")))
+    merged = Moments.of_block(a).merge(Moments.of_block(b).scaled(unit_factor("cm", "mm")))
     whole = Moments.of_block(np.vstack([a, b * 10.0]))
     assert (merged.n, float(merged.mean[0]), float(merged.maximum[0])) == (4, pytest.approx(float(whole.mean[0])), 43.0)
     assert float(merged.m2[0]) == pytest.approx(float(whole.m2[0]))
@@ -301,3 +301,45 @@ def test_curves_judged_but_not_recorded_are_counted_in_the_table(lost_curves, tm
     with write_table(BatchResult([row], {}), tmp_path / "t.csv").open(newline="") as f:
         (written,) = csv.DictReader(f)
     assert written["judged not recorded"] == "2" and written["ok"] == "5"
+
+
+def test_rig_analyse_charts_each_population_per_recording_with_its_limits(recordings, tmp_path):
+    """`rig analyse` draws one chart per population: each recording's values against the run's start, the mean and
+    ±3σ of all and the program's limits (carried from each recording in its display unit); the report shows them."""
+    import matplotlib.image as mpimg
+
+    from rig.analysis.batch_charts import population_figure, write_charts
+    paths = [recordings / "run2.mcap", recordings / "run3.mcap"]
+    with make_executor("serial") as ex:
+        result = analyse_batch(paths, ex)
+    program = read_recording(paths[0]).programs[1]
+    lsl, usl = program["limits"]["x_max"]                                   # SI in the program, mm on the chart
+    assert result.recordings[0].limits["p1.x_max"] == pytest.approx((lsl * 1e3, usl * 1e3), rel=1e-12)
+    assert "p1.duration" not in result.recordings[0].limits               # a value without limits has none
+    charts = write_charts(result, tmp_path / "charts")
+    assert [(c.group, c.path.name, c.omitted) for c in charts] == [("pin_insertion L1", "pin_insertion_L1.png", ())]
+    height, width = mpimg.imread(charts[0].path).shape[:2]
+    assert width > 600 and height > 600
+    fig, omitted = population_figure(result, "pin_insertion L1")
+    panel = next(ax for ax in fig.axes if ax.get_title(loc="left").startswith("p1.x_max:"))
+    assert panel.get_title(loc="left") == "p1.x_max: n = 5 in 2 recordings" and omitted == ()
+    limits = sorted(float(line.get_ydata()[0]) for line in panel.lines if line.get_color() == "tab:red")
+    assert limits == pytest.approx([lsl * 1e3, usl * 1e3], rel=1e-12)
+    means = sorted(float(y) for line in panel.lines if line.get_marker() == "." for y in line.get_ydata())
+    assert means == pytest.approx(sorted(float(r.values["p1.x_max"][0].mean[0]) for r in result.recordings))
+    out = tmp_path / "an"
+    assert main(["-q", "analyse", *map(str, paths), "-o", str(out)]) == 0
+    report = (out / "report.md").read_text()
+    assert "![pin_insertion L1](charts/pin_insertion_L1.png)" in report and (out / "charts" / "pin_insertion_L1.png").is_file()
+
+
+def test_batch_chart_without_start_times_uses_the_order_given(recordings, tmp_path):
+    """A recording whose metadata (and start time) was lost puts the axis in the order given, not in 1970."""
+    from rig.analysis.batch_charts import _abscissa
+    with make_executor("serial") as ex:
+        result = analyse_batch([recordings / "run2.mcap", recordings / "run3.mcap"], ex)
+    x, label = _abscissa(result.recordings)
+    assert x.dtype.kind == "M" and label.startswith("run's wall-clock start")
+    result.recordings[1].started = ""
+    x, label = _abscissa(result.recordings)
+    assert list(x) == [1, 2] and label == "recording (in the order given)"
