@@ -386,8 +386,8 @@ def cmd_repair(args: argparse.Namespace) -> int:
     topics = ", ".join(f"{topic} {n}" for topic, n in sorted(done.messages.items()))
     print(f"wrote {sum(done.messages.values())} messages ({topics}) -> {done.path}")
     if done.problems and done.whole:        # ("lacks what is lost for good" where nothing was; an audit)
-        print(f"nothing of the run was lost: every message and its end record were read; the source lacked only "
-              f"the file's index after its data ({'; '.join(done.problems)}), written anew")
+        print(f"nothing of the run was lost: every message and its end record were read; what the source lacked "
+              f"is written anew ({'; '.join(done.problems)})")
     elif done.problems:
         print(f"the source lacks what is lost for good: {'; '.join(done.problems)}")
     else:

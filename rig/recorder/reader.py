@@ -5,6 +5,7 @@ import ctypes
 import ctypes.util
 import math
 import os
+import struct
 from collections import defaultdict
 from dataclasses import dataclass, field
 from functools import cache
@@ -361,14 +362,32 @@ def _metadata_number(rec: Recording, name: str, key: str, default: str, kind: ty
         raise ValueError(f"metadata {name}.{key} = {text!r} is not a number") from None
 
 
-def _front(path: Path, f: Any) -> int:
-    """The size of the open recording ``f``, after checking it is not empty and starts as an MCAP file does."""
+def check_front(path: Path, f: Any) -> tuple[int, str]:
+    """The size of the open recording ``f`` and what is wrong with its opening magic ('' when intact), after checking
+    it is not empty and starts as an MCAP file does — or, its first 8 bytes damaged, goes on as one
+    (:func:`_records_after_magic`)."""
     size = os.fstat(f.fileno()).st_size
     if size == 0:
         raise RecordingError(f"{path}: empty file (0 bytes), not a recording")
-    if not MCAP_MAGIC.startswith(f.read(len(MCAP_MAGIC))):
+    head = f.read(len(MCAP_MAGIC))
+    if MCAP_MAGIC.startswith(head):
+        return size, ""
+    if not _records_after_magic(f, size):
         raise RecordingError(f"{path}: not an MCAP file (bad magic bytes)")
-    return size
+    f.seek(len(MCAP_MAGIC))
+    return size, (f"the file's opening magic (its first {len(MCAP_MAGIC)} bytes, {head!r} for {MCAP_MAGIC!r}) is "
+                  "damaged: the records after it read as MCAP, but other tools refuse the file")
+
+
+def _records_after_magic(f: Any, size: int) -> bool:
+    """Whether an MCAP header record follows a damaged opening magic: its opcode, a length inside the file and a
+    profile string that fits it — the rest of a recording, not another kind of file."""
+    f.seek(len(MCAP_MAGIC))
+    head = f.read(13)
+    if len(head) < 13 or head[0] != 0x01:
+        return False
+    length, profile = struct.unpack_from("<QI", head, 1)
+    return 8 <= length <= min(1 << 20, size - len(MCAP_MAGIC) - 9) and profile + 8 <= length
 
 
 def _unreadable(path: Path, exc: OSError) -> RecordingError:
@@ -381,7 +400,7 @@ def require_recording(path: str | Path) -> None:
     path = Path(path)
     try:
         with open(path, "rb") as f:
-            _front(path, f)
+            check_front(path, f)               # a damaged opening magic: the reader names it, and reads on
     except OSError as exc:
         raise _unreadable(path, exc) from None
 
@@ -392,11 +411,14 @@ def require_whole_file(path: str | Path, need: str) -> None:
     path = Path(path)
     try:
         with open(path, "rb") as f:
-            size = _front(path, f)
+            size, damage = check_front(path, f)
             f.seek(max(0, size - len(MCAP_MAGIC)))
             tail = f.read()
     except OSError as exc:
         raise _unreadable(path, exc) from None
+    if damage:
+        raise RecordingError(f"{path}: {damage}; {need} needs a whole file (`rig repair {path}` rewrites it whole, "
+                             f"`rig report --partial {path}` reports what it holds)")
     if size < 2 * len(MCAP_MAGIC) or tail != MCAP_MAGIC:
         raise RecordingError(f"{path}: truncated recording (it does not end with MCAP's closing magic: a killed run "
                              f"or a cut copy); {need} needs a whole file — `rig report --partial {path}` reports "
@@ -422,7 +444,11 @@ def read_recording(path: str | Path, allow_partial: bool = False, can_frames: bo
         with open(path, "rb") as f:
             st = os.fstat(f.fileno())
             collector = Collector(rec, can_frames, path, (st.st_size, st.st_mtime_ns))
-            reader = DataSectionReader(f, _front(path, f), collector)
+            size, damage = check_front(path, f)
+            reader = DataSectionReader(f, size, collector)
+            if damage:
+                rec.truncated = rec.damaged = True
+                rec.problems.append(f"{damage} (`rig repair` rewrites it whole)")
             reader.read()
             reader.check()
     except OSError as exc:

@@ -22,7 +22,7 @@ from mcap.writer import CompressionType, Writer
 
 import rig
 from rig.recorder import schemas as S
-from rig.recorder.reader import Collector, Recording, RecordingError
+from rig.recorder.reader import Collector, Recording, RecordingError, check_front
 from rig.recorder.salvage import DataSectionReader
 
 REPAIR_METADATA = "rig.repair"   # a whole run's file rewritten (nothing of the run lost): what was repaired
@@ -126,9 +126,7 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
     part = out.with_name(f".{out.name}.{os.getpid()}.part")
     try:
         with open(source, "rb") as f, open(part, "wb") as sink:
-            size = os.fstat(f.fileno()).st_size
-            if not size:
-                raise RecordingError(f"{source}: empty file (0 bytes), nothing to repair")
+            size, damage = check_front(source, f)        # empty or not MCAP: an error; a damaged magic: said
             writer = Writer(sink, chunk_size=4 << 20, compression=CompressionType.ZSTD, enable_data_crcs=True)
             writer.start(profile="", library=f"mechrig/{rig.__version__} (rig repair)")
             rewriter = _Rewriter(source, writer)
@@ -140,6 +138,7 @@ def repair(source: str | Path, out: str | Path) -> Repaired:
             reader.finish()
             rec = rewriter.rec
             problems = [str(p) for p in rec.lost] + [p for p in rec.problems if p not in {str(x) for x in rec.lost}]
+            problems += [damage] if damage else []      # the magic is rewritten: nothing of the run is lost there
             if not reader.footer and not rec.truncated:
                 problems.append("file ends without a footer (recording was not closed)")
             if not rewriter.messages:

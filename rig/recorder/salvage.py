@@ -158,8 +158,8 @@ def _summary(f: Any, size: int) -> tuple[tuple[Summary, Footer] | None, str | No
     if zlib.crc32(f.read(footer_at + len(data) - 4 - footer.summary_start)) != footer.summary_crc:
         return None, f"{damaged}: its CRC does not match; other MCAP readers may not open the file"
     try:
-        f.seek(0)
-        summary = make_reader(f).get_summary()
+        f.seek(size - len(MCAP_MAGIC))     # the reader checks the magic where it starts: the closing one (checked
+        summary = make_reader(f).get_summary()   # above), so a damaged opening magic does not hide the summary
     except Exception as exc:  # noqa: BLE001 - whatever the library makes of it
         return None, f"{damaged}: {plain(exc)}"
     return (None, None) if summary is None else ((summary, footer), None)

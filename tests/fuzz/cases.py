@@ -21,12 +21,17 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, TypeVar
 
 T = TypeVar("T")
+#: seconds after which one fuzzed call counts as a hang: a loop that never ends, not a slow machine — a bound of a few
+#: seconds failed on a loaded machine (building a level-2 scene's plant loads its compiled kernels: 3.0 s, 2026-11-29)
+HANG = 30.0
 
 FILE_NAME = "fuzz-cases.json"
 
 
 class Case:
     """One example of a target: counts its outcomes (a reason string each)."""
+
+    HANG = HANG
 
     def __init__(self, outcomes: Counter[str]) -> None:
         self._outcomes = outcomes

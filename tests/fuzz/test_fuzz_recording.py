@@ -156,14 +156,14 @@ def test_damaged_recordings(fuzz_cases, mutate, original, target, data) -> None:
     ops = data.draw(st.one_of(mutate.mutations(len(raw)), record_damage(raw), metadata_damage()))
     target.write_bytes(mutate.apply(raw, ops))
     with fuzz_cases.example("recording reader: damaged demo MCAP", limit=60.0) as case:
-        strict = case.within(10.0, read, target, False)
+        strict = case.within(case.HANG, read, target, False)
         if isinstance(strict, RecordingError):
             case.outcome(f"strict: RecordingError, {check_error(strict, target)}")
         else:
             assert strict.complete and not strict.truncated and not strict.problems
             assert content(strict) == content(whole), f"damaged file {ops} read as whole with different content"
             case.outcome("strict: read whole (only the index was hit), content identical")
-        partial = case.within(10.0, read, target, True)
+        partial = case.within(case.HANG, read, target, True)
         if isinstance(partial, RecordingError):
             case.outcome(f"allow_partial: RecordingError, {check_error(partial, target)}")
             return

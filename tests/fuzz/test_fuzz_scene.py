@@ -187,7 +187,7 @@ def bus() -> can.BusABC:
 def fuzz_one(fuzz_cases, target: str, path: Path, name: str, text: str, bus: can.BusABC | None) -> None:
     with fuzz_cases.example(target, limit=60.0) as case:
         try:
-            outcome = case.within(3.0, check, path, text, bus)
+            outcome = case.within(case.HANG, check, path, text, bus)
         except AssertionError as exc:
             raise AssertionError(f"{exc}\n--- {name} mutated:\n{text}") from None
         except Exception as exc:   # noqa: BLE001  (any other exception is the finding)

@@ -307,7 +307,7 @@ def test_dispatcher_on_random_requests(fuzz_cases, requests) -> None:
     commands_ = Commands(unit, None, threading.Lock())
     with fuzz_cases.example("serial device: command dispatcher", limit=60.0) as case:
         for command, data in requests:
-            response = case.within(2.0, commands_.execute, command, data)
+            response = case.within(case.HANG, commands_.execute, command, data)
             case.outcome(check_response(command, response))
         still_works(commands_, unit)
 

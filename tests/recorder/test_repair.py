@@ -201,3 +201,36 @@ def test_a_run_whose_damage_cannot_be_told_from_its_data_stays_incomplete(tmp_pa
     done = repair(damaged, tmp_path / "fixed.mcap")
     fixed = read_recording(done.path)
     assert not done.whole and not fixed.complete and fixed.message_counts == read_recording(whole).message_counts
+
+
+def test_a_damaged_opening_magic_is_named_read_past_and_repaired_with_nothing_lost(tmp_path, capsys):
+    """One bit flipped in the file's first 8 bytes: other readers refuse it (the mcap library here); rig names the
+    damage, reads every message (its summary too: the reader checks the closing magic), and `rig repair` rewrites it
+    whole and complete — a file with no MCAP header after its first bytes stays "not an MCAP file"."""
+    from mcap.exceptions import InvalidMagic
+
+    from rig.recorder.reader import require_whole_file
+    whole = _record(tmp_path / "whole.mcap")
+    raw = bytearray(whole.read_bytes())
+    raw[3] ^= 0x10
+    bad = tmp_path / "magic.mcap"
+    bad.write_bytes(raw)
+    with pytest.raises(InvalidMagic):
+        _messages(bad)
+    with pytest.raises(RecordingError, match="magic.mcap: truncated or corrupt .*opening magic .* is damaged"):
+        read_recording(bad)
+    part, original = read_recording(bad, allow_partial=True), read_recording(whole)
+    assert part.message_counts == original.message_counts and not part.lost and not part.complete
+    assert len(part.problems) == 1 and part.problems[0].startswith("the file's opening magic (its first 8 bytes, ")
+    with pytest.raises(RecordingError, match="opening magic .* is damaged: .* other tools refuse the file; export needs a whole file"):
+        require_whole_file(bad, "export")
+    assert main(["repair", str(bad), "-o", str(tmp_path / "fixed.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert "nothing of the run was lost" in out and "opening magic" in out
+    fixed = read_recording(tmp_path / "fixed.mcap")
+    assert fixed.complete and fixed.message_counts == original.message_counts
+    assert _messages(tmp_path / "fixed.mcap") == _messages(whole)
+    other = tmp_path / "other.mcap"
+    other.write_bytes(b"GIF89a.." + b"\x02" * 40)            # no header record after the first 8 bytes
+    with pytest.raises(RecordingError, match="other.mcap: not an MCAP file"):
+        read_recording(other, allow_partial=True)
