@@ -6,13 +6,16 @@ leading axes are independent traces. Units follow the inputs (SI: s, N*m, rad, J
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from rig.analysis.numbers import fixed
+from rig.analysis.report_blocks import fmt
+from rig.scene import Scene, read_table
 
 if TYPE_CHECKING:
     from rig.analysis.units import Unit
@@ -269,6 +272,87 @@ def _window(t: np.ndarray, y: np.ndarray, a: float, b: float) -> tuple[np.ndarra
     return t[m], y[m]
 
 
+def stimuli(scene: Scene) -> tuple[list[Stimulus], dict[str, Any]]:
+    """What the scene does to the stand, in time order, and its shutdown rule (``shutdown_count``,
+    ``shutdown_window`` s, ``trip_on_shutdown``). Loads fixed in time (constant, step, shock, brake
+    command) give nominal torques; speed- or angle-dependent loads (linear, zone) give none."""
+    from rig.plants.clutch.stand import _LOAD_SCHEMAS, MOTOR_SCHEMA, plant_schema
+    p = scene.read("plant", plant_schema(scene))
+    m = scene.read("motor", MOTOR_SCHEMA)
+    rule = {"shutdown_count": int(p["shutdown_count"]), "shutdown_window": float(p["shutdown_window"]),
+            "trip_on_shutdown": bool(p["trip_on_shutdown"])}
+    steps: list[tuple[float, float]] = []       # (time, torque change) of sustained load changes
+    shocks: list[Stimulus] = []
+    level: float | None = 0.0                   # nominal load torque at t = 0 (None: not fixed in time)
+    for name, table in scene.section("load", required=False).items():
+        if not isinstance(table, dict) or not isinstance(table.get("type"), str) or table["type"] not in _LOAD_SCHEMAS:
+            continue
+        kind = table["type"]
+        q = read_table({k: v for k, v in table.items() if k != "type"}, _LOAD_SCHEMAS[kind][0],
+                       f"{scene.path} [load.{name}]")
+        if kind == "constant":
+            level = None if level is None else level + q["torque"]
+        elif kind == "step":
+            steps.append((q["time"], q["torque"]))
+        elif kind == "shock":
+            shocks.append(Stimulus(q["start"], "shock", f"shock {q['torque']:+.4g} N·m for "
+                                   f"{q['duration'] * 1e3:.4g} ms", after=q["torque"], duration=q["duration"]))
+        elif kind == "brake":
+            g = q["gain"]
+            level = None if level is None else level + g * q["force"]
+            if q["step_time"] is not None:
+                steps.append((q["step_time"], g * (q["step_force"] - q["force"])))
+            if q["pulse_start"] is not None:
+                amp = g * q["pulse_force"]
+                shocks.append(Stimulus(q["pulse_start"], "shock",
+                                       f"brake shock {amp:+.4g} N·m for {q['pulse_duration'] * 1e3:.4g} ms",
+                                       after=amp, duration=q["pulse_duration"]))
+        else:
+            level = None                         # linear in speed, zones in angle: no fixed level
+
+    def load_at(t: float) -> float | None:
+        return None if level is None else level + sum(d for ts, d in steps if ts <= t)
+
+    out: list[Stimulus] = []
+    if p.get("blocked"):
+        out.append(Stimulus(0.0, "sweep", "driven half blocked, driving half turned slowly"))
+    elif p["omega0"] == 0.0:
+        out.append(Stimulus(0.0, "start", f"motor on, stand at rest, load {fmt(load_at(0.0))} N·m", 0.0,
+                            load_at(0.0)))
+    t_off = m["t_off"]
+    for ts in sorted({ts for ts, _ in steps if ts > 0.0}):
+        if math.isfinite(t_off) and abs(ts - t_off) < 1e-9:
+            continue
+        out.append(Stimulus(ts, "step", f"load {fmt(load_at(ts - 1e-9))} → {fmt(load_at(ts))} N·m",
+                            load_at(ts - 1e-9), load_at(ts)))
+    if math.isfinite(t_off):
+        change = load_at(t_off) != load_at(t_off - 1e-9)
+        out.append(Stimulus(t_off, "stop", "motor off" + (f", load {fmt(load_at(t_off - 1e-9))} → "
+                                                          f"{fmt(load_at(t_off))} N·m" if change else ""),
+                            load_at(t_off - 1e-9), None))
+    return sorted(out + shocks, key=lambda s: s.time), rule
+
+
+def stimulus_label(s: Stimulus) -> str:
+    """How results measured from stimulus ``s`` are named: ``"start-up: …"``, ``"shock at 0.3 s: …"``."""
+    return "start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"
+
+
+#: the results of a run as a whole (:func:`stand_metrics`; ``final speed ω1`` of the driving half, ``ω3`` driven)
+RUN_RESULTS = ("torque", "max torque", "min torque", "overshoot", "settling time", "work on the coupling",
+               "relative angle at max torque", "disengagements", "shutdown", "relative angle swept", "relative slip",
+               "relative angle change", "slip ended", "final speed ω1", "final speed ω3")
+#: the results measured from each stimulus, named ``"<stimulus_label>: <result>"``
+STIMULUS_RESULTS = ("response", "torque rise", "overshoot", "settling time", "final torque", "peak torque",
+                    "recovery time", "standstill")
+
+
+def result_names(stimuli: Sequence[Stimulus]) -> list[str]:
+    """Every name a result of a run with these stimuli can have (which ones a run gives depends on what it does)."""
+    return [*RUN_RESULTS, *(f"{stimulus_label(s)}: {r}" for s in sorted(stimuli, key=lambda s: s.time)
+                            for r in STIMULUS_RESULTS)]
+
+
 def _step_metrics(s: Stimulus, rec: StandRecord, seg_end: float, pre_start: float, label: str, band: float,
                   dwell: float, min_step: float, until: str) -> list[Metric]:
     """Peak, overshoot, settling time and final torque after a start, load step or stop."""
@@ -420,7 +504,7 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
         until = f"before the next change at {seg_end:.4g} s" if later else "within the run"
         earlier = [c for c in changes if c < s.time]
         pre_start = max(earlier) if earlier else -np.inf
-        label = f"{s.kind} at {s.time:.4g} s" if s.kind != "start" else "start-up"
+        label = stimulus_label(s)
         if s.kind == "sweep":
             why = ("quasi-static sweep, no step: the blocked driven half is turned slowly, the torque follows the "
                    "relative angle (static characteristic) instead of settling")

@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 
 from drivers.encoder import EDGE_TOLERANCE, SpeedEstimator
-from rig.analysis.clutch_metrics import APEX, LOBE, Metric, StandRecord, Stimulus, stand_metrics
+from rig.analysis.clutch_metrics import APEX, LOBE, Metric, StandRecord, Stimulus, stand_metrics, stimuli
 from rig.analysis.event_text import event_details
 from rig.analysis.plots import figure, save
-from rig.analysis.report_blocks import Banner, Block, Heading, Link, ReportContext, Table, Text, fmt
+from rig.analysis.report_blocks import Banner, Block, Heading, Link, ReportContext, Table, Text
 from rig.analysis.stand_comparison import agreement_parts, agreement_text, compare, thesis_marks, write_csv
 from rig.analysis.units import display_units, scene_device_config
 from rig.recorder import Recording
@@ -43,67 +43,6 @@ def _when(s: Stimulus) -> str:
     if s.kind == "shock" and s.duration:
         return f"shock from {s.time:.4g} s to {s.time + s.duration:.4g} s (shaded)"
     return f"{s.kind} at {s.time:.4g} s"
-
-
-def stimuli(scene: Scene) -> tuple[list[Stimulus], dict[str, Any]]:
-    """What the scene does to the stand, in time order, and its shutdown rule (``shutdown_count``,
-    ``shutdown_window`` s, ``trip_on_shutdown``). Loads fixed in time (constant, step, shock, brake
-    command) give nominal torques; speed- or angle-dependent loads (linear, zone) give none."""
-    from rig.plants.clutch.stand import _LOAD_SCHEMAS, MOTOR_SCHEMA, plant_schema
-    p = scene.read("plant", plant_schema(scene))
-    m = scene.read("motor", MOTOR_SCHEMA)
-    rule = {"shutdown_count": int(p["shutdown_count"]), "shutdown_window": float(p["shutdown_window"]),
-            "trip_on_shutdown": bool(p["trip_on_shutdown"])}
-    steps: list[tuple[float, float]] = []       # (time, torque change) of sustained load changes
-    shocks: list[Stimulus] = []
-    level: float | None = 0.0                   # nominal load torque at t = 0 (None: not fixed in time)
-    for name, table in scene.section("load", required=False).items():
-        if not isinstance(table, dict) or not isinstance(table.get("type"), str) or table["type"] not in _LOAD_SCHEMAS:
-            continue
-        kind = table["type"]
-        q = read_table({k: v for k, v in table.items() if k != "type"}, _LOAD_SCHEMAS[kind][0],
-                       f"{scene.path} [load.{name}]")
-        if kind == "constant":
-            level = None if level is None else level + q["torque"]
-        elif kind == "step":
-            steps.append((q["time"], q["torque"]))
-        elif kind == "shock":
-            shocks.append(Stimulus(q["start"], "shock", f"shock {q['torque']:+.4g} N·m for "
-                                   f"{q['duration'] * 1e3:.4g} ms", after=q["torque"], duration=q["duration"]))
-        elif kind == "brake":
-            g = q["gain"]
-            level = None if level is None else level + g * q["force"]
-            if q["step_time"] is not None:
-                steps.append((q["step_time"], g * (q["step_force"] - q["force"])))
-            if q["pulse_start"] is not None:
-                amp = g * q["pulse_force"]
-                shocks.append(Stimulus(q["pulse_start"], "shock",
-                                       f"brake shock {amp:+.4g} N·m for {q['pulse_duration'] * 1e3:.4g} ms",
-                                       after=amp, duration=q["pulse_duration"]))
-        else:
-            level = None                         # linear in speed, zones in angle: no fixed level
-
-    def load_at(t: float) -> float | None:
-        return None if level is None else level + sum(d for ts, d in steps if ts <= t)
-
-    out: list[Stimulus] = []
-    if p.get("blocked"):
-        out.append(Stimulus(0.0, "sweep", "driven half blocked, driving half turned slowly"))
-    elif p["omega0"] == 0.0:
-        out.append(Stimulus(0.0, "start", f"motor on, stand at rest, load {fmt(load_at(0.0))} N·m", 0.0,
-                            load_at(0.0)))
-    t_off = m["t_off"]
-    for ts in sorted({ts for ts, _ in steps if ts > 0.0}):
-        if math.isfinite(t_off) and abs(ts - t_off) < 1e-9:
-            continue
-        out.append(Stimulus(ts, "step", f"load {fmt(load_at(ts - 1e-9))} → {fmt(load_at(ts))} N·m",
-                            load_at(ts - 1e-9), load_at(ts)))
-    if math.isfinite(t_off):
-        change = load_at(t_off) != load_at(t_off - 1e-9)
-        out.append(Stimulus(t_off, "stop", "motor off" + (f", load {fmt(load_at(t_off - 1e-9))} → "
-                                                          f"{fmt(load_at(t_off))} N·m" if change else ""),
-                            load_at(t_off - 1e-9), None))
-    return sorted(out + shocks, key=lambda s: s.time), rule
 
 
 def _edge_points(e: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:

@@ -14,12 +14,13 @@ one a count (a thesis value without unit) must match exactly and other rows are 
 from __future__ import annotations
 
 import csv
+import difflib
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from rig.analysis.clutch_metrics import Metric, Stimulus
+from rig.analysis.clutch_metrics import Metric, Stimulus, result_names
 from rig.analysis.numbers import plural
 from rig.analysis.units import same_kind
 from rig.scene import Field, Scene, SceneError, read_table
@@ -169,11 +170,20 @@ def _theses(scene: Scene) -> list[Thesis]:
     return out
 
 
-def check_rows(scene: Scene) -> None:
-    """Read every [[comparison]] row as :func:`compare` will — thesis value, unit, tolerance — so a mistake is a
-    SceneError naming the scene before anything is recorded."""
+def check_rows(scene: Scene, stimuli: list[Stimulus]) -> None:
+    """Read every [[comparison]] row as :func:`compare` will — thesis value, unit, tolerance, and the stand results
+    it names (``rig``, ``after``: one of :func:`rig.analysis.clutch_metrics.result_names` for the scene's
+    ``stimuli``) — so a mistake is a SceneError naming the scene before anything is recorded."""
+    known = result_names(stimuli)
     for th in _theses(scene):
         _agrees(th.spec["tolerance"], th.number, th.unit, th.si, th.scale, th.number, th.where)
+        for key in ("rig", "after"):
+            name = th.spec[key]
+            if name and name not in known:
+                close = difflib.get_close_matches(str(name), known, n=1, cutoff=0.6)
+                raise SceneError(f"{th.where}: {key} = {name!r} is no result of this stand"
+                                 + (f" (did you mean {close[0]!r}?)" if close else "")
+                                 + f"; its results: {', '.join(known)}")
 
 
 def _origins(stimuli: list[Stimulus]) -> Callable[[str], float]:

@@ -16,9 +16,10 @@ def _cam_bar(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
 
 
 def _clutch_dynamic(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
+    from rig.analysis.clutch_metrics import stimuli
     from rig.analysis.stand_comparison import check_rows
     from rig.plants.clutch.stand import ClutchStand
-    check_rows(scene)                       # the [[comparison]] the report will fill: checked before anything is recorded
+    check_rows(scene, stimuli(scene)[0])    # the [[comparison]] the report will fill: checked before anything is recorded
     stand = ClutchStand.from_scene(scene)
     if fidelity.method is not None:      # chosen from the work-precision data, else the scene's [plant] method
         stand.method = fidelity.method

@@ -192,7 +192,10 @@ def test_rig_values_are_shown_as_precisely_as_the_thesis_values_beside_them():
 @pytest.mark.parametrize("old, new, said", [('thesis = "', 'thesis = "7 N', r"unit 'N.*' of '7 N.*' is not a torque"),
                                             ('thesis = "', 'thesis = "abc', r"thesis value 'abc.*' is not a number"),
                                             ('thesis = "100.18 rad/s"', 'thesis = 100.18',
-                                             r"thesis value '100.18' has no unit, which makes it a count")])
+                                             r"thesis value '100.18' has no unit, which makes it a count"),
+                                            ('rig = "final speed ω3"', 'rig = "final sped ω3"',   # ran as "n/a" (an audit)
+                                             r"rig = 'final sped ω3' is no result of this stand \(did you mean "
+                                             r"'final speed ω3'\?\); its results: torque, ")])
 def test_a_comparison_row_in_error_is_refused_before_the_run(tmp_path, capsys, old, new, said):
     """A [[comparison]] mistake once surfaced after a whole recording, naming the recording (exit 2 must mean nothing
     ran): it names the scene and nothing is recorded."""
@@ -205,6 +208,15 @@ def test_a_comparison_row_in_error_is_refused_before_the_run(tmp_path, capsys, o
     assert main(["-q", "run", str(bad), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert re.search(rf"rig: error: {re.escape(str(bad))} \[\[comparison\]\] .*{said}", err) and not out.exists()
+
+
+def test_every_result_a_run_gives_is_a_name_a_comparison_row_may_use(runs):
+    """The names `check_rows` accepts (rig.analysis.clutch_metrics.result_names) hold every result the runs give —
+    start-up, shock, stop and blocked sweep — so a correct row is never refused."""
+    from rig.analysis.clutch_metrics import result_names
+    for name, (_, rec) in runs.items():
+        stim, got = stand_results(rec)
+        assert {m.name for m in got} <= set(result_names(stim)), name
 
 
 def test_the_stand_finds_its_encoders_and_torque_by_what_they_measure(runs, tmp_path):
