@@ -536,6 +536,10 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
                                       f"{rec.end - s.time:.3g} s after the stop command", exceeds=rec.end - s.time))
     sweep = any(s.kind == "sweep" for s in order)
     out += _slip_metrics(rec, shutdown_count, shutdown_window, model_disengagements, trips_motor, sweep, lobe, apex)
+    off = [(s.time, "switched off") for s in order if s.kind == "stop"]
+    off += [(m.at, "tripped by the scene's shutdown rule") for m in out
+            if trips_motor and m.name == "shutdown" and m.value == "required" and m.at is not None]
+    motor_off = min(off) if off else None          # after it the stand coasts: a speed then is not a final one
     for name, (_, w, tr, method) in rec.speeds.items():
         ok = np.isfinite(w) & (tr >= rec.end - dwell)
         if not ok.any():
@@ -550,12 +554,17 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
         else:
             mean = float(np.mean(w[ok]))
             change = np.polyfit(tr[ok] - rec.end, w[ok], 1)[0] * dwell if np.count_nonzero(ok) >= 3 else 0.0
-            if abs(change) > SPEED_SETTLED * max(abs(mean), 1.0):
+            trend = (f"{sp(change):+.3g} {sp.label} over its last {dwell * 1e3:.0f} ms (trend), mean "
+                     f"{sp(mean):.4g} {sp.label} — no final speed within the run")
+            if motor_off is not None:
+                out.append(Metric(f"final speed {name}", None, sp.label,
+                                  f"coasting: the motor was {motor_off[1]} at {motor_off[0]:.4g} s and the stand "
+                                  f"still turns at the end of the run: {trend}"))
+            elif abs(change) > SPEED_SETTLED * max(abs(mean), 1.0):
                 out.append(Metric(f"final speed {name}", None, sp.label,
                                   f"still {'speeding up' if change * mean >= 0 else 'slowing down'}"
-                                  f"{' turning backwards (reversed)' if mean < 0 else ''} at the end of the "
-                                  f"run: {sp(change):+.3g} {sp.label} over its last {dwell * 1e3:.0f} ms (trend), "
-                                  f"mean {sp(mean):.4g} {sp.label} — no final speed within the run"))
+                                  f"{', turning backwards (reversed),' if mean < 0 else ''} at the end of the "
+                                  f"run: {trend}"))
             else:
                 out.append(Metric(f"final speed {name}", sp(mean), sp.label,
                                   f"mean of the encoder speeds read in the last {dwell * 1e3:.0f} ms of the run"))

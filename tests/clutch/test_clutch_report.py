@@ -89,6 +89,20 @@ def test_metrics_fit_each_scene(runs):
                 assert x.value is None or x.value < rec.series["/stand/torque"]["t"][-1] - 0.1
 
 
+def test_a_stand_coasting_after_its_motor_tripped_has_no_final_speed(tmp_path):
+    """clutch_overload_hold trips its motor by the shutdown rule at ~0.2 s; at the run's end (0.6 s) both halves still
+    turn, slowing by ~22 rad/s² (1.3 % of the speed per 50 ms, under the trend bound): that is coasting, not a final
+    speed (it was given as 84.81 rad/s; an audit)."""
+    out = tmp_path / "hold.mcap"
+    assert main(["-q", "run", str(SCENES / "clutch_overload_hold.toml"), "-o", str(out), "--no-report"]) == 0
+    m = metrics(read_recording(out))
+    assert m["shutdown"].value == "required" and m["shutdown"].at < 0.3
+    for name in ("final speed ω1", "final speed ω3"):
+        assert m[name].value is None and m[name].reference.startswith(
+            f"coasting: the motor was tripped by the scene's shutdown rule at {m['shutdown'].at:.4g} s and the stand "
+            "still turns at the end of the run: -1.1")
+
+
 def speed_errors(rec, enc, truth_key):
     e, tr = rec.series[f"/stand/encoder{enc}"], rec.truth
     ok = np.isin(e["speed_method"], (FREQUENCY, PERIOD)) & (e["speed_time"] > 0.005)
