@@ -39,6 +39,13 @@ def _limit(clutch: Any, short: bool = False) -> str:
             f"disengages above its loading-branch peak, {clutch.peak_torque:.4g} N·m")
 
 
+def _table_end(clutch: Any) -> str:
+    """"table ends (highest measured torque)" for a measured table, whose highest torque is where the data end, not a
+    capacity; "" for a characteristic with a loading-branch peak."""
+    from rig.plants.clutch.variants import TabulatedClutch
+    return "table ends (highest measured torque)" if isinstance(clutch, TabulatedClutch) else ""
+
+
 def self_locking(clutch: Any) -> str:
     """"" or the sentence saying the clutch is self-locking: its unloading branch never rises above 0 N·m (the
     friction beats the spring's return: above μ_B = 0.188 for the reference flat tappet of the parameter studies),
@@ -125,6 +132,16 @@ def summary(rec: Recording) -> tuple[list[str], dict[str, tuple[float, str]]] | 
     return _lines(rows, rig, rec.events), values
 
 
+def no_loop(r: dict) -> str:
+    """Why a cycle's measured loop energy is not compared with theory ('' when it is): the characteristic has no
+    hysteresis (the measured loop is the readings' lag), or friction held the clutch (no loop; the readings' noise)."""
+    if r["measured"] is None:
+        return ""
+    if r["lossless"]:
+        return "no hysteresis in the characteristic: the measured loop is the readings' lag"
+    return "friction held the clutch: no loop; the measured one is the readings' noise" if r["held"] else ""
+
+
 def _lines(rows: list[dict], rig: StaticClutchRig, rec_events: list[dict]) -> list[str]:
     lines = [f"static clutch rig: {len(rows)} loading/unloading cycle(s); applied torque = lever force × arm (the "
              f"weights); loop energy ∮T dφ measured (multimeter angle) vs theory (characteristic); the model "
@@ -133,9 +150,9 @@ def _lines(rows: list[dict], rig: StaticClutchRig, rec_events: list[dict]) -> li
     for i, r in enumerate(rows, start=1):
         angle = ("no reading" if r["angle_min"] is None
                  else f"{fixed_range(np.degrees(r['angle_min']), np.degrees(r['angle_max']))}°")
-        dev = ("" if r["measured"] is None else " (no hysteresis in the characteristic: the measured loop is the "
-               "readings' lag)" if r["lossless"] else " (friction held the clutch: no loop; the measured one is the "
-               "readings' noise)" if r["held"] else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
+        why = no_loop(r)
+        dev = ("" if r["measured"] is None else f" ({why})" if why
+               else f" ({100 * (r['measured'] - r['theory']) / r['theory']:+.2f} %)")
         energy = "—" if r["measured"] is None else f"{r['measured']:.4g} J"
         loop = (f"cut by the run's end at {r['torque_end']:.4g} N·m on the way down: no closed loop, no energy "
                 f"compared" if r["cut"] else f"loop energy {energy} vs {r['theory']:.4g} J{dev}")
@@ -166,7 +183,9 @@ def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarr
     peak = float(c.branch_peak(1.0)[1])
     top = 1.1 * max(float(np.max(truth["torque"])), peak)
     over = bool(np.any(truth["torque"] > peak))
-    ax.axhline(peak, color="tab:red", lw=0.7, alpha=0.6, label=f"capacity (loading peak) {peak:.4g} N·m")
+    ends = _table_end(c)
+    ax.axhline(peak, color="tab:red", lw=0.7, alpha=0.6,
+               label=f"{ends or 'capacity (loading peak)'} {peak:.4g} N·m")
     if over:                                    # the lever's load beyond it is not the clutch's: shade, say so
         ax.axhspan(peak, top, color="tab:red", alpha=0.07, lw=0, label="overload: no equilibrium (see caption)")
     ax.set(xlabel="relative angle (°)", ylabel="torque = F·L (N·m)", title="Static rig: torque over relative angle",
@@ -175,7 +194,11 @@ def _torque_angle_figure(ctx: ReportContext, rig: StaticClutchRig, t_m: np.ndarr
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncols=2, frameon=False)  # below: inside
     # it hid the slip plateau between the lobes
     caption = "Torque over relative angle: loading/unloading hysteresis loop, measured vs theory"
-    if over:
+    if over and ends:
+        caption += (f". The model's table ends at {peak:.4g} N·m, the highest torque measured: what the clutch does "
+                    "beyond it is not known, so the points in the shaded band are the lever's load, not a torque the "
+                    "clutch is known to carry")
+    elif over:
         caption += (f". Above the capacity ({peak:.4g} N·m) the lever's load is more than the clutch holds: quasi-"
                     "statically there is no equilibrium (the clutch slips over the apex; on the rig the lever drops "
                     "onto its support). The model holds the angle at the peak while overloaded, so the points in the "
@@ -233,6 +256,8 @@ def static_clutch_section(ctx: ReportContext) -> list[Block]:
                          "measured (J)", "plant truth (J)", "theory (J)", "measured − theory", "disengaged"], rows))
     blocks += [Text(f"Cycle {i} was cut by the run's end at {r['torque_end']:.4g} N·m on the way down: no closed loop, "
                     "no energy compared.", "warning") for i, r in enumerate(table, start=1) if r["cut"]]
+    blocks += [Text(f"Cycle {i}: measured {r['measured']:.4g} J against {fmt(r['theory'])} J, not compared — "
+                    f"{no_loop(r)}.") for i, r in enumerate(table, start=1) if no_loop(r)]
     events = [e for e in rec.events if e.get("kind") in ("disengagement", "reengaged")]
     if events:
         blocks.append(Table(["t (s)", "event", "details"],

@@ -143,6 +143,13 @@ def test_report_shows_loop_figure_and_table(recordings, tmp_path, name):
     assert len(figures) == 1 and (tmp_path / figures[0]).stat().st_size > 5000
     assert (len(list(tmp_path.glob("*static_leaf_strain.png"))) == 1) == (name == "clutch_static_leaf")
     assert ("| disengagement |" in text) == (name == "clutch_static_flat_tappet")
+    # what the console says of a loop not compared, the report says too (the rubber table's lag was unexplained there)
+    rows = cycle_table(rec, static_rig(rec))
+    assert [i for i, r in enumerate(rows, start=1) if f"Cycle {i}: measured {r['measured']:.4g} J against 0 J, not "
+            "compared — no hysteresis in the characteristic: the measured loop is the readings' lag." in text] == \
+        [i for i, r in enumerate(rows, start=1) if r["lossless"]] == ([1] if name == "clutch_static_rubber_table" else [])
+    from rig.analysis.static_clutch_report import _table_end        # a table's end is no capacity: the legend says so
+    assert bool(_table_end(static_rig(rec).clutch)) == (name == "clutch_static_rubber_table")
     # the applied torque the table and the loops are built on is exported with the plant truth (the readings hold
     # only the measured angle): the loop energies can be redone from the report's files
     with open(tmp_path / "plant_truth.csv", encoding="utf-8") as f:
