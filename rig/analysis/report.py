@@ -86,6 +86,8 @@ def _capability(v: dict) -> str:
     reads = "capable" if v["cpk"] >= CAPABLE else "marginal" if v["cpk"] >= MARGINAL else "NOT capable"
     if v.get("n", MIN_SET_SIZE) < MIN_SET_SIZE and reads != "NOT capable":    # (5 values read "capable" at Cpk 45
         return f"not judged: n = {v['n']} < {MIN_SET_SIZE} (reads {reads})"     # with σ the noise's)
+    if v.get("n", MIN_SET_SIZE) < MIN_SET_SIZE:     # a warning is not held back; the page says why it differs
+        return f"NOT capable (n = {v['n']} < {MIN_SET_SIZE}: indicative only; a warning is not held back)"
     return reads
 
 
