@@ -111,16 +111,21 @@ def _nok_panel(ax, x: np.ndarray, rows: list["RecordingSummary"]) -> None:
     ax.set_ylabel("NOK (%)", fontsize=8)
 
 
-def population_chart(result: "BatchResult", group: str, path: Path) -> BatchChart:
-    """The chart of one population (:attr:`RecordingSummary.group`) written to ``path``."""
+def population_chart(result: "BatchResult", group: str, path: Path) -> BatchChart | None:
+    """The chart of one population (:attr:`RecordingSummary.group`) written to ``path``; None where it has nothing to
+    draw (no value and no judged curve: e.g. a lab recording whose sheet could not be made)."""
     from rig.analysis.plots import save
-    fig, omitted = population_figure(result, group)
+    drawn = population_figure(result, group)
+    if drawn is None:
+        return None
+    fig, omitted = drawn
     save(fig, path, hspace=0.55, wspace=0.25, bottom=0.95, top=0.55)
     return BatchChart(group, path, omitted)
 
 
-def population_figure(result: "BatchResult", group: str) -> tuple["Figure", tuple[str, ...]]:
-    """The figure of :func:`population_chart`, not yet placed or written, and the values it leaves out."""
+def population_figure(result: "BatchResult", group: str) -> tuple["Figure", tuple[str, ...]] | None:
+    """The figure of :func:`population_chart`, not yet placed or written, and the values it leaves out (None: nothing
+    to draw)."""
     from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
 
     from rig.analysis.numbers import plural
@@ -133,6 +138,8 @@ def population_figure(result: "BatchResult", group: str) -> tuple["Figure", tupl
     shown, omitted = names[:MAX_PANELS], tuple(names[MAX_PANELS:])
     judged = any(r.ok + r.nok for r in rows)
     panels = int(judged) + len(shown)
+    if not panels:
+        return None
     ncols = 1 if panels <= 3 else 2
     nrows = -(-panels // ncols)
     fig, axes = figure(nrows, ncols, size=(PANEL[0] * ncols + 1.2, PANEL[1] * nrows + 1.1), sharex=True,
@@ -176,7 +183,8 @@ def _line(color: str, style: str, marker: str):
 
 
 def write_charts(result: "BatchResult", folder: Path) -> list[BatchChart]:
-    """:func:`population_chart` of every population with a readable recording, as ``folder/<population>.png``."""
+    """:func:`population_chart` of every population with a readable recording and something to draw, as
+    ``folder/<population>.png``."""
     groups = sorted({r.group for r in result.recordings if not r.error and not r.copy_of})
     folder.mkdir(parents=True, exist_ok=True)
     names: dict[str, int] = {}
@@ -185,5 +193,6 @@ def write_charts(result: "BatchResult", folder: Path) -> list[BatchChart]:
         slug = _slug(group)
         names[slug] = names.get(slug, 0) + 1
         name = slug if names[slug] == 1 else f"{slug}_{names[slug]}"
-        out.append(population_chart(result, group, folder / f"{name}.png"))
+        chart = population_chart(result, group, folder / f"{name}.png")
+        out += [chart] if chart is not None else []
     return out

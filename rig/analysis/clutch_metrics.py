@@ -241,7 +241,8 @@ class Metric:
         if isinstance(self.value, str):
             v = self.value
         else:
-            v = f"{self.value:.4g}" if abs(self.value) < 1e4 else f"{self.value:.0f}"
+            v = ("0" if self.value == 0.0 else f"{self.value:#.4g}".rstrip(".") if abs(self.value) < 1e4
+                 else f"{self.value:.0f}")     # 4 digits kept: 100.0 rad/s, not "100" beside the table's 100.05
             v = f"{v}°" if self.unit == "°" else f"{v} {self.unit}".rstrip()
         return v + (f" at {self.at:.4g} s" if self.at is not None else "")
 

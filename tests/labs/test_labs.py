@@ -438,6 +438,7 @@ def test_rig_analyse_says_on_the_console_when_a_lab_sheet_cannot_be_made(speed, 
     assert main(["-q", "analyse", str(speed[0].path), "--executor", "serial", "-o", str(tmp_path / "an")]) == 0
     err = capsys.readouterr().err
     assert f"rig: warning: {speed[0].path}: lab: no sheet (cannot read device description devs/tacho.toml" in err
+    assert not list((tmp_path / "an" / "charts").glob("*.png"))     # nothing to draw: no chart (it was an error)
 
 
 def test_a_recording_without_a_scene_has_no_lab_section(tmp_path):
