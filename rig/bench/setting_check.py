@@ -1,5 +1,5 @@
-"""A solver setting taken from another scene's work–precision data, checked on this scene's own problem
-(:data:`rig.fidelity.SETTING_CHECK`)."""
+"""A solver setting taken from work–precision data (another scene's, or a file of this scene's name), checked on
+this scene's own problem (:data:`rig.fidelity.SETTING_CHECK`)."""
 from __future__ import annotations
 
 import math
@@ -31,7 +31,7 @@ def at_this_point(scene: Scene, method: str, options: dict[str, float],
 
 def _check(scene: Scene, method: str, options: dict[str, float],
            tolerance: float) -> tuple[dict[str, float], str]:
-    """A setting taken from another scene's work–precision data, checked on this scene's own problem (one revolution
+    """A setting taken from work–precision data, checked on this scene's own problem (one revolution
     of level 2, the clutch stand's span) against dp45 at :data:`CHECK_RTOL`: its error here, and the tolerance
     tightened by :data:`TIGHTER` until the error is within ``tolerance`` (at most :data:`CHECK_STEPS` times) — the
     data's error is not this scene's (the as-tested machine at 300 rpm: 1.5e-5 with the nominal machine's setting).
