@@ -19,8 +19,8 @@ def _clutch_dynamic(scene: Scene, nominal: bool, fidelity: Fidelity) -> Any:
     from rig.analysis.clutch_metrics import stimuli
     from rig.analysis.stand_comparison import check_rows
     from rig.plants.clutch.stand import ClutchStand
+    stand = ClutchStand.from_scene(scene)   # the scene checked first: stimuli() reads its loads as given
     check_rows(scene, stimuli(scene)[0])    # the [[comparison]] the report will fill: checked before anything is recorded
-    stand = ClutchStand.from_scene(scene)
     if fidelity.method is not None:      # chosen from the work-precision data, else the scene's [plant] method
         stand.method = fidelity.method
     if fidelity.options:                 # chosen from the work-precision data (else the scene's [plant] rtol/atol)
