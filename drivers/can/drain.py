@@ -35,10 +35,15 @@ def drain(bus: can.BusABC, timeout: float = 0.0, limit: int | None = None) -> li
     return frames
 
 
+DRAIN_LIMIT = 20_000     # frames at most per drain of a bus read frame by frame (one that streams: socketcand)
+
+
 def drain_block(bus: can.BusABC, timeout: float = 0.0) -> FrameBlock:
     """Every frame waiting on ``bus`` as one block (waits up to ``timeout`` s for the first): whole blocks
-    from a bus that delivers them (``recv_blocks``), else :func:`drain`'s frames packed into a block."""
+    from a bus that delivers them (``recv_blocks``), else :func:`drain`'s frames packed into a block — at most
+    :data:`DRAIN_LIMIT` of them: on a bus whose frames arrive faster than they are read one drain never ended (a served
+    run's host took 96 % of a 200-cycle run in one drain, 9.6 s, nothing recorded meanwhile; an audit)."""
     recv_blocks = getattr(bus, "recv_blocks", None)
     if recv_blocks is not None:
         return frames_of(recv_blocks(timeout))
-    return frames_of(drain(bus, timeout))
+    return frames_of(drain(bus, timeout, DRAIN_LIMIT))
