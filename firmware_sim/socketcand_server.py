@@ -36,6 +36,9 @@ import time
 from typing import Callable
 
 import can
+import numpy as np
+
+from rig.blockbus import ERROR, EXTENDED, REMOTE, FrameBlock
 
 log = logging.getLogger(__name__)
 BEACON_PORT = 42000
@@ -53,6 +56,28 @@ def frame_line(msg: can.Message) -> str:
     if usecs == 1_000_000:
         secs, usecs = secs + 1, 0
     return f"< frame {fid} {secs}.{usecs:06d} {bytes(msg.data).hex().upper()} >"
+
+
+FORWARD_BATCH = 4096   # frames at most (plus one block) a forwarder takes from a block bus per write to its client
+
+
+def frame_lines(block: FrameBlock) -> str:
+    """The ``< frame ... >`` lines of a block's classic data frames, each as :func:`frame_line` writes it (error and
+    remote frames and CAN FD frames of more than 8 bytes are left out, as the forwarder leaves them out)."""
+    keep = ((block.flags & (ERROR | REMOTE)) == 0) & (block.dlc <= 8)
+    if not keep.all():
+        block = block.take(keep)
+    if not len(block):
+        return ""
+    secs = block.timestamp.astype(np.int64)                         # int(t): towards zero, as frame_line
+    usecs = np.round((block.timestamp - secs) * 1e6).astype(np.int64)  # half to even, as Python's round
+    carry = usecs == 1_000_000
+    secs, usecs = secs + carry, np.where(carry, 0, usecs)
+    hexed = np.ascontiguousarray(block.data[:, :8]).tobytes().hex().upper()
+    return "".join([f"< frame {fid:{'08X' if ext else '03X'}} {s}.{u:06d} {hexed[16 * i:16 * i + 2 * d]} >"
+                    for i, (fid, ext, s, u, d) in enumerate(zip(
+                        block.arbitration_id.tolist(), ((block.flags & EXTENDED) != 0).tolist(), secs.tolist(),
+                        usecs.tolist(), block.dlc.tolist()))])
 
 
 def split_commands(buffer: str) -> tuple[list[str | None], str]:
@@ -245,8 +270,12 @@ class SocketcandServer:
                     self.open_buses -= 1
 
     def _forward(self, conn: socket.socket, bus: can.BusABC, sending: threading.Lock) -> None:
-        """Stream the bus's frames to the client (after the handshake grace time)."""
+        """Stream the bus's frames to the client (after the handshake grace time): from a bus that delivers blocks
+        (``recv_blocks``: :class:`rig.blockbus.BlockBus`) up to :data:`FORWARD_BATCH` frames per write, else frame
+        by frame."""
         time.sleep(self.grace)
+        if getattr(bus, "recv_blocks", None) is not None:
+            return self._forward_blocks(conn, bus, sending)
         try:
             while not self._stop.is_set() and conn.fileno() != -1:
                 msg = bus.recv(0.05)
@@ -262,6 +291,25 @@ class SocketcandServer:
                     continue
                 with sending:
                     conn.sendall(frame_line(msg).encode("ascii"))
+        except (OSError, can.CanError):
+            return
+
+    def _forward_blocks(self, conn: socket.socket, bus: can.BusABC, sending: threading.Lock) -> None:
+        """:meth:`_forward` of a block bus: a write per batch of frames (one ``sendall`` per frame cost ~17 µs)."""
+        try:
+            while not self._stop.is_set() and conn.fileno() != -1:
+                blocks = bus.recv_blocks(0.05, FORWARD_BATCH)
+                if not blocks and self._draining.is_set():
+                    return                      # all its bus held is sent (drain())
+                fd = sum(int(np.count_nonzero((b.dlc > 8) & ((b.flags & (ERROR | REMOTE)) == 0))) for b in blocks)
+                if fd:
+                    with self._lock:
+                        self.fd_dropped += fd
+                    log.warning("socketcand server: %d CAN FD frame(s) of more than 8 bytes not forwarded", fd)
+                text = "".join(frame_lines(b) for b in blocks)
+                if text:
+                    with sending:
+                        conn.sendall(text.encode("ascii"))
         except (OSError, can.CanError):
             return
 

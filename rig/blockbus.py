@@ -207,15 +207,23 @@ class BlockBus(can.BusABC):
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self.send_block(FrameBlock.of_messages([msg]))
 
-    def recv_blocks(self, timeout: float | None = 0.0) -> list[FrameBlock]:
-        """Every block waiting (waits up to ``timeout`` s for the first; None: forever)."""
+    def recv_blocks(self, timeout: float | None = 0.0, limit: int | None = None) -> list[FrameBlock]:
+        """Every block waiting (waits up to ``timeout`` s for the first; None: forever); with ``limit``, whole blocks
+        until they hold ``limit`` frames or more (at least one block), the rest left waiting."""
         self.reading = True
         with self._ready:
             if not self._rx and timeout != 0.0:
                 self._ready.wait_for(lambda: bool(self._rx), timeout)
-            blocks, self._rx = list(self._rx), deque()
             head, self._head = self._head, 0
-            self._pending = 0
+            if limit is None:
+                blocks, self._rx = list(self._rx), deque()
+                self._pending = 0
+            else:
+                blocks, taken = [], -head
+                while self._rx and taken < limit:
+                    blocks.append(self._rx.popleft())
+                    taken += len(blocks[-1])
+                self._pending -= max(taken, 0)
             self._ready.notify_all()
         if blocks and head:
             blocks[0] = blocks[0].take(slice(head, None))

@@ -25,6 +25,7 @@ import time
 from typing import Any
 
 import can
+import numpy as np
 
 from rig.dbc import load_dbc
 from firmware_sim.can_node import CanNode
@@ -100,6 +101,25 @@ class RunClock(can.BusABC):
         self._bus = bus
         self._commanded = False
         self.origin: float | None = None      # s of Unix time: device time 0 of the run
+        if getattr(bus, "recv_blocks", None) is not None:
+            self.recv_blocks = self._recv_blocks      # whole blocks from a bus that gives them (drain_block)
+
+    def _recv_blocks(self, timeout: float | None = 0.0) -> list[FrameBlock]:
+        """What ``bus.recv_blocks`` gives, as :meth:`_recv_internal` gives it frame by frame: the run's frames only,
+        in device time."""
+        out = []
+        for block in self._bus.recv_blocks(timeout):
+            if not isinstance(block, FrameBlock):
+                block = FrameBlock.of_messages([block])
+            if self.origin is None:
+                first = next((i for i in range(len(block)) if starts_run(block.message(i))), None) \
+                    if self._commanded else None
+                if first is None:
+                    continue                     # idle traffic (answers to idle commands too): not the run
+                self.origin = float(math.floor(block.timestamp[first]))
+                block = block.take(slice(first, None))
+            out.append(dataclasses.replace(block, timestamp=np.round((block.timestamp - self.origin) * 1e6) / 1e6))
+        return out
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self._commanded = True

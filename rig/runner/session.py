@@ -757,8 +757,13 @@ def _receive(cfg: RunConfig, host: Host, bar: tqdm, check: Callable[[], None], i
         _show(bar, cfg, host.curves_recorded, host.truth_t)
 
 
+#: the host's CAN interface to a served machine: python-can's stock socketcand client, receiving in blocks
+#: (drivers.can.socketcand, registered with python-can under this name)
+SOCKETCAND = "socketcand_blocks"
+
+
 def _socketcand(host: str, port: int, channel: str, timeout: float) -> can.BusABC:
-    """python-can's socketcand client, once a server at host:port has greeted (``< hi >``) within
+    """python-can's socketcand client (receiving in blocks: :data:`SOCKETCAND`), once a server at host:port has greeted (``< hi >``) within
     ``timeout`` s; else a one-line :class:`RunError`. (python-can alone retries a refused connection for
     10 s, logging every attempt, and waits forever for the greeting of a server that says nothing.)"""
     where = f"cannot connect to socketcand at {host}:{port}"
@@ -780,6 +785,6 @@ def _socketcand(host: str, port: int, channel: str, timeout: float) -> can.BusAB
         raise RunError(f"{where}: not a socketcand server (it said {greeting[:32]!r} instead of '< hi >')")
     quiet_libraries()
     try:
-        return can.Bus(interface="socketcand", host=host, port=port, channel=channel)
+        return can.Bus(interface=SOCKETCAND, host=host, port=port, channel=channel)
     except (OSError, can.CanError) as exc:
         raise RunError(f"{where}: {exc}") from None
