@@ -283,7 +283,9 @@ def cmd_record(args: argparse.Namespace) -> int:
     summary = record_scene(args.scene, args.output, can_host=args.can_host or "127.0.0.1", can_port=args.can_port,
                            serial_port=args.serial, can_channel=args.can_channel, cycles=args.cycles,
                            progress=not args.quiet, fidelity=args.fidelity)
-    print(f"{_done('recorded', summary.curves)}, {summary.simulated_time:.2f} s simulated -> {summary.output}"
+    print(f"{_done('recorded', summary.curves)}, {summary.simulated_time:.2f} s simulated in {summary.run_time:.2f} s "
+          f"({summary.realtime_factor:.1f}x real time, the served machine and this host together; "
+          f"{summary.wall_time:.2f} s with serial set-up and read-back) -> {summary.output}"
           f"{_created(created, summary.output)}")
     rec, analysis = _analysed(summary.output)
     if not _print_stand_summary(rec):
