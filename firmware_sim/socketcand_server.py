@@ -38,7 +38,7 @@ from typing import Callable
 import can
 import numpy as np
 
-from rig.blockbus import ERROR, EXTENDED, REMOTE, FrameBlock
+from rig.blockbus import ERROR, EXTENDED, REMOTE, BlockBus, FrameBlock
 
 log = logging.getLogger(__name__)
 BEACON_PORT = 42000
@@ -73,7 +73,9 @@ def frame_lines(block: FrameBlock) -> str:
     usecs = np.round((block.timestamp - secs) * 1e6).astype(np.int64)  # half to even, as Python's round
     carry = usecs == 1_000_000
     secs, usecs = secs + carry, np.where(carry, 0, usecs)
-    hexed = np.ascontiguousarray(block.data[:, :8]).tobytes().hex().upper()
+    rows = np.zeros((len(block), 8), np.uint8)                          # 8 bytes a row, whatever the block's width
+    rows[:, :min(8, block.data.shape[1])] = block.data[:, :8]
+    hexed = rows.tobytes().hex().upper()
     return "".join([f"< frame {fid:{'08X' if ext else '03X'}} {s}.{u:06d} {hexed[16 * i:16 * i + 2 * d]} >"
                     for i, (fid, ext, s, u, d) in enumerate(zip(
                         block.arbitration_id.tolist(), ((block.flags & EXTENDED) != 0).tolist(), secs.tolist(),
@@ -271,10 +273,10 @@ class SocketcandServer:
 
     def _forward(self, conn: socket.socket, bus: can.BusABC, sending: threading.Lock) -> None:
         """Stream the bus's frames to the client (after the handshake grace time): from a bus that delivers blocks
-        (``recv_blocks``: :class:`rig.blockbus.BlockBus`) up to :data:`FORWARD_BATCH` frames per write, else frame
+        (:class:`rig.blockbus.BlockBus`) up to :data:`FORWARD_BATCH` frames per write, else frame
         by frame."""
         time.sleep(self.grace)
-        if getattr(bus, "recv_blocks", None) is not None:
+        if isinstance(bus, BlockBus):
             return self._forward_blocks(conn, bus, sending)
         try:
             while not self._stop.is_set() and conn.fileno() != -1:

@@ -220,7 +220,7 @@ class BlockBus(can.BusABC):
                 self._pending = 0
             else:
                 blocks, taken = [], -head
-                while self._rx and taken < limit:
+                while self._rx and (taken < limit or not blocks):     # at least one block, whatever the limit
                     blocks.append(self._rx.popleft())
                     taken += len(blocks[-1])
                 self._pending -= max(taken, 0)

@@ -186,13 +186,15 @@ def write_charts(result: "BatchResult", folder: Path) -> list[BatchChart]:
     """:func:`population_chart` of every population with a readable recording and something to draw, as
     ``folder/<population>.png``."""
     groups = sorted({r.group for r in result.recordings if not r.error and not r.copy_of})
-    folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.glob("*.png") if folder.is_dir() else ():     # an earlier analysis's charts: not this one's
+        old.unlink()
     names: dict[str, int] = {}
     out = []
     for group in groups:
         slug = _slug(group)
         names[slug] = names.get(slug, 0) + 1
         name = slug if names[slug] == 1 else f"{slug}_{names[slug]}"
+        folder.mkdir(parents=True, exist_ok=True)
         chart = population_chart(result, group, folder / f"{name}.png")
         out += [chart] if chart is not None else []
     return out

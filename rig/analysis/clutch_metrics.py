@@ -241,8 +241,9 @@ class Metric:
         if isinstance(self.value, str):
             v = self.value
         else:
-            v = ("0" if self.value == 0.0 else f"{self.value:#.4g}".rstrip(".") if abs(self.value) < 1e4
-                 else f"{self.value:.0f}")     # 4 digits kept: 100.0 rad/s, not "100" beside the table's 100.05
+            v = "0" if self.value == 0.0 else f"{self.value:#.4g}".rstrip(".")   # 4 digits kept: 100.0 rad/s, not
+            if "e" in v and abs(self.value) >= 1:                             # "100" beside the table's 100.05
+                v = f"{self.value:.0f}"
             v = f"{v}°" if self.unit == "°" else f"{v} {self.unit}".rstrip()
         return v + (f" at {self.at:.4g} s" if self.at is not None else "")
 
@@ -537,9 +538,9 @@ def stand_metrics(rec: StandRecord, stimuli: list[Stimulus], shutdown_count: int
                                       f"{rec.end - s.time:.3g} s after the stop command", exceeds=rec.end - s.time))
     sweep = any(s.kind == "sweep" for s in order)
     out += _slip_metrics(rec, shutdown_count, shutdown_window, model_disengagements, trips_motor, sweep, lobe, apex)
-    off = [(s.time, "switched off") for s in order if s.kind == "stop"]
+    off = [(s.time, "switched off") for s in order if s.kind == "stop" and s.time < rec.end]   # within the run
     off += [(m.at, "tripped by the scene's shutdown rule") for m in out
-            if trips_motor and m.name == "shutdown" and m.value == "required" and m.at is not None]
+            if trips_motor and m.name == "shutdown" and m.value == "required" and m.at is not None and m.at < rec.end]
     motor_off = min(off) if off else None          # after it the stand coasts: a speed then is not a final one
     for name, (_, w, tr, method) in rec.speeds.items():
         ok = np.isfinite(w) & (tr >= rec.end - dwell)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from rig.analysis.clutch_metrics import Metric, Stimulus, result_names
+from rig.analysis.clutch_metrics import Metric, Stimulus, result_names, stimulus_label
 from rig.analysis.numbers import plural
 from rig.analysis.units import same_kind
 from rig.scene import Field, Scene, SceneError, read_table
@@ -188,7 +188,7 @@ def check_rows(scene: Scene, stimuli: list[Stimulus]) -> None:
 
 def _origins(stimuli: list[Stimulus]) -> Callable[[str], float]:
     """Time (s) of the stimulus a result named ``"<stimulus>: …"`` is measured from (0: the run's start)."""
-    starts = {("start-up" if s.kind == "start" else f"{s.kind} at {s.time:.4g} s"): s.time for s in stimuli}
+    starts = {stimulus_label(s): s.time for s in stimuli}
     return lambda rig: next((t for label, t in starts.items() if rig.startswith(label + ":")), 0.0)
 
 

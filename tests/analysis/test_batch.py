@@ -331,6 +331,9 @@ def test_rig_analyse_charts_each_population_per_recording_with_its_limits(record
     assert main(["-q", "analyse", *map(str, paths), "-o", str(out)]) == 0
     report = (out / "report.md").read_text()
     assert "![pin_insertion L1](charts/pin_insertion_L1.png)" in report and (out / "charts" / "pin_insertion_L1.png").is_file()
+    (out / "charts" / "other_scene_L2.png").write_bytes(b"an earlier analysis's chart")
+    assert main(["-q", "analyse", *map(str, paths), "-o", str(out)]) == 0        # the same folder again
+    assert [p.name for p in (out / "charts").iterdir()] == ["pin_insertion_L1.png"]   # not another analysis's
 
 
 def test_batch_chart_without_start_times_uses_the_order_given(recordings, tmp_path):

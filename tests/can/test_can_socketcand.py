@@ -237,6 +237,23 @@ def test_frame_lines_of_a_block_are_frame_line_of_each_frame():
     others = [can.Message(arbitration_id=1, is_error_frame=True), can.Message(arbitration_id=2, is_remote_frame=True),
               can.Message(arbitration_id=3, is_fd=True, data=bytes(12))]
     assert frame_lines(FrameBlock.of_messages(others + frames[:5])) == "".join(frame_line(m) for m in frames[:5])
+    narrow = FrameBlock(np.array([2.0]), np.array([2], np.uint32), np.array([4], np.int16),    # rows 4 bytes wide
+                        np.array([[5, 6, 7, 8]], np.uint8), np.zeros(1, np.uint8))
+    assert frame_lines(narrow) == "< frame 002 2.000000 05060708 >"
+    channel = f"sc-{next(_channels)}"
+    sender, reader = can.Bus(interface="blockbus", channel=channel), can.Bus(interface="blockbus", channel=channel)
+    try:                                     # the forwarder's batches: whole blocks, at least one, in order
+        for k in range(3):
+            sender.send_block(FrameBlock.of_messages(frames[10 * k:10 * k + 10]))
+        assert reader.recv(0.0).arbitration_id == frames[0].arbitration_id          # one taken frame by frame
+        first = reader.recv_blocks(0.0, 0)                                         # limit 0: still one block
+        assert [len(b) for b in first] == [9]
+        assert [len(b) for b in reader.recv_blocks(0.0, 1)] == [10]
+        assert [len(b) for b in reader.recv_blocks(0.0, 15)] == [10] and reader.recv_blocks(0.0) == []
+        assert first[0].arbitration_id.tolist() == [m.arbitration_id for m in frames[1:10]]
+    finally:
+        sender.shutdown()
+        reader.shutdown()
 
 
 def test_block_client_reads_what_the_stock_client_reads():

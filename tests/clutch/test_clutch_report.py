@@ -293,3 +293,19 @@ def test_a_stand_recording_that_lost_its_start_says_what_its_results_cover(runs)
     full, kept = stand_record(whole), stand_record(cut)
     at = kept.t_angle[0]                                          # the angle where the kept readings begin: the truth's
     assert kept.rel_angle[0] == pytest.approx(np.interp(at, full.t_angle, full.rel_angle), abs=np.radians(1.0))
+
+
+def test_a_motor_stop_after_the_runs_end_leaves_its_final_speed():
+    """A stop the scene sets after the recorded end (t_off beyond the run, or a cut recording) is not coasting: the
+    steady speed held to the end is the final speed (it was called coasting; a review)."""
+    from rig.analysis.clutch_metrics import StandRecord, Stimulus, stand_metrics
+    t = np.linspace(0.0, 1.0, 1001)
+    w = np.full(t.size, 100.0)
+    rec = StandRecord(t, np.full(t.size, 50.0), None, None, {"ω3": (t, w, t, np.ones(t.size))}, 1.0, 1.0)
+
+    def final(stim):
+        return next(m for m in stand_metrics(rec, stim, None, None) if m.name == "final speed ω3")
+    assert final([]).value == pytest.approx(100.0)
+    assert final([Stimulus(5.0, "stop", "motor off")]).value == pytest.approx(100.0)
+    late = final([Stimulus(0.5, "stop", "motor off")])
+    assert late.value is None and late.reference.startswith("coasting: the motor was switched off at 0.5 s")
