@@ -60,7 +60,7 @@ from mcap.records import Metadata
 from rig.blockbus import ids_out_of_range, is_interface_name
 from rig.recorder import schemas as S
 from rig.recorder.completeness import all_counted, tail_lost
-from rig.recorder.reader import Recording, RecordingError, require_whole_file, stage_chunk
+from rig.recorder.reader import Recording, RecordingError, check_front, require_whole_file, stage_chunk
 from rig.recorder.salvage import DataSectionReader, plain
 
 REQUIRED = ("t", "id", "is_fd", "is_extended", "data")
@@ -312,13 +312,15 @@ class Salvage:
     def _read(self) -> None:
         try:
             with open(self.path, "rb") as f:
-                reader = DataSectionReader(f, os.fstat(f.fileno()).st_size, self._collector)
+                size, damage = check_front(self.path, f)     # a damaged opening magic: named with the rest
+                reader = DataSectionReader(f, size, self._collector)
                 reader.read()
                 reader.check()
             reader.finish()
             rec = self._collector.rec
-            self.problems = list(rec.problems) + ([] if reader.footer or rec.truncated else
-                                                  ["file ends without a footer (recording was not closed)"])
+            self.problems = [damage] * bool(damage) + list(rec.problems) + (
+                [] if reader.footer or rec.truncated else
+                ["file ends without a footer (recording was not closed)"])
             self._put(("end", None))
         except _Cancelled:
             pass
