@@ -231,8 +231,10 @@ def test_a_damaged_opening_magic_is_named_read_past_and_repaired_with_nothing_lo
     assert fixed.complete and fixed.message_counts == original.message_counts
     assert _messages(tmp_path / "fixed.mcap") == _messages(whole)
     capsys.readouterr()
-    assert main(["export-can", "--partial", str(bad), "-o", str(tmp_path / "bad.asc")]) == 0
-    assert "the file's opening magic (its first 8 bytes" in capsys.readouterr().err     # named, every frame exported
+    same = main(["export-can", "--partial", str(whole), "-o", str(tmp_path / "whole.asc")])
+    assert "opening magic" not in capsys.readouterr().err
+    assert main(["export-can", "--partial", str(bad), "-o", str(tmp_path / "bad.asc")]) == same   # as the whole file
+    assert "the file's opening magic (its first 8 bytes" in capsys.readouterr().err     # and the damage named
     other = tmp_path / "other.mcap"
     other.write_bytes(b"GIF89a.." + b"\x02" * 40)            # no header record after the first 8 bytes
     with pytest.raises(RecordingError, match="other.mcap: not an MCAP file"):
