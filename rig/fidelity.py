@@ -196,9 +196,9 @@ def _method(scene: Scene, plant: str, tolerance: float,
                 # trusted unchecked until 2026-11-29, an audit)
                 _ran_level2()
                 module, _, name = SETTING_CHECK.partition(":")
-                options, here = getattr(importlib.import_module(module), name)(scene, row["method"], options,
-                                                                              tolerance)
-                return method, options, f"{why}; {here}", ""
+                options, here, met = getattr(importlib.import_module(module), name)(scene, row["method"], options,
+                                                                                   tolerance)
+                return method, options, f"{why}; {here}", "" if met else f"fidelity: {here}"
             found = most_accurate(path, runnable, ATOL_SCALE[plant])
             if found is not None:
                 method, options, row = found

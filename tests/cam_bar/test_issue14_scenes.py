@@ -67,7 +67,7 @@ def test_a_trigger_chattering_at_a_crawl_is_named_not_the_transmit_period(tmp_pa
     from rig.runner import run_scene
     from rig.runner.errors import BusTooSlow
     # the solver setting unchecked at 1 rpm (its check, a level-2 reference at 1e-10, is 30 s of this test's 35)
-    monkeypatch.setattr(setting_check, "at_this_point", lambda scene, method, options, tolerance: (options, ""))
+    monkeypatch.setattr(setting_check, "at_this_point", lambda scene, method, options, tolerance: (options, "", True))
     text = (SCENES / "pin_insertion_worn_pins.toml").read_text()
     assert 'speed = "150 rpm"' in text
     path = tmp_path / "crawl.toml"
