@@ -130,9 +130,10 @@ def coupling_period(scene: Scene) -> tuple[float, float]:
     return 2.0 * apex, apex
 
 
-def stand_results(rec: Recording) -> tuple[list[Stimulus], list[Metric]] | None:
-    """Stimuli of the recorded scene and the key results of the run (None: not a dynamic-stand recording)."""
-    data = stand_record(rec)
+def stand_results(rec: Recording, data: StandRecord | None = None) -> tuple[list[Stimulus], list[Metric]] | None:
+    """Stimuli of the recorded scene and the key results of the run (None: not a dynamic-stand recording); ``data``:
+    its :func:`stand_record` where the caller has it already."""
+    data = data if data is not None else stand_record(rec)
     if data is None:
         return None
     scene = _scene(rec)
@@ -164,11 +165,14 @@ def summary_lines(rec: Recording, stim: list[Stimulus], metrics: list[Metric]) -
     return lines + [f"  warning: {text}" for text in lost_start_warnings(rec) + stall_warnings(rec)]
 
 
-def lost_start_warnings(rec: Recording) -> list[str]:
+def lost_start_warnings(rec: Recording, data: StandRecord | None = None) -> list[str]:
     """A recording whose stand readings begin late (its first chunk lost): what its results cover (they said "at
-    power-on" and "of the run" of the first reading kept; an audit)."""
-    data = stand_record(rec)
-    if data is None or not _lost_start(rec):
+    power-on" and "of the run" of the first reading kept; an audit). ``data``: its :func:`stand_record`, if at hand
+    (else made only for such a recording)."""
+    if not _lost_start(rec):
+        return []
+    data = data if data is not None else stand_record(rec)
+    if data is None:
         return []
     return [f"the stand's readings begin at {data.t[0]:.4g} s: the run's start was lost, so \"at power-on\" and "
             f"\"since power-on\" below mean that first reading, and the counts and extremes cover "
@@ -288,7 +292,7 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
     data = stand_record(ctx.recording)
     if data is None:
         return []
-    stim, metrics = stand_results(ctx.recording) or ([], [])
+    stim, metrics = stand_results(ctx.recording, data) or ([], [])
     blocks: list[Block] = [Heading("Clutch stand")]
     banner = _verdict(metrics)
     scene = _scene(ctx.recording)
@@ -305,7 +309,7 @@ def clutch_section(ctx: ReportContext) -> list[Block]:
         blocks.append(banner)
     if details:
         blocks.append(Text(f"Thesis against rig: {details} (Thesis against rig, below).", "" if banner.ok else "warning"))
-    blocks += [Text(f"Warning: {text}.", "warning") for text in lost_start_warnings(ctx.recording)]
+    blocks += [Text(f"Warning: {text}.", "warning") for text in lost_start_warnings(ctx.recording, data)]
     if stim:
         blocks.append(Text("The scene: " + "; ".join(f"{s.text} at {s.time:.4g} s" for s in stim) + "."))
     blocks.append(Table(["result", "value", "relative to / definition"],

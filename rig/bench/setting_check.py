@@ -3,7 +3,7 @@ this scene's own problem (:data:`rig.fidelity.SETTING_CHECK`)."""
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Any, Callable
 
 from rig.bench.harness import FIXED, _ours
 from rig.bench.problems import problem_of
@@ -32,15 +32,16 @@ def at_this_point(scene: Scene, method: str, options: dict[str, float],
     key = (scene.content, method, tuple(sorted(options.items())), tolerance)
     if key not in _found:
         machines = [("", scene)] + _varied(scene)
-        tried, said = dict(options), []
+        measures: dict[str, Any] = {}            # per machine: its reference and the errors already measured
+        tried, said, found = dict(options), [], []
         for label, machine in machines:
-            tried, text = _check(machine, method, tried, tolerance)
+            tried, text, ok = _check(machine, method, tried, tolerance, measures)
             said.append(label + text)
-        unchecked = [text for text in said if "not checked at this operating point" in text]
-        if unchecked:                 # the problem cannot be run there (said, as the run will say what it meets)
+            found.append(ok)
+        if None in found:               # the problem cannot be run there (said, as the run will say what it meets)
             _found[key] = (tried, "; ".join(said), True)
         elif len(machines) > 1:
-            worst = max(_measure(machine, method)[0](tried) for _, machine in machines)
+            worst = max(_measure(machine, method, measures)[0](tried) for _, machine in machines)
             met = worst <= tolerance
             setting = " ".join(f"{k}={v:.3g}" for k, v in tried.items() if k != "atol")
             text = (f"{said[0]}; at the ±{SIGMAS:g}σ machines of [plant.variation] "
@@ -50,7 +51,7 @@ def at_this_point(scene: Scene, method: str, options: dict[str, float],
                        f"{worst:.1e}): the run is less accurate than the scene asks"))
             _found[key] = (tried, text, met)
         else:
-            _found[key] = (tried, said[0], "less accurate than the scene asks" not in said[0])
+            _found[key] = (tried, said[0], bool(found[0]))
     options, said, met = _found[key]
     return dict(options), said, met
 
@@ -81,26 +82,40 @@ def _varied(scene: Scene) -> list[tuple[str, Scene]]:
     return out
 
 
-def _measure(scene: Scene, method: str) -> tuple[Callable[[dict[str, float]], float], str]:
+def _measure(scene: Scene, method: str,
+             kept: dict[str, Any] | None = None) -> tuple[Callable[[dict[str, float]], float], str]:
     """The error of a setting of ``method`` on ``scene``'s own problem (one revolution of level 2, the clutch stand's
-    span) against dp45 at :data:`CHECK_RTOL`, in e and in the answers the scene asks, as a function of the setting;
-    and the answers' names for the words ("", or ", rod_force, …")."""
+    span) against dp45 at :data:`CHECK_RTOL`, in e and in the answers the scene asks, as a function of the setting
+    (each setting run once); and the answers' names for the words ("", or ", rod_force, …"). ``kept``: measures made
+    before, by scene content (the reference is the costly part), added to."""
+    if kept is not None and scene.content in kept:
+        return kept[scene.content]
     problem = problem_of(scene, checked=False)
     reference = _ours(problem, "dp45", rtol=CHECK_RTOL, atol=CHECK_RTOL * problem.atol_scale)[0]
     answers = _Answers(scene, method, problem.atol_scale)
-    return (lambda options: max(problem.error(_ours(problem, method, **options)[0], reference),
-                                answers.error(options))), answers.named
+    errors: dict[tuple, float] = {}
+
+    def error_of(options: dict[str, float]) -> float:
+        at = tuple(sorted(options.items()))
+        if at not in errors:
+            errors[at] = max(problem.error(_ours(problem, method, **options)[0], reference), answers.error(options))
+        return errors[at]
+
+    if kept is not None:
+        kept[scene.content] = error_of, answers.named
+    return error_of, answers.named
 
 
-def _check(scene: Scene, method: str, options: dict[str, float],
-           tolerance: float) -> tuple[dict[str, float], str]:
+def _check(scene: Scene, method: str, options: dict[str, float], tolerance: float,
+           measures: dict[str, Any] | None = None) -> tuple[dict[str, float], str, bool | None]:
     """A setting taken from work–precision data, checked on this scene's own problem (one revolution
     of level 2, the clutch stand's span) against dp45 at :data:`CHECK_RTOL`: its error here, and the tolerance
     tightened by :data:`TIGHTER` until the error is within ``tolerance`` (at most :data:`CHECK_STEPS` times) — the
     data's error is not this scene's (the as-tested machine at 300 rpm: 1.5e-5 with the nominal machine's setting).
-    Fixed-step settings are checked, not changed. (options, what the check found, in words)."""
+    Fixed-step settings are checked, not changed. (options, what the check found in words, whether ``tolerance`` is
+    met — None: not checked, the problem cannot be run there); ``measures``: as :func:`_measure` keeps them."""
     try:
-        error_of, named = _measure(scene, method)
+        error_of, named = _measure(scene, method, measures)
         tried = dict(options)
         for step in range(CHECK_STEPS + 1):
             error = error_of(tried)
@@ -109,16 +124,16 @@ def _check(scene: Scene, method: str, options: dict[str, float],
             if step < CHECK_STEPS:
                 tried = {k: v * TIGHTER if k in ("rtol", "atol") else v for k, v in tried.items()}
     except (SceneError, SolverDivergence, ValueError) as exc:
-        return options, f"not checked at this operating point ({' '.join(str(exc).split())[:160]})"
+        return options, f"not checked at this operating point ({' '.join(str(exc).split())[:160]})", None
     setting = " ".join(f"{k}={v:.3g}" for k, v in tried.items() if k != "atol")
     of = f" (in e{named})" if named else ""
     if error <= tolerance:
         if tried == options:
-            return options, f"checked at this operating point: error {error:.1e}{of}"
+            return options, f"checked at this operating point: error {error:.1e}{of}", True
         return tried, (f"at this operating point that setting misses {tolerance:g}{of}: tightened to {setting}, "
-                       f"error {error:.1e}")
+                       f"error {error:.1e}"), True
     return tried, (f"at this operating point no setting down to {setting} reaches {tolerance:g}{of} (error "
-                   f"{error:.1e}): the run is less accurate than the scene asks")
+                   f"{error:.1e}): the run is less accurate than the scene asks"), False
 
 
 class _Answers:

@@ -104,22 +104,23 @@ class RunClock(can.BusABC):
         if getattr(bus, "recv_blocks", None) is not None:
             self.recv_blocks = self._recv_blocks      # whole blocks from a bus that gives them (drain_block)
 
+    def _of_the_run(self, block: FrameBlock) -> FrameBlock | None:
+        """``block``'s frames of the run, in device time: none before the frame that starts it (idle traffic, answers
+        to idle commands too), which sets the origin."""
+        if self.origin is None:
+            first = next((i for i in range(len(block)) if starts_run(block.message(i))), None) \
+                if self._commanded else None
+            if first is None:
+                return None
+            self.origin = float(math.floor(block.timestamp[first]))
+            block = block.take(slice(first, None))
+        return dataclasses.replace(block, timestamp=np.round((block.timestamp - self.origin) * 1e6) / 1e6)
+
     def _recv_blocks(self, timeout: float | None = 0.0) -> list[FrameBlock]:
-        """What ``bus.recv_blocks`` gives, as :meth:`_recv_internal` gives it frame by frame: the run's frames only,
-        in device time."""
-        out = []
-        for block in self._bus.recv_blocks(timeout):
-            if not isinstance(block, FrameBlock):
-                block = FrameBlock.of_messages([block])
-            if self.origin is None:
-                first = next((i for i in range(len(block)) if starts_run(block.message(i))), None) \
-                    if self._commanded else None
-                if first is None:
-                    continue                     # idle traffic (answers to idle commands too): not the run
-                self.origin = float(math.floor(block.timestamp[first]))
-                block = block.take(slice(first, None))
-            out.append(dataclasses.replace(block, timestamp=np.round((block.timestamp - self.origin) * 1e6) / 1e6))
-        return out
+        """What ``bus.recv_blocks`` gives, as :meth:`_recv_internal` gives it frame by frame (:meth:`_of_the_run`)."""
+        kept = (self._of_the_run(b if isinstance(b, FrameBlock) else FrameBlock.of_messages([b]))
+                for b in self._bus.recv_blocks(timeout))
+        return [b for b in kept if b is not None]
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self._commanded = True
@@ -127,13 +128,10 @@ class RunClock(can.BusABC):
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         msg = self._bus.recv(timeout)
-        if msg is None:
+        kept = None if msg is None else self._of_the_run(FrameBlock.of_messages([msg]))
+        if kept is None:
             return None, False
-        if self.origin is None:
-            if not (self._commanded and starts_run(msg)):
-                return None, False               # idle traffic (answers to idle commands too): not the run
-            self.origin = float(math.floor(msg.timestamp))
-        msg.timestamp = round((msg.timestamp - self.origin) * 1e6) / 1e6
+        msg.timestamp = float(kept.timestamp[0])
         return msg, False
 
     @property

@@ -290,7 +290,7 @@ def test_a_fixed_step_setting_is_checked_not_changed():
     (it built that reference with the method under test: RK4 with an rtol, a TypeError)."""
     from rig.bench.setting_check import _check
     scene = load_scene(ROOT / "data" / "scenes" / "pin_insertion.toml")
-    options, said = _check(scene, "rk4", {"h": 2e-5}, 1e-6)
+    options, said, _ = _check(scene, "rk4", {"h": 2e-5}, 1e-6)
     assert options == {"h": 2e-5} and said.startswith("checked at this operating point: error ")
 
 
